@@ -1,0 +1,3 @@
+"""Rerun recordings of replayed trajectories (all Rerun code of the project lives here)."""
+
+from __future__ import annotations

@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# Set up everything the project needs on a fresh machine: a virtualenv in .venv with the package
+# (and, with --dev, the test tools), plus the software Vulkan driver the headless Rerun viewer needs.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+PYTHON=${PYTHON:-python3}
+if [ ! -x .venv/bin/python ]; then
+  "$PYTHON" -m venv .venv
+fi
+.venv/bin/python -m pip install --quiet --upgrade pip
+extras=""
+if [ "${1:-}" = "--dev" ]; then extras="[dev]"; fi
+# torch/torchvision: the registry's matching pair (see README, "Why this torch").
+.venv/bin/python -m pip install --quiet -e ".${extras}"
+# The Rerun viewer renders headless only with Mesa's software Vulkan driver (lavapipe).
+if ! ldconfig -p 2>/dev/null | grep -q libvulkan.so.1 || [ ! -e /usr/share/vulkan/icd.d/lvp_icd.x86_64.json ]; then
+  if [ "$(id -u)" = "0" ] && command -v apt-get >/dev/null; then
+    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
+      mesa-vulkan-drivers libvulkan1 >/dev/null) || echo "warning: could not install mesa-vulkan-drivers; viewer screenshots will be skipped" >&2
+  else
+    echo "note: install mesa-vulkan-drivers and libvulkan1 to render recordings headless" >&2
+  fi
+fi

@@ -1,0 +1,129 @@
+"""The `robofailring` command line: thin typer verbs over the library."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+
+from robofailring.errors import RoboFailRingError
+
+app = typer.Typer(
+    name="robofailring",
+    help="Retrieval-based robot failure detection (RoboFailRing) and its Rerun recordings.",
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    add_completion=False,
+)
+
+EncoderOption = Annotated[
+    str,
+    typer.Option(
+        "--encoder",
+        help="`pixels` (weight-free) or `open_clip:<model>[:<pretrained tag or checkpoint path>]`.",
+    ),
+]
+CacheOption = Annotated[
+    Path | None, typer.Option("--cache-dir", help="Embedding cache folder (default ~/.cache/robofailring).")
+]
+DeviceOption = Annotated[
+    str | None, typer.Option("--device", help="torch device (default: cuda if available).")
+]
+
+
+def _fail(error: Exception) -> None:
+    typer.secho(f"error: {error}", fg=typer.colors.RED, err=True)
+    raise typer.Exit(code=2)
+
+
+@app.command("build-memory")
+def build_memory_cmd(
+    data: Annotated[Path, typer.Argument(help="Dataset root (AHA, ManiSkill-failgen or project layout).")],
+    out: Annotated[Path, typer.Option("--out", help="Memory directory to write.")],
+    encoder: EncoderOption = "pixels",
+    split: Annotated[str | None, typer.Option(help="Only this split (project layout).")] = None,
+    cache_dir: CacheOption = None,
+    device: DeviceOption = None,
+) -> None:
+    """Build a failure memory (Algorithm 1) from the failure trajectories of DATA."""
+    from robofailring.pipeline import BuildMemoryConfig, build_memory
+
+    try:
+        memory, stats = build_memory(
+            BuildMemoryConfig(
+                data=data, encoder=encoder, out=out, split=split, cache_dir=cache_dir, device=device
+            )
+        )
+    except RoboFailRingError as error:
+        _fail(error)
+    typer.echo(
+        f"memory {out}: {len(memory)} entries ({memory.dim}-d, encoder {memory.encoder}) from "
+        f"{stats.failures} failure trajectories over {len(memory.tasks)} tasks; "
+        f"{stats.ignored_non_failures} non-failures ignored, {len(stats.skipped_views)} views skipped (< 2 frames)"
+    )
+    for skipped in stats.skipped_views[:10]:
+        typer.echo(f"  skipped {skipped['trajectory']} view {skipped['view']}: {skipped['frames']} frame(s)")
+
+
+@app.command("detect")
+def detect_cmd(
+    trajectory: Annotated[Path, typer.Argument(help="One episode folder.")],
+    memory: Annotated[Path, typer.Option("--memory", help="Memory directory.")],
+    delta: Annotated[
+        float | None, typer.Option(help="Threshold δ (default: the memory's calibrated δ, else 0.92).")
+    ] = None,
+    k: Annotated[int, typer.Option(help="Neighbours retrieved per query.")] = 5,
+    task: Annotated[str | None, typer.Option(help="Task name, when the folder name does not say.")] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print the full trace as one JSON object.")] = False,
+    encoder: Annotated[str | None, typer.Option(help="Encoder spec (default: the memory's).")] = None,
+    cache_dir: CacheOption = None,
+    device: DeviceOption = None,
+) -> None:
+    """Replay one trajectory through the detector and say if and when it fires."""
+    from robofailring.pipeline import DetectConfig, detect
+
+    try:
+        trace = detect(
+            DetectConfig(
+                trajectory=trajectory,
+                memory=memory,
+                delta=delta,
+                k=k,
+                task=task,
+                encoder=encoder,
+                cache_dir=cache_dir,
+                device=device,
+            )
+        )
+    except RoboFailRingError as error:
+        _fail(error)
+    if as_json:
+        json.dump(trace.to_dict(), sys.stdout)
+        sys.stdout.write("\n")
+        return
+    typer.echo(f"task {trace.task}, L = {trace.length} frames, δ = {trace.delta:.3f}, K = {trace.k}")
+    for view in trace.views:
+        typer.echo(f"  {view:>10}: max S_t = {float(np.nanmax(trace.similarity[view])):.3f}")
+    if trace.t_det is None:
+        typer.echo("no failure detected")
+    else:
+        fired_view = trace.detected_view
+        assert fired_view is not None
+        top = trace.neighbors(fired_view, trace.t_det)[0]
+        typer.echo(
+            f"FAILURE detected at frame {trace.t_det}/{trace.length} in view {fired_view} "
+            f"(S_t = {top.similarity:.3f}); nearest memory entry {top.entry.task}/{top.entry.episode} "
+            f"[{top.entry.view}] {top.entry.symbol}: {top.entry.description}"
+        )
+
+
+def main() -> None:
+    app()
+
+
+if __name__ == "__main__":
+    main()

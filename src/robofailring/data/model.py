@@ -1,0 +1,123 @@
+"""The data model: trajectories of multi-view RGB frames, decoded lazily."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from enum import Enum
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+
+from robofailring.data.images import as_rgb, content_digest, read_image
+
+
+class Outcome(str, Enum):
+    """Outcome of a trajectory as decided by the data source (the simulator's goal check)."""
+
+    SUCCESS = "success"
+    FAILURE = "failure"
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One camera image: a file decoded on demand, or an in-memory array (live robot)."""
+
+    path: Path | None = None
+    array: np.ndarray | None = field(default=None, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        if (self.path is None) == (self.array is None):
+            raise ValueError("a Frame holds exactly one of path or array")
+
+    @classmethod
+    def from_array(cls, image: np.ndarray) -> Frame:
+        return cls(array=as_rgb(image))
+
+    def load(self) -> np.ndarray:
+        """The image as (H, W, 3) uint8 RGB."""
+        if self.array is not None:
+            return self.array
+        assert self.path is not None
+        return read_image(self.path)
+
+    def read_bytes(self) -> bytes | None:
+        """The encoded file content, or None for an in-memory frame."""
+        if self.path is None:
+            return None
+        from robofailring.errors import DataError
+
+        try:
+            return self.path.read_bytes()
+        except OSError as error:
+            raise DataError(f"cannot read image {self.path}: {error.strerror or error}") from error
+
+    def content_key(self) -> str:
+        """A digest of the image content (file bytes, or array shape and bytes)."""
+        data = self.read_bytes()
+        if data is None:
+            assert self.array is not None
+            data = str(self.array.shape).encode() + self.array.tobytes()
+        return content_digest(data)
+
+    @property
+    def reference(self) -> str:
+        """A printable reference to the frame (its path, or '<array>')."""
+        return str(self.path) if self.path is not None else "<array>"
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """A replayable episode: task, label and per-view ordered frames.
+
+    `symbol` is the FailGen failure symbol (e.g. ``rotation_x_wp1``) or None for a success or an
+    unlabelled trajectory; `outcome` is None when the source does not say.
+    """
+
+    task: str
+    episode: str
+    views: Mapping[str, Sequence[Frame]]
+    symbol: str | None = None
+    outcome: Outcome | None = None
+    source: Path | None = None
+    fps: float | None = None
+    split: str | None = None
+
+    @property
+    def key(self) -> str:
+        """Unique id of the trajectory inside its dataset: ``<task>/<episode>``."""
+        return f"{self.task}/{self.episode}"
+
+    @cached_property
+    def length(self) -> int:
+        """L: the number of synchronised frames (the shortest view bounds it)."""
+        counts = [len(frames) for frames in self.views.values()]
+        return min(counts) if counts else 0
+
+    @property
+    def view_names(self) -> list[str]:
+        return list(self.views)
+
+    @property
+    def is_failure(self) -> bool:
+        return self.outcome is Outcome.FAILURE
+
+    @property
+    def label(self) -> str:
+        """A printable label: the symbol, or the outcome when there is none."""
+        if self.symbol:
+            return self.symbol
+        return self.outcome.value if self.outcome is not None else "unlabelled"
+
+
+def frames_from_files(paths: Sequence[Path]) -> tuple[Frame, ...]:
+    return tuple(Frame(path=Path(path)) for path in paths)
+
+
+def load_frames(frames: Sequence[Frame]) -> list[np.ndarray]:
+    """Decode a list of frames (for short lists: start/end images, tests)."""
+    return [frame.load() for frame in frames]
+
+
+__all__ = ["Frame", "Outcome", "Trajectory", "frames_from_files", "load_frames", "read_image"]

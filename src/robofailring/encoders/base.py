@@ -1,0 +1,34 @@
+"""The encoder interface shared by the weight-free and the CLIP encoders."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+
+@runtime_checkable
+class Encoder(Protocol):
+    """Maps RGB images to L2-normalised float32 embeddings.
+
+    `identity` names the model and its weights; a memory built with one identity can only be
+    queried with the same identity.
+    """
+
+    @property
+    def identity(self) -> str: ...
+
+    @property
+    def dim(self) -> int: ...
+
+    def encode(self, images: Sequence[np.ndarray]) -> np.ndarray:
+        """Encode (H, W, 3) uint8 RGB images to an (N, dim) float32 array of unit rows."""
+        ...
+
+
+def l2_normalize(vectors: np.ndarray, *, axis: int = -1) -> np.ndarray:
+    """Row-wise L2 normalisation in float32; zero rows stay zero."""
+    vectors = np.asarray(vectors, dtype=np.float32)
+    norms = np.linalg.norm(vectors, axis=axis, keepdims=True)
+    return (vectors / np.maximum(norms, 1e-12)).astype(np.float32, copy=False)

@@ -1,0 +1,177 @@
+"""The real open_clip path: a model by name plus a pretrained tag or a local checkpoint file."""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from robofailring.encoders.base import l2_normalize
+from robofailring.errors import EncoderError
+
+_HOW_TO_PROVIDE = (
+    "No weights can be downloaded on this machine. Provide them in one of two ways: "
+    '(1) on a machine with internet, run `python -c "import open_clip; '
+    "open_clip.create_model_and_transforms('{model}', pretrained='{tag}')\"` and copy the Hugging Face "
+    "cache (~/.cache/huggingface) here, or set HF_HUB_CACHE to a folder that holds it; "
+    "(2) pass a local checkpoint file: `open_clip:{model}:/path/to/checkpoint.pt` "
+    "(a state_dict saved with torch.save, or an open_clip .bin/.safetensors file)."
+)
+
+
+def _file_digest(path: Path) -> str:
+    digest = hashlib.blake2b(digest_size=8)
+    with path.open("rb") as handle:
+        for block in iter(lambda: handle.read(1 << 22), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def _resolve_model_name(model: str) -> str:
+    """A model name, or a path to an open_clip model-config JSON that is registered first."""
+    import open_clip
+
+    candidate = Path(model)
+    if candidate.suffix == ".json":
+        if not candidate.is_file():
+            raise EncoderError(f"open_clip model config {candidate} does not exist")
+        try:
+            json.loads(candidate.read_text())
+        except (OSError, json.JSONDecodeError) as error:
+            raise EncoderError(f"open_clip model config {candidate} is not valid JSON: {error}") from error
+        open_clip.add_model_config(candidate)
+        return candidate.stem
+    if model not in open_clip.list_models():
+        raise EncoderError(
+            f"unknown open_clip model {model!r}; known models include "
+            f"{', '.join(m for m in open_clip.list_models() if m.startswith('ViT-'))[:400]}…"
+        )
+    return model
+
+
+def _hub_reachable(host: str = "huggingface.co", timeout: float = 3.0) -> bool:
+    """Whether the model hub's name resolves (no network here: fail fast instead of retrying)."""
+    import concurrent.futures
+    import socket
+
+    pool = concurrent.futures.ThreadPoolExecutor(max_workers=1)
+    try:
+        pool.submit(socket.getaddrinfo, host, 443).result(timeout=timeout)
+        return True
+    except Exception:
+        return False
+    finally:
+        pool.shutdown(wait=False)
+
+
+@contextlib.contextmanager
+def _offline_unless_reachable() -> Iterator[None]:
+    """Let open_clip use only the local Hugging Face cache when the hub cannot be reached."""
+    try:
+        import huggingface_hub.constants as hub_constants
+    except ImportError:
+        yield
+        return
+    previous = hub_constants.HF_HUB_OFFLINE
+    if not previous and not _hub_reachable():
+        hub_constants.HF_HUB_OFFLINE = True
+    try:
+        yield
+    finally:
+        hub_constants.HF_HUB_OFFLINE = previous
+
+
+def pick_device(device: str | None = None) -> str:
+    """`cuda` when available (or as asked), else `cpu`."""
+    import torch
+
+    if device:
+        return device
+    return "cuda" if torch.cuda.is_available() else "cpu"
+
+
+class OpenClipEncoder:
+    """An open_clip image tower, batched, on CUDA when available."""
+
+    def __init__(self, model: str, weights: str, *, device: str | None = None, batch_size: int = 64) -> None:
+        import open_clip
+        import torch
+
+        if not weights:
+            raise EncoderError(
+                f"open_clip:{model} needs weights: a pretrained tag or a checkpoint file. "
+                + _HOW_TO_PROVIDE.format(model=model, tag="openai")
+            )
+        model_name = _resolve_model_name(model)
+        weights_path = Path(weights).expanduser()
+        is_file = (
+            weights_path.suffix in {".pt", ".pth", ".bin", ".safetensors", ".ckpt"} or weights_path.exists()
+        )
+        if is_file and not weights_path.is_file():
+            raise EncoderError(
+                f"checkpoint file {weights_path} does not exist. "
+                + _HOW_TO_PROVIDE.format(model=model_name, tag="openai")
+            )
+        if not is_file and weights not in open_clip.list_pretrained_tags_by_model(model_name):
+            tags = open_clip.list_pretrained_tags_by_model(model_name)
+            raise EncoderError(
+                f"{weights!r} is neither a checkpoint file nor a pretrained tag of {model_name}; "
+                f"its tags are {tags}"
+            )
+        self._device = pick_device(device)
+        self._batch_size = batch_size
+        try:
+            with _offline_unless_reachable():
+                created: Any = open_clip.create_model_and_transforms(
+                    model_name, pretrained=str(weights_path) if is_file else weights, device=self._device
+                )
+        except Exception as error:  # open_clip raises many types when weights are missing
+            if is_file:
+                raise EncoderError(
+                    f"cannot load checkpoint {weights_path} into open_clip model {model_name}: {error}"
+                ) from error
+            raise EncoderError(
+                f"weights for open_clip:{model_name}:{weights} are not available here ({type(error).__name__}). "
+                + _HOW_TO_PROVIDE.format(model=model_name, tag=weights)
+            ) from error
+        self.model, _, self.preprocess = created
+        self.model.eval()
+        weights_id = f"file-{_file_digest(weights_path)}" if is_file else weights
+        self._identity = f"open_clip:{model_name}:{weights_id}"
+        with torch.inference_mode():
+            self._dim = int(self.model.visual.output_dim)
+        self._torch = torch
+
+    @property
+    def identity(self) -> str:
+        return self._identity
+
+    @property
+    def dim(self) -> int:
+        return self._dim
+
+    @property
+    def device(self) -> str:
+        return self._device
+
+    def preprocess_batch(self, images: Sequence[np.ndarray]) -> Any:
+        """open_clip's own preprocessing (resize, centre crop, normalise) stacked into one tensor."""
+        from PIL import Image
+
+        return self._torch.stack([self.preprocess(Image.fromarray(image)) for image in images])
+
+    def encode(self, images: Sequence[np.ndarray]) -> np.ndarray:
+        if len(images) == 0:
+            return np.zeros((0, self._dim), dtype=np.float32)
+        outputs = []
+        with self._torch.inference_mode():
+            for start in range(0, len(images), self._batch_size):
+                batch = self.preprocess_batch(images[start : start + self._batch_size]).to(self._device)
+                features = self.model.encode_image(batch)
+                outputs.append(features.float().cpu().numpy())
+        return l2_normalize(np.concatenate(outputs))

@@ -1,0 +1,31 @@
+"""The project's exception types: every user-facing error names the file or value at fault."""
+
+from __future__ import annotations
+
+
+class RoboFailRingError(Exception):
+    """Base class of every error the library raises on purpose."""
+
+
+class DataError(RoboFailRingError):
+    """A dataset, trajectory or image could not be read or does not match a known layout."""
+
+
+class SymbolError(RoboFailRingError):
+    """A failure symbol has a token outside the grounding vocabulary (paper Table 5)."""
+
+
+class EncoderError(RoboFailRingError):
+    """An encoder spec is malformed or its weights are not available."""
+
+
+class MemoryFormatError(RoboFailRingError):
+    """A failure-memory directory is missing, corrupt, or of another format version."""
+
+
+class EncoderMismatchError(RoboFailRingError):
+    """A memory is queried with an encoder other than the one that built it."""
+
+
+class UnknownTaskError(RoboFailRingError):
+    """A query names a task that has no entry in the memory."""

@@ -1,0 +1,125 @@
+"""Neuro-symbolic grounding G (paper Appendix C, Table 5): failure symbol -> sentence."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import Final
+
+from robofailring.errors import SymbolError
+
+#: (a) Error-type grounding, Table 5. ManiSkill-failgen spells translation/rotation `trans`/`rot`.
+ERROR_TYPES: Final[dict[str, str]] = {
+    "rotation": "incorrect gripper rotation",
+    "no_rotation": "gripper translates to the correct pose but fails to rotate",
+    "translation": "positional deviation of the end-effector",
+    "slip": "object slippage from the gripper",
+    "grasp": "gripper reaches target pose but fails to close",
+    "wrong_sequence": "robot executes actions in an incorrect order",
+    "wrong_object": "robot operates on an unintended object",
+}
+ERROR_ALIASES: Final[dict[str, str]] = {
+    "trans": "translation",
+    "rot": "rotation",
+    "no_grasp": "grasp",
+}
+#: Error types that take an axis token.
+AXIAL_TYPES: Final[frozenset[str]] = frozenset({"rotation", "translation"})
+#: (b) Axis grounding.
+AXES: Final[dict[str, str]] = {"x": "along the X-axis", "y": "along the Y-axis", "z": "along the Z-axis"}
+#: (c) Execution-stage grounding.
+STAGES: Final[dict[int, str]] = {
+    1: "initial stage (Waypoint 1)",
+    2: "interaction / grasping stage (Waypoint 2)",
+    3: "manipulation / movement stage (Waypoint 3)",
+    4: "near-goal placement stage (Waypoint 4)",
+    5: "final completion / retraction stage (Waypoint 5)",
+}
+
+_STAGE_TOKEN = re.compile(r"^(?:wp|stage|s)?(\d+)$")
+_EPISODE_TOKEN = re.compile(r"^episode\d*$")
+
+
+@dataclass(frozen=True)
+class ParsedSymbol:
+    """A failure symbol split into its Table 5 parts."""
+
+    error_type: str
+    axis: str | None
+    stage: int | None
+
+    @property
+    def canonical(self) -> str:
+        """The symbol in FailGen spelling, e.g. ``translation_x_wp2``."""
+        parts = [self.error_type]
+        if self.axis:
+            parts.append(self.axis)
+        if self.stage is not None:
+            parts.append(f"wp{self.stage}")
+        return "_".join(parts)
+
+
+def _vocabulary() -> str:
+    errors = sorted([*ERROR_TYPES, *ERROR_ALIASES])
+    return (
+        f"error types {errors}, axes {sorted(AXES)} (after rotation/translation), "
+        f"stages wp1..wp5 (also stage<N> or <N>), and an ignored episode<N>"
+    )
+
+
+def parse_symbol(symbol: str) -> ParsedSymbol:
+    """Split a FailGen or ManiSkill-failgen symbol; raise SymbolError naming any unknown token."""
+    tokens = [token for token in symbol.strip().lower().split("_") if token]
+    if not tokens:
+        raise SymbolError(f"empty failure symbol {symbol!r}; the vocabulary is {_vocabulary()}")
+    tokens = [token for token in tokens if not _EPISODE_TOKEN.match(token)]
+    error_type: str | None = None
+    for width in (2, 1):
+        head = "_".join(tokens[:width])
+        if len(tokens) >= width and (head in ERROR_TYPES or head in ERROR_ALIASES):
+            error_type = ERROR_ALIASES.get(head, head)
+            tokens = tokens[width:]
+            break
+    if error_type is None:
+        raise SymbolError(
+            f"unknown failure token {tokens[0]!r} in symbol {symbol!r}; the vocabulary is {_vocabulary()}"
+        )
+    axis: str | None = None
+    if tokens and tokens[0] in AXES:
+        if error_type not in AXIAL_TYPES:
+            raise SymbolError(f"axis token {tokens[0]!r} in symbol {symbol!r}: {error_type} takes no axis")
+        axis = tokens.pop(0)
+    stage: int | None = None
+    if tokens:
+        match = _STAGE_TOKEN.match(tokens[0])
+        if match is None or int(match.group(1)) not in STAGES:
+            raise SymbolError(
+                f"unknown stage token {tokens[0]!r} in symbol {symbol!r}; the vocabulary is {_vocabulary()}"
+            )
+        stage = int(match.group(1))
+        tokens.pop(0)
+    if tokens:
+        raise SymbolError(
+            f"unexpected token {tokens[0]!r} in symbol {symbol!r}; the vocabulary is {_vocabulary()}"
+        )
+    return ParsedSymbol(error_type=error_type, axis=axis, stage=stage)
+
+
+def ground(symbol: str) -> str:
+    """G(y_sym): the deterministic sentence for a failure symbol.
+
+    >>> ground("rotation_x_wp1")
+    'The failure was caused by incorrect gripper rotation along the X-axis at the initial stage (Waypoint 1)'
+    """
+    parsed = parse_symbol(symbol)
+    sentence = f"The failure was caused by {ERROR_TYPES[parsed.error_type]}"
+    if parsed.axis:
+        sentence += f" {AXES[parsed.axis]}"
+    if parsed.stage is not None:
+        sentence += f" at the {STAGES[parsed.stage]}"
+    return sentence
+
+
+def failure_type(symbol: str | None) -> str:
+    """The error type of a symbol (``rotation``, ``grasp``, …); ``success`` for None."""
+    return "success" if symbol is None else parse_symbol(symbol).error_type

@@ -1,0 +1,347 @@
+"""The failure memory (paper §3.2, Algorithm 1): start‖end vectors per failure view, in Faiss."""
+
+from __future__ import annotations
+
+import json
+import math
+from collections import Counter
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import asdict, dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any, Final
+
+import faiss
+import numpy as np
+
+from robofailring._atomic import atomic_directory, write_text_atomic
+from robofailring.data.model import Frame, Outcome, Trajectory
+from robofailring.encoders.base import l2_normalize
+from robofailring.encoders.cache import CachedEncoder
+from robofailring.errors import (
+    EncoderMismatchError,
+    MemoryFormatError,
+    SymbolError,
+    UnknownTaskError,
+)
+from robofailring.grounding import ground, parse_symbol
+
+FORMAT_VERSION: Final[int] = 1
+MANIFEST: Final[str] = "manifest.json"
+INDEX: Final[str] = "index.faiss"
+ENTRIES: Final[str] = "entries.jsonl"
+
+
+def pair_vectors(start: np.ndarray, end: np.ndarray) -> np.ndarray:
+    """Eq. 2–4: ``norm([norm f(I_s) ‖ norm f(I_e)])`` row-wise, for (N, d) inputs -> (N, 2d)."""
+    start = l2_normalize(np.atleast_2d(start))
+    end = l2_normalize(np.atleast_2d(end))
+    return l2_normalize(np.concatenate([start, end], axis=1))
+
+
+@dataclass(frozen=True)
+class MemoryEntry:
+    """Grounded metadata of one memory vector (one view of one failure trajectory)."""
+
+    task: str
+    symbol: str
+    episode: str
+    view: str
+    start: str
+    end: str
+
+    @property
+    def description(self) -> str:
+        """G(symbol), the grounded sentence."""
+        return ground(self.symbol)
+
+
+@dataclass(frozen=True)
+class Neighbor:
+    """One retrieved memory entry with its cosine similarity to the query."""
+
+    index: int
+    similarity: float
+    entry: MemoryEntry
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"index": self.index, "similarity": round(self.similarity, 6), **asdict(self.entry)}
+
+
+@dataclass
+class BuildStats:
+    """What building a memory took in and left out (SPEC §7: skipped, counted, reported)."""
+
+    trajectories: int = 0
+    failures: int = 0
+    ignored_non_failures: int = 0
+    entries: int = 0
+    skipped_views: list[dict[str, Any]] = field(default_factory=list)
+
+
+class _TaskIndex:
+    """The Faiss index of one task's entries, with their global ids and episodes."""
+
+    def __init__(self, vectors: np.ndarray, ids: np.ndarray, episodes: Sequence[str]) -> None:
+        self.index = faiss.IndexFlatIP(vectors.shape[1])
+        self.index.add(np.ascontiguousarray(vectors, dtype=np.float32))
+        self.ids = ids
+        self.episode_counts = Counter(episodes)
+
+
+class FailureMemory:
+    """Memory vectors plus metadata, searchable top-K within one task."""
+
+    def __init__(
+        self,
+        vectors: np.ndarray,
+        entries: Sequence[MemoryEntry],
+        *,
+        encoder: str,
+        manifest: dict[str, Any] | None = None,
+    ) -> None:
+        vectors = np.ascontiguousarray(vectors, dtype=np.float32)
+        if vectors.ndim != 2 or len(vectors) != len(entries):
+            raise MemoryFormatError(f"{len(entries)} entries but vectors of shape {vectors.shape}")
+        self.vectors = vectors
+        self.entries = list(entries)
+        self.encoder = encoder
+        self.dim = int(vectors.shape[1]) if vectors.size else int((manifest or {}).get("dim", 0))
+        self.manifest: dict[str, Any] = dict(manifest or {})
+        by_task: dict[str, list[int]] = {}
+        for i, entry in enumerate(self.entries):
+            by_task.setdefault(entry.task, []).append(i)
+        self._episodes = np.asarray([entry.episode for entry in self.entries], dtype=object)
+        self._tasks: dict[str, _TaskIndex] = {}
+        for task, members in by_task.items():
+            ids = np.asarray(members, dtype=np.int64)
+            self._tasks[task] = _TaskIndex(vectors[ids], ids, [self.entries[i].episode for i in members])
+
+    # ---------------------------------------------------------------- building
+    @classmethod
+    def build(
+        cls,
+        trajectories: Iterable[Trajectory],
+        encoder: CachedEncoder,
+        *,
+        progress: Callable[[int], None] | None = None,
+    ) -> tuple[FailureMemory, BuildStats]:
+        """Algorithm 1 over the failure trajectories; views with < 2 frames are skipped and counted.
+
+        Symbols are validated first, so an unknown token fails the build before anything is encoded.
+        """
+        stats = BuildStats()
+        pending: list[tuple[MemoryEntry, Frame, Frame]] = []
+        for trajectory in trajectories:
+            stats.trajectories += 1
+            if not _is_failure(trajectory):
+                stats.ignored_non_failures += 1
+                continue
+            stats.failures += 1
+            if not trajectory.symbol:
+                raise SymbolError(f"failure trajectory {trajectory.key} has no failure symbol")
+            try:
+                parse_symbol(trajectory.symbol)
+            except SymbolError as error:
+                raise SymbolError(f"trajectory {trajectory.key} ({trajectory.source}): {error}") from error
+            for view, frames in trajectory.views.items():
+                if len(frames) < 2:
+                    stats.skipped_views.append(
+                        {"trajectory": trajectory.key, "view": view, "frames": len(frames)}
+                    )
+                    continue
+                entry = MemoryEntry(
+                    task=trajectory.task,
+                    symbol=trajectory.symbol,
+                    episode=trajectory.episode,
+                    view=view,
+                    start=frames[0].reference,
+                    end=frames[-1].reference,
+                )
+                pending.append((entry, frames[0], frames[-1]))
+        dim = encoder.dim * 2
+        if pending:
+            frames = [frame for _, start, end in pending for frame in (start, end)]
+            embeddings = []
+            for offset in range(0, len(frames), 256):
+                chunk = frames[offset : offset + 256]
+                embeddings.append(encoder.encode_frames(chunk))
+                if progress is not None:
+                    progress(len(chunk) // 2)
+            stacked = np.concatenate(embeddings)
+            vectors = pair_vectors(stacked[0::2], stacked[1::2])
+        else:
+            vectors = np.zeros((0, dim), dtype=np.float32)
+        entries = [entry for entry, _, _ in pending]
+        stats.entries = len(entries)
+        manifest = {
+            "skipped_views": len(stats.skipped_views),
+            "skipped": stats.skipped_views,
+            "failures": stats.failures,
+            "ignored_non_failures": stats.ignored_non_failures,
+        }
+        return cls(vectors, entries, encoder=encoder.identity, manifest={"dim": dim, **manifest}), stats
+
+    # ---------------------------------------------------------------- queries
+    @property
+    def tasks(self) -> list[str]:
+        return sorted(self._tasks)
+
+    def __len__(self) -> int:
+        return len(self.entries)
+
+    def task_size(self, task: str) -> int:
+        return self._task(task).index.ntotal
+
+    def check_encoder(self, identity: str) -> None:
+        """Raise EncoderMismatchError unless `identity` is the encoder that built the memory."""
+        if identity != self.encoder:
+            raise EncoderMismatchError(
+                f"this memory was built with encoder {self.encoder!r} but is queried with {identity!r}; "
+                "rebuild the memory with the same encoder or query with the one that built it"
+            )
+
+    def _task(self, task: str) -> _TaskIndex:
+        found = self._tasks.get(task)
+        if found is None:
+            known = ", ".join(self.tasks[:20]) + (" …" if len(self.tasks) > 20 else "")
+            raise UnknownTaskError(f"task {task!r} has no entry in the memory; its tasks are: {known}")
+        return found
+
+    def search(
+        self, queries: np.ndarray, task: str, k: int, *, exclude_episode: str | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Top-`k` entries of `task` for each query row (eq. 5).
+
+        Returns (similarities, global ids), both (n, k); rows are padded with NaN and -1 when the
+        task has fewer than k usable entries. `exclude_episode` drops that episode's entries
+        (leave-one-out) by over-fetching exactly as many rows as it has.
+        """
+        queries = np.ascontiguousarray(np.atleast_2d(queries), dtype=np.float32)
+        if queries.shape[1] != self.dim:
+            raise MemoryFormatError(f"query dimension {queries.shape[1]} != memory dimension {self.dim}")
+        task_index = self._task(task)
+        excluded = task_index.episode_counts.get(exclude_episode, 0) if exclude_episode else 0
+        fetch = min(k + excluded, task_index.index.ntotal)
+        similarities = np.full((len(queries), k), np.nan, dtype=np.float32)
+        ids = np.full((len(queries), k), -1, dtype=np.int64)
+        if fetch == 0:
+            return similarities, ids
+        raw_sims, raw_local = task_index.index.search(queries, fetch)
+        raw_ids = task_index.ids[raw_local]
+        keep = np.ones(raw_ids.shape, dtype=bool)
+        if excluded:
+            keep = self._episodes[raw_ids] != exclude_episode
+        order = np.argsort(~keep, axis=1, kind="stable")[:, :k]
+        kept = np.take_along_axis(keep, order, axis=1)
+        width = order.shape[1]
+        similarities[:, :width] = np.where(kept, np.take_along_axis(raw_sims, order, axis=1), np.nan)
+        ids[:, :width] = np.where(kept, np.take_along_axis(raw_ids, order, axis=1), -1)
+        return similarities, ids
+
+    def neighbors(self, similarities: np.ndarray, ids: np.ndarray) -> list[Neighbor]:
+        """Neighbour objects for one row of a search result."""
+        return [
+            Neighbor(index=int(i), similarity=float(s), entry=self.entries[int(i)])
+            for s, i in zip(similarities, ids, strict=True)
+            if i >= 0
+        ]
+
+    # ---------------------------------------------------------------- storage
+    def save(self, directory: Path) -> Path:
+        """Write index, entries and manifest as one directory, atomically."""
+        directory = Path(directory)
+        with atomic_directory(directory) as tmp:
+            index = faiss.IndexFlatIP(self.dim)
+            if len(self.vectors):
+                index.add(self.vectors)
+            faiss.write_index(index, str(tmp / INDEX))
+            with (tmp / ENTRIES).open("w", encoding="utf-8") as handle:
+                for entry in self.entries:
+                    handle.write(json.dumps(asdict(entry)) + "\n")
+            (tmp / MANIFEST).write_text(json.dumps(self._full_manifest(), indent=2), encoding="utf-8")
+        return directory
+
+    def _full_manifest(self) -> dict[str, Any]:
+        manifest = dict(self.manifest)
+        manifest.update(
+            {
+                "format_version": FORMAT_VERSION,
+                "encoder": self.encoder,
+                "dim": self.dim,
+                "count": len(self.entries),
+                "tasks": dict(sorted(Counter(e.task for e in self.entries).items())),
+                "views": sorted({e.view for e in self.entries}),
+                "symbols": dict(sorted(Counter(e.symbol for e in self.entries).items())),
+            }
+        )
+        manifest.setdefault("created", datetime.now(timezone.utc).isoformat(timespec="seconds"))
+        return manifest
+
+    def write_manifest(self, directory: Path) -> None:
+        """Rewrite only the manifest of a saved memory (e.g. after calibration), atomically."""
+        write_text_atomic(Path(directory) / MANIFEST, json.dumps(self._full_manifest(), indent=2))
+
+    @classmethod
+    def load(cls, directory: Path) -> FailureMemory:
+        directory = Path(directory)
+        manifest_path = directory / MANIFEST
+        if not manifest_path.is_file():
+            raise MemoryFormatError(f"{directory} is not a failure memory: {MANIFEST} is missing")
+        try:
+            manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
+        except json.JSONDecodeError as error:
+            raise MemoryFormatError(f"{manifest_path} is not valid JSON: {error}") from error
+        version = manifest.get("format_version")
+        if version != FORMAT_VERSION:
+            raise MemoryFormatError(
+                f"{manifest_path}: format_version {version!r}, this version of robofailring reads {FORMAT_VERSION}"
+            )
+        for key in ("encoder", "dim", "count"):
+            if key not in manifest:
+                raise MemoryFormatError(f"{manifest_path} lacks {key!r}")
+        try:
+            index = faiss.read_index(str(directory / INDEX))
+        except RuntimeError as error:
+            raise MemoryFormatError(f"cannot read Faiss index {directory / INDEX}: {error}") from error
+        entries: list[MemoryEntry] = []
+        entries_path = directory / ENTRIES
+        try:
+            with entries_path.open(encoding="utf-8") as handle:
+                for number, line in enumerate(handle, 1):
+                    if line.strip():
+                        try:
+                            entries.append(MemoryEntry(**json.loads(line)))
+                        except (json.JSONDecodeError, TypeError) as error:
+                            raise MemoryFormatError(
+                                f"{entries_path}:{number}: bad entry ({error})"
+                            ) from error
+        except OSError as error:
+            raise MemoryFormatError(f"cannot read {entries_path}: {error}") from error
+        if (
+            index.ntotal != manifest["count"]
+            or len(entries) != manifest["count"]
+            or index.d != manifest["dim"]
+        ):
+            raise MemoryFormatError(
+                f"{directory}: manifest says {manifest['count']} entries of dim {manifest['dim']}, "
+                f"index has {index.ntotal} of dim {index.d}, {ENTRIES} has {len(entries)}"
+            )
+        vectors = index.reconstruct_n(0, index.ntotal) if index.ntotal else np.zeros((0, index.d), np.float32)
+        return cls(vectors, entries, encoder=manifest["encoder"], manifest=manifest)
+
+    # ---------------------------------------------------------------- calibration
+    @property
+    def calibrated_delta(self) -> float | None:
+        """δ stored by calibration for this memory's encoder, if any."""
+        calibration = self.manifest.get("calibration") or {}
+        if calibration.get("encoder") == self.encoder and isinstance(calibration.get("delta"), float):
+            delta = float(calibration["delta"])
+            return delta if math.isfinite(delta) else None
+        return None
+
+
+def _is_failure(trajectory: Trajectory) -> bool:
+    if trajectory.outcome is not None:
+        return trajectory.outcome is Outcome.FAILURE
+    return bool(trajectory.symbol)

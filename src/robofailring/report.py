@@ -1,0 +1,166 @@
+"""Failure report R (eq. 8) and the VLM prompt of Appendix B, as JSON, Markdown and chat messages."""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+from robofailring.memory import Neighbor
+
+SYSTEM_PROMPT = (
+    "You are an expert robotic failure analyst. Use the provided Failure Report and Reference Images "
+    "to diagnose the Current Situation."
+)
+INTRO = (
+    "Robot stopped now because the current scene is similar to the failure memory. I have retrieved a "
+    "similar historical failure case from memory. Details of Failure Report as follows:"
+)
+TASKS = (
+    "Based on this report, please reasoning why it failed and how should it be repaired? You tasks are:\n"
+    "1. Compare the Current Observation with the Reference End Frame.\n"
+    "2. Confirm if the failure mode described in the report matches the visual evidence.\n"
+    "3. Provide a reasoning for the failure cause.\n"
+    "4. Suggest a concrete repair action."
+)
+ASSISTANT_PRIMER = "Got it. Here's the analysis of the current situation:"
+
+
+@dataclass(frozen=True)
+class ReportItem:
+    """One tuple of eq. 8: (τ, G(y_sym), ω, I_start, I_end) plus the similarity and symbol."""
+
+    task: str
+    symbol: str
+    description: str
+    view: str
+    similarity: float
+    start_image: str
+    end_image: str
+
+    @classmethod
+    def from_neighbor(cls, neighbor: Neighbor) -> ReportItem:
+        entry = neighbor.entry
+        return cls(
+            task=entry.task,
+            symbol=entry.symbol,
+            description=entry.description,
+            view=entry.view,
+            similarity=neighbor.similarity,
+            start_image=entry.start,
+            end_image=entry.end,
+        )
+
+
+def _absolute(reference: str) -> str:
+    return reference if reference.startswith("<") else os.path.abspath(reference)
+
+
+@dataclass(frozen=True)
+class FailureReport:
+    """The report produced at the detection instant for the K neighbours of the firing view."""
+
+    current_task: str
+    view: str
+    t_det: int
+    similarity: float
+    items: tuple[ReportItem, ...]
+    current_image: str | None = None
+
+    @classmethod
+    def from_neighbors(
+        cls,
+        *,
+        task: str,
+        view: str,
+        t_det: int,
+        neighbors: Sequence[Neighbor],
+        current_image: str | None = None,
+    ) -> FailureReport:
+        items = tuple(ReportItem.from_neighbor(n) for n in neighbors)
+        similarity = items[0].similarity if items else float("nan")
+        return cls(task, view, t_det, similarity, items, current_image)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "current_task": self.current_task,
+            "view": self.view,
+            "t_det": self.t_det,
+            "similarity": round(self.similarity, 6),
+            "current_image": self.current_image,
+            "neighbors": [{**item.__dict__, "similarity": round(item.similarity, 6)} for item in self.items],
+        }
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), indent=2)
+
+    def vlm_messages(self) -> list[dict[str, Any]]:
+        """Appendix B as chat messages, built around the top neighbour."""
+        if not self.items:
+            return []
+        top = self.items[0]
+        report = {
+            "current_task": self.current_task,
+            "failure": top.description,
+            "view": top.view,
+            "similarity_score": f"{top.similarity:.2f}",
+        }
+        messages: list[dict[str, Any]] = [
+            {"role": "system", "content": SYSTEM_PROMPT},
+            {"role": "user", "content": f"{INTRO}\n{json.dumps(report, indent=2)}"},
+            {
+                "role": "user",
+                "content": [
+                    {
+                        "type": "text",
+                        "text": "Below are the reference images from this historical failure memory:",
+                    },
+                    {"type": "text", "text": "Reference Start Frame (Task Context):"},
+                    {"type": "image", "path": _absolute(top.start_image)},
+                    {"type": "text", "text": "Reference End Frame (Failure State):"},
+                    {"type": "image", "path": _absolute(top.end_image)},
+                ],
+            },
+        ]
+        current: list[dict[str, Any]] = [
+            {"type": "text", "text": "Now, look at the current robot observation:"},
+            {"type": "text", "text": "Current Frame:"},
+        ]
+        if self.current_image:
+            current.append({"type": "image", "path": _absolute(self.current_image)})
+        messages.append({"role": "user", "content": current})
+        messages.append({"role": "user", "content": TASKS})
+        messages.append({"role": "assistant", "content": ASSISTANT_PRIMER})
+        return messages
+
+    def to_markdown(self, *, include_prompt: bool = True) -> str:
+        lines = [
+            f"# Failure report — {self.current_task}",
+            "",
+            f"Detected at frame **{self.t_det}** in view **{self.view}** with S_t = **{self.similarity:.3f}**.",
+            "",
+            "| rank | task | view | similarity | symbol | grounded failure |",
+            "|---:|---|---|---:|---|---|",
+        ]
+        for rank, item in enumerate(self.items):
+            lines.append(
+                f"| {rank} | {item.task} | {item.view} | {item.similarity:.3f} | `{item.symbol}` | {item.description} |"
+            )
+        if include_prompt and self.items:
+            lines += ["", "## VLM prompt (Appendix B)", ""]
+            for message in self.vlm_messages():
+                content = message["content"]
+                if isinstance(content, list):
+                    content = "\n".join(
+                        part.get("text") or f"![image]({part.get('path')})" for part in content
+                    )
+                lines += [f"**{message['role']}**:", "", "```text", str(content), "```", ""]
+        return "\n".join(lines)
+
+
+class VLMClient(Protocol):
+    """A pluggable vision-language model; nothing calls one by default (there is no network here)."""
+
+    def complete(self, messages: list[dict[str, Any]]) -> str: ...

@@ -1,0 +1,75 @@
+"""Tiny synthetic datasets written as real PNG files, for tests that need frames nobody else made."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from robofailring.data.images import write_png
+
+VIEWS = ("front", "overhead", "wrist")
+TASK_COLOURS = {"pick_cube": (40, 90, 160), "push_cube": (150, 60, 40), "stack_cube": (60, 140, 60)}
+
+
+def synthetic_frame(
+    task: str, symbol: str | None, view: int, t: int, length: int, size: int = 48
+) -> np.ndarray:
+    """A small scene: task-coloured background, a square whose path depends on the failure label."""
+    base = np.array(TASK_COLOURS.get(task, (100, 100, 100)), dtype=np.float32)
+    image = np.empty((size, size, 3), dtype=np.float32)
+    gradient = np.linspace(0.6, 1.0, size, dtype=np.float32)[:, None, None]
+    image[:] = base * gradient
+    progress = t / max(length - 1, 1)
+    offset = 0 if symbol is None else (sum(map(ord, symbol)) % 5 + 2) * 3
+    row = int(8 + progress * (size - 24)) if symbol is None else int(8 + progress * offset)
+    col = int(6 + view * 10 + progress * offset) % (size - 12)
+    image[row : row + 10, col : col + 10] = (230, 220, 40)
+    return image.clip(0, 255).astype(np.uint8)
+
+
+def write_aha_dataset(
+    root: Path,
+    *,
+    tasks: tuple[str, ...] = ("pick_cube", "push_cube"),
+    symbols: tuple[str, ...] = ("grasp_wp2", "rotation_x_wp1", "wrong_object"),
+    episodes: int = 2,
+    length: int = 6,
+    views: tuple[str, ...] = VIEWS,
+) -> Path:
+    """An AHA FailGen-layout dataset of synthetic frames."""
+    for task in tasks:
+        for symbol in symbols:
+            for episode in range(episodes):
+                name = (
+                    f"{task}_wrong_object_episode{episode}"
+                    if symbol == "wrong_object"
+                    else f"{task}_{symbol.rsplit('_wp', 1)[0]}_wp{symbol.rsplit('_wp', 1)[1]}_episode{episode}"
+                )
+                folder = root / name
+                folder.mkdir(parents=True, exist_ok=True)
+                for v, view in enumerate(views):
+                    for t in range(length):
+                        frame = synthetic_frame(task, symbol, v, t + episode, length + episodes)
+                        write_png(folder / f"{view}_{t}.png", frame)
+    return root
+
+
+def write_episode(
+    folder: Path,
+    task: str,
+    symbol: str | None,
+    *,
+    length: int = 6,
+    views: tuple[str, ...] = VIEWS,
+    layout: str = "subfolders",
+    shift: int = 0,
+) -> Path:
+    """One episode, as view sub-folders of numbered PNGs (ManiSkill style) or AHA `<view>_<i>.png` files."""
+    for v, view in enumerate(views):
+        target = folder / view if layout == "subfolders" else folder
+        target.mkdir(parents=True, exist_ok=True)
+        for t in range(length):
+            name = f"{t}.png" if layout == "subfolders" else f"{view}_{t}.png"
+            write_png(target / name, synthetic_frame(task, symbol, v, t + shift, length + shift))
+    return folder

@@ -1,0 +1,86 @@
+"""The CLI verbs, run as a user would: build-memory, then detect --json."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+from synthetic import write_episode
+from typer.testing import CliRunner
+
+from robofailring.cli import app
+
+runner = CliRunner()
+
+
+def test_build_memory_then_detect_json(aha_dataset: Path, tmp_path: Path) -> None:
+    memory = tmp_path / "memory"
+    cache = tmp_path / "cache"
+    built = runner.invoke(
+        app, ["build-memory", str(aha_dataset), "--out", str(memory), "--cache-dir", str(cache)]
+    )
+    assert built.exit_code == 0, built.output
+    assert "36 entries" in built.output
+    manifest = json.loads((memory / "manifest.json").read_text())
+    assert {"format_version", "encoder", "dim", "count"} <= set(manifest) and manifest["count"] == 36
+
+    episode = write_episode(tmp_path / "pick_cube_grasp_wp2_episode9", "pick_cube", "grasp_wp2", length=6)
+    result = runner.invoke(
+        app,
+        [
+            "detect",
+            str(episode),
+            "--memory",
+            str(memory),
+            "--delta",
+            "0.5",
+            "--k",
+            "2",
+            "--json",
+            "--cache-dir",
+            str(cache),
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    trace = json.loads(result.stdout)
+    assert trace["task"] == "pick_cube" and trace["length"] == 6 and trace["delta"] == 0.5 and trace["k"] == 2
+    assert set(trace["views"]) == {"front", "overhead", "wrist"}
+    front = trace["views"]["front"]
+    assert len(front["similarity"]) == 6 and len(front["top_neighbor"]) == 6
+    assert front["top_neighbor"][0]["task"] == "pick_cube"
+    assert {"task", "symbol", "view", "episode"} <= set(front["top_neighbor"][0])
+    first_over = min(
+        (
+            t
+            for v in trace["views"].values()
+            for t, s in enumerate(v["similarity"])
+            if s is not None and s >= 0.5
+        ),
+        default=None,
+    )
+    assert trace["t_det"] == first_over
+    assert trace["detected_view"] in trace["views"]
+
+
+def test_cli_errors_are_one_clear_line(tmp_path: Path) -> None:
+    result = runner.invoke(app, ["build-memory", str(tmp_path), "--out", str(tmp_path / "m")])
+    assert result.exit_code == 2
+    assert "matches no known dataset layout" in result.output
+    result = runner.invoke(app, ["detect", str(tmp_path), "--memory", str(tmp_path / "none")])
+    assert result.exit_code == 2 and "manifest.json is missing" in result.output
+    result = runner.invoke(
+        app, ["build-memory", str(tmp_path), "--out", str(tmp_path / "m"), "--encoder", "vgg"]
+    )
+    assert result.exit_code == 2 and "unknown encoder spec 'vgg'" in result.output
+
+
+def test_console_script_is_installed() -> None:
+    result = subprocess.run(
+        [Path(sys.executable).with_name("robofailring"), "--help"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert result.returncode == 0 and "build-memory" in result.stdout

@@ -1,0 +1,166 @@
+"""Encoders: the weight-free one, the real open_clip loading path, and the embedding cache."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import pytest
+from synthetic import synthetic_frame
+
+from robofailring import CachedEncoder, Frame, load_encoder
+from robofailring.encoders.pixels import PixelEncoder
+from robofailring.errors import EncoderError
+
+TINY_CLIP = {
+    "embed_dim": 16,
+    "vision_cfg": {"image_size": 32, "layers": 1, "width": 32, "head_width": 16, "patch_size": 8},
+    "text_cfg": {"context_length": 8, "vocab_size": 64, "width": 16, "heads": 1, "layers": 1},
+}
+
+
+def _images(count: int) -> list[np.ndarray]:
+    return [
+        synthetic_frame("pick_cube", "slip_wp3" if i % 2 else None, i % 3, i, count) for i in range(count)
+    ]
+
+
+def test_pixel_encoder_is_unit_norm_512_and_deterministic() -> None:
+    images = _images(4)
+    first, second = PixelEncoder().encode(images), PixelEncoder().encode(images)
+    assert first.shape == (4, 512) and first.dtype == np.float32
+    np.testing.assert_allclose(np.linalg.norm(first, axis=1), 1.0, atol=1e-5)
+    np.testing.assert_array_equal(first, second)
+    assert load_encoder("pixels").identity == PixelEncoder().identity
+    # identical images -> similarity 1; different scenes -> clearly lower
+    assert float(first[0] @ PixelEncoder().encode([images[0]])[0]) == pytest.approx(1.0, abs=1e-5)
+    assert float(first[0] @ first[1]) < 0.95
+
+
+@pytest.fixture(scope="module")
+def tiny_checkpoint(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """A tiny random-initialised open_clip model written as a config JSON plus a torch checkpoint."""
+    import open_clip
+    import torch
+
+    folder = tmp_path_factory.mktemp("clip")
+    config = folder / "TinyViT-test.json"
+    config.write_text(json.dumps(TINY_CLIP))
+    open_clip.add_model_config(config)
+    torch.manual_seed(0)
+    model = open_clip.create_model("TinyViT-test", pretrained=None)
+    checkpoint = folder / "tiny.pt"
+    torch.save({"state_dict": model.state_dict()}, checkpoint)
+    return config, checkpoint
+
+
+def test_open_clip_checkpoint_loads_through_the_user_path(tiny_checkpoint: tuple[Path, Path]) -> None:
+    import open_clip
+    import torch
+
+    config, checkpoint = tiny_checkpoint
+    encoder = load_encoder(f"open_clip:{config}:{checkpoint}")
+    assert encoder.dim == 16
+    assert encoder.identity.startswith("open_clip:TinyViT-test:file-")
+    images = _images(5)
+    embeddings = encoder.encode(images)
+    assert embeddings.shape == (5, 16) and embeddings.dtype == np.float32
+    np.testing.assert_allclose(np.linalg.norm(embeddings, axis=1), 1.0, atol=1e-5)
+    # the same weights used directly through open_clip give the same embeddings
+    model, _, preprocess = open_clip.create_model_and_transforms("TinyViT-test", pretrained=str(checkpoint))
+    model.eval()
+    from PIL import Image
+
+    with torch.inference_mode():
+        direct = model.encode_image(torch.stack([preprocess(Image.fromarray(i)) for i in images])).numpy()
+    direct /= np.linalg.norm(direct, axis=1, keepdims=True)
+    np.testing.assert_allclose(embeddings, direct, atol=1e-5)
+    # a different checkpoint is a different identity
+    assert load_encoder(f"open_clip:{config}:{checkpoint}").identity == encoder.identity
+
+
+def test_open_clip_errors_say_how_to_provide_weights(
+    tiny_checkpoint: tuple[Path, Path], tmp_path: Path
+) -> None:
+    config, _ = tiny_checkpoint
+    with pytest.raises(EncoderError, match="needs weights"):
+        load_encoder("open_clip:ViT-B-32")
+    with pytest.raises(EncoderError, match=r"missing\.pt does not exist"):
+        load_encoder(f"open_clip:ViT-B-32:{tmp_path / 'missing.pt'}")
+    with pytest.raises(EncoderError, match="neither a checkpoint file nor a pretrained tag"):
+        load_encoder("open_clip:ViT-B-32:no-such-tag")
+    with pytest.raises(EncoderError, match="unknown open_clip model"):
+        load_encoder("open_clip:ViT-Q-99:openai")
+    with pytest.raises(EncoderError, match="unknown encoder spec"):
+        load_encoder("resnet")
+    wrong = tmp_path / "wrong.pt"
+    wrong.write_bytes(b"garbage")
+    with pytest.raises(EncoderError, match="cannot load checkpoint"):
+        load_encoder(f"open_clip:{config}:{wrong}")
+
+
+class CountingEncoder:
+    """Wraps an encoder and counts the images it is asked to encode."""
+
+    def __init__(self) -> None:
+        self.inner = PixelEncoder()
+        self.encoded = 0
+
+    @property
+    def identity(self) -> str:
+        return self.inner.identity
+
+    @property
+    def dim(self) -> int:
+        return self.inner.dim
+
+    def encode(self, images: Sequence[np.ndarray]) -> np.ndarray:
+        self.encoded += len(images)
+        return self.inner.encode(images)
+
+
+def test_cache_second_pass_encodes_nothing(tmp_path: Path, cache_dir: Path) -> None:
+    from robofailring.data.images import write_png
+
+    paths = []
+    for i, image in enumerate(_images(6)):
+        write_png(tmp_path / f"{i}.png", image)
+        paths.append(tmp_path / f"{i}.png")
+    frames = [Frame(path=p) for p in paths]
+    counting = CountingEncoder()
+    first = CachedEncoder(counting, cache_dir=cache_dir).encode_frames(frames)
+    assert counting.encoded == 6
+    again = CachedEncoder(counting, cache_dir=cache_dir)  # a new process would open the same file
+    second = again.encode_frames(frames + frames[:2])
+    assert counting.encoded == 6 and again.hits == 8
+    np.testing.assert_array_equal(second[:6], first)
+    # content, not path, is the key: a copy of an image hits the cache
+    (tmp_path / "copy.png").write_bytes(paths[0].read_bytes())
+    again.encode_frames([Frame(path=tmp_path / "copy.png")])
+    assert counting.encoded == 6
+
+
+def test_pretrained_tag_without_network_fails_fast_with_instructions() -> None:
+    with pytest.raises(EncoderError, match="not available here") as error:
+        load_encoder("open_clip:ViT-B-32:openai")
+    assert "open_clip:ViT-B-32:/path/to/checkpoint.pt" in str(error.value)
+
+
+def test_cache_notices_a_rewritten_file(tmp_path: Path, cache_dir: Path) -> None:
+    from robofailring.data.images import write_png
+
+    path = tmp_path / "frame.png"
+    images = _images(2)
+    write_png(path, images[0])
+    counting = CountingEncoder()
+    first = CachedEncoder(counting, cache_dir=cache_dir).encode_frames([Frame(path=path)])
+    write_png(path, images[1])
+    import os
+
+    os.utime(path, ns=(1, 1))  # a different mtime, as any real rewrite has
+    second = CachedEncoder(counting, cache_dir=cache_dir).encode_frames([Frame(path=path)])
+    assert counting.encoded == 2
+    np.testing.assert_array_equal(second[0], PixelEncoder().encode([images[1]])[0])
+    assert not np.array_equal(first, second)

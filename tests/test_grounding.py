@@ -1,0 +1,79 @@
+"""Grounding G must reproduce paper Table 5 exactly and reject unknown tokens."""
+
+from __future__ import annotations
+
+import pytest
+
+import robofailring
+from robofailring.errors import SymbolError
+from robofailring.grounding import failure_type, parse_symbol
+
+PREFIX = "The failure was caused by "
+
+
+def test_paper_example() -> None:
+    assert robofailring.ground("rotation_x_wp1") == (
+        "The failure was caused by incorrect gripper rotation along the X-axis at the initial stage (Waypoint 1)"
+    )
+
+
+@pytest.mark.parametrize(
+    ("token", "sentence"),
+    [
+        ("rotation_y", "incorrect gripper rotation along the Y-axis"),
+        ("no_rotation", "gripper translates to the correct pose but fails to rotate"),
+        ("translation_z", "positional deviation of the end-effector along the Z-axis"),
+        ("slip", "object slippage from the gripper"),
+        ("grasp", "gripper reaches target pose but fails to close"),
+        ("wrong_sequence", "robot executes actions in an incorrect order"),
+        ("wrong_object", "robot operates on an unintended object"),
+    ],
+)
+def test_error_type_rows(token: str, sentence: str) -> None:
+    assert robofailring.ground(token) == PREFIX + sentence
+
+
+@pytest.mark.parametrize(
+    ("stage", "words"),
+    [
+        (1, "initial stage (Waypoint 1)"),
+        (2, "interaction / grasping stage (Waypoint 2)"),
+        (3, "manipulation / movement stage (Waypoint 3)"),
+        (4, "near-goal placement stage (Waypoint 4)"),
+        (5, "final completion / retraction stage (Waypoint 5)"),
+    ],
+)
+def test_stage_rows(stage: int, words: str) -> None:
+    assert (
+        robofailring.ground(f"slip_wp{stage}") == f"{PREFIX}object slippage from the gripper at the {words}"
+    )
+
+
+def test_episode_token_is_ignored() -> None:
+    assert robofailring.ground("rotation_x_wp1_episode12") == robofailring.ground("rotation_x_wp1")
+
+
+@pytest.mark.parametrize(
+    ("maniskill", "failgen"),
+    [("trans_x_stage2", "translation_x_wp2"), ("rot_y_1", "rotation_y_wp1"), ("grasp_stage3", "grasp_wp3")],
+)
+def test_maniskill_names_ground_like_failgen(maniskill: str, failgen: str) -> None:
+    assert robofailring.ground(maniskill) == robofailring.ground(failgen)
+    assert parse_symbol(maniskill).canonical == failgen
+
+
+@pytest.mark.parametrize(
+    ("symbol", "named"),
+    [("twist_x_wp1", "'twist'"), ("rotation_q_wp1", "'q'"), ("slip_wp9", "'wp9'"), ("grasp_x_wp1", "'x'")],
+)
+def test_unknown_tokens_are_named(symbol: str, named: str) -> None:
+    with pytest.raises(SymbolError) as error:
+        robofailring.ground(symbol)
+    assert named in str(error.value)
+    assert symbol in str(error.value)
+
+
+def test_failure_type() -> None:
+    assert failure_type("translation_x_wp3") == "translation"
+    assert failure_type("trans_y_stage1") == "translation"
+    assert failure_type(None) == "success"
