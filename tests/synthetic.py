@@ -73,3 +73,43 @@ def write_episode(
             name = f"{t}.png" if layout == "subfolders" else f"{view}_{t}.png"
             write_png(target / name, synthetic_frame(task, symbol, v, t + shift, length + shift))
     return folder
+
+
+def write_project_dataset(
+    root: Path,
+    *,
+    tasks: tuple[str, ...] = ("pick_cube", "push_cube"),
+    symbols: tuple[str, ...] = ("grasp_wp2", "slip_wp3", "wrong_object"),
+    episodes: int = 4,
+    length: int = 6,
+) -> Path:
+    """A project-layout dataset (manifest + AHA-style folders) with successes and train/test splits."""
+    import json
+
+    records = []
+    for task in tasks:
+        for symbol in (*symbols, None):
+            for episode in range(episodes):
+                kind = "success" if symbol is None else symbol.replace("_wp", "_wp")
+                name = (
+                    f"{task}_{kind}_episode{episode}"
+                    if symbol is None or symbol == "wrong_object"
+                    else (
+                        f"{task}_{symbol.rsplit('_wp', 1)[0]}_wp{symbol.rsplit('_wp', 1)[1]}_episode{episode}"
+                    )
+                )
+                write_episode(root / name, task, symbol, length=length, layout="aha", shift=episode)
+                records.append(
+                    {
+                        "dir": name,
+                        "episode": name,
+                        "task": task,
+                        "label": symbol,
+                        "outcome": "success" if symbol is None else "failure",
+                        "split": "train" if episode % 2 == 0 else "test",
+                        "views": list(VIEWS),
+                    }
+                )
+    manifest = {"format": "robofailring-dataset", "format_version": 1, "fps": 10, "episodes": records}
+    (root / "manifest.json").write_text(json.dumps(manifest))
+    return root

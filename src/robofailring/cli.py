@@ -121,6 +121,37 @@ def detect_cmd(
         )
 
 
+@app.command("calibrate")
+def calibrate_cmd(
+    data: Annotated[Path, typer.Argument(help="Dataset holding success trajectories of the memory's tasks.")],
+    memory: Annotated[Path, typer.Option("--memory", help="Memory directory; δ is stored in its manifest.")],
+    target_fpr: Annotated[float, typer.Option("--target-fpr", help="False-positive rate to allow.")] = 0.05,
+    split: Annotated[str | None, typer.Option(help="Successes of this split (project layout).")] = "train",
+    cache_dir: CacheOption = None,
+    device: DeviceOption = None,
+) -> None:
+    """Choose δ for a target false-positive rate on success runs; replay and detect then use it."""
+    from robofailring.evaluation import CalibrateConfig, calibrate
+
+    try:
+        result = calibrate(
+            CalibrateConfig(
+                data=data,
+                memory=memory,
+                target_fpr=target_fpr,
+                split=split,
+                cache_dir=cache_dir,
+                device=device,
+            )
+        )
+    except (RoboFailRingError, ValueError) as error:
+        _fail(error)
+    typer.echo(
+        f"δ = {result.delta:.6f} for encoder {result.encoder}: FPR {100 * result.achieved_fpr:.1f} % on "
+        f"{result.successes} success runs (target {100 * result.target_fpr:.1f} %); stored in {memory}/manifest.json"
+    )
+
+
 def main() -> None:
     app()
 
