@@ -35,7 +35,7 @@ DeviceOption = Annotated[
 ]
 
 
-def _fail(error: Exception) -> None:
+def exit_with_error(error: Exception) -> None:
     typer.secho(f"error: {error}", fg=typer.colors.RED, err=True)
     raise typer.Exit(code=2)
 
@@ -59,7 +59,7 @@ def build_memory_cmd(
             )
         )
     except RoboFailRingError as error:
-        _fail(error)
+        exit_with_error(error)
     typer.echo(
         f"memory {out}: {len(memory)} entries ({memory.dim}-d, encoder {memory.encoder}) from "
         f"{stats.failures} failure trajectories over {len(memory.tasks)} tasks; "
@@ -100,7 +100,7 @@ def detect_cmd(
             )
         )
     except RoboFailRingError as error:
-        _fail(error)
+        exit_with_error(error)
     if as_json:
         json.dump(trace.to_dict(), sys.stdout)
         sys.stdout.write("\n")
@@ -145,7 +145,7 @@ def calibrate_cmd(
             )
         )
     except (RoboFailRingError, ValueError) as error:
-        _fail(error)
+        exit_with_error(error)
     typer.echo(
         f"δ = {result.delta:.6f} for encoder {result.encoder}: FPR {100 * result.achieved_fpr:.1f} % on "
         f"{result.successes} success runs (target {100 * result.target_fpr:.1f} %); stored in {memory}/manifest.json"

@@ -8,8 +8,9 @@ from typing import Any, Final
 
 import numpy as np
 
+from robofailring.data.images import as_rgb
 from robofailring.data.model import Frame, Trajectory
-from robofailring.encoders.base import Encoder
+from robofailring.encoders.base import Encoder, l2_normalize
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import DataError
 from robofailring.memory import FailureMemory, Neighbor, pair_vectors
@@ -202,8 +203,12 @@ class DetectorSession:
     def step(self, frames: Mapping[str, np.ndarray | Frame]) -> StepResult:
         """Feed the current frame of each view; the first call also fixes I_0 per view."""
         views = list(frames)
-        as_frames = [f if isinstance(f, Frame) else Frame.from_array(f) for f in frames.values()]
-        embeddings = self.detector.encoder.encode_frames(as_frames)
+        values = list(frames.values())
+        if all(isinstance(f, Frame) for f in values):
+            embeddings = self.detector.encoder.encode_frames([f for f in values if isinstance(f, Frame)])
+        else:  # live frames are new every step: no cache round trip
+            images = [f.load() if isinstance(f, Frame) else as_rgb(f, source=f"view {v}") for v, f in frames.items()]
+            embeddings = l2_normalize(self.detector.encoder.encoder.encode(images))
         similarity: dict[str, float] = {}
         neighbors: dict[str, list[Neighbor]] = {}
         for view, embedding in zip(views, embeddings, strict=True):
