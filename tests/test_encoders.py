@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -13,12 +12,6 @@ from synthetic import synthetic_frame
 from robofailring import CachedEncoder, Frame, load_encoder
 from robofailring.encoders.pixels import PixelEncoder
 from robofailring.errors import EncoderError
-
-TINY_CLIP = {
-    "embed_dim": 16,
-    "vision_cfg": {"image_size": 32, "layers": 1, "width": 32, "head_width": 16, "patch_size": 8},
-    "text_cfg": {"context_length": 8, "vocab_size": 64, "width": 16, "heads": 1, "layers": 1},
-}
 
 
 def _images(count: int) -> list[np.ndarray]:
@@ -37,23 +30,6 @@ def test_pixel_encoder_is_unit_norm_512_and_deterministic() -> None:
     # identical images -> similarity 1; different scenes -> clearly lower
     assert float(first[0] @ PixelEncoder().encode([images[0]])[0]) == pytest.approx(1.0, abs=1e-5)
     assert float(first[0] @ first[1]) < 0.95
-
-
-@pytest.fixture(scope="module")
-def tiny_checkpoint(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
-    """A tiny random-initialised open_clip model written as a config JSON plus a torch checkpoint."""
-    import open_clip
-    import torch
-
-    folder = tmp_path_factory.mktemp("clip")
-    config = folder / "TinyViT-test.json"
-    config.write_text(json.dumps(TINY_CLIP))
-    open_clip.add_model_config(config)
-    torch.manual_seed(0)
-    model = open_clip.create_model("TinyViT-test", pretrained=None)
-    checkpoint = folder / "tiny.pt"
-    torch.save({"state_dict": model.state_dict()}, checkpoint)
-    return config, checkpoint
 
 
 def test_open_clip_checkpoint_loads_through_the_user_path(tiny_checkpoint: tuple[Path, Path]) -> None:

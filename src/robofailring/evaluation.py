@@ -40,6 +40,7 @@ class EvaluateConfig:
     out: Path  # folder for evaluation.json and evaluation.md (and memory/ when built here)
     encoder: str = "pixels"  # encoder spec; must match --memory when one is given
     memory: Path | None = None  # an existing memory (its failures must not be in the test set)
+    memory_out: Path | None = None  # where a memory built here is saved (default out/memory)
     test_data: Path | None = None  # a second dataset to test on (e.g. out-of-distribution)
     train_split: str = "train"
     test_split: str = "test"
@@ -337,27 +338,37 @@ def measure_latency(
     return {"encode": encode, "retrieval": max(total - encode, 0.0), "total": total}
 
 
+def build_training_memory(
+    config: EvaluateConfig, train: Sequence[Trajectory] | None = None, encoder: CachedEncoder | None = None
+) -> Path:
+    """Build the memory from the training split's failures and save it to `config.memory_out`."""
+    if encoder is None:
+        encoder = CachedEncoder(
+            load_encoder(config.encoder, device=config.device), cache_dir=config.cache_dir
+        )
+    if train is None:
+        train, _ = select_splits(config)
+    failures = [t for t in train if t.is_failure]
+    with progress_bar(total=sum(len(t.views) for t in failures), desc="memory", unit="entry") as bar:
+        memory, _ = FailureMemory.build(failures, encoder, progress=bar.update)
+    memory.manifest.update(
+        {
+            "source": str(Path(config.data).resolve()),
+            "split": config.train_split,
+            "encoder_spec": config.encoder,
+        }
+    )
+    memory_dir = config.memory_out or Path(config.out) / "memory"
+    memory.save(memory_dir)
+    return memory_dir
+
+
 def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
     """Build (or load) the memory, replay every test trajectory once, and measure everything."""
     encoder = CachedEncoder(load_encoder(config.encoder, device=config.device), cache_dir=config.cache_dir)
     train, test = select_splits(config)
-    if config.memory is not None:
-        memory = FailureMemory.load(config.memory)
-        memory_dir = config.memory
-    else:
-        with progress_bar(
-            total=sum(len(t.views) for t in train if t.is_failure), desc="memory", unit="entry"
-        ) as bar:
-            memory, _ = FailureMemory.build(train, encoder, progress=bar.update)
-        memory.manifest.update(
-            {
-                "source": str(Path(config.data).resolve()),
-                "split": config.train_split,
-                "encoder_spec": config.encoder,
-            }
-        )
-        memory_dir = Path(config.out) / "memory"
-        memory.save(memory_dir)
+    memory_dir = config.memory if config.memory is not None else build_training_memory(config, train, encoder)
+    memory = FailureMemory.load(memory_dir)
     check_disjoint(memory, test)
     detector = FailureDetector(memory, encoder, k=config.k)
     operating = detector.delta

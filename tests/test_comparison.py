@@ -1,0 +1,39 @@
+"""Encoder comparison end to end: two encoders, one split, each memory calibrated, one table."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from synthetic import write_project_dataset
+
+from robofailring.comparison import CompareEncodersConfig, compare_encoders, comparison_table
+
+
+def test_two_encoders_side_by_side(tmp_path: Path, tiny_checkpoint: tuple[Path, Path]) -> None:
+    config_json, checkpoint = tiny_checkpoint
+    data = write_project_dataset(tmp_path / "data", tasks=("pick_cube",), episodes=4)
+    clip = f"open_clip:{config_json}:{checkpoint}"
+    results = compare_encoders(
+        CompareEncodersConfig(
+            data=data,
+            out=tmp_path / "out",
+            encoders=("pixels", clip),
+            target_fpr=0.5,
+            cache_dir=tmp_path / "cache",
+        )
+    )
+    assert [r.name for r in results] == ["pixels", "tinyvit-test"]
+    for result in results:
+        manifest = json.loads((Path(result.memory) / "manifest.json").read_text())
+        assert manifest["calibration"]["encoder"] == result.encoder == manifest["encoder"]
+        assert result.operating_delta == manifest["calibration"]["delta"] and result.calibrated
+        assert result.failures == 6 and result.successes == 2
+    table = comparison_table(results)
+    assert table.count("\n") == 3 and "`pixels-v1-24px-512d`" in table and "open_clip:TinyViT-test" in table
+
+
+def test_needs_two_encoders(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="at least two"):
+        compare_encoders(CompareEncodersConfig(data=tmp_path, out=tmp_path, encoders=("pixels",)))
