@@ -207,7 +207,9 @@ class DetectorSession:
         if all(isinstance(f, Frame) for f in values):
             embeddings = self.detector.encoder.encode_frames([f for f in values if isinstance(f, Frame)])
         else:  # live frames are new every step: no cache round trip
-            images = [f.load() if isinstance(f, Frame) else as_rgb(f, source=f"view {v}") for v, f in frames.items()]
+            images = [
+                f.load() if isinstance(f, Frame) else as_rgb(f, source=f"view {v}") for v, f in frames.items()
+            ]
             embeddings = l2_normalize(self.detector.encoder.encoder.encode(images))
         similarity: dict[str, float] = {}
         neighbors: dict[str, list[Neighbor]] = {}
