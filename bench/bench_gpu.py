@@ -1,0 +1,88 @@
+"""CUDA figures for the CLIP encoders (run where a GPU is present): per-frame detection latency of
+ViT-B/32 and ViT-L/14 for 3 views (paper Table 3/4), and the project encoder against open_clip's
+`encode_image` on the same batch. Random-initialised weights: speed does not depend on their values.
+
+Run: python bench/bench_gpu.py
+"""
+
+from __future__ import annotations
+
+import statistics
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from robofailring import FailureDetector, FailureMemory, load_encoder
+from robofailring.memory import MemoryEntry, pair_vectors
+
+
+def median_ms(run: Callable[[], object], repeat: int) -> float:
+    times = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        run()
+        times.append((time.perf_counter() - start) * 1000)
+    return statistics.median(times)
+
+
+def memory_for(identity: str, dim: int, entries: int = 15_000, tasks: int = 80) -> FailureMemory:
+    rng = np.random.default_rng(0)
+    vectors = pair_vectors(rng.standard_normal((entries, dim)), rng.standard_normal((entries, dim)))
+    meta = [
+        MemoryEntry(
+            task=f"task_{i % tasks}", symbol="slip_wp3", episode=f"e{i}", view="front", start="", end=""
+        )
+        for i in range(entries)
+    ]
+    return FailureMemory(vectors, meta, encoder=identity)
+
+
+def main() -> None:
+    import open_clip
+    import torch
+    from PIL import Image
+
+    device = "cuda" if torch.cuda.is_available() else "cpu"
+    print(
+        f"device: {device} ({torch.cuda.get_device_name(0) if device == 'cuda' else 'CPU'}), torch {torch.__version__}"
+    )
+    rng = np.random.default_rng(1)
+    views = {v: rng.integers(0, 255, (128, 128, 3), dtype=np.uint8) for v in ("front", "overhead", "wrist")}
+    batch = [rng.integers(0, 255, (128, 128, 3), dtype=np.uint8) for _ in range(64)]
+    for model_name in ("ViT-B-32", "ViT-L-14"):
+        torch.manual_seed(0)
+        with tempfile.TemporaryDirectory() as folder:
+            checkpoint = Path(folder) / f"{model_name}.pt"
+            torch.save(open_clip.create_model(model_name, pretrained=None).state_dict(), checkpoint)
+            encoder = load_encoder(f"open_clip:{model_name}:{checkpoint}")
+        model, preprocess = encoder.model, encoder.preprocess  # type: ignore[attr-defined]
+        detector = FailureDetector(memory_for(encoder.identity, encoder.dim), encoder, delta=0.92, k=5)
+        session = detector.session("task_3")
+        for _ in range(5):
+            session.step(views)
+        step_ms = median_ms(lambda session=session: session.step(views), 50)
+        encode_ms = median_ms(lambda encoder=encoder: encoder.encode(list(views.values())), 50)
+
+        def direct(model: object = model, preprocess: object = preprocess) -> None:
+            with torch.inference_mode():
+                tensor = torch.stack([preprocess(Image.fromarray(i)) for i in batch]).to(device)  # type: ignore[operator]
+                model.encode_image(tensor).float().cpu()  # type: ignore[attr-defined]
+
+        ours, theirs = [], []
+        for _ in range(5):
+            ours.append(median_ms(lambda encoder=encoder: encoder.encode(batch), 1))
+            theirs.append(median_ms(direct, 1))
+        print(
+            f"{model_name} on {encoder.device}: per-frame detection (3 views, encode + retrieval over 15k entries) "  # type: ignore[attr-defined]
+            f"{step_ms:.2f} ms (encode {encode_ms:.2f} ms); batch of 64: project {statistics.median(ours):.1f} ms vs "
+            f"encode_image {statistics.median(theirs):.1f} ms, ratio {statistics.median(ours) / statistics.median(theirs):.3f}"
+        )
+    sys.stdout.flush()
+
+
+if __name__ == "__main__":
+    main()
