@@ -84,3 +84,38 @@ def test_console_script_is_installed() -> None:
         check=False,
     )
     assert result.returncode == 0 and "build-memory" in result.stdout
+
+
+def test_generate_writes_a_loadable_dataset(tmp_path: Path) -> None:
+    from robofailring import load_dataset
+
+    out = tmp_path / "sim"
+    args = [
+        "generate",
+        "--out",
+        str(out),
+        "--tasks",
+        "pick_cube",
+        "--episodes",
+        "1",
+        "--image-size",
+        "32",
+        "--frames",
+        "6",
+        "--workers",
+        "1",
+    ]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 0, result.output
+    assert "dataset" in result.output and "episodes" in result.output
+    trajectories = list(load_dataset(out))
+    assert len(trajectories) == 8 and {t.task for t in trajectories} == {"pick_cube"}
+    assert all(t.length == 6 for t in trajectories)
+    # a folder that is not a dataset is never overwritten
+    precious = tmp_path / "precious"
+    precious.mkdir()
+    (precious / "notes.txt").write_text("keep me")
+    result = runner.invoke(
+        app, ["generate", "--out", str(precious), "--tasks", "pick_cube", "--episodes", "1"]
+    )
+    assert result.exit_code == 2 and (precious / "notes.txt").read_text() == "keep me"

@@ -10,7 +10,9 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from robofailring.data.layouts import read_project_manifest
 from robofailring.errors import RoboFailRingError
+from robofailring.progress import progress_bar
 
 app = typer.Typer(
     name="robofailring",
@@ -38,6 +40,49 @@ DeviceOption = Annotated[
 def exit_with_error(error: Exception) -> None:
     typer.secho(f"error: {error}", fg=typer.colors.RED, err=True)
     raise typer.Exit(code=2)
+
+
+@app.command("generate")
+def generate_cmd(
+    out: Annotated[Path, typer.Option("--out", help="Dataset folder to write (the project's layout).")],
+    tasks: Annotated[
+        list[str] | None, typer.Option("--tasks", help="Tasks to run (repeatable); default all.")
+    ] = None,
+    episodes: Annotated[
+        int, typer.Option(help="Episodes per task and kind (failure family or success).")
+    ] = 2,
+    seed: Annotated[int, typer.Option(help="Base seed: the same seed gives identical images.")] = 0,
+    ood: Annotated[
+        bool, typer.Option("--ood", help="Out-of-distribution lighting, colours, cameras, sizes.")
+    ] = False,
+    image_size: Annotated[int, typer.Option("--image-size", help="Square image size in pixels.")] = 128,
+    frames: Annotated[int, typer.Option(help="Frames per episode.")] = 40,
+    workers: Annotated[int, typer.Option(help="Simulation processes.")] = 2,
+) -> None:
+    """Simulate the embedded FailGen (PyBullet Panda): failures injected by perturbing keyframes, plus successes."""
+    from robofailring.sim import TASKS, GenerateConfig, generate_dataset
+
+    config = GenerateConfig(
+        out=out,
+        tasks=tuple(tasks) if tasks else TASKS,
+        episodes=episodes,
+        seed=seed,
+        ood=ood,
+        image_size=image_size,
+        frames=frames,
+        workers=workers,
+    )
+    total = len(config.tasks) * len(config.modes) * config.episodes
+    try:
+        with progress_bar(total=total, desc="simulating", unit="episode") as bar:
+            root = generate_dataset(config, progress=bar.update)
+    except (RoboFailRingError, ValueError) as error:
+        exit_with_error(error)
+    manifest = read_project_manifest(root)
+    failures = sum(e["outcome"] == "failure" for e in manifest["episodes"])
+    typer.echo(
+        f"dataset {root}: {len(manifest['episodes'])} episodes ({failures} failures), {manifest['fps']} fps"
+    )
 
 
 @app.command("build-memory")

@@ -1,0 +1,259 @@
+"""Dataset generation: episodes in a process pool, written atomically in the project's layout."""
+
+from __future__ import annotations
+
+import json
+import multiprocessing
+import os
+import shutil
+import zlib
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Final
+
+from robofailring._atomic import atomic_directory
+from robofailring.data.images import write_png
+from robofailring.data.layouts import PROJECT_FORMAT, PROJECT_MANIFEST
+from robofailring.errors import DataError
+from robofailring.sim.cameras import VIEWS
+from robofailring.sim.episode import DURATION_S, EpisodeResult, episode_fps, run_episode
+from robofailring.sim.perturb import FAILURE_MODES, KINDS, SUCCESS
+from robofailring.sim.scene import PHYSICS_HZ
+from robofailring.sim.tasks import TASKS
+
+FORMAT_VERSION: Final[int] = 1
+GENERATOR: Final[str] = "robofailring.sim"
+#: Bumped whenever the simulator's output changes for the same config (invalidates caches).
+SIM_VERSION: Final[int] = 1
+_SUCCESS_RETRIES: Final[int] = 3
+
+
+@dataclass(frozen=True)
+class GenerateConfig:
+    """What to generate: `episodes` per kind per task; a kind is a failure family, a concrete
+    mode (``rotation_x``) or ``success``; axial families draw their axis per episode."""
+
+    out: Path
+    tasks: tuple[str, ...] = TASKS
+    episodes: int = 2
+    modes: tuple[str, ...] = KINDS
+    seed: int = 0
+    ood: bool = False
+    image_size: int = 128
+    frames: int = 40
+    workers: int = 2
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "out", Path(self.out))
+        object.__setattr__(self, "tasks", tuple(self.tasks))
+        object.__setattr__(self, "modes", tuple(self.modes))
+        unknown = [t for t in self.tasks if t not in TASKS]
+        if unknown or not self.tasks:
+            raise ValueError(f"unknown task(s) {unknown}; expected some of {list(TASKS)}")
+        allowed = (*KINDS, *FAILURE_MODES)
+        bad = [m for m in self.modes if m not in allowed]
+        if bad or not self.modes:
+            raise ValueError(f"unknown mode(s) {bad}; expected some of {list(allowed)}")
+        if len(set(self.modes)) != len(self.modes) or len(set(self.tasks)) != len(self.tasks):
+            raise ValueError("tasks and modes must not repeat")
+        if self.episodes < 1 or self.frames < 2 or self.image_size < 16 or self.workers < 1:
+            raise ValueError("episodes >= 1, frames >= 2, image_size >= 16 and workers >= 1 are required")
+
+    def content(self) -> dict[str, Any]:
+        """Every parameter that decides the dataset's content (not where it goes, nor how fast)."""
+        return {
+            "tasks": list(self.tasks),
+            "episodes": self.episodes,
+            "modes": list(self.modes),
+            "seed": self.seed,
+            "ood": self.ood,
+            "image_size": self.image_size,
+            "frames": self.frames,
+            "duration_s": DURATION_S,
+            "physics_hz": PHYSICS_HZ,
+            "sim_version": SIM_VERSION,
+        }
+
+
+@dataclass(frozen=True)
+class _Job:
+    task: str
+    kind: str
+    repeat: int
+    episode: int
+    seed: int
+    ood: bool
+    image_size: int
+    frames: int
+    root: str = field(default="")
+
+
+def episode_seed(seed: int, task: str, kind: str, repeat: int) -> int:
+    """A stable per-episode seed (the same in every process and Python version)."""
+    return (seed * 1_000_003 + zlib.crc32(f"{task}/{kind}/{repeat}".encode())) % 2**31
+
+
+def _jobs(config: GenerateConfig, root: Path) -> list[_Job]:
+    jobs = []
+    for task in config.tasks:
+        for index, kind in enumerate(config.modes):
+            for repeat in range(config.episodes):
+                jobs.append(
+                    _Job(
+                        task=task,
+                        kind=kind,
+                        repeat=repeat,
+                        episode=index * config.episodes + repeat,
+                        seed=episode_seed(config.seed, task, kind, repeat),
+                        ood=config.ood,
+                        image_size=config.image_size,
+                        frames=config.frames,
+                        root=str(root),
+                    )
+                )
+    return jobs
+
+
+def episode_dir_name(task: str, label: str | None, episode: int) -> str:
+    """The AHA-style folder name: ``<task>_<label>_episode<e>`` or ``<task>_success_episode<e>``."""
+    return f"{task}_{label or SUCCESS}_episode{episode}"
+
+
+def _simulate(job: _Job, seed: int, staging: Path) -> EpisodeResult:
+    """Run one episode, streaming its frames to PNG files in `staging`."""
+    if staging.exists():
+        shutil.rmtree(staging)
+    staging.mkdir()
+    with run_episode(
+        job.task, job.kind, seed, ood=job.ood, image_size=job.image_size, frames=job.frames
+    ) as run:
+        for index, images in enumerate(run):
+            for view in VIEWS:
+                write_png(staging / f"{view}_{index}.png", images[view])
+        return run.run_to_end()
+
+
+def _run_job(job: _Job) -> dict[str, Any]:
+    """Simulate one episode and return its manifest record.
+
+    An unperturbed run that misses its goal has no failure symbol to carry; it is run again
+    from a derived seed (it never happened in testing; the record counts the retries).
+    """
+    root = Path(job.root)
+    staging = root / f".staging-{job.task}-{job.episode}"
+    seed, retries = job.seed, 0
+    result = _simulate(job, seed, staging)
+    while result.perturbation is None and not result.goal.passed and retries < _SUCCESS_RETRIES:
+        retries += 1
+        seed = episode_seed(job.seed, job.task, job.kind, 1000 + retries)
+        result = _simulate(job, seed, staging)
+    if result.perturbation is None and not result.goal.passed:
+        raise RuntimeError(f"{job.task}: an unperturbed episode missed its goal {_SUCCESS_RETRIES + 1} times")
+    name = episode_dir_name(job.task, result.label, job.episode)
+    os.replace(staging, root / name)
+    perturbation = result.perturbation
+    return {
+        "dir": name,
+        "episode": name,
+        "task": job.task,
+        "label": result.label,
+        "outcome": result.outcome,
+        "views": list(VIEWS),
+        "frames": result.frames,
+        "fps": episode_fps(job.frames),
+        "seed": seed,
+        "retries": retries,
+        "split": "ood" if job.ood else ("train" if job.episode % 2 == 0 else "test"),
+        "kind": job.kind,
+        "perturbation": None if perturbation is None else perturbation.mode,
+        "perturbed_waypoint": None if perturbation is None else perturbation.waypoint,
+        "attempted_label": None if perturbation is None else perturbation.symbol,
+        "goal_check": result.goal.to_json(),
+    }
+
+
+def _execute(jobs: list[_Job], workers: int) -> Iterator[dict[str, Any]]:
+    if workers == 1 or len(jobs) == 1:
+        yield from map(_run_job, jobs)
+        return
+    # Each worker process opens its own pybullet DIRECT client; spawn keeps them independent of
+    # whatever the parent has loaded (torch, a GUI client, ...).
+    context = multiprocessing.get_context("spawn")
+    with context.Pool(processes=min(workers, len(jobs))) as pool:
+        yield from pool.imap_unordered(_run_job, jobs, chunksize=1)
+
+
+def _cached(config: GenerateConfig) -> bool:
+    path = config.out / PROJECT_MANIFEST
+    try:
+        manifest = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    if manifest.get("generator") != GENERATOR or manifest.get("config") != config.content():
+        return False
+    return all((config.out / record["dir"]).is_dir() for record in manifest.get("episodes", []))
+
+
+def _check_replaceable(out: Path) -> None:
+    """Refuse to replace a non-empty folder that is not a dataset this generator wrote."""
+    if not out.exists():
+        return
+    if not out.is_dir():
+        raise DataError(f"cannot generate a dataset at {out}: it is a file")
+    try:
+        manifest = json.loads((out / PROJECT_MANIFEST).read_text(encoding="utf-8"))
+        ours = manifest.get("generator") == GENERATOR
+    except (OSError, ValueError, AttributeError):
+        ours = False
+    if not ours and any(out.iterdir()):
+        raise DataError(
+            f"{out} exists and is not a dataset written by {GENERATOR}; refusing to replace it "
+            "(choose another output folder or remove it)"
+        )
+
+
+def manifest_for(config: GenerateConfig, records: list[dict[str, Any]]) -> dict[str, Any]:
+    order = {(t, m): i for i, (t, m) in enumerate((t, m) for t in config.tasks for m in config.modes)}
+    records = sorted(records, key=lambda r: (order[(r["task"], r["kind"])], r["dir"]))
+    failures = [r for r in records if r["perturbation"] is not None]
+    return {
+        "format": PROJECT_FORMAT,
+        "format_version": FORMAT_VERSION,
+        "generator": GENERATOR,
+        "seed": config.seed,
+        "fps": episode_fps(config.frames),
+        "image_size": config.image_size,
+        "ood": config.ood,
+        "views": list(VIEWS),
+        "tasks": list(config.tasks),
+        "config": config.content(),
+        "summary": {
+            "episodes": len(records),
+            "attempted_failures": len(failures),
+            "failed": sum(r["outcome"] == "failure" for r in failures),
+        },
+        "episodes": records,
+    }
+
+
+def generate_dataset(config: GenerateConfig, *, progress: Callable[[int], None] | None = None) -> Path:
+    """Generate the dataset described by `config` at `config.out` and return that path.
+
+    An output folder already holding a dataset of the identical config is returned as it is.
+    Otherwise everything is written into a temporary folder beside it and swapped in at the end,
+    so nothing half-written ever carries the final name.
+    """
+    out = config.out
+    if _cached(config):
+        return out
+    _check_replaceable(out)
+    with atomic_directory(out) as root:
+        records = []
+        for record in _execute(_jobs(config, root), config.workers):
+            records.append(record)
+            if progress is not None:
+                progress(1)
+        manifest = manifest_for(config, records)
+        (root / PROJECT_MANIFEST).write_text(json.dumps(manifest, indent=1) + "\n", encoding="utf-8")
+    return out
