@@ -1,3 +1,30 @@
 """Rerun recordings of replayed trajectories (all Rerun code of the project lives here)."""
 
 from __future__ import annotations
+
+from rfr_viz.blueprint import compare_blueprint, replay_blueprint
+from rfr_viz.memory_umap import MemoryMap, fit_map, memory_map
+from rfr_viz.paths import APPLICATION_ID, DetectorPaths
+from rfr_viz.record import compare_recording, record_replay
+from rfr_viz.replay import CompareConfig, ReplayConfig, ReplayResult, compare, replay
+from rfr_viz.viewer import Screenshot, ViewerUnavailable, render_screenshot
+
+__all__ = [
+    "APPLICATION_ID",
+    "CompareConfig",
+    "DetectorPaths",
+    "MemoryMap",
+    "ReplayConfig",
+    "ReplayResult",
+    "Screenshot",
+    "ViewerUnavailable",
+    "compare",
+    "compare_blueprint",
+    "compare_recording",
+    "fit_map",
+    "memory_map",
+    "record_replay",
+    "render_screenshot",
+    "replay",
+    "replay_blueprint",
+]

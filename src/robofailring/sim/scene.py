@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
+import os
+import sys
+from collections.abc import Iterator
 from typing import Any
 
 import pybullet
@@ -19,9 +23,24 @@ TRAY_WALL = 0.045
 TRAY_THICK = 0.01
 
 
+@contextlib.contextmanager
+def _quiet_stdout() -> Iterator[None]:
+    """Silence what the pybullet C library prints on connect ("argv[0]="), which breaks progress bars."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        with open(os.devnull, "wb") as devnull:
+            os.dup2(devnull.fileno(), 1)
+        yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
 def connect() -> Any:
     """A fresh headless pybullet client (DIRECT mode, deterministic contact ordering)."""
-    client = BulletClient(connection_mode=pybullet.DIRECT)
+    with _quiet_stdout():
+        client = BulletClient(connection_mode=pybullet.DIRECT)
     client.setAdditionalSearchPath(pybullet_data.getDataPath())
     reset(client)
     return client

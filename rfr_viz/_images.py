@@ -1,0 +1,38 @@
+"""JPEG bytes for the recording: source JPEGs pass through, anything else is encoded once."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Final
+
+from robofailring.data.images import encode_jpeg, read_image
+from robofailring.data.model import Frame
+from robofailring.errors import DataError
+
+JPEG_QUALITY: Final[int] = 80
+JPEG_MEDIA_TYPE: Final[str] = "image/jpeg"
+_JPEG_MAGIC: Final[bytes] = b"\xff\xd8\xff"
+
+
+def is_jpeg(data: bytes) -> bool:
+    return data[:3] == _JPEG_MAGIC
+
+
+def frame_jpeg(frame: Frame, *, quality: int = JPEG_QUALITY) -> bytes:
+    """The frame as JPEG bytes: the file itself when it already is a JPEG."""
+    data = frame.read_bytes()
+    if data is not None and is_jpeg(data):
+        return data
+    return encode_jpeg(frame.load(), quality=quality)
+
+
+def reference_jpeg(reference: str, *, quality: int = JPEG_QUALITY) -> bytes | None:
+    """JPEG bytes of a memory entry's start/end image, or None when the file is not there."""
+    path = Path(reference)
+    if reference.startswith("<") or not path.is_file():
+        return None
+    try:
+        data = path.read_bytes()
+        return data if is_jpeg(data) else encode_jpeg(read_image(path), quality=quality)
+    except (OSError, DataError):
+        return None  # a memory image that went missing must not sink the whole recording

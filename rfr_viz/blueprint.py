@@ -1,0 +1,163 @@
+"""The layouts saved inside recordings: pure functions of the views, the encoders and the image size."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import rerun.blueprint as rrb
+
+from rfr_viz.neighbors import Cell
+from rfr_viz.paths import DEFAULT_FPS, FRAME, REPLAY, DetectorPaths, camera
+
+MAP_BACKGROUND = (22, 22, 26)
+LEGEND_TOP = 1.3  # the map spans [-1, 1]²; its legend sits below it, two entries per row
+LEGEND_ROW = 0.2
+LEGEND_COLUMN = 0.62
+
+
+def legend_positions(count: int) -> np.ndarray:
+    """(count, 2) positions of the map legend's entries, in map coordinates."""
+    slots = np.arange(count)
+    return np.stack(
+        [np.where(slots % 2 == 0, -LEGEND_COLUMN, LEGEND_COLUMN), LEGEND_TOP + (slots // 2) * LEGEND_ROW],
+        axis=1,
+    )
+
+
+def map_bounds(legend_entries: int) -> rrb.VisualBounds2D:
+    """The map's viewport: the [-1, 1]² map and its legend below."""
+    rows = (legend_entries + 1) // 2
+    return rrb.VisualBounds2D(x_range=(-1.3, 1.3), y_range=(-1.15, LEGEND_TOP + rows * LEGEND_ROW + 0.05))
+
+
+def _cameras(views: Sequence[str]) -> rrb.Container:
+    return rrb.Horizontal(*(rrb.Spatial2DView(origin=camera(view), name=view) for view in views))
+
+
+def _score_plot(detectors: Sequence[DetectorPaths], *, name: str) -> rrb.Container:
+    """S_t of every view with δ as a line; State_t (0/1) in a thin plot below, so S_t keeps its scale."""
+    scores = rrb.TimeSeriesView(
+        origin="/",
+        contents=[f"{paths.score_root}/**" for paths in detectors],
+        name=name,
+        plot_legend=rrb.PlotLegend(corner=rrb.Corner2D.LeftBottom, visible=True),
+    )
+    state = rrb.TimeSeriesView(
+        origin="/",
+        contents=[paths.state for paths in detectors],
+        name="State_t (fused over views)",
+        plot_legend=rrb.PlotLegend(visible=False),
+        axis_y=rrb.ScalarAxis(range=(-0.1, 1.1), zoom_lock=True),
+    )
+    return rrb.Vertical(scores, state, row_shares=[3, 1.2])
+
+
+def _map(paths: DetectorPaths, *, name: str, legend_entries: int) -> rrb.Spatial2DView:
+    return rrb.Spatial2DView(
+        origin=paths.umap, name=name, background=MAP_BACKGROUND, visual_bounds=map_bounds(legend_entries)
+    )
+
+
+def _neighbor_grids(
+    views: Sequence[str], k: int, paths: DetectorPaths, cell: Cell, *, label: str = ""
+) -> list[rrb.View]:
+    """Per view: the grid of all K neighbours (row = rank: start | end), opened on rank 1."""
+    x_range, y_range = cell.top_row
+    more = f" (zoom out: #2–#{k})" if k > 1 else ""
+    return [
+        rrb.Spatial2DView(
+            origin=f"{paths.neighbors_root}/{view}",
+            name=f"{label}{view} · nearest: start | end{more}",
+            visual_bounds=rrb.VisualBounds2D(x_range=x_range, y_range=y_range),
+        )
+        for view in views
+    ]
+
+
+def _neighbor_infos(views: Sequence[str], paths: DetectorPaths, *, label: str = "") -> list[rrb.View]:
+    return [
+        rrb.TextDocumentView(origin=paths.neighbor(view, 0, "info"), name=f"{label}{view} · nearest #1")
+        for view in views
+    ]
+
+
+def _panels(fps: float) -> list[rrb.BlueprintPart]:
+    """Side panels folded away; the time bar plays the "frame" timeline at the data's rate."""
+    return [
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+        rrb.TimePanel(state="collapsed", timeline=FRAME, fps=fps),
+    ]
+
+
+def replay_blueprint(
+    *, views: Sequence[str], map_title: str, legend_entries: int, cell: Cell, k: int, fps: float = DEFAULT_FPS
+) -> rrb.Blueprint:
+    """Cameras, score plot and memory map on top; neighbours and the report below."""
+    top = rrb.Horizontal(
+        _cameras(views),
+        _score_plot([REPLAY], name="S_t per view and δ"),
+        _map(REPLAY, name=map_title, legend_entries=legend_entries),
+        column_shares=[0.85 * len(views), 2.2, 2.0],
+    )
+    neighbors = rrb.Grid(
+        *_neighbor_grids(views, k, REPLAY, cell),
+        *_neighbor_infos(views, REPLAY),
+        grid_columns=len(views),
+        row_shares=[1, 1],
+        name="nearest memory entries",
+    )
+    side = rrb.Tabs(
+        rrb.TextDocumentView(origin=REPLAY.report, name="failure report"),
+        rrb.TextLogView(
+            origin="/", contents=[f"{REPLAY.detection_root}/**", f"{REPLAY.neighbors_root}/**"], name="events"
+        ),
+        active_tab=0,
+    )
+    bottom = rrb.Horizontal(neighbors, side, column_shares=[3, 1.6])
+    return rrb.Blueprint(rrb.Vertical(top, bottom, row_shares=[1.25, 1]), *_panels(fps))
+
+
+def compare_blueprint(
+    *,
+    views: Sequence[str],
+    encoders: Sequence[str],
+    map_titles: Sequence[str],
+    legend_entries: Sequence[int],
+    cells: Sequence[Cell],
+    fps: float = DEFAULT_FPS,
+) -> rrb.Blueprint:
+    """Shared cameras and one plot of every encoder's S_t and δ; per encoder its map, nearest entries and report."""
+    detectors = [DetectorPaths.for_encoder(slug) for slug in encoders]
+    top = rrb.Horizontal(
+        _cameras(views),
+        _score_plot(detectors, name="S_t and δ per encoder"),
+        column_shares=[len(views), 3],
+    )
+    maps = rrb.Horizontal(
+        *(
+            _map(paths, name=f"{slug} · {title}", legend_entries=entries)
+            for slug, paths, title, entries in zip(
+                encoders, detectors, map_titles, legend_entries, strict=True
+            )
+        )
+    )
+    nearest = rrb.Grid(
+        *(
+            view
+            for slug, paths, cell in zip(encoders, detectors, cells, strict=True)
+            for view in _neighbor_grids(views, 1, paths, cell, label=f"{slug} · ")
+        ),
+        grid_columns=len(views),
+        name="nearest entries",
+    )
+    reports = [
+        rrb.TextDocumentView(origin=paths.report, name=f"{slug} report")
+        for slug, paths in zip(encoders, detectors, strict=True)
+    ]
+    events = rrb.TextLogView(
+        origin="/", contents=[f"{paths.detection_root}/**" for paths in detectors], name="detection events"
+    )
+    bottom = rrb.Horizontal(maps, rrb.Tabs(nearest, *reports, events, active_tab=0), column_shares=[1, 1.2])
+    return rrb.Blueprint(rrb.Vertical(top, bottom, row_shares=[1, 1.1]), *_panels(fps))

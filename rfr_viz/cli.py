@@ -1,0 +1,143 @@
+"""The `replay` and `compare` verbs, added to the library's `robofailring` command line."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from rfr_viz import tool_cli  # noqa: F401  (registers evaluate and the other combined verbs)
+from rfr_viz.replay import DEFAULT_OUT, CompareConfig, ReplayConfig, ReplayResult, compare, replay
+from robofailring.cli import CacheOption, DeviceOption, app, exit_with_error
+from robofailring.errors import RoboFailRingError
+
+__all__ = ["app", "main"]
+
+DataArgument = Annotated[
+    Path, typer.Argument(help="Dataset root (any supported layout) or one episode folder.")
+]
+OutOption = Annotated[Path, typer.Option("--out", help="Folder for the .rrd files (one per trajectory).")]
+TrajectoryOption = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--trajectory", help="Only this trajectory (`<task>/<episode>` or the episode); repeatable."
+    ),
+]
+KOption = Annotated[int, typer.Option("--k", help="Neighbours retrieved and logged per view and frame.")]
+TaskOption = Annotated[
+    str | None,
+    typer.Option(
+        help="Task of an episode folder whose name does not say it; on a dataset root, only this task."
+    ),
+]
+LeaveOneOutOption = Annotated[
+    bool, typer.Option("--leave-one-out", help="Hide each trajectory's own episode from the memory.")
+]
+FpsOption = Annotated[
+    float | None,
+    typer.Option("--fps", help="Frame rate of the `time` timeline (default: the data's, else 10)."),
+]
+
+
+def _report(result: ReplayResult, out: Path) -> None:
+    for key, reason in result.skipped:
+        typer.echo(f"skipped {key}: {reason}")
+    if not result.recordings:
+        exit_with_error(RuntimeError(f"no recording written ({len(result.skipped)} trajectories skipped)"))
+    typer.echo(
+        f"{len(result.recordings)} recording(s) in {out.resolve()}"
+        + (f", {len(result.skipped)} trajectories skipped" if result.skipped else "")
+    )
+    for path in result.recordings:
+        typer.echo(f"  rerun {path}")
+
+
+@app.command("replay")
+def replay_cmd(
+    data: DataArgument,
+    memory: Annotated[Path, typer.Option("--memory", help="Memory directory (its map is cached there).")],
+    out: OutOption = DEFAULT_OUT,
+    trajectory: TrajectoryOption = None,
+    delta: Annotated[
+        float | None, typer.Option(help="Threshold δ (default: the memory's calibrated δ, else 0.92).")
+    ] = None,
+    k: KOption = 5,
+    task: TaskOption = None,
+    leave_one_out: LeaveOneOutOption = False,
+    encoder: Annotated[str | None, typer.Option(help="Encoder spec (default: the memory's).")] = None,
+    fps: FpsOption = None,
+    cache_dir: CacheOption = None,
+    device: DeviceOption = None,
+) -> None:
+    """Replay trajectories through the detector, one self-contained Rerun recording (.rrd) each."""
+    config = ReplayConfig(
+        data=data,
+        memory=memory,
+        out=out,
+        trajectories=tuple(trajectory or ()),
+        delta=delta,
+        k=k,
+        task=task,
+        leave_one_out=leave_one_out,
+        encoder=encoder,
+        fps=fps,
+        cache_dir=cache_dir,
+        device=device,
+    )
+    try:
+        result = replay(config)
+    except (RoboFailRingError, ValueError) as error:
+        exit_with_error(error)
+    _report(result, out)
+
+
+@app.command("compare")
+def compare_cmd(
+    data: DataArgument,
+    memory: Annotated[
+        list[Path], typer.Option("--memory", help="Memory directory, one per encoder; give two or more.")
+    ],
+    out: OutOption = DEFAULT_OUT,
+    trajectory: TrajectoryOption = None,
+    delta: Annotated[
+        list[float] | None,
+        typer.Option(
+            "--delta", help="δ per memory, in the order of --memory (default: each one's calibrated δ)."
+        ),
+    ] = None,
+    k: KOption = 5,
+    task: TaskOption = None,
+    leave_one_out: LeaveOneOutOption = False,
+    fps: FpsOption = None,
+    cache_dir: CacheOption = None,
+    device: DeviceOption = None,
+) -> None:
+    """Replay trajectories under two or more encoders' memories, one comparison recording each."""
+    config = CompareConfig(
+        data=data,
+        memories=tuple(memory),
+        out=out,
+        trajectories=tuple(trajectory or ()),
+        deltas=tuple(delta or ()),
+        k=k,
+        task=task,
+        leave_one_out=leave_one_out,
+        fps=fps,
+        cache_dir=cache_dir,
+        device=device,
+    )
+    try:
+        result = compare(config)
+    except (RoboFailRingError, ValueError) as error:
+        exit_with_error(error)
+    _report(result, out)
+
+
+def main() -> None:
+    """Console entry point: the library's verbs plus `replay` and `compare`."""
+    app()
+
+
+if __name__ == "__main__":
+    main()

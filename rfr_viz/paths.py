@@ -1,0 +1,88 @@
+"""Every Rerun entity path, timeline and property name of a recording (SPEC §6), in one place."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Final, Literal
+
+NeighborPart = Literal["start", "end", "info"]
+
+APPLICATION_ID: Final[str] = "robofailring"
+FRAME: Final[str] = "frame"  # sequence timeline: frame index t
+TIME: Final[str] = "time"  # duration timeline: t / fps seconds
+DEFAULT_FPS: Final[float] = 10.0  # when the data source does not say
+PROPERTIES: Final[str] = "robofailring"  # recording property group (task, label, outcome, …)
+
+CAMERA_ROOT: Final[str] = "/camera"
+
+
+def camera(view: str) -> str:
+    """`/camera/<view>`: the JPEG frames of one view (shared by every encoder of a comparison)."""
+    return f"{CAMERA_ROOT}/{view}"
+
+
+@dataclass(frozen=True)
+class DetectorPaths:
+    """The detector-dependent entities, under `prefix` (`""` for a replay, `/<encoder>` in a comparison)."""
+
+    prefix: str = ""
+
+    @classmethod
+    def for_encoder(cls, slug: str) -> DetectorPaths:
+        return cls(prefix=f"/{slug}")
+
+    @property
+    def score_root(self) -> str:
+        return f"{self.prefix}/score"
+
+    def score(self, view: str) -> str:
+        """Scalars: S_t of one view."""
+        return f"{self.score_root}/{view}"
+
+    @property
+    def delta(self) -> str:
+        """Scalars: δ, styled as a threshold line."""
+        return f"{self.score_root}/delta"
+
+    @property
+    def detection_root(self) -> str:
+        return f"{self.prefix}/detection"
+
+    @property
+    def state(self) -> str:
+        """Scalars: State_t (0/1) fused over views."""
+        return f"{self.detection_root}/state"
+
+    @property
+    def event(self) -> str:
+        """TextLog at the detection instant."""
+        return f"{self.detection_root}/event"
+
+    @property
+    def neighbors_root(self) -> str:
+        return f"{self.prefix}/neighbors"
+
+    def neighbor_rank(self, view: str, rank: int) -> str:
+        """The rank-th nearest memory entry of a view (rank 0 is the nearest)."""
+        return f"{self.neighbors_root}/{view}/{rank}"
+
+    def neighbor(self, view: str, rank: int, part: NeighborPart) -> str:
+        """Its start/end image (EncodedImage) or its info text (TextDocument)."""
+        return f"{self.neighbor_rank(view, rank)}/{part}"
+
+    @property
+    def umap(self) -> str:
+        """Static Points2D of all memory entries (and their AnnotationContext)."""
+        return f"{self.prefix}/memory/umap"
+
+    def umap_query(self, view: str) -> str:
+        """Points2D: the current query of a view projected into the memory map."""
+        return f"{self.umap}/query/{view}"
+
+    @property
+    def report(self) -> str:
+        """TextDocument (markdown): failure report and VLM prompt."""
+        return f"{self.prefix}/report"
+
+
+REPLAY: Final[DetectorPaths] = DetectorPaths()

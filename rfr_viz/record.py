@@ -1,0 +1,507 @@
+"""Replayed trajectories as `.rrd` recordings (SPEC §6): one file per trajectory, blueprint inside."""
+
+from __future__ import annotations
+
+import re
+import uuid
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Final
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+
+from rfr_viz._images import JPEG_MEDIA_TYPE, frame_jpeg
+from rfr_viz.blueprint import compare_blueprint, legend_positions, replay_blueprint
+from rfr_viz.memory_umap import MemoryMap, fit_map
+from rfr_viz.neighbors import Cell, NeighborImages, log_neighbors
+from rfr_viz.paths import APPLICATION_ID, DEFAULT_FPS, FRAME, PROPERTIES, REPLAY, TIME, DetectorPaths, camera
+from robofailring._atomic import atomic_path
+from robofailring.data.model import Trajectory
+from robofailring.detector import DetectionTrace
+from robofailring.errors import SymbolError
+from robofailring.grounding import failure_type
+from robofailring.memory import MemoryEntry
+from robofailring.report import FailureReport
+
+#: Failure types of grounding (Table 5) as map classes with fixed colours; class 0 is "unknown".
+FAILURE_CLASSES: Final[dict[str, tuple[int, tuple[int, int, int]]]] = {
+    "rotation": (1, (230, 85, 70)),
+    "translation": (2, (70, 150, 240)),
+    "grasp": (3, (250, 190, 40)),
+    "slip": (4, (170, 110, 230)),
+    "no_rotation": (5, (60, 200, 120)),
+    "wrong_sequence": (6, (240, 120, 200)),
+    "wrong_object": (7, (150, 210, 230)),
+}
+UNKNOWN_CLASS: Final[tuple[int, str, tuple[int, int, int]]] = (0, "unknown", (150, 150, 150))
+VIEW_COLOURS: Final[tuple[tuple[int, int, int], ...]] = (
+    (80, 160, 255),
+    (90, 210, 110),
+    (255, 160, 60),
+    (200, 120, 255),
+    (240, 220, 80),
+)
+ENCODER_COLOURS: Final[tuple[tuple[int, int, int], ...]] = ((80, 160, 255), (255, 150, 60), (90, 210, 110))
+DELTA_COLOUR: Final[tuple[int, int, int]] = (235, 60, 60)
+STATE_COLOUR: Final[tuple[int, int, int]] = (170, 170, 170)
+#: Few, large chunks: every chunk carries its own schema, so many small ones would dominate the file.
+BATCHING: Final[rr.ChunkBatcherConfig] = rr.ChunkBatcherConfig(
+    flush_tick=60.0, flush_num_bytes=4 * 1024 * 1024
+)
+CAMERA_BATCH: Final[int] = 64  # frames read, encoded and sent per column batch
+LABELLED_ENTRIES_MAX: Final[int] = 5_000  # larger memories label only the replayed task's map points
+_MARKDOWN_IMAGE = re.compile(r"!\[([^\]]*)\]\(([^)]*)\)")
+
+
+@dataclass(frozen=True)
+class RecordingInfo:
+    """What a recording says about the trajectory itself (shared by every encoder)."""
+
+    task: str
+    episode: str
+    label: str
+    outcome: str
+    fps: float
+
+    @classmethod
+    def of(cls, trajectory: Trajectory, *, fps: float | None = None) -> RecordingInfo:
+        return cls(
+            task=trajectory.task,
+            episode=trajectory.episode,
+            label=trajectory.label,
+            outcome=trajectory.outcome.value if trajectory.outcome is not None else "unknown",
+            fps=float(fps or trajectory.fps or DEFAULT_FPS),
+        )
+
+
+def record_replay(
+    trajectory: Trajectory,
+    trace: DetectionTrace,
+    *,
+    out: Path,
+    memory_map: MemoryMap | None = None,
+    fps: float | None = None,
+    recording_id: str | None = None,
+) -> Path:
+    """Write one replayed trajectory as a self-contained `.rrd` at `out`, atomically.
+
+    `memory_map` is the memory's cached map (`rfr_viz.memory_map(memory, directory=...)`); without
+    one it is fitted here, uncached. `fps` drives the "time" timeline (default: the data's, else 10).
+    """
+    info = RecordingInfo.of(trajectory, fps=fps)
+    mapped = memory_map if memory_map is not None else fit_map(trace.memory.vectors)
+    images = NeighborImages()
+    cell = images.cell(trace)
+    blueprint = replay_blueprint(
+        views=trace.views,
+        map_title=map_title(mapped),
+        legend_entries=legend_size(trace),
+        cell=cell,
+        k=trace.k,
+        fps=info.fps,
+    )
+    with _recording(out, blueprint, recording_id=recording_id) as rec:
+        rec.send_recording_name(f"{info.task}/{info.episode}")
+        rec.send_property(
+            PROPERTIES,
+            rr.AnyValues(**_trajectory_properties(info, trace.length), **_detector_properties(trace, mapped)),
+        )
+        log_cameras(rec, trajectory, views=trace.views, length=trace.length, fps=info.fps)
+        log_detector(
+            rec,
+            trace,
+            paths=REPLAY,
+            memory_map=mapped,
+            fps=info.fps,
+            trajectory=trajectory,
+            images=images,
+            cell=cell,
+        )
+    return Path(out)
+
+
+def compare_recording(
+    trajectory: Trajectory,
+    traces: Mapping[str, DetectionTrace],
+    *,
+    out: Path,
+    memory_maps: Mapping[str, MemoryMap] | None = None,
+    fps: float | None = None,
+    recording_id: str | None = None,
+) -> Path:
+    """One recording of a trajectory replayed under several encoders, `traces` keyed by encoder slug.
+
+    Cameras are shared at `/camera/<view>`; everything that depends on the detector lives under
+    `/<slug>/…`, and all S_t curves and δ lines share one plot.
+    """
+    if not traces:
+        raise ValueError("compare_recording needs at least one trace")
+    info = RecordingInfo.of(trajectory, fps=fps)
+    slugs = list(traces)
+    maps = {
+        slug: (memory_maps or {}).get(slug) or fit_map(trace.memory.vectors) for slug, trace in traces.items()
+    }
+    images = NeighborImages()
+    cells = {slug: images.cell(trace) for slug, trace in traces.items()}
+    views = list(dict.fromkeys(view for trace in traces.values() for view in trace.views))
+    length = max(trace.length for trace in traces.values())
+    blueprint = compare_blueprint(
+        views=views,
+        encoders=slugs,
+        map_titles=[map_title(maps[slug]) for slug in slugs],
+        legend_entries=[legend_size(traces[slug]) for slug in slugs],
+        cells=[cells[slug] for slug in slugs],
+        fps=info.fps,
+    )
+    with _recording(out, blueprint, recording_id=recording_id) as rec:
+        rec.send_recording_name(f"{info.task}/{info.episode} ({' vs '.join(slugs)})")
+        rec.send_property(
+            PROPERTIES,
+            rr.AnyValues(
+                **_trajectory_properties(info, length),
+                encoder=", ".join(trace.encoder for trace in traces.values()),
+                encoders=", ".join(slugs),
+            ),
+        )
+        log_cameras(rec, trajectory, views=views, length=length, fps=info.fps)
+        for position, (slug, trace) in enumerate(traces.items()):
+            rec.send_property(slug, rr.AnyValues(**_detector_properties(trace, maps[slug])))
+            log_detector(
+                rec,
+                trace,
+                paths=DetectorPaths.for_encoder(slug),
+                memory_map=maps[slug],
+                fps=info.fps,
+                trajectory=trajectory,
+                images=images,
+                cell=cells[slug],
+                label=slug,
+                colour=ENCODER_COLOURS[position % len(ENCODER_COLOURS)],
+            )
+    return Path(out)
+
+
+@contextmanager
+def _recording(
+    out: Path, blueprint: rrb.Blueprint, *, recording_id: str | None
+) -> Iterator[rr.RecordingStream]:
+    """A recording saved to a temporary file that becomes `out` only if the block succeeds."""
+    with atomic_path(Path(out), suffix=".rrd") as tmp:
+        rec = rr.RecordingStream(
+            APPLICATION_ID, recording_id=recording_id or str(uuid.uuid4()), batcher_config=BATCHING
+        )
+        rec.set_log_time_enabled(False)  # a replay has its own timelines; wall-clock time adds nothing
+        with rec:  # leaving the block flushes and closes the file sink, also on error
+            rec.save(tmp, default_blueprint=blueprint)
+            yield rec
+
+
+def legend_size(trace: DetectionTrace) -> int:
+    """Entries of the map legend: the failure types present in the memory."""
+    return len({class_id(entry.symbol) for entry in trace.memory.entries})
+
+
+def map_title(memory_map: MemoryMap) -> str:
+    """The map view's title, which says how the map was made (UMAP, or the PCA fallback)."""
+    if memory_map.method == "umap":
+        return f"memory map · UMAP (cosine) of {len(memory_map.embedding)} entries"
+    return f"memory map · PCA ({len(memory_map.embedding)} entries, too few for UMAP)"
+
+
+def _trajectory_properties(info: RecordingInfo, length: int) -> dict[str, Any]:
+    return {
+        "task": info.task,
+        "episode": info.episode,
+        "label": info.label,
+        "outcome": info.outcome,
+        "L": length,
+        "fps": info.fps,
+    }
+
+
+def _detector_properties(trace: DetectionTrace, memory_map: MemoryMap) -> dict[str, Any]:
+    return {
+        "encoder": trace.encoder,
+        "delta": float(trace.delta),
+        "k": trace.k,
+        "t_det": trace.t_det if trace.t_det is not None else -1,  # -1: the detector never fired
+        "detected_view": trace.detected_view or "",
+        "views": ", ".join(trace.views),
+        "skipped_views": ", ".join(trace.skipped_views),
+        "memory_entries": len(trace.memory),
+        "map": memory_map.method,
+        "map_note": memory_map.note,
+    }
+
+
+def time_columns(frames: np.ndarray, fps: float) -> list[rr.TimeColumn]:
+    """The two timelines of a batch of frames: "frame" (sequence) and "time" (seconds)."""
+    return [
+        rr.TimeColumn(FRAME, sequence=frames),
+        rr.TimeColumn(TIME, duration=frames.astype(np.float64) / fps),
+    ]
+
+
+def _set_time(rec: rr.RecordingStream, t: int, fps: float) -> None:
+    rec.set_time(FRAME, sequence=t)
+    rec.set_time(TIME, duration=t / fps)
+
+
+def log_cameras(
+    rec: rr.RecordingStream, trajectory: Trajectory, *, views: Sequence[str], length: int, fps: float
+) -> None:
+    """`/camera/<view>`: one JPEG per frame per view, sent in column batches (never raw pixels)."""
+    for view in views:
+        frames = trajectory.views[view]
+        count = min(length, len(frames))
+        for start in range(0, count, CAMERA_BATCH):
+            blobs = [frame_jpeg(frame) for frame in frames[start : min(start + CAMERA_BATCH, count)]]
+            rec.send_columns(
+                camera(view),
+                indexes=time_columns(np.arange(start, start + len(blobs)), fps),
+                columns=rr.EncodedImage.columns(blob=blobs, media_type=[JPEG_MEDIA_TYPE] * len(blobs)),
+            )
+
+
+def log_detector(
+    rec: rr.RecordingStream,
+    trace: DetectionTrace,
+    *,
+    paths: DetectorPaths,
+    memory_map: MemoryMap,
+    fps: float,
+    trajectory: Trajectory | None = None,
+    images: NeighborImages | None = None,
+    cell: Cell | None = None,
+    label: str | None = None,
+    colour: tuple[int, int, int] | None = None,
+) -> None:
+    """Everything that depends on the detector: scores, δ, state, map, neighbours, event and report."""
+    images = images or NeighborImages()
+    _log_scores(rec, trace, paths, fps, label=label, colour=colour)
+    _log_map(rec, trace, paths, memory_map, fps)
+    log_neighbors(rec, trace, paths, fps=fps, images=images, cell=cell or images.cell(trace))
+    _log_detection(rec, trace, paths, fps, trajectory)
+
+
+def _shade(colour: tuple[int, int, int], position: int, count: int) -> tuple[int, int, int]:
+    """Views of one encoder in a comparison: its hue, from full strength to lighter."""
+    mix = 0.6 * position / max(count - 1, 1)
+    red, green, blue = (int(c + (255 - c) * mix) for c in colour)
+    return red, green, blue
+
+
+def _log_scores(
+    rec: rr.RecordingStream,
+    trace: DetectionTrace,
+    paths: DetectorPaths,
+    fps: float,
+    *,
+    label: str | None,
+    colour: tuple[int, int, int] | None,
+) -> None:
+    prefix = f"{label} · " if label else ""
+    for position, view in enumerate(trace.views):
+        similarity = np.asarray(trace.similarity[view], dtype=np.float64)
+        present = np.flatnonzero(np.isfinite(similarity))
+        view_colour = (
+            _shade(colour, position, len(trace.views))
+            if colour
+            else VIEW_COLOURS[position % len(VIEW_COLOURS)]
+        )
+        rec.log(
+            paths.score(view),
+            rr.SeriesLines(colors=[view_colour], widths=[2.0], names=[f"{prefix}{view}"]),
+            static=True,
+        )
+        rec.send_columns(
+            paths.score(view),
+            indexes=time_columns(present, fps),
+            columns=rr.Scalars.columns(scalars=similarity[present]),
+        )
+    frames = np.arange(trace.length)
+    delta_colour = DELTA_COLOUR if colour is None else _shade(colour, 0, 1)
+    rec.log(
+        paths.delta,
+        rr.SeriesLines(colors=[delta_colour], widths=[1.0], names=[f"{prefix}δ = {trace.delta:.3f}"]),
+        static=True,
+    )
+    rec.send_columns(
+        paths.delta,
+        indexes=time_columns(frames, fps),
+        columns=rr.Scalars.columns(scalars=np.full(trace.length, float(trace.delta))),
+    )
+    rec.log(
+        paths.state,
+        rr.SeriesLines(
+            colors=[STATE_COLOUR if colour is None else colour],
+            widths=[1.5],
+            names=[f"{prefix}State_t (any view ≥ δ)"],
+        ),
+        static=True,
+    )
+    rec.send_columns(
+        paths.state,
+        indexes=time_columns(frames, fps),
+        columns=rr.Scalars.columns(scalars=trace.state.astype(np.float64)),
+    )
+
+
+def class_id(symbol: str) -> int:
+    """The map class of a failure symbol: its failure type (grounding Table 5), 0 when unknown."""
+    try:
+        kind = failure_type(symbol)
+    except SymbolError:
+        return UNKNOWN_CLASS[0]
+    return FAILURE_CLASSES[kind][0] if kind in FAILURE_CLASSES else UNKNOWN_CLASS[0]
+
+
+def annotation_context() -> rr.AnnotationContext:
+    """Failure type -> class id, label and colour of the memory map."""
+    classes = [rr.ClassDescription(info=UNKNOWN_CLASS)]
+    classes += [rr.ClassDescription(info=(cid, kind, rgb)) for kind, (cid, rgb) in FAILURE_CLASSES.items()]
+    return rr.AnnotationContext(classes)
+
+
+def map_labels(entries: Sequence[MemoryEntry], *, task: str) -> list[str]:
+    """Hover labels "task · symbol · view · episode" of the map's points.
+
+    Up to LABELLED_ENTRIES_MAX entries all are labelled; in larger memories only the replayed task's
+    entries (the only ones the detector can retrieve), the others show their failure type (class) on
+    hover: labels would otherwise cost ~16 bytes per entry in every recording.
+    """
+    everyone = len(entries) <= LABELLED_ENTRIES_MAX
+    return [
+        f"{e.task} · {e.symbol} · {e.view} · {e.episode}" if everyone or e.task == task else ""
+        for e in entries
+    ]
+
+
+def _log_map(
+    rec: rr.RecordingStream, trace: DetectionTrace, paths: DetectorPaths, memory_map: MemoryMap, fps: float
+) -> None:
+    """The static memory map (classes = failure types, hover labels) and each view's moving query."""
+    entries = trace.memory.entries
+    classes = np.asarray([class_id(entry.symbol) for entry in entries], dtype=np.uint16)
+    rec.log(paths.umap, annotation_context(), static=True)
+    rec.log(
+        paths.umap,
+        rr.Points2D(
+            memory_map.embedding,
+            class_ids=classes,
+            labels=map_labels(entries, task=trace.task),
+            show_labels=False,
+            radii=rr.Radius.ui_points(3.0),
+        ),
+        static=True,
+    )
+    _log_legend(rec, paths, classes)
+    stacked = np.concatenate([trace.queries[view] for view in trace.views])
+    placed = memory_map.project(stacked).reshape(len(trace.views), trace.length, 2)
+    for position, view in enumerate(trace.views):
+        rec.log(
+            paths.umap_query(view),
+            rr.Points2D.from_fields(
+                colors=[VIEW_COLOURS[position % len(VIEW_COLOURS)]],
+                radii=rr.Radius.ui_points(6.0),
+                labels=[f"now: {view}"],
+                show_labels=True,
+                draw_order=100.0,
+            ),
+            static=True,
+        )
+        rec.send_columns(
+            paths.umap_query(view),
+            indexes=time_columns(np.arange(trace.length), fps),
+            columns=rr.Points2D.columns(positions=placed[position]).partition(
+                np.ones(trace.length, dtype=np.int64)
+            ),
+        )
+
+
+def _log_legend(rec: rr.RecordingStream, paths: DetectorPaths, classes: np.ndarray) -> None:
+    """A legend under the map (which spans [-1, 1]²): the failure types present, with their counts."""
+    present, counts = np.unique(classes, return_counts=True)
+    names = {cid: kind for kind, (cid, _) in FAILURE_CLASSES.items()} | {UNKNOWN_CLASS[0]: UNKNOWN_CLASS[1]}
+    colours = {cid: rgb for cid, rgb in FAILURE_CLASSES.values()} | {UNKNOWN_CLASS[0]: UNKNOWN_CLASS[2]}
+    labels = [f"{names[int(cid)]} ({count})" for cid, count in zip(present, counts, strict=True)]
+    rgb = [colours[int(cid)] for cid in present]
+    rec.log(
+        f"{paths.umap}/legend",
+        rr.Points2D(
+            legend_positions(len(labels)),
+            colors=rgb,
+            labels=labels,
+            show_labels=True,
+            radii=rr.Radius.ui_points(4.0),
+        ),
+        static=True,
+    )
+
+
+def _markdown_without_images(markdown: str) -> str:
+    """Image links become plain references: the viewer must not try to fetch local files."""
+    return _MARKDOWN_IMAGE.sub(lambda match: f"`{match[1] or 'image'}: {match[2]}`", markdown)
+
+
+def _log_detection(
+    rec: rr.RecordingStream,
+    trace: DetectionTrace,
+    paths: DetectorPaths,
+    fps: float,
+    trajectory: Trajectory | None,
+) -> None:
+    """The detection event and the failure report at t_det; a summary at frame 0 before that."""
+    t_det, view = trace.t_det, trace.detected_view
+    peak = trace.max_similarity()
+    peak_frame = int(np.argmax(peak))
+    summary = (
+        f"**{trace.task} · {trace.episode}** — encoder `{trace.encoder}`, δ = {trace.delta:.3f}, "
+        f"K = {trace.k}, L = {trace.length} frames.\n\n"
+    )
+    _set_time(rec, 0, fps)
+    if t_det is None or view is None:
+        rec.log(
+            paths.report,
+            rr.TextDocument(
+                summary + f"**No failure detected.** The highest S_t over all views is "
+                f"{float(peak[peak_frame]):.3f} at frame {peak_frame}, below δ.",
+                media_type=rr.MediaType.MARKDOWN,
+            ),
+        )
+        return
+    rec.log(
+        paths.report,
+        rr.TextDocument(
+            summary + f"No failure yet: the detector fires at frame **{t_det}** (view {view}).",
+            media_type=rr.MediaType.MARKDOWN,
+        ),
+    )
+    neighbors = trace.neighbors(view, t_det)
+    current = None
+    if trajectory is not None and view in trajectory.views and t_det < len(trajectory.views[view]):
+        current = trajectory.views[view][t_det].reference
+    report = FailureReport.from_neighbors(
+        task=trace.task, view=view, t_det=t_det, neighbors=neighbors, current_image=current
+    )
+    top = neighbors[0]
+    _set_time(rec, t_det, fps)
+    rec.log(
+        paths.event,
+        rr.TextLog(
+            f"FAILURE at frame {t_det} in view {view}: S_t = {top.similarity:.3f} ≥ δ = {trace.delta:.3f}; "
+            f"nearest memory entry {top.entry.task}/{top.entry.episode} [{top.entry.view}] "
+            f"{top.entry.symbol}: {top.entry.description}",
+            level=rr.TextLogLevel.WARN,
+        ),
+    )
+    rec.log(
+        paths.report,
+        rr.TextDocument(
+            summary + _markdown_without_images(report.to_markdown()), media_type=rr.MediaType.MARKDOWN
+        ),
+    )

@@ -1,0 +1,215 @@
+"""Render a recording in the real Rerun viewer, headless, to a PNG (for tests, docs and reviews)."""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes.util
+import glob
+import os
+import signal
+import socket
+import subprocess
+import tempfile
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Final
+
+from rfr_viz.paths import FRAME
+
+if TYPE_CHECKING:
+    from rerun.experimental import ViewerClient, ViewerState
+
+WINDOW: Final[tuple[int, int]] = (1280, 720)
+ICD_GLOBS: Final[tuple[str, ...]] = (
+    "/usr/share/vulkan/icd.d/*.json",
+    "/etc/vulkan/icd.d/*.json",
+    "/usr/local/share/vulkan/icd.d/*.json",
+)
+
+
+class ViewerUnavailable(RuntimeError):
+    """The headless viewer cannot run here (no Vulkan driver, or no viewer binary)."""
+
+
+@dataclass(frozen=True)
+class Screenshot:
+    """A rendered recording: the PNG, and the viewer's ERROR log lines while it showed it."""
+
+    path: Path
+    errors: list[str] = field(default_factory=list)
+    frame: int | None = None
+
+
+def viewer_binary() -> Path:
+    """The real viewer executable inside the `rerun_cli` package (not the Python console script)."""
+    try:
+        import rerun_cli
+    except ImportError as error:
+        raise ViewerUnavailable("the rerun_cli package (part of rerun-sdk) is not installed") from error
+    binary = Path(rerun_cli.__file__).parent / "rerun"
+    if not binary.is_file():
+        raise ViewerUnavailable(f"no viewer binary at {binary}")
+    return binary
+
+
+def check_vulkan() -> None:
+    """Raise ViewerUnavailable unless a Vulkan loader and a driver (e.g. Mesa lavapipe) are installed."""
+    if ctypes.util.find_library("vulkan") is None:
+        raise ViewerUnavailable(
+            "no Vulkan loader (libvulkan.so.1); install Mesa's software driver: "
+            "apt-get install -y --no-install-recommends mesa-vulkan-drivers libvulkan1"
+        )
+    icds = [path for pattern in ICD_GLOBS for path in glob.glob(pattern)]
+    if not icds and not os.environ.get("VK_ICD_FILENAMES") and not os.environ.get("VK_DRIVER_FILES"):
+        raise ViewerUnavailable(
+            "no Vulkan driver (ICD) found; install Mesa's software driver: "
+            "apt-get install -y --no-install-recommends mesa-vulkan-drivers libvulkan1"
+        )
+
+
+def _environment(runtime_dir: str) -> dict[str, str]:
+    return {**os.environ, "CI": "1", "XDG_RUNTIME_DIR": runtime_dir, "RERUN_ANALYTICS": "0"}
+
+
+def verify_recording(recording: Path) -> None:
+    """`rerun rrd verify`: the only rrd subcommand that fails on a corrupt file (raises ValueError)."""
+    with tempfile.TemporaryDirectory(prefix="rfr-viewer-") as runtime_dir:
+        os.chmod(runtime_dir, 0o700)
+        result = subprocess.run(
+            [str(viewer_binary()), "rrd", "verify", str(recording)],
+            env=_environment(runtime_dir),
+            capture_output=True,
+            text=True,
+            timeout=120,
+            check=False,
+        )
+    if result.returncode != 0:
+        raise ValueError(f"{recording} is not a valid recording: {(result.stderr or result.stdout).strip()}")
+
+
+def _free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
+def _wait_for_port(port: int, process: subprocess.Popen[bytes], deadline: float) -> None:
+    while time.monotonic() < deadline:
+        if process.poll() is not None:
+            raise ViewerUnavailable(f"the viewer exited with code {process.returncode} before listening")
+        with contextlib.suppress(OSError), socket.create_connection(("127.0.0.1", port), timeout=0.2):
+            return
+        time.sleep(0.05)
+    raise TimeoutError(f"the viewer did not listen on port {port} in time")
+
+
+@contextlib.contextmanager
+def _viewer_process(size: tuple[int, int], deadline: float) -> Iterator[int]:
+    """The headless viewer in its own process group, stopped (group and all) on exit."""
+    with tempfile.TemporaryDirectory(prefix="rfr-viewer-") as runtime_dir:
+        os.chmod(runtime_dir, 0o700)
+        port = _free_port()
+        log_path = Path(runtime_dir) / "viewer.log"
+        with log_path.open("wb") as log:
+            process = subprocess.Popen(
+                [
+                    str(viewer_binary()),
+                    "--headless",
+                    "--bind",
+                    "127.0.0.1",
+                    "--port",
+                    str(port),
+                    "--window-size",
+                    f"{size[0]}x{size[1]}",
+                    "--hide-welcome-screen",
+                ],
+                env=_environment(runtime_dir),
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                start_new_session=True,
+            )
+            try:
+                try:
+                    _wait_for_port(port, process, deadline)
+                except ViewerUnavailable as error:
+                    tail = log_path.read_text(errors="replace")[-2000:]
+                    raise ViewerUnavailable(f"{error}; viewer output:\n{tail}") from error
+                yield port
+            finally:
+                _stop(process)
+
+
+def _stop(process: subprocess.Popen[bytes]) -> None:
+    if process.poll() is not None:
+        return
+    with contextlib.suppress(ProcessLookupError):
+        os.killpg(process.pid, signal.SIGTERM)
+    try:
+        process.wait(timeout=5)
+    except subprocess.TimeoutExpired:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(process.pid, signal.SIGKILL)
+        process.wait(timeout=5)
+
+
+def render_screenshot(
+    recording: Path,
+    out: Path,
+    *,
+    frame: int | None = None,
+    size: tuple[int, int] = WINDOW,
+    settle: float = 0.5,
+    timeout: float = 90.0,
+) -> Screenshot:
+    """Open `recording` in the headless viewer at `size`, pause at `frame` and save a PNG at `out`.
+
+    The recording is verified first; `settle` seconds pass before the shot (pop-ups fade after ~5 s).
+    Returns the PNG and the viewer's ERROR log lines (a bad image shows up there, not in the view).
+    Raises ViewerUnavailable where the viewer cannot run (no Vulkan driver).
+    """
+    from rerun.experimental import ViewerClient
+
+    recording = Path(recording).resolve()
+    out = Path(out).resolve()
+    check_vulkan()
+    verify_recording(recording)
+    deadline = time.monotonic() + timeout
+    with _viewer_process(size, deadline) as port:
+        client = ViewerClient.connect(f"rerun+http://127.0.0.1:{port}/proxy")
+        client.open(str(recording))
+        _wait_loaded(client, deadline)
+        if frame is None:
+            client.set_time(FRAME, play_state="paused")  # stay where the viewer opened it
+        else:
+            client.set_time(FRAME, sequence=frame, play_state="paused")
+        time.sleep(settle)  # frames for images to decode and plots to settle
+        out.parent.mkdir(parents=True, exist_ok=True)
+        client.save_screenshot(str(out))
+        errors = [f"{entry.target}: {entry.message}" for entry in client.get_logs() if entry.level == "ERROR"]
+        errors += [
+            f"view {view.name!r}: {report}"
+            for view in client.get_state().views
+            for report in view.reports or []
+        ]
+    if not out.is_file():
+        raise RuntimeError(f"the viewer wrote no screenshot to {out}")
+    return Screenshot(path=out, errors=errors, frame=frame)
+
+
+def _wait_loaded(client: ViewerClient, deadline: float) -> None:
+    """Poll the viewer until the recording is loaded and has its timelines."""
+    while time.monotonic() < deadline:
+        state = client.get_state()
+        if _loaded(state):
+            return
+        time.sleep(0.1)
+    raise TimeoutError("the viewer did not finish loading the recording in time")
+
+
+def _loaded(state: ViewerState) -> bool:
+    if state.loading or state.active_recording is None:
+        return False
+    active = [r for r in state.recordings if r.store_id == state.active_recording]
+    return bool(active) and any(timeline.name == FRAME for timeline in active[0].timelines)
