@@ -31,7 +31,7 @@ def test_two_encoders_side_by_side(tmp_path: Path, tiny_checkpoint: tuple[Path, 
         assert result.operating_delta == manifest["calibration"]["delta"] and result.calibrated
         assert result.failures == 6 and result.successes == 2
     table = comparison_table(results)
-    assert table.count("\n") == 3 and "`pixels-v1-24px-512d`" in table and "open_clip:TinyViT-test" in table
+    assert table.count("\n") == 3 and "`pixels-v2-24px-512d`" in table and "open_clip:TinyViT-test" in table
 
 
 def test_needs_two_encoders(tmp_path: Path) -> None:
