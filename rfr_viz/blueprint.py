@@ -82,17 +82,39 @@ def _neighbor_infos(views: Sequence[str], paths: DetectorPaths, *, label: str = 
     ]
 
 
-def _panels(fps: float) -> list[rrb.BlueprintPart]:
-    """Side panels folded away; the time bar plays the "frame" timeline at the data's rate."""
-    return [
-        rrb.BlueprintPanel(state="collapsed"),
-        rrb.SelectionPanel(state="collapsed"),
-        rrb.TimePanel(state="collapsed", timeline=FRAME, fps=fps),
-    ]
+FOCUS_MARGIN = 6  # frames shown either side of a focus frame (an alarm, a near miss)
+
+
+def _panels(fps: float, focus: int | None = None) -> list[rrb.BlueprintPart]:
+    """Side panels folded away; the time bar plays the "frame" timeline at the data's rate.
+
+    With a `focus` frame the time bar selects the frames around it and playback loops there once it
+    reaches them (Rerun 0.41 blueprints cannot place the time cursor itself).
+    """
+    if focus is None:
+        time_panel = rrb.TimePanel(state="collapsed", timeline=FRAME, fps=fps)
+    else:
+        selection = rrb.components.AbsoluteTimeRange(max(focus - FOCUS_MARGIN, 0), focus + FOCUS_MARGIN)
+        time_panel = rrb.TimePanel(
+            state="collapsed",
+            timeline=FRAME,
+            fps=fps,
+            time_selection=selection,
+            loop_mode="selection",
+            play_state="playing",
+        )
+    return [rrb.BlueprintPanel(state="collapsed"), rrb.SelectionPanel(state="collapsed"), time_panel]
 
 
 def replay_blueprint(
-    *, views: Sequence[str], map_title: str, legend_entries: int, cell: Cell, k: int, fps: float = DEFAULT_FPS
+    *,
+    views: Sequence[str],
+    map_title: str,
+    legend_entries: int,
+    cell: Cell,
+    k: int,
+    fps: float = DEFAULT_FPS,
+    focus: int | None = None,
 ) -> rrb.Blueprint:
     """Cameras, score plot and memory map on top; neighbours and the report below."""
     top = rrb.Horizontal(
@@ -116,7 +138,7 @@ def replay_blueprint(
         active_tab=0,
     )
     bottom = rrb.Horizontal(neighbors, side, column_shares=[3, 1.6])
-    return rrb.Blueprint(rrb.Vertical(top, bottom, row_shares=[1.25, 1]), *_panels(fps))
+    return rrb.Blueprint(rrb.Vertical(top, bottom, row_shares=[1.25, 1]), *_panels(fps, focus))
 
 
 def compare_blueprint(

@@ -9,6 +9,7 @@ import typer
 
 from rfr_viz import tool_cli  # noqa: F401  (registers evaluate and the other combined verbs)
 from rfr_viz.replay import DEFAULT_OUT, CompareConfig, ReplayConfig, ReplayResult, compare, replay
+from rfr_viz.viewer import open_command
 from robofailring.cli import CacheOption, DeviceOption, app, exit_with_error
 from robofailring.errors import RoboFailRingError
 
@@ -50,7 +51,7 @@ def _report(result: ReplayResult, out: Path) -> None:
         + (f", {len(result.skipped)} trajectories skipped" if result.skipped else "")
     )
     for path in result.recordings:
-        typer.echo(f"  rerun {path}")
+        typer.echo(f"  {open_command(path)}")
 
 
 @app.command("replay")

@@ -86,8 +86,11 @@ def record_replay(
     memory_map: MemoryMap | None = None,
     fps: float | None = None,
     recording_id: str | None = None,
+    focus_frame: int | None = None,
 ) -> Path:
     """Write one replayed trajectory as a self-contained `.rrd` at `out`, atomically.
+
+    `focus_frame` makes the recording open playing around that frame (e.g. a false alarm).
 
     `memory_map` is the memory's cached map (`rfr_viz.memory_map(memory, directory=...)`); without
     one it is fitted here, uncached. `fps` drives the "time" timeline (default: the data's, else 10).
@@ -103,6 +106,7 @@ def record_replay(
         cell=cell,
         k=trace.k,
         fps=info.fps,
+        focus=focus_frame,
     )
     with _recording(out, blueprint, recording_id=recording_id) as rec:
         rec.send_recording_name(f"{info.task}/{info.episode}")

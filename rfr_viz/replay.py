@@ -82,14 +82,14 @@ def select_trajectories(data: Path, *, keys: Sequence[str] = (), task: str | Non
 
 
 @dataclass(frozen=True)
-class _Detector:
+class LoadedDetector:
     slug: str
     memory: FailureMemory
     detector: FailureDetector
     map: MemoryMap
 
 
-def _detector(
+def load_detector(
     memory_dir: Path,
     *,
     delta: float | None,
@@ -97,11 +97,11 @@ def _detector(
     encoder: str | None,
     cache_dir: Path | None,
     device: str | None,
-) -> _Detector:
+) -> LoadedDetector:
     memory = FailureMemory.load(memory_dir)
     spec = encoder or encoder_spec_for(memory)
     cached = CachedEncoder(load_encoder(spec, device=device), cache_dir=cache_dir)
-    return _Detector(
+    return LoadedDetector(
         slug=encoder_slug(memory.encoder),
         memory=memory,
         detector=FailureDetector(memory, cached, delta=delta, k=k),
@@ -111,7 +111,7 @@ def _detector(
 
 def replay(config: ReplayConfig) -> ReplayResult:
     """Replay each selected trajectory through the detector into `<out>/<task>__<episode>.rrd`."""
-    found = _detector(
+    found = load_detector(
         config.memory,
         delta=config.delta,
         k=config.k,
@@ -156,7 +156,7 @@ def compare(config: CompareConfig) -> ReplayResult:
         )
     deltas: Sequence[float | None] = config.deltas or [None] * len(config.memories)
     detectors = [
-        _detector(
+        load_detector(
             memory_dir,
             delta=delta,
             k=config.k,

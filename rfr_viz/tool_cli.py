@@ -7,6 +7,7 @@ from typing import Annotated
 
 import typer
 
+from rfr_viz.viewer import open_command
 from robofailring.cli import CacheOption, DeviceOption, EncoderOption, app, exit_with_error
 from robofailring.errors import RoboFailRingError
 
@@ -51,4 +52,141 @@ def evaluate_cmd(
     json_path, md_path = write_evaluation(result, out)
     rrd_path = record_evaluation([result], out=Path(out) / f"{name}.rrd")
     typer.echo(result.to_markdown())
-    typer.echo(f"\nwrote {md_path}, {json_path} and {rrd_path} (open with: rerun {rrd_path})")
+    typer.echo(f"\nwrote {md_path}, {json_path} and {rrd_path} (open with: {open_command(rrd_path)})")
+
+
+@app.command("review")
+def review_cmd(
+    evaluation: Annotated[Path, typer.Argument(help="The <name>.json written by `robofailring evaluate`.")],
+    data: Annotated[Path, typer.Option("--data", help="The dataset that evaluation tested on.")],
+    kind: Annotated[str, typer.Option(help="`false-alarms` or `misses`.")] = "false-alarms",
+    out: Annotated[Path, typer.Option("--out", help="Folder for the recordings.")] = Path(
+        "recordings/review"
+    ),
+    memory: Annotated[Path | None, typer.Option(help="Default: the memory the evaluation used.")] = None,
+    cache_dir: CacheOption = None,
+    device: DeviceOption = None,
+) -> None:
+    """Replay only the false alarms (or the misses) of an evaluation, each recording focused on the moment."""
+    from rfr_viz.review import ReviewConfig, review
+
+    try:
+        result = review(
+            ReviewConfig(
+                evaluation=evaluation,
+                data=data,
+                kind=kind,
+                out=out,
+                memory=memory,
+                cache_dir=cache_dir,
+                device=device,
+            )
+        )
+    except RoboFailRingError as error:
+        exit_with_error(error)
+    if not result.recordings:
+        typer.echo(f"no {kind} in {evaluation}: nothing to replay")
+        return
+    for path in result.recordings:
+        typer.echo(open_command(path))
+
+
+@app.command("compare-encoders")
+def compare_encoders_cmd(
+    data: Annotated[Path, typer.Argument(help="Dataset with train/test splits.")],
+    encoders: Annotated[list[str], typer.Option("--encoder", help="Encoder spec; give two or more.")],
+    out: Annotated[Path, typer.Option("--out", help="Folder for memories, tables and recordings.")],
+    target_fpr: Annotated[
+        float, typer.Option("--target-fpr", help="Calibrate each encoder's δ to this FPR.")
+    ] = 0.05,
+    recordings: Annotated[int, typer.Option(help="Per-trajectory comparison recordings to write.")] = 3,
+    k: Annotated[int, typer.Option(help="Neighbours retrieved per query.")] = 5,
+    cache_dir: CacheOption = None,
+    device: DeviceOption = None,
+) -> None:
+    """The same split under several encoders, each calibrated: a side-by-side table and comparison recordings."""
+    from rfr_viz.replay import CompareConfig, compare
+    from robofailring._atomic import write_text_atomic
+    from robofailring.comparison import CompareEncodersConfig, compare_encoders, comparison_table
+
+    try:
+        results = compare_encoders(
+            CompareEncodersConfig(
+                data=data,
+                out=out,
+                encoders=tuple(encoders),
+                target_fpr=target_fpr,
+                k=k,
+                cache_dir=cache_dir,
+                device=device,
+            )
+        )
+    except (RoboFailRingError, ValueError) as error:
+        exit_with_error(error)
+    table = comparison_table(results)
+    write_text_atomic(Path(out) / "comparison.md", table + "\n")
+    keys = tuple(t.key for t in results[0].scored if t.is_failure)[: max(recordings, 0)]
+    replayed = (
+        compare(
+            CompareConfig(
+                data=data,
+                memories=tuple(Path(r.memory) for r in results),
+                out=Path(out) / "recordings",
+                trajectories=keys,
+                k=k,
+                cache_dir=cache_dir,
+                device=device,
+            )
+        )
+        if keys
+        else None
+    )
+    typer.echo(table)
+    typer.echo(f"\nwrote {Path(out) / 'comparison.md'}")
+    for path in replayed.recordings if replayed else []:
+        typer.echo(open_command(path))
+
+
+@app.command("demo")
+def demo_cmd(
+    out: Annotated[Path, typer.Option("--out", help="Folder for everything the demo writes.")] = Path(
+        "recordings/demo"
+    ),
+    episodes: Annotated[int, typer.Option(help="In-distribution episodes per task and kind.")] = 3,
+    ood_episodes: Annotated[int, typer.Option(help="Out-of-distribution episodes per task and kind.")] = 1,
+    image_size: Annotated[int, typer.Option("--image-size", help="Simulated image size in pixels.")] = 128,
+    frames: Annotated[int, typer.Option(help="Frames per simulated episode.")] = 40,
+    target_fpr: Annotated[
+        float, typer.Option("--target-fpr", help="Calibration target on the training successes.")
+    ] = 0.2,
+    data_dir: Annotated[Path | None, typer.Option(help="Where simulated datasets are cached.")] = None,
+    cache_dir: CacheOption = None,
+) -> None:
+    """The main job on the embedded default: simulate, build the memory, calibrate, evaluate, record."""
+    from rfr_viz.demo import DemoConfig, run_demo
+
+    try:
+        result = run_demo(
+            DemoConfig(
+                out=out,
+                episodes=episodes,
+                ood_episodes=ood_episodes,
+                image_size=image_size,
+                frames=frames,
+                target_fpr=target_fpr,
+                data_dir=data_dir,
+                cache_dir=cache_dir,
+            ),
+            say=typer.echo,
+        )
+    except (RoboFailRingError, ValueError) as error:
+        exit_with_error(error)
+    for evaluation in result.evaluations:
+        typer.echo("\n" + evaluation.to_markdown())
+    typer.echo("\nTables: " + ", ".join(str(p) for p in result.tables))
+    typer.echo("\nOpen the recordings in the Rerun viewer:")
+    typer.echo(f"  {open_command(result.summary)}    # evaluation: Recall/FPR against δ, ROC, T_s histogram")
+    for kind, path in result.recordings.items():
+        typer.echo(f"  {open_command(path)}    # {kind}")
+    for note in result.notes:
+        typer.echo(f"note: {note}")

@@ -213,3 +213,13 @@ def _loaded(state: ViewerState) -> bool:
         return False
     active = [r for r in state.recordings if r.store_id == state.active_recording]
     return bool(active) and any(timeline.name == FRAME for timeline in active[0].timelines)
+
+
+def open_command(recording: Path) -> str:
+    """The shell line that opens a recording in the Rerun viewer (the venv's `rerun` when not on PATH)."""
+    import shutil
+    import sys
+
+    script = Path(sys.executable).with_name("rerun")
+    rerun = "rerun" if shutil.which("rerun") or not script.exists() else str(script)
+    return f"{rerun} {recording}"

@@ -1,0 +1,141 @@
+"""The main job on the embedded default: simulate, build the memory, calibrate, evaluate, record."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from rfr_viz.evaluation_recording import record_evaluation
+from rfr_viz.memory_umap import memory_map
+from rfr_viz.record import record_replay
+from rfr_viz.replay import recording_name
+from robofailring.data.layouts import load_dataset
+from robofailring.encoders import default_cache_dir
+from robofailring.evaluation import (
+    CalibrateConfig,
+    EvaluateConfig,
+    EvaluationResult,
+    build_training_memory,
+    calibrate,
+    run_evaluation,
+    write_evaluation,
+)
+from robofailring.grounding import failure_type
+from robofailring.progress import progress_bar
+from robofailring.sim import TASKS, GenerateConfig, generate_dataset
+
+
+@dataclass(frozen=True)
+class DemoConfig:
+    out: Path = Path("recordings/demo")  # memory, tables, summary and trajectory recordings
+    data_dir: Path | None = None  # simulated datasets (cached); default <cache>/demo-data
+    tasks: tuple[str, ...] = TASKS  # simulated tasks
+    episodes: int = 3  # in-distribution episodes per task and kind (even: memory, odd: test)
+    ood_episodes: int = 1  # out-of-distribution episodes per task and kind (all test)
+    image_size: int = 128
+    frames: int = 40
+    target_fpr: float = 0.2  # calibration target on the training successes (the weight-free encoder is weak)
+    encoder: str = "pixels"
+    workers: int = 2
+    cache_dir: Path | None = None
+
+
+@dataclass
+class DemoResult:
+    evaluations: list[EvaluationResult]
+    summary: Path
+    tables: list[Path]
+    recordings: dict[str, Path] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+
+
+def _simulate(config: GenerateConfig, label: str) -> Path:
+    total = len(config.tasks) * len(config.modes) * config.episodes
+    with progress_bar(total=total, desc=f"simulating {label}", unit="episode") as bar:
+        return generate_dataset(config, progress=bar.update)
+
+
+def _pick(result: EvaluationResult, kind: str) -> tuple[str, int] | None:
+    """A trajectory key and its focus frame for one kind of outcome, or None when there is none."""
+    delta = result.operating_delta
+    if kind == "detection":
+        hits = []
+        for scored in result.scored:
+            t_det = scored.t_det(delta)
+            if scored.is_failure and t_det is not None:
+                trace = result.traces[scored.key].with_delta(delta)
+                view = trace.detected_view
+                top = trace.neighbors(view, t_det)[0] if view is not None else None
+                same_type = top is not None and failure_type(top.entry.symbol) == failure_type(scored.symbol)
+                hits.append((not same_type, t_det / max(scored.length, 1), scored.key, t_det))
+        return (min(hits)[2], min(hits)[3]) if hits else None
+    if kind == "false-alarm":
+        alarms = [(s.t_det(delta) or 0, s.key) for s in result.false_alarms(delta)]
+        return (alarms[0][1], alarms[0][0]) if alarms else None
+    misses = sorted(result.misses(delta), key=lambda s: -float(s.scores().max()))
+    return (misses[0].key, int(np.argmax(misses[0].scores()))) if misses else None
+
+
+def run_demo(config: DemoConfig, *, say: Callable[[str], None] = print) -> DemoResult:
+    """Generate (cached) in- and out-of-distribution sets, then memory, calibration, evaluation, recordings."""
+    data_dir = config.data_dir or default_cache_dir() / "demo-data"
+    out = Path(config.out)
+    simulated = GenerateConfig(
+        out=data_dir / "sim-id",
+        tasks=config.tasks,
+        episodes=config.episodes,
+        seed=0,
+        image_size=config.image_size,
+        frames=config.frames,
+        workers=config.workers,
+    )
+    in_dist = _simulate(simulated, "ID")
+    out_dist = _simulate(
+        replace(simulated, out=data_dir / "sim-ood", episodes=config.ood_episodes, seed=1000, ood=True), "OOD"
+    )
+    say(f"datasets: {in_dist} (in-distribution), {out_dist} (out-of-distribution)")
+
+    base = EvaluateConfig(
+        data=in_dist, out=out, encoder=config.encoder, cache_dir=config.cache_dir, memory_out=out / "memory"
+    )
+    memory_dir = build_training_memory(base)
+    calibration = calibrate(
+        CalibrateConfig(
+            data=in_dist, memory=memory_dir, target_fpr=config.target_fpr, cache_dir=config.cache_dir
+        )
+    )
+    say(
+        f"memory {memory_dir}: calibrated δ = {calibration.delta:.4f} ({calibration.encoder}) for FPR ≤ "
+        f"{100 * config.target_fpr:.0f} % on {calibration.successes} training successes "
+        f"(achieved {100 * calibration.achieved_fpr:.1f} %)"
+    )
+    evaluations = [
+        run_evaluation(replace(base, memory=memory_dir, name="in-distribution")),
+        run_evaluation(
+            replace(base, memory=memory_dir, name="out-of-distribution", test_data=out_dist, test_split="ood")
+        ),
+    ]
+    tables = [path for result in evaluations for path in write_evaluation(result, out)]
+    summary = record_evaluation(evaluations, out=out / "evaluation.rrd")
+    result = DemoResult(evaluations=evaluations, summary=summary, tables=tables)
+
+    mapped = memory_map(evaluations[0].traces[next(iter(evaluations[0].traces))].memory, directory=memory_dir)
+    sources = {"in-distribution": in_dist, "out-of-distribution": out_dist}
+    for kind in ("detection", "false-alarm", "miss"):
+        for evaluation in evaluations:
+            picked = _pick(evaluation, kind)
+            if picked is None:
+                continue
+            key, focus = picked
+            (trajectory,) = load_dataset(sources[evaluation.name]).select(keys=[key])
+            path = out / "recordings" / f"{kind}__{evaluation.name}__{recording_name(trajectory)}"
+            result.recordings[kind] = record_replay(
+                trajectory, evaluation.traces[key], out=path, memory_map=mapped, focus_frame=focus
+            )
+            break
+        else:
+            result.notes.append(f"no {kind.replace('-', ' ')} occurred at the calibrated δ in either split")
+    return result

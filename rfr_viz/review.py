@@ -1,0 +1,63 @@
+"""False-positive (and miss) review: replay only the false alarms or the misses of an evaluation."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Final
+
+import numpy as np
+
+from rfr_viz.record import record_replay
+from rfr_viz.replay import DEFAULT_OUT, ReplayResult, load_detector, recording_name
+from robofailring.data.layouts import load_dataset
+from robofailring.errors import DataError
+from robofailring.progress import progress_bar
+
+KINDS: Final[tuple[str, ...]] = ("false-alarms", "misses")
+
+
+@dataclass(frozen=True)
+class ReviewConfig:
+    evaluation: Path  # the <name>.json written by `robofailring evaluate`
+    data: Path  # the dataset that evaluation tested on
+    kind: str = "false-alarms"  # "false-alarms" (successes that fired) or "misses" (failures that did not)
+    out: Path = DEFAULT_OUT / "review"
+    memory: Path | None = None  # default: the memory the evaluation used
+    cache_dir: Path | None = None
+    device: str | None = None
+
+
+def review(config: ReviewConfig) -> ReplayResult:
+    """One recording per false alarm (focused on the alarm) or per miss (focused on its peak S_t)."""
+    if config.kind not in KINDS:
+        raise DataError(f"review kind {config.kind!r} is not one of {list(KINDS)}")
+    try:
+        evaluation = json.loads(Path(config.evaluation).read_text(encoding="utf-8"))
+        listed = evaluation["false_alarms" if config.kind == "false-alarms" else "misses"]
+        delta, k = float(evaluation["operating_delta"]), int(evaluation["k"])
+        memory_dir = Path(config.memory or evaluation["memory"])
+    except (OSError, json.JSONDecodeError, KeyError, TypeError, ValueError) as error:
+        raise DataError(
+            f"{config.evaluation} is not an evaluation written by `robofailring evaluate` ({error})"
+        ) from error
+    keys = [row["key"] for row in listed]
+    result = ReplayResult()
+    if not keys:
+        return result
+    loaded = load_detector(
+        memory_dir, delta=delta, k=k, encoder=None, cache_dir=config.cache_dir, device=config.device
+    )
+    trajectories = {t.key: t for t in load_dataset(config.data).select(keys=keys)}
+    with progress_bar(total=len(keys), desc=f"replaying {config.kind}", unit="trajectory") as bar:
+        for key in keys:
+            trajectory = trajectories[key]
+            trace = loaded.detector.run(trajectory)
+            focus = trace.t_det if trace.t_det is not None else int(np.argmax(trace.max_similarity()))
+            out = Path(config.out) / config.kind / recording_name(trajectory)
+            result.recordings.append(
+                record_replay(trajectory, trace, out=out, memory_map=loaded.map, focus_frame=focus)
+            )
+            bar.update(1)
+    return result
