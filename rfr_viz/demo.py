@@ -34,6 +34,7 @@ class DemoConfig:
     data_dir: Path | None = None  # simulated datasets (cached); default <cache>/demo-data
     tasks: tuple[str, ...] = TASKS  # simulated tasks
     episodes: int = 3  # in-distribution episodes per task and kind (even: memory, odd: test)
+    success_episodes: int = 8  # in-distribution success runs per task: calibration and FPR need many
     ood_episodes: int = 1  # out-of-distribution episodes per task and kind (all test)
     image_size: int = 128
     frames: int = 40
@@ -53,8 +54,7 @@ class DemoResult:
 
 
 def _simulate(config: GenerateConfig, label: str) -> Path:
-    total = len(config.tasks) * len(config.modes) * config.episodes
-    with progress_bar(total=total, desc=f"simulating {label}", unit="episode") as bar:
+    with progress_bar(total=config.total_episodes, desc=f"simulating {label}", unit="episode") as bar:
         return generate_dataset(config, progress=bar.update)
 
 
@@ -87,6 +87,7 @@ def run_demo(config: DemoConfig, *, say: Callable[[str], None] = print) -> DemoR
         out=data_dir / "sim-id",
         tasks=config.tasks,
         episodes=config.episodes,
+        success_episodes=config.success_episodes,
         seed=0,
         image_size=config.image_size,
         frames=config.frames,
@@ -94,7 +95,15 @@ def run_demo(config: DemoConfig, *, say: Callable[[str], None] = print) -> DemoR
     )
     in_dist = _simulate(simulated, "ID")
     out_dist = _simulate(
-        replace(simulated, out=data_dir / "sim-ood", episodes=config.ood_episodes, seed=1000, ood=True), "OOD"
+        replace(
+            simulated,
+            out=data_dir / "sim-ood",
+            episodes=config.ood_episodes,
+            success_episodes=2 * config.ood_episodes,
+            seed=1000,
+            ood=True,
+        ),
+        "OOD",
     )
     say(f"datasets: {in_dist} (in-distribution), {out_dist} (out-of-distribution)")
 

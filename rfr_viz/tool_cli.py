@@ -153,6 +153,7 @@ def demo_cmd(
         "recordings/demo"
     ),
     episodes: Annotated[int, typer.Option(help="In-distribution episodes per task and kind.")] = 3,
+    success_episodes: Annotated[int, typer.Option(help="In-distribution success runs per task.")] = 8,
     ood_episodes: Annotated[int, typer.Option(help="Out-of-distribution episodes per task and kind.")] = 1,
     image_size: Annotated[int, typer.Option("--image-size", help="Simulated image size in pixels.")] = 128,
     frames: Annotated[int, typer.Option(help="Frames per simulated episode.")] = 40,
@@ -170,6 +171,7 @@ def demo_cmd(
             DemoConfig(
                 out=out,
                 episodes=episodes,
+                success_episodes=success_episodes,
                 ood_episodes=ood_episodes,
                 image_size=image_size,
                 frames=frames,

@@ -104,13 +104,16 @@ def test_generate_writes_a_loadable_dataset(tmp_path: Path) -> None:
         "6",
         "--workers",
         "1",
+        "--success-episodes",
+        "2",
     ]
     result = runner.invoke(app, args)
     assert result.exit_code == 0, result.output
     assert "dataset" in result.output and "episodes" in result.output
     trajectories = list(load_dataset(out))
-    assert len(trajectories) == 8 and {t.task for t in trajectories} == {"pick_cube"}
+    assert len(trajectories) == 9 and {t.task for t in trajectories} == {"pick_cube"}
     assert all(t.length == 6 for t in trajectories)
+    assert sum(t.symbol is None for t in trajectories) >= 2  # the extra success runs (and any failed attempt)
     # a folder that is not a dataset is never overwritten
     precious = tmp_path / "precious"
     precious.mkdir()

@@ -51,6 +51,9 @@ def generate_cmd(
     episodes: Annotated[
         int, typer.Option(help="Episodes per task and kind (failure family or success).")
     ] = 2,
+    success_episodes: Annotated[
+        int | None, typer.Option(help="Success episodes per task (default: --episodes).")
+    ] = None,
     seed: Annotated[int, typer.Option(help="Base seed: the same seed gives identical images.")] = 0,
     ood: Annotated[
         bool, typer.Option("--ood", help="Out-of-distribution lighting, colours, cameras, sizes.")
@@ -62,19 +65,19 @@ def generate_cmd(
     """Simulate the embedded FailGen (PyBullet Panda): failures injected by perturbing keyframes, plus successes."""
     from robofailring.sim import TASKS, GenerateConfig, generate_dataset
 
-    config = GenerateConfig(
-        out=out,
-        tasks=tuple(tasks) if tasks else TASKS,
-        episodes=episodes,
-        seed=seed,
-        ood=ood,
-        image_size=image_size,
-        frames=frames,
-        workers=workers,
-    )
-    total = len(config.tasks) * len(config.modes) * config.episodes
     try:
-        with progress_bar(total=total, desc="simulating", unit="episode") as bar:
+        config = GenerateConfig(
+            out=out,
+            tasks=tuple(tasks) if tasks else TASKS,
+            episodes=episodes,
+            success_episodes=success_episodes,
+            seed=seed,
+            ood=ood,
+            image_size=image_size,
+            frames=frames,
+            workers=workers,
+        )
+        with progress_bar(total=config.total_episodes, desc="simulating", unit="episode") as bar:
             root = generate_dataset(config, progress=bar.update)
     except (RoboFailRingError, ValueError) as error:
         exit_with_error(error)

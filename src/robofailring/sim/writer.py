@@ -38,6 +38,7 @@ class GenerateConfig:
     tasks: tuple[str, ...] = TASKS
     episodes: int = 2
     modes: tuple[str, ...] = KINDS
+    success_episodes: int | None = None  # success episodes per task (default: `episodes`)
     seed: int = 0
     ood: bool = False
     image_size: int = 128
@@ -57,12 +58,24 @@ class GenerateConfig:
             raise ValueError(f"unknown mode(s) {bad}; expected some of {list(allowed)}")
         if len(set(self.modes)) != len(self.modes) or len(set(self.tasks)) != len(self.tasks):
             raise ValueError("tasks and modes must not repeat")
+        if self.success_episodes is not None and self.success_episodes < 0:
+            raise ValueError("success_episodes must be >= 0")
         if self.episodes < 1 or self.frames < 2 or self.image_size < 16 or self.workers < 1:
             raise ValueError("episodes >= 1, frames >= 2, image_size >= 16 and workers >= 1 are required")
 
+    def episodes_of(self, kind: str) -> int:
+        """How many episodes of one kind are run per task."""
+        if kind == SUCCESS and self.success_episodes is not None:
+            return self.success_episodes
+        return self.episodes
+
+    @property
+    def total_episodes(self) -> int:
+        return len(self.tasks) * sum(self.episodes_of(kind) for kind in self.modes)
+
     def content(self) -> dict[str, Any]:
         """Every parameter that decides the dataset's content (not where it goes, nor how fast)."""
-        return {
+        content: dict[str, Any] = {
             "tasks": list(self.tasks),
             "episodes": self.episodes,
             "modes": list(self.modes),
@@ -74,6 +87,9 @@ class GenerateConfig:
             "physics_hz": PHYSICS_HZ,
             "sim_version": SIM_VERSION,
         }
+        if self.success_episodes is not None:
+            content["success_episodes"] = self.success_episodes
+        return content
 
 
 @dataclass(frozen=True)
@@ -97,14 +113,16 @@ def episode_seed(seed: int, task: str, kind: str, repeat: int) -> int:
 def _jobs(config: GenerateConfig, root: Path) -> list[_Job]:
     jobs = []
     for task in config.tasks:
-        for index, kind in enumerate(config.modes):
-            for repeat in range(config.episodes):
+        first = 0
+        for kind in config.modes:
+            count = config.episodes_of(kind)
+            for repeat in range(count):
                 jobs.append(
                     _Job(
                         task=task,
                         kind=kind,
                         repeat=repeat,
-                        episode=index * config.episodes + repeat,
+                        episode=first + repeat,
                         seed=episode_seed(config.seed, task, kind, repeat),
                         ood=config.ood,
                         image_size=config.image_size,
@@ -112,6 +130,7 @@ def _jobs(config: GenerateConfig, root: Path) -> list[_Job]:
                         root=str(root),
                     )
                 )
+            first += count
     return jobs
 
 
