@@ -3,19 +3,24 @@
 from __future__ import annotations
 
 from rfr_viz.blueprint import compare_blueprint, replay_blueprint
+from rfr_viz.closed_loop import ClosedLoopResult, run_closed_loop
+from rfr_viz.evaluation_recording import record_evaluation
 from rfr_viz.memory_umap import MemoryMap, fit_map, memory_map
 from rfr_viz.paths import APPLICATION_ID, DetectorPaths
 from rfr_viz.record import compare_recording, record_replay
 from rfr_viz.replay import CompareConfig, ReplayConfig, ReplayResult, compare, replay
-from rfr_viz.viewer import Screenshot, ViewerUnavailable, render_screenshot
+from rfr_viz.review import ReviewConfig, review
+from rfr_viz.viewer import Screenshot, ViewerUnavailable, open_command, render_screenshot
 
 __all__ = [
     "APPLICATION_ID",
+    "ClosedLoopResult",
     "CompareConfig",
     "DetectorPaths",
     "MemoryMap",
     "ReplayConfig",
     "ReplayResult",
+    "ReviewConfig",
     "Screenshot",
     "ViewerUnavailable",
     "compare",
@@ -23,8 +28,12 @@ __all__ = [
     "compare_recording",
     "fit_map",
     "memory_map",
+    "open_command",
+    "record_evaluation",
     "record_replay",
     "render_screenshot",
     "replay",
     "replay_blueprint",
+    "review",
+    "run_closed_loop",
 ]

@@ -85,7 +85,7 @@ def _neighbor_infos(views: Sequence[str], paths: DetectorPaths, *, label: str = 
 FOCUS_MARGIN = 6  # frames shown either side of a focus frame (an alarm, a near miss)
 
 
-def _panels(fps: float, focus: int | None = None) -> list[rrb.BlueprintPart]:
+def side_panels(fps: float, focus: int | None = None) -> list[rrb.BlueprintPart]:
     """Side panels folded away; the time bar plays the "frame" timeline at the data's rate.
 
     With a `focus` frame the time bar selects the frames around it and playback loops there once it
@@ -138,7 +138,7 @@ def replay_blueprint(
         active_tab=0,
     )
     bottom = rrb.Horizontal(neighbors, side, column_shares=[3, 1.6])
-    return rrb.Blueprint(rrb.Vertical(top, bottom, row_shares=[1.25, 1]), *_panels(fps, focus))
+    return rrb.Blueprint(rrb.Vertical(top, bottom, row_shares=[1.25, 1]), *side_panels(fps, focus))
 
 
 def compare_blueprint(
@@ -182,4 +182,4 @@ def compare_blueprint(
         origin="/", contents=[f"{paths.detection_root}/**" for paths in detectors], name="detection events"
     )
     bottom = rrb.Horizontal(maps, rrb.Tabs(nearest, *reports, events, active_tab=0), column_shares=[1, 1.2])
-    return rrb.Blueprint(rrb.Vertical(top, bottom, row_shares=[1, 1.1]), *_panels(fps))
+    return rrb.Blueprint(rrb.Vertical(top, bottom, row_shares=[1, 1.1]), *side_panels(fps))

@@ -108,7 +108,7 @@ def record_replay(
         fps=info.fps,
         focus=focus_frame,
     )
-    with _recording(out, blueprint, recording_id=recording_id) as rec:
+    with open_recording(out, blueprint, recording_id=recording_id) as rec:
         rec.send_recording_name(f"{info.task}/{info.episode}")
         rec.send_property(
             PROPERTIES,
@@ -161,7 +161,7 @@ def compare_recording(
         cells=[cells[slug] for slug in slugs],
         fps=info.fps,
     )
-    with _recording(out, blueprint, recording_id=recording_id) as rec:
+    with open_recording(out, blueprint, recording_id=recording_id) as rec:
         rec.send_recording_name(f"{info.task}/{info.episode} ({' vs '.join(slugs)})")
         rec.send_property(
             PROPERTIES,
@@ -190,7 +190,7 @@ def compare_recording(
 
 
 @contextmanager
-def _recording(
+def open_recording(
     out: Path, blueprint: rrb.Blueprint, *, recording_id: str | None
 ) -> Iterator[rr.RecordingStream]:
     """A recording saved to a temporary file that becomes `out` only if the block succeeds."""
@@ -250,7 +250,7 @@ def time_columns(frames: np.ndarray, fps: float) -> list[rr.TimeColumn]:
     ]
 
 
-def _set_time(rec: rr.RecordingStream, t: int, fps: float) -> None:
+def set_frame_time(rec: rr.RecordingStream, t: int, fps: float) -> None:
     rec.set_time(FRAME, sequence=t)
     rec.set_time(TIME, duration=t / fps)
 
@@ -467,7 +467,7 @@ def _log_detection(
         f"**{trace.task} · {trace.episode}** — encoder `{trace.encoder}`, δ = {trace.delta:.3f}, "
         f"K = {trace.k}, L = {trace.length} frames.\n\n"
     )
-    _set_time(rec, 0, fps)
+    set_frame_time(rec, 0, fps)
     if t_det is None or view is None:
         rec.log(
             paths.report,
@@ -493,7 +493,7 @@ def _log_detection(
         task=trace.task, view=view, t_det=t_det, neighbors=neighbors, current_image=current
     )
     top = neighbors[0]
-    _set_time(rec, t_det, fps)
+    set_frame_time(rec, t_det, fps)
     rec.log(
         paths.event,
         rr.TextLog(
