@@ -1,9 +1,11 @@
-"""Rerun recordings of replayed trajectories (all Rerun code of the project lives here)."""
+"""Rerun recordings of replayed trajectories (all Rerun code of the project lives here).
+
+The closed-loop simulator run is `rfr_viz.closed_loop.run_closed_loop` (imported on its own: it loads pybullet).
+"""
 
 from __future__ import annotations
 
 from rfr_viz.blueprint import compare_blueprint, replay_blueprint
-from rfr_viz.closed_loop import ClosedLoopResult, run_closed_loop
 from rfr_viz.evaluation_recording import record_evaluation
 from rfr_viz.memory_umap import MemoryMap, fit_map, memory_map
 from rfr_viz.paths import APPLICATION_ID, DetectorPaths
@@ -14,7 +16,6 @@ from rfr_viz.viewer import Screenshot, ViewerUnavailable, open_command, render_s
 
 __all__ = [
     "APPLICATION_ID",
-    "ClosedLoopResult",
     "CompareConfig",
     "DetectorPaths",
     "MemoryMap",
@@ -35,5 +36,4 @@ __all__ = [
     "replay",
     "replay_blueprint",
     "review",
-    "run_closed_loop",
 ]
