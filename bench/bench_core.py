@@ -12,19 +12,11 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
+from _timing import median_ms
 
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, Frame, load_encoder
 from robofailring.data.images import write_png
 from robofailring.memory import MemoryEntry, pair_vectors
-
-
-def median_ms(run: Callable[[], object], repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        run()
-        times.append((time.perf_counter() - start) * 1000)
-    return statistics.median(times)
 
 
 def synthetic_memory(

@@ -10,23 +10,13 @@ from __future__ import annotations
 import statistics
 import sys
 import tempfile
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+from _timing import median_ms
 
 from robofailring import FailureDetector, FailureMemory, load_encoder
 from robofailring.memory import MemoryEntry, pair_vectors
-
-
-def median_ms(run: Callable[[], object], repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        run()
-        times.append((time.perf_counter() - start) * 1000)
-    return statistics.median(times)
 
 
 def memory_for(identity: str, dim: int, entries: int = 15_000, tasks: int = 80) -> FailureMemory:

@@ -7,17 +7,16 @@ from pathlib import Path
 
 import pytest
 
-from rfr_viz.demo import DemoConfig, run_demo
+from rfr_viz.demo import DemoConfig, DemoResult, run_demo
 from rfr_viz.review import ReviewConfig, review
 from rfr_viz.viewer import verify_recording
 from robofailring.errors import DataError
 
 
-@pytest.fixture(scope="module")
-def demo(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, object]:
-    root = tmp_path_factory.mktemp("demo")
-    config = DemoConfig(
-        out=root / "out",
+def tiny_demo(root: Path, out: str) -> DemoConfig:
+    """One task, few and small episodes: the whole pipeline in seconds."""
+    return DemoConfig(
+        out=root / out,
         data_dir=root / "data",
         tasks=("pick_cube",),
         episodes=2,
@@ -29,13 +28,18 @@ def demo(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, object]:
         target_fpr=0.0,
         cache_dir=root / "cache",
     )
-    return root, run_demo(config, say=lambda _: None)
 
 
-def test_demo_writes_everything_it_names(demo: tuple[Path, object]) -> None:
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, DemoResult]:
+    root = tmp_path_factory.mktemp("demo")
+    return root, run_demo(tiny_demo(root, "out"), say=lambda _: None)
+
+
+def test_demo_writes_everything_it_names(demo: tuple[Path, DemoResult]) -> None:
     root, result = demo
     out = root / "out"
-    assert [e.name for e in result.evaluations] == ["in-distribution", "out-of-distribution"]  # type: ignore[attr-defined]
+    assert [e.name for e in result.evaluations] == ["in-distribution", "out-of-distribution"]
     for name in ("in-distribution", "out-of-distribution"):
         report = json.loads((out / f"{name}.json").read_text())
         assert report["calibrated"] is True and [r["delta"] for r in report["paper_deltas"]] == [
@@ -46,36 +50,21 @@ def test_demo_writes_everything_it_names(demo: tuple[Path, object]) -> None:
         ]
     manifest = json.loads((out / "memory" / "manifest.json").read_text())
     assert manifest["calibration"]["target_fpr"] == 0.0 and manifest["calibration"]["achieved_fpr"] == 0.0
-    verify_recording(result.summary)  # type: ignore[attr-defined]
-    recorded = result.recordings  # type: ignore[attr-defined]
+    verify_recording(result.summary)
+    recorded = result.recordings
     assert recorded, "the demo wrote no trajectory recording"
     for kind, path in recorded.items():
         assert kind in {"detection", "false-alarm", "miss"} and path.name.startswith(kind)
         verify_recording(path)
     missing = {"detection", "false-alarm", "miss"} - set(recorded)
-    assert len(result.notes) == len(missing)  # type: ignore[attr-defined]
+    assert len(result.notes) == len(missing)
     # the simulated datasets are cached: a second run does not simulate again
     stamp = (root / "data" / "sim-id" / "manifest.json").stat().st_mtime_ns
-    run_demo(
-        DemoConfig(
-            out=root / "out2",
-            data_dir=root / "data",
-            tasks=("pick_cube",),
-            episodes=2,
-            success_episodes=2,
-            ood_episodes=1,
-            image_size=32,
-            frames=8,
-            workers=1,
-            target_fpr=0.0,
-            cache_dir=root / "cache",
-        ),
-        say=lambda _: None,
-    )
+    run_demo(tiny_demo(root, "out2"), say=lambda _: None)
     assert (root / "data" / "sim-id" / "manifest.json").stat().st_mtime_ns == stamp
 
 
-def test_review_replays_the_listed_trajectories(demo: tuple[Path, object]) -> None:
+def test_review_replays_the_listed_trajectories(demo: tuple[Path, DemoResult]) -> None:
     root, _ = demo
     out = root / "out"
     evaluation = out / "out-of-distribution.json"
