@@ -122,3 +122,23 @@ def test_generate_writes_a_loadable_dataset(tmp_path: Path) -> None:
         app, ["generate", "--out", str(precious), "--tasks", "pick_cube", "--episodes", "1"]
     )
     assert result.exit_code == 2 and (precious / "notes.txt").read_text() == "keep me"
+
+
+def test_detect_leave_one_out_hides_the_episode(aha_dataset: Path, tmp_path: Path) -> None:
+    memory = tmp_path / "memory"
+    cache = ["--cache-dir", str(tmp_path / "cache")]
+    assert runner.invoke(app, ["build-memory", str(aha_dataset), "--out", str(memory), *cache]).exit_code == 0
+    episode = aha_dataset / "pick_cube_wrong_object_episode1"
+    plain = json.loads(
+        runner.invoke(app, ["detect", str(episode), "--memory", str(memory), "--json", *cache]).stdout
+    )
+    assert plain["views"]["front"]["top_neighbor"][-1]["episode"] == episode.name
+    assert plain["views"]["front"]["similarity"][-1] == 1.0
+    held_out = runner.invoke(
+        app, ["detect", str(episode), "--memory", str(memory), "--json", "--leave-one-out", *cache]
+    )
+    trace = json.loads(held_out.stdout)
+    assert all(
+        top["episode"] != episode.name for view in trace["views"].values() for top in view["top_neighbor"]
+    )
+    assert trace["views"]["front"]["similarity"][-1] < 1.0

@@ -127,6 +127,9 @@ def detect_cmd(
     k: Annotated[int, typer.Option(help="Neighbours retrieved per query.")] = 5,
     task: Annotated[str | None, typer.Option(help="Task name, when the folder name does not say.")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the full trace as one JSON object.")] = False,
+    leave_one_out: Annotated[
+        bool, typer.Option("--leave-one-out", help="Hide the trajectory's own episode from the memory.")
+    ] = False,
     encoder: Annotated[str | None, typer.Option(help="Encoder spec (default: the memory's).")] = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
@@ -142,6 +145,7 @@ def detect_cmd(
                 delta=delta,
                 k=k,
                 task=task,
+                leave_one_out=leave_one_out,
                 encoder=encoder,
                 cache_dir=cache_dir,
                 device=device,

@@ -48,6 +48,7 @@ class DetectConfig:
     delta: float | None = None  # default: the memory's calibrated δ, else the paper's 0.92
     k: int = DEFAULT_K
     task: str | None = None  # needed when the folder name does not encode the task
+    leave_one_out: bool = False  # hide the trajectory's own episode from the memory
     encoder: str | None = None  # default: the spec the memory was built with
     cache_dir: Path | None = None
     device: str | None = None
@@ -71,4 +72,4 @@ def detect(config: DetectConfig) -> DetectionTrace:
     spec = config.encoder or encoder_spec_for(memory)
     encoder = CachedEncoder(load_encoder(spec, device=config.device), cache_dir=config.cache_dir)
     detector = FailureDetector(memory, encoder, delta=config.delta, k=config.k)
-    return detector.run(trajectory)
+    return detector.run(trajectory, leave_one_out=config.leave_one_out)
