@@ -37,3 +37,40 @@ def test_two_encoders_side_by_side(tmp_path: Path, tiny_checkpoint: tuple[Path, 
 def test_needs_two_encoders(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="at least two"):
         compare_encoders(CompareEncodersConfig(data=tmp_path, out=tmp_path, encoders=("pixels",)))
+
+
+def test_compare_encoders_verb_writes_table_and_recordings(
+    tmp_path: Path, tiny_checkpoint: tuple[Path, Path]
+) -> None:
+    from typer.testing import CliRunner
+
+    from rfr_viz.cli import app
+    from rfr_viz.viewer import verify_recording
+
+    config_json, checkpoint = tiny_checkpoint
+    data = write_project_dataset(tmp_path / "data", tasks=("pick_cube",), episodes=2)
+    result = CliRunner().invoke(
+        app,
+        [
+            "compare-encoders",
+            str(data),
+            "--encoder",
+            "pixels",
+            "--encoder",
+            f"open_clip:{config_json}:{checkpoint}",
+            "--out",
+            str(tmp_path / "out"),
+            "--target-fpr",
+            "0.5",
+            "--recordings",
+            "2",
+            "--cache-dir",
+            str(tmp_path / "cache"),
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    assert (tmp_path / "out" / "comparison.md").read_text().count("\n") == 4
+    recordings = sorted((tmp_path / "out" / "recordings").glob("*.rrd"))
+    assert len(recordings) == 2
+    for path in recordings:
+        verify_recording(path)
