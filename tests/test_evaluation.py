@@ -82,3 +82,15 @@ def test_calibration_is_stored_and_used(dataset: Path, tmp_path: Path) -> None:
     successes = [t for t in load_dataset(dataset) if not t.is_failure and t.split == "train"]
     fired = sum(detector.run(t).t_det is not None for t in successes)
     assert fired / len(successes) == pytest.approx(calibration.achieved_fpr)
+
+
+def test_too_short_test_trajectories_are_skipped_and_reported(tmp_path: Path) -> None:
+    data = write_project_dataset(tmp_path / "data", tasks=("pick_cube",), episodes=2)
+    short = data / "pick_cube_slip_wp3_episode1"  # a test-split failure
+    for image in short.glob("*.png"):
+        if not image.stem.endswith("_0"):
+            image.unlink()
+    result = run_evaluation(EvaluateConfig(data=data, out=tmp_path / "out", cache_dir=tmp_path / "cache"))
+    assert result.skipped_too_short == ["pick_cube/pick_cube_slip_wp3_episode1"]
+    assert result.failures == 2  # the other two test failures
+    assert "with no view of 2 or more frames" in result.to_markdown()

@@ -77,3 +77,12 @@ def test_failure_type() -> None:
     assert failure_type("translation_x_wp3") == "translation"
     assert failure_type("trans_y_stage1") == "translation"
     assert failure_type(None) == "success"
+
+
+def test_maniskill_stages_outside_table_5_still_ground() -> None:
+    assert robofailring.ground("trans_y_stage0") == (
+        "The failure was caused by positional deviation of the end-effector along the Y-axis at stage 0 of the task"
+    )
+    assert parse_symbol("rot_z_7").canonical == "rotation_z_stage7"
+    with pytest.raises(SymbolError, match="'lift'"):
+        robofailring.ground("grasp_lift")

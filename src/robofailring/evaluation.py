@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import math
@@ -117,6 +118,7 @@ class EvaluationResult:
     traces: dict[str, DetectionTrace] = field(repr=False)
     skipped_unknown_task: list[str]
     latency_ms: dict[str, float]
+    skipped_too_short: list[str] = field(default_factory=list)
     paper_rates: list[Rates] = field(init=False)
     curve: list[Rates] = field(init=False)
 
@@ -202,6 +204,7 @@ class EvaluationResult:
             "failures": self.failures,
             "successes": self.successes,
             "skipped_unknown_task": self.skipped_unknown_task,
+            "skipped_too_short": self.skipped_too_short,
             "paper_deltas": [rate_row(r) for r in self.paper_rates],
             "sweep": [rate_row(r) for r in self.curve],
             "timeliness": {
@@ -300,6 +303,11 @@ class EvaluationResult:
                     f"| {row['index']} | {row['false_alarms']} | {row['task']} | `{row['symbol']}` | "
                     f"{row['episode']} | {row['view']} |"
                 )
+        if self.skipped_too_short:
+            lines += [
+                "",
+                f"Skipped {len(self.skipped_too_short)} test trajectories with no view of 2 or more frames.",
+            ]
         if self.skipped_unknown_task:
             lines += [
                 "",
@@ -375,14 +383,19 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
     known = set(memory.tasks)
     scored: list[ScoredTrajectory] = []
     traces: dict[str, DetectionTrace] = {}
-    skipped = []
+    skipped: list[str] = []
+    too_short: list[str] = []
     with progress_bar(total=len(test), desc=f"replaying {config.name}", unit="traj") as bar:
         for trajectory in test:
             bar.update(1)
             if trajectory.task not in known:
                 skipped.append(trajectory.key)
                 continue
-            trace = detector.run(trajectory)
+            try:
+                trace = detector.run(trajectory)
+            except DataError:
+                too_short.append(trajectory.key)
+                continue
             traces[trajectory.key] = trace
             scored.append(
                 ScoredTrajectory(
@@ -412,6 +425,7 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
         traces=traces,
         skipped_unknown_task=skipped,
         latency_ms=measure_latency(detector, first),
+        skipped_too_short=too_short,
     )
 
 
@@ -467,19 +481,24 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
     peaks = []
     with progress_bar(total=len(successes), desc="calibrating", unit="traj") as bar:
         for trajectory in successes:
-            peaks.append(float(detector.run(trajectory).max_similarity().max()))
+            with contextlib.suppress(DataError):  # no view with 2 frames: nothing to calibrate on
+                peaks.append(float(detector.run(trajectory).max_similarity().max()))
             bar.update(1)
             if progress is not None:
                 progress(1)
     from robofailring.metrics import calibrate_delta
 
+    if not peaks:
+        raise DataError(
+            f"none of the {len(successes)} success trajectories in {config.data} has a view of 2+ frames"
+        )
     delta, achieved = calibrate_delta(peaks, config.target_fpr)
     memory.manifest["calibration"] = {
         "encoder": memory.encoder,
         "delta": delta,
         "target_fpr": config.target_fpr,
         "achieved_fpr": achieved,
-        "successes": len(successes),
+        "successes": len(peaks),
         "data": str(Path(config.data).resolve()),
         "split": config.split,
         "k": config.k,
@@ -489,6 +508,6 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
         delta=delta,
         target_fpr=config.target_fpr,
         achieved_fpr=achieved,
-        successes=len(successes),
+        successes=len(peaks),
         encoder=memory.encoder,
     )

@@ -36,7 +36,7 @@ STAGES: Final[dict[int, str]] = {
     5: "final completion / retraction stage (Waypoint 5)",
 }
 
-_STAGE_TOKEN = re.compile(r"^(?:wp|stage|s)?(\d+)$")
+_STAGE_TOKEN = re.compile(r"^(wp|stage|s)?(\d+)$")
 _EPISODE_TOKEN = re.compile(r"^episode\d*$")
 
 
@@ -55,7 +55,7 @@ class ParsedSymbol:
         if self.axis:
             parts.append(self.axis)
         if self.stage is not None:
-            parts.append(f"wp{self.stage}")
+            parts.append(f"wp{self.stage}" if self.stage in STAGES else f"stage{self.stage}")
         return "_".join(parts)
 
 
@@ -63,7 +63,7 @@ def _vocabulary() -> str:
     errors = sorted([*ERROR_TYPES, *ERROR_ALIASES])
     return (
         f"error types {errors}, axes {sorted(AXES)} (after rotation/translation), "
-        f"stages wp1..wp5 (also stage<N> or <N>), and an ignored episode<N>"
+        f"stages wp1..wp5 (also ManiSkill's stage<N> or <N>), and an ignored episode<N>"
     )
 
 
@@ -92,11 +92,12 @@ def parse_symbol(symbol: str) -> ParsedSymbol:
     stage: int | None = None
     if tokens:
         match = _STAGE_TOKEN.match(tokens[0])
-        if match is None or int(match.group(1)) not in STAGES:
+        # Waypoints are Table 5's wp1..wp5; ManiSkill-failgen's numbered stages may lie outside them.
+        if match is None or (match.group(1) == "wp" and int(match.group(2)) not in STAGES):
             raise SymbolError(
                 f"unknown stage token {tokens[0]!r} in symbol {symbol!r}; the vocabulary is {_vocabulary()}"
             )
-        stage = int(match.group(1))
+        stage = int(match.group(2))
         tokens.pop(0)
     if tokens:
         raise SymbolError(
@@ -115,8 +116,10 @@ def ground(symbol: str) -> str:
     sentence = f"The failure was caused by {ERROR_TYPES[parsed.error_type]}"
     if parsed.axis:
         sentence += f" {AXES[parsed.axis]}"
-    if parsed.stage is not None:
+    if parsed.stage in STAGES:
         sentence += f" at the {STAGES[parsed.stage]}"
+    elif parsed.stage is not None:
+        sentence += f" at stage {parsed.stage} of the task"
     return sentence
 
 
