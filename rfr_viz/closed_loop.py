@@ -13,7 +13,15 @@ import rerun.blueprint as rrb
 
 from rfr_viz._images import JPEG_MEDIA_TYPE, JPEG_QUALITY
 from rfr_viz.blueprint import side_panels
-from rfr_viz.paths import FRAME, PROPERTIES, DetectorPaths, camera
+from rfr_viz.paths import (
+    CLOSED_LOOP_SUMMARY,
+    FRAME,
+    PROPERTIES,
+    UNSTOPPED,
+    WATCHED,
+    ClosedLoopPaths,
+    DetectorPaths,
+)
 from rfr_viz.record import (
     DELTA_COLOUR,
     STATE_COLOUR,
@@ -31,40 +39,6 @@ from robofailring.sim import VIEWS, EpisodeResult, GoalCheck, run_episode
 from robofailring.sim.episode import episode_fps
 
 STOP_COLOUR: Final[tuple[int, int, int]] = (235, 60, 60)
-
-
-@dataclass(frozen=True)
-class ClosedLoopPaths:
-    """The entities of one run: `/<run>/camera/<view>` and the detector's under `/<run>/…`."""
-
-    run: str
-
-    @property
-    def root(self) -> str:
-        return f"/{self.run}"
-
-    @property
-    def detector(self) -> DetectorPaths:
-        """S_t, δ, State_t and the alarm event of this run (`/<run>/score/…`, `/<run>/detection/…`)."""
-        return DetectorPaths(prefix=self.root)
-
-    def camera(self, view: str) -> str:
-        """EncodedImage (JPEG) of every frame the run rendered."""
-        return f"{self.root}{camera(view)}"
-
-    def stopped(self, view: str) -> str:
-        """A red frame and a "STOPPED" label over the frozen camera image, logged at the stop frame."""
-        return f"{self.camera(view)}/stopped"
-
-    @property
-    def outcome(self) -> str:
-        """TextLog at the run's last frame: the goal check of the scene as it was left."""
-        return f"{self.root}/outcome"
-
-
-WATCHED: Final[ClosedLoopPaths] = ClosedLoopPaths("watched")  # stopped at the first alarm
-UNSTOPPED: Final[ClosedLoopPaths] = ClosedLoopPaths("unstopped")  # scored, never acted on
-SUMMARY: Final[str] = "/summary"  # static TextDocument (markdown): both runs side by side
 
 
 @dataclass(frozen=True)
@@ -156,7 +130,7 @@ def run_closed_loop(
         summary = _summary(
             task=task, mode=mode, seed=seed, detector=detector, watched=watched, unstopped=unstopped
         )
-        rec.log(SUMMARY, rr.TextDocument(summary, media_type=rr.MediaType.MARKDOWN), static=True)
+        rec.log(CLOSED_LOOP_SUMMARY, rr.TextDocument(summary, media_type=rr.MediaType.MARKDOWN), static=True)
     return ClosedLoopResult(
         path=Path(out),
         stop_frame=stop,
@@ -400,6 +374,6 @@ def closed_loop_blueprint(
             ],
         ),
     )
-    summary = rrb.TextDocumentView(origin=SUMMARY, name="outcome of both runs")
+    summary = rrb.TextDocumentView(origin=CLOSED_LOOP_SUMMARY, name="outcome of both runs")
     text = rrb.Horizontal(events, summary, column_shares=[1, 1.1])
     return rrb.Blueprint(rrb.Vertical(*rows, text, row_shares=[1, 1, 0.85]), *side_panels(fps, focus))

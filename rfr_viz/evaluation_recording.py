@@ -5,20 +5,15 @@ from __future__ import annotations
 import uuid
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Final
 
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
+from rfr_viz.paths import DELTA_TIMELINE, EVAL_ROOT, EVAL_SUMMARY, EVALUATION_APPLICATION_ID
 from robofailring._atomic import atomic_path
 from robofailring.evaluation import EvaluationResult
 from robofailring.metrics import PAPER_DELTAS, timeliness
-
-APPLICATION_ID: Final[str] = "robofailring-evaluation"
-DELTA_TIMELINE: Final[str] = "delta_x10000"  # δ × 10⁴ as a sequence: TimeSeriesView plots against it
-EVAL_ROOT: Final[str] = "/eval"
-SUMMARY: Final[str] = "/eval/summary"
 
 
 def _slug(name: str) -> str:
@@ -44,7 +39,7 @@ def summary_blueprint(names: Sequence[str]) -> rrb.Blueprint:
         )
     return rrb.Blueprint(
         rrb.Horizontal(
-            rrb.Tabs(*tabs), rrb.TextDocumentView(origin=SUMMARY, name="tables"), column_shares=[3, 2]
+            rrb.Tabs(*tabs), rrb.TextDocumentView(origin=EVAL_SUMMARY, name="tables"), column_shares=[3, 2]
         ),
         rrb.TimePanel(state="collapsed"),
         collapse_panels=True,
@@ -54,13 +49,13 @@ def summary_blueprint(names: Sequence[str]) -> rrb.Blueprint:
 def record_evaluation(results: Sequence[EvaluationResult], *, out: Path) -> Path:
     """Write the summary `.rrd` of one or more evaluations (e.g. in- and out-of-distribution), atomically."""
     out = Path(out)
-    recording = rr.RecordingStream(APPLICATION_ID, recording_id=str(uuid.uuid4()))
+    recording = rr.RecordingStream(EVALUATION_APPLICATION_ID, recording_id=str(uuid.uuid4()))
     with atomic_path(out, suffix=".rrd") as tmp:
         recording.save(str(tmp), default_blueprint=summary_blueprint([r.name for r in results]))
         for result in results:
             _log_result(recording, result)
         markdown = "\n\n".join(r.to_markdown() for r in results)
-        recording.log(SUMMARY, rr.TextDocument(markdown, media_type=rr.MediaType.MARKDOWN), static=True)
+        recording.log(EVAL_SUMMARY, rr.TextDocument(markdown, media_type=rr.MediaType.MARKDOWN), static=True)
         recording.flush()
         recording.disconnect()
     return out

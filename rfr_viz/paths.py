@@ -86,3 +86,45 @@ class DetectorPaths:
 
 
 REPLAY: Final[DetectorPaths] = DetectorPaths()
+
+
+# Closed-loop run (rfr_viz.closed_loop): the same episode watched (stopped at the alarm) and unstopped.
+@dataclass(frozen=True)
+class ClosedLoopPaths:
+    """The entities of one run: `/<run>/camera/<view>` and the detector's under `/<run>/…`."""
+
+    run: str
+
+    @property
+    def root(self) -> str:
+        return f"/{self.run}"
+
+    @property
+    def detector(self) -> DetectorPaths:
+        """S_t, δ, State_t and the alarm event of this run (`/<run>/score/…`, `/<run>/detection/…`)."""
+        return DetectorPaths(prefix=self.root)
+
+    def camera(self, view: str) -> str:
+        """EncodedImage (JPEG) of every frame the run rendered."""
+        return f"{self.root}{camera(view)}"
+
+    def stopped(self, view: str) -> str:
+        """A red frame and a "STOPPED" label over the frozen camera image, logged at the stop frame."""
+        return f"{self.camera(view)}/stopped"
+
+    @property
+    def outcome(self) -> str:
+        """TextLog at the run's last frame: the goal check of the scene as it was left."""
+        return f"{self.root}/outcome"
+
+
+WATCHED: Final[ClosedLoopPaths] = ClosedLoopPaths("watched")  # stopped at the first alarm
+UNSTOPPED: Final[ClosedLoopPaths] = ClosedLoopPaths("unstopped")  # scored, never acted on
+CLOSED_LOOP_SUMMARY: Final[str] = "/summary"  # static TextDocument (markdown): both runs side by side
+
+
+# Evaluation summary (rfr_viz.evaluation_recording).
+EVALUATION_APPLICATION_ID: Final[str] = "robofailring-evaluation"
+DELTA_TIMELINE: Final[str] = "delta_x10000"  # δ × 10⁴ as a sequence: TimeSeriesView plots against it
+EVAL_ROOT: Final[str] = "/eval"  # /eval/<name>/{curve,roc,progress_histogram,recall_per_type}
+EVAL_SUMMARY: Final[str] = "/eval/summary"  # TextDocument: the markdown tables

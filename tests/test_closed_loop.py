@@ -12,8 +12,8 @@ import pytest
 from rerun.chunk import RrdReader
 from test_viz import batches, entity_paths, properties, static_value
 
-from rfr_viz.closed_loop import SUMMARY, UNSTOPPED, WATCHED, ClosedLoopResult, run_closed_loop
-from rfr_viz.paths import APPLICATION_ID
+from rfr_viz.closed_loop import ClosedLoopResult, run_closed_loop
+from rfr_viz.paths import APPLICATION_ID, CLOSED_LOOP_SUMMARY, UNSTOPPED, WATCHED
 from rfr_viz.viewer import ViewerUnavailable, render_screenshot
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
 from robofailring.sim import VIEWS, EpisodeResult, GenerateConfig, generate_dataset, run_episode
@@ -140,7 +140,7 @@ def test_outcomes_are_what_the_episode_reported(
     assert frames == [stop_frame] and f"goal check {stopped.watched.outcome.upper()}" in str(texts[0])
     frames, texts = values(path, UNSTOPPED.outcome, "TextLog:text")
     assert frames == [FRAMES - 1] and f"goal check {stopped.unstopped.outcome.upper()}" in str(texts[0])
-    summary = static_value(path, SUMMARY, "TextDocument:text")[0]
+    summary = static_value(path, CLOSED_LOOP_SUMMARY, "TextDocument:text")[0]
     assert f"STOP at frame {stop_frame}" in summary
     assert f"| watched | {stop_frame + 1}/{FRAMES} (stopped) | **{stopped.watched.outcome}**" in summary
 
@@ -221,7 +221,7 @@ def test_no_alarm_lets_both_runs_complete(
     assert WATCHED.detector.event not in logged and UNSTOPPED.detector.event not in logged
     assert not any(entity.endswith("/stopped") for entity in logged)
     assert properties(result.path)["t_det"] == -1
-    assert "No alarm" in static_value(result.path, SUMMARY, "TextDocument:text")[0]
+    assert "No alarm" in static_value(result.path, CLOSED_LOOP_SUMMARY, "TextDocument:text")[0]
 
 
 @pytest.mark.viewer
