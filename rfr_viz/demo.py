@@ -61,7 +61,7 @@ def _simulate(config: GenerateConfig, label: str) -> Path:
 def _pick(result: EvaluationResult, kind: str) -> tuple[str, int] | None:
     """A trajectory key and its focus frame for one kind of outcome, or None when there is none."""
     delta = result.operating_delta
-    if kind == "detection":
+    if kind == "detection":  # clean: the nearest entry has the true failure type, and S_t rose after frame 0
         hits = []
         for scored in result.scored:
             t_det = scored.t_det(delta)
@@ -70,8 +70,8 @@ def _pick(result: EvaluationResult, kind: str) -> tuple[str, int] | None:
                 view = trace.detected_view
                 top = trace.neighbors(view, t_det)[0] if view is not None else None
                 same_type = top is not None and failure_type(top.entry.symbol) == failure_type(scored.symbol)
-                hits.append((not same_type, t_det / max(scored.length, 1), scored.key, t_det))
-        return (min(hits)[2], min(hits)[3]) if hits else None
+                hits.append((not same_type, t_det == 0, t_det / max(scored.length, 1), scored.key, t_det))
+        return (min(hits)[3], min(hits)[4]) if hits else None
     if kind == "false-alarm":
         alarms = [(s.t_det(delta) or 0, s.key) for s in result.false_alarms(delta)]
         return (alarms[0][1], alarms[0][0]) if alarms else None
