@@ -142,3 +142,18 @@ def test_detect_leave_one_out_hides_the_episode(aha_dataset: Path, tmp_path: Pat
         top["episode"] != episode.name for view in trace["views"].values() for top in view["top_neighbor"]
     )
     assert trace["views"]["front"]["similarity"][-1] < 1.0
+
+
+def test_memory_from_a_checkpoint_without_its_spec_says_what_to_pass(tmp_path: Path) -> None:
+    import numpy as np
+
+    from robofailring import FailureMemory
+    from robofailring.memory import MemoryEntry
+
+    entry = MemoryEntry(task="t", symbol="slip_wp3", episode="e", view="front", start="a.png", end="b.png")
+    vectors = np.ones((1, 32), np.float32) / np.sqrt(32)
+    FailureMemory(vectors, [entry], encoder="open_clip:TinyViT-test:file-0123abcd").save(tmp_path / "memory")
+    episode = write_episode(tmp_path / "ep", "t", None, length=3)
+    result = runner.invoke(app, ["detect", str(episode), "--memory", str(tmp_path / "memory"), "--task", "t"])
+    assert result.exit_code == 2
+    assert "--encoder open_clip:TinyViT-test:/path/to/the/same/checkpoint" in result.output

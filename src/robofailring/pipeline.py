@@ -8,6 +8,7 @@ from pathlib import Path
 from robofailring.data.layouts import load_dataset, load_trajectory
 from robofailring.detector import DEFAULT_K, DetectionTrace, FailureDetector
 from robofailring.encoders import CachedEncoder, load_encoder
+from robofailring.errors import EncoderError
 from robofailring.memory import BuildStats, FailureMemory
 from robofailring.progress import progress_bar
 
@@ -62,6 +63,12 @@ def encoder_spec_for(memory: FailureMemory) -> str:
     spec = memory.manifest.get("encoder_spec")
     if isinstance(spec, str):
         return spec
+    if ":file-" in identity:
+        model = identity.split(":")[1]
+        raise EncoderError(
+            f"this memory was built with {identity} (a checkpoint file) and does not record where that file is; "
+            f"pass --encoder open_clip:{model}:/path/to/the/same/checkpoint"
+        )
     return identity
 
 
