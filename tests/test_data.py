@@ -151,3 +151,47 @@ def test_real_maniskill_episode() -> None:
     assert trajectory.views["side"][-1].path.name == "68.png"
     image = trajectory.views["wrist"][10].load()
     assert image.shape == (256, 256, 3) and image.dtype.name == "uint8"
+
+
+def test_aha_episodes_grouped_per_task_and_with_view_folders(tmp_path: Path) -> None:
+    """Real exports nest episodes one level down and may keep one sub-folder per view."""
+    write_episode(
+        tmp_path / "pick_cube" / "pick_cube_grasp_wp2_episode10", "pick_cube", "grasp_wp2", layout="aha"
+    )
+    write_episode(
+        tmp_path / "pick_cube" / "pick_cube_grasp_wp2_episode2", "pick_cube", "grasp_wp2", layout="aha"
+    )
+    write_episode(
+        tmp_path / "open_drawer" / "open_drawer_wrong_object_episode0",
+        "open_drawer",
+        "wrong_object",
+        length=4,
+    )
+    (tmp_path / "open_drawer" / "notes").mkdir()  # a stray folder is not an episode
+    dataset = load_dataset(tmp_path)
+    assert dataset.layout == "aha"
+    trajectories = list(dataset)
+    assert [t.episode for t in trajectories] == [
+        "open_drawer/open_drawer_wrong_object_episode0",
+        "pick_cube/pick_cube_grasp_wp2_episode2",
+        "pick_cube/pick_cube_grasp_wp2_episode10",
+    ]
+    subfolders = trajectories[0]
+    assert subfolders.task == "open_drawer" and subfolders.symbol == "wrong_object"
+    assert subfolders.view_names == ["front", "overhead", "wrist"] and subfolders.length == 4
+    assert [f.path.name for f in subfolders.views["wrist"]] == [f"{i}.png" for i in range(4)]
+
+
+@pytest.mark.parametrize("depth", ["task", "seed"])
+def test_maniskill_root_may_be_one_task_or_one_seed(tmp_path: Path, depth: str) -> None:
+    views = ("front", "side", "wrist")
+    task_dir = tmp_path / "FailStackCube-v1"
+    write_episode(task_dir / "7" / "Ground_Truth", "stack_cube", None, length=5, views=views)
+    write_episode(task_dir / "7" / "2_rot_z_3", "stack_cube", "rot_z_3", length=5, views=views)
+    root = task_dir if depth == "task" else task_dir / "7"
+    dataset = load_dataset(root)
+    assert dataset.layout == "maniskill"
+    found = {t.episode: t for t in dataset}
+    assert set(found) == {"7/Ground_Truth", "7/2_rot_z_3"}
+    assert {t.task for t in found.values()} == {"FailStackCube-v1"}
+    assert found["7/2_rot_z_3"].symbol == "rot_z_3" and found["7/Ground_Truth"].outcome is Outcome.SUCCESS

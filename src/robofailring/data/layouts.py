@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import re
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -144,15 +145,10 @@ def detect_layout(root: Path) -> str:
         raise DataError(f"dataset root {root} is not a directory")
     if (root / PROJECT_MANIFEST).is_file():
         return "project"
-    subdirs = [p for p in root.iterdir() if p.is_dir()]
-    if any(parse_aha_name(p.name) and aha_views(p) for p in subdirs):
+    if _aha_episode_dirs(root, first_only=True):
         return "aha"
-    for task_dir in subdirs:
-        for seed_dir in (p for p in task_dir.iterdir() if p.is_dir()):
-            for episode_dir in (p for p in seed_dir.iterdir() if p.is_dir()):
-                named = episode_dir.name == MANISKILL_SUCCESS or _MANISKILL_FAILURE.match(episode_dir.name)
-                if named and folder_views(episode_dir):
-                    return "maniskill"
+    if _maniskill_episode_dirs(root, first_only=True):
+        return "maniskill"
     if folder_views(root) or aha_views(root):
         return "episode"
     raise DataError(f"{root} matches no known dataset layout; {LAYOUTS_HELP}")
@@ -195,7 +191,7 @@ def load_trajectory(path: Path, *, task: str | None = None) -> Trajectory:
 
 def _episode_trajectory(path: Path, *, task: str | None) -> Trajectory:
     parsed = parse_aha_name(path.name)
-    views = aha_views(path) if aha_views(path) else folder_views(path)
+    views = _episode_views(path)
     if not views:
         raise DataError(f"{path} holds no images; {LAYOUTS_HELP}")
     symbol: str | None = None
@@ -220,16 +216,86 @@ def _episode_trajectory(path: Path, *, task: str | None) -> Trajectory:
     return Trajectory(task=task, episode=episode, views=views, symbol=symbol, outcome=outcome, source=path)
 
 
+def _natural_key(path: Path) -> list[tuple[int, int | str]]:
+    """`episode2` before `episode10`, `seed 3` before `seed 10`; names otherwise alphabetical."""
+    return [(0, int(part)) if part.isdigit() else (1, part) for part in re.split(r"(\d+)", path.name)]
+
+
+def _subdirs(directory: Path) -> list[Path]:
+    return sorted(
+        (p for p in directory.iterdir() if p.is_dir() and not p.name.startswith(".")), key=_natural_key
+    )
+
+
+def _episode_views(directory: Path) -> dict[str, tuple[Frame, ...]]:
+    """Views of an episode folder: `<view>_<idx>.png` files, else one sub-folder of images per view."""
+    return aha_views(directory) or folder_views(directory)
+
+
+def _aha_episode_dirs(root: Path, *, first_only: bool = False) -> list[Path]:
+    """AHA-named episode folders directly under `root`, or one level down (e.g. grouped per task).
+
+    With `first_only`, stop at the first one found (enough to recognise the layout).
+    """
+    candidates: list[Iterator[Path]] = [
+        iter(_subdirs(root)),
+        (
+            episode
+            for group in _subdirs(root)
+            if parse_aha_name(group.name) is None
+            for episode in _subdirs(group)
+        ),
+    ]
+    for level in candidates:
+        found: list[Path] = []
+        for directory in level:
+            if parse_aha_name(directory.name) and _episode_views(directory):
+                found.append(directory)
+                if first_only:
+                    return found
+        if found:
+            return found
+    return []
+
+
+def _is_maniskill_episode(directory: Path) -> bool:
+    named = directory.name == MANISKILL_SUCCESS or _MANISKILL_FAILURE.match(directory.name) is not None
+    return named and bool(folder_views(directory))
+
+
+def _maniskill_episode_dirs(root: Path, *, first_only: bool = False) -> list[tuple[str, str, Path]]:
+    """(task, seed, episode folder) of a ManiSkill-failgen root: `<root>/<task>/<seed>/<episode>`.
+
+    A root that is one task's folder or one seed's folder also reads; the task then comes from
+    the path. With `first_only`, stop at the first episode found (enough to recognise the layout).
+    """
+    for depth in (3, 2, 1):
+        levels: list[list[Path]] = [[root]]
+        for _ in range(depth):
+            levels.append([child for parent in levels[-1] for child in _subdirs(parent)])
+        episodes: list[Path] = []
+        for candidate in levels[-1]:
+            if _is_maniskill_episode(candidate):
+                episodes.append(candidate)
+                if first_only:
+                    break
+        if episodes:
+            named = [Path(os.path.abspath(p)) for p in episodes]  # names above `root`, links kept
+            return [(a.parent.parent.name, a.parent.name, p) for a, p in zip(named, episodes, strict=True)]
+    return []
+
+
 def _aha_trajectories(root: Path) -> Iterator[Trajectory]:
-    for directory in sorted(p for p in root.iterdir() if p.is_dir()):
+    for directory in _aha_episode_dirs(root):
         parsed = parse_aha_name(directory.name)
         if parsed is None:
             continue
         task, symbol, _ = parsed
-        views = aha_views(directory)
+        views = _episode_views(directory)
+        episode = directory.name if directory.parent == root else f"{directory.parent.name}/{directory.name}"
         yield Trajectory(
             task=task,
-            episode=directory.name,
+            episode=episode,
             views=views,
             symbol=symbol,
             outcome=Outcome.FAILURE if symbol else Outcome.SUCCESS,
@@ -238,23 +304,21 @@ def _aha_trajectories(root: Path) -> Iterator[Trajectory]:
 
 
 def _maniskill_trajectories(root: Path) -> Iterator[Trajectory]:
-    for task_dir in sorted(p for p in root.iterdir() if p.is_dir()):
-        for seed_dir in sorted((p for p in task_dir.iterdir() if p.is_dir()), key=numeric_sort_key):
-            for episode_dir in sorted(p for p in seed_dir.iterdir() if p.is_dir()):
-                if episode_dir.name == MANISKILL_SUCCESS:
-                    symbol, outcome = None, Outcome.SUCCESS
-                elif match := _MANISKILL_FAILURE.match(episode_dir.name):
-                    symbol, outcome = f"{match['fail']}_{match['stage']}", Outcome.FAILURE
-                else:
-                    continue
-                yield Trajectory(
-                    task=task_dir.name,
-                    episode=f"{seed_dir.name}/{episode_dir.name}",
-                    views=folder_views(episode_dir),
-                    symbol=symbol,
-                    outcome=outcome,
-                    source=episode_dir,
-                )
+    for task, seed, episode_dir in _maniskill_episode_dirs(root):
+        if episode_dir.name == MANISKILL_SUCCESS:
+            symbol, outcome = None, Outcome.SUCCESS
+        elif match := _MANISKILL_FAILURE.match(episode_dir.name):
+            symbol, outcome = f"{match['fail']}_{match['stage']}", Outcome.FAILURE
+        else:
+            continue
+        yield Trajectory(
+            task=task,
+            episode=f"{seed}/{episode_dir.name}",
+            views=folder_views(episode_dir),
+            symbol=symbol,
+            outcome=outcome,
+            source=episode_dir,
+        )
 
 
 def read_project_manifest(root: Path) -> dict[str, Any]:
