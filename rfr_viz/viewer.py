@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Final
 from rfr_viz.paths import FRAME
 
 if TYPE_CHECKING:
-    from rerun.experimental import ViewerClient, ViewerState
+    from rerun.experimental import Recording, ViewerClient, ViewerState
 
 WINDOW: Final[tuple[int, int]] = (1280, 720)
 ICD_GLOBS: Final[tuple[str, ...]] = (
@@ -179,11 +179,15 @@ def render_screenshot(
     with _viewer_process(size, deadline) as port:
         client = ViewerClient.connect(f"rerun+http://127.0.0.1:{port}/proxy")
         client.open(str(recording))
-        _wait_loaded(client, deadline)
-        if frame is None:
-            client.set_time(FRAME, play_state="paused")  # stay where the viewer opened it
-        else:
+        timelines = _wait_loaded(client, deadline)
+        if frame is not None and FRAME not in timelines:
+            raise ValueError(
+                f"{recording} has no {FRAME!r} timeline to show frame {frame} on (it has {timelines})"
+            )
+        if frame is not None:
             client.set_time(FRAME, sequence=frame, play_state="paused")
+        elif timelines:  # stay where the viewer opened it
+            client.set_time(FRAME if FRAME in timelines else timelines[0], play_state="paused")
         time.sleep(settle)  # frames for images to decode and plots to settle
         out.parent.mkdir(parents=True, exist_ok=True)
         client.save_screenshot(str(out))
@@ -198,21 +202,66 @@ def render_screenshot(
     return Screenshot(path=out, errors=errors, frame=frame)
 
 
-def _wait_loaded(client: ViewerClient, deadline: float) -> None:
-    """Poll the viewer until the recording is loaded and has its timelines."""
+def playback_positions(
+    recording: Path,
+    *,
+    seconds: float = 10.0,
+    interval: float = 0.2,
+    size: tuple[int, int] = WINDOW,
+    timeout: float = 90.0,
+) -> list[int | None]:
+    """Open `recording` as a person would (no seeking) and sample the `frame` cursor for `seconds`.
+
+    Shows what a reviewer sees on opening a file: where playback starts, and whether the
+    blueprint's loop keeps it around an alarm. Raises ViewerUnavailable where the viewer cannot run.
+    """
+    from rerun.experimental import ViewerClient
+
+    recording = Path(recording).resolve()
+    check_vulkan()
+    deadline = time.monotonic() + timeout
+    positions: list[int | None] = []
+    with _viewer_process(size, deadline) as port:
+        client = ViewerClient.connect(f"rerun+http://127.0.0.1:{port}/proxy")
+        client.open(str(recording))
+        if FRAME not in _wait_loaded(client, deadline):
+            raise ValueError(f"{recording} has no {FRAME!r} timeline")
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            active = _active_recording(client.get_state())
+            on_frame = active is not None and active.current_timeline == FRAME
+            positions.append(active.current_time if on_frame and active is not None else None)
+            time.sleep(interval)
+    return positions
+
+
+def _wait_loaded(client: ViewerClient, deadline: float, *, grace: float = 2.0) -> list[str]:
+    """Poll the viewer until the recording is loaded; return its timeline names.
+
+    A recording shows up before its data, so one without timelines counts as loaded only after
+    nothing has been loading for `grace` seconds (a recording of static data has no timeline).
+    """
+    idle_since: float | None = None
     while time.monotonic() < deadline:
         state = client.get_state()
-        if _loaded(state):
-            return
+        active = _active_recording(state)
+        if active is not None and not state.loading:
+            names = [timeline.name for timeline in active.timelines]
+            if names:
+                return names
+            idle_since = idle_since or time.monotonic()
+            if time.monotonic() - idle_since >= grace:
+                return []
+        else:
+            idle_since = None
         time.sleep(0.1)
     raise TimeoutError("the viewer did not finish loading the recording in time")
 
 
-def _loaded(state: ViewerState) -> bool:
-    if state.loading or state.active_recording is None:
-        return False
-    active = [r for r in state.recordings if r.store_id == state.active_recording]
-    return bool(active) and any(timeline.name == FRAME for timeline in active[0].timelines)
+def _active_recording(state: ViewerState) -> Recording | None:
+    if state.active_recording is None:
+        return None
+    return next((r for r in state.recordings if r.store_id == state.active_recording), None)
 
 
 def open_command(recording: Path) -> str:

@@ -7,10 +7,12 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from synthetic import write_episode
+from synthetic import write_episode, write_project_dataset
 
+from rfr_viz.blueprint import FOCUS_MARGIN
+from rfr_viz.evaluation_recording import record_evaluation
 from rfr_viz.record import record_replay
-from rfr_viz.viewer import ViewerUnavailable, check_vulkan, render_screenshot
+from rfr_viz.viewer import ViewerUnavailable, check_vulkan, playback_positions, render_screenshot
 from robofailring import (
     CachedEncoder,
     FailureDetector,
@@ -19,6 +21,7 @@ from robofailring import (
     load_encoder,
     load_trajectory,
 )
+from robofailring.evaluation import EvaluateConfig, run_evaluation
 
 pytestmark = pytest.mark.viewer
 
@@ -54,6 +57,41 @@ def test_replay_renders_in_the_real_viewer(viewer_ready: None, aha_dataset: Path
     # the synthetic scene's yellow object is on screen (cameras and neighbour images are drawn)
     yellow = (image[:, :, 2] > 180) & (image[:, :, 1] > 170) & (image[:, :, 0] < 90)
     assert int(yellow.sum()) > 500
+
+
+def test_a_review_recording_plays_around_its_alarm(
+    viewer_ready: None, aha_dataset: Path, tmp_path: Path
+) -> None:
+    """Opened without seeking, a recording with a focus frame reaches the alarm and loops there."""
+    encoder = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "cache")
+    memory, _ = FailureMemory.build(load_dataset(aha_dataset), encoder)
+    trajectory = load_trajectory(
+        write_episode(tmp_path / "pick_cube_success_episode9", "pick_cube", None, length=36)
+    )
+    trace = FailureDetector(memory, encoder, k=2).run(trajectory)
+    focus = 26
+    recording = record_replay(trajectory, trace, out=tmp_path / "alarm.rrd", focus_frame=focus)
+    positions = [p for p in playback_positions(recording, seconds=12.0, interval=0.15) if p is not None]
+    window = range(focus - FOCUS_MARGIN, focus + FOCUS_MARGIN + 1)
+    assert positions, "the viewer reported no time cursor"
+    entered = next((i for i, p in enumerate(positions) if p in window), None)
+    assert entered is not None, f"playback never reached frames {window.start}-{window.stop - 1}: {positions}"
+    after = positions[entered:]
+    assert len(after) >= 5 and all(p in window for p in after), positions
+    assert len(set(after)) >= 3, f"the cursor does not move inside the window: {after}"
+
+
+def test_a_recording_without_a_frame_timeline_renders(viewer_ready: None, tmp_path: Path) -> None:
+    """The evaluation summary is indexed by δ, not by frame: it still opens and renders."""
+    data = write_project_dataset(tmp_path / "data")
+    result = run_evaluation(EvaluateConfig(data=data, out=tmp_path / "eval", cache_dir=tmp_path / "cache"))
+    recording = record_evaluation([result], out=tmp_path / "evaluation.rrd")
+    shot = render_screenshot(recording, tmp_path / "evaluation.png", settle=1.0)
+    assert shot.errors == [], shot.errors
+    image = cv2.imread(str(shot.path), cv2.IMREAD_COLOR)
+    assert image is not None and float(image.std()) > 20.0
+    with pytest.raises(ValueError, match="no 'frame' timeline"):
+        render_screenshot(recording, tmp_path / "frame.png", frame=3)
 
 
 def test_missing_vulkan_is_a_clear_error(monkeypatch: pytest.MonkeyPatch) -> None:
