@@ -32,10 +32,18 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=4, help="memory episodes per failure family")
     parser.add_argument("--data", type=Path, default=default_cache_dir() / "closed-loop-data")
     parser.add_argument("--out", type=Path, default=Path("recordings/closed_loop"))
+    parser.add_argument("--image-size", type=int, default=128, help="camera images, pixels a side")
+    parser.add_argument("--frames", type=int, default=40, help="frames per episode")
     args = parser.parse_args()
 
     data = generate_dataset(
-        GenerateConfig(out=args.data / args.task, tasks=(args.task,), episodes=args.episodes)
+        GenerateConfig(
+            out=args.data / f"{args.task}_{args.image_size}px_{args.frames}f",
+            tasks=(args.task,),
+            episodes=args.episodes,
+            image_size=args.image_size,
+            frames=args.frames,
+        )
     )
     encoder = CachedEncoder(load_encoder("pixels"))
     memory, stats = FailureMemory.build(load_dataset(data).trajectories(), encoder)
@@ -54,6 +62,8 @@ def main() -> None:
         mode=args.mode,
         seed=args.seed,
         delta=delta,
+        image_size=args.image_size,
+        frames=args.frames,
         out=args.out / f"{args.task}_{args.mode}_seed{args.seed}.rrd",
     )
     if result.stop_frame is None:
@@ -63,7 +73,10 @@ def main() -> None:
             f"STOP at frame {result.stop_frame}/{result.length} (view {result.stop_view}, "
             f"T_s = {result.saving_ratio:.2f})"
         )
-    print(f"watched run:   {result.watched.outcome} after {result.watched.frames} frames")
+    watched = result.watched
+    how = "stopped" if watched.stopped_early else "ran to its end"
+    goal = "goal reached" if watched.outcome == "success" else "goal not reached"
+    print(f"watched run:   {how} after {watched.frames} frames ({goal})")
     print(f"unstopped run: {result.unstopped.outcome} ({result.unstopped.label or 'goal reached'})")
     print(f"recording: {result.path}\n  rerun {result.path}")
 

@@ -6,7 +6,11 @@ import subprocess
 import sys
 from pathlib import Path
 
-from synthetic import write_aha_dataset, write_episode
+from rerun.chunk import RrdReader
+from synthetic import VIEWS, write_aha_dataset, write_episode, write_project_dataset
+
+from rfr_viz.paths import UNSTOPPED, WATCHED
+from rfr_viz.viewer import verify_recording
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
@@ -36,3 +40,52 @@ def test_build_memory_from_aha_example(tmp_path: Path) -> None:
     assert "aha layout" in result.stdout and "memory: 9 entries over 1 tasks" in result.stdout
     assert "failure at frame" in result.stdout and "The failure was caused by" in result.stdout
     assert (tmp_path / "memory" / "manifest.json").is_file()
+
+
+def test_closed_loop_example(tmp_path: Path) -> None:
+    """The proactive-stop story at a small size: memory, calibration, both runs, one valid recording."""
+    result = subprocess.run(
+        [
+            sys.executable,
+            str(EXAMPLES / "closed_loop_sim.py"),
+            *("--episodes", "1", "--image-size", "48", "--frames", "16"),
+            *("--data", str(tmp_path / "data"), "--out", str(tmp_path / "out")),
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
+        env={"ROBOFAILRING_CACHE": str(tmp_path / "cache"), "PATH": "/usr/bin:/bin"},
+    )
+    assert result.returncode == 0, result.stderr
+    out = result.stdout
+    assert "memory: " in out and "calibrated δ = " in out
+    assert ("STOP at frame" in out) != ("no alarm in 16 frames" in out)
+    assert "watched run:" in out and "unstopped run: failure (grasp_wp" in out
+    recording = tmp_path / "out" / "pick_cube_grasp_seed11.rrd"
+    assert f"rerun {recording}" in out
+    verify_recording(recording)
+    paths = {chunk.entity_path for chunk in RrdReader(recording).stream().to_chunks()}
+    for run in (WATCHED, UNSTOPPED):
+        assert {run.camera(view) for view in VIEWS} | {run.outcome, run.detector.state} <= paths
+
+
+def test_compare_encoders_example(tmp_path: Path, tiny_checkpoint: tuple[Path, Path]) -> None:
+    config_json, checkpoint = tiny_checkpoint
+    data = write_project_dataset(tmp_path / "data", tasks=("pick_cube",), episodes=4)
+    result = subprocess.run(
+        [
+            sys.executable,
+            str(EXAMPLES / "compare_encoders.py"),
+            str(data),
+            *("--encoder", "pixels", "--encoder", f"open_clip:{config_json}:{checkpoint}"),
+            *("--out", str(tmp_path / "out"), "--target-fpr", "0.5"),
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
+        env={"ROBOFAILRING_CACHE": str(tmp_path / "cache"), "PATH": "/usr/bin:/bin", "HF_HUB_OFFLINE": "1"},
+    )
+    assert result.returncode == 0, result.stderr
+    rows = [line for line in result.stdout.splitlines() if line.startswith("| ")]
+    assert any("pixels" in row for row in rows) and any("`open_clip:" in row for row in rows), result.stdout
+    assert len(rows) == 3, result.stdout  # the header and one row per encoder
