@@ -236,6 +236,7 @@ def _detector_properties(trace: DetectionTrace, memory_map: MemoryMap) -> dict[s
         "detected_view": trace.detected_view or "",
         "views": ", ".join(trace.views),
         "skipped_views": ", ".join(trace.skipped_views),
+        "unscored_frames": ", ".join(f"{view}: {count}" for view, count in trace.truncated_views.items()),
         "memory_entries": len(trace.memory),
         "map": memory_map.method,
         "map_note": memory_map.note,

@@ -157,3 +157,25 @@ def test_memory_from_a_checkpoint_without_its_spec_says_what_to_pass(tmp_path: P
     result = runner.invoke(app, ["detect", str(episode), "--memory", str(tmp_path / "memory"), "--task", "t"])
     assert result.exit_code == 2
     assert "--encoder open_clip:TinyViT-test:/path/to/the/same/checkpoint" in result.output
+
+
+def test_detect_says_which_frames_uneven_views_leave_unscored(aha_dataset: Path, tmp_path: Path) -> None:
+    memory = tmp_path / "memory"
+    cache = ["--cache-dir", str(tmp_path / "cache")]
+    assert runner.invoke(app, ["build-memory", str(aha_dataset), "--out", str(memory), *cache]).exit_code == 0
+    episode = write_episode(tmp_path / "query", "pick_cube", None, length=5, views=("overhead", "wrist"))
+    write_episode(episode, "pick_cube", None, length=8, views=("front",))
+    write_episode(tmp_path / "query", "pick_cube", None, length=1, views=("side",))
+    result = runner.invoke(
+        app, ["detect", str(episode), "--memory", str(memory), "--task", "pick_cube", "--json", *cache]
+    )
+    assert result.exit_code == 0, result.output
+    trace = json.loads(result.stdout)
+    assert (
+        trace["length"] == 5
+        and trace["unscored_frames"] == {"front": 3}
+        and trace["skipped_views"] == ["side"]
+    )
+    assert len(trace["views"]["front"]["similarity"]) == 5
+    assert "view front has 8 frames; the last 3 are not scored" in result.stderr
+    assert "fewer than 2 frames skipped: side" in result.stderr

@@ -153,6 +153,17 @@ def detect_cmd(
         )
     except RoboFailRingError as error:
         exit_with_error(error)
+    for view, count in trace.truncated_views.items():
+        typer.secho(
+            f"note: view {view} has {trace.length + count} frames; the last {count} are not scored "
+            f"(views are scored in step up to the shortest one, L = {trace.length})",
+            fg=typer.colors.YELLOW,
+            err=True,
+        )
+    if trace.skipped_views:
+        typer.secho(
+            f"note: views with fewer than 2 frames skipped: {', '.join(trace.skipped_views)}", err=True
+        )
     if as_json:
         json.dump(trace.to_dict(), sys.stdout)
         sys.stdout.write("\n")

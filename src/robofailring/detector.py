@@ -47,6 +47,12 @@ class DetectionTrace:
     queries: dict[str, np.ndarray] = field(repr=False)
     memory: FailureMemory = field(repr=False)
     skipped_views: list[str] = field(default_factory=list)
+    view_frames: dict[str, int] = field(default_factory=dict)  # frames each view had (L bounds them)
+
+    @property
+    def truncated_views(self) -> dict[str, int]:
+        """Views longer than L (the shortest used view) and how many of their frames were not scored."""
+        return {view: count - self.length for view, count in self.view_frames.items() if count > self.length}
 
     @property
     def state(self) -> np.ndarray:
@@ -118,6 +124,7 @@ class DetectionTrace:
             "t_det": self.t_det,
             "detected_view": self.detected_view,
             "skipped_views": self.skipped_views,
+            "unscored_frames": self.truncated_views,
             "views": views,
         }
 
@@ -186,6 +193,7 @@ class FailureDetector:
             queries=queries,
             memory=self.memory,
             skipped_views=skipped,
+            view_frames={view: len(frames) for view, frames in trajectory.views.items()},
         )
 
 
