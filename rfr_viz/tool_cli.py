@@ -32,20 +32,20 @@ def evaluate_cmd(
     from rfr_viz.evaluation_recording import record_evaluation
     from robofailring.evaluation import EvaluateConfig, run_evaluation, write_evaluation
 
-    config = EvaluateConfig(
-        data=data,
-        out=out,
-        encoder=encoder,
-        memory=memory,
-        test_data=test_data,
-        train_split=train_split,
-        test_split=test_split,
-        k=k,
-        name=name,
-        cache_dir=cache_dir,
-        device=device,
-    )
     try:
+        config = EvaluateConfig(
+            data=data,
+            out=out,
+            encoder=encoder,
+            memory=memory,
+            test_data=test_data,
+            train_split=train_split,
+            test_split=test_split,
+            k=k,
+            name=name,
+            cache_dir=cache_dir,
+            device=device,
+        )
         result = run_evaluation(config)
     except RoboFailRingError as error:
         exit_with_error(error)

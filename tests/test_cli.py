@@ -179,3 +179,29 @@ def test_detect_says_which_frames_uneven_views_leave_unscored(aha_dataset: Path,
     assert len(trace["views"]["front"]["similarity"]) == 5
     assert "view front has 8 frames; the last 3 are not scored" in result.stderr
     assert "fewer than 2 frames skipped: side" in result.stderr
+
+
+def test_out_of_range_settings_are_refused_before_any_work(aha_dataset: Path, tmp_path: Path) -> None:
+    from rfr_viz.cli import app as tool_app
+
+    memory = tmp_path / "memory"
+    cache = ["--cache-dir", str(tmp_path / "cache")]
+    assert runner.invoke(app, ["build-memory", str(aha_dataset), "--out", str(memory), *cache]).exit_code == 0
+    episode = str(aha_dataset / "pick_cube_wrong_object_episode1")
+    cases = [
+        (app, ["detect", episode, "--memory", str(memory), "--delta", "1.5"], "δ must lie in [-1, 1]"),
+        (app, ["detect", episode, "--memory", str(memory), "--k", "0"], "must be at least 1, got 0"),
+        (app, ["calibrate", str(aha_dataset), "--memory", str(memory), "--target-fpr", "2"], "target FPR"),
+        (tool_app, ["evaluate", str(aha_dataset), "--out", str(tmp_path / "eval"), "--k", "0"], "at least 1"),
+        (
+            tool_app,
+            ["replay", episode, "--memory", str(memory), "--out", str(tmp_path / "rec"), "--delta", "-3"],
+            "δ",
+        ),
+    ]
+    for command, args, message in cases:
+        result = runner.invoke(command, [*args, *cache])
+        assert result.exit_code == 2 and message in result.output, (args, result.output)
+    assert not (tmp_path / "eval").exists() and not list((tmp_path / "rec").glob("*.rrd"))
+    manifest = json.loads((memory / "manifest.json").read_text())
+    assert manifest.get("calibration") is None  # the refused calibration wrote nothing

@@ -7,6 +7,7 @@ import itertools
 import numpy as np
 import pytest
 
+from robofailring.errors import DataError
 from robofailring.metrics import ScoredTrajectory, calibrate_delta, fine_grid, rates, sweep, timeliness
 
 
@@ -89,7 +90,7 @@ def test_calibration_hits_its_target(target: float, expected_fpr: float) -> None
 
 
 def test_calibration_rejects_bad_input() -> None:
-    with pytest.raises(ValueError, match="at least one success"):
+    with pytest.raises(DataError, match="at least one success"):
         calibrate_delta([], 0.1)
     with pytest.raises(ValueError, match="target FPR"):
         calibrate_delta([0.5], 1.5)

@@ -11,6 +11,7 @@ from robofailring.errors import (
     EncoderMismatchError,
     MemoryFormatError,
     RoboFailRingError,
+    SettingError,
     SymbolError,
     UnknownTaskError,
 )
@@ -39,6 +40,7 @@ __all__ = [
     "Neighbor",
     "Outcome",
     "RoboFailRingError",
+    "SettingError",
     "StepResult",
     "SymbolError",
     "Trajectory",

@@ -12,7 +12,7 @@ from robofailring.data.images import as_rgb
 from robofailring.data.model import Frame, Trajectory
 from robofailring.encoders.base import Encoder, l2_normalize
 from robofailring.encoders.cache import CachedEncoder
-from robofailring.errors import DataError
+from robofailring.errors import DataError, SettingError
 from robofailring.memory import FailureMemory, Neighbor, pair_vectors
 
 PAPER_DELTA: Final[float] = 0.92
@@ -129,6 +129,20 @@ class DetectionTrace:
         }
 
 
+def check_k(k: int) -> int:
+    """K, the neighbours retrieved per query: at least 1 (SettingError otherwise)."""
+    if k < 1:
+        raise SettingError(f"k (neighbours per query) must be at least 1, got {k}")
+    return k
+
+
+def check_delta(delta: float) -> float:
+    """δ: a cosine similarity threshold, so within [-1, 1] (SettingError otherwise)."""
+    if not -1.0 <= delta <= 1.0:  # also rejects NaN
+        raise SettingError(f"δ must lie in [-1, 1] (S_t is a cosine similarity), got {delta}")
+    return delta
+
+
 class FailureDetector:
     """Matches (first frame ‖ current frame) queries against one task's failure memory."""
 
@@ -141,8 +155,9 @@ class FailureDetector:
         k: int = DEFAULT_K,
     ) -> None:
         memory.check_encoder(encoder.identity)
-        if k < 1:
-            raise ValueError(f"k must be at least 1, got {k}")
+        check_k(k)
+        if delta is not None:
+            check_delta(delta)
         self.memory = memory
         self.encoder = (
             encoder if isinstance(encoder, CachedEncoder) else CachedEncoder(encoder, enabled=False)

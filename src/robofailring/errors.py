@@ -29,3 +29,7 @@ class EncoderMismatchError(RoboFailRingError):
 
 class UnknownTaskError(RoboFailRingError):
     """A query names a task that has no entry in the memory."""
+
+
+class SettingError(RoboFailRingError, ValueError):
+    """A setting is outside its range (δ beyond [-1, 1], K below 1, a rate beyond [0, 1])."""

@@ -18,9 +18,9 @@ import numpy as np
 from robofailring._atomic import write_text_atomic
 from robofailring.data.layouts import load_dataset
 from robofailring.data.model import Trajectory
-from robofailring.detector import PAPER_DELTA, DetectionTrace, FailureDetector
+from robofailring.detector import PAPER_DELTA, DetectionTrace, FailureDetector, check_delta, check_k
 from robofailring.encoders import CachedEncoder, load_encoder
-from robofailring.errors import DataError, RoboFailRingError
+from robofailring.errors import DataError, RoboFailRingError, SettingError
 from robofailring.grounding import failure_type
 from robofailring.memory import FailureMemory
 from robofailring.metrics import (
@@ -51,6 +51,13 @@ class EvaluateConfig:
     name: str = "evaluation"
     cache_dir: Path | None = None
     device: str | None = None
+
+    def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
+        check_k(self.k)
+        for delta in self.deltas:
+            check_delta(delta)
+        if not 0.0 < self.test_fraction < 1.0:
+            raise SettingError(f"test fraction must lie in (0, 1), got {self.test_fraction}")
 
 
 def _hash_split(trajectory: Trajectory, test_fraction: float) -> str:
@@ -447,6 +454,11 @@ class CalibrateConfig:
     k: int = 5
     cache_dir: Path | None = None
     device: str | None = None
+
+    def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
+        check_k(self.k)
+        if not 0.0 <= self.target_fpr < 1.0:
+            raise SettingError(f"target FPR must be in [0, 1), got {self.target_fpr}")
 
 
 @dataclass(frozen=True)

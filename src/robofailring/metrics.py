@@ -8,6 +8,8 @@ from typing import Final
 
 import numpy as np
 
+from robofailring.errors import DataError, SettingError
+
 PAPER_DELTAS: Final[tuple[float, ...]] = (0.85, 0.90, 0.92, 0.95)
 
 
@@ -136,10 +138,10 @@ def calibrate_delta(success_peaks: Sequence[float], target_fpr: float) -> tuple[
     Returns (δ, the FPR achieved at that δ).
     """
     if not 0.0 <= target_fpr < 1.0:
-        raise ValueError(f"target FPR must be in [0, 1), got {target_fpr}")
+        raise SettingError(f"target FPR must be in [0, 1), got {target_fpr}")
     peaks = np.sort(np.asarray(success_peaks, dtype=np.float32))[::-1]
     if peaks.size == 0:
-        raise ValueError("calibration needs at least one success trajectory")
+        raise DataError("calibration needs at least one success trajectory")
     allowed = int(np.floor(target_fpr * peaks.size + 1e-9))
     if allowed >= peaks.size:
         return float(peaks[-1]), 1.0
