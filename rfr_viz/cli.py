@@ -1,4 +1,4 @@
-"""The `replay` and `compare` verbs, added to the library's `robofailring` command line."""
+"""The `replay`, `compare` and `open` verbs, added to the library's `robofailring` command line."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import typer
 
 from rfr_viz import tool_cli  # noqa: F401  (registers evaluate and the other combined verbs)
 from rfr_viz.replay import DEFAULT_OUT, CompareConfig, ReplayConfig, ReplayResult, compare, replay
-from rfr_viz.viewer import open_command
+from rfr_viz.viewer import DEFAULT_PORT, ViewerUnavailable, open_at, open_command
 from robofailring.cli import CacheOption, DeviceOption, app, exit_with_error
 from robofailring.errors import RoboFailRingError
 
@@ -135,8 +135,29 @@ def compare_cmd(
     _report(result, out)
 
 
+@app.command("open")
+def open_cmd(
+    recording: Annotated[Path, typer.Argument(help="A .rrd written by replay, review, compare or the demo.")],
+    frame: Annotated[
+        int | None, typer.Option(help="Frame to pause at (default: the recording's alarm or focus).")
+    ] = None,
+    port: Annotated[int, typer.Option(help="Viewer port; a viewer already listening there is reused.")] = (
+        DEFAULT_PORT
+    ),
+) -> None:
+    """Open a recording in the Rerun viewer paused at its alarm (a review's false alarm, a miss's peak)."""
+    if not recording.is_file():
+        exit_with_error(FileNotFoundError(f"no recording at {recording}"))
+    try:
+        opened = open_at(recording, frame, port=port)
+    except (ViewerUnavailable, ValueError) as error:
+        exit_with_error(error)
+    started = "started a viewer" if opened.process is not None else "reused the viewer"
+    typer.echo(f"{opened.recording}: paused at frame {opened.frame} ({started} on port {opened.port})")
+
+
 def main() -> None:
-    """Console entry point: the library's verbs plus `replay` and `compare`."""
+    """Console entry point: the library's verbs plus `replay`, `compare`, `open` and the combined ones."""
     app()
 
 

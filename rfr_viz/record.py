@@ -112,7 +112,11 @@ def record_replay(
         rec.send_recording_name(f"{info.task}/{info.episode}")
         rec.send_property(
             PROPERTIES,
-            rr.AnyValues(**_trajectory_properties(info, trace.length), **_detector_properties(trace, mapped)),
+            rr.AnyValues(
+                **_trajectory_properties(info, trace.length),
+                **_detector_properties(trace, mapped),
+                focus_frame=focus_frame if focus_frame is not None else -1,  # -1: none (see rfr_viz.viewer)
+            ),
         )
         log_cameras(rec, trajectory, views=trace.views, length=trace.length, fps=info.fps)
         log_detector(

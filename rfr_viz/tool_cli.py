@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from rfr_viz.viewer import open_command
+from rfr_viz.viewer import open_at_command, open_command
 from robofailring.cli import CacheOption, DeviceOption, EncoderOption, app, exit_with_error
 from robofailring.errors import RoboFailRingError
 
@@ -87,8 +87,11 @@ def review_cmd(
     if not result.recordings:
         typer.echo(f"no {kind} in {evaluation}: nothing to replay")
         return
+    typer.echo(
+        f"{len(result.recordings)} recording(s); each line opens one paused at the moment (or use `rerun FILE`):"
+    )
     for path in result.recordings:
-        typer.echo(open_command(path))
+        typer.echo(f"  {open_at_command(path)}")
 
 
 @app.command("compare-encoders")
@@ -190,5 +193,8 @@ def demo_cmd(
     typer.echo(f"  {open_command(result.summary)}    # evaluation: Recall/FPR against δ, ROC, T_s histogram")
     for kind, path in result.recordings.items():
         typer.echo(f"  {open_command(path)}    # {kind}")
+    typer.echo("Or open one paused at its alarm (the miss: at its highest S_t):")
+    for kind, path in result.recordings.items():
+        typer.echo(f"  {open_at_command(path)}    # {kind}")
     for note in result.notes:
         typer.echo(f"note: {note}")

@@ -6,6 +6,7 @@ import contextlib
 import ctypes.util
 import glob
 import os
+import shutil
 import signal
 import socket
 import subprocess
@@ -14,9 +15,9 @@ import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Final
+from typing import TYPE_CHECKING, Any, Final
 
-from rfr_viz.paths import FRAME
+from rfr_viz.paths import FRAME, PROPERTIES
 
 if TYPE_CHECKING:
     from rerun.experimental import Recording, ViewerClient, ViewerState
@@ -105,6 +106,13 @@ def _wait_for_port(port: int, process: subprocess.Popen[bytes], deadline: float)
     raise TimeoutError(f"the viewer did not listen on port {port} in time")
 
 
+def _viewer_command(port: int, *, headless: bool, size: tuple[int, int] = WINDOW) -> list[str]:
+    command = [str(viewer_binary()), "--bind", "127.0.0.1", "--port", str(port), "--hide-welcome-screen"]
+    if headless:
+        command += ["--headless", "--window-size", f"{size[0]}x{size[1]}"]
+    return command
+
+
 @contextlib.contextmanager
 def _viewer_process(size: tuple[int, int], deadline: float) -> Iterator[int]:
     """The headless viewer in its own process group, stopped (group and all) on exit."""
@@ -114,17 +122,7 @@ def _viewer_process(size: tuple[int, int], deadline: float) -> Iterator[int]:
         log_path = Path(runtime_dir) / "viewer.log"
         with log_path.open("wb") as log:
             process = subprocess.Popen(
-                [
-                    str(viewer_binary()),
-                    "--headless",
-                    "--bind",
-                    "127.0.0.1",
-                    "--port",
-                    str(port),
-                    "--window-size",
-                    f"{size[0]}x{size[1]}",
-                    "--hide-welcome-screen",
-                ],
+                _viewer_command(port, headless=True, size=size),
                 env=_environment(runtime_dir),
                 stdout=log,
                 stderr=subprocess.STDOUT,
@@ -264,11 +262,134 @@ def _active_recording(state: ViewerState) -> Recording | None:
     return next((r for r in state.recordings if r.store_id == state.active_recording), None)
 
 
-def open_command(recording: Path) -> str:
-    """The shell line that opens a recording in the Rerun viewer (the venv's `rerun` when not on PATH)."""
-    import shutil
+def recording_properties(recording: Path, group: str = PROPERTIES) -> dict[str, Any]:
+    """A recording's property group (task, label, t_det, focus_frame, …) read back from the file."""
+    from rerun.chunk import RrdReader
+
+    chunks = RrdReader(Path(recording)).stream().filter(content=f"/__properties/{group}").to_chunks()
+    for chunk in chunks:
+        columns = chunk.to_record_batch().to_pydict()
+        return {name: values[0][0] for name, values in columns.items() if not name.startswith("rerun.")}
+    return {}
+
+
+def focus_frame(recording: Path) -> int:
+    """The frame a reviewer wants first: the recorded focus (an alarm, a miss's peak), else t_det, else 0."""
+    found = recording_properties(recording)
+    for key in ("focus_frame", "t_det"):
+        value = found.get(key)
+        if isinstance(value, int) and value >= 0:
+            return value
+    return 0
+
+
+DEFAULT_PORT: Final[int] = 9876  # the Rerun viewer's default: an already running viewer is reused
+
+
+@dataclass
+class OpenedRecording:
+    """A recording shown in a viewer with the cursor paused at `frame`."""
+
+    recording: Path
+    frame: int
+    port: int
+    process: subprocess.Popen[bytes] | None = None  # the viewer started for it; None: one already running
+    runtime_dir: str | None = None
+
+    def close(self) -> None:
+        """Stop the viewer if it was started here (a viewer that was already running is left alone)."""
+        if self.process is not None:
+            _stop(self.process)
+        if self.runtime_dir is not None:
+            shutil.rmtree(self.runtime_dir, ignore_errors=True)
+
+
+def _listening(port: int) -> bool:
+    with contextlib.suppress(OSError), socket.create_connection(("127.0.0.1", port), timeout=0.2):
+        return True
+    return False
+
+
+def open_at(
+    recording: Path,
+    frame: int | None = None,
+    *,
+    port: int = DEFAULT_PORT,
+    headless: bool = False,
+    timeout: float = 60.0,
+) -> OpenedRecording:
+    """Show `recording` in a Rerun viewer with the time cursor paused at `frame`.
+
+    `frame` defaults to the recording's focus (`focus_frame`): a review recording opens at its
+    alarm, which a saved blueprint cannot do. A viewer already listening on `port` is reused;
+    otherwise one is started there (a window, or `headless` for tests) and keeps running after
+    this returns: `close()` stops it.
+    """
+    from rerun.experimental import ViewerClient
+
+    recording = Path(recording).resolve()
+    verify_recording(recording)
+    frame = focus_frame(recording) if frame is None else frame
+    deadline = time.monotonic() + timeout
+    opened = OpenedRecording(recording=recording, frame=frame, port=port)
+    if not _listening(port):
+        if headless:
+            check_vulkan()
+        opened.runtime_dir = tempfile.mkdtemp(prefix="rfr-viewer-")
+        os.chmod(opened.runtime_dir, 0o700)
+        env = _environment(opened.runtime_dir) if headless else {**os.environ, "RERUN_ANALYTICS": "0"}
+        log_path = Path(opened.runtime_dir) / "viewer.log"
+        with log_path.open("wb") as log:
+            opened.process = subprocess.Popen(
+                _viewer_command(port, headless=headless),
+                env=env,
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                start_new_session=True,  # the viewer outlives this command
+            )
+        try:
+            _wait_for_port(port, opened.process, deadline)
+        except (ViewerUnavailable, TimeoutError) as error:
+            tail = log_path.read_text(errors="replace").strip()[-1500:]
+            opened.close()
+            raise ViewerUnavailable(
+                f"the Rerun viewer could not start on port {port} ({error}); is there a display? "
+                f"Without one, `rerun --serve-web {recording}` serves it to a browser. Viewer output:\n{tail}"
+            ) from error
+    try:
+        client = ViewerClient.connect(f"rerun+http://127.0.0.1:{port}/proxy")
+        client.open(str(recording))
+        timelines = _wait_loaded(client, deadline)
+        if FRAME not in timelines:
+            raise ValueError(
+                f"{recording} has no {FRAME!r} timeline to open at frame {frame} (it has {timelines})"
+            )
+        client.set_time(FRAME, sequence=frame, play_state="paused")
+    except (OSError, RuntimeError, TimeoutError) as error:
+        opened.close()
+        raise ViewerUnavailable(
+            f"could not show {recording} in the viewer on port {port}: {error} "
+            "(is something other than a Rerun viewer listening there? pass another --port)"
+        ) from error
+    except BaseException:
+        opened.close()
+        raise
+    return opened
+
+
+def _script(name: str) -> str:
+    """A console script by name: bare when on PATH, else the one beside this Python (the venv's)."""
     import sys
 
-    script = Path(sys.executable).with_name("rerun")
-    rerun = "rerun" if shutil.which("rerun") or not script.exists() else str(script)
-    return f"{rerun} {recording}"
+    script = Path(sys.executable).with_name(name)
+    return name if shutil.which(name) or not script.exists() else str(script)
+
+
+def open_command(recording: Path) -> str:
+    """The shell line that opens a recording in the Rerun viewer (the venv's `rerun` when not on PATH)."""
+    return f"{_script('rerun')} {recording}"
+
+
+def open_at_command(recording: Path) -> str:
+    """The shell line that opens a recording paused at its focus frame (`robofailring open`)."""
+    return f"{_script('robofailring')} open {recording}"

@@ -12,7 +12,14 @@ from synthetic import write_episode, write_project_dataset
 from rfr_viz.blueprint import FOCUS_MARGIN
 from rfr_viz.evaluation_recording import record_evaluation
 from rfr_viz.record import record_replay
-from rfr_viz.viewer import ViewerUnavailable, check_vulkan, playback_positions, render_screenshot
+from rfr_viz.viewer import (
+    ViewerUnavailable,
+    check_vulkan,
+    focus_frame,
+    open_at,
+    playback_positions,
+    render_screenshot,
+)
 from robofailring import (
     CachedEncoder,
     FailureDetector,
@@ -79,6 +86,43 @@ def test_a_review_recording_plays_around_its_alarm(
     after = positions[entered:]
     assert len(after) >= 5 and all(p in window for p in after), positions
     assert len(set(after)) >= 3, f"the cursor does not move inside the window: {after}"
+
+
+def test_open_pauses_at_the_alarm_and_reuses_a_running_viewer(
+    viewer_ready: None, aha_dataset: Path, tmp_path: Path
+) -> None:
+    encoder = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "cache")
+    memory, _ = FailureMemory.build(load_dataset(aha_dataset), encoder)
+    trajectory = load_trajectory(
+        write_episode(tmp_path / "pick_cube_success_episode9", "pick_cube", None, length=30)
+    )
+    trace = FailureDetector(memory, encoder, k=2).run(trajectory)
+    alarm = record_replay(trajectory, trace, out=tmp_path / "alarm.rrd", focus_frame=17)
+    plain = record_replay(trajectory, trace.with_delta(1.0), out=tmp_path / "plain.rrd")
+    assert focus_frame(alarm) == 17 and focus_frame(plain) == 0  # no focus, no detection: the start
+
+    from rerun.experimental import ViewerClient
+
+    port = _free_port()
+    first = open_at(alarm, port=port, headless=True)
+    try:
+        assert first.process is not None and first.frame == 17
+        second = open_at(plain, 9, port=port, headless=True)  # reuses the running viewer
+        assert second.process is None and second.frame == 9
+        state = ViewerClient.connect(f"rerun+http://127.0.0.1:{port}/proxy").get_state()
+        shown = {r.store_id: (r.current_timeline, r.current_time) for r in state.recordings}
+        assert sorted(shown.values()) == [("frame", 9), ("frame", 17)], shown
+    finally:
+        first.close()
+    assert first.process.poll() is not None  # the viewer started for it is stopped
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
 
 
 def test_a_recording_without_a_frame_timeline_renders(viewer_ready: None, tmp_path: Path) -> None:
