@@ -22,12 +22,14 @@ from rfr_viz.viewer import (
 )
 from robofailring import (
     CachedEncoder,
+    DetectionTrace,
     FailureDetector,
     FailureMemory,
     load_dataset,
     load_encoder,
     load_trajectory,
 )
+from robofailring.data.model import Trajectory
 from robofailring.evaluation import EvaluateConfig, run_evaluation
 
 pytestmark = pytest.mark.viewer
@@ -66,16 +68,21 @@ def test_replay_renders_in_the_real_viewer(viewer_ready: None, aha_dataset: Path
     assert int(yellow.sum()) > 500
 
 
+def _success_replay(aha_dataset: Path, tmp_path: Path, *, length: int) -> tuple[Trajectory, DetectionTrace]:
+    """A success episode of `length` frames scored against the AHA fixture's memory (K = 2)."""
+    encoder = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "cache")
+    memory, _ = FailureMemory.build(load_dataset(aha_dataset), encoder)
+    trajectory = load_trajectory(
+        write_episode(tmp_path / "pick_cube_success_episode9", "pick_cube", None, length=length)
+    )
+    return trajectory, FailureDetector(memory, encoder, k=2).run(trajectory)
+
+
 def test_a_review_recording_plays_around_its_alarm(
     viewer_ready: None, aha_dataset: Path, tmp_path: Path
 ) -> None:
     """Opened without seeking, a recording with a focus frame reaches the alarm and loops there."""
-    encoder = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "cache")
-    memory, _ = FailureMemory.build(load_dataset(aha_dataset), encoder)
-    trajectory = load_trajectory(
-        write_episode(tmp_path / "pick_cube_success_episode9", "pick_cube", None, length=36)
-    )
-    trace = FailureDetector(memory, encoder, k=2).run(trajectory)
+    trajectory, trace = _success_replay(aha_dataset, tmp_path, length=36)
     focus = 26
     recording = record_replay(trajectory, trace, out=tmp_path / "alarm.rrd", focus_frame=focus)
     positions = [p for p in playback_positions(recording, seconds=12.0, interval=0.15) if p is not None]
@@ -91,12 +98,7 @@ def test_a_review_recording_plays_around_its_alarm(
 def test_open_pauses_at_the_alarm_and_reuses_a_running_viewer(
     viewer_ready: None, aha_dataset: Path, tmp_path: Path
 ) -> None:
-    encoder = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "cache")
-    memory, _ = FailureMemory.build(load_dataset(aha_dataset), encoder)
-    trajectory = load_trajectory(
-        write_episode(tmp_path / "pick_cube_success_episode9", "pick_cube", None, length=30)
-    )
-    trace = FailureDetector(memory, encoder, k=2).run(trajectory)
+    trajectory, trace = _success_replay(aha_dataset, tmp_path, length=30)
     alarm = record_replay(trajectory, trace, out=tmp_path / "alarm.rrd", focus_frame=17)
     plain = record_replay(trajectory, trace.with_delta(1.0), out=tmp_path / "plain.rrd")
     assert focus_frame(alarm) == 17 and focus_frame(plain) == 0  # no focus, no detection: the start
