@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 import pytest
 from rerun.chunk import RrdReader
-from test_viz import batches, entity_paths, properties, static_value
+from test_viz import entity_paths, properties, rows, static_value
 
 from rfr_viz.closed_loop import ClosedLoopResult, run_closed_loop
 from rfr_viz.paths import APPLICATION_ID, CLOSED_LOOP_SUMMARY, UNSTOPPED, WATCHED
@@ -100,17 +100,9 @@ def stopped(
 
 
 def values(path: Path, entity: str, column: str) -> tuple[list[int], list[Any]]:
-    """Frames and first values of `entity`'s temporal rows holding `column`, in frame order.
-
-    Only the "frame" timeline is read: at the simulator's fps "time" is not whole microseconds.
-    """
-    found = []
-    for batch in batches(path, entity):
-        if column in batch.schema.names and "frame" in batch.schema.names:
-            data = batch.select(["frame", column]).to_pydict()
-            found += [(f, v[0]) for f, v in zip(data["frame"], data[column], strict=True) if v]
-    found.sort(key=lambda row: row[0])
-    return [frame for frame, _ in found], [value for _, value in found]
+    """Frames and first values of `entity`'s temporal rows holding `column`, in frame order."""
+    found = rows(path, entity, column)
+    return [frame for frame, _ in found], [value[0] for _, value in found]
 
 
 def test_the_watched_run_stops_at_the_alarm(stopped: ClosedLoopResult, stop_frame: int) -> None:

@@ -48,11 +48,15 @@ def batches(path: Path, content: str) -> list[pa.RecordBatch]:
 
 
 def rows(path: Path, entity: str, column: str) -> list[tuple[int, Any]]:
-    """(frame, value) of every temporal row of `entity` holding `column`, in frame order."""
+    """(frame, value) of every temporal row of `entity` holding `column`, in frame order.
+
+    Only `frame` and `column` are converted: at rates like 6.5 fps the "time" column holds
+    durations that are not whole microseconds, which Python's timedelta cannot take.
+    """
     found = []
     for batch in batches(path, entity):
         if column in batch.schema.names and "frame" in batch.schema.names:
-            data = batch.to_pydict()
+            data = batch.select(["frame", column]).to_pydict()
             found += [
                 (frame, value) for frame, value in zip(data["frame"], data[column], strict=True) if value
             ]
