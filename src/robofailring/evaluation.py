@@ -27,6 +27,7 @@ from robofailring.metrics import (
     PAPER_DELTAS,
     Rates,
     ScoredTrajectory,
+    check_target_fpr,
     fine_grid,
     rates,
     sweep,
@@ -457,8 +458,7 @@ class CalibrateConfig:
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
         check_k(self.k)
-        if not 0.0 <= self.target_fpr < 1.0:
-            raise SettingError(f"target FPR must be in [0, 1), got {self.target_fpr}")
+        check_target_fpr(self.target_fpr)
 
 
 @dataclass(frozen=True)

@@ -131,14 +131,20 @@ def timeliness(
     return Timeliness(progress=tuple(progress))
 
 
+def check_target_fpr(target_fpr: float) -> float:
+    """A target false-positive rate for calibration: within [0, 1) (SettingError otherwise)."""
+    if not 0.0 <= target_fpr < 1.0:
+        raise SettingError(f"target FPR must be in [0, 1), got {target_fpr}")
+    return target_fpr
+
+
 def calibrate_delta(success_peaks: Sequence[float], target_fpr: float) -> tuple[float, float]:
     """The smallest δ whose FPR on these successes is ≤ target (so recall is as high as allowed).
 
     `success_peaks` are the max over frames and views of S_t for each success trajectory.
     Returns (δ, the FPR achieved at that δ).
     """
-    if not 0.0 <= target_fpr < 1.0:
-        raise SettingError(f"target FPR must be in [0, 1), got {target_fpr}")
+    check_target_fpr(target_fpr)
     peaks = np.sort(np.asarray(success_peaks, dtype=np.float32))[::-1]
     if peaks.size == 0:
         raise DataError("calibration needs at least one success trajectory")
