@@ -145,11 +145,11 @@ def detect_layout(root: Path) -> str:
         raise DataError(f"dataset root {root} is not a directory")
     if (root / PROJECT_MANIFEST).is_file():
         return "project"
-    if _aha_episode_dirs(root, first_only=True):
+    if _aha_episodes(root, first_only=True):
         return "aha"
-    if _maniskill_episode_dirs(root, first_only=True):
+    if _maniskill_episodes(root, first_only=True):
         return "maniskill"
-    if folder_views(root) or aha_views(root):
+    if _episode_views(root):
         return "episode"
     raise DataError(f"{root} matches no known dataset layout; {LAYOUTS_HELP}")
 
@@ -227,30 +227,32 @@ def _subdirs(directory: Path) -> list[Path]:
     )
 
 
-def _episode_views(directory: Path) -> dict[str, tuple[Frame, ...]]:
+Views = dict[str, tuple[Frame, ...]]  # view name -> its frames in order
+
+
+def _episode_views(directory: Path) -> Views:
     """Views of an episode folder: `<view>_<idx>.png` files, else one sub-folder of images per view."""
     return aha_views(directory) or folder_views(directory)
 
 
-def _aha_episode_dirs(root: Path, *, first_only: bool = False) -> list[Path]:
-    """AHA-named episode folders directly under `root`, or one level down (e.g. grouped per task).
-
-    With `first_only`, stop at the first one found (enough to recognise the layout).
-    """
-    candidates: list[Iterator[Path]] = [
-        iter(_subdirs(root)),
-        (
-            episode
-            for group in _subdirs(root)
-            if parse_aha_name(group.name) is None
-            for episode in _subdirs(group)
-        ),
+def _aha_episodes(
+    root: Path, *, first_only: bool = False
+) -> list[tuple[Path, tuple[str, str | None, str], Views]]:
+    """(folder, parsed name, views) of the AHA-named episode folders directly under `root`, or one
+    level down (e.g. grouped per task). With `first_only`, stop at the first one (enough to
+    recognise the layout)."""
+    top = _subdirs(root)
+    levels: list[Iterator[Path]] = [
+        iter(top),
+        (episode for group in top if parse_aha_name(group.name) is None for episode in _subdirs(group)),
     ]
-    for level in candidates:
-        found: list[Path] = []
+    for level in levels:
+        found = []
         for directory in level:
-            if parse_aha_name(directory.name) and _episode_views(directory):
-                found.append(directory)
+            parsed = parse_aha_name(directory.name)
+            views = _episode_views(directory) if parsed else {}
+            if parsed and views:
+                found.append((directory, parsed, views))
                 if first_only:
                     return found
         if found:
@@ -258,40 +260,32 @@ def _aha_episode_dirs(root: Path, *, first_only: bool = False) -> list[Path]:
     return []
 
 
-def _is_maniskill_episode(directory: Path) -> bool:
-    named = directory.name == MANISKILL_SUCCESS or _MANISKILL_FAILURE.match(directory.name) is not None
-    return named and bool(folder_views(directory))
-
-
-def _maniskill_episode_dirs(root: Path, *, first_only: bool = False) -> list[tuple[str, str, Path]]:
-    """(task, seed, episode folder) of a ManiSkill-failgen root: `<root>/<task>/<seed>/<episode>`.
+def _maniskill_episodes(root: Path, *, first_only: bool = False) -> list[tuple[str, str, Path, Views]]:
+    """(task, seed, episode folder, views) of a ManiSkill-failgen root: `<root>/<task>/<seed>/<episode>`.
 
     A root that is one task's folder or one seed's folder also reads; the task then comes from
     the path. With `first_only`, stop at the first episode found (enough to recognise the layout).
     """
-    for depth in (3, 2, 1):
-        levels: list[list[Path]] = [[root]]
-        for _ in range(depth):
-            levels.append([child for parent in levels[-1] for child in _subdirs(parent)])
-        episodes: list[Path] = []
-        for candidate in levels[-1]:
-            if _is_maniskill_episode(candidate):
-                episodes.append(candidate)
+    levels = [[root]]
+    for _ in range(3):
+        levels.append([child for parent in levels[-1] for child in _subdirs(parent)])
+    for candidates in (levels[3], levels[2], levels[1]):
+        found = []
+        for directory in candidates:
+            named = directory.name == MANISKILL_SUCCESS or _MANISKILL_FAILURE.match(directory.name)
+            views = folder_views(directory) if named else {}
+            if views:
+                absolute = Path(os.path.abspath(directory))  # names above `root`, links kept
+                found.append((absolute.parent.parent.name, absolute.parent.name, directory, views))
                 if first_only:
                     break
-        if episodes:
-            named = [Path(os.path.abspath(p)) for p in episodes]  # names above `root`, links kept
-            return [(a.parent.parent.name, a.parent.name, p) for a, p in zip(named, episodes, strict=True)]
+        if found:
+            return found
     return []
 
 
 def _aha_trajectories(root: Path) -> Iterator[Trajectory]:
-    for directory in _aha_episode_dirs(root):
-        parsed = parse_aha_name(directory.name)
-        if parsed is None:
-            continue
-        task, symbol, _ = parsed
-        views = _episode_views(directory)
+    for directory, (task, symbol, _), views in _aha_episodes(root):
         episode = directory.name if directory.parent == root else f"{directory.parent.name}/{directory.name}"
         yield Trajectory(
             task=task,
@@ -304,19 +298,14 @@ def _aha_trajectories(root: Path) -> Iterator[Trajectory]:
 
 
 def _maniskill_trajectories(root: Path) -> Iterator[Trajectory]:
-    for task, seed, episode_dir in _maniskill_episode_dirs(root):
-        if episode_dir.name == MANISKILL_SUCCESS:
-            symbol, outcome = None, Outcome.SUCCESS
-        elif match := _MANISKILL_FAILURE.match(episode_dir.name):
-            symbol, outcome = f"{match['fail']}_{match['stage']}", Outcome.FAILURE
-        else:
-            continue
+    for task, seed, episode_dir, views in _maniskill_episodes(root):
+        failure = _MANISKILL_FAILURE.match(episode_dir.name)  # else it is Ground_Truth, a success
         yield Trajectory(
             task=task,
             episode=f"{seed}/{episode_dir.name}",
-            views=folder_views(episode_dir),
-            symbol=symbol,
-            outcome=outcome,
+            views=views,
+            symbol=f"{failure['fail']}_{failure['stage']}" if failure else None,
+            outcome=Outcome.FAILURE if failure else Outcome.SUCCESS,
             source=episode_dir,
         )
 
