@@ -96,11 +96,17 @@ def _free_port() -> int:
         return int(probe.getsockname()[1])
 
 
+def _listening(port: int) -> bool:
+    with contextlib.suppress(OSError), socket.create_connection(("127.0.0.1", port), timeout=0.2):
+        return True
+    return False
+
+
 def _wait_for_port(port: int, process: subprocess.Popen[bytes], deadline: float) -> None:
     while time.monotonic() < deadline:
         if process.poll() is not None:
             raise ViewerUnavailable(f"the viewer exited with code {process.returncode} before listening")
-        with contextlib.suppress(OSError), socket.create_connection(("127.0.0.1", port), timeout=0.2):
+        if _listening(port):
             return
         time.sleep(0.05)
     raise TimeoutError(f"the viewer did not listen on port {port} in time")
@@ -167,21 +173,13 @@ def render_screenshot(
     Returns the PNG and the viewer's ERROR log lines (a bad image shows up there, not in the view).
     Raises ViewerUnavailable where the viewer cannot run (no Vulkan driver).
     """
-    from rerun.experimental import ViewerClient
-
     recording = Path(recording).resolve()
     out = Path(out).resolve()
     check_vulkan()
     verify_recording(recording)
     deadline = time.monotonic() + timeout
     with _viewer_process(size, deadline) as port:
-        client = ViewerClient.connect(f"rerun+http://127.0.0.1:{port}/proxy")
-        client.open(str(recording))
-        timelines = _wait_loaded(client, deadline)
-        if frame is not None and FRAME not in timelines:
-            raise ValueError(
-                f"{recording} has no {FRAME!r} timeline to show frame {frame} on (it has {timelines})"
-            )
+        client, timelines = _show(port, recording, deadline, require_frame=frame is not None)
         if frame is not None:
             client.set_time(FRAME, sequence=frame, play_state="paused")
         elif timelines:  # stay where the viewer opened it
@@ -213,24 +211,35 @@ def playback_positions(
     Shows what a reviewer sees on opening a file: where playback starts, and whether the
     blueprint's loop keeps it around an alarm. Raises ViewerUnavailable where the viewer cannot run.
     """
-    from rerun.experimental import ViewerClient
-
     recording = Path(recording).resolve()
     check_vulkan()
     deadline = time.monotonic() + timeout
     positions: list[int | None] = []
     with _viewer_process(size, deadline) as port:
-        client = ViewerClient.connect(f"rerun+http://127.0.0.1:{port}/proxy")
-        client.open(str(recording))
-        if FRAME not in _wait_loaded(client, deadline):
-            raise ValueError(f"{recording} has no {FRAME!r} timeline")
+        client, _ = _show(port, recording, deadline, require_frame=True)
         end = time.monotonic() + seconds
         while time.monotonic() < end:
             active = _active_recording(client.get_state())
             on_frame = active is not None and active.current_timeline == FRAME
-            positions.append(active.current_time if on_frame and active is not None else None)
+            positions.append(active.current_time if active is not None and on_frame else None)
             time.sleep(interval)
     return positions
+
+
+def _show(
+    port: int, recording: Path, deadline: float, *, require_frame: bool = False
+) -> tuple[ViewerClient, list[str]]:
+    """Open `recording` in the viewer on `port`, wait until it is loaded, and return the client and
+    the recording's timelines; with `require_frame`, a recording without the `frame` timeline is a
+    ValueError naming the file."""
+    from rerun.experimental import ViewerClient
+
+    client = ViewerClient.connect(f"rerun+http://127.0.0.1:{port}/proxy")
+    client.open(str(recording))
+    timelines = _wait_loaded(client, deadline)
+    if require_frame and FRAME not in timelines:
+        raise ValueError(f"{recording} has no {FRAME!r} timeline (it has {timelines})")
+    return client, timelines
 
 
 def _wait_loaded(client: ViewerClient, deadline: float, *, grace: float = 2.0) -> list[str]:
@@ -304,12 +313,6 @@ class OpenedRecording:
             shutil.rmtree(self.runtime_dir, ignore_errors=True)
 
 
-def _listening(port: int) -> bool:
-    with contextlib.suppress(OSError), socket.create_connection(("127.0.0.1", port), timeout=0.2):
-        return True
-    return False
-
-
 def open_at(
     recording: Path,
     frame: int | None = None,
@@ -325,7 +328,6 @@ def open_at(
     otherwise one is started there (a window, or `headless` for tests) and keeps running after
     this returns: `close()` stops it.
     """
-    from rerun.experimental import ViewerClient
 
     recording = Path(recording).resolve()
     verify_recording(recording)
@@ -357,13 +359,7 @@ def open_at(
                 f"Without one, `rerun --serve-web {recording}` serves it to a browser. Viewer output:\n{tail}"
             ) from error
     try:
-        client = ViewerClient.connect(f"rerun+http://127.0.0.1:{port}/proxy")
-        client.open(str(recording))
-        timelines = _wait_loaded(client, deadline)
-        if FRAME not in timelines:
-            raise ValueError(
-                f"{recording} has no {FRAME!r} timeline to open at frame {frame} (it has {timelines})"
-            )
+        client, _ = _show(port, recording, deadline, require_frame=True)
         client.set_time(FRAME, sequence=frame, play_state="paused")
     except (OSError, RuntimeError, TimeoutError) as error:
         opened.close()
