@@ -47,6 +47,7 @@ class ParsedSymbol:
     error_type: str
     axis: str | None
     stage: int | None
+    waypoint: bool = True  # the stage was written `wp<N>` (else ManiSkill's `stage<N>` or `<N>`)
 
     @property
     def canonical(self) -> str:
@@ -55,7 +56,8 @@ class ParsedSymbol:
         if self.axis:
             parts.append(self.axis)
         if self.stage is not None:
-            parts.append(f"wp{self.stage}" if self.stage in STAGES else f"stage{self.stage}")
+            named_wp = self.stage in STAGES or self.waypoint
+            parts.append(f"wp{self.stage}" if named_wp else f"stage{self.stage}")
         return "_".join(parts)
 
 
@@ -63,7 +65,7 @@ def _vocabulary() -> str:
     errors = sorted([*ERROR_TYPES, *ERROR_ALIASES])
     return (
         f"error types {errors}, axes {sorted(AXES)} (after rotation/translation), "
-        f"stages wp1..wp5 (also ManiSkill's stage<N> or <N>), and an ignored episode<N>"
+        f"stages wp<N> (Table 5 names wp1..wp5; also ManiSkill's stage<N> or <N>), and an ignored episode<N>"
     )
 
 
@@ -90,20 +92,22 @@ def parse_symbol(symbol: str) -> ParsedSymbol:
             raise SymbolError(f"axis token {tokens[0]!r} in symbol {symbol!r}: {error_type} takes no axis")
         axis = tokens.pop(0)
     stage: int | None = None
+    waypoint = True
     if tokens:
         match = _STAGE_TOKEN.match(tokens[0])
-        # Waypoints are Table 5's wp1..wp5; ManiSkill-failgen's numbered stages may lie outside them.
-        if match is None or (match.group(1) == "wp" and int(match.group(2)) not in STAGES):
+        # Any waypoint index grounds (real exports use wp0 and wp6+); Table 5 names wp1..wp5.
+        if match is None:
             raise SymbolError(
                 f"unknown stage token {tokens[0]!r} in symbol {symbol!r}; the vocabulary is {_vocabulary()}"
             )
         stage = int(match.group(2))
+        waypoint = match.group(1) == "wp"
         tokens.pop(0)
     if tokens:
         raise SymbolError(
             f"unexpected token {tokens[0]!r} in symbol {symbol!r}; the vocabulary is {_vocabulary()}"
         )
-    return ParsedSymbol(error_type=error_type, axis=axis, stage=stage)
+    return ParsedSymbol(error_type=error_type, axis=axis, stage=stage, waypoint=waypoint)
 
 
 def ground(symbol: str) -> str:
@@ -118,6 +122,8 @@ def ground(symbol: str) -> str:
         sentence += f" {AXES[parsed.axis]}"
     if parsed.stage in STAGES:
         sentence += f" at the {STAGES[parsed.stage]}"
+    elif parsed.stage is not None and parsed.waypoint:
+        sentence += f" at waypoint {parsed.stage}"
     elif parsed.stage is not None:
         sentence += f" at stage {parsed.stage} of the task"
     return sentence

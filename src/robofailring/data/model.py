@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from enum import Enum
 from functools import cached_property
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 
@@ -20,16 +21,39 @@ class Outcome(str, Enum):
     FAILURE = "failure"
 
 
+class FrameSource(Protocol):
+    """Where a frame that is not an image file lives (a frame of a video), decoded on demand."""
+
+    def load(self) -> np.ndarray: ...
+
+    def content_key(self) -> str: ...
+
+    @property
+    def reference(self) -> str: ...
+
+
+@dataclass(frozen=True)
+class Skipped:
+    """A folder or file a loader did not read, and why (nothing under a dataset root is dropped silently)."""
+
+    path: Path
+    reason: str
+
+    def to_dict(self) -> dict[str, str]:
+        return {"path": str(self.path), "reason": self.reason}
+
+
 @dataclass(frozen=True)
 class Frame:
-    """One camera image: a file decoded on demand, or an in-memory array (live robot)."""
+    """One camera image: a file decoded on demand, a frame of a video, or an in-memory array (live robot)."""
 
     path: Path | None = None
     array: np.ndarray | None = field(default=None, repr=False, compare=False)
+    source: FrameSource | None = None
 
     def __post_init__(self) -> None:
-        if (self.path is None) == (self.array is None):
-            raise ValueError("a Frame holds exactly one of path or array")
+        if sum(x is not None for x in (self.path, self.array, self.source)) != 1:
+            raise ValueError("a Frame holds exactly one of path, array or source")
 
     @classmethod
     def from_array(cls, image: np.ndarray) -> Frame:
@@ -39,11 +63,13 @@ class Frame:
         """The image as (H, W, 3) uint8 RGB."""
         if self.array is not None:
             return self.array
+        if self.source is not None:
+            return self.source.load()
         assert self.path is not None
         return read_image(self.path)
 
     def read_bytes(self) -> bytes | None:
-        """The encoded file content, or None for an in-memory frame."""
+        """The encoded file content, or None for an in-memory frame or a frame of a video."""
         if self.path is None:
             return None
         from robofailring.errors import DataError
@@ -54,7 +80,9 @@ class Frame:
             raise DataError(f"cannot read image {self.path}: {error.strerror or error}") from error
 
     def content_key(self) -> str:
-        """A digest of the image content (file bytes, or array shape and bytes)."""
+        """A digest of the image content (file bytes, array shape and bytes, or the video frame's key)."""
+        if self.source is not None:
+            return self.source.content_key()
         data = self.read_bytes()
         if data is None:
             assert self.array is not None
@@ -63,7 +91,9 @@ class Frame:
 
     @property
     def reference(self) -> str:
-        """A printable reference to the frame (its path, or '<array>')."""
+        """A printable reference to the frame (its path, `<video>#frame=<i>`, or '<array>')."""
+        if self.source is not None:
+            return self.source.reference
         return str(self.path) if self.path is not None else "<array>"
 
 
@@ -83,6 +113,7 @@ class Trajectory:
     source: Path | None = None
     fps: float | None = None
     split: str | None = None
+    skipped: tuple[Skipped, ...] = ()  # files of this episode that were not read, with the reason
 
     @property
     def key(self) -> str:
@@ -120,4 +151,13 @@ def load_frames(frames: Sequence[Frame]) -> list[np.ndarray]:
     return [frame.load() for frame in frames]
 
 
-__all__ = ["Frame", "Outcome", "Trajectory", "frames_from_files", "load_frames", "read_image"]
+__all__ = [
+    "Frame",
+    "FrameSource",
+    "Outcome",
+    "Skipped",
+    "Trajectory",
+    "frames_from_files",
+    "load_frames",
+    "read_image",
+]

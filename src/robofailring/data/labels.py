@@ -1,0 +1,106 @@
+"""A labels file: outcome and failure symbol per episode, for data whose names do not say them.
+
+A JSON list of objects or a CSV file with a header, one row per episode:
+`episode_index` (a LeRobot episode) or `episode` (an episode folder's name), `outcome`
+(`success` or `failure`) and `symbol` (the failure symbol, e.g. `grasp_wp2`; empty for a success).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from collections.abc import Iterable
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from robofailring.data.model import Outcome, Trajectory
+from robofailring.errors import DataError, SymbolError
+from robofailring.grounding import parse_symbol
+
+
+@dataclass(frozen=True)
+class Label:
+    episode: str  # `episode_<index>` for LeRobot, else the episode folder's name
+    outcome: Outcome
+    symbol: str | None
+
+
+def read_labels(path: Path) -> dict[str, Label]:
+    """Labels by episode; every bad row is an error naming the file, the row and the value."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as error:
+        raise DataError(f"cannot read labels file {path}: {error}") from error
+    rows: list[dict[str, object]]
+    if path.suffix.lower() == ".json":
+        try:
+            loaded = json.loads(text)
+        except json.JSONDecodeError as error:
+            raise DataError(f"labels file {path} is not valid JSON: {error}") from error
+        if not isinstance(loaded, list) or not all(isinstance(row, dict) for row in loaded):
+            raise DataError(
+                f"labels file {path} must hold a JSON list of objects (episode_index, outcome, symbol)"
+            )
+        rows = loaded
+    else:
+        rows = [dict(row) for row in csv.DictReader(text.splitlines())]
+    labels: dict[str, Label] = {}
+    for number, row in enumerate(rows, 1):
+        label = _label(row, where=f"{path} row {number}")
+        if label.episode in labels:
+            raise DataError(f"{path} row {number}: episode {label.episode!r} is labelled twice")
+        labels[label.episode] = label
+    if not labels:
+        raise DataError(f"labels file {path} holds no rows (columns: episode_index, outcome, symbol)")
+    return labels
+
+
+def _label(row: dict[str, object], *, where: str) -> Label:
+    index, name = row.get("episode_index"), row.get("episode")
+    if index not in (None, ""):
+        try:
+            episode = f"episode_{int(str(index))}"
+        except ValueError as error:
+            raise DataError(f"{where}: episode_index {index!r} is not an integer") from error
+    elif name not in (None, ""):
+        episode = str(name)
+    else:
+        raise DataError(f"{where}: no episode_index (or episode) column")
+    try:
+        outcome = Outcome(str(row.get("outcome", "")).strip().lower())
+    except ValueError as error:
+        raise DataError(f"{where}: outcome {row.get('outcome')!r} is not 'success' or 'failure'") from error
+    symbol = str(row.get("symbol") or "").strip() or None
+    if symbol is not None:
+        try:
+            parse_symbol(symbol)
+        except SymbolError as error:
+            raise DataError(f"{where}: {error}") from error
+    if outcome is Outcome.FAILURE and symbol is None:
+        raise DataError(f"{where}: a failure needs a symbol (e.g. grasp_wp2)")
+    return Label(episode=episode, outcome=outcome, symbol=symbol if outcome is Outcome.FAILURE else None)
+
+
+def apply_labels(
+    trajectories: Iterable[Trajectory], labels: dict[str, Label], *, source: Path
+) -> list[Trajectory]:
+    """The trajectories with their labelled outcome and symbol; a label for a missing episode is an error."""
+    labelled = []
+    found: set[str] = set()
+    for trajectory in trajectories:
+        key = trajectory.episode if trajectory.episode in labels else trajectory.episode.rsplit("/", 1)[-1]
+        label = labels.get(key)
+        if label is not None:
+            found.add(key)
+            trajectory = replace(trajectory, outcome=label.outcome, symbol=label.symbol)
+        labelled.append(trajectory)
+    missing = [episode for episode in labels if episode not in found]
+    if missing:
+        known = ", ".join(t.episode for t in labelled[:5]) + (" …" if len(labelled) > 5 else "")
+        raise DataError(
+            f"labels file {source} names episode {missing[0]!r}, which is not in the dataset"
+            + (f" ({len(missing)} such episodes)" if len(missing) > 1 else "")
+            + f"; its episodes are: {known or 'none'}"
+        )
+    return labelled

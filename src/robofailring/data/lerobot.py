@@ -1,0 +1,212 @@
+"""LeRobot datasets (v3.0 and v2.1) read without the `lerobot` package (it pins an old rerun-sdk).
+
+`meta/info.json` gives the version, fps, paths and features; episodes and tasks come from
+parquet (v3.0) or JSON lines (v2.1); per-frame timestamps from the data parquet. Each
+`observation.images.<name>` video feature is a view `<name>`, decoded lazily by timestamp with
+the shared PyAV reader: frame i of an episode is at `from_timestamp + timestamp_i` of its
+(possibly shared) mp4. The episode's task string is the task; trajectories are keyed
+`episode_<index>`; outcome and symbol come from a labels file.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, Final
+
+import numpy as np
+
+from robofailring.data.model import Frame, Skipped, Trajectory
+from robofailring.data.video import VideoFrames, open_video
+from robofailring.errors import DataError
+
+INFO: Final[str] = "meta/info.json"
+IMAGE_PREFIX: Final[str] = "observation.images."
+_FRAME_COLUMNS: Final[tuple[str, ...]] = ("episode_index", "frame_index", "timestamp")
+
+
+def is_lerobot(root: Path) -> bool:
+    return (Path(root) / INFO).is_file()
+
+
+def read_info(root: Path) -> dict[str, Any]:
+    path = Path(root) / INFO
+    try:
+        info = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError) as error:
+        raise DataError(f"cannot read LeRobot info {path}: {error}") from error
+    for key in ("codebase_version", "fps", "features"):
+        if not isinstance(info, dict) or key not in info:
+            raise DataError(f"LeRobot info {path} lacks {key!r}")
+    return dict(info)
+
+
+def _read_table(path: Path, columns: Sequence[str] | None = None) -> dict[str, list[Any]]:
+    """Columns of a parquet file as Python lists; a missing file or column names both."""
+    import pyarrow.parquet as pq
+
+    try:
+        schema_names = pq.read_schema(path).names
+    except (OSError, ValueError) as error:
+        raise DataError(f"cannot read parquet file {path}: {error}") from error
+    if columns is not None:
+        missing = [c for c in columns if c not in schema_names]
+        if missing:
+            raise DataError(
+                f"parquet file {path} lacks column {missing[0]!r} (it has: {', '.join(schema_names)})"
+            )
+    try:
+        table = pq.read_table(path, columns=list(columns) if columns is not None else None)
+    except (OSError, ValueError) as error:
+        raise DataError(f"cannot read parquet file {path}: {error}") from error
+    return {name: table.column(name).to_pylist() for name in table.column_names}
+
+
+def _read_jsonl(path: Path) -> list[dict[str, Any]]:
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except OSError as error:
+        raise DataError(f"cannot read {path}: {error.strerror or error}") from error
+    rows = []
+    for number, line in enumerate(lines, 1):
+        if line.strip():
+            try:
+                rows.append(json.loads(line))
+            except json.JSONDecodeError as error:
+                raise DataError(f"{path}:{number}: not valid JSON ({error})") from error
+    return rows
+
+
+def lerobot_trajectories(root: Path) -> tuple[list[Trajectory], list[Skipped]]:
+    """Every episode of a LeRobot dataset (unlabelled), and the features that are not read as views."""
+    root = Path(root)
+    info = read_info(root)
+    version = str(info["codebase_version"])
+    features: dict[str, Any] = info["features"]
+    cameras = {
+        key: key[len(IMAGE_PREFIX) :]
+        for key, f in features.items()
+        if f.get("dtype") == "video" and key.startswith(IMAGE_PREFIX)
+    }
+    skipped = [
+        Skipped(root / INFO, f"feature {key!r} ({f.get('dtype')}) is not a video camera: not read")
+        for key, f in features.items()
+        if f.get("dtype") in ("video", "image") and key not in cameras
+    ]
+    if not cameras:
+        raise DataError(
+            f"LeRobot dataset {root} has no video feature named {IMAGE_PREFIX}<camera> in {root / INFO}"
+        )
+    if version.startswith("v3"):
+        trajectories = _v3(root, info, cameras)
+    elif version.startswith("v2"):
+        trajectories = _v2(root, info, cameras)
+    else:
+        raise DataError(
+            f"LeRobot dataset {root}: codebase_version {version!r}; this reader knows v2.1 and v3.0"
+        )
+    return trajectories, skipped
+
+
+def _timestamps(paths: Sequence[Path]) -> dict[int, np.ndarray]:
+    """Per episode, its frames' timestamps in frame order, from the data parquet files."""
+    by_episode: dict[int, list[tuple[int, float]]] = {}
+    for path in paths:
+        table = _read_table(path, _FRAME_COLUMNS)
+        for episode, frame, stamp in zip(*(table[c] for c in _FRAME_COLUMNS), strict=True):
+            by_episode.setdefault(int(episode), []).append((int(frame), float(stamp)))
+    return {
+        episode: np.asarray([stamp for _, stamp in sorted(rows)], dtype=np.float64)
+        for episode, rows in by_episode.items()
+    }
+
+
+def _task_of(tasks: Any, where: str) -> str:
+    if isinstance(tasks, str) and tasks:
+        return tasks
+    if isinstance(tasks, list) and tasks and all(isinstance(t, str) for t in tasks):
+        return " | ".join(tasks)
+    raise DataError(f"{where}: no task string (tasks = {tasks!r})")
+
+
+def _trajectory(
+    root: Path, index: int, task: str, fps: float, views: dict[str, VideoFrames], length: int, where: str
+) -> Trajectory:
+    for view, frames in views.items():
+        if len(frames) != length:
+            raise DataError(
+                f"{where}: episode {index} has length {length} but {len(frames)} frame rows for {view}"
+            )
+    return Trajectory(
+        task=task, episode=f"episode_{index}", views=dict[str, Sequence[Frame]](views), source=root, fps=fps
+    )
+
+
+def _v3(root: Path, info: dict[str, Any], cameras: dict[str, str]) -> list[Trajectory]:
+    episode_files = sorted((root / "meta" / "episodes").glob("chunk-*/file-*.parquet"))
+    if not episode_files:
+        raise DataError(f"LeRobot v3.0 dataset {root} has no meta/episodes/chunk-*/file-*.parquet")
+    video_path: str = info.get("video_path") or ""
+    if "{video_key}" not in video_path:
+        raise DataError(f"{root / INFO}: video_path {video_path!r} lacks {{video_key}}")
+    data_files = sorted((root / "data").glob("chunk-*/file-*.parquet"))
+    if not data_files:
+        raise DataError(f"LeRobot v3.0 dataset {root} has no data/chunk-*/file-*.parquet")
+    stamps = _timestamps(data_files)
+    fps = float(info["fps"])
+    trajectories = []
+    for path in episode_files:
+        columns = ["episode_index", "tasks", "length"]
+        for key in cameras:
+            columns += [f"videos/{key}/{c}" for c in ("chunk_index", "file_index", "from_timestamp")]
+        table = _read_table(path, columns)
+        for row in range(len(table["episode_index"])):
+            index = int(table["episode_index"][row])
+            where = f"{path} (episode {index})"
+            if index not in stamps:
+                raise DataError(f"{where}: no frame rows for this episode in {root / 'data'}")
+            views = {}
+            for key, view in cameras.items():
+                file = root / video_path.format(
+                    video_key=key,
+                    chunk_index=int(table[f"videos/{key}/chunk_index"][row]),
+                    file_index=int(table[f"videos/{key}/file_index"][row]),
+                )
+                if not file.is_file():
+                    raise DataError(f"{where}: video {file} is missing")
+                start = float(table[f"videos/{key}/from_timestamp"][row])
+                views[view] = VideoFrames(open_video(file), start + stamps[index])
+            task = _task_of(table["tasks"][row], where)
+            trajectories.append(_trajectory(root, index, task, fps, views, int(table["length"][row]), where))
+    return sorted(trajectories, key=lambda t: int(t.episode.split("_")[-1]))
+
+
+def _v2(root: Path, info: dict[str, Any], cameras: dict[str, str]) -> list[Trajectory]:
+    episodes = _read_jsonl(root / "meta" / "episodes.jsonl")
+    data_path: str = info.get("data_path") or ""
+    video_path: str = info.get("video_path") or ""
+    chunks = int(info.get("chunks_size") or 1000)
+    fps = float(info["fps"])
+    trajectories = []
+    for number, record in enumerate(episodes, 1):
+        where = f"{root / 'meta' / 'episodes.jsonl'}:{number}"
+        try:
+            index = int(record["episode_index"])
+            length = int(record["length"])
+        except (KeyError, TypeError, ValueError) as error:
+            raise DataError(f"{where}: bad episode record ({error})") from error
+        chunk = index // chunks
+        data = root / data_path.format(episode_chunk=chunk, episode_index=index)
+        stamps = _timestamps([data]).get(index)
+        if stamps is None:
+            raise DataError(f"{data}: no frame rows for episode {index}")
+        views = {}
+        for key, view in cameras.items():
+            file = root / video_path.format(episode_chunk=chunk, video_key=key, episode_index=index)
+            if not file.is_file():
+                raise DataError(f"{where}: video {file} is missing")
+            views[view] = VideoFrames(open_video(file), stamps)
+        task = _task_of(record.get("tasks"), where)
+        trajectories.append(_trajectory(root, index, task, fps, views, length, where))
+    return trajectories

@@ -1,0 +1,245 @@
+"""One PyAV frame reader for every video source (video episodes, LeRobot cameras).
+
+Frames are decoded lazily and by timestamp: the stream's packets are listed once (no decoding)
+to get every frame's presentation time, so the frame count comes from the container; a request
+seeks to the keyframe before the wanted frame and decodes forward, and a run of requests in
+order keeps decoding without seeking again. A long episode is never decoded whole.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import threading
+from collections import OrderedDict
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Final, overload
+
+import numpy as np
+
+from robofailring.data.images import content_digest
+from robofailring.data.model import Frame
+from robofailring.errors import DataError
+
+VIDEO_SUFFIXES: Final[tuple[str, ...]] = (".mp4", ".webm", ".mkv")
+#: Decode forward instead of seeking when the wanted frame is at most this many frames ahead.
+_FORWARD_WINDOW: Final[int] = 48
+_OPEN_LIMIT: Final[int] = 16  # open containers kept (v2.1 has one file per episode and camera)
+
+
+class VideoFile:
+    """One video stream of a file: frame times from the container, frames decoded on demand."""
+
+    def __init__(self, path: Path, *, stream: int = 0) -> None:
+        self.path = Path(path)
+        self.stream = stream
+        self._times: np.ndarray | None = None
+        self._pts: np.ndarray | None = None
+        self._digest: str | None = None
+        self._container: Any = None
+        self._frames: Iterator[Any] | None = None
+        self._last: tuple[int, np.ndarray] | None = None  # (frame index, RGB) last decoded
+        self._lock = threading.Lock()
+
+    def __repr__(self) -> str:
+        return f"VideoFile({str(self.path)!r}, stream={self.stream})"
+
+    # ------------------------------------------------------------ container facts
+    def _open(self) -> Any:
+        import av
+
+        if self._container is None:
+            try:
+                self._container = av.open(str(self.path))
+                stream = self._container.streams.video[self.stream]
+            except (av.FFmpegError, OSError, IndexError) as error:
+                self.close()
+                raise DataError(f"cannot read video {self.path}: {_why(error)}") from error
+            stream.thread_type = "AUTO"
+            _remember_open(self)
+        return self._container
+
+    @property
+    def times(self) -> np.ndarray:
+        """Presentation time (s) of every frame, in order, listed from the packets (nothing decoded)."""
+        if self._times is None:
+            import av
+
+            container = self._open()
+            stream = container.streams.video[self.stream]
+            try:
+                pts = sorted(
+                    packet.pts
+                    for packet in container.demux(stream)
+                    if packet.pts is not None and packet.size > 0
+                )
+            except av.FFmpegError as error:
+                raise DataError(f"cannot read video {self.path}: {_why(error)}") from error
+            if not pts:
+                raise DataError(f"video {self.path} holds no frames in video stream {self.stream}")
+            self._pts = np.asarray(pts, dtype=np.int64)
+            self._times = self._pts.astype(np.float64) * float(stream.time_base)
+            self._frames = None  # demuxing moved the read position
+        return self._times
+
+    @property
+    def count(self) -> int:
+        """Frames in the stream, counted from the container's packets."""
+        return len(self.times)
+
+    def index_at(self, seconds: float) -> int:
+        """The frame shown at `seconds` (the nearest frame time; an error beyond half a frame)."""
+        times = self.times
+        position = int(np.clip(np.searchsorted(times, seconds), 0, len(times) - 1))
+        if position > 0 and abs(times[position - 1] - seconds) <= abs(times[position] - seconds):
+            position -= 1
+        period = float(np.median(np.diff(times))) if len(times) > 1 else 1.0
+        if abs(times[position] - seconds) > period / 2 + 1e-4:
+            raise DataError(
+                f"video {self.path} has no frame at {seconds:.4f} s (its frames span "
+                f"{times[0]:.4f}–{times[-1]:.4f} s)"
+            )
+        return position
+
+    def digest(self) -> str:
+        """A digest of the whole file's bytes (read once), the base of its frames' cache keys."""
+        if self._digest is None:
+            hasher = hashlib.blake2b(digest_size=16)
+            try:
+                with self.path.open("rb") as handle:
+                    while chunk := handle.read(1 << 20):
+                        hasher.update(chunk)
+            except OSError as error:
+                raise DataError(f"cannot read video {self.path}: {error.strerror or error}") from error
+            self._digest = hasher.hexdigest()
+        return self._digest
+
+    # ------------------------------------------------------------ decoding
+    def decode(self, index: int) -> np.ndarray:
+        """Frame `index` of the stream as (H, W, 3) uint8 RGB."""
+        import av
+
+        times = self.times
+        if not 0 <= index < len(times):
+            raise DataError(f"video {self.path} has {len(times)} frames; no frame {index}")
+        with self._lock:
+            if self._last is not None and self._last[0] == index:
+                return self._last[1]
+            assert self._pts is not None
+            target = int(self._pts[index])
+            ahead = self._last is not None and 0 < index - self._last[0] <= _FORWARD_WINDOW
+            try:
+                if self._frames is None or not ahead:
+                    container = self._open()
+                    stream = container.streams.video[self.stream]
+                    container.seek(target, stream=stream, backward=True, any_frame=False)
+                    self._frames = container.decode(stream)
+                for frame in self._frames:
+                    if frame.pts is None or frame.pts < target:
+                        continue
+                    image = frame.to_ndarray(format="rgb24")
+                    self._last = (index, image)
+                    return np.ascontiguousarray(image)
+            except av.FFmpegError as error:
+                self._frames = None
+                raise DataError(f"cannot decode frame {index} of video {self.path}: {_why(error)}") from error
+            self._frames = None
+        raise DataError(f"cannot decode frame {index} of video {self.path}: the stream ended before it")
+
+    def close(self) -> None:
+        if self._container is not None:
+            self._container.close()
+        self._container = None
+        self._frames = None
+        self._last = None
+
+
+def _why(error: BaseException) -> str:
+    return str(getattr(error, "strerror", None) or error)
+
+
+_OPEN: OrderedDict[int, VideoFile] = OrderedDict()
+_OPEN_LOCK = threading.Lock()
+
+
+def _remember_open(video: VideoFile) -> None:
+    """Keep at most `_OPEN_LIMIT` containers open; close the least recently opened beyond that."""
+    with _OPEN_LOCK:
+        _OPEN[id(video)] = video
+        _OPEN.move_to_end(id(video))
+        while len(_OPEN) > _OPEN_LIMIT:
+            _, oldest = _OPEN.popitem(last=False)
+            if oldest is not video:
+                oldest.close()
+
+
+_FILES: dict[tuple[str, int], VideoFile] = {}
+
+
+def open_video(path: Path, *, stream: int = 0) -> VideoFile:
+    """The shared reader of one file's stream (frames of one file share its decoder and digest)."""
+    key = (str(Path(path).resolve()), stream)
+    found = _FILES.get(key)
+    if found is None:
+        found = _FILES[key] = VideoFile(Path(path), stream=stream)
+    return found
+
+
+@dataclass(frozen=True)
+class VideoFrame:
+    """Where one frame lives in a video: its file's reader and the frame's time or index."""
+
+    video: VideoFile
+    index: int | None = None  # frame index in the stream, or
+    seconds: float | None = None  # presentation time (LeRobot: from_timestamp + timestamp)
+
+    def frame_index(self) -> int:
+        return self.index if self.index is not None else self.video.index_at(float(self.seconds or 0.0))
+
+    def load(self) -> np.ndarray:
+        return self.video.decode(self.frame_index())
+
+    def content_key(self) -> str:
+        """Keyed by (file content, stream, frame index): no decoding needed to find a cached embedding."""
+        key = f"video:{self.video.digest()}:{self.video.stream}:{self.frame_index()}"
+        return content_digest(key.encode())
+
+    @property
+    def reference(self) -> str:
+        return f"{self.video.path}#frame={self.frame_index()}"
+
+
+class VideoFrames(Sequence[Frame]):
+    """The frames of a video (all of them, or those at given times) as a lazy sequence of `Frame`."""
+
+    def __init__(self, video: VideoFile, times: Sequence[float] | np.ndarray | None = None) -> None:
+        self.video = video
+        self._times = None if times is None else np.asarray(times, dtype=np.float64)
+
+    def __len__(self) -> int:
+        return self.video.count if self._times is None else len(self._times)
+
+    @overload
+    def __getitem__(self, item: int) -> Frame: ...
+    @overload
+    def __getitem__(self, item: slice) -> Sequence[Frame]: ...
+    def __getitem__(self, item: int | slice) -> Frame | Sequence[Frame]:
+        if isinstance(item, slice):
+            return [self[i] for i in range(*item.indices(len(self)))]
+        count = len(self)
+        if item < 0:
+            item += count
+        if not 0 <= item < count:
+            raise IndexError(f"frame {item} of {count}")
+        if self._times is None:
+            return Frame(source=VideoFrame(self.video, index=item))
+        return Frame(source=VideoFrame(self.video, seconds=float(self._times[item])))
+
+    def __repr__(self) -> str:
+        return f"VideoFrames({self.video!r}, {len(self) if self._times is not None else '?'} frames)"
+
+
+def video_files(directory: Path) -> list[Path]:
+    """The video files directly in a folder (.mp4, .webm, .mkv), by name."""
+    return sorted(p for p in Path(directory).iterdir() if p.is_file() and p.suffix.lower() in VIDEO_SUFFIXES)
