@@ -10,7 +10,15 @@ import typer
 from rfr_viz import tool_cli  # noqa: F401  (registers evaluate and the other combined verbs)
 from rfr_viz.replay import DEFAULT_OUT, CompareConfig, ReplayConfig, ReplayResult, compare, replay
 from rfr_viz.viewer import DEFAULT_PORT, ViewerUnavailable, open_at, open_command
-from robofailring.cli import CacheOption, DeviceOption, app, exit_with_error
+from robofailring.cli import (
+    CacheOption,
+    DeviceOption,
+    LabelsOption,
+    StrideOption,
+    app,
+    exit_with_error,
+    report_skipped,
+)
 from robofailring.errors import RoboFailRingError
 
 __all__ = ["app", "main"]
@@ -42,6 +50,7 @@ FpsOption = Annotated[
 
 
 def _report(result: ReplayResult, out: Path) -> None:
+    report_skipped(result.skipped_inputs)
     for key, reason in result.skipped:
         typer.echo(f"skipped {key}: {reason}")
     if not result.recordings:
@@ -68,6 +77,8 @@ def replay_cmd(
     leave_one_out: LeaveOneOutOption = False,
     encoder: Annotated[str | None, typer.Option(help="Encoder spec (default: the memory's).")] = None,
     fps: FpsOption = None,
+    stride: StrideOption = 1,
+    labels: LabelsOption = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
 ) -> None:
@@ -85,6 +96,8 @@ def replay_cmd(
         fps=fps,
         cache_dir=cache_dir,
         device=device,
+        stride=stride,
+        labels=labels,
     )
     try:
         result = replay(config)

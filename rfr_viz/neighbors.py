@@ -133,7 +133,9 @@ def log_neighbors(
                 rr.Transform3D(translation=[*cell.end_offset, 0.0]),
                 static=True,
             )
-        for rank, t, index in changes(ids):
+        scored = trace.scored_frames  # with a stride, neighbours exist only at scored frames
+        for rank, step, index in changes(ids[scored]):
+            t = int(scored[step])
             rec.set_time(FRAME, sequence=t)
             rec.set_time(TIME, duration=t / fps)
             if index < 0:

@@ -241,6 +241,7 @@ def _detector_properties(trace: DetectionTrace, memory_map: MemoryMap) -> dict[s
         "views": ", ".join(trace.views),
         "skipped_views": ", ".join(trace.skipped_views),
         "unscored_frames": ", ".join(f"{view}: {count}" for view, count in trace.truncated_views.items()),
+        "stride": trace.stride,  # frames 0, stride, 2·stride, … were scored; every camera frame is kept
         "memory_entries": len(trace.memory),
         "map": memory_map.method,
         "map_note": memory_map.note,
@@ -353,10 +354,11 @@ def _log_scores(
         ),
         static=True,
     )
+    scored = trace.scored_frames  # with a stride, State_t exists only where frames were scored
     rec.send_columns(
         paths.state,
-        indexes=time_columns(frames, fps),
-        columns=rr.Scalars.columns(scalars=trace.state.astype(np.float64)),
+        indexes=time_columns(scored, fps),
+        columns=rr.Scalars.columns(scalars=trace.state[scored].astype(np.float64)),
     )
 
 
@@ -409,8 +411,9 @@ def _log_map(
         static=True,
     )
     _log_legend(rec, paths, classes)
+    scored = trace.scored_frames  # the query moves only at scored frames (every `stride`-th)
     stacked = np.concatenate([trace.queries[view] for view in trace.views])
-    placed = memory_map.project(stacked).reshape(len(trace.views), trace.length, 2)
+    placed = memory_map.project(stacked).reshape(len(trace.views), len(scored), 2)
     for position, view in enumerate(trace.views):
         rec.log(
             paths.umap_query(view),
@@ -425,9 +428,9 @@ def _log_map(
         )
         rec.send_columns(
             paths.umap_query(view),
-            indexes=time_columns(np.arange(trace.length), fps),
+            indexes=time_columns(scored, fps),
             columns=rr.Points2D.columns(positions=placed[position]).partition(
-                np.ones(trace.length, dtype=np.int64)
+                np.ones(len(scored), dtype=np.int64)
             ),
         )
 

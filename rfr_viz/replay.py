@@ -11,8 +11,8 @@ from typing import Final
 from rfr_viz.memory_umap import MemoryMap, memory_map
 from rfr_viz.record import compare_recording, record_replay
 from robofailring.data.layouts import detect_layout, load_dataset, load_trajectory
-from robofailring.data.model import Trajectory
-from robofailring.detector import DEFAULT_K, FailureDetector
+from robofailring.data.model import Skipped, Trajectory
+from robofailring.detector import DEFAULT_K, FailureDetector, check_stride
 from robofailring.encoders import CachedEncoder, encoder_slug, load_encoder
 from robofailring.errors import DataError, UnknownTaskError
 from robofailring.memory import FailureMemory
@@ -37,6 +37,8 @@ class ReplayConfig:
     fps: float | None = None  # "time" timeline rate; default: the data's, else 10
     cache_dir: Path | None = None  # embedding cache (default ~/.cache/robofailring)
     device: str | None = None  # torch device for CLIP
+    stride: int = 1  # score every stride-th frame; the recording keeps every camera frame
+    labels: Path | None = None  # labels file (LeRobot): outcome and symbol shown in the recording
 
 
 @dataclass(frozen=True)
@@ -60,6 +62,7 @@ class ReplayResult:
 
     recordings: list[Path] = field(default_factory=list)
     skipped: list[tuple[str, str]] = field(default_factory=list)
+    skipped_inputs: list[Skipped] = field(default_factory=list)  # folders/files of the data not read
 
 
 def recording_name(trajectory: Trajectory, suffix: str = "") -> str:
@@ -68,12 +71,28 @@ def recording_name(trajectory: Trajectory, suffix: str = "") -> str:
     return f"{_UNSAFE.sub('_', trajectory.task)}__{episode}{suffix}.rrd"
 
 
-def select_trajectories(data: Path, *, keys: Sequence[str] = (), task: str | None = None) -> list[Trajectory]:
-    """The trajectories of a dataset root (optionally by key and task) or of one episode folder."""
+def select_trajectories(
+    data: Path,
+    *,
+    keys: Sequence[str] = (),
+    task: str | None = None,
+    labels: Path | None = None,
+    skipped: list[Skipped] | None = None,
+) -> list[Trajectory]:
+    """The trajectories of a dataset root (optionally by key and task) or of one episode folder.
+
+    What the loader did not read is appended to `skipped`.
+    """
     data = Path(data)
     if detect_layout(data) == "episode":
-        return [load_trajectory(data, task=task)]
-    chosen = load_dataset(data).select(keys=list(keys) or None)
+        trajectory = load_trajectory(data, task=task)
+        if skipped is not None:
+            skipped += trajectory.skipped
+        return [trajectory]
+    dataset = load_dataset(data, task=task, labels=labels)
+    if skipped is not None:
+        skipped += dataset.skipped
+    chosen = dataset.select(keys=list(keys) or None)
     if task is not None:
         chosen = [trajectory for trajectory in chosen if trajectory.task == task]
         if not chosen:
@@ -111,6 +130,7 @@ def load_detector(
 
 def replay(config: ReplayConfig) -> ReplayResult:
     """Replay each selected trajectory through the detector into `<out>/<task>__<episode>.rrd`."""
+    check_stride(config.stride)
     found = load_detector(
         config.memory,
         delta=config.delta,
@@ -119,12 +139,20 @@ def replay(config: ReplayConfig) -> ReplayResult:
         cache_dir=config.cache_dir,
         device=config.device,
     )
-    trajectories = select_trajectories(config.data, keys=config.trajectories, task=config.task)
     result = ReplayResult()
+    trajectories = select_trajectories(
+        config.data,
+        keys=config.trajectories,
+        task=config.task,
+        labels=config.labels,
+        skipped=result.skipped_inputs,
+    )
     with progress_bar(total=len(trajectories), desc="replaying", unit="trajectory") as bar:
         for trajectory in trajectories:
             try:
-                trace = found.detector.run(trajectory, leave_one_out=config.leave_one_out)
+                trace = found.detector.run(
+                    trajectory, leave_one_out=config.leave_one_out, stride=config.stride
+                )
             except (UnknownTaskError, DataError) as error:
                 result.skipped.append((trajectory.key, str(error)))
             else:
@@ -167,8 +195,10 @@ def compare(config: CompareConfig) -> ReplayResult:
         for memory_dir, delta in zip(config.memories, deltas, strict=True)
     ]
     slugs = unique_slugs([found.slug for found in detectors])
-    trajectories = select_trajectories(config.data, keys=config.trajectories, task=config.task)
     result = ReplayResult()
+    trajectories = select_trajectories(
+        config.data, keys=config.trajectories, task=config.task, skipped=result.skipped_inputs
+    )
     suffix = "__" + "-vs-".join(slugs)
     with progress_bar(total=len(trajectories), desc="comparing", unit="trajectory") as bar:
         for trajectory in trajectories:

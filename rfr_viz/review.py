@@ -49,7 +49,9 @@ def review(config: ReviewConfig) -> ReplayResult:
     loaded = load_detector(
         memory_dir, delta=delta, k=k, encoder=None, cache_dir=config.cache_dir, device=config.device
     )
-    trajectories = {t.key: t for t in load_dataset(config.data).select(keys=keys)}
+    dataset = load_dataset(config.data)
+    result.skipped_inputs += dataset.skipped
+    trajectories = {t.key: t for t in dataset.select(keys=keys)}
     with progress_bar(total=len(keys), desc=f"replaying {config.kind}", unit="trajectory") as bar:
         for key in keys:
             trajectory = trajectories[key]

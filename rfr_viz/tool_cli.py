@@ -8,7 +8,16 @@ from typing import Annotated
 import typer
 
 from rfr_viz.viewer import open_at_command, open_command
-from robofailring.cli import CacheOption, DeviceOption, EncoderOption, app, exit_with_error
+from robofailring.cli import (
+    CacheOption,
+    DeviceOption,
+    EncoderOption,
+    LabelsOption,
+    StrideOption,
+    app,
+    exit_with_error,
+    report_skipped,
+)
 from robofailring.errors import RoboFailRingError
 
 
@@ -25,6 +34,8 @@ def evaluate_cmd(
     test_split: Annotated[str, typer.Option(help="Split to test on.")] = "test",
     k: Annotated[int, typer.Option(help="Neighbours retrieved per query.")] = 5,
     name: Annotated[str, typer.Option(help="Name of this evaluation in the outputs.")] = "evaluation",
+    stride: StrideOption = 1,
+    labels: LabelsOption = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
 ) -> None:
@@ -45,10 +56,13 @@ def evaluate_cmd(
             name=name,
             cache_dir=cache_dir,
             device=device,
+            stride=stride,
+            labels=labels,
         )
         result = run_evaluation(config)
     except RoboFailRingError as error:
         exit_with_error(error)
+    report_skipped(result.skipped_inputs)
     json_path, md_path = write_evaluation(result, out)
     rrd_path = record_evaluation([result], out=Path(out) / f"{name}.rrd")
     typer.echo(result.to_markdown())
@@ -84,6 +98,7 @@ def review_cmd(
         )
     except RoboFailRingError as error:
         exit_with_error(error)
+    report_skipped(result.skipped_inputs)
     if not result.recordings:
         typer.echo(f"no {kind} in {evaluation}: nothing to replay")
         return

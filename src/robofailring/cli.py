@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Annotated
 
@@ -11,6 +12,7 @@ import numpy as np
 import typer
 
 from robofailring.data.layouts import read_project_manifest
+from robofailring.data.model import Skipped
 from robofailring.errors import RoboFailRingError
 from robofailring.progress import progress_bar
 
@@ -35,6 +37,35 @@ CacheOption = Annotated[
 DeviceOption = Annotated[
     str | None, typer.Option("--device", help="torch device (default: cuda if available).")
 ]
+StrideOption = Annotated[
+    int,
+    typer.Option(
+        "--stride",
+        help="Score every Nth frame of long episodes (I_0 stays frame 0; t_det and T_s in original frames).",
+    ),
+]
+LabelsOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--labels",
+        help="Outcome and failure symbol per episode: a JSON list or CSV of episode_index, outcome, symbol "
+        "(LeRobot datasets; `episode` names an episode folder).",
+    ),
+]
+
+
+def report_skipped(skipped: Sequence[Skipped], *, shown: int = 5) -> None:
+    """One summary line of what the loaders did not read, then the first few with their reason (stderr)."""
+    if not skipped:
+        return
+    typer.secho(
+        f"note: {len(skipped)} folder(s)/file(s) under the data were not read"
+        + (f"; the first {shown}:" if len(skipped) > shown else ":"),
+        fg=typer.colors.YELLOW,
+        err=True,
+    )
+    for item in skipped[:shown]:
+        typer.secho(f"  {item.path}: {item.reason}", err=True)
 
 
 def exit_with_error(error: Exception) -> None:
@@ -94,6 +125,7 @@ def build_memory_cmd(
     out: Annotated[Path, typer.Option("--out", help="Memory directory to write.")],
     encoder: EncoderOption = "pixels",
     split: Annotated[str | None, typer.Option(help="Only this split (project layout).")] = None,
+    labels: LabelsOption = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
 ) -> None:
@@ -103,7 +135,13 @@ def build_memory_cmd(
     try:
         memory, stats = build_memory(
             BuildMemoryConfig(
-                data=data, encoder=encoder, out=out, split=split, cache_dir=cache_dir, device=device
+                data=data,
+                encoder=encoder,
+                out=out,
+                split=split,
+                cache_dir=cache_dir,
+                device=device,
+                labels=labels,
             )
         )
     except RoboFailRingError as error:
@@ -111,15 +149,23 @@ def build_memory_cmd(
     typer.echo(
         f"memory {out}: {len(memory)} entries ({memory.dim}-d, encoder {memory.encoder}) from "
         f"{stats.failures} failure trajectories over {len(memory.tasks)} tasks; "
-        f"{stats.ignored_non_failures} non-failures ignored, {len(stats.skipped_views)} views skipped (< 2 frames)"
+        f"{stats.ignored_non_failures} non-failures ignored"
     )
+    if stats.skipped_views or stats.skipped_inputs:
+        typer.echo(
+            f"skipped: {len(stats.skipped_views)} view(s) with < 2 frames, "
+            f"{len(stats.skipped_inputs)} folder(s)/file(s) not read"
+        )
     for skipped in stats.skipped_views[:10]:
         typer.echo(f"  skipped {skipped['trajectory']} view {skipped['view']}: {skipped['frames']} frame(s)")
+    report_skipped(stats.skipped_inputs)
 
 
 @app.command("detect")
 def detect_cmd(
-    trajectory: Annotated[Path, typer.Argument(help="One episode folder.")],
+    trajectory: Annotated[
+        Path, typer.Argument(help="One episode folder, or a dataset root with --trajectory.")
+    ],
     memory: Annotated[Path, typer.Option("--memory", help="Memory directory.")],
     delta: Annotated[
         float | None, typer.Option(help="Threshold δ (default: the memory's calibrated δ, else 0.92).")
@@ -131,6 +177,14 @@ def detect_cmd(
         bool, typer.Option("--leave-one-out", help="Hide the trajectory's own episode from the memory.")
     ] = False,
     encoder: Annotated[str | None, typer.Option(help="Encoder spec (default: the memory's).")] = None,
+    key: Annotated[
+        str | None,
+        typer.Option(
+            "--trajectory", help="In a dataset root: this trajectory (`episode_3`, `<task>/<episode>`)."
+        ),
+    ] = None,
+    stride: StrideOption = 1,
+    labels: LabelsOption = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
 ) -> None:
@@ -149,10 +203,14 @@ def detect_cmd(
                 encoder=encoder,
                 cache_dir=cache_dir,
                 device=device,
+                key=key,
+                stride=stride,
+                labels=labels,
             )
         )
     except RoboFailRingError as error:
         exit_with_error(error)
+    report_skipped(trace.skipped_inputs)
     for view, count in trace.truncated_views.items():
         typer.secho(
             f"note: view {view} has {trace.length + count} frames; the last {count} are not scored "
@@ -168,7 +226,8 @@ def detect_cmd(
         json.dump(trace.to_dict(), sys.stdout)
         sys.stdout.write("\n")
         return
-    typer.echo(f"task {trace.task}, L = {trace.length} frames, δ = {trace.delta:.3f}, K = {trace.k}")
+    scored = f", every {trace.stride}th frame scored" if trace.stride > 1 else ""
+    typer.echo(f"task {trace.task}, L = {trace.length} frames{scored}, δ = {trace.delta:.3f}, K = {trace.k}")
     for view in trace.views:
         typer.echo(f"  {view:>10}: max S_t = {float(np.nanmax(trace.similarity[view])):.3f}")
     if trace.t_det is None:
@@ -190,6 +249,8 @@ def calibrate_cmd(
     memory: Annotated[Path, typer.Option("--memory", help="Memory directory; δ is stored in its manifest.")],
     target_fpr: Annotated[float, typer.Option("--target-fpr", help="False-positive rate to allow.")] = 0.05,
     split: Annotated[str | None, typer.Option(help="Successes of this split (project layout).")] = "train",
+    stride: StrideOption = 1,
+    labels: LabelsOption = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
 ) -> None:
@@ -205,10 +266,13 @@ def calibrate_cmd(
                 split=split,
                 cache_dir=cache_dir,
                 device=device,
+                stride=stride,
+                labels=labels,
             )
         )
     except (RoboFailRingError, ValueError) as error:
         exit_with_error(error)
+    report_skipped(result.skipped_inputs)
     typer.echo(
         f"δ = {result.delta:.6f} for encoder {result.encoder}: FPR {100 * result.achieved_fpr:.1f} % on "
         f"{result.successes} success runs (target {100 * result.target_fpr:.1f} %); stored in {memory}/manifest.json"

@@ -9,7 +9,7 @@ from typing import Any, Final
 import numpy as np
 
 from robofailring.data.images import as_rgb
-from robofailring.data.model import Frame, Trajectory
+from robofailring.data.model import Frame, Skipped, Trajectory
 from robofailring.encoders.base import Encoder, l2_normalize
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import DataError, SettingError
@@ -44,10 +44,17 @@ class DetectionTrace:
     similarity: dict[str, np.ndarray]
     neighbor_ids: dict[str, np.ndarray]
     neighbor_similarity: dict[str, np.ndarray]
-    queries: dict[str, np.ndarray] = field(repr=False)
+    queries: dict[str, np.ndarray] = field(repr=False)  # one row per scored frame
     memory: FailureMemory = field(repr=False)
     skipped_views: list[str] = field(default_factory=list)
     view_frames: dict[str, int] = field(default_factory=dict)  # frames each view had (L bounds them)
+    stride: int = 1  # every `stride`-th frame from frame 0 is scored; the others hold NaN / -1
+    skipped_inputs: list[Skipped] = field(default_factory=list)  # files of the episode not read
+
+    @property
+    def scored_frames(self) -> np.ndarray:
+        """Indices (original frame numbers) of the frames that were scored: 0, stride, 2·stride, …"""
+        return np.arange(0, self.length, self.stride)
 
     @property
     def truncated_views(self) -> dict[str, int]:
@@ -125,6 +132,8 @@ class DetectionTrace:
             "detected_view": self.detected_view,
             "skipped_views": self.skipped_views,
             "unscored_frames": self.truncated_views,
+            "stride": self.stride,
+            "skipped_inputs": [skipped.to_dict() for skipped in self.skipped_inputs],
             "views": views,
         }
 
@@ -134,6 +143,13 @@ def check_k(k: int) -> int:
     if k < 1:
         raise SettingError(f"k (neighbours per query) must be at least 1, got {k}")
     return k
+
+
+def check_stride(stride: int) -> int:
+    """The scoring stride: at least 1 (SettingError otherwise)."""
+    if stride < 1:
+        raise SettingError(f"stride must be at least 1 (1 scores every frame), got {stride}")
+    return stride
 
 
 def check_delta(delta: float) -> float:
@@ -173,8 +189,13 @@ class FailureDetector:
         self.memory.task_size(task)  # unknown task -> clear error before the robot moves
         return DetectorSession(self, task, exclude_episode=exclude_episode)
 
-    def run(self, trajectory: Trajectory, *, leave_one_out: bool = False) -> DetectionTrace:
-        """Detect over a whole trajectory; `leave_one_out` hides its own episode's memory entries."""
+    def run(self, trajectory: Trajectory, *, leave_one_out: bool = False, stride: int = 1) -> DetectionTrace:
+        """Detect over a whole trajectory; `leave_one_out` hides its own episode's memory entries.
+
+        With `stride` N only frames 0, N, 2N, … are decoded and scored (I_0 stays frame 0); the
+        trace keeps original frame numbers (t_det, L), unscored frames hold NaN.
+        """
+        check_stride(stride)
         self.memory.task_size(trajectory.task)
         used = {view: frames for view, frames in trajectory.views.items() if len(frames) >= 2}
         skipped = [view for view in trajectory.views if view not in used]
@@ -184,14 +205,20 @@ class FailureDetector:
             )
         length = min(len(frames) for frames in used.values())
         views = list(used)
-        frames = [frame for view in views for frame in used[view][:length]]
-        embeddings = self.encoder.encode_frames(frames).reshape(len(views), length, -1)
+        steps = np.arange(0, length, stride)
+        frames = [used[view][int(t)] for view in views for t in steps]
+        embeddings = self.encoder.encode_frames(frames).reshape(len(views), len(steps), -1)
         exclude = trajectory.episode if leave_one_out else None
         similarity, ids, sims, queries = {}, {}, {}, {}
         for position, view in enumerate(views):
             view_embeddings = embeddings[position]
-            query = pair_vectors(np.repeat(view_embeddings[:1], length, axis=0), view_embeddings)
+            query = pair_vectors(np.repeat(view_embeddings[:1], len(steps), axis=0), view_embeddings)
             top_sims, top_ids = self.memory.search(query, trajectory.task, self.k, exclude_episode=exclude)
+            if stride > 1:  # back onto original frame numbers: unscored frames never fire
+                full_sims = np.full((length, self.k), np.nan, dtype=top_sims.dtype)
+                full_ids = np.full((length, self.k), -1, dtype=top_ids.dtype)
+                full_sims[steps], full_ids[steps] = top_sims, top_ids
+                top_sims, top_ids = full_sims, full_ids
             similarity[view] = top_sims[:, 0].copy()
             ids[view], sims[view], queries[view] = top_ids, top_sims, query
         return DetectionTrace(
@@ -209,6 +236,8 @@ class FailureDetector:
             memory=self.memory,
             skipped_views=skipped,
             view_frames={view: len(frames) for view, frames in trajectory.views.items()},
+            stride=stride,
+            skipped_inputs=list(trajectory.skipped),
         )
 
 

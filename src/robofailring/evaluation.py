@@ -17,8 +17,15 @@ import numpy as np
 
 from robofailring._atomic import write_text_atomic
 from robofailring.data.layouts import load_dataset
-from robofailring.data.model import Trajectory
-from robofailring.detector import PAPER_DELTA, DetectionTrace, FailureDetector, check_delta, check_k
+from robofailring.data.model import Skipped, Trajectory
+from robofailring.detector import (
+    PAPER_DELTA,
+    DetectionTrace,
+    FailureDetector,
+    check_delta,
+    check_k,
+    check_stride,
+)
 from robofailring.encoders import CachedEncoder, load_encoder
 from robofailring.errors import DataError, RoboFailRingError, SettingError
 from robofailring.grounding import failure_type
@@ -52,9 +59,12 @@ class EvaluateConfig:
     name: str = "evaluation"
     cache_dir: Path | None = None
     device: str | None = None
+    stride: int = 1  # score every stride-th frame of a test trajectory (t_det, T_s in original frames)
+    labels: Path | None = None  # labels file for data whose names do not say the outcome (LeRobot)
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
         check_k(self.k)
+        check_stride(self.stride)
         for delta in self.deltas:
             check_delta(delta)
         if not 0.0 < self.test_fraction < 1.0:
@@ -73,9 +83,18 @@ def split_of(trajectory: Trajectory, *, has_splits: bool, test_fraction: float) 
     return _hash_split(trajectory, test_fraction)
 
 
-def select_splits(config: EvaluateConfig) -> tuple[list[Trajectory], list[Trajectory]]:
-    """(training trajectories, test trajectories), disjoint by construction and checked."""
-    source = list(load_dataset(config.data).trajectories())
+def select_splits(
+    config: EvaluateConfig, skipped: list[Skipped] | None = None
+) -> tuple[list[Trajectory], list[Trajectory]]:
+    """(training trajectories, test trajectories), disjoint by construction and checked.
+
+    What the datasets' loaders did not read is appended to `skipped`.
+    """
+    dataset = load_dataset(config.data, labels=config.labels)
+    dataset.require_labels("evaluate")
+    source = list(dataset.trajectories())
+    if skipped is not None:
+        skipped += dataset.skipped
     has_splits = any(t.split for t in source)
     train = [
         t
@@ -89,7 +108,11 @@ def select_splits(config: EvaluateConfig) -> tuple[list[Trajectory], list[Trajec
             if split_of(t, has_splits=has_splits, test_fraction=config.test_fraction) == config.test_split
         ]
     else:
-        other = list(load_dataset(config.test_data).trajectories())
+        other_dataset = load_dataset(config.test_data, labels=config.labels)
+        other_dataset.require_labels("evaluate")
+        other = list(other_dataset.trajectories())
+        if skipped is not None:
+            skipped += other_dataset.skipped
         other_has_splits = any(t.split for t in other)
         test = [t for t in other if not other_has_splits or t.split == config.test_split]
     if not test:
@@ -127,6 +150,8 @@ class EvaluationResult:
     skipped_unknown_task: list[str]
     latency_ms: dict[str, float]
     skipped_too_short: list[str] = field(default_factory=list)
+    skipped_inputs: list[Skipped] = field(default_factory=list)  # folders/files of the data not read
+    stride: int = 1
     paper_rates: list[Rates] = field(init=False)
     curve: list[Rates] = field(init=False)
 
@@ -213,6 +238,8 @@ class EvaluationResult:
             "successes": self.successes,
             "skipped_unknown_task": self.skipped_unknown_task,
             "skipped_too_short": self.skipped_too_short,
+            "skipped_inputs": [skipped.to_dict() for skipped in self.skipped_inputs],
+            "stride": self.stride,
             "paper_deltas": [rate_row(r) for r in self.paper_rates],
             "sweep": [rate_row(r) for r in self.curve],
             "timeliness": {
@@ -316,6 +343,16 @@ class EvaluationResult:
                 "",
                 f"Skipped {len(self.skipped_too_short)} test trajectories with no view of 2 or more frames.",
             ]
+        if self.skipped_inputs:
+            lines += ["", f"Not read from the data ({len(self.skipped_inputs)}):", ""]
+            lines += [f"- `{skipped.path}`: {skipped.reason}" for skipped in self.skipped_inputs[:20]]
+            if len(self.skipped_inputs) > 20:
+                lines.append(f"- … and {len(self.skipped_inputs) - 20} more (all in the JSON file)")
+        if self.stride > 1:
+            lines += [
+                "",
+                f"Every {self.stride}th frame scored (frame numbers, t_det and T_s are original frames).",
+            ]
         if self.skipped_unknown_task:
             lines += [
                 "",
@@ -382,7 +419,8 @@ def build_training_memory(
 def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
     """Build (or load) the memory, replay every test trajectory once, and measure everything."""
     encoder = CachedEncoder(load_encoder(config.encoder, device=config.device), cache_dir=config.cache_dir)
-    train, test = select_splits(config)
+    unread: list[Skipped] = []
+    train, test = select_splits(config, unread)
     memory_dir = config.memory if config.memory is not None else build_training_memory(config, train, encoder)
     memory = FailureMemory.load(memory_dir)
     check_disjoint(memory, test)
@@ -400,7 +438,7 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
                 skipped.append(trajectory.key)
                 continue
             try:
-                trace = detector.run(trajectory)
+                trace = detector.run(trajectory, stride=config.stride)
             except DataError:
                 too_short.append(trajectory.key)
                 continue
@@ -434,6 +472,8 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
         skipped_unknown_task=skipped,
         latency_ms=measure_latency(detector, first),
         skipped_too_short=too_short,
+        skipped_inputs=unread,
+        stride=config.stride,
     )
 
 
@@ -455,9 +495,12 @@ class CalibrateConfig:
     k: int = 5
     cache_dir: Path | None = None
     device: str | None = None
+    stride: int = 1  # score every stride-th frame of each success run
+    labels: Path | None = None  # labels file for data whose names do not say the outcome (LeRobot)
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
         check_k(self.k)
+        check_stride(self.stride)
         check_target_fpr(self.target_fpr)
 
 
@@ -468,6 +511,7 @@ class Calibration:
     achieved_fpr: float
     successes: int
     encoder: str
+    skipped_inputs: list[Skipped] = field(default_factory=list)  # folders/files of the data not read
 
 
 def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None = None) -> Calibration:
@@ -479,7 +523,9 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
         load_encoder(encoder_spec_for(memory), device=config.device), cache_dir=config.cache_dir
     )
     detector = FailureDetector(memory, encoder, delta=PAPER_DELTA, k=config.k)
-    source = list(load_dataset(config.data).trajectories())
+    dataset = load_dataset(config.data, labels=config.labels)
+    dataset.require_labels("calibrate")
+    source = list(dataset.trajectories())
     has_splits = any(t.split for t in source)
     successes = [
         t
@@ -494,7 +540,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
     with progress_bar(total=len(successes), desc="calibrating", unit="traj") as bar:
         for trajectory in successes:
             with contextlib.suppress(DataError):  # no view with 2 frames: nothing to calibrate on
-                peaks.append(float(detector.run(trajectory).max_similarity().max()))
+                peaks.append(float(detector.run(trajectory, stride=config.stride).max_similarity().max()))
             bar.update(1)
             if progress is not None:
                 progress(1)
@@ -514,6 +560,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
         "data": str(Path(config.data).resolve()),
         "split": config.split,
         "k": config.k,
+        "stride": config.stride,
     }
     memory.write_manifest(config.memory)
     return Calibration(
@@ -522,4 +569,5 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
         achieved_fpr=achieved,
         successes=len(peaks),
         encoder=memory.encoder,
+        skipped_inputs=dataset.skipped,
     )

@@ -15,7 +15,7 @@ import faiss
 import numpy as np
 
 from robofailring._atomic import atomic_directory, write_text_atomic
-from robofailring.data.model import Frame, Outcome, Trajectory
+from robofailring.data.model import Frame, Outcome, Skipped, Trajectory
 from robofailring.encoders.base import l2_normalize
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import (
@@ -77,6 +77,7 @@ class BuildStats:
     ignored_non_failures: int = 0
     entries: int = 0
     skipped_views: list[dict[str, Any]] = field(default_factory=list)
+    skipped_inputs: list[Skipped] = field(default_factory=list)  # folders/files of the dataset not read
 
 
 class _TaskIndex:

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from robofailring.data.layouts import load_dataset, load_trajectory
-from robofailring.detector import DEFAULT_K, DetectionTrace, FailureDetector
+from robofailring.detector import DEFAULT_K, DetectionTrace, FailureDetector, check_stride
 from robofailring.encoders import CachedEncoder, load_encoder
 from robofailring.errors import EncoderError
 from robofailring.memory import BuildStats, FailureMemory
@@ -21,18 +21,25 @@ class BuildMemoryConfig:
     split: str | None = None  # only trajectories of this split (project layout)
     cache_dir: Path | None = None  # embedding cache (default ~/.cache/robofailring)
     device: str | None = None  # torch device for CLIP (default: cuda when available)
+    labels: Path | None = None  # outcome and symbol per episode (needed for LeRobot datasets)
 
 
 def build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
-    """Build a failure memory from a dataset's failure trajectories and save it."""
+    """Build a failure memory from a dataset's failure trajectories and save it.
+
+    `stats.skipped_inputs` lists what under the dataset root was not read, with the reason.
+    """
     encoder = CachedEncoder(load_encoder(config.encoder, device=config.device), cache_dir=config.cache_dir)
-    dataset = load_dataset(config.data)
+    dataset = load_dataset(config.data, labels=config.labels)
+    dataset.require_labels("build-memory")
     trajectories = (
         dataset.select(split=config.split) if config.split is not None else list(dataset.trajectories())
     )
     entries_expected = sum(len(t.views) for t in trajectories if t.symbol)
     with progress_bar(total=entries_expected, desc="encoding memory", unit="entry") as bar:
         memory, stats = FailureMemory.build(trajectories, encoder, progress=bar.update)
+    stats.skipped_inputs = dataset.skipped
+    memory.manifest["skipped_inputs"] = [skipped.to_dict() for skipped in dataset.skipped]
     memory.manifest["source"] = str(Path(config.data).resolve())
     memory.manifest["layout"] = dataset.layout
     memory.manifest["encoder_spec"] = config.encoder
@@ -53,6 +60,9 @@ class DetectConfig:
     encoder: str | None = None  # default: the spec the memory was built with
     cache_dir: Path | None = None
     device: str | None = None
+    key: str | None = None  # the trajectory to run when `trajectory` is a dataset root (`episode_3`)
+    stride: int = 1  # score every stride-th frame (I_0 stays frame 0; t_det in original frames)
+    labels: Path | None = None  # labels file (LeRobot): outcome and symbol per episode
 
 
 def encoder_spec_for(memory: FailureMemory) -> str:
@@ -74,9 +84,10 @@ def encoder_spec_for(memory: FailureMemory) -> str:
 
 def detect(config: DetectConfig) -> DetectionTrace:
     """Run the detector over one trajectory folder."""
+    check_stride(config.stride)
     memory = FailureMemory.load(config.memory)
-    trajectory = load_trajectory(config.trajectory, task=config.task)
+    trajectory = load_trajectory(config.trajectory, task=config.task, key=config.key, labels=config.labels)
     spec = config.encoder or encoder_spec_for(memory)
     encoder = CachedEncoder(load_encoder(spec, device=config.device), cache_dir=config.cache_dir)
     detector = FailureDetector(memory, encoder, delta=config.delta, k=config.k)
-    return detector.run(trajectory, leave_one_out=config.leave_one_out)
+    return detector.run(trajectory, leave_one_out=config.leave_one_out, stride=config.stride)
