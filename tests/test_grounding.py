@@ -64,7 +64,13 @@ def test_maniskill_names_ground_like_failgen(maniskill: str, failgen: str) -> No
 
 @pytest.mark.parametrize(
     ("symbol", "named"),
-    [("twist_x_wp1", "'twist'"), ("rotation_q_wp1", "'q'"), ("slip_wpx", "'wpx'"), ("wrong_thing_wp1", "'wrong'"), ("grasp_x_wp1", "'x'")],
+    [
+        ("twist_x_wp1", "'twist'"),
+        ("rotation_q_wp1", "'q'"),
+        ("slip_wpx", "'wpx'"),
+        ("wrong_thing_wp1", "'wrong'"),
+        ("grasp_x_wp1", "'x'"),
+    ],
 )
 def test_unknown_tokens_are_named(symbol: str, named: str) -> None:
     with pytest.raises(SymbolError) as error:
@@ -93,7 +99,10 @@ def test_maniskill_stages_outside_table_5_still_ground() -> None:
     [
         ("wrong_sequence_wp0", "robot executes actions in an incorrect order at waypoint 0"),
         ("slip_wp9", "object slippage from the gripper at waypoint 9"),
-        ("wrong_object_wp4", "robot operates on an unintended object at the near-goal placement stage (Waypoint 4)"),
+        (
+            "wrong_object_wp4",
+            "robot operates on an unintended object at the near-goal placement stage (Waypoint 4)",
+        ),
         ("wrong_object_wp0", "robot operates on an unintended object at waypoint 0"),
         ("wrong_object", "robot operates on an unintended object"),
     ],

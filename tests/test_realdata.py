@@ -138,7 +138,7 @@ def test_frames_without_a_number_are_reported_and_counted(tmp_path: Path) -> Non
         skipped.path == episode
         and "4 image(s) without a frame number (front_a.png, front_b.png, front_c.png, …)" in skipped.reason
     )
-    slip = [t for t in dataset if t.episode == episode.name][0]
+    slip = next(t for t in dataset if t.episode == episode.name)
     assert slip.view_names == ["wrist"] and slip.skipped == (skipped,)
     runner = CliRunner()
     result = runner.invoke(

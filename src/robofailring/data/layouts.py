@@ -21,6 +21,7 @@ from robofailring.data.folders import (
     parse_aha_name,
     subdirs,
 )
+from robofailring.data.images import IMAGE_SUFFIXES
 from robofailring.data.labels import apply_labels, read_labels
 from robofailring.data.lerobot import is_lerobot, lerobot_trajectories
 from robofailring.data.model import Outcome, Skipped, Trajectory
@@ -106,6 +107,10 @@ def _has_videos(directory: Path) -> bool:
     return any(p.is_file() and p.suffix.lower() in VIDEO_SUFFIXES for p in directory.iterdir())
 
 
+def _has_images(directory: Path) -> bool:
+    return any(p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES for p in directory.iterdir())
+
+
 def detect_layout(root: Path) -> str:
     """The layout name of a dataset root, or DataError naming the layouts expected."""
     root = Path(root)
@@ -115,14 +120,15 @@ def detect_layout(root: Path) -> str:
         return "project"
     if is_lerobot(root):
         return "lerobot"
+    folders = subdirs(root)
+    if any(_has_videos(sub) for sub in folders) and not any(_has_images(sub) for sub in folders):
+        return "videos"
     if aha_trajectories(root, first_only=True)[0]:
         return "aha"
     if maniskill_trajectories(root, first_only=True)[0]:
         return "maniskill"
     if episode_views(root)[0]:
         return "episode"
-    if any(_has_videos(sub) for sub in subdirs(root)):
-        return "videos"
     raise DataError(f"{root} matches no known dataset layout; {LAYOUTS_HELP}")
 
 
