@@ -23,8 +23,10 @@ from robofailring.data.model import Frame
 from robofailring.errors import DataError
 
 VIDEO_SUFFIXES: Final[tuple[str, ...]] = (".mp4", ".webm", ".mkv")
-#: Decode forward instead of seeking when the wanted frame is at most this many frames ahead.
+#: Decode forward instead of seeking when the wanted frame is at most this many frames ahead and
+#: no keyframe lies between (seeking to a keyframe nearer the wanted frame is then cheaper).
 _FORWARD_WINDOW: Final[int] = 48
+_SEEK_COST: Final[int] = 8  # a seek (decoder flush) costs about this many decoded frames (bench_decode)
 _OPEN_LIMIT: Final[int] = 16  # open containers kept (v2.1 has one file per episode and camera)
 
 
@@ -36,6 +38,7 @@ class VideoFile:
         self.stream = stream
         self._times: np.ndarray | None = None
         self._pts: np.ndarray | None = None
+        self._keyframes: np.ndarray = np.zeros(0, dtype=np.int64)  # frame indices of keyframes
         self._digest: str | None = None
         self._container: Any = None
         self._frames: Iterator[Any] | None = None
@@ -69,16 +72,17 @@ class VideoFile:
             container = self._open()
             stream = container.streams.video[self.stream]
             try:
-                pts = sorted(
-                    packet.pts
+                packets = sorted(
+                    (packet.pts, packet.is_keyframe)
                     for packet in container.demux(stream)
                     if packet.pts is not None and packet.size > 0
                 )
             except av.FFmpegError as error:
                 raise DataError(f"cannot read video {self.path}: {_why(error)}") from error
-            if not pts:
+            if not packets:
                 raise DataError(f"video {self.path} holds no frames in video stream {self.stream}")
-            self._pts = np.asarray(pts, dtype=np.int64)
+            self._pts = np.asarray([pts for pts, _ in packets], dtype=np.int64)
+            self._keyframes = np.flatnonzero([key for _, key in packets])
             self._times = self._pts.astype(np.float64) * float(stream.time_base)
             self._frames = None  # demuxing moved the read position
         return self._times
@@ -129,6 +133,10 @@ class VideoFile:
             assert self._pts is not None
             target = int(self._pts[index])
             ahead = self._last is not None and 0 < index - self._last[0] <= _FORWARD_WINDOW
+            if ahead and self._last is not None:  # seek when a keyframe near the target saves decoding
+                position = np.searchsorted(self._keyframes, index, side="right") - 1
+                keyframe = int(self._keyframes[position]) if position >= 0 else -1
+                ahead = index - self._last[0] <= index - keyframe + 1 + _SEEK_COST
             try:
                 if self._frames is None or not ahead:
                     container = self._open()
