@@ -7,6 +7,7 @@ from typing import Final
 
 from robofailring.data.images import encode_jpeg, read_image
 from robofailring.data.model import Frame
+from robofailring.data.video import read_video_reference
 from robofailring.errors import DataError
 
 JPEG_QUALITY: Final[int] = 80
@@ -29,6 +30,12 @@ def frame_jpeg(frame: Frame, *, quality: int = JPEG_QUALITY) -> bytes:
 def reference_jpeg(reference: str, *, quality: int = JPEG_QUALITY) -> bytes | None:
     """JPEG bytes of a memory entry's start/end image, or None when the file is not there."""
     path = Path(reference)
+    if "#frame=" in reference:  # a frame of a video (LeRobot camera, video episode)
+        try:
+            image = read_video_reference(reference)
+        except DataError:
+            return None
+        return None if image is None else encode_jpeg(image, quality=quality)
     if reference.startswith("<") or not path.is_file():
         return None
     try:

@@ -122,6 +122,8 @@ def test_labels_build_a_memory_and_replay_a_recording(v3: Path, tmp_path: Path) 
     assert [frame for frame, _ in rows(recording, "/camera/front", "EncodedImage:blob")] == list(range(15))
     assert [frame for frame, _ in rows(recording, "/score/front", "Scalars:scalars")] == [0, 4, 8, 12]
     assert properties(recording)["stride"] == 4 and properties(recording)["task"] == "pick up the cube"
+    neighbour = rows(recording, "/neighbors/front/0/end", "EncodedImage:blob")  # read back from the mp4
+    assert neighbour and neighbour[0][0] == 0
     detected = runner.invoke(
         app, ["detect", str(v3), "--memory", str(memory), "--trajectory", "episode_0", "--json", *cache]
     )

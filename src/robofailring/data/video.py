@@ -248,6 +248,14 @@ class VideoFrames(Sequence[Frame]):
         return f"VideoFrames({self.video!r}, {len(self) if self._times is not None else '?'} frames)"
 
 
+def read_video_reference(reference: str) -> np.ndarray | None:
+    """The frame a `<video file>#frame=<index>` reference (a memory entry's start/end) points at, or None."""
+    path, marker, index = reference.rpartition("#frame=")
+    if not marker or not index.isdigit() or not Path(path).is_file():
+        return None
+    return open_video(Path(path)).decode(int(index))
+
+
 def video_files(directory: Path) -> list[Path]:
     """The video files directly in a folder (.mp4, .webm, .mkv), by name."""
     return sorted(p for p in Path(directory).iterdir() if p.is_file() and p.suffix.lower() in VIDEO_SUFFIXES)
