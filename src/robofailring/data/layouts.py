@@ -248,7 +248,7 @@ def _video_trajectories(root: Path, *, task: str | None) -> tuple[list[Trajector
         try:
             found.append(_episode_trajectory(directory, task=task))
         except DataError as error:
-            skipped.append(Skipped(directory, str(error).replace(f"{directory}", "it").strip()))
+            skipped.append(Skipped(directory, str(error)))
     return found, skipped
 
 
