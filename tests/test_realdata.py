@@ -197,3 +197,36 @@ def test_maniskill_stray_folders_are_reported(tmp_path: Path) -> None:
     assert [t.episode for t in dataset] == ["3/Ground_Truth"]
     (skipped,) = dataset.skipped
     assert skipped.path.name == "0_twist_x_2" and "not a ManiSkill-failgen episode folder" in skipped.reason
+
+
+def test_evaluate_with_a_stride_reports_original_frames_and_what_was_not_read(tmp_path: Path) -> None:
+    root = tmp_path / "data"
+    for episode in range(4):
+        for symbol in ("grasp_wp2", "slip_wp1"):
+            write_episode(
+                root / f"pick_cube_{symbol}_episode{episode}",
+                "pick_cube",
+                symbol,
+                layout="aha",
+                length=9,
+                shift=episode,
+            )
+        write_episode(root / f"pick_cube_success_episode{episode}", "pick_cube", None, layout="aha", length=9)
+    (root / "stray").mkdir()
+    runner = CliRunner()
+    out = tmp_path / "eval"
+    result = runner.invoke(
+        app,
+        ["evaluate", str(root), "--out", str(out), "--stride", "3", "--cache-dir", str(tmp_path / "c")],
+    )
+    assert result.exit_code in (0, 3), result.output
+    assert "1 folder(s)/file(s) under the data were not read" in result.output
+    report = json.loads((out / "evaluation.json").read_text())
+    assert report["stride"] == 3
+    assert report["skipped_inputs"] == [
+        {"path": str(root / "stray"), "reason": report["skipped_inputs"][0]["reason"]}
+    ]
+    detected = [row["t_det"] for row in report["trajectories"] if row["t_det"] is not None]
+    assert any(t > 0 for t in detected) and all(t % 3 == 0 for t in detected)  # original frame numbers
+    assert {row["length"] for row in report["trajectories"]} == {9}
+    assert "stray" in (out / "evaluation.md").read_text()
