@@ -10,7 +10,14 @@ import typer
 from rfr_viz import tool_cli  # noqa: F401  (registers evaluate and the other combined verbs)
 from rfr_viz.replay import DEFAULT_OUT, CompareConfig, ReplayConfig, ReplayResult, compare, replay
 from rfr_viz.viewer import DEFAULT_PORT, ViewerUnavailable, open_at, open_command
-from robofailring.cli import CacheOption, DeviceOption, app, exit_with_error
+from robofailring.cli import (
+    CacheOption,
+    DataRootOption,
+    DeviceOption,
+    app,
+    exit_with_error,
+    warn_missing_references,
+)
 from robofailring.errors import RoboFailRingError
 
 __all__ = ["app", "main"]
@@ -42,6 +49,8 @@ FpsOption = Annotated[
 
 
 def _report(result: ReplayResult, out: Path) -> None:
+    for memory_dir, check in result.references.items():
+        warn_missing_references(memory_dir, check)
     for key, reason in result.skipped:
         typer.echo(f"skipped {key}: {reason}")
     if not result.recordings:
@@ -70,6 +79,7 @@ def replay_cmd(
     fps: FpsOption = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
+    data_root: DataRootOption = None,
 ) -> None:
     """Replay trajectories through the detector, one self-contained Rerun recording (.rrd) each."""
     config = ReplayConfig(
@@ -85,6 +95,7 @@ def replay_cmd(
         fps=fps,
         cache_dir=cache_dir,
         device=device,
+        data_root=data_root,
     )
     try:
         result = replay(config)
@@ -113,6 +124,13 @@ def compare_cmd(
     fps: FpsOption = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
+    data_root: Annotated[
+        list[Path] | None,
+        typer.Option(
+            "--data-root",
+            help="Where the memories' dataset is now, when it moved: one for all, or one per --memory.",
+        ),
+    ] = None,
 ) -> None:
     """Replay trajectories under two or more encoders' memories, one comparison recording each."""
     config = CompareConfig(
@@ -127,6 +145,7 @@ def compare_cmd(
         fps=fps,
         cache_dir=cache_dir,
         device=device,
+        data_roots=tuple(data_root or ()),
     )
     try:
         result = compare(config)

@@ -8,7 +8,15 @@ from typing import Annotated
 import typer
 
 from rfr_viz.viewer import open_at_command, open_command
-from robofailring.cli import CacheOption, DeviceOption, EncoderOption, app, exit_with_error
+from robofailring.cli import (
+    CacheOption,
+    DataRootOption,
+    DeviceOption,
+    EncoderOption,
+    app,
+    exit_with_error,
+    warn_missing_references,
+)
 from robofailring.errors import RoboFailRingError
 
 
@@ -66,6 +74,7 @@ def review_cmd(
     memory: Annotated[Path | None, typer.Option(help="Default: the memory the evaluation used.")] = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
+    data_root: DataRootOption = None,
 ) -> None:
     """Replay only the false alarms (or the misses) of an evaluation, each recording focused on the moment."""
     from rfr_viz.review import ReviewConfig, review
@@ -80,10 +89,13 @@ def review_cmd(
                 memory=memory,
                 cache_dir=cache_dir,
                 device=device,
+                data_root=data_root,
             )
         )
     except RoboFailRingError as error:
         exit_with_error(error)
+    for memory_dir, check in result.references.items():
+        warn_missing_references(memory_dir, check)
     if not result.recordings:
         typer.echo(f"no {kind} in {evaluation}: nothing to replay")
         return

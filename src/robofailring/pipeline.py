@@ -32,7 +32,9 @@ def build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
     )
     entries_expected = sum(len(t.views) for t in trajectories if t.symbol)
     with progress_bar(total=entries_expected, desc="encoding memory", unit="entry") as bar:
-        memory, stats = FailureMemory.build(trajectories, encoder, progress=bar.update)
+        memory, stats = FailureMemory.build(
+            trajectories, encoder, progress=bar.update, data_root=Path(config.data).resolve()
+        )
     memory.manifest["source"] = str(Path(config.data).resolve())
     memory.manifest["layout"] = dataset.layout
     memory.manifest["encoder_spec"] = config.encoder
@@ -53,6 +55,7 @@ class DetectConfig:
     encoder: str | None = None  # default: the spec the memory was built with
     cache_dir: Path | None = None
     device: str | None = None
+    data_root: Path | None = None  # where the memory's images are now, when its data moved
 
 
 def encoder_spec_for(memory: FailureMemory) -> str:
@@ -74,7 +77,7 @@ def encoder_spec_for(memory: FailureMemory) -> str:
 
 def detect(config: DetectConfig) -> DetectionTrace:
     """Run the detector over one trajectory folder."""
-    memory = FailureMemory.load(config.memory)
+    memory = FailureMemory.load(config.memory, data_root=config.data_root)
     trajectory = load_trajectory(config.trajectory, task=config.task)
     spec = config.encoder or encoder_spec_for(memory)
     encoder = CachedEncoder(load_encoder(spec, device=config.device), cache_dir=config.cache_dir)
