@@ -12,12 +12,14 @@ from rfr_viz.replay import DEFAULT_OUT, CompareConfig, ReplayConfig, ReplayResul
 from rfr_viz.viewer import DEFAULT_PORT, ViewerUnavailable, open_at, open_command
 from robofailring.cli import (
     CacheOption,
+    DataRootOption,
     DeviceOption,
     LabelsOption,
     StrideOption,
     app,
     exit_with_error,
     report_skipped,
+    warn_missing_references,
 )
 from robofailring.errors import RoboFailRingError
 
@@ -51,6 +53,8 @@ FpsOption = Annotated[
 
 def _report(result: ReplayResult, out: Path) -> None:
     report_skipped(result.skipped_inputs)
+    for memory_dir, check in result.references.items():
+        warn_missing_references(memory_dir, check)
     for key, reason in result.skipped:
         typer.echo(f"skipped {key}: {reason}")
     if not result.recordings:
@@ -81,6 +85,7 @@ def replay_cmd(
     labels: LabelsOption = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
+    data_root: DataRootOption = None,
 ) -> None:
     """Replay trajectories through the detector, one self-contained Rerun recording (.rrd) each."""
     config = ReplayConfig(
@@ -98,6 +103,7 @@ def replay_cmd(
         device=device,
         stride=stride,
         labels=labels,
+        data_root=data_root,
     )
     try:
         result = replay(config)
@@ -126,6 +132,13 @@ def compare_cmd(
     fps: FpsOption = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
+    data_root: Annotated[
+        list[Path] | None,
+        typer.Option(
+            "--data-root",
+            help="Where the memories' dataset is now, when it moved: one for all, or one per --memory.",
+        ),
+    ] = None,
 ) -> None:
     """Replay trajectories under two or more encoders' memories, one comparison recording each."""
     config = CompareConfig(
@@ -140,6 +153,7 @@ def compare_cmd(
         fps=fps,
         cache_dir=cache_dir,
         device=device,
+        data_roots=tuple(data_root or ()),
     )
     try:
         result = compare(config)

@@ -9,8 +9,9 @@ import cv2
 import numpy as np
 import rerun as rr
 
-from rfr_viz._images import JPEG_MEDIA_TYPE, reference_jpeg
+from rfr_viz._images import JPEG_MEDIA_TYPE, JPEG_QUALITY, reference_jpeg
 from rfr_viz.paths import FRAME, TIME, DetectorPaths, NeighborPart
+from robofailring.data.images import encode_jpeg
 from robofailring.detector import DetectionTrace
 from robofailring.memory import MemoryEntry
 
@@ -82,6 +83,28 @@ class NeighborImages:
             return DEFAULT_CELL
         return Cell(max(w for w, _ in sizes), max(h for _, h in sizes))
 
+    def placeholder(self, cell: Cell) -> bytes:
+        """A grey JPEG saying "image not found", the size of one grid cell (made once per size)."""
+        key = f"<missing:{cell.width}x{cell.height}>"
+        cached = self._images.get(key)
+        if cached is None:
+            image = np.full((cell.height, cell.width, 3), 96, np.uint8)
+            scale = max(cell.width, 64) / 256
+            for line, text in enumerate(("image", "not found")):
+                cv2.putText(
+                    image,
+                    text,
+                    (max(2, cell.width // 10), int(cell.height * (0.45 + 0.2 * line))),
+                    cv2.FONT_HERSHEY_SIMPLEX,
+                    scale,
+                    (255, 255, 255),
+                    max(1, round(2 * scale)),
+                    cv2.LINE_AA,
+                )
+            cached = NeighborImage(encode_jpeg(image, quality=JPEG_QUALITY), cell.width, cell.height)
+            self._images[key] = cached
+        return cached.jpeg
+
 
 def changes(ids: np.ndarray) -> list[tuple[int, int, int]]:
     """(rank, t, entry index) wherever the rank-th neighbour differs from the previous frame."""
@@ -142,17 +165,16 @@ def log_neighbors(
                 rec.log(paths.neighbor_rank(view, rank), rr.Clear(recursive=True))
                 continue
             entry = trace.memory.entries[index]
-            missing = []
             for part, reference in _parts(entry):
                 image = images.get(reference)
-                if image is None:
-                    missing.append(reference)
-                    rec.log(paths.neighbor(view, rank, part), rr.Clear(recursive=False))
-                else:
-                    rec.log(
-                        paths.neighbor(view, rank, part),
-                        rr.EncodedImage(contents=image.jpeg, media_type=JPEG_MEDIA_TYPE),
-                    )
+                rec.log(
+                    paths.neighbor(view, rank, part),
+                    rr.EncodedImage(
+                        contents=image.jpeg if image is not None else images.placeholder(cell),
+                        media_type=JPEG_MEDIA_TYPE,
+                    ),
+                )
+            missing = _missing(entry, images)
             _log_info(
                 rec, paths, view, rank, entry, float(trace.neighbor_similarity[view][t, rank]), t, missing
             )
@@ -166,7 +188,11 @@ def log_neighbors(
             if index >= 0:
                 entry = trace.memory.entries[int(index)]
                 similarity = float(trace.neighbor_similarity[view][t_det, rank])
-                _log_info(rec, paths, view, rank, entry, similarity, t_det, [])
+                _log_info(rec, paths, view, rank, entry, similarity, t_det, _missing(entry, images))
+
+
+def _missing(entry: MemoryEntry, images: NeighborImages) -> list[str]:
+    return [reference for _, reference in _parts(entry) if images.get(reference) is None]
 
 
 def _log_info(
@@ -181,7 +207,7 @@ def _log_info(
 ) -> None:
     text = neighbor_info(entry, rank, similarity, t)
     if missing:
-        text += "  \n_reference image not found: " + ", ".join(missing) + "_"
+        text += "".join(f"  \n**image not found:** `{reference}`" for reference in missing)
     rec.log(
         paths.neighbor(view, rank, "info"),
         rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN),

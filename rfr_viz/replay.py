@@ -18,6 +18,7 @@ from robofailring.errors import DataError, UnknownTaskError
 from robofailring.memory import FailureMemory
 from robofailring.pipeline import encoder_spec_for
 from robofailring.progress import progress_bar
+from robofailring.references import ReferenceCheck
 
 DEFAULT_OUT: Final[Path] = Path("recordings")
 _UNSAFE = re.compile(r"[^A-Za-z0-9._+-]+")
@@ -39,6 +40,7 @@ class ReplayConfig:
     device: str | None = None  # torch device for CLIP
     stride: int = 1  # score every stride-th frame; the recording keeps every camera frame
     labels: Path | None = None  # labels file (LeRobot): outcome and symbol shown in the recording
+    data_root: Path | None = None  # where the memory's images are now, when its data moved
 
 
 @dataclass(frozen=True)
@@ -54,15 +56,17 @@ class CompareConfig:
     fps: float | None = None
     cache_dir: Path | None = None
     device: str | None = None
+    data_roots: tuple[Path, ...] = ()  # one per memory (or one for all): where its images are now
 
 
 @dataclass
 class ReplayResult:
-    """Recordings written, and trajectories skipped with the reason (counted and reported)."""
+    """Recordings written, trajectories skipped with the reason, and memory images not found."""
 
     recordings: list[Path] = field(default_factory=list)
     skipped: list[tuple[str, str]] = field(default_factory=list)
     skipped_inputs: list[Skipped] = field(default_factory=list)  # folders/files of the data not read
+    references: dict[Path, ReferenceCheck] = field(default_factory=dict)  # per memory directory
 
 
 def recording_name(trajectory: Trajectory, suffix: str = "") -> str:
@@ -106,6 +110,7 @@ class LoadedDetector:
     memory: FailureMemory
     detector: FailureDetector
     map: MemoryMap
+    references: ReferenceCheck
 
 
 def load_detector(
@@ -116,8 +121,9 @@ def load_detector(
     encoder: str | None,
     cache_dir: Path | None,
     device: str | None,
+    data_root: Path | None = None,
 ) -> LoadedDetector:
-    memory = FailureMemory.load(memory_dir)
+    memory = FailureMemory.load(memory_dir, data_root=data_root)
     spec = encoder or encoder_spec_for(memory)
     cached = CachedEncoder(load_encoder(spec, device=device), cache_dir=cache_dir)
     return LoadedDetector(
@@ -125,6 +131,7 @@ def load_detector(
         memory=memory,
         detector=FailureDetector(memory, cached, delta=delta, k=k),
         map=memory_map(memory, directory=memory_dir),
+        references=memory.check_references(),
     )
 
 
@@ -138,8 +145,9 @@ def replay(config: ReplayConfig) -> ReplayResult:
         encoder=config.encoder,
         cache_dir=config.cache_dir,
         device=config.device,
+        data_root=config.data_root,
     )
-    result = ReplayResult()
+    result = ReplayResult(references={Path(config.memory): found.references})
     trajectories = select_trajectories(
         config.data,
         keys=config.trajectories,
@@ -183,6 +191,13 @@ def compare(config: CompareConfig) -> ReplayResult:
             f"{len(config.deltas)} δ values for {len(config.memories)} memories: give one per memory"
         )
     deltas: Sequence[float | None] = config.deltas or [None] * len(config.memories)
+    if len(config.data_roots) not in (0, 1, len(config.memories)):
+        raise ValueError(
+            f"{len(config.data_roots)} data roots for {len(config.memories)} memories: give one, or one per memory"
+        )
+    roots: Sequence[Path | None] = (
+        config.data_roots * len(config.memories) if len(config.data_roots) == 1 else config.data_roots
+    ) or [None] * len(config.memories)
     detectors = [
         load_detector(
             memory_dir,
@@ -191,11 +206,14 @@ def compare(config: CompareConfig) -> ReplayResult:
             encoder=None,
             cache_dir=config.cache_dir,
             device=config.device,
+            data_root=root,
         )
-        for memory_dir, delta in zip(config.memories, deltas, strict=True)
+        for memory_dir, delta, root in zip(config.memories, deltas, roots, strict=True)
     ]
     slugs = unique_slugs([found.slug for found in detectors])
-    result = ReplayResult()
+    result = ReplayResult(
+        references={Path(m): found.references for m, found in zip(config.memories, detectors, strict=True)}
+    )
     trajectories = select_trajectories(
         config.data, keys=config.trajectories, task=config.task, skipped=result.skipped_inputs
     )

@@ -27,6 +27,7 @@ class ReviewConfig:
     memory: Path | None = None  # default: the memory the evaluation used
     cache_dir: Path | None = None
     device: str | None = None
+    data_root: Path | None = None  # where the memory's images are now, when its data moved
 
 
 def review(config: ReviewConfig) -> ReplayResult:
@@ -47,11 +48,18 @@ def review(config: ReviewConfig) -> ReplayResult:
     if not keys:
         return result
     loaded = load_detector(
-        memory_dir, delta=delta, k=k, encoder=None, cache_dir=config.cache_dir, device=config.device
+        memory_dir,
+        delta=delta,
+        k=k,
+        encoder=None,
+        cache_dir=config.cache_dir,
+        device=config.device,
+        data_root=config.data_root,
     )
     dataset = load_dataset(config.data)
     result.skipped_inputs += dataset.skipped
     trajectories = {t.key: t for t in dataset.select(keys=keys)}
+    result.references[memory_dir] = loaded.references
     with progress_bar(total=len(keys), desc=f"replaying {config.kind}", unit="trajectory") as bar:
         for key in keys:
             trajectory = trajectories[key]

@@ -10,6 +10,7 @@ import typer
 from rfr_viz.viewer import open_at_command, open_command
 from robofailring.cli import (
     CacheOption,
+    DataRootOption,
     DeviceOption,
     EncoderOption,
     LabelsOption,
@@ -17,6 +18,7 @@ from robofailring.cli import (
     app,
     exit_with_error,
     report_skipped,
+    warn_missing_references,
 )
 from robofailring.errors import RoboFailRingError
 
@@ -80,6 +82,7 @@ def review_cmd(
     memory: Annotated[Path | None, typer.Option(help="Default: the memory the evaluation used.")] = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
+    data_root: DataRootOption = None,
 ) -> None:
     """Replay only the false alarms (or the misses) of an evaluation, each recording focused on the moment."""
     from rfr_viz.review import ReviewConfig, review
@@ -94,11 +97,14 @@ def review_cmd(
                 memory=memory,
                 cache_dir=cache_dir,
                 device=device,
+                data_root=data_root,
             )
         )
     except RoboFailRingError as error:
         exit_with_error(error)
     report_skipped(result.skipped_inputs)
+    for memory_dir, check in result.references.items():
+        warn_missing_references(memory_dir, check)
     if not result.recordings:
         typer.echo(f"no {kind} in {evaluation}: nothing to replay")
         return

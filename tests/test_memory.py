@@ -96,7 +96,7 @@ def test_save_load_round_trip(
     memory, _, _ = built
     memory.save(tmp_path / "mem")
     manifest = json.loads((tmp_path / "mem" / "manifest.json").read_text())
-    assert manifest["format_version"] == 1
+    assert manifest["format_version"] == 2  # references relative to data_root
     assert (
         manifest["encoder"] == memory.encoder and manifest["dim"] == 1024 and manifest["count"] == len(memory)
     )

@@ -15,6 +15,7 @@ from robofailring.data.layouts import read_project_manifest
 from robofailring.data.model import Skipped
 from robofailring.errors import RoboFailRingError
 from robofailring.progress import progress_bar
+from robofailring.references import ReferenceCheck, check_references
 
 app = typer.Typer(
     name="robofailring",
@@ -66,6 +67,29 @@ def report_skipped(skipped: Sequence[Skipped], *, shown: int = 5) -> None:
     )
     for item in skipped[:shown]:
         typer.secho(f"  {item.path}: {item.reason}", err=True)
+
+
+DataRootOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--data-root",
+        help="Where the memory's dataset is now, when it moved since the memory was built "
+        "(its images are looked up there).",
+    ),
+]
+
+
+def warn_missing_references(memory: Path, check: ReferenceCheck) -> None:
+    """One warning line when a memory's reference images cannot be found (nothing silent)."""
+    if not check.ok:
+        typer.secho(
+            f"warning: memory {memory}: "
+            + check.summary(
+                hint="; if the dataset moved, pass --data-root DIR (see `robofailring memory-info`)"
+            ),
+            fg=typer.colors.YELLOW,
+            err=True,
+        )
 
 
 def exit_with_error(error: Exception) -> None:
@@ -187,6 +211,7 @@ def detect_cmd(
     labels: LabelsOption = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
+    data_root: DataRootOption = None,
 ) -> None:
     """Replay one trajectory through the detector and say if and when it fires."""
     from robofailring.pipeline import DetectConfig, detect
@@ -206,11 +231,17 @@ def detect_cmd(
                 key=key,
                 stride=stride,
                 labels=labels,
+                data_root=data_root,
             )
         )
     except RoboFailRingError as error:
         exit_with_error(error)
     report_skipped(trace.skipped_inputs)
+    if trace.t_det is not None and trace.detected_view is not None:
+        neighbors = trace.neighbors(trace.detected_view, trace.t_det)
+        warn_missing_references(
+            memory, check_references(ref for n in neighbors for ref in (n.entry.start, n.entry.end))
+        )
     for view, count in trace.truncated_views.items():
         typer.secho(
             f"note: view {view} has {trace.length + count} frames; the last {count} are not scored "
@@ -277,6 +308,27 @@ def calibrate_cmd(
         f"δ = {result.delta:.6f} for encoder {result.encoder}: FPR {100 * result.achieved_fpr:.1f} % on "
         f"{result.successes} success runs (target {100 * result.target_fpr:.1f} %); stored in {memory}/manifest.json"
     )
+
+
+@app.command("memory-info")
+def memory_info_cmd(
+    memory: Annotated[Path, typer.Argument(help="Memory directory.")],
+    data_root: DataRootOption = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print the summary as one JSON object.")] = False,
+) -> None:
+    """What a memory holds: encoder, entries per task and view, threshold, data root, reference images found."""
+    from robofailring.memory_info import MemoryInfo
+
+    try:
+        info = MemoryInfo.read(memory, data_root=data_root)
+    except RoboFailRingError as error:
+        exit_with_error(error)
+    if as_json:
+        json.dump(info.to_dict(), sys.stdout)
+        sys.stdout.write("\n")
+    else:
+        typer.echo(info.to_text())
+    warn_missing_references(memory, info.references)
 
 
 def main() -> None:

@@ -41,6 +41,7 @@ from robofailring.metrics import (
     timeliness,
 )
 from robofailring.progress import progress_bar
+from robofailring.references import absolute_reference
 
 
 @dataclass(frozen=True)
@@ -124,10 +125,14 @@ def select_splits(
 
 def check_disjoint(memory: FailureMemory, test: Sequence[Trajectory]) -> None:
     """No trajectory may be both in the memory and in the test set (compared by its image files)."""
-    in_memory = {entry.start for entry in memory.entries} | {entry.end for entry in memory.entries}
+    in_memory = {absolute_reference(ref) for entry in memory.entries for ref in (entry.start, entry.end)}
     for trajectory in test:
         for frames in trajectory.views.values():
-            if frames and (frames[0].reference in in_memory or frames[-1].reference in in_memory):
+            if (
+                frames
+                and {absolute_reference(frames[0].reference), absolute_reference(frames[-1].reference)}
+                & in_memory
+            ):
                 raise RoboFailRingError(
                     f"test trajectory {trajectory.key} ({trajectory.source}) is also in the memory; "
                     "evaluate on a split the memory was not built from"

@@ -6,7 +6,7 @@ import json
 import math
 from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Final
@@ -25,8 +25,18 @@ from robofailring.errors import (
     UnknownTaskError,
 )
 from robofailring.grounding import ground, parse_symbol
+from robofailring.references import (
+    ReferenceCheck,
+    absolute_reference,
+    check_references,
+    common_root,
+    stored_resolver,
+    to_stored,
+)
 
-FORMAT_VERSION: Final[int] = 1
+# 2: entries' image references are stored relative to the manifest's absolute `data_root`.
+FORMAT_VERSION: Final[int] = 2
+READABLE_VERSIONS: Final[tuple[int, ...]] = (1, 2)
 MANIFEST: Final[str] = "manifest.json"
 INDEX: Final[str] = "index.faiss"
 ENTRIES: Final[str] = "entries.jsonl"
@@ -41,7 +51,11 @@ def pair_vectors(start: np.ndarray, end: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class MemoryEntry:
-    """Grounded metadata of one memory vector (one view of one failure trajectory)."""
+    """Grounded metadata of one memory vector (one view of one failure trajectory).
+
+    `start` and `end` are absolute image paths in a loaded or built memory; on disk they are
+    stored relative to the memory's data root (`robofailring.references`).
+    """
 
     task: str
     symbol: str
@@ -100,6 +114,7 @@ class FailureMemory:
         *,
         encoder: str,
         manifest: dict[str, Any] | None = None,
+        data_root: Path | None = None,
     ) -> None:
         vectors = np.ascontiguousarray(vectors, dtype=np.float32)
         if vectors.ndim != 2 or len(vectors) != len(entries):
@@ -109,6 +124,7 @@ class FailureMemory:
         self.encoder = encoder
         self.dim = int(vectors.shape[1]) if vectors.size else int((manifest or {}).get("dim", 0))
         self.manifest: dict[str, Any] = dict(manifest or {})
+        self.data_root = Path(data_root).resolve() if data_root is not None else None
         by_task: dict[str, list[int]] = {}
         for i, entry in enumerate(self.entries):
             by_task.setdefault(entry.task, []).append(i)
@@ -126,10 +142,13 @@ class FailureMemory:
         encoder: CachedEncoder,
         *,
         progress: Callable[[int], None] | None = None,
+        data_root: Path | None = None,
     ) -> tuple[FailureMemory, BuildStats]:
         """Algorithm 1 over the failure trajectories; views with < 2 frames are skipped and counted.
 
         Symbols are validated first, so an unknown token fails the build before anything is encoded.
+        Image references are kept relative to `data_root` when saved (default: the folder that
+        holds all of them), so the memory resolves from any working directory.
         """
         stats = BuildStats()
         pending: list[tuple[MemoryEntry, Frame, Frame]] = []
@@ -156,8 +175,8 @@ class FailureMemory:
                     symbol=trajectory.symbol,
                     episode=trajectory.episode,
                     view=view,
-                    start=frames[0].reference,
-                    end=frames[-1].reference,
+                    start=absolute_reference(frames[0].reference),
+                    end=absolute_reference(frames[-1].reference),
                 )
                 pending.append((entry, frames[0], frames[-1]))
         dim = encoder.dim * 2
@@ -181,7 +200,10 @@ class FailureMemory:
             "failures": stats.failures,
             "ignored_non_failures": stats.ignored_non_failures,
         }
-        return cls(vectors, entries, encoder=encoder.identity, manifest={"dim": dim, **manifest}), stats
+        memory = cls(
+            vectors, entries, encoder=encoder.identity, manifest={"dim": dim, **manifest}, data_root=data_root
+        )
+        return memory, stats
 
     # ---------------------------------------------------------------- queries
     @property
@@ -252,6 +274,12 @@ class FailureMemory:
     def save(self, directory: Path) -> Path:
         """Write index, entries and manifest as one directory, atomically."""
         directory = Path(directory)
+        root = self.data_root or common_root(
+            ref for entry in self.entries for ref in (entry.start, entry.end)
+        )
+        if root is not None:
+            self.data_root = root
+            self.manifest["data_root"] = str(root)
         with atomic_directory(directory) as tmp:
             index = faiss.IndexFlatIP(self.dim)
             if len(self.vectors):
@@ -259,7 +287,11 @@ class FailureMemory:
             faiss.write_index(index, str(tmp / INDEX))
             with (tmp / ENTRIES).open("w", encoding="utf-8") as handle:
                 for entry in self.entries:
-                    handle.write(json.dumps(asdict(entry)) + "\n")
+                    stored = asdict(entry) | {
+                        "start": to_stored(entry.start, root),
+                        "end": to_stored(entry.end, root),
+                    }
+                    handle.write(json.dumps(stored) + "\n")
             (tmp / MANIFEST).write_text(json.dumps(self._full_manifest(), indent=2), encoding="utf-8")
         return directory
 
@@ -284,7 +316,8 @@ class FailureMemory:
         write_text_atomic(Path(directory) / MANIFEST, json.dumps(self._full_manifest(), indent=2))
 
     @classmethod
-    def load(cls, directory: Path) -> FailureMemory:
+    def load(cls, directory: Path, *, data_root: Path | None = None) -> FailureMemory:
+        """Read a saved memory; `data_root` re-roots its image references when the data moved."""
         directory = Path(directory)
         manifest_path = directory / MANIFEST
         if not manifest_path.is_file():
@@ -294,9 +327,10 @@ class FailureMemory:
         except json.JSONDecodeError as error:
             raise MemoryFormatError(f"{manifest_path} is not valid JSON: {error}") from error
         version = manifest.get("format_version")
-        if version != FORMAT_VERSION:
+        if version not in READABLE_VERSIONS:
+            readable = ", ".join(map(str, READABLE_VERSIONS))
             raise MemoryFormatError(
-                f"{manifest_path}: format_version {version!r}, this version of robofailring reads {FORMAT_VERSION}"
+                f"{manifest_path}: format_version {version!r}, this version of robofailring reads {readable}"
             )
         for key in ("encoder", "dim", "count"):
             if key not in manifest:
@@ -329,7 +363,16 @@ class FailureMemory:
                 f"index has {index.ntotal} of dim {index.d}, {ENTRIES} has {len(entries)}"
             )
         vectors = index.reconstruct_n(0, index.ntotal) if index.ntotal else np.zeros((0, index.d), np.float32)
-        return cls(vectors, entries, encoder=manifest["encoder"], manifest=manifest)
+        resolve, root = stored_resolver(manifest, data_root)
+        if resolve is not None:
+            entries = [
+                replace(entry, start=resolve(entry.start), end=resolve(entry.end)) for entry in entries
+            ]
+        return cls(vectors, entries, encoder=manifest["encoder"], manifest=manifest, data_root=root)
+
+    def check_references(self) -> ReferenceCheck:
+        """Which of the entries' start/end images exist where the memory says they are."""
+        return check_references(ref for entry in self.entries for ref in (entry.start, entry.end))
 
     # ---------------------------------------------------------------- calibration
     @property

@@ -37,7 +37,9 @@ def build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
     )
     entries_expected = sum(len(t.views) for t in trajectories if t.symbol)
     with progress_bar(total=entries_expected, desc="encoding memory", unit="entry") as bar:
-        memory, stats = FailureMemory.build(trajectories, encoder, progress=bar.update)
+        memory, stats = FailureMemory.build(
+            trajectories, encoder, progress=bar.update, data_root=Path(config.data).resolve()
+        )
     stats.skipped_inputs = dataset.skipped
     memory.manifest["skipped_inputs"] = [skipped.to_dict() for skipped in dataset.skipped]
     memory.manifest["source"] = str(Path(config.data).resolve())
@@ -63,6 +65,7 @@ class DetectConfig:
     key: str | None = None  # the trajectory to run when `trajectory` is a dataset root (`episode_3`)
     stride: int = 1  # score every stride-th frame (I_0 stays frame 0; t_det in original frames)
     labels: Path | None = None  # labels file (LeRobot): outcome and symbol per episode
+    data_root: Path | None = None  # where the memory's images are now, when its data moved
 
 
 def encoder_spec_for(memory: FailureMemory) -> str:
@@ -85,7 +88,7 @@ def encoder_spec_for(memory: FailureMemory) -> str:
 def detect(config: DetectConfig) -> DetectionTrace:
     """Run the detector over one trajectory folder."""
     check_stride(config.stride)
-    memory = FailureMemory.load(config.memory)
+    memory = FailureMemory.load(config.memory, data_root=config.data_root)
     trajectory = load_trajectory(config.trajectory, task=config.task, key=config.key, labels=config.labels)
     spec = config.encoder or encoder_spec_for(memory)
     encoder = CachedEncoder(load_encoder(spec, device=config.device), cache_dir=config.cache_dir)

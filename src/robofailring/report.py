@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import json
-import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
 from robofailring.memory import Neighbor
+from robofailring.references import absolute_reference, check_references
 
 SYSTEM_PROMPT = (
     "You are an expert robotic failure analyst. Use the provided Failure Report and Reference Images "
@@ -54,10 +54,6 @@ class ReportItem:
         )
 
 
-def _absolute(reference: str) -> str:
-    return reference if reference.startswith("<") else os.path.abspath(reference)
-
-
 @dataclass(frozen=True)
 class FailureReport:
     """The report produced at the detection instant for the K neighbours of the firing view."""
@@ -93,6 +89,15 @@ class FailureReport:
             "neighbors": [{**item.__dict__, "similarity": round(item.similarity, 6)} for item in self.items],
         }
 
+    def missing_images(self) -> list[str]:
+        """The prompt's images (top neighbour's start and end, the current frame) that are not on disk."""
+        if not self.items:
+            return []
+        images = [self.items[0].start_image, self.items[0].end_image]
+        if self.current_image:
+            images.append(self.current_image)
+        return list(check_references(absolute_reference(image) for image in images).missing)
+
     def to_json(self) -> str:
         return json.dumps(self.to_dict(), indent=2)
 
@@ -118,9 +123,9 @@ class FailureReport:
                         "text": "Below are the reference images from this historical failure memory:",
                     },
                     {"type": "text", "text": "Reference Start Frame (Task Context):"},
-                    {"type": "image", "path": _absolute(top.start_image)},
+                    {"type": "image", "path": absolute_reference(top.start_image)},
                     {"type": "text", "text": "Reference End Frame (Failure State):"},
-                    {"type": "image", "path": _absolute(top.end_image)},
+                    {"type": "image", "path": absolute_reference(top.end_image)},
                 ],
             },
         ]
@@ -129,7 +134,7 @@ class FailureReport:
             {"type": "text", "text": "Current Frame:"},
         ]
         if self.current_image:
-            current.append({"type": "image", "path": _absolute(self.current_image)})
+            current.append({"type": "image", "path": absolute_reference(self.current_image)})
         messages.append({"role": "user", "content": current})
         messages.append({"role": "user", "content": TASKS})
         messages.append({"role": "assistant", "content": ASSISTANT_PRIMER})
@@ -148,6 +153,9 @@ class FailureReport:
             lines.append(
                 f"| {rank} | {item.task} | {item.view} | {item.similarity:.3f} | `{item.symbol}` | {item.description} |"
             )
+        missing = self.missing_images()
+        if missing:
+            lines += ["", *(f"**image not found:** `{reference}`  " for reference in missing)]
         if include_prompt and self.items:
             lines += ["", "## VLM prompt (Appendix B)", ""]
             for message in self.vlm_messages():

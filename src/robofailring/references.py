@@ -1,0 +1,137 @@
+"""Image references of a memory that resolve from any working directory, and re-root moved data.
+
+A memory stores each entry's start/end image relative to a *data root* recorded in its manifest as
+an absolute path (`docs/architecture.md`, "Memory folder"). Loaded, every reference is absolute
+again: under the recorded root, or under another root given by the user (`--data-root`) when the
+data has moved. Memories written before roots were recorded keep their references as stored.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path, PurePosixPath
+from typing import Any
+
+ARRAY_REFERENCE = "<array>"
+VIDEO_FRAME_MARKER = "#frame="
+
+
+def is_file_reference(reference: str) -> bool:
+    """False for in-memory frames (``<array>``) that have no file behind them."""
+    return not reference.startswith("<")
+
+
+def absolute_reference(reference: str) -> str:
+    """The reference as an absolute path string (in-memory references unchanged)."""
+    return os.path.abspath(reference) if is_file_reference(reference) else reference
+
+
+def common_root(references: Iterable[str]) -> Path | None:
+    """The deepest folder holding every file reference, or None when there is none."""
+    folders = {os.path.dirname(absolute_reference(ref)) for ref in references if is_file_reference(ref)}
+    if not folders:
+        return None
+    return Path(os.path.commonpath(sorted(folders)))
+
+
+def to_stored(reference: str, root: Path | None) -> str:
+    """How a reference is written to disk: POSIX-relative to `root` when under it, else absolute."""
+    if not is_file_reference(reference):
+        return reference
+    absolute = absolute_reference(reference)
+    if root is not None:
+        relative = os.path.relpath(absolute, root)
+        if relative != os.pardir and not relative.startswith(os.pardir + os.sep):
+            return PurePosixPath(Path(relative)).as_posix()
+    return absolute
+
+
+def resolve_stored(stored: str, root: Path | None) -> str:
+    """The absolute reference of a stored one: relative ones are joined to `root`."""
+    if not is_file_reference(stored) or root is None or os.path.isabs(stored):
+        return stored
+    return str(Path(root, *PurePosixPath(stored).parts))
+
+
+def reroot(reference: str, old_root: Path, new_root: Path) -> str:
+    """Move an absolute reference from under `old_root` to under `new_root` (others unchanged)."""
+    stored = to_stored(reference, old_root)
+    return resolve_stored(stored, new_root) if not os.path.isabs(stored) else reference
+
+
+@dataclass(frozen=True)
+class ReferenceCheck:
+    """How many distinct file references resolve to an existing file."""
+
+    total: int
+    missing: tuple[str, ...] = field(default=())
+
+    @property
+    def found(self) -> int:
+        return self.total - len(self.missing)
+
+    @property
+    def ok(self) -> bool:
+        return not self.missing
+
+    def summary(self, *, hint: str = "") -> str:
+        """One line: how many are missing and the first path (empty when all are found)."""
+        if self.ok:
+            return ""
+        return (
+            f"{len(self.missing)} of {self.total} reference image(s) of the memory not found "
+            f"(first: {self.missing[0]}){hint}"
+        )
+
+
+def reference_file(reference: str) -> str:
+    """The file behind a reference: a video frame ``<file>#frame=<i>`` lives in ``<file>``."""
+    path, marker, _ = reference.rpartition(VIDEO_FRAME_MARKER)
+    return path if marker else reference
+
+
+def check_references(references: Iterable[str]) -> ReferenceCheck:
+    """Stat each distinct file reference once."""
+    unique = sorted({ref for ref in references if is_file_reference(ref)})
+    missing = tuple(ref for ref in unique if not os.path.isfile(reference_file(ref)))
+    return ReferenceCheck(total=len(unique), missing=missing)
+
+
+def stored_resolver(
+    manifest: Mapping[str, Any], data_root: Path | None
+) -> tuple[Callable[[str], str] | None, Path | None]:
+    """How to turn a saved memory's stored references into absolute ones, and the root used.
+
+    Memories that record `data_root` store references relative to it; `data_root` given here
+    replaces it (the data moved). Older memories stored references as given at build time: they
+    resolve as they did (None: leave them), and a given `data_root` re-roots those that lay under
+    the dataset root the manifest recorded as `source`.
+    """
+    recorded = manifest.get("data_root")
+    if isinstance(recorded, str):
+        root = Path(data_root).resolve() if data_root is not None else Path(recorded)
+        return (lambda ref: resolve_stored(ref, root)), root
+    source = manifest.get("source")
+    if data_root is None or not isinstance(source, str):
+        return None, None
+    new_root = Path(data_root).resolve()
+    return (lambda ref: _reroot_old(ref, Path(source), new_root)), new_root
+
+
+def _reroot_old(reference: str, source: Path, new_root: Path) -> str:
+    """Re-root a format-1 reference: absolute under `source`, or relative to the build's cwd.
+
+    A relative one such as ``data/aha/ep/front_0.png`` built from ``/home/u`` with the source
+    ``/home/u/data/aha`` begins with the source's last folders; what follows them is kept.
+    """
+    if not is_file_reference(reference):
+        return reference
+    if os.path.isabs(reference):
+        return reroot(reference, source, new_root)
+    parts = PurePosixPath(Path(reference)).parts
+    for shared in range(min(len(parts) - 1, len(source.parts)), 0, -1):
+        if parts[:shared] == source.parts[-shared:]:
+            return str(Path(new_root, *parts[shared:]))
+    return reference
