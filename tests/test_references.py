@@ -42,6 +42,10 @@ def test_check_references_counts_distinct_missing_files(tmp_path: Path) -> None:
     assert (check.total, check.found, check.missing) == (2, 1, (str(tmp_path / "b.png"),))
     assert "1 of 2 reference image(s)" in check.summary()
     assert check_references([str(present)]).summary() == ""
+    video = tmp_path / "front.mp4"
+    video.write_bytes(b"x")
+    frames = check_references([f"{video}#frame=3", f"{tmp_path / 'gone.mp4'}#frame=0"])
+    assert frames.missing == (f"{tmp_path / 'gone.mp4'}#frame=0",)
 
 
 def _invoke(args: list[str]) -> tuple[int, str, str]:
