@@ -14,7 +14,7 @@ from typing import Any, Final
 import faiss
 import numpy as np
 
-from robofailring._atomic import atomic_directory, write_text_atomic
+from robofailring._atomic import atomic_directory, restore_interrupted, write_text_atomic
 from robofailring.data.model import Frame, Outcome, Trajectory
 from robofailring.encoders.base import l2_normalize
 from robofailring.encoders.cache import CachedEncoder
@@ -25,6 +25,8 @@ from robofailring.errors import (
     UnknownTaskError,
 )
 from robofailring.grounding import ground, parse_symbol
+from robofailring.memory_format import check_manifest, parse_entry
+from robofailring.outputs import check_memory_target
 
 FORMAT_VERSION: Final[int] = 1
 MANIFEST: Final[str] = "manifest.json"
@@ -77,6 +79,7 @@ class BuildStats:
     ignored_non_failures: int = 0
     entries: int = 0
     skipped_views: list[dict[str, Any]] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)  # said to the user after the build
 
 
 class _TaskIndex:
@@ -249,8 +252,12 @@ class FailureMemory:
 
     # ---------------------------------------------------------------- storage
     def save(self, directory: Path) -> Path:
-        """Write index, entries and manifest as one directory, atomically."""
+        """Write index, entries and manifest as one directory, atomically.
+
+        Only an absent or empty folder, or another memory, is replaced (OutputError otherwise).
+        """
         directory = Path(directory)
+        check_memory_target(directory)
         with atomic_directory(directory) as tmp:
             index = faiss.IndexFlatIP(self.dim)
             if len(self.vectors):
@@ -286,20 +293,18 @@ class FailureMemory:
     def load(cls, directory: Path) -> FailureMemory:
         directory = Path(directory)
         manifest_path = directory / MANIFEST
-        if not manifest_path.is_file():
+        if not manifest_path.is_file() and not restore_interrupted(directory):
             raise MemoryFormatError(f"{directory} is not a failure memory: {MANIFEST} is missing")
         try:
             manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
         except json.JSONDecodeError as error:
             raise MemoryFormatError(f"{manifest_path} is not valid JSON: {error}") from error
-        version = manifest.get("format_version")
+        version = manifest.get("format_version") if isinstance(manifest, dict) else None
         if version != FORMAT_VERSION:
             raise MemoryFormatError(
                 f"{manifest_path}: format_version {version!r}, this version of robofailring reads {FORMAT_VERSION}"
             )
-        for key in ("encoder", "dim", "count"):
-            if key not in manifest:
-                raise MemoryFormatError(f"{manifest_path} lacks {key!r}")
+        manifest = check_manifest(manifest, manifest_path)
         try:
             index = faiss.read_index(str(directory / INDEX))
         except RuntimeError as error:
@@ -311,8 +316,8 @@ class FailureMemory:
                 for number, line in enumerate(handle, 1):
                     if line.strip():
                         try:
-                            entries.append(MemoryEntry(**json.loads(line)))
-                        except (json.JSONDecodeError, TypeError) as error:
+                            entries.append(MemoryEntry(**parse_entry(line, entries_path, number)))
+                        except TypeError as error:
                             raise MemoryFormatError(
                                 f"{entries_path}:{number}: bad entry ({error})"
                             ) from error
