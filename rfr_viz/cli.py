@@ -11,7 +11,8 @@ from rfr_viz import tool_cli  # noqa: F401  (registers evaluate and the other co
 from rfr_viz.replay import DEFAULT_OUT, CompareConfig, ReplayConfig, ReplayResult, compare, replay
 from rfr_viz.viewer import DEFAULT_PORT, ViewerUnavailable, open_at, open_command
 from robofailring.cli import CacheOption, DeviceOption, app, exit_with_error
-from robofailring.errors import RoboFailRingError
+from robofailring.errors import DataError, RoboFailRingError
+from robofailring.exit_codes import finish
 
 __all__ = ["app", "main"]
 
@@ -45,13 +46,14 @@ def _report(result: ReplayResult, out: Path) -> None:
     for key, reason in result.skipped:
         typer.echo(f"skipped {key}: {reason}")
     if not result.recordings:
-        exit_with_error(RuntimeError(f"no recording written ({len(result.skipped)} trajectories skipped)"))
+        exit_with_error(DataError(f"no recording written ({len(result.skipped)} trajectories skipped)"))
     typer.echo(
         f"{len(result.recordings)} recording(s) in {out.resolve()}"
         + (f", {len(result.skipped)} trajectories skipped" if result.skipped else "")
     )
     for path in result.recordings:
         typer.echo(f"  {open_command(path)}")
+    finish(skipped=len(result.skipped))
 
 
 @app.command("replay")

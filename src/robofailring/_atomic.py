@@ -89,6 +89,14 @@ def recover_leftovers(final: Path) -> None:
         _remove(old)
 
 
+def remove_file_leftovers(folder: Path) -> None:
+    """Remove the temporary files killed writes left inside `folder` (hold `output_lock(folder)`)."""
+    if Path(folder).is_dir():
+        for entry in Path(folder).iterdir():
+            if entry.is_file() and re.fullmatch(r"\..+\.[A-Za-z0-9_]{8}\.tmp(\..+)?", entry.name):
+                entry.unlink(missing_ok=True)
+
+
 @contextlib.contextmanager
 def output_lock(final: Path) -> Iterator[None]:
     """Hold `.<name>.lock` beside `final` while writing it; a second writer gets OutputBusyError.
