@@ -13,6 +13,7 @@ from rfr_viz.viewer import DEFAULT_PORT, ViewerUnavailable, open_at, open_comman
 from robofailring.cli import CacheOption, DeviceOption, app, exit_with_error
 from robofailring.errors import DataError, RoboFailRingError
 from robofailring.exit_codes import finish
+from robofailring.outputs import is_recording
 
 __all__ = ["app", "main"]
 
@@ -149,7 +150,9 @@ def open_cmd(
 ) -> None:
     """Open a recording in the Rerun viewer paused at its alarm (a review's false alarm, a miss's peak)."""
     if not recording.is_file():
-        exit_with_error(FileNotFoundError(f"no recording at {recording}"))
+        exit_with_error(DataError(f"no recording at {recording}"))
+    if not is_recording(recording):
+        exit_with_error(DataError(f"{recording} is not a Rerun recording (.rrd); open one that replay wrote"))
     try:
         opened = open_at(recording, frame, port=port)
     except (ViewerUnavailable, ValueError) as error:

@@ -177,8 +177,8 @@ def load_trajectory(path: Path, *, task: str | None = None) -> Trajectory:
         found = list(dataset.trajectories())
         if len(found) != 1:
             raise DataError(
-                f"{path} is a {dataset.layout} dataset with {len(found)} trajectories; pass one episode folder "
-                "(or use --trajectory to choose one)"
+                f"{path} is a {dataset.layout} dataset with {len(found)} trajectories; pass one of its episode "
+                "folders (or replay the whole dataset with `robofailring replay`)"
             )
         return found[0]
     parent_manifest = path.parent / PROJECT_MANIFEST
@@ -212,6 +212,12 @@ def _episode_trajectory(path: Path, *, task: str | None) -> Trajectory:
             task = path.parent.parent.name
             episode = f"{path.parent.name}/{path.name}"
     if task is None:
+        unknown = re.match(r"^.+?_(?P<fail>[^_]+)_wp\d+_episode\d+$", path.name)
+        if unknown is not None:
+            raise DataError(
+                f"{path}: unknown failure type {unknown['fail']!r} in the folder name "
+                f"(known: {', '.join(AHA_FAILURES)}, wrong_object, success); rename the folder"
+            )
         raise DataError(f"cannot tell the task of trajectory {path} from its name; pass it with --task")
     return Trajectory(task=task, episode=episode, views=views, symbol=symbol, outcome=outcome, source=path)
 
