@@ -19,7 +19,7 @@ from robofailring.detector import DEFAULT_K, FailureDetector
 from robofailring.encoders import CachedEncoder, encoder_slug, load_encoder
 from robofailring.errors import DataError, SettingError, UnknownTaskError
 from robofailring.memory import FailureMemory
-from robofailring.outputs import check_recording_file, check_recordings_target
+from robofailring.outputs import check_output_folder, check_recording_file
 from robofailring.pipeline import encoder_spec_for
 from robofailring.progress import progress_bar
 
@@ -149,7 +149,7 @@ def load_detector(
 def replay(config: ReplayConfig) -> ReplayResult:
     """Replay each selected trajectory through the detector into `<out>/<task>__<episode>.rrd`."""
     check_fps(config.fps)
-    check_recordings_target(config.out, inputs=[config.data, config.memory])
+    check_output_folder(config.out, inputs=[config.data, config.memory])
     with output_lock(config.out):
         remove_file_leftovers(config.out)
         return _replay(config)
@@ -195,7 +195,7 @@ def unique_slugs(slugs: Sequence[str]) -> list[str]:
 def compare(config: CompareConfig) -> ReplayResult:
     """Replay each trajectory under every memory's encoder into one comparison recording."""
     check_fps(config.fps)
-    check_recordings_target(config.out, inputs=[config.data, *config.memories])
+    check_output_folder(config.out, inputs=[config.data, *config.memories])
     with output_lock(config.out):
         remove_file_leftovers(config.out)
         return _compare(config)

@@ -10,6 +10,7 @@ import typer
 from rfr_viz.viewer import open_at_command, open_command
 from robofailring.cli import CacheOption, DeviceOption, EncoderOption, app, exit_with_error
 from robofailring.errors import RoboFailRingError
+from robofailring.outputs import check_output_folder
 
 
 @app.command("evaluate")
@@ -46,6 +47,7 @@ def evaluate_cmd(
             cache_dir=cache_dir,
             device=device,
         )
+        check_output_folder(out, inputs=[data, test_data, memory])
         result = run_evaluation(config)
     except RoboFailRingError as error:
         exit_with_error(error)
@@ -113,6 +115,7 @@ def compare_encoders_cmd(
     from robofailring.comparison import CompareEncodersConfig, compare_encoders, comparison_table
 
     try:
+        check_output_folder(out, inputs=[data])
         results = compare_encoders(
             CompareEncodersConfig(
                 data=data,

@@ -99,12 +99,12 @@ def check_memory_target(out: Path, *, inputs: Iterable[Path | None] = ()) -> Non
     check_writable(out.absolute().parent)
 
 
-def check_recordings_target(out: Path, *, inputs: Iterable[Path | None] = ()) -> None:
-    """Recordings may go into `out` if it is (or can be made) a folder outside the inputs."""
+def check_output_folder(out: Path, *, inputs: Iterable[Path | None] = ()) -> None:
+    """Files (recordings, tables) may go into `out` if it is, or can be made, a writable folder outside the inputs."""
     check_not_input(out, inputs, replaces=False)
     out = Path(out)
     if out.exists() and not out.is_dir():
-        raise OutputError(f"--out {out} is a file; recordings go into a folder: choose another --out")
+        raise OutputError(f"--out {out} is a file; this output is a folder: choose another --out")
     check_writable(out)
 
 

@@ -78,9 +78,10 @@ class EmbeddingCache:
                 with contextlib.suppress(OSError):
                     stale.unlink()
         except OSError as error:
-            _warn_once(
-                f"cannot use the embedding cache folder {where} ({error.strerror or error}); running without it"
+            problem = (
+                "it is a file" if where.exists() and not where.is_dir() else error.strerror or str(error)
             )
+            _warn_once(f"cannot use the embedding cache folder {where} ({problem}); running without it")
             return None
         try:
             return cls(identity, dim, root=root)
