@@ -10,6 +10,7 @@ import typer
 from rfr_viz.viewer import open_at_command, open_command
 from robofailring.cli import CacheOption, DeviceOption, EncoderOption, app, exit_with_error
 from robofailring.errors import RoboFailRingError
+from robofailring.exit_codes import finish
 from robofailring.outputs import check_output_folder
 
 
@@ -55,6 +56,7 @@ def evaluate_cmd(
     rrd_path = record_evaluation([result], out=Path(out) / f"{name}.rrd")
     typer.echo(result.to_markdown())
     typer.echo(f"\nwrote {md_path}, {json_path} and {rrd_path} (open with: {open_command(rrd_path)})")
+    finish(skipped=len(result.skipped_unknown_task) + len(result.skipped_too_short))  # listed in the table
 
 
 @app.command("review")

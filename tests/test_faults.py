@@ -165,6 +165,19 @@ def test_recording_names_never_collide(cache: list[str], tmp_path: Path) -> None
     assert sorted(recording_properties(path)["task"] for path in written) == sorted(tasks)
 
 
+def test_build_memory_exits_3_when_views_were_skipped(data: Path, cache: list[str], tmp_path: Path) -> None:
+    episode = write_episode(
+        tmp_path / "data" / "pick_cube_grasp_wp2_episode0", "pick_cube", "grasp_wp2", length=3, layout="aha"
+    )
+    write_episode(episode, "pick_cube", "grasp_wp2", length=1, views=("side",), layout="aha")
+    result = cli("build-memory", tmp_path / "data", "--out", tmp_path / "memory", *cache)
+    assert result.exit_code == 3, result.output
+    assert (
+        "3 entries" in result.output
+        and "skipped pick_cube/pick_cube_grasp_wp2_episode0 view side" in result.output
+    )
+
+
 # ---------------------------------------------------------------- a replace killed half-way
 
 _DIE_ON_REPLACE = """
@@ -331,6 +344,21 @@ def test_replay_exits_3_when_trajectories_were_skipped_and_cleans_killed_writes(
     assert "skipped stack_cube/stack_cube_grasp_wp2_episode0" in result.output
     assert "1 recording(s)" in result.output and "1 trajectories skipped" in result.output
     assert [p.name for p in out.iterdir()] == ["pick_cube__pick_cube_grasp_wp2_episode0.rrd"]
+
+
+def test_evaluate_exits_3_when_test_trajectories_were_skipped(cache: list[str], tmp_path: Path) -> None:
+    project = write_project_dataset(
+        tmp_path / "project", tasks=("pick_cube", "push_cube"), symbols=("grasp_wp2",), episodes=2, length=3
+    )
+    manifest = json.loads((project / "manifest.json").read_text())
+    for record in manifest["episodes"]:
+        if record["task"] == "push_cube":
+            record["split"] = "test"  # no push_cube failure reaches the memory
+    (project / "manifest.json").write_text(json.dumps(manifest))
+    result = cli("evaluate", project, "--out", tmp_path / "eval", *cache)
+    assert result.exit_code == 3, result.output
+    assert "Skipped 4 test trajectories whose task has no memory entry" in result.output
+    assert (tmp_path / "eval" / "evaluation.json").is_file()
 
 
 def test_malformed_memory_content_is_named(memory: Path, data: Path, cache: list[str]) -> None:
