@@ -1,77 +1,25 @@
-"""Bad inputs and faults, end to end through the CLI (issue 13): nothing lost, one sentence, a meaningful exit status.
+"""Bad outputs and faults, end to end through the CLI (issue 13): nothing lost, one sentence, a meaningful exit status.
 
 Each case was reproduced against the code before its fix; real files, real processes where a
-process has to die or hold a lock.
+process has to die or hold a lock. Bad inputs and the embedding cache: test_faults_inputs.py.
 """
 
 from __future__ import annotations
 
 import errno
-import gc
 import json
 import os
-import sqlite3
 import subprocess
 import sys
 from pathlib import Path
 
-import cv2
-import numpy as np
 import pytest
-from synthetic import synthetic_frame, write_aha_dataset, write_episode, write_project_dataset
-from typer.testing import CliRunner, Result
+from fault_helpers import cli, hidden, refused, tree
+from synthetic import write_aha_dataset, write_episode, write_project_dataset
 
-from rfr_viz.cli import app
 from rfr_viz.viewer import recording_properties
 
-runner = CliRunner()
-
-
-def cli(*args: object) -> Result:
-    return runner.invoke(app, [str(arg) for arg in args])
-
-
-def refused(result: Result, code: int, *phrases: str) -> None:
-    """The command ended with `code` and one `error:` line holding every phrase, no traceback."""
-    assert result.exit_code == code, result.output
-    assert isinstance(result.exception, SystemExit), result.exception
-    errors = [line for line in result.output.splitlines() if line.startswith("error:")]
-    assert len(errors) == 1, result.output
-    for phrase in phrases:
-        assert phrase in errors[0], errors[0]
-
-
-def hidden(folder: Path) -> list[str]:
-    """Names a killed or refused write could leave behind (`.<name>.<random>.tmp|old`, `.<name>.lock`)."""
-    return sorted(p.name for p in folder.iterdir() if p.name.startswith("."))
-
-
-def tree(root: Path) -> dict[str, bytes]:
-    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
-
-
-@pytest.fixture(scope="module")
-def data(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return write_aha_dataset(
-        tmp_path_factory.mktemp("faults") / "data",
-        symbols=("grasp_wp2", "wrong_object"),
-        episodes=1,
-        length=3,
-    )
-
-
-@pytest.fixture(scope="module")
-def cache(tmp_path_factory: pytest.TempPathFactory) -> list[str]:
-    return ["--cache-dir", str(tmp_path_factory.mktemp("cache"))]
-
-
-@pytest.fixture()
-def memory(data: Path, cache: list[str], tmp_path: Path) -> Path:
-    out = tmp_path / "memory"
-    result = cli("build-memory", data, "--out", out, *cache)
-    assert result.exit_code == 0, result.output
-    return out
-
+pytest_plugins = ("fault_helpers",)  # its fixtures: data, cache, memory
 
 # ---------------------------------------------------------------- data loss
 
@@ -359,130 +307,3 @@ def test_evaluate_exits_3_when_test_trajectories_were_skipped(cache: list[str], 
     assert result.exit_code == 3, result.output
     assert "Skipped 4 test trajectories whose task has no memory entry" in result.output
     assert (tmp_path / "eval" / "evaluation.json").is_file()
-
-
-def test_malformed_memory_content_is_named(memory: Path, data: Path, cache: list[str]) -> None:
-    episode = data / "pick_cube_grasp_wp2_episode0"
-    manifest_path, entries_path = memory / "manifest.json", memory / "entries.jsonl"
-    manifest, entries = manifest_path.read_text(), entries_path.read_text()
-    manifest_path.write_text("[1, 2]")
-    refused(cli("detect", episode, "--memory", memory, *cache), 2, "manifest.json")
-    manifest_path.write_text(json.dumps({**json.loads(manifest), "calibration": "0.9"}))
-    refused(cli("detect", episode, "--memory", memory, *cache), 2, "'calibration' must be an object")
-    manifest_path.write_text(manifest)
-    lines = entries.splitlines()
-    lines[0] = json.dumps({**json.loads(lines[0]), "symbol": "teleport_wp2"})
-    entries_path.write_text("\n".join(lines) + "\n")
-    refused(cli("detect", episode, "--memory", memory, *cache), 2, "entries.jsonl:1", "teleport")
-
-
-def test_open_refuses_a_file_that_is_not_a_recording(tmp_path: Path) -> None:
-    notes = tmp_path / "notes.rrd"
-    notes.write_text("not a recording")
-    refused(cli("open", notes), 2, "is not a Rerun recording")
-
-
-# ---------------------------------------------------------------- the embedding cache
-
-
-def _bmp_episode(folder: Path, length: int = 3) -> Path:
-    folder.mkdir(parents=True)
-    for view, v in (("front", 0), ("wrist", 2)):
-        for t in range(length):
-            image = synthetic_frame("pick_cube", "grasp_wp2", v, t, length)
-            cv2.imwrite(str(folder / f"{view}_{t}.bmp"), image[:, :, ::-1])
-    return folder
-
-
-def test_the_cache_sees_an_image_rewritten_with_the_same_size_and_time(
-    memory: Path, cache: list[str], tmp_path: Path
-) -> None:
-    episode = _bmp_episode(tmp_path / "pick_cube_grasp_wp2_episode7")
-
-    def front() -> list[float]:
-        result = cli("detect", episode, "--memory", memory, "--json", *cache)
-        assert result.exit_code == 0, result.output
-        return list(json.loads(result.stdout)["views"]["front"]["similarity"])
-
-    before = front()
-    last = episode / "front_2.bmp"
-    stat = last.stat()
-    cv2.imwrite(
-        str(last), synthetic_frame("pick_cube", None, 1, 0, 3)[:, :, ::-1]
-    )  # another scene, same size
-    os.utime(last, ns=(stat.st_atime_ns, stat.st_mtime_ns))
-    assert last.stat().st_size == stat.st_size and last.stat().st_mtime_ns == stat.st_mtime_ns
-    after = front()
-    assert after[:2] == before[:2] and after[2] != before[2]
-
-
-def test_a_broken_cache_warns_once_and_is_rebuilt_or_skipped(
-    memory: Path, data: Path, tmp_path: Path, caplog: pytest.LogCaptureFixture
-) -> None:
-    episode = data / "pick_cube_grasp_wp2_episode0"
-    expected = cli("detect", episode, "--memory", memory, "--json", "--cache-dir", tmp_path / "plain").stdout
-
-    def detect(cache_dir: Path) -> list[str]:
-        caplog.clear()
-        result = cli("detect", episode, "--memory", memory, "--json", "--cache-dir", cache_dir)
-        assert result.exit_code == 0 and result.stdout == expected, result.output
-        return [record.getMessage() for record in caplog.records if record.name == "robofailring"]
-
-    a_file = tmp_path / "cache-file"
-    a_file.write_text("mine")
-    warned = detect(a_file)
-    assert len(warned) == 1 and "running without it" in warned[0] and a_file.read_text() == "mine"
-
-    corrupt = tmp_path / "corrupt"
-    assert detect(corrupt) == []
-    gc.collect()  # close the first run's connection, as the end of its process would
-    (database,) = corrupt.glob("embeddings-*.sqlite")
-    for side in corrupt.glob("embeddings-*.sqlite-*"):
-        side.unlink()
-    database.write_bytes(b"this is not a SQLite database" * 100)
-    warned = detect(corrupt)
-    assert len(warned) == 1 and "is corrupt" in warned[0] and "rebuilding" in warned[0]
-    with sqlite3.connect(database) as db:
-        assert db.execute("SELECT COUNT(*) FROM emb").fetchone()[0] > 0  # rebuilt and filled again
-    assert detect(corrupt) == []
-
-    blocked = tmp_path / "blocked"
-    blocked.mkdir()
-    (blocked / database.name).mkdir()  # the database's name is taken by a folder: unusable
-    warned = detect(blocked)
-    assert len(warned) == 1 and "running without it" in warned[0]
-
-
-# ---------------------------------------------------------------- messages that say what to do
-
-
-def test_unclear_messages_now_name_the_value(
-    memory: Path, data: Path, cache: list[str], tmp_path: Path, tiny_checkpoint: tuple[Path, Path]
-) -> None:
-    unknown = write_episode(
-        tmp_path / "pick_cube_teleport_wp2_episode0", "pick_cube", "grasp_wp2", length=3, layout="aha"
-    )
-    refused(cli("detect", unknown, "--memory", memory, *cache), 2, "unknown failure type 'teleport'")
-    result = cli("detect", data, "--memory", memory, *cache)
-    refused(result, 2, "pass one of its episode folders", "robofailring replay")
-    assert "--trajectory" not in result.output
-    refused(cli("generate", "--out", tmp_path / "gen", "--episodes", "-1"), 2, "--episodes", "got -1")
-    refused(cli("generate", "--out", tmp_path / "gen", "--image-size", "8"), 2, "--image-size", "got 8")
-    config, _ = tiny_checkpoint
-    junk = tmp_path / "junk.pt"
-    junk.write_bytes(np.random.default_rng(0).bytes(1000))
-    refused(
-        cli(
-            "detect",
-            unknown,
-            "--memory",
-            memory,
-            "--task",
-            "pick_cube",
-            "--encoder",
-            f"open_clip:{config}:{junk}",
-        ),
-        2,
-        str(junk),
-        "not a PyTorch state dict",
-    )
