@@ -14,7 +14,7 @@ from typing import Any, Final
 import faiss
 import numpy as np
 
-from robofailring._atomic import atomic_directory, restore_interrupted, write_text_atomic
+from robofailring._atomic import atomic_directory, output_lock, restore_interrupted, write_text_atomic
 from robofailring.data.model import Frame, Outcome, Trajectory
 from robofailring.encoders.base import l2_normalize
 from robofailring.encoders.cache import CachedEncoder
@@ -286,8 +286,12 @@ class FailureMemory:
         return manifest
 
     def write_manifest(self, directory: Path) -> None:
-        """Rewrite only the manifest of a saved memory (e.g. after calibration), atomically."""
-        write_text_atomic(Path(directory) / MANIFEST, json.dumps(self._full_manifest(), indent=2))
+        """Rewrite only the manifest of a saved memory (e.g. after calibration), atomically.
+
+        Never while another process replaces that memory (OutputBusyError then).
+        """
+        with output_lock(directory):
+            write_text_atomic(Path(directory) / MANIFEST, json.dumps(self._full_manifest(), indent=2))
 
     @classmethod
     def load(cls, directory: Path) -> FailureMemory:
