@@ -21,7 +21,9 @@ from robofailring.cli import (
     report_skipped,
     warn_missing_references,
 )
-from robofailring.errors import RoboFailRingError
+from robofailring.errors import DataError, RoboFailRingError
+from robofailring.exit_codes import finish
+from robofailring.outputs import is_recording
 
 __all__ = ["app", "main"]
 
@@ -58,13 +60,14 @@ def _report(result: ReplayResult, out: Path) -> None:
     for key, reason in result.skipped:
         typer.echo(f"skipped {key}: {reason}")
     if not result.recordings:
-        exit_with_error(RuntimeError(f"no recording written ({len(result.skipped)} trajectories skipped)"))
+        exit_with_error(DataError(f"no recording written ({len(result.skipped)} trajectories skipped)"))
     typer.echo(
         f"{len(result.recordings)} recording(s) in {out.resolve()}"
         + (f", {len(result.skipped)} trajectories skipped" if result.skipped else "")
     )
     for path in result.recordings:
         typer.echo(f"  {open_command(path)}")
+    finish(skipped=len(result.skipped))
 
 
 @app.command("replay")
@@ -174,7 +177,9 @@ def open_cmd(
 ) -> None:
     """Open a recording in the Rerun viewer paused at its alarm (a review's false alarm, a miss's peak)."""
     if not recording.is_file():
-        exit_with_error(FileNotFoundError(f"no recording at {recording}"))
+        exit_with_error(DataError(f"no recording at {recording}"))
+    if not is_recording(recording):
+        exit_with_error(DataError(f"{recording} is not a Rerun recording (.rrd); open one that replay wrote"))
     try:
         opened = open_at(recording, frame, port=port)
     except (ViewerUnavailable, ValueError) as error:

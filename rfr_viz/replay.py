@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import hashlib
+import math
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -10,12 +12,14 @@ from typing import Final
 
 from rfr_viz.memory_umap import MemoryMap, memory_map
 from rfr_viz.record import compare_recording, record_replay
+from robofailring._atomic import output_lock, remove_file_leftovers
 from robofailring.data.layouts import detect_layout, load_dataset, load_trajectory
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.detector import DEFAULT_K, FailureDetector, check_stride
 from robofailring.encoders import CachedEncoder, encoder_slug, load_encoder
-from robofailring.errors import DataError, UnknownTaskError
+from robofailring.errors import DataError, SettingError, UnknownTaskError
 from robofailring.memory import FailureMemory
+from robofailring.outputs import check_output_folder, check_recording_file
 from robofailring.pipeline import encoder_spec_for
 from robofailring.progress import progress_bar
 from robofailring.references import ReferenceCheck
@@ -70,9 +74,42 @@ class ReplayResult:
 
 
 def recording_name(trajectory: Trajectory, suffix: str = "") -> str:
-    """`<task>__<episode>.rrd`, with `/` and other unsafe characters of the episode replaced."""
+    """`<task>__<episode>.rrd`, collision-free: distinct trajectories never share a name.
+
+    Characters outside ``[A-Za-z0-9._+-]`` (and `/`) become `_`; when that changed anything, or the
+    task itself could blur the `__` separator, `~` and a digest of the raw task and episode are
+    appended (`拾取_方块` and `放置_方块`, or `pick cube` beside `pick_cube`, stay apart).
+    """
+    task = _UNSAFE.sub("_", trajectory.task)
     episode = _UNSAFE.sub("_", trajectory.episode.replace("/", "_"))
-    return f"{_UNSAFE.sub('_', trajectory.task)}__{episode}{suffix}.rrd"
+    name = f"{task}__{episode}"
+    if (
+        task != trajectory.task
+        or episode != trajectory.episode
+        or "__" in task
+        or task.startswith("_")
+        or task.endswith("_")
+    ):
+        raw = f"{trajectory.task}\0{trajectory.episode}".encode()
+        name += "~" + hashlib.blake2b(raw, digest_size=6).hexdigest()
+    return f"{name}{suffix}.rrd"
+
+
+def check_fps(fps: float | None) -> float | None:
+    """A `time` timeline rate: a positive finite number of frames per second (SettingError otherwise)."""
+    if fps is not None and not (math.isfinite(fps) and fps > 0):
+        raise SettingError(f"--fps must be a positive number of frames per second, got {fps}")
+    return fps
+
+
+def _target(out: Path, name: str, written: dict[Path, str], key: str) -> Path:
+    """The recording path of one trajectory: never another trajectory's, never over a non-recording."""
+    path = Path(out) / name
+    if path in written:
+        raise DataError(f"trajectories {written[path]} and {key} map to the same recording {path}")
+    check_recording_file(path)
+    written[path] = key
+    return path
 
 
 def select_trajectories(
@@ -138,6 +175,14 @@ def load_detector(
 def replay(config: ReplayConfig) -> ReplayResult:
     """Replay each selected trajectory through the detector into `<out>/<task>__<episode>.rrd`."""
     check_stride(config.stride)
+    check_fps(config.fps)
+    check_output_folder(config.out, inputs=[config.data, config.memory])
+    with output_lock(config.out):
+        remove_file_leftovers(config.out)
+        return _replay(config)
+
+
+def _replay(config: ReplayConfig) -> ReplayResult:
     found = load_detector(
         config.memory,
         delta=config.delta,
@@ -155,6 +200,7 @@ def replay(config: ReplayConfig) -> ReplayResult:
         labels=config.labels,
         skipped=result.skipped_inputs,
     )
+    written: dict[Path, str] = {}
     with progress_bar(total=len(trajectories), desc="replaying", unit="trajectory") as bar:
         for trajectory in trajectories:
             try:
@@ -164,7 +210,7 @@ def replay(config: ReplayConfig) -> ReplayResult:
             except (UnknownTaskError, DataError) as error:
                 result.skipped.append((trajectory.key, str(error)))
             else:
-                out = Path(config.out) / recording_name(trajectory)
+                out = _target(config.out, recording_name(trajectory), written, trajectory.key)
                 result.recordings.append(
                     record_replay(trajectory, trace, out=out, memory_map=found.map, fps=config.fps)
                 )
@@ -184,6 +230,14 @@ def unique_slugs(slugs: Sequence[str]) -> list[str]:
 
 def compare(config: CompareConfig) -> ReplayResult:
     """Replay each trajectory under every memory's encoder into one comparison recording."""
+    check_fps(config.fps)
+    check_output_folder(config.out, inputs=[config.data, *config.memories])
+    with output_lock(config.out):
+        remove_file_leftovers(config.out)
+        return _compare(config)
+
+
+def _compare(config: CompareConfig) -> ReplayResult:
     if len(config.memories) < 2:
         raise ValueError("compare needs at least two memories (--memory A --memory B)")
     if config.deltas and len(config.deltas) != len(config.memories):
@@ -218,6 +272,7 @@ def compare(config: CompareConfig) -> ReplayResult:
         config.data, keys=config.trajectories, task=config.task, skipped=result.skipped_inputs
     )
     suffix = "__" + "-vs-".join(slugs)
+    written: dict[Path, str] = {}
     with progress_bar(total=len(trajectories), desc="comparing", unit="trajectory") as bar:
         for trajectory in trajectories:
             try:
@@ -228,7 +283,7 @@ def compare(config: CompareConfig) -> ReplayResult:
             except (UnknownTaskError, DataError) as error:
                 result.skipped.append((trajectory.key, str(error)))
             else:
-                out = Path(config.out) / recording_name(trajectory, suffix)
+                out = _target(config.out, recording_name(trajectory, suffix), written, trajectory.key)
                 maps = {slug: found.map for slug, found in zip(slugs, detectors, strict=True)}
                 result.recordings.append(
                     compare_recording(trajectory, traces, out=out, memory_maps=maps, fps=config.fps)

@@ -13,6 +13,7 @@ from rfr_viz.record import record_replay
 from rfr_viz.replay import DEFAULT_OUT, ReplayResult, load_detector, recording_name
 from robofailring.data.layouts import load_dataset
 from robofailring.errors import DataError
+from robofailring.outputs import check_output_folder, check_recording_file
 from robofailring.progress import progress_bar
 
 KINDS: Final[tuple[str, ...]] = ("false-alarms", "misses")
@@ -43,6 +44,7 @@ def review(config: ReviewConfig) -> ReplayResult:
         raise DataError(
             f"{config.evaluation} is not an evaluation written by `robofailring evaluate` ({error})"
         ) from error
+    check_output_folder(config.out, inputs=[config.data, memory_dir])
     keys = [row["key"] for row in listed]
     result = ReplayResult()
     if not keys:
@@ -66,6 +68,7 @@ def review(config: ReviewConfig) -> ReplayResult:
             trace = loaded.detector.run(trajectory)
             focus = trace.t_det if trace.t_det is not None else int(np.argmax(trace.max_similarity()))
             out = Path(config.out) / config.kind / recording_name(trajectory)
+            check_recording_file(out)
             result.recordings.append(
                 record_replay(trajectory, trace, out=out, memory_map=loaded.map, focus_frame=focus)
             )

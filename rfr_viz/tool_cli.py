@@ -21,6 +21,8 @@ from robofailring.cli import (
     warn_missing_references,
 )
 from robofailring.errors import RoboFailRingError
+from robofailring.exit_codes import finish
+from robofailring.outputs import check_output_folder
 
 
 @app.command("evaluate")
@@ -61,6 +63,7 @@ def evaluate_cmd(
             stride=stride,
             labels=labels,
         )
+        check_output_folder(out, inputs=[data, test_data, memory])
         result = run_evaluation(config)
     except RoboFailRingError as error:
         exit_with_error(error)
@@ -69,6 +72,7 @@ def evaluate_cmd(
     rrd_path = record_evaluation([result], out=Path(out) / f"{name}.rrd")
     typer.echo(result.to_markdown())
     typer.echo(f"\nwrote {md_path}, {json_path} and {rrd_path} (open with: {open_command(rrd_path)})")
+    finish(skipped=len(result.skipped_unknown_task) + len(result.skipped_too_short))  # listed in the table
 
 
 @app.command("review")
@@ -134,6 +138,7 @@ def compare_encoders_cmd(
     from robofailring.comparison import CompareEncodersConfig, compare_encoders, comparison_table
 
     try:
+        check_output_folder(out, inputs=[data])
         results = compare_encoders(
             CompareEncodersConfig(
                 data=data,

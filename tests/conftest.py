@@ -6,7 +6,10 @@ import json
 from pathlib import Path
 
 import pytest
-from synthetic import write_aha_dataset
+
+pytest.register_assert_rewrite("fault_helpers")  # the fault tests' shared checks
+
+from synthetic import write_aha_dataset  # noqa: E402
 
 
 @pytest.fixture(scope="session")

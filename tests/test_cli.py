@@ -65,14 +65,14 @@ def test_build_memory_then_detect_json(aha_dataset: Path, tmp_path: Path) -> Non
 
 
 def test_cli_errors_are_one_clear_line(tmp_path: Path) -> None:
-    result = runner.invoke(app, ["build-memory", str(tmp_path), "--out", str(tmp_path / "m")])
+    data = tmp_path / "data"
+    data.mkdir()
+    result = runner.invoke(app, ["build-memory", str(data), "--out", str(tmp_path / "m")])
     assert result.exit_code == 2
     assert "matches no known dataset layout" in result.output
     result = runner.invoke(app, ["detect", str(tmp_path), "--memory", str(tmp_path / "none")])
     assert result.exit_code == 2 and "manifest.json is missing" in result.output
-    result = runner.invoke(
-        app, ["build-memory", str(tmp_path), "--out", str(tmp_path / "m"), "--encoder", "vgg"]
-    )
+    result = runner.invoke(app, ["build-memory", str(data), "--out", str(tmp_path / "m"), "--encoder", "vgg"])
     assert result.exit_code == 2 and "unknown encoder spec 'vgg'" in result.output
 
 

@@ -1,13 +1,28 @@
-"""Atomic writes: everything is written under a temporary name and renamed into place."""
+"""Atomic writes: everything is written under a temporary name and renamed into place.
+
+Temporary names are `.<final name>.<8 random characters>.tmp[suffix]` beside the final path; a
+replaced folder is moved aside as `.<final name>.<8 characters>.old` until its successor is in
+place. A process killed half-way leaves only such names; `output_lock` finds them on the next
+write to the same path and removes them, or restores an `.old` folder whose successor never
+arrived.
+"""
 
 from __future__ import annotations
 
 import contextlib
+import fcntl
+import logging
 import os
+import re
 import shutil
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
+
+from robofailring.errors import OutputBusyError
+
+_log = logging.getLogger("robofailring")
+_HELD: dict[Path, int] = {}  # lock files this process holds, with their nesting depth
 
 
 def _umask() -> int:
@@ -39,27 +54,125 @@ def write_text_atomic(final: Path, text: str) -> None:
         tmp.write_text(text, encoding="utf-8")
 
 
+def _leftover(final: Path, name: str) -> str | None:
+    """'tmp' or 'old' when `name` is a leftover of a write to `final`, else None."""
+    match = re.fullmatch(rf"\.{re.escape(final.name)}\.[A-Za-z0-9_]{{8}}\.(tmp|old)(\..+)?", name)
+    return match[1] if match else None
+
+
+def _remove(path: Path) -> None:
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        path.unlink(missing_ok=True)
+
+
+def recover_leftovers(final: Path) -> None:
+    """Remove what killed writes to `final` left beside it; restore `final` from an `.old` if it is gone.
+
+    Call only while holding `output_lock(final)`, so no live writer's files are touched.
+    """
+    final = Path(final)
+    if not final.parent.is_dir():
+        return
+    found = [(entry, _leftover(final, entry.name)) for entry in final.parent.iterdir()]
+    olds = sorted((entry for entry, kind in found if kind == "old"), key=lambda p: p.stat().st_mtime)
+    for entry, kind in found:
+        if kind == "tmp":
+            _remove(entry)
+    if olds and not final.exists():
+        os.replace(olds.pop(), final)
+        _log.warning(
+            "restored %s: a replace of it was interrupted before the new version was in place", final
+        )
+    for old in olds:
+        _remove(old)
+
+
+def remove_file_leftovers(folder: Path) -> None:
+    """Remove the temporary files killed writes left inside `folder` (hold `output_lock(folder)`)."""
+    if Path(folder).is_dir():
+        for entry in Path(folder).iterdir():
+            if entry.is_file() and re.fullmatch(r"\..+\.[A-Za-z0-9_]{8}\.tmp(\..+)?", entry.name):
+                entry.unlink(missing_ok=True)
+
+
+@contextlib.contextmanager
+def output_lock(final: Path) -> Iterator[None]:
+    """Hold `.<name>.lock` beside `final` while writing it; a second writer gets OutputBusyError.
+
+    On entry, the leftovers of killed writes to `final` are cleaned (see `recover_leftovers`).
+    Re-entrant within one process.
+    """
+    final = Path(final).absolute()
+    lock = final.parent / f".{final.name}.lock"
+    if lock in _HELD:
+        _HELD[lock] += 1
+        try:
+            yield
+        finally:
+            _HELD[lock] -= 1
+        return
+    final.parent.mkdir(parents=True, exist_ok=True)
+    with lock.open("a") as handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise OutputBusyError(
+                f"another robofailring process is writing {final} right now; wait for it or choose another output"
+            ) from None
+        _HELD[lock] = 1
+        try:
+            recover_leftovers(final)
+            yield
+        finally:
+            del _HELD[lock]
+            lock.unlink(missing_ok=True)
+
+
+def restore_interrupted(final: Path) -> bool:
+    """Put back a folder whose replacement was killed half-way (its `.old` beside it); True if restored."""
+    final = Path(final)
+    if final.exists() or not final.parent.is_dir():
+        return False
+    if not any(_leftover(final, entry.name) == "old" for entry in final.parent.iterdir()):
+        return False
+    with output_lock(final):
+        return final.exists()
+
+
+def replace_directory(tmp: Path, final: Path) -> None:
+    """Move the complete folder `tmp` onto `final`; the previous `final` stays recoverable until then."""
+    if not final.exists():
+        os.replace(tmp, final)
+        return
+    old = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".old", dir=final.parent))
+    os.rmdir(old)
+    os.replace(final, old)
+    try:
+        # killed here: `final` is absent, `old` holds the previous version and the next write or load restores it
+        os.replace(tmp, final)
+    except BaseException:
+        os.replace(old, final)
+        raise
+    shutil.rmtree(old, ignore_errors=True)
+
+
 @contextlib.contextmanager
 def atomic_directory(final: Path) -> Iterator[Path]:
     """Yield a fresh temporary directory beside `final` and swap it into place on success.
 
     An existing directory at `final` is replaced only after the new one is complete, so an
-    interrupted write leaves the previous version (or nothing) under the final name.
+    interrupted write leaves the previous version under the final name, or beside it as an
+    `.old` folder that the next write or memory load restores.
     """
     final = Path(final)
-    final.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".tmp", dir=final.parent))
-    try:
-        yield tmp
-        os.chmod(tmp, 0o777 & ~_umask())  # mkdtemp makes 0700
-        if final.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".old", dir=final.parent))
-            os.rmdir(old)
-            os.replace(final, old)
-            os.replace(tmp, final)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(tmp, final)
-    finally:
-        if tmp.exists():
-            shutil.rmtree(tmp, ignore_errors=True)
+    with output_lock(final):
+        tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".tmp", dir=final.parent))
+        try:
+            yield tmp
+            os.chmod(tmp, 0o777 & ~_umask())  # mkdtemp makes 0700
+            replace_directory(tmp, final)
+        finally:
+            if tmp.exists():
+                shutil.rmtree(tmp, ignore_errors=True)

@@ -6,7 +6,7 @@ import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, NoReturn
 
 import numpy as np
 import typer
@@ -14,11 +14,13 @@ import typer
 from robofailring.data.layouts import read_project_manifest
 from robofailring.data.model import Skipped
 from robofailring.errors import RoboFailRingError
+from robofailring.exit_codes import ErrorMappingGroup, fail, finish
 from robofailring.progress import progress_bar
 from robofailring.references import ReferenceCheck, check_references
 
 app = typer.Typer(
     name="robofailring",
+    cls=ErrorMappingGroup,  # every verb: a one-line error and its exit status (robofailring.exit_codes)
     help="Retrieval-based robot failure detection (RoboFailRing) and its Rerun recordings.",
     no_args_is_help=True,
     pretty_exceptions_enable=False,
@@ -92,9 +94,8 @@ def warn_missing_references(memory: Path, check: ReferenceCheck) -> None:
         )
 
 
-def exit_with_error(error: Exception) -> None:
-    typer.secho(f"error: {error}", fg=typer.colors.RED, err=True)
-    raise typer.Exit(code=2)
+def exit_with_error(error: Exception) -> NoReturn:
+    fail(error)
 
 
 @app.command("generate")
@@ -183,6 +184,9 @@ def build_memory_cmd(
     for skipped in stats.skipped_views[:10]:
         typer.echo(f"  skipped {skipped['trajectory']} view {skipped['view']}: {skipped['frames']} frame(s)")
     report_skipped(stats.skipped_inputs)
+    for note in stats.notes:
+        typer.secho(f"note: {note}", fg=typer.colors.YELLOW, err=True)
+    finish(skipped=len(stats.skipped_views) + len(stats.skipped_inputs))
 
 
 @app.command("detect")

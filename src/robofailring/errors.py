@@ -4,7 +4,13 @@ from __future__ import annotations
 
 
 class RoboFailRingError(Exception):
-    """Base class of every error the library raises on purpose."""
+    """Base class of every error the library raises on purpose.
+
+    `exit_code` is the command line's exit status for it (see `robofailring.exit_codes`): 2, bad
+    usage or input, unless the class says otherwise.
+    """
+
+    exit_code: int = 2
 
 
 class DataError(RoboFailRingError):
@@ -33,3 +39,19 @@ class UnknownTaskError(RoboFailRingError):
 
 class SettingError(RoboFailRingError, ValueError):
     """A setting is outside its range (δ beyond [-1, 1], K below 1, a rate beyond [0, 1])."""
+
+
+class OutputError(RoboFailRingError):
+    """An output path is refused before any work: it is a file, the input, or a folder of other things."""
+
+
+class OutputBusyError(RoboFailRingError):
+    """Another robofailring process is writing the same output right now."""
+
+    exit_code = 1
+
+
+class WriteError(RoboFailRingError):
+    """An output could not be written (no permission, disk full); nothing was half-written."""
+
+    exit_code = 1

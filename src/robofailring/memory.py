@@ -14,7 +14,7 @@ from typing import Any, Final
 import faiss
 import numpy as np
 
-from robofailring._atomic import atomic_directory, write_text_atomic
+from robofailring._atomic import atomic_directory, output_lock, restore_interrupted, write_text_atomic
 from robofailring.data.model import Frame, Outcome, Skipped, Trajectory
 from robofailring.encoders.base import l2_normalize
 from robofailring.encoders.cache import CachedEncoder
@@ -25,6 +25,8 @@ from robofailring.errors import (
     UnknownTaskError,
 )
 from robofailring.grounding import ground, parse_symbol
+from robofailring.memory_format import check_manifest, parse_entry
+from robofailring.outputs import check_memory_target
 from robofailring.references import (
     ReferenceCheck,
     absolute_reference,
@@ -92,6 +94,7 @@ class BuildStats:
     entries: int = 0
     skipped_views: list[dict[str, Any]] = field(default_factory=list)
     skipped_inputs: list[Skipped] = field(default_factory=list)  # folders/files of the dataset not read
+    notes: list[str] = field(default_factory=list)  # said to the user after the build
 
 
 class _TaskIndex:
@@ -272,8 +275,12 @@ class FailureMemory:
 
     # ---------------------------------------------------------------- storage
     def save(self, directory: Path) -> Path:
-        """Write index, entries and manifest as one directory, atomically."""
+        """Write index, entries and manifest as one directory, atomically.
+
+        Only an absent or empty folder, or another memory, is replaced (OutputError otherwise).
+        """
         directory = Path(directory)
+        check_memory_target(directory)
         root = self.data_root or common_root(
             ref for entry in self.entries for ref in (entry.start, entry.end)
         )
@@ -312,29 +319,31 @@ class FailureMemory:
         return manifest
 
     def write_manifest(self, directory: Path) -> None:
-        """Rewrite only the manifest of a saved memory (e.g. after calibration), atomically."""
-        write_text_atomic(Path(directory) / MANIFEST, json.dumps(self._full_manifest(), indent=2))
+        """Rewrite only the manifest of a saved memory (e.g. after calibration), atomically.
+
+        Never while another process replaces that memory (OutputBusyError then).
+        """
+        with output_lock(directory):
+            write_text_atomic(Path(directory) / MANIFEST, json.dumps(self._full_manifest(), indent=2))
 
     @classmethod
     def load(cls, directory: Path, *, data_root: Path | None = None) -> FailureMemory:
         """Read a saved memory; `data_root` re-roots its image references when the data moved."""
         directory = Path(directory)
         manifest_path = directory / MANIFEST
-        if not manifest_path.is_file():
+        if not manifest_path.is_file() and not restore_interrupted(directory):
             raise MemoryFormatError(f"{directory} is not a failure memory: {MANIFEST} is missing")
         try:
             manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
         except json.JSONDecodeError as error:
             raise MemoryFormatError(f"{manifest_path} is not valid JSON: {error}") from error
-        version = manifest.get("format_version")
+        version = manifest.get("format_version") if isinstance(manifest, dict) else None
         if version not in READABLE_VERSIONS:
             readable = ", ".join(map(str, READABLE_VERSIONS))
             raise MemoryFormatError(
                 f"{manifest_path}: format_version {version!r}, this version of robofailring reads {readable}"
             )
-        for key in ("encoder", "dim", "count"):
-            if key not in manifest:
-                raise MemoryFormatError(f"{manifest_path} lacks {key!r}")
+        manifest = check_manifest(manifest, manifest_path)
         try:
             index = faiss.read_index(str(directory / INDEX))
         except RuntimeError as error:
@@ -346,8 +355,8 @@ class FailureMemory:
                 for number, line in enumerate(handle, 1):
                     if line.strip():
                         try:
-                            entries.append(MemoryEntry(**json.loads(line)))
-                        except (json.JSONDecodeError, TypeError) as error:
+                            entries.append(MemoryEntry(**parse_entry(line, entries_path, number)))
+                        except TypeError as error:
                             raise MemoryFormatError(
                                 f"{entries_path}:{number}: bad entry ({error})"
                             ) from error

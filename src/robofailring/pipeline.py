@@ -5,11 +5,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from robofailring._atomic import output_lock
 from robofailring.data.layouts import load_dataset, load_trajectory
 from robofailring.detector import DEFAULT_K, DetectionTrace, FailureDetector, check_stride
 from robofailring.encoders import CachedEncoder, load_encoder
-from robofailring.errors import EncoderError
+from robofailring.errors import DataError, EncoderError, MemoryFormatError
 from robofailring.memory import BuildStats, FailureMemory
+from robofailring.outputs import check_memory_target, is_memory_dir
 from robofailring.progress import progress_bar
 
 
@@ -27,18 +29,41 @@ class BuildMemoryConfig:
 def build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
     """Build a failure memory from a dataset's failure trajectories and save it.
 
-    `stats.skipped_inputs` lists what under the dataset root was not read, with the reason.
+    `stats.skipped_inputs` lists what under the dataset root was not read, with the reason. The
+    output is checked (and locked against a second build) before anything is encoded; a build
+    that would hold no entry is an error and replaces nothing.
     """
+    check_memory_target(config.out, inputs=[config.data])
+    with output_lock(config.out):
+        return _build_memory(config)
+
+
+def _build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
     encoder = CachedEncoder(load_encoder(config.encoder, device=config.device), cache_dir=config.cache_dir)
     dataset = load_dataset(config.data, labels=config.labels)
     dataset.require_labels("build-memory")
-    trajectories = (
-        dataset.select(split=config.split) if config.split is not None else list(dataset.trajectories())
-    )
+    trajectories = list(dataset.trajectories())
+    if config.split is not None:
+        splits = sorted({str(t.split) for t in trajectories if t.split is not None})
+        trajectories = dataset.select(split=config.split)
+        if not trajectories:
+            raise DataError(
+                f"no trajectory of split {config.split!r} in {config.data}; its splits are: "
+                + (", ".join(splits) or "none (this layout has no splits: leave out --split)")
+            )
     entries_expected = sum(len(t.views) for t in trajectories if t.symbol)
+    if not entries_expected:
+        raise DataError(
+            f"{config.data}{f' (split {config.split})' if config.split else ''} holds no failure trajectory "
+            f"among its {len(trajectories)}: a failure memory needs failures; nothing was written"
+        )
     with progress_bar(total=entries_expected, desc="encoding memory", unit="entry") as bar:
         memory, stats = FailureMemory.build(
             trajectories, encoder, progress=bar.update, data_root=Path(config.data).resolve()
+        )
+    if not len(memory):
+        raise DataError(
+            f"no memory entry from {config.data}: every failure view has fewer than 2 frames; nothing was written"
         )
     stats.skipped_inputs = dataset.skipped
     memory.manifest["skipped_inputs"] = [skipped.to_dict() for skipped in dataset.skipped]
@@ -47,8 +72,29 @@ def build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
     memory.manifest["encoder_spec"] = config.encoder
     if config.split is not None:
         memory.manifest["split"] = config.split
+    stats.notes.extend(_dropped_calibration(config.out))
     memory.save(config.out)
     return memory, stats
+
+
+def _dropped_calibration(out: Path) -> list[str]:
+    """A note when the memory being replaced had a calibrated δ: it is not carried over.
+
+    δ is chosen against the old memory's entries; new entries move every S_t, so a stale δ would
+    silently change the false-positive rate. Calibrate the new memory again.
+    """
+    if not is_memory_dir(out):
+        return []
+    try:
+        old = FailureMemory.load(out).calibrated_delta
+    except MemoryFormatError:
+        return []
+    if old is None:
+        return []
+    return [
+        f"the memory replaced at {out} had a calibrated δ = {old:.6f}; the new one is uncalibrated "
+        f"(δ depends on the entries): run `robofailring calibrate DATA --memory {out}` again"
+    ]
 
 
 @dataclass(frozen=True)

@@ -182,9 +182,9 @@ def load_trajectory(
         found = dataset.select(keys=[key]) if key is not None else list(dataset.trajectories())
         if len(found) != 1:
             raise DataError(
-                f"{path} is a {dataset.layout} dataset with {len(found)} trajectories; pass one episode folder "
-                "or choose one with --trajectory (e.g. --trajectory "
-                f"{found[0].episode if found else 'EPISODE'})"
+                f"{path} is a {dataset.layout} dataset with {len(found)} trajectories; pass one of its episode "
+                "folders, choose one with --trajectory (e.g. --trajectory "
+                f"{found[0].episode if found else 'EPISODE'}), or replay the whole dataset with `robofailring replay`"
             )
         return found[0]
     parent_manifest = path.parent / PROJECT_MANIFEST

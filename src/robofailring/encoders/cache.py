@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
+import logging
 import os
 import sqlite3
 from collections.abc import Sequence
@@ -20,63 +22,76 @@ def default_cache_dir() -> Path:
     return Path(env).expanduser() if env else Path.home() / ".cache" / "robofailring"
 
 
+_log = logging.getLogger("robofailring")
+_WARNED: set[str] = set()
+
+
+def _warn_once(message: str) -> None:
+    if message not in _WARNED:
+        _WARNED.add(message)
+        _log.warning("warning: %s", message)
+
+
 class EmbeddingCache:
-    """A SQLite file per encoder identity mapping an image digest to its embedding."""
+    """A SQLite file per encoder identity mapping an image's content digest to its embedding.
+
+    The key is a digest of the image file's bytes, read every time: a file rewritten with the
+    same size and modification time is still seen as new (`bench/bench_cache.py` measures what
+    hashing costs against decoding).
+    """
 
     def __init__(self, identity: str, dim: int, *, root: Path | None = None) -> None:
         self.identity = identity
         self.dim = dim
         root = Path(root) if root is not None else default_cache_dir()
-        root.mkdir(parents=True, exist_ok=True)
         name = hashlib.blake2b(identity.encode(), digest_size=8).hexdigest()
         self.path = root / f"embeddings-{name}.sqlite"
+        root.mkdir(parents=True, exist_ok=True)
         self._db = sqlite3.connect(self.path, timeout=60)
-        self._db.execute("PRAGMA journal_mode=WAL")
-        self._db.execute("CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT)")
-        self._db.execute("CREATE TABLE IF NOT EXISTS emb (digest TEXT PRIMARY KEY, vec BLOB)")
-        self._db.execute(
-            "CREATE TABLE IF NOT EXISTS files (path TEXT PRIMARY KEY, size INTEGER, mtime_ns INTEGER, digest TEXT)"
-        )
-        self._db.execute("INSERT OR IGNORE INTO meta VALUES ('identity', ?)", (identity,))
-        self._db.commit()
+        try:
+            self._db.execute("PRAGMA journal_mode=WAL")
+            self._db.execute("CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT)")
+            self._db.execute("CREATE TABLE IF NOT EXISTS emb (digest TEXT PRIMARY KEY, vec BLOB)")
+            self._db.execute("INSERT OR IGNORE INTO meta VALUES ('identity', ?)", (identity,))
+            self._db.commit()
+        except sqlite3.Error:
+            self._db.close()
+            raise
+
+    @classmethod
+    def open(cls, identity: str, dim: int, *, root: Path | None = None) -> EmbeddingCache | None:
+        """The cache, rebuilt if its file is corrupt; None (with one warning) where it cannot be used.
+
+        The cache is disposable: nothing is lost by rebuilding it or running without it.
+        """
+        where = Path(root) if root is not None else default_cache_dir()
+        try:
+            return cls(identity, dim, root=root)
+        except sqlite3.DatabaseError as error:
+            if isinstance(error, sqlite3.OperationalError):
+                _warn_once(f"cannot use the embedding cache in {where} ({error}); running without it")
+                return None
+            name = hashlib.blake2b(identity.encode(), digest_size=8).hexdigest()
+            path = where / f"embeddings-{name}.sqlite"
+            _warn_once(f"the embedding cache {path} is corrupt ({error}); rebuilding it")
+            for stale in (path, path.with_name(path.name + "-wal"), path.with_name(path.name + "-shm")):
+                with contextlib.suppress(OSError):
+                    stale.unlink()
+        except OSError as error:
+            problem = (
+                "it is a file" if where.exists() and not where.is_dir() else error.strerror or str(error)
+            )
+            _warn_once(f"cannot use the embedding cache folder {where} ({problem}); running without it")
+            return None
+        try:
+            return cls(identity, dim, root=root)
+        except (sqlite3.Error, OSError) as error:
+            _warn_once(f"cannot rebuild the embedding cache in {where} ({error}); running without it")
+            return None
 
     def digests(self, frames: Sequence[Frame]) -> list[str]:
-        """Content digests of frames; an unchanged file (same size and mtime) is not read again."""
-        keys: list[str | None] = [None] * len(frames)
-        signatures: dict[str, tuple[int, int]] = {}
-        for i, frame in enumerate(frames):
-            if frame.path is None:
-                keys[i] = frame.content_key()
-                continue
-            try:
-                stat = frame.path.stat()
-            except OSError:
-                keys[i] = frame.content_key()  # raises DataError naming the file
-                continue
-            signatures[str(frame.path)] = (stat.st_size, stat.st_mtime_ns)
-        known: dict[str, str] = {}
-        paths = list(signatures)
-        for start in range(0, len(paths), 500):
-            chunk = paths[start : start + 500]
-            marks = ",".join("?" * len(chunk))
-            rows = self._db.execute(
-                f"SELECT path, size, mtime_ns, digest FROM files WHERE path IN ({marks})", chunk
-            )
-            for path, size, mtime_ns, digest in rows:
-                if signatures[path] == (size, mtime_ns):
-                    known[path] = digest
-        fresh = []
-        for i, frame in enumerate(frames):
-            if keys[i] is None:
-                path = str(frame.path)
-                if path not in known:
-                    known[path] = frame.content_key()
-                    fresh.append((path, *signatures[path], known[path]))
-                keys[i] = known[path]
-        if fresh:
-            with self._db:
-                self._db.executemany("INSERT OR REPLACE INTO files VALUES (?, ?, ?, ?)", fresh)
-        return [key for key in keys if key is not None]
+        """Content digests of the frames (of the file bytes, or of an in-memory array)."""
+        return [frame.content_key() for frame in frames]
 
     def get_many(self, digests: Sequence[str]) -> dict[str, np.ndarray]:
         found: dict[str, np.ndarray] = {}
@@ -105,7 +120,7 @@ class CachedEncoder:
 
     def __init__(self, encoder: Encoder, *, cache_dir: Path | None = None, enabled: bool = True) -> None:
         self.encoder = encoder
-        self.cache = EmbeddingCache(encoder.identity, encoder.dim, root=cache_dir) if enabled else None
+        self.cache = EmbeddingCache.open(encoder.identity, encoder.dim, root=cache_dir) if enabled else None
         self.hits = 0
         self.misses = 0
 
@@ -121,18 +136,25 @@ class CachedEncoder:
         """(N, dim) unit embeddings of the frames, decoding and encoding only cache misses."""
         if not frames:
             return np.zeros((0, self.dim), dtype=np.float32)
-        if self.cache is None:
-            self.misses += len(frames)
-            chunks = [
-                self.encoder.encode([frame.load() for frame in frames[start : start + batch_size]])
-                for start in range(0, len(frames), batch_size)
-            ]
-            return np.concatenate(chunks).astype(np.float32, copy=False)
-        digests = self.cache.digests(frames)
-        found = self.cache.get_many(digests)
+        if self.cache is not None:
+            try:
+                return self._encode_cached(frames, self.cache, batch_size=batch_size)
+            except sqlite3.Error as error:  # a full disk, a file made read-only or corrupted mid-run
+                _warn_once(f"the embedding cache {self.cache.path} failed ({error}); running without it")
+                self.cache = None
+        self.misses += len(frames)
+        chunks = [
+            self.encoder.encode([frame.load() for frame in frames[start : start + batch_size]])
+            for start in range(0, len(frames), batch_size)
+        ]
+        return np.concatenate(chunks).astype(np.float32, copy=False)
+
+    def _encode_cached(
+        self, frames: Sequence[Frame], cache: EmbeddingCache, *, batch_size: int
+    ) -> np.ndarray:
+        digests = cache.digests(frames)
+        found = cache.get_many(digests)
         missing = [i for i, digest in enumerate(digests) if digest not in found]
-        self.hits += len(frames) - len(missing)
-        self.misses += len(missing)
         fresh: dict[str, np.ndarray] = {}
         for start in range(0, len(missing), batch_size):
             chunk = [i for i in missing[start : start + batch_size] if digests[i] not in fresh]
@@ -141,8 +163,10 @@ class CachedEncoder:
             vectors = self.encoder.encode([frames[i].load() for i in chunk])
             for i, vector in zip(chunk, vectors, strict=True):
                 fresh[digests[i]] = vector
-            self.cache.put_many({digests[i]: fresh[digests[i]] for i in chunk})
+            cache.put_many({digests[i]: fresh[digests[i]] for i in chunk})
         found.update(fresh)
+        self.hits += len(frames) - len(missing)
+        self.misses += len(missing)
         return np.stack([found[digest] for digest in digests]).astype(np.float32, copy=False)
 
     def encode_images(self, images: Sequence[np.ndarray]) -> np.ndarray:

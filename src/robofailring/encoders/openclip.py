@@ -95,6 +95,24 @@ def pick_device(device: str | None = None) -> str:
     return "cuda" if torch.cuda.is_available() else "cpu"
 
 
+def _checkpoint_problem(error: Exception) -> str:
+    """What is wrong with a checkpoint file, in words (torch's own messages run to paragraphs)."""
+    text = str(error)
+    if any(marker in text for marker in ("size mismatch", "Missing key", "Unexpected key")):
+        return "its tensors do not fit this model (a checkpoint of another architecture?)"
+    unreadable = (
+        "Weights only load failed",
+        "load key",
+        "central directory",
+        "Unsupported operand",
+        "header",
+    )
+    if isinstance(error, (EOFError, UnicodeDecodeError)) or any(marker in text for marker in unreadable):
+        return "it is not a PyTorch state dict (.pt/.pth/.bin) or safetensors file, or it is truncated"
+    lines = [line.strip() for line in text.splitlines() if line.strip()]
+    return f"{type(error).__name__}: {lines[0] if lines else 'no detail'}"
+
+
 class OpenClipEncoder:
     """An open_clip image tower, batched, on CUDA when available."""
 
@@ -133,7 +151,8 @@ class OpenClipEncoder:
         except Exception as error:  # open_clip raises many types when weights are missing
             if is_file:
                 raise EncoderError(
-                    f"cannot load checkpoint {weights_path} into open_clip model {model_name}: {error}"
+                    f"cannot load checkpoint {weights_path} into open_clip model {model_name}: "
+                    + _checkpoint_problem(error)
                 ) from error
             raise EncoderError(
                 f"weights for open_clip:{model_name}:{weights} are not available here ({type(error).__name__}). "

@@ -15,7 +15,7 @@ from typing import Any, Final
 from robofailring._atomic import atomic_directory
 from robofailring.data.images import write_png
 from robofailring.data.layouts import PROJECT_FORMAT, PROJECT_MANIFEST
-from robofailring.errors import DataError
+from robofailring.errors import DataError, SettingError
 from robofailring.sim.cameras import VIEWS
 from robofailring.sim.episode import DURATION_S, EpisodeResult, episode_fps, run_episode
 from robofailring.sim.perturb import FAILURE_MODES, KINDS, SUCCESS
@@ -59,9 +59,15 @@ class GenerateConfig:
         if len(set(self.modes)) != len(self.modes) or len(set(self.tasks)) != len(self.tasks):
             raise ValueError("tasks and modes must not repeat")
         if self.success_episodes is not None and self.success_episodes < 0:
-            raise ValueError("success_episodes must be >= 0")
-        if self.episodes < 1 or self.frames < 2 or self.image_size < 16 or self.workers < 1:
-            raise ValueError("episodes >= 1, frames >= 2, image_size >= 16 and workers >= 1 are required")
+            raise SettingError(f"--success-episodes must be at least 0, got {self.success_episodes}")
+        for flag, value, least in (
+            ("--episodes", self.episodes, 1),
+            ("--frames", self.frames, 2),
+            ("--image-size", self.image_size, 16),
+            ("--workers", self.workers, 1),
+        ):
+            if value < least:
+                raise SettingError(f"{flag} must be at least {least}, got {value}")
 
     def episodes_of(self, kind: str) -> int:
         """How many episodes of one kind are run per task."""

@@ -1,0 +1,114 @@
+"""Output paths are checked before any work: never a file, never the input, never a folder of other things.
+
+A verb writes only into a folder that is absent, empty, or already its own kind of output (a
+failure memory, a folder of recordings), never into, over or around its input, and never over
+the current folder. Every refusal is an `OutputError` naming the path and what to do instead.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Final
+
+from robofailring.errors import OutputError, WriteError
+from robofailring.exit_codes import describe
+
+MEMORY_MANIFEST: Final[str] = "manifest.json"
+RRD_MAGIC: Final[bytes] = b"RRF"  # every Rerun .rrd file starts with RRF0/RRF1/RRF2
+
+
+def is_memory_dir(path: Path) -> bool:
+    """True when `path` holds a failure memory's manifest (a JSON object with an encoder and a version)."""
+    try:
+        manifest = json.loads((Path(path) / MEMORY_MANIFEST).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return isinstance(manifest, dict) and "format_version" in manifest and "encoder" in manifest
+
+
+def is_recording(path: Path) -> bool:
+    """True when `path` is a file that starts like a Rerun recording."""
+    try:
+        with Path(path).open("rb") as handle:
+            return handle.read(len(RRD_MAGIC)) == RRD_MAGIC
+    except OSError:
+        return False
+
+
+def _within(inner: Path, outer: Path) -> bool:
+    return inner == outer or outer in inner.parents
+
+
+def check_not_input(
+    out: Path, inputs: Iterable[Path | None], *, replaces: bool = True, flag: str = "--out"
+) -> Path:
+    """Refuse an output that is or lies inside an input; one that `replaces` its folder may not hold
+    an input or the current folder either."""
+    resolved = Path(out).expanduser().resolve()
+    if replaces and _within(Path.cwd().resolve(), resolved):
+        raise OutputError(
+            f"{flag} {out} is the current folder or holds it; name a new folder, e.g. {flag} out"
+        )
+    for given in inputs:
+        if given is None:
+            continue
+        source = Path(given).expanduser().resolve()
+        if _within(resolved, source) or (replaces and _within(source, resolved)):
+            relation = (
+                "is" if resolved == source else ("lies inside" if _within(resolved, source) else "holds")
+            )
+            raise OutputError(
+                f"{flag} {out} {relation} the input {given}; writing there could destroy it, choose a folder outside it"
+            )
+    return resolved
+
+
+def check_writable(folder: Path) -> None:
+    """Create `folder` if needed and prove a file can be written in it, before any long work."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(prefix=".robofailring-probe.", dir=folder)
+        os.close(fd)
+        os.unlink(probe)
+    except FileExistsError:
+        raise OutputError(f"cannot write into {folder}: a file is in the way of that folder") from None
+    except NotADirectoryError:
+        raise OutputError(f"cannot write into {folder}: part of that path is a file, not a folder") from None
+    except OSError as error:
+        raise WriteError(describe(error)) from error
+
+
+def check_memory_target(out: Path, *, inputs: Iterable[Path | None] = ()) -> None:
+    """A memory may be written at `out` only if it is absent, an empty folder or another memory."""
+    check_not_input(out, inputs)
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"--out {out} is a file; a memory is a folder: choose another --out")
+    if out.is_dir() and not is_memory_dir(out):
+        names = sorted(entry.name for entry in out.iterdir())
+        if names:
+            shown = ", ".join(names[:3]) + (" …" if len(names) > 3 else "")
+            raise OutputError(
+                f"--out {out} is a folder that is not a failure memory (it holds {shown}); "
+                "refusing to replace it: choose a new or empty folder"
+            )
+    check_writable(out.absolute().parent)
+
+
+def check_output_folder(out: Path, *, inputs: Iterable[Path | None] = ()) -> None:
+    """Files (recordings, tables) may go into `out` if it is, or can be made, a writable folder outside the inputs."""
+    check_not_input(out, inputs, replaces=False)
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"--out {out} is a file; this output is a folder: choose another --out")
+    check_writable(out)
+
+
+def check_recording_file(path: Path) -> None:
+    """Refuse to write a recording over anything that is not a recording (a folder, another file)."""
+    if path.is_dir() or (path.exists() and not is_recording(path)):
+        raise OutputError(f"{path} exists and is not a Rerun recording; refusing to write over it")
