@@ -6,6 +6,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from robofailring.data.layouts import load_dataset, load_trajectory
+from robofailring.data.model import Trajectory
 from robofailring.detector import DEFAULT_K, DetectionTrace, FailureDetector
 from robofailring.encoders import CachedEncoder, load_encoder
 from robofailring.errors import EncoderError
@@ -74,9 +75,14 @@ def encoder_spec_for(memory: FailureMemory) -> str:
 
 def detect(config: DetectConfig) -> DetectionTrace:
     """Run the detector over one trajectory folder."""
+    return detect_trajectory(config)[0]
+
+
+def detect_trajectory(config: DetectConfig) -> tuple[DetectionTrace, Trajectory]:
+    """`detect`, also returning the trajectory it loaded (for the report's current frame)."""
     memory = FailureMemory.load(config.memory)
     trajectory = load_trajectory(config.trajectory, task=config.task)
     spec = config.encoder or encoder_spec_for(memory)
     encoder = CachedEncoder(load_encoder(spec, device=config.device), cache_dir=config.cache_dir)
     detector = FailureDetector(memory, encoder, delta=config.delta, k=config.k)
-    return detector.run(trajectory, leave_one_out=config.leave_one_out)
+    return detector.run(trajectory, leave_one_out=config.leave_one_out), trajectory

@@ -4,11 +4,16 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
+from robofailring.errors import DataError
 from robofailring.memory import Neighbor
+
+if TYPE_CHECKING:
+    from robofailring.data.model import Trajectory
+    from robofailring.detector import DetectionTrace
 
 SYSTEM_PROMPT = (
     "You are an expert robotic failure analyst. Use the provided Failure Report and Reference Images "
@@ -82,6 +87,34 @@ class FailureReport:
         items = tuple(ReportItem.from_neighbor(n) for n in neighbors)
         similarity = items[0].similarity if items else float("nan")
         return cls(task, view, t_det, similarity, items, current_image)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], *, source: str = "report") -> FailureReport:
+        """The inverse of `to_dict` (a `detect --json` report, a recording's `report` property)."""
+        try:
+            items = tuple(
+                ReportItem(
+                    task=str(item["task"]),
+                    symbol=str(item["symbol"]),
+                    description=str(item["description"]),
+                    view=str(item["view"]),
+                    similarity=float(item["similarity"]),
+                    start_image=str(item["start_image"]),
+                    end_image=str(item["end_image"]),
+                )
+                for item in data["neighbors"]
+            )
+            current = data.get("current_image")
+            return cls(
+                current_task=str(data["current_task"]),
+                view=str(data["view"]),
+                t_det=int(data["t_det"]),
+                similarity=float(data["similarity"]),
+                items=items,
+                current_image=None if current is None else str(current),
+            )
+        except (KeyError, TypeError, ValueError) as error:
+            raise DataError(f"{source} is not a failure report (missing or bad field: {error})") from error
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -160,7 +193,23 @@ class FailureReport:
         return "\n".join(lines)
 
 
+def report_for(trace: DetectionTrace, trajectory: Trajectory | None = None) -> FailureReport | None:
+    """The report at t_det for the firing view's K neighbours (None without a detection).
+
+    With the trajectory, the current frame (the firing view at t_det) is referenced for the VLM.
+    """
+    t_det, view = trace.t_det, trace.detected_view
+    if t_det is None or view is None:
+        return None
+    current = None
+    if trajectory is not None and view in trajectory.views and t_det < len(trajectory.views[view]):
+        current = trajectory.views[view][t_det].reference
+    return FailureReport.from_neighbors(
+        task=trace.task, view=view, t_det=t_det, neighbors=trace.neighbors(view, t_det), current_image=current
+    )
+
+
 class VLMClient(Protocol):
-    """A pluggable vision-language model; nothing calls one by default (there is no network here)."""
+    """A vision-language model answering chat messages (`robofailring.vlm.ChatCompletionsClient`)."""
 
     def complete(self, messages: list[dict[str, Any]]) -> str: ...
