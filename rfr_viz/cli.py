@@ -7,10 +7,21 @@ from typing import Annotated
 
 import typer
 
-from rfr_viz import tool_cli  # noqa: F401  (registers evaluate and the other combined verbs)
+from rfr_viz import (
+    tool_cli,  # noqa: F401  (registers evaluate and the other combined verbs)
+    vlm_cli,  # noqa: F401  (registers explain and watch)
+)
 from rfr_viz.replay import DEFAULT_OUT, CompareConfig, ReplayConfig, ReplayResult, compare, replay
 from rfr_viz.viewer import DEFAULT_PORT, ViewerUnavailable, open_at, open_command
-from robofailring.cli import CacheOption, DeviceOption, app, exit_with_error
+from robofailring.cli import (
+    CacheOption,
+    DeviceOption,
+    VLMModelOption,
+    VLMUrlOption,
+    app,
+    exit_with_error,
+    vlm_config,
+)
 from robofailring.errors import RoboFailRingError
 
 __all__ = ["app", "main"]
@@ -41,7 +52,14 @@ FpsOption = Annotated[
 ]
 
 
+def warn_vlm_errors(result: ReplayResult) -> None:
+    """One stderr line per failed VLM call (the recordings are written all the same)."""
+    for key, error in result.vlm_errors:
+        typer.secho(f"warning: the VLM call failed for {key}: {error}", fg=typer.colors.YELLOW, err=True)
+
+
 def _report(result: ReplayResult, out: Path) -> None:
+    warn_vlm_errors(result)
     for key, reason in result.skipped:
         typer.echo(f"skipped {key}: {reason}")
     if not result.recordings:
@@ -70,6 +88,8 @@ def replay_cmd(
     fps: FpsOption = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
+    vlm_url: VLMUrlOption = None,
+    vlm_model: VLMModelOption = None,
 ) -> None:
     """Replay trajectories through the detector, one self-contained Rerun recording (.rrd) each."""
     config = ReplayConfig(
@@ -85,6 +105,7 @@ def replay_cmd(
         fps=fps,
         cache_dir=cache_dir,
         device=device,
+        vlm=vlm_config(vlm_url, vlm_model),
     )
     try:
         result = replay(config)

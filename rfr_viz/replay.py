@@ -12,12 +12,14 @@ from rfr_viz.memory_umap import MemoryMap, memory_map
 from rfr_viz.record import compare_recording, record_replay
 from robofailring.data.layouts import detect_layout, load_dataset, load_trajectory
 from robofailring.data.model import Trajectory
-from robofailring.detector import DEFAULT_K, FailureDetector
+from robofailring.detector import DEFAULT_K, DetectionTrace, FailureDetector
 from robofailring.encoders import CachedEncoder, encoder_slug, load_encoder
 from robofailring.errors import DataError, UnknownTaskError
 from robofailring.memory import FailureMemory
 from robofailring.pipeline import encoder_spec_for
 from robofailring.progress import progress_bar
+from robofailring.report import report_for
+from robofailring.vlm import VLMAnswer, VLMConfig, ask_vlm
 
 DEFAULT_OUT: Final[Path] = Path("recordings")
 _UNSAFE = re.compile(r"[^A-Za-z0-9._+-]+")
@@ -37,6 +39,7 @@ class ReplayConfig:
     fps: float | None = None  # "time" timeline rate; default: the data's, else 10
     cache_dir: Path | None = None  # embedding cache (default ~/.cache/robofailring)
     device: str | None = None  # torch device for CLIP
+    vlm: VLMConfig | None = None  # ask this VLM about each detection; its answer joins the report
 
 
 @dataclass(frozen=True)
@@ -60,6 +63,17 @@ class ReplayResult:
 
     recordings: list[Path] = field(default_factory=list)
     skipped: list[tuple[str, str]] = field(default_factory=list)
+    vlm_errors: list[tuple[str, str]] = field(default_factory=list)  # (trajectory, why the VLM call failed)
+
+    def ask(self, vlm: VLMConfig | None, trace: DetectionTrace, trajectory: Trajectory) -> VLMAnswer | None:
+        """The VLM's answer about the trace's detection (None: no VLM, or nothing detected); failures are kept."""
+        report = report_for(trace, trajectory) if vlm is not None else None
+        if vlm is None or report is None:
+            return None
+        answer = ask_vlm(report, vlm)
+        if answer.error is not None:
+            self.vlm_errors.append((trajectory.key, answer.error))
+        return answer
 
 
 def recording_name(trajectory: Trajectory, suffix: str = "") -> str:
@@ -129,8 +143,11 @@ def replay(config: ReplayConfig) -> ReplayResult:
                 result.skipped.append((trajectory.key, str(error)))
             else:
                 out = Path(config.out) / recording_name(trajectory)
+                answer = result.ask(config.vlm, trace, trajectory)
                 result.recordings.append(
-                    record_replay(trajectory, trace, out=out, memory_map=found.map, fps=config.fps)
+                    record_replay(
+                        trajectory, trace, out=out, memory_map=found.map, fps=config.fps, vlm_answer=answer
+                    )
                 )
             bar.update(1)
     return result

@@ -14,6 +14,7 @@ from rfr_viz.replay import DEFAULT_OUT, ReplayResult, load_detector, recording_n
 from robofailring.data.layouts import load_dataset
 from robofailring.errors import DataError
 from robofailring.progress import progress_bar
+from robofailring.vlm import VLMConfig
 
 KINDS: Final[tuple[str, ...]] = ("false-alarms", "misses")
 
@@ -27,6 +28,7 @@ class ReviewConfig:
     memory: Path | None = None  # default: the memory the evaluation used
     cache_dir: Path | None = None
     device: str | None = None
+    vlm: VLMConfig | None = None  # ask this VLM about each alarm; its answer joins the report
 
 
 def review(config: ReviewConfig) -> ReplayResult:
@@ -57,7 +59,14 @@ def review(config: ReviewConfig) -> ReplayResult:
             focus = trace.t_det if trace.t_det is not None else int(np.argmax(trace.max_similarity()))
             out = Path(config.out) / config.kind / recording_name(trajectory)
             result.recordings.append(
-                record_replay(trajectory, trace, out=out, memory_map=loaded.map, focus_frame=focus)
+                record_replay(
+                    trajectory,
+                    trace,
+                    out=out,
+                    memory_map=loaded.map,
+                    focus_frame=focus,
+                    vlm_answer=result.ask(config.vlm, trace, trajectory),
+                )
             )
             bar.update(1)
     return result

@@ -8,7 +8,16 @@ from typing import Annotated
 import typer
 
 from rfr_viz.viewer import open_at_command, open_command
-from robofailring.cli import CacheOption, DeviceOption, EncoderOption, app, exit_with_error
+from robofailring.cli import (
+    CacheOption,
+    DeviceOption,
+    EncoderOption,
+    VLMModelOption,
+    VLMUrlOption,
+    app,
+    exit_with_error,
+    vlm_config,
+)
 from robofailring.errors import RoboFailRingError
 
 
@@ -66,10 +75,14 @@ def review_cmd(
     memory: Annotated[Path | None, typer.Option(help="Default: the memory the evaluation used.")] = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
+    vlm_url: VLMUrlOption = None,
+    vlm_model: VLMModelOption = None,
 ) -> None:
     """Replay only the false alarms (or the misses) of an evaluation, each recording focused on the moment."""
+    from rfr_viz.cli import warn_vlm_errors
     from rfr_viz.review import ReviewConfig, review
 
+    vlm = vlm_config(vlm_url, vlm_model)
     try:
         result = review(
             ReviewConfig(
@@ -80,10 +93,12 @@ def review_cmd(
                 memory=memory,
                 cache_dir=cache_dir,
                 device=device,
+                vlm=vlm,
             )
         )
     except RoboFailRingError as error:
         exit_with_error(error)
+    warn_vlm_errors(result)
     if not result.recordings:
         typer.echo(f"no {kind} in {evaluation}: nothing to replay")
         return
