@@ -122,17 +122,7 @@ def log_neighbors(
     """
     for view in trace.views:
         ids = trace.neighbor_ids[view]
-        for rank in range(ids.shape[1]):
-            rec.log(
-                paths.neighbor_rank(view, rank),
-                rr.Transform3D(translation=[*cell.rank_offset(rank), 0.0]),
-                static=True,
-            )
-            rec.log(
-                paths.neighbor(view, rank, "end"),
-                rr.Transform3D(translation=[*cell.end_offset, 0.0]),
-                static=True,
-            )
+        log_neighbor_layout(rec, paths, view, k=ids.shape[1], cell=cell)
         for rank, t, index in changes(ids):
             rec.set_time(FRAME, sequence=t)
             rec.set_time(TIME, duration=t / fps)
@@ -140,20 +130,8 @@ def log_neighbors(
                 rec.log(paths.neighbor_rank(view, rank), rr.Clear(recursive=True))
                 continue
             entry = trace.memory.entries[index]
-            missing = []
-            for part, reference in _parts(entry):
-                image = images.get(reference)
-                if image is None:
-                    missing.append(reference)
-                    rec.log(paths.neighbor(view, rank, part), rr.Clear(recursive=False))
-                else:
-                    rec.log(
-                        paths.neighbor(view, rank, part),
-                        rr.EncodedImage(contents=image.jpeg, media_type=JPEG_MEDIA_TYPE),
-                    )
-            _log_info(
-                rec, paths, view, rank, entry, float(trace.neighbor_similarity[view][t, rank]), t, missing
-            )
+            similarity = float(trace.neighbor_similarity[view][t, rank])
+            log_neighbor_entry(rec, paths, view, rank, entry, similarity=similarity, t=t, images=images)
     t_det = trace.t_det
     if t_det is None:
         return
@@ -165,6 +143,49 @@ def log_neighbors(
                 entry = trace.memory.entries[int(index)]
                 similarity = float(trace.neighbor_similarity[view][t_det, rank])
                 _log_info(rec, paths, view, rank, entry, similarity, t_det, [])
+
+
+def log_neighbor_layout(
+    rec: rr.RecordingStream, paths: DetectorPaths, view: str, *, k: int, cell: Cell
+) -> None:
+    """Static translations that lay a view's K neighbours out as a grid (row = rank, start | end)."""
+    for rank in range(k):
+        rec.log(
+            paths.neighbor_rank(view, rank),
+            rr.Transform3D(translation=[*cell.rank_offset(rank), 0.0]),
+            static=True,
+        )
+        rec.log(
+            paths.neighbor(view, rank, "end"),
+            rr.Transform3D(translation=[*cell.end_offset, 0.0]),
+            static=True,
+        )
+
+
+def log_neighbor_entry(
+    rec: rr.RecordingStream,
+    paths: DetectorPaths,
+    view: str,
+    rank: int,
+    entry: MemoryEntry,
+    *,
+    similarity: float,
+    t: int,
+    images: NeighborImages,
+) -> None:
+    """The rank-th neighbour of a view became `entry` (at the current time): its images and info."""
+    missing = []
+    for part, reference in _parts(entry):
+        image = images.get(reference)
+        if image is None:
+            missing.append(reference)
+            rec.log(paths.neighbor(view, rank, part), rr.Clear(recursive=False))
+        else:
+            rec.log(
+                paths.neighbor(view, rank, part),
+                rr.EncodedImage(contents=image.jpeg, media_type=JPEG_MEDIA_TYPE),
+            )
+    _log_info(rec, paths, view, rank, entry, similarity, t, missing)
 
 
 def _log_info(
