@@ -125,3 +125,46 @@ def test_explain_without_a_detection_or_a_report(memory_dir: Path, tmp_path: Pat
     assert result.exit_code == 2 and "does not hold a failure report" in result.stderr
     result = runner.invoke(app, ["explain", str(quiet)])
     assert result.exit_code == 2 and "explain needs --vlm-url and --vlm-model" in result.stderr
+
+
+def test_review_puts_the_answer_into_each_false_alarm(tmp_path: Path) -> None:
+    from synthetic import write_project_dataset
+
+    from robofailring.evaluation import EvaluateConfig, run_evaluation, write_evaluation
+
+    data = write_project_dataset(tmp_path / "data")
+    result = run_evaluation(EvaluateConfig(data=data, out=tmp_path / "eval", cache_dir=tmp_path / "cache"))
+    json_path, _ = write_evaluation(result, tmp_path / "eval")
+    # at δ = -1 every success run is a false alarm: review two of them
+    evaluation = json.loads(json_path.read_text())
+    successes = [t.key for t in result.scored if not t.is_failure][:2]
+    evaluation |= {"operating_delta": -1.0, "false_alarms": [{"key": key} for key in successes]}
+    json_path.write_text(json.dumps(evaluation))
+    alarms = evaluation["false_alarms"]
+    assert len(alarms) == 2
+    with chat_server() as server:
+        reviewed = runner.invoke(
+            app,
+            [
+                "review",
+                str(json_path),
+                "--data",
+                str(data),
+                "--out",
+                str(tmp_path / "review"),
+                "--cache-dir",
+                str(tmp_path / "cache"),
+                "--vlm-url",
+                server.url,
+                "--vlm-model",
+                "llava",
+            ],
+        )
+    assert reviewed.exit_code == 0, reviewed.output
+    recordings = sorted((tmp_path / "review" / "false-alarms").glob("*.rrd"))
+    assert len(recordings) == len(alarms) == len(server.received)
+    for recording in recordings:
+        found = properties(recording)
+        assert found["vlm_answer"] == ANSWER and found["t_det"] >= 0
+        text = rows(recording, REPLAY.report, "TextDocument:text")[-1][1][0]
+        assert "VLM answer (llava" in text and ANSWER in text
