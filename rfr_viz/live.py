@@ -9,6 +9,8 @@ neighbours when they change, and the detection event and failure report at the f
 
 from __future__ import annotations
 
+import contextlib
+import socket
 import time
 import uuid
 from collections.abc import Iterator, Mapping, Sequence
@@ -33,7 +35,7 @@ from rfr_viz.record import (
     map_title,
     set_frame_time,
 )
-from rfr_viz.viewer import DEFAULT_PORT
+from rfr_viz.viewer import DEFAULT_PORT, ViewerUnavailable
 from robofailring._atomic import atomic_path
 from robofailring.data.images import as_rgb, encode_jpeg
 from robofailring.data.layouts import load_trajectory
@@ -57,6 +59,21 @@ class LiveTarget:
     def __post_init__(self) -> None:
         if self.connect is None and not self.spawn and self.save is None:
             raise ValueError("a live recording needs somewhere to go: a viewer URL, spawn, or a file")
+
+
+def check_viewer(url: str) -> None:
+    """ViewerUnavailable unless something listens at the host and port of a viewer URL."""
+    from urllib.parse import urlparse
+
+    parsed = urlparse(url)
+    if not parsed.scheme.startswith("rerun") or parsed.hostname is None:
+        raise ValueError(f"viewer URL {url!r} is not like rerun+http://127.0.0.1:9876/proxy")
+    port = parsed.port or DEFAULT_PORT
+    with contextlib.suppress(OSError), socket.create_connection((parsed.hostname, port), timeout=2.0):
+        return
+    raise ViewerUnavailable(
+        f"no Rerun viewer listens at {url}: start one (`rerun`), pass --spawn, or only --save to a file"
+    )
 
 
 def _jpeg(frame: np.ndarray | Frame) -> bytes:
@@ -90,6 +107,7 @@ class LiveRecording:
         self.steps = 0
         self.fired_at: int | None = None
         self.report: FailureReport | None = None
+        self.lost: str | None = None  # why the viewer did not get everything, if it did not
         self._shown: dict[tuple[str, int], int] = {}  # (view, rank) -> memory entry index on screen
 
     @classmethod
@@ -126,6 +144,8 @@ class LiveRecording:
             if target.save is not None:
                 sinks.append(rr.FileSink(stack.enter_context(atomic_path(Path(target.save), suffix=".rrd"))))
             url = target.connect
+            if url is not None:
+                check_viewer(url)
             if target.spawn:
                 rec.spawn(port=DEFAULT_PORT, connect=False, hide_welcome_screen=True)
                 url = url or DEFAULT_VIEWER_URL
@@ -140,7 +160,10 @@ class LiveRecording:
                 yield live
                 live._finish()
             finally:
-                rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
+                try:
+                    rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
+                except RuntimeError as error:  # the viewer went away; a file sink is flushed all the same
+                    live.lost = f"the viewer at {url} did not take the whole stream ({error})"
                 rec.disconnect()  # closes the file before atomic_path moves it into place
 
     def _start(self) -> None:
@@ -274,6 +297,7 @@ class WatchResult:
     fired_at: int | None  # the first alarm (t_det)
     detected_view: str | None
     saved: Path | None
+    lost: str | None = None  # why the viewer did not get the whole stream, if it did not
 
 
 def watch(config: WatchConfig) -> WatchResult:
@@ -316,4 +340,5 @@ def watch(config: WatchConfig) -> WatchResult:
         fired_at=live.fired_at,
         detected_view=live.report.view if live.report is not None else None,
         saved=Path(config.target.save) if config.target.save is not None else None,
+        lost=live.lost,
     )

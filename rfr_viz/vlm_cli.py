@@ -92,6 +92,7 @@ def watch_cmd(
 ) -> None:
     """Watch an episode live in the Rerun viewer: every step through the detector's step API, streamed."""
     from rfr_viz.live import DEFAULT_VIEWER_URL, LiveTarget, WatchConfig, watch
+    from rfr_viz.viewer import ViewerUnavailable
 
     if connect is None and not spawn and save is None:
         connect = DEFAULT_VIEWER_URL
@@ -111,9 +112,11 @@ def watch_cmd(
                 device=device,
             )
         )
-    except (RoboFailRingError, ValueError) as error:
+    except (RoboFailRingError, ValueError, ViewerUnavailable) as error:
         exit_with_error(error)
         return
+    if result.lost is not None:
+        typer.secho(f"warning: {result.lost}", fg=typer.colors.YELLOW, err=True)
     if result.fired_at is None:
         typer.echo(f"{result.steps} steps watched: no failure detected")
     else:

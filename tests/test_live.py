@@ -197,3 +197,25 @@ def test_watch_connect_streams_into_a_running_viewer(episode: Path, memory_dir: 
         assert expected <= paths, sorted(paths)
         frame = next(t for t in recording.timelines if t.name == "frame")
         assert (frame.start, frame.end) == (0, 7)
+
+
+def test_watch_without_a_viewer_is_a_clear_error(episode: Path, memory_dir: Path) -> None:
+    import socket
+
+    with socket.socket() as probe:  # a port nobody listens on
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    result = runner.invoke(
+        app,
+        [
+            "watch",
+            str(episode),
+            "--memory",
+            str(memory_dir),
+            "--connect",
+            f"rerun+http://127.0.0.1:{port}/proxy",
+        ],
+    )
+    assert (
+        result.exit_code == 2 and "no Rerun viewer listens at" in result.stderr and "--spawn" in result.stderr
+    )

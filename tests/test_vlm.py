@@ -200,3 +200,13 @@ def test_detect_keeps_the_detection_when_the_vlm_fails(episode: Path, memory_dir
 def test_detect_vlm_options_go_together(episode: Path, memory_dir: Path) -> None:
     code, _, stderr = _detect(episode, memory_dir, "--vlm-url", "http://127.0.0.1:9/v1")
     assert code == 2 and "--vlm-url and --vlm-model go together" in stderr
+
+
+def test_no_server_is_an_error_naming_the_url(report: FailureReport) -> None:
+    import socket
+
+    with socket.socket() as probe:  # a port nobody listens on
+        probe.bind(("127.0.0.1", 0))
+        url = f"http://127.0.0.1:{probe.getsockname()[1]}/v1"
+    answer = ask_vlm(report, _config(url))
+    assert answer.error is not None and answer.error.startswith(f"cannot reach {url}/chat/completions")

@@ -167,7 +167,7 @@ class ChatCompletionsClient:
                             f"{endpoint} did not answer within {self.config.timeout_s:g} s "
                             f"({attempts} attempts): {type(error).__name__}"
                         ) from error
-                except httpx.HTTPError as error:
+                except (httpx.HTTPError, httpx.InvalidURL) as error:
                     raise VLMError(f"cannot reach {endpoint}: {error}") from error
                 else:
                     if response.status_code < 400:
