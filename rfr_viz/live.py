@@ -153,7 +153,14 @@ class LiveRecording:
                 sinks.append(rr.GrpcSink(url))
             rec.set_sinks(*sinks, default_blueprint=blueprint)
             live = cls(
-                rec, detector, task=task, views=views, fps=fps, memory_map=memory_map, name=name or task
+                rec,
+                detector,
+                task=task,
+                views=views,
+                fps=fps,
+                memory_map=memory_map,
+                name=name or task,
+                cell=cell,
             )
             live._start()
             try:
@@ -213,23 +220,30 @@ class LiveRecording:
             )
             for view, position in zip(views, placed, strict=True):
                 rec.log(paths.umap_query(view), rr.Points2D.from_fields(positions=[position]))
+        first_alarm = result.state and self.fired_at is None
+        self._log_neighbors(
+            result, every=first_alarm
+        )  # at the alarm, as a replay: the similarities that fired
+        if first_alarm:
+            self._alarm(frames, result)
+        self.steps = max(self.steps, t + 1)
+
+    def _log_neighbors(self, result: StepResult, *, every: bool) -> None:
+        """Each view's K neighbours that changed since the last step (`every`: all of them)."""
         for view, found in result.neighbors.items():
             for rank, neighbor in enumerate(found):
-                if self._shown.get((view, rank)) != neighbor.index:
+                if every or self._shown.get((view, rank)) != neighbor.index:
                     self._shown[(view, rank)] = neighbor.index
                     log_neighbor_entry(
-                        rec,
-                        paths,
+                        self.rec,
+                        REPLAY,
                         view,
                         rank,
                         neighbor.entry,
                         similarity=neighbor.similarity,
-                        t=t,
+                        t=result.t,
                         images=self.images,
                     )
-        if result.state and self.fired_at is None:
-            self._alarm(frames, result)
-        self.steps = max(self.steps, t + 1)
 
     def _alarm(self, frames: Mapping[str, np.ndarray | Frame], result: StepResult) -> None:
         view = max(result.fired_views, key=lambda v: result.similarity[v])
