@@ -1,12 +1,14 @@
 """Rerun recordings of replayed trajectories (all Rerun code of the project lives here).
 
 The closed-loop simulator run is `rfr_viz.closed_loop.run_closed_loop` (imported on its own: it loads pybullet).
+`LiveRecording` is the step API's sink that streams a live session to a viewer (`rfr_viz.live`).
 """
 
 from __future__ import annotations
 
 from rfr_viz.blueprint import compare_blueprint, replay_blueprint
 from rfr_viz.evaluation_recording import record_evaluation
+from rfr_viz.live import LiveRecording, LiveTarget
 from rfr_viz.memory_umap import MemoryMap, fit_map, memory_map
 from rfr_viz.paths import APPLICATION_ID, DetectorPaths
 from rfr_viz.record import compare_recording, record_replay
@@ -18,6 +20,8 @@ __all__ = [
     "APPLICATION_ID",
     "CompareConfig",
     "DetectorPaths",
+    "LiveRecording",
+    "LiveTarget",
     "MemoryMap",
     "ReplayConfig",
     "ReplayResult",

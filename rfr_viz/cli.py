@@ -7,7 +7,10 @@ from typing import Annotated
 
 import typer
 
-from rfr_viz import tool_cli  # noqa: F401  (registers evaluate and the other combined verbs)
+from rfr_viz import (
+    tool_cli,  # noqa: F401  (registers evaluate and the other combined verbs)
+    vlm_cli,  # noqa: F401  (registers explain and watch)
+)
 from rfr_viz.replay import DEFAULT_OUT, CompareConfig, ReplayConfig, ReplayResult, compare, replay
 from rfr_viz.viewer import DEFAULT_PORT, ViewerUnavailable, open_at, open_command
 from robofailring.cli import (
@@ -16,9 +19,12 @@ from robofailring.cli import (
     DeviceOption,
     LabelsOption,
     StrideOption,
+    VLMModelOption,
+    VLMUrlOption,
     app,
     exit_with_error,
     report_skipped,
+    vlm_config,
     warn_missing_references,
 )
 from robofailring.errors import DataError, RoboFailRingError
@@ -53,10 +59,17 @@ FpsOption = Annotated[
 ]
 
 
+def warn_vlm_errors(result: ReplayResult) -> None:
+    """One stderr line per failed VLM call (the recordings are written all the same)."""
+    for key, error in result.vlm_errors:
+        typer.secho(f"warning: the VLM call failed for {key}: {error}", fg=typer.colors.YELLOW, err=True)
+
+
 def _report(result: ReplayResult, out: Path) -> None:
     report_skipped(result.skipped_inputs)
     for memory_dir, check in result.references.items():
         warn_missing_references(memory_dir, check)
+    warn_vlm_errors(result)
     for key, reason in result.skipped:
         typer.echo(f"skipped {key}: {reason}")
     if not result.recordings:
@@ -89,6 +102,8 @@ def replay_cmd(
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
     data_root: DataRootOption = None,
+    vlm_url: VLMUrlOption = None,
+    vlm_model: VLMModelOption = None,
 ) -> None:
     """Replay trajectories through the detector, one self-contained Rerun recording (.rrd) each."""
     config = ReplayConfig(
@@ -107,6 +122,7 @@ def replay_cmd(
         stride=stride,
         labels=labels,
         data_root=data_root,
+        vlm=vlm_config(vlm_url, vlm_model),
     )
     try:
         result = replay(config)

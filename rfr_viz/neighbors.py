@@ -145,17 +145,7 @@ def log_neighbors(
     """
     for view in trace.views:
         ids = trace.neighbor_ids[view]
-        for rank in range(ids.shape[1]):
-            rec.log(
-                paths.neighbor_rank(view, rank),
-                rr.Transform3D(translation=[*cell.rank_offset(rank), 0.0]),
-                static=True,
-            )
-            rec.log(
-                paths.neighbor(view, rank, "end"),
-                rr.Transform3D(translation=[*cell.end_offset, 0.0]),
-                static=True,
-            )
+        log_neighbor_layout(rec, paths, view, k=ids.shape[1], cell=cell)
         scored = trace.scored_frames  # with a stride, neighbours exist only at scored frames
         for rank, step, index in changes(ids[scored]):
             t = int(scored[step])
@@ -165,18 +155,9 @@ def log_neighbors(
                 rec.log(paths.neighbor_rank(view, rank), rr.Clear(recursive=True))
                 continue
             entry = trace.memory.entries[index]
-            for part, reference in _parts(entry):
-                image = images.get(reference)
-                rec.log(
-                    paths.neighbor(view, rank, part),
-                    rr.EncodedImage(
-                        contents=image.jpeg if image is not None else images.placeholder(cell),
-                        media_type=JPEG_MEDIA_TYPE,
-                    ),
-                )
-            missing = _missing(entry, images)
-            _log_info(
-                rec, paths, view, rank, entry, float(trace.neighbor_similarity[view][t, rank]), t, missing
+            similarity = float(trace.neighbor_similarity[view][t, rank])
+            log_neighbor_entry(
+                rec, paths, view, rank, entry, similarity=similarity, t=t, images=images, cell=cell
             )
     t_det = trace.t_det
     if t_det is None:
@@ -193,6 +174,51 @@ def log_neighbors(
 
 def _missing(entry: MemoryEntry, images: NeighborImages) -> list[str]:
     return [reference for _, reference in _parts(entry) if images.get(reference) is None]
+
+
+def log_neighbor_layout(
+    rec: rr.RecordingStream, paths: DetectorPaths, view: str, *, k: int, cell: Cell
+) -> None:
+    """Static translations that lay a view's K neighbours out as a grid (row = rank, start | end)."""
+    for rank in range(k):
+        rec.log(
+            paths.neighbor_rank(view, rank),
+            rr.Transform3D(translation=[*cell.rank_offset(rank), 0.0]),
+            static=True,
+        )
+        rec.log(
+            paths.neighbor(view, rank, "end"),
+            rr.Transform3D(translation=[*cell.end_offset, 0.0]),
+            static=True,
+        )
+
+
+def log_neighbor_entry(
+    rec: rr.RecordingStream,
+    paths: DetectorPaths,
+    view: str,
+    rank: int,
+    entry: MemoryEntry,
+    *,
+    similarity: float,
+    t: int,
+    images: NeighborImages,
+    cell: Cell,
+) -> None:
+    """The rank-th neighbour of a view became `entry` (at the current time): its images and info.
+
+    An image that cannot be found shows as a grey "image not found" tile, and the info names it.
+    """
+    for part, reference in _parts(entry):
+        image = images.get(reference)
+        rec.log(
+            paths.neighbor(view, rank, part),
+            rr.EncodedImage(
+                contents=image.jpeg if image is not None else images.placeholder(cell),
+                media_type=JPEG_MEDIA_TYPE,
+            ),
+        )
+    _log_info(rec, paths, view, rank, entry, similarity, t, _missing(entry, images))
 
 
 def _log_info(

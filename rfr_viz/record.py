@@ -24,8 +24,9 @@ from robofailring.data.model import Trajectory
 from robofailring.detector import DetectionTrace
 from robofailring.errors import SymbolError
 from robofailring.grounding import failure_type
-from robofailring.memory import MemoryEntry
-from robofailring.report import FailureReport
+from robofailring.memory import MemoryEntry, Neighbor
+from robofailring.report import FailureReport, report_for
+from robofailring.vlm import VLMAnswer
 
 #: Failure types of grounding (Table 5) as map classes with fixed colours; class 0 is "unknown".
 FAILURE_CLASSES: Final[dict[str, tuple[int, tuple[int, int, int]]]] = {
@@ -87,10 +88,12 @@ def record_replay(
     fps: float | None = None,
     recording_id: str | None = None,
     focus_frame: int | None = None,
+    vlm_answer: VLMAnswer | None = None,
 ) -> Path:
     """Write one replayed trajectory as a self-contained `.rrd` at `out`, atomically.
 
     `focus_frame` makes the recording open playing around that frame (e.g. a false alarm).
+    `vlm_answer` (what a VLM said about the failure report) is added to the report at t_det.
 
     `memory_map` is the memory's cached map (`rfr_viz.memory_map(memory, directory=...)`); without
     one it is fitted here, uncached. `fps` drives the "time" timeline (default: the data's, else 10).
@@ -116,6 +119,7 @@ def record_replay(
                 **_trajectory_properties(info, trace.length),
                 **_detector_properties(trace, mapped),
                 focus_frame=focus_frame if focus_frame is not None else -1,  # -1: none (see rfr_viz.viewer)
+                **_report_properties(trace, trajectory, vlm_answer),
             ),
         )
         log_cameras(rec, trajectory, views=trace.views, length=trace.length, fps=info.fps)
@@ -128,6 +132,7 @@ def record_replay(
             trajectory=trajectory,
             images=images,
             cell=cell,
+            vlm_answer=vlm_answer,
         )
     return Path(out)
 
@@ -231,6 +236,21 @@ def _trajectory_properties(info: RecordingInfo, length: int) -> dict[str, Any]:
     }
 
 
+def _report_properties(
+    trace: DetectionTrace, trajectory: Trajectory, vlm_answer: VLMAnswer | None
+) -> dict[str, Any]:
+    """The failure report as JSON (what `robofailring explain` reads back; absent without a detection)
+    and, when a VLM was asked, its model and answer or error."""
+    report = report_for(trace, trajectory)
+    found: dict[str, Any] = {"report": report.to_json()} if report is not None else {}
+    if vlm_answer is not None:
+        found["vlm_model"] = vlm_answer.model
+        found["vlm_answer" if vlm_answer.error is None else "vlm_error"] = (
+            vlm_answer.answer or vlm_answer.error
+        )
+    return found
+
+
 def _detector_properties(trace: DetectionTrace, memory_map: MemoryMap) -> dict[str, Any]:
     return {
         "encoder": trace.encoder,
@@ -289,13 +309,14 @@ def log_detector(
     cell: Cell | None = None,
     label: str | None = None,
     colour: tuple[int, int, int] | None = None,
+    vlm_answer: VLMAnswer | None = None,
 ) -> None:
     """Everything that depends on the detector: scores, δ, state, map, neighbours, event and report."""
     images = images or NeighborImages()
     _log_scores(rec, trace, paths, fps, label=label, colour=colour)
     _log_map(rec, trace, paths, memory_map, fps)
     log_neighbors(rec, trace, paths, fps=fps, images=images, cell=cell or images.cell(trace))
-    _log_detection(rec, trace, paths, fps, trajectory)
+    _log_detection(rec, trace, paths, fps, trajectory, vlm_answer)
 
 
 def _shade(colour: tuple[int, int, int], position: int, count: int) -> tuple[int, int, int]:
@@ -303,6 +324,43 @@ def _shade(colour: tuple[int, int, int], position: int, count: int) -> tuple[int
     mix = 0.6 * position / max(count - 1, 1)
     red, green, blue = (int(c + (255 - c) * mix) for c in colour)
     return red, green, blue
+
+
+def log_score_styles(
+    rec: rr.RecordingStream,
+    paths: DetectorPaths,
+    *,
+    views: Sequence[str],
+    delta: float,
+    label: str | None = None,
+    colour: tuple[int, int, int] | None = None,
+) -> None:
+    """Static line styles of S_t per view, δ and State_t (names, colours, widths)."""
+    prefix = f"{label} · " if label else ""
+    for position, view in enumerate(views):
+        view_colour = (
+            _shade(colour, position, len(views)) if colour else VIEW_COLOURS[position % len(VIEW_COLOURS)]
+        )
+        rec.log(
+            paths.score(view),
+            rr.SeriesLines(colors=[view_colour], widths=[2.0], names=[f"{prefix}{view}"]),
+            static=True,
+        )
+    delta_colour = DELTA_COLOUR if colour is None else _shade(colour, 0, 1)
+    rec.log(
+        paths.delta,
+        rr.SeriesLines(colors=[delta_colour], widths=[1.0], names=[f"{prefix}δ = {delta:.3f}"]),
+        static=True,
+    )
+    rec.log(
+        paths.state,
+        rr.SeriesLines(
+            colors=[STATE_COLOUR if colour is None else colour],
+            widths=[1.5],
+            names=[f"{prefix}State_t (any view ≥ δ)"],
+        ),
+        static=True,
+    )
 
 
 def _log_scores(
@@ -314,45 +372,20 @@ def _log_scores(
     label: str | None,
     colour: tuple[int, int, int] | None,
 ) -> None:
-    prefix = f"{label} · " if label else ""
-    for position, view in enumerate(trace.views):
+    log_score_styles(rec, paths, views=trace.views, delta=trace.delta, label=label, colour=colour)
+    for view in trace.views:
         similarity = np.asarray(trace.similarity[view], dtype=np.float64)
         present = np.flatnonzero(np.isfinite(similarity))
-        view_colour = (
-            _shade(colour, position, len(trace.views))
-            if colour
-            else VIEW_COLOURS[position % len(VIEW_COLOURS)]
-        )
-        rec.log(
-            paths.score(view),
-            rr.SeriesLines(colors=[view_colour], widths=[2.0], names=[f"{prefix}{view}"]),
-            static=True,
-        )
         rec.send_columns(
             paths.score(view),
             indexes=time_columns(present, fps),
             columns=rr.Scalars.columns(scalars=similarity[present]),
         )
     frames = np.arange(trace.length)
-    delta_colour = DELTA_COLOUR if colour is None else _shade(colour, 0, 1)
-    rec.log(
-        paths.delta,
-        rr.SeriesLines(colors=[delta_colour], widths=[1.0], names=[f"{prefix}δ = {trace.delta:.3f}"]),
-        static=True,
-    )
     rec.send_columns(
         paths.delta,
         indexes=time_columns(frames, fps),
         columns=rr.Scalars.columns(scalars=np.full(trace.length, float(trace.delta))),
-    )
-    rec.log(
-        paths.state,
-        rr.SeriesLines(
-            colors=[STATE_COLOUR if colour is None else colour],
-            widths=[1.5],
-            names=[f"{prefix}State_t (any view ≥ δ)"],
-        ),
-        static=True,
     )
     scored = trace.scored_frames  # with a stride, State_t exists only where frames were scored
     rec.send_columns(
@@ -392,11 +425,16 @@ def map_labels(entries: Sequence[MemoryEntry], *, task: str) -> list[str]:
     ]
 
 
-def _log_map(
-    rec: rr.RecordingStream, trace: DetectionTrace, paths: DetectorPaths, memory_map: MemoryMap, fps: float
+def log_memory_map(
+    rec: rr.RecordingStream,
+    paths: DetectorPaths,
+    *,
+    entries: Sequence[MemoryEntry],
+    memory_map: MemoryMap,
+    task: str,
+    views: Sequence[str],
 ) -> None:
-    """The static memory map (classes = failure types, hover labels) and each view's moving query."""
-    entries = trace.memory.entries
+    """The static memory map (classes = failure types, hover labels, legend) and each view's query marker."""
     classes = np.asarray([class_id(entry.symbol) for entry in entries], dtype=np.uint16)
     rec.log(paths.umap, annotation_context(), static=True)
     rec.log(
@@ -404,17 +442,14 @@ def _log_map(
         rr.Points2D(
             memory_map.embedding,
             class_ids=classes,
-            labels=map_labels(entries, task=trace.task),
+            labels=map_labels(entries, task=task),
             show_labels=False,
             radii=rr.Radius.ui_points(3.0),
         ),
         static=True,
     )
     _log_legend(rec, paths, classes)
-    scored = trace.scored_frames  # the query moves only at scored frames (every `stride`-th)
-    stacked = np.concatenate([trace.queries[view] for view in trace.views])
-    placed = memory_map.project(stacked).reshape(len(trace.views), len(scored), 2)
-    for position, view in enumerate(trace.views):
+    for position, view in enumerate(views):
         rec.log(
             paths.umap_query(view),
             rr.Points2D.from_fields(
@@ -426,6 +461,19 @@ def _log_map(
             ),
             static=True,
         )
+
+
+def _log_map(
+    rec: rr.RecordingStream, trace: DetectionTrace, paths: DetectorPaths, memory_map: MemoryMap, fps: float
+) -> None:
+    """The static memory map and each view's query, moving with time."""
+    log_memory_map(
+        rec, paths, entries=trace.memory.entries, memory_map=memory_map, task=trace.task, views=trace.views
+    )
+    scored = trace.scored_frames  # the query moves only at scored frames (every `stride`-th)
+    stacked = np.concatenate([trace.queries[view] for view in trace.views])
+    placed = memory_map.project(stacked).reshape(len(trace.views), len(scored), 2)
+    for position, view in enumerate(trace.views):
         rec.send_columns(
             paths.umap_query(view),
             indexes=time_columns(scored, fps),
@@ -466,8 +514,9 @@ def _log_detection(
     paths: DetectorPaths,
     fps: float,
     trajectory: Trajectory | None,
+    vlm_answer: VLMAnswer | None = None,
 ) -> None:
-    """The detection event and the failure report at t_det; a summary at frame 0 before that."""
+    """The detection event and the failure report at t_det (and the VLM's answer); a summary at frame 0."""
     t_det, view = trace.t_det, trace.detected_view
     peak = trace.max_similarity()
     peak_frame = int(np.argmax(peak))
@@ -493,19 +542,30 @@ def _log_detection(
             media_type=rr.MediaType.MARKDOWN,
         ),
     )
+    report = report_for(trace, trajectory)
+    assert report is not None  # t_det is set
     neighbors = trace.neighbors(view, t_det)
-    current = None
-    if trajectory is not None and view in trajectory.views and t_det < len(trajectory.views[view]):
-        current = trajectory.views[view][t_det].reference
-    report = FailureReport.from_neighbors(
-        task=trace.task, view=view, t_det=t_det, neighbors=neighbors, current_image=current
-    )
-    top = neighbors[0]
     set_frame_time(rec, t_det, fps)
+    log_alarm(
+        rec, paths, report=report, top=neighbors[0], delta=trace.delta, summary=summary, vlm_answer=vlm_answer
+    )
+
+
+def log_alarm(
+    rec: rr.RecordingStream,
+    paths: DetectorPaths,
+    *,
+    report: FailureReport,
+    top: Neighbor,
+    delta: float,
+    summary: str,
+    vlm_answer: VLMAnswer | None = None,
+) -> None:
+    """At the detection instant (the current time): the event line and the failure report document."""
     rec.log(
         paths.event,
         rr.TextLog(
-            f"FAILURE at frame {t_det} in view {view}: S_t = {top.similarity:.3f} ≥ δ = {trace.delta:.3f}; "
+            f"FAILURE at frame {report.t_det} in view {report.view}: S_t = {top.similarity:.3f} ≥ δ = {delta:.3f}; "
             f"nearest memory entry {top.entry.task}/{top.entry.episode} [{top.entry.view}] "
             f"{top.entry.symbol}: {top.entry.description}",
             level=rr.TextLogLevel.WARN,
@@ -514,6 +574,9 @@ def _log_detection(
     rec.log(
         paths.report,
         rr.TextDocument(
-            summary + _markdown_without_images(report.to_markdown()), media_type=rr.MediaType.MARKDOWN
+            summary
+            + (vlm_answer.to_markdown() + "\n\n" if vlm_answer is not None else "")
+            + _markdown_without_images(report.to_markdown()),
+            media_type=rr.MediaType.MARKDOWN,
         ),
     )

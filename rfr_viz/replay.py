@@ -15,7 +15,7 @@ from rfr_viz.record import compare_recording, record_replay
 from robofailring._atomic import output_lock, remove_file_leftovers
 from robofailring.data.layouts import detect_layout, load_dataset, load_trajectory
 from robofailring.data.model import Skipped, Trajectory
-from robofailring.detector import DEFAULT_K, FailureDetector, check_stride
+from robofailring.detector import DEFAULT_K, DetectionTrace, FailureDetector, check_stride
 from robofailring.encoders import CachedEncoder, encoder_slug, load_encoder
 from robofailring.errors import DataError, SettingError, UnknownTaskError
 from robofailring.memory import FailureMemory
@@ -23,6 +23,8 @@ from robofailring.outputs import check_output_folder, check_recording_file
 from robofailring.pipeline import encoder_spec_for
 from robofailring.progress import progress_bar
 from robofailring.references import ReferenceCheck
+from robofailring.report import report_for
+from robofailring.vlm import VLMAnswer, VLMConfig, ask_vlm
 
 DEFAULT_OUT: Final[Path] = Path("recordings")
 _UNSAFE = re.compile(r"[^A-Za-z0-9._+-]+")
@@ -45,6 +47,7 @@ class ReplayConfig:
     stride: int = 1  # score every stride-th frame; the recording keeps every camera frame
     labels: Path | None = None  # labels file (LeRobot): outcome and symbol shown in the recording
     data_root: Path | None = None  # where the memory's images are now, when its data moved
+    vlm: VLMConfig | None = None  # ask this VLM about each detection; its answer joins the report
 
 
 @dataclass(frozen=True)
@@ -71,6 +74,17 @@ class ReplayResult:
     skipped: list[tuple[str, str]] = field(default_factory=list)
     skipped_inputs: list[Skipped] = field(default_factory=list)  # folders/files of the data not read
     references: dict[Path, ReferenceCheck] = field(default_factory=dict)  # per memory directory
+    vlm_errors: list[tuple[str, str]] = field(default_factory=list)  # (trajectory, why the VLM call failed)
+
+    def ask(self, vlm: VLMConfig | None, trace: DetectionTrace, trajectory: Trajectory) -> VLMAnswer | None:
+        """The VLM's answer about the trace's detection (None: no VLM, or nothing detected); failures are kept."""
+        report = report_for(trace, trajectory) if vlm is not None else None
+        if vlm is None or report is None:
+            return None
+        answer = ask_vlm(report, vlm)
+        if answer.error is not None:
+            self.vlm_errors.append((trajectory.key, answer.error))
+        return answer
 
 
 def recording_name(trajectory: Trajectory, suffix: str = "") -> str:
@@ -211,8 +225,11 @@ def _replay(config: ReplayConfig) -> ReplayResult:
                 result.skipped.append((trajectory.key, str(error)))
             else:
                 out = _target(config.out, recording_name(trajectory), written, trajectory.key)
+                answer = result.ask(config.vlm, trace, trajectory)
                 result.recordings.append(
-                    record_replay(trajectory, trace, out=out, memory_map=found.map, fps=config.fps)
+                    record_replay(
+                        trajectory, trace, out=out, memory_map=found.map, fps=config.fps, vlm_answer=answer
+                    )
                 )
             bar.update(1)
     return result

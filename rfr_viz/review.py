@@ -15,6 +15,7 @@ from robofailring.data.layouts import load_dataset
 from robofailring.errors import DataError
 from robofailring.outputs import check_output_folder, check_recording_file
 from robofailring.progress import progress_bar
+from robofailring.vlm import VLMConfig
 
 KINDS: Final[tuple[str, ...]] = ("false-alarms", "misses")
 
@@ -29,6 +30,7 @@ class ReviewConfig:
     cache_dir: Path | None = None
     device: str | None = None
     data_root: Path | None = None  # where the memory's images are now, when its data moved
+    vlm: VLMConfig | None = None  # ask this VLM about each alarm; its answer joins the report
 
 
 def review(config: ReviewConfig) -> ReplayResult:
@@ -70,7 +72,14 @@ def review(config: ReviewConfig) -> ReplayResult:
             out = Path(config.out) / config.kind / recording_name(trajectory)
             check_recording_file(out)
             result.recordings.append(
-                record_replay(trajectory, trace, out=out, memory_map=loaded.map, focus_frame=focus)
+                record_replay(
+                    trajectory,
+                    trace,
+                    out=out,
+                    memory_map=loaded.map,
+                    focus_frame=focus,
+                    vlm_answer=result.ask(config.vlm, trace, trajectory),
+                )
             )
             bar.update(1)
     return result

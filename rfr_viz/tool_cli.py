@@ -15,9 +15,12 @@ from robofailring.cli import (
     EncoderOption,
     LabelsOption,
     StrideOption,
+    VLMModelOption,
+    VLMUrlOption,
     app,
     exit_with_error,
     report_skipped,
+    vlm_config,
     warn_missing_references,
 )
 from robofailring.errors import RoboFailRingError
@@ -87,10 +90,14 @@ def review_cmd(
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
     data_root: DataRootOption = None,
+    vlm_url: VLMUrlOption = None,
+    vlm_model: VLMModelOption = None,
 ) -> None:
     """Replay only the false alarms (or the misses) of an evaluation, each recording focused on the moment."""
+    from rfr_viz.cli import warn_vlm_errors
     from rfr_viz.review import ReviewConfig, review
 
+    vlm = vlm_config(vlm_url, vlm_model)
     try:
         result = review(
             ReviewConfig(
@@ -102,6 +109,7 @@ def review_cmd(
                 cache_dir=cache_dir,
                 device=device,
                 data_root=data_root,
+                vlm=vlm,
             )
         )
     except RoboFailRingError as error:
@@ -109,6 +117,7 @@ def review_cmd(
     report_skipped(result.skipped_inputs)
     for memory_dir, check in result.references.items():
         warn_missing_references(memory_dir, check)
+    warn_vlm_errors(result)
     if not result.recordings:
         typer.echo(f"no {kind} in {evaluation}: nothing to replay")
         return

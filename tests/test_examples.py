@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
 
 from rerun.chunk import RrdReader
 from synthetic import VIEWS, write_aha_dataset, write_episode, write_project_dataset
+from test_viz import rows
 
 from rfr_viz.paths import UNSTOPPED, WATCHED
 from rfr_viz.viewer import verify_recording
@@ -89,3 +91,37 @@ def test_compare_encoders_example(tmp_path: Path, tiny_checkpoint: tuple[Path, P
     rows = [line for line in result.stdout.splitlines() if line.startswith("| ")]
     assert any("pixels" in row for row in rows) and any("`open_clip:" in row for row in rows), result.stdout
     assert len(rows) == 3, result.stdout  # the header and one row per encoder
+
+
+def test_live_robot_example_records_the_stream(tmp_path: Path) -> None:
+    """The user's robot loop with the Rerun sink, saved: every step's cameras and S_t up to the stop."""
+    saved = tmp_path / "live.rrd"
+    result = subprocess.run(
+        [
+            sys.executable,
+            str(EXAMPLES / "live_robot_sim.py"),
+            *("--episodes", "1", "--image-size", "48", "--frames", "16"),
+            *("--data", str(tmp_path / "data"), "--save", str(saved)),
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
+        env={
+            "ROBOFAILRING_CACHE": str(tmp_path / "cache"),
+            "PATH": "/usr/bin:/bin",
+            **{key: os.environ[key] for key in ("PYTHONPATH",) if key in os.environ},  # a worktree's code
+        },
+    )
+    assert result.returncode == 0, result.stderr
+    out = result.stdout
+    assert "memory: " in out and f"rerun {saved}" in out
+    assert ("STOP at step" in out) != ("no alarm in 16 steps" in out)
+    verify_recording(saved)
+    steps = 16
+    if "STOP at step" in out:
+        steps = int(out.split("STOP at step ")[1].split()[0]) + 1  # the stop step is the last one fed
+    for view in VIEWS:
+        assert [frame for frame, _ in rows(saved, f"/score/{view}", "Scalars:scalars")] == list(range(steps))
+        assert [frame for frame, _ in rows(saved, f"/camera/{view}", "EncodedImage:blob")] == list(
+            range(steps)
+        )

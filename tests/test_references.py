@@ -206,3 +206,33 @@ def test_report_names_missing_images(relative_build: tuple[Path, Path]) -> None:
     Path(report.items[0].end_image).unlink()
     assert report.missing_images() == [report.items[0].end_image]
     assert f"**image not found:** `{report.items[0].end_image}`" in report.to_markdown()
+
+
+def test_vlm_is_not_asked_without_its_images_and_explain_reroots(
+    relative_build: tuple[Path, Path], tmp_path: Path
+) -> None:
+    from vlm_server import ANSWER, chat_server
+
+    from robofailring.report import FailureReport
+    from robofailring.vlm import VLMConfig, ask_vlm
+
+    data, memory_dir = relative_build
+    memory = FailureMemory.load(memory_dir)
+    sims, ids = memory.search(memory.vectors[:1], "pick_cube", 2)
+    report = FailureReport.from_neighbors(
+        task="pick_cube", view="front", t_det=3, neighbors=memory.neighbors(sims[0], ids[0])
+    )
+    moved = tmp_path / "disk2" / "aha"
+    moved.parent.mkdir()
+    shutil.move(str(data), moved)
+    with chat_server() as server:
+        config = VLMConfig(url=server.url, model="m", retries=0)
+        answer = ask_vlm(report, config)
+        assert answer.answer is None and answer.error is not None
+        assert "not sent: 2 report image(s) not found" in answer.error and "--data-root" in answer.error
+        assert server.received == []  # nothing went over the wire
+        relocated = report.relocated(moved)
+        assert relocated.items[0].end_image == str(moved / Path(report.items[0].end_image).relative_to(data))
+        assert relocated.missing_images() == []
+        assert ask_vlm(relocated, config).answer == ANSWER
+        assert len(server.received) == 1

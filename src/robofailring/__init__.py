@@ -3,7 +3,14 @@
 from __future__ import annotations
 
 from robofailring.data import Dataset, Frame, Outcome, Trajectory, load_dataset, load_trajectory
-from robofailring.detector import PAPER_DELTA, DetectionTrace, DetectorSession, FailureDetector, StepResult
+from robofailring.detector import (
+    PAPER_DELTA,
+    DetectionTrace,
+    DetectorSession,
+    FailureDetector,
+    StepResult,
+    StepSink,
+)
 from robofailring.encoders import CachedEncoder, Encoder, load_encoder
 from robofailring.errors import (
     DataError,
@@ -42,6 +49,7 @@ __all__ = [
     "RoboFailRingError",
     "SettingError",
     "StepResult",
+    "StepSink",
     "SymbolError",
     "Trajectory",
     "UnknownTaskError",

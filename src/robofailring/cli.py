@@ -6,7 +6,7 @@ import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Annotated, NoReturn
+from typing import TYPE_CHECKING, Annotated, NoReturn
 
 import numpy as np
 import typer
@@ -17,6 +17,9 @@ from robofailring.errors import RoboFailRingError
 from robofailring.exit_codes import ErrorMappingGroup, fail, finish
 from robofailring.progress import progress_bar
 from robofailring.references import ReferenceCheck, check_references
+
+if TYPE_CHECKING:
+    from robofailring.vlm import VLMConfig
 
 app = typer.Typer(
     name="robofailring",
@@ -54,6 +57,17 @@ LabelsOption = Annotated[
         help="Outcome and failure symbol per episode: a JSON list or CSV of episode_index, outcome, symbol "
         "(LeRobot datasets; `episode` names an episode folder).",
     ),
+]
+VLMUrlOption = Annotated[
+    str | None,
+    typer.Option(
+        "--vlm-url",
+        help="Base URL of an OpenAI-compatible server (e.g. http://localhost:11434/v1) to ask about the "
+        "report; key from $ROBOFAILRING_VLM_API_KEY.",
+    ),
+]
+VLMModelOption = Annotated[
+    str | None, typer.Option("--vlm-model", help="Model the VLM server serves (with --vlm-url).")
 ]
 
 
@@ -96,6 +110,21 @@ def warn_missing_references(memory: Path, check: ReferenceCheck) -> None:
 
 def exit_with_error(error: Exception) -> NoReturn:
     fail(error)
+
+
+def vlm_config(url: str | None, model: str | None) -> VLMConfig | None:
+    """The VLM to ask, from --vlm-url and --vlm-model (both or neither; bad usage otherwise)."""
+    from robofailring.vlm import VLMConfig, VLMError
+
+    if url is None or model is None:
+        if url is not None or model is not None:
+            exit_with_error(ValueError("--vlm-url and --vlm-model go together: give both or neither"))
+        return None
+    try:
+        return VLMConfig(url=url, model=model)
+    except VLMError as error:
+        exit_with_error(error)
+        return None
 
 
 @app.command("generate")
@@ -216,12 +245,17 @@ def detect_cmd(
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
     data_root: DataRootOption = None,
+    vlm_url: VLMUrlOption = None,
+    vlm_model: VLMModelOption = None,
 ) -> None:
     """Replay one trajectory through the detector and say if and when it fires."""
-    from robofailring.pipeline import DetectConfig, detect
+    from robofailring.pipeline import DetectConfig, detect_trajectory
+    from robofailring.report import report_for
+    from robofailring.vlm import ask_vlm
 
+    vlm = vlm_config(vlm_url, vlm_model)
     try:
-        trace = detect(
+        trace, loaded = detect_trajectory(
             DetectConfig(
                 trajectory=trajectory,
                 memory=memory,
@@ -246,6 +280,10 @@ def detect_cmd(
         warn_missing_references(
             memory, check_references(ref for n in neighbors for ref in (n.entry.start, n.entry.end))
         )
+    report = report_for(trace, loaded)
+    answer = ask_vlm(report, vlm) if vlm is not None and report is not None else None
+    if answer is not None and answer.error is not None:
+        typer.secho(f"warning: the VLM call failed: {answer.error}", fg=typer.colors.YELLOW, err=True)
     for view, count in trace.truncated_views.items():
         typer.secho(
             f"note: view {view} has {trace.length + count} frames; the last {count} are not scored "
@@ -258,7 +296,12 @@ def detect_cmd(
             f"note: views with fewer than 2 frames skipped: {', '.join(trace.skipped_views)}", err=True
         )
     if as_json:
-        json.dump(trace.to_dict(), sys.stdout)
+        found = {**trace.to_dict(), "report": report.to_dict() if report is not None else None}
+        if vlm is not None:
+            found["vlm"] = (
+                answer.to_dict() if answer is not None else None
+            )  # None: nothing detected to ask about
+        json.dump(found, sys.stdout)
         sys.stdout.write("\n")
         return
     scored = f", every {trace.stride}th frame scored" if trace.stride > 1 else ""
@@ -276,6 +319,8 @@ def detect_cmd(
             f"(S_t = {top.similarity:.3f}); nearest memory entry {top.entry.task}/{top.entry.episode} "
             f"[{top.entry.view}] {top.entry.symbol}: {top.entry.description}"
         )
+        if answer is not None and answer.answer is not None:
+            typer.echo(f"\nVLM ({answer.model}, {answer.latency_s:.1f} s):\n{answer.answer}")
 
 
 @app.command("calibrate")

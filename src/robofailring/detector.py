@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Final
+from typing import Any, Final, Protocol
 
 import numpy as np
 
@@ -28,6 +28,15 @@ class StepResult:
     neighbors: dict[str, list[Neighbor]]
     state: bool
     fired_views: list[str]
+    queries: dict[str, np.ndarray] = field(default_factory=dict, repr=False)  # (f(I_0) ‖ f(I_t)) per view
+
+
+class StepSink(Protocol):
+    """Receives every step of a live session, e.g. `rfr_viz.LiveRecording` streams it to a Rerun viewer."""
+
+    def on_step(
+        self, session: DetectorSession, frames: Mapping[str, np.ndarray | Frame], result: StepResult
+    ) -> None: ...
 
 
 @dataclass
@@ -184,10 +193,12 @@ class FailureDetector:
         )
         self.k = k
 
-    def session(self, task: str, *, exclude_episode: str | None = None) -> DetectorSession:
-        """A live session for a robot: feed each step's frames with `step`."""
+    def session(
+        self, task: str, *, exclude_episode: str | None = None, sink: StepSink | None = None
+    ) -> DetectorSession:
+        """A live session for a robot: feed each step's frames with `step`; `sink` sees every step."""
         self.memory.task_size(task)  # unknown task -> clear error before the robot moves
-        return DetectorSession(self, task, exclude_episode=exclude_episode)
+        return DetectorSession(self, task, exclude_episode=exclude_episode, sink=sink)
 
     def run(self, trajectory: Trajectory, *, leave_one_out: bool = False, stride: int = 1) -> DetectionTrace:
         """Detect over a whole trajectory; `leave_one_out` hides its own episode's memory entries.
@@ -244,10 +255,18 @@ class FailureDetector:
 class DetectorSession:
     """Per-episode state of the step API: the first frame of every view and the step counter."""
 
-    def __init__(self, detector: FailureDetector, task: str, *, exclude_episode: str | None) -> None:
+    def __init__(
+        self,
+        detector: FailureDetector,
+        task: str,
+        *,
+        exclude_episode: str | None,
+        sink: StepSink | None = None,
+    ) -> None:
         self.detector = detector
         self.task = task
         self.exclude_episode = exclude_episode
+        self.sink = sink
         self._first: dict[str, np.ndarray] = {}
         self.t = 0
         self.fired_at: int | None = None
@@ -265,9 +284,10 @@ class DetectorSession:
             embeddings = l2_normalize(self.detector.encoder.encoder.encode(images))
         similarity: dict[str, float] = {}
         neighbors: dict[str, list[Neighbor]] = {}
+        queries: dict[str, np.ndarray] = {}
         for view, embedding in zip(views, embeddings, strict=True):
             first = self._first.setdefault(view, embedding)
-            query = pair_vectors(first, embedding)
+            query = queries[view] = pair_vectors(first, embedding)
             sims, ids = self.detector.memory.search(
                 query, self.task, self.detector.k, exclude_episode=self.exclude_episode
             )
@@ -275,9 +295,16 @@ class DetectorSession:
             neighbors[view] = self.detector.memory.neighbors(sims[0], ids[0])
         fired = [v for v in views if similarity[v] >= self.detector.delta]
         result = StepResult(
-            t=self.t, similarity=similarity, neighbors=neighbors, state=bool(fired), fired_views=fired
+            t=self.t,
+            similarity=similarity,
+            neighbors=neighbors,
+            state=bool(fired),
+            fired_views=fired,
+            queries=queries,
         )
         if fired and self.fired_at is None:
             self.fired_at = self.t
+        if self.sink is not None:
+            self.sink.on_step(self, frames, result)
         self.t += 1
         return result

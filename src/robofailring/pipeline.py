@@ -7,6 +7,7 @@ from pathlib import Path
 
 from robofailring._atomic import output_lock
 from robofailring.data.layouts import load_dataset, load_trajectory
+from robofailring.data.model import Trajectory
 from robofailring.detector import DEFAULT_K, DetectionTrace, FailureDetector, check_stride
 from robofailring.encoders import CachedEncoder, load_encoder
 from robofailring.errors import DataError, EncoderError, MemoryFormatError
@@ -133,10 +134,15 @@ def encoder_spec_for(memory: FailureMemory) -> str:
 
 def detect(config: DetectConfig) -> DetectionTrace:
     """Run the detector over one trajectory folder."""
+    return detect_trajectory(config)[0]
+
+
+def detect_trajectory(config: DetectConfig) -> tuple[DetectionTrace, Trajectory]:
+    """`detect`, also returning the trajectory it loaded (for the report's current frame)."""
     check_stride(config.stride)
     memory = FailureMemory.load(config.memory, data_root=config.data_root)
     trajectory = load_trajectory(config.trajectory, task=config.task, key=config.key, labels=config.labels)
     spec = config.encoder or encoder_spec_for(memory)
     encoder = CachedEncoder(load_encoder(spec, device=config.device), cache_dir=config.cache_dir)
     detector = FailureDetector(memory, encoder, delta=config.delta, k=config.k)
-    return detector.run(trajectory, leave_one_out=config.leave_one_out, stride=config.stride)
+    return detector.run(trajectory, leave_one_out=config.leave_one_out, stride=config.stride), trajectory

@@ -135,3 +135,21 @@ def _reroot_old(reference: str, source: Path, new_root: Path) -> str:
         if parts[:shared] == source.parts[-shared:]:
             return str(Path(new_root, *parts[shared:]))
     return reference
+
+
+def relocate(reference: str, root: Path) -> str:
+    """A reference that no longer exists, found again under `root` (where its dataset moved).
+
+    The longest trailing part of its path that exists under `root` wins; a reference that exists,
+    or is found nowhere under `root`, is returned unchanged.
+    """
+    if not is_file_reference(reference) or os.path.isfile(reference_file(reference)):
+        return reference
+    file = reference_file(reference)
+    fragment = reference[len(file) :]  # `#frame=<i>` of a video frame, else empty
+    parts = Path(file).parts
+    for keep in range(len(parts) - 1, 0, -1):
+        candidate = Path(root, *parts[-keep:])
+        if candidate.is_file():
+            return f"{candidate}{fragment}"
+    return reference

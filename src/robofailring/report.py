@@ -3,12 +3,18 @@
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import Any, Protocol
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Protocol
 
+from robofailring.errors import DataError
 from robofailring.memory import Neighbor
-from robofailring.references import absolute_reference, check_references
+from robofailring.references import absolute_reference, check_references, relocate
+
+if TYPE_CHECKING:
+    from robofailring.data.model import Trajectory
+    from robofailring.detector import DetectionTrace
 
 SYSTEM_PROMPT = (
     "You are an expert robotic failure analyst. Use the provided Failure Report and Reference Images "
@@ -79,6 +85,34 @@ class FailureReport:
         similarity = items[0].similarity if items else float("nan")
         return cls(task, view, t_det, similarity, items, current_image)
 
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], *, source: str = "report") -> FailureReport:
+        """The inverse of `to_dict` (a `detect --json` report, a recording's `report` property)."""
+        try:
+            items = tuple(
+                ReportItem(
+                    task=str(item["task"]),
+                    symbol=str(item["symbol"]),
+                    description=str(item["description"]),
+                    view=str(item["view"]),
+                    similarity=float(item["similarity"]),
+                    start_image=str(item["start_image"]),
+                    end_image=str(item["end_image"]),
+                )
+                for item in data["neighbors"]
+            )
+            current = data.get("current_image")
+            return cls(
+                current_task=str(data["current_task"]),
+                view=str(data["view"]),
+                t_det=int(data["t_det"]),
+                similarity=float(data["similarity"]),
+                items=items,
+                current_image=None if current is None else str(current),
+            )
+        except (KeyError, TypeError, ValueError) as error:
+            raise DataError(f"{source} is not a failure report (missing or bad field: {error})") from error
+
     def to_dict(self) -> dict[str, Any]:
         return {
             "current_task": self.current_task,
@@ -97,6 +131,19 @@ class FailureReport:
         if self.current_image:
             images.append(self.current_image)
         return list(check_references(absolute_reference(image) for image in images).missing)
+
+    def relocated(self, data_root: Path) -> FailureReport:
+        """The same report with its images found again under `data_root` (the dataset moved)."""
+        items = tuple(
+            replace(
+                item,
+                start_image=relocate(item.start_image, data_root),
+                end_image=relocate(item.end_image, data_root),
+            )
+            for item in self.items
+        )
+        current = relocate(self.current_image, data_root) if self.current_image else self.current_image
+        return replace(self, items=items, current_image=current)
 
     def to_json(self) -> str:
         return json.dumps(self.to_dict(), indent=2)
@@ -168,7 +215,23 @@ class FailureReport:
         return "\n".join(lines)
 
 
+def report_for(trace: DetectionTrace, trajectory: Trajectory | None = None) -> FailureReport | None:
+    """The report at t_det for the firing view's K neighbours (None without a detection).
+
+    With the trajectory, the current frame (the firing view at t_det) is referenced for the VLM.
+    """
+    t_det, view = trace.t_det, trace.detected_view
+    if t_det is None or view is None:
+        return None
+    current = None
+    if trajectory is not None and view in trajectory.views and t_det < len(trajectory.views[view]):
+        current = trajectory.views[view][t_det].reference
+    return FailureReport.from_neighbors(
+        task=trace.task, view=view, t_det=t_det, neighbors=trace.neighbors(view, t_det), current_image=current
+    )
+
+
 class VLMClient(Protocol):
-    """A pluggable vision-language model; nothing calls one by default (there is no network here)."""
+    """A vision-language model answering chat messages (`robofailring.vlm.ChatCompletionsClient`)."""
 
     def complete(self, messages: list[dict[str, Any]]) -> str: ...

@@ -1,0 +1,131 @@
+"""Live view cost (issue 12): latency a step of the step API gains from the Rerun sink, 3 views.
+
+Run: .venv/bin/python bench/bench_live.py [--steps 200] [--image-size 128] [--entries 1500] [--connect URL]
+
+The frames are the simulated robot's own (three cameras), fed as live RGB arrays; the memory holds
+random unit vectors under the `pixels` encoder's identity whose entries point at real images (so the
+neighbour grid has pictures to log). The same frames go through a session without a sink and through
+one with `rfr_viz.LiveRecording` writing to a file (and to a viewer with --connect), interleaved
+step by step; the table prints per-step latency of both side by side and the difference.
+With random vectors the K neighbours change at every step, so the sink logs all 3 × K start/end
+images every step: the worst case (in a real run they change at a few frames only).
+BLAS runs single-threaded (as set below, unless the environment says otherwise): on a busy
+2-core machine its threads only add contention to a per-step latency measurement.
+"""
+
+# ruff: noqa: E402  (the imports follow the thread settings, which must precede numpy)
+from __future__ import annotations
+
+import os
+
+for _variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_variable, "1")
+
+import argparse
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from rfr_viz import LiveRecording, LiveTarget, fit_map
+from robofailring import FailureDetector, FailureMemory, load_encoder
+from robofailring.data.images import write_png
+from robofailring.memory import MemoryEntry, pair_vectors
+from robofailring.sim import VIEWS, run_episode
+
+
+def simulated_frames(image_size: int, frames: int) -> list[dict[str, np.ndarray]]:
+    with run_episode("pick_cube", "grasp", 3, image_size=image_size, frames=frames) as run:
+        return [dict(images) for images in run]
+
+
+def random_memory(entries: int, folder: Path, frames: list[dict[str, np.ndarray]]) -> FailureMemory:
+    """`entries` random pair vectors of the pixels encoder's size, one task, real start/end images."""
+    encoder = load_encoder("pixels")
+    rng = np.random.default_rng(0)
+    half = encoder.dim
+    vectors = pair_vectors(
+        rng.standard_normal((entries, half), np.float32), rng.standard_normal((entries, half), np.float32)
+    )
+    images = []
+    for index in range(8):  # a few distinct reference images, shared round-robin
+        path = folder / f"ref{index}.png"
+        write_png(path, frames[(index * 5) % len(frames)][VIEWS[index % len(VIEWS)]])
+        images.append(str(path))
+    listed = [
+        MemoryEntry(
+            task="pick_cube",
+            symbol="grasp_wp2",
+            episode=f"ep{i // 3}",
+            view=VIEWS[i % 3],
+            start=images[i % len(images)],
+            end=images[(i + 1) % len(images)],
+        )
+        for i in range(entries)
+    ]
+    return FailureMemory(vectors, listed, encoder=encoder.identity)
+
+
+def percentile(values: list[float], q: float) -> float:
+    return float(np.percentile(np.asarray(values), q))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--steps", type=int, default=200)
+    parser.add_argument("--image-size", type=int, default=128)
+    parser.add_argument(
+        "--entries", type=int, default=1500, help="memory entries (the map is fitted on them)"
+    )
+    parser.add_argument("--connect", default=None, help="also stream to a running viewer at this URL")
+    args = parser.parse_args()
+
+    frames = simulated_frames(args.image_size, 40)
+    with tempfile.TemporaryDirectory(prefix="bench-live-") as tmp:
+        folder = Path(tmp)
+        memory = random_memory(args.entries, folder, frames)
+        started = time.perf_counter()
+        memory_map = fit_map(memory.vectors)
+        fit_s = time.perf_counter() - started
+        detector = FailureDetector(memory, load_encoder("pixels"), delta=1.0, k=5)  # δ = 1: no alarm
+        target = LiveTarget(connect=args.connect, save=folder / "live.rrd")
+        plain = detector.session("pick_cube")
+        without: list[float] = []
+        with_sink: list[float] = []
+        with LiveRecording.open(
+            detector, "pick_cube", views=VIEWS, target=target, memory_map=memory_map
+        ) as live:
+            sunk = detector.session("pick_cube", sink=live)
+            for step in range(args.steps + 10):
+                images = frames[step % len(frames)]
+                t0 = time.perf_counter()
+                plain.step(images)
+                t1 = time.perf_counter()
+                sunk.step(images)
+                t2 = time.perf_counter()
+                if step >= 10:  # warm-up steps are not counted
+                    without.append((t1 - t0) * 1000)
+                    with_sink.append((t2 - t1) * 1000)
+        size_kib = (folder / "live.rrd").stat().st_size / 1024
+
+    added = [b - a for a, b in zip(without, with_sink, strict=True)]
+    print(
+        f"live step, {len(VIEWS)} views of {args.image_size}px, memory {args.entries} entries "
+        f"(map fitted in {fit_s:.1f} s), {args.steps} steps, sink: file"
+        + (f" + viewer {args.connect}" if args.connect else "")
+    )
+    print(f"{'':>22} {'median ms':>10} {'p95 ms':>8}")
+    print(f"{'step without sink':>22} {statistics.median(without):>10.2f} {percentile(without, 95):>8.2f}")
+    print(f"{'step with sink':>22} {statistics.median(with_sink):>10.2f} {percentile(with_sink, 95):>8.2f}")
+    print(f"{'added by the sink':>22} {statistics.median(added):>10.2f} {percentile(added, 95):>8.2f}")
+    print(
+        f"recording: {size_kib:.0f} KiB for {args.steps + 10} steps ({size_kib / (args.steps + 10):.1f} KiB/step)"
+    )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,361 @@
+"""Watching a robot live: each step of a detector session streamed to a Rerun viewer, and/or saved.
+
+`LiveRecording` is the library's `StepSink` for Rerun: pass it as `detector.session(task, sink=live)`
+and every `session.step(...)` is logged at once with the entity paths of a replay (rfr_viz.paths):
+`/camera/<view>`, `/score/<view>`, `/score/delta`, `/detection/state`, the moving map query, the
+neighbours when they change, and the detection event and failure report at the first alarm.
+`watch` feeds a recorded episode through the same loop, frame by frame, as a robot would.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import socket
+import time
+import uuid
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import ExitStack, contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Final
+
+import numpy as np
+import rerun as rr
+
+from rfr_viz._images import JPEG_MEDIA_TYPE, JPEG_QUALITY, frame_jpeg
+from rfr_viz.blueprint import replay_blueprint
+from rfr_viz.memory_umap import MemoryMap
+from rfr_viz.neighbors import DEFAULT_CELL, Cell, NeighborImages, log_neighbor_entry, log_neighbor_layout
+from rfr_viz.paths import APPLICATION_ID, DEFAULT_FPS, PROPERTIES, REPLAY, camera
+from rfr_viz.record import (
+    class_id,
+    log_alarm,
+    log_memory_map,
+    log_score_styles,
+    map_title,
+    set_frame_time,
+)
+from rfr_viz.viewer import DEFAULT_PORT, ViewerUnavailable
+from robofailring._atomic import atomic_path
+from robofailring.data.images import as_rgb, encode_jpeg
+from robofailring.data.layouts import load_trajectory
+from robofailring.data.model import Frame
+from robofailring.detector import DEFAULT_K, DetectorSession, FailureDetector, StepResult
+from robofailring.errors import DataError
+from robofailring.report import FailureReport
+
+DEFAULT_VIEWER_URL: Final[str] = f"rerun+http://127.0.0.1:{DEFAULT_PORT}/proxy"
+FLUSH_TIMEOUT_S: Final[float] = 10.0  # at the end, wait this long at most for a viewer to take the rest
+
+
+@dataclass(frozen=True)
+class LiveTarget:
+    """Where the live stream goes: a running viewer, a spawned one, and/or a file."""
+
+    connect: str | None = None  # gRPC URL of a running viewer, e.g. rerun+http://127.0.0.1:9876/proxy
+    spawn: bool = False  # start a viewer on the default port and stream to it
+    save: Path | None = None  # also write the same stream to this .rrd (atomically, at the end)
+
+    def __post_init__(self) -> None:
+        if self.connect is None and not self.spawn and self.save is None:
+            raise ValueError("a live recording needs somewhere to go: a viewer URL, spawn, or a file")
+
+
+def check_viewer(url: str) -> None:
+    """ViewerUnavailable unless something listens at the host and port of a viewer URL."""
+    from urllib.parse import urlparse
+
+    parsed = urlparse(url)
+    if not parsed.scheme.startswith("rerun") or parsed.hostname is None:
+        raise ValueError(f"viewer URL {url!r} is not like rerun+http://127.0.0.1:9876/proxy")
+    port = parsed.port or DEFAULT_PORT
+    with contextlib.suppress(OSError), socket.create_connection((parsed.hostname, port), timeout=2.0):
+        return
+    raise ViewerUnavailable(
+        f"no Rerun viewer listens at {url}: start one (`rerun`), pass --spawn, or only --save to a file"
+    )
+
+
+def _jpeg(frame: np.ndarray | Frame) -> bytes:
+    return frame_jpeg(frame) if isinstance(frame, Frame) else encode_jpeg(as_rgb(frame), quality=JPEG_QUALITY)
+
+
+class LiveRecording:
+    """A `StepSink` that logs every step of a session to a Rerun recording stream as it happens."""
+
+    def __init__(
+        self,
+        rec: rr.RecordingStream,
+        detector: FailureDetector,
+        *,
+        task: str,
+        views: Sequence[str],
+        fps: float = DEFAULT_FPS,
+        memory_map: MemoryMap | None = None,
+        name: str = "live",
+        cell: Cell = DEFAULT_CELL,
+    ) -> None:
+        self.rec = rec
+        self.cell = cell
+        self.detector = detector
+        self.task = task
+        self.views = list(views)
+        self.fps = fps
+        self.memory_map = memory_map
+        self.name = name
+        self.images = NeighborImages()
+        self.steps = 0
+        self.fired_at: int | None = None
+        self.report: FailureReport | None = None
+        self.lost: str | None = None  # why the viewer did not get everything, if it did not
+        self._shown: dict[tuple[str, int], int] = {}  # (view, rank) -> memory entry index on screen
+
+    @classmethod
+    @contextmanager
+    def open(
+        cls,
+        detector: FailureDetector,
+        task: str,
+        *,
+        views: Sequence[str],
+        target: LiveTarget,
+        fps: float = DEFAULT_FPS,
+        memory_map: MemoryMap | None = None,
+        name: str | None = None,
+    ) -> Iterator[LiveRecording]:
+        """A live recording streamed to `target`, with the replay layout as its blueprint.
+
+        On leaving the block the recording's properties (t_det, the report, …) are sent, the stream
+        is flushed, and a saved file appears at `target.save` (not on error).
+        """
+        entries = detector.memory.entries
+        cell = _cell(entries[0].start if entries else "", NeighborImages())
+        blueprint = replay_blueprint(
+            views=views,
+            map_title=map_title(memory_map) if memory_map is not None else "memory map (not given)",
+            legend_entries=len({class_id(entry.symbol) for entry in entries}),
+            cell=cell,
+            k=detector.k,
+            fps=fps,
+        )
+        with ExitStack() as stack:
+            rec = rr.RecordingStream(APPLICATION_ID, recording_id=str(uuid.uuid4()))
+            sinks: list[Any] = []
+            if target.save is not None:
+                sinks.append(rr.FileSink(stack.enter_context(atomic_path(Path(target.save), suffix=".rrd"))))
+            url = target.connect
+            if url is not None:
+                check_viewer(url)
+            if target.spawn:
+                rec.spawn(port=DEFAULT_PORT, connect=False, hide_welcome_screen=True)
+                url = url or DEFAULT_VIEWER_URL
+            if url is not None:
+                sinks.append(rr.GrpcSink(url))
+            rec.set_sinks(*sinks, default_blueprint=blueprint)
+            live = cls(
+                rec,
+                detector,
+                task=task,
+                views=views,
+                fps=fps,
+                memory_map=memory_map,
+                name=name or task,
+                cell=cell,
+            )
+            live._start()
+            try:
+                yield live
+                live._finish()
+            finally:
+                try:
+                    rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
+                except RuntimeError as error:  # the viewer went away; a file sink is flushed all the same
+                    live.lost = f"the viewer at {url} did not take the whole stream ({error})"
+                rec.disconnect()  # closes the file before atomic_path moves it into place
+
+    def _start(self) -> None:
+        paths = REPLAY
+        self.rec.send_recording_name(f"{self.name} (live)")
+        log_score_styles(self.rec, paths, views=self.views, delta=self.detector.delta)
+        if self.memory_map is not None:
+            log_memory_map(
+                self.rec,
+                paths,
+                entries=self.detector.memory.entries,
+                memory_map=self.memory_map,
+                task=self.task,
+                views=self.views,
+            )
+        for view in self.views:
+            log_neighbor_layout(self.rec, paths, view, k=self.detector.k, cell=self.cell)
+        set_frame_time(self.rec, 0, self.fps)
+        self.rec.log(
+            paths.report,
+            rr.TextDocument(
+                self._summary() + "Watching live: no failure yet.", media_type=rr.MediaType.MARKDOWN
+            ),
+        )
+
+    def _summary(self) -> str:
+        return (
+            f"**{self.name}** — encoder `{self.detector.encoder.identity}`, δ = {self.detector.delta:.3f}, "
+            f"K = {self.detector.k}, live.\n\n"
+        )
+
+    def on_step(
+        self, session: DetectorSession, frames: Mapping[str, np.ndarray | Frame], result: StepResult
+    ) -> None:
+        """Log one step at frame `result.t`: cameras, S_t, δ, State_t, map query, neighbours, alarm."""
+        rec, paths, t = self.rec, REPLAY, result.t
+        set_frame_time(rec, t, self.fps)
+        for view, frame in frames.items():
+            rec.log(camera(view), rr.EncodedImage(contents=_jpeg(frame), media_type=JPEG_MEDIA_TYPE))
+            rec.log(paths.score(view), rr.Scalars(result.similarity[view]))
+        rec.log(paths.delta, rr.Scalars(self.detector.delta))
+        rec.log(paths.state, rr.Scalars(float(result.state)))
+        if self.memory_map is not None and result.queries:
+            views = list(result.queries)
+            placed = self.memory_map.project(
+                np.stack([result.queries[view] for view in views]).reshape(len(views), -1)
+            )
+            for view, position in zip(views, placed, strict=True):
+                rec.log(paths.umap_query(view), rr.Points2D.from_fields(positions=[position]))
+        first_alarm = result.state and self.fired_at is None
+        self._log_neighbors(
+            result, every=first_alarm
+        )  # at the alarm, as a replay: the similarities that fired
+        if first_alarm:
+            self._alarm(frames, result)
+        self.steps = max(self.steps, t + 1)
+
+    def _log_neighbors(self, result: StepResult, *, every: bool) -> None:
+        """Each view's K neighbours that changed since the last step (`every`: all of them)."""
+        for view, found in result.neighbors.items():
+            for rank, neighbor in enumerate(found):
+                if every or self._shown.get((view, rank)) != neighbor.index:
+                    self._shown[(view, rank)] = neighbor.index
+                    log_neighbor_entry(
+                        self.rec,
+                        REPLAY,
+                        view,
+                        rank,
+                        neighbor.entry,
+                        similarity=neighbor.similarity,
+                        t=result.t,
+                        images=self.images,
+                        cell=self.cell,
+                    )
+
+    def _alarm(self, frames: Mapping[str, np.ndarray | Frame], result: StepResult) -> None:
+        view = max(result.fired_views, key=lambda v: result.similarity[v])
+        frame = frames[view]
+        self.fired_at = result.t
+        self.report = FailureReport.from_neighbors(
+            task=self.task,
+            view=view,
+            t_det=result.t,
+            neighbors=result.neighbors[view],
+            current_image=frame.reference if isinstance(frame, Frame) and frame.path is not None else None,
+        )
+        log_alarm(
+            self.rec,
+            REPLAY,
+            report=self.report,
+            top=result.neighbors[view][0],
+            delta=self.detector.delta,
+            summary=self._summary(),
+        )
+
+    def _finish(self) -> None:
+        found: dict[str, Any] = {
+            "task": self.task,
+            "episode": self.name,
+            "L": self.steps,
+            "fps": float(self.fps),
+            "encoder": self.detector.encoder.identity,
+            "delta": float(self.detector.delta),
+            "k": self.detector.k,
+            "t_det": self.fired_at if self.fired_at is not None else -1,  # -1: the detector never fired
+            "views": ", ".join(self.views),
+            "live": True,
+        }
+        if self.report is not None:
+            found["detected_view"] = self.report.view
+            found["report"] = self.report.to_json()
+        self.rec.send_property(PROPERTIES, rr.AnyValues(**found))
+
+
+def _cell(reference: str, images: NeighborImages) -> Cell:
+    """The neighbour grid's cell: the size of a memory image, else the default."""
+    image = images.get(reference) if reference else None
+    return Cell(image.width, image.height) if image is not None else DEFAULT_CELL
+
+
+@dataclass(frozen=True)
+class WatchConfig:
+    episode: Path  # one episode folder, fed frame by frame
+    memory: Path  # memory directory (its cached map is shown)
+    target: LiveTarget  # viewer URL, spawn, and/or a file
+    task: str | None = None  # when the folder name does not say
+    delta: float | None = None  # default: the memory's calibrated δ, else 0.92
+    k: int = DEFAULT_K
+    encoder: str | None = None  # default: the memory's encoder spec
+    speed: float = 1.0  # 1: the data's frame rate; 2: twice as fast; 0: as fast as the detector goes
+    fps: float | None = None  # default: the data's, else 10
+    cache_dir: Path | None = None
+    device: str | None = None
+    data_root: Path | None = None  # where the memory's images are now, when its data moved
+
+
+@dataclass(frozen=True)
+class WatchResult:
+    steps: int  # L, frames fed
+    fired_at: int | None  # the first alarm (t_det)
+    detected_view: str | None
+    saved: Path | None
+    lost: str | None = None  # why the viewer did not get the whole stream, if it did not
+
+
+def watch(config: WatchConfig) -> WatchResult:
+    """Feed one episode through `detector.session(...).step` frame by frame, streaming every step."""
+    from rfr_viz.replay import load_detector
+
+    if config.speed < 0:
+        raise ValueError(f"--speed must be ≥ 0, got {config.speed}")
+    loaded = load_detector(
+        config.memory,
+        delta=config.delta,
+        k=config.k,
+        encoder=config.encoder,
+        cache_dir=config.cache_dir,
+        device=config.device,
+        data_root=config.data_root,
+    )
+    trajectory = load_trajectory(config.episode, task=config.task)
+    used = {view: frames for view, frames in trajectory.views.items() if len(frames) >= 2}
+    if not used:
+        raise DataError(f"episode {config.episode} has no view with at least 2 frames")
+    length = min(len(frames) for frames in used.values())  # views in step, as a replay scores them
+    fps = float(config.fps or trajectory.fps or DEFAULT_FPS)
+    with LiveRecording.open(
+        loaded.detector,
+        trajectory.task,
+        views=list(used),
+        target=config.target,
+        fps=fps,
+        memory_map=loaded.map,
+        name=f"{trajectory.task}/{trajectory.episode}",
+    ) as live:
+        session = loaded.detector.session(trajectory.task, sink=live)
+        started = time.monotonic()
+        for t in range(length):
+            if config.speed > 0:
+                time.sleep(max(0.0, started + t / (fps * config.speed) - time.monotonic()))
+            session.step({view: frames[t] for view, frames in used.items()})
+    return WatchResult(
+        steps=length,
+        fired_at=live.fired_at,
+        detected_view=live.report.view if live.report is not None else None,
+        saved=Path(config.target.save) if config.target.save is not None else None,
+        lost=live.lost,
+    )
