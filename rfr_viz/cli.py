@@ -8,6 +8,7 @@ from typing import Annotated
 import typer
 
 from rfr_viz import tool_cli  # noqa: F401  (registers evaluate and the other combined verbs)
+from rfr_viz.camera_video import CameraCodec, CameraCodecOption
 from rfr_viz.replay import DEFAULT_OUT, CompareConfig, ReplayConfig, ReplayResult, compare, replay
 from rfr_viz.viewer import DEFAULT_PORT, ViewerUnavailable, open_at, open_command
 from robofailring.cli import CacheOption, DeviceOption, app, exit_with_error
@@ -68,6 +69,7 @@ def replay_cmd(
     leave_one_out: LeaveOneOutOption = False,
     encoder: Annotated[str | None, typer.Option(help="Encoder spec (default: the memory's).")] = None,
     fps: FpsOption = None,
+    camera_codec: CameraCodecOption = CameraCodec.AUTO,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
 ) -> None:
@@ -83,6 +85,7 @@ def replay_cmd(
         leave_one_out=leave_one_out,
         encoder=encoder,
         fps=fps,
+        camera_codec=camera_codec,
         cache_dir=cache_dir,
         device=device,
     )
@@ -111,6 +114,7 @@ def compare_cmd(
     task: TaskOption = None,
     leave_one_out: LeaveOneOutOption = False,
     fps: FpsOption = None,
+    camera_codec: CameraCodecOption = CameraCodec.AUTO,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
 ) -> None:
@@ -125,6 +129,7 @@ def compare_cmd(
         task=task,
         leave_one_out=leave_one_out,
         fps=fps,
+        camera_codec=camera_codec,
         cache_dir=cache_dir,
         device=device,
     )

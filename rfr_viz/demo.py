@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rfr_viz.camera_video import CameraCodec
 from rfr_viz.evaluation_recording import record_evaluation
 from rfr_viz.memory_umap import memory_map
 from rfr_viz.record import record_replay
@@ -42,6 +43,7 @@ class DemoConfig:
     encoder: str = "pixels"
     workers: int = 2
     cache_dir: Path | None = None
+    camera_codec: CameraCodec = CameraCodec.AUTO  # jpeg, av1, h264, or auto (by size)
 
 
 @dataclass
@@ -142,7 +144,12 @@ def run_demo(config: DemoConfig, *, say: Callable[[str], None] = print) -> DemoR
             (trajectory,) = load_dataset(sources[evaluation.name]).select(keys=[key])
             path = out / "recordings" / f"{kind}__{evaluation.name}__{recording_name(trajectory)}"
             result.recordings[kind] = record_replay(
-                trajectory, evaluation.traces[key], out=path, memory_map=mapped, focus_frame=focus
+                trajectory,
+                evaluation.traces[key],
+                out=path,
+                memory_map=mapped,
+                focus_frame=focus,
+                camera_codec=config.camera_codec,
             )
             break
         else:

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Final
 
+from rfr_viz.camera_video import CameraCodec
 from rfr_viz.memory_umap import MemoryMap, memory_map
 from rfr_viz.record import compare_recording, record_replay
 from robofailring.data.layouts import detect_layout, load_dataset, load_trajectory
@@ -35,6 +36,7 @@ class ReplayConfig:
     leave_one_out: bool = False  # hide each trajectory's own episode from the memory
     encoder: str | None = None  # encoder spec; default: the one that built the memory
     fps: float | None = None  # "time" timeline rate; default: the data's, else 10
+    camera_codec: CameraCodec = CameraCodec.AUTO  # jpeg, av1, h264, or auto (by size)
     cache_dir: Path | None = None  # embedding cache (default ~/.cache/robofailring)
     device: str | None = None  # torch device for CLIP
 
@@ -52,6 +54,7 @@ class CompareConfig:
     fps: float | None = None
     cache_dir: Path | None = None
     device: str | None = None
+    camera_codec: CameraCodec = CameraCodec.AUTO
 
 
 @dataclass
@@ -130,7 +133,14 @@ def replay(config: ReplayConfig) -> ReplayResult:
             else:
                 out = Path(config.out) / recording_name(trajectory)
                 result.recordings.append(
-                    record_replay(trajectory, trace, out=out, memory_map=found.map, fps=config.fps)
+                    record_replay(
+                        trajectory,
+                        trace,
+                        out=out,
+                        memory_map=found.map,
+                        fps=config.fps,
+                        camera_codec=config.camera_codec,
+                    )
                 )
             bar.update(1)
     return result
@@ -183,7 +193,14 @@ def compare(config: CompareConfig) -> ReplayResult:
                 out = Path(config.out) / recording_name(trajectory, suffix)
                 maps = {slug: found.map for slug, found in zip(slugs, detectors, strict=True)}
                 result.recordings.append(
-                    compare_recording(trajectory, traces, out=out, memory_maps=maps, fps=config.fps)
+                    compare_recording(
+                        trajectory,
+                        traces,
+                        out=out,
+                        memory_maps=maps,
+                        fps=config.fps,
+                        camera_codec=config.camera_codec,
+                    )
                 )
             bar.update(1)
     return result

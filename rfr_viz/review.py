@@ -9,6 +9,7 @@ from typing import Final
 
 import numpy as np
 
+from rfr_viz.camera_video import CameraCodec
 from rfr_viz.record import record_replay
 from rfr_viz.replay import DEFAULT_OUT, ReplayResult, load_detector, recording_name
 from robofailring.data.layouts import load_dataset
@@ -27,6 +28,7 @@ class ReviewConfig:
     memory: Path | None = None  # default: the memory the evaluation used
     cache_dir: Path | None = None
     device: str | None = None
+    camera_codec: CameraCodec = CameraCodec.AUTO  # jpeg, av1, h264, or auto (by size)
 
 
 def review(config: ReviewConfig) -> ReplayResult:
@@ -57,7 +59,14 @@ def review(config: ReviewConfig) -> ReplayResult:
             focus = trace.t_det if trace.t_det is not None else int(np.argmax(trace.max_similarity()))
             out = Path(config.out) / config.kind / recording_name(trajectory)
             result.recordings.append(
-                record_replay(trajectory, trace, out=out, memory_map=loaded.map, focus_frame=focus)
+                record_replay(
+                    trajectory,
+                    trace,
+                    out=out,
+                    memory_map=loaded.map,
+                    focus_frame=focus,
+                    camera_codec=config.camera_codec,
+                )
             )
             bar.update(1)
     return result

@@ -7,6 +7,7 @@ from typing import Annotated
 
 import typer
 
+from rfr_viz.camera_video import CameraCodec, CameraCodecOption
 from rfr_viz.viewer import open_at_command, open_command
 from robofailring.cli import CacheOption, DeviceOption, EncoderOption, app, exit_with_error
 from robofailring.errors import RoboFailRingError
@@ -64,6 +65,7 @@ def review_cmd(
         "recordings/review"
     ),
     memory: Annotated[Path | None, typer.Option(help="Default: the memory the evaluation used.")] = None,
+    camera_codec: CameraCodecOption = CameraCodec.AUTO,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
 ) -> None:
@@ -78,6 +80,7 @@ def review_cmd(
                 kind=kind,
                 out=out,
                 memory=memory,
+                camera_codec=camera_codec,
                 cache_dir=cache_dir,
                 device=device,
             )
@@ -164,6 +167,7 @@ def demo_cmd(
         float, typer.Option("--target-fpr", help="Calibration target on the training successes.")
     ] = 0.2,
     data_dir: Annotated[Path | None, typer.Option(help="Where simulated datasets are cached.")] = None,
+    camera_codec: CameraCodecOption = CameraCodec.AUTO,
     cache_dir: CacheOption = None,
 ) -> None:
     """The main job on the embedded default: simulate, build the memory, calibrate, evaluate, record."""
@@ -180,6 +184,7 @@ def demo_cmd(
                 frames=frames,
                 target_fpr=target_fpr,
                 data_dir=data_dir,
+                camera_codec=camera_codec,
                 cache_dir=cache_dir,
             ),
             say=typer.echo,
