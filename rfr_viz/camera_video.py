@@ -121,6 +121,7 @@ def _context(codec: CameraCodec, width: int, height: int, fps: float, gop: int) 
         context.options = {
             "crf": str(H264_CRF),
             "preset": "veryfast",
+            "tune": "zerolatency",
             "x264-params": f"repeat-headers=1:bframes=0:scenecut=0:keyint={gop}",
         }
     return context
