@@ -13,6 +13,7 @@ from rfr_viz.evaluation_recording import record_evaluation
 from rfr_viz.memory_umap import memory_map
 from rfr_viz.record import record_replay
 from rfr_viz.replay import recording_name
+from rfr_viz.report_html import REPORT_NAME, write_report
 from robofailring.data.layouts import load_dataset
 from robofailring.encoders import default_cache_dir
 from robofailring.evaluation import (
@@ -53,6 +54,7 @@ class DemoResult:
     tables: list[Path]
     recordings: dict[str, Path] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    report: Path | None = None  # report.html: charts, tables and links to the recordings
 
 
 def _simulate(config: GenerateConfig, label: str) -> Path:
@@ -154,4 +156,11 @@ def run_demo(config: DemoConfig, *, say: Callable[[str], None] = print) -> DemoR
             break
         else:
             result.notes.append(f"no {kind.replace('-', ' ')} occurred at the calibrated δ in either split")
+    result.report = write_report(
+        [e.to_dict() for e in evaluations],
+        out / REPORT_NAME,
+        markdown=[e.to_markdown() for e in evaluations],
+        recordings={"evaluation summary": summary} | result.recordings,
+        title="RoboFailRing demo: simulated FailGen, in and out of distribution",
+    )
     return result

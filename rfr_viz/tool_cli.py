@@ -31,6 +31,7 @@ def evaluate_cmd(
 ) -> None:
     """The paper's evaluation: Recall/FPR at δ = 0.85…0.95 and a fine sweep, T_s, per-type and per-view recall."""
     from rfr_viz.evaluation_recording import record_evaluation
+    from rfr_viz.report_html import REPORT_NAME, write_report
     from robofailring.evaluation import EvaluateConfig, run_evaluation, write_evaluation
 
     try:
@@ -52,8 +53,15 @@ def evaluate_cmd(
         exit_with_error(error)
     json_path, md_path = write_evaluation(result, out)
     rrd_path = record_evaluation([result], out=Path(out) / f"{name}.rrd")
+    report = write_report(
+        [result.to_dict()],
+        Path(out) / REPORT_NAME,
+        markdown=[result.to_markdown()],
+        recordings={"summary recording (charts and tables)": rrd_path},
+    )
     typer.echo(result.to_markdown())
     typer.echo(f"\nwrote {md_path}, {json_path} and {rrd_path} (open with: {open_command(rrd_path)})")
+    typer.echo(f"report for a browser: {report}")
 
 
 @app.command("review")
@@ -194,6 +202,7 @@ def demo_cmd(
     for evaluation in result.evaluations:
         typer.echo("\n" + evaluation.to_markdown())
     typer.echo("\nTables: " + ", ".join(str(p) for p in result.tables))
+    typer.echo(f"Report for a browser (charts, tables, links): {result.report}")
     typer.echo("\nOpen the recordings in the Rerun viewer:")
     typer.echo(f"  {open_command(result.summary)}    # evaluation: Recall/FPR against δ, ROC, T_s histogram")
     for kind, path in result.recordings.items():
