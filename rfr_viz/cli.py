@@ -161,6 +161,44 @@ def open_cmd(
     typer.echo(f"{opened.recording}: paused at frame {opened.frame} ({started} on port {opened.port})")
 
 
+@app.command("share")
+def share_cmd(
+    folder: Annotated[Path, typer.Argument(help="Folder of .rrd recordings (searched recursively).")],
+    host: Annotated[
+        str, typer.Option(help="Address to listen on: 127.0.0.1 (this machine only) or 0.0.0.0 (the LAN).")
+    ] = "127.0.0.1",
+    port: Annotated[int, typer.Option(help="gRPC port the viewers read the recordings from.")] = 9876,
+    web_port: Annotated[int, typer.Option("--web-port", help="HTTP port of the web viewer.")] = 9090,
+) -> None:
+    """Serve a folder of recordings to the Rerun web viewer (and native viewers) until Ctrl-C."""
+    import time
+
+    from rfr_viz.share import share_folder
+
+    try:
+        shared = share_folder(folder, host=host, grpc_port=port, web_port=web_port)
+    except (RoboFailRingError, ViewerUnavailable) as error:
+        exit_with_error(error)
+    try:
+        typer.echo(f"serving {len(shared.recordings)} recording(s) from {folder} on {host}:")
+        typer.echo(f"  web viewer:    {shared.web_url}")
+        typer.echo(f"  native viewer: rerun {shared.grpc_url}")
+        if host == "127.0.0.1":
+            typer.echo("  (this machine only; --host 0.0.0.0 opens it to the LAN)")
+        typer.echo("Ctrl-C stops it.")
+        while shared.process is not None and shared.process.poll() is None:
+            time.sleep(0.5)
+        exit_with_error(
+            RuntimeError(
+                f"the Rerun server stopped (exit code {shared.process.returncode if shared.process else '?'})"
+            )
+        )
+    except KeyboardInterrupt:
+        typer.echo("stopped")
+    finally:
+        shared.stop()
+
+
 def main() -> None:
     """Console entry point: the library's verbs plus `replay`, `compare`, `open` and the combined ones."""
     app()
