@@ -2,9 +2,10 @@
 
 Run: .venv/bin/python bench/bench_video.py [--real DIR] [--frames 150] [--size 480]
 
-Episodes: the real ManiSkill-failgen episode beside the checkout (`../shared/data/maniskill-failgen-episode`,
+Episodes: the real ManiSkill-failgen episode (`--real DIR`; default: `shared/data/maniskill-failgen-episode` beside the checkout,
 256 px, 69 frames, 3 views; skipped with a message when absent), and episodes of the project's
-simulator (`robofailring.sim`): 480 px × ≥ 150 frames for the target, smaller ones for the `auto` threshold.
+simulator (`robofailring.sim`): 480 px × ≥ 150 frames for the target; 128 px × 40 (the demo's) and
+256 px × 32 (≈ 2 Mpx per view, `auto`'s threshold) for the threshold.
 Per episode and codec: the bytes of a recording holding only `/camera/<view>` (what the codec
 changes) against the JPEG one, encode frames/s, PSNR of the decoded frames against the source
 pixels, and the time to show an arbitrary frame (decode from its last keyframe; median and worst).
@@ -167,8 +168,12 @@ def main() -> None:
             measure("ManiSkill (real)", load_trajectory(args.real, task="FailPickCube-v1"), work)
         else:
             print(f"(skipped the real ManiSkill episode: {args.real} is not there)")
-        small = load_trajectory(simulated_episode(work, size=128, frames=40), task="pick_cube")
-        measure("sim (demo size)", small, work)
+        for size, frames, name in ((128, 40, "sim (demo size)"), (256, 32, "sim (near auto's threshold)")):
+            measure(
+                name,
+                load_trajectory(simulated_episode(work, size=size, frames=frames), task="pick_cube"),
+                work,
+            )
         big = load_trajectory(simulated_episode(work, size=args.size, frames=args.frames), task="pick_cube")
         measure("sim", big, work)
         keyframe_rows(big)

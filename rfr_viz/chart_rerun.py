@@ -116,7 +116,7 @@ def _bars(rec: rr.RecordingStream, origin: str, chart: Chart) -> None:
     _labels(
         rec,
         f"{origin}/categories",
-        [((g + 0.5) / groups, 0.06) for g in range(groups)],
+        [((g + 0.5) / groups, 0.06 + (0.06 if groups > 5 and g % 2 else 0.0)) for g in range(groups)],
         chart.categories,
         [TEXT_COLOUR] * groups,
     )
@@ -145,6 +145,17 @@ def _lines(rec: rr.RecordingStream, origin: str, chart: Chart) -> None:
         [f"{t:.3g}" if (low, high) != (0.0, 1.0) else _value_text(chart, float(t)) for t in ticks],
         [AXIS_COLOUR] * len(ticks),
     )
+    verticals = [[place(m.x, 0.0), place(m.x, chart.y_max)] for m in chart.marks if m.vertical]
+    if verticals:
+        rec.log(
+            f"{origin}/thresholds",
+            rr.LineStrips2D(
+                verticals,
+                colors=[m.colour for m in chart.marks if m.vertical],
+                radii=rr.Radius.ui_points(1.0),
+            ),
+            static=True,
+        )
     if chart.marks:
         _labels(
             rec,

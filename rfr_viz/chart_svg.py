@@ -71,8 +71,10 @@ def _bars(chart: Chart, plot_w: int, plot_h: int, y_of: Callable[[float], float]
     group_w = plot_w / max(groups, 1)
     bar_w = 0.8 * group_w / per_group
     parts = []
+    stagger = groups > 5  # many names: every other one a line lower, so that they do not overlap
     for g, category in enumerate(chart.categories):
-        parts.append(_text(LEFT + (g + 0.5) * group_w, TOP + plot_h + 15, category, size=10))
+        below = 15 + (12 if stagger and g % 2 else 0)
+        parts.append(_text(LEFT + (g + 0.5) * group_w, TOP + plot_h + below, category, size=10))
         for s, series in enumerate(chart.series):
             value = series.values[g] if g < len(series.values) else math.nan
             x = LEFT + (g + 0.1) * group_w + s * bar_w
@@ -110,6 +112,21 @@ def _lines(chart: Chart, plot_w: int, plot_h: int, y_of: Callable[[float], float
         )
     for mark in chart.marks:
         x, y = x_of(mark.x), y_of(mark.y)
+        if mark.vertical:
+            parts.append(
+                f'<line x1="{x:.1f}" x2="{x:.1f}" y1="{TOP}" y2="{TOP + plot_h}" stroke="{_rgb(mark.colour)}" '
+                'stroke-dasharray="4 3"/>'
+            )
         parts.append(f'<circle cx="{x:.1f}" cy="{y:.1f}" r="3.5" fill="{_rgb(mark.colour)}"/>')
-        parts.append(_text(x + 5, y + 12, mark.label, anchor="start", size=9, fill=_rgb(mark.colour)))
+        right = x > LEFT + 0.6 * plot_w  # labels near the right edge extend to the left
+        parts.append(
+            _text(
+                x + (-5 if right else 5),
+                y + 12,
+                mark.label,
+                anchor="end" if right else "start",
+                size=9,
+                fill=_rgb(mark.colour),
+            )
+        )
     return parts

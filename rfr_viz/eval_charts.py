@@ -38,6 +38,7 @@ class Mark:
     y: float
     label: str
     colour: Colour
+    vertical: bool = False  # also a line across the plot at x (a threshold)
 
 
 @dataclass(frozen=True)
@@ -191,6 +192,7 @@ def evaluation_charts(evaluation: Mapping[str, Any]) -> list[Chart]:
                         1.0,
                         f"operating {rule.symbol} = {rule.operating:.3f}",
                         RULE_COLOURS[i],
+                        vertical=True,
                     )
                 ]
                 if not math.isnan(rule.operating)
@@ -214,14 +216,14 @@ def evaluation_charts(evaluation: Mapping[str, Any]) -> list[Chart]:
         Chart(
             key="progress_histogram",
             title="When failures are detected: t_det / L",
-            categories=[f"{20 * b}–{20 * (b + 1)}%" for b in range(5)] if any(counts) else [],
+            categories=[f"{20 * b}–{20 * (b + 1)}" for b in range(5)] if any(counts) else [],
             series=[
                 Series(_label(r), RULE_COLOURS[i % len(RULE_COLOURS)], [float(c) for c in shown])
                 for i, (r, shown) in enumerate(zip(rules, counts, strict=True))
             ],
             y_max=float(max(peak, 1)),
             percent=False,
-            x_label="detected failures per fifth of the trajectory",
+            x_label="detected failures by t_det / L (%)",
         )
     )
     return charts

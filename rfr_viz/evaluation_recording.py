@@ -40,8 +40,11 @@ def summary_blueprint(charts: Mapping[str, Sequence[Chart]]) -> rrb.Blueprint:
     )
 
 
-def record_evaluation(results: Sequence[EvaluationResult | Mapping[str, Any]], *, out: Path) -> Path:
-    """Write the summary `.rrd` of one or more evaluations (results or their JSON), atomically."""
+def record_evaluation(
+    results: Sequence[EvaluationResult | Mapping[str, Any]], *, out: Path, markdown: Sequence[str] = ()
+) -> Path:
+    """Write the summary `.rrd` of one or more evaluations (results, or their JSON with their
+    `.md` tables as `markdown`), atomically."""
     out = Path(out)
     evaluations = [r.to_dict() if isinstance(r, EvaluationResult) else r for r in results]
     charts = {str(e["name"]): evaluation_charts(e) for e in evaluations}
@@ -51,8 +54,10 @@ def record_evaluation(results: Sequence[EvaluationResult | Mapping[str, Any]], *
         for name, shown in charts.items():
             for chart in shown:
                 log_chart(recording, f"{EVAL_ROOT}/{_slug(name)}/{chart.key}", chart)
-        markdown = "\n\n".join(r.to_markdown() for r in results if isinstance(r, EvaluationResult))
-        recording.log(EVAL_SUMMARY, rr.TextDocument(markdown, media_type=rr.MediaType.MARKDOWN), static=True)
+        tables = [r.to_markdown() for r in results if isinstance(r, EvaluationResult)] + list(markdown)
+        recording.log(
+            EVAL_SUMMARY, rr.TextDocument("\n\n".join(tables), media_type=rr.MediaType.MARKDOWN), static=True
+        )
         recording.flush()
         recording.disconnect()
     return out

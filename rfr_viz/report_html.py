@@ -89,13 +89,14 @@ def _links(recordings: Mapping[str, Path], folder: Path) -> str:
 
 def _review(evaluation: Mapping[str, Any], json_name: str) -> str:
     lines = []
-    for kind, key in (("false-alarms", "false_alarms"), ("misses", "misses")):
+    for kind, key, one in (("false-alarms", "false_alarms", "false alarm"), ("misses", "misses", "miss")):
         listed = evaluation.get(key) or []
         if listed:
+            what = one if len(listed) == 1 else kind.replace("-", " ")
             keys = ", ".join(html.escape(str(row["key"])) for row in listed[:12])
             more = f" and {len(listed) - 12} more" if len(listed) > 12 else ""
             lines.append(
-                f"<p><b>{len(listed)} {kind.replace('-', ' ')}</b>: {keys}{more}. Replay them, each paused at "
+                f"<p><b>{len(listed)} {what}</b>: {keys}{more}. Replay them, each paused at "
                 f"the moment: <code>robofailring review {html.escape(json_name)} --data DATA --kind {kind}</code></p>"
             )
     return "".join(lines)
