@@ -3,19 +3,18 @@
 from __future__ import annotations
 
 import os
+import re
 import signal
 import socket
 import subprocess
 import sys
-import time
 import urllib.request
 from pathlib import Path
 
 import pytest
 import rerun as rr
 
-from rfr_viz.share import share_folder
-from rfr_viz.viewer import ViewerUnavailable, check_vulkan
+from rfr_viz.share import _lan_address, share_folder
 from robofailring.errors import DataError
 
 
@@ -25,9 +24,9 @@ def _free_port() -> int:
         return int(probe.getsockname()[1])
 
 
-def _listening(port: int) -> bool:
+def _listening(port: int, host: str = "127.0.0.1") -> bool:
     try:
-        with socket.create_connection(("127.0.0.1", port), timeout=0.3):
+        with socket.create_connection((host, port), timeout=0.3):
             return True
     except OSError:
         return False
@@ -60,33 +59,13 @@ def test_share_serves_the_web_viewer_on_loopback_and_stops(folder: Path) -> None
         with urllib.request.urlopen(shared.web_url, timeout=10) as response:
             page = response.read().decode("utf-8", errors="replace")
         assert response.status == 200 and "Rerun" in page
-        try:
-            check_vulkan()
-        except ViewerUnavailable:
-            pass  # the HTTP check above still ran; reading the recordings needs the native viewer
-        else:
-            assert _recordings_seen_by_a_viewer(shared.grpc_url) == 2
+        lan = _lan_address()  # loopback only: not reachable on this machine's network address
+        if re.fullmatch(r"[0-9.]+", lan) and not lan.startswith("127."):
+            assert not _listening(web_port, lan) and not _listening(grpc_port, lan)
     finally:
         shared.stop()
     assert shared.process is not None and shared.process.poll() is not None
     assert not _listening(grpc_port) and not _listening(web_port)
-
-
-def _recordings_seen_by_a_viewer(url: str) -> int:
-    """How many recordings a headless native viewer shows after connecting to the served URL."""
-    from rfr_viz.viewer import WINDOW, _viewer_process
-
-    deadline = time.monotonic() + 60
-    with _viewer_process(WINDOW, deadline) as port:
-        from rerun.experimental import ViewerClient
-
-        client = ViewerClient.connect(f"rerun+http://127.0.0.1:{port}/proxy")
-        client.open(url)
-        seen = 0
-        while time.monotonic() < deadline and seen < 2:
-            seen = len(client.get_state().recordings)
-            time.sleep(0.2)
-        return seen
 
 
 def test_share_refuses_an_empty_folder_and_a_corrupt_file(tmp_path: Path) -> None:
