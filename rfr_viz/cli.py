@@ -11,6 +11,7 @@ from rfr_viz import (
     tool_cli,  # noqa: F401  (registers evaluate and the other combined verbs)
     vlm_cli,  # noqa: F401  (registers explain and watch)
 )
+from rfr_viz.camera_video import CameraCodec, CameraCodecOption
 from rfr_viz.replay import DEFAULT_OUT, CompareConfig, ReplayConfig, ReplayResult, compare, replay
 from rfr_viz.viewer import DEFAULT_PORT, ViewerUnavailable, open_at, open_command
 from robofailring.cli import (
@@ -99,6 +100,7 @@ def replay_cmd(
     fps: FpsOption = None,
     stride: StrideOption = 1,
     labels: LabelsOption = None,
+    camera_codec: CameraCodecOption = CameraCodec.AUTO,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
     data_root: DataRootOption = None,
@@ -117,6 +119,7 @@ def replay_cmd(
         leave_one_out=leave_one_out,
         encoder=encoder,
         fps=fps,
+        camera_codec=camera_codec,
         cache_dir=cache_dir,
         device=device,
         stride=stride,
@@ -149,6 +152,7 @@ def compare_cmd(
     task: TaskOption = None,
     leave_one_out: LeaveOneOutOption = False,
     fps: FpsOption = None,
+    camera_codec: CameraCodecOption = CameraCodec.AUTO,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
     data_root: Annotated[
@@ -170,6 +174,7 @@ def compare_cmd(
         task=task,
         leave_one_out=leave_one_out,
         fps=fps,
+        camera_codec=camera_codec,
         cache_dir=cache_dir,
         device=device,
         data_roots=tuple(data_root or ()),
@@ -202,6 +207,44 @@ def open_cmd(
         exit_with_error(error)
     started = "started a viewer" if opened.process is not None else "reused the viewer"
     typer.echo(f"{opened.recording}: paused at frame {opened.frame} ({started} on port {opened.port})")
+
+
+@app.command("share")
+def share_cmd(
+    folder: Annotated[Path, typer.Argument(help="Folder of .rrd recordings (searched recursively).")],
+    host: Annotated[
+        str, typer.Option(help="Address to listen on: 127.0.0.1 (this machine only) or 0.0.0.0 (the LAN).")
+    ] = "127.0.0.1",
+    port: Annotated[int, typer.Option(help="gRPC port the viewers read the recordings from.")] = 9876,
+    web_port: Annotated[int, typer.Option("--web-port", help="HTTP port of the web viewer.")] = 9090,
+) -> None:
+    """Serve a folder of recordings to the Rerun web viewer (and native viewers) until Ctrl-C."""
+    import time
+
+    from rfr_viz.share import share_folder
+
+    try:
+        shared = share_folder(folder, host=host, grpc_port=port, web_port=web_port)
+    except (RoboFailRingError, ViewerUnavailable) as error:
+        exit_with_error(error)
+    try:
+        typer.echo(f"serving {len(shared.recordings)} recording(s) from {folder} on {host}:")
+        typer.echo(f"  web viewer:    {shared.web_url}")
+        typer.echo(f"  native viewer: rerun {shared.grpc_url}")
+        if host == "127.0.0.1":
+            typer.echo("  (this machine only; --host 0.0.0.0 opens it to the LAN)")
+        typer.echo("Ctrl-C stops it.")
+        while shared.process is not None and shared.process.poll() is None:
+            time.sleep(0.5)
+        exit_with_error(
+            RuntimeError(
+                f"the Rerun server stopped (exit code {shared.process.returncode if shared.process else '?'})"
+            )
+        )
+    except KeyboardInterrupt:
+        typer.echo("stopped")
+    finally:
+        shared.stop()
 
 
 def main() -> None:

@@ -8,10 +8,12 @@ from pathlib import Path
 
 import numpy as np
 
+from rfr_viz.camera_video import CameraCodec
 from rfr_viz.evaluation_recording import record_evaluation
 from rfr_viz.memory_umap import memory_map
 from rfr_viz.record import record_replay
 from rfr_viz.replay import recording_name
+from rfr_viz.report_html import REPORT_NAME, write_report
 from robofailring.data.layouts import load_dataset
 from robofailring.encoders import default_cache_dir
 from robofailring.evaluation import (
@@ -42,6 +44,7 @@ class DemoConfig:
     encoder: str = "pixels"
     workers: int = 2
     cache_dir: Path | None = None
+    camera_codec: CameraCodec = CameraCodec.AUTO  # jpeg, av1, h264, or auto (by size)
 
 
 @dataclass
@@ -51,6 +54,7 @@ class DemoResult:
     tables: list[Path]
     recordings: dict[str, Path] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    report: Path | None = None  # report.html: charts, tables and links to the recordings
 
 
 def _simulate(config: GenerateConfig, label: str) -> Path:
@@ -142,9 +146,21 @@ def run_demo(config: DemoConfig, *, say: Callable[[str], None] = print) -> DemoR
             (trajectory,) = load_dataset(sources[evaluation.name]).select(keys=[key])
             path = out / "recordings" / f"{kind}__{evaluation.name}__{recording_name(trajectory)}"
             result.recordings[kind] = record_replay(
-                trajectory, evaluation.traces[key], out=path, memory_map=mapped, focus_frame=focus
+                trajectory,
+                evaluation.traces[key],
+                out=path,
+                memory_map=mapped,
+                focus_frame=focus,
+                camera_codec=config.camera_codec,
             )
             break
         else:
             result.notes.append(f"no {kind.replace('-', ' ')} occurred at the calibrated δ in either split")
+    result.report = write_report(
+        [e.to_dict() for e in evaluations],
+        out / REPORT_NAME,
+        markdown=[e.to_markdown() for e in evaluations],
+        recordings={"evaluation summary": summary} | result.recordings,
+        title="RoboFailRing demo: simulated FailGen, in and out of distribution",
+    )
     return result

@@ -24,6 +24,7 @@ import rerun as rr
 
 from rfr_viz._images import JPEG_MEDIA_TYPE, JPEG_QUALITY, frame_jpeg
 from rfr_viz.blueprint import replay_blueprint
+from rfr_viz.camera_video import CameraCodec, send_camera_properties
 from rfr_viz.memory_umap import MemoryMap
 from rfr_viz.neighbors import DEFAULT_CELL, Cell, NeighborImages, log_neighbor_entry, log_neighbor_layout
 from rfr_viz.paths import APPLICATION_ID, DEFAULT_FPS, PROPERTIES, REPLAY, camera
@@ -176,6 +177,7 @@ class LiveRecording:
     def _start(self) -> None:
         paths = REPLAY
         self.rec.send_recording_name(f"{self.name} (live)")
+        send_camera_properties(self.rec, dict.fromkeys(self.views, CameraCodec.JPEG))  # live frames: JPEG
         log_score_styles(self.rec, paths, views=self.views, delta=self.detector.delta)
         if self.memory_map is not None:
             log_memory_map(

@@ -125,6 +125,5 @@ CLOSED_LOOP_SUMMARY: Final[str] = "/summary"  # static TextDocument (markdown): 
 
 # Evaluation summary (rfr_viz.evaluation_recording).
 EVALUATION_APPLICATION_ID: Final[str] = "robofailring-evaluation"
-DELTA_TIMELINE: Final[str] = "delta_x10000"  # δ × 10⁴ as a sequence: TimeSeriesView plots against it
-EVAL_ROOT: Final[str] = "/eval"  # /eval/<name>/{curve,roc,progress_histogram,recall_per_type}
+EVAL_ROOT: Final[str] = "/eval"  # /eval/<name>/<chart key>: roc, sweep_<rule>, recall_per_type, …
 EVAL_SUMMARY: Final[str] = "/eval/summary"  # TextDocument: the markdown tables

@@ -14,11 +14,11 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from rfr_viz._images import JPEG_MEDIA_TYPE, frame_jpeg
 from rfr_viz.blueprint import compare_blueprint, legend_positions, replay_blueprint
+from rfr_viz.camera_video import CameraCodec, log_camera_views
 from rfr_viz.memory_umap import MemoryMap, fit_map
 from rfr_viz.neighbors import Cell, NeighborImages, log_neighbors
-from rfr_viz.paths import APPLICATION_ID, DEFAULT_FPS, FRAME, PROPERTIES, REPLAY, TIME, DetectorPaths, camera
+from rfr_viz.paths import APPLICATION_ID, DEFAULT_FPS, FRAME, PROPERTIES, REPLAY, TIME, DetectorPaths
 from robofailring._atomic import atomic_path
 from robofailring.data.model import Trajectory
 from robofailring.detector import DetectionTrace
@@ -53,7 +53,6 @@ STATE_COLOUR: Final[tuple[int, int, int]] = (170, 170, 170)
 BATCHING: Final[rr.ChunkBatcherConfig] = rr.ChunkBatcherConfig(
     flush_tick=60.0, flush_num_bytes=4 * 1024 * 1024
 )
-CAMERA_BATCH: Final[int] = 64  # frames read, encoded and sent per column batch
 LABELLED_ENTRIES_MAX: Final[int] = 5_000  # larger memories label only the replayed task's map points
 _MARKDOWN_IMAGE = re.compile(r"!\[([^\]]*)\]\(([^)]*)\)")
 
@@ -89,12 +88,14 @@ def record_replay(
     recording_id: str | None = None,
     focus_frame: int | None = None,
     vlm_answer: VLMAnswer | None = None,
+    camera_codec: CameraCodec | str = CameraCodec.JPEG,
 ) -> Path:
     """Write one replayed trajectory as a self-contained `.rrd` at `out`, atomically.
 
     `focus_frame` makes the recording open playing around that frame (e.g. a false alarm).
     `vlm_answer` (what a VLM said about the failure report) is added to the report at t_det.
 
+    `camera_codec` stores the cameras as JPEGs, AV1 or H.264 video, or `auto` (by size; rfr_viz.camera_video).
     `memory_map` is the memory's cached map (`rfr_viz.memory_map(memory, directory=...)`); without
     one it is fitted here, uncached. `fps` drives the "time" timeline (default: the data's, else 10).
     """
@@ -122,7 +123,7 @@ def record_replay(
                 **_report_properties(trace, trajectory, vlm_answer),
             ),
         )
-        log_cameras(rec, trajectory, views=trace.views, length=trace.length, fps=info.fps)
+        log_cameras(rec, trajectory, views=trace.views, length=trace.length, fps=info.fps, codec=camera_codec)
         log_detector(
             rec,
             trace,
@@ -145,6 +146,7 @@ def compare_recording(
     memory_maps: Mapping[str, MemoryMap] | None = None,
     fps: float | None = None,
     recording_id: str | None = None,
+    camera_codec: CameraCodec | str = CameraCodec.JPEG,
 ) -> Path:
     """One recording of a trajectory replayed under several encoders, `traces` keyed by encoder slug.
 
@@ -180,7 +182,7 @@ def compare_recording(
                 encoders=", ".join(slugs),
             ),
         )
-        log_cameras(rec, trajectory, views=views, length=length, fps=info.fps)
+        log_cameras(rec, trajectory, views=views, length=length, fps=info.fps, codec=camera_codec)
         for position, (slug, trace) in enumerate(traces.items()):
             rec.send_property(slug, rr.AnyValues(**_detector_properties(trace, maps[slug])))
             log_detector(
@@ -282,19 +284,17 @@ def set_frame_time(rec: rr.RecordingStream, t: int, fps: float) -> None:
 
 
 def log_cameras(
-    rec: rr.RecordingStream, trajectory: Trajectory, *, views: Sequence[str], length: int, fps: float
+    rec: rr.RecordingStream,
+    trajectory: Trajectory,
+    *,
+    views: Sequence[str],
+    length: int,
+    fps: float,
+    codec: CameraCodec | str = CameraCodec.JPEG,
 ) -> None:
-    """`/camera/<view>`: one JPEG per frame per view, sent in column batches (never raw pixels)."""
-    for view in views:
-        frames = trajectory.views[view]
-        count = min(length, len(frames))
-        for start in range(0, count, CAMERA_BATCH):
-            blobs = [frame_jpeg(frame) for frame in frames[start : min(start + CAMERA_BATCH, count)]]
-            rec.send_columns(
-                camera(view),
-                indexes=time_columns(np.arange(start, start + len(blobs)), fps),
-                columns=rr.EncodedImage.columns(blob=blobs, media_type=[JPEG_MEDIA_TYPE] * len(blobs)),
-            )
+    """`/camera/<view>`: JPEG per frame, or AV1/H.264 video (rfr_viz.camera_video), never raw pixels."""
+    indexes = lambda frames: time_columns(frames, fps)  # noqa: E731
+    log_camera_views(rec, trajectory, views=views, length=length, indexes=indexes, codec=codec)
 
 
 def log_detector(

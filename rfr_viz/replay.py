@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Final
 
+from rfr_viz.camera_video import CameraCodec
 from rfr_viz.memory_umap import MemoryMap, memory_map
 from rfr_viz.record import compare_recording, record_replay
 from robofailring._atomic import output_lock, remove_file_leftovers
@@ -42,6 +43,7 @@ class ReplayConfig:
     leave_one_out: bool = False  # hide each trajectory's own episode from the memory
     encoder: str | None = None  # encoder spec; default: the one that built the memory
     fps: float | None = None  # "time" timeline rate; default: the data's, else 10
+    camera_codec: CameraCodec = CameraCodec.AUTO  # jpeg, av1, h264, or auto (by size)
     cache_dir: Path | None = None  # embedding cache (default ~/.cache/robofailring)
     device: str | None = None  # torch device for CLIP
     stride: int = 1  # score every stride-th frame; the recording keeps every camera frame
@@ -64,6 +66,7 @@ class CompareConfig:
     cache_dir: Path | None = None
     device: str | None = None
     data_roots: tuple[Path, ...] = ()  # one per memory (or one for all): where its images are now
+    camera_codec: CameraCodec = CameraCodec.AUTO
 
 
 @dataclass
@@ -228,7 +231,13 @@ def _replay(config: ReplayConfig) -> ReplayResult:
                 answer = result.ask(config.vlm, trace, trajectory)
                 result.recordings.append(
                     record_replay(
-                        trajectory, trace, out=out, memory_map=found.map, fps=config.fps, vlm_answer=answer
+                        trajectory,
+                        trace,
+                        out=out,
+                        memory_map=found.map,
+                        fps=config.fps,
+                        camera_codec=config.camera_codec,
+                        vlm_answer=answer,
                     )
                 )
             bar.update(1)
@@ -303,7 +312,14 @@ def _compare(config: CompareConfig) -> ReplayResult:
                 out = _target(config.out, recording_name(trajectory, suffix), written, trajectory.key)
                 maps = {slug: found.map for slug, found in zip(slugs, detectors, strict=True)}
                 result.recordings.append(
-                    compare_recording(trajectory, traces, out=out, memory_maps=maps, fps=config.fps)
+                    compare_recording(
+                        trajectory,
+                        traces,
+                        out=out,
+                        memory_maps=maps,
+                        fps=config.fps,
+                        camera_codec=config.camera_codec,
+                    )
                 )
             bar.update(1)
     return result

@@ -9,6 +9,7 @@ from typing import Final
 
 import numpy as np
 
+from rfr_viz.camera_video import CameraCodec
 from rfr_viz.record import record_replay
 from rfr_viz.replay import DEFAULT_OUT, ReplayResult, load_detector, recording_name
 from robofailring.data.layouts import load_dataset
@@ -31,6 +32,7 @@ class ReviewConfig:
     device: str | None = None
     data_root: Path | None = None  # where the memory's images are now, when its data moved
     vlm: VLMConfig | None = None  # ask this VLM about each alarm; its answer joins the report
+    camera_codec: CameraCodec = CameraCodec.AUTO  # jpeg, av1, h264, or auto (by size)
 
 
 def review(config: ReviewConfig) -> ReplayResult:
@@ -79,6 +81,7 @@ def review(config: ReviewConfig) -> ReplayResult:
                     memory_map=loaded.map,
                     focus_frame=focus,
                     vlm_answer=result.ask(config.vlm, trace, trajectory),
+                    camera_codec=config.camera_codec,
                 )
             )
             bar.update(1)

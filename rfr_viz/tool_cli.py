@@ -7,6 +7,7 @@ from typing import Annotated
 
 import typer
 
+from rfr_viz.camera_video import CameraCodec, CameraCodecOption
 from rfr_viz.viewer import open_at_command, open_command
 from robofailring.cli import (
     CacheOption,
@@ -48,6 +49,7 @@ def evaluate_cmd(
 ) -> None:
     """The paper's evaluation: Recall/FPR at δ = 0.85…0.95 and a fine sweep, T_s, per-type and per-view recall."""
     from rfr_viz.evaluation_recording import record_evaluation
+    from rfr_viz.report_html import REPORT_NAME, write_report
     from robofailring.evaluation import EvaluateConfig, run_evaluation, write_evaluation
 
     try:
@@ -73,8 +75,15 @@ def evaluate_cmd(
     report_skipped(result.skipped_inputs)
     json_path, md_path = write_evaluation(result, out)
     rrd_path = record_evaluation([result], out=Path(out) / f"{name}.rrd")
+    report = write_report(
+        [result.to_dict()],
+        Path(out) / REPORT_NAME,
+        markdown=[result.to_markdown()],
+        recordings={"summary recording (charts and tables)": rrd_path},
+    )
     typer.echo(result.to_markdown())
     typer.echo(f"\nwrote {md_path}, {json_path} and {rrd_path} (open with: {open_command(rrd_path)})")
+    typer.echo(f"report for a browser: {report}")
     finish(skipped=len(result.skipped_unknown_task) + len(result.skipped_too_short))  # listed in the table
 
 
@@ -87,6 +96,7 @@ def review_cmd(
         "recordings/review"
     ),
     memory: Annotated[Path | None, typer.Option(help="Default: the memory the evaluation used.")] = None,
+    camera_codec: CameraCodecOption = CameraCodec.AUTO,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
     data_root: DataRootOption = None,
@@ -106,6 +116,7 @@ def review_cmd(
                 kind=kind,
                 out=out,
                 memory=memory,
+                camera_codec=camera_codec,
                 cache_dir=cache_dir,
                 device=device,
                 data_root=data_root,
@@ -199,6 +210,7 @@ def demo_cmd(
         float, typer.Option("--target-fpr", help="Calibration target on the training successes.")
     ] = 0.2,
     data_dir: Annotated[Path | None, typer.Option(help="Where simulated datasets are cached.")] = None,
+    camera_codec: CameraCodecOption = CameraCodec.AUTO,
     cache_dir: CacheOption = None,
 ) -> None:
     """The main job on the embedded default: simulate, build the memory, calibrate, evaluate, record."""
@@ -215,6 +227,7 @@ def demo_cmd(
                 frames=frames,
                 target_fpr=target_fpr,
                 data_dir=data_dir,
+                camera_codec=camera_codec,
                 cache_dir=cache_dir,
             ),
             say=typer.echo,
@@ -224,6 +237,7 @@ def demo_cmd(
     for evaluation in result.evaluations:
         typer.echo("\n" + evaluation.to_markdown())
     typer.echo("\nTables: " + ", ".join(str(p) for p in result.tables))
+    typer.echo(f"Report for a browser (charts, tables, links): {result.report}")
     typer.echo("\nOpen the recordings in the Rerun viewer:")
     typer.echo(f"  {open_command(result.summary)}    # evaluation: Recall/FPR against δ, ROC, T_s histogram")
     for kind, path in result.recordings.items():

@@ -12,7 +12,7 @@ import socket
 import subprocess
 import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
@@ -41,6 +41,7 @@ class Screenshot:
     path: Path
     errors: list[str] = field(default_factory=list)
     frame: int | None = None
+    views: dict[str, bytes] = field(default_factory=dict)  # PNG of each view asked for, by origin
 
 
 def viewer_binary() -> Path:
@@ -166,11 +167,13 @@ def render_screenshot(
     size: tuple[int, int] = WINDOW,
     settle: float = 0.5,
     timeout: float = 90.0,
+    views: Sequence[str] = (),
 ) -> Screenshot:
     """Open `recording` in the headless viewer at `size`, pause at `frame` and save a PNG at `out`.
 
     The recording is verified first; `settle` seconds pass before the shot (pop-ups fade after ~5 s).
-    Returns the PNG and the viewer's ERROR log lines (a bad image shows up there, not in the view).
+    Returns the PNG and the viewer's ERROR log lines (a bad image shows up there, not in the view),
+    plus a PNG of each view whose origin is in `views` (e.g. "/camera/front").
     Raises ViewerUnavailable where the viewer cannot run (no Vulkan driver).
     """
     recording = Path(recording).resolve()
@@ -187,6 +190,8 @@ def render_screenshot(
         time.sleep(settle)  # frames for images to decode and plots to settle
         out.parent.mkdir(parents=True, exist_ok=True)
         client.save_screenshot(str(out))
+        shown = {view.origin: view.view_id for view in client.get_state().views}
+        captured = {origin: client.take_screenshot(shown[origin]) for origin in views if origin in shown}
         errors = [f"{entry.target}: {entry.message}" for entry in client.get_logs() if entry.level == "ERROR"]
         errors += [
             f"view {view.name!r}: {report}"
@@ -195,7 +200,7 @@ def render_screenshot(
         ]
     if not out.is_file():
         raise RuntimeError(f"the viewer wrote no screenshot to {out}")
-    return Screenshot(path=out, errors=errors, frame=frame)
+    return Screenshot(path=out, errors=errors, frame=frame, views=captured)
 
 
 def playback_positions(

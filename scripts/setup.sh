@@ -21,3 +21,8 @@ if ! ldconfig -p 2>/dev/null | grep -q libvulkan.so.1 || [ ! -e /usr/share/vulka
     echo "note: install mesa-vulkan-drivers and libvulkan1 to render recordings headless" >&2
   fi
 fi
+# The viewer decodes H.264 camera streams with ffmpeg (>= 5.1); the tests check it where installed.
+if [ -n "$extras" ] && ! command -v ffmpeg >/dev/null && [ "$(id -u)" = "0" ] && command -v apt-get >/dev/null; then
+  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends ffmpeg >/dev/null) \
+    || echo "warning: could not install ffmpeg; the H.264 viewer test will be skipped" >&2
+fi

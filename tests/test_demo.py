@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import pytest
@@ -58,6 +59,11 @@ def test_demo_writes_everything_it_names(demo: tuple[Path, DemoResult]) -> None:
         verify_recording(path)
     missing = {"detection", "false-alarm", "miss"} - set(recorded)
     assert len(result.notes) == len(missing)
+    assert result.report == out / "report.html"
+    page = result.report.read_text(encoding="utf-8")
+    linked = {out / href for href in re.findall(r'href="([^"]+)"', page)}
+    assert linked == {result.summary, *recorded.values()} and all(p.is_file() for p in linked)
+    assert page.count("<h2>in-distribution") == 1 and page.count("<h2>out-of-distribution") == 1
     # the simulated datasets are cached: a second run does not simulate again
     stamp = (root / "data" / "sim-id" / "manifest.json").stat().st_mtime_ns
     run_demo(tiny_demo(root, "out2"), say=lambda _: None)

@@ -1,0 +1,267 @@
+"""Camera streams of a recording as JPEG images or as compressed video (`rr.VideoStream`).
+
+Real cameras (256–640 px at 15–30 fps) make per-frame JPEGs the bulk of a recording; AV1 and
+H.264 store the same frames at a fraction of the bytes (measured by `bench/bench_video.py`, see the
+README). Video is encoded here with PyAV, without B-frames (Rerun's video streams do not take
+them), one keyframe every KEYFRAME_INTERVAL frames so that showing an arbitrary frame decodes at
+most that many. The native viewer decodes AV1 itself; H.264 needs ffmpeg ≥ 5.1 on the viewer's
+machine. Neighbour and success-frame images stay JPEG images whatever the codec.
+"""
+
+from __future__ import annotations
+
+import itertools
+import os
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from enum import Enum
+from fractions import Fraction
+from typing import TYPE_CHECKING, Annotated, Final, cast
+
+import numpy as np
+import rerun as rr
+import typer
+
+from rfr_viz._images import JPEG_MEDIA_TYPE, frame_jpeg
+from rfr_viz.paths import DEFAULT_FPS, camera
+from robofailring.data.model import Frame, Trajectory
+from robofailring.errors import DataError
+
+if TYPE_CHECKING:
+    from av.video.codeccontext import VideoCodecContext
+    from av.video.frame import VideoFrame
+
+
+class CameraCodec(str, Enum):
+    """How `/camera/<view>` is stored: JPEG per frame, AV1 or H.264 video, or chosen by size."""
+
+    JPEG = "jpeg"
+    AV1 = "av1"
+    H264 = "h264"
+    AUTO = "auto"
+
+
+#: `auto` picks AV1 when one view's stream has at least this many pixels (frames × width × height),
+#: JPEG below: e.g. 256 px × 256 px × 31 frames. Measured by bench/bench_video.py (README "Camera
+#: codecs"): below it a view's JPEGs take ~0.1 MB or less and AV1 saves under 0.1 MB at a lower PSNR;
+#: at it AV1 takes 0.42× the bytes, on the real 256 px × 69-frame episode 0.14×, at 480 px 0.17×.
+AUTO_AV1_PIXELS: Final[int] = 2_000_000
+#: Frames between keyframes: showing any frame decodes at most this many (bench: a few ms at 480 px).
+KEYFRAME_INTERVAL: Final[int] = 30
+AV1_CRF: Final[int] = 35
+AV1_PRESET: Final[int] = 10  # SVT-AV1 speed preset (0 slowest … 13 fastest)
+H264_CRF: Final[int] = 23
+CAMERA_BATCH: Final[int] = 64  # JPEG frames read, encoded and sent per column batch
+CAMERA_PROPERTIES: Final[str] = "camera"  # property group: codec, per-view codecs, keyframe interval
+#: PyAV encoder name and Rerun codec per video codec.
+ENCODERS: Final[dict[CameraCodec, tuple[str, rr.VideoCodec]]] = {
+    CameraCodec.AV1: ("libsvtav1", rr.VideoCodec.AV1),
+    CameraCodec.H264: ("libx264", rr.VideoCodec.H264),
+}
+
+CameraCodecOption = Annotated[
+    CameraCodec,
+    typer.Option(
+        "--camera-codec",
+        case_sensitive=False,
+        help="How camera frames are stored: jpeg images, av1 or h264 video, or auto "
+        f"(av1 when a view has ≥ {AUTO_AV1_PIXELS / 1e6:g} Mpx over all its frames, else jpeg). "
+        "AV1 plays in the Rerun viewer as is; H.264 needs ffmpeg ≥ 5.1 where it is viewed.",
+    ),
+]
+
+
+def resolve_codec(codec: CameraCodec | str, *, width: int, height: int, frames: int) -> CameraCodec:
+    """The codec a view is stored with: `codec` itself, or for `auto` the choice by stream size."""
+    codec = CameraCodec(codec)
+    if codec is not CameraCodec.AUTO:
+        return codec
+    return CameraCodec.AV1 if frames * width * height >= AUTO_AV1_PIXELS else CameraCodec.JPEG
+
+
+@dataclass(frozen=True)
+class EncodedVideo:
+    """A view encoded as video: one sample per frame (in frame order) and which samples are keyframes."""
+
+    codec: CameraCodec
+    samples: list[bytes]
+    keyframes: list[bool]
+    width: int
+    height: int
+
+    @property
+    def bytes(self) -> int:
+        return sum(len(sample) for sample in self.samples)
+
+
+def _even(image: np.ndarray) -> np.ndarray:
+    """Pad an odd width or height by one edge row/column: 4:2:0 video needs even sizes."""
+    pad_h, pad_w = image.shape[0] % 2, image.shape[1] % 2
+    if pad_h or pad_w:
+        image = np.pad(image, ((0, pad_h), (0, pad_w), (0, 0)), mode="edge")
+    return image
+
+
+def _context(codec: CameraCodec, width: int, height: int, fps: float, gop: int) -> VideoCodecContext:
+    import av
+
+    os.environ.setdefault("SVT_LOG", "1")  # SVT-AV1 logs every setting to stderr otherwise
+    name, _ = ENCODERS[codec]
+    context = cast("VideoCodecContext", av.CodecContext.create(name, "w"))
+    context.width, context.height = width, height
+    context.pix_fmt = "yuv420p"
+    context.time_base = Fraction(1, 1000)
+    context.framerate = Fraction(fps).limit_denominator(1000)
+    context.gop_size = gop
+    context.max_b_frames = 0  # Rerun video streams cannot hold B-frames
+    if codec is CameraCodec.AV1:
+        context.options = {"crf": str(AV1_CRF), "preset": str(AV1_PRESET)}
+    else:  # Annex B with SPS/PPS before every IDR frame, so that every keyframe decodes on its own
+        context.options = {
+            "crf": str(H264_CRF),
+            "preset": "veryfast",
+            "tune": "zerolatency",
+            "x264-params": f"repeat-headers=1:bframes=0:scenecut=0:keyint={gop}",
+        }
+    return context
+
+
+def _packets(context: VideoCodecContext, frame: VideoFrame | None) -> list[tuple[int, bool, bytes]]:
+    return [(int(p.pts or 0), bool(p.is_keyframe), bytes(p)) for p in context.encode(frame)]
+
+
+def encode_video(
+    images: Iterable[np.ndarray],
+    codec: CameraCodec,
+    *,
+    fps: float,
+    source: str = "camera",
+    keyframe_interval: int = KEYFRAME_INTERVAL,
+) -> EncodedVideo:
+    """Encode RGB frames (all of one size) as AV1 or H.264 samples, one per frame, no B-frames,
+    a keyframe every `keyframe_interval` frames. `source` names the frames in errors."""
+    import av
+
+    if codec not in ENCODERS:
+        raise ValueError(f"{codec.value!r} is not a video codec ({[c.value for c in ENCODERS]})")
+    iterator = iter(images)
+    first = next(iterator, None)
+    if first is None:
+        raise DataError(f"{source}: no frames to encode")
+    shape = _even(first).shape
+    if min(shape[0], shape[1]) < 16:
+        raise DataError(f"{source}: frames of {shape[1]}×{shape[0]} px are too small to encode as video")
+    context = _context(codec, shape[1], shape[0], fps, keyframe_interval)
+    packets: list[tuple[int, bool, bytes]] = []
+    for index, image in enumerate(itertools.chain([first], iterator)):
+        image = _even(np.ascontiguousarray(image))
+        if image.shape != shape:
+            raise DataError(
+                f"{source}: frame {index} is {image.shape[1]}×{image.shape[0]} px, the first was "
+                f"{shape[1]}×{shape[0]}: a video needs one size (use --camera-codec jpeg)"
+            )
+        frame = av.VideoFrame.from_ndarray(image, format="rgb24").reformat(format="yuv420p")
+        frame.pts = index
+        packets += _packets(context, frame)
+    packets += _packets(context, None)
+    if len(packets) != index + 1:
+        raise RuntimeError(
+            f"{source}: the {codec.value} encoder gave {len(packets)} samples for {index + 1} frames"
+        )
+    packets.sort(key=lambda packet: packet[0])
+    return EncodedVideo(
+        codec=codec,
+        samples=[packet[2] for packet in packets],
+        keyframes=[packet[1] for packet in packets],
+        width=shape[1],
+        height=shape[0],
+    )
+
+
+def decode_video(video: EncodedVideo, *, upto: int | None = None) -> list[np.ndarray]:
+    """Decode samples back to RGB frames (from the first sample up to `upto` inclusive): for checks."""
+    import av
+
+    name = {CameraCodec.AV1: "libdav1d", CameraCodec.H264: "h264"}[video.codec]
+    context = cast("VideoCodecContext", av.CodecContext.create(name, "r"))
+    last = len(video.samples) - 1 if upto is None else upto
+    decoded: list[np.ndarray] = []
+    for sample in video.samples[: last + 1]:
+        decoded += [frame.to_ndarray(format="rgb24") for frame in context.decode(av.Packet(sample))]
+    decoded += [frame.to_ndarray(format="rgb24") for frame in context.decode(None)]
+    return decoded
+
+
+def log_video(
+    rec: rr.RecordingStream,
+    entity: str,
+    video: EncodedVideo,
+    indexes: Sequence[rr.TimeColumn],
+) -> None:
+    """The codec (static) and one sample per frame of the time columns `indexes`."""
+    _, rerun_codec = ENCODERS[video.codec]
+    rec.log(entity, rr.VideoStream(codec=rerun_codec), static=True)
+    rec.send_columns(
+        entity,
+        indexes=indexes,
+        columns=rr.VideoStream.columns(sample=video.samples, is_keyframe=video.keyframes),
+    )
+
+
+def view_codec(frames: Sequence[Frame], count: int, codec: CameraCodec | str) -> CameraCodec:
+    """The codec for the first `count` frames of a view (for `auto`: by the size of its first frame)."""
+    codec = CameraCodec(codec)
+    if codec is not CameraCodec.AUTO:
+        return codec
+    if count == 0:
+        return CameraCodec.JPEG
+    height, width = frames[0].load().shape[:2]
+    return resolve_codec(codec, width=width, height=height, frames=count)
+
+
+def log_camera_views(
+    rec: rr.RecordingStream,
+    trajectory: Trajectory,
+    *,
+    views: Sequence[str],
+    length: int,
+    indexes: Callable[[np.ndarray], list[rr.TimeColumn]],
+    codec: CameraCodec | str = CameraCodec.JPEG,
+) -> dict[str, CameraCodec]:
+    """`/camera/<view>` for the first `length` frames of each view, as JPEGs (sent in column
+    batches, never raw pixels) or as one video stream; the codec of each view is recorded in the
+    `camera` property group. Returns the codec used per view."""
+    used: dict[str, CameraCodec] = {}
+    for view in views:
+        frames = trajectory.views[view]
+        count = min(length, len(frames))
+        used[view] = view_codec(frames, count, codec)
+        if used[view] is CameraCodec.JPEG:
+            for start in range(0, count, CAMERA_BATCH):
+                blobs = [frame_jpeg(frame) for frame in frames[start : min(start + CAMERA_BATCH, count)]]
+                rec.send_columns(
+                    camera(view),
+                    indexes=indexes(np.arange(start, start + len(blobs))),
+                    columns=rr.EncodedImage.columns(blob=blobs, media_type=[JPEG_MEDIA_TYPE] * len(blobs)),
+                )
+        else:
+            source = f"{trajectory.key} [{view}]"
+            fps = float(trajectory.fps or DEFAULT_FPS)
+            video = encode_video(
+                (frame.load() for frame in frames[:count]), used[view], fps=fps, source=source
+            )
+            log_video(rec, camera(view), video, indexes(np.arange(count)))
+    send_camera_properties(rec, used)
+    return used
+
+
+def send_camera_properties(rec: rr.RecordingStream, used: Mapping[str, CameraCodec]) -> None:
+    """The `camera` property group: which codec stores each view's `/camera/<view>`."""
+    rec.send_property(
+        CAMERA_PROPERTIES,
+        rr.AnyValues(
+            codec=", ".join(sorted({c.value for c in used.values()})),
+            views=", ".join(f"{view}: {c.value}" for view, c in used.items()),
+            keyframe_interval=KEYFRAME_INTERVAL,
+        ),
+    )
