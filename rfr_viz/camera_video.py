@@ -14,7 +14,7 @@ import itertools
 import os
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from enum import Enum
+from enum import StrEnum
 from fractions import Fraction
 from typing import TYPE_CHECKING, Annotated, Final, cast
 
@@ -32,7 +32,7 @@ if TYPE_CHECKING:
     from av.video.frame import VideoFrame
 
 
-class CameraCodec(str, Enum):
+class CameraCodec(StrEnum):
     """How `/camera/<view>` is stored: JPEG per frame, AV1 or H.264 video, or chosen by size."""
 
     JPEG = "jpeg"

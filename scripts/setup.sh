@@ -4,6 +4,11 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PYTHON=${PYTHON:-python3}
+if ! "$PYTHON" -c 'import sys; sys.exit(sys.version_info < (3, 11))' 2>/dev/null; then
+  echo "error: $PYTHON is $("$PYTHON" --version 2>&1); RoboFailRing needs Python >= 3.11 (rerun-sdk 0.41 requires it)." >&2
+  echo "       Install one (e.g. apt-get install python3.11 python3.11-venv) and run again with PYTHON=python3.11." >&2
+  exit 2
+fi
 if [ ! -x .venv/bin/python ]; then
   "$PYTHON" -m venv .venv
 fi

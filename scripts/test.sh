@@ -1,10 +1,19 @@
 #!/usr/bin/env bash
 # The test command: set up (idempotent), then lint, type-check and run the whole suite.
+#   bash scripts/test.sh          everything (what .ci/run runs)
+#   bash scripts/test.sh --fast   lint, types, and the unit and read-back tests: no simulation,
+#                                 no end-to-end job, no headless viewer (the loop while coding)
+# Further arguments go to pytest (e.g. `bash scripts/test.sh --fast -k memory`).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+lane=()
+if [ "${1:-}" = "--fast" ]; then
+  shift
+  lane=(-m "not slow and not viewer")
+fi
 bash scripts/setup.sh --dev
 export ROBOFAILRING_PROGRESS=0
 .venv/bin/ruff check .
 .venv/bin/ruff format --check .
 .venv/bin/mypy
-.venv/bin/python -m pytest -q "$@"
+.venv/bin/python -m pytest -q "${lane[@]}" "$@"

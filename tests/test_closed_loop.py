@@ -18,6 +18,8 @@ from rfr_viz.viewer import ViewerUnavailable, render_screenshot
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
 from robofailring.sim import VIEWS, EpisodeResult, GenerateConfig, generate_dataset, run_episode
 
+pytestmark = pytest.mark.slow  # simulation or end-to-end: the full lane only (scripts/test.sh)
+
 TASK, MODE, SEED = "pick_cube", "grasp", 7  # a seed none of the memory's episodes was drawn from
 SIZE, FRAMES = 48, 12
 

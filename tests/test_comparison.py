@@ -10,6 +10,8 @@ from synthetic import write_project_dataset
 
 from robofailring.comparison import CompareEncodersConfig, compare_encoders, comparison_table
 
+pytestmark = pytest.mark.slow  # simulation or end-to-end: the full lane only (scripts/test.sh)
+
 
 def test_two_encoders_side_by_side(tmp_path: Path, tiny_checkpoint: tuple[Path, Path]) -> None:
     config_json, checkpoint = tiny_checkpoint

@@ -13,6 +13,8 @@ from rfr_viz.review import ReviewConfig, review
 from rfr_viz.viewer import verify_recording
 from robofailring.errors import DataError
 
+pytestmark = pytest.mark.slow  # simulation or end-to-end: the full lane only (scripts/test.sh)
+
 
 def tiny_demo(root: Path, out: str) -> DemoConfig:
     """One task, few and small episodes: the whole pipeline in seconds."""

@@ -7,12 +7,15 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 from rerun.chunk import RrdReader
 from synthetic import VIEWS, write_aha_dataset, write_episode, write_project_dataset
 from test_viz import rows
 
 from rfr_viz.paths import UNSTOPPED, WATCHED
 from rfr_viz.viewer import verify_recording
+
+pytestmark = pytest.mark.slow  # simulation or end-to-end: the full lane only (scripts/test.sh)
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 

@@ -17,6 +17,8 @@ import rerun as rr
 from rfr_viz.share import _lan_address, share_folder
 from robofailring.errors import DataError
 
+pytestmark = pytest.mark.slow  # simulation or end-to-end: the full lane only (scripts/test.sh)
+
 
 def _free_port() -> int:
     with socket.socket() as probe:

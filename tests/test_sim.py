@@ -24,6 +24,8 @@ from robofailring.sim import (
     run_episode,
 )
 
+pytestmark = pytest.mark.slow  # simulation or end-to-end: the full lane only (scripts/test.sh)
+
 TASK = "pick_cube"
 MODES = KINDS  # the seven failure families and success
 FRAMES = 12

@@ -1,4 +1,4 @@
-"""rfr_viz: recordings written, then read back with RrdReader and checked value by value (SPEC §6)."""
+"""rfr_viz: recordings written, then read back with RrdReader and checked value by value (README, "The recording layout")."""
 
 from __future__ import annotations
 

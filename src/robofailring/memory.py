@@ -7,7 +7,7 @@ import math
 from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import asdict, dataclass, field, replace
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any, Final
 
@@ -86,7 +86,7 @@ class Neighbor:
 
 @dataclass
 class BuildStats:
-    """What building a memory took in and left out (SPEC §7: skipped, counted, reported)."""
+    """What building a memory took in and left out (skipped views are counted and reported)."""
 
     trajectories: int = 0
     failures: int = 0
@@ -315,7 +315,7 @@ class FailureMemory:
                 "symbols": dict(sorted(Counter(e.symbol for e in self.entries).items())),
             }
         )
-        manifest.setdefault("created", datetime.now(timezone.utc).isoformat(timespec="seconds"))
+        manifest.setdefault("created", datetime.now(UTC).isoformat(timespec="seconds"))
         return manifest
 
     def write_manifest(self, directory: Path) -> None:

@@ -1,4 +1,4 @@
-"""Dataset layouts (SPEC §4): AHA FailGen, ManiSkill-failgen/FailSafe, the project's own, one episode."""
+"""Dataset layouts (README, "Data layouts read"): AHA FailGen, ManiSkill-failgen/FailSafe, the project's own, one episode."""
 
 from __future__ import annotations
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from enum import Enum
+from enum import StrEnum
 from functools import cached_property
 from pathlib import Path
 from typing import Protocol
@@ -14,7 +14,7 @@ import numpy as np
 from robofailring.data.images import as_rgb, content_digest, read_image
 
 
-class Outcome(str, Enum):
+class Outcome(StrEnum):
     """Outcome of a trajectory as decided by the data source (the simulator's goal check)."""
 
     SUCCESS = "success"
