@@ -28,7 +28,8 @@ from _timing import median_ms
 from sklearn.metrics import roc_auc_score
 
 from rfr_viz.demo import DemoConfig
-from robofailring import load_dataset, load_encoder
+from rfr_viz.memory_umap import memory_map
+from robofailring import FailureMemory, load_dataset, load_encoder
 from robofailring.encoders import default_cache_dir, encoder_slug
 from robofailring.encoders.trained import CONFIG_NAME, prepare_images
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
@@ -40,6 +41,7 @@ from robofailring.evaluation import (
     calibrate,
     run_evaluation,
 )
+from robofailring.grounding import failure_type
 from robofailring.metrics import rates, timeliness
 from robofailring.sim import GenerateConfig, generate_dataset
 
@@ -85,6 +87,28 @@ def quality(result: EvaluationResult) -> dict[str, float]:
         "saving": timeliness(result.scored, result.operating_delta).mean_saving,
         "latency": result.latency_ms.get("total", math.nan),
     }
+
+
+def map_agreement(memory_dir: Path, neighbours: int = 5) -> dict[str, float]:
+    """How the memory map clusters: the share of each entry's nearest entries in the 2-D map that
+    have its failure type, its view, its task (and what a random map would give)."""
+    memory = FailureMemory.load(memory_dir)
+    points = memory_map(memory).embedding
+    distances = np.linalg.norm(points[:, None, :] - points[None, :, :], axis=2)
+    np.fill_diagonal(distances, np.inf)
+    nearest = np.argsort(distances, axis=1)[:, :neighbours]
+    keys = {
+        "type": [failure_type(e.symbol) for e in memory.entries],
+        "view": [e.view for e in memory.entries],
+        "task": [e.task for e in memory.entries],
+    }
+    shares = {}
+    for name, labels in keys.items():
+        values = np.array(labels)
+        shares[name] = float(np.mean(values[nearest] == values[:, None]))
+        _, counts = np.unique(values, return_counts=True)
+        shares[f"{name}_chance"] = float(((counts / counts.sum()) ** 2).sum())
+    return shares
 
 
 def encoding_ms(spec: str, frames: list[np.ndarray]) -> tuple[float, float]:
@@ -135,6 +159,7 @@ def main() -> None:
         )
 
     rows = []
+    maps: list[tuple[str, dict[str, float]]] = []
     with tempfile.TemporaryDirectory() as tmp:
         for spec in specs:
             slug = encoder_slug(load_encoder(spec).identity)
@@ -151,6 +176,7 @@ def main() -> None:
                 rows.append(
                     (slug, name, calibration.delta, result.failures, result.successes, quality(result))
                 )
+            maps.append((slug, map_agreement(memory)))
 
     print(f"\npaper rule, δ calibrated at α = {args.target_fpr} on the training successes:")
     print(
@@ -162,6 +188,14 @@ def main() -> None:
             f"| {slug} | {name} | {delta:.4f} | {failures} / {successes} | {q['auc']:.3f} | "
             f"{100 * q['oracle_recall']:.1f} % | {100 * q['recall']:.1f} % | {100 * q['fpr']:.1f} % | "
             f"{100 * q['saving']:.1f} % | {q['latency']:.2f} |"
+        )
+
+    print("\nmemory map (UMAP): share of each entry's 5 nearest map neighbours with the same … (chance)")
+    for slug, shares in maps:
+        print(
+            f"  {slug}: failure type {100 * shares['type']:.0f} % ({100 * shares['type_chance']:.0f} %), "
+            f"view {100 * shares['view']:.0f} % ({100 * shares['view_chance']:.0f} %), "
+            f"task {100 * shares['task']:.0f} % ({100 * shares['task_chance']:.0f} %)"
         )
 
 

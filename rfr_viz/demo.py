@@ -45,9 +45,7 @@ class DemoConfig:
     encoder: str = "pixels"
     workers: int = 2
     cache_dir: Path | None = None
-    trained_encoder_epochs: int = (
-        12  # fourth output: train-encoder on the ID training split vs pixels (0: skip)
-    )
+    trained_epochs: int = 10  # fourth output: train-encoder on the ID training split vs pixels (0: skip)
 
 
 @dataclass
@@ -154,7 +152,7 @@ def run_demo(config: DemoConfig, *, say: Callable[[str], None] = print) -> DemoR
             break
         else:
             result.notes.append(f"no {kind.replace('-', ' ')} occurred at the calibrated δ in either split")
-    if config.trained_encoder_epochs:
+    if config.trained_epochs:
         result.comparison = _compare_with_trained(config, in_dist, data_dir, out, say)
     return result
 
@@ -164,9 +162,7 @@ def _compare_with_trained(
 ) -> EncoderComparison:
     """Train (or reuse, same recipe and frames) an encoder on the ID training split; compare it with pixels."""
     trained = train_encoder(
-        TrainEncoderConfig(
-            data=in_dist, out=data_dir / "trained-encoder", epochs=config.trained_encoder_epochs
-        ),
+        TrainEncoderConfig(data=in_dist, out=data_dir / "trained-encoder", epochs=config.trained_epochs),
         reuse=True,
         say=say,
     )

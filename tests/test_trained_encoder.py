@@ -29,7 +29,13 @@ runner = CliRunner()
 
 
 def _config(data: Path, out: Path, **changes: object) -> TrainEncoderConfig:
-    settings: dict[str, object] = {"image_size": 32, "epochs": 2, "batch_size": 32, "threads": 1}
+    settings: dict[str, object] = {
+        "image_size": 32,
+        "epochs": 2,
+        "batch_size": 32,
+        "frame_stride": 1,
+        "threads": 1,
+    }
     settings.update(changes)
     return TrainEncoderConfig(data=data, out=out, **settings)  # type: ignore[arg-type]
 

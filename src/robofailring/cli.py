@@ -227,7 +227,7 @@ def train_encoder_cmd(
         str, typer.Option(help="Split to train on; a held-out split (test, ood) is refused.")
     ] = "train",
     image_size: Annotated[int, typer.Option("--image-size", help="CNN input side in pixels.")] = 64,
-    epochs: Annotated[int, typer.Option(help="Passes over the training frames.")] = 12,
+    epochs: Annotated[int, typer.Option(help="Passes over the training frames.")] = 10,
     seed: Annotated[
         int, typer.Option(help="The same seed, data, device and threads give the same weights.")
     ] = 0,

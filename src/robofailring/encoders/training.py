@@ -63,12 +63,12 @@ class TrainEncoderConfig:
     out: Path  # encoder folder to write (atomically): encoder.json + weights.pt
     split: str = "train"  # never a held-out split (test, ood)
     image_size: int = 64  # CNN input side in pixels (with `init`: the CLIP tower's own size)
-    epochs: int = 12
+    epochs: int = 10
     batch_size: int = 128
     learning_rate: float = 3e-3
     seed: int = 0
     progress_buckets: int = 4  # progress quarters: 0–25 %, 25–50 %, …
-    frame_stride: int = 1  # every n-th frame of each view
+    frame_stride: int = 2  # every n-th frame of each view (neighbouring frames are near copies)
     embedding_dim: int = 256  # with `init`: the projection's output size
     init: str | None = None  # open_clip:<model>:<weights>: train a projection head on that frozen tower
     test_fraction: float = 0.5  # layouts without splits use the evaluation's hash split
