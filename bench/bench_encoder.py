@@ -24,6 +24,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+import torch
 from _timing import median_ms
 from sklearn.metrics import roc_auc_score
 
@@ -152,11 +153,16 @@ def main() -> None:
     specs = ("pixels", f"trained:{folder}")
     trajectory = next(t for t in load_dataset(in_dist).trajectories() if t.split == "test")
     frames = prepare_images([f.load() for frames in trajectory.views.values() for f in frames], 64)
-    for spec in specs:
-        batched, step = encoding_ms(spec, list(frames))
-        print(
-            f"encoding {spec}: {batched:.3f} ms per 64 px frame (batches of 64), {step:.2f} ms per 3-view step"
-        )
+    default_threads = torch.get_num_threads()
+    for threads in sorted({1, default_threads}):
+        torch.set_num_threads(threads)
+        for spec in specs:
+            batched, step = encoding_ms(spec, list(frames))
+            print(
+                f"encoding {spec} ({threads} torch thread(s)): {batched:.3f} ms per 64 px frame "
+                f"(batches of 64), {step:.2f} ms per 3-view step"
+            )
+    torch.set_num_threads(default_threads)
 
     rows = []
     maps: list[tuple[str, dict[str, float]]] = []

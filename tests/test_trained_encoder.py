@@ -66,7 +66,7 @@ def test_training_is_deterministic_by_seed_and_lowers_its_loss(trained: tuple[Pa
     assert training["final_loss"] < training["initial_loss"]
     assert training["loss_history"][-1] < training["loss_history"][0]
     assert record["input_size"] == 32 and record["training"]["recipe"]["epochs"] == 2
-    assert record["architecture"] == {"kind": "cnn", "widths": [32, 64, 128, 256]}
+    assert record["architecture"] == {"kind": "cnn", "widths": [32, 64, 128, 256], "neck": "batchnorm"}
     # labels: failure type × progress quarter × view, successes their own type; only the training split
     assert {c.split("|")[0] for c in record["classes"]} == {"grasp", "slip", "wrong_object", "success"}
     assert {c.split("|")[1] for c in record["classes"]} == {"p0", "p1", "p2", "p3"}

@@ -4,7 +4,7 @@ The folder holds `encoder.json` (architecture, input size, normalisation, the la
 how it was trained) and `weights.pt` (a torch state dict). Two architectures exist:
 
 - `cnn`: a small 4-layer convolutional network on `input_size`² RGB frames; the embedding is its
-  globally average-pooled last feature map.
+  globally average-pooled last feature map, centred and scaled by a batch-norm neck.
 - `open_clip_head`: a frozen open_clip image tower (`open_clip:<model>:<weights>`, loaded by the
   project's own open_clip loader) followed by a trained linear projection; `weights.pt` holds
   only the projection and the classifier.
@@ -112,7 +112,14 @@ def build_network(architecture: dict[str, Any], classes: int, backbone: Any = No
     kind = architecture.get("kind")
     if kind == "cnn":
         widths = [int(w) for w in architecture["widths"]]
-        return EncoderNet(SmallCNN(widths), nn.Identity(), widths[-1])
+        # a batch-norm neck centres and scales the pooled features (a common offset would otherwise
+        # put every cosine near 1); the classifier reads the same features the memory compares
+        neck = (
+            nn.BatchNorm1d(widths[-1], affine=False)
+            if architecture.get("neck") == "batchnorm"
+            else nn.Identity()
+        )
+        return EncoderNet(SmallCNN(widths), neck, widths[-1])
     if kind == "open_clip_head":
         if backbone is None:
             raise EncoderError("an open_clip_head encoder needs its open_clip image tower")

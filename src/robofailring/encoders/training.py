@@ -3,7 +3,7 @@
 Every frame of every view of the chosen split is one sample; its class is
 failure type × progress bucket × view (successes are their own type), so the network must tell
 what went wrong, how far the run is and which camera looks, while photometric augmentation
-(brightness, contrast, colour gains, offsets) and small shifts and scalings keep it from keying
+(brightness, contrast, saturation, colour gains, offsets) and small shifts and scalings keep it from keying
 on lighting and exact framing. The test split is refused: an encoder must never see the frames
 it is evaluated on. Training is deterministic for a seed on a given device and thread count.
 """
@@ -48,12 +48,13 @@ from robofailring.progress import progress_bar
 
 HELD_OUT_SPLITS: Final[frozenset[str]] = frozenset({"test", "ood"})
 AUGMENTATION: Final[dict[str, float]] = {
-    "brightness": 0.3,  # × U(1 − b, 1 + b)
-    "contrast": 0.3,  # around the image mean, × U(1 − c, 1 + c)
-    "colour_gain": 0.15,  # per channel × U(1 − g, 1 + g)
-    "offset": 0.06,  # per channel + U(−o, o)
-    "shift": 0.06,  # translation, fraction of the image side
-    "scale": 0.08,  # zoom × U(1 − s, 1 + s)
+    "brightness": 0.4,  # × U(1 − b, 1 + b)
+    "contrast": 0.4,  # around the image mean, × U(1 − c, 1 + c)
+    "saturation": 0.5,  # colour around grey, × U(1 − s, 1 + s)
+    "colour_gain": 0.25,  # per channel × U(1 − g, 1 + g)
+    "offset": 0.08,  # per channel + U(−o, o)
+    "shift": 0.08,  # translation, fraction of the image side
+    "scale": 0.12,  # zoom × U(1 − s, 1 + s)
 }
 
 
@@ -175,6 +176,8 @@ def augment(pixels: Any, generator: Any) -> Any:
         return (torch.rand(count, *shape, generator=generator) * 2 - 1) * spread
 
     a = AUGMENTATION
+    grey = pixels.mean(dim=1, keepdim=True)
+    pixels = (pixels - grey) * (1 + uniform(a["saturation"], 1, 1, 1)).to(pixels) + grey
     mean = pixels.mean(dim=(1, 2, 3), keepdim=True)
     pixels = (pixels - mean) * (1 + uniform(a["contrast"], 1, 1, 1)).to(pixels) + mean
     pixels = pixels * (1 + uniform(a["brightness"], 1, 1, 1)).to(pixels)
@@ -192,7 +195,7 @@ def augment(pixels: Any, generator: Any) -> Any:
 def _architecture(config: TrainEncoderConfig) -> tuple[dict[str, Any], Any, int, list[float], list[float]]:
     """(architecture, frozen backbone or None, input size, mean, std)."""
     if config.init is None:
-        architecture: dict[str, Any] = {"kind": "cnn", "widths": list(CNN_WIDTHS)}
+        architecture: dict[str, Any] = {"kind": "cnn", "widths": list(CNN_WIDTHS), "neck": "batchnorm"}
         return architecture, None, config.image_size, list(CNN_MEAN), list(CNN_STD)
     backbone = load_backbone(config.init, device=config.device)
     size, mean, std = clip_input(backbone)
