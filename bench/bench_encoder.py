@@ -1,6 +1,6 @@
 """Trained encoder (issue 16): training time, encoding cost, and detection quality side by side with `pixels`.
 
-Run: .venv/bin/python bench/bench_encoder.py [--epochs N] [--threads T] [--reuse]
+Run: .venv/bin/python bench/bench_encoder.py [--epochs N] [--frame-stride S] [--threads T] [--reuse]
 
 Trains `train-encoder`'s CNN on the training split of the demo-sized simulated set (simulated
 once and cached, exactly as `robofailring demo` does), then, for `pixels` and the trained encoder,
@@ -124,6 +124,7 @@ def encoding_ms(spec: str, frames: list[np.ndarray]) -> tuple[float, float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--epochs", type=int, default=TrainEncoderConfig.epochs)
+    parser.add_argument("--frame-stride", type=int, default=TrainEncoderConfig.frame_stride)
     parser.add_argument("--threads", type=int, default=None, help="torch CPU threads for training")
     parser.add_argument("--target-fpr", type=float, default=0.05)
     parser.add_argument("--reuse", action="store_true", help="reuse an encoder of the same recipe and data")
@@ -132,11 +133,13 @@ def main() -> None:
     demo = DemoConfig()
     in_dist, out_dist = demo_sets(demo)
     print(f"data: {in_dist} (ID train/test), {out_dist} (OOD), {demo.image_size} px frames")
-    folder = default_cache_dir() / "bench-encoder" / f"trained-e{args.epochs}"
+    folder = default_cache_dir() / "bench-encoder" / f"trained-e{args.epochs}-s{args.frame_stride}"
     load_before = os.getloadavg()[0]
     started = time.perf_counter()
     train_encoder(
-        TrainEncoderConfig(data=in_dist, out=folder, epochs=args.epochs, threads=args.threads),
+        TrainEncoderConfig(
+            data=in_dist, out=folder, epochs=args.epochs, frame_stride=args.frame_stride, threads=args.threads
+        ),
         reuse=args.reuse,
         say=print,
     )
