@@ -9,13 +9,16 @@ from pathlib import Path
 import numpy as np
 
 from rfr_viz.camera_video import CameraCodec
+from rfr_viz.encoder_comparison import EncoderComparison, run_encoder_comparison
 from rfr_viz.evaluation_recording import record_evaluation
 from rfr_viz.memory_umap import memory_map
 from rfr_viz.record import record_replay
 from rfr_viz.replay import recording_name
 from rfr_viz.report_html import REPORT_NAME, write_report
+from robofailring.comparison import CompareEncodersConfig
 from robofailring.data.layouts import load_dataset
 from robofailring.encoders import default_cache_dir
+from robofailring.encoders.training import TrainEncoderConfig, train_encoder
 from robofailring.evaluation import (
     CalibrateConfig,
     EvaluateConfig,
@@ -45,6 +48,7 @@ class DemoConfig:
     workers: int = 2
     cache_dir: Path | None = None
     camera_codec: CameraCodec = CameraCodec.AUTO  # jpeg, av1, h264, or auto (by size)
+    trained_epochs: int = 10  # fourth output: train-encoder on the ID training split vs pixels (0: skip)
 
 
 @dataclass
@@ -55,6 +59,7 @@ class DemoResult:
     recordings: dict[str, Path] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     report: Path | None = None  # report.html: charts, tables and links to the recordings
+    comparison: EncoderComparison | None = None  # pixels against the encoder trained on the training split
 
 
 def _simulate(config: GenerateConfig, label: str) -> Path:
@@ -163,4 +168,25 @@ def run_demo(config: DemoConfig, *, say: Callable[[str], None] = print) -> DemoR
         recordings={"evaluation summary": summary} | result.recordings,
         title="RoboFailRing demo: simulated FailGen, in and out of distribution",
     )
+    if config.trained_epochs:
+        result.comparison = _compare_with_trained(config, in_dist, data_dir, out, say)
     return result
+
+
+def _compare_with_trained(
+    config: DemoConfig, in_dist: Path, data_dir: Path, out: Path, say: Callable[[str], None]
+) -> EncoderComparison:
+    """Train (or reuse, same recipe and frames) an encoder on the ID training split; compare it with pixels."""
+    trained = train_encoder(
+        TrainEncoderConfig(data=in_dist, out=data_dir / "trained-encoder", epochs=config.trained_epochs),
+        reuse=True,
+        say=say,
+    )
+    return run_encoder_comparison(
+        CompareEncodersConfig(
+            data=in_dist,
+            out=out / "encoders",
+            encoders=("pixels", f"trained:{trained}"),
+            cache_dir=config.cache_dir,
+        )
+    )

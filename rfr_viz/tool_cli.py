@@ -153,13 +153,12 @@ def compare_encoders_cmd(
     device: DeviceOption = None,
 ) -> None:
     """The same split under several encoders, each calibrated: a side-by-side table and comparison recordings."""
-    from rfr_viz.replay import CompareConfig, compare
-    from robofailring._atomic import write_text_atomic
-    from robofailring.comparison import CompareEncodersConfig, compare_encoders, comparison_table
+    from rfr_viz.encoder_comparison import run_encoder_comparison
+    from robofailring.comparison import CompareEncodersConfig
 
     try:
         check_output_folder(out, inputs=[data])
-        results = compare_encoders(
+        comparison = run_encoder_comparison(
             CompareEncodersConfig(
                 data=data,
                 out=out,
@@ -168,31 +167,14 @@ def compare_encoders_cmd(
                 k=k,
                 cache_dir=cache_dir,
                 device=device,
-            )
+            ),
+            recordings=recordings,
         )
     except (RoboFailRingError, ValueError) as error:
         exit_with_error(error)
-    table = comparison_table(results)
-    write_text_atomic(Path(out) / "comparison.md", table + "\n")
-    keys = tuple(t.key for t in results[0].scored if t.is_failure)[: max(recordings, 0)]
-    replayed = (
-        compare(
-            CompareConfig(
-                data=data,
-                memories=tuple(Path(r.memory) for r in results),
-                out=Path(out) / "recordings",
-                trajectories=keys,
-                k=k,
-                cache_dir=cache_dir,
-                device=device,
-            )
-        )
-        if keys
-        else None
-    )
-    typer.echo(table)
-    typer.echo(f"\nwrote {Path(out) / 'comparison.md'}")
-    for path in replayed.recordings if replayed else []:
+    typer.echo(comparison.table)
+    typer.echo(f"\nwrote {comparison.table_path}")
+    for path in comparison.recordings:
         typer.echo(open_command(path))
 
 
@@ -245,5 +227,10 @@ def demo_cmd(
     typer.echo("Or open one paused at its alarm (the miss: at its highest S_t):")
     for kind, path in result.recordings.items():
         typer.echo(f"  {open_at_command(path)}    # {kind}")
+    if result.comparison is not None:
+        typer.echo(f"\nEncoders compared on the in-distribution test split ({result.comparison.table_path}):")
+        typer.echo(result.comparison.table)
+        for path in result.comparison.recordings:
+            typer.echo(f"  {open_command(path)}    # pixels vs trained, side by side")
     for note in result.notes:
         typer.echo(f"note: {note}")

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from rfr_viz.demo import DemoConfig, DemoResult, run_demo
+from rfr_viz.demo import DemoConfig, DemoResult, _compare_with_trained, run_demo
 from rfr_viz.review import ReviewConfig, review
 from rfr_viz.viewer import verify_recording
 from robofailring.errors import DataError
@@ -95,3 +95,28 @@ def test_review_replays_the_listed_trajectories(demo: tuple[Path, DemoResult]) -
         review(ReviewConfig(evaluation=evaluation, data=root, kind="everything"))
     with pytest.raises(DataError, match="not an evaluation"):
         review(ReviewConfig(evaluation=out / "memory" / "manifest.json", data=root))
+
+
+def test_demo_compares_pixels_with_an_encoder_trained_on_its_training_split(
+    demo: tuple[Path, DemoResult],
+) -> None:
+    root, result = demo
+    comparison = result.comparison
+    assert comparison is not None and comparison.table_path == root / "out" / "encoders" / "comparison.md"
+    encoders = [r.encoder for r in comparison.results]
+    assert encoders[0].startswith("pixels") and encoders[1].startswith("trained:cnn4-64px-256d:")
+    assert comparison.table_path.read_text().count("| `") == 2
+    trained = json.loads((root / "data" / "trained-encoder" / "encoder.json").read_text())
+    assert trained["training"]["recipe"]["split"] == "train"
+    assert trained["training"]["recipe"]["data"] == str((root / "data" / "sim-id").resolve())
+    assert comparison.recordings
+    for path in comparison.recordings:
+        verify_recording(path)
+    # a second demo reuses the trained encoder (same recipe, same frames) instead of training again
+    weights = root / "data" / "trained-encoder" / "weights.pt"
+    stamp = weights.stat().st_mtime_ns
+    said: list[str] = []
+    _compare_with_trained(
+        tiny_demo(root, "out3"), root / "data" / "sim-id", root / "data", root / "out3", said.append
+    )
+    assert weights.stat().st_mtime_ns == stamp and said[0].startswith("reusing the trained encoder")

@@ -34,7 +34,7 @@ EncoderOption = Annotated[
     str,
     typer.Option(
         "--encoder",
-        help="`pixels` (weight-free) or `open_clip:<model>[:<pretrained tag or checkpoint path>]`.",
+        help="`pixels` (weight-free), `open_clip:<model>[:<pretrained tag or checkpoint path>]` or `trained:<DIR>`.",
     ),
 ]
 CacheOption = Annotated[
@@ -378,6 +378,52 @@ def memory_info_cmd(
     else:
         typer.echo(info.to_text())
     warn_missing_references(memory, info.references)
+
+
+@app.command("train-encoder")
+def train_encoder_cmd(
+    data: Annotated[
+        Path, typer.Argument(help="Dataset root (any layout); only the frames of --split are read.")
+    ],
+    out: Annotated[
+        Path, typer.Option("--out", help="Encoder folder to write; use it as --encoder trained:DIR.")
+    ],
+    split: Annotated[
+        str, typer.Option(help="Split to train on; a held-out split (test, ood) is refused.")
+    ] = "train",
+    image_size: Annotated[int, typer.Option("--image-size", help="CNN input side in pixels.")] = 64,
+    epochs: Annotated[int, typer.Option(help="Passes over the training frames.")] = 10,
+    seed: Annotated[
+        int, typer.Option(help="The same seed, data, device and threads give the same weights.")
+    ] = 0,
+    init: Annotated[
+        str | None,
+        typer.Option(
+            help="open_clip:<model>:<weights>: train a projection head on this frozen CLIP instead."
+        ),
+    ] = None,
+    threads: Annotated[int | None, typer.Option(help="torch CPU threads (default: half the cores).")] = None,
+    device: DeviceOption = None,
+) -> None:
+    """Train an encoder on your own runs: labels failure type × progress quarter × view, augmented."""
+    from robofailring.encoders.training import TrainEncoderConfig, train_encoder
+
+    try:
+        config = TrainEncoderConfig(
+            data=data,
+            out=out,
+            split=split,
+            image_size=image_size,
+            epochs=epochs,
+            seed=seed,
+            init=init,
+            threads=threads,
+            device=device,
+        )
+        folder = train_encoder(config, say=typer.echo)
+    except (RoboFailRingError, ValueError) as error:
+        exit_with_error(error)
+    typer.echo(f"use it with: --encoder trained:{folder}")
 
 
 def main() -> None:

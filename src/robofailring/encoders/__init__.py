@@ -1,14 +1,17 @@
-"""Encoders: `load_encoder(spec)` for `pixels` and `open_clip:<model>[:<tag or checkpoint>]`."""
+"""Encoders: `load_encoder(spec)` for `pixels`, `open_clip:<model>[:<tag or checkpoint>]` and `trained:<DIR>`."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 from robofailring.encoders.base import Encoder, l2_normalize
 from robofailring.encoders.cache import CachedEncoder, EmbeddingCache, default_cache_dir
 from robofailring.errors import EncoderError
 
 ENCODER_SPECS_HELP = (
-    "`pixels` (weight-free) or `open_clip:<model>[:<pretrained tag or checkpoint path>]`, "
-    "e.g. `open_clip:ViT-B-32:openai` or `open_clip:ViT-L-14:/models/vit-l-14.pt`"
+    "`pixels` (weight-free), `open_clip:<model>[:<pretrained tag or checkpoint path>]`, "
+    "e.g. `open_clip:ViT-B-32:openai` or `open_clip:ViT-L-14:/models/vit-l-14.pt`, "
+    "or `trained:<DIR>` (a folder written by `robofailring train-encoder`)"
 )
 
 
@@ -27,6 +30,13 @@ def load_encoder(spec: str, *, device: str | None = None) -> Encoder:
         from robofailring.encoders.openclip import OpenClipEncoder
 
         return OpenClipEncoder(model, weights, device=device)
+    if spec.startswith("trained:"):
+        directory = spec[len("trained:") :]
+        if not directory:
+            raise EncoderError(f"encoder spec {spec!r} names no folder; expected {ENCODER_SPECS_HELP}")
+        from robofailring.encoders.trained import TrainedEncoder
+
+        return TrainedEncoder(Path(directory), device=device)
     raise EncoderError(f"unknown encoder spec {spec!r}; expected {ENCODER_SPECS_HELP}")
 
 
@@ -34,6 +44,8 @@ def encoder_slug(identity: str) -> str:
     """A short path-safe name for an encoder identity, e.g. `vit-b-32` or `pixels`."""
     if identity.startswith("open_clip:"):
         return identity.split(":")[1].lower().replace("/", "-")
+    if identity.startswith("trained:"):  # trained:<arch>:<weights digest>; two trained ones stay apart
+        return f"trained-{identity.rsplit(':', 1)[-1][:8]}"
     return identity.split("-")[0].lower()
 
 

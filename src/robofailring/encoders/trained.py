@@ -1,0 +1,263 @@
+"""`trained:<DIR>`: an encoder trained on the user's own runs by `robofailring train-encoder`.
+
+The folder holds `encoder.json` (architecture, input size, normalisation, the label classes and
+how it was trained) and `weights.pt` (a torch state dict). Two architectures exist:
+
+- `cnn`: a small 4-layer convolutional network on `input_size`² RGB frames; the embedding is its
+  globally average-pooled last feature map, centred and scaled by a batch-norm neck.
+- `open_clip_head`: a frozen open_clip image tower (`open_clip:<model>:<weights>`, loaded by the
+  project's own open_clip loader) followed by a trained linear projection; `weights.pt` holds
+  only the projection and the classifier.
+
+The identity names the architecture and the digest of the weights (and of the frozen tower's
+identity), so the embedding cache and the memory's encoder check treat a retrained encoder as a
+different one, exactly as for CLIP checkpoints.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, Final
+
+import cv2
+import numpy as np
+
+from robofailring.encoders.base import l2_normalize
+from robofailring.errors import EncoderError
+
+CONFIG_NAME: Final[str] = "encoder.json"
+WEIGHTS_NAME: Final[str] = "weights.pt"
+FORMAT: Final[str] = "robofailring-trained-encoder"
+FORMAT_VERSION: Final[int] = 1
+CNN_WIDTHS: Final[tuple[int, ...]] = (32, 64, 128, 256)
+CNN_MEAN: Final[tuple[float, float, float]] = (0.5, 0.5, 0.5)
+CNN_STD: Final[tuple[float, float, float]] = (0.25, 0.25, 0.25)
+
+
+def prepare_images(images: Sequence[np.ndarray], size: int) -> np.ndarray:
+    """(N, size, size, 3) uint8: each RGB image resized to the encoder's square input (area filter when shrinking)."""
+    prepared = np.empty((len(images), size, size, 3), dtype=np.uint8)
+    for i, image in enumerate(images):
+        if image.shape[0] == size and image.shape[1] == size:
+            prepared[i] = image
+            continue
+        shrink = image.shape[0] > size or image.shape[1] > size
+        prepared[i] = cv2.resize(
+            image, (size, size), interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR
+        )
+    return prepared
+
+
+def file_digest(path: Path) -> str:
+    """blake2b (16 hex digits) of a file's bytes."""
+    digest = hashlib.blake2b(digest_size=8)
+    with Path(path).open("rb") as handle:
+        for block in iter(lambda: handle.read(1 << 22), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def build_network(architecture: dict[str, Any], classes: int, backbone: Any = None) -> Any:
+    """The torch module of an architecture description (see the module docstring).
+
+    `backbone` is the open_clip model for `open_clip_head` (frozen, not part of the state dict).
+    """
+    import torch
+    from torch import nn
+
+    class SmallCNN(nn.Module):
+        def __init__(self, widths: Sequence[int]) -> None:
+            super().__init__()
+            layers: list[nn.Module] = []
+            channels = 3
+            for width in widths:
+                layers += [
+                    nn.Conv2d(channels, width, 3, stride=2, padding=1, bias=False),
+                    nn.BatchNorm2d(width),
+                    nn.ReLU(inplace=True),
+                ]
+                channels = width
+            self.body = nn.Sequential(*layers)
+
+        def forward(self, pixels: torch.Tensor) -> torch.Tensor:
+            return self.body(pixels).mean(dim=(2, 3))
+
+    class FrozenClip(nn.Module):
+        def __init__(self, clip_model: Any) -> None:
+            super().__init__()
+            self.clip = [clip_model]  # a list: kept out of the module tree and the state dict
+
+        def forward(self, pixels: torch.Tensor) -> torch.Tensor:
+            with torch.no_grad():
+                return self.clip[0].encode_image(pixels).float()
+
+    class EncoderNet(nn.Module):
+        def __init__(self, features: nn.Module, head: nn.Module, dim: int) -> None:
+            super().__init__()
+            self.features = features
+            self.head = head
+            self.classifier = nn.Linear(dim, classes)
+
+        def embed(self, pixels: torch.Tensor) -> torch.Tensor:
+            embedding: torch.Tensor = self.head(self.features(pixels))
+            return embedding
+
+        def forward(self, pixels: torch.Tensor) -> torch.Tensor:
+            logits: torch.Tensor = self.classifier(self.embed(pixels))
+            return logits
+
+    kind = architecture.get("kind")
+    if kind == "cnn":
+        widths = [int(w) for w in architecture["widths"]]
+        # a batch-norm neck centres and scales the pooled features (a common offset would otherwise
+        # put every cosine near 1); the classifier reads the same features the memory compares
+        neck = (
+            nn.BatchNorm1d(widths[-1], affine=False)
+            if architecture.get("neck") == "batchnorm"
+            else nn.Identity()
+        )
+        return EncoderNet(SmallCNN(widths), neck, widths[-1])
+    if kind == "open_clip_head":
+        if backbone is None:
+            raise EncoderError("an open_clip_head encoder needs its open_clip image tower")
+        dim = int(architecture["embedding_dim"])
+        return EncoderNet(FrozenClip(backbone), nn.Linear(int(architecture["clip_dim"]), dim), dim)
+    raise EncoderError(f"unknown trained-encoder architecture {kind!r} (expected 'cnn' or 'open_clip_head')")
+
+
+def to_tensor(batch: np.ndarray, device: str) -> Any:
+    """(N, S, S, 3) uint8 → (N, 3, S, S) float32 in [0, 1] on `device`."""
+    import torch
+
+    return torch.from_numpy(np.ascontiguousarray(batch)).to(device).permute(0, 3, 1, 2).float().div_(255.0)
+
+
+def normalizer(config: dict[str, Any], device: str) -> tuple[Any, Any]:
+    """(mean, std) tensors shaped (1, 3, 1, 1) from an encoder config's `normalize`."""
+    import torch
+
+    mean = torch.tensor(config["normalize"]["mean"], dtype=torch.float32, device=device).view(1, 3, 1, 1)
+    std = torch.tensor(config["normalize"]["std"], dtype=torch.float32, device=device).view(1, 3, 1, 1)
+    return mean, std
+
+
+def load_backbone(init: str, *, device: str | None) -> Any:
+    """The project's OpenClipEncoder for an `open_clip:<model>:<weights>` init spec."""
+    from robofailring.encoders.openclip import OpenClipEncoder
+
+    if not init.startswith("open_clip:"):
+        raise EncoderError(f"--init must be an open_clip:<model>:<weights> spec, got {init!r}")
+    model, _, weights = init[len("open_clip:") :].partition(":")
+    if not model:
+        raise EncoderError(f"init spec {init!r} names no open_clip model")
+    return OpenClipEncoder(model, weights, device=device)
+
+
+def clip_input(backbone: Any) -> tuple[int, list[float], list[float]]:
+    """(input size, mean, std) of an open_clip image tower, as its own preprocessing uses them."""
+    size = backbone.model.visual.image_size
+    size = int(size[0] if isinstance(size, (tuple, list)) else size)
+    mean = [float(v) for v in getattr(backbone.model.visual, "image_mean", None) or (0.481, 0.458, 0.408)]
+    std = [float(v) for v in getattr(backbone.model.visual, "image_std", None) or (0.269, 0.261, 0.276)]
+    return size, mean, std
+
+
+def read_encoder_config(directory: Path) -> dict[str, Any]:
+    """The `encoder.json` of a trained-encoder folder, checked enough to name what is wrong."""
+    path = Path(directory) / CONFIG_NAME
+    if not Path(directory).is_dir():
+        raise EncoderError(
+            f"trained encoder folder {directory} does not exist (write one with `robofailring train-encoder`)"
+        )
+    try:
+        config = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError) as error:
+        raise EncoderError(f"cannot read trained-encoder config {path}: {error}") from error
+    if not isinstance(config, dict) or config.get("format") != FORMAT:
+        raise EncoderError(f"{path} is not a trained-encoder config (format {FORMAT!r})")
+    if config.get("format_version") != FORMAT_VERSION:
+        raise EncoderError(
+            f"{path} has format version {config.get('format_version')}, this version reads {FORMAT_VERSION}"
+        )
+    for key in ("architecture", "input_size", "normalize", "classes", "embedding_dim", "weights_digest"):
+        if key not in config:
+            raise EncoderError(f"{path} lacks {key!r}")
+    return config
+
+
+class TrainedEncoder:
+    """A trained encoder folder, batched, on CUDA when available (see the module docstring)."""
+
+    def __init__(self, directory: Path, *, device: str | None = None, batch_size: int = 256) -> None:
+        import torch
+
+        from robofailring.encoders.openclip import pick_device
+
+        self.directory = Path(directory).expanduser()
+        self.config = read_encoder_config(self.directory)
+        weights = self.directory / WEIGHTS_NAME
+        if not weights.is_file():
+            raise EncoderError(f"trained encoder {self.directory} has no {WEIGHTS_NAME}")
+        digest = file_digest(weights)
+        if digest != self.config["weights_digest"]:
+            raise EncoderError(
+                f"{weights} does not match the weights digest in {self.directory / CONFIG_NAME} "
+                f"({digest} != {self.config['weights_digest']}): the folder was modified after training"
+            )
+        self._device = pick_device(device)
+        self._batch_size = batch_size
+        architecture = self.config["architecture"]
+        backbone = None
+        tower = ""
+        if architecture.get("kind") == "open_clip_head":
+            backbone = load_backbone(str(architecture["init"]), device=self._device)
+            if backbone.identity != architecture.get("init_identity"):
+                raise EncoderError(
+                    f"trained encoder {self.directory} was trained on {architecture.get('init_identity')}, "
+                    f"but {architecture['init']} now loads {backbone.identity}"
+                )
+            tower = backbone.identity
+        self.network = build_network(
+            architecture, len(self.config["classes"]), backbone.model if backbone else None
+        )
+        try:
+            state = torch.load(weights, map_location=self._device, weights_only=True)
+            self.network.load_state_dict(state)
+        except Exception as error:  # torch raises several types for a bad file or state dict
+            raise EncoderError(
+                f"cannot load {weights} into its architecture {architecture}: {error}"
+            ) from error
+        self.network.to(self._device).eval()
+        self._mean, self._std = normalizer(self.config, self._device)
+        self._dim = int(self.config["embedding_dim"])
+        self._size = int(self.config["input_size"])
+        weights_id = hashlib.blake2b(f"{digest}|{tower}".encode(), digest_size=8).hexdigest()
+        name = "cnn4" if architecture.get("kind") == "cnn" else "clip-head"
+        self._identity = f"trained:{name}-{self._size}px-{self._dim}d:{weights_id}"
+        self._torch = torch
+
+    @property
+    def identity(self) -> str:
+        return self._identity
+
+    @property
+    def dim(self) -> int:
+        return self._dim
+
+    @property
+    def device(self) -> str:
+        return self._device
+
+    def encode(self, images: Sequence[np.ndarray]) -> np.ndarray:
+        if len(images) == 0:
+            return np.zeros((0, self._dim), dtype=np.float32)
+        outputs = []
+        with self._torch.inference_mode():
+            for start in range(0, len(images), self._batch_size):
+                batch = prepare_images(images[start : start + self._batch_size], self._size)
+                pixels = (to_tensor(batch, self._device) - self._mean) / self._std
+                outputs.append(self.network.embed(pixels).float().cpu().numpy())
+        return l2_normalize(np.concatenate(outputs))
