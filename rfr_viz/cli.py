@@ -10,7 +10,7 @@ import typer
 from rfr_viz import tool_cli  # noqa: F401  (registers evaluate and the other combined verbs)
 from rfr_viz.replay import DEFAULT_OUT, CompareConfig, ReplayConfig, ReplayResult, compare, replay
 from rfr_viz.viewer import DEFAULT_PORT, ViewerUnavailable, open_at, open_command
-from robofailring.cli import CacheOption, DeviceOption, app, exit_with_error
+from robofailring.cli import CacheOption, DeviceOption, GammaOption, ScoreOption, app, exit_with_error
 from robofailring.errors import RoboFailRingError
 
 __all__ = ["app", "main"]
@@ -64,6 +64,8 @@ def replay_cmd(
         float | None, typer.Option(help="Threshold δ (default: the memory's calibrated δ, else 0.92).")
     ] = None,
     k: KOption = 5,
+    score: ScoreOption = None,
+    gamma: GammaOption = None,
     task: TaskOption = None,
     leave_one_out: LeaveOneOutOption = False,
     encoder: Annotated[str | None, typer.Option(help="Encoder spec (default: the memory's).")] = None,
@@ -79,6 +81,8 @@ def replay_cmd(
         trajectories=tuple(trajectory or ()),
         delta=delta,
         k=k,
+        score=score,
+        gamma=gamma,
         task=task,
         leave_one_out=leave_one_out,
         encoder=encoder,
@@ -108,6 +112,7 @@ def compare_cmd(
         ),
     ] = None,
     k: KOption = 5,
+    score: ScoreOption = None,
     task: TaskOption = None,
     leave_one_out: LeaveOneOutOption = False,
     fps: FpsOption = None,
@@ -122,6 +127,7 @@ def compare_cmd(
         trajectories=tuple(trajectory or ()),
         deltas=tuple(delta or ()),
         k=k,
+        score=score,
         task=task,
         leave_one_out=leave_one_out,
         fps=fps,

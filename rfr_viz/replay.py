@@ -31,6 +31,8 @@ class ReplayConfig:
     trajectories: tuple[str, ...] = ()  # `<task>/<episode>` keys or episode names; empty = all
     delta: float | None = None  # default: the memory's calibrated δ, else the paper's 0.92
     k: int = DEFAULT_K  # neighbours retrieved (and logged) per view and frame
+    score: str | None = None  # `paper` or `contrast` (default: contrast when the memory has successes)
+    gamma: float | None = None  # contrast threshold (default: the memory's calibrated γ, else 0)
     task: str | None = None  # task of an episode folder whose name does not say; on a root, a filter
     leave_one_out: bool = False  # hide each trajectory's own episode from the memory
     encoder: str | None = None  # encoder spec; default: the one that built the memory
@@ -47,6 +49,7 @@ class CompareConfig:
     trajectories: tuple[str, ...] = ()
     deltas: tuple[float, ...] = ()  # one δ per memory; default: each memory's calibrated δ
     k: int = DEFAULT_K
+    score: str | None = None  # scoring rule of every memory (default: each one's)
     task: str | None = None
     leave_one_out: bool = False
     fps: float | None = None
@@ -97,6 +100,8 @@ def load_detector(
     encoder: str | None,
     cache_dir: Path | None,
     device: str | None,
+    score: str | None = None,
+    gamma: float | None = None,
 ) -> LoadedDetector:
     memory = FailureMemory.load(memory_dir)
     spec = encoder or encoder_spec_for(memory)
@@ -104,7 +109,7 @@ def load_detector(
     return LoadedDetector(
         slug=encoder_slug(memory.encoder),
         memory=memory,
-        detector=FailureDetector(memory, cached, delta=delta, k=k),
+        detector=FailureDetector(memory, cached, delta=delta, k=k, rule=score, gamma=gamma),
         map=memory_map(memory, directory=memory_dir),
     )
 
@@ -115,6 +120,8 @@ def replay(config: ReplayConfig) -> ReplayResult:
         config.memory,
         delta=config.delta,
         k=config.k,
+        score=config.score,
+        gamma=config.gamma,
         encoder=config.encoder,
         cache_dir=config.cache_dir,
         device=config.device,
@@ -160,6 +167,7 @@ def compare(config: CompareConfig) -> ReplayResult:
             memory_dir,
             delta=delta,
             k=config.k,
+            score=config.score,
             encoder=None,
             cache_dir=config.cache_dir,
             device=config.device,

@@ -14,6 +14,7 @@ from rfr_viz.replay import DEFAULT_OUT, ReplayResult, load_detector, recording_n
 from robofailring.data.layouts import load_dataset
 from robofailring.errors import DataError
 from robofailring.progress import progress_bar
+from robofailring.scoring import ScoreRule
 
 KINDS: Final[tuple[str, ...]] = ("false-alarms", "misses")
 
@@ -25,6 +26,7 @@ class ReviewConfig:
     kind: str = "false-alarms"  # "false-alarms" (successes that fired) or "misses" (failures that did not)
     out: Path = DEFAULT_OUT / "review"
     memory: Path | None = None  # default: the memory the evaluation used
+    score: str | None = None  # the rule whose alarms to review (default: contrast when evaluated, else paper)
     cache_dir: Path | None = None
     device: str | None = None
 
@@ -35,26 +37,42 @@ def review(config: ReviewConfig) -> ReplayResult:
         raise DataError(f"review kind {config.kind!r} is not one of {list(KINDS)}")
     try:
         evaluation = json.loads(Path(config.evaluation).read_text(encoding="utf-8"))
-        listed = evaluation["false_alarms" if config.kind == "false-alarms" else "misses"]
-        delta, k = float(evaluation["operating_delta"]), int(evaluation["k"])
+        rules = evaluation.get("rules") or {}
+        rule = ScoreRule.parse(config.score or ("contrast" if "contrast" in rules else "paper"))
+        field = "false_alarms" if config.kind == "false-alarms" else "misses"
+        if rule.value in rules:
+            keys = list(rules[rule.value][field])
+            threshold = float(rules[rule.value]["threshold"])
+        elif rule is ScoreRule.PAPER:  # an evaluation written before both rules were reported
+            keys = [row["key"] for row in evaluation[field]]
+            threshold = float(evaluation["operating_delta"])
+        else:
+            raise DataError(f"{config.evaluation} has no results for the {rule.value} rule")
+        k = int(evaluation["k"])
         memory_dir = Path(config.memory or evaluation["memory"])
     except (OSError, json.JSONDecodeError, KeyError, TypeError, ValueError) as error:
         raise DataError(
             f"{config.evaluation} is not an evaluation written by `robofailring evaluate` ({error})"
         ) from error
-    keys = [row["key"] for row in listed]
     result = ReplayResult()
     if not keys:
         return result
+    thresholds = {"delta": threshold} if rule is ScoreRule.PAPER else {"gamma": threshold}
     loaded = load_detector(
-        memory_dir, delta=delta, k=k, encoder=None, cache_dir=config.cache_dir, device=config.device
+        memory_dir,
+        **thresholds,
+        score=rule.value,
+        k=k,
+        encoder=None,
+        cache_dir=config.cache_dir,
+        device=config.device,
     )
     trajectories = {t.key: t for t in load_dataset(config.data).select(keys=keys)}
     with progress_bar(total=len(keys), desc=f"replaying {config.kind}", unit="trajectory") as bar:
         for key in keys:
             trajectory = trajectories[key]
             trace = loaded.detector.run(trajectory)
-            focus = trace.t_det if trace.t_det is not None else int(np.argmax(trace.max_similarity()))
+            focus = trace.t_det if trace.t_det is not None else int(np.argmax(trace.max_score()))
             out = Path(config.out) / config.kind / recording_name(trajectory)
             result.recordings.append(
                 record_replay(trajectory, trace, out=out, memory_map=loaded.map, focus_frame=focus)

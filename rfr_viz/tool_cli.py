@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 
 from rfr_viz.viewer import open_at_command, open_command
-from robofailring.cli import CacheOption, DeviceOption, EncoderOption, app, exit_with_error
+from robofailring.cli import CacheOption, DeviceOption, EncoderOption, ScoreOption, app, exit_with_error
 from robofailring.errors import RoboFailRingError
 
 
@@ -25,10 +25,19 @@ def evaluate_cmd(
     test_split: Annotated[str, typer.Option(help="Split to test on.")] = "test",
     k: Annotated[int, typer.Option(help="Neighbours retrieved per query.")] = 5,
     name: Annotated[str, typer.Option(help="Name of this evaluation in the outputs.")] = "evaluation",
+    target_fpr: Annotated[
+        float,
+        typer.Option(
+            "--target-fpr", help="α: both rules are calibrated to it (split conformal) on training successes."
+        ),
+    ] = 0.05,
+    deployment_successes: Annotated[
+        int, typer.Option(help="Per task, this many test success runs join the success memory (not tested).")
+    ] = 0,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
 ) -> None:
-    """The paper's evaluation: Recall/FPR at δ = 0.85…0.95 and a fine sweep, T_s, per-type and per-view recall."""
+    """Both scoring rules side by side at one α, then the paper's tables: Recall/FPR sweep, T_s, per type and view."""
     from rfr_viz.evaluation_recording import record_evaluation
     from robofailring.evaluation import EvaluateConfig, run_evaluation, write_evaluation
 
@@ -45,6 +54,8 @@ def evaluate_cmd(
             name=name,
             cache_dir=cache_dir,
             device=device,
+            target_fpr=target_fpr,
+            deployment_successes=deployment_successes,
         )
         result = run_evaluation(config)
     except RoboFailRingError as error:
@@ -64,6 +75,7 @@ def review_cmd(
         "recordings/review"
     ),
     memory: Annotated[Path | None, typer.Option(help="Default: the memory the evaluation used.")] = None,
+    score: ScoreOption = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
 ) -> None:
@@ -78,6 +90,7 @@ def review_cmd(
                 kind=kind,
                 out=out,
                 memory=memory,
+                score=score,
                 cache_dir=cache_dir,
                 device=device,
             )
@@ -156,13 +169,14 @@ def demo_cmd(
         "recordings/demo"
     ),
     episodes: Annotated[int, typer.Option(help="In-distribution episodes per task and kind.")] = 3,
-    success_episodes: Annotated[int, typer.Option(help="In-distribution success runs per task.")] = 8,
+    success_episodes: Annotated[int, typer.Option(help="In-distribution success runs per task.")] = 10,
     ood_episodes: Annotated[int, typer.Option(help="Out-of-distribution episodes per task and kind.")] = 1,
     image_size: Annotated[int, typer.Option("--image-size", help="Simulated image size in pixels.")] = 128,
     frames: Annotated[int, typer.Option(help="Frames per simulated episode.")] = 40,
     target_fpr: Annotated[
-        float, typer.Option("--target-fpr", help="Calibration target on the training successes.")
-    ] = 0.2,
+        float,
+        typer.Option("--target-fpr", help="α: guaranteed FPR bound, calibrated on the training successes."),
+    ] = 0.05,
     data_dir: Annotated[Path | None, typer.Option(help="Where simulated datasets are cached.")] = None,
     cache_dir: CacheOption = None,
 ) -> None:

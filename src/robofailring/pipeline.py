@@ -6,11 +6,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from robofailring.data.layouts import load_dataset, load_trajectory
+from robofailring.data.model import Outcome
 from robofailring.detector import DEFAULT_K, DetectionTrace, FailureDetector
 from robofailring.encoders import CachedEncoder, load_encoder
 from robofailring.errors import EncoderError
 from robofailring.memory import BuildStats, FailureMemory
 from robofailring.progress import progress_bar
+from robofailring.success_memory import SuccessMemory
 
 
 @dataclass(frozen=True)
@@ -21,6 +23,7 @@ class BuildMemoryConfig:
     split: str | None = None  # only trajectories of this split (project layout)
     cache_dir: Path | None = None  # embedding cache (default ~/.cache/robofailring)
     device: str | None = None  # torch device for CLIP (default: cuda when available)
+    successes: bool = True  # also build the success memory (contrast rule); False: the paper's memory alone
 
 
 def build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
@@ -33,6 +36,10 @@ def build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
     entries_expected = sum(len(t.views) for t in trajectories if t.symbol)
     with progress_bar(total=entries_expected, desc="encoding memory", unit="entry") as bar:
         memory, stats = FailureMemory.build(trajectories, encoder, progress=bar.update)
+    if config.successes:
+        runs = [t for t in trajectories if t.outcome is Outcome.SUCCESS]
+        with progress_bar(total=len(runs), desc="encoding success memory", unit="traj") as bar:
+            memory.successes = SuccessMemory.build(runs, encoder, progress=bar.update)
     memory.manifest["source"] = str(Path(config.data).resolve())
     memory.manifest["layout"] = dataset.layout
     memory.manifest["encoder_spec"] = config.encoder
@@ -48,6 +55,8 @@ class DetectConfig:
     memory: Path  # memory directory
     delta: float | None = None  # default: the memory's calibrated δ, else the paper's 0.92
     k: int = DEFAULT_K
+    score: str | None = None  # `paper` or `contrast` (default: contrast when the memory has successes)
+    gamma: float | None = None  # contrast threshold (default: the memory's calibrated γ, else 0)
     task: str | None = None  # needed when the folder name does not encode the task
     leave_one_out: bool = False  # hide the trajectory's own episode from the memory
     encoder: str | None = None  # default: the spec the memory was built with
@@ -78,5 +87,7 @@ def detect(config: DetectConfig) -> DetectionTrace:
     trajectory = load_trajectory(config.trajectory, task=config.task)
     spec = config.encoder or encoder_spec_for(memory)
     encoder = CachedEncoder(load_encoder(spec, device=config.device), cache_dir=config.cache_dir)
-    detector = FailureDetector(memory, encoder, delta=config.delta, k=config.k)
+    detector = FailureDetector(
+        memory, encoder, delta=config.delta, k=config.k, rule=config.score, gamma=config.gamma
+    )
     return detector.run(trajectory, leave_one_out=config.leave_one_out)
