@@ -13,7 +13,8 @@ import rerun.blueprint as rrb
 from rfr_viz.paths import DELTA_TIMELINE, EVAL_ROOT, EVAL_SUMMARY, EVALUATION_APPLICATION_ID
 from robofailring._atomic import atomic_path
 from robofailring.evaluation import EvaluationResult
-from robofailring.metrics import PAPER_DELTAS, timeliness
+from robofailring.metrics import PAPER_DELTAS, rates, timeliness
+from robofailring.scoring import ScoreRule
 
 
 def _slug(name: str) -> str:
@@ -101,6 +102,7 @@ def _log_result(recording: rr.RecordingStream, result: EvaluationResult) -> None
         rr.LineStrips2D([[[0, 0], [1, 0], [1, -1], [0, -1], [0, 0]]], colors=[90, 90, 90], radii=0.002),
         static=True,
     )
+    _log_rule_rocs(recording, result, base)
     counts, _ = timeliness(result.scored, operating).histogram(bins=10)
     recording.log(
         f"{base}/progress_histogram",
@@ -121,6 +123,33 @@ def _log_result(recording: rr.RecordingStream, result: EvaluationResult) -> None
         rr.TextDocument(", ".join(f"{i}: {kind}" for i, kind in enumerate(per_type))),
         static=True,
     )
+
+
+RULE_COLOURS = {"paper": (60, 120, 220), "contrast": (235, 90, 170)}
+
+
+def _log_rule_rocs(recording: rr.RecordingStream, result: EvaluationResult, base: str) -> None:
+    """Per scoring rule: its calibrated operating point and (beyond the paper's, drawn above) its ROC."""
+    for name, row in result.rules.items():
+        scored = result.rule_scored(row.rule)
+        peaks = sorted({float(t.scores().max()) for t in scored if np.isfinite(t.scores().max())})
+        curve = [rates(scored, threshold) for threshold in [*peaks, np.inf]]
+        points = [[np.nan_to_num(r.fpr), -np.nan_to_num(r.recall)] for r in curve]
+        colour = RULE_COLOURS.get(name, (200, 200, 200))
+        if row.rule is not ScoreRule.PAPER:  # the paper rule's curve is roc/curve above
+            recording.log(
+                f"{base}/roc/{name}", rr.LineStrips2D([points], colors=[colour], radii=0.004), static=True
+            )
+        recording.log(
+            f"{base}/roc/{name}/operating",
+            rr.Points2D(
+                [[np.nan_to_num(row.fpr), -np.nan_to_num(row.recall)]],
+                labels=[f"{name} {row.rule.symbol}={row.threshold:.3f} (AUC {row.auc:.2f})"],
+                radii=0.02,
+                colors=[colour],
+            ),
+            static=True,
+        )
 
 
 __all__ = ["PAPER_DELTAS", "record_evaluation", "summary_blueprint"]

@@ -57,10 +57,10 @@ def review(config: ReviewConfig) -> ReplayResult:
     result = ReplayResult()
     if not keys:
         return result
-    thresholds = {"delta": threshold} if rule is ScoreRule.PAPER else {"gamma": threshold}
     loaded = load_detector(
         memory_dir,
-        **thresholds,
+        delta=threshold if rule is ScoreRule.PAPER else None,
+        gamma=threshold if rule is ScoreRule.CONTRAST else None,
         score=rule.value,
         k=k,
         encoder=None,

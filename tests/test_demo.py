@@ -20,12 +20,12 @@ def tiny_demo(root: Path, out: str) -> DemoConfig:
         data_dir=root / "data",
         tasks=("pick_cube",),
         episodes=2,
-        success_episodes=2,
+        success_episodes=4,  # two training successes: each is contrasted with the other
         ood_episodes=1,
         image_size=32,
         frames=8,
         workers=1,
-        target_fpr=0.5,  # one training success: the smallest α it allows
+        target_fpr=0.5,
         cache_dir=root / "cache",
     )
 
@@ -69,14 +69,21 @@ def test_review_replays_the_listed_trajectories(demo: tuple[Path, DemoResult]) -
     out = root / "out"
     evaluation = out / "out-of-distribution.json"
     report = json.loads(evaluation.read_text())
-    for kind, listed in (("false-alarms", report["false_alarms"]), ("misses", report["misses"])):
+    contrast = report["rules"]["contrast"]
+    cases = [
+        ("false-alarms", None, contrast["false_alarms"]),  # the default: the contrast rule's
+        ("misses", None, contrast["misses"]),
+        ("false-alarms", "paper", [row["key"] for row in report["false_alarms"]]),
+    ]
+    for kind, score, listed in cases:
         result = review(
             ReviewConfig(
                 evaluation=evaluation,
                 data=root / "data" / "sim-ood",
                 kind=kind,
-                out=root / "review",
+                out=root / "review" / str(score),
                 cache_dir=root / "cache",
+                score=score,
             )
         )
         assert len(result.recordings) == len(listed)

@@ -184,3 +184,28 @@ def test_calibration_leaves_each_run_out(
         DataError, match=r"needs at least 19 success runs.*smallest α these 6 runs allow is 0\.1429"
     ):
         calibrate_rules(detector, successes, 0.05)
+
+
+def test_detect_json_has_both_rules_fields(
+    built: tuple[FailureMemory, CachedEncoder, Path], dataset: Path
+) -> None:
+    from typer.testing import CliRunner
+
+    from rfr_viz.cli import app
+
+    memory, encoder, out = built
+    trajectory = _trajectories(dataset, split="test", failure=True)[0]
+    assert trajectory.source is not None
+    args = ["detect", str(trajectory.source), "--memory", str(out), "--json", "--gamma", "0.05"]
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 0, result.output
+    report = json.loads(result.stdout)
+    assert report["score"] == "contrast" and report["threshold"] == 0.05
+    trace = FailureDetector(memory, encoder, gamma=0.05).run(trajectory)
+    assert report["t_det"] == trace.t_det
+    for view, fields in report["views"].items():
+        assert fields["failure_similarity"] == fields["similarity"]
+        np.testing.assert_allclose(fields["success_similarity"], trace.success_similarity[view], atol=1e-6)
+        np.testing.assert_allclose(fields["contrast"], trace.contrast[view], atol=1e-6)
+    paper = CliRunner().invoke(app, [*args[:-2], "--score", "paper", "--delta", "0.9"])
+    assert paper.exit_code == 0 and json.loads(paper.stdout)["threshold"] == 0.9

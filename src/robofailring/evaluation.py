@@ -414,7 +414,8 @@ def build_training_memory(
     if config.successes:
         successes = [t for t in train if not t.is_failure]
         with progress_bar(total=len(successes), desc="success memory", unit="traj") as bar:
-            memory.successes = SuccessMemory.build(successes, encoder, progress=bar.update)
+            built = SuccessMemory.build(successes, encoder, progress=bar.update)
+        memory.successes = built if len(built) else None  # no success run: the paper's memory
     memory.manifest.update(
         {
             "source": str(Path(config.data).resolve()),

@@ -39,7 +39,8 @@ def build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
     if config.successes:
         runs = [t for t in trajectories if t.outcome is Outcome.SUCCESS]
         with progress_bar(total=len(runs), desc="encoding success memory", unit="traj") as bar:
-            memory.successes = SuccessMemory.build(runs, encoder, progress=bar.update)
+            successes = SuccessMemory.build(runs, encoder, progress=bar.update)
+        memory.successes = successes if len(successes) else None  # no success run: the paper's memory
     memory.manifest["source"] = str(Path(config.data).resolve())
     memory.manifest["layout"] = dataset.layout
     memory.manifest["encoder_spec"] = config.encoder
