@@ -15,7 +15,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from robofailring.encoders import default_cache_dir, encoder_slug, load_encoder
-from robofailring.evaluation import EvaluateConfig, EvaluationResult, run_evaluation
+from robofailring.evaluation import EvaluateConfig, EvaluationResult, run_evaluation, write_evaluation
 from robofailring.memory import FailureMemory
 from robofailring.progress import progress_bar
 from robofailring.sim import TASKS, GenerateConfig, generate_dataset
@@ -94,6 +94,7 @@ def evaluate_encoder(
     for label, config in protocols:
         start = time.perf_counter()
         result = run_evaluation(config)
+        write_evaluation(result, config.out)  # <name>.json and .md, e.g. for `robofailring review`
         rows.append(QualityRow(encoder, label, result, time.perf_counter() - start))
     return rows
 

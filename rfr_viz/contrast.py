@@ -41,7 +41,8 @@ def success_info(match: SuccessMatch, t: int) -> str:
     return (
         f"**{match.run.episode}**  \n"
         f"frame **{match.frame}** · S⁺ **{match.similarity:.3f}** (now: frame {t})  \n"
-        f"{match.run.view} view of a success run of `{match.run.task}`"
+        f"{match.run.view} view of a {'success run' if match.run.kind == 'success' else 'failure run before it failed'}"
+        f" of `{match.run.task}`"
     )
 
 

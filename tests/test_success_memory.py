@@ -45,7 +45,8 @@ def _trajectories(dataset: Path, *, split: str, failure: bool) -> list[Trajector
 def _brute_force(
     trajectory: Trajectory, train: list[Trajectory], *, exclude_own: bool
 ) -> dict[str, np.ndarray]:
-    """S⁺ per view: max cosine over every frame of every same-task training success (own episode out)."""
+    """S⁺ per view: max cosine over every frame of every same-task training success and the first frame of
+    every same-task training failure (own episode out)."""
     raw = load_encoder("pixels")
 
     def pairs(frames: list[np.ndarray]) -> np.ndarray:
@@ -54,7 +55,7 @@ def _brute_force(
 
     pool = np.concatenate(
         [
-            pairs([f.load() for f in run.views[view]])
+            pairs([f.load() for f in (run.views[view] if not run.is_failure else run.views[view][:1])])
             for run in train
             if run.task == trajectory.task and not (exclude_own and run.episode == trajectory.episode)
             for view in run.views
@@ -71,8 +72,9 @@ def test_success_and_contrast_equal_brute_force(
 ) -> None:
     memory, encoder, _ = built
     train_successes = _trajectories(dataset, split="train", failure=False)
+    train = list(load_dataset(dataset).select(split="train"))
     assert memory.successes is not None and len(memory.successes) == sum(
-        len(t.views) * t.length for t in train_successes
+        len(t.views) * (1 if t.is_failure else t.length) for t in train
     )
     detector = FailureDetector(memory, encoder, k=2)
     assert detector.rule is ScoreRule.CONTRAST  # the default with successes in the memory
@@ -80,7 +82,7 @@ def test_success_and_contrast_equal_brute_force(
     own_success = train_successes[0]  # its own frames are in the success memory: leave-one-out hides them
     for trajectory, leave_out in ((test_failure, False), (own_success, True)):
         trace = detector.run(trajectory, leave_one_out=leave_out)
-        expected = _brute_force(trajectory, train_successes, exclude_own=leave_out)
+        expected = _brute_force(trajectory, train, exclude_own=leave_out)
         for view in trace.views:
             np.testing.assert_allclose(trace.success_similarity[view], expected[view], atol=1e-5)
             np.testing.assert_allclose(
@@ -126,6 +128,8 @@ def test_saved_with_counts_and_old_folders_still_load(
         == len(FailureMemory.load(out).successes or [])
     )
     assert manifest["successes"]["tasks"] == {"pick_cube": 9, "push_cube": 9}  # 3 train runs x 3 views each
+    # and the first frame of every training failure view: 2 tasks x 3 symbols x 3 train episodes x 3 views
+    assert manifest["successes"]["failure_starts"] == 54 and manifest["successes"]["success_runs"] == 18
     loaded = FailureMemory.load(out)
     assert loaded.successes is not None
     np.testing.assert_array_equal(loaded.successes.vectors, memory.successes.vectors)
@@ -173,8 +177,9 @@ def test_calibration_leaves_each_run_out(
     detector = FailureDetector(memory, encoder, k=2)
     found = calibrate_rules(detector, successes, 1 / 6)  # n = 6 is just enough for α = 1/6 (needs 5)
     peaks = []
+    train = list(load_dataset(dataset).select(split="train"))
     for trajectory in successes:
-        splus = _brute_force(trajectory, successes, exclude_own=True)
+        splus = _brute_force(trajectory, train, exclude_own=True)
         trace = detector.run(trajectory, leave_one_out=True)
         peaks.append(max(float(np.max(trace.similarity[v] - splus[v])) for v in trace.views))
     assert found[ScoreRule.CONTRAST].threshold == pytest.approx(conformal_threshold(peaks, 1 / 6), abs=1e-5)

@@ -412,10 +412,9 @@ def build_training_memory(
     with progress_bar(total=sum(len(t.views) for t in failures), desc="memory", unit="entry") as bar:
         memory, _ = FailureMemory.build(failures, encoder, progress=bar.update)
     if config.successes:
-        successes = [t for t in train if not t.is_failure]
-        with progress_bar(total=len(successes), desc="success memory", unit="traj") as bar:
-            built = SuccessMemory.build(successes, encoder, progress=bar.update)
-        memory.successes = built if len(built) else None  # no success run: the paper's memory
+        with progress_bar(total=len(train), desc="success memory", unit="traj") as bar:
+            built = SuccessMemory.build(train, encoder, progress=bar.update)
+        memory.successes = built if built.success_runs else None  # no success run: the paper's memory
     memory.manifest.update(
         {
             "source": str(Path(config.data).resolve()),

@@ -6,7 +6,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from robofailring.data.layouts import load_dataset, load_trajectory
-from robofailring.data.model import Outcome
 from robofailring.detector import DEFAULT_K, DetectionTrace, FailureDetector
 from robofailring.encoders import CachedEncoder, load_encoder
 from robofailring.errors import EncoderError
@@ -37,10 +36,9 @@ def build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
     with progress_bar(total=entries_expected, desc="encoding memory", unit="entry") as bar:
         memory, stats = FailureMemory.build(trajectories, encoder, progress=bar.update)
     if config.successes:
-        runs = [t for t in trajectories if t.outcome is Outcome.SUCCESS]
-        with progress_bar(total=len(runs), desc="encoding success memory", unit="traj") as bar:
-            successes = SuccessMemory.build(runs, encoder, progress=bar.update)
-        memory.successes = successes if len(successes) else None  # no success run: the paper's memory
+        with progress_bar(total=len(trajectories), desc="encoding success memory", unit="traj") as bar:
+            successes = SuccessMemory.build(trajectories, encoder, progress=bar.update)
+        memory.successes = successes if successes.success_runs else None  # none: the paper's memory
     memory.manifest["source"] = str(Path(config.data).resolve())
     memory.manifest["layout"] = dataset.layout
     memory.manifest["encoder_spec"] = config.encoder

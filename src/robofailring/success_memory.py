@@ -2,7 +2,9 @@
 
 Per success trajectory, view and frame t it holds ``u = norm([norm f(I_0) ‖ norm f(I_t)])`` (the
 same pairing as the failure memory's eq. 2–4, with the current frame in place of the end frame),
-searched within the task. It lives beside the failure memory in the same folder: `success.faiss`
+searched within the task. The first frame of every *failure* trajectory is a normal state too (the
+failure has not happened yet), so each failure view adds its ``(I_0 ‖ I_0)`` as a one-frame run:
+without it, frame 0 of a new run matches a "nothing happened" failure better than any success. It lives beside the failure memory in the same folder: `success.faiss`
 (all vectors) and `success_runs.jsonl` (one line per run and view: task, episode, view and the
 references of its frames, in row order).
 """
@@ -37,6 +39,7 @@ class SuccessRun:
     episode: str
     view: str
     frames: tuple[str, ...]  # frame references (paths), index = frame t
+    kind: str = "success"  # or "failure-start": the first frame of a failure run
 
 
 @dataclass(frozen=True)
@@ -86,19 +89,28 @@ class SuccessMemory:
         *,
         progress: Callable[[int], None] | None = None,
     ) -> SuccessMemory:
-        """Every frame of every view (≥ 2 frames) of the success trajectories; others are ignored."""
+        """Every frame of every view (≥ 2 frames) of the success trajectories, and the first frame of
+        every failure view; unlabelled trajectories are ignored."""
         runs: list[SuccessRun] = []
         vectors: list[np.ndarray] = []
         for trajectory in trajectories:
-            if trajectory.outcome is not Outcome.SUCCESS:
+            if trajectory.outcome is None:
                 continue
-            for view, frames in trajectory.views.items():
-                if len(frames) < 2:
+            success = trajectory.outcome is Outcome.SUCCESS
+            for view, all_frames in trajectory.views.items():
+                if len(all_frames) < 2:
                     continue
-                embeddings = encoder.encode_frames(list(frames))
+                frames = list(all_frames) if success else [all_frames[0]]
+                embeddings = encoder.encode_frames(frames)
                 vectors.append(pair_vectors(np.repeat(embeddings[:1], len(frames), axis=0), embeddings))
                 runs.append(
-                    SuccessRun(trajectory.task, trajectory.episode, view, tuple(f.reference for f in frames))
+                    SuccessRun(
+                        trajectory.task,
+                        trajectory.episode,
+                        view,
+                        tuple(f.reference for f in frames),
+                        kind="success" if success else "failure-start",
+                    )
                 )
             if progress is not None:
                 progress(1)
@@ -119,6 +131,11 @@ class SuccessMemory:
     # ---------------------------------------------------------------- queries
     def __len__(self) -> int:
         return len(self.vectors)
+
+    @property
+    def success_runs(self) -> int:
+        """Runs (views) of success trajectories, not counting failure starts."""
+        return sum(run.kind == "success" for run in self.runs)
 
     @property
     def tasks(self) -> list[str]:
@@ -159,8 +176,10 @@ class SuccessMemory:
         return {
             "count": len(self),
             "runs": len(self.runs),
-            "episodes": len({(run.task, run.episode) for run in self.runs}),
-            "tasks": dict(sorted(Counter(run.task for run in self.runs).items())),
+            "success_runs": self.success_runs,
+            "failure_starts": len(self.runs) - self.success_runs,
+            "episodes": len({(run.task, run.episode) for run in self.runs if run.kind == "success"}),
+            "tasks": dict(sorted(Counter(run.task for run in self.runs if run.kind == "success").items())),
             "views": sorted({run.view for run in self.runs}),
         }
 
