@@ -38,11 +38,10 @@ def _series(
 
 def success_info(match: SuccessMatch, t: int) -> str:
     """Markdown: which success run and frame is nearest, and how near."""
+    kind = "success run" if match.run.kind == "success" else "failure run, before it failed"
     return (
         f"**{match.run.episode}**  \n"
-        f"frame **{match.frame}** · S⁺ **{match.similarity:.3f}** (now: frame {t})  \n"
-        f"{match.run.view} view of a {'success run' if match.run.kind == 'success' else 'failure run before it failed'}"
-        f" of `{match.run.task}`"
+        f"frame **{match.frame}** · S⁺ **{match.similarity:.3f}** · {kind} (now: frame {t})"
     )
 
 
