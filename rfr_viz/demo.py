@@ -138,7 +138,8 @@ def run_demo(config: DemoConfig, *, say: Callable[[str], None] = print) -> DemoR
         for row in evaluation.rules.values():
             say(
                 f"{evaluation.name}, {row.rule.value} rule ({row.rule.symbol} = {row.threshold:.4f}): recall "
-                f"{100 * row.recall:.1f} %, FPR {100 * row.fpr:.1f} %, mean T_s {100 * row.ts_mean:.1f} %, "
+                f"{100 * row.recall:.1f} %, FPR {100 * row.fpr:.1f} %, mean T_s "
+                f"{'—' if np.isnan(row.ts_mean) else f'{100 * row.ts_mean:.1f} %'}, "
                 f"AUC {row.auc:.3f}"
             )
     rule = ScoreRule.CONTRAST if ScoreRule.CONTRAST.value in evaluations[0].rules else ScoreRule.PAPER

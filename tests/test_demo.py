@@ -42,6 +42,7 @@ def test_demo_writes_everything_it_names(demo: tuple[Path, DemoResult]) -> None:
     assert [e.name for e in result.evaluations] == ["in-distribution", "out-of-distribution"]
     for name in ("in-distribution", "out-of-distribution"):
         report = json.loads((out / f"{name}.json").read_text())
+        assert report["target_fpr"] == 0.5 and set(report["rules"]) == {"paper", "contrast"}
         assert report["calibrated"] is True and [r["delta"] for r in report["paper_deltas"]] == [
             0.85,
             0.9,

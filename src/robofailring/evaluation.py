@@ -497,7 +497,7 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
         operating_delta=operating,
         calibrated=calibrated[ScoreRule.PAPER],
         rules=rules,
-        target_fpr=config.target_fpr,
+        target_fpr=config.target_fpr if config.target_fpr is not None else _stored_target(memory),
         deployment_successes=config.deployment_successes,
         views=views,
         scored=scored,
@@ -505,6 +505,15 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
         skipped_unknown_task=skipped,
         latency_ms=measure_latency(detector, first),
         skipped_too_short=too_short,
+    )
+
+
+def _stored_target(memory: FailureMemory) -> float | None:
+    """The α the memory's stored thresholds were calibrated to, if they belong to its encoder."""
+    calibration = memory.manifest.get("calibration") or {}
+    target = calibration.get("target_fpr")
+    return (
+        float(target) if calibration.get("encoder") == memory.encoder and isinstance(target, float) else None
     )
 
 
