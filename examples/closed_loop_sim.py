@@ -29,6 +29,12 @@ def main() -> None:
     parser.add_argument("--mode", default="grasp", help="failure family, concrete mode or 'success'")
     parser.add_argument("--seed", type=int, default=11, help="the new episode (not one of the memory's)")
     parser.add_argument("--delta", type=float, default=None, help="default: calibrated on the successes")
+    parser.add_argument(
+        "--target-fpr",
+        type=float,
+        default=None,
+        help="α of the calibration (default: the smallest the successes allow)",
+    )
     parser.add_argument("--episodes", type=int, default=4, help="memory episodes per failure family")
     parser.add_argument("--data", type=Path, default=default_cache_dir() / "closed-loop-data")
     parser.add_argument("--out", type=Path, default=Path("recordings/closed_loop"))
@@ -51,9 +57,11 @@ def main() -> None:
     print(f"memory: {len(memory)} entries from {stats.failures} failure episodes in {data}")
     delta = args.delta
     if delta is None:
-        calibration = calibrate(CalibrateConfig(data=data, memory=memory_dir, split=None))
+        successes = sum(not t.is_failure for t in load_dataset(data).trajectories())
+        alpha = args.target_fpr or 1.0 / (successes + 1) + 1e-9  # split conformal needs n ≥ 1/α − 1
+        calibration = calibrate(CalibrateConfig(data=data, memory=memory_dir, split=None, target_fpr=alpha))
         delta = calibration.delta
-        print(f"calibrated δ = {delta:.4f} on {calibration.successes} successes")
+        print(f"calibrated δ = {delta:.4f} on {calibration.successes} successes (α = {alpha:.3f})")
 
     result = run_closed_loop(
         memory=memory,

@@ -35,11 +35,17 @@ def _cameras(views: Sequence[str]) -> rrb.Container:
     return rrb.Horizontal(*(rrb.Spatial2DView(origin=camera(view), name=view) for view in views))
 
 
-def _score_plot(detectors: Sequence[DetectorPaths], *, name: str) -> rrb.Container:
-    """S_t of every view with δ as a line; State_t (0/1) in a thin plot below, so S_t keeps its scale."""
+def _score_plot(
+    detectors: Sequence[DetectorPaths], *, name: str, views: Sequence[str] = (), contrast: bool = False
+) -> rrb.Container:
+    """S⁻_t (and S⁺_t) of every view with δ; with `contrast` C_t and γ in a plot of their own;
+    State_t (0/1) in a thin plot below, so each keeps its scale."""
+    contrast_paths = [paths.contrast_score(v) for paths in detectors for v in views]
+    gamma_paths = [paths.gamma for paths in detectors]
     scores = rrb.TimeSeriesView(
         origin="/",
-        contents=[f"{paths.score_root}/**" for paths in detectors],
+        contents=[f"+ {paths.score_root}/**" for paths in detectors]
+        + [f"- {path}" for path in (*contrast_paths, *gamma_paths) if contrast],
         name=name,
         plot_legend=rrb.PlotLegend(corner=rrb.Corner2D.LeftBottom, visible=True),
     )
@@ -50,7 +56,15 @@ def _score_plot(detectors: Sequence[DetectorPaths], *, name: str) -> rrb.Contain
         plot_legend=rrb.PlotLegend(visible=False),
         axis_y=rrb.ScalarAxis(range=(-0.1, 1.1), zoom_lock=True),
     )
-    return rrb.Vertical(scores, state, row_shares=[3, 1.2])
+    if not contrast:
+        return rrb.Vertical(scores, state, row_shares=[3, 1.2])
+    contrasts = rrb.TimeSeriesView(
+        origin="/",
+        contents=[*contrast_paths, *gamma_paths],
+        name="C_t = S⁻_t − S⁺_t per view and γ",
+        plot_legend=rrb.PlotLegend(corner=rrb.Corner2D.LeftBottom, visible=True),
+    )
+    return rrb.Vertical(scores, contrasts, state, row_shares=[2.4, 2.4, 1.0])
 
 
 def _map(paths: DetectorPaths, *, name: str, legend_entries: int) -> rrb.Spatial2DView:
@@ -70,6 +84,20 @@ def _neighbor_grids(
             origin=f"{paths.neighbors_root}/{view}",
             name=f"{label}{view} · nearest: start | end{more}",
             visual_bounds=rrb.VisualBounds2D(x_range=x_range, y_range=y_range),
+        )
+        for view in views
+    ]
+
+
+def _nearest_successes(views: Sequence[str], paths: DetectorPaths) -> list[rrb.Container]:
+    """Per view: the nearest success frame ("what normal looked like here") beside its text."""
+    return [
+        rrb.Horizontal(
+            rrb.Spatial2DView(origin=paths.nearest_success(view), name=f"{view} · normal here"),
+            rrb.TextDocumentView(
+                origin=paths.nearest_success_info(view), name=f"{view} · nearest success run"
+            ),
+            column_shares=[1, 1.3],
         )
         for view in views
     ]
@@ -115,19 +143,26 @@ def replay_blueprint(
     k: int,
     fps: float = DEFAULT_FPS,
     focus: int | None = None,
+    contrast: bool = False,
 ) -> rrb.Blueprint:
-    """Cameras, score plot and memory map on top; neighbours and the report below."""
+    """Cameras, score plots and memory map on top; neighbours (and nearest successes) and the report below."""
     top = rrb.Horizontal(
         _cameras(views),
-        _score_plot([REPLAY], name="S_t per view and δ"),
+        _score_plot(
+            [REPLAY],
+            name="S⁻_t (failure) and S⁺_t (success) per view, δ" if contrast else "S_t per view and δ",
+            views=views,
+            contrast=contrast,
+        ),
         _map(REPLAY, name=map_title, legend_entries=legend_entries),
         column_shares=[0.85 * len(views), 2.2, 2.0],
     )
     neighbors = rrb.Grid(
         *_neighbor_grids(views, k, REPLAY, cell),
+        *(_nearest_successes(views, REPLAY) if contrast else []),
         *_neighbor_infos(views, REPLAY),
         grid_columns=len(views),
-        row_shares=[1, 1],
+        row_shares=[1, 0.8, 0.8] if contrast else [1, 1],
         name="nearest memory entries",
     )
     side = rrb.Tabs(
@@ -149,12 +184,14 @@ def compare_blueprint(
     legend_entries: Sequence[int],
     cells: Sequence[Cell],
     fps: float = DEFAULT_FPS,
+    contrast: bool = False,
 ) -> rrb.Blueprint:
-    """Shared cameras and one plot of every encoder's S_t and δ; per encoder its map, nearest entries and report."""
+    """Shared cameras and one plot of every encoder's S_t and δ (and C_t, γ); per encoder its map, nearest entries
+    and report."""
     detectors = [DetectorPaths.for_encoder(slug) for slug in encoders]
     top = rrb.Horizontal(
         _cameras(views),
-        _score_plot(detectors, name="S_t and δ per encoder"),
+        _score_plot(detectors, name="S_t and δ per encoder", views=views, contrast=contrast),
         column_shares=[len(views), 3],
     )
     maps = rrb.Horizontal(

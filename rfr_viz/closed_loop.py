@@ -35,6 +35,7 @@ from robofailring.detector import DEFAULT_K, FailureDetector, StepResult
 from robofailring.encoders.base import Encoder
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.memory import FailureMemory, Neighbor
+from robofailring.scoring import ScoreRule
 from robofailring.sim import VIEWS, EpisodeResult, GoalCheck, run_episode
 from robofailring.sim.episode import episode_fps
 
@@ -96,7 +97,7 @@ def run_closed_loop(
     the unstopped run is the same episode (same task, mode and seed) scored but never stopped.
     `delta` defaults to the memory's calibrated δ, else the paper's.
     """
-    detector = FailureDetector(memory, encoder, delta=delta, k=k)
+    detector = FailureDetector(memory, encoder, delta=delta, k=k, rule=ScoreRule.PAPER)  # S_t ≥ δ, as logged
     watched, unstopped = (
         _run(detector, task, mode, seed, act=act, ood=ood, image_size=image_size, frames=frames)
         for act in (True, False)  # the same episode: stopped at the first alarm, then left to run

@@ -30,6 +30,7 @@ from robofailring.evaluation import (
 )
 from robofailring.grounding import failure_type
 from robofailring.progress import progress_bar
+from robofailring.scoring import ScoreRule
 from robofailring.sim import TASKS, GenerateConfig, generate_dataset
 
 
@@ -39,11 +40,11 @@ class DemoConfig:
     data_dir: Path | None = None  # simulated datasets (cached); default <cache>/demo-data
     tasks: tuple[str, ...] = TASKS  # simulated tasks
     episodes: int = 3  # in-distribution episodes per task and kind (even: memory, odd: test)
-    success_episodes: int = 8  # in-distribution success runs per task: calibration and FPR need many
+    success_episodes: int = 10  # in-distribution success runs per task: α = 0.05 needs ≥ 19 training ones
     ood_episodes: int = 1  # out-of-distribution episodes per task and kind (all test)
     image_size: int = 128
     frames: int = 40
-    target_fpr: float = 0.2  # calibration target on the training successes (the weight-free encoder is weak)
+    target_fpr: float = 0.05  # α: split-conformal calibration of both rules on the training successes
     encoder: str = "pixels"
     workers: int = 2
     cache_dir: Path | None = None
@@ -67,24 +68,31 @@ def _simulate(config: GenerateConfig, label: str) -> Path:
         return generate_dataset(config, progress=bar.update)
 
 
-def _pick(result: EvaluationResult, kind: str) -> tuple[str, int] | None:
-    """A trajectory key and its focus frame for one kind of outcome, or None when there is none."""
-    delta = result.operating_delta
-    if kind == "detection":  # clean: the nearest entry has the true failure type, and S_t rose after frame 0
+def _pick(result: EvaluationResult, kind: str, rule: ScoreRule) -> tuple[str, int] | None:
+    """A trajectory key and its focus frame for one kind of outcome under `rule`, or None when there is none."""
+    threshold = result.rules[rule.value].threshold
+    scored_by_rule = result.rule_scored(rule)
+    if (
+        kind == "detection"
+    ):  # clean: the nearest entry has the true failure type, and the score rose after frame 0
         hits = []
-        for scored in result.scored:
-            t_det = scored.t_det(delta)
+        for scored in scored_by_rule:
+            t_det = scored.t_det(threshold)
             if scored.is_failure and t_det is not None:
-                trace = result.traces[scored.key].with_delta(delta)
+                trace = result.rule_trace(scored.key, rule)
                 view = trace.detected_view
                 top = trace.neighbors(view, t_det)[0] if view is not None else None
                 same_type = top is not None and failure_type(top.entry.symbol) == failure_type(scored.symbol)
                 hits.append((not same_type, t_det == 0, t_det / max(scored.length, 1), scored.key, t_det))
         return (min(hits)[3], min(hits)[4]) if hits else None
     if kind == "false-alarm":
-        alarms = [(s.t_det(delta) or 0, s.key) for s in result.false_alarms(delta)]
+        alarms = [(s.t_det(threshold) or 0, s.key) for s in scored_by_rule if not s.is_failure]
+        alarms = [(t, key) for t, key in alarms if key in result.rules[rule.value].false_alarms]
         return (alarms[0][1], alarms[0][0]) if alarms else None
-    misses = sorted(result.misses(delta), key=lambda s: -float(s.scores().max()))
+    misses = sorted(
+        (s for s in scored_by_rule if s.key in result.rules[rule.value].misses),
+        key=lambda s: -float(s.scores().max()),
+    )
     return (misses[0].key, int(np.argmax(misses[0].scores()))) if misses else None
 
 
@@ -126,16 +134,24 @@ def run_demo(config: DemoConfig, *, say: Callable[[str], None] = print) -> DemoR
         )
     )
     say(
-        f"memory {memory_dir}: calibrated δ = {calibration.delta:.4f} ({calibration.encoder}) for FPR ≤ "
-        f"{100 * config.target_fpr:.0f} % on {calibration.successes} training successes "
-        f"(achieved {100 * calibration.achieved_fpr:.1f} %)"
+        f"memory {memory_dir}: split-conformal thresholds for FPR ≤ {100 * config.target_fpr:g} % on "
+        f"{calibration.successes} training successes ({calibration.encoder}): paper δ = {calibration.delta:.4f}, "
+        f"contrast γ = {calibration.gamma if calibration.gamma is not None else float('nan'):.4f}"
     )
+    stored = replace(base, memory=memory_dir, target_fpr=None)  # the thresholds calibration just stored
     evaluations = [
-        run_evaluation(replace(base, memory=memory_dir, name="in-distribution")),
-        run_evaluation(
-            replace(base, memory=memory_dir, name="out-of-distribution", test_data=out_dist, test_split="ood")
-        ),
+        run_evaluation(replace(stored, name="in-distribution")),
+        run_evaluation(replace(stored, name="out-of-distribution", test_data=out_dist, test_split="ood")),
     ]
+    for evaluation in evaluations:
+        for row in evaluation.rules.values():
+            say(
+                f"{evaluation.name}, {row.rule.value} rule ({row.rule.symbol} = {row.threshold:.4f}): recall "
+                f"{100 * row.recall:.1f} %, FPR {100 * row.fpr:.1f} %, mean T_s "
+                f"{'—' if np.isnan(row.ts_mean) else f'{100 * row.ts_mean:.1f} %'}, "
+                f"AUC {row.auc:.3f}"
+            )
+    rule = ScoreRule.CONTRAST if ScoreRule.CONTRAST.value in evaluations[0].rules else ScoreRule.PAPER
     tables = [path for result in evaluations for path in write_evaluation(result, out)]
     summary = record_evaluation(evaluations, out=out / "evaluation.rrd")
     result = DemoResult(evaluations=evaluations, summary=summary, tables=tables)
@@ -144,7 +160,7 @@ def run_demo(config: DemoConfig, *, say: Callable[[str], None] = print) -> DemoR
     sources = {"in-distribution": in_dist, "out-of-distribution": out_dist}
     for kind in ("detection", "false-alarm", "miss"):
         for evaluation in evaluations:
-            picked = _pick(evaluation, kind)
+            picked = _pick(evaluation, kind, rule)
             if picked is None:
                 continue
             key, focus = picked
@@ -152,7 +168,7 @@ def run_demo(config: DemoConfig, *, say: Callable[[str], None] = print) -> DemoR
             path = out / "recordings" / f"{kind}__{evaluation.name}__{recording_name(trajectory)}"
             result.recordings[kind] = record_replay(
                 trajectory,
-                evaluation.traces[key],
+                evaluation.rule_trace(key, rule),
                 out=path,
                 memory_map=mapped,
                 focus_frame=focus,
@@ -160,7 +176,9 @@ def run_demo(config: DemoConfig, *, say: Callable[[str], None] = print) -> DemoR
             )
             break
         else:
-            result.notes.append(f"no {kind.replace('-', ' ')} occurred at the calibrated δ in either split")
+            result.notes.append(
+                f"no {kind.replace('-', ' ')} occurred under the calibrated {rule.value} rule in either split"
+            )
     result.report = write_report(
         [e.to_dict() for e in evaluations],
         out / REPORT_NAME,

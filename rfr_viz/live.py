@@ -25,10 +25,12 @@ import rerun as rr
 from rfr_viz._images import JPEG_MEDIA_TYPE, JPEG_QUALITY, frame_jpeg
 from rfr_viz.blueprint import replay_blueprint
 from rfr_viz.camera_video import CameraCodec, send_camera_properties
+from rfr_viz.contrast import log_contrast_styles, log_nearest_success
 from rfr_viz.memory_umap import MemoryMap
 from rfr_viz.neighbors import DEFAULT_CELL, Cell, NeighborImages, log_neighbor_entry, log_neighbor_layout
 from rfr_viz.paths import APPLICATION_ID, DEFAULT_FPS, PROPERTIES, REPLAY, camera
 from rfr_viz.record import (
+    VIEW_COLOURS,
     class_id,
     log_alarm,
     log_memory_map,
@@ -44,6 +46,7 @@ from robofailring.data.model import Frame
 from robofailring.detector import DEFAULT_K, DetectorSession, FailureDetector, StepResult
 from robofailring.errors import DataError
 from robofailring.report import FailureReport
+from robofailring.scoring import ScoreRule
 
 DEFAULT_VIEWER_URL: Final[str] = f"rerun+http://127.0.0.1:{DEFAULT_PORT}/proxy"
 FLUSH_TIMEOUT_S: Final[float] = 10.0  # at the end, wait this long at most for a viewer to take the rest
@@ -110,6 +113,8 @@ class LiveRecording:
         self.report: FailureReport | None = None
         self.lost: str | None = None  # why the viewer did not get everything, if it did not
         self._shown: dict[tuple[str, int], int] = {}  # (view, rank) -> memory entry index on screen
+        self._success_shown: dict[str, int] = {}  # view -> success-memory row on screen (-1: none)
+        self._success_images: dict[str, bytes | None] = {}
 
     @classmethod
     @contextmanager
@@ -178,7 +183,13 @@ class LiveRecording:
         paths = REPLAY
         self.rec.send_recording_name(f"{self.name} (live)")
         send_camera_properties(self.rec, dict.fromkeys(self.views, CameraCodec.JPEG))  # live frames: JPEG
-        log_score_styles(self.rec, paths, views=self.views, delta=self.detector.delta)
+        log_score_styles(
+            self.rec, paths, views=self.views, delta=self.detector.delta, rule=self.detector.rule
+        )
+        if self.detector.memory.successes is not None:
+            log_contrast_styles(
+                self.rec, paths, views=self.views, gamma=self.detector.gamma, colours=list(VIEW_COLOURS)
+            )
         if self.memory_map is not None:
             log_memory_map(
                 self.rec,
@@ -199,9 +210,10 @@ class LiveRecording:
         )
 
     def _summary(self) -> str:
+        rule = self.detector.rule
         return (
-            f"**{self.name}** — encoder `{self.detector.encoder.identity}`, δ = {self.detector.delta:.3f}, "
-            f"K = {self.detector.k}, live.\n\n"
+            f"**{self.name}** — encoder `{self.detector.encoder.identity}`, rule **{rule.value}** "
+            f"({rule.score_name} ≥ {rule.symbol} = {self.detector.threshold:.3f}), K = {self.detector.k}, live.\n\n"
         )
 
     def on_step(
@@ -215,6 +227,15 @@ class LiveRecording:
             rec.log(paths.score(view), rr.Scalars(result.similarity[view]))
         rec.log(paths.delta, rr.Scalars(self.detector.delta))
         rec.log(paths.state, rr.Scalars(float(result.state)))
+        if self.detector.memory.successes is not None:
+            rec.log(paths.gamma, rr.Scalars(self.detector.gamma))
+            for view, match in result.nearest_success.items():
+                if np.isfinite(result.success_similarity[view]):
+                    rec.log(paths.success_score(view), rr.Scalars(result.success_similarity[view]))
+                    rec.log(paths.contrast_score(view), rr.Scalars(result.contrast[view]))
+                changed = self._success_shown.get(view, -1) != (match.index if match else -1)
+                self._success_shown[view] = match.index if match else -1
+                log_nearest_success(rec, paths, view, match, t=t, images=self._success_images, image=changed)
         if self.memory_map is not None and result.queries:
             views = list(result.queries)
             placed = self.memory_map.project(
@@ -249,7 +270,8 @@ class LiveRecording:
                     )
 
     def _alarm(self, frames: Mapping[str, np.ndarray | Frame], result: StepResult) -> None:
-        view = max(result.fired_views, key=lambda v: result.similarity[v])
+        scores = result.similarity if result.rule is ScoreRule.PAPER else result.contrast
+        view = max(result.fired_views, key=lambda v: scores[v])
         frame = frames[view]
         self.fired_at = result.t
         self.report = FailureReport.from_neighbors(
@@ -264,7 +286,8 @@ class LiveRecording:
             REPLAY,
             report=self.report,
             top=result.neighbors[view][0],
-            delta=self.detector.delta,
+            rule=result.rule,
+            fired=f"{result.rule.score_name} = {scores[view]:.3f} ≥ {result.rule.symbol} = {result.threshold:.3f}",
             summary=self._summary(),
         )
 

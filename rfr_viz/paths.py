@@ -44,6 +44,31 @@ class DetectorPaths:
         """Scalars: δ, styled as a threshold line."""
         return f"{self.score_root}/delta"
 
+    def success_score(self, view: str) -> str:
+        """Scalars: S⁺_t of one view (max cosine to the task's success frames)."""
+        return f"{self.score(view)}/success"
+
+    def contrast_score(self, view: str) -> str:
+        """Scalars: C_t = S⁻_t − S⁺_t of one view."""
+        return f"{self.score(view)}/contrast"
+
+    @property
+    def gamma(self) -> str:
+        """Scalars: γ, the contrast rule's threshold line."""
+        return f"{self.score_root}/gamma"
+
+    @property
+    def nearest_success_root(self) -> str:
+        return f"{self.prefix}/nearest_success"
+
+    def nearest_success(self, view: str) -> str:
+        """EncodedImage: the success frame nearest to the current query of a view ("normal here")."""
+        return f"{self.nearest_success_root}/{view}"
+
+    def nearest_success_info(self, view: str) -> str:
+        """TextDocument: its episode, frame index and S⁺."""
+        return f"{self.nearest_success(view)}/info"
+
     @property
     def detection_root(self) -> str:
         return f"{self.prefix}/detection"

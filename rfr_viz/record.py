@@ -16,6 +16,7 @@ import rerun.blueprint as rrb
 
 from rfr_viz.blueprint import compare_blueprint, legend_positions, replay_blueprint
 from rfr_viz.camera_video import CameraCodec, log_camera_views
+from rfr_viz.contrast import log_contrast
 from rfr_viz.memory_umap import MemoryMap, fit_map
 from rfr_viz.neighbors import Cell, NeighborImages, log_neighbors
 from rfr_viz.paths import APPLICATION_ID, DEFAULT_FPS, FRAME, PROPERTIES, REPLAY, TIME, DetectorPaths
@@ -26,6 +27,7 @@ from robofailring.errors import SymbolError
 from robofailring.grounding import failure_type
 from robofailring.memory import MemoryEntry, Neighbor
 from robofailring.report import FailureReport, report_for
+from robofailring.scoring import ScoreRule
 from robofailring.vlm import VLMAnswer
 
 #: Failure types of grounding (Table 5) as map classes with fixed colours; class 0 is "unknown".
@@ -111,6 +113,7 @@ def record_replay(
         k=trace.k,
         fps=info.fps,
         focus=focus_frame,
+        contrast=bool(trace.success_similarity),
     )
     with open_recording(out, blueprint, recording_id=recording_id) as rec:
         rec.send_recording_name(f"{info.task}/{info.episode}")
@@ -171,6 +174,7 @@ def compare_recording(
         legend_entries=[legend_size(traces[slug]) for slug in slugs],
         cells=[cells[slug] for slug in slugs],
         fps=info.fps,
+        contrast=any(trace.success_similarity for trace in traces.values()),
     )
     with open_recording(out, blueprint, recording_id=recording_id) as rec:
         rec.send_recording_name(f"{info.task}/{info.episode} ({' vs '.join(slugs)})")
@@ -257,6 +261,10 @@ def _detector_properties(trace: DetectionTrace, memory_map: MemoryMap) -> dict[s
     return {
         "encoder": trace.encoder,
         "delta": float(trace.delta),
+        "score": trace.rule.value,
+        "threshold": float(trace.threshold),
+        "gamma": float(trace.gamma),
+        "success_entries": len(trace.memory.successes) if trace.memory.successes is not None else 0,
         "k": trace.k,
         "t_det": trace.t_det if trace.t_det is not None else -1,  # -1: the detector never fired
         "detected_view": trace.detected_view or "",
@@ -314,6 +322,12 @@ def log_detector(
     """Everything that depends on the detector: scores, δ, state, map, neighbours, event and report."""
     images = images or NeighborImages()
     _log_scores(rec, trace, paths, fps, label=label, colour=colour)
+    view_colours = (
+        [_shade(colour, i, len(trace.views)) for i in range(len(trace.views))]
+        if colour
+        else list(VIEW_COLOURS)
+    )
+    log_contrast(rec, trace, paths, fps=fps, colours=view_colours, prefix=f"{label} · " if label else "")
     _log_map(rec, trace, paths, memory_map, fps)
     log_neighbors(rec, trace, paths, fps=fps, images=images, cell=cell or images.cell(trace))
     _log_detection(rec, trace, paths, fps, trajectory, vlm_answer)
@@ -332,10 +346,11 @@ def log_score_styles(
     *,
     views: Sequence[str],
     delta: float,
+    rule: ScoreRule = ScoreRule.PAPER,
     label: str | None = None,
     colour: tuple[int, int, int] | None = None,
 ) -> None:
-    """Static line styles of S_t per view, δ and State_t (names, colours, widths)."""
+    """Static line styles of S⁻_t per view, δ and State_t under `rule` (names, colours, widths)."""
     prefix = f"{label} · " if label else ""
     for position, view in enumerate(views):
         view_colour = (
@@ -343,7 +358,7 @@ def log_score_styles(
         )
         rec.log(
             paths.score(view),
-            rr.SeriesLines(colors=[view_colour], widths=[2.0], names=[f"{prefix}{view}"]),
+            rr.SeriesLines(colors=[view_colour], widths=[2.0], names=[f"{prefix}{view} S⁻ (failure)"]),
             static=True,
         )
     delta_colour = DELTA_COLOUR if colour is None else _shade(colour, 0, 1)
@@ -357,7 +372,7 @@ def log_score_styles(
         rr.SeriesLines(
             colors=[STATE_COLOUR if colour is None else colour],
             widths=[1.5],
-            names=[f"{prefix}State_t (any view ≥ δ)"],
+            names=[f"{prefix}State_t ({rule.value}: any view {rule.score_name} ≥ {rule.symbol})"],
         ),
         static=True,
     )
@@ -372,7 +387,9 @@ def _log_scores(
     label: str | None,
     colour: tuple[int, int, int] | None,
 ) -> None:
-    log_score_styles(rec, paths, views=trace.views, delta=trace.delta, label=label, colour=colour)
+    log_score_styles(
+        rec, paths, views=trace.views, delta=trace.delta, rule=trace.rule, label=label, colour=colour
+    )
     for view in trace.views:
         similarity = np.asarray(trace.similarity[view], dtype=np.float64)
         present = np.flatnonzero(np.isfinite(similarity))
@@ -518,19 +535,20 @@ def _log_detection(
 ) -> None:
     """The detection event and the failure report at t_det (and the VLM's answer); a summary at frame 0."""
     t_det, view = trace.t_det, trace.detected_view
-    peak = trace.max_similarity()
+    rule = trace.rule
+    peak = trace.max_score()
     peak_frame = int(np.argmax(peak))
     summary = (
-        f"**{trace.task} · {trace.episode}** — encoder `{trace.encoder}`, δ = {trace.delta:.3f}, "
-        f"K = {trace.k}, L = {trace.length} frames.\n\n"
+        f"**{trace.task} · {trace.episode}** — encoder `{trace.encoder}`, rule **{rule.value}** "
+        f"({rule.score_name} ≥ {rule.symbol} = {trace.threshold:.3f}), K = {trace.k}, L = {trace.length} frames.\n\n"
     )
     set_frame_time(rec, 0, fps)
     if t_det is None or view is None:
         rec.log(
             paths.report,
             rr.TextDocument(
-                summary + f"**No failure detected.** The highest S_t over all views is "
-                f"{float(peak[peak_frame]):.3f} at frame {peak_frame}, below δ.",
+                summary + f"**No failure detected.** The highest {rule.score_name} over all views is "
+                f"{float(peak[peak_frame]):.3f} at frame {peak_frame}, below {rule.symbol}.",
                 media_type=rr.MediaType.MARKDOWN,
             ),
         )
@@ -538,7 +556,7 @@ def _log_detection(
     rec.log(
         paths.report,
         rr.TextDocument(
-            summary + f"No failure yet: the detector fires at frame **{t_det}** (view {view}).",
+            summary + f"No failure yet: the {rule.value} rule fires at frame **{t_det}** (view {view}).",
             media_type=rr.MediaType.MARKDOWN,
         ),
     )
@@ -546,8 +564,28 @@ def _log_detection(
     assert report is not None  # t_det is set
     neighbors = trace.neighbors(view, t_det)
     set_frame_time(rec, t_det, fps)
+    fired = (
+        f"{rule.score_name} = {float(trace.scores[view][t_det]):.3f} ≥ {rule.symbol} = {trace.threshold:.3f}"
+    )
+    success = trace.nearest_success(view, t_det)
+    contrast_line = ""
+    if success is not None:
+        contrast_line = (
+            f"Contrast: S⁻ = {neighbors[0].similarity:.3f} (nearest failure end) − S⁺ = {success.similarity:.3f} "
+            f"(nearest success frame: {success.run.episode}, frame {success.frame}) = "
+            f"C = {neighbors[0].similarity - success.similarity:.3f}.\n\n"
+        )
     log_alarm(
-        rec, paths, report=report, top=neighbors[0], delta=trace.delta, summary=summary, vlm_answer=vlm_answer
+        rec,
+        paths,
+        report=report,
+        top=neighbors[0],
+        rule=rule,
+        fired=fired,
+        summary=summary
+        + f"**Fired by the {rule.value} rule** at frame {t_det}, view {view}: {fired}.\n\n"
+        + contrast_line,
+        vlm_answer=vlm_answer,
     )
 
 
@@ -557,15 +595,18 @@ def log_alarm(
     *,
     report: FailureReport,
     top: Neighbor,
-    delta: float,
+    rule: ScoreRule,
+    fired: str,
     summary: str,
     vlm_answer: VLMAnswer | None = None,
 ) -> None:
-    """At the detection instant (the current time): the event line and the failure report document."""
+    """At the detection instant (the current time): the event line and the failure report document.
+
+    `fired` says on what score `rule` fired (e.g. "S⁻_t = 0.970 ≥ δ = 0.950")."""
     rec.log(
         paths.event,
         rr.TextLog(
-            f"FAILURE at frame {report.t_det} in view {report.view}: S_t = {top.similarity:.3f} ≥ δ = {delta:.3f}; "
+            f"FAILURE at frame {report.t_det} in view {report.view} ({rule.value} rule): {fired}; "
             f"nearest memory entry {top.entry.task}/{top.entry.episode} [{top.entry.view}] "
             f"{top.entry.symbol}: {top.entry.description}",
             level=rr.TextLogLevel.WARN,

@@ -39,6 +39,8 @@ class ReplayConfig:
     trajectories: tuple[str, ...] = ()  # `<task>/<episode>` keys or episode names; empty = all
     delta: float | None = None  # default: the memory's calibrated δ, else the paper's 0.92
     k: int = DEFAULT_K  # neighbours retrieved (and logged) per view and frame
+    score: str | None = None  # `paper` or `contrast` (default: contrast when the memory has successes)
+    gamma: float | None = None  # contrast threshold (default: the memory's calibrated γ, else 0)
     task: str | None = None  # task of an episode folder whose name does not say; on a root, a filter
     leave_one_out: bool = False  # hide each trajectory's own episode from the memory
     encoder: str | None = None  # encoder spec; default: the one that built the memory
@@ -60,6 +62,7 @@ class CompareConfig:
     trajectories: tuple[str, ...] = ()
     deltas: tuple[float, ...] = ()  # one δ per memory; default: each memory's calibrated δ
     k: int = DEFAULT_K
+    score: str | None = None  # scoring rule of every memory (default: each one's)
     task: str | None = None
     leave_one_out: bool = False
     fps: float | None = None
@@ -176,6 +179,8 @@ def load_detector(
     cache_dir: Path | None,
     device: str | None,
     data_root: Path | None = None,
+    score: str | None = None,
+    gamma: float | None = None,
 ) -> LoadedDetector:
     memory = FailureMemory.load(memory_dir, data_root=data_root)
     spec = encoder or encoder_spec_for(memory)
@@ -183,7 +188,7 @@ def load_detector(
     return LoadedDetector(
         slug=encoder_slug(memory.encoder),
         memory=memory,
-        detector=FailureDetector(memory, cached, delta=delta, k=k),
+        detector=FailureDetector(memory, cached, delta=delta, k=k, rule=score, gamma=gamma),
         map=memory_map(memory, directory=memory_dir),
         references=memory.check_references(),
     )
@@ -204,6 +209,8 @@ def _replay(config: ReplayConfig) -> ReplayResult:
         config.memory,
         delta=config.delta,
         k=config.k,
+        score=config.score,
+        gamma=config.gamma,
         encoder=config.encoder,
         cache_dir=config.cache_dir,
         device=config.device,
@@ -283,6 +290,7 @@ def _compare(config: CompareConfig) -> ReplayResult:
             memory_dir,
             delta=delta,
             k=config.k,
+            score=config.score,
             encoder=None,
             cache_dir=config.cache_dir,
             device=config.device,

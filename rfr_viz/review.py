@@ -16,6 +16,7 @@ from robofailring.data.layouts import load_dataset
 from robofailring.errors import DataError
 from robofailring.outputs import check_output_folder, check_recording_file
 from robofailring.progress import progress_bar
+from robofailring.scoring import ScoreRule
 from robofailring.vlm import VLMConfig
 
 KINDS: Final[tuple[str, ...]] = ("false-alarms", "misses")
@@ -28,6 +29,7 @@ class ReviewConfig:
     kind: str = "false-alarms"  # "false-alarms" (successes that fired) or "misses" (failures that did not)
     out: Path = DEFAULT_OUT / "review"
     memory: Path | None = None  # default: the memory the evaluation used
+    score: str | None = None  # the rule whose alarms to review (default: contrast when evaluated, else paper)
     cache_dir: Path | None = None
     device: str | None = None
     data_root: Path | None = None  # where the memory's images are now, when its data moved
@@ -41,21 +43,32 @@ def review(config: ReviewConfig) -> ReplayResult:
         raise DataError(f"review kind {config.kind!r} is not one of {list(KINDS)}")
     try:
         evaluation = json.loads(Path(config.evaluation).read_text(encoding="utf-8"))
-        listed = evaluation["false_alarms" if config.kind == "false-alarms" else "misses"]
-        delta, k = float(evaluation["operating_delta"]), int(evaluation["k"])
+        rules = evaluation.get("rules") or {}
+        rule = ScoreRule.parse(config.score or ("contrast" if "contrast" in rules else "paper"))
+        field = "false_alarms" if config.kind == "false-alarms" else "misses"
+        if rule.value in rules:
+            keys = list(rules[rule.value][field])
+            threshold = float(rules[rule.value]["threshold"])
+        elif rule is ScoreRule.PAPER:  # an evaluation written before both rules were reported
+            keys = [row["key"] for row in evaluation[field]]
+            threshold = float(evaluation["operating_delta"])
+        else:
+            raise DataError(f"{config.evaluation} has no results for the {rule.value} rule")
+        k = int(evaluation["k"])
         memory_dir = Path(config.memory or evaluation["memory"])
     except (OSError, json.JSONDecodeError, KeyError, TypeError, ValueError) as error:
         raise DataError(
             f"{config.evaluation} is not an evaluation written by `robofailring evaluate` ({error})"
         ) from error
     check_output_folder(config.out, inputs=[config.data, memory_dir])
-    keys = [row["key"] for row in listed]
     result = ReplayResult()
     if not keys:
         return result
     loaded = load_detector(
         memory_dir,
-        delta=delta,
+        delta=threshold if rule is ScoreRule.PAPER else None,
+        gamma=threshold if rule is ScoreRule.CONTRAST else None,
+        score=rule.value,
         k=k,
         encoder=None,
         cache_dir=config.cache_dir,
@@ -70,7 +83,7 @@ def review(config: ReviewConfig) -> ReplayResult:
         for key in keys:
             trajectory = trajectories[key]
             trace = loaded.detector.run(trajectory)
-            focus = trace.t_det if trace.t_det is not None else int(np.argmax(trace.max_similarity()))
+            focus = trace.t_det if trace.t_det is not None else int(np.argmax(trace.max_score()))
             out = Path(config.out) / config.kind / recording_name(trajectory)
             check_recording_file(out)
             result.recordings.append(

@@ -15,6 +15,7 @@ from robofailring.cli import (
     DeviceOption,
     EncoderOption,
     LabelsOption,
+    ScoreOption,
     StrideOption,
     VLMModelOption,
     VLMUrlOption,
@@ -44,10 +45,19 @@ def evaluate_cmd(
     name: Annotated[str, typer.Option(help="Name of this evaluation in the outputs.")] = "evaluation",
     stride: StrideOption = 1,
     labels: LabelsOption = None,
+    target_fpr: Annotated[
+        float,
+        typer.Option(
+            "--target-fpr", help="α: both rules are calibrated to it (split conformal) on training successes."
+        ),
+    ] = 0.05,
+    deployment_successes: Annotated[
+        int, typer.Option(help="Per task, this many test success runs join the success memory (not tested).")
+    ] = 0,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
 ) -> None:
-    """The paper's evaluation: Recall/FPR at δ = 0.85…0.95 and a fine sweep, T_s, per-type and per-view recall."""
+    """Both scoring rules side by side at one α, then the paper's tables: Recall/FPR sweep, T_s, per type and view."""
     from rfr_viz.evaluation_recording import record_evaluation
     from rfr_viz.report_html import REPORT_NAME, write_report
     from robofailring.evaluation import EvaluateConfig, run_evaluation, write_evaluation
@@ -67,6 +77,8 @@ def evaluate_cmd(
             device=device,
             stride=stride,
             labels=labels,
+            target_fpr=target_fpr,
+            deployment_successes=deployment_successes,
         )
         check_output_folder(out, inputs=[data, test_data, memory])
         result = run_evaluation(config)
@@ -97,6 +109,7 @@ def review_cmd(
     ),
     memory: Annotated[Path | None, typer.Option(help="Default: the memory the evaluation used.")] = None,
     camera_codec: CameraCodecOption = CameraCodec.AUTO,
+    score: ScoreOption = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
     data_root: DataRootOption = None,
@@ -117,6 +130,7 @@ def review_cmd(
                 out=out,
                 memory=memory,
                 camera_codec=camera_codec,
+                score=score,
                 cache_dir=cache_dir,
                 device=device,
                 data_root=data_root,
@@ -184,13 +198,14 @@ def demo_cmd(
         "recordings/demo"
     ),
     episodes: Annotated[int, typer.Option(help="In-distribution episodes per task and kind.")] = 3,
-    success_episodes: Annotated[int, typer.Option(help="In-distribution success runs per task.")] = 8,
+    success_episodes: Annotated[int, typer.Option(help="In-distribution success runs per task.")] = 10,
     ood_episodes: Annotated[int, typer.Option(help="Out-of-distribution episodes per task and kind.")] = 1,
     image_size: Annotated[int, typer.Option("--image-size", help="Simulated image size in pixels.")] = 128,
     frames: Annotated[int, typer.Option(help="Frames per simulated episode.")] = 40,
     target_fpr: Annotated[
-        float, typer.Option("--target-fpr", help="Calibration target on the training successes.")
-    ] = 0.2,
+        float,
+        typer.Option("--target-fpr", help="α: guaranteed FPR bound, calibrated on the training successes."),
+    ] = 0.05,
     data_dir: Annotated[Path | None, typer.Option(help="Where simulated datasets are cached.")] = None,
     camera_codec: CameraCodecOption = CameraCodec.AUTO,
     cache_dir: CacheOption = None,

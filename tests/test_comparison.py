@@ -33,7 +33,12 @@ def test_two_encoders_side_by_side(tmp_path: Path, tiny_checkpoint: tuple[Path, 
         assert result.operating_delta == manifest["calibration"]["delta"] and result.calibrated
         assert result.failures == 6 and result.successes == 2
     table = comparison_table(results)
-    assert table.count("\n") == 3 and "`pixels-v2-24px-512d`" in table and "open_clip:TinyViT-test" in table
+    assert (
+        table.count("\n") == 1 + 2 * 2
+        and "| contrast |" in table
+        and "`pixels-v2-24px-512d`" in table
+        and "open_clip:TinyViT-test" in table
+    )
 
 
 def test_needs_two_encoders(tmp_path: Path) -> None:
@@ -50,7 +55,7 @@ def test_compare_encoders_verb_writes_table_and_recordings(
     from rfr_viz.viewer import verify_recording
 
     config_json, checkpoint = tiny_checkpoint
-    data = write_project_dataset(tmp_path / "data", tasks=("pick_cube",), episodes=2)
+    data = write_project_dataset(tmp_path / "data", tasks=("pick_cube",), episodes=4)
     result = CliRunner().invoke(
         app,
         [
@@ -71,7 +76,7 @@ def test_compare_encoders_verb_writes_table_and_recordings(
         ],
     )
     assert result.exit_code == 0, result.output
-    assert (tmp_path / "out" / "comparison.md").read_text().count("\n") == 4
+    assert (tmp_path / "out" / "comparison.md").read_text().count("\n") == 2 + 2 * 2
     recordings = sorted((tmp_path / "out" / "recordings").glob("*.rrd"))
     assert len(recordings) == 2
     for path in recordings:

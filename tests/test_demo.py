@@ -23,12 +23,12 @@ def tiny_demo(root: Path, out: str) -> DemoConfig:
         data_dir=root / "data",
         tasks=("pick_cube",),
         episodes=2,
-        success_episodes=2,
+        success_episodes=4,  # two training successes: each is contrasted with the other
         ood_episodes=1,
         image_size=32,
         frames=8,
         workers=1,
-        target_fpr=0.0,
+        target_fpr=0.5,
         cache_dir=root / "cache",
     )
 
@@ -45,6 +45,7 @@ def test_demo_writes_everything_it_names(demo: tuple[Path, DemoResult]) -> None:
     assert [e.name for e in result.evaluations] == ["in-distribution", "out-of-distribution"]
     for name in ("in-distribution", "out-of-distribution"):
         report = json.loads((out / f"{name}.json").read_text())
+        assert report["target_fpr"] == 0.5 and set(report["rules"]) == {"paper", "contrast"}
         assert report["calibrated"] is True and [r["delta"] for r in report["paper_deltas"]] == [
             0.85,
             0.9,
@@ -52,7 +53,7 @@ def test_demo_writes_everything_it_names(demo: tuple[Path, DemoResult]) -> None:
             0.95,
         ]
     manifest = json.loads((out / "memory" / "manifest.json").read_text())
-    assert manifest["calibration"]["target_fpr"] == 0.0 and manifest["calibration"]["achieved_fpr"] == 0.0
+    assert manifest["calibration"]["target_fpr"] == 0.5 and manifest["calibration"]["achieved_fpr"] == 0.0
     verify_recording(result.summary)
     recorded = result.recordings
     assert recorded, "the demo wrote no trajectory recording"
@@ -77,14 +78,21 @@ def test_review_replays_the_listed_trajectories(demo: tuple[Path, DemoResult]) -
     out = root / "out"
     evaluation = out / "out-of-distribution.json"
     report = json.loads(evaluation.read_text())
-    for kind, listed in (("false-alarms", report["false_alarms"]), ("misses", report["misses"])):
+    contrast = report["rules"]["contrast"]
+    cases = [
+        ("false-alarms", None, contrast["false_alarms"]),  # the default: the contrast rule's
+        ("misses", None, contrast["misses"]),
+        ("false-alarms", "paper", [row["key"] for row in report["false_alarms"]]),
+    ]
+    for kind, score, listed in cases:
         result = review(
             ReviewConfig(
                 evaluation=evaluation,
                 data=root / "data" / "sim-ood",
                 kind=kind,
-                out=root / "review",
+                out=root / "review" / str(score),
                 cache_dir=root / "cache",
+                score=score,
             )
         )
         assert len(result.recordings) == len(listed)

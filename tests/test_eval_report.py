@@ -31,7 +31,10 @@ def evaluated(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str,
     tmp = tmp_path_factory.mktemp("evaluate")
     data = write_project_dataset(tmp / "data")
     out = tmp / "eval"
-    result = runner.invoke(app, ["evaluate", str(data), "--out", str(out), "--cache-dir", str(tmp / "cache")])
+    result = runner.invoke(
+        app,
+        ["evaluate", str(data), "--out", str(out), "--target-fpr", "0.5", "--cache-dir", str(tmp / "cache")],
+    )
     assert result.exit_code == 0, result.output
     assert f"report for a browser: {out / 'report.html'}" in result.output
     return out, json.loads((out / "evaluation.json").read_text())
@@ -57,12 +60,24 @@ def _two_rules(evaluation: dict[str, Any]) -> dict[str, Any]:
 def test_charts_carry_the_evaluation_values_and_names(evaluated: tuple[Path, dict[str, Any]]) -> None:
     _, evaluation = evaluated
     charts = {chart.key: chart for chart in evaluation_charts(evaluation)}
-    assert list(charts) == ["roc", "sweep_paper", "recall_per_type", "recall_per_view", "progress_histogram"]
+    assert list(charts) == [
+        "roc",
+        "sweep_paper",
+        "sweep_contrast",
+        "recall_per_type",
+        "recall_per_view",
+        "progress_histogram",
+    ]
     per_type = charts["recall_per_type"]
     assert per_type.categories == sorted(evaluation["recall_per_type"])
     assert per_type.series[0].values == [
         evaluation["recall_per_type"][k]["recall"] for k in per_type.categories
     ]
+    contrast = evaluation["rules"]["contrast"]  # each rule is charted from its own scores
+    assert per_type.series[1].values == [
+        contrast["recall_per_type"][k]["recall"] for k in per_type.categories
+    ]
+    assert charts["sweep_contrast"].series[0].x == [row["delta"] for row in contrast["sweep"]]
     assert charts["recall_per_view"].categories == [*evaluation["view_ablation"]]
     assert sum(charts["progress_histogram"].series[0].values) == sum(
         evaluation["progress_histogram"]["counts"]
@@ -106,7 +121,8 @@ def test_the_summary_recording_names_categories_on_the_charts(
     )
     values = _labels(recorded, "/eval/evaluation/recall_per_type/values")
     assert values == [
-        f"{100 * evaluation['recall_per_type'][k]['recall']:.0f}%"
+        f"{100 * rule['recall_per_type'][k]['recall']:.0f}%"
+        for rule in (evaluation, evaluation["rules"]["contrast"])
         for k in sorted(evaluation["recall_per_type"])
     ]
     assert _labels(recorded, "/eval/evaluation/recall_per_view/categories") == [*evaluation["view_ablation"]]

@@ -133,14 +133,16 @@ def test_review_puts_the_answer_into_each_false_alarm(tmp_path: Path) -> None:
     from robofailring.evaluation import EvaluateConfig, run_evaluation, write_evaluation
 
     data = write_project_dataset(tmp_path / "data")
-    result = run_evaluation(EvaluateConfig(data=data, out=tmp_path / "eval", cache_dir=tmp_path / "cache"))
+    result = run_evaluation(
+        EvaluateConfig(data=data, out=tmp_path / "eval", cache_dir=tmp_path / "cache", target_fpr=0.5)
+    )
     json_path, _ = write_evaluation(result, tmp_path / "eval")
     # at δ = -1 every success run is a false alarm: review two of them
     evaluation = json.loads(json_path.read_text())
     successes = [t.key for t in result.scored if not t.is_failure][:2]
-    evaluation |= {"operating_delta": -1.0, "false_alarms": [{"key": key} for key in successes]}
+    evaluation["rules"]["paper"] |= {"threshold": -1.0, "false_alarms": successes}
     json_path.write_text(json.dumps(evaluation))
-    alarms = evaluation["false_alarms"]
+    alarms = evaluation["rules"]["paper"]["false_alarms"]
     assert len(alarms) == 2
     with chat_server() as server:
         reviewed = runner.invoke(
@@ -150,6 +152,8 @@ def test_review_puts_the_answer_into_each_false_alarm(tmp_path: Path) -> None:
                 str(json_path),
                 "--data",
                 str(data),
+                "--score",
+                "paper",
                 "--out",
                 str(tmp_path / "review"),
                 "--cache-dir",

@@ -303,7 +303,7 @@ def test_evaluate_exits_3_when_test_trajectories_were_skipped(cache: list[str], 
         if record["task"] == "push_cube":
             record["split"] = "test"  # no push_cube failure reaches the memory
     (project / "manifest.json").write_text(json.dumps(manifest))
-    result = cli("evaluate", project, "--out", tmp_path / "eval", *cache)
+    result = cli("evaluate", project, "--out", tmp_path / "eval", "--target-fpr", "0.5", *cache)
     assert result.exit_code == 3, result.output
     assert "Skipped 4 test trajectories whose task has no memory entry" in result.output
     assert (tmp_path / "eval" / "evaluation.json").is_file()

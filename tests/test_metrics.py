@@ -7,8 +7,7 @@ import itertools
 import numpy as np
 import pytest
 
-from robofailring.errors import DataError
-from robofailring.metrics import ScoredTrajectory, calibrate_delta, fine_grid, rates, sweep, timeliness
+from robofailring.metrics import ScoredTrajectory, fine_grid, rates, sweep, timeliness
 
 
 def scored(key: str, failure: bool, front: list[float], wrist: list[float] | None = None) -> ScoredTrajectory:
@@ -74,23 +73,3 @@ def test_sweep_is_monotone_and_includes_paper_deltas() -> None:
     recalls, fprs = [r.recall for r in curve], [r.fpr for r in curve]
     assert all(a >= b for a, b in itertools.pairwise(recalls))
     assert all(a >= b for a, b in itertools.pairwise(fprs))
-
-
-@pytest.mark.parametrize(("target", "expected_fpr"), [(0.0, 0.0), (0.1, 0.1), (0.25, 0.2), (0.5, 0.5)])
-def test_calibration_hits_its_target(target: float, expected_fpr: float) -> None:
-    rng = np.random.default_rng(3)
-    peaks = rng.uniform(0.7, 0.99, size=10).astype(np.float32)
-    delta, achieved = calibrate_delta(peaks, target)
-    assert achieved == pytest.approx(expected_fpr)
-    assert achieved <= target + 1e-9
-    assert np.count_nonzero(peaks >= np.float32(delta)) / len(peaks) == pytest.approx(achieved)
-    # it is the smallest such δ: the next success peak below it would fire
-    below = np.sort(peaks)[::-1][round(expected_fpr * 10)]
-    assert below < delta and np.float32(np.nextafter(np.float32(delta), np.float32(-1))) <= below
-
-
-def test_calibration_rejects_bad_input() -> None:
-    with pytest.raises(DataError, match="at least one success"):
-        calibrate_delta([], 0.1)
-    with pytest.raises(ValueError, match="target FPR"):
-        calibrate_delta([0.5], 1.5)

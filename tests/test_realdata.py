@@ -217,7 +217,18 @@ def test_evaluate_with_a_stride_reports_original_frames_and_what_was_not_read(tm
     out = tmp_path / "eval"
     result = runner.invoke(
         app,
-        ["evaluate", str(root), "--out", str(out), "--stride", "3", "--cache-dir", str(tmp_path / "c")],
+        [
+            "evaluate",
+            str(root),
+            "--out",
+            str(out),
+            "--stride",
+            "3",
+            "--target-fpr",
+            "0.5",
+            "--cache-dir",
+            str(tmp_path / "c"),
+        ],
     )
     assert result.exit_code in (0, 3), result.output
     assert "1 folder(s)/file(s) under the data were not read" in result.output

@@ -130,7 +130,10 @@ def _free_port() -> int:
 def test_a_recording_without_a_frame_timeline_renders(viewer_ready: None, tmp_path: Path) -> None:
     """The evaluation summary is indexed by δ, not by frame: it still opens and renders."""
     data = write_project_dataset(tmp_path / "data")
-    result = run_evaluation(EvaluateConfig(data=data, out=tmp_path / "eval", cache_dir=tmp_path / "cache"))
+    result = run_evaluation(
+        EvaluateConfig(data=data, out=tmp_path / "eval", cache_dir=tmp_path / "cache", target_fpr=0.2)
+    )
+    assert set(result.rules) == {"paper", "contrast"}  # both rules' operating points are drawn
     recording = record_evaluation([result], out=tmp_path / "evaluation.rrd")
     shot = render_screenshot(recording, tmp_path / "evaluation.png", settle=1.0)
     assert shot.errors == [], shot.errors

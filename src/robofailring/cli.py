@@ -69,6 +69,18 @@ VLMUrlOption = Annotated[
 VLMModelOption = Annotated[
     str | None, typer.Option("--vlm-model", help="Model the VLM server serves (with --vlm-url).")
 ]
+ScoreOption = Annotated[
+    str | None,
+    typer.Option(
+        "--score",
+        help="Scoring rule: `paper` (S_t ≥ δ) or `contrast` (C_t = S⁻_t − S⁺_t ≥ γ); "
+        "default: contrast when the memory has success runs, else paper.",
+    ),
+]
+GammaOption = Annotated[
+    float | None,
+    typer.Option(help="Contrast threshold γ (default: the memory's calibrated γ, else 0)."),
+]
 
 
 def report_skipped(skipped: Sequence[Skipped], *, shown: int = 5) -> None:
@@ -180,10 +192,16 @@ def build_memory_cmd(
     encoder: EncoderOption = "pixels",
     split: Annotated[str | None, typer.Option(help="Only this split (project layout).")] = None,
     labels: LabelsOption = None,
+    no_successes: Annotated[
+        bool,
+        typer.Option(
+            "--no-successes", help="The paper's failure memory alone (no success memory, no contrast)."
+        ),
+    ] = False,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
 ) -> None:
-    """Build a failure memory (Algorithm 1) from the failure trajectories of DATA."""
+    """Build a failure memory (Algorithm 1) from the failure trajectories of DATA, and a success memory."""
     from robofailring.pipeline import BuildMemoryConfig, build_memory
 
     try:
@@ -196,6 +214,7 @@ def build_memory_cmd(
                 cache_dir=cache_dir,
                 device=device,
                 labels=labels,
+                successes=not no_successes,
             )
         )
     except RoboFailRingError as error:
@@ -205,6 +224,11 @@ def build_memory_cmd(
         f"{stats.failures} failure trajectories over {len(memory.tasks)} tasks; "
         f"{stats.ignored_non_failures} non-failures ignored"
     )
+    if memory.successes is not None:
+        typer.echo(
+            f"success memory: {len(memory.successes)} frames of {len(memory.successes.runs)} success views "
+            f"over {len(memory.successes.tasks)} tasks"
+        )
     if stats.skipped_views or stats.skipped_inputs:
         typer.echo(
             f"skipped: {len(stats.skipped_views)} view(s) with < 2 frames, "
@@ -228,6 +252,8 @@ def detect_cmd(
         float | None, typer.Option(help="Threshold δ (default: the memory's calibrated δ, else 0.92).")
     ] = None,
     k: Annotated[int, typer.Option(help="Neighbours retrieved per query.")] = 5,
+    score: ScoreOption = None,
+    gamma: GammaOption = None,
     task: Annotated[str | None, typer.Option(help="Task name, when the folder name does not say.")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the full trace as one JSON object.")] = False,
     leave_one_out: Annotated[
@@ -261,6 +287,8 @@ def detect_cmd(
                 memory=memory,
                 delta=delta,
                 k=k,
+                score=score,
+                gamma=gamma,
                 task=task,
                 leave_one_out=leave_one_out,
                 encoder=encoder,
@@ -304,19 +332,28 @@ def detect_cmd(
         json.dump(found, sys.stdout)
         sys.stdout.write("\n")
         return
+    rule = trace.rule
     scored = f", every {trace.stride}th frame scored" if trace.stride > 1 else ""
-    typer.echo(f"task {trace.task}, L = {trace.length} frames{scored}, δ = {trace.delta:.3f}, K = {trace.k}")
+    typer.echo(
+        f"task {trace.task}, L = {trace.length} frames{scored}, rule {rule.value}: {rule.score_name} ≥ "
+        f"{rule.symbol} = {trace.threshold:.3f}, K = {trace.k}"
+    )
+    contrasts = trace.contrast
     for view in trace.views:
-        typer.echo(f"  {view:>10}: max S_t = {float(np.nanmax(trace.similarity[view])):.3f}")
+        line = f"  {view:>10}: max S⁻_t = {float(np.nanmax(trace.similarity[view])):.3f}"
+        if view in trace.success_similarity:
+            line += f", max C_t = {float(np.nanmax(contrasts[view])):.3f}"
+        typer.echo(line)
     if trace.t_det is None:
         typer.echo("no failure detected")
     else:
         fired_view = trace.detected_view
         assert fired_view is not None
         top = trace.neighbors(fired_view, trace.t_det)[0]
+        fired_score = float(trace.scores[fired_view][trace.t_det])
         typer.echo(
             f"FAILURE detected at frame {trace.t_det}/{trace.length} in view {fired_view} "
-            f"(S_t = {top.similarity:.3f}); nearest memory entry {top.entry.task}/{top.entry.episode} "
+            f"({rule.value} rule: {rule.score_name} = {fired_score:.3f}, S⁻_t = {top.similarity:.3f}); nearest memory entry {top.entry.task}/{top.entry.episode} "
             f"[{top.entry.view}] {top.entry.symbol}: {top.entry.description}"
         )
         if answer is not None and answer.answer is not None:
@@ -334,7 +371,7 @@ def calibrate_cmd(
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
 ) -> None:
-    """Choose δ for a target false-positive rate on success runs; replay and detect then use it."""
+    """Set δ and γ (split conformal) for a target false-positive rate on success runs; detect then uses them."""
     from robofailring.evaluation import CalibrateConfig, calibrate
 
     try:
@@ -354,9 +391,14 @@ def calibrate_cmd(
         exit_with_error(error)
     report_skipped(result.skipped_inputs)
     typer.echo(
-        f"δ = {result.delta:.6f} for encoder {result.encoder}: FPR {100 * result.achieved_fpr:.1f} % on "
+        f"δ = {result.delta:.6f} (paper rule) for encoder {result.encoder}: FPR {100 * result.achieved_fpr:.1f} % on "
         f"{result.successes} success runs (target {100 * result.target_fpr:.1f} %); stored in {memory}/manifest.json"
     )
+    if result.gamma is not None and result.gamma_achieved_fpr is not None:
+        typer.echo(
+            f"γ = {result.gamma:.6f} (contrast rule): FPR {100 * result.gamma_achieved_fpr:.1f} % on the same runs, "
+            "each scored with its own episode left out of the success memory"
+        )
 
 
 @app.command("memory-info")

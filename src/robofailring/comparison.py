@@ -16,7 +16,6 @@ from robofailring.evaluation import (
     calibrate,
     run_evaluation,
 )
-from robofailring.metrics import rates, timeliness
 
 
 @dataclass(frozen=True)
@@ -63,24 +62,24 @@ def compare_encoders(config: CompareEncodersConfig) -> list[EvaluationResult]:
                     device=config.device,
                 )
             )
-        results.append(run_evaluation(replace(base, memory=memory_dir)))
+        # thresholds: the ones calibration just stored (target_fpr None reads them from the manifest)
+        results.append(run_evaluation(replace(base, memory=memory_dir, target_fpr=None)))
     return results
 
 
 def comparison_table(results: Sequence[EvaluationResult]) -> str:
-    """Markdown: each encoder at its operating δ, with recall, FPR, T_s and per-frame latency."""
+    """Markdown: each encoder under each scoring rule at its threshold: recall, FPR, T_s, AUC, latency."""
     lines = [
-        "| encoder | δ | Recall (%) | FPR (%) | mean T_s (%) | latency per frame (ms) |",
-        "|---|---:|---:|---:|---:|---:|",
+        "| encoder | rule | threshold | Recall (%) | FPR (%) | mean T_s (%) | AUC | latency per frame (ms) |",
+        "|---|---|---:|---:|---:|---:|---:|---:|",
     ]
     for result in results:
-        delta = result.operating_delta
-        at = rates(result.scored, delta)
-        saving = timeliness(result.scored, delta).mean_saving
-        lines.append(
-            f"| `{result.encoder}` | {delta:.4f} | {_pct(at.recall)} | {_pct(at.fpr)} | {_pct(saving)} | "
-            f"{result.latency_ms.get('total', float('nan')):.2f} |"
-        )
+        latency = f"{result.latency_ms.get('total', float('nan')):.2f}"
+        for rule in result.rules.values():
+            lines.append(
+                f"| `{result.encoder}` | {rule.rule.value} | {rule.rule.symbol} = {rule.threshold:.4f} | "
+                f"{_pct(rule.recall)} | {_pct(rule.fpr)} | {_pct(rule.ts_mean)} | {rule.auc:.3f} | {latency} |"
+            )
     return "\n".join(lines)
 
 

@@ -14,6 +14,8 @@ from robofailring.encoders.base import Encoder, l2_normalize
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import DataError, SettingError
 from robofailring.memory import FailureMemory, Neighbor, pair_vectors
+from robofailring.scoring import DEFAULT_GAMMA, ScoreRule, check_threshold, contrast
+from robofailring.success_memory import SuccessMatch
 
 PAPER_DELTA: Final[float] = 0.92
 DEFAULT_K: Final[int] = 5
@@ -24,10 +26,15 @@ class StepResult:
     """What the detector says about one time step."""
 
     t: int
-    similarity: dict[str, float]
+    similarity: dict[str, float]  # S⁻_t per view (the paper's S_t)
     neighbors: dict[str, list[Neighbor]]
     state: bool
     fired_views: list[str]
+    success_similarity: dict[str, float] = field(default_factory=dict)  # S⁺_t per view (NaN: none)
+    nearest_success: dict[str, SuccessMatch | None] = field(default_factory=dict)  # its success frame
+    contrast: dict[str, float] = field(default_factory=dict)  # C_t = S⁻_t − S⁺_t per view
+    rule: ScoreRule = ScoreRule.PAPER
+    threshold: float = PAPER_DELTA
     queries: dict[str, np.ndarray] = field(default_factory=dict, repr=False)  # (f(I_0) ‖ f(I_t)) per view
 
 
@@ -65,6 +72,38 @@ class DetectionTrace:
         """Indices (original frame numbers) of the frames that were scored: 0, stride, 2·stride, …"""
         return np.arange(0, self.length, self.stride)
 
+    rule: ScoreRule = ScoreRule.PAPER
+    gamma: float = DEFAULT_GAMMA
+    success_similarity: dict[str, np.ndarray] = field(default_factory=dict)  # S⁺_t per view
+    success_ids: dict[str, np.ndarray] = field(default_factory=dict)  # its success-memory row, -1: none
+
+    @property
+    def threshold(self) -> float:
+        """δ for the paper rule, γ for the contrast rule."""
+        return self.delta if self.rule is ScoreRule.PAPER else self.gamma
+
+    @property
+    def contrast(self) -> dict[str, np.ndarray]:
+        """C_t = S⁻_t − S⁺_t per view (NaN throughout when the memory has no success runs)."""
+        return {
+            view: contrast(self.similarity[view], self.success_similarity[view])
+            if view in self.success_similarity
+            else np.full(self.length, np.nan, np.float32)
+            for view in self.views
+        }
+
+    @property
+    def scores(self) -> dict[str, np.ndarray]:
+        """The score the rule thresholds, per view: S⁻_t (paper) or C_t (contrast)."""
+        return self.similarity if self.rule is ScoreRule.PAPER else self.contrast
+
+    def nearest_success(self, view: str, t: int) -> SuccessMatch | None:
+        """The success frame nearest to the query of `view` at `t`, if the memory has one."""
+        successes = self.memory.successes
+        if successes is None or view not in self.success_ids:
+            return None
+        return successes.match(float(self.success_similarity[view][t]), int(self.success_ids[view][t]))
+
     @property
     def truncated_views(self) -> dict[str, int]:
         """Views longer than L (the shortest used view) and how many of their frames were not scored."""
@@ -72,11 +111,12 @@ class DetectionTrace:
 
     @property
     def state(self) -> np.ndarray:
-        """State_t (eq. 7) fused over views: 1 where any view's S_t ≥ δ."""
+        """State_t (eq. 7) fused over views: 1 where any view's score reaches the rule's threshold."""
         if not self.views:
             return np.zeros(self.length, dtype=bool)
-        stacked = np.stack([np.nan_to_num(self.similarity[v], nan=-np.inf) for v in self.views])
-        return np.asarray((stacked >= self.delta).any(axis=0))
+        scores = self.scores
+        stacked = np.stack([np.nan_to_num(scores[v], nan=-np.inf) for v in self.views])
+        return np.asarray((stacked >= self.threshold).any(axis=0))
 
     @property
     def t_det(self) -> int | None:
@@ -90,15 +130,22 @@ class DetectionTrace:
 
     @property
     def detected_view(self) -> str | None:
-        """The view with the highest S_t among those over δ at t_det."""
+        """The view with the highest score among those over the threshold at t_det."""
         t = self.t_det
         if t is None:
             return None
-        return max(self.views, key=lambda v: np.nan_to_num(self.similarity[v][t], nan=-np.inf))
+        scores = self.scores
+        return max(self.views, key=lambda v: np.nan_to_num(scores[v][t], nan=-np.inf))
 
     def max_similarity(self) -> np.ndarray:
-        """max over views of S_t, per frame."""
+        """max over views of S⁻_t (the paper's S_t), per frame."""
         stacked = np.stack([np.nan_to_num(self.similarity[v], nan=-np.inf) for v in self.views])
+        return stacked.max(axis=0)
+
+    def max_score(self) -> np.ndarray:
+        """max over views of the rule's score, per frame (NaN counts as −∞)."""
+        scores = self.scores
+        stacked = np.stack([np.nan_to_num(scores[v], nan=-np.inf) for v in self.views])
         return stacked.max(axis=0)
 
     def neighbors(self, view: str, t: int) -> list[Neighbor]:
@@ -108,9 +155,15 @@ class DetectionTrace:
         """The same trace judged at another threshold (S_t does not depend on δ)."""
         return DetectionTrace(**{**self.__dict__, "delta": delta})
 
+    def with_rule(self, rule: ScoreRule, threshold: float) -> DetectionTrace:
+        """The same trace judged by another rule at its threshold (the scores do not change)."""
+        key = "delta" if rule is ScoreRule.PAPER else "gamma"
+        return DetectionTrace(**{**self.__dict__, "rule": rule, key: threshold})
+
     def to_dict(self) -> dict[str, Any]:
         """The JSON shape of `robofailring detect --json`."""
         views: dict[str, Any] = {}
+        contrasts = self.contrast
         for view in self.views:
             top = []
             for t in range(self.length):
@@ -127,14 +180,21 @@ class DetectionTrace:
                     }
                 )
             views[view] = {
-                "similarity": [None if np.isnan(s) else round(float(s), 6) for s in self.similarity[view]],
+                "similarity": _rounded(self.similarity[view]),
                 "top_neighbor": top,
+                "failure_similarity": _rounded(self.similarity[view]),
+                "success_similarity": _rounded(
+                    self.success_similarity.get(view, np.full(self.length, np.nan))
+                ),
+                "contrast": _rounded(contrasts[view]),
             }
         return {
             "task": self.task,
             "episode": self.episode,
             "length": self.length,
             "delta": self.delta,
+            "score": self.rule.value,
+            "threshold": self.threshold,
             "k": self.k,
             "encoder": self.encoder,
             "t_det": self.t_det,
@@ -145,6 +205,10 @@ class DetectionTrace:
             "skipped_inputs": [skipped.to_dict() for skipped in self.skipped_inputs],
             "views": views,
         }
+
+
+def _rounded(values: np.ndarray) -> list[float | None]:
+    return [None if np.isnan(v) else round(float(v), 6) for v in values]
 
 
 def check_k(k: int) -> int:
@@ -178,11 +242,21 @@ class FailureDetector:
         *,
         delta: float | None = None,
         k: int = DEFAULT_K,
+        rule: ScoreRule | str | None = None,
+        gamma: float | None = None,
     ) -> None:
         memory.check_encoder(encoder.identity)
         check_k(k)
         if delta is not None:
             check_delta(delta)
+        if gamma is not None:
+            check_threshold(ScoreRule.CONTRAST, gamma)
+        self.rule = default_rule(memory) if rule is None else ScoreRule.parse(rule)
+        if self.rule is ScoreRule.CONTRAST and memory.successes is None:
+            raise SettingError(
+                "the contrast rule needs success runs in the memory, and this one has none (built with "
+                "--no-successes or before success contrast existed); use --score paper or rebuild the memory"
+            )
         self.memory = memory
         self.encoder = (
             encoder if isinstance(encoder, CachedEncoder) else CachedEncoder(encoder, enabled=False)
@@ -191,23 +265,54 @@ class FailureDetector:
         self.delta = float(
             delta if delta is not None else calibrated if calibrated is not None else PAPER_DELTA
         )
+        calibrated_gamma = memory.calibrated_gamma
+        self.gamma = float(
+            gamma
+            if gamma is not None
+            else calibrated_gamma
+            if calibrated_gamma is not None
+            else DEFAULT_GAMMA
+        )
         self.k = k
+
+    @property
+    def threshold(self) -> float:
+        """δ (paper rule) or γ (contrast rule)."""
+        return self.delta if self.rule is ScoreRule.PAPER else self.gamma
+
+    def _check_task(self, task: str) -> None:
+        """Unknown task, or a contrast rule for a task without success runs: a clear error up front."""
+        self.memory.task_size(task)
+        successes = self.memory.successes
+        if self.rule is ScoreRule.CONTRAST and successes is not None and not successes.has_task(task):
+            raise SettingError(
+                f"task {task!r} has no success runs in the memory, so the contrast rule cannot judge it; "
+                "use --score paper or add success runs of this task"
+            )
+
+    def success_search(
+        self, queries: np.ndarray, task: str, exclude: str | None
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        successes = self.memory.successes
+        if successes is None:
+            return None
+        return successes.search(queries, task, exclude_episode=exclude)
 
     def session(
         self, task: str, *, exclude_episode: str | None = None, sink: StepSink | None = None
     ) -> DetectorSession:
         """A live session for a robot: feed each step's frames with `step`; `sink` sees every step."""
-        self.memory.task_size(task)  # unknown task -> clear error before the robot moves
+        self._check_task(task)  # unknown task -> clear error before the robot moves
         return DetectorSession(self, task, exclude_episode=exclude_episode, sink=sink)
 
     def run(self, trajectory: Trajectory, *, leave_one_out: bool = False, stride: int = 1) -> DetectionTrace:
-        """Detect over a whole trajectory; `leave_one_out` hides its own episode's memory entries.
+        """Detect over a whole trajectory; `leave_one_out` hides its own episode from both memories.
 
         With `stride` N only frames 0, N, 2N, … are decoded and scored (I_0 stays frame 0); the
         trace keeps original frame numbers (t_det, L), unscored frames hold NaN.
         """
         check_stride(stride)
-        self.memory.task_size(trajectory.task)
+        self._check_task(trajectory.task)
         used = {view: frames for view, frames in trajectory.views.items() if len(frames) >= 2}
         skipped = [view for view in trajectory.views if view not in used]
         if not used:
@@ -221,6 +326,7 @@ class FailureDetector:
         embeddings = self.encoder.encode_frames(frames).reshape(len(views), len(steps), -1)
         exclude = trajectory.episode if leave_one_out else None
         similarity, ids, sims, queries = {}, {}, {}, {}
+        success_similarity, success_ids = {}, {}
         for position, view in enumerate(views):
             view_embeddings = embeddings[position]
             query = pair_vectors(np.repeat(view_embeddings[:1], len(steps), axis=0), view_embeddings)
@@ -232,6 +338,15 @@ class FailureDetector:
                 top_sims, top_ids = full_sims, full_ids
             similarity[view] = top_sims[:, 0].copy()
             ids[view], sims[view], queries[view] = top_ids, top_sims, query
+            found = self.success_search(query, trajectory.task, exclude)
+            if found is not None:
+                success_sims, success_rows = found
+                if stride > 1:  # as above: S⁺ only at scored frames
+                    full_success = np.full(length, np.nan, dtype=success_sims.dtype)
+                    full_rows = np.full(length, -1, dtype=success_rows.dtype)
+                    full_success[steps], full_rows[steps] = success_sims, success_rows
+                    success_sims, success_rows = full_success, full_rows
+                success_similarity[view], success_ids[view] = success_sims, success_rows
         return DetectionTrace(
             task=trajectory.task,
             episode=trajectory.episode,
@@ -249,7 +364,16 @@ class FailureDetector:
             view_frames={view: len(frames) for view, frames in trajectory.views.items()},
             stride=stride,
             skipped_inputs=list(trajectory.skipped),
+            rule=self.rule,
+            gamma=self.gamma,
+            success_similarity=success_similarity,
+            success_ids=success_ids,
         )
+
+
+def default_rule(memory: FailureMemory) -> ScoreRule:
+    """`contrast` when the memory holds success runs, else the paper's rule."""
+    return ScoreRule.CONTRAST if memory.successes is not None else ScoreRule.PAPER
 
 
 class DetectorSession:
@@ -283,6 +407,8 @@ class DetectorSession:
             ]
             embeddings = l2_normalize(self.detector.encoder.encoder.encode(images))
         similarity: dict[str, float] = {}
+        success: dict[str, float] = {}
+        nearest: dict[str, SuccessMatch | None] = {}
         neighbors: dict[str, list[Neighbor]] = {}
         queries: dict[str, np.ndarray] = {}
         for view, embedding in zip(views, embeddings, strict=True):
@@ -293,7 +419,14 @@ class DetectorSession:
             )
             similarity[view] = float(sims[0, 0])
             neighbors[view] = self.detector.memory.neighbors(sims[0], ids[0])
-        fired = [v for v in views if similarity[v] >= self.detector.delta]
+            found = self.detector.success_search(query, self.task, self.exclude_episode)
+            success[view] = float(found[0][0]) if found is not None else float("nan")
+            if found is not None and self.detector.memory.successes is not None:
+                nearest[view] = self.detector.memory.successes.match(success[view], int(found[1][0]))
+        contrasts = {v: similarity[v] - success[v] for v in views}
+        rule, threshold = self.detector.rule, self.detector.threshold
+        scores = similarity if rule is ScoreRule.PAPER else contrasts
+        fired = [v for v in views if scores[v] >= threshold]  # NaN never fires
         result = StepResult(
             t=self.t,
             similarity=similarity,
@@ -301,6 +434,11 @@ class DetectorSession:
             state=bool(fired),
             fired_views=fired,
             queries=queries,
+            success_similarity=success,
+            nearest_success=nearest,
+            contrast=contrasts,
+            rule=rule,
+            threshold=threshold,
         )
         if fired and self.fired_at is None:
             self.fired_at = self.t

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import json
 import math
@@ -42,6 +41,9 @@ from robofailring.metrics import (
 )
 from robofailring.progress import progress_bar
 from robofailring.references import absolute_reference
+from robofailring.rule_evaluation import MARKDOWN_HEADER, RuleResult, evaluate_rule, scored_by_rule
+from robofailring.scoring import ScoreRule
+from robofailring.success_memory import SuccessMemory
 
 
 @dataclass(frozen=True)
@@ -62,10 +64,17 @@ class EvaluateConfig:
     device: str | None = None
     stride: int = 1  # score every stride-th frame of a test trajectory (t_det, T_s in original frames)
     labels: Path | None = None  # labels file for data whose names do not say the outcome (LeRobot)
+    target_fpr: float | None = 0.05  # calibrate both rules on training successes; None: stored thresholds
+    successes: bool = True  # build the success memory beside the failure memory (contrast rule)
+    deployment_successes: int = 0  # per task: test success runs moved into the success memory
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
         check_k(self.k)
         check_stride(self.stride)
+        if self.target_fpr is not None:
+            check_target_fpr(self.target_fpr)
+        if self.deployment_successes < 0:
+            raise SettingError(f"deployment successes must be ≥ 0, got {self.deployment_successes}")
         for delta in self.deltas:
             check_delta(delta)
         if not 0.0 < self.test_fraction < 1.0:
@@ -157,6 +166,9 @@ class EvaluationResult:
     skipped_too_short: list[str] = field(default_factory=list)
     skipped_inputs: list[Skipped] = field(default_factory=list)  # folders/files of the data not read
     stride: int = 1
+    rules: dict[str, RuleResult] = field(default_factory=dict)  # both rules at their thresholds
+    target_fpr: float | None = None
+    deployment_successes: int = 0
     paper_rates: list[Rates] = field(init=False)
     curve: list[Rates] = field(init=False)
 
@@ -172,17 +184,45 @@ class EvaluationResult:
     def successes(self) -> int:
         return sum(not t.is_failure for t in self.scored)
 
-    def per_type_recall(self, delta: float) -> dict[str, Rates]:
-        types = sorted({failure_type(t.symbol) for t in self.scored if t.is_failure and t.symbol})
+    def rule_trace(self, key: str, rule: ScoreRule) -> DetectionTrace:
+        """A test trajectory's trace judged by `rule` at its evaluated threshold."""
+        return self.traces[key].with_rule(rule, self.rules[rule.value].threshold)
+
+    def rule_scored(self, rule: ScoreRule) -> list[ScoredTrajectory]:
+        """The test trajectories with `rule`'s score (S_t or C_t) per view."""
+        return scored_by_rule(self.traces, {t.key: t for t in self.scored}, rule)
+
+    def per_type_recall(
+        self, delta: float, scored: Sequence[ScoredTrajectory] | None = None
+    ) -> dict[str, Rates]:
+        """Recall per failure type at `delta` (of `scored`: another rule's scores; default the paper's)."""
+        scored = self.scored if scored is None else scored
+        types = sorted({failure_type(t.symbol) for t in scored if t.is_failure and t.symbol})
         return {
-            kind: rates([t for t in self.scored if t.is_failure and failure_type(t.symbol) == kind], delta)
+            kind: rates([t for t in scored if t.is_failure and failure_type(t.symbol) == kind], delta)
             for kind in types
         }
 
-    def view_ablation(self, delta: float) -> dict[str, Rates]:
-        ablation = {view: rates(self.scored, delta, [view]) for view in self.views}
-        ablation["fusion"] = rates(self.scored, delta)
+    def view_ablation(
+        self, delta: float, scored: Sequence[ScoredTrajectory] | None = None
+    ) -> dict[str, Rates]:
+        scored = self.scored if scored is None else scored
+        ablation = {view: rates(scored, delta, [view]) for view in self.views}
+        ablation["fusion"] = rates(scored, delta)
         return ablation
+
+    def rule_charts(self, rule: ScoreRule, rate_row: Callable[[Rates], dict[str, Any]]) -> dict[str, Any]:
+        """A rule's own sweep, recall per type and per view, and detection progress at its threshold."""
+        scored = self.rule_scored(rule)
+        threshold = self.rules[rule.value].threshold
+        counts, edges = timeliness(scored, threshold).histogram()
+        return {
+            "operating_threshold": threshold,
+            "sweep": [rate_row(r) for r in sweep(scored, fine_grid(scored))],
+            "recall_per_type": {k: rate_row(v) for k, v in self.per_type_recall(threshold, scored).items()},
+            "view_ablation": {k: rate_row(v) for k, v in self.view_ablation(threshold, scored).items()},
+            "progress_histogram": {"threshold": threshold, "counts": counts, "edges": edges},
+        }
 
     def false_alarms(self, delta: float) -> list[ScoredTrajectory]:
         return [t for t in self.scored if not t.is_failure and t.t_det(delta) is not None]
@@ -266,6 +306,12 @@ class EvaluationResult:
             "recall_per_type": {k: rate_row(v) for k, v in self.per_type_recall(delta).items()},
             "view_ablation": {k: rate_row(v) for k, v in self.view_ablation(delta).items()},
             "latency_ms": self.latency_ms,
+            "target_fpr": self.target_fpr,
+            "deployment_successes": self.deployment_successes,
+            "rules": {
+                name: result.to_dict() | self.rule_charts(result.rule, rate_row)
+                for name, result in self.rules.items()
+            },
             "false_alarms": [
                 {"key": t.key, "t_det": t.t_det(delta), "length": t.length} for t in self.false_alarms(delta)
             ],
@@ -296,6 +342,7 @@ class EvaluationResult:
             f"{self.failures} failure and {self.successes} success test trajectories; memory `{self.memory}`; "
             f"operating δ = {delta:.4f} ({'calibrated' if self.calibrated else 'paper default'}).",
             "",
+            *self._rules_markdown(),
             "| δ | Recall (%) | FPR (%) | TP | FN | FP | TN | mean T_s (%) | median progress (%) |",
             "|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
         ]
@@ -365,6 +412,26 @@ class EvaluationResult:
             ]
         return "\n".join(lines)
 
+    def _rules_markdown(self) -> list[str]:
+        if not self.rules:
+            return []
+        deployed = (
+            f" {self.deployment_successes} success run(s) per task from the test data joined the success "
+            "memory (deployment successes) and are not tested."
+            if self.deployment_successes
+            else ""
+        )
+        return [
+            "Both scoring rules, each calibrated on the training successes (split conformal, each run's own "
+            f"episode left out):{deployed}",
+            "",
+            MARKDOWN_HEADER,
+            *(result.markdown_row(self.target_fpr) for result in self.rules.values()),
+            "",
+            "The tables below are the paper rule (S_t ≥ δ).",
+            "",
+        ]
+
 
 def _num(value: float) -> float | None:
     return None if math.isnan(value) else round(value, 6)
@@ -409,6 +476,10 @@ def build_training_memory(
     failures = [t for t in train if t.is_failure]
     with progress_bar(total=sum(len(t.views) for t in failures), desc="memory", unit="entry") as bar:
         memory, _ = FailureMemory.build(failures, encoder, progress=bar.update)
+    if config.successes:
+        with progress_bar(total=len(train), desc="success memory", unit="traj") as bar:
+            built = SuccessMemory.build(train, encoder, progress=bar.update)
+        memory.successes = built if built.success_runs else None  # no success run: the paper's memory
     memory.manifest.update(
         {
             "source": str(Path(config.data).resolve()),
@@ -429,8 +500,10 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
     memory_dir = config.memory if config.memory is not None else build_training_memory(config, train, encoder)
     memory = FailureMemory.load(memory_dir)
     check_disjoint(memory, test)
+    test = _deploy_successes(memory, test, config.deployment_successes, encoder)
     detector = FailureDetector(memory, encoder, k=config.k)
-    operating = detector.delta
+    thresholds, calibrated = _thresholds(config, detector, train)
+    operating = thresholds[ScoreRule.PAPER]
     known = set(memory.tasks)
     scored: list[ScoredTrajectory] = []
     traces: dict[str, DetectionTrace] = {}
@@ -464,13 +537,34 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
         )
     views = sorted({v for s in scored for v in s.similarity})
     first = next(t for t in test if t.key in traces)
+    traces = {  # the paper rule at δ, γ kept beside it: the paper tables below read these traces
+        key: DetectionTrace(
+            **{
+                **trace.__dict__,
+                "rule": ScoreRule.PAPER,
+                "delta": operating,
+                "gamma": thresholds.get(ScoreRule.CONTRAST, trace.gamma),
+            }
+        )
+        for key, trace in traces.items()
+    }
+    labels = {t.key: t for t in scored}
+    rules = {
+        rule.value: evaluate_rule(
+            scored_by_rule(traces, labels, rule), rule, threshold, calibrated=calibrated[rule]
+        )
+        for rule, threshold in thresholds.items()
+    }
     return EvaluationResult(
         name=config.name,
         encoder=memory.encoder,
         memory=str(memory_dir),
         k=config.k,
         operating_delta=operating,
-        calibrated=memory.calibrated_delta is not None,
+        calibrated=calibrated[ScoreRule.PAPER],
+        rules=rules,
+        target_fpr=config.target_fpr if config.target_fpr is not None else _stored_target(memory),
+        deployment_successes=config.deployment_successes,
         views=views,
         scored=scored,
         traces=traces,
@@ -480,6 +574,53 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
         skipped_inputs=unread,
         stride=config.stride,
     )
+
+
+def _stored_target(memory: FailureMemory) -> float | None:
+    """The α the memory's stored thresholds were calibrated to, if they belong to its encoder."""
+    calibration = memory.manifest.get("calibration") or {}
+    target = calibration.get("target_fpr")
+    return (
+        float(target) if calibration.get("encoder") == memory.encoder and isinstance(target, float) else None
+    )
+
+
+def _deploy_successes(
+    memory: FailureMemory, test: list[Trajectory], per_task: int, encoder: CachedEncoder
+) -> list[Trajectory]:
+    """Move `per_task` success runs per task from the test set into the success memory (in memory only)."""
+    if per_task == 0 or memory.successes is None:
+        return test
+    chosen: list[Trajectory] = []
+    for task in sorted({t.task for t in test}):
+        runs = sorted((t for t in test if t.task == task and not t.is_failure), key=lambda t: t.key)
+        chosen += runs[:per_task]
+    memory.successes = memory.successes.extended(SuccessMemory.build(chosen, encoder))
+    keys = {t.key for t in chosen}
+    return [t for t in test if t.key not in keys]
+
+
+def _thresholds(
+    config: EvaluateConfig, detector: FailureDetector, train: Sequence[Trajectory]
+) -> tuple[dict[ScoreRule, float], dict[ScoreRule, bool]]:
+    """Each rule's threshold: conformal on the training successes, or the memory's stored/default one."""
+    from robofailring.calibration import available_rules, calibrate_rules
+
+    rules = available_rules(detector)
+    defaults = {ScoreRule.PAPER: detector.delta, ScoreRule.CONTRAST: detector.gamma}
+    if config.target_fpr is None:
+        stored = {
+            ScoreRule.PAPER: detector.memory.calibrated_delta,
+            ScoreRule.CONTRAST: detector.memory.calibrated_gamma,
+        }
+        return {r: defaults[r] for r in rules}, {r: stored[r] is not None for r in rules}
+    known = set(detector.memory.tasks)
+    successes = [t for t in train if not t.is_failure and t.task in known]
+    with progress_bar(total=len(successes), desc="calibrating", unit="traj") as bar:
+        found = calibrate_rules(
+            detector, successes, config.target_fpr, rules=rules, progress=bar.update, stride=config.stride
+        )
+    return {r: c.threshold for r, c in found.items()}, {r: True for r in found}
 
 
 def write_evaluation(result: EvaluationResult, out: Path) -> tuple[Path, Path]:
@@ -517,17 +658,20 @@ class Calibration:
     successes: int
     encoder: str
     skipped_inputs: list[Skipped] = field(default_factory=list)  # folders/files of the data not read
+    gamma: float | None = None  # the contrast rule's γ, when the memory has success runs
+    gamma_achieved_fpr: float | None = None
 
 
 def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None = None) -> Calibration:
-    """Choose δ for a target false-positive rate on success runs and store it in the memory's manifest."""
+    """Set δ and γ (split conformal, level = target FPR) on success runs and store them in the manifest."""
+    from robofailring.calibration import calibrate_rules
     from robofailring.pipeline import encoder_spec_for
 
     memory = FailureMemory.load(config.memory)
     encoder = CachedEncoder(
         load_encoder(encoder_spec_for(memory), device=config.device), cache_dir=config.cache_dir
     )
-    detector = FailureDetector(memory, encoder, delta=PAPER_DELTA, k=config.k)
+    detector = FailureDetector(memory, encoder, delta=PAPER_DELTA, k=config.k, rule=ScoreRule.PAPER)
     dataset = load_dataset(config.data, labels=config.labels)
     dataset.require_labels("calibrate")
     source = list(dataset.trajectories())
@@ -541,27 +685,26 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
         raise DataError(
             f"no success trajectories of the memory's tasks in {config.data} (split {config.split!r})"
         )
-    peaks = []
     with progress_bar(total=len(successes), desc="calibrating", unit="traj") as bar:
-        for trajectory in successes:
-            with contextlib.suppress(DataError):  # no view with 2 frames: nothing to calibrate on
-                peaks.append(float(detector.run(trajectory, stride=config.stride).max_similarity().max()))
-            bar.update(1)
-            if progress is not None:
-                progress(1)
-    from robofailring.metrics import calibrate_delta
 
-    if not peaks:
-        raise DataError(
-            f"none of the {len(successes)} success trajectories in {config.data} has a view of 2+ frames"
+        def advance(count: int) -> None:
+            bar.update(count)
+            if progress is not None:
+                progress(count)
+
+        found = calibrate_rules(
+            detector, successes, config.target_fpr, progress=advance, stride=config.stride
         )
-    delta, achieved = calibrate_delta(peaks, config.target_fpr)
+    paper, contrast = found[ScoreRule.PAPER], found.get(ScoreRule.CONTRAST)
     memory.manifest["calibration"] = {
         "encoder": memory.encoder,
-        "delta": delta,
+        "delta": paper.threshold,
+        "gamma": contrast.threshold if contrast is not None else None,
+        "method": "split conformal, own episode left out",
         "target_fpr": config.target_fpr,
-        "achieved_fpr": achieved,
-        "successes": len(peaks),
+        "achieved_fpr": paper.achieved_fpr,
+        "gamma_achieved_fpr": contrast.achieved_fpr if contrast is not None else None,
+        "successes": paper.successes,
         "data": str(Path(config.data).resolve()),
         "split": config.split,
         "k": config.k,
@@ -569,10 +712,12 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
     }
     memory.write_manifest(config.memory)
     return Calibration(
-        delta=delta,
+        delta=paper.threshold,
         target_fpr=config.target_fpr,
-        achieved_fpr=achieved,
-        successes=len(peaks),
+        achieved_fpr=paper.achieved_fpr,
+        successes=paper.successes,
         encoder=memory.encoder,
         skipped_inputs=dataset.skipped,
+        gamma=contrast.threshold if contrast is not None else None,
+        gamma_achieved_fpr=contrast.achieved_fpr if contrast is not None else None,
     )

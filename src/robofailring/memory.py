@@ -9,7 +9,7 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any, Final
+from typing import TYPE_CHECKING, Any, Final
 
 import faiss
 import numpy as np
@@ -35,6 +35,9 @@ from robofailring.references import (
     stored_resolver,
     to_stored,
 )
+
+if TYPE_CHECKING:
+    from robofailring.success_memory import SuccessMemory
 
 # 2: entries' image references are stored relative to the manifest's absolute `data_root`.
 FORMAT_VERSION: Final[int] = 2
@@ -97,14 +100,48 @@ class BuildStats:
     notes: list[str] = field(default_factory=list)  # said to the user after the build
 
 
-class _TaskIndex:
-    """The Faiss index of one task's entries, with their global ids and episodes."""
+class TaskIndex:
+    """The Faiss inner-product index of one task's entries, with their global ids and episodes.
+
+    Shared by the failure memory and the success memory (robofailring.success_memory).
+    """
 
     def __init__(self, vectors: np.ndarray, ids: np.ndarray, episodes: Sequence[str]) -> None:
         self.index = faiss.IndexFlatIP(vectors.shape[1])
         self.index.add(np.ascontiguousarray(vectors, dtype=np.float32))
         self.ids = ids
+        self.episodes = np.asarray(episodes, dtype=object)
         self.episode_counts = Counter(episodes)
+
+    @property
+    def size(self) -> int:
+        return int(self.index.ntotal)
+
+    def search(
+        self, queries: np.ndarray, k: int, *, exclude_episode: str | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Top-`k` (similarities, global ids), both (n, k), padded with NaN and -1.
+
+        `exclude_episode` drops that episode's entries (leave-one-out) by over-fetching exactly as
+        many rows as it has.
+        """
+        excluded = self.episode_counts.get(exclude_episode, 0) if exclude_episode else 0
+        fetch = min(k + excluded, self.size)
+        similarities = np.full((len(queries), k), np.nan, dtype=np.float32)
+        ids = np.full((len(queries), k), -1, dtype=np.int64)
+        if fetch == 0:
+            return similarities, ids
+        raw_sims, raw_local = self.index.search(queries, fetch)
+        keep = raw_local >= 0
+        if excluded:
+            keep &= self.episodes[np.maximum(raw_local, 0)] != exclude_episode
+        raw_ids = self.ids[np.maximum(raw_local, 0)]
+        order = np.argsort(~keep, axis=1, kind="stable")[:, :k]
+        kept = np.take_along_axis(keep, order, axis=1)
+        width = order.shape[1]
+        similarities[:, :width] = np.where(kept, np.take_along_axis(raw_sims, order, axis=1), np.nan)
+        ids[:, :width] = np.where(kept, np.take_along_axis(raw_ids, order, axis=1), -1)
+        return similarities, ids
 
 
 class FailureMemory:
@@ -118,6 +155,7 @@ class FailureMemory:
         encoder: str,
         manifest: dict[str, Any] | None = None,
         data_root: Path | None = None,
+        successes: SuccessMemory | None = None,
     ) -> None:
         vectors = np.ascontiguousarray(vectors, dtype=np.float32)
         if vectors.ndim != 2 or len(vectors) != len(entries):
@@ -128,14 +166,14 @@ class FailureMemory:
         self.dim = int(vectors.shape[1]) if vectors.size else int((manifest or {}).get("dim", 0))
         self.manifest: dict[str, Any] = dict(manifest or {})
         self.data_root = Path(data_root).resolve() if data_root is not None else None
+        self.successes = successes  # success runs for the contrast rule (robofailring.success_memory)
         by_task: dict[str, list[int]] = {}
         for i, entry in enumerate(self.entries):
             by_task.setdefault(entry.task, []).append(i)
-        self._episodes = np.asarray([entry.episode for entry in self.entries], dtype=object)
-        self._tasks: dict[str, _TaskIndex] = {}
+        self._tasks: dict[str, TaskIndex] = {}
         for task, members in by_task.items():
             ids = np.asarray(members, dtype=np.int64)
-            self._tasks[task] = _TaskIndex(vectors[ids], ids, [self.entries[i].episode for i in members])
+            self._tasks[task] = TaskIndex(vectors[ids], ids, [self.entries[i].episode for i in members])
 
     # ---------------------------------------------------------------- building
     @classmethod
@@ -227,7 +265,7 @@ class FailureMemory:
                 "rebuild the memory with the same encoder or query with the one that built it"
             )
 
-    def _task(self, task: str) -> _TaskIndex:
+    def _task(self, task: str) -> TaskIndex:
         found = self._tasks.get(task)
         if found is None:
             known = ", ".join(self.tasks[:20]) + (" …" if len(self.tasks) > 20 else "")
@@ -240,30 +278,12 @@ class FailureMemory:
         """Top-`k` entries of `task` for each query row (eq. 5).
 
         Returns (similarities, global ids), both (n, k); rows are padded with NaN and -1 when the
-        task has fewer than k usable entries. `exclude_episode` drops that episode's entries
-        (leave-one-out) by over-fetching exactly as many rows as it has.
+        task has fewer than k usable entries. `exclude_episode` hides that episode (leave-one-out).
         """
         queries = np.ascontiguousarray(np.atleast_2d(queries), dtype=np.float32)
         if queries.shape[1] != self.dim:
             raise MemoryFormatError(f"query dimension {queries.shape[1]} != memory dimension {self.dim}")
-        task_index = self._task(task)
-        excluded = task_index.episode_counts.get(exclude_episode, 0) if exclude_episode else 0
-        fetch = min(k + excluded, task_index.index.ntotal)
-        similarities = np.full((len(queries), k), np.nan, dtype=np.float32)
-        ids = np.full((len(queries), k), -1, dtype=np.int64)
-        if fetch == 0:
-            return similarities, ids
-        raw_sims, raw_local = task_index.index.search(queries, fetch)
-        raw_ids = task_index.ids[raw_local]
-        keep = np.ones(raw_ids.shape, dtype=bool)
-        if excluded:
-            keep = self._episodes[raw_ids] != exclude_episode
-        order = np.argsort(~keep, axis=1, kind="stable")[:, :k]
-        kept = np.take_along_axis(keep, order, axis=1)
-        width = order.shape[1]
-        similarities[:, :width] = np.where(kept, np.take_along_axis(raw_sims, order, axis=1), np.nan)
-        ids[:, :width] = np.where(kept, np.take_along_axis(raw_ids, order, axis=1), -1)
-        return similarities, ids
+        return self._task(task).search(queries, k, exclude_episode=exclude_episode)
 
     def neighbors(self, similarities: np.ndarray, ids: np.ndarray) -> list[Neighbor]:
         """Neighbour objects for one row of a search result."""
@@ -299,6 +319,8 @@ class FailureMemory:
                         "end": to_stored(entry.end, root),
                     }
                     handle.write(json.dumps(stored) + "\n")
+            if self.successes is not None:
+                self.successes.write(tmp, root=root)
             (tmp / MANIFEST).write_text(json.dumps(self._full_manifest(), indent=2), encoding="utf-8")
         return directory
 
@@ -315,6 +337,9 @@ class FailureMemory:
                 "symbols": dict(sorted(Counter(e.symbol for e in self.entries).items())),
             }
         )
+        manifest.pop("successes", None)
+        if self.successes is not None:
+            manifest["successes"] = self.successes.manifest()
         manifest.setdefault("created", datetime.now(UTC).isoformat(timespec="seconds"))
         return manifest
 
@@ -377,7 +402,19 @@ class FailureMemory:
             entries = [
                 replace(entry, start=resolve(entry.start), end=resolve(entry.end)) for entry in entries
             ]
-        return cls(vectors, entries, encoder=manifest["encoder"], manifest=manifest, data_root=root)
+        successes = None
+        if manifest.get("successes"):  # memories written before success contrast have none
+            from robofailring.success_memory import SuccessMemory
+
+            successes = SuccessMemory.read(directory, manifest, resolve=resolve)
+        return cls(
+            vectors,
+            entries,
+            encoder=manifest["encoder"],
+            manifest=manifest,
+            data_root=root,
+            successes=successes,
+        )
 
     def check_references(self) -> ReferenceCheck:
         """Which of the entries' start/end images exist where the memory says they are."""
@@ -386,11 +423,19 @@ class FailureMemory:
     # ---------------------------------------------------------------- calibration
     @property
     def calibrated_delta(self) -> float | None:
-        """δ stored by calibration for this memory's encoder, if any."""
+        """δ (paper rule) stored by calibration for this memory's encoder, if any."""
+        return self._calibrated("delta")
+
+    @property
+    def calibrated_gamma(self) -> float | None:
+        """γ (contrast rule) stored by calibration for this memory's encoder, if any."""
+        return self._calibrated("gamma")
+
+    def _calibrated(self, key: str) -> float | None:
         calibration = self.manifest.get("calibration") or {}
-        if calibration.get("encoder") == self.encoder and isinstance(calibration.get("delta"), float):
-            delta = float(calibration["delta"])
-            return delta if math.isfinite(delta) else None
+        if calibration.get("encoder") == self.encoder and isinstance(calibration.get(key), float):
+            value = float(calibration[key])
+            return value if math.isfinite(value) else None
         return None
 
 

@@ -8,7 +8,7 @@ from typing import Final
 
 import numpy as np
 
-from robofailring.errors import DataError, SettingError
+from robofailring.errors import SettingError
 
 PAPER_DELTAS: Final[tuple[float, ...]] = (0.85, 0.90, 0.92, 0.95)
 
@@ -132,26 +132,7 @@ def timeliness(
 
 
 def check_target_fpr(target_fpr: float) -> float:
-    """A target false-positive rate for calibration: within [0, 1) (SettingError otherwise)."""
-    if not 0.0 <= target_fpr < 1.0:
-        raise SettingError(f"target FPR must be in [0, 1), got {target_fpr}")
+    """A target false-positive rate α for (conformal) calibration: within (0, 1) (SettingError otherwise)."""
+    if not 0.0 < target_fpr < 1.0:
+        raise SettingError(f"target FPR must be in (0, 1), got {target_fpr}")
     return target_fpr
-
-
-def calibrate_delta(success_peaks: Sequence[float], target_fpr: float) -> tuple[float, float]:
-    """The smallest δ whose FPR on these successes is ≤ target (so recall is as high as allowed).
-
-    `success_peaks` are the max over frames and views of S_t for each success trajectory.
-    Returns (δ, the FPR achieved at that δ).
-    """
-    check_target_fpr(target_fpr)
-    peaks = np.sort(np.asarray(success_peaks, dtype=np.float32))[::-1]
-    if peaks.size == 0:
-        raise DataError("calibration needs at least one success trajectory")
-    allowed = int(np.floor(target_fpr * peaks.size + 1e-9))
-    if allowed >= peaks.size:
-        return float(peaks[-1]), 1.0
-    threshold = peaks[allowed]  # this success and every lower one must stay quiet
-    delta = float(np.nextafter(threshold, np.float32(np.inf)))
-    achieved = float(np.count_nonzero(peaks >= np.float32(delta))) / peaks.size
-    return delta, achieved

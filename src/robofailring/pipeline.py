@@ -14,6 +14,7 @@ from robofailring.errors import DataError, EncoderError, MemoryFormatError
 from robofailring.memory import BuildStats, FailureMemory
 from robofailring.outputs import check_memory_target, is_memory_dir
 from robofailring.progress import progress_bar
+from robofailring.success_memory import SuccessMemory
 
 
 @dataclass(frozen=True)
@@ -25,6 +26,7 @@ class BuildMemoryConfig:
     cache_dir: Path | None = None  # embedding cache (default ~/.cache/robofailring)
     device: str | None = None  # torch device for CLIP (default: cuda when available)
     labels: Path | None = None  # outcome and symbol per episode (needed for LeRobot datasets)
+    successes: bool = True  # also build the success memory (contrast rule); False: the paper's memory alone
 
 
 def build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
@@ -66,6 +68,10 @@ def _build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]
         raise DataError(
             f"no memory entry from {config.data}: every failure view has fewer than 2 frames; nothing was written"
         )
+    if config.successes:
+        with progress_bar(total=len(trajectories), desc="encoding success memory", unit="traj") as bar:
+            successes = SuccessMemory.build(trajectories, encoder, progress=bar.update)
+        memory.successes = successes if successes.success_runs else None  # none: the paper's memory
     stats.skipped_inputs = dataset.skipped
     memory.manifest["skipped_inputs"] = [skipped.to_dict() for skipped in dataset.skipped]
     memory.manifest["source"] = str(Path(config.data).resolve())
@@ -104,6 +110,8 @@ class DetectConfig:
     memory: Path  # memory directory
     delta: float | None = None  # default: the memory's calibrated δ, else the paper's 0.92
     k: int = DEFAULT_K
+    score: str | None = None  # `paper` or `contrast` (default: contrast when the memory has successes)
+    gamma: float | None = None  # contrast threshold (default: the memory's calibrated γ, else 0)
     task: str | None = None  # needed when the folder name does not encode the task
     leave_one_out: bool = False  # hide the trajectory's own episode from the memory
     encoder: str | None = None  # default: the spec the memory was built with
@@ -144,5 +152,7 @@ def detect_trajectory(config: DetectConfig) -> tuple[DetectionTrace, Trajectory]
     trajectory = load_trajectory(config.trajectory, task=config.task, key=config.key, labels=config.labels)
     spec = config.encoder or encoder_spec_for(memory)
     encoder = CachedEncoder(load_encoder(spec, device=config.device), cache_dir=config.cache_dir)
-    detector = FailureDetector(memory, encoder, delta=config.delta, k=config.k)
+    detector = FailureDetector(
+        memory, encoder, delta=config.delta, k=config.k, rule=config.score, gamma=config.gamma
+    )
     return detector.run(trajectory, leave_one_out=config.leave_one_out, stride=config.stride), trajectory

@@ -1,0 +1,234 @@
+"""The success memory: what normal runs looked like, frame by frame, for success contrast.
+
+Per success trajectory, view and frame t it holds ``u = norm([norm f(I_0) ‖ norm f(I_t)])`` (the
+same pairing as the failure memory's eq. 2–4, with the current frame in place of the end frame),
+searched within the task. The first frame of every *failure* trajectory is a normal state too (the
+failure has not happened yet), so each failure view adds its ``(I_0 ‖ I_0)`` as a one-frame run:
+without it, frame 0 of a new run matches a "nothing happened" failure better than any success. It lives beside the failure memory in the same folder: `success.faiss`
+(all vectors) and `success_runs.jsonl` (one line per run and view: task, episode, view and the
+references of its frames, in row order).
+"""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any, Final
+
+import faiss
+import numpy as np
+
+from robofailring.data.model import Outcome, Trajectory
+from robofailring.encoders.cache import CachedEncoder
+from robofailring.errors import MemoryFormatError
+from robofailring.memory import TaskIndex, pair_vectors
+from robofailring.references import absolute_reference, to_stored
+
+INDEX: Final[str] = "success.faiss"
+RUNS: Final[str] = "success_runs.jsonl"
+MANIFEST_KEY: Final[str] = "successes"  # the failure memory manifest's section on the success memory
+
+
+@dataclass(frozen=True)
+class SuccessRun:
+    """One view of one success trajectory: its rows in the success memory are its frames, in order."""
+
+    task: str
+    episode: str
+    view: str
+    frames: tuple[str, ...]  # frame references (paths), index = frame t
+    kind: str = "success"  # or "failure-start": the first frame of a failure run
+
+
+@dataclass(frozen=True)
+class SuccessMatch:
+    """The nearest success frame to a query: run, frame index and cosine similarity S⁺."""
+
+    index: int
+    similarity: float
+    run: SuccessRun
+    frame: int
+
+    @property
+    def image(self) -> str:
+        return self.run.frames[self.frame]
+
+
+class SuccessMemory:
+    """Success-run vectors searchable top-1 within one task (Faiss inner product per task)."""
+
+    def __init__(self, vectors: np.ndarray, runs: Sequence[SuccessRun], *, dim: int) -> None:
+        vectors = np.ascontiguousarray(vectors, dtype=np.float32).reshape(-1, dim)
+        runs = list(runs)
+        sizes = np.asarray([len(run.frames) for run in runs], dtype=np.int64)
+        if int(sizes.sum()) != len(vectors):
+            raise MemoryFormatError(
+                f"{len(runs)} success runs hold {int(sizes.sum())} frames but {len(vectors)} vectors"
+            )
+        self.vectors = vectors
+        self.runs = runs
+        self.dim = dim
+        self.row_run = np.repeat(np.arange(len(runs), dtype=np.int64), sizes)
+        self.row_frame = np.arange(len(vectors), dtype=np.int64) - np.repeat(np.cumsum(sizes) - sizes, sizes)
+        episodes = np.asarray([run.episode for run in runs], dtype=object)
+        tasks = np.asarray([run.task for run in runs], dtype=object)
+        row_task = tasks[self.row_run] if len(vectors) else np.zeros(0, dtype=object)
+        self._tasks: dict[str, TaskIndex] = {}
+        for task in sorted(set(tasks.tolist())):
+            ids = np.flatnonzero(row_task == task)
+            self._tasks[task] = TaskIndex(vectors[ids], ids, episodes[self.row_run[ids]].tolist())
+
+    # ---------------------------------------------------------------- building
+    @classmethod
+    def build(
+        cls,
+        trajectories: Iterable[Trajectory],
+        encoder: CachedEncoder,
+        *,
+        progress: Callable[[int], None] | None = None,
+    ) -> SuccessMemory:
+        """Every frame of every view (≥ 2 frames) of the success trajectories, and the first frame of
+        every failure view; unlabelled trajectories are ignored."""
+        runs: list[SuccessRun] = []
+        vectors: list[np.ndarray] = []
+        for trajectory in trajectories:
+            if trajectory.outcome is None:
+                continue
+            success = trajectory.outcome is Outcome.SUCCESS
+            for view, all_frames in trajectory.views.items():
+                if len(all_frames) < 2:
+                    continue
+                frames = list(all_frames) if success else [all_frames[0]]
+                embeddings = encoder.encode_frames(frames)
+                vectors.append(pair_vectors(np.repeat(embeddings[:1], len(frames), axis=0), embeddings))
+                runs.append(
+                    SuccessRun(
+                        trajectory.task,
+                        trajectory.episode,
+                        view,
+                        tuple(absolute_reference(f.reference) for f in frames),
+                        kind="success" if success else "failure-start",
+                    )
+                )
+            if progress is not None:
+                progress(1)
+        dim = encoder.dim * 2
+        stacked = np.concatenate(vectors) if vectors else np.zeros((0, dim), dtype=np.float32)
+        return cls(stacked, runs, dim=dim)
+
+    def extended(self, other: SuccessMemory) -> SuccessMemory:
+        """This memory with another one's runs added (e.g. success runs seen in deployment)."""
+        if other.dim != self.dim:
+            raise MemoryFormatError(
+                f"success memories of dimension {self.dim} and {other.dim} cannot be joined"
+            )
+        return SuccessMemory(
+            np.concatenate([self.vectors, other.vectors]), [*self.runs, *other.runs], dim=self.dim
+        )
+
+    # ---------------------------------------------------------------- queries
+    def __len__(self) -> int:
+        return len(self.vectors)
+
+    @property
+    def success_runs(self) -> int:
+        """Runs (views) of success trajectories, not counting failure starts."""
+        return sum(run.kind == "success" for run in self.runs)
+
+    @property
+    def tasks(self) -> list[str]:
+        return sorted(self._tasks)
+
+    def has_task(self, task: str) -> bool:
+        return task in self._tasks
+
+    def search(
+        self, queries: np.ndarray, task: str, *, exclude_episode: str | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """S⁺ per query row: (max cosine to the task's success frames, its row id); NaN and -1 when none."""
+        queries = np.ascontiguousarray(np.atleast_2d(queries), dtype=np.float32)
+        if queries.shape[1] != self.dim:
+            raise MemoryFormatError(
+                f"query dimension {queries.shape[1]} != success memory dimension {self.dim}"
+            )
+        found = self._tasks.get(task)
+        if found is None:
+            return np.full(len(queries), np.nan, np.float32), np.full(len(queries), -1, np.int64)
+        similarities, ids = found.search(queries, 1, exclude_episode=exclude_episode)
+        return similarities[:, 0], ids[:, 0]
+
+    def match(self, similarity: float, index: int) -> SuccessMatch | None:
+        """The match object of one search result row, or None for -1."""
+        if index < 0:
+            return None
+        return SuccessMatch(
+            index=int(index),
+            similarity=float(similarity),
+            run=self.runs[int(self.row_run[index])],
+            frame=int(self.row_frame[index]),
+        )
+
+    # ---------------------------------------------------------------- storage
+    def manifest(self) -> dict[str, Any]:
+        """The failure memory manifest's `successes` section: counts by task."""
+        return {
+            "count": len(self),
+            "runs": len(self.runs),
+            "success_runs": self.success_runs,
+            "failure_starts": len(self.runs) - self.success_runs,
+            "episodes": len({(run.task, run.episode) for run in self.runs if run.kind == "success"}),
+            "tasks": dict(sorted(Counter(run.task for run in self.runs if run.kind == "success").items())),
+            "views": sorted({run.view for run in self.runs}),
+        }
+
+    def write(self, directory: Path, *, root: Path | None = None) -> None:
+        """Write the index and runs into `directory` (the failure memory's temporary folder).
+
+        Frame references under `root` (the memory's data root) are stored relative to it."""
+        index = faiss.IndexFlatIP(self.dim)
+        if len(self.vectors):
+            index.add(self.vectors)
+        faiss.write_index(index, str(directory / INDEX))
+        with (directory / RUNS).open("w", encoding="utf-8") as handle:
+            for run in self.runs:
+                frames = [to_stored(frame, root) for frame in run.frames]
+                handle.write(json.dumps(asdict(run) | {"frames": frames}) + "\n")
+
+    @classmethod
+    def read(
+        cls, directory: Path, manifest: dict[str, Any], *, resolve: Callable[[str], str] | None = None
+    ) -> SuccessMemory:
+        """Read what `write` wrote and check it against the manifest's `successes` section.
+
+        `resolve` turns stored frame references into absolute ones (see `references.stored_resolver`)."""
+        section = manifest.get(MANIFEST_KEY) or {}
+        try:
+            index = faiss.read_index(str(directory / INDEX))
+        except RuntimeError as error:
+            raise MemoryFormatError(f"cannot read Faiss index {directory / INDEX}: {error}") from error
+        runs: list[SuccessRun] = []
+        path = directory / RUNS
+        try:
+            with path.open(encoding="utf-8") as handle:
+                for number, line in enumerate(handle, 1):
+                    if not line.strip():
+                        continue
+                    try:
+                        fields = json.loads(line)
+                        stored = tuple(resolve(f) if resolve else f for f in fields["frames"])
+                        runs.append(SuccessRun(**{**fields, "frames": stored}))
+                    except (json.JSONDecodeError, TypeError, KeyError) as error:
+                        raise MemoryFormatError(f"{path}:{number}: bad success run ({error})") from error
+        except OSError as error:
+            raise MemoryFormatError(f"cannot read {path}: {error}") from error
+        frames = sum(len(run.frames) for run in runs)
+        if index.ntotal != section.get("count") or frames != index.ntotal or len(runs) != section.get("runs"):
+            raise MemoryFormatError(
+                f"{directory}: manifest says {section.get('count')} success frames in {section.get('runs')} runs, "
+                f"{INDEX} has {index.ntotal}, {RUNS} has {frames} in {len(runs)} runs"
+            )
+        vectors = index.reconstruct_n(0, index.ntotal) if index.ntotal else np.zeros((0, index.d), np.float32)
+        return cls(vectors, runs, dim=int(index.d))
