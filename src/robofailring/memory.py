@@ -25,6 +25,7 @@ from robofailring.errors import (
     UnknownTaskError,
 )
 from robofailring.grounding import ground, parse_symbol
+from robofailring.task_index import FLAT, IndexSpec, TaskIndex
 
 FORMAT_VERSION: Final[int] = 1
 MANIFEST: Final[str] = "manifest.json"
@@ -79,16 +80,6 @@ class BuildStats:
     skipped_views: list[dict[str, Any]] = field(default_factory=list)
 
 
-class _TaskIndex:
-    """The Faiss index of one task's entries, with their global ids and episodes."""
-
-    def __init__(self, vectors: np.ndarray, ids: np.ndarray, episodes: Sequence[str]) -> None:
-        self.index = faiss.IndexFlatIP(vectors.shape[1])
-        self.index.add(np.ascontiguousarray(vectors, dtype=np.float32))
-        self.ids = ids
-        self.episode_counts = Counter(episodes)
-
-
 class FailureMemory:
     """Memory vectors plus metadata, searchable top-K within one task."""
 
@@ -111,11 +102,11 @@ class FailureMemory:
         by_task: dict[str, list[int]] = {}
         for i, entry in enumerate(self.entries):
             by_task.setdefault(entry.task, []).append(i)
-        self._episodes = np.asarray([entry.episode for entry in self.entries], dtype=object)
-        self._tasks: dict[str, _TaskIndex] = {}
+        self._tasks: dict[str, TaskIndex] = {}
         for task, members in by_task.items():
             ids = np.asarray(members, dtype=np.int64)
-            self._tasks[task] = _TaskIndex(vectors[ids], ids, [self.entries[i].episode for i in members])
+            episodes = [self.entries[i].episode for i in members]
+            self._tasks[task] = TaskIndex.build(vectors[ids], ids, episodes, IndexSpec(FLAT))
 
     # ---------------------------------------------------------------- building
     @classmethod
@@ -191,7 +182,7 @@ class FailureMemory:
         return len(self.entries)
 
     def task_size(self, task: str) -> int:
-        return self._task(task).index.ntotal
+        return self._task(task).size
 
     def check_encoder(self, identity: str) -> None:
         """Raise EncoderMismatchError unless `identity` is the encoder that built the memory."""
@@ -201,7 +192,7 @@ class FailureMemory:
                 "rebuild the memory with the same encoder or query with the one that built it"
             )
 
-    def _task(self, task: str) -> _TaskIndex:
+    def _task(self, task: str) -> TaskIndex:
         found = self._tasks.get(task)
         if found is None:
             known = ", ".join(self.tasks[:20]) + (" …" if len(self.tasks) > 20 else "")
@@ -214,30 +205,13 @@ class FailureMemory:
         """Top-`k` entries of `task` for each query row (eq. 5).
 
         Returns (similarities, global ids), both (n, k); rows are padded with NaN and -1 when the
-        task has fewer than k usable entries. `exclude_episode` drops that episode's entries
-        (leave-one-out) by over-fetching exactly as many rows as it has.
+        task has fewer than k usable entries. `exclude_episode` hides that episode's entries
+        (leave-one-out). All query rows (e.g. the views of one step) go to Faiss in one call.
         """
         queries = np.ascontiguousarray(np.atleast_2d(queries), dtype=np.float32)
         if queries.shape[1] != self.dim:
             raise MemoryFormatError(f"query dimension {queries.shape[1]} != memory dimension {self.dim}")
-        task_index = self._task(task)
-        excluded = task_index.episode_counts.get(exclude_episode, 0) if exclude_episode else 0
-        fetch = min(k + excluded, task_index.index.ntotal)
-        similarities = np.full((len(queries), k), np.nan, dtype=np.float32)
-        ids = np.full((len(queries), k), -1, dtype=np.int64)
-        if fetch == 0:
-            return similarities, ids
-        raw_sims, raw_local = task_index.index.search(queries, fetch)
-        raw_ids = task_index.ids[raw_local]
-        keep = np.ones(raw_ids.shape, dtype=bool)
-        if excluded:
-            keep = self._episodes[raw_ids] != exclude_episode
-        order = np.argsort(~keep, axis=1, kind="stable")[:, :k]
-        kept = np.take_along_axis(keep, order, axis=1)
-        width = order.shape[1]
-        similarities[:, :width] = np.where(kept, np.take_along_axis(raw_sims, order, axis=1), np.nan)
-        ids[:, :width] = np.where(kept, np.take_along_axis(raw_ids, order, axis=1), -1)
-        return similarities, ids
+        return self._task(task).search(queries, k, exclude_episode=exclude_episode)
 
     def neighbors(self, similarities: np.ndarray, ids: np.ndarray) -> list[Neighbor]:
         """Neighbour objects for one row of a search result."""
