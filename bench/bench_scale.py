@@ -144,6 +144,25 @@ def hnsw_probe(count: int = 20_000) -> None:
     )
 
 
+def crossover(sizes: tuple[int, ...] = (1_000, 2_000, 5_000, 10_000, 20_000, 50_000)) -> None:
+    """Flat vs ivf_sq8 3-view step for one task of each size: where `auto` should switch."""
+    print("\n task entries | flat step median (CPU) | ivf_sq8 step median (CPU) | ivf_sq8 S+ max_abs_err")
+    held = held_out_steps(0, 60, deviate=0.0)
+    exact = held.reshape(-1, DIM)
+    for size in sizes:
+        vectors = np.concatenate([chunk for chunk, _ in task_memory(0, size)])
+        episodes = [str(i // 600) for i in range(size)]
+        flat = TaskIndex.build(vectors, np.arange(size), episodes, choose_spec(size, kind="flat"))
+        approximate = TaskIndex.build(vectors, np.arange(size), episodes, choose_spec(size, kind=IVF_SQ8))
+        flat_times = latencies(lambda i, flat=flat: flat.search(held[i % 60], 1), 120)
+        approx_times = latencies(lambda i, approximate=approximate: approximate.search(held[i % 60], 1), 120)
+        error = np.abs(approximate.search(exact, 1)[0] - flat.search(exact, 1)[0]).max()
+        print(
+            f" {size:12,d} | {statistics.median(flat_times):.3f} ms ({statistics.median(flat_times.cpu):.3f}) | "
+            f"{statistics.median(approx_times):.3f} ms ({statistics.median(approx_times.cpu):.3f}) | {error:.5f}"
+        )
+
+
 def bench_success(
     size: int, tasks: int, steps_per_task: int, failures: tuple[TaskIndexSet, list[str]] | None
 ) -> dict[str, float]:
@@ -259,12 +278,15 @@ def main() -> None:
         help="Faiss OpenMP threads (1: a step is 3 queries; 0: Faiss's default)",
     )
     parser.add_argument("--hnsw-probe", action="store_true", help="time an HNSW build on 20k entries")
+    parser.add_argument("--crossover", action="store_true", help="flat vs ivf_sq8 per task size, 1k to 50k")
     args = parser.parse_args()
     if args.threads:
         faiss.omp_set_num_threads(args.threads)
     print(f"Faiss {faiss.__version__}, {faiss.omp_get_max_threads()} OpenMP threads; {describe()}")
     if args.hnsw_probe:
         hnsw_probe()
+    if args.crossover:
+        crossover()
     failures = None
     if args.failures:
         memory, steps, tasks = failure_memory(args.failures, 80)
@@ -273,7 +295,7 @@ def main() -> None:
         gc.collect()
         failures = (memory, tasks)
     results = {}
-    for text in args.sizes.split(","):
+    for text in filter(None, args.sizes.split(",")):
         size = parse_size(text)
         results[size] = bench_success(size, args.tasks, args.steps, failures)
         gc.collect()

@@ -27,9 +27,10 @@ FLAT: Final[str] = "flat"
 IVF_SQ8: Final[str] = "ivf_sq8"
 AUTO: Final[str] = "auto"
 KINDS: Final[tuple[str, ...]] = (FLAT, IVF_SQ8)
-# Entries of one task above which `auto` picks ivf_sq8: the flat 3-view step passes 1 ms near here
-# on a 2-core machine (bench/bench_scale.py --sizes prints the flat step per task size).
-APPROXIMATE_ABOVE: Final[int] = 20_000
+# Entries of one task above which `auto` picks ivf_sq8. Measured (bench/bench_scale.py --crossover,
+# 2-core EPYC, 32 MB L3): a flat 3-view step takes 0.26 ms at 2k entries, 2.3 ms at 5k (a task no
+# longer fits the cache: 4 KB an entry), 21 ms at 10k; ivf_sq8 takes 0.14-0.23 ms over that range.
+APPROXIMATE_ABOVE: Final[int] = 4_000
 DEFAULT_NPROBE: Final[int] = 16
 TRAIN_PER_LIST: Final[int] = 39  # k-means training points per list (Faiss's own lower bound)
 
