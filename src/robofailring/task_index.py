@@ -3,8 +3,8 @@
 A memory is searched only within the query's task, so it keeps one Faiss index per task
 (`TaskIndex`), grouped by `TaskIndexSet`. Small tasks use exact search (`flat`, `IndexFlatIP`);
 a task above `APPROXIMATE_ABOVE` entries uses an inverted file with 8-bit scalar quantisation
-(`ivf_sq8`, `IndexIVFScalarQuantizer` with an HNSW coarse quantizer): one byte per dimension
-instead of four, and a query reads only `nprobe` of `nlist` lists. Both choices and their error are measured by
+(`ivf_sq8`, `IndexIVFScalarQuantizer`): one byte per dimension instead of four, and a query
+reads only `nprobe` of `nlist` lists. Both choices and their error are measured by
 `bench/bench_scale.py` (see docs/scale.md). Every search takes a batch of queries in one Faiss
 call, so the views of one step share one pass. Leave-one-out hides one episode with a Faiss
 `IDSelector` at search time.
@@ -33,16 +33,11 @@ KINDS: Final[tuple[str, ...]] = (FLAT, IVF_SQ8)
 APPROXIMATE_ABOVE: Final[int] = 4_000
 DEFAULT_NPROBE: Final[int] = 16
 TRAIN_PER_LIST: Final[int] = 39  # k-means training points per list (Faiss's own lower bound)
-HNSW_LINKS: Final[int] = 32  # links per node of the coarse quantizer's graph
-HNSW_EF_SEARCH: Final[int] = 64  # candidates the coarse quantizer's graph search keeps
 
 
 @dataclass(frozen=True)
 class IndexSpec:
-    """How one task's entries are indexed: `flat`, or `ivf_sq8` with `nlist` lists, `nprobe` probed.
-
-    ivf_sq8's lists are found by an HNSW graph over their centroids (HNSW_LINKS, HNSW_EF_SEARCH).
-    """
+    """How one task's entries are indexed: `flat`, or `ivf_sq8` with `nlist` lists, `nprobe` probed."""
 
     kind: str = FLAT
     nlist: int = 0  # ivf_sq8 only: k-means lists
@@ -94,10 +89,7 @@ def choose_spec(
 def _new_index(dim: int, spec: IndexSpec) -> faiss.Index:
     if spec.kind == FLAT:
         return faiss.IndexFlatIP(dim)
-    # The lists' centroids are found through an HNSW graph instead of a scan of all nlist of them:
-    # 0.4 ms less per 3-view step at 250k entries, same error (docs/scale.md).
-    quantizer = faiss.IndexHNSWFlat(dim, HNSW_LINKS, faiss.METRIC_INNER_PRODUCT)
-    quantizer.hnsw.efSearch = HNSW_EF_SEARCH
+    quantizer = faiss.IndexFlatIP(dim)
     index = faiss.IndexIVFScalarQuantizer(
         quantizer, dim, spec.nlist, faiss.ScalarQuantizer.QT_8bit, faiss.METRIC_INNER_PRODUCT
     )
@@ -105,25 +97,10 @@ def _new_index(dim: int, spec: IndexSpec) -> faiss.Index:
     return index
 
 
-def _train(index: faiss.Index, sample: np.ndarray) -> None:
-    """k-means with exact assignment (BLAS), then the centroids go into the HNSW quantizer."""
-    ivf = cast(Any, index)
-    exact = faiss.IndexFlatIP(index.d)
-    ivf.clustering_index = exact
-    try:
-        index.train(sample)
-    finally:
-        ivf.clustering_index = None
-
-
 def _spec_of(index: faiss.Index) -> IndexSpec:
     if isinstance(index, faiss.IndexFlatIP):
         return IndexSpec(FLAT)
-    if (
-        isinstance(index, faiss.IndexIVFScalarQuantizer)
-        and index.metric_type == faiss.METRIC_INNER_PRODUCT
-        and isinstance(faiss.downcast_index(index.quantizer), faiss.IndexHNSWFlat)
-    ):
+    if isinstance(index, faiss.IndexIVFScalarQuantizer) and index.metric_type == faiss.METRIC_INNER_PRODUCT:
         return IndexSpec(IVF_SQ8, nlist=int(index.nlist), nprobe=int(index.nprobe))
     raise MemoryFormatError(f"unsupported Faiss index type {type(index).__name__}")
 
@@ -158,7 +135,7 @@ class TaskIndex:
                 raise SettingError(
                     f"ivf_sq8 with {spec.nlist} lists needs at least as many entries, got {len(vectors)}"
                 )
-            _train(index, _training_sample(vectors, spec.nlist))
+            index.train(_training_sample(vectors, spec.nlist))
         index.add(vectors)
         return cls(index, ids, episodes)
 
