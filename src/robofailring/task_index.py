@@ -28,8 +28,8 @@ IVF_SQ8: Final[str] = "ivf_sq8"
 AUTO: Final[str] = "auto"
 KINDS: Final[tuple[str, ...]] = (FLAT, IVF_SQ8)
 # Entries of one task above which `auto` picks ivf_sq8. Measured (bench/bench_scale.py --crossover,
-# 2-core EPYC, 32 MB L3): a flat 3-view step takes 0.26 ms at 2k entries, 2.3 ms at 5k (a task no
-# longer fits the cache: 4 KB an entry), 21 ms at 10k; ivf_sq8 takes 0.14-0.23 ms over that range.
+# 2-core EPYC, 32 MB L3): a flat 3-view step takes 0.38 ms at 2k entries, 2.2 ms at 5k (a task no
+# longer fits the cache: 4 KB an entry), 4.9 ms at 10k; ivf_sq8 takes 0.15-0.25 ms over that range.
 APPROXIMATE_ABOVE: Final[int] = 4_000
 DEFAULT_NPROBE: Final[int] = 16
 TRAIN_PER_LIST: Final[int] = 39  # k-means training points per list (Faiss's own lower bound)
