@@ -57,8 +57,10 @@ def main() -> None:
     memory, stats = FailureMemory.build(load_dataset(data).trajectories(), encoder)
     memory_dir = memory.save(Path(args.data) / f"memory_{args.task}_{args.image_size}px_{args.frames}f")
     delta = args.delta
-    if delta is None:
-        delta = calibrate(CalibrateConfig(data=data, memory=memory_dir, split=None)).delta
+    if delta is None:  # split conformal at the smallest α its successes allow (n ≥ 1/α − 1)
+        successes = sum(not t.is_failure for t in load_dataset(data).trajectories())
+        alpha = 1.0 / (successes + 1) + 1e-9
+        delta = calibrate(CalibrateConfig(data=data, memory=memory_dir, split=None, target_fpr=alpha)).delta
     print(f"memory: {len(memory)} entries from {stats.failures} failure episodes; δ = {delta:.4f}")
     detector = FailureDetector(memory, encoder, delta=delta)
 

@@ -205,6 +205,7 @@ def _compare_with_trained(
             data=in_dist,
             out=out / "encoders",
             encoders=("pixels", f"trained:{trained}"),
+            target_fpr=config.target_fpr,  # each encoder calibrated at the demo's α
             cache_dir=config.cache_dir,
         )
     )

@@ -113,7 +113,7 @@ def test_demo_compares_pixels_with_an_encoder_trained_on_its_training_split(
     assert comparison is not None and comparison.table_path == root / "out" / "encoders" / "comparison.md"
     encoders = [r.encoder for r in comparison.results]
     assert encoders[0].startswith("pixels") and encoders[1].startswith("trained:cnn4-64px-256d:")
-    assert comparison.table_path.read_text().count("| `") == 2
+    assert comparison.table_path.read_text().count("| `") == 4  # two encoders × two scoring rules
     trained = json.loads((root / "data" / "trained-encoder" / "encoder.json").read_text())
     assert trained["training"]["recipe"]["split"] == "train"
     assert trained["training"]["recipe"]["data"] == str((root / "data" / "sim-id").resolve())

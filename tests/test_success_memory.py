@@ -7,6 +7,7 @@ import math
 import shutil
 from pathlib import Path
 
+import faiss
 import numpy as np
 import pytest
 from synthetic import write_project_dataset
@@ -137,15 +138,30 @@ def test_saved_with_counts_and_old_folders_still_load(
     # a folder written before success contrast: no success files, no manifest section
     old = tmp_path / "old"
     shutil.copytree(out, old)
-    (old / INDEX).unlink()
+    for path in old.glob("success*.faiss"):
+        path.unlink()
     (old / RUNS).unlink()
-    manifest.pop("successes")
+    section = manifest.pop("successes")
     (old / "manifest.json").write_text(json.dumps(manifest))
     legacy = FailureMemory.load(old)
     assert legacy.successes is None and len(legacy) == len(memory)
     assert FailureDetector(legacy, encoder).rule is ScoreRule.PAPER
     with pytest.raises(SettingError, match="--score paper"):
         FailureDetector(legacy, encoder, rule="contrast")
+    # a success memory written as one flat `success.faiss` (before per-task index files) still loads
+    flat = tmp_path / "flat"
+    shutil.copytree(out, flat)
+    for path in flat.glob("success.*.faiss"):
+        path.unlink()
+    whole = faiss.IndexFlatIP(memory.successes.dim)
+    whole.add(memory.successes.vectors)
+    faiss.write_index(whole, str(flat / INDEX))
+    (flat / "manifest.json").write_text(
+        json.dumps(manifest | {"successes": {k: v for k, v in section.items() if k != "index"}})
+    )
+    rebuilt = FailureMemory.load(flat).successes
+    assert rebuilt is not None and rebuilt.runs == memory.successes.runs
+    np.testing.assert_array_equal(rebuilt.vectors, memory.successes.vectors)
     # a success index that disagrees with the manifest is a clear error
     broken = tmp_path / "broken"
     shutil.copytree(out, broken)

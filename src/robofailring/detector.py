@@ -329,8 +329,14 @@ class FailureDetector:
         success_similarity, success_ids = {}, {}
         for position, view in enumerate(views):
             view_embeddings = embeddings[position]
-            query = pair_vectors(np.repeat(view_embeddings[:1], len(steps), axis=0), view_embeddings)
-            top_sims, top_ids = self.memory.search(query, trajectory.task, self.k, exclude_episode=exclude)
+            queries[view] = pair_vectors(np.repeat(view_embeddings[:1], len(steps), axis=0), view_embeddings)
+        stacked = np.concatenate([queries[view] for view in views])  # one search per memory, all views
+        all_sims, all_ids = self.memory.search(stacked, trajectory.task, self.k, exclude_episode=exclude)
+        all_success = self.success_search(stacked, trajectory.task, exclude)
+        for position, view in enumerate(views):
+            rows = slice(position * len(steps), (position + 1) * len(steps))
+            query = queries[view]
+            top_sims, top_ids = all_sims[rows], all_ids[rows]
             if stride > 1:  # back onto original frame numbers: unscored frames never fire
                 full_sims = np.full((length, self.k), np.nan, dtype=top_sims.dtype)
                 full_ids = np.full((length, self.k), -1, dtype=top_ids.dtype)
@@ -338,9 +344,8 @@ class FailureDetector:
                 top_sims, top_ids = full_sims, full_ids
             similarity[view] = top_sims[:, 0].copy()
             ids[view], sims[view], queries[view] = top_ids, top_sims, query
-            found = self.success_search(query, trajectory.task, exclude)
-            if found is not None:
-                success_sims, success_rows = found
+            if all_success is not None:
+                success_sims, success_rows = all_success[0][rows], all_success[1][rows]
                 if stride > 1:  # as above: S⁺ only at scored frames
                     full_success = np.full(length, np.nan, dtype=success_sims.dtype)
                     full_rows = np.full(length, -1, dtype=success_rows.dtype)
@@ -413,16 +418,19 @@ class DetectorSession:
         queries: dict[str, np.ndarray] = {}
         for view, embedding in zip(views, embeddings, strict=True):
             first = self._first.setdefault(view, embedding)
-            query = queries[view] = pair_vectors(first, embedding)
-            sims, ids = self.detector.memory.search(
-                query, self.task, self.detector.k, exclude_episode=self.exclude_episode
-            )
-            similarity[view] = float(sims[0, 0])
-            neighbors[view] = self.detector.memory.neighbors(sims[0], ids[0])
-            found = self.detector.success_search(query, self.task, self.exclude_episode)
-            success[view] = float(found[0][0]) if found is not None else float("nan")
-            if found is not None and self.detector.memory.successes is not None:
-                nearest[view] = self.detector.memory.successes.match(success[view], int(found[1][0]))
+            queries[view] = pair_vectors(first, embedding)[0]
+        stacked = np.stack([queries[view] for view in views])  # one search per memory for all views
+        sims, ids = self.detector.memory.search(
+            stacked, self.task, self.detector.k, exclude_episode=self.exclude_episode
+        )
+        found = self.detector.success_search(stacked, self.task, self.exclude_episode)
+        successes = self.detector.memory.successes
+        for row, view in enumerate(views):
+            similarity[view] = float(sims[row, 0])
+            neighbors[view] = self.detector.memory.neighbors(sims[row], ids[row])
+            success[view] = float(found[0][row]) if found is not None else float("nan")
+            if found is not None and successes is not None:
+                nearest[view] = successes.match(success[view], int(found[1][row]))
         contrasts = {v: similarity[v] - success[v] for v in views}
         rule, threshold = self.detector.rule, self.detector.threshold
         scores = similarity if rule is ScoreRule.PAPER else contrasts

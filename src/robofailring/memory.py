@@ -35,6 +35,7 @@ from robofailring.references import (
     stored_resolver,
     to_stored,
 )
+from robofailring.task_index import FLAT, IndexSpec, TaskIndex
 
 if TYPE_CHECKING:
     from robofailring.success_memory import SuccessMemory
@@ -100,50 +101,6 @@ class BuildStats:
     notes: list[str] = field(default_factory=list)  # said to the user after the build
 
 
-class TaskIndex:
-    """The Faiss inner-product index of one task's entries, with their global ids and episodes.
-
-    Shared by the failure memory and the success memory (robofailring.success_memory).
-    """
-
-    def __init__(self, vectors: np.ndarray, ids: np.ndarray, episodes: Sequence[str]) -> None:
-        self.index = faiss.IndexFlatIP(vectors.shape[1])
-        self.index.add(np.ascontiguousarray(vectors, dtype=np.float32))
-        self.ids = ids
-        self.episodes = np.asarray(episodes, dtype=object)
-        self.episode_counts = Counter(episodes)
-
-    @property
-    def size(self) -> int:
-        return int(self.index.ntotal)
-
-    def search(
-        self, queries: np.ndarray, k: int, *, exclude_episode: str | None = None
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Top-`k` (similarities, global ids), both (n, k), padded with NaN and -1.
-
-        `exclude_episode` drops that episode's entries (leave-one-out) by over-fetching exactly as
-        many rows as it has.
-        """
-        excluded = self.episode_counts.get(exclude_episode, 0) if exclude_episode else 0
-        fetch = min(k + excluded, self.size)
-        similarities = np.full((len(queries), k), np.nan, dtype=np.float32)
-        ids = np.full((len(queries), k), -1, dtype=np.int64)
-        if fetch == 0:
-            return similarities, ids
-        raw_sims, raw_local = self.index.search(queries, fetch)
-        keep = raw_local >= 0
-        if excluded:
-            keep &= self.episodes[np.maximum(raw_local, 0)] != exclude_episode
-        raw_ids = self.ids[np.maximum(raw_local, 0)]
-        order = np.argsort(~keep, axis=1, kind="stable")[:, :k]
-        kept = np.take_along_axis(keep, order, axis=1)
-        width = order.shape[1]
-        similarities[:, :width] = np.where(kept, np.take_along_axis(raw_sims, order, axis=1), np.nan)
-        ids[:, :width] = np.where(kept, np.take_along_axis(raw_ids, order, axis=1), -1)
-        return similarities, ids
-
-
 class FailureMemory:
     """Memory vectors plus metadata, searchable top-K within one task."""
 
@@ -173,7 +130,8 @@ class FailureMemory:
         self._tasks: dict[str, TaskIndex] = {}
         for task, members in by_task.items():
             ids = np.asarray(members, dtype=np.int64)
-            self._tasks[task] = TaskIndex(vectors[ids], ids, [self.entries[i].episode for i in members])
+            episodes = [self.entries[i].episode for i in members]
+            self._tasks[task] = TaskIndex.build(vectors[ids], ids, episodes, IndexSpec(FLAT))
 
     # ---------------------------------------------------------------- building
     @classmethod
@@ -255,7 +213,7 @@ class FailureMemory:
         return len(self.entries)
 
     def task_size(self, task: str) -> int:
-        return self._task(task).index.ntotal
+        return self._task(task).size
 
     def check_encoder(self, identity: str) -> None:
         """Raise EncoderMismatchError unless `identity` is the encoder that built the memory."""
@@ -278,7 +236,8 @@ class FailureMemory:
         """Top-`k` entries of `task` for each query row (eq. 5).
 
         Returns (similarities, global ids), both (n, k); rows are padded with NaN and -1 when the
-        task has fewer than k usable entries. `exclude_episode` hides that episode (leave-one-out).
+        task has fewer than k usable entries. `exclude_episode` hides that episode's entries
+        (leave-one-out). All query rows (e.g. the views of one step) go to Faiss in one call.
         """
         queries = np.ascontiguousarray(np.atleast_2d(queries), dtype=np.float32)
         if queries.shape[1] != self.dim:

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import json
 from collections import Counter
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Final
@@ -24,10 +24,13 @@ import numpy as np
 from robofailring.data.model import Outcome, Trajectory
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import MemoryFormatError
-from robofailring.memory import TaskIndex, pair_vectors
+from robofailring.memory import pair_vectors
 from robofailring.references import absolute_reference, to_stored
+from robofailring.task_index import TaskIndexSet
+from robofailring.thinning import DEFAULT_STEP, check_step, thin_run
 
-INDEX: Final[str] = "success.faiss"
+INDEX: Final[str] = "success.faiss"  # memories written before per-task index files
+INDEX_STEM: Final[str] = "success"  # success.<n>.faiss, one per task (robofailring.task_index)
 RUNS: Final[str] = "success_runs.jsonl"
 MANIFEST_KEY: Final[str] = "successes"  # the failure memory manifest's section on the success memory
 
@@ -39,8 +42,13 @@ class SuccessRun:
     task: str
     episode: str
     view: str
-    frames: tuple[str, ...]  # frame references (paths), index = frame t
+    frames: tuple[str, ...]  # references (paths) of the frames kept in the memory, in time order
     kind: str = "success"  # or "failure-start": the first frame of a failure run
+    frame_numbers: tuple[int, ...] = ()  # each kept frame's number in the run (empty: 0, 1, 2, …)
+
+    def frame_number(self, row: int) -> int:
+        """The run's frame number of its `row`-th kept frame (thinning keeps only some)."""
+        return self.frame_numbers[row] if self.frame_numbers else row
 
 
 @dataclass(frozen=True)
@@ -50,36 +58,57 @@ class SuccessMatch:
     index: int
     similarity: float
     run: SuccessRun
-    frame: int
+    row: int  # which of the run's kept frames
+
+    @property
+    def frame(self) -> int:
+        """The frame number in the success run."""
+        return self.run.frame_number(self.row)
 
     @property
     def image(self) -> str:
-        return self.run.frames[self.frame]
+        return self.run.frames[self.row]
 
 
 class SuccessMemory:
     """Success-run vectors searchable top-1 within one task (Faiss inner product per task)."""
 
-    def __init__(self, vectors: np.ndarray, runs: Sequence[SuccessRun], *, dim: int) -> None:
-        vectors = np.ascontiguousarray(vectors, dtype=np.float32).reshape(-1, dim)
+    def __init__(
+        self,
+        vectors: np.ndarray | None,
+        runs: Sequence[SuccessRun],
+        *,
+        dim: int,
+        index: TaskIndexSet | None = None,
+        offered: int | None = None,
+        thinning: Mapping[str, Any] | None = None,
+    ) -> None:
+        """`vectors` (rows in run order) build a per-task index (`task_index`: exact, or approximate
+        for large tasks); a saved memory passes its `index` instead and no vectors."""
         runs = list(runs)
         sizes = np.asarray([len(run.frames) for run in runs], dtype=np.int64)
-        if int(sizes.sum()) != len(vectors):
-            raise MemoryFormatError(
-                f"{len(runs)} success runs hold {int(sizes.sum())} frames but {len(vectors)} vectors"
-            )
-        self.vectors = vectors
+        count = int(sizes.sum())
+        if vectors is not None:
+            vectors = np.ascontiguousarray(vectors, dtype=np.float32).reshape(-1, dim)
+            if count != len(vectors):
+                raise MemoryFormatError(
+                    f"{len(runs)} success runs hold {count} frames but {len(vectors)} vectors"
+                )
+        self.vectors = vectors  # None for a loaded memory: its index holds them (quantised when large)
         self.runs = runs
         self.dim = dim
         self.row_run = np.repeat(np.arange(len(runs), dtype=np.int64), sizes)
-        self.row_frame = np.arange(len(vectors), dtype=np.int64) - np.repeat(np.cumsum(sizes) - sizes, sizes)
-        episodes = np.asarray([run.episode for run in runs], dtype=object)
-        tasks = np.asarray([run.task for run in runs], dtype=object)
-        row_task = tasks[self.row_run] if len(vectors) else np.zeros(0, dtype=object)
-        self._tasks: dict[str, TaskIndex] = {}
-        for task in sorted(set(tasks.tolist())):
-            ids = np.flatnonzero(row_task == task)
-            self._tasks[task] = TaskIndex(vectors[ids], ids, episodes[self.row_run[ids]].tolist())
+        self.row_frame = np.arange(count, dtype=np.int64) - np.repeat(np.cumsum(sizes) - sizes, sizes)
+        self.offered = count if offered is None else offered
+        self.thinning = dict(thinning or {})
+        if index is None:
+            assert vectors is not None
+            tasks = np.asarray([run.task for run in runs], dtype=object)[self.row_run]
+            episodes = np.asarray([run.episode for run in runs], dtype=object)[self.row_run]
+            index = TaskIndexSet.build(vectors, tasks.tolist(), episodes.tolist())
+        if len(index) != count:
+            raise MemoryFormatError(f"the success index holds {len(index)} frames, its runs {count}")
+        self.index = index
 
     # ---------------------------------------------------------------- building
     @classmethod
@@ -89,11 +118,16 @@ class SuccessMemory:
         encoder: CachedEncoder,
         *,
         progress: Callable[[int], None] | None = None,
+        step: float = DEFAULT_STEP,
+        cap: int | None = None,
     ) -> SuccessMemory:
-        """Every frame of every view (≥ 2 frames) of the success trajectories, and the first frame of
-        every failure view; unlabelled trajectories are ignored."""
+        """The frames of every view (≥ 2 frames) of the success trajectories that add something
+        (`thinning.thin_run`: cosine `step`, at most `cap` per run; step 0 keeps every frame), and
+        the first frame of every failure view; unlabelled trajectories are ignored."""
+        check_step(step)
         runs: list[SuccessRun] = []
         vectors: list[np.ndarray] = []
+        offered = 0
         for trajectory in trajectories:
             if trajectory.outcome is None:
                 continue
@@ -103,21 +137,25 @@ class SuccessMemory:
                     continue
                 frames = list(all_frames) if success else [all_frames[0]]
                 embeddings = encoder.encode_frames(frames)
-                vectors.append(pair_vectors(np.repeat(embeddings[:1], len(frames), axis=0), embeddings))
+                paired = pair_vectors(np.repeat(embeddings[:1], len(frames), axis=0), embeddings)
+                kept = thin_run(paired, step=step, cap=cap).kept if success else np.zeros(1, np.int64)
+                offered += len(frames)
+                vectors.append(paired[kept])
                 runs.append(
                     SuccessRun(
                         trajectory.task,
                         trajectory.episode,
                         view,
-                        tuple(absolute_reference(f.reference) for f in frames),
+                        tuple(absolute_reference(frames[int(t)].reference) for t in kept),
                         kind="success" if success else "failure-start",
+                        frame_numbers=tuple(int(t) for t in kept) if len(kept) < len(frames) else (),
                     )
                 )
             if progress is not None:
                 progress(1)
         dim = encoder.dim * 2
         stacked = np.concatenate(vectors) if vectors else np.zeros((0, dim), dtype=np.float32)
-        return cls(stacked, runs, dim=dim)
+        return cls(stacked, runs, dim=dim, offered=offered, thinning={"step": step, "cap": cap})
 
     def extended(self, other: SuccessMemory) -> SuccessMemory:
         """This memory with another one's runs added (e.g. success runs seen in deployment)."""
@@ -125,13 +163,21 @@ class SuccessMemory:
             raise MemoryFormatError(
                 f"success memories of dimension {self.dim} and {other.dim} cannot be joined"
             )
+        if self.vectors is None or other.vectors is None:
+            raise MemoryFormatError(
+                "a success memory read from disk cannot be extended: rebuild it with the new runs"
+            )
         return SuccessMemory(
-            np.concatenate([self.vectors, other.vectors]), [*self.runs, *other.runs], dim=self.dim
+            np.concatenate([self.vectors, other.vectors]),
+            [*self.runs, *other.runs],
+            dim=self.dim,
+            offered=self.offered + other.offered,
+            thinning=self.thinning,
         )
 
     # ---------------------------------------------------------------- queries
     def __len__(self) -> int:
-        return len(self.vectors)
+        return len(self.row_run)
 
     @property
     def success_runs(self) -> int:
@@ -140,10 +186,10 @@ class SuccessMemory:
 
     @property
     def tasks(self) -> list[str]:
-        return sorted(self._tasks)
+        return self.index.tasks
 
     def has_task(self, task: str) -> bool:
-        return task in self._tasks
+        return task in self.index.by_task
 
     def search(
         self, queries: np.ndarray, task: str, *, exclude_episode: str | None = None
@@ -154,10 +200,9 @@ class SuccessMemory:
             raise MemoryFormatError(
                 f"query dimension {queries.shape[1]} != success memory dimension {self.dim}"
             )
-        found = self._tasks.get(task)
-        if found is None:
+        if not self.has_task(task):
             return np.full(len(queries), np.nan, np.float32), np.full(len(queries), -1, np.int64)
-        similarities, ids = found.search(queries, 1, exclude_episode=exclude_episode)
+        similarities, ids = self.index.search(queries, task, 1, exclude_episode=exclude_episode)
         return similarities[:, 0], ids[:, 0]
 
     def match(self, similarity: float, index: int) -> SuccessMatch | None:
@@ -168,7 +213,7 @@ class SuccessMemory:
             index=int(index),
             similarity=float(similarity),
             run=self.runs[int(self.row_run[index])],
-            frame=int(self.row_frame[index]),
+            row=int(self.row_frame[index]),
         )
 
     # ---------------------------------------------------------------- storage
@@ -176,6 +221,9 @@ class SuccessMemory:
         """The failure memory manifest's `successes` section: counts by task."""
         return {
             "count": len(self),
+            "offered": self.offered,
+            "thinning": self.thinning,
+            "index": self.index.manifest(INDEX_STEM),
             "runs": len(self.runs),
             "success_runs": self.success_runs,
             "failure_starts": len(self.runs) - self.success_runs,
@@ -188,10 +236,7 @@ class SuccessMemory:
         """Write the index and runs into `directory` (the failure memory's temporary folder).
 
         Frame references under `root` (the memory's data root) are stored relative to it."""
-        index = faiss.IndexFlatIP(self.dim)
-        if len(self.vectors):
-            index.add(self.vectors)
-        faiss.write_index(index, str(directory / INDEX))
+        self.index.write(directory, INDEX_STEM)
         with (directory / RUNS).open("w", encoding="utf-8") as handle:
             for run in self.runs:
                 frames = [to_stored(frame, root) for frame in run.frames]
@@ -205,10 +250,6 @@ class SuccessMemory:
 
         `resolve` turns stored frame references into absolute ones (see `references.stored_resolver`)."""
         section = manifest.get(MANIFEST_KEY) or {}
-        try:
-            index = faiss.read_index(str(directory / INDEX))
-        except RuntimeError as error:
-            raise MemoryFormatError(f"cannot read Faiss index {directory / INDEX}: {error}") from error
         runs: list[SuccessRun] = []
         path = directory / RUNS
         try:
@@ -219,16 +260,39 @@ class SuccessMemory:
                     try:
                         fields = json.loads(line)
                         stored = tuple(resolve(f) if resolve else f for f in fields["frames"])
-                        runs.append(SuccessRun(**{**fields, "frames": stored}))
+                        numbers = tuple(int(n) for n in fields.get("frame_numbers", ()))
+                        runs.append(SuccessRun(**{**fields, "frames": stored, "frame_numbers": numbers}))
                     except (json.JSONDecodeError, TypeError, KeyError) as error:
                         raise MemoryFormatError(f"{path}:{number}: bad success run ({error})") from error
         except OSError as error:
             raise MemoryFormatError(f"cannot read {path}: {error}") from error
         frames = sum(len(run.frames) for run in runs)
-        if index.ntotal != section.get("count") or frames != index.ntotal or len(runs) != section.get("runs"):
+        if frames != section.get("count") or len(runs) != section.get("runs"):
             raise MemoryFormatError(
                 f"{directory}: manifest says {section.get('count')} success frames in {section.get('runs')} runs, "
-                f"{INDEX} has {index.ntotal}, {RUNS} has {frames} in {len(runs)} runs"
+                f"{RUNS} has {frames} in {len(runs)} runs"
             )
-        vectors = index.reconstruct_n(0, index.ntotal) if index.ntotal else np.zeros((0, index.d), np.float32)
-        return cls(vectors, runs, dim=int(index.d))
+        sizes = [len(run.frames) for run in runs]
+        tasks = [run.task for run, size in zip(runs, sizes, strict=True) for _ in range(size)]
+        episodes = [run.episode for run, size in zip(runs, sizes, strict=True) for _ in range(size)]
+        dim = int(manifest.get("dim", 0))
+        if isinstance(section.get("index"), dict):
+            index = TaskIndexSet.read(directory, section["index"], tasks, episodes)
+            return cls(
+                index.exact_vectors(frames, dim),
+                runs,
+                dim=dim,
+                index=index,
+                offered=section.get("offered"),
+                thinning=section.get("thinning"),
+            )
+        try:  # written before per-task index files: one flat index of every frame, re-indexed here
+            flat = faiss.read_index(str(directory / INDEX))
+        except RuntimeError as error:
+            raise MemoryFormatError(f"cannot read Faiss index {directory / INDEX}: {error}") from error
+        if flat.ntotal != frames:
+            raise MemoryFormatError(
+                f"{directory}: {INDEX} has {flat.ntotal} success frames, {RUNS} has {frames}"
+            )
+        vectors = flat.reconstruct_n(0, flat.ntotal) if flat.ntotal else np.zeros((0, flat.d), np.float32)
+        return cls(vectors, runs, dim=int(flat.d))
