@@ -1,9 +1,12 @@
 """Detection quality: both scoring rules at one α, in distribution, out of distribution, and OOD with
 deployment successes, on simulated sets (cached under the robofailring cache dir).
 
-Run: .venv/bin/python bench/bench_quality.py [--encoder SPEC]... [--alpha 0.05]
+Run: .venv/bin/python bench/bench_quality.py [--encoder SPEC]... [--alpha 0.05] [--success-step S]...
+     [--train-encoder]
 
-Each encoder spec is one more block of rows (e.g. `--encoder pixels --encoder trained:DIR`).
+Each encoder spec is one more block of rows (e.g. `--encoder pixels --encoder trained:DIR`);
+`--train-encoder` trains one on the ID training split (cached) and adds its rows, with the training
+time; each `--success-step` (success-frame thinning, 0 = every frame) is one more block per encoder.
 """
 
 from __future__ import annotations
@@ -15,10 +18,12 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from robofailring.encoders import default_cache_dir, encoder_slug, load_encoder
+from robofailring.encoders.training import TrainEncoderConfig, train_encoder
 from robofailring.evaluation import EvaluateConfig, EvaluationResult, run_evaluation, write_evaluation
 from robofailring.memory import FailureMemory
 from robofailring.progress import progress_bar
 from robofailring.sim import TASKS, GenerateConfig, generate_dataset
+from robofailring.thinning import DEFAULT_STEP
 
 IMAGE_SIZE = 64
 FRAMES = 28
@@ -68,10 +73,17 @@ class QualityRow:
 
 
 def evaluate_encoder(
-    encoder: str, in_dist: Path, out_dist: Path, *, alpha: float, out: Path, cache_dir: Path | None = None
+    encoder: str,
+    in_dist: Path,
+    out_dist: Path,
+    *,
+    alpha: float,
+    out: Path,
+    cache_dir: Path | None = None,
+    success_step: float = DEFAULT_STEP,
 ) -> list[QualityRow]:
     """ID, OOD and OOD-with-deployment-successes evaluations of one encoder spec, both rules at α."""
-    slug = encoder_slug(load_encoder(encoder).identity)
+    slug = f"{encoder_slug(load_encoder(encoder).identity)}-step{success_step:g}"
     base = EvaluateConfig(
         data=in_dist,
         out=out / slug,
@@ -80,6 +92,7 @@ def evaluate_encoder(
         memory_out=out / slug / "memory",
         cache_dir=cache_dir,
         name="in-distribution",
+        success_step=success_step,
     )
     ood = replace(base, memory=out / slug / "memory", test_data=out_dist, test_split="ood", name="ood")
     protocols = [
@@ -95,7 +108,9 @@ def evaluate_encoder(
         start = time.perf_counter()
         result = run_evaluation(config)
         write_evaluation(result, config.out)  # <name>.json and .md, e.g. for `robofailring review`
-        rows.append(QualityRow(encoder, label, result, time.perf_counter() - start))
+        rows.append(
+            QualityRow(f"{encoder} (step {success_step:g})", label, result, time.perf_counter() - start)
+        )
     return rows
 
 
@@ -118,10 +133,6 @@ def print_rows(rows: list[QualityRow], alpha: float) -> None:
             )
 
 
-def _size(folder: Path, names: tuple[str, ...]) -> int:
-    return sum((folder / name).stat().st_size for name in names if (folder / name).is_file())
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -129,6 +140,10 @@ def main() -> None:
     parser.add_argument("--encoder", action="append", help="encoder spec (repeatable; default: pixels)")
     parser.add_argument("--alpha", type=float, default=0.05, help="target FPR α of both rules")
     parser.add_argument("--workers", type=int, default=2, help="simulation processes")
+    parser.add_argument(
+        "--success-step", type=float, action="append", help=f"thinning step(s) (default {DEFAULT_STEP})"
+    )
+    parser.add_argument("--train-encoder", action="store_true", help="add a trained encoder's rows")
     args = parser.parse_args()
     start = time.perf_counter()
     in_dist, out_dist = datasets(args.workers)
@@ -141,17 +156,28 @@ def main() -> None:
         f"{OOD_SUCCESSES} successes per task"
     )
     out = default_cache_dir() / "bench-quality" / "runs"
-    rows = []
-    for encoder in args.encoder or ["pixels"]:
-        rows += evaluate_encoder(encoder, in_dist, out_dist, alpha=args.alpha, out=out)
-        memory = out / encoder_slug(load_encoder(encoder).identity) / "memory"
-        loaded = FailureMemory.load(memory)
-        successes = loaded.successes
-        print(
-            f"{encoder}: failure memory {len(loaded)} entries, {_size(memory, ('index.faiss', 'entries.jsonl')) / 1e6:.2f} MB; "
-            f"success memory {len(successes) if successes else 0} frames, "
-            f"{_size(memory, ('success.faiss', 'success_runs.jsonl')) / 1e6:.2f} MB"
+    encoders = list(args.encoder or ["pixels"])
+    if args.train_encoder:
+        started = time.perf_counter()
+        trained = train_encoder(
+            TrainEncoderConfig(data=in_dist, out=default_cache_dir() / "bench-quality" / "trained-encoder"),
+            reuse=True,
         )
+        print(
+            f"trained encoder {trained}: {time.perf_counter() - started:.0f} s (0 when reused from the cache)"
+        )
+        encoders.append(f"trained:{trained}")
+    rows = []
+    for encoder in encoders:
+        for step in args.success_step or [DEFAULT_STEP]:
+            found = evaluate_encoder(encoder, in_dist, out_dist, alpha=args.alpha, out=out, success_step=step)
+            rows += found
+            loaded = FailureMemory.load(Path(found[0].result.memory))
+            successes = loaded.successes
+            print(
+                f"{encoder} (step {step:g}): failure memory {len(loaded)} entries; success memory "
+                f"{len(successes) if successes else 0} frames kept of {successes.offered if successes else 0}"
+            )
     for row in rows:
         print(f"{row.encoder} {row.protocol}: evaluated in {row.seconds:.0f} s")
     print_rows(rows, args.alpha)

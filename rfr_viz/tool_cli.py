@@ -17,6 +17,7 @@ from robofailring.cli import (
     LabelsOption,
     ScoreOption,
     StrideOption,
+    SuccessStepOption,
     VLMModelOption,
     VLMUrlOption,
     app,
@@ -28,6 +29,7 @@ from robofailring.cli import (
 from robofailring.errors import RoboFailRingError
 from robofailring.exit_codes import finish
 from robofailring.outputs import check_output_folder
+from robofailring.thinning import DEFAULT_STEP
 
 
 @app.command("evaluate")
@@ -54,6 +56,7 @@ def evaluate_cmd(
     deployment_successes: Annotated[
         int, typer.Option(help="Per task, this many test success runs join the success memory (not tested).")
     ] = 0,
+    success_step: SuccessStepOption = DEFAULT_STEP,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
 ) -> None:
@@ -79,6 +82,7 @@ def evaluate_cmd(
             labels=labels,
             target_fpr=target_fpr,
             deployment_successes=deployment_successes,
+            success_step=success_step,
         )
         check_output_folder(out, inputs=[data, test_data, memory])
         result = run_evaluation(config)

@@ -17,6 +17,7 @@ from robofailring.errors import RoboFailRingError
 from robofailring.exit_codes import ErrorMappingGroup, fail, finish
 from robofailring.progress import progress_bar
 from robofailring.references import ReferenceCheck, check_references
+from robofailring.thinning import DEFAULT_STEP
 
 if TYPE_CHECKING:
     from robofailring.vlm import VLMConfig
@@ -97,6 +98,14 @@ def report_skipped(skipped: Sequence[Skipped], *, shown: int = 5) -> None:
         typer.secho(f"  {item.path}: {item.reason}", err=True)
 
 
+SuccessStepOption = Annotated[
+    float,
+    typer.Option(
+        "--success-step",
+        help="Keep a success frame only when its cosine to the last kept frame of its run is below "
+        "1 - STEP (0 keeps every frame).",
+    ),
+]
 DataRootOption = Annotated[
     Path | None,
     typer.Option(
@@ -198,6 +207,7 @@ def build_memory_cmd(
             "--no-successes", help="The paper's failure memory alone (no success memory, no contrast)."
         ),
     ] = False,
+    success_step: SuccessStepOption = DEFAULT_STEP,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
 ) -> None:
@@ -215,6 +225,7 @@ def build_memory_cmd(
                 device=device,
                 labels=labels,
                 successes=not no_successes,
+                success_step=success_step,
             )
         )
     except RoboFailRingError as error:
@@ -226,8 +237,9 @@ def build_memory_cmd(
     )
     if memory.successes is not None:
         typer.echo(
-            f"success memory: {len(memory.successes)} frames of {len(memory.successes.runs)} success views "
-            f"over {len(memory.successes.tasks)} tasks"
+            f"success memory: {len(memory.successes)} frames kept of {memory.successes.offered} offered "
+            f"(thinning step {success_step:g}), {len(memory.successes.runs)} views over "
+            f"{len(memory.successes.tasks)} tasks"
         )
     if stats.skipped_views or stats.skipped_inputs:
         typer.echo(

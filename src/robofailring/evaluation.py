@@ -44,6 +44,7 @@ from robofailring.references import absolute_reference
 from robofailring.rule_evaluation import MARKDOWN_HEADER, RuleResult, evaluate_rule, scored_by_rule
 from robofailring.scoring import ScoreRule
 from robofailring.success_memory import SuccessMemory
+from robofailring.thinning import DEFAULT_STEP
 
 
 @dataclass(frozen=True)
@@ -66,6 +67,9 @@ class EvaluateConfig:
     labels: Path | None = None  # labels file for data whose names do not say the outcome (LeRobot)
     target_fpr: float | None = 0.05  # calibrate both rules on training successes; None: stored thresholds
     successes: bool = True  # build the success memory beside the failure memory (contrast rule)
+    success_step: float = (
+        DEFAULT_STEP  # thinning of success runs (robofailring.thinning); 0 keeps every frame
+    )
     deployment_successes: int = 0  # per task: test success runs moved into the success memory
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
@@ -478,7 +482,7 @@ def build_training_memory(
         memory, _ = FailureMemory.build(failures, encoder, progress=bar.update)
     if config.successes:
         with progress_bar(total=len(train), desc="success memory", unit="traj") as bar:
-            built = SuccessMemory.build(train, encoder, progress=bar.update)
+            built = SuccessMemory.build(train, encoder, progress=bar.update, step=config.success_step)
         memory.successes = built if built.success_runs else None  # no success run: the paper's memory
     memory.manifest.update(
         {
@@ -500,7 +504,7 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
     memory_dir = config.memory if config.memory is not None else build_training_memory(config, train, encoder)
     memory = FailureMemory.load(memory_dir)
     check_disjoint(memory, test)
-    test = _deploy_successes(memory, test, config.deployment_successes, encoder)
+    test = _deploy_successes(memory, test, config.deployment_successes, encoder, config.success_step)
     detector = FailureDetector(memory, encoder, k=config.k)
     thresholds, calibrated = _thresholds(config, detector, train)
     operating = thresholds[ScoreRule.PAPER]
@@ -586,7 +590,7 @@ def _stored_target(memory: FailureMemory) -> float | None:
 
 
 def _deploy_successes(
-    memory: FailureMemory, test: list[Trajectory], per_task: int, encoder: CachedEncoder
+    memory: FailureMemory, test: list[Trajectory], per_task: int, encoder: CachedEncoder, step: float
 ) -> list[Trajectory]:
     """Move `per_task` success runs per task from the test set into the success memory (in memory only)."""
     if per_task == 0 or memory.successes is None:
@@ -595,7 +599,9 @@ def _deploy_successes(
     for task in sorted({t.task for t in test}):
         runs = sorted((t for t in test if t.task == task and not t.is_failure), key=lambda t: t.key)
         chosen += runs[:per_task]
-    memory.successes = memory.successes.extended(SuccessMemory.build(chosen, encoder))
+    memory.successes = memory.successes.extended(
+        SuccessMemory.build(chosen, encoder, step=step)
+    )
     keys = {t.key for t in chosen}
     return [t for t in test if t.key not in keys]
 

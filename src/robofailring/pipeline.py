@@ -15,6 +15,7 @@ from robofailring.memory import BuildStats, FailureMemory
 from robofailring.outputs import check_memory_target, is_memory_dir
 from robofailring.progress import progress_bar
 from robofailring.success_memory import SuccessMemory
+from robofailring.thinning import DEFAULT_STEP
 
 
 @dataclass(frozen=True)
@@ -27,6 +28,7 @@ class BuildMemoryConfig:
     device: str | None = None  # torch device for CLIP (default: cuda when available)
     labels: Path | None = None  # outcome and symbol per episode (needed for LeRobot datasets)
     successes: bool = True  # also build the success memory (contrast rule); False: the paper's memory alone
+    success_step: float = DEFAULT_STEP  # keep a success frame only this far (cosine) from the last kept one
 
 
 def build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
@@ -70,7 +72,9 @@ def _build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]
         )
     if config.successes:
         with progress_bar(total=len(trajectories), desc="encoding success memory", unit="traj") as bar:
-            successes = SuccessMemory.build(trajectories, encoder, progress=bar.update)
+            successes = SuccessMemory.build(
+                trajectories, encoder, progress=bar.update, step=config.success_step
+            )
         memory.successes = successes if successes.success_runs else None  # none: the paper's memory
     stats.skipped_inputs = dataset.skipped
     memory.manifest["skipped_inputs"] = [skipped.to_dict() for skipped in dataset.skipped]
