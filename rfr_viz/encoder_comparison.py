@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from rfr_viz.replay import CompareConfig, compare
-from robofailring._atomic import write_text_atomic
+from robofailring.atomic import write_text_atomic
 from robofailring.comparison import CompareEncodersConfig, compare_encoders, comparison_table
 from robofailring.evaluation import EvaluationResult
 

@@ -13,7 +13,7 @@ import rerun.blueprint as rrb
 from rfr_viz.chart_rerun import chart_view, log_chart
 from rfr_viz.eval_charts import Chart, evaluation_charts
 from rfr_viz.paths import EVAL_ROOT, EVAL_SUMMARY, EVALUATION_APPLICATION_ID
-from robofailring._atomic import atomic_path
+from robofailring.atomic import atomic_path
 from robofailring.evaluation import EvaluationResult
 
 

@@ -39,7 +39,7 @@ from rfr_viz.record import (
     set_frame_time,
 )
 from rfr_viz.viewer import DEFAULT_PORT, ViewerUnavailable
-from robofailring._atomic import atomic_path
+from robofailring.atomic import atomic_path
 from robofailring.data.images import as_rgb, encode_jpeg
 from robofailring.data.layouts import load_trajectory
 from robofailring.data.model import Frame

@@ -10,7 +10,7 @@ from typing import Any, Final, Literal
 
 import numpy as np
 
-from robofailring._atomic import atomic_path
+from robofailring.atomic import atomic_path
 from robofailring.memory import FailureMemory
 
 CACHE_FILE: Final[str] = "umap.npz"

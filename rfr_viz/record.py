@@ -20,7 +20,7 @@ from rfr_viz.contrast import log_contrast
 from rfr_viz.memory_umap import MemoryMap, fit_map
 from rfr_viz.neighbors import Cell, NeighborImages, log_neighbors
 from rfr_viz.paths import APPLICATION_ID, DEFAULT_FPS, FRAME, PROPERTIES, REPLAY, TIME, DetectorPaths
-from robofailring._atomic import atomic_path
+from robofailring.atomic import atomic_path
 from robofailring.data.model import Trajectory
 from robofailring.detector import DetectionTrace
 from robofailring.errors import SymbolError

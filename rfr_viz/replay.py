@@ -13,7 +13,7 @@ from typing import Final
 from rfr_viz.camera_video import CameraCodec
 from rfr_viz.memory_umap import MemoryMap, memory_map
 from rfr_viz.record import compare_recording, record_replay
-from robofailring._atomic import output_lock, remove_file_leftovers
+from robofailring.atomic import output_lock, remove_file_leftovers
 from robofailring.data.layouts import detect_layout, load_dataset, load_trajectory
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.detector import DEFAULT_K, DetectionTrace, FailureDetector, check_stride

@@ -15,7 +15,7 @@ from typing import Any, Final
 
 from rfr_viz.chart_svg import chart_svg
 from rfr_viz.eval_charts import evaluation_charts
-from robofailring._atomic import write_text_atomic
+from robofailring.atomic import write_text_atomic
 
 REPORT_NAME: Final[str] = "report.html"
 STYLE: Final[str] = """

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Final
 
-from rfr_viz.viewer import _environment, _stop, verify_recording, viewer_binary
+from rfr_viz.viewer import stop_viewer, verify_recording, viewer_binary, viewer_environment
 from robofailring.errors import DataError
 
 DEFAULT_HOST: Final[str] = "127.0.0.1"
@@ -57,7 +57,7 @@ class SharedFolder:
 
     def stop(self) -> None:
         if self.process is not None:
-            _stop(self.process)
+            stop_viewer(self.process)
         if self.runtime_dir is not None:
             shutil.rmtree(self.runtime_dir, ignore_errors=True)
 
@@ -117,7 +117,7 @@ def share_folder(
     with shared.log.open("wb") as log:
         shared.process = subprocess.Popen(
             command,
-            env=_environment(shared.runtime_dir),
+            env=viewer_environment(shared.runtime_dir),
             stdout=log,
             stderr=subprocess.STDOUT,
             start_new_session=True,

@@ -71,7 +71,7 @@ def check_vulkan() -> None:
         )
 
 
-def _environment(runtime_dir: str) -> dict[str, str]:
+def viewer_environment(runtime_dir: str) -> dict[str, str]:
     return {**os.environ, "CI": "1", "XDG_RUNTIME_DIR": runtime_dir, "RERUN_ANALYTICS": "0"}
 
 
@@ -81,7 +81,7 @@ def verify_recording(recording: Path) -> None:
         os.chmod(runtime_dir, 0o700)
         result = subprocess.run(
             [str(viewer_binary()), "rrd", "verify", str(recording)],
-            env=_environment(runtime_dir),
+            env=viewer_environment(runtime_dir),
             capture_output=True,
             text=True,
             timeout=120,
@@ -130,7 +130,7 @@ def _viewer_process(size: tuple[int, int], deadline: float) -> Iterator[int]:
         with log_path.open("wb") as log:
             process = subprocess.Popen(
                 _viewer_command(port, headless=True, size=size),
-                env=_environment(runtime_dir),
+                env=viewer_environment(runtime_dir),
                 stdout=log,
                 stderr=subprocess.STDOUT,
                 start_new_session=True,
@@ -143,10 +143,10 @@ def _viewer_process(size: tuple[int, int], deadline: float) -> Iterator[int]:
                     raise ViewerUnavailable(f"{error}; viewer output:\n{tail}") from error
                 yield port
             finally:
-                _stop(process)
+                stop_viewer(process)
 
 
-def _stop(process: subprocess.Popen[bytes]) -> None:
+def stop_viewer(process: subprocess.Popen[bytes]) -> None:
     if process.poll() is not None:
         return
     with contextlib.suppress(ProcessLookupError):
@@ -313,7 +313,7 @@ class OpenedRecording:
     def close(self) -> None:
         """Stop the viewer if it was started here (a viewer that was already running is left alone)."""
         if self.process is not None:
-            _stop(self.process)
+            stop_viewer(self.process)
         if self.runtime_dir is not None:
             shutil.rmtree(self.runtime_dir, ignore_errors=True)
 
@@ -344,7 +344,7 @@ def open_at(
             check_vulkan()
         opened.runtime_dir = tempfile.mkdtemp(prefix="rfr-viewer-")
         os.chmod(opened.runtime_dir, 0o700)
-        env = _environment(opened.runtime_dir) if headless else {**os.environ, "RERUN_ANALYTICS": "0"}
+        env = viewer_environment(opened.runtime_dir) if headless else {**os.environ, "RERUN_ANALYTICS": "0"}
         log_path = Path(opened.runtime_dir) / "viewer.log"
         with log_path.open("wb") as log:
             opened.process = subprocess.Popen(

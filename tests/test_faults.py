@@ -243,7 +243,7 @@ def test_two_builds_to_one_out(memory: Path, data: Path, cache: list[str]) -> No
         [
             sys.executable,
             "-c",
-            "import sys; from robofailring._atomic import output_lock\n"
+            "import sys; from robofailring.atomic import output_lock\n"
             "with output_lock(sys.argv[1]):\n    print('held', flush=True); sys.stdin.read()",
             str(memory),
         ],

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from robofailring._atomic import write_text_atomic
+from robofailring.atomic import write_text_atomic
 from robofailring.data.layouts import load_dataset
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.detector import (
@@ -599,9 +599,7 @@ def _deploy_successes(
     for task in sorted({t.task for t in test}):
         runs = sorted((t for t in test if t.task == task and not t.is_failure), key=lambda t: t.key)
         chosen += runs[:per_task]
-    memory.successes = memory.successes.extended(
-        SuccessMemory.build(chosen, encoder, step=step)
-    )
+    memory.successes = memory.successes.extended(SuccessMemory.build(chosen, encoder, step=step))
     keys = {t.key for t in chosen}
     return [t for t in test if t.key not in keys]
 

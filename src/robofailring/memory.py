@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any, Final
 import faiss
 import numpy as np
 
-from robofailring._atomic import atomic_directory, output_lock, restore_interrupted, write_text_atomic
+from robofailring.atomic import atomic_directory, output_lock, restore_interrupted, write_text_atomic
 from robofailring.data.model import Frame, Outcome, Skipped, Trajectory
 from robofailring.encoders.base import l2_normalize
 from robofailring.encoders.cache import CachedEncoder

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from robofailring._atomic import output_lock
+from robofailring.atomic import output_lock
 from robofailring.data.layouts import load_dataset, load_trajectory
 from robofailring.data.model import Trajectory
 from robofailring.detector import DEFAULT_K, DetectionTrace, FailureDetector, check_stride

@@ -22,7 +22,7 @@ from typing import Any, Final
 
 import numpy as np
 
-from robofailring._atomic import atomic_directory
+from robofailring.atomic import atomic_directory
 from robofailring.data.images import decode_image
 from robofailring.data.layouts import load_dataset
 from robofailring.data.model import Frame, Outcome, Trajectory

@@ -9,7 +9,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from robofailring._atomic import atomic_path
+from robofailring.atomic import atomic_path
 from robofailring.data.images import read_image
 from robofailring.data.layouts import read_project_manifest
 from robofailring.errors import DataError

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Final
 
-from robofailring._atomic import atomic_directory
+from robofailring.atomic import atomic_directory
 from robofailring.data.images import write_png
 from robofailring.data.layouts import PROJECT_FORMAT, PROJECT_MANIFEST
 from robofailring.errors import DataError, SettingError

@@ -1,4 +1,4 @@
-"""Atomic writes: everything is written under a temporary name and renamed into place.
+"""Atomic writes (public: the library and rfr_viz both use them): everything is written under a temporary name and renamed into place.
 
 Temporary names are `.<final name>.<8 random characters>.tmp[suffix]` beside the final path; a
 replaced folder is moved aside as `.<final name>.<8 characters>.old` until its successor is in
