@@ -205,3 +205,29 @@ def test_out_of_range_settings_are_refused_before_any_work(aha_dataset: Path, tm
     assert not (tmp_path / "eval").exists() and not list((tmp_path / "rec").glob("*.rrd"))
     manifest = json.loads((memory / "manifest.json").read_text())
     assert manifest.get("calibration") is None  # the refused calibration wrote nothing
+
+
+LIBRARY_VERBS = ["generate", "build-memory", "detect", "calibrate", "memory-info", "train-encoder"]
+RECORDING_VERBS = ["replay", "compare", "open", "share", "evaluate", "review", "compare-encoders", "demo"]
+
+
+def test_one_command_composed_from_apps_that_stay_as_they_are() -> None:
+    """`robofailring` is assembled once, by composition: importing it adds no verb to the library's app."""
+    import typer.main
+
+    from rfr_viz.cli import app as full
+
+    assert [c.name for c in app.registered_commands] == LIBRARY_VERBS
+    group = typer.main.get_command(full)
+    assert isinstance(group, typer.main.TyperGroup)
+    assert list(group.commands) == [*LIBRARY_VERBS, *RECORDING_VERBS, "explain", "watch"]
+    result = subprocess.run(
+        [Path(sys.executable).with_name("robofailring"), "--help"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    listed = [
+        line.split()[1] for line in result.stdout.splitlines() if line.startswith("│ ") and line.split()[1:2]
+    ]
+    assert [verb for verb in listed if verb in group.commands] == list(group.commands)

@@ -1,151 +1,54 @@
-"""The `robofailring` command line: thin typer verbs over the library."""
+"""The library's verbs (generate, build-memory, detect, calibrate, memory-info, train-encoder) as one typer app.
+
+Thin: each parses, builds a config and calls one library function. `rfr_viz.cli` composes this app
+with the recording verbs into the one `robofailring` command.
+"""
 
 from __future__ import annotations
 
 import json
 import sys
-from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, NoReturn
+from typing import TYPE_CHECKING, Annotated
 
 import numpy as np
 import typer
 
 from robofailring.data.layouts import read_project_manifest
-from robofailring.data.model import Skipped
 from robofailring.errors import RoboFailRingError
-from robofailring.exit_codes import ErrorMappingGroup, fail, finish
+from robofailring.exit_codes import ErrorMappingGroup, finish
 from robofailring.progress import progress_bar
-from robofailring.references import ReferenceCheck, check_references
+from robofailring.references import check_references
 from robofailring.thinning import DEFAULT_STEP
 
 if TYPE_CHECKING:
-    from robofailring.vlm import VLMConfig
+    pass
 
-app = typer.Typer(
-    name="robofailring",
+from robofailring.cli_options import (
+    CacheOption,
+    DataRootOption,
+    DeviceOption,
+    EncoderOption,
+    GammaOption,
+    LabelsOption,
+    ScoreOption,
+    StrideOption,
+    SuccessStepOption,
+    VLMModelOption,
+    VLMUrlOption,
+    exit_with_error,
+    report_skipped,
+    vlm_config,
+    warn_missing_references,
+)
+
+app = typer.Typer(  # unnamed, so rfr_viz.cli merges its verbs into the one `robofailring` command
     cls=ErrorMappingGroup,  # every verb: a one-line error and its exit status (robofailring.exit_codes)
-    help="Retrieval-based robot failure detection (RoboFailRing) and its Rerun recordings.",
+    help="The library's verbs of RoboFailRing (the full command is `robofailring`).",
     no_args_is_help=True,
     pretty_exceptions_enable=False,
     add_completion=False,
 )
-
-EncoderOption = Annotated[
-    str,
-    typer.Option(
-        "--encoder",
-        help="`pixels` (weight-free), `open_clip:<model>[:<pretrained tag or checkpoint path>]` or `trained:<DIR>`.",
-    ),
-]
-CacheOption = Annotated[
-    Path | None, typer.Option("--cache-dir", help="Embedding cache folder (default ~/.cache/robofailring).")
-]
-DeviceOption = Annotated[
-    str | None, typer.Option("--device", help="torch device (default: cuda if available).")
-]
-StrideOption = Annotated[
-    int,
-    typer.Option(
-        "--stride",
-        help="Score every Nth frame of long episodes (I_0 stays frame 0; t_det and T_s in original frames).",
-    ),
-]
-LabelsOption = Annotated[
-    Path | None,
-    typer.Option(
-        "--labels",
-        help="Outcome and failure symbol per episode: a JSON list or CSV of episode_index, outcome, symbol "
-        "(LeRobot datasets; `episode` names an episode folder).",
-    ),
-]
-VLMUrlOption = Annotated[
-    str | None,
-    typer.Option(
-        "--vlm-url",
-        help="Base URL of an OpenAI-compatible server (e.g. http://localhost:11434/v1) to ask about the "
-        "report; key from $ROBOFAILRING_VLM_API_KEY.",
-    ),
-]
-VLMModelOption = Annotated[
-    str | None, typer.Option("--vlm-model", help="Model the VLM server serves (with --vlm-url).")
-]
-ScoreOption = Annotated[
-    str | None,
-    typer.Option(
-        "--score",
-        help="Scoring rule: `paper` (S_t ≥ δ) or `contrast` (C_t = S⁻_t − S⁺_t ≥ γ); "
-        "default: contrast when the memory has success runs, else paper.",
-    ),
-]
-GammaOption = Annotated[
-    float | None,
-    typer.Option(help="Contrast threshold γ (default: the memory's calibrated γ, else 0)."),
-]
-
-
-def report_skipped(skipped: Sequence[Skipped], *, shown: int = 5) -> None:
-    """One summary line of what the loaders did not read, then the first few with their reason (stderr)."""
-    if not skipped:
-        return
-    typer.secho(
-        f"note: {len(skipped)} folder(s)/file(s) under the data were not read"
-        + (f"; the first {shown}:" if len(skipped) > shown else ":"),
-        fg=typer.colors.YELLOW,
-        err=True,
-    )
-    for item in skipped[:shown]:
-        typer.secho(f"  {item.path}: {item.reason}", err=True)
-
-
-SuccessStepOption = Annotated[
-    float,
-    typer.Option(
-        "--success-step",
-        help="Keep a success frame only when its cosine to the last kept frame of its run is below "
-        "1 - STEP (0 keeps every frame).",
-    ),
-]
-DataRootOption = Annotated[
-    Path | None,
-    typer.Option(
-        "--data-root",
-        help="Where the memory's dataset is now, when it moved since the memory was built "
-        "(its images are looked up there).",
-    ),
-]
-
-
-def warn_missing_references(memory: Path, check: ReferenceCheck) -> None:
-    """One warning line when a memory's reference images cannot be found (nothing silent)."""
-    if not check.ok:
-        typer.secho(
-            f"warning: memory {memory}: "
-            + check.summary(
-                hint="; if the dataset moved, pass --data-root DIR (see `robofailring memory-info`)"
-            ),
-            fg=typer.colors.YELLOW,
-            err=True,
-        )
-
-
-def exit_with_error(error: Exception) -> NoReturn:
-    fail(error)
-
-
-def vlm_config(url: str | None, model: str | None) -> VLMConfig | None:
-    """The VLM to ask, from --vlm-url and --vlm-model (both or neither; bad usage otherwise)."""
-    from robofailring.vlm import VLMConfig, VLMError
-
-    if url is None or model is None:
-        if url is not None or model is not None:
-            exit_with_error(ValueError("--vlm-url and --vlm-model go together: give both or neither"))
-        return None
-    try:
-        return VLMConfig(url=url, model=model)
-    except VLMError as error:
-        exit_with_error(error)
-        return None
 
 
 @app.command("generate")
@@ -478,11 +381,3 @@ def train_encoder_cmd(
     except (RoboFailRingError, ValueError) as error:
         exit_with_error(error)
     typer.echo(f"use it with: --encoder trained:{folder}")
-
-
-def main() -> None:
-    app()
-
-
-if __name__ == "__main__":
-    main()

@@ -9,17 +9,18 @@ from typing import Annotated
 
 import typer
 
-from robofailring.cli import (
+from robofailring.cli_options import (
     CacheOption,
     DataRootOption,
     DeviceOption,
     VLMModelOption,
     VLMUrlOption,
-    app,
     exit_with_error,
     vlm_config,
 )
 from robofailring.errors import RoboFailRingError
+
+app = typer.Typer(add_completion=False)  # composed into the one `robofailring` command by rfr_viz.cli
 
 
 @app.command("explain")

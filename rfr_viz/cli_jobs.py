@@ -1,4 +1,4 @@
-"""CLI verbs that combine the library with recordings: evaluate (and, from here, the demo)."""
+"""The jobs people run over a whole dataset: `evaluate`, `review`, `compare-encoders` and `demo`."""
 
 from __future__ import annotations
 
@@ -8,8 +8,9 @@ from typing import Annotated
 import typer
 
 from rfr_viz.camera_video import CameraCodec, CameraCodecOption
+from rfr_viz.cli_replay import warn_vlm_errors
 from rfr_viz.viewer import open_at_command, open_command
-from robofailring.cli import (
+from robofailring.cli_options import (
     CacheOption,
     DataRootOption,
     DeviceOption,
@@ -20,7 +21,6 @@ from robofailring.cli import (
     SuccessStepOption,
     VLMModelOption,
     VLMUrlOption,
-    app,
     exit_with_error,
     report_skipped,
     vlm_config,
@@ -30,6 +30,8 @@ from robofailring.errors import RoboFailRingError
 from robofailring.exit_codes import finish
 from robofailring.outputs import check_output_folder
 from robofailring.thinning import DEFAULT_STEP
+
+app = typer.Typer(add_completion=False)  # composed into the one `robofailring` command by rfr_viz.cli
 
 
 @app.command("evaluate")
@@ -121,7 +123,6 @@ def review_cmd(
     vlm_model: VLMModelOption = None,
 ) -> None:
     """Replay only the false alarms (or the misses) of an evaluation, each recording focused on the moment."""
-    from rfr_viz.cli import warn_vlm_errors
     from rfr_viz.review import ReviewConfig, review
 
     vlm = vlm_config(vlm_url, vlm_model)
