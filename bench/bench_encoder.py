@@ -31,15 +31,14 @@ from sklearn.metrics import roc_auc_score
 from rfr_viz.demo import DemoConfig
 from rfr_viz.memory_umap import memory_map
 from robofailring import FailureMemory, load_dataset, load_encoder
+from robofailring.calibration import CalibrateConfig, calibrate
 from robofailring.encoders import default_cache_dir, encoder_slug
 from robofailring.encoders.trained import CONFIG_NAME, prepare_images
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
 from robofailring.evaluation import (
-    CalibrateConfig,
     EvaluateConfig,
     EvaluationResult,
     build_training_memory,
-    calibrate,
     run_evaluation,
 )
 from robofailring.grounding import failure_type

@@ -16,8 +16,8 @@ from pathlib import Path
 
 from rfr_viz.closed_loop import run_closed_loop
 from robofailring import CachedEncoder, FailureMemory, load_dataset, load_encoder
+from robofailring.calibration import CalibrateConfig, calibrate
 from robofailring.encoders import default_cache_dir
-from robofailring.evaluation import CalibrateConfig, calibrate
 from robofailring.sim import GenerateConfig, generate_dataset
 
 

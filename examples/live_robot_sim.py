@@ -19,8 +19,8 @@ from pathlib import Path
 
 from rfr_viz import LiveRecording, LiveTarget
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
+from robofailring.calibration import CalibrateConfig, calibrate
 from robofailring.encoders import default_cache_dir
-from robofailring.evaluation import CalibrateConfig, calibrate
 from robofailring.sim import VIEWS, GenerateConfig, generate_dataset, run_episode
 from robofailring.sim.episode import episode_fps
 

@@ -15,16 +15,15 @@ from rfr_viz.memory_umap import memory_map
 from rfr_viz.record import record_replay
 from rfr_viz.replay import recording_name
 from rfr_viz.report_html import REPORT_NAME, write_report
+from robofailring.calibration import CalibrateConfig, calibrate
 from robofailring.comparison import CompareEncodersConfig
 from robofailring.data.layouts import load_dataset
 from robofailring.encoders import default_cache_dir
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
 from robofailring.evaluation import (
-    CalibrateConfig,
     EvaluateConfig,
     EvaluationResult,
     build_training_memory,
-    calibrate,
     run_evaluation,
     write_evaluation,
 )

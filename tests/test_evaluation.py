@@ -16,10 +16,9 @@ from robofailring import (
     load_dataset,
     load_encoder,
 )
+from robofailring.calibration import CalibrateConfig, calibrate
 from robofailring.evaluation import (
-    CalibrateConfig,
     EvaluateConfig,
-    calibrate,
     check_disjoint,
     run_evaluation,
     select_splits,

@@ -11,11 +11,17 @@ from __future__ import annotations
 import contextlib
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from pathlib import Path
 
-from robofailring.data.model import Trajectory
-from robofailring.detector import FailureDetector
+from robofailring.data.layouts import load_dataset
+from robofailring.data.model import Skipped, Trajectory
+from robofailring.detector import PAPER_DELTA, FailureDetector, check_k, check_stride
+from robofailring.encoders import CachedEncoder, load_encoder
 from robofailring.errors import DataError
+from robofailring.memory import FailureMemory
+from robofailring.metrics import check_target_fpr
+from robofailring.progress import progress_bar
 from robofailring.scoring import ScoreRule, conformal_threshold, empirical_fpr
 
 
@@ -93,3 +99,93 @@ def calibrate_rules(
             successes=len(scored),
         )
     return calibrations
+
+
+@dataclass(frozen=True)
+class CalibrateConfig:
+    data: Path  # dataset holding success trajectories to calibrate on
+    memory: Path  # memory directory; the chosen δ is written into its manifest
+    target_fpr: float = 0.05
+    split: str | None = "train"  # successes of this split (None: all; ignored if the data has no splits)
+    k: int = 5
+    cache_dir: Path | None = None
+    device: str | None = None
+    stride: int = 1  # score every stride-th frame of each success run
+    labels: Path | None = None  # labels file for data whose names do not say the outcome (LeRobot)
+
+    def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
+        check_k(self.k)
+        check_stride(self.stride)
+        check_target_fpr(self.target_fpr)
+
+
+@dataclass(frozen=True)
+class Calibration:
+    delta: float
+    target_fpr: float
+    achieved_fpr: float
+    successes: int
+    encoder: str
+    skipped_inputs: list[Skipped] = field(default_factory=list)  # folders/files of the data not read
+    gamma: float | None = None  # the contrast rule's γ, when the memory has success runs
+    gamma_achieved_fpr: float | None = None
+
+
+def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None = None) -> Calibration:
+    """Set δ and γ (split conformal, level = target FPR) on success runs and store them in the manifest."""
+    from robofailring.pipeline import encoder_spec_for
+
+    memory = FailureMemory.load(config.memory)
+    encoder = CachedEncoder(
+        load_encoder(encoder_spec_for(memory), device=config.device), cache_dir=config.cache_dir
+    )
+    detector = FailureDetector(memory, encoder, delta=PAPER_DELTA, k=config.k, rule=ScoreRule.PAPER)
+    dataset = load_dataset(config.data, labels=config.labels)
+    dataset.require_labels("calibrate")
+    source = list(dataset.trajectories())
+    has_splits = any(t.split for t in source)
+    successes = [
+        t
+        for t in source
+        if not t.is_failure and t.task in memory.tasks and (not has_splits or config.split in (None, t.split))
+    ]
+    if not successes:
+        raise DataError(
+            f"no success trajectories of the memory's tasks in {config.data} (split {config.split!r})"
+        )
+    with progress_bar(total=len(successes), desc="calibrating", unit="traj") as bar:
+
+        def advance(count: int) -> None:
+            bar.update(count)
+            if progress is not None:
+                progress(count)
+
+        found = calibrate_rules(
+            detector, successes, config.target_fpr, progress=advance, stride=config.stride
+        )
+    paper, contrast = found[ScoreRule.PAPER], found.get(ScoreRule.CONTRAST)
+    memory.manifest["calibration"] = {
+        "encoder": memory.encoder,
+        "delta": paper.threshold,
+        "gamma": contrast.threshold if contrast is not None else None,
+        "method": "split conformal, own episode left out",
+        "target_fpr": config.target_fpr,
+        "achieved_fpr": paper.achieved_fpr,
+        "gamma_achieved_fpr": contrast.achieved_fpr if contrast is not None else None,
+        "successes": paper.successes,
+        "data": str(Path(config.data).resolve()),
+        "split": config.split,
+        "k": config.k,
+        "stride": config.stride,
+    }
+    memory.write_manifest(config.memory)
+    return Calibration(
+        delta=paper.threshold,
+        target_fpr=config.target_fpr,
+        achieved_fpr=paper.achieved_fpr,
+        successes=paper.successes,
+        encoder=memory.encoder,
+        skipped_inputs=dataset.skipped,
+        gamma=contrast.threshold if contrast is not None else None,
+        gamma_achieved_fpr=contrast.achieved_fpr if contrast is not None else None,
+    )

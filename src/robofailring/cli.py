@@ -287,7 +287,7 @@ def calibrate_cmd(
     device: DeviceOption = None,
 ) -> None:
     """Set δ and γ (split conformal) for a target false-positive rate on success runs; detect then uses them."""
-    from robofailring.evaluation import CalibrateConfig, calibrate
+    from robofailring.calibration import CalibrateConfig, calibrate
 
     try:
         result = calibrate(

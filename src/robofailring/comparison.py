@@ -7,13 +7,12 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from robofailring.calibration import CalibrateConfig, calibrate
 from robofailring.encoders import encoder_slug, load_encoder
 from robofailring.evaluation import (
-    CalibrateConfig,
     EvaluateConfig,
     EvaluationResult,
     build_training_memory,
-    calibrate,
     run_evaluation,
 )
 

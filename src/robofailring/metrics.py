@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Final
@@ -136,3 +137,8 @@ def check_target_fpr(target_fpr: float) -> float:
     if not 0.0 < target_fpr < 1.0:
         raise SettingError(f"target FPR must be in (0, 1), got {target_fpr}")
     return target_fpr
+
+
+def json_number(value: float) -> float | None:
+    """A metric for JSON: NaN (undefined, e.g. recall without failures) becomes null."""
+    return None if math.isnan(value) else round(float(value), 6)

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from robofailring.detector import DetectionTrace
-from robofailring.metrics import ScoredTrajectory, rates, timeliness
+from robofailring.metrics import ScoredTrajectory, json_number, rates, timeliness
 from robofailring.scoring import ScoreRule, auc
 
 
@@ -42,15 +42,15 @@ class RuleResult:
         return {
             "threshold": self.threshold,
             "calibrated": self.calibrated,
-            "recall": _num(self.recall),
-            "fpr": _num(self.fpr),
+            "recall": json_number(self.recall),
+            "fpr": json_number(self.fpr),
             "tp": self.tp,
             "fn": self.fn,
             "fp": self.fp,
             "tn": self.tn,
-            "ts_mean": _num(self.ts_mean),
-            "ts_median": _num(self.ts_median),
-            "auc": _num(self.auc),
+            "ts_mean": json_number(self.ts_mean),
+            "ts_median": json_number(self.ts_median),
+            "auc": json_number(self.auc),
             "frame0_success_alarms": self.frame0_success_alarms,
             "false_alarms": list(self.false_alarms),
             "misses": list(self.misses),
@@ -114,10 +114,6 @@ def evaluate_rule(
         false_alarms=tuple(t.key for t in scored if not t.is_failure and t.t_det(threshold) is not None),
         misses=tuple(t.key for t in scored if t.is_failure and t.t_det(threshold) is None),
     )
-
-
-def _num(value: float) -> float | None:
-    return None if math.isnan(value) else round(value, 6)
 
 
 def _pct(value: float) -> str:
