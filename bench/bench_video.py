@@ -33,7 +33,8 @@ from rfr_viz.camera_video import (
     encode_video,
     log_camera_views,
 )
-from rfr_viz.record import open_recording, time_columns
+from rfr_viz.panel_scores import time_columns
+from rfr_viz.record import open_recording
 from robofailring import load_trajectory
 from robofailring.data.images import decode_image, encode_jpeg, write_png
 from robofailring.data.model import Trajectory

@@ -13,6 +13,7 @@ import rerun.blueprint as rrb
 
 from rfr_viz._images import JPEG_MEDIA_TYPE, JPEG_QUALITY
 from rfr_viz.blueprint import side_panels
+from rfr_viz.panel_scores import set_frame_time, time_columns
 from rfr_viz.paths import (
     CLOSED_LOOP_SUMMARY,
     FRAME,
@@ -22,14 +23,8 @@ from rfr_viz.paths import (
     ClosedLoopPaths,
     DetectorPaths,
 )
-from rfr_viz.record import (
-    DELTA_COLOUR,
-    STATE_COLOUR,
-    VIEW_COLOURS,
-    open_recording,
-    set_frame_time,
-    time_columns,
-)
+from rfr_viz.record import open_recording
+from rfr_viz.styles import DELTA_COLOUR, STATE_COLOUR, VIEW_COLOURS
 from robofailring.data.images import encode_jpeg
 from robofailring.detector import DEFAULT_K, FailureDetector, StepResult
 from robofailring.encoders.base import Encoder

@@ -2,18 +2,16 @@
 
 from __future__ import annotations
 
-from typing import Final
-
 import numpy as np
 import rerun as rr
 
 from rfr_viz._images import JPEG_MEDIA_TYPE, reference_jpeg
 from rfr_viz.neighbors import changes
+from rfr_viz.panel_scores import set_frame_time, time_columns
 from rfr_viz.paths import DetectorPaths
+from rfr_viz.styles import GAMMA_COLOUR
 from robofailring.detector import DetectionTrace
 from robofailring.success_memory import SuccessMatch
-
-GAMMA_COLOUR: Final[tuple[int, int, int]] = (255, 120, 200)
 
 
 def _series(
@@ -23,8 +21,6 @@ def _series(
     *,
     fps: float,
 ) -> None:
-    from rfr_viz.record import time_columns  # record imports this module
-
     values = np.asarray(values, dtype=np.float64)
     present = np.flatnonzero(np.isfinite(values))
     rec.send_columns(
@@ -126,8 +122,6 @@ def _log_nearest_success(
 ) -> None:
     """The nearest success frame per view, its picture re-logged only where it changes (text every
     scored frame; with a stride, unscored frames have none)."""
-    from rfr_viz.record import set_frame_time  # record imports this module
-
     cache: dict[str, bytes | None] = {}
     scored = trace.scored_frames
     for view in trace.views:

@@ -28,16 +28,11 @@ from rfr_viz.camera_video import CameraCodec, send_camera_properties
 from rfr_viz.contrast import log_contrast_styles, log_nearest_success
 from rfr_viz.memory_umap import MemoryMap
 from rfr_viz.neighbors import DEFAULT_CELL, Cell, NeighborImages, log_neighbor_entry, log_neighbor_layout
+from rfr_viz.panel_map import class_id, log_memory_map, map_title
+from rfr_viz.panel_report import log_alarm
+from rfr_viz.panel_scores import log_score_styles, set_frame_time
 from rfr_viz.paths import APPLICATION_ID, DEFAULT_FPS, PROPERTIES, REPLAY, camera
-from rfr_viz.record import (
-    VIEW_COLOURS,
-    class_id,
-    log_alarm,
-    log_memory_map,
-    log_score_styles,
-    map_title,
-    set_frame_time,
-)
+from rfr_viz.styles import VIEW_COLOURS
 from rfr_viz.viewer import DEFAULT_PORT, ViewerUnavailable
 from robofailring.atomic import atomic_path
 from robofailring.data.images import as_rgb, encode_jpeg

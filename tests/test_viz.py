@@ -18,6 +18,7 @@ from synthetic import write_episode
 from typer.testing import CliRunner
 
 import rfr_viz.memory_umap as memory_umap_module
+import rfr_viz.panel_map as map_panel
 import rfr_viz.record as record_module
 from rfr_viz._images import reference_jpeg
 from rfr_viz.cli import app
@@ -505,9 +506,9 @@ def test_large_memories_label_only_the_replayed_tasks_points(monkeypatch: pytest
         MemoryEntry(task, "slip_wp3", f"episode{i}", "front", "s.png", "e.png")
         for i, task in enumerate(["pick_cube", "push_cube"] * 3)
     ]
-    assert all(record_module.map_labels(entries, task="pick_cube"))
-    monkeypatch.setattr(record_module, "LABELLED_ENTRIES_MAX", 4)
-    labels = record_module.map_labels(entries, task="pick_cube")
+    assert all(map_panel.map_labels(entries, task="pick_cube"))
+    monkeypatch.setattr(map_panel, "LABELLED_ENTRIES_MAX", 4)
+    labels = map_panel.map_labels(entries, task="pick_cube")
     assert labels[0] == "pick_cube · slip_wp3 · front · episode0" and labels[1] == ""
     assert [bool(label) for label in labels] == [True, False] * 3
 
