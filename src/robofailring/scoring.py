@@ -22,6 +22,7 @@ from robofailring.errors import DataError, SettingError
 from robofailring.metrics import check_target_fpr
 
 DEFAULT_GAMMA: Final[float] = 0.0  # uncalibrated contrast: nearer a failure's end than any success frame
+PAPER_DELTA: Final[float] = 0.92  # the paper's default δ (§4), used until a memory is calibrated
 
 
 class ScoreRule(StrEnum):
