@@ -140,3 +140,23 @@ def test_cache_notices_a_rewritten_file(tmp_path: Path, cache_dir: Path) -> None
     assert counting.encoded == 2
     np.testing.assert_array_equal(second[0], PixelEncoder().encode([images[1]])[0])
     assert not np.array_equal(first, second)
+
+
+def test_memories_record_encoder_files_as_absolute_paths(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, tiny_checkpoint: tuple[Path, Path]
+) -> None:
+    """A relative `trained:` folder or checkpoint path would not resolve from another working directory."""
+    from robofailring.encoders import portable_spec
+
+    config, checkpoint = tiny_checkpoint
+    monkeypatch.chdir(checkpoint.parent)
+    assert (
+        portable_spec(f"trained:{tmp_path.name}")
+        == f"trained:{(checkpoint.parent / tmp_path.name).resolve()}"
+    )
+    assert (
+        portable_spec(f"open_clip:{config.name}:{checkpoint.name}")
+        == f"open_clip:{config.resolve()}:{checkpoint.resolve()}"
+    )
+    assert portable_spec("open_clip:ViT-B-32:openai") == "open_clip:ViT-B-32:openai"
+    assert portable_spec(" pixels ") == "pixels"

@@ -21,7 +21,7 @@ from robofailring.detector import (
     check_k,
     check_stride,
 )
-from robofailring.encoders import CachedEncoder, load_encoder
+from robofailring.encoders import CachedEncoder, load_encoder, portable_spec
 from robofailring.errors import DataError, RoboFailRingError, SettingError
 from robofailring.evaluation_result import EvaluationResult
 from robofailring.memory import FailureMemory
@@ -186,7 +186,7 @@ def build_training_memory(
         {
             "source": str(Path(config.data).resolve()),
             "split": config.train_split,
-            "encoder_spec": config.encoder,
+            "encoder_spec": portable_spec(config.encoder),
         }
     )
     memory_dir = config.memory_out or Path(config.out) / "memory"

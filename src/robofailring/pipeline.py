@@ -9,7 +9,7 @@ from robofailring.atomic import output_lock
 from robofailring.data.layouts import load_dataset, load_trajectory
 from robofailring.data.model import Trajectory
 from robofailring.detector import DEFAULT_K, DetectionTrace, FailureDetector, check_stride
-from robofailring.encoders import CachedEncoder, load_encoder
+from robofailring.encoders import CachedEncoder, load_encoder, portable_spec
 from robofailring.errors import DataError, EncoderError, MemoryFormatError
 from robofailring.memory import BuildStats, FailureMemory
 from robofailring.outputs import check_memory_target, is_memory_dir
@@ -80,7 +80,7 @@ def _build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]
     memory.manifest["skipped_inputs"] = [skipped.to_dict() for skipped in dataset.skipped]
     memory.manifest["source"] = str(Path(config.data).resolve())
     memory.manifest["layout"] = dataset.layout
-    memory.manifest["encoder_spec"] = config.encoder
+    memory.manifest["encoder_spec"] = portable_spec(config.encoder)
     if config.split is not None:
         memory.manifest["split"] = config.split
     stats.notes.extend(_dropped_calibration(config.out))

@@ -40,6 +40,19 @@ def load_encoder(spec: str, *, device: str | None = None) -> Encoder:
     raise EncoderError(f"unknown encoder spec {spec!r}; expected {ENCODER_SPECS_HELP}")
 
 
+def portable_spec(spec: str) -> str:
+    """The spec a memory records: a `trained:` folder or an open_clip checkpoint file as an absolute
+    path, so the memory finds its encoder again from any working directory."""
+    spec = spec.strip()
+    if spec.startswith("trained:"):
+        return f"trained:{Path(spec[len('trained:') :]).resolve()}"
+    if spec.startswith("open_clip:"):
+        model, _, weights = spec[len("open_clip:") :].partition(":")
+        parts = [Path(part).resolve() if Path(part).is_file() else part for part in (model, weights)]
+        return "open_clip:" + ":".join(str(part) for part in parts if str(part))
+    return spec
+
+
 def encoder_slug(identity: str) -> str:
     """A short path-safe name for an encoder identity, e.g. `vit-b-32` or `pixels`."""
     if identity.startswith("open_clip:"):
@@ -58,4 +71,5 @@ __all__ = [
     "encoder_slug",
     "l2_normalize",
     "load_encoder",
+    "portable_spec",
 ]
