@@ -159,7 +159,7 @@ def test_memory_info_text(relative_build: tuple[Path, Path]) -> None:
     assert "24 of 24 reference images found" in stdout
     assert "12 × 1024-d over 1 task(s)" in stdout
     assert "pick_cube  front 4, overhead 4, wrist 4" in stdout
-    assert "not calibrated" in stdout
+    assert "δ not calibrated" in stdout and "successes   none" in stdout
 
 
 def test_old_format_memory_still_resolves_and_reroots(

@@ -131,6 +131,15 @@ def test_saved_with_counts_and_old_folders_still_load(
     assert manifest["successes"]["tasks"] == {"pick_cube": 9, "push_cube": 9}  # 3 train runs x 3 views each
     # and the first frame of every training failure view: 2 tasks x 3 symbols x 3 train episodes x 3 views
     assert manifest["successes"]["failure_starts"] == 54 and manifest["successes"]["success_runs"] == 18
+    from robofailring.memory_info import MemoryInfo
+
+    info = MemoryInfo.read(out).to_dict()["successes"]
+    assert info["frames"] == len(memory.successes) and info["offered"] == memory.successes.offered
+    assert info["runs"] == 18 and {spec["kind"] for spec in info["index"].values()} == {"flat"}
+    assert (
+        f"{len(memory.successes)} frames kept of {memory.successes.offered} offered"
+        in MemoryInfo.read(out).to_text()
+    )
     loaded = FailureMemory.load(out)
     assert loaded.successes is not None
     np.testing.assert_array_equal(loaded.successes.vectors, memory.successes.vectors)

@@ -51,6 +51,8 @@ class MemoryInfo:
             "symbols": dict(sorted(Counter(e.symbol for e in self.memory.entries).items())),
             "calibration": manifest.get("calibration"),
             "calibrated_delta": self.memory.calibrated_delta,
+            "calibrated_gamma": self.memory.calibrated_gamma,
+            "successes": self._successes(),
             "source": manifest.get("source"),
             "data_root": self.recorded_root,
             "data_root_used": str(self.memory.data_root) if self.memory.data_root else None,
@@ -63,20 +65,44 @@ class MemoryInfo:
             "created": manifest.get("created"),
         }
 
+    def _successes(self) -> dict[str, Any] | None:
+        successes = self.memory.successes
+        if successes is None:
+            return None
+        return {
+            "frames": len(successes),
+            "offered": successes.offered,
+            "runs": successes.success_runs,
+            "thinning": successes.thinning,
+            "index": {task: index.spec.to_dict() for task, index in sorted(successes.index.by_task.items())},
+        }
+
     def to_text(self) -> str:
         info = self.to_dict()
-        delta = info["calibrated_delta"]
+        delta, gamma = info["calibrated_delta"], info["calibrated_gamma"]
         lines = [
             f"memory {self.directory} (format {info['format_version']}, created {info['created'] or '?'})",
             f"  encoder     {info['encoder']}"
             + (f"  (spec {info['encoder_spec']})" if info["encoder_spec"] else ""),
             f"  entries     {info['entries']} × {info['dim']}-d over {len(info['tasks'])} task(s)",
-            "  threshold   "
-            + (f"calibrated δ = {delta:.6f}" if delta is not None else "not calibrated (δ defaults to 0.92)"),
+            "  thresholds  "
+            + (f"calibrated δ = {delta:.6f}" if delta is not None else "δ not calibrated (0.92 by default)")
+            + (f", γ = {gamma:.6f}" if gamma is not None else ""),
             f"  data root   {info['data_root'] or '(not recorded: references are as given at build time)'}",
         ]
         if info["data_root_used"] and info["data_root_used"] != info["data_root"]:
             lines.append(f"  looked in   {info['data_root_used']} (--data-root)")
+        found = info["successes"]
+        if found is None:
+            lines.append(
+                "  successes   none: the paper's rule only (built with --no-successes, or before success contrast)"
+            )
+        else:
+            kinds = sorted({spec["kind"] for spec in found["index"].values()})
+            lines.append(
+                f"  successes   {found['frames']} frames kept of {found['offered']} offered, {found['runs']} success "
+                f"views; index {', '.join(kinds)}"
+            )
         refs = info["references"]
         lines.append(f"  images      {refs['found']} of {refs['total']} reference images found")
         if refs["first_missing"]:
