@@ -13,6 +13,7 @@ from robofailring.cli_options import (
     CacheOption,
     DataRootOption,
     DeviceOption,
+    TaskOption,
     VLMModelOption,
     VLMUrlOption,
     exit_with_error,
@@ -81,7 +82,7 @@ def watch_cmd(
     save: Annotated[
         Path | None, typer.Option("--save", help="Also write the same stream to this .rrd.")
     ] = None,
-    task: Annotated[str | None, typer.Option(help="Task name, when the folder name does not say.")] = None,
+    task: TaskOption = None,
     delta: Annotated[
         float | None, typer.Option(help="Threshold δ (default: the memory's calibrated δ, else 0.92).")
     ] = None,

@@ -18,6 +18,7 @@ from robofailring.cli_options import (
     LabelsOption,
     ScoreOption,
     StrideOption,
+    TaskOption,
     VLMModelOption,
     VLMUrlOption,
     exit_with_error,
@@ -42,12 +43,6 @@ TrajectoryOption = Annotated[
     ),
 ]
 KOption = Annotated[int, typer.Option("--k", help="Neighbours retrieved and logged per view and frame.")]
-TaskOption = Annotated[
-    str | None,
-    typer.Option(
-        help="Task of an episode folder whose name does not say it; on a dataset root, only this task."
-    ),
-]
 LeaveOneOutOption = Annotated[
     bool, typer.Option("--leave-one-out", help="Hide each trajectory's own episode from the memory.")
 ]

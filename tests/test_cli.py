@@ -231,3 +231,17 @@ def test_one_command_composed_from_apps_that_stay_as_they_are() -> None:
         line.split()[1] for line in result.stdout.splitlines() if line.startswith("│ ") and line.split()[1:2]
     ]
     assert [verb for verb in listed if verb in group.commands] == list(group.commands)
+
+
+def test_build_memory_takes_the_task_of_an_episode_folder_it_suggests(tmp_path: Path) -> None:
+    """The error that asks for --task is one build-memory can act on."""
+    from synthetic import write_episode
+
+    episode = write_episode(tmp_path / "episode", "pick_cube", "grasp_wp2", length=4)
+    runner = CliRunner()
+    asked = runner.invoke(app, ["build-memory", str(episode), "--out", str(tmp_path / "m")])
+    assert asked.exit_code == 2 and "--task" in asked.output
+    told = runner.invoke(
+        app, ["build-memory", str(episode), "--out", str(tmp_path / "m"), "--task", "pick_cube"]
+    )
+    assert told.exit_code == 2 and "holds no failure trajectory" in told.output  # unlabelled: not a failure

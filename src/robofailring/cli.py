@@ -34,6 +34,7 @@ from robofailring.cli_options import (
     ScoreOption,
     StrideOption,
     SuccessStepOption,
+    TaskOption,
     VLMModelOption,
     VLMUrlOption,
     exit_with_error,
@@ -104,6 +105,7 @@ def build_memory_cmd(
     encoder: EncoderOption = "pixels",
     split: Annotated[str | None, typer.Option(help="Only this split (project layout).")] = None,
     labels: LabelsOption = None,
+    task: TaskOption = None,
     no_successes: Annotated[
         bool,
         typer.Option(
@@ -128,6 +130,7 @@ def build_memory_cmd(
                 device=device,
                 labels=labels,
                 successes=not no_successes,
+                task=task,
                 success_step=success_step,
             )
         )
@@ -169,7 +172,7 @@ def detect_cmd(
     k: Annotated[int, typer.Option(help="Neighbours retrieved per query.")] = 5,
     score: ScoreOption = None,
     gamma: GammaOption = None,
-    task: Annotated[str | None, typer.Option(help="Task name, when the folder name does not say.")] = None,
+    task: TaskOption = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the full trace as one JSON object.")] = False,
     leave_one_out: Annotated[
         bool, typer.Option("--leave-one-out", help="Hide the trajectory's own episode from the memory.")

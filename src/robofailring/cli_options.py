@@ -135,3 +135,12 @@ def vlm_config(url: str | None, model: str | None) -> VLMConfig | None:
     except VLMError as error:
         exit_with_error(error)
         return None
+
+
+TaskOption = Annotated[
+    str | None,
+    typer.Option(
+        help="Task of episodes whose names do not say it (an episode folder, video episodes); "
+        "replay and compare on a dataset root keep only this task."
+    ),
+]

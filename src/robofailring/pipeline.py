@@ -29,6 +29,7 @@ class BuildMemoryConfig:
     labels: Path | None = None  # outcome and symbol per episode (needed for LeRobot datasets)
     successes: bool = True  # also build the success memory (contrast rule); False: the paper's memory alone
     success_step: float = DEFAULT_STEP  # keep a success frame only this far (cosine) from the last kept one
+    task: str | None = None  # task of episodes whose names do not say it (one episode folder, video episodes)
 
 
 def build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
@@ -45,7 +46,7 @@ def build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
 
 def _build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
     encoder = CachedEncoder(load_encoder(config.encoder, device=config.device), cache_dir=config.cache_dir)
-    dataset = load_dataset(config.data, labels=config.labels)
+    dataset = load_dataset(config.data, task=config.task, labels=config.labels)
     dataset.require_labels("build-memory")
     trajectories = list(dataset.trajectories())
     if config.split is not None:
