@@ -20,6 +20,7 @@ from robofailring.detector import PAPER_DELTA, FailureDetector, check_k, check_s
 from robofailring.encoders import CachedEncoder, load_encoder
 from robofailring.errors import DataError
 from robofailring.memory import FailureMemory
+from robofailring.memory_manifest import StoredCalibration
 from robofailring.metrics import check_target_fpr
 from robofailring.progress import progress_bar
 from robofailring.scoring import ScoreRule, conformal_threshold, empirical_fpr
@@ -164,20 +165,20 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
             detector, successes, config.target_fpr, progress=advance, stride=config.stride
         )
     paper, contrast = found[ScoreRule.PAPER], found.get(ScoreRule.CONTRAST)
-    memory.manifest["calibration"] = {
-        "encoder": memory.encoder,
-        "delta": paper.threshold,
-        "gamma": contrast.threshold if contrast is not None else None,
-        "method": "split conformal, own episode left out",
-        "target_fpr": config.target_fpr,
-        "achieved_fpr": paper.achieved_fpr,
-        "gamma_achieved_fpr": contrast.achieved_fpr if contrast is not None else None,
-        "successes": paper.successes,
-        "data": str(Path(config.data).resolve()),
-        "split": config.split,
-        "k": config.k,
-        "stride": config.stride,
-    }
+    memory.manifest.calibration = StoredCalibration(
+        encoder=memory.encoder,
+        delta=paper.threshold,
+        gamma=contrast.threshold if contrast is not None else None,
+        method="split conformal, own episode left out",
+        target_fpr=config.target_fpr,
+        achieved_fpr=paper.achieved_fpr,
+        gamma_achieved_fpr=contrast.achieved_fpr if contrast is not None else None,
+        successes=paper.successes,
+        data=str(Path(config.data).resolve()),
+        split=config.split,
+        k=config.k,
+        stride=config.stride,
+    )
     memory.write_manifest(config.memory)
     return Calibration(
         delta=paper.threshold,

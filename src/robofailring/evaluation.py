@@ -182,13 +182,9 @@ def build_training_memory(
         with progress_bar(total=len(train), desc="success memory", unit="traj") as bar:
             built = SuccessMemory.build(train, encoder, progress=bar.update, step=config.success_step)
         memory.successes = built if built.success_runs else None  # no success run: the paper's memory
-    memory.manifest.update(
-        {
-            "source": str(Path(config.data).resolve()),
-            "split": config.train_split,
-            "encoder_spec": portable_spec(config.encoder),
-        }
-    )
+    memory.manifest.source = str(Path(config.data).resolve())
+    memory.manifest.split = config.train_split
+    memory.manifest.encoder_spec = portable_spec(config.encoder)
     memory_dir = config.memory_out or Path(config.out) / "memory"
     memory.save(memory_dir)
     return memory_dir
@@ -280,11 +276,8 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
 
 def _stored_target(memory: FailureMemory) -> float | None:
     """The α the memory's stored thresholds were calibrated to, if they belong to its encoder."""
-    calibration = memory.manifest.get("calibration") or {}
-    target = calibration.get("target_fpr")
-    return (
-        float(target) if calibration.get("encoder") == memory.encoder and isinstance(target, float) else None
-    )
+    calibration = memory.manifest.calibration
+    return calibration.target_for(memory.encoder) if calibration is not None else None
 
 
 def _deploy_successes(

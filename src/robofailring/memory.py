@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
 from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import asdict, dataclass, field, replace
@@ -25,7 +24,8 @@ from robofailring.errors import (
     UnknownTaskError,
 )
 from robofailring.grounding import ground, parse_symbol
-from robofailring.memory_format import check_manifest, parse_entry
+from robofailring.memory_format import parse_entry
+from robofailring.memory_manifest import MemoryManifest
 from robofailring.outputs import check_memory_target
 from robofailring.references import (
     ReferenceCheck,
@@ -110,7 +110,7 @@ class FailureMemory:
         entries: Sequence[MemoryEntry],
         *,
         encoder: str,
-        manifest: dict[str, Any] | None = None,
+        manifest: MemoryManifest | None = None,
         data_root: Path | None = None,
         successes: SuccessMemory | None = None,
     ) -> None:
@@ -120,8 +120,8 @@ class FailureMemory:
         self.vectors = vectors
         self.entries = list(entries)
         self.encoder = encoder
-        self.dim = int(vectors.shape[1]) if vectors.size else int((manifest or {}).get("dim", 0))
-        self.manifest: dict[str, Any] = dict(manifest or {})
+        self.dim = int(vectors.shape[1]) if vectors.size else (manifest.dim if manifest is not None else 0)
+        self.manifest = manifest if manifest is not None else MemoryManifest(encoder=encoder, dim=self.dim)
         self.data_root = Path(data_root).resolve() if data_root is not None else None
         self.successes = successes  # success runs for the contrast rule (robofailring.success_memory)
         by_task: dict[str, list[int]] = {}
@@ -193,15 +193,15 @@ class FailureMemory:
             vectors = np.zeros((0, dim), dtype=np.float32)
         entries = [entry for entry, _, _ in pending]
         stats.entries = len(entries)
-        manifest = {
-            "skipped_views": len(stats.skipped_views),
-            "skipped": stats.skipped_views,
-            "failures": stats.failures,
-            "ignored_non_failures": stats.ignored_non_failures,
-        }
-        memory = cls(
-            vectors, entries, encoder=encoder.identity, manifest={"dim": dim, **manifest}, data_root=data_root
+        manifest = MemoryManifest(
+            encoder=encoder.identity,
+            dim=dim,
+            skipped_views=len(stats.skipped_views),
+            skipped=stats.skipped_views,
+            failures=stats.failures,
+            ignored_non_failures=stats.ignored_non_failures,
         )
+        memory = cls(vectors, entries, encoder=encoder.identity, manifest=manifest, data_root=data_root)
         return memory, stats
 
     # ---------------------------------------------------------------- queries
@@ -265,7 +265,7 @@ class FailureMemory:
         )
         if root is not None:
             self.data_root = root
-            self.manifest["data_root"] = str(root)
+            self.manifest.data_root = str(root)
         with atomic_directory(directory) as tmp:
             index = faiss.IndexFlatIP(self.dim)
             if len(self.vectors):
@@ -280,27 +280,24 @@ class FailureMemory:
                     handle.write(json.dumps(stored) + "\n")
             if self.successes is not None:
                 self.successes.write(tmp, root=root)
-            (tmp / MANIFEST).write_text(json.dumps(self._full_manifest(), indent=2), encoding="utf-8")
+            (tmp / MANIFEST).write_text(
+                json.dumps(self._full_manifest().to_dict(), indent=2), encoding="utf-8"
+            )
         return directory
 
-    def _full_manifest(self) -> dict[str, Any]:
-        manifest = dict(self.manifest)
-        manifest.update(
-            {
-                "format_version": FORMAT_VERSION,
-                "encoder": self.encoder,
-                "dim": self.dim,
-                "count": len(self.entries),
-                "tasks": dict(sorted(Counter(e.task for e in self.entries).items())),
-                "views": sorted({e.view for e in self.entries}),
-                "symbols": dict(sorted(Counter(e.symbol for e in self.entries).items())),
-            }
+    def _full_manifest(self) -> MemoryManifest:
+        return replace(
+            self.manifest,
+            format_version=FORMAT_VERSION,
+            encoder=self.encoder,
+            dim=self.dim,
+            count=len(self.entries),
+            tasks=dict(sorted(Counter(e.task for e in self.entries).items())),
+            views=sorted({e.view for e in self.entries}),
+            symbols=dict(sorted(Counter(e.symbol for e in self.entries).items())),
+            successes=self.successes.manifest() if self.successes is not None else None,
+            created=self.manifest.created or datetime.now(UTC).isoformat(timespec="seconds"),
         )
-        manifest.pop("successes", None)
-        if self.successes is not None:
-            manifest["successes"] = self.successes.manifest()
-        manifest.setdefault("created", datetime.now(UTC).isoformat(timespec="seconds"))
-        return manifest
 
     def write_manifest(self, directory: Path) -> None:
         """Rewrite only the manifest of a saved memory (e.g. after calibration), atomically.
@@ -308,7 +305,9 @@ class FailureMemory:
         Never while another process replaces that memory (OutputBusyError then).
         """
         with output_lock(directory):
-            write_text_atomic(Path(directory) / MANIFEST, json.dumps(self._full_manifest(), indent=2))
+            write_text_atomic(
+                Path(directory) / MANIFEST, json.dumps(self._full_manifest().to_dict(), indent=2)
+            )
 
     @classmethod
     def load(cls, directory: Path, *, data_root: Path | None = None) -> FailureMemory:
@@ -327,7 +326,7 @@ class FailureMemory:
             raise MemoryFormatError(
                 f"{manifest_path}: format_version {version!r}, this version of robofailring reads {readable}"
             )
-        manifest = check_manifest(manifest, manifest_path)
+        manifest = MemoryManifest.parse(manifest, manifest_path)
         try:
             index = faiss.read_index(str(directory / INDEX))
         except RuntimeError as error:
@@ -346,30 +345,26 @@ class FailureMemory:
                             ) from error
         except OSError as error:
             raise MemoryFormatError(f"cannot read {entries_path}: {error}") from error
-        if (
-            index.ntotal != manifest["count"]
-            or len(entries) != manifest["count"]
-            or index.d != manifest["dim"]
-        ):
+        if index.ntotal != manifest.count or len(entries) != manifest.count or index.d != manifest.dim:
             raise MemoryFormatError(
-                f"{directory}: manifest says {manifest['count']} entries of dim {manifest['dim']}, "
+                f"{directory}: manifest says {manifest.count} entries of dim {manifest.dim}, "
                 f"index has {index.ntotal} of dim {index.d}, {ENTRIES} has {len(entries)}"
             )
         vectors = index.reconstruct_n(0, index.ntotal) if index.ntotal else np.zeros((0, index.d), np.float32)
-        resolve, root = stored_resolver(manifest, data_root)
+        resolve, root = stored_resolver(manifest.data_root, manifest.source, data_root)
         if resolve is not None:
             entries = [
                 replace(entry, start=resolve(entry.start), end=resolve(entry.end)) for entry in entries
             ]
         successes = None
-        if manifest.get("successes"):  # memories written before success contrast have none
+        if manifest.successes:  # memories written before success contrast have none
             from robofailring.success_memory import SuccessMemory
 
-            successes = SuccessMemory.read(directory, manifest, resolve=resolve)
+            successes = SuccessMemory.read(directory, manifest.successes, manifest.dim, resolve=resolve)
         return cls(
             vectors,
             entries,
-            encoder=manifest["encoder"],
+            encoder=manifest.encoder,
             manifest=manifest,
             data_root=root,
             successes=successes,
@@ -391,11 +386,8 @@ class FailureMemory:
         return self._calibrated("gamma")
 
     def _calibrated(self, key: str) -> float | None:
-        calibration = self.manifest.get("calibration") or {}
-        if calibration.get("encoder") == self.encoder and isinstance(calibration.get(key), float):
-            value = float(calibration[key])
-            return value if math.isfinite(value) else None
-        return None
+        calibration = self.manifest.calibration
+        return calibration.threshold_for(self.encoder, key) if calibration is not None else None
 
 
 def _is_failure(trajectory: Trajectory) -> bool:

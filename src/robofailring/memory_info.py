@@ -23,11 +23,10 @@ class MemoryInfo:
     @classmethod
     def read(cls, directory: Path, *, data_root: Path | None = None) -> MemoryInfo:
         memory = FailureMemory.load(directory, data_root=data_root)
-        recorded = memory.manifest.get("data_root")
         return cls(
             directory=Path(directory),
             memory=memory,
-            recorded_root=recorded if isinstance(recorded, str) else None,
+            recorded_root=memory.manifest.data_root,
             references=memory.check_references(),
         )
 
@@ -42,18 +41,18 @@ class MemoryInfo:
         manifest = self.memory.manifest
         return {
             "memory": str(self.directory),
-            "format_version": manifest.get("format_version"),
+            "format_version": manifest.format_version,
             "encoder": self.memory.encoder,
-            "encoder_spec": manifest.get("encoder_spec"),
+            "encoder_spec": manifest.encoder_spec,
             "dim": self.memory.dim,
             "entries": len(self.memory),
             "tasks": self.counts(),
             "symbols": dict(sorted(Counter(e.symbol for e in self.memory.entries).items())),
-            "calibration": manifest.get("calibration"),
+            "calibration": manifest.calibration.to_dict() if manifest.calibration else None,
             "calibrated_delta": self.memory.calibrated_delta,
             "calibrated_gamma": self.memory.calibrated_gamma,
             "successes": self._successes(),
-            "source": manifest.get("source"),
+            "source": manifest.source,
             "data_root": self.recorded_root,
             "data_root_used": str(self.memory.data_root) if self.memory.data_root else None,
             "references": {
@@ -62,7 +61,7 @@ class MemoryInfo:
                 "missing": len(self.references.missing),
                 "first_missing": self.references.missing[0] if self.references.missing else None,
             },
-            "created": manifest.get("created"),
+            "created": manifest.created,
         }
 
     def _successes(self) -> dict[str, Any] | None:

@@ -78,12 +78,11 @@ def _build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]
             )
         memory.successes = successes if successes.success_runs else None  # none: the paper's memory
     stats.skipped_inputs = dataset.skipped
-    memory.manifest["skipped_inputs"] = [skipped.to_dict() for skipped in dataset.skipped]
-    memory.manifest["source"] = str(Path(config.data).resolve())
-    memory.manifest["layout"] = dataset.layout
-    memory.manifest["encoder_spec"] = portable_spec(config.encoder)
-    if config.split is not None:
-        memory.manifest["split"] = config.split
+    memory.manifest.skipped_inputs = [skipped.to_dict() for skipped in dataset.skipped]
+    memory.manifest.source = str(Path(config.data).resolve())
+    memory.manifest.layout = dataset.layout
+    memory.manifest.encoder_spec = portable_spec(config.encoder)
+    memory.manifest.split = config.split
     stats.notes.extend(_dropped_calibration(config.out))
     memory.save(config.out)
     return memory, stats
@@ -133,8 +132,8 @@ def encoder_spec_for(memory: FailureMemory) -> str:
     identity = memory.encoder
     if identity.startswith("pixels"):
         return "pixels"
-    spec = memory.manifest.get("encoder_spec")
-    if isinstance(spec, str):
+    spec = memory.manifest.encoder_spec
+    if spec is not None:
         return spec
     if ":file-" in identity:
         model = identity.split(":")[1]

@@ -9,10 +9,9 @@ data has moved. Memories written before roots were recorded keep their reference
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
-from typing import Any
 
 ARRAY_REFERENCE = "<array>"
 VIDEO_FRAME_MARKER = "#frame="
@@ -100,21 +99,19 @@ def check_references(references: Iterable[str]) -> ReferenceCheck:
 
 
 def stored_resolver(
-    manifest: Mapping[str, Any], data_root: Path | None
+    recorded: str | None, source: str | None, data_root: Path | None
 ) -> tuple[Callable[[str], str] | None, Path | None]:
     """How to turn a saved memory's stored references into absolute ones, and the root used.
 
     Memories that record `data_root` store references relative to it; `data_root` given here
     replaces it (the data moved). Older memories stored references as given at build time: they
     resolve as they did (None: leave them), and a given `data_root` re-roots those that lay under
-    the dataset root the manifest recorded as `source`.
+    the dataset root the manifest recorded as `source`. `recorded` is the manifest's `data_root`.
     """
-    recorded = manifest.get("data_root")
-    if isinstance(recorded, str):
+    if recorded is not None:
         root = Path(data_root).resolve() if data_root is not None else Path(recorded)
         return (lambda ref: resolve_stored(ref, root)), root
-    source = manifest.get("source")
-    if data_root is None or not isinstance(source, str):
+    if data_root is None or source is None:
         return None, None
     new_root = Path(data_root).resolve()
     return (lambda ref: _reroot_old(ref, Path(source), new_root)), new_root

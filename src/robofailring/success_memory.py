@@ -244,12 +244,16 @@ class SuccessMemory:
 
     @classmethod
     def read(
-        cls, directory: Path, manifest: dict[str, Any], *, resolve: Callable[[str], str] | None = None
+        cls,
+        directory: Path,
+        section: dict[str, Any],
+        dim: int,
+        *,
+        resolve: Callable[[str], str] | None = None,
     ) -> SuccessMemory:
-        """Read what `write` wrote and check it against the manifest's `successes` section.
+        """Read what `write` wrote and check it against the manifest's `successes` section (vectors of `dim`).
 
         `resolve` turns stored frame references into absolute ones (see `references.stored_resolver`)."""
-        section = manifest.get(MANIFEST_KEY) or {}
         runs: list[SuccessRun] = []
         path = directory / RUNS
         try:
@@ -275,7 +279,6 @@ class SuccessMemory:
         sizes = [len(run.frames) for run in runs]
         tasks = [run.task for run, size in zip(runs, sizes, strict=True) for _ in range(size)]
         episodes = [run.episode for run, size in zip(runs, sizes, strict=True) for _ in range(size)]
-        dim = int(manifest.get("dim", 0))
         if isinstance(section.get("index"), dict):
             index = TaskIndexSet.read(directory, section["index"], tasks, episodes)
             return cls(
