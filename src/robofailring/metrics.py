@@ -10,6 +10,7 @@ from typing import Final
 import numpy as np
 
 from robofailring.errors import SettingError
+from robofailring.view_scores import ViewScores
 
 PAPER_DELTAS: Final[tuple[float, ...]] = (0.85, 0.90, 0.92, 0.95)
 
@@ -23,19 +24,19 @@ class ScoredTrajectory:
     symbol: str | None
     is_failure: bool
     length: int
-    similarity: dict[str, np.ndarray]
+    similarity: dict[str, np.ndarray]  # the score per view: S_t, or the contrast rule's C_t (rule_evaluation)
+
+    @property
+    def view_scores(self) -> ViewScores:
+        return ViewScores(self.similarity, self.length)
 
     def scores(self, views: Sequence[str] | None = None) -> np.ndarray:
         """max over the chosen views of S_t, per frame (NaN counts as never firing)."""
-        chosen = [v for v in (views or list(self.similarity)) if v in self.similarity]
-        if not chosen:
-            return np.full(self.length, -np.inf)
-        return np.stack([np.nan_to_num(self.similarity[v], nan=-np.inf) for v in chosen]).max(axis=0)
+        return self.view_scores.fused_max(views)
 
     def t_det(self, delta: float, views: Sequence[str] | None = None) -> int | None:
         """First frame whose fused score reaches δ, or None."""
-        fired = np.flatnonzero(self.scores(views) >= delta)
-        return int(fired[0]) if fired.size else None
+        return self.view_scores.first_at_or_above(delta, views)
 
 
 @dataclass(frozen=True)

@@ -13,6 +13,7 @@ from robofailring.data.model import Frame, Skipped
 from robofailring.memory import FailureMemory, Neighbor
 from robofailring.scoring import DEFAULT_GAMMA, PAPER_DELTA, ScoreRule, contrast
 from robofailring.success_memory import SuccessMatch
+from robofailring.view_scores import ViewScores
 
 if TYPE_CHECKING:
     from robofailring.detector import DetectorSession
@@ -94,6 +95,12 @@ class DetectionTrace:
         """The score the rule thresholds, per view: S⁻_t (paper) or C_t (contrast)."""
         return self.similarity if self.rule is ScoreRule.PAPER else self.contrast
 
+    @property
+    def view_scores(self) -> ViewScores:
+        """The rule's per-view scores, fused over this trace's views (`robofailring.view_scores`)."""
+        scores = self.scores
+        return ViewScores({view: scores[view] for view in self.views}, self.length)
+
     def nearest_success(self, view: str, t: int) -> SuccessMatch | None:
         """The success frame nearest to the query of `view` at `t`, if the memory has one."""
         successes = self.memory.successes
@@ -109,17 +116,12 @@ class DetectionTrace:
     @property
     def state(self) -> np.ndarray:
         """State_t (eq. 7) fused over views: 1 where any view's score reaches the rule's threshold."""
-        if not self.views:
-            return np.zeros(self.length, dtype=bool)
-        scores = self.scores
-        stacked = np.stack([np.nan_to_num(scores[v], nan=-np.inf) for v in self.views])
-        return np.asarray((stacked >= self.threshold).any(axis=0))
+        return self.view_scores.state(self.threshold)
 
     @property
     def t_det(self) -> int | None:
         """The first frame at which the detector fires, or None."""
-        fired = np.flatnonzero(self.state)
-        return int(fired[0]) if fired.size else None
+        return self.view_scores.first_at_or_above(self.threshold)
 
     @property
     def detected(self) -> bool:
@@ -128,22 +130,15 @@ class DetectionTrace:
     @property
     def detected_view(self) -> str | None:
         """The view with the highest score among those over the threshold at t_det."""
-        t = self.t_det
-        if t is None:
-            return None
-        scores = self.scores
-        return max(self.views, key=lambda v: np.nan_to_num(scores[v][t], nan=-np.inf))
+        return self.view_scores.detected_view(self.threshold)
 
     def max_similarity(self) -> np.ndarray:
         """max over views of S⁻_t (the paper's S_t), per frame."""
-        stacked = np.stack([np.nan_to_num(self.similarity[v], nan=-np.inf) for v in self.views])
-        return stacked.max(axis=0)
+        return ViewScores({view: self.similarity[view] for view in self.views}, self.length).fused_max()
 
     def max_score(self) -> np.ndarray:
         """max over views of the rule's score, per frame (NaN counts as −∞)."""
-        scores = self.scores
-        stacked = np.stack([np.nan_to_num(scores[v], nan=-np.inf) for v in self.views])
-        return stacked.max(axis=0)
+        return self.view_scores.fused_max()
 
     def neighbors(self, view: str, t: int) -> list[Neighbor]:
         return self.memory.neighbors(self.neighbor_similarity[view][t], self.neighbor_ids[view][t])
