@@ -256,28 +256,17 @@ def log_video(
 ) -> None:
     """The codec (static) and one sample per frame of the time columns `indexes`."""
     log_video_codec(rec, entity, video.codec)
-    log_video_samples(rec, entity, video.samples, video.keyframes, indexes)
+    rec.send_columns(
+        entity,
+        indexes=indexes,
+        columns=rr.VideoStream.columns(sample=video.samples, is_keyframe=video.keyframes),
+    )
 
 
 def log_video_codec(rec: rr.RecordingStream, entity: str, codec: CameraCodec) -> None:
     """The codec of `entity`'s video stream, static: logged once, before its samples."""
     _, rerun_codec = ENCODERS[codec]
     rec.log(entity, rr.VideoStream(codec=rerun_codec), static=True)
-
-
-def log_video_samples(
-    rec: rr.RecordingStream,
-    entity: str,
-    samples: Sequence[bytes],
-    keyframes: Sequence[bool],
-    indexes: Sequence[rr.TimeColumn],
-) -> None:
-    """Video samples, each at its own row of the time columns `indexes`."""
-    rec.send_columns(
-        entity,
-        indexes=indexes,
-        columns=rr.VideoStream.columns(sample=list(samples), is_keyframe=list(keyframes)),
-    )
 
 
 def view_codec(frames: Sequence[Frame], count: int, codec: CameraCodec | str) -> CameraCodec:

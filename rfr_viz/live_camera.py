@@ -20,10 +20,9 @@ from rfr_viz.camera_video import (
     Packet,
     VideoEncoder,
     log_video_codec,
-    log_video_samples,
     send_camera_properties,
 )
-from rfr_viz.panel_scores import time_columns
+from rfr_viz.panel_scores import set_frame_time
 from rfr_viz.paths import camera
 from robofailring.data.images import as_rgb, encode_jpeg
 from robofailring.data.model import Frame
@@ -71,20 +70,19 @@ class LiveCameras:
         source = f"{self.name} [{view}] frame {t}"
         image = frame.load() if isinstance(frame, Frame) else as_rgb(frame, source=source)
         self._frame_t[view].append(t)
-        self._log_packets(view, encoder.encode(image))
+        if self._log_packets(view, encoder.encode(image)):
+            set_frame_time(self.rec, t, self.fps)  # back to this step's frame for what is logged next
 
     def finish(self) -> None:
         """Flush every view's encoder: the frames it still held are logged at their own frames."""
         for view, encoder in self._encoders.items():
             self._log_packets(view, encoder.flush())
 
-    def _log_packets(self, view: str, packets: list[Packet]) -> None:
-        if packets:
-            frames = np.array([self._frame_t[view][packet.frame] for packet in packets], dtype=np.int64)
-            log_video_samples(
-                self.rec,
-                camera(view),
-                [packet.data for packet in packets],
-                [packet.keyframe for packet in packets],
-                time_columns(frames, self.fps),
+    def _log_packets(self, view: str, packets: list[Packet]) -> bool:
+        """Each packet at the frame it shows (this moves the recording's time); whether any was."""
+        for packet in packets:  # logged (not sent as columns) so that the batcher packs them into chunks
+            set_frame_time(self.rec, self._frame_t[view][packet.frame], self.fps)
+            self.rec.log(
+                camera(view), rr.VideoStream.from_fields(sample=packet.data, is_keyframe=packet.keyframe)
             )
+        return bool(packets)
