@@ -15,7 +15,7 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 from fractions import Fraction
-from typing import TYPE_CHECKING, Annotated, Final, NamedTuple, cast
+from typing import TYPE_CHECKING, Annotated, Any, Final, NamedTuple, cast
 
 import numpy as np
 import rerun as rr
@@ -291,8 +291,13 @@ def log_camera_views(
 ) -> dict[str, CameraCodec]:
     """`/camera/<view>` for the first `length` frames of each view, as JPEGs (sent in column
     batches, never raw pixels) or as one video stream; the codec of each view is recorded in the
-    `camera` property group. Returns the codec used per view."""
+    `camera` property group. A view read from a video file already in that codec, without B-frames,
+    is logged as the file's own samples (rfr_viz.video_passthrough), not re-encoded. Returns the
+    codec used per view."""
+    from rfr_viz.video_passthrough import passthrough  # it imports this module
+
     used: dict[str, CameraCodec] = {}
+    as_recorded: list[str] = []  # views logged as their video file's own samples
     for view in views:
         frames = trajectory.views[view]
         count = min(length, len(frames))
@@ -308,21 +313,28 @@ def log_camera_views(
         else:
             source = f"{trajectory.key} [{view}]"
             fps = float(trajectory.fps or DEFAULT_FPS)
-            video = encode_video(
-                (frame.load() for frame in frames[:count]), used[view], fps=fps, source=source
-            )
+            video = passthrough(frames, count, used[view])
+            if video is not None:
+                as_recorded.append(view)
+            else:
+                video = encode_video(
+                    (frame.load() for frame in frames[:count]), used[view], fps=fps, source=source
+                )
             log_video(rec, camera(view), video, indexes(np.arange(count)))
-    send_camera_properties(rec, used)
+    send_camera_properties(rec, used, as_recorded=as_recorded)
     return used
 
 
-def send_camera_properties(rec: rr.RecordingStream, used: Mapping[str, CameraCodec]) -> None:
-    """The `camera` property group: which codec stores each view's `/camera/<view>`."""
-    rec.send_property(
-        CAMERA_PROPERTIES,
-        rr.AnyValues(
-            codec=", ".join(sorted({c.value for c in used.values()})),
-            views=", ".join(f"{view}: {c.value}" for view, c in used.items()),
-            keyframe_interval=KEYFRAME_INTERVAL,
-        ),
-    )
+def send_camera_properties(
+    rec: rr.RecordingStream, used: Mapping[str, CameraCodec], *, as_recorded: Sequence[str] = ()
+) -> None:
+    """The `camera` property group: which codec stores each view's `/camera/<view>`, and which views
+    hold their video file's own samples (`as_recorded`: keyframes where the source had them)."""
+    values: dict[str, Any] = {
+        "codec": ", ".join(sorted({c.value for c in used.values()})),
+        "views": ", ".join(f"{view}: {c.value}" for view, c in used.items()),
+        "keyframe_interval": KEYFRAME_INTERVAL,
+    }
+    if as_recorded:
+        values["as_recorded"] = ", ".join(as_recorded)
+    rec.send_property(CAMERA_PROPERTIES, rr.AnyValues(**values))
