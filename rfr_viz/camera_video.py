@@ -10,13 +10,12 @@ machine. Neighbour and success-frame images stay JPEG images whatever the codec.
 
 from __future__ import annotations
 
-import itertools
 import os
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 from fractions import Fraction
-from typing import TYPE_CHECKING, Annotated, Final, cast
+from typing import TYPE_CHECKING, Annotated, Any, Final, NamedTuple, cast
 
 import numpy as np
 import rerun as rr
@@ -66,6 +65,16 @@ CameraCodecOption = Annotated[
         case_sensitive=False,
         help="How camera frames are stored: jpeg images, av1 or h264 video, or auto "
         f"(av1 when a view has ≥ {AUTO_AV1_PIXELS / 1e6:g} Mpx over all its frames, else jpeg). "
+        "AV1 plays in the Rerun viewer as is; H.264 needs ffmpeg ≥ 5.1 where it is viewed.",
+    ),
+]
+LiveCameraCodecOption = Annotated[
+    CameraCodec,
+    typer.Option(
+        "--camera-codec",
+        case_sensitive=False,
+        help="How camera frames are stored: jpeg images, or av1 or h264 video encoded frame by frame; "
+        "auto means jpeg live (no frame size is known in advance). "
         "AV1 plays in the Rerun viewer as is; H.264 needs ffmpeg ≥ 5.1 where it is viewed.",
     ),
 ]
@@ -126,8 +135,80 @@ def _context(codec: CameraCodec, width: int, height: int, fps: float, gop: int) 
     return context
 
 
-def _packets(context: VideoCodecContext, frame: VideoFrame | None) -> list[tuple[int, bool, bytes]]:
-    return [(int(p.pts or 0), bool(p.is_keyframe), bytes(p)) for p in context.encode(frame)]
+class Packet(NamedTuple):
+    """One encoded sample: the frame (0-based, in the order given) it shows, keyframe or not, its bytes."""
+
+    frame: int
+    keyframe: bool
+    data: bytes
+
+
+def _packets(context: VideoCodecContext, frame: VideoFrame | None) -> list[Packet]:
+    return [Packet(int(p.pts or 0), bool(p.is_keyframe), bytes(p)) for p in context.encode(frame)]
+
+
+class VideoEncoder:
+    """One view's frames encoded as they come (a live stream, or a whole video by `encode_video`).
+
+    The encoder opens at the first frame, whose size (padded to even) fixes the stream's; no
+    B-frames, a keyframe every `keyframe_interval` frames. `encode` returns the packets the encoder
+    gives out for that frame (possibly none yet, possibly earlier frames': each `Packet` names its
+    own frame); `flush` the rest at the end of the stream. `source` names the frames in errors.
+    """
+
+    def __init__(
+        self,
+        codec: CameraCodec,
+        *,
+        fps: float,
+        source: str = "camera",
+        keyframe_interval: int = KEYFRAME_INTERVAL,
+    ) -> None:
+        if codec not in ENCODERS:
+            raise ValueError(f"{codec.value!r} is not a video codec ({[c.value for c in ENCODERS]})")
+        self.codec, self.fps, self.source, self.keyframe_interval = codec, fps, source, keyframe_interval
+        self.frames = 0  # frames given so far
+        self.shape: tuple[int, ...] | None = None  # (height, width, 3) after padding, from the first frame
+        self._context: VideoCodecContext | None = None
+        self._given = 0  # packets given out so far
+
+    def encode(self, image: np.ndarray) -> list[Packet]:
+        import av
+
+        image = _even(np.ascontiguousarray(image))
+        if self._context is None:
+            if min(image.shape[0], image.shape[1]) < 16:
+                raise DataError(
+                    f"{self.source}: frames of {image.shape[1]}×{image.shape[0]} px are too small to encode as video"
+                )
+            self.shape = image.shape
+            self._context = _context(
+                self.codec, image.shape[1], image.shape[0], self.fps, self.keyframe_interval
+            )
+        if image.shape != self.shape:
+            assert self.shape is not None
+            raise DataError(
+                f"{self.source}: frame {self.frames} is {image.shape[1]}×{image.shape[0]} px, the first was "
+                f"{self.shape[1]}×{self.shape[0]}: a video needs one size (use --camera-codec jpeg)"
+            )
+        frame = av.VideoFrame.from_ndarray(image, format="rgb24").reformat(format="yuv420p")
+        frame.pts = self.frames
+        self.frames += 1
+        packets = _packets(self._context, frame)
+        self._given += len(packets)
+        return packets
+
+    def flush(self) -> list[Packet]:
+        """The packets still held by the encoder; every frame given has then had exactly one."""
+        if self._context is None:
+            raise DataError(f"{self.source}: no frames to encode")
+        packets = _packets(self._context, None)
+        self._given += len(packets)
+        if self._given != self.frames:
+            raise RuntimeError(
+                f"{self.source}: the {self.codec.value} encoder gave {self._given} samples for {self.frames} frames"
+            )
+        return packets
 
 
 def encode_video(
@@ -140,41 +221,16 @@ def encode_video(
 ) -> EncodedVideo:
     """Encode RGB frames (all of one size) as AV1 or H.264 samples, one per frame, no B-frames,
     a keyframe every `keyframe_interval` frames. `source` names the frames in errors."""
-    import av
-
-    if codec not in ENCODERS:
-        raise ValueError(f"{codec.value!r} is not a video codec ({[c.value for c in ENCODERS]})")
-    iterator = iter(images)
-    first = next(iterator, None)
-    if first is None:
-        raise DataError(f"{source}: no frames to encode")
-    shape = _even(first).shape
-    if min(shape[0], shape[1]) < 16:
-        raise DataError(f"{source}: frames of {shape[1]}×{shape[0]} px are too small to encode as video")
-    context = _context(codec, shape[1], shape[0], fps, keyframe_interval)
-    packets: list[tuple[int, bool, bytes]] = []
-    for index, image in enumerate(itertools.chain([first], iterator)):
-        image = _even(np.ascontiguousarray(image))
-        if image.shape != shape:
-            raise DataError(
-                f"{source}: frame {index} is {image.shape[1]}×{image.shape[0]} px, the first was "
-                f"{shape[1]}×{shape[0]}: a video needs one size (use --camera-codec jpeg)"
-            )
-        frame = av.VideoFrame.from_ndarray(image, format="rgb24").reformat(format="yuv420p")
-        frame.pts = index
-        packets += _packets(context, frame)
-    packets += _packets(context, None)
-    if len(packets) != index + 1:
-        raise RuntimeError(
-            f"{source}: the {codec.value} encoder gave {len(packets)} samples for {index + 1} frames"
-        )
-    packets.sort(key=lambda packet: packet[0])
+    encoder = VideoEncoder(codec, fps=fps, source=source, keyframe_interval=keyframe_interval)
+    packets = [packet for image in images for packet in encoder.encode(image)]
+    packets = sorted(packets + encoder.flush(), key=lambda packet: packet.frame)
+    assert encoder.shape is not None
     return EncodedVideo(
         codec=codec,
-        samples=[packet[2] for packet in packets],
-        keyframes=[packet[1] for packet in packets],
-        width=shape[1],
-        height=shape[0],
+        samples=[packet.data for packet in packets],
+        keyframes=[packet.keyframe for packet in packets],
+        width=encoder.shape[1],
+        height=encoder.shape[0],
     )
 
 
@@ -199,13 +255,18 @@ def log_video(
     indexes: Sequence[rr.TimeColumn],
 ) -> None:
     """The codec (static) and one sample per frame of the time columns `indexes`."""
-    _, rerun_codec = ENCODERS[video.codec]
-    rec.log(entity, rr.VideoStream(codec=rerun_codec), static=True)
+    log_video_codec(rec, entity, video.codec)
     rec.send_columns(
         entity,
         indexes=indexes,
         columns=rr.VideoStream.columns(sample=video.samples, is_keyframe=video.keyframes),
     )
+
+
+def log_video_codec(rec: rr.RecordingStream, entity: str, codec: CameraCodec) -> None:
+    """The codec of `entity`'s video stream, static: logged once, before its samples."""
+    _, rerun_codec = ENCODERS[codec]
+    rec.log(entity, rr.VideoStream(codec=rerun_codec), static=True)
 
 
 def view_codec(frames: Sequence[Frame], count: int, codec: CameraCodec | str) -> CameraCodec:
@@ -230,8 +291,13 @@ def log_camera_views(
 ) -> dict[str, CameraCodec]:
     """`/camera/<view>` for the first `length` frames of each view, as JPEGs (sent in column
     batches, never raw pixels) or as one video stream; the codec of each view is recorded in the
-    `camera` property group. Returns the codec used per view."""
+    `camera` property group. A view read from a video file already in that codec, without B-frames,
+    is logged as the file's own samples (rfr_viz.video_passthrough), not re-encoded. Returns the
+    codec used per view."""
+    from rfr_viz.video_passthrough import passthrough  # it imports this module
+
     used: dict[str, CameraCodec] = {}
+    as_recorded: list[str] = []  # views logged as their video file's own samples
     for view in views:
         frames = trajectory.views[view]
         count = min(length, len(frames))
@@ -247,21 +313,28 @@ def log_camera_views(
         else:
             source = f"{trajectory.key} [{view}]"
             fps = float(trajectory.fps or DEFAULT_FPS)
-            video = encode_video(
-                (frame.load() for frame in frames[:count]), used[view], fps=fps, source=source
-            )
+            video = passthrough(frames, count, used[view])
+            if video is not None:
+                as_recorded.append(view)
+            else:
+                video = encode_video(
+                    (frame.load() for frame in frames[:count]), used[view], fps=fps, source=source
+                )
             log_video(rec, camera(view), video, indexes(np.arange(count)))
-    send_camera_properties(rec, used)
+    send_camera_properties(rec, used, as_recorded=as_recorded)
     return used
 
 
-def send_camera_properties(rec: rr.RecordingStream, used: Mapping[str, CameraCodec]) -> None:
-    """The `camera` property group: which codec stores each view's `/camera/<view>`."""
-    rec.send_property(
-        CAMERA_PROPERTIES,
-        rr.AnyValues(
-            codec=", ".join(sorted({c.value for c in used.values()})),
-            views=", ".join(f"{view}: {c.value}" for view, c in used.items()),
-            keyframe_interval=KEYFRAME_INTERVAL,
-        ),
-    )
+def send_camera_properties(
+    rec: rr.RecordingStream, used: Mapping[str, CameraCodec], *, as_recorded: Sequence[str] = ()
+) -> None:
+    """The `camera` property group: which codec stores each view's `/camera/<view>`, and which views
+    hold their video file's own samples (`as_recorded`: keyframes where the source had them)."""
+    values: dict[str, Any] = {
+        "codec": ", ".join(sorted({c.value for c in used.values()})),
+        "views": ", ".join(f"{view}: {c.value}" for view, c in used.items()),
+        "keyframe_interval": KEYFRAME_INTERVAL,
+    }
+    if as_recorded:
+        values["as_recorded"] = ", ".join(as_recorded)
+    rec.send_property(CAMERA_PROPERTIES, rr.AnyValues(**values))

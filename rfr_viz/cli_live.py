@@ -9,6 +9,7 @@ from typing import Annotated
 
 import typer
 
+from rfr_viz.camera_video import CameraCodec, LiveCameraCodecOption
 from robofailring.cli_options import (
     CacheOption,
     DataRootOption,
@@ -96,6 +97,7 @@ def watch_cmd(
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
     data_root: DataRootOption = None,
+    camera_codec: LiveCameraCodecOption = CameraCodec.JPEG,
 ) -> None:
     """Watch an episode live in the Rerun viewer: every step through the detector's step API, streamed."""
     from rfr_viz.live import DEFAULT_VIEWER_URL, LiveTarget, WatchConfig, watch
@@ -118,6 +120,7 @@ def watch_cmd(
                 cache_dir=cache_dir,
                 device=device,
                 data_root=data_root,
+                camera_codec=camera_codec,
             )
         )
     except (RoboFailRingError, ValueError, ViewerUnavailable) as error:

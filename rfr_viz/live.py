@@ -22,20 +22,19 @@ from typing import Any, Final
 import numpy as np
 import rerun as rr
 
-from rfr_viz._images import JPEG_MEDIA_TYPE, JPEG_QUALITY, frame_jpeg
 from rfr_viz.blueprint import replay_blueprint
-from rfr_viz.camera_video import CameraCodec, send_camera_properties
+from rfr_viz.camera_video import CameraCodec
 from rfr_viz.contrast import log_contrast_styles, log_nearest_success
+from rfr_viz.live_camera import LiveCameras
 from rfr_viz.memory_umap import MemoryMap
 from rfr_viz.neighbors import DEFAULT_CELL, Cell, NeighborImages, log_neighbor_entry, log_neighbor_layout
 from rfr_viz.panel_map import class_id, log_memory_map, map_title
 from rfr_viz.panel_report import log_alarm
 from rfr_viz.panel_scores import log_score_styles, set_frame_time
-from rfr_viz.paths import APPLICATION_ID, DEFAULT_FPS, PROPERTIES, REPLAY, camera
+from rfr_viz.paths import APPLICATION_ID, DEFAULT_FPS, PROPERTIES, REPLAY
 from rfr_viz.styles import VIEW_COLOURS
 from rfr_viz.viewer import DEFAULT_PORT, ViewerUnavailable
 from robofailring.atomic import atomic_path
-from robofailring.data.images import as_rgb, encode_jpeg
 from robofailring.data.layouts import load_trajectory
 from robofailring.data.model import Frame
 from robofailring.detector import DEFAULT_K, DetectorSession, FailureDetector, StepResult
@@ -75,10 +74,6 @@ def check_viewer(url: str) -> None:
     )
 
 
-def _jpeg(frame: np.ndarray | Frame) -> bytes:
-    return frame_jpeg(frame) if isinstance(frame, Frame) else encode_jpeg(as_rgb(frame), quality=JPEG_QUALITY)
-
-
 class LiveRecording:
     """A `StepSink` that logs every step of a session to a Rerun recording stream as it happens."""
 
@@ -93,8 +88,10 @@ class LiveRecording:
         memory_map: MemoryMap | None = None,
         name: str = "live",
         cell: Cell = DEFAULT_CELL,
+        camera_codec: CameraCodec | str = CameraCodec.JPEG,
     ) -> None:
         self.rec = rec
+        self.camera_codec = camera_codec  # jpeg, av1 or h264 (auto: jpeg); used from the first step
         self.cell = cell
         self.detector = detector
         self.task = task
@@ -123,8 +120,10 @@ class LiveRecording:
         fps: float = DEFAULT_FPS,
         memory_map: MemoryMap | None = None,
         name: str | None = None,
+        camera_codec: CameraCodec | str = CameraCodec.JPEG,
     ) -> Iterator[LiveRecording]:
-        """A live recording streamed to `target`, with the replay layout as its blueprint.
+        """A live recording streamed to `target`, with the replay layout as its blueprint; cameras
+        stored as `camera_codec` (rfr_viz.live_camera: `auto` means JPEG live).
 
         On leaving the block the recording's properties (t_det, the report, …) are sent, the stream
         is flushed, and a saved file appears at `target.save` (not on error).
@@ -162,6 +161,7 @@ class LiveRecording:
                 memory_map=memory_map,
                 name=name or task,
                 cell=cell,
+                camera_codec=camera_codec,
             )
             live._start()
             try:
@@ -177,7 +177,9 @@ class LiveRecording:
     def _start(self) -> None:
         paths = REPLAY
         self.rec.send_recording_name(f"{self.name} (live)")
-        send_camera_properties(self.rec, dict.fromkeys(self.views, CameraCodec.JPEG))  # live frames: JPEG
+        self.cameras = LiveCameras(
+            self.rec, self.views, codec=self.camera_codec, fps=self.fps, name=self.name
+        )
         log_score_styles(
             self.rec, paths, views=self.views, delta=self.detector.delta, rule=self.detector.rule
         )
@@ -218,7 +220,7 @@ class LiveRecording:
         rec, paths, t = self.rec, REPLAY, result.t
         set_frame_time(rec, t, self.fps)
         for view, frame in frames.items():
-            rec.log(camera(view), rr.EncodedImage(contents=_jpeg(frame), media_type=JPEG_MEDIA_TYPE))
+            self.cameras.log(view, frame, t)
             rec.log(paths.score(view), rr.Scalars(result.similarity[view]))
         rec.log(paths.delta, rr.Scalars(self.detector.delta))
         rec.log(paths.state, rr.Scalars(float(result.state)))
@@ -287,6 +289,7 @@ class LiveRecording:
         )
 
     def _finish(self) -> None:
+        self.cameras.finish()  # the frames a video encoder still held, at their own frames
         found: dict[str, Any] = {
             "task": self.task,
             "episode": self.name,
@@ -325,6 +328,7 @@ class WatchConfig:
     cache_dir: Path | None = None
     device: str | None = None
     data_root: Path | None = None  # where the memory's images are now, when its data moved
+    camera_codec: CameraCodec = CameraCodec.JPEG  # jpeg, av1 or h264 (auto: jpeg, live)
 
 
 @dataclass(frozen=True)
@@ -365,6 +369,7 @@ def watch(config: WatchConfig) -> WatchResult:
         fps=fps,
         memory_map=loaded.map,
         name=f"{trajectory.task}/{trajectory.episode}",
+        camera_codec=config.camera_codec,
     ) as live:
         session = loaded.detector.session(trajectory.task, sink=live)
         started = time.monotonic()

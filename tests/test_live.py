@@ -3,19 +3,24 @@
 from __future__ import annotations
 
 import json
+import math
 import time
 from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 import pytest
-from synthetic import write_episode
-from test_viz import entity_paths, properties, rows
+import rerun as rr
+from synthetic import VIEWS, synthetic_frame, write_episode
+from test_viz import batches, entity_paths, properties, rows
 from typer.testing import CliRunner
 
+from rfr_viz.camera_video import KEYFRAME_INTERVAL, CameraCodec, EncodedVideo, decode_video, encode_video
 from rfr_viz.cli import app
 from rfr_viz.explain import read_report
 from rfr_viz.live import LiveRecording, LiveTarget
+from rfr_viz.live_camera import LiveCameras, live_codec
+from rfr_viz.panel_scores import set_frame_time
 from rfr_viz.paths import REPLAY, camera
 from rfr_viz.viewer import WINDOW, ViewerUnavailable, _viewer_process, check_vulkan
 from robofailring import (
@@ -29,6 +34,7 @@ from robofailring import (
     load_encoder,
     load_trajectory,
 )
+from robofailring.data.images import write_png
 
 runner = CliRunner()
 DELTA = "0.97"  # the synthetic episode's S_t crosses it part-way through (frame 6 of 8)
@@ -89,6 +95,7 @@ def test_watch_save_equals_detect_json(episode: Path, memory_dir: Path, tmp_path
         assert [frame for frame, _ in rows(saved, camera(view), "EncodedImage:blob")] == list(
             range(detected["length"])
         )
+    assert properties(saved, "camera")["codec"] == "jpeg"  # the default: a JPEG per live frame
     state = rows(saved, REPLAY.state, "Scalars:scalars")
     assert next(frame for frame, value in state if value[0] == 1.0) == detected["t_det"]
     found = properties(saved)
@@ -116,6 +123,73 @@ def test_watch_save_equals_detect_json(episode: Path, memory_dir: Path, tmp_path
     assert replayed.exit_code == 0, replayed.output
     (replay,) = (tmp_path / "replay").glob("*.rrd")
     assert entity_paths(saved) == entity_paths(replay)  # the same entity paths as a replay
+
+
+@pytest.mark.parametrize("codec", ["av1", "h264"])
+def test_watch_encodes_video_frame_by_frame(
+    episode: Path, memory_dir: Path, tmp_path: Path, codec: str
+) -> None:
+    folder = tmp_path / episode.name  # the episode at 96 px, so that video has real pixels to compress
+    for v, view in enumerate(VIEWS):
+        (folder / view).mkdir(parents=True)
+        for t in range(8):
+            write_png(
+                folder / view / f"{t}.png", synthetic_frame("pick_cube", "grasp_wp2", v, t + 1, 9, size=96)
+            )
+    saved = tmp_path / f"live-{codec}.rrd"
+    _watch(folder, memory_dir, "--save", str(saved), "--camera-codec", codec)
+    trajectory = load_trajectory(folder)
+    length = properties(saved)["L"]
+    assert length == 8
+    camera_properties = properties(saved, "camera")
+    assert camera_properties["codec"] == codec and camera_properties["keyframe_interval"] == KEYFRAME_INTERVAL
+    for view in trajectory.views:
+        assert f"{view}: {codec}" in camera_properties["views"]
+        samples = rows(saved, camera(view), "VideoStream:sample")
+        assert [frame for frame, _ in samples] == list(range(length))  # one sample per frame, at its frame
+        assert not rows(saved, camera(view), "EncodedImage:blob")
+        keyframes = [bool(key[0]) for _, key in rows(saved, camera(view), "VideoStream:is_keyframe")]
+        assert keyframes[0] and len(keyframes) == length
+        (codec_row,) = [
+            batch.column("VideoStream:codec").to_pylist()
+            for batch in batches(saved, camera(view))
+            if "VideoStream:codec" in batch.schema.names
+        ]
+        assert codec_row == [[{"av1": 0x61763031, "h264": 0x61766331}[codec]]]
+        video = EncodedVideo(CameraCodec(codec), [bytes(s[0]) for _, s in samples], keyframes, 96, 96)
+        decoded = decode_video(video)
+        source = [frame.load() for frame in trajectory.views[view][:length]]
+        assert len(decoded) == length
+        # pixel-close to the source, as a replay's video (tests/test_camera_video.py)
+        assert min(_psnr(d, s) for d, s in zip(decoded, source, strict=True)) > 30.0
+
+
+def test_live_auto_means_jpeg_and_images_stay_images(tmp_path: Path) -> None:
+    assert live_codec("auto") is CameraCodec.JPEG and live_codec("av1") is CameraCodec.AV1
+    saved = tmp_path / "frames.rrd"
+    rec = rr.RecordingStream("test", recording_id="frames")
+    rec.save(saved)
+    cameras = LiveCameras(rec, ["front"], codec="av1", fps=10.0)
+    frames = [synthetic_frame("pick_cube", "grasp_wp2", 0, t, 12, size=96) for t in range(12)]
+    for t, frame in enumerate(frames):
+        set_frame_time(rec, t, 10.0)
+        cameras.log("front", frame, t)
+    cameras.finish()
+    rec.flush()
+    rec.disconnect()
+    samples = rows(saved, camera("front"), "VideoStream:sample")
+    assert [frame for frame, _ in samples] == list(range(12))
+    keyframes = [bool(key[0]) for _, key in rows(saved, camera("front"), "VideoStream:is_keyframe")]
+    video = EncodedVideo(CameraCodec.AV1, [bytes(s[0]) for _, s in samples], keyframes, 96, 96)
+    whole = encode_video(frames, CameraCodec.AV1, fps=10.0)  # what a replay stores for the same frames
+    assert video.samples == whole.samples and video.keyframes == whole.keyframes
+    decoded = decode_video(video)
+    assert min(_psnr(d, s) for d, s in zip(decoded, frames, strict=True)) > 30.0
+
+
+def _psnr(a: np.ndarray, b: np.ndarray) -> float:
+    mse = float(np.mean((a.astype(np.float64) - b) ** 2))
+    return math.inf if mse == 0 else 10 * math.log10(255.0**2 / mse)
 
 
 class Collect:

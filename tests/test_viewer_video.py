@@ -8,11 +8,12 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from lerobot_writer import encode_video as write_mp4
 from synthetic import synthetic_frame, write_episode
 
 from rfr_viz.camera_video import CameraCodec
 from rfr_viz.record import record_replay
-from rfr_viz.viewer import ViewerUnavailable, check_vulkan, render_screenshot
+from rfr_viz.viewer import ViewerUnavailable, check_vulkan, recording_properties, render_screenshot
 from robofailring import (
     CachedEncoder,
     FailureDetector,
@@ -70,5 +71,29 @@ def test_the_camera_panel_shows_the_video_frame(
     assert shot.errors == [], shot.errors
     shown = _panel_image(shot.views["/camera/front"])
     # the panel holds frame 33 itself: close to its pixels, and far from another frame's
+    assert _difference(shown, frames[SHOWN]) < 3.5
+    assert _difference(shown, frames[OTHER]) > 2 * _difference(shown, frames[SHOWN])
+
+
+def test_a_video_source_logged_as_its_own_samples_renders(aha_dataset: Path, tmp_path: Path) -> None:
+    """An AV1 `<view>.mp4` kept as the file's samples (rfr_viz.video_passthrough) shows its frames."""
+    try:
+        check_vulkan()
+    except ViewerUnavailable as error:
+        pytest.skip(f"headless Rerun viewer unavailable: {error}")
+    encoder = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "cache")
+    memory, _ = FailureMemory.build(load_dataset(aha_dataset), encoder)
+    folder = tmp_path / "push_cube_slip_wp3_episode5"
+    frames = [synthetic_frame("push_cube", "slip_wp3", 0, t, LENGTH, size=SIZE) for t in range(LENGTH)]
+    write_mp4(folder / "front.mp4", frames, 10, "av1")
+    trajectory = load_trajectory(folder)
+    trace = FailureDetector(memory, encoder, k=2).run(trajectory)
+    recording = record_replay(trajectory, trace, out=tmp_path / "kept.rrd", camera_codec=CameraCodec.AV1)
+    assert recording_properties(recording, group="camera")["as_recorded"] == "front"
+    shot = render_screenshot(
+        recording, tmp_path / "shot.png", frame=SHOWN, views=["/camera/front"], settle=1.5
+    )
+    assert shot.errors == [], shot.errors
+    shown = _panel_image(shot.views["/camera/front"])
     assert _difference(shown, frames[SHOWN]) < 3.5
     assert _difference(shown, frames[OTHER]) > 2 * _difference(shown, frames[SHOWN])

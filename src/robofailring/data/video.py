@@ -228,6 +228,11 @@ class VideoFrames(Sequence[Frame]):
     def __len__(self) -> int:
         return self.video.count if self._times is None else len(self._times)
 
+    @property
+    def whole_file(self) -> bool:
+        """Every frame of the file in order (a video-episode folder), not frames picked by time."""
+        return self._times is None
+
     @overload
     def __getitem__(self, item: int) -> Frame: ...
     @overload
