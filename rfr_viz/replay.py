@@ -17,7 +17,7 @@ from robofailring.atomic import output_lock, remove_file_leftovers
 from robofailring.data.layouts import detect_layout, load_dataset, load_trajectory
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.detector import DEFAULT_K, DetectionTrace, FailureDetector, check_stride
-from robofailring.encoders import CachedEncoder, encoder_slug, load_encoder
+from robofailring.encoders import EncoderSpec, open_encoder
 from robofailring.errors import DataError, SettingError, UnknownTaskError
 from robofailring.memory import FailureMemory
 from robofailring.outputs import check_output_folder, check_recording_file
@@ -184,9 +184,9 @@ def load_detector(
 ) -> LoadedDetector:
     memory = FailureMemory.load(memory_dir, data_root=data_root)
     spec = encoder or encoder_spec_for(memory)
-    cached = CachedEncoder(load_encoder(spec, device=device), cache_dir=cache_dir)
+    cached = open_encoder(spec, device=device, cache_dir=cache_dir)
     return LoadedDetector(
-        slug=encoder_slug(memory.encoder),
+        slug=EncoderSpec.slug(memory.encoder),
         memory=memory,
         detector=FailureDetector(memory, cached, delta=delta, k=k, rule=score, gamma=gamma),
         map=memory_map(memory, directory=memory_dir),

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from collections import Counter
 from pathlib import Path
 
 import pytest
@@ -13,7 +14,20 @@ from robofailring.comparison import CompareEncodersConfig, compare_encoders, com
 pytestmark = pytest.mark.slow  # simulation or end-to-end: the full lane only (scripts/test.sh)
 
 
-def test_two_encoders_side_by_side(tmp_path: Path, tiny_checkpoint: tuple[Path, Path]) -> None:
+def test_two_encoders_side_by_side(
+    tmp_path: Path, tiny_checkpoint: tuple[Path, Path], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import robofailring.encoders as encoders
+
+    loads: Counter[str] = Counter()
+    real_load = encoders.load_encoder
+
+    def counting_load(spec: str | encoders.EncoderSpec, *, device: str | None = None) -> encoders.Encoder:
+        loads[str(spec)] += 1
+        return real_load(spec, device=device)
+
+    encoders._loaded_encoder.cache_clear()
+    monkeypatch.setattr(encoders, "load_encoder", counting_load)
     config_json, checkpoint = tiny_checkpoint
     data = write_project_dataset(tmp_path / "data", tasks=("pick_cube",), episodes=4)
     clip = f"open_clip:{config_json}:{checkpoint}"
@@ -27,6 +41,7 @@ def test_two_encoders_side_by_side(tmp_path: Path, tiny_checkpoint: tuple[Path, 
         )
     )
     assert [r.name for r in results] == ["pixels", "tinyvit-test"]
+    assert loads == Counter({"pixels": 1, clip: 1})  # each encoder opened once (build, calibrate, evaluate)
     for result in results:
         manifest = json.loads((Path(result.memory) / "manifest.json").read_text())
         assert manifest["calibration"]["encoder"] == result.encoder == manifest["encoder"]

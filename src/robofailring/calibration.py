@@ -17,7 +17,7 @@ from pathlib import Path
 from robofailring.data.layouts import load_dataset
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.detector import PAPER_DELTA, FailureDetector, check_k, check_stride
-from robofailring.encoders import CachedEncoder, load_encoder
+from robofailring.encoders import open_encoder
 from robofailring.errors import DataError
 from robofailring.memory import FailureMemory
 from robofailring.memory_manifest import StoredCalibration
@@ -137,9 +137,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
     from robofailring.pipeline import encoder_spec_for
 
     memory = FailureMemory.load(config.memory)
-    encoder = CachedEncoder(
-        load_encoder(encoder_spec_for(memory), device=config.device), cache_dir=config.cache_dir
-    )
+    encoder = open_encoder(encoder_spec_for(memory), device=config.device, cache_dir=config.cache_dir)
     detector = FailureDetector(memory, encoder, delta=PAPER_DELTA, k=config.k, rule=ScoreRule.PAPER)
     dataset = load_dataset(config.data, labels=config.labels)
     dataset.require_labels("calibrate")

@@ -8,7 +8,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from robofailring.calibration import CalibrateConfig, calibrate
-from robofailring.encoders import encoder_slug, load_encoder
+from robofailring.encoders import EncoderSpec, open_encoder
 from robofailring.evaluation import (
     EvaluateConfig,
     EvaluationResult,
@@ -36,7 +36,7 @@ def compare_encoders(config: CompareEncodersConfig) -> list[EvaluationResult]:
         raise ValueError("an encoder comparison needs at least two encoders")
     results = []
     for spec in config.encoders:
-        slug = encoder_slug(load_encoder(spec, device=config.device).identity)
+        slug = EncoderSpec.slug(open_encoder(spec, device=config.device, cache_dir=config.cache_dir).identity)
         memory_dir = Path(config.out) / f"memory-{slug}"
         base = EvaluateConfig(
             data=config.data,

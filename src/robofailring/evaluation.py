@@ -21,7 +21,7 @@ from robofailring.detector import (
     check_k,
     check_stride,
 )
-from robofailring.encoders import CachedEncoder, load_encoder, portable_spec
+from robofailring.encoders import CachedEncoder, open_encoder, portable_spec
 from robofailring.errors import DataError, RoboFailRingError, SettingError
 from robofailring.evaluation_result import EvaluationResult
 from robofailring.memory import FailureMemory
@@ -170,9 +170,7 @@ def build_training_memory(
 ) -> Path:
     """Build the memory from the training split's failures and save it to `config.memory_out`."""
     if encoder is None:
-        encoder = CachedEncoder(
-            load_encoder(config.encoder, device=config.device), cache_dir=config.cache_dir
-        )
+        encoder = open_encoder(config.encoder, device=config.device, cache_dir=config.cache_dir)
     if train is None:
         train, _ = select_splits(config)
     failures = [t for t in train if t.is_failure]
@@ -192,7 +190,7 @@ def build_training_memory(
 
 def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
     """Build (or load) the memory, replay every test trajectory once, and measure everything."""
-    encoder = CachedEncoder(load_encoder(config.encoder, device=config.device), cache_dir=config.cache_dir)
+    encoder = open_encoder(config.encoder, device=config.device, cache_dir=config.cache_dir)
     unread: list[Skipped] = []
     train, test = select_splits(config, unread)
     memory_dir = config.memory if config.memory is not None else build_training_memory(config, train, encoder)

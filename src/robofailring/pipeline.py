@@ -9,8 +9,8 @@ from robofailring.atomic import output_lock
 from robofailring.data.layouts import load_dataset, load_trajectory
 from robofailring.data.model import Trajectory
 from robofailring.detector import DEFAULT_K, DetectionTrace, FailureDetector, check_stride
-from robofailring.encoders import CachedEncoder, load_encoder, portable_spec
-from robofailring.errors import DataError, EncoderError, MemoryFormatError
+from robofailring.encoders import EncoderSpec, open_encoder, portable_spec
+from robofailring.errors import DataError, MemoryFormatError
 from robofailring.memory import BuildStats, FailureMemory
 from robofailring.outputs import check_memory_target, is_memory_dir
 from robofailring.progress import progress_bar
@@ -45,7 +45,7 @@ def build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
 
 
 def _build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
-    encoder = CachedEncoder(load_encoder(config.encoder, device=config.device), cache_dir=config.cache_dir)
+    encoder = open_encoder(config.encoder, device=config.device, cache_dir=config.cache_dir)
     dataset = load_dataset(config.data, task=config.task, labels=config.labels)
     dataset.require_labels("build-memory")
     trajectories = list(dataset.trajectories())
@@ -129,19 +129,7 @@ class DetectConfig:
 
 def encoder_spec_for(memory: FailureMemory) -> str:
     """The encoder spec that reproduces a memory's encoder identity (pixels or open_clip)."""
-    identity = memory.encoder
-    if identity.startswith("pixels"):
-        return "pixels"
-    spec = memory.manifest.encoder_spec
-    if spec is not None:
-        return spec
-    if ":file-" in identity:
-        model = identity.split(":")[1]
-        raise EncoderError(
-            f"this memory was built with {identity} (a checkpoint file) and does not record where that file is; "
-            f"pass --encoder open_clip:{model}:/path/to/the/same/checkpoint"
-        )
-    return identity
+    return EncoderSpec.for_memory(memory.encoder, memory.manifest.encoder_spec)
 
 
 def detect(config: DetectConfig) -> DetectionTrace:
@@ -155,7 +143,7 @@ def detect_trajectory(config: DetectConfig) -> tuple[DetectionTrace, Trajectory]
     memory = FailureMemory.load(config.memory, data_root=config.data_root)
     trajectory = load_trajectory(config.trajectory, task=config.task, key=config.key, labels=config.labels)
     spec = config.encoder or encoder_spec_for(memory)
-    encoder = CachedEncoder(load_encoder(spec, device=config.device), cache_dir=config.cache_dir)
+    encoder = open_encoder(spec, device=config.device, cache_dir=config.cache_dir)
     detector = FailureDetector(
         memory, encoder, delta=config.delta, k=config.k, rule=config.score, gamma=config.gamma
     )

@@ -18,6 +18,7 @@ from typing import Any, Final
 import numpy as np
 
 from robofailring.data.model import Frame, Skipped, Trajectory
+from robofailring.data.registry import Layout
 from robofailring.data.video import VideoFrames, open_video
 from robofailring.errors import DataError
 
@@ -210,3 +211,16 @@ def _v2(root: Path, info: dict[str, Any], cameras: dict[str, str]) -> list[Traje
         task = _task_of(record.get("tasks"), where)
         trajectories.append(_trajectory(root, index, task, fps, views, length, where))
     return trajectories
+
+
+def _read(root: Path, *, task: str | None = None) -> tuple[list[Trajectory], list[Skipped]]:
+    return lerobot_trajectories(root)
+
+
+LAYOUT: Final = Layout(
+    name="lerobot",
+    detect=is_lerobot,
+    read=_read,
+    help="a LeRobot dataset (v2.1 or v3.0: meta/info.json, parquet, one mp4 per camera)",
+    listed=4,
+)

@@ -2,64 +2,65 @@
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 from robofailring.encoders.base import Encoder, l2_normalize
 from robofailring.encoders.cache import CachedEncoder, EmbeddingCache, default_cache_dir
-from robofailring.errors import EncoderError
-
-ENCODER_SPECS_HELP = (
-    "`pixels` (weight-free), `open_clip:<model>[:<pretrained tag or checkpoint path>]`, "
-    "e.g. `open_clip:ViT-B-32:openai` or `open_clip:ViT-L-14:/models/vit-l-14.pt`, "
-    "or `trained:<DIR>` (a folder written by `robofailring train-encoder`)"
-)
+from robofailring.encoders.spec import ENCODER_SPECS_HELP, EncoderSpec
 
 
-def load_encoder(spec: str, *, device: str | None = None) -> Encoder:
-    """Build an encoder from a spec string (see ENCODER_SPECS_HELP)."""
-    spec = spec.strip()
-    if spec == "pixels":
-        from robofailring.encoders.pixels import PixelEncoder
-
-        return PixelEncoder()
-    if spec.startswith("open_clip:"):
-        rest = spec[len("open_clip:") :]
-        model, _, weights = rest.partition(":")
-        if not model:
-            raise EncoderError(f"encoder spec {spec!r} names no model; expected {ENCODER_SPECS_HELP}")
+def load_encoder(spec: str | EncoderSpec, *, device: str | None = None) -> Encoder:
+    """Build an encoder from a spec string or EncoderSpec (see ENCODER_SPECS_HELP); a new one every call."""
+    parsed = EncoderSpec.parse(spec)
+    if parsed.kind == "open_clip":
         from robofailring.encoders.openclip import OpenClipEncoder
 
-        return OpenClipEncoder(model, weights, device=device)
-    if spec.startswith("trained:"):
-        directory = spec[len("trained:") :]
-        if not directory:
-            raise EncoderError(f"encoder spec {spec!r} names no folder; expected {ENCODER_SPECS_HELP}")
+        return OpenClipEncoder(parsed.model, parsed.weights, device=device)
+    if parsed.kind == "trained":
         from robofailring.encoders.trained import TrainedEncoder
 
-        return TrainedEncoder(Path(directory), device=device)
-    raise EncoderError(f"unknown encoder spec {spec!r}; expected {ENCODER_SPECS_HELP}")
+        return TrainedEncoder(Path(parsed.directory), device=device)
+    from robofailring.encoders.pixels import PixelEncoder
+
+    return PixelEncoder()
 
 
-def portable_spec(spec: str) -> str:
-    """The spec a memory records: a `trained:` folder or an open_clip checkpoint file as an absolute
-    path, so the memory finds its encoder again from any working directory."""
-    spec = spec.strip()
-    if spec.startswith("trained:"):
-        return f"trained:{Path(spec[len('trained:') :]).resolve()}"
-    if spec.startswith("open_clip:"):
-        model, _, weights = spec[len("open_clip:") :].partition(":")
-        parts = [Path(part).resolve() if Path(part).is_file() else part for part in (model, weights)]
-        return "open_clip:" + ":".join(str(part) for part in parts if str(part))
-    return spec
+def open_encoder(
+    spec: str | EncoderSpec, *, device: str | None = None, cache_dir: Path | None = None
+) -> CachedEncoder:
+    """The one way jobs open an encoder: its model is loaded once per process for a (spec, device).
+
+    The memo key is the spec's portable form, the device and the modification times of the files
+    the spec names, so a folder retrained or a checkpoint rewritten in place is loaded again. The
+    embedding cache in `cache_dir` is opened afresh on every call (as a new process would open it).
+    """
+    portable = EncoderSpec.parse(spec).portable()
+    encoder = _loaded_encoder(str(portable), device, _files_stamp(portable))
+    return CachedEncoder(encoder, cache_dir=cache_dir)
+
+
+def _files_stamp(spec: EncoderSpec) -> tuple[int, ...]:
+    paths = [Path(spec.directory)] if spec.kind == "trained" else [Path(spec.model), Path(spec.weights)]
+    named = [path for path in paths if str(path) not in ("", ".")]
+    files = [f for path in named for f in (sorted(path.iterdir()) if path.is_dir() else [path])]
+    return tuple(f.stat().st_mtime_ns if f.is_file() else 0 for f in files)
+
+
+@functools.lru_cache(maxsize=8)
+def _loaded_encoder(spec: str, device: str | None, stamp: tuple[int, ...]) -> Encoder:
+    del stamp  # only part of the key
+    return load_encoder(spec, device=device)
+
+
+def portable_spec(spec: str | EncoderSpec) -> str:
+    """The spec a memory records (`EncoderSpec.portable`), as a string."""
+    return str(EncoderSpec.parse(spec).portable())
 
 
 def encoder_slug(identity: str) -> str:
-    """A short path-safe name for an encoder identity, e.g. `vit-b-32` or `pixels`."""
-    if identity.startswith("open_clip:"):
-        return identity.split(":")[1].lower().replace("/", "-")
-    if identity.startswith("trained:"):  # trained:<arch>:<weights digest>; two trained ones stay apart
-        return f"trained-{identity.rsplit(':', 1)[-1][:8]}"
-    return identity.split("-")[0].lower()
+    """A short path-safe name for an encoder identity (`EncoderSpec.slug`)."""
+    return EncoderSpec.slug(identity)
 
 
 __all__ = [
@@ -67,9 +68,11 @@ __all__ = [
     "CachedEncoder",
     "EmbeddingCache",
     "Encoder",
+    "EncoderSpec",
     "default_cache_dir",
     "encoder_slug",
     "l2_normalize",
     "load_encoder",
+    "open_encoder",
     "portable_spec",
 ]

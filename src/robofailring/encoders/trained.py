@@ -147,13 +147,17 @@ def normalizer(config: dict[str, Any], device: str) -> tuple[Any, Any]:
 def load_backbone(init: str, *, device: str | None) -> Any:
     """The project's OpenClipEncoder for an `open_clip:<model>:<weights>` init spec."""
     from robofailring.encoders.openclip import OpenClipEncoder
+    from robofailring.encoders.spec import EncoderSpec
 
-    if not init.startswith("open_clip:"):
+    try:
+        spec = EncoderSpec.parse(init)
+    except EncoderError as error:
+        raise EncoderError(
+            f"--init must be an open_clip:<model>:<weights> spec, got {init!r}: {error}"
+        ) from error
+    if spec.kind != "open_clip":
         raise EncoderError(f"--init must be an open_clip:<model>:<weights> spec, got {init!r}")
-    model, _, weights = init[len("open_clip:") :].partition(":")
-    if not model:
-        raise EncoderError(f"init spec {init!r} names no open_clip model")
-    return OpenClipEncoder(model, weights, device=device)
+    return OpenClipEncoder(spec.model, spec.weights, device=device)
 
 
 def clip_input(backbone: Any) -> tuple[int, list[float], list[float]]:

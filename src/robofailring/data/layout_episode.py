@@ -1,0 +1,74 @@
+"""One episode folder: `<dir>/{<view>}/<n>.png`, `<dir>/<view>_<n>.png` or `<dir>/<view>.mp4`.
+
+The task and outcome come from the folder name where it follows the AHA or ManiSkill naming, else
+from `--task`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Final
+
+from robofailring.data.folders import episode_views
+from robofailring.data.layout_aha import aha_name_problem, parse_aha_name
+from robofailring.data.layout_maniskill import MANISKILL_FAILURE, MANISKILL_SUCCESS
+from robofailring.data.model import Outcome, Trajectory
+from robofailring.data.registry import Found, Layout
+from robofailring.errors import DataError
+
+
+def episode_trajectory(path: Path, *, task: str | None) -> Trajectory:
+    parsed = parse_aha_name(path.name)
+    views, skipped = episode_views(path)
+    if not views:
+        from robofailring.data.layouts import LAYOUTS_HELP
+
+        raise DataError(f"{path} holds no images; {LAYOUTS_HELP}")
+    symbol: str | None = None
+    outcome: Outcome | None = None
+    episode = path.name
+    if parsed is not None:
+        parsed_task, symbol, _ = parsed
+        task = task or parsed_task
+        outcome = Outcome.FAILURE if symbol else Outcome.SUCCESS
+    else:
+        maniskill = MANISKILL_FAILURE.match(path.name)
+        if maniskill is not None:
+            symbol = f"{maniskill['fail']}_{maniskill['stage']}"
+            outcome = Outcome.FAILURE
+        elif path.name == MANISKILL_SUCCESS:
+            outcome = Outcome.SUCCESS
+        if task is None and (maniskill is not None or path.name == MANISKILL_SUCCESS):
+            task = path.parent.parent.name
+            episode = f"{path.parent.name}/{path.name}"
+    if task is None:
+        problem = aha_name_problem(path.name)
+        if problem.startswith("unknown failure type"):
+            raise DataError(f"cannot read trajectory {path}: {problem}")
+        raise DataError(f"cannot tell the task of trajectory {path} from its name; pass it with --task")
+    return Trajectory(
+        task=task,
+        episode=episode,
+        views=views,
+        symbol=symbol,
+        outcome=outcome,
+        source=path,
+        skipped=tuple(skipped),
+    )
+
+
+def _detect(root: Path) -> bool:
+    return bool(episode_views(root)[0])
+
+
+def _read(root: Path, *, task: str | None = None) -> Found:
+    return [episode_trajectory(root, task=task)], []
+
+
+LAYOUT: Final = Layout(
+    name="episode",
+    detect=_detect,
+    read=_read,
+    help="one episode: <dir>/{<view>}/<n>.png, <dir>/<view>_<n>.png or <dir>/<view>.mp4",
+    listed=6,
+)

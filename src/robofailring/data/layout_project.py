@@ -1,0 +1,83 @@
+"""The project's own layout: a `manifest.json` (written by `robofailring generate`) listing every episode."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any, Final
+
+from robofailring.data.folders import aha_files
+from robofailring.data.model import Outcome, Skipped, Trajectory
+from robofailring.data.registry import Found, Layout
+from robofailring.errors import DataError
+
+PROJECT_MANIFEST: Final[str] = "manifest.json"
+PROJECT_FORMAT: Final[str] = "robofailring-dataset"
+
+
+def read_project_manifest(root: Path) -> dict[str, Any]:
+    """The project's dataset manifest, validated enough to name what is wrong."""
+    path = Path(root) / PROJECT_MANIFEST
+    try:
+        manifest = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError) as error:
+        raise DataError(f"cannot read dataset manifest {path}: {error}") from error
+    if manifest.get("format") != PROJECT_FORMAT or not isinstance(manifest.get("episodes"), list):
+        raise DataError(f"{path} is not a robofailring dataset manifest (format {PROJECT_FORMAT!r})")
+    return dict(manifest)
+
+
+def project_trajectories(root: Path, manifest: dict[str, Any]) -> Found:
+    found = []
+    listed = set()
+    for record in manifest["episodes"]:
+        try:
+            directory = root / record["dir"]
+            outcome = Outcome(record["outcome"])
+            task = record["task"]
+        except (KeyError, ValueError) as error:
+            raise DataError(f"{root / PROJECT_MANIFEST}: bad episode record {record!r} ({error})") from error
+        if not directory.is_dir():
+            raise DataError(f"{root / PROJECT_MANIFEST} lists {record['dir']} but {directory} is missing")
+        listed.add(Path(record["dir"]).parts[0])
+        views, inside = aha_files(directory)
+        wanted = record.get("views")
+        if wanted:
+            views = {view: views.get(view, ()) for view in wanted}
+        found.append(
+            Trajectory(
+                task=task,
+                episode=record.get("episode", record["dir"]),
+                views=views,
+                symbol=record.get("label"),
+                outcome=outcome,
+                source=directory,
+                fps=record.get("fps", manifest.get("fps")),
+                split=record.get("split"),
+                skipped=tuple(inside),
+            )
+        )
+    unlisted = [
+        Skipped(p, f"not listed in {PROJECT_MANIFEST}")
+        for p in sorted(root.iterdir())
+        if p.name not in listed and p.name != PROJECT_MANIFEST and not p.name.startswith(".")
+    ]
+    return found, unlisted
+
+
+def _detect(root: Path) -> bool:
+    return (root / PROJECT_MANIFEST).is_file()
+
+
+def _read(root: Path, *, task: str | None = None) -> Found:
+    return project_trajectories(root, read_project_manifest(root))
+
+
+LAYOUT: Final = Layout(
+    name="project",
+    detect=_detect,
+    read=_read,
+    help="the project's own layout (a manifest.json written by `robofailring generate`)",
+    listed=1,
+    manifest=read_project_manifest,
+)

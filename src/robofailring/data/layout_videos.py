@@ -1,0 +1,46 @@
+"""Video episodes: `<root>/<episode>/<view>.mp4|.webm|.mkv`, one trajectory per folder of videos."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Final
+
+from robofailring.data.folders import has_images, has_videos, subdirs
+from robofailring.data.layout_episode import episode_trajectory
+from robofailring.data.model import Skipped, Trajectory
+from robofailring.data.registry import Found, Layout
+from robofailring.errors import DataError
+
+
+def video_trajectories(root: Path, *, task: str | None = None) -> Found:
+    """`<root>/<episode>/<view>.mp4`: one trajectory per folder of videos; others reported."""
+    found: list[Trajectory] = []
+    skipped: list[Skipped] = [
+        Skipped(p, "a file beside the episode folders")
+        for p in root.iterdir()
+        if p.is_file() and not p.name.startswith(".")
+    ]
+    for directory in subdirs(root):
+        if not has_videos(directory):
+            skipped.append(Skipped(directory, "no video file (.mp4, .webm, .mkv) in this episode folder"))
+            continue
+        try:
+            found.append(episode_trajectory(directory, task=task))
+        except DataError as error:
+            skipped.append(Skipped(directory, str(error)))
+    return found, skipped
+
+
+def _detect(root: Path) -> bool:
+    """Folders of videos and none of images (a folder of images is an episode of another layout)."""
+    folders = subdirs(root)
+    return any(has_videos(sub) for sub in folders) and not any(has_images(sub) for sub in folders)
+
+
+LAYOUT: Final = Layout(
+    name="videos",
+    detect=_detect,
+    read=video_trajectories,
+    help="video episodes <root>/<episode>/<view>.mp4|.webm|.mkv",
+    listed=5,
+)
