@@ -20,6 +20,7 @@ from robofailring import (
     load_encoder,
     load_trajectory,
 )
+from robofailring.encoders import portable_spec
 
 
 def main() -> None:
@@ -42,7 +43,7 @@ def main() -> None:
     dataset = load_dataset(args.dataset)
     print(f"{args.dataset}: {dataset.layout} layout")
     memory, stats = FailureMemory.build(dataset, encoder)
-    memory.manifest["encoder_spec"] = args.encoder
+    memory.manifest.encoder_spec = portable_spec(args.encoder)  # `detect` reopens the encoder from it
     memory.save(args.memory)
     print(
         f"memory: {len(memory)} entries over {len(memory.tasks)} tasks; {len(stats.skipped_views)} views skipped"
