@@ -1,4 +1,4 @@
-"""rfr_viz.closed_loop: the detector stops a simulated robot; both runs read back from the `.rrd`."""
+"""robofailring.sim.closed_loop and its recording (rfr_viz.closed_loop): the detector stops a simulated robot."""
 
 from __future__ import annotations
 
@@ -17,6 +17,7 @@ from rfr_viz.paths import APPLICATION_ID, CLOSED_LOOP_SUMMARY, UNSTOPPED, WATCHE
 from rfr_viz.viewer import ViewerUnavailable, render_screenshot
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
 from robofailring.sim import VIEWS, EpisodeResult, GenerateConfig, generate_dataset, run_episode
+from robofailring.sim.closed_loop import watch_episode
 
 pytestmark = pytest.mark.slow  # simulation or end-to-end: the full lane only (scripts/test.sh)
 
@@ -232,3 +233,22 @@ def test_closed_loop_renders_in_the_real_viewer(
     # the red STOPPED frames around the watched cameras are on screen
     red = (image[:, :, 2] > 200) & (image[:, :, 1] < 90) & (image[:, :, 0] < 90)
     assert int(red.sum()) > 300
+
+
+def test_the_library_control_loop_stops_the_robot_without_rerun(
+    memory: FailureMemory, encoder: CachedEncoder, stopped: ClosedLoopResult, stop_frame: int
+) -> None:
+    """robofailring.sim.closed_loop on its own: the same stop, frames and goal checks as the recording's run."""
+    detector = FailureDetector(memory, encoder, delta=stopped.delta, k=3)
+    loop = watch_episode(detector, TASK, MODE, SEED, image_size=SIZE, frames=FRAMES)
+    assert loop.stop_frame == stop_frame == stopped.stop_frame
+    assert loop.stop_view == stopped.stop_view
+    assert loop.saving_ratio == pytest.approx(1 - stop_frame / FRAMES)
+    assert [len(frames) for frames in loop.watched.frames.values()] == [stop_frame + 1] * len(VIEWS)
+    assert [len(frames) for frames in loop.unstopped.frames.values()] == [FRAMES] * len(VIEWS)
+    assert loop.watched.size == (SIZE, SIZE)
+    assert loop.watched.result == stopped.watched and loop.unstopped.result == stopped.unstopped
+    assert [step.similarity for step in loop.unstopped.steps] == [
+        step.similarity for step in stopped.unstopped_steps
+    ]
+    assert f"**STOP at frame {stop_frame}**" in loop.summary()
