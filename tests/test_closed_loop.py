@@ -4,13 +4,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import cv2
 import numpy as np
 import pytest
-from rerun.chunk import RrdReader
-from test_viz import entity_paths, properties, rows, static_value
+from rrd import entity_paths, properties, reader, static_value, values
 
 from rfr_viz.closed_loop import ClosedLoopResult, run_closed_loop
 from rfr_viz.paths import APPLICATION_ID, CLOSED_LOOP_SUMMARY, UNSTOPPED, WATCHED
@@ -102,12 +100,6 @@ def stopped(
     )
 
 
-def values(path: Path, entity: str, column: str) -> tuple[list[int], list[Any]]:
-    """Frames and first values of `entity`'s temporal rows holding `column`, in frame order."""
-    found = rows(path, entity, column)
-    return [frame for frame, _ in found], [value[0] for _, value in found]
-
-
 def test_the_watched_run_stops_at_the_alarm(stopped: ClosedLoopResult, stop_frame: int) -> None:
     assert stopped.stop_frame == stop_frame and stopped.length == FRAMES
     assert stopped.stop_view in VIEWS
@@ -146,10 +138,10 @@ def test_watched_cameras_end_at_the_stop_and_unstopped_run_on(
     path = stopped.path
     paths = entity_paths(path)
     assert {WATCHED.camera(v) for v in VIEWS} | {UNSTOPPED.camera(v) for v in VIEWS} <= paths
-    reader = RrdReader(path)
-    (recording,) = reader.recordings()
+    read = reader(path)
+    (recording,) = read.recordings()
     assert recording.application_id == APPLICATION_ID and recording.recording_id == "closed-loop-test"
-    assert reader.blueprints(), "the blueprint is saved inside the recording"
+    assert read.blueprints(), "the blueprint is saved inside the recording"
     for view in VIEWS:
         watched, blobs = values(path, WATCHED.camera(view), "EncodedImage:blob")
         assert watched == list(range(stop_frame + 1))

@@ -9,8 +9,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from rrd import entity_paths, properties, rows
 from synthetic import write_episode
-from test_viz import entity_paths, properties, rows
 from typer.testing import CliRunner
 
 from rfr_viz.cli import app
