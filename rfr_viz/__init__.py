@@ -1,6 +1,6 @@
 """Rerun recordings of replayed trajectories (all Rerun code of the project lives here).
 
-The closed-loop simulator run is `rfr_viz.closed_loop.run_closed_loop` (imported on its own: it loads pybullet).
+The closed-loop simulator run is recorded by `rfr_viz.closed_loop.run_closed_loop` (imported on its own: it loads pybullet).
 `LiveRecording` is the step API's sink that streams a live session to a viewer (`rfr_viz.live`).
 """
 

@@ -8,7 +8,16 @@ import numpy as np
 import rerun.blueprint as rrb
 
 from rfr_viz.neighbors import Cell
-from rfr_viz.paths import DEFAULT_FPS, FRAME, REPLAY, DetectorPaths, camera
+from rfr_viz.paths import (
+    CLOSED_LOOP_SUMMARY,
+    DEFAULT_FPS,
+    FRAME,
+    REPLAY,
+    UNSTOPPED,
+    WATCHED,
+    DetectorPaths,
+    camera,
+)
 
 MAP_BACKGROUND = (22, 22, 26)
 LEGEND_TOP = 1.3  # the map spans [-1, 1]²; its legend sits below it, two entries per row
@@ -220,3 +229,59 @@ def compare_blueprint(
     )
     bottom = rrb.Horizontal(maps, rrb.Tabs(nearest, *reports, events, active_tab=0), column_shares=[1, 1.2])
     return rrb.Blueprint(rrb.Vertical(top, bottom, row_shares=[1, 1.1]), *side_panels(fps))
+
+
+def _closed_loop_score_plot(paths: DetectorPaths, *, name: str, length: int) -> rrb.Container:
+    """S_t of every view with δ; State_t in a thin plot below; both span all L frames of the episode."""
+    frames = rrb.TimeAxis(
+        view_range=rrb.TimeRange(
+            start=rrb.TimeRangeBoundary.absolute(seq=0),
+            end=rrb.TimeRangeBoundary.absolute(seq=length - 1),
+        )
+    )
+    scores = rrb.TimeSeriesView(
+        origin="/",
+        contents=[f"{paths.score_root}/**"],
+        name=name,
+        axis_x=frames,
+        plot_legend=rrb.PlotLegend(corner=rrb.Corner2D.LeftBottom, visible=True),
+    )
+    state = rrb.TimeSeriesView(
+        origin="/",
+        contents=[paths.state],
+        name="State_t (any view ≥ δ)",
+        axis_x=frames,
+        titlebar=False,  # its legend names it: the plot keeps its few pixels for the 0/1 line
+        axis_y=rrb.ScalarAxis(range=(-0.1, 1.1), zoom_lock=True),
+        plot_legend=rrb.PlotLegend(corner=rrb.Corner2D.LeftTop, visible=True),
+    )
+    return rrb.Vertical(scores, state, row_shares=[3, 1.1])
+
+
+def closed_loop_blueprint(
+    *, views: Sequence[str], fps: float, length: int, focus: int | None = None
+) -> rrb.Blueprint:
+    """One row per run (cameras | S_t and State_t), the events and the outcome table below."""
+    rows = []
+    for paths, title in ((WATCHED, "watched (stopped at the alarm)"), (UNSTOPPED, "unstopped")):
+        cameras = rrb.Horizontal(
+            *(rrb.Spatial2DView(origin=paths.camera(view), name=f"{paths.run} · {view}") for view in views)
+        )
+        plot = _closed_loop_score_plot(paths.detector, name=f"{title} · S_t per view and δ", length=length)
+        rows.append(rrb.Horizontal(cameras, plot, column_shares=[len(views), 2.0]))
+    events = rrb.TextLogView(
+        origin="/",
+        contents=[f"{paths.root}/**" for paths in (WATCHED, UNSTOPPED)],
+        name="events (the alarm, the stop, each run's goal check)",
+        columns=rrb.TextLogColumns(
+            timeline_columns=[rrb.encodings.TimelineColumn(FRAME)],
+            text_log_columns=[
+                rrb.encodings.TextLogColumn("LogLevel"),
+                rrb.encodings.TextLogColumn("Body"),
+                rrb.encodings.TextLogColumn("EntityPath", visible=False),
+            ],
+        ),
+    )
+    summary = rrb.TextDocumentView(origin=CLOSED_LOOP_SUMMARY, name="outcome of both runs")
+    text = rrb.Horizontal(events, summary, column_shares=[1, 1.1])
+    return rrb.Blueprint(rrb.Vertical(*rows, text, row_shares=[1, 1, 0.85]), *side_panels(fps, focus))

@@ -95,10 +95,8 @@ def _pick(result: EvaluationResult, kind: str, rule: ScoreRule) -> tuple[str, in
     return (misses[0].key, int(np.argmax(misses[0].scores()))) if misses else None
 
 
-def run_demo(config: DemoConfig, *, say: Callable[[str], None] = print) -> DemoResult:
-    """Generate (cached) in- and out-of-distribution sets, then memory, calibration, evaluation, recordings."""
-    data_dir = config.data_dir or default_cache_dir() / "demo-data"
-    out = Path(config.out)
+def simulate_datasets(config: DemoConfig, data_dir: Path) -> tuple[Path, Path]:
+    """The in- and out-of-distribution sets under `data_dir`, simulated once and reused while their recipe holds."""
     simulated = GenerateConfig(
         out=data_dir / "sim-id",
         tasks=config.tasks,
@@ -121,6 +119,14 @@ def run_demo(config: DemoConfig, *, say: Callable[[str], None] = print) -> DemoR
         ),
         "OOD",
     )
+    return in_dist, out_dist
+
+
+def run_demo(config: DemoConfig, *, say: Callable[[str], None] = print) -> DemoResult:
+    """Generate (cached) in- and out-of-distribution sets, then memory, calibration, evaluation, recordings."""
+    data_dir = config.data_dir or default_cache_dir() / "demo-data"
+    out = Path(config.out)
+    in_dist, out_dist = simulate_datasets(config, data_dir)
     say(f"datasets: {in_dist} (in-distribution), {out_dist} (out-of-distribution)")
 
     base = EvaluateConfig(
@@ -194,11 +200,7 @@ def _compare_with_trained(
     config: DemoConfig, in_dist: Path, data_dir: Path, out: Path, say: Callable[[str], None]
 ) -> EncoderComparison:
     """Train (or reuse, same recipe and frames) an encoder on the ID training split; compare it with pixels."""
-    trained = train_encoder(
-        TrainEncoderConfig(data=in_dist, out=data_dir / "trained-encoder", epochs=config.trained_epochs),
-        reuse=True,
-        say=say,
-    )
+    trained = _trained_encoder(config, in_dist, data_dir, say)
     return run_encoder_comparison(
         CompareEncodersConfig(
             data=in_dist,
@@ -207,4 +209,13 @@ def _compare_with_trained(
             target_fpr=config.target_fpr,  # each encoder calibrated at the demo's α
             cache_dir=config.cache_dir,
         )
+    )
+
+
+def _trained_encoder(config: DemoConfig, in_dist: Path, data_dir: Path, say: Callable[[str], None]) -> Path:
+    """The encoder trained on the ID training split, trained once and reused while its recipe and frames hold."""
+    return train_encoder(
+        TrainEncoderConfig(data=in_dist, out=data_dir / "trained-encoder", epochs=config.trained_epochs),
+        reuse=True,
+        say=say,
     )

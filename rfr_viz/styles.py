@@ -25,6 +25,7 @@ VIEW_COLOURS: Final[tuple[tuple[int, int, int], ...]] = (
 ENCODER_COLOURS: Final[tuple[tuple[int, int, int], ...]] = ((80, 160, 255), (255, 150, 60), (90, 210, 110))
 DELTA_COLOUR: Final[tuple[int, int, int]] = (235, 60, 60)
 STATE_COLOUR: Final[tuple[int, int, int]] = (170, 170, 170)
+STOP_COLOUR: Final[tuple[int, int, int]] = (235, 60, 60)  # the frame around a stopped robot's cameras
 #: Few, large chunks: every chunk carries its own schema, so many small ones would dominate the file.
 GAMMA_COLOUR: Final[tuple[int, int, int]] = (255, 120, 200)
 

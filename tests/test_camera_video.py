@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
-from rerun.chunk import RrdReader
+from rrd import columns as rrd_columns
 from synthetic import synthetic_frame, write_episode
 
 from rfr_viz.camera_video import (
@@ -36,15 +35,6 @@ from robofailring.detector import DetectionTrace
 from robofailring.errors import DataError
 
 LENGTH = 40
-
-
-def _columns(path: Path, entity: str) -> dict[str, list[Any]]:
-    """Every column of `entity`'s chunks, concatenated (static columns hold one row)."""
-    found: dict[str, list[Any]] = {}
-    for chunk in RrdReader(path).stream().filter(content=entity).to_chunks():
-        for name, values in chunk.to_record_batch().to_pydict().items():
-            found.setdefault(name, []).extend(values)
-    return found
 
 
 def _psnr(a: np.ndarray, b: np.ndarray) -> float:
@@ -76,7 +66,7 @@ def test_a_replay_stores_cameras_as_video_that_decodes_to_the_frames(
 ) -> None:
     trajectory, trace = replayed
     path = record_replay(trajectory, trace, out=tmp_path / "replay.rrd", camera_codec=codec)
-    columns = _columns(path, "/camera/front")
+    columns = rrd_columns(path, "/camera/front")
     assert columns["frame"] == list(range(trace.length))
     samples = [bytes(sample[0]) for sample in columns["VideoStream:sample"]]
     keyframes = [bool(key[0]) for key in columns["VideoStream:is_keyframe"]]
@@ -93,8 +83,8 @@ def test_a_replay_stores_cameras_as_video_that_decodes_to_the_frames(
     tail = EncodedVideo(codec, samples[start:], keyframes[start:], 96, 96)
     assert _psnr(decode_video(tail, upto=3)[-1], source[start + 3]) > 30.0
     # neighbour images stay images; the property says which codec the cameras use
-    assert "EncodedImage:blob" in _columns(path, "/neighbors/**")
-    assert "EncodedImage:blob" not in _columns(path, "/camera/**")
+    assert "EncodedImage:blob" in rrd_columns(path, "/neighbors/**")
+    assert "EncodedImage:blob" not in rrd_columns(path, "/camera/**")
     properties = recording_properties(path, group="camera")
     assert properties["codec"] == codec.value and properties["keyframe_interval"] == KEYFRAME_INTERVAL
 
@@ -104,7 +94,7 @@ def test_auto_keeps_small_episodes_as_jpeg(
 ) -> None:
     trajectory, trace = replayed
     path = record_replay(trajectory, trace, out=tmp_path / "auto.rrd")  # default: auto
-    assert "EncodedImage:blob" in _columns(path, "/camera/front")
+    assert "EncodedImage:blob" in rrd_columns(path, "/camera/front")
     assert recording_properties(path, group="camera")["codec"] == "jpeg"
 
 

@@ -1,22 +1,21 @@
-"""rfr_viz.closed_loop: the detector stops a simulated robot; both runs read back from the `.rrd`."""
+"""robofailring.sim.closed_loop and its recording (rfr_viz.closed_loop): the detector stops a simulated robot."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import cv2
 import numpy as np
 import pytest
-from rerun.chunk import RrdReader
-from test_viz import entity_paths, properties, rows, static_value
+from rrd import entity_paths, properties, reader, static_value, values
 
 from rfr_viz.closed_loop import ClosedLoopResult, run_closed_loop
 from rfr_viz.paths import APPLICATION_ID, CLOSED_LOOP_SUMMARY, UNSTOPPED, WATCHED
 from rfr_viz.viewer import ViewerUnavailable, render_screenshot
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
 from robofailring.sim import VIEWS, EpisodeResult, GenerateConfig, generate_dataset, run_episode
+from robofailring.sim.closed_loop import watch_episode
 
 pytestmark = pytest.mark.slow  # simulation or end-to-end: the full lane only (scripts/test.sh)
 
@@ -101,12 +100,6 @@ def stopped(
     )
 
 
-def values(path: Path, entity: str, column: str) -> tuple[list[int], list[Any]]:
-    """Frames and first values of `entity`'s temporal rows holding `column`, in frame order."""
-    found = rows(path, entity, column)
-    return [frame for frame, _ in found], [value[0] for _, value in found]
-
-
 def test_the_watched_run_stops_at_the_alarm(stopped: ClosedLoopResult, stop_frame: int) -> None:
     assert stopped.stop_frame == stop_frame and stopped.length == FRAMES
     assert stopped.stop_view in VIEWS
@@ -145,10 +138,10 @@ def test_watched_cameras_end_at_the_stop_and_unstopped_run_on(
     path = stopped.path
     paths = entity_paths(path)
     assert {WATCHED.camera(v) for v in VIEWS} | {UNSTOPPED.camera(v) for v in VIEWS} <= paths
-    reader = RrdReader(path)
-    (recording,) = reader.recordings()
+    read = reader(path)
+    (recording,) = read.recordings()
     assert recording.application_id == APPLICATION_ID and recording.recording_id == "closed-loop-test"
-    assert reader.blueprints(), "the blueprint is saved inside the recording"
+    assert read.blueprints(), "the blueprint is saved inside the recording"
     for view in VIEWS:
         watched, blobs = values(path, WATCHED.camera(view), "EncodedImage:blob")
         assert watched == list(range(stop_frame + 1))
@@ -232,3 +225,22 @@ def test_closed_loop_renders_in_the_real_viewer(
     # the red STOPPED frames around the watched cameras are on screen
     red = (image[:, :, 2] > 200) & (image[:, :, 1] < 90) & (image[:, :, 0] < 90)
     assert int(red.sum()) > 300
+
+
+def test_the_library_control_loop_stops_the_robot_without_rerun(
+    memory: FailureMemory, encoder: CachedEncoder, stopped: ClosedLoopResult, stop_frame: int
+) -> None:
+    """robofailring.sim.closed_loop on its own: the same stop, frames and goal checks as the recording's run."""
+    detector = FailureDetector(memory, encoder, delta=stopped.delta, k=3)
+    loop = watch_episode(detector, TASK, MODE, SEED, image_size=SIZE, frames=FRAMES)
+    assert loop.stop_frame == stop_frame == stopped.stop_frame
+    assert loop.stop_view == stopped.stop_view
+    assert loop.saving_ratio == pytest.approx(1 - stop_frame / FRAMES)
+    assert [len(frames) for frames in loop.watched.frames.values()] == [stop_frame + 1] * len(VIEWS)
+    assert [len(frames) for frames in loop.unstopped.frames.values()] == [FRAMES] * len(VIEWS)
+    assert loop.watched.size == (SIZE, SIZE)
+    assert loop.watched.result == stopped.watched and loop.unstopped.result == stopped.unstopped
+    assert [step.similarity for step in loop.unstopped.steps] == [
+        step.similarity for step in stopped.unstopped_steps
+    ]
+    assert f"**STOP at frame {stop_frame}**" in loop.summary()

@@ -1,24 +1,48 @@
-"""Encoder comparison end to end: two encoders, one split, each memory calibrated, one table."""
+"""Encoder comparison end to end: two encoders, one split, each memory calibrated, one table.
+
+The `compare-encoders` verb runs once (module fixture); the library's results it computed and the files
+it wrote are both checked on that one run.
+"""
 
 from __future__ import annotations
 
 import json
 from collections import Counter
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
 from synthetic import write_project_dataset
+from typer.testing import CliRunner, Result
 
+import rfr_viz.encoder_comparison as encoder_comparison
+import robofailring.encoders as encoders
+from rfr_viz.cli import app
+from rfr_viz.encoder_comparison import EncoderComparison
+from rfr_viz.viewer import verify_recording
 from robofailring.comparison import CompareEncodersConfig, compare_encoders, comparison_table
 
 pytestmark = pytest.mark.slow  # simulation or end-to-end: the full lane only (scripts/test.sh)
 
 
-def test_two_encoders_side_by_side(
-    tmp_path: Path, tiny_checkpoint: tuple[Path, Path], monkeypatch: pytest.MonkeyPatch
-) -> None:
-    import robofailring.encoders as encoders
+@dataclass(frozen=True)
+class Compared:
+    """One `compare-encoders` run: the command's result, its output folder and what its job returned."""
 
+    cli: Result
+    out: Path
+    comparison: EncoderComparison
+    loads: Counter[str]  # real encoder loads during the run, by spec
+
+
+@pytest.fixture(scope="module")
+def compared(tmp_path_factory: pytest.TempPathFactory, tiny_checkpoint: tuple[Path, Path]) -> Compared:
+    """The verb as a user runs it; the job it calls is wrapped only to keep what that job returned."""
+    config_json, checkpoint = tiny_checkpoint
+    root = tmp_path_factory.mktemp("compare")
+    data = write_project_dataset(root / "data", tasks=("pick_cube",), episodes=4)
+    returned: list[EncoderComparison] = []
+    job = encoder_comparison.run_encoder_comparison
     loads: Counter[str] = Counter()
     real_load = encoders.load_encoder
 
@@ -26,22 +50,41 @@ def test_two_encoders_side_by_side(
         loads[str(spec)] += 1
         return real_load(spec, device=device)
 
+    def keep(config: CompareEncodersConfig, *, recordings: int = 3) -> EncoderComparison:
+        returned.append(job(config, recordings=recordings))
+        return returned[-1]
+
     encoders._loaded_encoder.cache_clear()
-    monkeypatch.setattr(encoders, "load_encoder", counting_load)
-    config_json, checkpoint = tiny_checkpoint
-    data = write_project_dataset(tmp_path / "data", tasks=("pick_cube",), episodes=4)
-    clip = f"open_clip:{config_json}:{checkpoint}"
-    results = compare_encoders(
-        CompareEncodersConfig(
-            data=data,
-            out=tmp_path / "out",
-            encoders=("pixels", clip),
-            target_fpr=0.5,
-            cache_dir=tmp_path / "cache",
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(encoder_comparison, "run_encoder_comparison", keep)
+        patch.setattr(encoders, "load_encoder", counting_load)
+        result = CliRunner().invoke(
+            app,
+            [
+                "compare-encoders",
+                str(data),
+                "--encoder",
+                "pixels",
+                "--encoder",
+                f"open_clip:{config_json}:{checkpoint}",
+                "--out",
+                str(root / "out"),
+                "--target-fpr",
+                "0.5",
+                "--recordings",
+                "2",
+                "--cache-dir",
+                str(root / "cache"),
+            ],
         )
-    )
+    assert result.exit_code == 0, result.output
+    (comparison,) = returned
+    return Compared(cli=result, out=root / "out", comparison=comparison, loads=loads)
+
+
+def test_two_encoders_side_by_side(compared: Compared) -> None:
+    results = compared.comparison.results
     assert [r.name for r in results] == ["pixels", "tinyvit-test"]
-    assert loads == Counter({"pixels": 1, clip: 1})  # each encoder opened once (build, calibrate, evaluate)
     for result in results:
         manifest = json.loads((Path(result.memory) / "manifest.json").read_text())
         assert manifest["calibration"]["encoder"] == result.encoder == manifest["encoder"]
@@ -54,6 +97,8 @@ def test_two_encoders_side_by_side(
         and "`pixels-v2-24px-512d`" in table
         and "open_clip:TinyViT-test" in table
     )
+    # one way to open an encoder: building, calibrating, evaluating and recording load each one once
+    assert compared.loads["pixels"] == 1 and sorted(compared.loads.values()) == [1, 1], compared.loads
 
 
 def test_needs_two_encoders(tmp_path: Path) -> None:
@@ -61,38 +106,10 @@ def test_needs_two_encoders(tmp_path: Path) -> None:
         compare_encoders(CompareEncodersConfig(data=tmp_path, out=tmp_path, encoders=("pixels",)))
 
 
-def test_compare_encoders_verb_writes_table_and_recordings(
-    tmp_path: Path, tiny_checkpoint: tuple[Path, Path]
-) -> None:
-    from typer.testing import CliRunner
-
-    from rfr_viz.cli import app
-    from rfr_viz.viewer import verify_recording
-
-    config_json, checkpoint = tiny_checkpoint
-    data = write_project_dataset(tmp_path / "data", tasks=("pick_cube",), episodes=4)
-    result = CliRunner().invoke(
-        app,
-        [
-            "compare-encoders",
-            str(data),
-            "--encoder",
-            "pixels",
-            "--encoder",
-            f"open_clip:{config_json}:{checkpoint}",
-            "--out",
-            str(tmp_path / "out"),
-            "--target-fpr",
-            "0.5",
-            "--recordings",
-            "2",
-            "--cache-dir",
-            str(tmp_path / "cache"),
-        ],
-    )
-    assert result.exit_code == 0, result.output
-    assert (tmp_path / "out" / "comparison.md").read_text().count("\n") == 2 + 2 * 2
-    recordings = sorted((tmp_path / "out" / "recordings").glob("*.rrd"))
+def test_compare_encoders_verb_writes_table_and_recordings(compared: Compared) -> None:
+    assert compared.cli.exit_code == 0, compared.cli.output
+    assert (compared.out / "comparison.md").read_text().count("\n") == 2 + 2 * 2
+    recordings = sorted((compared.out / "recordings").glob("*.rrd"))
     assert len(recordings) == 2
     for path in recordings:
         verify_recording(path)

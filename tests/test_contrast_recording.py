@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from rrd import entity_paths, properties, rows, static_value
 from synthetic import write_project_dataset
-from test_viz import entity_paths, properties, rows, static_value
 
 from rfr_viz.paths import REPLAY
 from rfr_viz.record import record_replay

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from rfr_viz.demo import DemoConfig, DemoResult, _compare_with_trained, run_demo
+from rfr_viz.demo import DemoConfig, DemoResult, _trained_encoder, run_demo, simulate_datasets
 from rfr_viz.review import ReviewConfig, review
 from rfr_viz.viewer import verify_recording
 from robofailring.errors import DataError
@@ -67,10 +67,16 @@ def test_demo_writes_everything_it_names(demo: tuple[Path, DemoResult]) -> None:
     linked = {out / href for href in re.findall(r'href="([^"]+)"', page)}
     assert linked == {result.summary, *recorded.values()} and all(p.is_file() for p in linked)
     assert page.count("<h2>in-distribution") == 1 and page.count("<h2>out-of-distribution") == 1
-    # the simulated datasets are cached: a second run does not simulate again
+    # the simulated datasets are cached: a second run (its datasets step, not the whole pipeline again)
+    # does not simulate again
     stamp = (root / "data" / "sim-id" / "manifest.json").stat().st_mtime_ns
-    run_demo(tiny_demo(root, "out2"), say=lambda _: None)
+    ood_stamp = (root / "data" / "sim-ood" / "manifest.json").stat().st_mtime_ns
+    assert simulate_datasets(tiny_demo(root, "out2"), root / "data") == (
+        root / "data" / "sim-id",
+        root / "data" / "sim-ood",
+    )
     assert (root / "data" / "sim-id" / "manifest.json").stat().st_mtime_ns == stamp
+    assert (root / "data" / "sim-ood" / "manifest.json").stat().st_mtime_ns == ood_stamp
 
 
 def test_review_replays_the_listed_trajectories(demo: tuple[Path, DemoResult]) -> None:
@@ -121,10 +127,9 @@ def test_demo_compares_pixels_with_an_encoder_trained_on_its_training_split(
     for path in comparison.recordings:
         verify_recording(path)
     # a second demo reuses the trained encoder (same recipe, same frames) instead of training again
+    # (its training step only: the comparison itself ran above)
     weights = root / "data" / "trained-encoder" / "weights.pt"
     stamp = weights.stat().st_mtime_ns
     said: list[str] = []
-    _compare_with_trained(
-        tiny_demo(root, "out3"), root / "data" / "sim-id", root / "data", root / "out3", said.append
-    )
+    _trained_encoder(tiny_demo(root, "out3"), root / "data" / "sim-id", root / "data", said.append)
     assert weights.stat().st_mtime_ns == stamp and said[0].startswith("reusing the trained encoder")

@@ -13,7 +13,7 @@ from typing import Any
 import cv2
 import numpy as np
 import pytest
-from rerun.chunk import RrdReader
+from rrd import columns
 from synthetic import write_project_dataset
 from typer.testing import CliRunner
 
@@ -105,9 +105,8 @@ def test_every_rule_is_charted(evaluated: tuple[Path, dict[str, Any]]) -> None:
 
 def _labels(path: Path, entity: str) -> list[str]:
     found: list[str] = []
-    for chunk in RrdReader(path).stream().filter(content=entity).to_chunks():
-        for row in chunk.to_record_batch().to_pydict().get("Points2D:labels", []):
-            found += row or []
+    for row in columns(path, entity).get("Points2D:labels", []):
+        found += row or []
     return found
 
 

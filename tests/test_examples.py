@@ -8,9 +8,8 @@ import sys
 from pathlib import Path
 
 import pytest
-from rerun.chunk import RrdReader
+from rrd import entity_paths, rows
 from synthetic import VIEWS, write_aha_dataset, write_episode, write_project_dataset
-from test_viz import rows
 
 from rfr_viz.paths import UNSTOPPED, WATCHED
 from rfr_viz.viewer import verify_recording
@@ -69,7 +68,7 @@ def test_closed_loop_example(tmp_path: Path) -> None:
     recording = tmp_path / "out" / "pick_cube_grasp_seed11.rrd"
     assert f"rerun {recording}" in out
     verify_recording(recording)
-    paths = {chunk.entity_path for chunk in RrdReader(recording).stream().to_chunks()}
+    paths = entity_paths(recording)
     for run in (WATCHED, UNSTOPPED):
         assert {run.camera(view) for view in VIEWS} | {run.outcome, run.detector.state} <= paths
 

@@ -6,8 +6,8 @@ import json
 from pathlib import Path
 
 import pytest
+from rrd import properties, rows
 from synthetic import write_episode
-from test_viz import properties, rows
 from typer.testing import CliRunner
 from vlm_server import ANSWER, chat_server
 

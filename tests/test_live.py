@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rerun as rr
+from rrd import batches, entity_paths, properties, rows
 from synthetic import VIEWS, synthetic_frame, write_episode
-from test_viz import batches, entity_paths, properties, rows
 from typer.testing import CliRunner
 
 from rfr_viz.camera_video import KEYFRAME_INTERVAL, CameraCodec, EncodedVideo, decode_video, encode_video

@@ -9,8 +9,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from rrd import rows
 from synthetic import write_aha_dataset
-from test_viz import rows
 from typer.testing import CliRunner
 
 from rfr_viz.cli import app

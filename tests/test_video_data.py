@@ -10,7 +10,7 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 from lerobot_writer import encode_video, scene, write_lerobot_v3, write_lerobot_v21
-from test_viz import properties, rows
+from rrd import properties, rows
 from typer.testing import CliRunner
 
 from rfr_viz.cli import app

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 import rerun as rr
 from lerobot_writer import encode_video as write_lerobot_mp4
+from rrd import properties, rows
 from synthetic import synthetic_frame
-from test_viz import properties, rows
 
 from rfr_viz.camera_video import KEYFRAME_INTERVAL, CameraCodec, EncodedVideo, decode_video, log_camera_views
 from rfr_viz.panel_scores import time_columns

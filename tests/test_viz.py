@@ -7,13 +7,11 @@ import subprocess
 from collections.abc import Sequence
 from datetime import timedelta
 from pathlib import Path
-from typing import Any
 
 import cv2
 import numpy as np
-import pyarrow as pa
 import pytest
-from rerun.chunk import RrdReader
+from rrd import batches, entity_paths, properties, reader, rows, static_value
 from synthetic import write_episode
 from typer.testing import CliRunner
 
@@ -41,44 +39,6 @@ from robofailring import (
 from robofailring.memory import MemoryEntry, pair_vectors
 
 VIEWS = ["front", "overhead", "wrist"]
-
-
-# ------------------------------------------------------------------ reading recordings back
-def batches(path: Path, content: str) -> list[pa.RecordBatch]:
-    return [chunk.to_record_batch() for chunk in RrdReader(path).stream().filter(content=content).to_chunks()]
-
-
-def rows(path: Path, entity: str, column: str) -> list[tuple[int, Any]]:
-    """(frame, value) of every temporal row of `entity` holding `column`, in frame order.
-
-    Only `frame` and `column` are converted: at rates like 6.5 fps the "time" column holds
-    durations that are not whole microseconds, which Python's timedelta cannot take.
-    """
-    found = []
-    for batch in batches(path, entity):
-        if column in batch.schema.names and "frame" in batch.schema.names:
-            data = batch.select(["frame", column]).to_pydict()
-            found += [
-                (frame, value) for frame, value in zip(data["frame"], data[column], strict=True) if value
-            ]
-    return sorted(found, key=lambda row: row[0])
-
-
-def static_value(path: Path, entity: str, column: str) -> Any:
-    for batch in batches(path, entity):
-        if column in batch.schema.names and "frame" not in batch.schema.names:
-            return batch.to_pydict()[column][0]
-    raise AssertionError(f"no static {column} at {entity}")
-
-
-def entity_paths(path: Path) -> set[str]:
-    return {str(chunk.entity_path) for chunk in RrdReader(path).stream().to_chunks()}
-
-
-def properties(path: Path, group: str = "robofailring") -> dict[str, Any]:
-    for batch in batches(path, f"/__properties/{group}"):
-        return {k: v[0][0] for k, v in batch.to_pydict().items() if k != "rerun.controls.RowId"}
-    raise AssertionError(f"no property group {group}")
 
 
 # ------------------------------------------------------------------ fixtures
@@ -135,11 +95,11 @@ def test_every_entity_of_the_contract_is_there(recording: Path, trace: Detection
         REPLAY.neighbor(v, r, p) for v in VIEWS for r in range(trace.k) for p in ("start", "end", "info")
     }
     assert expected <= paths, sorted(expected - paths)
-    reader = RrdReader(recording)
-    assert [entry.application_id for entry in reader.recordings()] == [APPLICATION_ID]
-    assert reader.blueprints(), "the blueprint is saved inside the recording"
+    read = reader(recording)
+    assert [entry.application_id for entry in read.recordings()] == [APPLICATION_ID]
+    assert read.blueprints(), "the blueprint is saved inside the recording"
     # never raw pixels: every image is an EncodedImage JPEG
-    for chunk in reader.stream().to_chunks():
+    for chunk in read.stream().to_chunks():
         names = chunk.to_record_batch().schema.names
         assert not any(name.startswith("Image:") for name in names), chunk.entity_path
 
@@ -242,7 +202,7 @@ def test_each_run_is_a_new_recording_id(
 ) -> None:
     first = record_replay(trajectory, trace, out=tmp_path / "a.rrd", memory_map=mapped)
     second = record_replay(trajectory, trace, out=tmp_path / "b.rrd", memory_map=mapped)
-    ids = [RrdReader(path).recordings()[0].recording_id for path in (first, second)]
+    ids = [reader(path).recordings()[0].recording_id for path in (first, second)]
     assert ids[0] != ids[1]
 
 

@@ -1,0 +1,66 @@
+"""Reading recordings back: the one place tests open an `.rrd` with rerun.chunk.RrdReader."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import pyarrow as pa
+from rerun.chunk import RrdReader
+
+
+def reader(path: Path) -> RrdReader:
+    """The recording's reader, for its store entries (`recordings()`) and saved blueprints (`blueprints()`)."""
+    return RrdReader(path)
+
+
+def batches(path: Path, content: str) -> list[pa.RecordBatch]:
+    return [chunk.to_record_batch() for chunk in RrdReader(path).stream().filter(content=content).to_chunks()]
+
+
+def rows(path: Path, entity: str, column: str) -> list[tuple[int, Any]]:
+    """(frame, value) of every temporal row of `entity` holding `column`, in frame order.
+
+    Only `frame` and `column` are converted: at rates like 6.5 fps the "time" column holds
+    durations that are not whole microseconds, which Python's timedelta cannot take.
+    """
+    found = []
+    for batch in batches(path, entity):
+        if column in batch.schema.names and "frame" in batch.schema.names:
+            data = batch.select(["frame", column]).to_pydict()
+            found += [
+                (frame, value) for frame, value in zip(data["frame"], data[column], strict=True) if value
+            ]
+    return sorted(found, key=lambda row: row[0])
+
+
+def values(path: Path, entity: str, column: str) -> tuple[list[int], list[Any]]:
+    """Frames and first values of `entity`'s temporal rows holding `column`, in frame order."""
+    found = rows(path, entity, column)
+    return [frame for frame, _ in found], [value[0] for _, value in found]
+
+
+def columns(path: Path, entity: str) -> dict[str, list[Any]]:
+    """Every column of `entity`'s chunks, concatenated (static columns hold one row)."""
+    found: dict[str, list[Any]] = {}
+    for batch in batches(path, entity):
+        for name, column in batch.to_pydict().items():
+            found.setdefault(name, []).extend(column)
+    return found
+
+
+def static_value(path: Path, entity: str, column: str) -> Any:
+    for batch in batches(path, entity):
+        if column in batch.schema.names and "frame" not in batch.schema.names:
+            return batch.to_pydict()[column][0]
+    raise AssertionError(f"no static {column} at {entity}")
+
+
+def entity_paths(path: Path) -> set[str]:
+    return {str(chunk.entity_path) for chunk in RrdReader(path).stream().to_chunks()}
+
+
+def properties(path: Path, group: str = "robofailring") -> dict[str, Any]:
+    for batch in batches(path, f"/__properties/{group}"):
+        return {k: v[0][0] for k, v in batch.to_pydict().items() if k != "rerun.controls.RowId"}
+    raise AssertionError(f"no property group {group}")
