@@ -28,7 +28,7 @@ import torch
 from _timing import median_ms
 from sklearn.metrics import roc_auc_score
 
-from rfr_viz.demo import DemoConfig
+from rfr_viz.demo import DemoConfig, simulate_datasets
 from rfr_viz.memory_umap import memory_map
 from robofailring import FailureMemory, load_dataset, load_encoder
 from robofailring.calibration import CalibrateConfig, calibrate
@@ -43,34 +43,11 @@ from robofailring.evaluation import (
 )
 from robofailring.grounding import failure_type
 from robofailring.metrics import rates, timeliness
-from robofailring.sim import GenerateConfig, generate_dataset
 
 
 def demo_sets(config: DemoConfig) -> tuple[Path, Path]:
-    """The demo's in- and out-of-distribution sets (the same configs as `run_demo`, so the same cache)."""
-    data_dir = config.data_dir or default_cache_dir() / "demo-data"
-    simulated = GenerateConfig(
-        out=data_dir / "sim-id",
-        tasks=config.tasks,
-        episodes=config.episodes,
-        success_episodes=config.success_episodes,
-        seed=0,
-        image_size=config.image_size,
-        frames=config.frames,
-        workers=config.workers,
-    )
-    in_dist = generate_dataset(simulated)
-    out_dist = generate_dataset(
-        replace(
-            simulated,
-            out=data_dir / "sim-ood",
-            episodes=config.ood_episodes,
-            success_episodes=2 * config.ood_episodes,
-            seed=1000,
-            ood=True,
-        )
-    )
-    return in_dist, out_dist
+    """The demo's in- and out-of-distribution sets: the demo's own step, so the same cache."""
+    return simulate_datasets(config, config.data_dir or default_cache_dir() / "demo-data")
 
 
 def quality(result: EvaluationResult) -> dict[str, float]:
