@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 from synthetic import write_episode
 from typer.testing import CliRunner
 
@@ -86,6 +87,7 @@ def test_console_script_is_installed() -> None:
     assert result.returncode == 0 and "build-memory" in result.stdout
 
 
+@pytest.mark.slow  # simulation: the full lane only
 def test_generate_writes_a_loadable_dataset(tmp_path: Path) -> None:
     from robofailring import load_dataset
 
