@@ -18,6 +18,7 @@ from rfr_viz.closed_loop import run_closed_loop
 from robofailring import CachedEncoder, FailureMemory, load_dataset, load_encoder
 from robofailring.calibration import CalibrateConfig, calibrate
 from robofailring.encoders import default_cache_dir
+from robofailring.scoring import smallest_target_fpr
 from robofailring.sim import GenerateConfig, generate_dataset
 
 
@@ -58,7 +59,7 @@ def main() -> None:
     delta = args.delta
     if delta is None:
         successes = sum(not t.is_failure for t in load_dataset(data).trajectories())
-        alpha = args.target_fpr or 1.0 / (successes + 1) + 1e-9  # split conformal needs n ≥ 1/α − 1
+        alpha = args.target_fpr or smallest_target_fpr(successes)  # split conformal needs n ≥ 1/α − 1
         calibration = calibrate(CalibrateConfig(data=data, memory=memory_dir, split=None, target_fpr=alpha))
         delta = calibration.delta
         print(f"calibrated δ = {delta:.4f} on {calibration.successes} successes (α = {alpha:.3f})")

@@ -21,6 +21,7 @@ from rfr_viz import LiveRecording, LiveTarget
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
 from robofailring.calibration import CalibrateConfig, calibrate
 from robofailring.encoders import default_cache_dir
+from robofailring.scoring import smallest_target_fpr
 from robofailring.sim import VIEWS, GenerateConfig, generate_dataset, run_episode
 from robofailring.sim.episode import episode_fps
 
@@ -59,7 +60,7 @@ def main() -> None:
     delta = args.delta
     if delta is None:  # split conformal at the smallest α its successes allow (n ≥ 1/α − 1)
         successes = sum(not t.is_failure for t in load_dataset(data).trajectories())
-        alpha = 1.0 / (successes + 1) + 1e-9
+        alpha = smallest_target_fpr(successes)
         delta = calibrate(CalibrateConfig(data=data, memory=memory_dir, split=None, target_fpr=alpha)).delta
     print(f"memory: {len(memory)} entries from {stats.failures} failure episodes; δ = {delta:.4f}")
     detector = FailureDetector(memory, encoder, delta=delta)

@@ -73,6 +73,11 @@ def successes_needed(alpha: float) -> int:
     return max(math.ceil(1.0 / alpha - 1.0 - 1e-9), 1)
 
 
+def smallest_target_fpr(successes: int) -> float:
+    """The smallest α that `successes` calibration runs allow: 1/(n+1) (n ≥ 1/α − 1)."""
+    return 1.0 / (successes + 1)
+
+
 def conformal_threshold(peaks: Sequence[float], alpha: float) -> float:
     """The split-conformal threshold for success peak scores at level α.
 
@@ -86,7 +91,7 @@ def conformal_threshold(peaks: Sequence[float], alpha: float) -> float:
     n = int(values.size)
     rank = math.ceil((n + 1) * (1.0 - alpha) - 1e-9)
     if n == 0 or rank > n:
-        smallest = f"; the smallest α these {n} runs allow is {1.0 / (n + 1):.4g}" if n else ""
+        smallest = f"; the smallest α these {n} runs allow is {smallest_target_fpr(n):.4g}" if n else ""
         raise DataError(
             f"a guaranteed false-positive rate of {alpha:g} needs at least {successes_needed(alpha)} success "
             f"runs to calibrate on, got {n}{smallest}"
