@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robofailring.memory import pair_vectors
+from robofailring.memory.pairs import pair_vectors
 
 HALF = 512  # the frame encoder's dimension; memory vectors are 2 × HALF = 1024-d
 VIEWS = 3

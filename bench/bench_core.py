@@ -16,7 +16,8 @@ from _timing import median_ms
 
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, Frame, load_encoder
 from robofailring.data.images import write_png
-from robofailring.memory import MemoryEntry, pair_vectors
+from robofailring.memory.failure import MemoryEntry
+from robofailring.memory.pairs import pair_vectors
 
 
 def synthetic_memory(

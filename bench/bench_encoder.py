@@ -28,21 +28,21 @@ import torch
 from _timing import median_ms
 from sklearn.metrics import roc_auc_score
 
-from rfr_viz.demo import DemoConfig, simulate_datasets
-from rfr_viz.memory_umap import memory_map
+from rfr_viz.jobs.demo import DemoConfig, simulate_datasets
+from rfr_viz.panels.umap import memory_map
 from robofailring import FailureMemory, load_dataset, load_encoder
-from robofailring.calibration import CalibrateConfig, calibrate
+from robofailring.data.grounding import failure_type
 from robofailring.encoders import default_cache_dir, encoder_slug
 from robofailring.encoders.trained import CONFIG_NAME, prepare_images
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
-from robofailring.evaluation import (
+from robofailring.evaluation.calibration import CalibrateConfig, calibrate
+from robofailring.evaluation.metrics import rates, timeliness
+from robofailring.evaluation.run import (
     EvaluateConfig,
     EvaluationResult,
     build_training_memory,
     run_evaluation,
 )
-from robofailring.grounding import failure_type
-from robofailring.metrics import rates, timeliness
 
 
 def demo_sets(config: DemoConfig) -> tuple[Path, Path]:

@@ -16,7 +16,8 @@ import numpy as np
 from _timing import median_ms
 
 from robofailring import FailureDetector, FailureMemory, load_encoder
-from robofailring.memory import MemoryEntry, pair_vectors
+from robofailring.memory.failure import MemoryEntry
+from robofailring.memory.pairs import pair_vectors
 
 
 def memory_for(identity: str, dim: int, entries: int = 15_000, tasks: int = 80) -> FailureMemory:

@@ -32,7 +32,8 @@ import numpy as np
 from rfr_viz import LiveRecording, LiveTarget, fit_map
 from robofailring import FailureDetector, FailureMemory, load_encoder
 from robofailring.data.images import write_png
-from robofailring.memory import MemoryEntry, pair_vectors
+from robofailring.memory.failure import MemoryEntry
+from robofailring.memory.pairs import pair_vectors
 from robofailring.sim import VIEWS, run_episode
 
 

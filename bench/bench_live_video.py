@@ -3,7 +3,7 @@
 Run: .venv/bin/python bench/bench_live_video.py [--real DIR]
 
 Feeds the real ManiSkill-failgen episode (256 px, 69 frames, 3 views; `--real DIR`, else a simulated
-256 px × 69-frame episode) frame by frame through `rfr_viz.live_camera.LiveCameras` into a file, as
+256 px × 69-frame episode) frame by frame through `rfr_viz.panels.live_camera.LiveCameras` into a file, as
 `watch` does, for jpeg / av1 / h264: the milliseconds a step's cameras take to log (median, worst;
 the encoder's flush at the end counted apart), the file's bytes against JPEG, and the frames the
 encoder holds back (a frame's sample reaches the viewer that many steps later).
@@ -20,9 +20,9 @@ from pathlib import Path
 import rerun as rr
 from bench_video import SHARED_EPISODE, simulated_episode
 
-from rfr_viz.camera_video import CameraCodec, VideoEncoder
-from rfr_viz.live_camera import LiveCameras
-from rfr_viz.panel_scores import set_frame_time
+from rfr_viz.panels.camera_video import CameraCodec, VideoEncoder
+from rfr_viz.panels.live_camera import LiveCameras
+from rfr_viz.panels.scores import set_frame_time
 from robofailring import load_trajectory
 from robofailring.data.model import Trajectory
 

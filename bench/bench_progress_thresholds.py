@@ -15,11 +15,11 @@ from collections.abc import Callable
 import numpy as np
 
 from robofailring.data.layouts import load_dataset
-from robofailring.detector import FailureDetector
+from robofailring.detection.detector import FailureDetector
+from robofailring.detection.rules import ScoreRule, conformal_threshold
 from robofailring.encoders import CachedEncoder, default_cache_dir, load_encoder
 from robofailring.errors import DataError
-from robofailring.memory import FailureMemory
-from robofailring.scoring import ScoreRule, conformal_threshold
+from robofailring.memory.failure import FailureMemory
 
 ALPHA = 0.05
 

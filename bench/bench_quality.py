@@ -19,11 +19,11 @@ from pathlib import Path
 
 from robofailring.encoders import default_cache_dir, encoder_slug, load_encoder
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
-from robofailring.evaluation import EvaluateConfig, EvaluationResult, run_evaluation, write_evaluation
-from robofailring.memory import FailureMemory
+from robofailring.evaluation.run import EvaluateConfig, EvaluationResult, run_evaluation, write_evaluation
+from robofailring.memory.failure import FailureMemory
+from robofailring.memory.thinning import DEFAULT_STEP
 from robofailring.progress import progress_bar
 from robofailring.sim import TASKS, GenerateConfig, generate_dataset
-from robofailring.thinning import DEFAULT_STEP
 
 IMAGE_SIZE = 64
 FRAMES = 28

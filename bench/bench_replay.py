@@ -15,8 +15,8 @@ import numpy as np
 import pyarrow.compute as pc
 from rerun.chunk import RrdReader
 
-from rfr_viz.memory_umap import CACHE_FILE, memory_map
-from rfr_viz.record import record_replay
+from rfr_viz.panels.umap import CACHE_FILE, memory_map
+from rfr_viz.recordings.replay import record_replay
 from robofailring import (
     CachedEncoder,
     FailureDetector,
@@ -26,7 +26,8 @@ from robofailring import (
     load_trajectory,
 )
 from robofailring.data.images import write_png
-from robofailring.memory import MemoryEntry, pair_vectors
+from robofailring.memory.failure import MemoryEntry
+from robofailring.memory.pairs import pair_vectors
 
 VIEWS = ("front", "overhead", "wrist")
 SIZE = 128

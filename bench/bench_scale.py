@@ -4,7 +4,7 @@ Run: .venv/bin/python bench/bench_scale.py [--sizes 10k,100k,1M] [--tasks 4] [--
 
 Synthetic success memories (bench/_synthetic_runs.py: smooth 1024-d runs on the unit sphere,
 3 views × 600 frames per run, grouped by task) are indexed per task with exact search (`flat`)
-and with the approximate `ivf_sq8` (robofailring.task_index), side by side, beside a 150k-entry
+and with the approximate `ivf_sq8` (robofailring.memory.index), side by side, beside a 150k-entry
 failure memory (80 tasks, flat). A step searches the 3 views of one frame in one Faiss call per
 memory. Exact S⁺ comes from Faiss's brute force (`faiss.knn`, what IndexFlatIP.search
 runs) on held-out runs (half of them bent away from every success, like failures). Data are
@@ -24,8 +24,8 @@ import faiss
 import numpy as np
 from _synthetic_runs import HALF, VIEWS, describe, held_out_steps, task_memory
 
-from robofailring.memory import pair_vectors
-from robofailring.task_index import IVF_SQ8, TaskIndex, TaskIndexSet, choose_spec
+from robofailring.memory.index import IVF_SQ8, TaskIndex, TaskIndexSet, choose_spec
+from robofailring.memory.pairs import pair_vectors
 
 DIM = 2 * HALF
 NPROBES = (4, 8, 16, 32, 64)

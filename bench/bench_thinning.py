@@ -4,7 +4,7 @@ Run: .venv/bin/python bench/bench_thinning.py [DATA] [--encoder pixels] [--steps
 
 DATA is a dataset of the project's layout (default: the demo's in-distribution set,
 <cache>/demo-data/sim-id, written by `bash scripts/demo.sh`). For every success run and view, the
-success memory's vectors u_t = norm([f_0 ‖ f_t]) are thinned (robofailring.thinning.thin_run);
+success memory's vectors u_t = norm([f_0 ‖ f_t]) are thinned (robofailring.memory.thinning.thin_run);
 the table gives entries kept vs offered per step, the cosines between consecutive frames, and
 what thinning does to S⁺: every success frame is queried against the other episodes' success
 frames of its task (leave-one-out), with every frame kept and with the thinned memory; S⁺ can
@@ -21,8 +21,8 @@ import numpy as np
 
 from robofailring import CachedEncoder, Outcome, load_dataset, load_encoder
 from robofailring.encoders.cache import default_cache_dir
-from robofailring.memory import pair_vectors
-from robofailring.thinning import thin_run
+from robofailring.memory.pairs import pair_vectors
+from robofailring.memory.thinning import thin_run
 
 
 def main() -> None:

@@ -25,16 +25,16 @@ import cv2
 import numpy as np
 import rerun.blueprint as rrb
 
-from rfr_viz.camera_video import (
+from rfr_viz.panels.camera_video import (
     KEYFRAME_INTERVAL,
     CameraCodec,
     EncodedVideo,
     decode_video,
     encode_video,
-    log_camera_views,
 )
-from rfr_viz.panel_scores import time_columns
-from rfr_viz.record import open_recording
+from rfr_viz.panels.cameras import log_camera_views
+from rfr_viz.panels.scores import time_columns
+from rfr_viz.recordings.replay import open_recording
 from robofailring import load_trajectory
 from robofailring.data.images import decode_image, encode_jpeg, write_png
 from robofailring.data.model import Trajectory

@@ -14,11 +14,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rfr_viz.closed_loop import run_closed_loop
+from rfr_viz.recordings.closed_loop import run_closed_loop
 from robofailring import CachedEncoder, FailureMemory, load_dataset, load_encoder
-from robofailring.calibration import CalibrateConfig, calibrate
+from robofailring.detection.rules import smallest_target_fpr
 from robofailring.encoders import default_cache_dir
-from robofailring.scoring import smallest_target_fpr
+from robofailring.evaluation.calibration import CalibrateConfig, calibrate
 from robofailring.sim import GenerateConfig, generate_dataset
 
 

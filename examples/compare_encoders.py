@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from robofailring.comparison import CompareEncodersConfig, compare_encoders, comparison_table
+from robofailring.evaluation.comparison import CompareEncodersConfig, compare_encoders, comparison_table
 
 
 def main() -> None:

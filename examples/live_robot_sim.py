@@ -19,9 +19,9 @@ from pathlib import Path
 
 from rfr_viz import LiveRecording, LiveTarget
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
-from robofailring.calibration import CalibrateConfig, calibrate
+from robofailring.detection.rules import smallest_target_fpr
 from robofailring.encoders import default_cache_dir
-from robofailring.scoring import smallest_target_fpr
+from robofailring.evaluation.calibration import CalibrateConfig, calibrate
 from robofailring.sim import VIEWS, GenerateConfig, generate_dataset, run_episode
 from robofailring.sim.episode import episode_fps
 

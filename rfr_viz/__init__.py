@@ -1,20 +1,20 @@
 """Rerun recordings of replayed trajectories (all Rerun code of the project lives here).
 
-The closed-loop simulator run is recorded by `rfr_viz.closed_loop.run_closed_loop` (imported on its own: it loads pybullet).
-`LiveRecording` is the step API's sink that streams a live session to a viewer (`rfr_viz.live`).
+The closed-loop simulator run is recorded by `rfr_viz.recordings.closed_loop.run_closed_loop` (imported on its own: it loads pybullet).
+`LiveRecording` is the step API's sink that streams a live session to a viewer (`rfr_viz.recordings.live`).
 """
 
 from __future__ import annotations
 
-from rfr_viz.blueprint import compare_blueprint, replay_blueprint
-from rfr_viz.evaluation_recording import record_evaluation
-from rfr_viz.live import LiveRecording, LiveTarget
-from rfr_viz.memory_umap import MemoryMap, fit_map, memory_map
+from rfr_viz.jobs.replay import CompareConfig, ReplayConfig, ReplayResult, compare, replay
+from rfr_viz.jobs.review import ReviewConfig, review
+from rfr_viz.panels.umap import MemoryMap, fit_map, memory_map
 from rfr_viz.paths import APPLICATION_ID, DetectorPaths
-from rfr_viz.record import compare_recording, record_replay
-from rfr_viz.replay import CompareConfig, ReplayConfig, ReplayResult, compare, replay
-from rfr_viz.review import ReviewConfig, review
-from rfr_viz.viewer import Screenshot, ViewerUnavailable, open_command, render_screenshot
+from rfr_viz.recordings.blueprint import compare_blueprint, replay_blueprint
+from rfr_viz.recordings.evaluation import record_evaluation
+from rfr_viz.recordings.live import LiveRecording, LiveTarget
+from rfr_viz.recordings.replay import compare_recording, record_replay
+from rfr_viz.viewer.control import Screenshot, ViewerUnavailable, open_command, render_screenshot
 
 __all__ = [
     "APPLICATION_ID",

@@ -113,7 +113,7 @@ class DetectorPaths:
 REPLAY: Final[DetectorPaths] = DetectorPaths()
 
 
-# Closed-loop run (rfr_viz.closed_loop): the same episode watched (stopped at the alarm) and unstopped.
+# Closed-loop run (rfr_viz.recordings.closed_loop): the same episode watched (stopped at the alarm) and unstopped.
 @dataclass(frozen=True)
 class ClosedLoopPaths:
     """The entities of one run: `/<run>/camera/<view>` and the detector's under `/<run>/…`."""
@@ -148,7 +148,7 @@ UNSTOPPED: Final[ClosedLoopPaths] = ClosedLoopPaths("unstopped")  # scored, neve
 CLOSED_LOOP_SUMMARY: Final[str] = "/summary"  # static TextDocument (markdown): both runs side by side
 
 
-# Evaluation summary (rfr_viz.evaluation_recording).
+# Evaluation summary (rfr_viz.recordings.evaluation).
 EVALUATION_APPLICATION_ID: Final[str] = "robofailring-evaluation"
 EVAL_ROOT: Final[str] = "/eval"  # /eval/<name>/<chart key>: roc, sweep_<rule>, recall_per_type, …
 EVAL_SUMMARY: Final[str] = "/eval/summary"  # TextDocument: the markdown tables

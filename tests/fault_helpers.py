@@ -8,7 +8,7 @@ import pytest
 from synthetic import write_aha_dataset
 from typer.testing import CliRunner, Result
 
-from rfr_viz.cli import app
+from rfr_viz.cli.app import app
 
 runner = CliRunner()
 

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import errno
+
 
 class RoboFailRingError(Exception):
     """Base class of every error the library raises on purpose.
 
-    `exit_code` is the command line's exit status for it (see `robofailring.exit_codes`): 2, bad
+    `exit_code` is the command line's exit status for it (see `robofailring.cli.exit_codes`): 2, bad
     usage or input, unless the class says otherwise.
     """
 
@@ -55,3 +57,17 @@ class WriteError(RoboFailRingError):
     """An output could not be written (no permission, disk full); nothing was half-written."""
 
     exit_code = 1
+
+
+def describe(error: BaseException) -> str:
+    """One sentence for an error: an OSError names the file and what went wrong, without errno noise."""
+    if not isinstance(error, OSError) or error.strerror is None:
+        return str(error)
+    where = f" {error.filename}" if error.filename is not None else ""
+    if error.filename2 is not None:
+        where += f" -> {error.filename2}"
+    if error.errno == errno.ENOSPC:
+        return f"no space left on the device while writing{where}; free some space and run again"
+    if error.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
+        return f"cannot write{where}: {error.strerror.lower()}; choose a folder you can write to"
+    return f"{error.strerror}:{where}" if where else error.strerror

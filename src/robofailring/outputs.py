@@ -14,8 +14,7 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Final
 
-from robofailring.errors import OutputError, WriteError
-from robofailring.exit_codes import describe
+from robofailring.errors import OutputError, WriteError, describe
 
 MEMORY_MANIFEST: Final[str] = "manifest.json"
 RRD_MAGIC: Final[bytes] = b"RRF"  # every Rerun .rrd file starts with RRF0/RRF1/RRF2

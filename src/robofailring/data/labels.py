@@ -13,9 +13,9 @@ from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from robofailring.data.grounding import parse_symbol
 from robofailring.data.model import Outcome, Trajectory
 from robofailring.errors import DataError, SymbolError
-from robofailring.grounding import parse_symbol
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,7 @@ from typing import Final
 
 from robofailring.data.folders import episode_views, subdirs, visible
 from robofailring.data.model import Outcome, Skipped, Trajectory
-from robofailring.data.registry import Found, Layout
+from robofailring.data.registry import Found, Layout, register
 
 AHA_FAILURES: Final[tuple[str, ...]] = (
     "no_rotation",
@@ -124,11 +124,13 @@ def _read(root: Path, *, task: str | None = None) -> Found:
     return aha_trajectories(root)
 
 
-LAYOUT: Final = Layout(
-    name="aha",
-    detect=_detect,
-    read=_read,
-    help="the AHA FailGen layout <root>/<task>_<failtype>_wp<k>_episode<e>/{front,overhead,wrist}_<idx>.png "
-    "(or <task>_wrong_object[_wp<k>]_episode<e>)",
-    listed=2,
+LAYOUT: Final = register(
+    Layout(
+        name="aha",
+        detect=_detect,
+        read=_read,
+        help="the AHA FailGen layout <root>/<task>_<failtype>_wp<k>_episode<e>/{front,overhead,wrist}_<idx>.png "
+        "(or <task>_wrong_object[_wp<k>]_episode<e>)",
+        listed=2,
+    )
 )

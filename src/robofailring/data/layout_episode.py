@@ -13,7 +13,7 @@ from robofailring.data.folders import episode_views
 from robofailring.data.layout_aha import aha_name_problem, parse_aha_name
 from robofailring.data.layout_maniskill import MANISKILL_FAILURE, MANISKILL_SUCCESS
 from robofailring.data.model import Outcome, Trajectory
-from robofailring.data.registry import Found, Layout
+from robofailring.data.registry import Found, Layout, layouts_help, register
 from robofailring.errors import DataError
 
 
@@ -21,9 +21,7 @@ def episode_trajectory(path: Path, *, task: str | None) -> Trajectory:
     parsed = parse_aha_name(path.name)
     views, skipped = episode_views(path)
     if not views:
-        from robofailring.data.layouts import LAYOUTS_HELP
-
-        raise DataError(f"{path} holds no images; {LAYOUTS_HELP}")
+        raise DataError(f"{path} holds no images; {layouts_help()}")
     symbol: str | None = None
     outcome: Outcome | None = None
     episode = path.name
@@ -65,10 +63,12 @@ def _read(root: Path, *, task: str | None = None) -> Found:
     return [episode_trajectory(root, task=task)], []
 
 
-LAYOUT: Final = Layout(
-    name="episode",
-    detect=_detect,
-    read=_read,
-    help="one episode: <dir>/{<view>}/<n>.png, <dir>/<view>_<n>.png or <dir>/<view>.mp4",
-    listed=6,
+LAYOUT: Final = register(
+    Layout(
+        name="episode",
+        detect=_detect,
+        read=_read,
+        help="one episode: <dir>/{<view>}/<n>.png, <dir>/<view>_<n>.png or <dir>/<view>.mp4",
+        listed=6,
+    )
 )

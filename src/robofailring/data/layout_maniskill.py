@@ -9,7 +9,7 @@ from typing import Final
 
 from robofailring.data.folders import episode_views, subdirs, visible
 from robofailring.data.model import Outcome, Skipped, Trajectory
-from robofailring.data.registry import Found, Layout
+from robofailring.data.registry import Found, Layout, register
 
 MANISKILL_SUCCESS: Final[str] = "Ground_Truth"
 MANISKILL_FAILURES: Final[tuple[str, ...]] = (
@@ -85,11 +85,13 @@ def _read(root: Path, *, task: str | None = None) -> Found:
     return maniskill_trajectories(root)
 
 
-LAYOUT: Final = Layout(
-    name="maniskill",
-    detect=_detect,
-    read=_read,
-    help="the ManiSkill-failgen/FailSafe layout "
-    "<root>/<task>/<seed>/{Ground_Truth | <ep>_<fail>_<stage>}/{front,side,wrist}/<n>.png",
-    listed=3,
+LAYOUT: Final = register(
+    Layout(
+        name="maniskill",
+        detect=_detect,
+        read=_read,
+        help="the ManiSkill-failgen/FailSafe layout "
+        "<root>/<task>/<seed>/{Ground_Truth | <ep>_<fail>_<stage>}/{front,side,wrist}/<n>.png",
+        listed=3,
+    )
 )

@@ -8,7 +8,7 @@ from typing import Any, Final
 
 from robofailring.data.folders import aha_files
 from robofailring.data.model import Outcome, Skipped, Trajectory
-from robofailring.data.registry import Found, Layout
+from robofailring.data.registry import Found, Layout, register
 from robofailring.errors import DataError
 
 PROJECT_MANIFEST: Final[str] = "manifest.json"
@@ -73,11 +73,13 @@ def _read(root: Path, *, task: str | None = None) -> Found:
     return project_trajectories(root, read_project_manifest(root))
 
 
-LAYOUT: Final = Layout(
-    name="project",
-    detect=_detect,
-    read=_read,
-    help="the project's own layout (a manifest.json written by `robofailring generate`)",
-    listed=1,
-    manifest=read_project_manifest,
+LAYOUT: Final = register(
+    Layout(
+        name="project",
+        detect=_detect,
+        read=_read,
+        help="the project's own layout (a manifest.json written by `robofailring generate`)",
+        listed=1,
+        manifest=read_project_manifest,
+    )
 )

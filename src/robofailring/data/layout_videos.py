@@ -8,7 +8,7 @@ from typing import Final
 from robofailring.data.folders import has_images, has_videos, subdirs
 from robofailring.data.layout_episode import episode_trajectory
 from robofailring.data.model import Skipped, Trajectory
-from robofailring.data.registry import Found, Layout
+from robofailring.data.registry import Found, Layout, register
 from robofailring.errors import DataError
 
 
@@ -37,10 +37,12 @@ def _detect(root: Path) -> bool:
     return any(has_videos(sub) for sub in folders) and not any(has_images(sub) for sub in folders)
 
 
-LAYOUT: Final = Layout(
-    name="videos",
-    detect=_detect,
-    read=video_trajectories,
-    help="video episodes <root>/<episode>/<view>.mp4|.webm|.mkv",
-    listed=5,
+LAYOUT: Final = register(
+    Layout(
+        name="videos",
+        detect=_detect,
+        read=video_trajectories,
+        help="video episodes <root>/<episode>/<view>.mp4|.webm|.mkv",
+        listed=5,
+    )
 )

@@ -26,7 +26,7 @@ from robofailring.data.layout_project import (
     read_project_manifest,
 )
 from robofailring.data.model import Skipped, Trajectory
-from robofailring.data.registry import Layout
+from robofailring.data.registry import Layout, layouts_help
 from robofailring.errors import DataError
 
 __all__ = [
@@ -55,9 +55,7 @@ LAYOUTS: Final[tuple[Layout, ...]] = (
     layout_episode.LAYOUT,
 )
 
-LAYOUTS_HELP: Final[str] = "expected one of: " + "; ".join(
-    f"({layout.listed}) {layout.help}" for layout in sorted(LAYOUTS, key=lambda layout: layout.listed)
-)
+LAYOUTS_HELP: Final[str] = layouts_help()
 
 
 @dataclass(frozen=True)

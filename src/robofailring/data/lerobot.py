@@ -18,7 +18,7 @@ from typing import Any, Final
 import numpy as np
 
 from robofailring.data.model import Frame, Skipped, Trajectory
-from robofailring.data.registry import Layout
+from robofailring.data.registry import Layout, register
 from robofailring.data.video import VideoFrames, open_video
 from robofailring.errors import DataError
 
@@ -217,10 +217,12 @@ def _read(root: Path, *, task: str | None = None) -> tuple[list[Trajectory], lis
     return lerobot_trajectories(root)
 
 
-LAYOUT: Final = Layout(
-    name="lerobot",
-    detect=is_lerobot,
-    read=_read,
-    help="a LeRobot dataset (v2.1 or v3.0: meta/info.json, parquet, one mp4 per camera)",
-    listed=4,
+LAYOUT: Final = register(
+    Layout(
+        name="lerobot",
+        detect=is_lerobot,
+        read=_read,
+        help="a LeRobot dataset (v2.1 or v3.0: meta/info.json, parquet, one mp4 per camera)",
+        listed=4,
+    )
 )

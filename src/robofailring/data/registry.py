@@ -1,6 +1,8 @@
 """The record each data layout module registers: its name, how it is recognised, how it is read.
 
-`robofailring.data.layouts.LAYOUTS` lists the records in detection order (docs/architecture.md, data/).
+Each layout module registers its record with `register` when imported;
+`robofailring.data.layouts.LAYOUTS` lists the records in detection order (docs/architecture.md, data/),
+and `layouts_help` lists every registered one for the "matches no known dataset layout" error.
 """
 
 from __future__ import annotations
@@ -25,3 +27,19 @@ class Layout:
     help: str  # how the layout looks, for the "matches no known dataset layout" error
     listed: int  # its number in that error's list
     manifest: Callable[[Path], dict[str, Any]] | None = None  # the layout's own manifest, if it has one
+
+
+_REGISTERED: list[Layout] = []
+
+
+def register(layout: Layout) -> Layout:
+    """Add a layout module's record to the registry (each module calls this once, at import)."""
+    _REGISTERED.append(layout)
+    return layout
+
+
+def layouts_help() -> str:
+    """Every registered layout and how it looks, in the order of their numbers."""
+    return "expected one of: " + "; ".join(
+        f"({layout.listed}) {layout.help}" for layout in sorted(_REGISTERED, key=lambda layout: layout.listed)
+    )

@@ -23,9 +23,11 @@ from typing import Any, Final
 import numpy as np
 
 from robofailring.atomic import atomic_directory
+from robofailring.data.grounding import failure_type
 from robofailring.data.images import decode_image
 from robofailring.data.layouts import load_dataset
 from robofailring.data.model import Frame, Outcome, Trajectory
+from robofailring.data.splits import split_of
 from robofailring.encoders.trained import (
     CNN_MEAN,
     CNN_STD,
@@ -43,7 +45,6 @@ from robofailring.encoders.trained import (
     to_tensor,
 )
 from robofailring.errors import DataError, SettingError
-from robofailring.grounding import failure_type
 from robofailring.progress import progress_bar
 
 HELD_OUT_SPLITS: Final[frozenset[str]] = frozenset({"test", "ood"})
@@ -120,7 +121,6 @@ def _kind(trajectory: Trajectory) -> str | None:
 
 def training_samples(config: TrainEncoderConfig) -> tuple[list[Sample], int, list[str]]:
     """(samples of the chosen split, trajectories used, keys of unlabelled trajectories skipped)."""
-    from robofailring.evaluation import split_of
 
     trajectories = list(load_dataset(config.data).trajectories())
     has_splits = any(t.split for t in trajectories)

@@ -10,10 +10,10 @@ import cv2
 import numpy as np
 
 from robofailring.atomic import atomic_path
+from robofailring.data.grounding import failure_type
 from robofailring.data.images import read_image
 from robofailring.data.layouts import read_project_manifest
 from robofailring.errors import DataError
-from robofailring.grounding import failure_type
 from robofailring.sim.perturb import FAILURE_FAMILIES, SUCCESS
 
 _MARGIN = 112

@@ -1,0 +1,256 @@
+"""The jobs people run over a whole dataset: `evaluate`, `review`, `compare-encoders` and `demo`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from rfr_viz.cli.replay import warn_vlm_errors
+from rfr_viz.panels.camera_video import CameraCodec, CameraCodecOption
+from rfr_viz.viewer.control import open_at_command, open_command
+from robofailring.cli.exit_codes import finish
+from robofailring.cli.options import (
+    CacheOption,
+    DataRootOption,
+    DeviceOption,
+    EncoderOption,
+    LabelsOption,
+    ScoreOption,
+    StrideOption,
+    SuccessStepOption,
+    VLMModelOption,
+    VLMUrlOption,
+    exit_with_error,
+    report_skipped,
+    vlm_config,
+    warn_missing_references,
+)
+from robofailring.errors import RoboFailRingError
+from robofailring.memory.thinning import DEFAULT_STEP
+from robofailring.outputs import check_output_folder
+
+app = typer.Typer(add_completion=False)  # composed into the one `robofailring` command by rfr_viz.cli.app
+
+
+@app.command("evaluate")
+def evaluate_cmd(
+    data: Annotated[Path, typer.Argument(help="Dataset: the training split's failures form the memory.")],
+    out: Annotated[Path, typer.Option("--out", help="Folder for <name>.md, <name>.json and <name>.rrd.")],
+    encoder: EncoderOption = "pixels",
+    memory: Annotated[Path | None, typer.Option(help="Use this memory instead of building one.")] = None,
+    test_data: Annotated[
+        Path | None, typer.Option(help="Test on this dataset (e.g. out-of-distribution).")
+    ] = None,
+    train_split: Annotated[str, typer.Option(help="Split whose failures build the memory.")] = "train",
+    test_split: Annotated[str, typer.Option(help="Split to test on.")] = "test",
+    k: Annotated[int, typer.Option(help="Neighbours retrieved per query.")] = 5,
+    name: Annotated[str, typer.Option(help="Name of this evaluation in the outputs.")] = "evaluation",
+    stride: StrideOption = 1,
+    labels: LabelsOption = None,
+    target_fpr: Annotated[
+        float,
+        typer.Option(
+            "--target-fpr", help="α: both rules are calibrated to it (split conformal) on training successes."
+        ),
+    ] = 0.05,
+    deployment_successes: Annotated[
+        int, typer.Option(help="Per task, this many test success runs join the success memory (not tested).")
+    ] = 0,
+    success_step: SuccessStepOption = DEFAULT_STEP,
+    cache_dir: CacheOption = None,
+    device: DeviceOption = None,
+) -> None:
+    """Both scoring rules side by side at one α, then the paper's tables: Recall/FPR sweep, T_s, per type and view."""
+    from rfr_viz.charts.report_html import REPORT_NAME, write_report
+    from rfr_viz.recordings.evaluation import record_evaluation
+    from robofailring.evaluation.run import EvaluateConfig, run_evaluation, write_evaluation
+
+    try:
+        config = EvaluateConfig(
+            data=data,
+            out=out,
+            encoder=encoder,
+            memory=memory,
+            test_data=test_data,
+            train_split=train_split,
+            test_split=test_split,
+            k=k,
+            name=name,
+            cache_dir=cache_dir,
+            device=device,
+            stride=stride,
+            labels=labels,
+            target_fpr=target_fpr,
+            deployment_successes=deployment_successes,
+            success_step=success_step,
+        )
+        check_output_folder(out, inputs=[data, test_data, memory])
+        result = run_evaluation(config)
+    except RoboFailRingError as error:
+        exit_with_error(error)
+    report_skipped(result.skipped_inputs)
+    json_path, md_path = write_evaluation(result, out)
+    rrd_path = record_evaluation([result], out=Path(out) / f"{name}.rrd")
+    report = write_report(
+        [result.to_dict()],
+        Path(out) / REPORT_NAME,
+        markdown=[result.to_markdown()],
+        recordings={"summary recording (charts and tables)": rrd_path},
+    )
+    typer.echo(result.to_markdown())
+    typer.echo(f"\nwrote {md_path}, {json_path} and {rrd_path} (open with: {open_command(rrd_path)})")
+    typer.echo(f"report for a browser: {report}")
+    finish(skipped=len(result.skipped_unknown_task) + len(result.skipped_too_short))  # listed in the table
+
+
+@app.command("review")
+def review_cmd(
+    evaluation: Annotated[Path, typer.Argument(help="The <name>.json written by `robofailring evaluate`.")],
+    data: Annotated[Path, typer.Option("--data", help="The dataset that evaluation tested on.")],
+    kind: Annotated[str, typer.Option(help="`false-alarms` or `misses`.")] = "false-alarms",
+    out: Annotated[Path, typer.Option("--out", help="Folder for the recordings.")] = Path(
+        "recordings/review"
+    ),
+    memory: Annotated[Path | None, typer.Option(help="Default: the memory the evaluation used.")] = None,
+    camera_codec: CameraCodecOption = CameraCodec.AUTO,
+    score: ScoreOption = None,
+    cache_dir: CacheOption = None,
+    device: DeviceOption = None,
+    data_root: DataRootOption = None,
+    vlm_url: VLMUrlOption = None,
+    vlm_model: VLMModelOption = None,
+) -> None:
+    """Replay only the false alarms (or the misses) of an evaluation, each recording focused on the moment."""
+    from rfr_viz.jobs.review import ReviewConfig, review
+
+    vlm = vlm_config(vlm_url, vlm_model)
+    try:
+        result = review(
+            ReviewConfig(
+                evaluation=evaluation,
+                data=data,
+                kind=kind,
+                out=out,
+                memory=memory,
+                camera_codec=camera_codec,
+                score=score,
+                cache_dir=cache_dir,
+                device=device,
+                data_root=data_root,
+                vlm=vlm,
+            )
+        )
+    except RoboFailRingError as error:
+        exit_with_error(error)
+    report_skipped(result.skipped_inputs)
+    for memory_dir, check in result.references.items():
+        warn_missing_references(memory_dir, check)
+    warn_vlm_errors(result)
+    if not result.recordings:
+        typer.echo(f"no {kind} in {evaluation}: nothing to replay")
+        return
+    typer.echo(
+        f"{len(result.recordings)} recording(s); each line opens one paused at the moment (or use `rerun FILE`):"
+    )
+    for path in result.recordings:
+        typer.echo(f"  {open_at_command(path)}")
+
+
+@app.command("compare-encoders")
+def compare_encoders_cmd(
+    data: Annotated[Path, typer.Argument(help="Dataset with train/test splits.")],
+    encoders: Annotated[list[str], typer.Option("--encoder", help="Encoder spec; give two or more.")],
+    out: Annotated[Path, typer.Option("--out", help="Folder for memories, tables and recordings.")],
+    target_fpr: Annotated[
+        float, typer.Option("--target-fpr", help="Calibrate each encoder's δ to this FPR.")
+    ] = 0.05,
+    recordings: Annotated[int, typer.Option(help="Per-trajectory comparison recordings to write.")] = 3,
+    k: Annotated[int, typer.Option(help="Neighbours retrieved per query.")] = 5,
+    cache_dir: CacheOption = None,
+    device: DeviceOption = None,
+) -> None:
+    """The same split under several encoders, each calibrated: a side-by-side table and comparison recordings."""
+    from rfr_viz.jobs.compare_encoders import run_encoder_comparison
+    from robofailring.evaluation.comparison import CompareEncodersConfig
+
+    try:
+        check_output_folder(out, inputs=[data])
+        comparison = run_encoder_comparison(
+            CompareEncodersConfig(
+                data=data,
+                out=out,
+                encoders=tuple(encoders),
+                target_fpr=target_fpr,
+                k=k,
+                cache_dir=cache_dir,
+                device=device,
+            ),
+            recordings=recordings,
+        )
+    except (RoboFailRingError, ValueError) as error:
+        exit_with_error(error)
+    typer.echo(comparison.table)
+    typer.echo(f"\nwrote {comparison.table_path}")
+    for path in comparison.recordings:
+        typer.echo(open_command(path))
+
+
+@app.command("demo")
+def demo_cmd(
+    out: Annotated[Path, typer.Option("--out", help="Folder for everything the demo writes.")] = Path(
+        "recordings/demo"
+    ),
+    episodes: Annotated[int, typer.Option(help="In-distribution episodes per task and kind.")] = 3,
+    success_episodes: Annotated[int, typer.Option(help="In-distribution success runs per task.")] = 10,
+    ood_episodes: Annotated[int, typer.Option(help="Out-of-distribution episodes per task and kind.")] = 1,
+    image_size: Annotated[int, typer.Option("--image-size", help="Simulated image size in pixels.")] = 128,
+    frames: Annotated[int, typer.Option(help="Frames per simulated episode.")] = 40,
+    target_fpr: Annotated[
+        float,
+        typer.Option("--target-fpr", help="α: guaranteed FPR bound, calibrated on the training successes."),
+    ] = 0.05,
+    data_dir: Annotated[Path | None, typer.Option(help="Where simulated datasets are cached.")] = None,
+    camera_codec: CameraCodecOption = CameraCodec.AUTO,
+    cache_dir: CacheOption = None,
+) -> None:
+    """The main job on the embedded default: simulate, build the memory, calibrate, evaluate, record."""
+    from rfr_viz.jobs.demo import DemoConfig, run_demo
+
+    try:
+        result = run_demo(
+            DemoConfig(
+                out=out,
+                episodes=episodes,
+                success_episodes=success_episodes,
+                ood_episodes=ood_episodes,
+                image_size=image_size,
+                frames=frames,
+                target_fpr=target_fpr,
+                data_dir=data_dir,
+                camera_codec=camera_codec,
+                cache_dir=cache_dir,
+            ),
+            say=typer.echo,
+        )
+    except (RoboFailRingError, ValueError) as error:
+        exit_with_error(error)
+    for evaluation in result.evaluations:
+        typer.echo("\n" + evaluation.to_markdown())
+    typer.echo("\nTables: " + ", ".join(str(p) for p in result.tables))
+    typer.echo(f"Report for a browser (charts, tables, links): {result.report}")
+    typer.echo("\nOpen the recordings in the Rerun viewer:")
+    typer.echo(f"  {open_command(result.summary)}    # evaluation: Recall/FPR against δ, ROC, T_s histogram")
+    for kind, path in result.recordings.items():
+        typer.echo(f"  {open_command(path)}    # {kind}")
+    typer.echo("Or open one paused at its alarm (the miss: at its highest S_t):")
+    for kind, path in result.recordings.items():
+        typer.echo(f"  {open_at_command(path)}    # {kind}")
+    if result.comparison is not None:
+        typer.echo(f"\nEncoders compared on the in-distribution test split ({result.comparison.table_path}):")
+        typer.echo(result.comparison.table)
+        for path in result.comparison.recordings:
+            typer.echo(f"  {open_command(path)}    # pixels vs trained, side by side")
+    for note in result.notes:
+        typer.echo(f"note: {note}")

@@ -1,0 +1,1 @@
+"""The jobs that record: replay, compare, review, explain, compare-encoders and the demo."""

@@ -1,0 +1,44 @@
+"""`compare-encoders` with its outputs: the side-by-side table (comparison.md) and comparison recordings."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from rfr_viz.jobs.replay import CompareConfig, compare
+from robofailring.atomic import write_text_atomic
+from robofailring.evaluation.comparison import CompareEncodersConfig, compare_encoders, comparison_table
+from robofailring.evaluation.run import EvaluationResult
+
+
+@dataclass
+class EncoderComparison:
+    results: list[EvaluationResult]
+    table: str  # markdown, also written to `table_path`
+    table_path: Path
+    recordings: list[Path] = field(default_factory=list)
+
+
+def run_encoder_comparison(config: CompareEncodersConfig, *, recordings: int = 3) -> EncoderComparison:
+    """Evaluate every encoder on the same split, write `out/comparison.md` and replay the first failures."""
+    results = compare_encoders(config)
+    table = comparison_table(results)
+    table_path = Path(config.out) / "comparison.md"
+    write_text_atomic(table_path, table + "\n")
+    keys = tuple(t.key for t in results[0].scored if t.is_failure)[: max(recordings, 0)]
+    replayed = (
+        compare(
+            CompareConfig(
+                data=config.test_data or config.data,
+                memories=tuple(Path(r.memory) for r in results),
+                out=Path(config.out) / "recordings",
+                trajectories=keys,
+                k=config.k,
+                cache_dir=config.cache_dir,
+                device=config.device,
+            )
+        ).recordings
+        if keys
+        else []
+    )
+    return EncoderComparison(results=results, table=table, table_path=table_path, recordings=replayed)

@@ -1,0 +1,221 @@
+"""The main job on the embedded default: simulate, build the memory, calibrate, evaluate, record."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from rfr_viz.charts.report_html import REPORT_NAME, write_report
+from rfr_viz.jobs.compare_encoders import EncoderComparison, run_encoder_comparison
+from rfr_viz.jobs.replay import recording_name
+from rfr_viz.panels.camera_video import CameraCodec
+from rfr_viz.panels.umap import memory_map
+from rfr_viz.recordings.evaluation import record_evaluation
+from rfr_viz.recordings.replay import record_replay
+from robofailring.data.grounding import failure_type
+from robofailring.data.layouts import load_dataset
+from robofailring.detection.rules import ScoreRule
+from robofailring.encoders import default_cache_dir
+from robofailring.encoders.training import TrainEncoderConfig, train_encoder
+from robofailring.evaluation.calibration import CalibrateConfig, calibrate
+from robofailring.evaluation.comparison import CompareEncodersConfig
+from robofailring.evaluation.run import (
+    EvaluateConfig,
+    EvaluationResult,
+    build_training_memory,
+    run_evaluation,
+    write_evaluation,
+)
+from robofailring.progress import progress_bar
+from robofailring.sim import TASKS, GenerateConfig, generate_dataset
+
+
+@dataclass(frozen=True)
+class DemoConfig:
+    out: Path = Path("recordings/demo")  # memory, tables, summary and trajectory recordings
+    data_dir: Path | None = None  # simulated datasets (cached); default <cache>/demo-data
+    tasks: tuple[str, ...] = TASKS  # simulated tasks
+    episodes: int = 3  # in-distribution episodes per task and kind (even: memory, odd: test)
+    success_episodes: int = 10  # in-distribution success runs per task: α = 0.05 needs ≥ 19 training ones
+    ood_episodes: int = 1  # out-of-distribution episodes per task and kind (all test)
+    image_size: int = 128
+    frames: int = 40
+    target_fpr: float = 0.05  # α: split-conformal calibration of both rules on the training successes
+    encoder: str = "pixels"
+    workers: int = 2
+    cache_dir: Path | None = None
+    camera_codec: CameraCodec = CameraCodec.AUTO  # jpeg, av1, h264, or auto (by size)
+    trained_epochs: int = 10  # fourth output: train-encoder on the ID training split vs pixels (0: skip)
+
+
+@dataclass
+class DemoResult:
+    evaluations: list[EvaluationResult]
+    summary: Path
+    tables: list[Path]
+    recordings: dict[str, Path] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    report: Path | None = None  # report.html: charts, tables and links to the recordings
+    comparison: EncoderComparison | None = None  # pixels against the encoder trained on the training split
+
+
+def _simulate(config: GenerateConfig, label: str) -> Path:
+    with progress_bar(total=config.total_episodes, desc=f"simulating {label}", unit="episode") as bar:
+        return generate_dataset(config, progress=bar.update)
+
+
+def _pick(result: EvaluationResult, kind: str, rule: ScoreRule) -> tuple[str, int] | None:
+    """A trajectory key and its focus frame for one kind of outcome under `rule`, or None when there is none."""
+    threshold = result.rules[rule.value].threshold
+    scored_by_rule = result.rule_scored(rule)
+    if (
+        kind == "detection"
+    ):  # clean: the nearest entry has the true failure type, and the score rose after frame 0
+        hits = []
+        for scored in scored_by_rule:
+            t_det = scored.t_det(threshold)
+            if scored.is_failure and t_det is not None:
+                trace = result.rule_trace(scored.key, rule)
+                view = trace.detected_view
+                top = trace.neighbors(view, t_det)[0] if view is not None else None
+                same_type = top is not None and failure_type(top.entry.symbol) == failure_type(scored.symbol)
+                hits.append((not same_type, t_det == 0, t_det / max(scored.length, 1), scored.key, t_det))
+        return (min(hits)[3], min(hits)[4]) if hits else None
+    if kind == "false-alarm":
+        alarms = [(s.t_det(threshold) or 0, s.key) for s in scored_by_rule if not s.is_failure]
+        alarms = [(t, key) for t, key in alarms if key in result.rules[rule.value].false_alarms]
+        return (alarms[0][1], alarms[0][0]) if alarms else None
+    misses = sorted(
+        (s for s in scored_by_rule if s.key in result.rules[rule.value].misses),
+        key=lambda s: -float(s.scores().max()),
+    )
+    return (misses[0].key, int(np.argmax(misses[0].scores()))) if misses else None
+
+
+def simulate_datasets(config: DemoConfig, data_dir: Path) -> tuple[Path, Path]:
+    """The in- and out-of-distribution sets under `data_dir`, simulated once and reused while their recipe holds."""
+    simulated = GenerateConfig(
+        out=data_dir / "sim-id",
+        tasks=config.tasks,
+        episodes=config.episodes,
+        success_episodes=config.success_episodes,
+        seed=0,
+        image_size=config.image_size,
+        frames=config.frames,
+        workers=config.workers,
+    )
+    in_dist = _simulate(simulated, "ID")
+    out_dist = _simulate(
+        replace(
+            simulated,
+            out=data_dir / "sim-ood",
+            episodes=config.ood_episodes,
+            success_episodes=2 * config.ood_episodes,
+            seed=1000,
+            ood=True,
+        ),
+        "OOD",
+    )
+    return in_dist, out_dist
+
+
+def run_demo(config: DemoConfig, *, say: Callable[[str], None] = print) -> DemoResult:
+    """Generate (cached) in- and out-of-distribution sets, then memory, calibration, evaluation, recordings."""
+    data_dir = config.data_dir or default_cache_dir() / "demo-data"
+    out = Path(config.out)
+    in_dist, out_dist = simulate_datasets(config, data_dir)
+    say(f"datasets: {in_dist} (in-distribution), {out_dist} (out-of-distribution)")
+
+    base = EvaluateConfig(
+        data=in_dist, out=out, encoder=config.encoder, cache_dir=config.cache_dir, memory_out=out / "memory"
+    )
+    memory_dir = build_training_memory(base)
+    calibration = calibrate(
+        CalibrateConfig(
+            data=in_dist, memory=memory_dir, target_fpr=config.target_fpr, cache_dir=config.cache_dir
+        )
+    )
+    say(
+        f"memory {memory_dir}: split-conformal thresholds for FPR ≤ {100 * config.target_fpr:g} % on "
+        f"{calibration.successes} training successes ({calibration.encoder}): paper δ = {calibration.delta:.4f}, "
+        f"contrast γ = {calibration.gamma if calibration.gamma is not None else float('nan'):.4f}"
+    )
+    stored = replace(base, memory=memory_dir, target_fpr=None)  # the thresholds calibration just stored
+    evaluations = [
+        run_evaluation(replace(stored, name="in-distribution")),
+        run_evaluation(replace(stored, name="out-of-distribution", test_data=out_dist, test_split="ood")),
+    ]
+    for evaluation in evaluations:
+        for row in evaluation.rules.values():
+            say(
+                f"{evaluation.name}, {row.rule.value} rule ({row.rule.symbol} = {row.threshold:.4f}): recall "
+                f"{100 * row.recall:.1f} %, FPR {100 * row.fpr:.1f} %, mean T_s "
+                f"{'—' if np.isnan(row.ts_mean) else f'{100 * row.ts_mean:.1f} %'}, "
+                f"AUC {row.auc:.3f}"
+            )
+    rule = ScoreRule.CONTRAST if ScoreRule.CONTRAST.value in evaluations[0].rules else ScoreRule.PAPER
+    tables = [path for result in evaluations for path in write_evaluation(result, out)]
+    summary = record_evaluation(evaluations, out=out / "evaluation.rrd")
+    result = DemoResult(evaluations=evaluations, summary=summary, tables=tables)
+
+    mapped = memory_map(evaluations[0].traces[next(iter(evaluations[0].traces))].memory, directory=memory_dir)
+    sources = {"in-distribution": in_dist, "out-of-distribution": out_dist}
+    for kind in ("detection", "false-alarm", "miss"):
+        for evaluation in evaluations:
+            picked = _pick(evaluation, kind, rule)
+            if picked is None:
+                continue
+            key, focus = picked
+            (trajectory,) = load_dataset(sources[evaluation.name]).select(keys=[key])
+            path = out / "recordings" / f"{kind}__{evaluation.name}__{recording_name(trajectory)}"
+            result.recordings[kind] = record_replay(
+                trajectory,
+                evaluation.rule_trace(key, rule),
+                out=path,
+                memory_map=mapped,
+                focus_frame=focus,
+                camera_codec=config.camera_codec,
+            )
+            break
+        else:
+            result.notes.append(
+                f"no {kind.replace('-', ' ')} occurred under the calibrated {rule.value} rule in either split"
+            )
+    result.report = write_report(
+        [e.to_dict() for e in evaluations],
+        out / REPORT_NAME,
+        markdown=[e.to_markdown() for e in evaluations],
+        recordings={"evaluation summary": summary} | result.recordings,
+        title="RoboFailRing demo: simulated FailGen, in and out of distribution",
+    )
+    if config.trained_epochs:
+        result.comparison = _compare_with_trained(config, in_dist, data_dir, out, say)
+    return result
+
+
+def _compare_with_trained(
+    config: DemoConfig, in_dist: Path, data_dir: Path, out: Path, say: Callable[[str], None]
+) -> EncoderComparison:
+    """Train (or reuse, same recipe and frames) an encoder on the ID training split; compare it with pixels."""
+    trained = _trained_encoder(config, in_dist, data_dir, say)
+    return run_encoder_comparison(
+        CompareEncodersConfig(
+            data=in_dist,
+            out=out / "encoders",
+            encoders=("pixels", f"trained:{trained}"),
+            target_fpr=config.target_fpr,  # each encoder calibrated at the demo's α
+            cache_dir=config.cache_dir,
+        )
+    )
+
+
+def _trained_encoder(config: DemoConfig, in_dist: Path, data_dir: Path, say: Callable[[str], None]) -> Path:
+    """The encoder trained on the ID training split, trained once and reused while its recipe and frames hold."""
+    return train_encoder(
+        TrainEncoderConfig(data=in_dist, out=data_dir / "trained-encoder", epochs=config.trained_epochs),
+        reuse=True,
+        say=say,
+    )

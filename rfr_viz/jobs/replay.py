@@ -1,0 +1,342 @@
+"""The `replay` and `compare` jobs: trajectories of a dataset through the detector into `.rrd` files."""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Final
+
+from rfr_viz.panels.camera_video import CameraCodec
+from rfr_viz.panels.umap import MemoryMap, memory_map
+from rfr_viz.recordings.replay import compare_recording, record_replay
+from robofailring.atomic import output_lock, remove_file_leftovers
+from robofailring.data.layouts import detect_layout, load_dataset, load_trajectory
+from robofailring.data.model import Skipped, Trajectory
+from robofailring.detection.detector import DEFAULT_K, DetectionTrace, FailureDetector, check_stride
+from robofailring.detection.loader import open_detector
+from robofailring.encoders import EncoderSpec
+from robofailring.errors import DataError, SettingError, UnknownTaskError
+from robofailring.explain.report import report_for
+from robofailring.explain.vlm import VLMAnswer, VLMConfig, ask_vlm
+from robofailring.memory.failure import FailureMemory
+from robofailring.memory.references import ReferenceCheck
+from robofailring.outputs import check_output_folder, check_recording_file
+from robofailring.progress import progress_bar
+
+DEFAULT_OUT: Final[Path] = Path("recordings")
+_UNSAFE = re.compile(r"[^A-Za-z0-9._+-]+")
+
+
+@dataclass(frozen=True)
+class ReplayConfig:
+    data: Path  # dataset root of any layout, or one episode folder
+    memory: Path  # memory directory; its map is cached there (umap.npz)
+    out: Path = DEFAULT_OUT  # folder of the .rrd files, one per trajectory
+    trajectories: tuple[str, ...] = ()  # `<task>/<episode>` keys or episode names; empty = all
+    delta: float | None = None  # default: the memory's calibrated δ, else the paper's 0.92
+    k: int = DEFAULT_K  # neighbours retrieved (and logged) per view and frame
+    score: str | None = None  # `paper` or `contrast` (default: contrast when the memory has successes)
+    gamma: float | None = None  # contrast threshold (default: the memory's calibrated γ, else 0)
+    task: str | None = None  # task of an episode folder whose name does not say; on a root, a filter
+    leave_one_out: bool = False  # hide each trajectory's own episode from the memory
+    encoder: str | None = None  # encoder spec; default: the one that built the memory
+    fps: float | None = None  # "time" timeline rate; default: the data's, else 10
+    camera_codec: CameraCodec = CameraCodec.AUTO  # jpeg, av1, h264, or auto (by size)
+    cache_dir: Path | None = None  # embedding cache (default ~/.cache/robofailring)
+    device: str | None = None  # torch device for CLIP
+    stride: int = 1  # score every stride-th frame; the recording keeps every camera frame
+    labels: Path | None = None  # labels file (LeRobot): outcome and symbol shown in the recording
+    data_root: Path | None = None  # where the memory's images are now, when its data moved
+    vlm: VLMConfig | None = None  # ask this VLM about each detection; its answer joins the report
+
+
+@dataclass(frozen=True)
+class CompareConfig:
+    data: Path  # dataset root of any layout, or one episode folder
+    memories: tuple[Path, ...]  # two or more memories, each built with its own encoder
+    out: Path = DEFAULT_OUT
+    trajectories: tuple[str, ...] = ()
+    deltas: tuple[float, ...] = ()  # one δ per memory; default: each memory's calibrated δ
+    k: int = DEFAULT_K
+    score: str | None = None  # scoring rule of every memory (default: each one's)
+    task: str | None = None
+    leave_one_out: bool = False
+    fps: float | None = None
+    cache_dir: Path | None = None
+    device: str | None = None
+    data_roots: tuple[Path, ...] = ()  # one per memory (or one for all): where its images are now
+    camera_codec: CameraCodec = CameraCodec.AUTO
+
+
+@dataclass
+class ReplayResult:
+    """Recordings written, trajectories skipped with the reason, and memory images not found."""
+
+    recordings: list[Path] = field(default_factory=list)
+    skipped: list[tuple[str, str]] = field(default_factory=list)
+    skipped_inputs: list[Skipped] = field(default_factory=list)  # folders/files of the data not read
+    references: dict[Path, ReferenceCheck] = field(default_factory=dict)  # per memory directory
+    vlm_errors: list[tuple[str, str]] = field(default_factory=list)  # (trajectory, why the VLM call failed)
+
+    def ask(self, vlm: VLMConfig | None, trace: DetectionTrace, trajectory: Trajectory) -> VLMAnswer | None:
+        """The VLM's answer about the trace's detection (None: no VLM, or nothing detected); failures are kept."""
+        report = report_for(trace, trajectory) if vlm is not None else None
+        if vlm is None or report is None:
+            return None
+        answer = ask_vlm(report, vlm)
+        if answer.error is not None:
+            self.vlm_errors.append((trajectory.key, answer.error))
+        return answer
+
+
+def recording_name(trajectory: Trajectory, suffix: str = "") -> str:
+    """`<task>__<episode>.rrd`, collision-free: distinct trajectories never share a name.
+
+    Characters outside ``[A-Za-z0-9._+-]`` (and `/`) become `_`; when that changed anything, or the
+    task itself could blur the `__` separator, `~` and a digest of the raw task and episode are
+    appended (`拾取_方块` and `放置_方块`, or `pick cube` beside `pick_cube`, stay apart).
+    """
+    task = _UNSAFE.sub("_", trajectory.task)
+    episode = _UNSAFE.sub("_", trajectory.episode.replace("/", "_"))
+    name = f"{task}__{episode}"
+    if (
+        task != trajectory.task
+        or episode != trajectory.episode
+        or "__" in task
+        or task.startswith("_")
+        or task.endswith("_")
+    ):
+        raw = f"{trajectory.task}\0{trajectory.episode}".encode()
+        name += "~" + hashlib.blake2b(raw, digest_size=6).hexdigest()
+    return f"{name}{suffix}.rrd"
+
+
+def check_fps(fps: float | None) -> float | None:
+    """A `time` timeline rate: a positive finite number of frames per second (SettingError otherwise)."""
+    if fps is not None and not (math.isfinite(fps) and fps > 0):
+        raise SettingError(f"--fps must be a positive number of frames per second, got {fps}")
+    return fps
+
+
+def _target(out: Path, name: str, written: dict[Path, str], key: str) -> Path:
+    """The recording path of one trajectory: never another trajectory's, never over a non-recording."""
+    path = Path(out) / name
+    if path in written:
+        raise DataError(f"trajectories {written[path]} and {key} map to the same recording {path}")
+    check_recording_file(path)
+    written[path] = key
+    return path
+
+
+def select_trajectories(
+    data: Path,
+    *,
+    keys: Sequence[str] = (),
+    task: str | None = None,
+    labels: Path | None = None,
+    skipped: list[Skipped] | None = None,
+) -> list[Trajectory]:
+    """The trajectories of a dataset root (optionally by key and task) or of one episode folder.
+
+    What the loader did not read is appended to `skipped`.
+    """
+    data = Path(data)
+    if detect_layout(data) == "episode":
+        trajectory = load_trajectory(data, task=task)
+        if skipped is not None:
+            skipped += trajectory.skipped
+        return [trajectory]
+    dataset = load_dataset(data, task=task, labels=labels)
+    if skipped is not None:
+        skipped += dataset.skipped
+    chosen = dataset.select(keys=list(keys) or None)
+    if task is not None:
+        chosen = [trajectory for trajectory in chosen if trajectory.task == task]
+        if not chosen:
+            raise DataError(f"no trajectory of task {task!r} in {data}")
+    return chosen
+
+
+@dataclass(frozen=True)
+class LoadedDetector:
+    slug: str
+    memory: FailureMemory
+    detector: FailureDetector
+    map: MemoryMap
+    references: ReferenceCheck
+
+
+def load_detector(
+    memory_dir: Path,
+    *,
+    delta: float | None,
+    k: int,
+    encoder: str | None,
+    cache_dir: Path | None,
+    device: str | None,
+    data_root: Path | None = None,
+    score: str | None = None,
+    gamma: float | None = None,
+) -> LoadedDetector:
+    detector = open_detector(
+        memory_dir,
+        device=device,
+        rule=score,
+        delta=delta,
+        gamma=gamma,
+        k=k,
+        data_root=data_root,
+        encoder=encoder,
+        cache_dir=cache_dir,
+    )
+    memory = detector.memory
+    return LoadedDetector(
+        slug=EncoderSpec.slug(memory.encoder),
+        memory=memory,
+        detector=detector,
+        map=memory_map(memory, directory=memory_dir),
+        references=memory.check_references(),
+    )
+
+
+def replay(config: ReplayConfig) -> ReplayResult:
+    """Replay each selected trajectory through the detector into `<out>/<task>__<episode>.rrd`."""
+    check_stride(config.stride)
+    check_fps(config.fps)
+    check_output_folder(config.out, inputs=[config.data, config.memory])
+    with output_lock(config.out):
+        remove_file_leftovers(config.out)
+        return _replay(config)
+
+
+def _replay(config: ReplayConfig) -> ReplayResult:
+    found = load_detector(
+        config.memory,
+        delta=config.delta,
+        k=config.k,
+        score=config.score,
+        gamma=config.gamma,
+        encoder=config.encoder,
+        cache_dir=config.cache_dir,
+        device=config.device,
+        data_root=config.data_root,
+    )
+    result = ReplayResult(references={Path(config.memory): found.references})
+    trajectories = select_trajectories(
+        config.data,
+        keys=config.trajectories,
+        task=config.task,
+        labels=config.labels,
+        skipped=result.skipped_inputs,
+    )
+    written: dict[Path, str] = {}
+    with progress_bar(total=len(trajectories), desc="replaying", unit="trajectory") as bar:
+        for trajectory in trajectories:
+            try:
+                trace = found.detector.run(
+                    trajectory, leave_one_out=config.leave_one_out, stride=config.stride
+                )
+            except (UnknownTaskError, DataError) as error:
+                result.skipped.append((trajectory.key, str(error)))
+            else:
+                out = _target(config.out, recording_name(trajectory), written, trajectory.key)
+                answer = result.ask(config.vlm, trace, trajectory)
+                result.recordings.append(
+                    record_replay(
+                        trajectory,
+                        trace,
+                        out=out,
+                        memory_map=found.map,
+                        fps=config.fps,
+                        camera_codec=config.camera_codec,
+                        vlm_answer=answer,
+                    )
+                )
+            bar.update(1)
+    return result
+
+
+def unique_slugs(slugs: Sequence[str]) -> list[str]:
+    """Encoder slugs made unique in order (`pixels`, `pixels-2`, …) for entity paths."""
+    seen: dict[str, int] = {}
+    unique = []
+    for slug in slugs:
+        seen[slug] = seen.get(slug, 0) + 1
+        unique.append(slug if seen[slug] == 1 else f"{slug}-{seen[slug]}")
+    return unique
+
+
+def compare(config: CompareConfig) -> ReplayResult:
+    """Replay each trajectory under every memory's encoder into one comparison recording."""
+    check_fps(config.fps)
+    check_output_folder(config.out, inputs=[config.data, *config.memories])
+    with output_lock(config.out):
+        remove_file_leftovers(config.out)
+        return _compare(config)
+
+
+def _compare(config: CompareConfig) -> ReplayResult:
+    if len(config.memories) < 2:
+        raise ValueError("compare needs at least two memories (--memory A --memory B)")
+    if config.deltas and len(config.deltas) != len(config.memories):
+        raise ValueError(
+            f"{len(config.deltas)} δ values for {len(config.memories)} memories: give one per memory"
+        )
+    deltas: Sequence[float | None] = config.deltas or [None] * len(config.memories)
+    if len(config.data_roots) not in (0, 1, len(config.memories)):
+        raise ValueError(
+            f"{len(config.data_roots)} data roots for {len(config.memories)} memories: give one, or one per memory"
+        )
+    roots: Sequence[Path | None] = (
+        config.data_roots * len(config.memories) if len(config.data_roots) == 1 else config.data_roots
+    ) or [None] * len(config.memories)
+    detectors = [
+        load_detector(
+            memory_dir,
+            delta=delta,
+            k=config.k,
+            score=config.score,
+            encoder=None,
+            cache_dir=config.cache_dir,
+            device=config.device,
+            data_root=root,
+        )
+        for memory_dir, delta, root in zip(config.memories, deltas, roots, strict=True)
+    ]
+    slugs = unique_slugs([found.slug for found in detectors])
+    result = ReplayResult(
+        references={Path(m): found.references for m, found in zip(config.memories, detectors, strict=True)}
+    )
+    trajectories = select_trajectories(
+        config.data, keys=config.trajectories, task=config.task, skipped=result.skipped_inputs
+    )
+    suffix = "__" + "-vs-".join(slugs)
+    written: dict[Path, str] = {}
+    with progress_bar(total=len(trajectories), desc="comparing", unit="trajectory") as bar:
+        for trajectory in trajectories:
+            try:
+                traces = {
+                    slug: found.detector.run(trajectory, leave_one_out=config.leave_one_out)
+                    for slug, found in zip(slugs, detectors, strict=True)
+                }
+            except (UnknownTaskError, DataError) as error:
+                result.skipped.append((trajectory.key, str(error)))
+            else:
+                out = _target(config.out, recording_name(trajectory, suffix), written, trajectory.key)
+                maps = {slug: found.map for slug, found in zip(slugs, detectors, strict=True)}
+                result.recordings.append(
+                    compare_recording(
+                        trajectory,
+                        traces,
+                        out=out,
+                        memory_maps=maps,
+                        fps=config.fps,
+                        camera_codec=config.camera_codec,
+                    )
+                )
+            bar.update(1)
+    return result

@@ -1,0 +1,85 @@
+"""The watch job: one episode fed to the detector's step API frame by frame, streamed live."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from rfr_viz.jobs.replay import load_detector
+from rfr_viz.panels.camera_video import CameraCodec
+from rfr_viz.paths import DEFAULT_FPS
+from rfr_viz.recordings.live import LiveRecording, LiveTarget
+from robofailring.data.layouts import load_trajectory
+from robofailring.detection.detector import DEFAULT_K
+from robofailring.errors import DataError
+
+
+@dataclass(frozen=True)
+class WatchConfig:
+    episode: Path  # one episode folder, fed frame by frame
+    memory: Path  # memory directory (its cached map is shown)
+    target: LiveTarget  # viewer URL, spawn, and/or a file
+    task: str | None = None  # when the folder name does not say
+    delta: float | None = None  # default: the memory's calibrated δ, else 0.92
+    k: int = DEFAULT_K
+    encoder: str | None = None  # default: the memory's encoder spec
+    speed: float = 1.0  # 1: the data's frame rate; 2: twice as fast; 0: as fast as the detector goes
+    fps: float | None = None  # default: the data's, else 10
+    cache_dir: Path | None = None
+    device: str | None = None
+    data_root: Path | None = None  # where the memory's images are now, when its data moved
+    camera_codec: CameraCodec = CameraCodec.JPEG  # jpeg, av1 or h264 (auto: jpeg, live)
+
+
+@dataclass(frozen=True)
+class WatchResult:
+    steps: int  # L, frames fed
+    fired_at: int | None  # the first alarm (t_det)
+    detected_view: str | None
+    saved: Path | None
+    lost: str | None = None  # why the viewer did not get the whole stream, if it did not
+
+
+def watch(config: WatchConfig) -> WatchResult:
+    """Feed one episode through `detector.session(...).step` frame by frame, streaming every step."""
+    if config.speed < 0:
+        raise ValueError(f"--speed must be ≥ 0, got {config.speed}")
+    loaded = load_detector(
+        config.memory,
+        delta=config.delta,
+        k=config.k,
+        encoder=config.encoder,
+        cache_dir=config.cache_dir,
+        device=config.device,
+        data_root=config.data_root,
+    )
+    trajectory = load_trajectory(config.episode, task=config.task)
+    used = {view: frames for view, frames in trajectory.views.items() if len(frames) >= 2}
+    if not used:
+        raise DataError(f"episode {config.episode} has no view with at least 2 frames")
+    length = min(len(frames) for frames in used.values())  # views in step, as a replay scores them
+    fps = float(config.fps or trajectory.fps or DEFAULT_FPS)
+    with LiveRecording.open(
+        loaded.detector,
+        trajectory.task,
+        views=list(used),
+        target=config.target,
+        fps=fps,
+        memory_map=loaded.map,
+        name=f"{trajectory.task}/{trajectory.episode}",
+        camera_codec=config.camera_codec,
+    ) as live:
+        session = loaded.detector.session(trajectory.task, sink=live)
+        started = time.monotonic()
+        for t in range(length):
+            if config.speed > 0:
+                time.sleep(max(0.0, started + t / (fps * config.speed) - time.monotonic()))
+            session.step({view: frames[t] for view, frames in used.items()})
+    return WatchResult(
+        steps=length,
+        fired_at=live.fired_at,
+        detected_view=live.report.view if live.report is not None else None,
+        saved=Path(config.target.save) if config.target.save is not None else None,
+        lost=live.lost,
+    )

@@ -1,0 +1,134 @@
+"""Success contrast in a recording: S⁺_t and C_t per view, γ, and the nearest success frame."""
+
+from __future__ import annotations
+
+import numpy as np
+import rerun as rr
+
+from rfr_viz.panels.images import JPEG_MEDIA_TYPE, reference_jpeg
+from rfr_viz.panels.neighbors import changes
+from rfr_viz.panels.scores import set_frame_time, time_columns
+from rfr_viz.paths import DetectorPaths
+from rfr_viz.styles import GAMMA_COLOUR
+from robofailring.detection.detector import DetectionTrace
+from robofailring.memory.success import SuccessMatch
+
+
+def _series(
+    rec: rr.RecordingStream,
+    path: str,
+    values: np.ndarray,
+    *,
+    fps: float,
+) -> None:
+    values = np.asarray(values, dtype=np.float64)
+    present = np.flatnonzero(np.isfinite(values))
+    rec.send_columns(
+        path, indexes=time_columns(present, fps), columns=rr.Scalars.columns(scalars=values[present])
+    )
+
+
+def log_contrast_styles(
+    rec: rr.RecordingStream,
+    paths: DetectorPaths,
+    *,
+    views: list[str],
+    gamma: float,
+    colours: list[tuple[int, int, int]],
+    prefix: str = "",
+) -> None:
+    """Static line styles of S⁺_t and C_t per view and of γ (a replay's and a live stream's)."""
+    for position, view in enumerate(views):
+        colour = colours[position % len(colours)]
+        faded = (colour[0] // 2 + 60, colour[1] // 2 + 60, colour[2] // 2 + 60)
+        rec.log(
+            paths.success_score(view),
+            rr.SeriesLines(colors=[faded], widths=[1.0], names=[f"{prefix}{view} S⁺ (success)"]),
+            static=True,
+        )
+        rec.log(
+            paths.contrast_score(view),
+            rr.SeriesLines(colors=[colour], widths=[2.0], names=[f"{prefix}{view} C = S⁻ − S⁺"]),
+            static=True,
+        )
+    rec.log(
+        paths.gamma,
+        rr.SeriesLines(colors=[GAMMA_COLOUR], widths=[1.0], names=[f"{prefix}γ = {gamma:.3f}"]),
+        static=True,
+    )
+
+
+def log_nearest_success(
+    rec: rr.RecordingStream,
+    paths: DetectorPaths,
+    view: str,
+    match: SuccessMatch | None,
+    *,
+    t: int,
+    images: dict[str, bytes | None],
+    image: bool = True,
+) -> None:
+    """At the current time: the nearest success frame of `view` (`image`: its picture too) and its text."""
+    if match is None:
+        rec.log(paths.nearest_success(view), rr.Clear(recursive=False))
+        return
+    if image:
+        jpeg = images.setdefault(match.image, reference_jpeg(match.image))
+        if jpeg is None:
+            rec.log(paths.nearest_success(view), rr.Clear(recursive=False))
+        else:
+            rec.log(paths.nearest_success(view), rr.EncodedImage(contents=jpeg, media_type=JPEG_MEDIA_TYPE))
+    text = success_info(match, t)
+    if images.get(match.image, b"") is None:
+        text += f"  \n**image not found:** `{match.image}`"
+    rec.log(paths.nearest_success_info(view), rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN))
+
+
+def success_info(match: SuccessMatch, t: int) -> str:
+    """Markdown: which success run and frame is nearest, and how near."""
+    kind = "success run" if match.run.kind == "success" else "failure run, before it failed"
+    return (
+        f"**{match.run.episode}**  \n"
+        f"frame **{match.frame}** · S⁺ **{match.similarity:.3f}** · {kind} (now: frame {t})"
+    )
+
+
+def log_contrast(
+    rec: rr.RecordingStream,
+    trace: DetectionTrace,
+    paths: DetectorPaths,
+    *,
+    fps: float,
+    colours: list[tuple[int, int, int]],
+    prefix: str = "",
+) -> None:
+    """`/score/<view>/success`, `/score/<view>/contrast`, `/score/gamma` and `/nearest_success/<view>`.
+
+    Nothing is logged when the memory has no success runs (a paper-only memory).
+    """
+    if not trace.success_similarity:
+        return
+    log_contrast_styles(rec, paths, views=trace.views, gamma=trace.gamma, colours=colours, prefix=prefix)
+    contrasts = trace.contrast
+    for view in trace.views:
+        _series(rec, paths.success_score(view), trace.success_similarity[view], fps=fps)
+        _series(rec, paths.contrast_score(view), contrasts[view], fps=fps)
+    _series(rec, paths.gamma, np.full(trace.length, float(trace.gamma)), fps=fps)
+    _log_nearest_success(rec, trace, paths, fps)
+
+
+def _log_nearest_success(
+    rec: rr.RecordingStream, trace: DetectionTrace, paths: DetectorPaths, fps: float
+) -> None:
+    """The nearest success frame per view, its picture re-logged only where it changes (text every
+    scored frame; with a stride, unscored frames have none)."""
+    cache: dict[str, bytes | None] = {}
+    scored = trace.scored_frames
+    for view in trace.views:
+        ids = trace.success_ids[view][scored]
+        changed = {int(scored[step]) for _, step, _ in changes(ids[:, None])}
+        for t in scored:
+            t = int(t)
+            set_frame_time(rec, t, fps)
+            match = trace.nearest_success(view, t)
+            log_nearest_success(rec, paths, view, match, t=t, images=cache, image=t in changed)

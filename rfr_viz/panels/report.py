@@ -1,0 +1,122 @@
+"""The report panel: the detection event and the failure report (eq. 8, Appendix B) at t_det."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import rerun as rr
+
+from rfr_viz.panels.scores import set_frame_time
+from rfr_viz.paths import DetectorPaths
+from robofailring.data.model import Trajectory
+from robofailring.detection.detector import DetectionTrace
+from robofailring.detection.rules import ScoreRule
+from robofailring.explain.report import FailureReport, report_for
+from robofailring.explain.vlm import VLMAnswer
+from robofailring.memory.failure import Neighbor
+
+_MARKDOWN_IMAGE = re.compile(r"!\[([^\]]*)\]\(([^)]*)\)")
+
+
+def _markdown_without_images(markdown: str) -> str:
+    """Image links become plain references: the viewer must not try to fetch local files."""
+    return _MARKDOWN_IMAGE.sub(lambda match: f"`{match[1] or 'image'}: {match[2]}`", markdown)
+
+
+def log_detection(
+    rec: rr.RecordingStream,
+    trace: DetectionTrace,
+    paths: DetectorPaths,
+    fps: float,
+    trajectory: Trajectory | None,
+    vlm_answer: VLMAnswer | None = None,
+) -> None:
+    """The detection event and the failure report at t_det (and the VLM's answer); a summary at frame 0."""
+    t_det, view = trace.t_det, trace.detected_view
+    rule = trace.rule
+    peak = trace.max_score()
+    peak_frame = int(np.argmax(peak))
+    summary = (
+        f"**{trace.task} · {trace.episode}** — encoder `{trace.encoder}`, rule **{rule.value}** "
+        f"({rule.score_name} ≥ {rule.symbol} = {trace.threshold:.3f}), K = {trace.k}, L = {trace.length} frames.\n\n"
+    )
+    set_frame_time(rec, 0, fps)
+    if t_det is None or view is None:
+        rec.log(
+            paths.report,
+            rr.TextDocument(
+                summary + f"**No failure detected.** The highest {rule.score_name} over all views is "
+                f"{float(peak[peak_frame]):.3f} at frame {peak_frame}, below {rule.symbol}.",
+                media_type=rr.MediaType.MARKDOWN,
+            ),
+        )
+        return
+    rec.log(
+        paths.report,
+        rr.TextDocument(
+            summary + f"No failure yet: the {rule.value} rule fires at frame **{t_det}** (view {view}).",
+            media_type=rr.MediaType.MARKDOWN,
+        ),
+    )
+    report = report_for(trace, trajectory)
+    assert report is not None  # t_det is set
+    neighbors = trace.neighbors(view, t_det)
+    set_frame_time(rec, t_det, fps)
+    fired = (
+        f"{rule.score_name} = {float(trace.scores[view][t_det]):.3f} ≥ {rule.symbol} = {trace.threshold:.3f}"
+    )
+    success = trace.nearest_success(view, t_det)
+    contrast_line = ""
+    if success is not None:
+        contrast_line = (
+            f"Contrast: S⁻ = {neighbors[0].similarity:.3f} (nearest failure end) − S⁺ = {success.similarity:.3f} "
+            f"(nearest success frame: {success.run.episode}, frame {success.frame}) = "
+            f"C = {neighbors[0].similarity - success.similarity:.3f}.\n\n"
+        )
+    log_alarm(
+        rec,
+        paths,
+        report=report,
+        top=neighbors[0],
+        rule=rule,
+        fired=fired,
+        summary=summary
+        + f"**Fired by the {rule.value} rule** at frame {t_det}, view {view}: {fired}.\n\n"
+        + contrast_line,
+        vlm_answer=vlm_answer,
+    )
+
+
+def log_alarm(
+    rec: rr.RecordingStream,
+    paths: DetectorPaths,
+    *,
+    report: FailureReport,
+    top: Neighbor,
+    rule: ScoreRule,
+    fired: str,
+    summary: str,
+    vlm_answer: VLMAnswer | None = None,
+) -> None:
+    """At the detection instant (the current time): the event line and the failure report document.
+
+    `fired` says on what score `rule` fired (e.g. "S⁻_t = 0.970 ≥ δ = 0.950")."""
+    rec.log(
+        paths.event,
+        rr.TextLog(
+            f"FAILURE at frame {report.t_det} in view {report.view} ({rule.value} rule): {fired}; "
+            f"nearest memory entry {top.entry.task}/{top.entry.episode} [{top.entry.view}] "
+            f"{top.entry.symbol}: {top.entry.description}",
+            level=rr.TextLogLevel.WARN,
+        ),
+    )
+    rec.log(
+        paths.report,
+        rr.TextDocument(
+            summary
+            + (vlm_answer.to_markdown() + "\n\n" if vlm_answer is not None else "")
+            + _markdown_without_images(report.to_markdown()),
+            media_type=rr.MediaType.MARKDOWN,
+        ),
+    )

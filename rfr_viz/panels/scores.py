@@ -1,0 +1,98 @@
+"""The scores panel: S⁻_t per view against δ and State_t, with the two timelines (frame, time)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import rerun as rr
+
+from rfr_viz.paths import FRAME, TIME, DetectorPaths
+from rfr_viz.styles import DELTA_COLOUR, STATE_COLOUR, VIEW_COLOURS, shade
+from robofailring.detection.detector import DetectionTrace
+from robofailring.detection.rules import ScoreRule
+
+
+def time_columns(frames: np.ndarray, fps: float) -> list[rr.TimeColumn]:
+    """The two timelines of a batch of frames: "frame" (sequence) and "time" (seconds)."""
+    return [
+        rr.TimeColumn(FRAME, sequence=frames),
+        rr.TimeColumn(TIME, duration=frames.astype(np.float64) / fps),
+    ]
+
+
+def set_frame_time(rec: rr.RecordingStream, t: int, fps: float) -> None:
+    rec.set_time(FRAME, sequence=t)
+    rec.set_time(TIME, duration=t / fps)
+
+
+def log_score_styles(
+    rec: rr.RecordingStream,
+    paths: DetectorPaths,
+    *,
+    views: Sequence[str],
+    delta: float,
+    rule: ScoreRule = ScoreRule.PAPER,
+    label: str | None = None,
+    colour: tuple[int, int, int] | None = None,
+) -> None:
+    """Static line styles of S⁻_t per view, δ and State_t under `rule` (names, colours, widths)."""
+    prefix = f"{label} · " if label else ""
+    for position, view in enumerate(views):
+        view_colour = (
+            shade(colour, position, len(views)) if colour else VIEW_COLOURS[position % len(VIEW_COLOURS)]
+        )
+        rec.log(
+            paths.score(view),
+            rr.SeriesLines(colors=[view_colour], widths=[2.0], names=[f"{prefix}{view} S⁻ (failure)"]),
+            static=True,
+        )
+    delta_colour = DELTA_COLOUR if colour is None else shade(colour, 0, 1)
+    rec.log(
+        paths.delta,
+        rr.SeriesLines(colors=[delta_colour], widths=[1.0], names=[f"{prefix}δ = {delta:.3f}"]),
+        static=True,
+    )
+    rec.log(
+        paths.state,
+        rr.SeriesLines(
+            colors=[STATE_COLOUR if colour is None else colour],
+            widths=[1.5],
+            names=[f"{prefix}State_t ({rule.value}: any view {rule.score_name} ≥ {rule.symbol})"],
+        ),
+        static=True,
+    )
+
+
+def log_scores(
+    rec: rr.RecordingStream,
+    trace: DetectionTrace,
+    paths: DetectorPaths,
+    fps: float,
+    *,
+    label: str | None,
+    colour: tuple[int, int, int] | None,
+) -> None:
+    log_score_styles(
+        rec, paths, views=trace.views, delta=trace.delta, rule=trace.rule, label=label, colour=colour
+    )
+    for view in trace.views:
+        similarity = np.asarray(trace.similarity[view], dtype=np.float64)
+        present = np.flatnonzero(np.isfinite(similarity))
+        rec.send_columns(
+            paths.score(view),
+            indexes=time_columns(present, fps),
+            columns=rr.Scalars.columns(scalars=similarity[present]),
+        )
+    frames = np.arange(trace.length)
+    rec.send_columns(
+        paths.delta,
+        indexes=time_columns(frames, fps),
+        columns=rr.Scalars.columns(scalars=np.full(trace.length, float(trace.delta))),
+    )
+    scored = trace.scored_frames  # with a stride, State_t exists only where frames were scored
+    rec.send_columns(
+        paths.state,
+        indexes=time_columns(scored, fps),
+        columns=rr.Scalars.columns(scalars=trace.state[scored].astype(np.float64)),
+    )

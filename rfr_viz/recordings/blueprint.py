@@ -1,0 +1,276 @@
+"""The layouts saved inside recordings: pure functions of the views, the encoders and the image size."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import rerun.blueprint as rrb
+
+from rfr_viz.panels.neighbors import Cell
+from rfr_viz.panels.map import LEGEND_ROW, LEGEND_TOP
+from rfr_viz.paths import (
+    CLOSED_LOOP_SUMMARY,
+    DEFAULT_FPS,
+    FRAME,
+    REPLAY,
+    UNSTOPPED,
+    WATCHED,
+    DetectorPaths,
+    camera,
+)
+
+MAP_BACKGROUND = (22, 22, 26)
+
+
+def map_bounds(legend_entries: int) -> rrb.VisualBounds2D:
+    """The map's viewport: the [-1, 1]² map and its legend below."""
+    rows = (legend_entries + 1) // 2
+    return rrb.VisualBounds2D(x_range=(-1.3, 1.3), y_range=(-1.15, LEGEND_TOP + rows * LEGEND_ROW + 0.05))
+
+
+def _cameras(views: Sequence[str]) -> rrb.Container:
+    return rrb.Horizontal(*(rrb.Spatial2DView(origin=camera(view), name=view) for view in views))
+
+
+def _score_plot(
+    detectors: Sequence[DetectorPaths], *, name: str, views: Sequence[str] = (), contrast: bool = False
+) -> rrb.Container:
+    """S⁻_t (and S⁺_t) of every view with δ; with `contrast` C_t and γ in a plot of their own;
+    State_t (0/1) in a thin plot below, so each keeps its scale."""
+    contrast_paths = [paths.contrast_score(v) for paths in detectors for v in views]
+    gamma_paths = [paths.gamma for paths in detectors]
+    scores = rrb.TimeSeriesView(
+        origin="/",
+        contents=[f"+ {paths.score_root}/**" for paths in detectors]
+        + [f"- {path}" for path in (*contrast_paths, *gamma_paths) if contrast],
+        name=name,
+        plot_legend=rrb.PlotLegend(corner=rrb.Corner2D.LeftBottom, visible=True),
+    )
+    state = rrb.TimeSeriesView(
+        origin="/",
+        contents=[paths.state for paths in detectors],
+        name="State_t (fused over views)",
+        plot_legend=rrb.PlotLegend(visible=False),
+        axis_y=rrb.ScalarAxis(range=(-0.1, 1.1), zoom_lock=True),
+    )
+    if not contrast:
+        return rrb.Vertical(scores, state, row_shares=[3, 1.2])
+    contrasts = rrb.TimeSeriesView(
+        origin="/",
+        contents=[*contrast_paths, *gamma_paths],
+        name="C_t = S⁻_t − S⁺_t per view and γ",
+        plot_legend=rrb.PlotLegend(corner=rrb.Corner2D.LeftBottom, visible=True),
+    )
+    return rrb.Vertical(scores, contrasts, state, row_shares=[2.4, 2.4, 1.0])
+
+
+def _map(paths: DetectorPaths, *, name: str, legend_entries: int) -> rrb.Spatial2DView:
+    return rrb.Spatial2DView(
+        origin=paths.umap, name=name, background=MAP_BACKGROUND, visual_bounds=map_bounds(legend_entries)
+    )
+
+
+def _neighbor_grids(
+    views: Sequence[str], k: int, paths: DetectorPaths, cell: Cell, *, label: str = ""
+) -> list[rrb.View]:
+    """Per view: the grid of all K neighbours (row = rank: start | end), opened on rank 1."""
+    x_range, y_range = cell.top_row
+    more = f" (zoom out: #2–#{k})" if k > 1 else ""
+    return [
+        rrb.Spatial2DView(
+            origin=f"{paths.neighbors_root}/{view}",
+            name=f"{label}{view} · nearest: start | end{more}",
+            visual_bounds=rrb.VisualBounds2D(x_range=x_range, y_range=y_range),
+        )
+        for view in views
+    ]
+
+
+def _nearest_successes(views: Sequence[str], paths: DetectorPaths) -> list[rrb.Container]:
+    """Per view: the nearest success frame ("what normal looked like here") beside its text."""
+    return [
+        rrb.Horizontal(
+            rrb.Spatial2DView(origin=paths.nearest_success(view), name=f"{view} · normal here"),
+            rrb.TextDocumentView(
+                origin=paths.nearest_success_info(view), name=f"{view} · nearest success run"
+            ),
+            column_shares=[1, 1.3],
+        )
+        for view in views
+    ]
+
+
+def _neighbor_infos(views: Sequence[str], paths: DetectorPaths, *, label: str = "") -> list[rrb.View]:
+    return [
+        rrb.TextDocumentView(origin=paths.neighbor(view, 0, "info"), name=f"{label}{view} · nearest #1")
+        for view in views
+    ]
+
+
+FOCUS_MARGIN = 6  # frames shown either side of a focus frame (an alarm, a near miss)
+
+
+def side_panels(fps: float, focus: int | None = None) -> list[rrb.BlueprintPart]:
+    """Side panels folded away; the time bar plays the "frame" timeline at the data's rate.
+
+    With a `focus` frame the time bar selects the frames around it and playback loops there once it
+    reaches them (Rerun 0.41 blueprints cannot place the time cursor itself).
+    """
+    if focus is None:
+        time_panel = rrb.TimePanel(state="collapsed", timeline=FRAME, fps=fps)
+    else:
+        selection = rrb.components.AbsoluteTimeRange(max(focus - FOCUS_MARGIN, 0), focus + FOCUS_MARGIN)
+        time_panel = rrb.TimePanel(
+            state="collapsed",
+            timeline=FRAME,
+            fps=fps,
+            time_selection=selection,
+            loop_mode="selection",
+            play_state="playing",
+        )
+    return [rrb.BlueprintPanel(state="collapsed"), rrb.SelectionPanel(state="collapsed"), time_panel]
+
+
+def replay_blueprint(
+    *,
+    views: Sequence[str],
+    map_title: str,
+    legend_entries: int,
+    cell: Cell,
+    k: int,
+    fps: float = DEFAULT_FPS,
+    focus: int | None = None,
+    contrast: bool = False,
+) -> rrb.Blueprint:
+    """Cameras, score plots and memory map on top; neighbours (and nearest successes) and the report below."""
+    top = rrb.Horizontal(
+        _cameras(views),
+        _score_plot(
+            [REPLAY],
+            name="S⁻_t (failure) and S⁺_t (success) per view, δ" if contrast else "S_t per view and δ",
+            views=views,
+            contrast=contrast,
+        ),
+        _map(REPLAY, name=map_title, legend_entries=legend_entries),
+        column_shares=[0.85 * len(views), 2.2, 2.0],
+    )
+    neighbors = rrb.Grid(
+        *_neighbor_grids(views, k, REPLAY, cell),
+        *(_nearest_successes(views, REPLAY) if contrast else []),
+        *_neighbor_infos(views, REPLAY),
+        grid_columns=len(views),
+        row_shares=[1, 0.8, 0.8] if contrast else [1, 1],
+        name="nearest memory entries",
+    )
+    side = rrb.Tabs(
+        rrb.TextDocumentView(origin=REPLAY.report, name="failure report"),
+        rrb.TextLogView(
+            origin="/", contents=[f"{REPLAY.detection_root}/**", f"{REPLAY.neighbors_root}/**"], name="events"
+        ),
+        active_tab=0,
+    )
+    bottom = rrb.Horizontal(neighbors, side, column_shares=[3, 1.6])
+    return rrb.Blueprint(rrb.Vertical(top, bottom, row_shares=[1.25, 1]), *side_panels(fps, focus))
+
+
+def compare_blueprint(
+    *,
+    views: Sequence[str],
+    encoders: Sequence[str],
+    map_titles: Sequence[str],
+    legend_entries: Sequence[int],
+    cells: Sequence[Cell],
+    fps: float = DEFAULT_FPS,
+    contrast: bool = False,
+) -> rrb.Blueprint:
+    """Shared cameras and one plot of every encoder's S_t and δ (and C_t, γ); per encoder its map, nearest entries
+    and report."""
+    detectors = [DetectorPaths.for_encoder(slug) for slug in encoders]
+    top = rrb.Horizontal(
+        _cameras(views),
+        _score_plot(detectors, name="S_t and δ per encoder", views=views, contrast=contrast),
+        column_shares=[len(views), 3],
+    )
+    maps = rrb.Horizontal(
+        *(
+            _map(paths, name=f"{slug} · {title}", legend_entries=entries)
+            for slug, paths, title, entries in zip(
+                encoders, detectors, map_titles, legend_entries, strict=True
+            )
+        )
+    )
+    nearest = rrb.Grid(
+        *(
+            view
+            for slug, paths, cell in zip(encoders, detectors, cells, strict=True)
+            for view in _neighbor_grids(views, 1, paths, cell, label=f"{slug} · ")
+        ),
+        grid_columns=len(views),
+        name="nearest entries",
+    )
+    reports = [
+        rrb.TextDocumentView(origin=paths.report, name=f"{slug} report")
+        for slug, paths in zip(encoders, detectors, strict=True)
+    ]
+    events = rrb.TextLogView(
+        origin="/", contents=[f"{paths.detection_root}/**" for paths in detectors], name="detection events"
+    )
+    bottom = rrb.Horizontal(maps, rrb.Tabs(nearest, *reports, events, active_tab=0), column_shares=[1, 1.2])
+    return rrb.Blueprint(rrb.Vertical(top, bottom, row_shares=[1, 1.1]), *side_panels(fps))
+
+
+def _closed_loop_score_plot(paths: DetectorPaths, *, name: str, length: int) -> rrb.Container:
+    """S_t of every view with δ; State_t in a thin plot below; both span all L frames of the episode."""
+    frames = rrb.TimeAxis(
+        view_range=rrb.TimeRange(
+            start=rrb.TimeRangeBoundary.absolute(seq=0),
+            end=rrb.TimeRangeBoundary.absolute(seq=length - 1),
+        )
+    )
+    scores = rrb.TimeSeriesView(
+        origin="/",
+        contents=[f"{paths.score_root}/**"],
+        name=name,
+        axis_x=frames,
+        plot_legend=rrb.PlotLegend(corner=rrb.Corner2D.LeftBottom, visible=True),
+    )
+    state = rrb.TimeSeriesView(
+        origin="/",
+        contents=[paths.state],
+        name="State_t (any view ≥ δ)",
+        axis_x=frames,
+        titlebar=False,  # its legend names it: the plot keeps its few pixels for the 0/1 line
+        axis_y=rrb.ScalarAxis(range=(-0.1, 1.1), zoom_lock=True),
+        plot_legend=rrb.PlotLegend(corner=rrb.Corner2D.LeftTop, visible=True),
+    )
+    return rrb.Vertical(scores, state, row_shares=[3, 1.1])
+
+
+def closed_loop_blueprint(
+    *, views: Sequence[str], fps: float, length: int, focus: int | None = None
+) -> rrb.Blueprint:
+    """One row per run (cameras | S_t and State_t), the events and the outcome table below."""
+    rows = []
+    for paths, title in ((WATCHED, "watched (stopped at the alarm)"), (UNSTOPPED, "unstopped")):
+        cameras = rrb.Horizontal(
+            *(rrb.Spatial2DView(origin=paths.camera(view), name=f"{paths.run} · {view}") for view in views)
+        )
+        plot = _closed_loop_score_plot(paths.detector, name=f"{title} · S_t per view and δ", length=length)
+        rows.append(rrb.Horizontal(cameras, plot, column_shares=[len(views), 2.0]))
+    events = rrb.TextLogView(
+        origin="/",
+        contents=[f"{paths.root}/**" for paths in (WATCHED, UNSTOPPED)],
+        name="events (the alarm, the stop, each run's goal check)",
+        columns=rrb.TextLogColumns(
+            timeline_columns=[rrb.encodings.TimelineColumn(FRAME)],
+            text_log_columns=[
+                rrb.encodings.TextLogColumn("LogLevel"),
+                rrb.encodings.TextLogColumn("Body"),
+                rrb.encodings.TextLogColumn("EntityPath", visible=False),
+            ],
+        ),
+    )
+    summary = rrb.TextDocumentView(origin=CLOSED_LOOP_SUMMARY, name="outcome of both runs")
+    text = rrb.Horizontal(events, summary, column_shares=[1, 1.1])
+    return rrb.Blueprint(rrb.Vertical(*rows, text, row_shares=[1, 1, 0.85]), *side_panels(fps, focus))

@@ -1,0 +1,314 @@
+"""Watching a robot live: each step of a detector session streamed to a Rerun viewer, and/or saved.
+
+`LiveRecording` is the library's `StepSink` for Rerun: pass it as `detector.session(task, sink=live)`
+and every `session.step(...)` is logged at once with the entity paths of a replay (rfr_viz.paths):
+`/camera/<view>`, `/score/<view>`, `/score/delta`, `/detection/state`, the moving map query, the
+neighbours when they change, and the detection event and failure report at the first alarm.
+`watch` feeds a recorded episode through the same loop, frame by frame, as a robot would.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import socket
+import time
+import uuid
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import ExitStack, contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Final
+
+import numpy as np
+import rerun as rr
+
+from rfr_viz.recordings.blueprint import replay_blueprint
+from rfr_viz.panels.camera_video import CameraCodec
+from rfr_viz.panels.contrast import log_contrast_styles, log_nearest_success
+from rfr_viz.panels.live_camera import LiveCameras
+from rfr_viz.panels.umap import MemoryMap
+from rfr_viz.panels.neighbors import DEFAULT_CELL, Cell, NeighborImages, log_neighbor_entry, log_neighbor_layout
+from rfr_viz.panels.map import class_id, log_memory_map, map_title
+from rfr_viz.panels.report import log_alarm
+from rfr_viz.panels.scores import log_score_styles, set_frame_time
+from rfr_viz.paths import APPLICATION_ID, DEFAULT_FPS, PROPERTIES, REPLAY
+from rfr_viz.styles import VIEW_COLOURS
+from rfr_viz.viewer.control import DEFAULT_PORT, ViewerUnavailable
+from robofailring.atomic import atomic_path
+from robofailring.data.layouts import load_trajectory
+from robofailring.data.model import Frame
+from robofailring.detection.detector import DEFAULT_K, DetectorSession, FailureDetector, StepResult
+from robofailring.errors import DataError
+from robofailring.explain.report import FailureReport
+from robofailring.detection.rules import ScoreRule
+
+DEFAULT_VIEWER_URL: Final[str] = f"rerun+http://127.0.0.1:{DEFAULT_PORT}/proxy"
+FLUSH_TIMEOUT_S: Final[float] = 10.0  # at the end, wait this long at most for a viewer to take the rest
+
+
+@dataclass(frozen=True)
+class LiveTarget:
+    """Where the live stream goes: a running viewer, a spawned one, and/or a file."""
+
+    connect: str | None = None  # gRPC URL of a running viewer, e.g. rerun+http://127.0.0.1:9876/proxy
+    spawn: bool = False  # start a viewer on the default port and stream to it
+    save: Path | None = None  # also write the same stream to this .rrd (atomically, at the end)
+
+    def __post_init__(self) -> None:
+        if self.connect is None and not self.spawn and self.save is None:
+            raise ValueError("a live recording needs somewhere to go: a viewer URL, spawn, or a file")
+
+
+def check_viewer(url: str) -> None:
+    """ViewerUnavailable unless something listens at the host and port of a viewer URL."""
+    from urllib.parse import urlparse
+
+    parsed = urlparse(url)
+    if not parsed.scheme.startswith("rerun") or parsed.hostname is None:
+        raise ValueError(f"viewer URL {url!r} is not like rerun+http://127.0.0.1:9876/proxy")
+    port = parsed.port or DEFAULT_PORT
+    with contextlib.suppress(OSError), socket.create_connection((parsed.hostname, port), timeout=2.0):
+        return
+    raise ViewerUnavailable(
+        f"no Rerun viewer listens at {url}: start one (`rerun`), pass --spawn, or only --save to a file"
+    )
+
+
+class LiveRecording:
+    """A `StepSink` that logs every step of a session to a Rerun recording stream as it happens."""
+
+    def __init__(
+        self,
+        rec: rr.RecordingStream,
+        detector: FailureDetector,
+        *,
+        task: str,
+        views: Sequence[str],
+        fps: float = DEFAULT_FPS,
+        memory_map: MemoryMap | None = None,
+        name: str = "live",
+        cell: Cell = DEFAULT_CELL,
+        camera_codec: CameraCodec | str = CameraCodec.JPEG,
+    ) -> None:
+        self.rec = rec
+        self.camera_codec = camera_codec  # jpeg, av1 or h264 (auto: jpeg); used from the first step
+        self.cell = cell
+        self.detector = detector
+        self.task = task
+        self.views = list(views)
+        self.fps = fps
+        self.memory_map = memory_map
+        self.name = name
+        self.images = NeighborImages()
+        self.steps = 0
+        self.fired_at: int | None = None
+        self.report: FailureReport | None = None
+        self.lost: str | None = None  # why the viewer did not get everything, if it did not
+        self._shown: dict[tuple[str, int], int] = {}  # (view, rank) -> memory entry index on screen
+        self._success_shown: dict[str, int] = {}  # view -> success-memory row on screen (-1: none)
+        self._success_images: dict[str, bytes | None] = {}
+
+    @classmethod
+    @contextmanager
+    def open(
+        cls,
+        detector: FailureDetector,
+        task: str,
+        *,
+        views: Sequence[str],
+        target: LiveTarget,
+        fps: float = DEFAULT_FPS,
+        memory_map: MemoryMap | None = None,
+        name: str | None = None,
+        camera_codec: CameraCodec | str = CameraCodec.JPEG,
+    ) -> Iterator[LiveRecording]:
+        """A live recording streamed to `target`, with the replay layout as its blueprint; cameras
+        stored as `camera_codec` (rfr_viz.panels.live_camera: `auto` means JPEG live).
+
+        On leaving the block the recording's properties (t_det, the report, …) are sent, the stream
+        is flushed, and a saved file appears at `target.save` (not on error).
+        """
+        entries = detector.memory.entries
+        cell = _cell(entries[0].start if entries else "", NeighborImages())
+        blueprint = replay_blueprint(
+            views=views,
+            map_title=map_title(memory_map) if memory_map is not None else "memory map (not given)",
+            legend_entries=len({class_id(entry.symbol) for entry in entries}),
+            cell=cell,
+            k=detector.k,
+            fps=fps,
+        )
+        with ExitStack() as stack:
+            rec = rr.RecordingStream(APPLICATION_ID, recording_id=str(uuid.uuid4()))
+            sinks: list[Any] = []
+            if target.save is not None:
+                sinks.append(rr.FileSink(stack.enter_context(atomic_path(Path(target.save), suffix=".rrd"))))
+            url = target.connect
+            if url is not None:
+                check_viewer(url)
+            if target.spawn:
+                rec.spawn(port=DEFAULT_PORT, connect=False, hide_welcome_screen=True)
+                url = url or DEFAULT_VIEWER_URL
+            if url is not None:
+                sinks.append(rr.GrpcSink(url))
+            rec.set_sinks(*sinks, default_blueprint=blueprint)
+            live = cls(
+                rec,
+                detector,
+                task=task,
+                views=views,
+                fps=fps,
+                memory_map=memory_map,
+                name=name or task,
+                cell=cell,
+                camera_codec=camera_codec,
+            )
+            live._start()
+            try:
+                yield live
+                live._finish()
+            finally:
+                try:
+                    rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
+                except RuntimeError as error:  # the viewer went away; a file sink is flushed all the same
+                    live.lost = f"the viewer at {url} did not take the whole stream ({error})"
+                rec.disconnect()  # closes the file before atomic_path moves it into place
+
+    def _start(self) -> None:
+        paths = REPLAY
+        self.rec.send_recording_name(f"{self.name} (live)")
+        self.cameras = LiveCameras(
+            self.rec, self.views, codec=self.camera_codec, fps=self.fps, name=self.name
+        )
+        log_score_styles(
+            self.rec, paths, views=self.views, delta=self.detector.delta, rule=self.detector.rule
+        )
+        if self.detector.memory.successes is not None:
+            log_contrast_styles(
+                self.rec, paths, views=self.views, gamma=self.detector.gamma, colours=list(VIEW_COLOURS)
+            )
+        if self.memory_map is not None:
+            log_memory_map(
+                self.rec,
+                paths,
+                entries=self.detector.memory.entries,
+                memory_map=self.memory_map,
+                task=self.task,
+                views=self.views,
+            )
+        for view in self.views:
+            log_neighbor_layout(self.rec, paths, view, k=self.detector.k, cell=self.cell)
+        set_frame_time(self.rec, 0, self.fps)
+        self.rec.log(
+            paths.report,
+            rr.TextDocument(
+                self._summary() + "Watching live: no failure yet.", media_type=rr.MediaType.MARKDOWN
+            ),
+        )
+
+    def _summary(self) -> str:
+        rule = self.detector.rule
+        return (
+            f"**{self.name}** — encoder `{self.detector.encoder.identity}`, rule **{rule.value}** "
+            f"({rule.score_name} ≥ {rule.symbol} = {self.detector.threshold:.3f}), K = {self.detector.k}, live.\n\n"
+        )
+
+    def on_step(
+        self, session: DetectorSession, frames: Mapping[str, np.ndarray | Frame], result: StepResult
+    ) -> None:
+        """Log one step at frame `result.t`: cameras, S_t, δ, State_t, map query, neighbours, alarm."""
+        rec, paths, t = self.rec, REPLAY, result.t
+        set_frame_time(rec, t, self.fps)
+        for view, frame in frames.items():
+            self.cameras.log(view, frame, t)
+            rec.log(paths.score(view), rr.Scalars(result.similarity[view]))
+        rec.log(paths.delta, rr.Scalars(self.detector.delta))
+        rec.log(paths.state, rr.Scalars(float(result.state)))
+        if self.detector.memory.successes is not None:
+            rec.log(paths.gamma, rr.Scalars(self.detector.gamma))
+            for view, match in result.nearest_success.items():
+                if np.isfinite(result.success_similarity[view]):
+                    rec.log(paths.success_score(view), rr.Scalars(result.success_similarity[view]))
+                    rec.log(paths.contrast_score(view), rr.Scalars(result.contrast[view]))
+                changed = self._success_shown.get(view, -1) != (match.index if match else -1)
+                self._success_shown[view] = match.index if match else -1
+                log_nearest_success(rec, paths, view, match, t=t, images=self._success_images, image=changed)
+        if self.memory_map is not None and result.queries:
+            views = list(result.queries)
+            placed = self.memory_map.project(
+                np.stack([result.queries[view] for view in views]).reshape(len(views), -1)
+            )
+            for view, position in zip(views, placed, strict=True):
+                rec.log(paths.umap_query(view), rr.Points2D.from_fields(positions=[position]))
+        first_alarm = result.state and self.fired_at is None
+        self._log_neighbors(
+            result, every=first_alarm
+        )  # at the alarm, as a replay: the similarities that fired
+        if first_alarm:
+            self._alarm(frames, result)
+        self.steps = max(self.steps, t + 1)
+
+    def _log_neighbors(self, result: StepResult, *, every: bool) -> None:
+        """Each view's K neighbours that changed since the last step (`every`: all of them)."""
+        for view, found in result.neighbors.items():
+            for rank, neighbor in enumerate(found):
+                if every or self._shown.get((view, rank)) != neighbor.index:
+                    self._shown[(view, rank)] = neighbor.index
+                    log_neighbor_entry(
+                        self.rec,
+                        REPLAY,
+                        view,
+                        rank,
+                        neighbor.entry,
+                        similarity=neighbor.similarity,
+                        t=result.t,
+                        images=self.images,
+                        cell=self.cell,
+                    )
+
+    def _alarm(self, frames: Mapping[str, np.ndarray | Frame], result: StepResult) -> None:
+        scores = result.similarity if result.rule is ScoreRule.PAPER else result.contrast
+        view = max(result.fired_views, key=lambda v: scores[v])
+        frame = frames[view]
+        self.fired_at = result.t
+        self.report = FailureReport.from_neighbors(
+            task=self.task,
+            view=view,
+            t_det=result.t,
+            neighbors=result.neighbors[view],
+            current_image=frame.reference if isinstance(frame, Frame) and frame.path is not None else None,
+        )
+        log_alarm(
+            self.rec,
+            REPLAY,
+            report=self.report,
+            top=result.neighbors[view][0],
+            rule=result.rule,
+            fired=f"{result.rule.score_name} = {scores[view]:.3f} ≥ {result.rule.symbol} = {result.threshold:.3f}",
+            summary=self._summary(),
+        )
+
+    def _finish(self) -> None:
+        self.cameras.finish()  # the frames a video encoder still held, at their own frames
+        found: dict[str, Any] = {
+            "task": self.task,
+            "episode": self.name,
+            "L": self.steps,
+            "fps": float(self.fps),
+            "encoder": self.detector.encoder.identity,
+            "delta": float(self.detector.delta),
+            "k": self.detector.k,
+            "t_det": self.fired_at if self.fired_at is not None else -1,  # -1: the detector never fired
+            "views": ", ".join(self.views),
+            "live": True,
+        }
+        if self.report is not None:
+            found["detected_view"] = self.report.view
+            found["report"] = self.report.to_json()
+        self.rec.send_property(PROPERTIES, rr.AnyValues(**found))
+
+
+def _cell(reference: str, images: NeighborImages) -> Cell:
+    """The neighbour grid's cell: the size of a memory image, else the default."""
+    image = images.get(reference) if reference else None
+    return Cell(image.width, image.height) if image is not None else DEFAULT_CELL

@@ -1,0 +1,1 @@
+"""The real Rerun viewer: headless screenshots, opening a recording at a frame, sharing recordings."""

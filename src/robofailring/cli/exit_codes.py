@@ -1,0 +1,56 @@
+"""The command line's exit statuses, and the one place that turns an error into a sentence and a status.
+
+0 done; 1 an error of the environment (no permission, disk full, output busy); 2 bad usage or
+input (a file, folder or value named in the message); 3 done, but some inputs were skipped (the
+summary of what was skipped is printed before exiting).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Final, NoReturn
+
+import typer
+from typer import _click
+from typer.core import TyperGroup
+
+from robofailring.errors import RoboFailRingError, describe
+
+DONE: Final[int] = 0
+ERROR: Final[int] = 1
+BAD_INPUT: Final[int] = 2
+SKIPPED: Final[int] = 3
+
+
+def exit_code_for(error: BaseException) -> int:
+    """The exit status an error ends the command with."""
+    if isinstance(error, RoboFailRingError):
+        return error.exit_code
+    if isinstance(error, (FileNotFoundError, NotADirectoryError, IsADirectoryError, ValueError)):
+        return BAD_INPUT
+    return ERROR
+
+
+def fail(error: BaseException) -> NoReturn:
+    """Print `error: <sentence>` on stderr and end the command with the error's exit status."""
+    typer.secho(f"error: {describe(error)}", fg=typer.colors.RED, err=True)
+    raise typer.Exit(code=exit_code_for(error))
+
+
+def finish(*, skipped: int) -> None:
+    """End a command that did its work: status 3 when some inputs were skipped (already reported)."""
+    if skipped:
+        raise typer.Exit(code=SKIPPED)
+
+
+class ErrorMappingGroup(TyperGroup):
+    """A typer command group whose verbs end in one line and an exit status instead of a traceback.
+
+    Errors the library raises on purpose (`RoboFailRingError`) and operating-system errors
+    (permission, disk full, a file where a folder belongs) are caught here, for every verb.
+    """
+
+    def invoke(self, ctx: _click.Context) -> Any:
+        try:
+            return super().invoke(ctx)
+        except (RoboFailRingError, OSError) as error:
+            fail(error)

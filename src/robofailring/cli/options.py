@@ -1,0 +1,146 @@
+"""Command-line options and messages shared by every verb (each option is declared once, here).
+
+The verbs live in `robofailring.cli.verbs` (the library's) and `rfr_viz.cli_*` (those that record);
+`rfr_viz.cli.app` assembles them into the one `robofailring` command (docs/architecture.md).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, NoReturn
+
+import typer
+
+from robofailring.cli.exit_codes import fail
+from robofailring.data.model import Skipped
+from robofailring.memory.references import ReferenceCheck
+
+if TYPE_CHECKING:
+    from robofailring.explain.vlm import VLMConfig
+
+
+EncoderOption = Annotated[
+    str,
+    typer.Option(
+        "--encoder",
+        help="`pixels` (weight-free), `open_clip:<model>[:<pretrained tag or checkpoint path>]` or `trained:<DIR>`.",
+    ),
+]
+CacheOption = Annotated[
+    Path | None, typer.Option("--cache-dir", help="Embedding cache folder (default ~/.cache/robofailring).")
+]
+DeviceOption = Annotated[
+    str | None, typer.Option("--device", help="torch device (default: cuda if available).")
+]
+StrideOption = Annotated[
+    int,
+    typer.Option(
+        "--stride",
+        help="Score every Nth frame of long episodes (I_0 stays frame 0; t_det and T_s in original frames).",
+    ),
+]
+LabelsOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--labels",
+        help="Outcome and failure symbol per episode: a JSON list or CSV of episode_index, outcome, symbol "
+        "(LeRobot datasets; `episode` names an episode folder).",
+    ),
+]
+VLMUrlOption = Annotated[
+    str | None,
+    typer.Option(
+        "--vlm-url",
+        help="Base URL of an OpenAI-compatible server (e.g. http://localhost:11434/v1) to ask about the "
+        "report; key from $ROBOFAILRING_VLM_API_KEY.",
+    ),
+]
+VLMModelOption = Annotated[
+    str | None, typer.Option("--vlm-model", help="Model the VLM server serves (with --vlm-url).")
+]
+ScoreOption = Annotated[
+    str | None,
+    typer.Option(
+        "--score",
+        help="Scoring rule: `paper` (S_t ≥ δ) or `contrast` (C_t = S⁻_t − S⁺_t ≥ γ); "
+        "default: contrast when the memory has success runs, else paper.",
+    ),
+]
+GammaOption = Annotated[
+    float | None,
+    typer.Option(help="Contrast threshold γ (default: the memory's calibrated γ, else 0)."),
+]
+
+
+def report_skipped(skipped: Sequence[Skipped], *, shown: int = 5) -> None:
+    """One summary line of what the loaders did not read, then the first few with their reason (stderr)."""
+    if not skipped:
+        return
+    typer.secho(
+        f"note: {len(skipped)} folder(s)/file(s) under the data were not read"
+        + (f"; the first {shown}:" if len(skipped) > shown else ":"),
+        fg=typer.colors.YELLOW,
+        err=True,
+    )
+    for item in skipped[:shown]:
+        typer.secho(f"  {item.path}: {item.reason}", err=True)
+
+
+SuccessStepOption = Annotated[
+    float,
+    typer.Option(
+        "--success-step",
+        help="Keep a success frame only when its cosine to the last kept frame of its run is below "
+        "1 - STEP (0 keeps every frame).",
+    ),
+]
+DataRootOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--data-root",
+        help="Where the memory's dataset is now, when it moved since the memory was built "
+        "(its images are looked up there).",
+    ),
+]
+
+
+def warn_missing_references(memory: Path, check: ReferenceCheck) -> None:
+    """One warning line when a memory's reference images cannot be found (nothing silent)."""
+    if not check.ok:
+        typer.secho(
+            f"warning: memory {memory}: "
+            + check.summary(
+                hint="; if the dataset moved, pass --data-root DIR (see `robofailring memory-info`)"
+            ),
+            fg=typer.colors.YELLOW,
+            err=True,
+        )
+
+
+def exit_with_error(error: Exception) -> NoReturn:
+    fail(error)
+
+
+def vlm_config(url: str | None, model: str | None) -> VLMConfig | None:
+    """The VLM to ask, from --vlm-url and --vlm-model (both or neither; bad usage otherwise)."""
+    from robofailring.explain.vlm import VLMConfig, VLMError
+
+    if url is None or model is None:
+        if url is not None or model is not None:
+            exit_with_error(ValueError("--vlm-url and --vlm-model go together: give both or neither"))
+        return None
+    try:
+        return VLMConfig(url=url, model=model)
+    except VLMError as error:
+        exit_with_error(error)
+        return None
+
+
+TaskOption = Annotated[
+    str | None,
+    typer.Option(
+        help="Task of episodes whose names do not say it (an episode folder, video episodes); "
+        "replay and compare on a dataset root keep only this task."
+    ),
+]

@@ -1,0 +1,40 @@
+"""`open_detector`: a memory folder to a ready detector in one call, with the memory's stored calibration."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from robofailring.detection.detector import DEFAULT_K, FailureDetector
+from robofailring.detection.rules import ScoreRule
+from robofailring.encoders import open_encoder
+from robofailring.memory.failure import FailureMemory, encoder_spec_for
+
+
+def open_detector(
+    memory_dir: str | Path,
+    *,
+    device: str | None = None,
+    rule: ScoreRule | str | None = None,
+    delta: float | None = None,
+    gamma: float | None = None,
+    k: int = DEFAULT_K,
+    data_root: str | Path | None = None,
+    encoder: str | None = None,
+    cache_dir: str | Path | None = None,
+) -> FailureDetector:
+    """Load the memory at `memory_dir` and its encoder, and return its detector.
+
+    Thresholds default to the memory's calibrated δ and γ (else the paper's δ = 0.92 and γ = 0);
+    the rule defaults to `contrast` when the memory holds success runs, else the paper's. `encoder`
+    overrides the spec the memory was built with (it must give the same identity); `data_root` is
+    where the memory's images are now, when its data moved; `device` is the torch device for CLIP.
+    """
+    memory = FailureMemory.load(
+        Path(memory_dir), data_root=Path(data_root) if data_root is not None else None
+    )
+    opened = open_encoder(
+        encoder or encoder_spec_for(memory),
+        device=device,
+        cache_dir=Path(cache_dir) if cache_dir is not None else None,
+    )
+    return FailureDetector(memory, opened, delta=delta, k=k, rule=rule, gamma=gamma)

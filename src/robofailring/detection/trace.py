@@ -1,0 +1,191 @@
+"""What the detector produces: a trace over a whole trajectory (S⁻, S⁺, C per view, t_det) and
+the result of one live step."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from robofailring.data.model import Skipped
+from robofailring.detection.rules import DEFAULT_GAMMA, PAPER_DELTA, ScoreRule, contrast
+from robofailring.detection.view_scores import ViewScores
+from robofailring.memory.failure import FailureMemory, Neighbor
+from robofailring.memory.success import SuccessMatch
+
+
+@dataclass(frozen=True)
+class StepResult:
+    """What the detector says about one time step."""
+
+    t: int
+    similarity: dict[str, float]  # S⁻_t per view (the paper's S_t)
+    neighbors: dict[str, list[Neighbor]]
+    state: bool
+    fired_views: list[str]
+    success_similarity: dict[str, float] = field(default_factory=dict)  # S⁺_t per view (NaN: none)
+    nearest_success: dict[str, SuccessMatch | None] = field(default_factory=dict)  # its success frame
+    contrast: dict[str, float] = field(default_factory=dict)  # C_t = S⁻_t − S⁺_t per view
+    rule: ScoreRule = ScoreRule.PAPER
+    threshold: float = PAPER_DELTA
+    queries: dict[str, np.ndarray] = field(default_factory=dict, repr=False)  # (f(I_0) ‖ f(I_t)) per view
+
+
+@dataclass
+class DetectionTrace:
+    """A whole replayed trajectory: S_t per view per frame, neighbours, t_det and L."""
+
+    task: str
+    episode: str
+    length: int
+    delta: float
+    k: int
+    encoder: str
+    views: list[str]
+    similarity: dict[str, np.ndarray]
+    neighbor_ids: dict[str, np.ndarray]
+    neighbor_similarity: dict[str, np.ndarray]
+    queries: dict[str, np.ndarray] = field(repr=False)  # one row per scored frame
+    memory: FailureMemory = field(repr=False)
+    skipped_views: list[str] = field(default_factory=list)
+    view_frames: dict[str, int] = field(default_factory=dict)  # frames each view had (L bounds them)
+    stride: int = 1  # every `stride`-th frame from frame 0 is scored; the others hold NaN / -1
+    skipped_inputs: list[Skipped] = field(default_factory=list)  # files of the episode not read
+
+    @property
+    def scored_frames(self) -> np.ndarray:
+        """Indices (original frame numbers) of the frames that were scored: 0, stride, 2·stride, …"""
+        return np.arange(0, self.length, self.stride)
+
+    rule: ScoreRule = ScoreRule.PAPER
+    gamma: float = DEFAULT_GAMMA
+    success_similarity: dict[str, np.ndarray] = field(default_factory=dict)  # S⁺_t per view
+    success_ids: dict[str, np.ndarray] = field(default_factory=dict)  # its success-memory row, -1: none
+
+    @property
+    def threshold(self) -> float:
+        """δ for the paper rule, γ for the contrast rule."""
+        return self.delta if self.rule is ScoreRule.PAPER else self.gamma
+
+    @property
+    def contrast(self) -> dict[str, np.ndarray]:
+        """C_t = S⁻_t − S⁺_t per view (NaN throughout when the memory has no success runs)."""
+        return {
+            view: contrast(self.similarity[view], self.success_similarity[view])
+            if view in self.success_similarity
+            else np.full(self.length, np.nan, np.float32)
+            for view in self.views
+        }
+
+    @property
+    def scores(self) -> dict[str, np.ndarray]:
+        """The score the rule thresholds, per view: S⁻_t (paper) or C_t (contrast)."""
+        return self.similarity if self.rule is ScoreRule.PAPER else self.contrast
+
+    @property
+    def view_scores(self) -> ViewScores:
+        """The rule's per-view scores, fused over this trace's views (`robofailring.detection.view_scores`)."""
+        scores = self.scores
+        return ViewScores({view: scores[view] for view in self.views}, self.length)
+
+    def nearest_success(self, view: str, t: int) -> SuccessMatch | None:
+        """The success frame nearest to the query of `view` at `t`, if the memory has one."""
+        successes = self.memory.successes
+        if successes is None or view not in self.success_ids:
+            return None
+        return successes.match(float(self.success_similarity[view][t]), int(self.success_ids[view][t]))
+
+    @property
+    def truncated_views(self) -> dict[str, int]:
+        """Views longer than L (the shortest used view) and how many of their frames were not scored."""
+        return {view: count - self.length for view, count in self.view_frames.items() if count > self.length}
+
+    @property
+    def state(self) -> np.ndarray:
+        """State_t (eq. 7) fused over views: 1 where any view's score reaches the rule's threshold."""
+        return self.view_scores.state(self.threshold)
+
+    @property
+    def t_det(self) -> int | None:
+        """The first frame at which the detector fires, or None."""
+        return self.view_scores.first_at_or_above(self.threshold)
+
+    @property
+    def detected(self) -> bool:
+        return self.t_det is not None
+
+    @property
+    def detected_view(self) -> str | None:
+        """The view with the highest score among those over the threshold at t_det."""
+        return self.view_scores.detected_view(self.threshold)
+
+    def max_similarity(self) -> np.ndarray:
+        """max over views of S⁻_t (the paper's S_t), per frame."""
+        return ViewScores({view: self.similarity[view] for view in self.views}, self.length).fused_max()
+
+    def max_score(self) -> np.ndarray:
+        """max over views of the rule's score, per frame (NaN counts as −∞)."""
+        return self.view_scores.fused_max()
+
+    def neighbors(self, view: str, t: int) -> list[Neighbor]:
+        return self.memory.neighbors(self.neighbor_similarity[view][t], self.neighbor_ids[view][t])
+
+    def with_delta(self, delta: float) -> DetectionTrace:
+        """The same trace judged at another threshold (S_t does not depend on δ)."""
+        return DetectionTrace(**{**self.__dict__, "delta": delta})
+
+    def with_rule(self, rule: ScoreRule, threshold: float) -> DetectionTrace:
+        """The same trace judged by another rule at its threshold (the scores do not change)."""
+        key = "delta" if rule is ScoreRule.PAPER else "gamma"
+        return DetectionTrace(**{**self.__dict__, "rule": rule, key: threshold})
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON shape of `robofailring detect --json`."""
+        views: dict[str, Any] = {}
+        contrasts = self.contrast
+        for view in self.views:
+            top = []
+            for t in range(self.length):
+                found = self.neighbors(view, t)
+                top.append(
+                    None
+                    if not found
+                    else {
+                        "task": found[0].entry.task,
+                        "symbol": found[0].entry.symbol,
+                        "view": found[0].entry.view,
+                        "episode": found[0].entry.episode,
+                        "similarity": round(found[0].similarity, 6),
+                    }
+                )
+            views[view] = {
+                "similarity": _rounded(self.similarity[view]),
+                "top_neighbor": top,
+                "failure_similarity": _rounded(self.similarity[view]),
+                "success_similarity": _rounded(
+                    self.success_similarity.get(view, np.full(self.length, np.nan))
+                ),
+                "contrast": _rounded(contrasts[view]),
+            }
+        return {
+            "task": self.task,
+            "episode": self.episode,
+            "length": self.length,
+            "delta": self.delta,
+            "score": self.rule.value,
+            "threshold": self.threshold,
+            "k": self.k,
+            "encoder": self.encoder,
+            "t_det": self.t_det,
+            "detected_view": self.detected_view,
+            "skipped_views": self.skipped_views,
+            "unscored_frames": self.truncated_views,
+            "stride": self.stride,
+            "skipped_inputs": [skipped.to_dict() for skipped in self.skipped_inputs],
+            "views": views,
+        }
+
+
+def _rounded(values: np.ndarray) -> list[float | None]:
+    return [None if np.isnan(v) else round(float(v), 6) for v in values]

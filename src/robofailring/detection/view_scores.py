@@ -1,0 +1,49 @@
+"""One trajectory's per-view scores and how they are fused over views (paper eq. 7), written once.
+
+The detector's trace (`robofailring.detection.trace.DetectionTrace`) and the evaluation's scored trajectories
+(`robofailring.evaluation.metrics.ScoredTrajectory`) both judge through `ViewScores`: the fused score is the max
+over views, a NaN (a frame not scored, or no success memory) counts as −∞ and so never fires, and
+t_det is the first frame whose fused score reaches the threshold.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class ViewScores:
+    """A score per view per frame (S⁻_t or C_t), L values each."""
+
+    by_view: Mapping[str, np.ndarray]
+    length: int  # L: frames per view
+
+    def chosen(self, views: Sequence[str] | None = None) -> list[str]:
+        """The given views that have scores (all of them, in their order, when none are given)."""
+        return [v for v in (views or list(self.by_view)) if v in self.by_view]
+
+    def fused_max(self, views: Sequence[str] | None = None) -> np.ndarray:
+        """max over the chosen views of the score, per frame; NaN counts as −∞ (−∞ throughout without views)."""
+        chosen = self.chosen(views)
+        if not chosen:
+            return np.full(self.length, -np.inf)
+        return np.stack([np.nan_to_num(self.by_view[v], nan=-np.inf) for v in chosen]).max(axis=0)
+
+    def state(self, threshold: float, views: Sequence[str] | None = None) -> np.ndarray:
+        """State_t (eq. 7): True where any chosen view's score reaches `threshold`."""
+        return np.asarray(self.fused_max(views) >= threshold)
+
+    def first_at_or_above(self, threshold: float, views: Sequence[str] | None = None) -> int | None:
+        """t_det: the first frame whose fused score reaches `threshold`, or None."""
+        fired = np.flatnonzero(self.state(threshold, views))
+        return int(fired[0]) if fired.size else None
+
+    def detected_view(self, threshold: float, views: Sequence[str] | None = None) -> str | None:
+        """The view with the highest score at t_det (the first of equals, in view order), or None."""
+        t = self.first_at_or_above(threshold, views)
+        if t is None:
+            return None
+        return max(self.chosen(views), key=lambda v: np.nan_to_num(self.by_view[v][t], nan=-np.inf))

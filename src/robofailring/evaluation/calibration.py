@@ -1,0 +1,192 @@
+"""Calibration with a guarantee (README, "Calibration with a guarantee"): δ and γ from success runs.
+
+Each success run is replayed with its own episode hidden from both memories (leave-one-out), so
+its frames never match themselves in the success memory; its peak score over frames and views is
+one conformal score. The threshold of each rule is the split-conformal one of
+`robofailring.detection.rules.conformal_threshold`, pooled over tasks.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from robofailring.data.layouts import load_dataset
+from robofailring.data.model import Skipped, Trajectory
+from robofailring.detection.detector import PAPER_DELTA, FailureDetector, check_k, check_stride
+from robofailring.detection.loader import open_detector
+from robofailring.detection.rules import ScoreRule, check_target_fpr, conformal_threshold, empirical_fpr
+from robofailring.errors import DataError
+from robofailring.memory.manifest import StoredCalibration
+from robofailring.progress import progress_bar
+
+
+@dataclass(frozen=True)
+class RuleCalibration:
+    """One rule's conformal threshold and what it achieved on the runs it was set from."""
+
+    rule: ScoreRule
+    threshold: float
+    target_fpr: float
+    achieved_fpr: float  # share of the calibration runs that reach the threshold (≤ α by construction)
+    successes: int
+
+
+def available_rules(detector: FailureDetector) -> list[ScoreRule]:
+    """The rules this detector's memory supports: contrast needs success runs."""
+    if detector.memory.successes is None:
+        return [ScoreRule.PAPER]
+    return [ScoreRule.PAPER, ScoreRule.CONTRAST]
+
+
+def success_peaks(
+    detector: FailureDetector,
+    successes: Sequence[Trajectory],
+    rules: Sequence[ScoreRule],
+    *,
+    progress: Callable[[int], None] | None = None,
+    stride: int = 1,
+) -> dict[ScoreRule, list[float]]:
+    """Per rule, each success run's peak score, its episode left out of both memories.
+
+    `stride` scores every N-th frame, as the runs the threshold will judge are scored."""
+    peaks: dict[ScoreRule, list[float]] = {rule: [] for rule in rules}
+    for trajectory in successes:
+        with contextlib.suppress(DataError):  # no view with 2 frames: nothing to score
+            trace = detector.run(trajectory, leave_one_out=True, stride=stride)
+            for rule in rules:
+                peaks[rule].append(float(trace.with_rule(rule, 0.0).max_score().max()))
+        if progress is not None:
+            progress(1)
+    return peaks
+
+
+def calibrate_rules(
+    detector: FailureDetector,
+    successes: Sequence[Trajectory],
+    target_fpr: float,
+    *,
+    rules: Sequence[ScoreRule] | None = None,
+    progress: Callable[[int], None] | None = None,
+    stride: int = 1,
+) -> dict[ScoreRule, RuleCalibration]:
+    """The conformal threshold of every rule (default: all the memory supports) at level `target_fpr`."""
+    chosen = list(rules) if rules is not None else available_rules(detector)
+    peaks = success_peaks(detector, successes, chosen, progress=progress, stride=stride)
+    calibrations = {}
+    for rule, values in peaks.items():
+        if not values:
+            raise DataError(f"none of the {len(successes)} success trajectories has a view of 2+ frames")
+        scored = [v for v in values if math.isfinite(v)]
+        try:
+            threshold = conformal_threshold(scored, target_fpr)
+        except DataError as error:
+            if len(scored) < len(values):
+                raise DataError(
+                    f"{error} ({len(values) - len(scored)} of the {len(values)} runs are the only success run of "
+                    f"their task, so leaving their episode out leaves nothing to contrast them with)"
+                ) from error
+            raise
+        calibrations[rule] = RuleCalibration(
+            rule=rule,
+            threshold=threshold,
+            target_fpr=target_fpr,
+            achieved_fpr=empirical_fpr(scored, threshold),
+            successes=len(scored),
+        )
+    return calibrations
+
+
+@dataclass(frozen=True)
+class CalibrateConfig:
+    data: Path  # dataset holding success trajectories to calibrate on
+    memory: Path  # memory directory; the chosen δ is written into its manifest
+    target_fpr: float = 0.05
+    split: str | None = "train"  # successes of this split (None: all; ignored if the data has no splits)
+    k: int = 5
+    cache_dir: Path | None = None
+    device: str | None = None
+    stride: int = 1  # score every stride-th frame of each success run
+    labels: Path | None = None  # labels file for data whose names do not say the outcome (LeRobot)
+
+    def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
+        check_k(self.k)
+        check_stride(self.stride)
+        check_target_fpr(self.target_fpr)
+
+
+@dataclass(frozen=True)
+class Calibration:
+    delta: float
+    target_fpr: float
+    achieved_fpr: float
+    successes: int
+    encoder: str
+    skipped_inputs: list[Skipped] = field(default_factory=list)  # folders/files of the data not read
+    gamma: float | None = None  # the contrast rule's γ, when the memory has success runs
+    gamma_achieved_fpr: float | None = None
+
+
+def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None = None) -> Calibration:
+    """Set δ and γ (split conformal, level = target FPR) on success runs and store them in the manifest."""
+    detector = open_detector(
+        config.memory,
+        device=config.device,
+        cache_dir=config.cache_dir,
+        k=config.k,
+        rule=ScoreRule.PAPER,
+        delta=PAPER_DELTA,
+    )
+    memory = detector.memory
+    dataset = load_dataset(config.data, labels=config.labels)
+    dataset.require_labels("calibrate")
+    source = list(dataset.trajectories())
+    has_splits = any(t.split for t in source)
+    successes = [
+        t
+        for t in source
+        if not t.is_failure and t.task in memory.tasks and (not has_splits or config.split in (None, t.split))
+    ]
+    if not successes:
+        raise DataError(
+            f"no success trajectories of the memory's tasks in {config.data} (split {config.split!r})"
+        )
+    with progress_bar(total=len(successes), desc="calibrating", unit="traj") as bar:
+
+        def advance(count: int) -> None:
+            bar.update(count)
+            if progress is not None:
+                progress(count)
+
+        found = calibrate_rules(
+            detector, successes, config.target_fpr, progress=advance, stride=config.stride
+        )
+    paper, contrast = found[ScoreRule.PAPER], found.get(ScoreRule.CONTRAST)
+    memory.manifest.calibration = StoredCalibration(
+        encoder=memory.encoder,
+        delta=paper.threshold,
+        gamma=contrast.threshold if contrast is not None else None,
+        method="split conformal, own episode left out",
+        target_fpr=config.target_fpr,
+        achieved_fpr=paper.achieved_fpr,
+        gamma_achieved_fpr=contrast.achieved_fpr if contrast is not None else None,
+        successes=paper.successes,
+        data=str(Path(config.data).resolve()),
+        split=config.split,
+        k=config.k,
+        stride=config.stride,
+    )
+    memory.write_manifest(config.memory)
+    return Calibration(
+        delta=paper.threshold,
+        target_fpr=config.target_fpr,
+        achieved_fpr=paper.achieved_fpr,
+        successes=paper.successes,
+        encoder=memory.encoder,
+        skipped_inputs=dataset.skipped,
+        gamma=contrast.threshold if contrast is not None else None,
+        gamma_achieved_fpr=contrast.achieved_fpr if contrast is not None else None,
+    )

@@ -1,0 +1,86 @@
+"""Encoder comparison (paper Table 3): the same split under several encoders, each calibrated, side by side."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from robofailring.encoders import EncoderSpec, open_encoder
+from robofailring.evaluation.calibration import CalibrateConfig, calibrate
+from robofailring.evaluation.run import (
+    EvaluateConfig,
+    EvaluationResult,
+    build_training_memory,
+    run_evaluation,
+)
+
+
+@dataclass(frozen=True)
+class CompareEncodersConfig:
+    data: Path  # dataset with train/test splits (or a hash split)
+    out: Path  # one memory per encoder is written under out/memory-<encoder>
+    encoders: tuple[str, ...]  # two or more encoder specs
+    target_fpr: float | None = 0.05  # calibrate each encoder's δ on training successes; None: paper δ
+    test_data: Path | None = None
+    test_split: str = "test"
+    k: int = 5
+    cache_dir: Path | None = None
+    device: str | None = None
+
+
+def compare_encoders(config: CompareEncodersConfig) -> list[EvaluationResult]:
+    """Build, calibrate and evaluate one memory per encoder on the same split."""
+    if len(config.encoders) < 2:
+        raise ValueError("an encoder comparison needs at least two encoders")
+    results = []
+    for spec in config.encoders:
+        slug = EncoderSpec.slug(open_encoder(spec, device=config.device, cache_dir=config.cache_dir).identity)
+        memory_dir = Path(config.out) / f"memory-{slug}"
+        base = EvaluateConfig(
+            data=config.data,
+            out=Path(config.out),
+            encoder=spec,
+            test_data=config.test_data,
+            test_split=config.test_split,
+            k=config.k,
+            name=slug,
+            cache_dir=config.cache_dir,
+            device=config.device,
+        )
+        build_training_memory(replace(base, memory_out=memory_dir))
+        if config.target_fpr is not None:
+            calibrate(
+                CalibrateConfig(
+                    data=config.data,
+                    memory=memory_dir,
+                    target_fpr=config.target_fpr,
+                    k=config.k,
+                    cache_dir=config.cache_dir,
+                    device=config.device,
+                )
+            )
+        # thresholds: the ones calibration just stored (target_fpr None reads them from the manifest)
+        results.append(run_evaluation(replace(base, memory=memory_dir, target_fpr=None)))
+    return results
+
+
+def comparison_table(results: Sequence[EvaluationResult]) -> str:
+    """Markdown: each encoder under each scoring rule at its threshold: recall, FPR, T_s, AUC, latency."""
+    lines = [
+        "| encoder | rule | threshold | Recall (%) | FPR (%) | mean T_s (%) | AUC | latency per frame (ms) |",
+        "|---|---|---:|---:|---:|---:|---:|---:|",
+    ]
+    for result in results:
+        latency = f"{result.latency_ms.get('total', float('nan')):.2f}"
+        for rule in result.rules.values():
+            lines.append(
+                f"| `{result.encoder}` | {rule.rule.value} | {rule.rule.symbol} = {rule.threshold:.4f} | "
+                f"{_pct(rule.recall)} | {_pct(rule.fpr)} | {_pct(rule.ts_mean)} | {rule.auc:.3f} | {latency} |"
+            )
+    return "\n".join(lines)
+
+
+def _pct(value: float) -> str:
+    return "—" if math.isnan(value) else f"{100 * value:.2f}"

@@ -1,0 +1,120 @@
+"""Both scoring rules measured on the same replays: threshold, recall, FPR, T_s and peak-score AUC."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from robofailring.detection.detector import DetectionTrace
+from robofailring.detection.rules import ScoreRule, auc
+from robofailring.evaluation.metrics import ScoredTrajectory, json_number, rates, timeliness
+
+
+@dataclass(frozen=True)
+class RuleResult:
+    """One rule at one threshold over the test set."""
+
+    rule: ScoreRule
+    threshold: float
+    calibrated: bool  # conformal threshold from training successes (else the default/stored one)
+    tp: int
+    fn: int
+    fp: int
+    tn: int
+    ts_mean: float  # mean T_s = 1 − t_det/L over detected failures
+    ts_median: float
+    auc: float  # peak score, failures vs successes
+    frame0_success_alarms: int  # success runs whose alarm is at frame 0
+    false_alarms: tuple[str, ...] = ()  # keys of the success runs that fired
+    misses: tuple[str, ...] = ()  # keys of the failures that did not
+
+    @property
+    def recall(self) -> float:
+        return self.tp / (self.tp + self.fn) if self.tp + self.fn else float("nan")
+
+    @property
+    def fpr(self) -> float:
+        return self.fp / (self.fp + self.tn) if self.fp + self.tn else float("nan")
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "threshold": self.threshold,
+            "calibrated": self.calibrated,
+            "recall": json_number(self.recall),
+            "fpr": json_number(self.fpr),
+            "tp": self.tp,
+            "fn": self.fn,
+            "fp": self.fp,
+            "tn": self.tn,
+            "ts_mean": json_number(self.ts_mean),
+            "ts_median": json_number(self.ts_median),
+            "auc": json_number(self.auc),
+            "frame0_success_alarms": self.frame0_success_alarms,
+            "false_alarms": list(self.false_alarms),
+            "misses": list(self.misses),
+        }
+
+    def markdown_row(self, target_fpr: float | None) -> str:
+        target = "—" if target_fpr is None or not self.calibrated else f"{100 * target_fpr:g}"
+        return (
+            f"| {self.rule.value} | {self.rule.symbol} = {self.threshold:.4f} | {target} | {_pct(self.recall)} | "
+            f"{_pct(self.fpr)} | {self.tp} | {self.fn} | {self.fp} | {self.tn} | {_pct(self.ts_mean)} | "
+            f"{self.auc:.3f} |"
+        )
+
+
+MARKDOWN_HEADER = (
+    "| rule | threshold | target FPR (%) | Recall (%) | FPR (%) | TP | FN | FP | TN | mean T_s (%) | AUC |\n"
+    "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+)
+
+
+def scored_by_rule(
+    traces: Mapping[str, DetectionTrace], labels: Mapping[str, ScoredTrajectory], rule: ScoreRule
+) -> list[ScoredTrajectory]:
+    """The test trajectories with the rule's per-view score in place of S_t."""
+    scored = []
+    for key, base in labels.items():
+        trace = traces[key].with_rule(rule, traces[key].threshold)
+        scored.append(
+            ScoredTrajectory(
+                key=base.key,
+                task=base.task,
+                symbol=base.symbol,
+                is_failure=base.is_failure,
+                length=base.length,
+                similarity=trace.scores,
+            )
+        )
+    return scored
+
+
+def evaluate_rule(
+    scored: Sequence[ScoredTrajectory], rule: ScoreRule, threshold: float, *, calibrated: bool
+) -> RuleResult:
+    """Counts, T_s and AUC of one rule at `threshold` on trajectories scored by that rule."""
+    at = rates(scored, threshold)
+    time_at = timeliness(scored, threshold)
+    failures = [float(t.scores().max()) for t in scored if t.is_failure]
+    successes = [float(t.scores().max()) for t in scored if not t.is_failure]
+    return RuleResult(
+        rule=rule,
+        threshold=threshold,
+        calibrated=calibrated,
+        tp=at.tp,
+        fn=at.fn,
+        fp=at.fp,
+        tn=at.tn,
+        ts_mean=time_at.mean_saving,
+        ts_median=time_at.median_saving,
+        auc=auc(failures, successes),
+        frame0_success_alarms=sum(1 for t in scored if not t.is_failure and t.t_det(threshold) == 0),
+        false_alarms=tuple(t.key for t in scored if not t.is_failure and t.t_det(threshold) is not None),
+        misses=tuple(t.key for t in scored if t.is_failure and t.t_det(threshold) is None),
+    )
+
+
+def _pct(value: float) -> str:
+    return "—" if math.isnan(value) else f"{100 * value:.2f}"

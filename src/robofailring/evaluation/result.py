@@ -1,0 +1,321 @@
+"""The result of an evaluation: per-trajectory scores, the paper's tables and both rules, as JSON and Markdown."""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from robofailring.data.grounding import failure_type
+from robofailring.data.model import Skipped
+from robofailring.detection.detector import (
+    DetectionTrace,
+)
+from robofailring.detection.rules import ScoreRule
+from robofailring.evaluation.metrics import (
+    PAPER_DELTAS,
+    Rates,
+    ScoredTrajectory,
+    fine_grid,
+    json_number,
+    rates,
+    sweep,
+    timeliness,
+)
+from robofailring.evaluation.per_rule import MARKDOWN_HEADER, RuleResult, scored_by_rule
+
+
+@dataclass
+class EvaluationResult:
+    """Everything the evaluation measured, for the tables, the JSON file and the summary recording."""
+
+    name: str
+    encoder: str
+    memory: str
+    k: int
+    operating_delta: float
+    calibrated: bool
+    views: list[str]
+    scored: list[ScoredTrajectory] = field(repr=False)
+    traces: dict[str, DetectionTrace] = field(repr=False)
+    skipped_unknown_task: list[str]
+    latency_ms: dict[str, float]
+    skipped_too_short: list[str] = field(default_factory=list)
+    skipped_inputs: list[Skipped] = field(default_factory=list)  # folders/files of the data not read
+    stride: int = 1
+    rules: dict[str, RuleResult] = field(default_factory=dict)  # both rules at their thresholds
+    target_fpr: float | None = None
+    deployment_successes: int = 0
+    paper_rates: list[Rates] = field(init=False)
+    curve: list[Rates] = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.paper_rates = sweep(self.scored, PAPER_DELTAS)
+        self.curve = sweep(self.scored, fine_grid(self.scored))
+
+    @property
+    def failures(self) -> int:
+        return sum(t.is_failure for t in self.scored)
+
+    @property
+    def successes(self) -> int:
+        return sum(not t.is_failure for t in self.scored)
+
+    def rule_trace(self, key: str, rule: ScoreRule) -> DetectionTrace:
+        """A test trajectory's trace judged by `rule` at its evaluated threshold."""
+        return self.traces[key].with_rule(rule, self.rules[rule.value].threshold)
+
+    def rule_scored(self, rule: ScoreRule) -> list[ScoredTrajectory]:
+        """The test trajectories with `rule`'s score (S_t or C_t) per view."""
+        return scored_by_rule(self.traces, {t.key: t for t in self.scored}, rule)
+
+    def per_type_recall(
+        self, delta: float, scored: Sequence[ScoredTrajectory] | None = None
+    ) -> dict[str, Rates]:
+        """Recall per failure type at `delta` (of `scored`: another rule's scores; default the paper's)."""
+        scored = self.scored if scored is None else scored
+        types = sorted({failure_type(t.symbol) for t in scored if t.is_failure and t.symbol})
+        return {
+            kind: rates([t for t in scored if t.is_failure and failure_type(t.symbol) == kind], delta)
+            for kind in types
+        }
+
+    def view_ablation(
+        self, delta: float, scored: Sequence[ScoredTrajectory] | None = None
+    ) -> dict[str, Rates]:
+        scored = self.scored if scored is None else scored
+        ablation = {view: rates(scored, delta, [view]) for view in self.views}
+        ablation["fusion"] = rates(scored, delta)
+        return ablation
+
+    def rule_charts(self, rule: ScoreRule, rate_row: Callable[[Rates], dict[str, Any]]) -> dict[str, Any]:
+        """A rule's own sweep, recall per type and per view, and detection progress at its threshold."""
+        scored = self.rule_scored(rule)
+        threshold = self.rules[rule.value].threshold
+        counts, edges = timeliness(scored, threshold).histogram()
+        return {
+            "operating_threshold": threshold,
+            "sweep": [rate_row(r) for r in sweep(scored, fine_grid(scored))],
+            "recall_per_type": {k: rate_row(v) for k, v in self.per_type_recall(threshold, scored).items()},
+            "view_ablation": {k: rate_row(v) for k, v in self.view_ablation(threshold, scored).items()},
+            "progress_histogram": {"threshold": threshold, "counts": counts, "edges": edges},
+        }
+
+    def false_alarms(self, delta: float) -> list[ScoredTrajectory]:
+        return [t for t in self.scored if not t.is_failure and t.t_det(delta) is not None]
+
+    def misses(self, delta: float) -> list[ScoredTrajectory]:
+        return [t for t in self.scored if t.is_failure and t.t_det(delta) is None]
+
+    def false_alarm_entries(self, delta: float) -> list[dict[str, Any]]:
+        """Memory entries that were the top neighbour at a false alarm, most culpable first."""
+        blame: Counter[int] = Counter()
+        for scored in self.false_alarms(delta):
+            trace = self.traces[scored.key].with_delta(delta)
+            view, t_det = trace.detected_view, trace.t_det
+            if view is not None and t_det is not None:
+                for neighbor in trace.neighbors(view, t_det)[:1]:
+                    blame[neighbor.index] += 1
+        memory = next(iter(self.traces.values())).memory if self.traces else None
+        rows = []
+        for index, count in blame.most_common():
+            assert memory is not None
+            entry = memory.entries[index]
+            rows.append(
+                {
+                    "index": index,
+                    "false_alarms": count,
+                    "task": entry.task,
+                    "symbol": entry.symbol,
+                    "episode": entry.episode,
+                    "view": entry.view,
+                }
+            )
+        return rows
+
+    def to_dict(self) -> dict[str, Any]:
+        delta = self.operating_delta
+        time_at = timeliness(self.scored, delta)
+        counts, edges = time_at.histogram()
+
+        def rate_row(r: Rates) -> dict[str, Any]:
+            return {
+                "delta": r.delta,
+                "recall": json_number(r.recall),
+                "fpr": json_number(r.fpr),
+                "tp": r.tp,
+                "fn": r.fn,
+                "fp": r.fp,
+                "tn": r.tn,
+            }
+
+        return {
+            "name": self.name,
+            "encoder": self.encoder,
+            "memory": self.memory,
+            "k": self.k,
+            "operating_delta": delta,
+            "calibrated": self.calibrated,
+            "failures": self.failures,
+            "successes": self.successes,
+            "skipped_unknown_task": self.skipped_unknown_task,
+            "skipped_too_short": self.skipped_too_short,
+            "skipped_inputs": [skipped.to_dict() for skipped in self.skipped_inputs],
+            "stride": self.stride,
+            "paper_deltas": [rate_row(r) for r in self.paper_rates],
+            "sweep": [rate_row(r) for r in self.curve],
+            "timeliness": {
+                str(d): {
+                    "detected_failures": timeliness(self.scored, d).count,
+                    "mean_progress": json_number(timeliness(self.scored, d).mean_progress),
+                    "median_progress": json_number(timeliness(self.scored, d).median_progress),
+                    "mean_saving": json_number(timeliness(self.scored, d).mean_saving),
+                    "median_saving": json_number(timeliness(self.scored, d).median_saving),
+                }
+                for d in (*PAPER_DELTAS, delta)
+            },
+            "progress_histogram": {
+                "delta": delta,
+                "counts": counts,
+                "edges": edges,
+                "values": list(time_at.progress),
+            },
+            "recall_per_type": {k: rate_row(v) for k, v in self.per_type_recall(delta).items()},
+            "view_ablation": {k: rate_row(v) for k, v in self.view_ablation(delta).items()},
+            "latency_ms": self.latency_ms,
+            "target_fpr": self.target_fpr,
+            "deployment_successes": self.deployment_successes,
+            "rules": {
+                name: result.to_dict() | self.rule_charts(result.rule, rate_row)
+                for name, result in self.rules.items()
+            },
+            "false_alarms": [
+                {"key": t.key, "t_det": t.t_det(delta), "length": t.length} for t in self.false_alarms(delta)
+            ],
+            "misses": [
+                {
+                    "key": t.key,
+                    "symbol": t.symbol,
+                    "peak": json_number(float(t.scores().max())),
+                    "length": t.length,
+                }
+                for t in self.misses(delta)
+            ],
+            "false_alarm_entries": self.false_alarm_entries(delta),
+            "trajectories": [
+                {
+                    "key": t.key,
+                    "task": t.task,
+                    "symbol": t.symbol,
+                    "failure": t.is_failure,
+                    "length": t.length,
+                    "t_det": t.t_det(delta),
+                    "peak": json_number(float(t.scores().max())),
+                }
+                for t in self.scored
+            ],
+        }
+
+    def to_markdown(self) -> str:
+        delta = self.operating_delta
+        lines = [
+            f"## {self.name} — encoder `{self.encoder}`, K = {self.k}",
+            "",
+            f"{self.failures} failure and {self.successes} success test trajectories; memory `{self.memory}`; "
+            f"operating δ = {delta:.4f} ({'calibrated' if self.calibrated else 'paper default'}).",
+            "",
+            *self._rules_markdown(),
+            "| δ | Recall (%) | FPR (%) | TP | FN | FP | TN | mean T_s (%) | median progress (%) |",
+            "|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        ]
+        shown = list(self.paper_rates)
+        if all(abs(r.delta - delta) > 1e-9 for r in shown):
+            shown.append(rates(self.scored, delta))
+        for r in shown:
+            t = timeliness(self.scored, r.delta)
+            lines.append(
+                f"| {r.delta:.4g} | {_pct(r.recall)} | {_pct(r.fpr)} | {r.tp} | {r.fn} | {r.fp} | {r.tn} | "
+                f"{_pct(t.mean_saving)} | {_pct(t.median_progress)} |"
+            )
+        time_at = timeliness(self.scored, delta)
+        lines += [
+            "",
+            f"Timeliness at δ = {delta:.4g}: {time_at.count} detected failures, mean detection progress "
+            f"{_pct(time_at.mean_progress)} %, median {_pct(time_at.median_progress)} %, "
+            f"temporal saving T_s mean {_pct(time_at.mean_saving)} %, median {_pct(time_at.median_saving)} %.",
+            "",
+            "| failure type | Recall (%) | detected / total |",
+            "|---|---:|---:|",
+        ]
+        for kind, r in self.per_type_recall(delta).items():
+            lines.append(f"| {kind} | {_pct(r.recall)} | {r.tp} / {r.tp + r.fn} |")
+        lines += ["", "| views | Recall (%) | FPR (%) |", "|---|---:|---:|"]
+        for view, r in self.view_ablation(delta).items():
+            lines.append(f"| {view} | {_pct(r.recall)} | {_pct(r.fpr)} |")
+        lines += [
+            "",
+            f"Per-frame latency ({len(self.views)} views): encoder {self.latency_ms.get('encode', float('nan')):.2f} ms, "
+            f"retrieval {self.latency_ms.get('retrieval', float('nan')):.3f} ms, "
+            f"total {self.latency_ms.get('total', float('nan')):.2f} ms.",
+        ]
+        blamed = self.false_alarm_entries(delta)
+        if blamed:
+            lines += [
+                "",
+                "Memory entries behind the most false alarms (candidates to prune):",
+                "",
+                "| entry | false alarms | task | symbol | episode | view |",
+                "|---:|---:|---|---|---|---|",
+            ]
+            for row in blamed[:10]:
+                lines.append(
+                    f"| {row['index']} | {row['false_alarms']} | {row['task']} | `{row['symbol']}` | "
+                    f"{row['episode']} | {row['view']} |"
+                )
+        if self.skipped_too_short:
+            lines += [
+                "",
+                f"Skipped {len(self.skipped_too_short)} test trajectories with no view of 2 or more frames.",
+            ]
+        if self.skipped_inputs:
+            lines += ["", f"Not read from the data ({len(self.skipped_inputs)}):", ""]
+            lines += [f"- `{skipped.path}`: {skipped.reason}" for skipped in self.skipped_inputs[:20]]
+            if len(self.skipped_inputs) > 20:
+                lines.append(f"- … and {len(self.skipped_inputs) - 20} more (all in the JSON file)")
+        if self.stride > 1:
+            lines += [
+                "",
+                f"Every {self.stride}th frame scored (frame numbers, t_det and T_s are original frames).",
+            ]
+        if self.skipped_unknown_task:
+            lines += [
+                "",
+                f"Skipped {len(self.skipped_unknown_task)} test trajectories whose task has no memory entry.",
+            ]
+        return "\n".join(lines)
+
+    def _rules_markdown(self) -> list[str]:
+        if not self.rules:
+            return []
+        deployed = (
+            f" {self.deployment_successes} success run(s) per task from the test data joined the success "
+            "memory (deployment successes) and are not tested."
+            if self.deployment_successes
+            else ""
+        )
+        return [
+            "Both scoring rules, each calibrated on the training successes (split conformal, each run's own "
+            f"episode left out):{deployed}",
+            "",
+            MARKDOWN_HEADER,
+            *(result.markdown_row(self.target_fpr) for result in self.rules.values()),
+            "",
+            "The tables below are the paper rule (S_t ≥ δ).",
+            "",
+        ]
+
+
+def _pct(value: float) -> str:
+    return "—" if math.isnan(value) else f"{100 * value:.2f}"

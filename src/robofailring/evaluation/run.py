@@ -1,0 +1,309 @@
+"""The paper's evaluation (§4): memory from training failures, Recall/FPR sweep, T_s, ablations, review."""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from robofailring.atomic import write_text_atomic
+from robofailring.data.layouts import load_dataset
+from robofailring.data.model import Skipped, Trajectory
+from robofailring.data.splits import split_of
+from robofailring.detection.detector import (
+    DetectionTrace,
+    FailureDetector,
+    check_delta,
+    check_k,
+    check_stride,
+)
+from robofailring.detection.rules import ScoreRule, check_target_fpr
+from robofailring.encoders import CachedEncoder, open_encoder, portable_spec
+from robofailring.errors import DataError, RoboFailRingError, SettingError
+from robofailring.evaluation.metrics import PAPER_DELTAS, ScoredTrajectory
+from robofailring.evaluation.per_rule import evaluate_rule, scored_by_rule
+from robofailring.evaluation.result import EvaluationResult
+from robofailring.memory.failure import FailureMemory
+from robofailring.memory.references import absolute_reference
+from robofailring.memory.success import SuccessMemory
+from robofailring.memory.thinning import DEFAULT_STEP
+from robofailring.progress import progress_bar
+
+
+@dataclass(frozen=True)
+class EvaluateConfig:
+    data: Path  # dataset whose training split's failures form the memory
+    out: Path  # folder for evaluation.json and evaluation.md (and memory/ when built here)
+    encoder: str = "pixels"  # encoder spec; must match --memory when one is given
+    memory: Path | None = None  # an existing memory (its failures must not be in the test set)
+    memory_out: Path | None = None  # where a memory built here is saved (default out/memory)
+    test_data: Path | None = None  # a second dataset to test on (e.g. out-of-distribution)
+    train_split: str = "train"
+    test_split: str = "test"
+    test_fraction: float = 0.5  # for datasets without splits: a deterministic hash split
+    deltas: tuple[float, ...] = PAPER_DELTAS
+    k: int = 5
+    name: str = "evaluation"
+    cache_dir: Path | None = None
+    device: str | None = None
+    stride: int = 1  # score every stride-th frame of a test trajectory (t_det, T_s in original frames)
+    labels: Path | None = None  # labels file for data whose names do not say the outcome (LeRobot)
+    target_fpr: float | None = 0.05  # calibrate both rules on training successes; None: stored thresholds
+    successes: bool = True  # build the success memory beside the failure memory (contrast rule)
+    success_step: float = (
+        DEFAULT_STEP  # thinning of success runs (robofailring.memory.thinning); 0 keeps every frame
+    )
+    deployment_successes: int = 0  # per task: test success runs moved into the success memory
+
+    def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
+        check_k(self.k)
+        check_stride(self.stride)
+        if self.target_fpr is not None:
+            check_target_fpr(self.target_fpr)
+        if self.deployment_successes < 0:
+            raise SettingError(f"deployment successes must be ≥ 0, got {self.deployment_successes}")
+        for delta in self.deltas:
+            check_delta(delta)
+        if not 0.0 < self.test_fraction < 1.0:
+            raise SettingError(f"test fraction must lie in (0, 1), got {self.test_fraction}")
+
+
+def select_splits(
+    config: EvaluateConfig, skipped: list[Skipped] | None = None
+) -> tuple[list[Trajectory], list[Trajectory]]:
+    """(training trajectories, test trajectories), disjoint by construction and checked.
+
+    What the datasets' loaders did not read is appended to `skipped`.
+    """
+    dataset = load_dataset(config.data, labels=config.labels)
+    dataset.require_labels("evaluate")
+    source = list(dataset.trajectories())
+    if skipped is not None:
+        skipped += dataset.skipped
+    has_splits = any(t.split for t in source)
+    train = [
+        t
+        for t in source
+        if split_of(t, has_splits=has_splits, test_fraction=config.test_fraction) == config.train_split
+    ]
+    if config.test_data is None:
+        test = [
+            t
+            for t in source
+            if split_of(t, has_splits=has_splits, test_fraction=config.test_fraction) == config.test_split
+        ]
+    else:
+        other_dataset = load_dataset(config.test_data, labels=config.labels)
+        other_dataset.require_labels("evaluate")
+        other = list(other_dataset.trajectories())
+        if skipped is not None:
+            skipped += other_dataset.skipped
+        other_has_splits = any(t.split for t in other)
+        test = [t for t in other if not other_has_splits or t.split == config.test_split]
+    if not test:
+        raise DataError(
+            f"no test trajectories (split {config.test_split!r}) in {config.test_data or config.data}"
+        )
+    return train, test
+
+
+def check_disjoint(memory: FailureMemory, test: Sequence[Trajectory]) -> None:
+    """No trajectory may be both in the memory and in the test set (compared by its image files)."""
+    in_memory = {absolute_reference(ref) for entry in memory.entries for ref in (entry.start, entry.end)}
+    for trajectory in test:
+        for frames in trajectory.views.values():
+            if (
+                frames
+                and {absolute_reference(frames[0].reference), absolute_reference(frames[-1].reference)}
+                & in_memory
+            ):
+                raise RoboFailRingError(
+                    f"test trajectory {trajectory.key} ({trajectory.source}) is also in the memory; "
+                    "evaluate on a split the memory was not built from"
+                )
+
+
+def measure_latency(
+    detector: FailureDetector, trajectory: Trajectory, *, frames: int = 8
+) -> dict[str, float]:
+    """Per-frame detection latency on real frames, uncached: encode all views, then retrieve."""
+    views = [v for v, f in trajectory.views.items() if len(f) >= 2]
+    count = min(frames, trajectory.length)
+    images = [[trajectory.views[v][t].load() for v in views] for t in range(count)]
+    raw = detector.encoder.encoder
+    raw.encode(images[0])  # warm-up
+    session = detector.session(trajectory.task)
+    encode_ms, total_ms = [], []
+    for step_images in images:
+        start = time.perf_counter()
+        raw.encode(step_images)
+        encode_ms.append((time.perf_counter() - start) * 1000)
+        start = time.perf_counter()
+        session.step(dict(zip(views, step_images, strict=True)))
+        total_ms.append((time.perf_counter() - start) * 1000)
+    encode, total = float(np.median(encode_ms)), float(np.median(total_ms))
+    return {"encode": encode, "retrieval": max(total - encode, 0.0), "total": total}
+
+
+def build_training_memory(
+    config: EvaluateConfig, train: Sequence[Trajectory] | None = None, encoder: CachedEncoder | None = None
+) -> Path:
+    """Build the memory from the training split's failures and save it to `config.memory_out`."""
+    if encoder is None:
+        encoder = open_encoder(config.encoder, device=config.device, cache_dir=config.cache_dir)
+    if train is None:
+        train, _ = select_splits(config)
+    failures = [t for t in train if t.is_failure]
+    with progress_bar(total=sum(len(t.views) for t in failures), desc="memory", unit="entry") as bar:
+        memory, _ = FailureMemory.build(failures, encoder, progress=bar.update)
+    if config.successes:
+        with progress_bar(total=len(train), desc="success memory", unit="traj") as bar:
+            built = SuccessMemory.build(train, encoder, progress=bar.update, step=config.success_step)
+        memory.successes = built if built.success_runs else None  # no success run: the paper's memory
+    memory.manifest.source = str(Path(config.data).resolve())
+    memory.manifest.split = config.train_split
+    memory.manifest.encoder_spec = portable_spec(config.encoder)
+    memory_dir = config.memory_out or Path(config.out) / "memory"
+    memory.save(memory_dir)
+    return memory_dir
+
+
+def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
+    """Build (or load) the memory, replay every test trajectory once, and measure everything."""
+    encoder = open_encoder(config.encoder, device=config.device, cache_dir=config.cache_dir)
+    unread: list[Skipped] = []
+    train, test = select_splits(config, unread)
+    memory_dir = config.memory if config.memory is not None else build_training_memory(config, train, encoder)
+    memory = FailureMemory.load(memory_dir)
+    check_disjoint(memory, test)
+    test = _deploy_successes(memory, test, config.deployment_successes, encoder, config.success_step)
+    detector = FailureDetector(memory, encoder, k=config.k)
+    thresholds, calibrated = _thresholds(config, detector, train)
+    operating = thresholds[ScoreRule.PAPER]
+    known = set(memory.tasks)
+    scored: list[ScoredTrajectory] = []
+    traces: dict[str, DetectionTrace] = {}
+    skipped: list[str] = []
+    too_short: list[str] = []
+    with progress_bar(total=len(test), desc=f"replaying {config.name}", unit="traj") as bar:
+        for trajectory in test:
+            bar.update(1)
+            if trajectory.task not in known:
+                skipped.append(trajectory.key)
+                continue
+            try:
+                trace = detector.run(trajectory, stride=config.stride)
+            except DataError:
+                too_short.append(trajectory.key)
+                continue
+            traces[trajectory.key] = trace
+            scored.append(
+                ScoredTrajectory(
+                    key=trajectory.key,
+                    task=trajectory.task,
+                    symbol=trajectory.symbol,
+                    is_failure=trajectory.is_failure,
+                    length=trace.length,
+                    similarity=trace.similarity,
+                )
+            )
+    if not scored:
+        raise DataError(
+            f"none of the {len(test)} test trajectories has a task in the memory ({sorted(known)})"
+        )
+    views = sorted({v for s in scored for v in s.similarity})
+    first = next(t for t in test if t.key in traces)
+    traces = {  # the paper rule at δ, γ kept beside it: the paper tables below read these traces
+        key: DetectionTrace(
+            **{
+                **trace.__dict__,
+                "rule": ScoreRule.PAPER,
+                "delta": operating,
+                "gamma": thresholds.get(ScoreRule.CONTRAST, trace.gamma),
+            }
+        )
+        for key, trace in traces.items()
+    }
+    labels = {t.key: t for t in scored}
+    rules = {
+        rule.value: evaluate_rule(
+            scored_by_rule(traces, labels, rule), rule, threshold, calibrated=calibrated[rule]
+        )
+        for rule, threshold in thresholds.items()
+    }
+    return EvaluationResult(
+        name=config.name,
+        encoder=memory.encoder,
+        memory=str(memory_dir),
+        k=config.k,
+        operating_delta=operating,
+        calibrated=calibrated[ScoreRule.PAPER],
+        rules=rules,
+        target_fpr=config.target_fpr if config.target_fpr is not None else _stored_target(memory),
+        deployment_successes=config.deployment_successes,
+        views=views,
+        scored=scored,
+        traces=traces,
+        skipped_unknown_task=skipped,
+        latency_ms=measure_latency(detector, first),
+        skipped_too_short=too_short,
+        skipped_inputs=unread,
+        stride=config.stride,
+    )
+
+
+def _stored_target(memory: FailureMemory) -> float | None:
+    """The α the memory's stored thresholds were calibrated to, if they belong to its encoder."""
+    calibration = memory.manifest.calibration
+    return calibration.target_for(memory.encoder) if calibration is not None else None
+
+
+def _deploy_successes(
+    memory: FailureMemory, test: list[Trajectory], per_task: int, encoder: CachedEncoder, step: float
+) -> list[Trajectory]:
+    """Move `per_task` success runs per task from the test set into the success memory (in memory only)."""
+    if per_task == 0 or memory.successes is None:
+        return test
+    chosen: list[Trajectory] = []
+    for task in sorted({t.task for t in test}):
+        runs = sorted((t for t in test if t.task == task and not t.is_failure), key=lambda t: t.key)
+        chosen += runs[:per_task]
+    memory.successes = memory.successes.extended(SuccessMemory.build(chosen, encoder, step=step))
+    keys = {t.key for t in chosen}
+    return [t for t in test if t.key not in keys]
+
+
+def _thresholds(
+    config: EvaluateConfig, detector: FailureDetector, train: Sequence[Trajectory]
+) -> tuple[dict[ScoreRule, float], dict[ScoreRule, bool]]:
+    """Each rule's threshold: conformal on the training successes, or the memory's stored/default one."""
+    from robofailring.evaluation.calibration import available_rules, calibrate_rules
+
+    rules = available_rules(detector)
+    defaults = {ScoreRule.PAPER: detector.delta, ScoreRule.CONTRAST: detector.gamma}
+    if config.target_fpr is None:
+        stored = {
+            ScoreRule.PAPER: detector.memory.calibrated_delta,
+            ScoreRule.CONTRAST: detector.memory.calibrated_gamma,
+        }
+        return {r: defaults[r] for r in rules}, {r: stored[r] is not None for r in rules}
+    known = set(detector.memory.tasks)
+    successes = [t for t in train if not t.is_failure and t.task in known]
+    with progress_bar(total=len(successes), desc="calibrating", unit="traj") as bar:
+        found = calibrate_rules(
+            detector, successes, config.target_fpr, rules=rules, progress=bar.update, stride=config.stride
+        )
+    return {r: c.threshold for r, c in found.items()}, {r: True for r in found}
+
+
+def write_evaluation(result: EvaluationResult, out: Path) -> tuple[Path, Path]:
+    """evaluation.json and evaluation.md under `out`, written atomically."""
+    out = Path(out)
+    json_path, md_path = out / f"{result.name}.json", out / f"{result.name}.md"
+    write_text_atomic(json_path, json.dumps(result.to_dict(), indent=2))
+    write_text_atomic(md_path, result.to_markdown() + "\n")
+    return json_path, md_path

@@ -1,0 +1,237 @@
+"""Failure report R (eq. 8) and the VLM prompt of Appendix B, as JSON, Markdown and chat messages."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Protocol
+
+from robofailring.errors import DataError
+from robofailring.memory.failure import Neighbor
+from robofailring.memory.references import absolute_reference, check_references, relocate
+
+if TYPE_CHECKING:
+    from robofailring.data.model import Trajectory
+    from robofailring.detection.detector import DetectionTrace
+
+SYSTEM_PROMPT = (
+    "You are an expert robotic failure analyst. Use the provided Failure Report and Reference Images "
+    "to diagnose the Current Situation."
+)
+INTRO = (
+    "Robot stopped now because the current scene is similar to the failure memory. I have retrieved a "
+    "similar historical failure case from memory. Details of Failure Report as follows:"
+)
+TASKS = (
+    "Based on this report, please reasoning why it failed and how should it be repaired? You tasks are:\n"
+    "1. Compare the Current Observation with the Reference End Frame.\n"
+    "2. Confirm if the failure mode described in the report matches the visual evidence.\n"
+    "3. Provide a reasoning for the failure cause.\n"
+    "4. Suggest a concrete repair action."
+)
+ASSISTANT_PRIMER = "Got it. Here's the analysis of the current situation:"
+
+
+@dataclass(frozen=True)
+class ReportItem:
+    """One tuple of eq. 8: (τ, G(y_sym), ω, I_start, I_end) plus the similarity and symbol."""
+
+    task: str
+    symbol: str
+    description: str
+    view: str
+    similarity: float
+    start_image: str
+    end_image: str
+
+    @classmethod
+    def from_neighbor(cls, neighbor: Neighbor) -> ReportItem:
+        entry = neighbor.entry
+        return cls(
+            task=entry.task,
+            symbol=entry.symbol,
+            description=entry.description,
+            view=entry.view,
+            similarity=neighbor.similarity,
+            start_image=entry.start,
+            end_image=entry.end,
+        )
+
+
+@dataclass(frozen=True)
+class FailureReport:
+    """The report produced at the detection instant for the K neighbours of the firing view."""
+
+    current_task: str
+    view: str
+    t_det: int
+    similarity: float
+    items: tuple[ReportItem, ...]
+    current_image: str | None = None
+
+    @classmethod
+    def from_neighbors(
+        cls,
+        *,
+        task: str,
+        view: str,
+        t_det: int,
+        neighbors: Sequence[Neighbor],
+        current_image: str | None = None,
+    ) -> FailureReport:
+        items = tuple(ReportItem.from_neighbor(n) for n in neighbors)
+        similarity = items[0].similarity if items else float("nan")
+        return cls(task, view, t_det, similarity, items, current_image)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], *, source: str = "report") -> FailureReport:
+        """The inverse of `to_dict` (a `detect --json` report, a recording's `report` property)."""
+        try:
+            items = tuple(
+                ReportItem(
+                    task=str(item["task"]),
+                    symbol=str(item["symbol"]),
+                    description=str(item["description"]),
+                    view=str(item["view"]),
+                    similarity=float(item["similarity"]),
+                    start_image=str(item["start_image"]),
+                    end_image=str(item["end_image"]),
+                )
+                for item in data["neighbors"]
+            )
+            current = data.get("current_image")
+            return cls(
+                current_task=str(data["current_task"]),
+                view=str(data["view"]),
+                t_det=int(data["t_det"]),
+                similarity=float(data["similarity"]),
+                items=items,
+                current_image=None if current is None else str(current),
+            )
+        except (KeyError, TypeError, ValueError) as error:
+            raise DataError(f"{source} is not a failure report (missing or bad field: {error})") from error
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "current_task": self.current_task,
+            "view": self.view,
+            "t_det": self.t_det,
+            "similarity": round(self.similarity, 6),
+            "current_image": self.current_image,
+            "neighbors": [{**item.__dict__, "similarity": round(item.similarity, 6)} for item in self.items],
+        }
+
+    def missing_images(self) -> list[str]:
+        """The prompt's images (top neighbour's start and end, the current frame) that are not on disk."""
+        if not self.items:
+            return []
+        images = [self.items[0].start_image, self.items[0].end_image]
+        if self.current_image:
+            images.append(self.current_image)
+        return list(check_references(absolute_reference(image) for image in images).missing)
+
+    def relocated(self, data_root: Path) -> FailureReport:
+        """The same report with its images found again under `data_root` (the dataset moved)."""
+        items = tuple(
+            replace(
+                item,
+                start_image=relocate(item.start_image, data_root),
+                end_image=relocate(item.end_image, data_root),
+            )
+            for item in self.items
+        )
+        current = relocate(self.current_image, data_root) if self.current_image else self.current_image
+        return replace(self, items=items, current_image=current)
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), indent=2)
+
+    def vlm_messages(self) -> list[dict[str, Any]]:
+        """Appendix B as chat messages, built around the top neighbour."""
+        if not self.items:
+            return []
+        top = self.items[0]
+        report = {
+            "current_task": self.current_task,
+            "failure": top.description,
+            "view": top.view,
+            "similarity_score": f"{top.similarity:.2f}",
+        }
+        messages: list[dict[str, Any]] = [
+            {"role": "system", "content": SYSTEM_PROMPT},
+            {"role": "user", "content": f"{INTRO}\n{json.dumps(report, indent=2)}"},
+            {
+                "role": "user",
+                "content": [
+                    {
+                        "type": "text",
+                        "text": "Below are the reference images from this historical failure memory:",
+                    },
+                    {"type": "text", "text": "Reference Start Frame (Task Context):"},
+                    {"type": "image", "path": absolute_reference(top.start_image)},
+                    {"type": "text", "text": "Reference End Frame (Failure State):"},
+                    {"type": "image", "path": absolute_reference(top.end_image)},
+                ],
+            },
+        ]
+        current: list[dict[str, Any]] = [
+            {"type": "text", "text": "Now, look at the current robot observation:"},
+            {"type": "text", "text": "Current Frame:"},
+        ]
+        if self.current_image:
+            current.append({"type": "image", "path": absolute_reference(self.current_image)})
+        messages.append({"role": "user", "content": current})
+        messages.append({"role": "user", "content": TASKS})
+        messages.append({"role": "assistant", "content": ASSISTANT_PRIMER})
+        return messages
+
+    def to_markdown(self, *, include_prompt: bool = True) -> str:
+        lines = [
+            f"# Failure report — {self.current_task}",
+            "",
+            f"Detected at frame **{self.t_det}** in view **{self.view}** with S_t = **{self.similarity:.3f}**.",
+            "",
+            "| rank | task | view | similarity | symbol | grounded failure |",
+            "|---:|---|---|---:|---|---|",
+        ]
+        for rank, item in enumerate(self.items):
+            lines.append(
+                f"| {rank} | {item.task} | {item.view} | {item.similarity:.3f} | `{item.symbol}` | {item.description} |"
+            )
+        missing = self.missing_images()
+        if missing:
+            lines += ["", *(f"**image not found:** `{reference}`  " for reference in missing)]
+        if include_prompt and self.items:
+            lines += ["", "## VLM prompt (Appendix B)", ""]
+            for message in self.vlm_messages():
+                content = message["content"]
+                if isinstance(content, list):
+                    content = "\n".join(
+                        part.get("text") or f"![image]({part.get('path')})" for part in content
+                    )
+                lines += [f"**{message['role']}**:", "", "```text", str(content), "```", ""]
+        return "\n".join(lines)
+
+
+def report_for(trace: DetectionTrace, trajectory: Trajectory | None = None) -> FailureReport | None:
+    """The report at t_det for the firing view's K neighbours (None without a detection).
+
+    With the trajectory, the current frame (the firing view at t_det) is referenced for the VLM.
+    """
+    t_det, view = trace.t_det, trace.detected_view
+    if t_det is None or view is None:
+        return None
+    current = None
+    if trajectory is not None and view in trajectory.views and t_det < len(trajectory.views[view]):
+        current = trajectory.views[view][t_det].reference
+    return FailureReport.from_neighbors(
+        task=trace.task, view=view, t_det=t_det, neighbors=trace.neighbors(view, t_det), current_image=current
+    )
+
+
+class VLMClient(Protocol):
+    """A vision-language model answering chat messages (`robofailring.explain.vlm.ChatCompletionsClient`)."""
+
+    def complete(self, messages: list[dict[str, Any]]) -> str: ...

@@ -1,0 +1,222 @@
+"""The VLM reasoning step (paper §3.4, Appendix B): the failure report sent to an OpenAI-compatible server.
+
+Any server that speaks `POST {base_url}/chat/completions` works: vLLM, Ollama, LM Studio or a hosted
+API. The report's images travel as base64 JPEG data URLs; the API key, when the server needs one,
+comes from `ROBOFAILRING_VLM_API_KEY` and is sent only as a Bearer header (never printed or recorded).
+"""
+
+from __future__ import annotations
+
+import base64
+import os
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Final
+
+import httpx
+
+from robofailring.data.images import encode_jpeg, read_image
+from robofailring.data.video import read_video_reference
+from robofailring.errors import DataError, RoboFailRingError
+from robofailring.explain.report import FailureReport, VLMClient
+from robofailring.memory.references import VIDEO_FRAME_MARKER
+
+API_KEY_ENV: Final[str] = "ROBOFAILRING_VLM_API_KEY"
+DEFAULT_TIMEOUT_S: Final[float] = 120.0  # a local VLM reading three images can take a while
+DEFAULT_RETRIES: Final[int] = 2  # extra attempts after a timeout or a 5xx answer
+DEFAULT_BACKOFF_S: Final[float] = 1.0  # wait before retry n: backoff × 2ⁿ
+_JPEG_MAGIC: Final[bytes] = b"\xff\xd8\xff"
+
+
+class VLMError(RoboFailRingError):
+    """The VLM server could not be reached, refused the request, or answered something unusable."""
+
+
+@dataclass(frozen=True)
+class VLMConfig:
+    """Where to ask: an OpenAI-compatible server and the model it serves."""
+
+    url: str  # base URL, e.g. http://localhost:11434/v1 (the client adds /chat/completions)
+    model: str  # model name as the server knows it, e.g. qwen2.5vl:7b
+    timeout_s: float = DEFAULT_TIMEOUT_S  # per attempt
+    retries: int = DEFAULT_RETRIES  # extra attempts after a timeout or 5xx (never after a 4xx)
+    backoff_s: float = DEFAULT_BACKOFF_S
+
+    def __post_init__(self) -> None:
+        if not self.url.startswith(("http://", "https://")):
+            raise VLMError(f"VLM URL {self.url!r} must start with http:// or https://")
+        if not self.model:
+            raise VLMError("a VLM model name is needed (--vlm-model)")
+        if self.retries < 0 or self.timeout_s <= 0:
+            raise VLMError(
+                f"VLM retries must be ≥ 0 and timeout > 0, got {self.retries} and {self.timeout_s}"
+            )
+
+    @property
+    def endpoint(self) -> str:
+        return f"{self.url.rstrip('/')}/chat/completions"
+
+
+@dataclass(frozen=True)
+class VLMAnswer:
+    """What the VLM said about one report, or why it said nothing."""
+
+    model: str
+    answer: str | None = None
+    latency_s: float | None = None  # the whole call, retries included
+    error: str | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.error is None
+
+    def to_dict(self) -> dict[str, Any]:
+        """`{model, answer, latency_s}`, or `{model, error}` when the call failed."""
+        if self.error is not None:
+            return {"model": self.model, "error": self.error}
+        return {"model": self.model, "answer": self.answer, "latency_s": self.latency_s}
+
+    def to_markdown(self) -> str:
+        if self.error is not None:
+            return f"## VLM answer ({self.model})\n\n_The VLM call failed: {self.error}_"
+        return f"## VLM answer ({self.model}, {self.latency_s:.1f} s)\n\n{self.answer}"
+
+
+def image_data_url(reference: str) -> str:
+    """A report image as a `data:image/jpeg;base64,…` URL (JPEG files pass through unchanged)."""
+    if VIDEO_FRAME_MARKER in reference:  # a frame of a video (LeRobot camera, video episode)
+        image = read_video_reference(reference)
+        if image is None:
+            raise DataError(f"report image {reference} is not a readable video frame; the VLM needs it")
+        return "data:image/jpeg;base64," + base64.b64encode(encode_jpeg(image, quality=90)).decode("ascii")
+    path = Path(reference)
+    if reference.startswith("<") or not path.is_file():
+        raise DataError(f"report image {reference} is not a readable file; the VLM needs it")
+    try:
+        data = path.read_bytes()
+    except OSError as error:
+        raise DataError(f"cannot read report image {reference}: {error.strerror or error}") from error
+    if data[:3] != _JPEG_MAGIC:
+        data = encode_jpeg(read_image(path), quality=90)
+    return "data:image/jpeg;base64," + base64.b64encode(data).decode("ascii")
+
+
+def openai_messages(messages: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The report's chat messages with every `{"type": "image", "path": …}` part as an `image_url` part."""
+    converted = []
+    for message in messages:
+        content = message["content"]
+        if isinstance(content, list):
+            content = [
+                {"type": "image_url", "image_url": {"url": image_data_url(part["path"])}}
+                if part.get("type") == "image"
+                else part
+                for part in content
+            ]
+        converted.append({"role": message["role"], "content": content})
+    return converted
+
+
+def _one_line(text: str, limit: int = 300) -> str:
+    """A server's body in an error message: whitespace collapsed, cut to `limit` characters."""
+    return " ".join(text.split())[:limit]
+
+
+def _answer_text(body: Any, endpoint: str) -> str:
+    """`choices[0].message.content` of a chat-completions body (text, or a list of text parts)."""
+    try:
+        content = body["choices"][0]["message"]["content"]
+    except (KeyError, IndexError, TypeError) as error:
+        keys = sorted(body) if isinstance(body, dict) else type(body).__name__
+        raise VLMError(
+            f"{endpoint} answered without choices[0].message.content (missing {error}; body keys: {keys})"
+        ) from error
+    if isinstance(content, list):
+        content = "".join(part.get("text", "") for part in content if isinstance(part, dict))
+    if not isinstance(content, str) or not content.strip():
+        raise VLMError(f"{endpoint} answered with an empty choices[0].message.content")
+    return content
+
+
+class ChatCompletionsClient:
+    """A `VLMClient` for OpenAI-compatible servers, with a timeout and bounded retries."""
+
+    def __init__(
+        self,
+        config: VLMConfig,
+        *,
+        api_key: str | None = None,
+        sleep: Callable[[float], None] = time.sleep,
+    ) -> None:
+        self.config = config
+        key = api_key if api_key is not None else os.environ.get(API_KEY_ENV)
+        self._headers = {"Authorization": f"Bearer {key}"} if key else {}
+        self._sleep = sleep
+
+    def __repr__(self) -> str:  # never shows the key
+        return f"ChatCompletionsClient(url={self.config.url!r}, model={self.config.model!r})"
+
+    def complete(self, messages: list[dict[str, Any]]) -> str:
+        """Send the conversation (report images as data URLs) and return the model's answer."""
+        payload = {"model": self.config.model, "messages": openai_messages(messages)}
+        endpoint = self.config.endpoint
+        attempts = self.config.retries + 1
+        with httpx.Client(timeout=self.config.timeout_s, headers=self._headers) as client:
+            for attempt in range(attempts):
+                last = attempt == attempts - 1
+                try:
+                    response = client.post(endpoint, json=payload)
+                except httpx.TimeoutException as error:
+                    if last:
+                        raise VLMError(
+                            f"{endpoint} did not answer within {self.config.timeout_s:g} s "
+                            f"({attempts} attempts): {type(error).__name__}"
+                        ) from error
+                except (httpx.HTTPError, httpx.InvalidURL) as error:
+                    raise VLMError(f"cannot reach {endpoint}: {error}") from error
+                else:
+                    if response.status_code < 400:
+                        return self._parse(response, endpoint)
+                    detail = (
+                        f"HTTP {response.status_code} {response.reason_phrase}: {_one_line(response.text)}"
+                    )
+                    if response.status_code < 500:
+                        raise VLMError(f"{endpoint} refused the request: {detail}")
+                    if last:
+                        raise VLMError(f"{endpoint} failed {attempts} times, last with {detail}")
+                self._sleep(self.config.backoff_s * 2**attempt)
+        raise AssertionError("unreachable: the last attempt returns or raises")
+
+    @staticmethod
+    def _parse(response: httpx.Response, endpoint: str) -> str:
+        try:
+            body = response.json()
+        except ValueError as error:
+            raise VLMError(
+                f"{endpoint} answered HTTP {response.status_code} with a body that is not JSON: "
+                f"{_one_line(response.text)!r}"
+            ) from error
+        return _answer_text(body, endpoint)
+
+
+def ask_vlm(report: FailureReport, config: VLMConfig, *, client: VLMClient | None = None) -> VLMAnswer:
+    """Ask the VLM about a report; a failed call becomes a `VLMAnswer` with `error` (never raises it).
+
+    `client` is any `VLMClient` (default: a `ChatCompletionsClient` for `config`).
+    """
+    missing = report.missing_images()
+    if missing:
+        return VLMAnswer(
+            model=config.model,
+            error=f"not sent: {len(missing)} report image(s) not found (first: {missing[0]}); "
+            "the VLM must see them; if the dataset moved, pass --data-root DIR",
+        )
+    chat = client if client is not None else ChatCompletionsClient(config)
+    started = time.perf_counter()
+    try:
+        answer = chat.complete(report.vlm_messages())
+    except (VLMError, DataError) as error:
+        return VLMAnswer(model=config.model, error=str(error))
+    return VLMAnswer(model=config.model, answer=answer, latency_s=round(time.perf_counter() - started, 3))

@@ -1,0 +1,106 @@
+"""The build-memory job: a dataset's failure (and success) runs encoded into a memory folder."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from robofailring.atomic import output_lock
+from robofailring.data.layouts import load_dataset
+from robofailring.encoders import open_encoder, portable_spec
+from robofailring.errors import DataError, MemoryFormatError
+from robofailring.memory.failure import BuildStats, FailureMemory
+from robofailring.memory.success import SuccessMemory
+from robofailring.memory.thinning import DEFAULT_STEP
+from robofailring.outputs import check_memory_target, is_memory_dir
+from robofailring.progress import progress_bar
+
+
+@dataclass(frozen=True)
+class BuildMemoryConfig:
+    data: Path  # dataset root of any supported layout
+    encoder: str  # encoder spec, e.g. `pixels` or `open_clip:ViT-B-32:openai`
+    out: Path  # memory directory to write (atomically)
+    split: str | None = None  # only trajectories of this split (project layout)
+    cache_dir: Path | None = None  # embedding cache (default ~/.cache/robofailring)
+    device: str | None = None  # torch device for CLIP (default: cuda when available)
+    labels: Path | None = None  # outcome and symbol per episode (needed for LeRobot datasets)
+    successes: bool = True  # also build the success memory (contrast rule); False: the paper's memory alone
+    success_step: float = DEFAULT_STEP  # keep a success frame only this far (cosine) from the last kept one
+    task: str | None = None  # task of episodes whose names do not say it (one episode folder, video episodes)
+
+
+def build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
+    """Build a failure memory from a dataset's failure trajectories and save it.
+
+    `stats.skipped_inputs` lists what under the dataset root was not read, with the reason. The
+    output is checked (and locked against a second build) before anything is encoded; a build
+    that would hold no entry is an error and replaces nothing.
+    """
+    check_memory_target(config.out, inputs=[config.data])
+    with output_lock(config.out):
+        return _build_memory(config)
+
+
+def _build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
+    encoder = open_encoder(config.encoder, device=config.device, cache_dir=config.cache_dir)
+    dataset = load_dataset(config.data, task=config.task, labels=config.labels)
+    dataset.require_labels("build-memory")
+    trajectories = list(dataset.trajectories())
+    if config.split is not None:
+        splits = sorted({str(t.split) for t in trajectories if t.split is not None})
+        trajectories = dataset.select(split=config.split)
+        if not trajectories:
+            raise DataError(
+                f"no trajectory of split {config.split!r} in {config.data}; its splits are: "
+                + (", ".join(splits) or "none (this layout has no splits: leave out --split)")
+            )
+    entries_expected = sum(len(t.views) for t in trajectories if t.symbol)
+    if not entries_expected:
+        raise DataError(
+            f"{config.data}{f' (split {config.split})' if config.split else ''} holds no failure trajectory "
+            f"among its {len(trajectories)}: a failure memory needs failures; nothing was written"
+        )
+    with progress_bar(total=entries_expected, desc="encoding memory", unit="entry") as bar:
+        memory, stats = FailureMemory.build(
+            trajectories, encoder, progress=bar.update, data_root=Path(config.data).resolve()
+        )
+    if not len(memory):
+        raise DataError(
+            f"no memory entry from {config.data}: every failure view has fewer than 2 frames; nothing was written"
+        )
+    if config.successes:
+        with progress_bar(total=len(trajectories), desc="encoding success memory", unit="traj") as bar:
+            successes = SuccessMemory.build(
+                trajectories, encoder, progress=bar.update, step=config.success_step
+            )
+        memory.successes = successes if successes.success_runs else None  # none: the paper's memory
+    stats.skipped_inputs = dataset.skipped
+    memory.manifest.skipped_inputs = [skipped.to_dict() for skipped in dataset.skipped]
+    memory.manifest.source = str(Path(config.data).resolve())
+    memory.manifest.layout = dataset.layout
+    memory.manifest.encoder_spec = portable_spec(config.encoder)
+    memory.manifest.split = config.split
+    stats.notes.extend(_dropped_calibration(config.out))
+    memory.save(config.out)
+    return memory, stats
+
+
+def _dropped_calibration(out: Path) -> list[str]:
+    """A note when the memory being replaced had a calibrated δ: it is not carried over.
+
+    δ is chosen against the old memory's entries; new entries move every S_t, so a stale δ would
+    silently change the false-positive rate. Calibrate the new memory again.
+    """
+    if not is_memory_dir(out):
+        return []
+    try:
+        old = FailureMemory.load(out).calibrated_delta
+    except MemoryFormatError:
+        return []
+    if old is None:
+        return []
+    return [
+        f"the memory replaced at {out} had a calibrated δ = {old:.6f}; the new one is uncalibrated "
+        f"(δ depends on the entries): run `robofailring calibrate DATA --memory {out}` again"
+    ]

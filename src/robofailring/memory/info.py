@@ -1,0 +1,114 @@
+"""What a saved memory holds: encoder, counts per task and view, thresholds, data root, references."""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from robofailring.memory.failure import FailureMemory
+from robofailring.memory.references import ReferenceCheck
+
+
+@dataclass(frozen=True)
+class MemoryInfo:
+    """A summary of one memory folder, for people (`to_text`) and scripts (`to_dict`)."""
+
+    directory: Path
+    memory: FailureMemory
+    recorded_root: str | None  # the data root the manifest records (None: an older memory)
+    references: ReferenceCheck
+
+    @classmethod
+    def read(cls, directory: Path, *, data_root: Path | None = None) -> MemoryInfo:
+        memory = FailureMemory.load(directory, data_root=data_root)
+        return cls(
+            directory=Path(directory),
+            memory=memory,
+            recorded_root=memory.manifest.data_root,
+            references=memory.check_references(),
+        )
+
+    def counts(self) -> dict[str, dict[str, int]]:
+        """Entries per task and view."""
+        table: dict[str, Counter[str]] = {}
+        for entry in self.memory.entries:
+            table.setdefault(entry.task, Counter())[entry.view] += 1
+        return {task: dict(sorted(views.items())) for task, views in sorted(table.items())}
+
+    def to_dict(self) -> dict[str, Any]:
+        manifest = self.memory.manifest
+        return {
+            "memory": str(self.directory),
+            "format_version": manifest.format_version,
+            "encoder": self.memory.encoder,
+            "encoder_spec": manifest.encoder_spec,
+            "dim": self.memory.dim,
+            "entries": len(self.memory),
+            "tasks": self.counts(),
+            "symbols": dict(sorted(Counter(e.symbol for e in self.memory.entries).items())),
+            "calibration": manifest.calibration.to_dict() if manifest.calibration else None,
+            "calibrated_delta": self.memory.calibrated_delta,
+            "calibrated_gamma": self.memory.calibrated_gamma,
+            "successes": self._successes(),
+            "source": manifest.source,
+            "data_root": self.recorded_root,
+            "data_root_used": str(self.memory.data_root) if self.memory.data_root else None,
+            "references": {
+                "total": self.references.total,
+                "found": self.references.found,
+                "missing": len(self.references.missing),
+                "first_missing": self.references.missing[0] if self.references.missing else None,
+            },
+            "created": manifest.created,
+        }
+
+    def _successes(self) -> dict[str, Any] | None:
+        successes = self.memory.successes
+        if successes is None:
+            return None
+        return {
+            "frames": len(successes),
+            "offered": successes.offered,
+            "runs": successes.success_runs,
+            "thinning": successes.thinning,
+            "index": {task: index.spec.to_dict() for task, index in sorted(successes.index.by_task.items())},
+        }
+
+    def to_text(self) -> str:
+        info = self.to_dict()
+        delta, gamma = info["calibrated_delta"], info["calibrated_gamma"]
+        lines = [
+            f"memory {self.directory} (format {info['format_version']}, created {info['created'] or '?'})",
+            f"  encoder     {info['encoder']}"
+            + (f"  (spec {info['encoder_spec']})" if info["encoder_spec"] else ""),
+            f"  entries     {info['entries']} × {info['dim']}-d over {len(info['tasks'])} task(s)",
+            "  thresholds  "
+            + (f"calibrated δ = {delta:.6f}" if delta is not None else "δ not calibrated (0.92 by default)")
+            + (f", γ = {gamma:.6f}" if gamma is not None else ""),
+            f"  data root   {info['data_root'] or '(not recorded: references are as given at build time)'}",
+        ]
+        if info["data_root_used"] and info["data_root_used"] != info["data_root"]:
+            lines.append(f"  looked in   {info['data_root_used']} (--data-root)")
+        found = info["successes"]
+        if found is None:
+            lines.append(
+                "  successes   none: the paper's rule only (built with --no-successes, or before success contrast)"
+            )
+        else:
+            kinds = sorted({spec["kind"] for spec in found["index"].values()})
+            lines.append(
+                f"  successes   {found['frames']} frames kept of {found['offered']} offered, {found['runs']} success "
+                f"views; index {', '.join(kinds)}"
+            )
+        refs = info["references"]
+        lines.append(f"  images      {refs['found']} of {refs['total']} reference images found")
+        if refs["first_missing"]:
+            lines.append(f"              first missing: {refs['first_missing']}")
+        lines.append("  per task and view:")
+        width = max((len(task) for task in info["tasks"]), default=4)
+        for task, views in info["tasks"].items():
+            cells = ", ".join(f"{view} {count}" for view, count in views.items())
+            lines.append(f"    {task:<{width}}  {cells}")
+        return "\n".join(lines)

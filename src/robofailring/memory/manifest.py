@@ -1,0 +1,216 @@
+"""A failure memory's `manifest.json` as a typed object: parsed and checked once at load, written by `to_dict`.
+
+Known keys become typed fields; a known key whose value has another type, and every unknown key, is kept
+verbatim in `extra`, so a memory written by another version of robofailring loses nothing when rewritten.
+`to_dict` gives the same JSON keys and values the manifest was read from (or built with).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any, Final
+
+from robofailring.errors import MemoryFormatError
+
+# the order keys are written in: that of a memory built by `build-memory` and then calibrated
+_ORDER: Final[tuple[str, ...]] = (
+    "dim",
+    "skipped_views",
+    "skipped",
+    "failures",
+    "ignored_non_failures",
+    "skipped_inputs",
+    "source",
+    "layout",
+    "encoder_spec",
+    "split",
+    "data_root",
+    "format_version",
+    "encoder",
+    "count",
+    "tasks",
+    "views",
+    "symbols",
+    "successes",
+    "created",
+    "calibration",
+)
+
+
+def _number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _whole(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+# the JSON type each optional key must have to become a typed field (another type stays in `extra`)
+_KINDS: Final[dict[str, Any]] = {
+    "skipped_views": _whole,
+    "skipped": lambda v: isinstance(v, list),
+    "failures": _whole,
+    "ignored_non_failures": _whole,
+    "skipped_inputs": lambda v: isinstance(v, list),
+    "source": lambda v: isinstance(v, str),
+    "layout": lambda v: isinstance(v, str),
+    "encoder_spec": lambda v: isinstance(v, str),
+    "split": lambda v: isinstance(v, str),
+    "data_root": lambda v: isinstance(v, str),
+    "format_version": _whole,
+    "tasks": lambda v: isinstance(v, dict),
+    "views": lambda v: isinstance(v, list),
+    "symbols": lambda v: isinstance(v, dict),
+    "successes": lambda v: isinstance(v, dict),
+    "created": lambda v: isinstance(v, str),
+    "encoder": lambda v: isinstance(v, str),
+    "delta": _number,
+    "gamma": _number,
+    "method": lambda v: isinstance(v, str),
+    "target_fpr": _number,
+    "achieved_fpr": _number,
+    "gamma_achieved_fpr": _number,
+    "data": lambda v: isinstance(v, str),
+    "k": _whole,
+    "stride": _whole,
+}
+
+
+@dataclass
+class StoredCalibration:
+    """The manifest's `calibration` section: thresholds chosen by `robofailring calibrate` (paper §IV-C).
+
+    Numbers are kept as JSON gave them (an int stays an int), so a rewrite gives the same file.
+    """
+
+    delta: float  # the paper rule's threshold δ
+    encoder: str | None = None  # the encoder identity the thresholds were chosen with
+    gamma: float | None = None  # the contrast rule's threshold γ (None: no success memory)
+    method: str | None = None
+    target_fpr: float | None = None
+    achieved_fpr: float | None = None
+    gamma_achieved_fpr: float | None = None
+    successes: int | None = None  # success runs calibrated on
+    data: str | None = None
+    split: str | None = None
+    k: int | None = None
+    stride: int | None = None
+    extra: dict[str, Any] = field(default_factory=dict)  # keys this version does not know, kept verbatim
+    absent: frozenset[str] = field(default=frozenset(), repr=False)  # known keys the file did not have
+
+    @classmethod
+    def parse(cls, section: Any, path: Path) -> StoredCalibration:
+        if not isinstance(section, dict):
+            raise MemoryFormatError(
+                f"{path}: 'calibration' must be an object with 'delta' and 'encoder', not {section!r}; "
+                "remove it and run `robofailring calibrate` again"
+            )
+        delta = section.get("delta")
+        if not isinstance(delta, (int, float)) or isinstance(delta, bool) or not math.isfinite(delta):
+            raise MemoryFormatError(f"{path}: calibration 'delta' must be a finite number, not {delta!r}")
+        known = [f.name for f in fields(cls) if f.name not in ("delta", "extra", "absent")]
+        typed = {k: section[k] for k in known if section.get(k) is not None and _KINDS[k](section[k])}
+        extra = {
+            k: v
+            for k, v in section.items()
+            if k != "delta" and k not in typed and not (k in known and v is None)
+        }
+        return cls(delta=delta, **typed, extra=extra, absent=frozenset(k for k in known if k not in section))
+
+    def to_dict(self) -> dict[str, Any]:
+        written = {
+            f.name: getattr(self, f.name)
+            for f in fields(self)
+            if f.name not in ("extra", "absent") and f.name not in self.absent
+        }
+        ordered = {"encoder": written.pop("encoder", None)} if "encoder" in written else {}
+        return ordered | written | self.extra
+
+    def threshold_for(self, encoder: str, name: str) -> float | None:
+        """δ or γ (`name`) when calibrated with `encoder` and stored as a finite float; otherwise None."""
+        value = getattr(self, name)
+        if self.encoder == encoder and isinstance(value, float):
+            return value if math.isfinite(value) else None
+        return None
+
+    def target_for(self, encoder: str) -> float | None:
+        """The target false-positive rate α the thresholds were chosen for, if they belong to `encoder`."""
+        return (
+            float(self.target_fpr) if self.encoder == encoder and isinstance(self.target_fpr, float) else None
+        )
+
+
+@dataclass
+class MemoryManifest:
+    """What `manifest.json` says about a failure memory: its encoder, size, provenance and calibration."""
+
+    encoder: str  # the encoder identity the vectors were made with
+    dim: int
+    count: int = 0  # memory entries (written from the entries at save)
+    format_version: int | None = None
+    tasks: dict[str, int] | None = None  # entries per task
+    views: list[str] | None = None
+    symbols: dict[str, int] | None = None  # entries per failure symbol
+    data_root: str | None = None  # absolute root the entries' references are stored relative to
+    source: str | None = None  # the dataset the memory was built from
+    layout: str | None = None  # that dataset's layout
+    split: str | None = None  # the split the memory was built from
+    encoder_spec: str | None = None  # the spec that opens the encoder again (`--encoder`)
+    skipped_inputs: list[dict[str, Any]] | None = None  # dataset folders/files not read
+    skipped_views: int | None = None  # failure views with too few frames
+    skipped: list[dict[str, Any]] | None = None  # those views
+    failures: int | None = None
+    ignored_non_failures: int | None = None
+    successes: dict[str, Any] | None = None  # the success memory's section (robofailring.memory.success)
+    created: str | None = None
+    calibration: StoredCalibration | None = None
+    extra: dict[str, Any] = field(default_factory=dict)  # keys this version does not know, kept verbatim
+
+    @classmethod
+    def parse(cls, manifest: Any, path: Path) -> MemoryManifest:
+        """The manifest read from `path`, or MemoryFormatError naming the field that is wrong."""
+        if not isinstance(manifest, dict):
+            raise MemoryFormatError(
+                f"{path} holds a JSON {type(manifest).__name__}, not a memory manifest object"
+            )
+        for key in ("encoder", "dim", "count"):
+            if key not in manifest:
+                raise MemoryFormatError(f"{path} lacks {key!r}")
+        if not isinstance(manifest["encoder"], str):
+            raise MemoryFormatError(f"{path}: 'encoder' must be a string, not {manifest['encoder']!r}")
+        for key in ("dim", "count"):
+            value = manifest[key]
+            if not _whole(value) or value < 0:
+                raise MemoryFormatError(f"{path}: {key!r} must be a whole number ≥ 0, not {value!r}")
+        calibration = manifest.get("calibration")
+        parsed = StoredCalibration.parse(calibration, path) if calibration is not None else None
+        optional = [
+            f.name for f in fields(cls) if f.name not in ("encoder", "dim", "count", "calibration", "extra")
+        ]
+        typed = {k: manifest[k] for k in optional if k in manifest and _KINDS[k](manifest[k])}
+        fixed = {"encoder", "dim", "count", "calibration", *typed}
+        extra = {k: v for k, v in manifest.items() if k not in fixed}
+        if calibration is None and "calibration" in manifest:
+            extra["calibration"] = None
+        return cls(
+            encoder=manifest["encoder"],
+            dim=manifest["dim"],
+            count=manifest["count"],
+            calibration=parsed,
+            **typed,
+            extra=extra,
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """The manifest as JSON: typed fields that are set, then `extra`, in the order build writes them."""
+        values: dict[str, Any] = {
+            f.name: getattr(self, f.name) for f in fields(self) if f.name not in ("extra", "calibration")
+        }
+        if self.calibration is not None:
+            values["calibration"] = self.calibration.to_dict()
+        values = {k: v for k, v in values.items() if v is not None} | self.extra
+        return {k: values[k] for k in _ORDER if k in values} | {
+            k: v for k, v in values.items() if k not in _ORDER
+        }

@@ -1,0 +1,221 @@
+"""LeRobot datasets (v3.0 AV1, v2.1 H.264) and video episodes, written here and read back pixel-close."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+from lerobot_writer import encode_video, scene, write_lerobot_v3, write_lerobot_v21
+from rrd import properties, rows
+from typer.testing import CliRunner
+
+from rfr_viz.cli.app import app
+from robofailring import (
+    CachedEncoder,
+    FailureDetector,
+    FailureMemory,
+    load_dataset,
+    load_encoder,
+    load_trajectory,
+)
+from robofailring.data.images import read_image
+from robofailring.data.video import open_video
+from robofailring.errors import DataError
+
+SHARED_EPISODE = Path(__file__).resolve().parents[3] / "shared" / "data" / "maniskill-failgen-episode"
+V3_LENGTHS = (12, 9, 15)
+
+
+@pytest.fixture(scope="module")
+def v3(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return write_lerobot_v3(tmp_path_factory.mktemp("lerobot") / "so101_pick", lengths=V3_LENGTHS)
+
+
+def mean_abs(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.abs(a.astype(np.int16) - b.astype(np.int16)).mean())
+
+
+def assert_pixels_close(dataset_root: Path, lengths: tuple[int, ...], cameras: tuple[str, ...]) -> None:
+    """Every frame within mean |diff| ≤ 8 of its source, and closer to it than to its neighbours."""
+    trajectories = list(load_dataset(dataset_root))
+    assert [t.episode for t in trajectories] == [f"episode_{i}" for i in range(len(lengths))]
+    for e, trajectory in enumerate(trajectories):
+        assert trajectory.view_names == list(cameras) and trajectory.length == lengths[e]
+        for c, camera in enumerate(cameras):
+            frames = trajectory.views[camera]
+            assert len(frames) == lengths[e]
+            for t in (*range(lengths[e]), 3, 0):  # in order, then backwards (a seek)
+                decoded = frames[t].load()
+                assert decoded.shape == (64, 64, 3)
+                assert mean_abs(decoded, scene(e, c, t)) <= 8
+                for other in (t - 1, t + 1):
+                    if 0 <= other < lengths[e]:
+                        assert mean_abs(decoded, scene(e, c, t)) < mean_abs(decoded, scene(e, c, other))
+
+
+def test_lerobot_v3_av1_reads_back_pixel_close(v3: Path) -> None:
+    dataset = load_dataset(v3)
+    assert dataset.layout == "lerobot" and dataset.skipped == [] and not dataset.labelled
+    tasks = [t.task for t in dataset]
+    assert tasks == ["pick up the cube", "stack the cube", "pick up the cube"]
+    assert {t.fps for t in dataset} == {10.0}
+    codec = open_video(v3 / "videos" / "observation.images.front" / "chunk-000" / "file-000.mp4")
+    assert codec.count == sum(V3_LENGTHS)  # the container's count: all episodes share the file
+    assert_pixels_close(v3, V3_LENGTHS, ("front", "top", "wrist"))
+
+
+def test_lerobot_v21_h264_reads_back_pixel_close(tmp_path: Path) -> None:
+    root = write_lerobot_v21(tmp_path / "koch", lengths=(8, 11))
+    dataset = load_dataset(root)
+    assert dataset.layout == "lerobot" and [t.task for t in dataset] == [
+        "open the drawer",
+        "close the drawer",
+    ]
+    assert_pixels_close(root, (8, 11), ("front", "wrist"))
+
+
+def test_labels_build_a_memory_and_replay_a_recording(v3: Path, tmp_path: Path) -> None:
+    labels = tmp_path / "labels.csv"
+    labels.write_text(
+        "episode_index,outcome,symbol\n0,failure,grasp_wp2\n1,success,\n2,failure,wrong_object_wp0\n"
+    )
+    runner = CliRunner()
+    cache = ["--cache-dir", str(tmp_path / "cache")]
+    memory = tmp_path / "memory"
+    refused = runner.invoke(app, ["build-memory", str(v3), "--out", str(memory), *cache])
+    assert refused.exit_code == 2 and "--labels FILE" in refused.output
+    built = runner.invoke(
+        app, ["build-memory", str(v3), "--out", str(memory), "--labels", str(labels), *cache]
+    )
+    assert built.exit_code == 0, built.output
+    assert "6 entries" in built.output and "2 failure trajectories over 1 tasks" in built.output
+    entries = [json.loads(line) for line in (memory / "entries.jsonl").read_text().splitlines()]
+    assert {(e["episode"], e["symbol"]) for e in entries} == {
+        ("episode_0", "grasp_wp2"),
+        ("episode_2", "wrong_object_wp0"),
+    }
+    assert entries[0]["end"].endswith("file-000.mp4#frame=11")
+    # unlabelled data still replays and detects
+    out = tmp_path / "recordings"
+    replayed = runner.invoke(
+        app,
+        [
+            "replay",
+            str(v3),
+            "--memory",
+            str(memory),
+            "--trajectory",
+            "episode_2",
+            "--out",
+            str(out),
+            "--stride",
+            "4",
+            *cache,
+        ],
+    )
+    assert replayed.exit_code == 0, replayed.output
+    (recording,) = out.glob("*.rrd")
+    assert [frame for frame, _ in rows(recording, "/camera/front", "EncodedImage:blob")] == list(range(15))
+    assert [frame for frame, _ in rows(recording, "/score/front", "Scalars:scalars")] == [0, 4, 8, 12]
+    assert properties(recording)["stride"] == 4 and properties(recording)["task"] == "pick up the cube"
+    neighbour = rows(recording, "/neighbors/front/0/end", "EncodedImage:blob")  # read back from the mp4
+    assert neighbour and neighbour[0][0] == 0
+    detected = runner.invoke(
+        app, ["detect", str(v3), "--memory", str(memory), "--trajectory", "episode_0", "--json", *cache]
+    )
+    assert detected.exit_code == 0, detected.output
+    assert json.loads(detected.stdout)["length"] == 12
+
+
+def test_stride_scores_every_nth_frame_in_original_frame_numbers(v3: Path, tmp_path: Path) -> None:
+    trajectory = load_trajectory(v3, key="episode_2")
+    encoder = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "cache")
+    source = load_dataset(v3)
+    failures = [t for t in source if t.episode != "episode_2"]
+    failures = [replace(t, symbol="slip_wp1") for t in failures]
+    memory, _ = FailureMemory.build(failures, encoder)
+    detector = FailureDetector(memory, encoder)
+    every = detector.run(trajectory)
+    strided = detector.run(trajectory, stride=5)
+    assert strided.length == every.length == 15 and strided.stride == 5
+    assert list(strided.scored_frames) == [0, 5, 10]
+    for view in every.views:
+        assert np.allclose(
+            strided.similarity[view][[0, 5, 10]], every.similarity[view][[0, 5, 10]], atol=1e-6
+        )
+        assert np.isnan(strided.similarity[view][[1, 2, 3, 4, 6, 14]]).all()
+    peaks = every.max_similarity()
+    for delta in sorted(peaks[[0, 5, 10]]):  # t_det is the first *scored* frame over δ, in frame numbers
+        expected = next(t for t in (0, 5, 10) if peaks[t] >= delta)
+        assert strided.with_delta(float(delta)).t_det == expected
+    assert strided.to_dict()["views"]["front"]["similarity"][1] is None
+
+
+def test_video_episodes_and_the_real_episode_as_mp4(tmp_path: Path) -> None:
+    root = tmp_path / "videos"
+    for episode, name in enumerate(("pick_cube_grasp_wp2_episode0", "run_7")):
+        for c, view in enumerate(("front", "wrist")):
+            encode_video(
+                root / name / f"{view}.mp4", [scene(episode, c, t) for t in range(10 + episode)], 10, "h264"
+            )
+    (root / "run_7" / "notes.txt").write_text("operator notes")
+    (root / "empty").mkdir()
+    with pytest.raises(DataError, match="--task"):
+        load_trajectory(root / "run_7")
+    dataset = load_dataset(root, task="pick_cube")
+    assert dataset.layout == "videos"
+    named, plain = list(dataset)
+    assert (named.task, named.symbol, named.length) == ("pick_cube", "grasp_wp2", 10)
+    assert (plain.task, plain.episode, plain.length) == ("pick_cube", "run_7", 11)
+    assert mean_abs(plain.views["wrist"][7].load(), scene(1, 1, 7)) <= 8
+    assert {item.path.name for item in dataset.skipped} == {"empty", "notes.txt"}
+    if not SHARED_EPISODE.is_dir():
+        pytest.skip("../shared/data is not beside this checkout")
+    pngs = sorted((SHARED_EPISODE / "front").glob("*.png"), key=lambda p: int(p.stem))
+    sources = [read_image(p) for p in pngs]
+    encode_video(tmp_path / "real" / "front.mp4", sources, 10, "av1")
+    real = load_trajectory(tmp_path / "real", task="FailPickCube-v1")
+    assert real.length == len(pngs) == 69
+    for t in (0, 30, 68, 12):
+        assert mean_abs(real.views["front"][t].load(), sources[t]) <= 8
+
+
+def test_video_frames_are_cached_by_file_content(v3: Path, tmp_path: Path) -> None:
+    trajectory = load_trajectory(v3, key="episode_1")
+    frames = list(trajectory.views["top"])
+    first = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "cache")
+    vectors = first.encode_frames(frames)
+    second = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "cache")
+    again = second.encode_frames(frames)
+    assert (second.hits, second.misses) == (len(frames), 0) and np.array_equal(vectors, again)
+    assert len({frame.content_key() for frame in frames}) == len(frames)
+
+
+def test_bad_video_data_names_the_file_or_value(v3: Path, tmp_path: Path) -> None:
+    # a corrupt mp4
+    broken = tmp_path / "broken" / "ep"
+    broken.mkdir(parents=True)
+    (broken / "front.mp4").write_bytes(b"\x00\x00\x00\x18ftypisom" + b"garbage" * 50)
+    trajectory = load_trajectory(broken, task="pick_cube")
+    with pytest.raises(DataError, match=r"front\.mp4"):
+        trajectory.views["front"][0].load()
+    # a parquet missing a column
+    copy = write_lerobot_v3(tmp_path / "nocol", lengths=(4, 5), tasks=("a", "b"), cameras=("front",))
+    data = copy / "data" / "chunk-000" / "file-000.parquet"
+    pq.write_table(pq.read_table(data).drop(["timestamp"]), data)
+    with pytest.raises(DataError, match=r"file-000\.parquet lacks column 'timestamp'"):
+        load_dataset(copy)
+    # labels naming an episode that does not exist, and an unknown symbol
+    labels = tmp_path / "labels.json"
+    labels.write_text(json.dumps([{"episode_index": 7, "outcome": "failure", "symbol": "grasp_wp1"}]))
+    with pytest.raises(
+        DataError, match=r"labels\.json names episode 'episode_7', which is not in the dataset"
+    ):
+        load_dataset(v3, labels=labels)
+    labels.write_text(json.dumps([{"episode_index": 0, "outcome": "failure", "symbol": "twist_wp1"}]))
+    with pytest.raises(DataError, match=r"labels\.json row 1: unknown failure token 'twist'"):
+        load_dataset(v3, labels=labels)

@@ -1,0 +1,181 @@
+"""The trained encoder: `train-encoder` on a tiny project dataset, then `trained:<DIR>` as any encoder."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from synthetic import synthetic_frame, write_project_dataset
+from typer.testing import CliRunner
+
+from robofailring import (
+    CachedEncoder,
+    EncoderError,
+    FailureDetector,
+    FailureMemory,
+    load_dataset,
+    load_encoder,
+)
+from robofailring.cli.verbs import app
+from robofailring.encoders import encoder_slug
+from robofailring.encoders.trained import CONFIG_NAME, WEIGHTS_NAME
+from robofailring.encoders.training import TrainEncoderConfig, train_encoder, training_samples
+from robofailring.errors import EncoderMismatchError, SettingError
+
+runner = CliRunner()
+
+
+def _config(data: Path, out: Path, **changes: object) -> TrainEncoderConfig:
+    settings: dict[str, object] = {
+        "image_size": 32,
+        "epochs": 2,
+        "batch_size": 32,
+        "frame_stride": 1,
+        "threads": 1,
+    }
+    settings.update(changes)
+    return TrainEncoderConfig(data=data, out=out, **settings)  # type: ignore[arg-type]
+
+
+def _images() -> list[np.ndarray]:
+    return [synthetic_frame("pick_cube", "slip_wp3" if i % 2 else None, i % 3, i, 6) for i in range(6)]
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, Path]:
+    """(dataset, encoder of seed 0, the same recipe trained again) on a tiny project dataset."""
+    root = tmp_path_factory.mktemp("trained")
+    data = write_project_dataset(root / "data")
+    first = train_encoder(_config(data, root / "seed0"))
+    again = train_encoder(_config(data, root / "seed0-again"))
+    return data, first, again
+
+
+def test_training_is_deterministic_by_seed_and_lowers_its_loss(trained: tuple[Path, Path, Path]) -> None:
+    _, first, again = trained
+    record = json.loads((first / CONFIG_NAME).read_text())
+    assert record["weights_digest"] == json.loads((again / CONFIG_NAME).read_text())["weights_digest"]
+    assert (first / WEIGHTS_NAME).read_bytes() == (again / WEIGHTS_NAME).read_bytes()
+    np.testing.assert_array_equal(
+        load_encoder(f"trained:{first}").encode(_images()), load_encoder(f"trained:{again}").encode(_images())
+    )
+    training = record["training"]
+    assert training["final_loss"] < training["initial_loss"]
+    assert training["loss_history"][-1] < training["loss_history"][0]
+    assert record["input_size"] == 32 and record["training"]["recipe"]["epochs"] == 2
+    assert record["architecture"] == {"kind": "cnn", "widths": [32, 64, 128, 256], "neck": "batchnorm"}
+    # labels: failure type × progress quarter × view, successes their own type; only the training split
+    assert {c.split("|")[0] for c in record["classes"]} == {"grasp", "slip", "wrong_object", "success"}
+    assert {c.split("|")[1] for c in record["classes"]} == {"p0", "p1", "p2", "p3"}
+    assert len(record["classes"]) == 4 * 4 * 3
+    assert training["trajectories"] == 16 and training["frames"] == 16 * 3 * 6
+    assert 0.0 <= training["final_train_accuracy"] <= 1.0
+
+
+def test_only_the_chosen_split_is_read_and_held_out_splits_are_refused(
+    trained: tuple[Path, Path, Path],
+) -> None:
+    data, _, _ = trained
+    samples, used, _ = training_samples(_config(data, data / "unused"))
+    train_files = {
+        frame.reference
+        for t in load_dataset(data).select(split="train")
+        for frames in t.views.values()
+        for frame in frames
+    }
+    assert used == 16 and {s.frame.reference for s in samples} == train_files
+    for held_out in ("test", "ood"):
+        with pytest.raises(SettingError, match=f"refusing to train an encoder on the '{held_out}' split"):
+            _config(data, data / "unused", split=held_out)
+    result = runner.invoke(app, ["train-encoder", str(data), "--out", str(data / "never"), "--split", "test"])
+    assert result.exit_code == 2 and "held out for evaluation" in result.output
+    assert not (data / "never").exists()
+
+
+def test_trained_encoder_round_trips_and_its_identity_follows_its_weights(
+    trained: tuple[Path, Path, Path], tmp_path: Path
+) -> None:
+    data, first, _ = trained
+    encoder = load_encoder(f"trained:{first}")
+    embeddings = encoder.encode(_images())
+    assert embeddings.shape == (6, 256) and embeddings.dtype == np.float32 and encoder.dim == 256
+    np.testing.assert_allclose(np.linalg.norm(embeddings, axis=1), 1.0, atol=1e-5)
+    assert float(embeddings[0] @ embeddings[1]) < 0.999  # different frames, different embeddings
+    moved = shutil.copytree(first, tmp_path / "moved")
+    reloaded = load_encoder(f"trained:{moved}")
+    assert reloaded.identity == encoder.identity and encoder.identity.startswith("trained:cnn4-32px-256d:")
+    np.testing.assert_allclose(reloaded.encode(_images()), embeddings, atol=1e-6)
+    # a batch gives the same embeddings as one image at a time
+    np.testing.assert_allclose(encoder.encode(_images()[:1])[0], embeddings[0], atol=1e-5)
+
+    other = load_encoder(f"trained:{train_encoder(_config(data, tmp_path / 'seed1', seed=1))}")
+    assert other.identity != encoder.identity
+    assert encoder_slug(other.identity) != encoder_slug(encoder.identity)
+    assert not np.allclose(other.encode(_images()), embeddings, atol=1e-3)
+
+    (moved / WEIGHTS_NAME).write_bytes((tmp_path / "seed1" / WEIGHTS_NAME).read_bytes())
+    with pytest.raises(EncoderError, match="does not match the weights digest"):
+        load_encoder(f"trained:{moved}")
+    with pytest.raises(EncoderError, match="does not exist"):
+        load_encoder(f"trained:{tmp_path / 'nowhere'}")
+
+
+def test_a_memory_built_with_it_refuses_another_encoder(
+    trained: tuple[Path, Path, Path], tmp_path: Path
+) -> None:
+    data, first, _ = trained
+    encoder = CachedEncoder(load_encoder(f"trained:{first}"), cache_dir=tmp_path / "cache")
+    memory, _ = FailureMemory.build(load_dataset(data).select(split="train"), encoder)
+    assert memory.dim == 512 and memory.encoder == encoder.identity
+    memory.save(tmp_path / "memory")
+    loaded = FailureMemory.load(tmp_path / "memory")
+    FailureDetector(loaded, encoder)  # its own encoder is accepted
+    for spec in ("pixels", f"trained:{train_encoder(_config(data, tmp_path / 'seed2', seed=2))}"):
+        with pytest.raises(EncoderMismatchError, match="built with encoder 'trained:cnn4"):
+            FailureDetector(loaded, CachedEncoder(load_encoder(spec), cache_dir=tmp_path / "cache"))
+
+
+def test_train_encoder_verb_and_reuse(tmp_path: Path) -> None:
+    data = write_project_dataset(tmp_path / "data", tasks=("pick_cube",), episodes=2, length=4)
+    out = tmp_path / "encoder"
+    args = ["train-encoder", str(data), "--out", str(out), "--image-size", "24", "--epochs", "1"]
+    result = runner.invoke(app, [*args, "--threads", "1"])
+    assert result.exit_code == 0, result.output
+    assert f"--encoder trained:{out}" in result.output and "training accuracy" in result.output
+    record = json.loads((out / CONFIG_NAME).read_text())
+    assert record["input_size"] == 24 and record["training"]["recipe"]["split"] == "train"
+    said: list[str] = []
+    config = TrainEncoderConfig(data=data, out=out, image_size=24, epochs=1)  # the verb's recipe
+    assert train_encoder(config, reuse=True, say=said.append) == out
+    assert said and said[0].startswith("reusing")
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "notes.txt").write_text("keep me")
+    refused = runner.invoke(
+        app, ["train-encoder", str(data), "--out", str(tmp_path / "other"), "--epochs", "1"]
+    )
+    assert refused.exit_code == 2 and "refusing to replace it" in refused.output
+    assert (tmp_path / "other" / "notes.txt").read_text() == "keep me"
+
+
+def test_projection_head_on_a_frozen_clip(tiny_checkpoint: tuple[Path, Path], tmp_path: Path) -> None:
+    config_json, checkpoint = tiny_checkpoint
+    data = write_project_dataset(tmp_path / "data", tasks=("pick_cube",), episodes=2, length=4)
+    init = f"open_clip:{config_json}:{checkpoint}"
+    out = train_encoder(_config(data, tmp_path / "head", init=init, embedding_dim=8))
+    record = json.loads((out / CONFIG_NAME).read_text())
+    assert record["architecture"]["kind"] == "open_clip_head" and record["input_size"] == 32
+    assert record["architecture"]["init_identity"] == load_encoder(init).identity
+    assert record["training"]["final_loss"] < record["training"]["initial_loss"]
+    encoder = load_encoder(f"trained:{out}")
+    assert encoder.dim == 8 and encoder.identity.startswith("trained:clip-head-32px-8d:")
+    embeddings = encoder.encode(_images())
+    assert embeddings.shape == (6, 8)
+    np.testing.assert_allclose(np.linalg.norm(embeddings, axis=1), 1.0, atol=1e-5)
+    # only the head and the classifier are stored: the frozen tower comes from its own checkpoint
+    import torch
+
+    state = torch.load(out / WEIGHTS_NAME, weights_only=True)
+    assert set(state) == {"head.weight", "head.bias", "classifier.weight", "classifier.bias"}

@@ -1,0 +1,110 @@
+"""Evaluation end to end on a small dataset: splits stay apart, files are written, calibration is used."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from synthetic import write_project_dataset
+
+from robofailring import (
+    CachedEncoder,
+    FailureDetector,
+    FailureMemory,
+    RoboFailRingError,
+    load_dataset,
+    load_encoder,
+)
+from robofailring.evaluation.calibration import CalibrateConfig, calibrate
+from robofailring.evaluation.run import (
+    EvaluateConfig,
+    check_disjoint,
+    run_evaluation,
+    select_splits,
+    write_evaluation,
+)
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return write_project_dataset(tmp_path_factory.mktemp("project"))
+
+
+def test_splits_keep_memory_and_test_apart(dataset: Path, tmp_path: Path) -> None:
+    config = EvaluateConfig(data=dataset, out=tmp_path, cache_dir=tmp_path / "cache")
+    train, test = select_splits(config)
+    assert {t.key for t in train}.isdisjoint({t.key for t in test})
+    assert all(t.split == "train" for t in train) and all(t.split == "test" for t in test)
+    encoder = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "cache")
+    leaky, _ = FailureMemory.build(list(load_dataset(dataset)), encoder)  # built from everything
+    with pytest.raises(RoboFailRingError, match="also in the memory"):
+        check_disjoint(leaky, test)
+    honest, _ = FailureMemory.build(train, encoder)
+    check_disjoint(honest, test)
+
+
+def test_evaluation_files_and_counts(dataset: Path, tmp_path: Path) -> None:
+    config = EvaluateConfig(
+        data=dataset, out=tmp_path, cache_dir=tmp_path / "cache", name="in-distribution", target_fpr=0.2
+    )
+    result = run_evaluation(config)
+    assert result.failures == 2 * 3 * 2 and result.successes == 2 * 2
+    json_path, md_path = write_evaluation(result, tmp_path)
+    report = json.loads(json_path.read_text())
+    assert [row["delta"] for row in report["paper_deltas"]] == [0.85, 0.9, 0.92, 0.95]
+    for row in report["paper_deltas"]:
+        assert row["tp"] + row["fn"] == 12 and row["fp"] + row["tn"] == 4
+    assert set(report["view_ablation"]) == {"front", "overhead", "wrist", "fusion"}
+    assert set(report["recall_per_type"]) == {"grasp", "slip", "wrong_object"}
+    assert len(report["trajectories"]) == 16 and report["latency_ms"]["total"] > 0
+    assert "| 0.92 |" in md_path.read_text()
+    # both rules, each calibrated on the 4 training successes at α = 0.2 (rank ⌈5 · 0.8⌉ = 4 of 4)
+    assert set(report["rules"]) == {"paper", "contrast"}
+    for name, row in report["rules"].items():
+        assert row["calibrated"] and row["tp"] + row["fn"] == 12 and row["fp"] + row["tn"] == 4
+        assert row["recall"] == pytest.approx(row["tp"] / 12) and 0.0 <= row["auc"] <= 1.0
+        assert f"| {name} |" in md_path.read_text()
+    assert report["rules"]["paper"]["threshold"] == report["operating_delta"]
+    assert (tmp_path / "memory" / "manifest.json").is_file()
+    # the memory holds only training failures
+    memory = FailureMemory.load(tmp_path / "memory")
+    assert {e.episode.rsplit("episode", 1)[1] for e in memory.entries} <= {"0", "2"}
+
+
+def test_calibration_is_stored_and_used(dataset: Path, tmp_path: Path) -> None:
+    cache = tmp_path / "cache"
+    run_evaluation(EvaluateConfig(data=dataset, out=tmp_path, cache_dir=cache, target_fpr=0.5))
+    calibration = calibrate(
+        CalibrateConfig(data=dataset, memory=tmp_path / "memory", target_fpr=0.5, cache_dir=cache)
+    )
+    assert calibration.successes == 4 and calibration.achieved_fpr <= 0.5
+    manifest = json.loads((tmp_path / "memory" / "manifest.json").read_text())
+    assert manifest["calibration"]["delta"] == calibration.delta
+    assert manifest["calibration"]["encoder"] == manifest["encoder"]
+    memory = FailureMemory.load(tmp_path / "memory")
+    detector = FailureDetector(memory, CachedEncoder(load_encoder("pixels"), cache_dir=cache), rule="paper")
+    assert detector.delta == calibration.delta and detector.gamma == calibration.gamma
+    assert manifest["calibration"]["gamma"] == calibration.gamma
+    assert FailureDetector(memory, load_encoder("pixels"), delta=0.5).delta == 0.5  # --delta wins
+    # on the calibration successes, the achieved FPR is what calibration reported
+    successes = [t for t in load_dataset(dataset) if not t.is_failure and t.split == "train"]
+    fired = sum(detector.run(t).t_det is not None for t in successes)
+    assert fired / len(successes) == pytest.approx(calibration.achieved_fpr)
+    contrast = FailureDetector(memory, CachedEncoder(load_encoder("pixels"), cache_dir=cache))
+    fired = sum(contrast.run(t, leave_one_out=True).t_det is not None for t in successes)
+    assert fired / len(successes) == pytest.approx(calibration.gamma_achieved_fpr)
+
+
+def test_too_short_test_trajectories_are_skipped_and_reported(tmp_path: Path) -> None:
+    data = write_project_dataset(tmp_path / "data", tasks=("pick_cube",), episodes=2)
+    short = data / "pick_cube_slip_wp3_episode1"  # a test-split failure
+    for image in short.glob("*.png"):
+        if not image.stem.endswith("_0"):
+            image.unlink()
+    result = run_evaluation(
+        EvaluateConfig(data=data, out=tmp_path / "out", cache_dir=tmp_path / "cache", target_fpr=None)
+    )
+    assert result.skipped_too_short == ["pick_cube/pick_cube_slip_wp3_episode1"]
+    assert result.failures == 2  # the other two test failures
+    assert "with no view of 2 or more frames" in result.to_markdown()

@@ -1,0 +1,212 @@
+"""The VLM client against a real local HTTP server: what it sends, retries, timeouts, bad bodies, the CLI."""
+
+from __future__ import annotations
+
+import base64
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from synthetic import write_episode
+from typer.testing import CliRunner
+from vlm_server import ANSWER, chat_server
+
+from robofailring import (
+    CachedEncoder,
+    FailureDetector,
+    FailureMemory,
+    load_dataset,
+    load_encoder,
+    load_trajectory,
+)
+from robofailring.cli.verbs import app
+from robofailring.data.images import read_image
+from robofailring.explain.report import SYSTEM_PROMPT, TASKS, FailureReport, report_for
+from robofailring.explain.vlm import API_KEY_ENV, ChatCompletionsClient, VLMConfig, VLMError, ask_vlm
+
+runner = CliRunner()
+
+
+@pytest.fixture(scope="module")
+def memory_dir(aha_dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    encoder = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path_factory.mktemp("cache"))
+    memory, _ = FailureMemory.build(load_dataset(aha_dataset), encoder)
+    return memory.save(tmp_path_factory.mktemp("memory") / "pixels")
+
+
+@pytest.fixture(scope="module")
+def episode(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    folder = tmp_path_factory.mktemp("episodes") / "pick_cube_grasp_wp2_episode9"
+    return write_episode(folder, "pick_cube", "grasp_wp2", length=6, shift=2)
+
+
+@pytest.fixture(scope="module")
+def report(memory_dir: Path, episode: Path) -> FailureReport:
+    memory = FailureMemory.load(memory_dir)
+    trajectory = load_trajectory(episode)
+    trace = FailureDetector(memory, load_encoder("pixels"), delta=-1.0, k=3).run(trajectory)
+    found = report_for(trace, trajectory)
+    assert found is not None and found.t_det == 0 and found.current_image is not None
+    return found
+
+
+def _config(url: str, **overrides: float) -> VLMConfig:
+    settings = {"timeout_s": 5.0, "retries": 2, "backoff_s": 0.0} | overrides
+    return VLMConfig(url=url, model="qwen2.5vl:7b", **settings)  # type: ignore[arg-type]
+
+
+def _decode_data_url(url: str) -> np.ndarray:
+    prefix = "data:image/jpeg;base64,"
+    assert url.startswith(prefix), url[:40]
+    data = base64.b64decode(url[len(prefix) :])
+    assert data[:3] == b"\xff\xd8\xff"  # really a JPEG
+    image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+    assert image is not None
+    return cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
+
+
+def test_the_request_is_appendix_b_with_three_images(
+    report: FailureReport, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv(API_KEY_ENV, "sk-test-secret")
+    with chat_server() as server:
+        answer = ask_vlm(report, _config(server.url))
+    assert answer.ok and answer.answer == ANSWER and answer.model == "qwen2.5vl:7b"
+    assert answer.latency_s is not None and answer.latency_s >= 0
+    assert answer.to_dict() == {"model": "qwen2.5vl:7b", "answer": ANSWER, "latency_s": answer.latency_s}
+    (exchange,) = server.received
+    assert exchange.headers["Authorization"] == "Bearer sk-test-secret"
+    body = exchange.body
+    assert body["model"] == "qwen2.5vl:7b"
+    messages = body["messages"]
+    assert [m["role"] for m in messages] == ["system", "user", "user", "user", "user", "assistant"]
+    assert messages[0]["content"] == SYSTEM_PROMPT and messages[4]["content"] == TASKS
+    sent_report = json.loads(messages[1]["content"].split("\n", 1)[1])
+    top = report.items[0]
+    assert sent_report == {
+        "current_task": "pick_cube",
+        "failure": top.description,
+        "view": top.view,
+        "similarity_score": f"{top.similarity:.2f}",
+    }
+    parts = [part for m in messages if isinstance(m["content"], list) for part in m["content"]]
+    urls = [part["image_url"]["url"] for part in parts if part["type"] == "image_url"]
+    assert all(part["type"] in {"text", "image_url"} for part in parts)
+    assert len(urls) == 3
+    expected = [read_image(Path(p)) for p in (top.start_image, top.end_image, report.current_image or "")]
+    for url, source in zip(urls, expected, strict=True):
+        decoded = _decode_data_url(url)
+        assert decoded.shape == source.shape
+        # the right picture, in the right place (JPEG is lossy: a small mean error)
+        assert float(np.abs(decoded.astype(int) - source.astype(int)).mean()) < 3.0
+    assert float(np.abs(expected[0].astype(int) - expected[1].astype(int)).mean()) > 3.0  # start ≠ end
+    assert "sk-test-secret" not in repr(ChatCompletionsClient(_config(server.url)))
+
+
+def test_a_500_is_retried_then_reported(report: FailureReport) -> None:
+    with chat_server(("status", 500)) as server:
+        answer = ask_vlm(report, _config(server.url, retries=2))
+    assert len(server.received) == 3  # first try + 2 retries
+    assert answer.answer is None and answer.error is not None
+    assert f"{server.url}/chat/completions" in answer.error and "HTTP 500" in answer.error
+    assert answer.to_dict() == {"model": "qwen2.5vl:7b", "error": answer.error}
+
+
+def test_a_500_then_an_answer_succeeds(report: FailureReport) -> None:
+    with chat_server(("status", 503), ("ok", "second try")) as server:
+        answer = ask_vlm(report, _config(server.url))
+    assert answer.answer == "second try" and len(server.received) == 2
+
+
+def test_a_4xx_is_not_retried(report: FailureReport) -> None:
+    with chat_server(("status", 401)) as server:
+        client = ChatCompletionsClient(_config(server.url))
+        with pytest.raises(VLMError, match="refused the request: HTTP 401"):
+            client.complete(report.vlm_messages())
+    assert len(server.received) == 1
+
+
+def test_a_timeout_is_retried_then_reported(report: FailureReport) -> None:
+    with chat_server(("sleep", 1.5)) as server:
+        answer = ask_vlm(report, _config(server.url, timeout_s=0.3, retries=1))
+    assert len(server.received) == 2
+    assert answer.error is not None and "did not answer within 0.3 s (2 attempts)" in answer.error
+
+
+@pytest.mark.parametrize(
+    ("body", "message"),
+    [
+        (b'{"id": "x", "object": "chat.completion"}', r"without choices\[0\]\.message\.content"),
+        (b'{"choices": []}', r"without choices\[0\]\.message\.content"),
+        (b'{"choices": [{"message": {"role": "assistant", "content": ""}}]}', "empty"),
+        (b"<html>gateway</html>", "not JSON"),
+    ],
+)
+def test_a_malformed_body_says_what_is_missing(report: FailureReport, body: bytes, message: str) -> None:
+    with chat_server(("raw", body)) as server, pytest.raises(VLMError, match=message) as raised:
+        ChatCompletionsClient(_config(server.url)).complete(report.vlm_messages())
+    assert f"{server.url}/chat/completions" in str(raised.value)
+    assert len(server.received) == 1  # a bad body is not retried
+
+
+def test_a_missing_report_image_is_an_error_naming_it(report: FailureReport, tmp_path: Path) -> None:
+    gone = FailureReport.from_dict({**report.to_dict(), "current_image": str(tmp_path / "gone.png")})
+    with chat_server() as server:
+        answer = ask_vlm(gone, _config(server.url))
+    assert answer.error is not None and "gone.png" in answer.error and not server.received
+
+
+def test_bad_settings() -> None:
+    with pytest.raises(VLMError, match="must start with http"):
+        VLMConfig(url="localhost:11434/v1", model="m")
+    with pytest.raises(VLMError, match="model name"):
+        VLMConfig(url="http://localhost:11434/v1", model="")
+
+
+def _detect(episode: Path, memory_dir: Path, *extra: str) -> tuple[int, dict, str]:
+    result = runner.invoke(
+        app,
+        ["detect", str(episode), "--memory", str(memory_dir), "--delta", "-1", "--k", "3", "--json", *extra],
+    )
+    return result.exit_code, json.loads(result.stdout) if result.stdout.strip() else {}, result.stderr
+
+
+def test_detect_asks_the_vlm_at_the_detection(episode: Path, memory_dir: Path) -> None:
+    with chat_server() as server:
+        code, found, stderr = _detect(episode, memory_dir, "--vlm-url", server.url, "--vlm-model", "llava")
+    assert code == 0, stderr
+    assert found["t_det"] == 0 and found["vlm"]["model"] == "llava" and found["vlm"]["answer"] == ANSWER
+    assert found["vlm"]["latency_s"] >= 0
+    assert found["report"]["t_det"] == 0 and found["report"]["view"] == found["detected_view"]
+    assert server.received[0].body["model"] == "llava"
+
+
+def test_detect_keeps_the_detection_when_the_vlm_fails(episode: Path, memory_dir: Path) -> None:
+    with chat_server(("status", 502)) as server:
+        code, found, stderr = _detect(episode, memory_dir, "--vlm-url", server.url, "--vlm-model", "llava")
+    assert code == 0
+    assert (
+        found["t_det"] == 0
+        and set(found["vlm"]) == {"model", "error"}
+        and "HTTP 502" in found["vlm"]["error"]
+    )
+    warnings = [line for line in stderr.splitlines() if line.startswith("warning:")]
+    assert len(warnings) == 1 and "HTTP 502" in warnings[0]
+    assert len(server.received) == 3
+
+
+def test_detect_vlm_options_go_together(episode: Path, memory_dir: Path) -> None:
+    code, _, stderr = _detect(episode, memory_dir, "--vlm-url", "http://127.0.0.1:9/v1")
+    assert code == 2 and "--vlm-url and --vlm-model go together" in stderr
+
+
+def test_no_server_is_an_error_naming_the_url(report: FailureReport) -> None:
+    import socket
+
+    with socket.socket() as probe:  # a port nobody listens on
+        probe.bind(("127.0.0.1", 0))
+        url = f"http://127.0.0.1:{probe.getsockname()[1]}/v1"
+    answer = ask_vlm(report, _config(url))
+    assert answer.error is not None and answer.error.startswith(f"cannot reach {url}/chat/completions")

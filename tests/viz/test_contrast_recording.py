@@ -1,0 +1,93 @@
+"""Recordings of the contrast rule read back: S⁺, C, γ and the nearest success frame equal the trace."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rrd import entity_paths, properties, rows, static_value
+from synthetic import write_project_dataset
+
+from rfr_viz.paths import REPLAY
+from rfr_viz.recordings.replay import record_replay
+from rfr_viz.viewer.control import verify_recording
+from robofailring import (
+    CachedEncoder,
+    DetectionTrace,
+    FailureDetector,
+    Trajectory,
+    load_dataset,
+    load_encoder,
+)
+from robofailring.detection.rules import ScoreRule
+from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
+
+
+@pytest.fixture(scope="module")
+def replayed(tmp_path_factory: pytest.TempPathFactory) -> tuple[Trajectory, DetectionTrace, Path]:
+    root = tmp_path_factory.mktemp("contrast-rec")
+    data = write_project_dataset(root / "data", tasks=("pick_cube",), episodes=4, length=7)
+    memory, _ = build_memory(
+        BuildMemoryConfig(
+            data=data, encoder="pixels", out=root / "memory", split="train", cache_dir=root / "c"
+        )
+    )
+    encoder = CachedEncoder(load_encoder("pixels"), cache_dir=root / "c")
+    trajectory = next(t for t in load_dataset(data).select(split="test") if t.is_failure)
+    first = FailureDetector(memory, encoder, k=2).run(trajectory)
+    trace = first.with_rule(ScoreRule.CONTRAST, float(np.median(first.max_score())))  # fires part-way
+    assert trace.t_det is not None
+    return trajectory, trace, record_replay(trajectory, trace, out=root / "replay.rrd")
+
+
+def test_contrast_entities_equal_the_trace(replayed: tuple[Trajectory, DetectionTrace, Path]) -> None:
+    _, trace, recording = replayed
+    verify_recording(recording)
+    paths = entity_paths(recording)
+    for view in trace.views:
+        assert {
+            REPLAY.success_score(view),
+            REPLAY.contrast_score(view),
+            REPLAY.nearest_success(view),
+        } <= paths
+        for entity, expected in (
+            (REPLAY.score(view), trace.similarity[view]),
+            (REPLAY.success_score(view), trace.success_similarity[view]),
+            (REPLAY.contrast_score(view), trace.contrast[view]),
+        ):
+            logged = rows(recording, entity, "Scalars:scalars")
+            assert [frame for frame, _ in logged] == list(range(trace.length))
+            np.testing.assert_allclose([value[0] for _, value in logged], expected, atol=1e-6)
+        gamma = rows(recording, REPLAY.gamma, "Scalars:scalars")
+        assert len(gamma) == trace.length
+        np.testing.assert_allclose([value[0] for _, value in gamma], trace.gamma, atol=1e-9)
+        # the nearest success frame: an image where it changes, its text (episode, frame) every frame
+        images = rows(recording, REPLAY.nearest_success(view), "EncodedImage:blob")
+        changed = [0] + [
+            t for t in range(1, trace.length) if trace.success_ids[view][t] != trace.success_ids[view][t - 1]
+        ]
+        assert [frame for frame, _ in images] == changed
+        texts = rows(recording, REPLAY.nearest_success_info(view), "TextDocument:text")
+        assert len(texts) == trace.length
+        for t, text in texts:
+            match = trace.nearest_success(view, t)
+            assert (
+                match is not None and match.run.episode in text[0] and f"frame **{match.frame}**" in text[0]
+            )
+    assert static_value(recording, REPLAY.contrast_score(trace.views[0]), "SeriesLines:names") == [
+        f"{trace.views[0]} C = S⁻ − S⁺"
+    ]
+
+
+def test_report_and_properties_say_which_rule_fired(
+    replayed: tuple[Trajectory, DetectionTrace, Path],
+) -> None:
+    _, trace, recording = replayed
+    props = properties(recording)
+    assert props["score"] == "contrast" and props["threshold"] == pytest.approx(trace.gamma)
+    assert props["t_det"] == trace.t_det
+    reports = rows(recording, REPLAY.report, "TextDocument:text")
+    assert reports[-1][0] == trace.t_det and "Fired by the contrast rule" in reports[-1][1][0]
+    event = rows(recording, REPLAY.event, "TextLog:text")
+    assert event[0][0] == trace.t_det and "(contrast rule): C_t = " in event[0][1][0]

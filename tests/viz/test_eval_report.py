@@ -1,0 +1,164 @@
+"""Evaluation at a glance: charts with their names on them, in the summary recording and in report.html."""
+
+from __future__ import annotations
+
+import copy
+import json
+import re
+import shutil
+import subprocess
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import pytest
+from rrd import columns
+from synthetic import write_project_dataset
+from typer.testing import CliRunner
+
+from rfr_viz.charts.evaluation import evaluation_charts, rules_of
+from rfr_viz.charts.report_html import write_report
+from rfr_viz.cli.app import app
+from rfr_viz.recordings.evaluation import record_evaluation
+
+runner = CliRunner()
+
+
+@pytest.fixture(scope="module")
+def evaluated(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, Any]]:
+    """`robofailring evaluate` run for real on a small project dataset: its folder and JSON."""
+    tmp = tmp_path_factory.mktemp("evaluate")
+    data = write_project_dataset(tmp / "data")
+    out = tmp / "eval"
+    result = runner.invoke(
+        app,
+        ["evaluate", str(data), "--out", str(out), "--target-fpr", "0.5", "--cache-dir", str(tmp / "cache")],
+    )
+    assert result.exit_code == 0, result.output
+    assert f"report for a browser: {out / 'report.html'}" in result.output
+    return out, json.loads((out / "evaluation.json").read_text())
+
+
+def _two_rules(evaluation: dict[str, Any]) -> dict[str, Any]:
+    """The evaluation with a second, made-up rule in the `rules` layout (γ thresholds)."""
+    both = copy.deepcopy(evaluation)
+    contrast = {
+        "operating_gamma": 0.03,
+        "sweep": [
+            {"gamma": round(r["delta"] - 0.9, 4), "recall": r["recall"], "fpr": 0.0}
+            for r in evaluation["sweep"]
+        ],
+        "recall_per_type": {
+            kind: {**row, "recall": 0.5} for kind, row in evaluation["recall_per_type"].items()
+        },
+    }
+    both["rules"] = {"paper": {}, "contrast": contrast}
+    return both
+
+
+def test_charts_carry_the_evaluation_values_and_names(evaluated: tuple[Path, dict[str, Any]]) -> None:
+    _, evaluation = evaluated
+    charts = {chart.key: chart for chart in evaluation_charts(evaluation)}
+    assert list(charts) == [
+        "roc",
+        "sweep_paper",
+        "sweep_contrast",
+        "recall_per_type",
+        "recall_per_view",
+        "progress_histogram",
+    ]
+    per_type = charts["recall_per_type"]
+    assert per_type.categories == sorted(evaluation["recall_per_type"])
+    assert per_type.series[0].values == [
+        evaluation["recall_per_type"][k]["recall"] for k in per_type.categories
+    ]
+    contrast = evaluation["rules"]["contrast"]  # each rule is charted from its own scores
+    assert per_type.series[1].values == [
+        contrast["recall_per_type"][k]["recall"] for k in per_type.categories
+    ]
+    assert charts["sweep_contrast"].series[0].x == [row["delta"] for row in contrast["sweep"]]
+    assert charts["recall_per_view"].categories == [*evaluation["view_ablation"]]
+    assert sum(charts["progress_histogram"].series[0].values) == sum(
+        evaluation["progress_histogram"]["counts"]
+    )
+    sweep = charts["sweep_paper"]
+    assert sweep.series[0].x == [row["delta"] for row in evaluation["sweep"]]
+    assert sweep.marks[0].x == evaluation["operating_delta"]
+
+
+def test_every_rule_is_charted(evaluated: tuple[Path, dict[str, Any]]) -> None:
+    _, evaluation = evaluated
+    rules = rules_of(_two_rules(evaluation))
+    assert [(r.name, r.symbol, r.operating) for r in rules] == [
+        ("paper", "δ", evaluation["operating_delta"]),
+        ("contrast", "γ", 0.03),
+    ]
+    charts = {chart.key: chart for chart in evaluation_charts(_two_rules(evaluation))}
+    assert {"sweep_paper", "sweep_contrast"} <= set(charts)
+    assert [s.name for s in charts["roc"].series] == [
+        f"paper (δ = {evaluation['operating_delta']:.3f})",
+        "contrast (γ = 0.030)",
+    ]
+    assert charts["recall_per_type"].series[1].values == [0.5] * len(evaluation["recall_per_type"])
+
+
+def _labels(path: Path, entity: str) -> list[str]:
+    found: list[str] = []
+    for row in columns(path, entity).get("Points2D:labels", []):
+        found += row or []
+    return found
+
+
+def test_the_summary_recording_names_categories_on_the_charts(
+    evaluated: tuple[Path, dict[str, Any]], tmp_path: Path
+) -> None:
+    out, evaluation = evaluated
+    recorded = out / "evaluation.rrd"
+    assert _labels(recorded, "/eval/evaluation/recall_per_type/categories") == sorted(
+        evaluation["recall_per_type"]
+    )
+    values = _labels(recorded, "/eval/evaluation/recall_per_type/values")
+    assert values == [
+        f"{100 * rule['recall_per_type'][k]['recall']:.0f}%"
+        for rule in (evaluation, evaluation["rules"]["contrast"])
+        for k in sorted(evaluation["recall_per_type"])
+    ]
+    assert _labels(recorded, "/eval/evaluation/recall_per_view/categories") == [*evaluation["view_ablation"]]
+    both = record_evaluation([_two_rules(evaluation)], out=tmp_path / "both.rrd")
+    legend = _labels(both, "/eval/evaluation/roc/legend")
+    assert len(legend) == 2 and legend[1] == "contrast (γ = 0.030)"
+
+
+def test_report_html_is_self_contained_with_charts_tables_and_links(
+    evaluated: tuple[Path, dict[str, Any]], tmp_path: Path
+) -> None:
+    out, evaluation = evaluated
+    page = (out / "report.html").read_text(encoding="utf-8")
+    assert page.count("<svg") == len(evaluation_charts(evaluation))
+    assert not re.search(r'(src|href)="(https?:)?//', page), "the report loads something from elsewhere"
+    for kind in evaluation["recall_per_type"]:
+        assert f">{kind}</text>" in page and f"<td>{kind}</td>" in page
+    links = re.findall(r'href="([^"]+)"', page)
+    assert links == ["evaluation.rrd"] and (out / links[0]).is_file()
+    report = write_report([_two_rules(evaluation)], tmp_path / "report.html")
+    assert "Recall and FPR against γ (contrast rule)" in report.read_text(encoding="utf-8")
+
+
+def test_report_html_renders_in_headless_chromium(
+    evaluated: tuple[Path, dict[str, Any]], tmp_path: Path
+) -> None:
+    browser = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
+    if browser is None:
+        pytest.skip("no Chromium here (apt-get install chromium) to render report.html")
+    out, _ = evaluated
+    shot = tmp_path / "report.png"
+    subprocess.run(
+        [browser, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars", f"--screenshot={shot}",
+         "--window-size=1280,900", (out / "report.html").resolve().as_uri()],
+        capture_output=True, timeout=120, check=True,
+    )  # fmt: skip
+    image = cv2.imread(str(shot), cv2.IMREAD_COLOR)
+    assert image is not None and image.shape[:2] == (900, 1280)
+    bar_blue = np.all(np.abs(image.astype(int) - (220, 120, 60)) < 12, axis=2)  # BGR of the rule colour
+    assert int(bar_blue.sum()) > 2000, "no chart bars drawn in the browser"

@@ -1,0 +1,302 @@
+"""Watching live: `watch --save` equals `detect --json`, the step sink, and a stream into a real viewer."""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+import pytest
+import rerun as rr
+from rrd import batches, entity_paths, properties, rows
+from synthetic import VIEWS, synthetic_frame, write_episode
+from typer.testing import CliRunner
+
+from rfr_viz.cli.app import app
+from rfr_viz.jobs.explain import read_report
+from rfr_viz.panels.camera_video import (
+    KEYFRAME_INTERVAL,
+    CameraCodec,
+    EncodedVideo,
+    decode_video,
+    encode_video,
+)
+from rfr_viz.panels.live_camera import LiveCameras, live_codec
+from rfr_viz.panels.scores import set_frame_time
+from rfr_viz.paths import REPLAY, camera
+from rfr_viz.recordings.live import LiveRecording, LiveTarget
+from rfr_viz.viewer.control import WINDOW, ViewerUnavailable, _viewer_process, check_vulkan
+from robofailring import (
+    CachedEncoder,
+    DetectorSession,
+    FailureDetector,
+    FailureMemory,
+    Frame,
+    StepResult,
+    load_dataset,
+    load_encoder,
+    load_trajectory,
+)
+from robofailring.data.images import write_png
+
+runner = CliRunner()
+DELTA = "0.97"  # the synthetic episode's S_t crosses it part-way through (frame 6 of 8)
+
+
+@pytest.fixture(scope="module")
+def memory_dir(aha_dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    encoder = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path_factory.mktemp("cache"))
+    memory, _ = FailureMemory.build(load_dataset(aha_dataset), encoder)
+    return memory.save(tmp_path_factory.mktemp("memory") / "pixels")
+
+
+@pytest.fixture(scope="module")
+def episode(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    folder = tmp_path_factory.mktemp("episodes") / "pick_cube_grasp_wp2_episode9"
+    return write_episode(folder, "pick_cube", "grasp_wp2", length=8, shift=1)
+
+
+def _detect_json(episode: Path, memory_dir: Path) -> dict:
+    result = runner.invoke(
+        app, ["detect", str(episode), "--memory", str(memory_dir), "--delta", DELTA, "--k", "3", "--json"]
+    )
+    assert result.exit_code == 0, result.output
+    return json.loads(result.stdout)
+
+
+def _watch(episode: Path, memory_dir: Path, *target: str) -> str:
+    result = runner.invoke(
+        app,
+        [
+            "watch",
+            str(episode),
+            "--memory",
+            str(memory_dir),
+            "--delta",
+            DELTA,
+            "--k",
+            "3",
+            "--speed",
+            "0",
+            *target,
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    return result.stdout
+
+
+def test_watch_save_equals_detect_json(episode: Path, memory_dir: Path, tmp_path: Path) -> None:
+    detected = _detect_json(episode, memory_dir)
+    assert detected["t_det"] is not None and 0 < detected["t_det"] < detected["length"]
+    saved = tmp_path / "live.rrd"
+    out = _watch(episode, memory_dir, "--save", str(saved))
+    assert f"FAILURE at frame {detected['t_det']} in view {detected['detected_view']}" in out
+    for view, scored in detected["views"].items():
+        found = rows(saved, REPLAY.score(view), "Scalars:scalars")
+        assert [frame for frame, _ in found] == list(range(detected["length"]))
+        np.testing.assert_allclose([value[0] for _, value in found], scored["similarity"], atol=1e-6)
+        assert [frame for frame, _ in rows(saved, camera(view), "EncodedImage:blob")] == list(
+            range(detected["length"])
+        )
+    assert properties(saved, "camera")["codec"] == "jpeg"  # the default: a JPEG per live frame
+    state = rows(saved, REPLAY.state, "Scalars:scalars")
+    assert next(frame for frame, value in state if value[0] == 1.0) == detected["t_det"]
+    found = properties(saved)
+    assert found["t_det"] == detected["t_det"] and found["detected_view"] == detected["detected_view"]
+    assert found["L"] == detected["length"] and found["delta"] == float(DELTA)
+    events = rows(saved, REPLAY.event, "TextLog:text")
+    assert [frame for frame, _ in events] == [detected["t_det"]]
+    assert read_report(saved).to_dict() == detected["report"]  # `explain` works on a live recording too
+
+    replayed = runner.invoke(
+        app,
+        [
+            "replay",
+            str(episode),
+            "--memory",
+            str(memory_dir),
+            "--delta",
+            DELTA,
+            "--k",
+            "3",
+            "--out",
+            str(tmp_path / "replay"),
+        ],
+    )
+    assert replayed.exit_code == 0, replayed.output
+    (replay,) = (tmp_path / "replay").glob("*.rrd")
+    assert entity_paths(saved) == entity_paths(replay)  # the same entity paths as a replay
+
+
+@pytest.mark.parametrize("codec", ["av1", "h264"])
+def test_watch_encodes_video_frame_by_frame(
+    episode: Path, memory_dir: Path, tmp_path: Path, codec: str
+) -> None:
+    folder = tmp_path / episode.name  # the episode at 96 px, so that video has real pixels to compress
+    for v, view in enumerate(VIEWS):
+        (folder / view).mkdir(parents=True)
+        for t in range(8):
+            write_png(
+                folder / view / f"{t}.png", synthetic_frame("pick_cube", "grasp_wp2", v, t + 1, 9, size=96)
+            )
+    saved = tmp_path / f"live-{codec}.rrd"
+    _watch(folder, memory_dir, "--save", str(saved), "--camera-codec", codec)
+    trajectory = load_trajectory(folder)
+    length = properties(saved)["L"]
+    assert length == 8
+    camera_properties = properties(saved, "camera")
+    assert camera_properties["codec"] == codec and camera_properties["keyframe_interval"] == KEYFRAME_INTERVAL
+    for view in trajectory.views:
+        assert f"{view}: {codec}" in camera_properties["views"]
+        samples = rows(saved, camera(view), "VideoStream:sample")
+        assert [frame for frame, _ in samples] == list(range(length))  # one sample per frame, at its frame
+        assert not rows(saved, camera(view), "EncodedImage:blob")
+        keyframes = [bool(key[0]) for _, key in rows(saved, camera(view), "VideoStream:is_keyframe")]
+        assert keyframes[0] and len(keyframes) == length
+        (codec_row,) = [
+            batch.column("VideoStream:codec").to_pylist()
+            for batch in batches(saved, camera(view))
+            if "VideoStream:codec" in batch.schema.names
+        ]
+        assert codec_row == [[{"av1": 0x61763031, "h264": 0x61766331}[codec]]]
+        video = EncodedVideo(CameraCodec(codec), [bytes(s[0]) for _, s in samples], keyframes, 96, 96)
+        decoded = decode_video(video)
+        source = [frame.load() for frame in trajectory.views[view][:length]]
+        assert len(decoded) == length
+        # pixel-close to the source, as a replay's video (tests/test_camera_video.py)
+        assert min(_psnr(d, s) for d, s in zip(decoded, source, strict=True)) > 30.0
+
+
+def test_live_auto_means_jpeg_and_images_stay_images(tmp_path: Path) -> None:
+    assert live_codec("auto") is CameraCodec.JPEG and live_codec("av1") is CameraCodec.AV1
+    saved = tmp_path / "frames.rrd"
+    rec = rr.RecordingStream("test", recording_id="frames")
+    rec.save(saved)
+    cameras = LiveCameras(rec, ["front"], codec="av1", fps=10.0)
+    frames = [synthetic_frame("pick_cube", "grasp_wp2", 0, t, 12, size=96) for t in range(12)]
+    for t, frame in enumerate(frames):
+        set_frame_time(rec, t, 10.0)
+        cameras.log("front", frame, t)
+    cameras.finish()
+    rec.flush()
+    rec.disconnect()
+    samples = rows(saved, camera("front"), "VideoStream:sample")
+    assert [frame for frame, _ in samples] == list(range(12))
+    keyframes = [bool(key[0]) for _, key in rows(saved, camera("front"), "VideoStream:is_keyframe")]
+    video = EncodedVideo(CameraCodec.AV1, [bytes(s[0]) for _, s in samples], keyframes, 96, 96)
+    whole = encode_video(frames, CameraCodec.AV1, fps=10.0)  # what a replay stores for the same frames
+    assert video.samples == whole.samples and video.keyframes == whole.keyframes
+    decoded = decode_video(video)
+    assert min(_psnr(d, s) for d, s in zip(decoded, frames, strict=True)) > 30.0
+
+
+def _psnr(a: np.ndarray, b: np.ndarray) -> float:
+    mse = float(np.mean((a.astype(np.float64) - b) ** 2))
+    return math.inf if mse == 0 else 10 * math.log10(255.0**2 / mse)
+
+
+class Collect:
+    """A user's own sink: keeps what each step handed it."""
+
+    def __init__(self) -> None:
+        self.seen: list[tuple[int, list[str], bool]] = []
+
+    def on_step(
+        self, session: DetectorSession, frames: Mapping[str, np.ndarray | Frame], result: StepResult
+    ) -> None:
+        assert session.t == result.t  # called before the session moves on
+        self.seen.append((result.t, sorted(frames), result.state))
+
+
+def test_a_robot_loop_with_its_own_sink_and_the_rerun_sink(
+    episode: Path, memory_dir: Path, tmp_path: Path
+) -> None:
+    memory = FailureMemory.load(memory_dir)
+    detector = FailureDetector(memory, load_encoder("pixels"), delta=float(DELTA), k=3)
+    trajectory = load_trajectory(episode)
+    frames = [{view: trajectory.views[view][t].load() for view in trajectory.views} for t in range(8)]
+
+    collected = Collect()
+    plain = detector.session("pick_cube", sink=collected)
+    states = [plain.step(images).state for images in frames]
+    assert collected.seen == [(t, ["front", "overhead", "wrist"], states[t]) for t in range(8)]
+
+    saved = tmp_path / "robot.rrd"
+    target = LiveTarget(save=saved)
+    with LiveRecording.open(detector, "pick_cube", views=list(trajectory.views), target=target) as live:
+        session = detector.session("pick_cube", sink=live)
+        similarity = [session.step(images).similarity["wrist"] for images in frames]  # live RGB arrays
+    assert live.fired_at == plain.fired_at == states.index(True)
+    found = rows(saved, REPLAY.score("wrist"), "Scalars:scalars")
+    np.testing.assert_allclose([value[0] for _, value in found], similarity, atol=1e-6)
+    assert len(rows(saved, camera("front"), "EncodedImage:blob")) == 8
+    assert live.report is not None and live.report.current_image is None  # an array has no file to show a VLM
+
+
+def test_a_failed_block_leaves_no_file(memory_dir: Path, tmp_path: Path) -> None:
+    detector = FailureDetector(FailureMemory.load(memory_dir), load_encoder("pixels"))
+    saved = tmp_path / "broken.rrd"
+    opened = LiveRecording.open(detector, "pick_cube", views=["front"], target=LiveTarget(save=saved))
+    with pytest.raises(RuntimeError, match="robot fell over"), opened:
+        raise RuntimeError("robot fell over")
+    assert not saved.exists() and not list(tmp_path.iterdir())
+    with pytest.raises(ValueError, match="needs somewhere to go"):
+        LiveTarget()
+
+
+@pytest.mark.viewer
+def test_watch_connect_streams_into_a_running_viewer(episode: Path, memory_dir: Path) -> None:
+    try:
+        check_vulkan()
+    except ViewerUnavailable as error:
+        pytest.skip(f"headless Rerun viewer unavailable: {error}")
+    from rerun.experimental import ViewerClient
+
+    deadline = time.monotonic() + 90
+    with _viewer_process(WINDOW, deadline) as port:
+        url = f"rerun+http://127.0.0.1:{port}/proxy"
+        _watch(episode, memory_dir, "--connect", url)
+        client = ViewerClient.connect(url)
+        while True:
+            state = client.get_state()
+            shown = [
+                r for r in state.recordings if any(t.name == "frame" and t.end == 7 for t in r.timelines)
+            ]
+            if shown and not state.loading:
+                break
+            assert time.monotonic() < deadline, f"the viewer never showed the stream: {state}"
+            time.sleep(0.2)
+        (recording,) = shown
+        schema = client.get_recording_schema(recording.store_id, paths_only=True)
+        paths = {entity.entity_path for entity in schema.entities}
+        expected = {camera(view) for view in ("front", "overhead", "wrist")}
+        expected |= {REPLAY.score("front"), REPLAY.delta, REPLAY.state, REPLAY.event, REPLAY.report}
+        assert expected <= paths, sorted(paths)
+        frame = next(t for t in recording.timelines if t.name == "frame")
+        assert (frame.start, frame.end) == (0, 7)
+
+
+def test_watch_without_a_viewer_is_a_clear_error(episode: Path, memory_dir: Path) -> None:
+    import socket
+
+    with socket.socket() as probe:  # a port nobody listens on
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    result = runner.invoke(
+        app,
+        [
+            "watch",
+            str(episode),
+            "--memory",
+            str(memory_dir),
+            "--connect",
+            f"rerun+http://127.0.0.1:{port}/proxy",
+        ],
+    )
+    # exit 1: the environment (no viewer there), not the command line, is what is wrong
+    assert (
+        result.exit_code == 1 and "no Rerun viewer listens at" in result.stderr and "--spawn" in result.stderr
+    )
