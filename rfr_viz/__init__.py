@@ -6,6 +6,7 @@ The closed-loop simulator run is recorded by `rfr_viz.recordings.closed_loop.run
 
 from __future__ import annotations
 
+from rfr_viz import _moved as _moved  # old module paths, deprecated (one release)
 from rfr_viz.jobs.replay import CompareConfig, ReplayConfig, ReplayResult, compare, replay
 from rfr_viz.jobs.review import ReviewConfig, review
 from rfr_viz.panels.umap import MemoryMap, fit_map, memory_map

@@ -37,7 +37,6 @@ MOVED: Final[Mapping[str, str]] = dict(
         "rfr_viz.review": "rfr_viz.jobs.review",
         "rfr_viz.share": "rfr_viz.viewer.share",
         "rfr_viz.video_passthrough": "rfr_viz.panels.video_passthrough",
-        "rfr_viz.viewer": "rfr_viz.viewer.control",
     }
 )
 
