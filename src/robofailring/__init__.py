@@ -40,7 +40,8 @@ from robofailring.evaluation.run import EvaluateConfig, run_evaluation
 from robofailring.explain.report import FailureReport, VLMClient
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.jobs.detect import DetectConfig, detect
-from robofailring.memory.failure import FailureMemory, MemoryEntry, Neighbor
+from robofailring.memory.entry import MemoryEntry, Neighbor
+from robofailring.memory.failure import FailureMemory
 from robofailring.memory.success import SuccessMemory
 
 if TYPE_CHECKING:
