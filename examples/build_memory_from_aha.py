@@ -12,15 +12,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from robofailring import (
-    CachedEncoder,
-    FailureDetector,
-    FailureMemory,
-    load_dataset,
-    load_encoder,
-    load_trajectory,
-)
-from robofailring.encoders import portable_spec
+from robofailring import BuildMemoryConfig, build_memory, load_trajectory, open_detector
 
 
 def main() -> None:
@@ -39,19 +31,15 @@ def main() -> None:
     )
     args = parser.parse_args()
 
-    encoder = CachedEncoder(load_encoder(args.encoder))  # embeddings are cached: a rerun encodes nothing
-    dataset = load_dataset(args.dataset)
-    print(f"{args.dataset}: {dataset.layout} layout")
-    memory, stats = FailureMemory.build(dataset, encoder)
-    memory.manifest.encoder_spec = portable_spec(args.encoder)  # `detect` reopens the encoder from it
-    memory.save(args.memory)
+    # embeddings are cached: a rerun encodes nothing; the manifest records the encoder spec for `detect`
+    memory, stats = build_memory(BuildMemoryConfig(data=args.dataset, encoder=args.encoder, out=args.memory))
+    print(f"{args.dataset}: {memory.manifest.layout} layout")
     print(
         f"memory: {len(memory)} entries over {len(memory.tasks)} tasks; {len(stats.skipped_views)} views skipped"
     )
 
-    trace = FailureDetector(memory, encoder, delta=args.delta, k=5).run(
-        load_trajectory(args.episode, task=args.task)
-    )
+    detector = open_detector(args.memory, delta=args.delta, k=5)
+    trace = detector.run(load_trajectory(args.episode, task=args.task))
     if trace.t_det is None or trace.detected_view is None:
         print(f"no failure detected in {trace.length} frames (δ = {trace.delta:.3f})")
         return

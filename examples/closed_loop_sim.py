@@ -14,12 +14,19 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rfr_viz.recordings.closed_loop import run_closed_loop
-from robofailring import CachedEncoder, FailureMemory, load_dataset, load_encoder
-from robofailring.detection.rules import smallest_target_fpr
-from robofailring.encoders import default_cache_dir
-from robofailring.evaluation.calibration import CalibrateConfig, calibrate
-from robofailring.sim import GenerateConfig, generate_dataset
+from rfr_viz import run_closed_loop
+from robofailring import (
+    BuildMemoryConfig,
+    CalibrateConfig,
+    GenerateConfig,
+    build_memory,
+    calibrate,
+    default_cache_dir,
+    generate_dataset,
+    load_dataset,
+    open_detector,
+    smallest_target_fpr,
+)
 
 
 def main() -> None:
@@ -52,25 +59,28 @@ def main() -> None:
             frames=args.frames,
         )
     )
-    encoder = CachedEncoder(load_encoder("pixels"))
-    memory, stats = FailureMemory.build(load_dataset(data).trajectories(), encoder)
-    memory_dir = memory.save(args.out / f"memory_{args.task}")
+    memory_dir = args.out / f"memory_{args.task}"
+    # the paper's memory (no success runs): the closed loop stops at S_t ≥ δ
+    memory, stats = build_memory(
+        BuildMemoryConfig(data=data, encoder="pixels", out=memory_dir, successes=False)
+    )
     print(f"memory: {len(memory)} entries from {stats.failures} failure episodes in {data}")
-    delta = args.delta
-    if delta is None:
+    if args.delta is None:
         successes = sum(not t.is_failure for t in load_dataset(data).trajectories())
         alpha = args.target_fpr or smallest_target_fpr(successes)  # split conformal needs n ≥ 1/α − 1
         calibration = calibrate(CalibrateConfig(data=data, memory=memory_dir, split=None, target_fpr=alpha))
-        delta = calibration.delta
-        print(f"calibrated δ = {delta:.4f} on {calibration.successes} successes (α = {alpha:.3f})")
+        print(
+            f"calibrated δ = {calibration.delta:.4f} on {calibration.successes} successes (α = {alpha:.3f})"
+        )
+    detector = open_detector(memory_dir, delta=args.delta)  # δ: the one given, else the calibrated one
 
     result = run_closed_loop(
-        memory=memory,
-        encoder=encoder,
+        memory=detector.memory,
+        encoder=detector.encoder,
         task=args.task,
         mode=args.mode,
         seed=args.seed,
-        delta=delta,
+        delta=detector.delta,
         image_size=args.image_size,
         frames=args.frames,
         out=args.out / f"{args.task}_{args.mode}_seed{args.seed}.rrd",

@@ -18,12 +18,20 @@ import argparse
 from pathlib import Path
 
 from rfr_viz import LiveRecording, LiveTarget
-from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
-from robofailring.detection.rules import smallest_target_fpr
-from robofailring.encoders import default_cache_dir
-from robofailring.evaluation.calibration import CalibrateConfig, calibrate
-from robofailring.sim import VIEWS, GenerateConfig, generate_dataset, run_episode
-from robofailring.sim.episode import episode_fps
+from robofailring import (
+    SIM_VIEWS,
+    BuildMemoryConfig,
+    CalibrateConfig,
+    GenerateConfig,
+    build_memory,
+    calibrate,
+    default_cache_dir,
+    generate_dataset,
+    load_dataset,
+    open_detector,
+    run_episode,
+    smallest_target_fpr,
+)
 
 
 def main() -> None:
@@ -54,22 +62,23 @@ def main() -> None:
             frames=args.frames,
         )
     )
-    encoder = CachedEncoder(load_encoder("pixels"))
-    memory, stats = FailureMemory.build(load_dataset(data).trajectories(), encoder)
-    memory_dir = memory.save(Path(args.data) / f"memory_{args.task}_{args.image_size}px_{args.frames}f")
-    delta = args.delta
-    if delta is None:  # split conformal at the smallest α its successes allow (n ≥ 1/α − 1)
-        successes = sum(not t.is_failure for t in load_dataset(data).trajectories())
-        alpha = smallest_target_fpr(successes)
-        delta = calibrate(CalibrateConfig(data=data, memory=memory_dir, split=None, target_fpr=alpha)).delta
-    print(f"memory: {len(memory)} entries from {stats.failures} failure episodes; δ = {delta:.4f}")
-    detector = FailureDetector(memory, encoder, delta=delta)
+    trajectories = list(load_dataset(data))
+    memory_dir = Path(args.data) / f"memory_{args.task}_{args.image_size}px_{args.frames}f"
+    # the paper's memory (no success runs): the robot is stopped at S_t ≥ δ
+    memory, stats = build_memory(
+        BuildMemoryConfig(data=data, encoder="pixels", out=memory_dir, successes=False)
+    )
+    if args.delta is None:  # split conformal at the smallest α its successes allow (n ≥ 1/α − 1)
+        alpha = smallest_target_fpr(sum(not t.is_failure for t in trajectories))
+        calibrate(CalibrateConfig(data=data, memory=memory_dir, split=None, target_fpr=alpha))
+    detector = open_detector(memory_dir, delta=args.delta)  # δ: the one given, else the calibrated one
+    print(f"memory: {len(memory)} entries from {stats.failures} failure episodes; δ = {detector.delta:.4f}")
 
     connect = args.connect or (None if args.spawn or args.save else "rerun+http://127.0.0.1:9876/proxy")
     target = LiveTarget(connect=connect, spawn=args.spawn, save=args.save)
-    fps = episode_fps(args.frames)
+    fps = trajectories[0].fps  # the simulated episodes' frame rate: their dataset records it
     # the robot loop: one session per episode, one step per control tick, stop at the alarm
-    with LiveRecording.open(detector, args.task, views=VIEWS, target=target, fps=fps) as live:
+    with LiveRecording.open(detector, args.task, views=SIM_VIEWS, target=target, fps=fps) as live:
         session = detector.session(args.task, sink=live)
         with run_episode(
             args.task, args.mode, args.seed, image_size=args.image_size, frames=args.frames

@@ -23,7 +23,7 @@ from robofailring.detection.detector import DetectorSession, FailureDetector, St
 from robofailring.detection.loader import open_detector
 from robofailring.detection.rules import PAPER_DELTA, ScoreRule, smallest_target_fpr
 from robofailring.detection.trace import DetectionTrace, StepResult
-from robofailring.encoders import CachedEncoder, Encoder, load_encoder, open_encoder
+from robofailring.encoders import CachedEncoder, Encoder, default_cache_dir, load_encoder, open_encoder
 from robofailring.errors import (
     DataError,
     EncoderError,
@@ -40,7 +40,8 @@ from robofailring.evaluation.run import EvaluateConfig, run_evaluation
 from robofailring.explain.report import FailureReport, VLMClient
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.jobs.detect import DetectConfig, detect
-from robofailring.memory.failure import FailureMemory, MemoryEntry, Neighbor
+from robofailring.memory.entry import MemoryEntry, Neighbor
+from robofailring.memory.failure import FailureMemory
 from robofailring.memory.success import SuccessMemory
 
 if TYPE_CHECKING:
@@ -104,6 +105,7 @@ __all__ = [
     "calibrate",
     "compare_encoders",
     "comparison_table",
+    "default_cache_dir",
     "detect",
     "generate_dataset",
     "ground",

@@ -17,6 +17,7 @@ from rfr_viz.viewer.control import verify_recording
 pytestmark = pytest.mark.slow  # simulation or end-to-end: the full lane only (scripts/test.sh)
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+_PYTHONPATH = {key: os.environ[key] for key in ("PYTHONPATH",) if key in os.environ}  # a worktree's code
 
 
 def test_build_memory_from_aha_example(tmp_path: Path) -> None:
@@ -38,7 +39,7 @@ def test_build_memory_from_aha_example(tmp_path: Path) -> None:
         capture_output=True,
         text=True,
         check=False,
-        env={"ROBOFAILRING_CACHE": str(tmp_path / "cache"), "PATH": "/usr/bin:/bin"},
+        env={"ROBOFAILRING_CACHE": str(tmp_path / "cache"), "PATH": "/usr/bin:/bin", **_PYTHONPATH},
     )
     assert result.returncode == 0, result.stderr
     assert "aha layout" in result.stdout and "memory: 9 entries over 1 tasks" in result.stdout
@@ -58,7 +59,7 @@ def test_closed_loop_example(tmp_path: Path) -> None:
         capture_output=True,
         text=True,
         check=False,
-        env={"ROBOFAILRING_CACHE": str(tmp_path / "cache"), "PATH": "/usr/bin:/bin"},
+        env={"ROBOFAILRING_CACHE": str(tmp_path / "cache"), "PATH": "/usr/bin:/bin", **_PYTHONPATH},
     )
     assert result.returncode == 0, result.stderr
     out = result.stdout
@@ -111,7 +112,7 @@ def test_live_robot_example_records_the_stream(tmp_path: Path) -> None:
         env={
             "ROBOFAILRING_CACHE": str(tmp_path / "cache"),
             "PATH": "/usr/bin:/bin",
-            **{key: os.environ[key] for key in ("PYTHONPATH",) if key in os.environ},  # a worktree's code
+            **_PYTHONPATH,
         },
     )
     assert result.returncode == 0, result.stderr

@@ -33,7 +33,8 @@ def dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def test_splits_keep_memory_and_test_apart(dataset: Path, tmp_path: Path) -> None:
     config = EvaluateConfig(data=dataset, out=tmp_path, cache_dir=tmp_path / "cache")
-    train, test = select_splits(config)
+    splits = select_splits(config)
+    train, test = splits.train, splits.test
     assert {t.key for t in train}.isdisjoint({t.key for t in test})
     assert all(t.split == "train" for t in train) and all(t.split == "test" for t in test)
     encoder = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "cache")

@@ -85,20 +85,20 @@ def test_a_saved_memory_rewrites_its_manifest_unchanged_and_reads_the_typed_cali
         for i in range(2)
     ]
     vectors = np.eye(2, 4, dtype=np.float32)
-    memory = FailureMemory(vectors, entries, encoder="pixels-32")
-    memory.manifest.source = str(tmp_path)
+    manifest = MemoryManifest(encoder="pixels-32", dim=4, source=str(tmp_path))
+    memory = FailureMemory(vectors, entries, encoder="pixels-32", manifest=manifest)
     memory.save(tmp_path / "mem")
     before = json.loads((tmp_path / "mem" / MANIFEST).read_text())
     assert before["source"] == str(tmp_path) and before["count"] == 2 and "calibration" not in before
     loaded = FailureMemory.load(tmp_path / "mem")
     assert loaded.calibrated_delta is None
-    loaded.manifest.calibration = StoredCalibration(delta=0.5, encoder="pixels-32", gamma=0.25)
-    loaded.write_manifest(tmp_path / "mem")
+    calibrated = loaded.with_calibration(StoredCalibration(delta=0.5, encoder="pixels-32", gamma=0.25))
+    assert loaded.calibrated_delta is None and calibrated.calibrated_delta == 0.5  # a new object
+    calibrated.write_manifest(tmp_path / "mem")
     after = json.loads((tmp_path / "mem" / MANIFEST).read_text())
     assert after == before | {"calibration": after["calibration"]}  # created and the rest kept as they were
     assert after["calibration"]["delta"] == 0.5 and after["calibration"]["gamma"] == 0.25
     again = FailureMemory.load(tmp_path / "mem")
     assert again.calibrated_delta == 0.5 and again.calibrated_gamma == 0.25
     other = StoredCalibration(delta=0.5, encoder="open_clip-ViT-B-32")  # chosen with another encoder
-    again.manifest.calibration = other
-    assert again.calibrated_delta is None
+    assert again.with_calibration(other).calibrated_delta is None

@@ -165,21 +165,23 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
             detector, successes, config.target_fpr, progress=advance, stride=config.stride
         )
     paper, contrast = found[ScoreRule.PAPER], found.get(ScoreRule.CONTRAST)
-    memory.manifest.calibration = StoredCalibration(
-        encoder=memory.encoder,
-        delta=paper.threshold,
-        gamma=contrast.threshold if contrast is not None else None,
-        method="split conformal, own episode left out",
-        target_fpr=config.target_fpr,
-        achieved_fpr=paper.achieved_fpr,
-        gamma_achieved_fpr=contrast.achieved_fpr if contrast is not None else None,
-        successes=paper.successes,
-        data=str(Path(config.data).resolve()),
-        split=config.split,
-        k=config.k,
-        stride=config.stride,
+    calibrated = memory.with_calibration(
+        StoredCalibration(
+            encoder=memory.encoder,
+            delta=paper.threshold,
+            gamma=contrast.threshold if contrast is not None else None,
+            method="split conformal, own episode left out",
+            target_fpr=config.target_fpr,
+            achieved_fpr=paper.achieved_fpr,
+            gamma_achieved_fpr=contrast.achieved_fpr if contrast is not None else None,
+            successes=paper.successes,
+            data=str(Path(config.data).resolve()),
+            split=config.split,
+            k=config.k,
+            stride=config.stride,
+        )
     )
-    memory.write_manifest(config.memory)
+    calibrated.write_manifest(config.memory)
     return Calibration(
         delta=paper.threshold,
         target_fpr=config.target_fpr,

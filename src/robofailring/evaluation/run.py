@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from robofailring.atomic import write_text_atomic
-from robofailring.data.layouts import load_dataset
+from robofailring.data.layouts import Dataset, load_dataset
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.data.splits import split_of
 from robofailring.detection.detector import (
@@ -22,11 +22,12 @@ from robofailring.detection.detector import (
     check_stride,
 )
 from robofailring.detection.rules import ScoreRule, check_target_fpr
-from robofailring.encoders import CachedEncoder, open_encoder, portable_spec
+from robofailring.encoders import CachedEncoder, open_encoder
 from robofailring.errors import DataError, RoboFailRingError, SettingError
 from robofailring.evaluation.metrics import PAPER_DELTAS, ScoredTrajectory
 from robofailring.evaluation.per_rule import evaluate_rule, scored_by_rule
 from robofailring.evaluation.result import EvaluationResult
+from robofailring.memory.builder import Provenance, build_memories
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.references import absolute_reference
 from robofailring.memory.success import SuccessMemory
@@ -72,18 +73,22 @@ class EvaluateConfig:
             raise SettingError(f"test fraction must lie in (0, 1), got {self.test_fraction}")
 
 
-def select_splits(
-    config: EvaluateConfig, skipped: list[Skipped] | None = None
-) -> tuple[list[Trajectory], list[Trajectory]]:
-    """(training trajectories, test trajectories), disjoint by construction and checked.
+@dataclass(frozen=True)
+class Splits:
+    """The training and test trajectories of an evaluation, and the dataset the training ones come from."""
 
-    What the datasets' loaders did not read is appended to `skipped`.
-    """
+    train: list[Trajectory]
+    test: list[Trajectory]
+    dataset: Dataset  # `config.data`: the training split's dataset
+    skipped: list[Skipped]  # what the loaders of the training and test datasets did not read
+
+
+def select_splits(config: EvaluateConfig) -> Splits:
+    """The training and test trajectories, disjoint by construction and checked."""
     dataset = load_dataset(config.data, labels=config.labels)
     dataset.require_labels("evaluate")
     source = list(dataset.trajectories())
-    if skipped is not None:
-        skipped += dataset.skipped
+    skipped = list(dataset.skipped)
     has_splits = any(t.split for t in source)
     train = [
         t
@@ -100,15 +105,14 @@ def select_splits(
         other_dataset = load_dataset(config.test_data, labels=config.labels)
         other_dataset.require_labels("evaluate")
         other = list(other_dataset.trajectories())
-        if skipped is not None:
-            skipped += other_dataset.skipped
+        skipped += other_dataset.skipped
         other_has_splits = any(t.split for t in other)
         test = [t for t in other if not other_has_splits or t.split == config.test_split]
     if not test:
         raise DataError(
             f"no test trajectories (split {config.test_split!r}) in {config.test_data or config.data}"
         )
-    return train, test
+    return Splits(train=train, test=test, dataset=dataset, skipped=skipped)
 
 
 def check_disjoint(memory: FailureMemory, test: Sequence[Trajectory]) -> None:
@@ -150,23 +154,27 @@ def measure_latency(
 
 
 def build_training_memory(
-    config: EvaluateConfig, train: Sequence[Trajectory] | None = None, encoder: CachedEncoder | None = None
+    config: EvaluateConfig, splits: Splits | None = None, encoder: CachedEncoder | None = None
 ) -> Path:
-    """Build the memory from the training split's failures and save it to `config.memory_out`."""
+    """Build the memory from the training split's failures (and successes) and save it to `config.memory_out`."""
     if encoder is None:
         encoder = open_encoder(config.encoder, device=config.device, cache_dir=config.cache_dir)
-    if train is None:
-        train, _ = select_splits(config)
-    failures = [t for t in train if t.is_failure]
-    with progress_bar(total=sum(len(t.views) for t in failures), desc="memory", unit="entry") as bar:
-        memory, _ = FailureMemory.build(failures, encoder, progress=bar.update)
-    if config.successes:
-        with progress_bar(total=len(train), desc="success memory", unit="traj") as bar:
-            built = SuccessMemory.build(train, encoder, progress=bar.update, step=config.success_step)
-        memory.successes = built if built.success_runs else None  # no success run: the paper's memory
-    memory.manifest.source = str(Path(config.data).resolve())
-    memory.manifest.split = config.train_split
-    memory.manifest.encoder_spec = portable_spec(config.encoder)
+    if splits is None:
+        splits = select_splits(config)
+    provenance = Provenance(
+        data=Path(config.data),
+        encoder=config.encoder,
+        layout=splits.dataset.layout,
+        split=config.train_split,
+        skipped_inputs=splits.dataset.skipped,
+    )
+    memory, _ = build_memories(
+        splits.train,
+        encoder,
+        provenance=provenance,
+        successes=config.successes,
+        success_step=config.success_step,
+    )
     memory_dir = config.memory_out or Path(config.out) / "memory"
     memory.save(memory_dir)
     return memory_dir
@@ -175,12 +183,14 @@ def build_training_memory(
 def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
     """Build (or load) the memory, replay every test trajectory once, and measure everything."""
     encoder = open_encoder(config.encoder, device=config.device, cache_dir=config.cache_dir)
-    unread: list[Skipped] = []
-    train, test = select_splits(config, unread)
-    memory_dir = config.memory if config.memory is not None else build_training_memory(config, train, encoder)
+    splits = select_splits(config)
+    train, test = splits.train, splits.test
+    memory_dir = (
+        config.memory if config.memory is not None else build_training_memory(config, splits, encoder)
+    )
     memory = FailureMemory.load(memory_dir)
     check_disjoint(memory, test)
-    test = _deploy_successes(memory, test, config.deployment_successes, encoder, config.success_step)
+    memory, test = _deploy_successes(memory, test, config.deployment_successes, encoder, config.success_step)
     detector = FailureDetector(memory, encoder, k=config.k)
     thresholds, calibrated = _thresholds(config, detector, train)
     operating = thresholds[ScoreRule.PAPER]
@@ -251,7 +261,7 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
         skipped_unknown_task=skipped,
         latency_ms=measure_latency(detector, first),
         skipped_too_short=too_short,
-        skipped_inputs=unread,
+        skipped_inputs=splits.skipped,
         stride=config.stride,
     )
 
@@ -264,17 +274,19 @@ def _stored_target(memory: FailureMemory) -> float | None:
 
 def _deploy_successes(
     memory: FailureMemory, test: list[Trajectory], per_task: int, encoder: CachedEncoder, step: float
-) -> list[Trajectory]:
+) -> tuple[FailureMemory, list[Trajectory]]:
     """Move `per_task` success runs per task from the test set into the success memory (in memory only)."""
     if per_task == 0 or memory.successes is None:
-        return test
+        return memory, test
     chosen: list[Trajectory] = []
     for task in sorted({t.task for t in test}):
         runs = sorted((t for t in test if t.task == task and not t.is_failure), key=lambda t: t.key)
         chosen += runs[:per_task]
-    memory.successes = memory.successes.extended(SuccessMemory.build(chosen, encoder, step=step))
+    deployed = memory.with_successes(
+        memory.successes.extended(SuccessMemory.build(chosen, encoder, step=step))
+    )
     keys = {t.key for t in chosen}
-    return [t for t in test if t.key not in keys]
+    return deployed, [t for t in test if t.key not in keys]
 
 
 def _thresholds(

@@ -7,13 +7,13 @@ from pathlib import Path
 
 from robofailring.atomic import output_lock
 from robofailring.data.layouts import load_dataset
-from robofailring.encoders import open_encoder, portable_spec
+from robofailring.encoders import open_encoder
 from robofailring.errors import DataError, MemoryFormatError
-from robofailring.memory.failure import BuildStats, FailureMemory
-from robofailring.memory.success import SuccessMemory
+from robofailring.memory.builder import Provenance, build_memories
+from robofailring.memory.encoding import BuildStats
+from robofailring.memory.failure import FailureMemory
 from robofailring.memory.thinning import DEFAULT_STEP
 from robofailring.outputs import check_memory_target, is_memory_dir
-from robofailring.progress import progress_bar
 
 
 @dataclass(frozen=True)
@@ -61,26 +61,24 @@ def _build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]
             f"{config.data}{f' (split {config.split})' if config.split else ''} holds no failure trajectory "
             f"among its {len(trajectories)}: a failure memory needs failures; nothing was written"
         )
-    with progress_bar(total=entries_expected, desc="encoding memory", unit="entry") as bar:
-        memory, stats = FailureMemory.build(
-            trajectories, encoder, progress=bar.update, data_root=Path(config.data).resolve()
-        )
+    provenance = Provenance(
+        data=Path(config.data),
+        encoder=config.encoder,
+        layout=dataset.layout,
+        split=config.split,
+        skipped_inputs=dataset.skipped,
+    )
+    memory, stats = build_memories(
+        trajectories,
+        encoder,
+        provenance=provenance,
+        successes=config.successes,
+        success_step=config.success_step,
+    )
     if not len(memory):
         raise DataError(
             f"no memory entry from {config.data}: every failure view has fewer than 2 frames; nothing was written"
         )
-    if config.successes:
-        with progress_bar(total=len(trajectories), desc="encoding success memory", unit="traj") as bar:
-            successes = SuccessMemory.build(
-                trajectories, encoder, progress=bar.update, step=config.success_step
-            )
-        memory.successes = successes if successes.success_runs else None  # none: the paper's memory
-    stats.skipped_inputs = dataset.skipped
-    memory.manifest.skipped_inputs = [skipped.to_dict() for skipped in dataset.skipped]
-    memory.manifest.source = str(Path(config.data).resolve())
-    memory.manifest.layout = dataset.layout
-    memory.manifest.encoder_spec = portable_spec(config.encoder)
-    memory.manifest.split = config.split
     stats.notes.extend(_dropped_calibration(config.out))
     memory.save(config.out)
     return memory, stats

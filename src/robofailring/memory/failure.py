@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import copy
 import json
 from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, replace
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
@@ -14,23 +15,17 @@ import faiss
 import numpy as np
 
 from robofailring.atomic import atomic_directory, output_lock, restore_interrupted, write_text_atomic
-from robofailring.data.grounding import ground, parse_symbol
-from robofailring.data.model import Frame, Outcome, Skipped, Trajectory
+from robofailring.data.model import Trajectory
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.encoders.spec import EncoderSpec
-from robofailring.errors import (
-    EncoderMismatchError,
-    MemoryFormatError,
-    SymbolError,
-    UnknownTaskError,
-)
-from robofailring.memory.format import parse_entry
-from robofailring.memory.index import FLAT, IndexSpec, TaskIndex
-from robofailring.memory.manifest import MemoryManifest
-from robofailring.memory.pairs import pair_vectors
+from robofailring.errors import EncoderMismatchError, MemoryFormatError, UnknownTaskError
+from robofailring.memory.encoding import BuildStats, encode_failures
+from robofailring.memory.entry import MemoryEntry, Neighbor
+from robofailring.memory.format import parse_entry, read_jsonl
+from robofailring.memory.index import FLAT, TaskIndexSet
+from robofailring.memory.manifest import MemoryManifest, StoredCalibration
 from robofailring.memory.references import (
     ReferenceCheck,
-    absolute_reference,
     check_references,
     common_root,
     stored_resolver,
@@ -47,52 +42,6 @@ READABLE_VERSIONS: Final[tuple[int, ...]] = (1, 2)
 MANIFEST: Final[str] = "manifest.json"
 INDEX: Final[str] = "index.faiss"
 ENTRIES: Final[str] = "entries.jsonl"
-
-
-@dataclass(frozen=True)
-class MemoryEntry:
-    """Grounded metadata of one memory vector (one view of one failure trajectory).
-
-    `start` and `end` are absolute image paths in a loaded or built memory; on disk they are
-    stored relative to the memory's data root (`robofailring.memory.references`).
-    """
-
-    task: str
-    symbol: str
-    episode: str
-    view: str
-    start: str
-    end: str
-
-    @property
-    def description(self) -> str:
-        """G(symbol), the grounded sentence."""
-        return ground(self.symbol)
-
-
-@dataclass(frozen=True)
-class Neighbor:
-    """One retrieved memory entry with its cosine similarity to the query."""
-
-    index: int
-    similarity: float
-    entry: MemoryEntry
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"index": self.index, "similarity": round(self.similarity, 6), **asdict(self.entry)}
-
-
-@dataclass
-class BuildStats:
-    """What building a memory took in and left out (skipped views are counted and reported)."""
-
-    trajectories: int = 0
-    failures: int = 0
-    ignored_non_failures: int = 0
-    entries: int = 0
-    skipped_views: list[dict[str, Any]] = field(default_factory=list)
-    skipped_inputs: list[Skipped] = field(default_factory=list)  # folders/files of the dataset not read
-    notes: list[str] = field(default_factory=list)  # said to the user after the build
 
 
 class FailureMemory:
@@ -118,14 +67,9 @@ class FailureMemory:
         self.manifest = manifest if manifest is not None else MemoryManifest(encoder=encoder, dim=self.dim)
         self.data_root = Path(data_root).resolve() if data_root is not None else None
         self.successes = successes  # success runs for the contrast rule (robofailring.memory.success)
-        by_task: dict[str, list[int]] = {}
-        for i, entry in enumerate(self.entries):
-            by_task.setdefault(entry.task, []).append(i)
-        self._tasks: dict[str, TaskIndex] = {}
-        for task, members in by_task.items():
-            ids = np.asarray(members, dtype=np.int64)
-            episodes = [self.entries[i].episode for i in members]
-            self._tasks[task] = TaskIndex.build(vectors[ids], ids, episodes, IndexSpec(FLAT))
+        self.index = TaskIndexSet.build(  # exact search: a failure memory is small (docs/scale.md)
+            vectors, [e.task for e in self.entries], [e.episode for e in self.entries], kind=FLAT
+        )
 
     # ---------------------------------------------------------------- building
     @classmethod
@@ -137,77 +81,33 @@ class FailureMemory:
         progress: Callable[[int], None] | None = None,
         data_root: Path | None = None,
     ) -> tuple[FailureMemory, BuildStats]:
-        """Algorithm 1 over the failure trajectories; views with < 2 frames are skipped and counted.
+        """The paper's memory alone (Algorithm 1), without success runs or provenance.
 
-        Symbols are validated first, so an unknown token fails the build before anything is encoded.
+        `robofailring.memory.builder.build_memories` builds the complete memory a job saves.
         Image references are kept relative to `data_root` when saved (default: the folder that
         holds all of them), so the memory resolves from any working directory.
         """
-        stats = BuildStats()
-        pending: list[tuple[MemoryEntry, Frame, Frame]] = []
-        for trajectory in trajectories:
-            stats.trajectories += 1
-            if not _is_failure(trajectory):
-                stats.ignored_non_failures += 1
-                continue
-            stats.failures += 1
-            if not trajectory.symbol:
-                raise SymbolError(f"failure trajectory {trajectory.key} has no failure symbol")
-            try:
-                parse_symbol(trajectory.symbol)
-            except SymbolError as error:
-                raise SymbolError(f"trajectory {trajectory.key} ({trajectory.source}): {error}") from error
-            for view, frames in trajectory.views.items():
-                if len(frames) < 2:
-                    stats.skipped_views.append(
-                        {"trajectory": trajectory.key, "view": view, "frames": len(frames)}
-                    )
-                    continue
-                entry = MemoryEntry(
-                    task=trajectory.task,
-                    symbol=trajectory.symbol,
-                    episode=trajectory.episode,
-                    view=view,
-                    start=absolute_reference(frames[0].reference),
-                    end=absolute_reference(frames[-1].reference),
-                )
-                pending.append((entry, frames[0], frames[-1]))
-        dim = encoder.dim * 2
-        if pending:
-            frames = [frame for _, start, end in pending for frame in (start, end)]
-            embeddings = []
-            for offset in range(0, len(frames), 256):
-                chunk = frames[offset : offset + 256]
-                embeddings.append(encoder.encode_frames(chunk))
-                if progress is not None:
-                    progress(len(chunk) // 2)
-            stacked = np.concatenate(embeddings)
-            vectors = pair_vectors(stacked[0::2], stacked[1::2])
-        else:
-            vectors = np.zeros((0, dim), dtype=np.float32)
-        entries = [entry for entry, _, _ in pending]
-        stats.entries = len(entries)
-        manifest = MemoryManifest(
+        encoded = encode_failures(trajectories, encoder, progress=progress)
+        memory = cls(
+            encoded.vectors,
+            encoded.entries,
             encoder=encoder.identity,
-            dim=dim,
-            skipped_views=len(stats.skipped_views),
-            skipped=stats.skipped_views,
-            failures=stats.failures,
-            ignored_non_failures=stats.ignored_non_failures,
+            manifest=encoded.manifest(encoder.identity),
+            data_root=data_root,
         )
-        memory = cls(vectors, entries, encoder=encoder.identity, manifest=manifest, data_root=data_root)
-        return memory, stats
+        return memory, encoded.stats
 
     # ---------------------------------------------------------------- queries
     @property
     def tasks(self) -> list[str]:
-        return sorted(self._tasks)
+        return self.index.tasks
 
     def __len__(self) -> int:
         return len(self.entries)
 
     def task_size(self, task: str) -> int:
-        return self._task(task).size
+        self._check_task(task)
+        return self.index.by_task[task].size
 
     def check_encoder(self, identity: str) -> None:
         """Raise EncoderMismatchError unless `identity` is the encoder that built the memory."""
@@ -217,12 +117,10 @@ class FailureMemory:
                 "rebuild the memory with the same encoder or query with the one that built it"
             )
 
-    def _task(self, task: str) -> TaskIndex:
-        found = self._tasks.get(task)
-        if found is None:
+    def _check_task(self, task: str) -> None:
+        if task not in self.index.by_task:
             known = ", ".join(self.tasks[:20]) + (" …" if len(self.tasks) > 20 else "")
             raise UnknownTaskError(f"task {task!r} has no entry in the memory; its tasks are: {known}")
-        return found
 
     def search(
         self, queries: np.ndarray, task: str, k: int, *, exclude_episode: str | None = None
@@ -236,7 +134,8 @@ class FailureMemory:
         queries = np.ascontiguousarray(np.atleast_2d(queries), dtype=np.float32)
         if queries.shape[1] != self.dim:
             raise MemoryFormatError(f"query dimension {queries.shape[1]} != memory dimension {self.dim}")
-        return self._task(task).search(queries, k, exclude_episode=exclude_episode)
+        self._check_task(task)
+        return self.index.search(queries, task, k, exclude_episode=exclude_episode)
 
     def neighbors(self, similarities: np.ndarray, ids: np.ndarray) -> list[Neighbor]:
         """Neighbour objects for one row of a search result."""
@@ -251,15 +150,17 @@ class FailureMemory:
         """Write index, entries and manifest as one directory, atomically.
 
         Only an absent or empty folder, or another memory, is replaced (OutputError otherwise).
+        The memory itself is not changed: references are written relative to its data root
+        (default: the folder that holds all of them), which the written manifest records.
         """
         directory = Path(directory)
         check_memory_target(directory)
         root = self.data_root or common_root(
             ref for entry in self.entries for ref in (entry.start, entry.end)
         )
+        manifest = self._full_manifest()
         if root is not None:
-            self.data_root = root
-            self.manifest.data_root = str(root)
+            manifest = replace(manifest, data_root=str(root))
         with atomic_directory(directory) as tmp:
             index = faiss.IndexFlatIP(self.dim)
             if len(self.vectors):
@@ -274,9 +175,7 @@ class FailureMemory:
                     handle.write(json.dumps(stored) + "\n")
             if self.successes is not None:
                 self.successes.write(tmp, root=root)
-            (tmp / MANIFEST).write_text(
-                json.dumps(self._full_manifest().to_dict(), indent=2), encoding="utf-8"
-            )
+            (tmp / MANIFEST).write_text(json.dumps(manifest.to_dict(), indent=2), encoding="utf-8")
         return directory
 
     def _full_manifest(self) -> MemoryManifest:
@@ -292,6 +191,19 @@ class FailureMemory:
             successes=self.successes.manifest() if self.successes is not None else None,
             created=self.manifest.created or datetime.now(UTC).isoformat(timespec="seconds"),
         )
+
+    def with_calibration(self, calibration: StoredCalibration) -> FailureMemory:
+        """This memory with `calibration` as its stored thresholds (the same entries and indexes)."""
+        return self._with(manifest=replace(self.manifest, calibration=calibration))
+
+    def with_successes(self, successes: SuccessMemory | None) -> FailureMemory:
+        """This memory with another success memory (e.g. with runs seen in deployment added)."""
+        return self._with(successes=successes)
+
+    def _with(self, **changed: Any) -> FailureMemory:
+        other = copy.copy(self)  # entries, vectors and indexes are shared: none is changed in place
+        other.__dict__.update(changed)
+        return other
 
     def write_manifest(self, directory: Path) -> None:
         """Rewrite only the manifest of a saved memory (e.g. after calibration), atomically.
@@ -325,20 +237,9 @@ class FailureMemory:
             index = faiss.read_index(str(directory / INDEX))
         except RuntimeError as error:
             raise MemoryFormatError(f"cannot read Faiss index {directory / INDEX}: {error}") from error
-        entries: list[MemoryEntry] = []
-        entries_path = directory / ENTRIES
-        try:
-            with entries_path.open(encoding="utf-8") as handle:
-                for number, line in enumerate(handle, 1):
-                    if line.strip():
-                        try:
-                            entries.append(MemoryEntry(**parse_entry(line, entries_path, number)))
-                        except TypeError as error:
-                            raise MemoryFormatError(
-                                f"{entries_path}:{number}: bad entry ({error})"
-                            ) from error
-        except OSError as error:
-            raise MemoryFormatError(f"cannot read {entries_path}: {error}") from error
+        entries = read_jsonl(
+            directory / ENTRIES, lambda record: MemoryEntry(**parse_entry(record)), what="entry"
+        )
         if index.ntotal != manifest.count or len(entries) != manifest.count or index.d != manifest.dim:
             raise MemoryFormatError(
                 f"{directory}: manifest says {manifest.count} entries of dim {manifest.dim}, "
@@ -382,12 +283,6 @@ class FailureMemory:
     def _calibrated(self, key: str) -> float | None:
         calibration = self.manifest.calibration
         return calibration.threshold_for(self.encoder, key) if calibration is not None else None
-
-
-def _is_failure(trajectory: Trajectory) -> bool:
-    if trajectory.outcome is not None:
-        return trajectory.outcome is Outcome.FAILURE
-    return bool(trajectory.symbol)
 
 
 def encoder_spec_for(memory: FailureMemory) -> str:

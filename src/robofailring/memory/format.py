@@ -1,32 +1,62 @@
-"""Checks of a saved memory's entries, parsed once at load: a well-formed JSON file can still be wrong.
+"""Reading a saved memory's JSONL files (`entries.jsonl`, `success_runs.jsonl`), checked once at load.
 
-The manifest's checks live in `robofailring.memory.manifest`."""
+A well-formed JSON file can still be wrong: each row is parsed into its object here, and a bad row
+is a MemoryFormatError naming the file and line. The manifest's checks live in
+`robofailring.memory.manifest`."""
 
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Final
+from typing import Any, Final, TypeVar
 
 from robofailring.data.grounding import parse_symbol
 from robofailring.errors import MemoryFormatError, SymbolError
 
 ENTRY_FIELDS: Final[tuple[str, ...]] = ("task", "symbol", "episode", "view", "start", "end")
 
+Row = TypeVar("Row")
 
-def parse_entry(line: str, path: Path, number: int) -> dict[str, Any]:
-    """One line of entries.jsonl as the entry's fields; its failure symbol must parse (paper Table 5)."""
+
+def read_jsonl(path: Path, parse: Callable[[Any], Row], *, what: str) -> list[Row]:
+    """Every non-blank line of `path` as JSON, turned into a row by `parse`.
+
+    `parse` raises MemoryFormatError, TypeError, KeyError or ValueError for a row it cannot use;
+    the error names `path:<line>` and `what` a row is (e.g. "entry").
+    """
+    rows: list[Row] = []
     try:
-        record = json.loads(line)
-    except json.JSONDecodeError as error:
-        raise MemoryFormatError(f"{path}:{number}: not JSON ({error})") from error
+        with Path(path).open(encoding="utf-8") as handle:
+            for number, line in enumerate(handle, 1):
+                if not line.strip():
+                    continue
+                try:
+                    record = json.loads(line)
+                except json.JSONDecodeError as error:
+                    raise MemoryFormatError(f"{path}:{number}: not JSON ({error})") from error
+                try:
+                    rows.append(parse(record))
+                except MemoryFormatError as error:
+                    raise MemoryFormatError(f"{path}:{number}: {error}") from error
+                except (TypeError, KeyError, ValueError) as error:
+                    raise MemoryFormatError(f"{path}:{number}: bad {what} ({error})") from error
+    except UnicodeDecodeError as error:
+        raise MemoryFormatError(f"{path} is not UTF-8 text: {error}") from error
+    except OSError as error:
+        raise MemoryFormatError(f"cannot read {path}: {error}") from error
+    return rows
+
+
+def parse_entry(record: Any) -> dict[str, Any]:
+    """One row of entries.jsonl as the entry's fields; its failure symbol must parse (paper Table 5)."""
     if not isinstance(record, dict) or not set(ENTRY_FIELDS) <= set(record):
-        raise MemoryFormatError(f"{path}:{number}: an entry is an object with {', '.join(ENTRY_FIELDS)}")
+        raise MemoryFormatError(f"an entry is an object with {', '.join(ENTRY_FIELDS)}")
     wrong = [key for key in ENTRY_FIELDS if not isinstance(record[key], str)]
     if wrong:
-        raise MemoryFormatError(f"{path}:{number}: {wrong[0]!r} must be a string, not {record[wrong[0]]!r}")
+        raise MemoryFormatError(f"{wrong[0]!r} must be a string, not {record[wrong[0]]!r}")
     try:
         parse_symbol(record["symbol"])
     except SymbolError as error:
-        raise MemoryFormatError(f"{path}:{number}: {error}") from error
+        raise MemoryFormatError(str(error)) from error
     return record

@@ -24,6 +24,7 @@ import numpy as np
 from robofailring.data.model import Outcome, Trajectory
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import MemoryFormatError
+from robofailring.memory.format import read_jsonl
 from robofailring.memory.index import TaskIndexSet
 from robofailring.memory.pairs import pair_vectors
 from robofailring.memory.references import absolute_reference, to_stored
@@ -254,22 +255,13 @@ class SuccessMemory:
         """Read what `write` wrote and check it against the manifest's `successes` section (vectors of `dim`).
 
         `resolve` turns stored frame references into absolute ones (see `references.stored_resolver`)."""
-        runs: list[SuccessRun] = []
-        path = directory / RUNS
-        try:
-            with path.open(encoding="utf-8") as handle:
-                for number, line in enumerate(handle, 1):
-                    if not line.strip():
-                        continue
-                    try:
-                        fields = json.loads(line)
-                        stored = tuple(resolve(f) if resolve else f for f in fields["frames"])
-                        numbers = tuple(int(n) for n in fields.get("frame_numbers", ()))
-                        runs.append(SuccessRun(**{**fields, "frames": stored, "frame_numbers": numbers}))
-                    except (json.JSONDecodeError, TypeError, KeyError) as error:
-                        raise MemoryFormatError(f"{path}:{number}: bad success run ({error})") from error
-        except OSError as error:
-            raise MemoryFormatError(f"cannot read {path}: {error}") from error
+
+        def parse(fields: dict[str, Any]) -> SuccessRun:
+            stored = tuple(resolve(f) if resolve else f for f in fields["frames"])
+            numbers = tuple(int(n) for n in fields.get("frame_numbers", ()))
+            return SuccessRun(**{**fields, "frames": stored, "frame_numbers": numbers})
+
+        runs = read_jsonl(directory / RUNS, parse, what="success run")
         frames = sum(len(run.frames) for run in runs)
         if frames != section.get("count") or len(runs) != section.get("runs"):
             raise MemoryFormatError(
