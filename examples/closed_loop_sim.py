@@ -16,7 +16,7 @@ from pathlib import Path
 
 from rfr_viz.recordings.closed_loop import run_closed_loop
 from robofailring import CachedEncoder, FailureMemory, load_dataset, load_encoder
-from robofailring.detection.rules import smallest_target_fpr
+from robofailring.detection.conformal import smallest_target_fpr
 from robofailring.encoders import default_cache_dir
 from robofailring.evaluation.calibration import CalibrateConfig, calibrate
 from robofailring.sim import GenerateConfig, generate_dataset

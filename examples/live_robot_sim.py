@@ -19,7 +19,7 @@ from pathlib import Path
 
 from rfr_viz import LiveRecording, LiveTarget
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
-from robofailring.detection.rules import smallest_target_fpr
+from robofailring.detection.conformal import smallest_target_fpr
 from robofailring.encoders import default_cache_dir
 from robofailring.evaluation.calibration import CalibrateConfig, calibrate
 from robofailring.sim import VIEWS, GenerateConfig, generate_dataset, run_episode
