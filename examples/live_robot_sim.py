@@ -84,7 +84,7 @@ def main() -> None:
             args.task, args.mode, args.seed, image_size=args.image_size, frames=args.frames
         ) as run:
             for images in run:  # {"front": rgb, "overhead": rgb, "wrist": rgb}
-                if session.step(images).state:
+                if session.step(images).alarm:
                     run.stop()
             result = run.run_to_end()
 

@@ -17,7 +17,7 @@ from rfr_viz.recordings.evaluation import record_evaluation
 from rfr_viz.recordings.replay import record_replay
 from robofailring.data.grounding import failure_type
 from robofailring.data.layouts import load_dataset
-from robofailring.detection.rules import ScoreRule
+from robofailring.detection.rules import CONTRAST, PAPER, ScoringRule
 from robofailring.encoders import default_cache_dir
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
 from robofailring.evaluation.calibration import CalibrateConfig, calibrate
@@ -67,9 +67,9 @@ def _simulate(config: GenerateConfig, label: str) -> Path:
         return generate_dataset(config, progress=bar.update)
 
 
-def _pick(result: EvaluationResult, kind: str, rule: ScoreRule) -> tuple[str, int] | None:
+def _pick(result: EvaluationResult, kind: str, rule: ScoringRule) -> tuple[str, int] | None:
     """A trajectory key and its focus frame for one kind of outcome under `rule`, or None when there is none."""
-    threshold = result.rules[rule.value].threshold
+    threshold = result.rules[rule.name].threshold
     scored_by_rule = result.rule_scored(rule)
     if (
         kind == "detection"
@@ -86,10 +86,10 @@ def _pick(result: EvaluationResult, kind: str, rule: ScoreRule) -> tuple[str, in
         return (min(hits)[3], min(hits)[4]) if hits else None
     if kind == "false-alarm":
         alarms = [(s.t_det(threshold) or 0, s.key) for s in scored_by_rule if not s.is_failure]
-        alarms = [(t, key) for t, key in alarms if key in result.rules[rule.value].false_alarms]
+        alarms = [(t, key) for t, key in alarms if key in result.rules[rule.name].false_alarms]
         return (alarms[0][1], alarms[0][0]) if alarms else None
     misses = sorted(
-        (s for s in scored_by_rule if s.key in result.rules[rule.value].misses),
+        (s for s in scored_by_rule if s.key in result.rules[rule.name].misses),
         key=lambda s: -float(s.scores().max()),
     )
     return (misses[0].key, int(np.argmax(misses[0].scores()))) if misses else None
@@ -151,12 +151,12 @@ def run_demo(config: DemoConfig, *, say: Callable[[str], None] = print) -> DemoR
     for evaluation in evaluations:
         for row in evaluation.rules.values():
             say(
-                f"{evaluation.name}, {row.rule.value} rule ({row.rule.symbol} = {row.threshold:.4f}): recall "
+                f"{evaluation.name}, {row.rule.name} rule ({row.rule.symbol} = {row.threshold:.4f}): recall "
                 f"{100 * row.recall:.1f} %, FPR {100 * row.fpr:.1f} %, mean T_s "
                 f"{'—' if np.isnan(row.ts_mean) else f'{100 * row.ts_mean:.1f} %'}, "
                 f"AUC {row.auc:.3f}"
             )
-    rule = ScoreRule.CONTRAST if ScoreRule.CONTRAST.value in evaluations[0].rules else ScoreRule.PAPER
+    rule = CONTRAST if CONTRAST.name in evaluations[0].rules else PAPER
     tables = [path for result in evaluations for path in write_evaluation(result, out)]
     summary = record_evaluation(evaluations, out=out / "evaluation.rrd")
     result = DemoResult(evaluations=evaluations, summary=summary, tables=tables)
@@ -182,7 +182,7 @@ def run_demo(config: DemoConfig, *, say: Callable[[str], None] = print) -> DemoR
             break
         else:
             result.notes.append(
-                f"no {kind.replace('-', ' ')} occurred under the calibrated {rule.value} rule in either split"
+                f"no {kind.replace('-', ' ')} occurred under the calibrated {rule.name} rule in either split"
             )
     result.report = write_report(
         [e.to_dict() for e in evaluations],

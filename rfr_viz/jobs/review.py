@@ -13,7 +13,7 @@ from rfr_viz.jobs.replay import DEFAULT_OUT, ReplayResult, load_detector, record
 from rfr_viz.panels.camera_video import CameraCodec
 from rfr_viz.recordings.replay import record_replay
 from robofailring.data.layouts import load_dataset
-from robofailring.detection.rules import ScoreRule
+from robofailring.detection.rules import CONTRAST, PAPER, rule_named
 from robofailring.errors import DataError
 from robofailring.explain.vlm import VLMConfig
 from robofailring.outputs import check_output_folder, check_recording_file
@@ -44,16 +44,16 @@ def review(config: ReviewConfig) -> ReplayResult:
     try:
         evaluation = json.loads(Path(config.evaluation).read_text(encoding="utf-8"))
         rules = evaluation.get("rules") or {}
-        rule = ScoreRule.parse(config.score or ("contrast" if "contrast" in rules else "paper"))
+        rule = rule_named(config.score or (CONTRAST.name if CONTRAST.name in rules else PAPER.name))
         field = "false_alarms" if config.kind == "false-alarms" else "misses"
-        if rule.value in rules:
-            keys = list(rules[rule.value][field])
-            threshold = float(rules[rule.value]["threshold"])
-        elif rule is ScoreRule.PAPER:  # an evaluation written before both rules were reported
+        if rule.name in rules:
+            keys = list(rules[rule.name][field])
+            threshold = float(rules[rule.name]["threshold"])
+        elif rule.name == PAPER.name:  # an evaluation written before both rules were reported
             keys = [row["key"] for row in evaluation[field]]
             threshold = float(evaluation["operating_delta"])
         else:
-            raise DataError(f"{config.evaluation} has no results for the {rule.value} rule")
+            raise DataError(f"{config.evaluation} has no results for the {rule.name} rule")
         k = int(evaluation["k"])
         memory_dir = Path(config.memory or evaluation["memory"])
     except (OSError, json.JSONDecodeError, KeyError, TypeError, ValueError) as error:
@@ -66,9 +66,9 @@ def review(config: ReviewConfig) -> ReplayResult:
         return result
     loaded = load_detector(
         memory_dir,
-        delta=threshold if rule is ScoreRule.PAPER else None,
-        gamma=threshold if rule is ScoreRule.CONTRAST else None,
-        score=rule.value,
+        delta=threshold if rule.threshold_key == PAPER.threshold_key else None,
+        gamma=threshold if rule.threshold_key == CONTRAST.threshold_key else None,
+        score=rule.name,
         k=k,
         encoder=None,
         cache_dir=config.cache_dir,

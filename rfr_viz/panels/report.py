@@ -11,7 +11,7 @@ from rfr_viz.panels.scores import set_frame_time
 from rfr_viz.paths import DetectorPaths
 from robofailring.data.model import Trajectory
 from robofailring.detection.detector import DetectionTrace
-from robofailring.detection.rules import ScoreRule
+from robofailring.detection.rules import ScoringRule
 from robofailring.explain.report import FailureReport, report_for
 from robofailring.explain.vlm import VLMAnswer
 from robofailring.memory.failure import Neighbor
@@ -38,7 +38,7 @@ def log_detection(
     peak = trace.max_score()
     peak_frame = int(np.argmax(peak))
     summary = (
-        f"**{trace.task} · {trace.episode}** — encoder `{trace.encoder}`, rule **{rule.value}** "
+        f"**{trace.task} · {trace.episode}** — encoder `{trace.encoder}`, rule **{rule.name}** "
         f"({rule.score_name} ≥ {rule.symbol} = {trace.threshold:.3f}), K = {trace.k}, L = {trace.length} frames.\n\n"
     )
     set_frame_time(rec, 0, fps)
@@ -55,7 +55,7 @@ def log_detection(
     rec.log(
         paths.report,
         rr.TextDocument(
-            summary + f"No failure yet: the {rule.value} rule fires at frame **{t_det}** (view {view}).",
+            summary + f"No failure yet: the {rule.name} rule fires at frame **{t_det}** (view {view}).",
             media_type=rr.MediaType.MARKDOWN,
         ),
     )
@@ -82,7 +82,7 @@ def log_detection(
         rule=rule,
         fired=fired,
         summary=summary
-        + f"**Fired by the {rule.value} rule** at frame {t_det}, view {view}: {fired}.\n\n"
+        + f"**Fired by the {rule.name} rule** at frame {t_det}, view {view}: {fired}.\n\n"
         + contrast_line,
         vlm_answer=vlm_answer,
     )
@@ -94,7 +94,7 @@ def log_alarm(
     *,
     report: FailureReport,
     top: Neighbor,
-    rule: ScoreRule,
+    rule: ScoringRule,
     fired: str,
     summary: str,
     vlm_answer: VLMAnswer | None = None,
@@ -105,7 +105,7 @@ def log_alarm(
     rec.log(
         paths.event,
         rr.TextLog(
-            f"FAILURE at frame {report.t_det} in view {report.view} ({rule.value} rule): {fired}; "
+            f"FAILURE at frame {report.t_det} in view {report.view} ({rule.name} rule): {fired}; "
             f"nearest memory entry {top.entry.task}/{top.entry.episode} [{top.entry.view}] "
             f"{top.entry.symbol}: {top.entry.description}",
             level=rr.TextLogLevel.WARN,

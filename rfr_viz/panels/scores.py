@@ -10,7 +10,7 @@ import rerun as rr
 from rfr_viz.paths import FRAME, TIME, DetectorPaths
 from rfr_viz.styles import DELTA_COLOUR, STATE_COLOUR, VIEW_COLOURS, shade
 from robofailring.detection.detector import DetectionTrace
-from robofailring.detection.rules import ScoreRule
+from robofailring.detection.rules import PAPER, ScoringRule
 
 
 def time_columns(frames: np.ndarray, fps: float) -> list[rr.TimeColumn]:
@@ -32,7 +32,7 @@ def log_score_styles(
     *,
     views: Sequence[str],
     delta: float,
-    rule: ScoreRule = ScoreRule.PAPER,
+    rule: ScoringRule = PAPER,
     label: str | None = None,
     colour: tuple[int, int, int] | None = None,
 ) -> None:
@@ -58,7 +58,7 @@ def log_score_styles(
         rr.SeriesLines(
             colors=[STATE_COLOUR if colour is None else colour],
             widths=[1.5],
-            names=[f"{prefix}State_t ({rule.value}: any view {rule.score_name} ≥ {rule.symbol})"],
+            names=[f"{prefix}State_t ({rule.name}: any view {rule.score_name} ≥ {rule.symbol})"],
         ),
         static=True,
     )

@@ -23,7 +23,7 @@ from robofailring.detection.detector import DEFAULT_K, FailureDetector, StepResu
 from robofailring.encoders.base import Encoder
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.memory.failure import FailureMemory
-from robofailring.detection.rules import ScoreRule
+from robofailring.detection.rules import PAPER
 from robofailring.sim import VIEWS, EpisodeResult
 from robofailring.jobs.closed_loop import WatchedRun, alarm, outcome_line, watch_episode
 from robofailring.sim.episode import episode_fps
@@ -72,7 +72,7 @@ def run_closed_loop(
     the unstopped run is the same episode (same task, mode and seed) scored but never stopped.
     `delta` defaults to the memory's calibrated δ, else the paper's.
     """
-    detector = FailureDetector(memory, encoder, delta=delta, k=k, rule=ScoreRule.PAPER)  # S_t ≥ δ, as logged
+    detector = FailureDetector(memory, encoder, delta=delta, k=k, rule=PAPER)  # S_t ≥ δ, as logged
     loop = watch_episode(detector, task, mode, seed, ood=ood, image_size=image_size, frames=frames)
     watched, unstopped, stop = loop.watched, loop.unstopped, loop.stop_frame
     fps = episode_fps(frames)

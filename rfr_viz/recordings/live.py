@@ -40,7 +40,6 @@ from robofailring.data.model import Frame
 from robofailring.detection.detector import DEFAULT_K, DetectorSession, FailureDetector, StepResult
 from robofailring.errors import DataError
 from robofailring.explain.report import FailureReport
-from robofailring.detection.rules import ScoreRule
 
 DEFAULT_VIEWER_URL: Final[str] = f"rerun+http://127.0.0.1:{DEFAULT_PORT}/proxy"
 FLUSH_TIMEOUT_S: Final[float] = 10.0  # at the end, wait this long at most for a viewer to take the rest
@@ -209,7 +208,7 @@ class LiveRecording:
     def _summary(self) -> str:
         rule = self.detector.rule
         return (
-            f"**{self.name}** — encoder `{self.detector.encoder.identity}`, rule **{rule.value}** "
+            f"**{self.name}** — encoder `{self.detector.encoder.identity}`, rule **{rule.name}** "
             f"({rule.score_name} ≥ {rule.symbol} = {self.detector.threshold:.3f}), K = {self.detector.k}, live.\n\n"
         )
 
@@ -223,7 +222,7 @@ class LiveRecording:
             self.cameras.log(view, frame, t)
             rec.log(paths.score(view), rr.Scalars(result.similarity[view]))
         rec.log(paths.delta, rr.Scalars(self.detector.delta))
-        rec.log(paths.state, rr.Scalars(float(result.state)))
+        rec.log(paths.state, rr.Scalars(float(result.alarm)))
         if self.detector.memory.successes is not None:
             rec.log(paths.gamma, rr.Scalars(self.detector.gamma))
             for view, match in result.nearest_success.items():
@@ -240,7 +239,7 @@ class LiveRecording:
             )
             for view, position in zip(views, placed, strict=True):
                 rec.log(paths.umap_query(view), rr.Points2D.from_fields(positions=[position]))
-        first_alarm = result.state and self.fired_at is None
+        first_alarm = result.alarm and self.fired_at is None
         self._log_neighbors(
             result, every=first_alarm
         )  # at the alarm, as a replay: the similarities that fired
@@ -267,8 +266,8 @@ class LiveRecording:
                     )
 
     def _alarm(self, frames: Mapping[str, np.ndarray | Frame], result: StepResult) -> None:
-        scores = result.similarity if result.rule is ScoreRule.PAPER else result.contrast
-        view = max(result.fired_views, key=lambda v: scores[v])
+        view = result.detected_view
+        assert view is not None  # an alarm has a firing view
         frame = frames[view]
         self.fired_at = result.t
         self.report = FailureReport.from_neighbors(
@@ -284,7 +283,7 @@ class LiveRecording:
             report=self.report,
             top=result.neighbors[view][0],
             rule=result.rule,
-            fired=f"{result.rule.score_name} = {scores[view]:.3f} ≥ {result.rule.symbol} = {result.threshold:.3f}",
+            fired=f"{result.rule.score_name} = {result.score[view]:.3f} ≥ {result.rule.symbol} = {result.threshold:.3f}",
             summary=self._summary(),
         )
 

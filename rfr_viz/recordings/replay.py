@@ -224,7 +224,7 @@ def _detector_properties(trace: DetectionTrace, memory_map: MemoryMap) -> dict[s
     return {
         "encoder": trace.encoder,
         "delta": float(trace.delta),
-        "score": trace.rule.value,
+        "score": trace.rule.name,
         "threshold": float(trace.threshold),
         "gamma": float(trace.gamma),
         "success_entries": len(trace.memory.successes) if trace.memory.successes is not None else 0,

@@ -19,9 +19,10 @@ from robofailring import _moved as _moved  # old module paths, deprecated (one r
 from robofailring.data.grounding import ground, parse_symbol
 from robofailring.data.layouts import Dataset, load_dataset, load_trajectory
 from robofailring.data.model import Frame, Outcome, Trajectory
+from robofailring.detection.conformal import smallest_target_fpr
 from robofailring.detection.detector import DetectorSession, FailureDetector, StepSink
 from robofailring.detection.loader import open_detector
-from robofailring.detection.rules import PAPER_DELTA, ScoreRule, smallest_target_fpr
+from robofailring.detection.rules import PAPER_DELTA, RULES, ScoringRule, rule_named
 from robofailring.detection.trace import DetectionTrace, StepResult
 from robofailring.encoders import CachedEncoder, Encoder, default_cache_dir, load_encoder, open_encoder
 from robofailring.errors import (
@@ -67,6 +68,7 @@ def __getattr__(name: str) -> object:
 
 __all__ = [
     "PAPER_DELTA",
+    "RULES",
     "SIM_VIEWS",
     "BuildMemoryConfig",
     "CachedEncoder",
@@ -92,7 +94,7 @@ __all__ = [
     "Neighbor",
     "Outcome",
     "RoboFailRingError",
-    "ScoreRule",
+    "ScoringRule",
     "SettingError",
     "StepResult",
     "StepSink",
@@ -115,6 +117,7 @@ __all__ = [
     "open_detector",
     "open_encoder",
     "parse_symbol",
+    "rule_named",
     "run_episode",
     "run_evaluation",
     "smallest_target_fpr",

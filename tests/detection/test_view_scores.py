@@ -40,6 +40,15 @@ def test_detected_view_is_the_highest_at_t_det_and_views_can_be_chosen() -> None
     )
 
 
+def test_a_step_fires_where_views_reach_the_threshold_and_its_view_is_the_strongest() -> None:
+    scores = _scores()
+    assert scores.firing(0.6, 2) == ["front", "wrist"]  # in view order
+    assert scores.strongest(0.6, 2) == "wrist"  # 0.9 over 0.7: the highest, not the first firing
+    assert scores.firing(0.4, 1) == ["wrist"] and scores.strongest(0.4, 1) == "wrist"  # NaN never fires
+    assert scores.firing(0.99, 3) == [] and scores.strongest(0.99, 3) is None
+    assert scores.strongest(0.6, 2, ["front"]) == "front"
+
+
 def test_the_evaluation_judges_through_the_same_type() -> None:
     scores = _scores()
     scored = ScoredTrajectory(

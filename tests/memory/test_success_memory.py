@@ -14,7 +14,8 @@ from synthetic import write_project_dataset
 
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
 from robofailring.data.model import Trajectory
-from robofailring.detection.rules import ScoreRule, conformal_threshold
+from robofailring.detection.conformal import conformal_threshold
+from robofailring.detection.rules import CONTRAST, PAPER
 from robofailring.errors import DataError, SettingError
 from robofailring.evaluation.calibration import calibrate_rules
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
@@ -78,7 +79,7 @@ def test_success_and_contrast_equal_brute_force(
         len(t.views) * (1 if t.is_failure else t.length) for t in train
     )
     detector = FailureDetector(memory, encoder, k=2)
-    assert detector.rule is ScoreRule.CONTRAST  # the default with successes in the memory
+    assert detector.rule is CONTRAST  # the default with successes in the memory
     test_failure = _trajectories(dataset, split="test", failure=True)[0]
     own_success = train_successes[0]  # its own frames are in the success memory: leave-one-out hides them
     for trajectory, leave_out in ((test_failure, False), (own_success, True)):
@@ -108,7 +109,7 @@ def test_step_api_equals_the_trace(built: tuple[FailureMemory, CachedEncoder, Pa
     session = detector.session(trajectory.task)
     for t in range(trace.length):
         step = session.step({view: frames[t] for view, frames in trajectory.views.items()})
-        assert step.rule is ScoreRule.CONTRAST and step.threshold == 0.01
+        assert step.rule is CONTRAST and step.threshold == 0.01
         for view in trace.views:
             assert step.success_similarity[view] == pytest.approx(
                 float(trace.success_similarity[view][t]), abs=1e-5
@@ -154,7 +155,7 @@ def test_saved_with_counts_and_old_folders_still_load(
     (old / "manifest.json").write_text(json.dumps(manifest))
     legacy = FailureMemory.load(old)
     assert legacy.successes is None and len(legacy) == len(memory)
-    assert FailureDetector(legacy, encoder).rule is ScoreRule.PAPER
+    assert FailureDetector(legacy, encoder).rule is PAPER
     with pytest.raises(SettingError, match="--score paper"):
         FailureDetector(legacy, encoder, rule="contrast")
     # a success memory written as one flat `success.faiss` (before per-task index files) still loads
@@ -207,9 +208,9 @@ def test_calibration_leaves_each_run_out(
         splus = _brute_force(trajectory, train, exclude_own=True)
         trace = detector.run(trajectory, leave_one_out=True)
         peaks.append(max(float(np.max(trace.similarity[v] - splus[v])) for v in trace.views))
-    assert found[ScoreRule.CONTRAST].threshold == pytest.approx(conformal_threshold(peaks, 1 / 6), abs=1e-5)
-    assert found[ScoreRule.CONTRAST].successes == 6
-    assert math.isfinite(found[ScoreRule.PAPER].threshold)
+    assert found[CONTRAST].threshold == pytest.approx(conformal_threshold(peaks, 1 / 6), abs=1e-5)
+    assert found[CONTRAST].successes == 6
+    assert math.isfinite(found[PAPER].threshold)
     with pytest.raises(
         DataError, match=r"needs at least 19 success runs.*smallest α these 6 runs allow is 0\.1429"
     ):

@@ -20,7 +20,7 @@ from robofailring import (
     load_dataset,
     load_encoder,
 )
-from robofailring.detection.rules import ScoreRule
+from robofailring.detection.rules import CONTRAST
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 
 
@@ -36,7 +36,7 @@ def replayed(tmp_path_factory: pytest.TempPathFactory) -> tuple[Trajectory, Dete
     encoder = CachedEncoder(load_encoder("pixels"), cache_dir=root / "c")
     trajectory = next(t for t in load_dataset(data).select(split="test") if t.is_failure)
     first = FailureDetector(memory, encoder, k=2).run(trajectory)
-    trace = first.with_rule(ScoreRule.CONTRAST, float(np.median(first.max_score())))  # fires part-way
+    trace = first.with_rule(CONTRAST, float(np.median(first.max_score())))  # fires part-way
     assert trace.t_det is not None
     return trajectory, trace, record_replay(trajectory, trace, out=root / "replay.rrd")
 

@@ -14,6 +14,7 @@ import typer
 
 from robofailring.cli.exit_codes import fail
 from robofailring.data.model import Skipped
+from robofailring.detection.rules import RULES
 from robofailring.memory.references import ReferenceCheck
 
 if TYPE_CHECKING:
@@ -63,8 +64,9 @@ ScoreOption = Annotated[
     str | None,
     typer.Option(
         "--score",
-        help="Scoring rule: `paper` (S_t ≥ δ) or `contrast` (C_t = S⁻_t − S⁺_t ≥ γ); "
-        "default: contrast when the memory has success runs, else paper.",
+        help="Scoring rule: "
+        + " or ".join(f"`{rule.name}` ({rule.formula} ≥ {rule.symbol})" for rule in RULES.values())
+        + "; default: contrast when the memory has success runs, else paper.",
     ),
 ]
 GammaOption = Annotated[

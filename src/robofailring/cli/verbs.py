@@ -253,7 +253,7 @@ def detect_cmd(
     rule = trace.rule
     scored = f", every {trace.stride}th frame scored" if trace.stride > 1 else ""
     typer.echo(
-        f"task {trace.task}, L = {trace.length} frames{scored}, rule {rule.value}: {rule.score_name} ≥ "
+        f"task {trace.task}, L = {trace.length} frames{scored}, rule {rule.name}: {rule.score_name} ≥ "
         f"{rule.symbol} = {trace.threshold:.3f}, K = {trace.k}"
     )
     contrasts = trace.contrast
@@ -271,7 +271,7 @@ def detect_cmd(
         fired_score = float(trace.scores[fired_view][trace.t_det])
         typer.echo(
             f"FAILURE detected at frame {trace.t_det}/{trace.length} in view {fired_view} "
-            f"({rule.value} rule: {rule.score_name} = {fired_score:.3f}, S⁻_t = {top.similarity:.3f}); nearest memory entry {top.entry.task}/{top.entry.episode} "
+            f"({rule.name} rule: {rule.score_name} = {fired_score:.3f}, S⁻_t = {top.similarity:.3f}); nearest memory entry {top.entry.task}/{top.entry.episode} "
             f"[{top.entry.view}] {top.entry.symbol}: {top.entry.description}"
         )
         if answer is not None and answer.answer is not None:

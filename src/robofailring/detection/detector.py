@@ -2,21 +2,22 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import Final, Protocol
 
 import numpy as np
 
 from robofailring.data.images import as_rgb
 from robofailring.data.model import Frame, Trajectory
-from robofailring.detection.rules import DEFAULT_GAMMA, PAPER_DELTA, ScoreRule, check_threshold
+from robofailring.detection.rules import CONTRAST, PAPER, RULES, ScoringRule, default_rule, rule_named
 from robofailring.detection.trace import DetectionTrace, StepResult
+from robofailring.detection.view_scores import ViewScores
 from robofailring.encoders.base import Encoder, l2_normalize
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import DataError, SettingError
-from robofailring.memory.failure import FailureMemory, Neighbor
+from robofailring.memory.failure import FailureMemory
 from robofailring.memory.pairs import pair_vectors
-from robofailring.memory.success import SuccessMatch
 
 DEFAULT_K: Final[int] = 5
 
@@ -35,11 +36,19 @@ def check_stride(stride: int) -> int:
     return stride
 
 
-def check_delta(delta: float) -> float:
-    """δ: a cosine similarity threshold, so within [-1, 1] (SettingError otherwise)."""
-    if not -1.0 <= delta <= 1.0:  # also rejects NaN
-        raise SettingError(f"δ must lie in [-1, 1] (S_t is a cosine similarity), got {delta}")
-    return delta
+@dataclass(frozen=True)
+class Retrieved:
+    """The batched core's answer for T frames of each view: queries, the K nearest failure ends, S⁺."""
+
+    queries: dict[str, np.ndarray]  # (T, 2d) per view: (f(I_0) ‖ f(I_t))
+    neighbor_similarity: dict[str, np.ndarray]  # (T, K) per view; column 0 is S⁻_t
+    neighbor_ids: dict[str, np.ndarray]  # (T, K) global memory ids, -1: none
+    success_similarity: dict[str, np.ndarray]  # (T,) S⁺_t per view; empty without success runs
+    success_ids: dict[str, np.ndarray]  # (T,) its success-memory row, -1: none
+
+    def similarity(self, view: str) -> np.ndarray:
+        """S⁻_t of `view`: the nearest failure end's similarity per frame."""
+        return self.neighbor_similarity[view][:, 0].copy()
 
 
 class StepSink(Protocol):
@@ -51,7 +60,12 @@ class StepSink(Protocol):
 
 
 class FailureDetector:
-    """Matches (first frame ‖ current frame) queries against one task's failure memory."""
+    """Matches (first frame ‖ current frame) queries against one task's failure memory.
+
+    It judges by one scoring rule (`robofailring.detection.rules`) at that rule's threshold; the
+    thresholds of every rule come from `delta`/`gamma` when given, else the memory's stored
+    calibration, else the rule's default.
+    """
 
     def __init__(
         self,
@@ -60,61 +74,102 @@ class FailureDetector:
         *,
         delta: float | None = None,
         k: int = DEFAULT_K,
-        rule: ScoreRule | str | None = None,
+        rule: ScoringRule | str | None = None,
         gamma: float | None = None,
     ) -> None:
         memory.check_encoder(encoder.identity)
         check_k(k)
-        if delta is not None:
-            check_delta(delta)
-        if gamma is not None:
-            check_threshold(ScoreRule.CONTRAST, gamma)
-        self.rule = default_rule(memory) if rule is None else ScoreRule.parse(rule)
-        if self.rule is ScoreRule.CONTRAST and memory.successes is None:
+        self.thresholds = _thresholds(memory, {"delta": delta, "gamma": gamma})
+        self.rule = default_rule(successes=memory.successes is not None) if rule is None else rule_named(rule)
+        if self.rule.needs_successes and memory.successes is None:
             raise SettingError(
-                "the contrast rule needs success runs in the memory, and this one has none (built with "
+                f"the {self.rule.name} rule needs success runs in the memory, and this one has none (built with "
                 "--no-successes or before success contrast existed); use --score paper or rebuild the memory"
             )
         self.memory = memory
         self.encoder = (
             encoder if isinstance(encoder, CachedEncoder) else CachedEncoder(encoder, enabled=False)
         )
-        calibrated = memory.calibrated_delta
-        self.delta = float(
-            delta if delta is not None else calibrated if calibrated is not None else PAPER_DELTA
-        )
-        calibrated_gamma = memory.calibrated_gamma
-        self.gamma = float(
-            gamma
-            if gamma is not None
-            else calibrated_gamma
-            if calibrated_gamma is not None
-            else DEFAULT_GAMMA
-        )
         self.k = k
 
     @property
     def threshold(self) -> float:
-        """δ (paper rule) or γ (contrast rule)."""
-        return self.delta if self.rule is ScoreRule.PAPER else self.gamma
+        """The rule's threshold: δ (paper rule), γ (contrast rule), …"""
+        return self.threshold_of(self.rule)
+
+    def threshold_of(self, rule: ScoringRule) -> float:
+        """Any rule's threshold as this detector has it."""
+        return self.thresholds.get(rule.name, rule.default_threshold)
+
+    @property
+    def delta(self) -> float:
+        """The paper rule's δ."""
+        return self.threshold_of(PAPER)
+
+    @property
+    def gamma(self) -> float:
+        """The contrast rule's γ."""
+        return self.threshold_of(CONTRAST)
 
     def _check_task(self, task: str) -> None:
-        """Unknown task, or a contrast rule for a task without success runs: a clear error up front."""
+        """Unknown task, or a rule needing success runs for a task without any: a clear error up front."""
         self.memory.task_size(task)
         successes = self.memory.successes
-        if self.rule is ScoreRule.CONTRAST and successes is not None and not successes.has_task(task):
+        if self.rule.needs_successes and successes is not None and not successes.has_task(task):
             raise SettingError(
-                f"task {task!r} has no success runs in the memory, so the contrast rule cannot judge it; "
+                f"task {task!r} has no success runs in the memory, so the {self.rule.name} rule cannot judge it; "
                 "use --score paper or add success runs of this task"
             )
 
-    def success_search(
-        self, queries: np.ndarray, task: str, exclude: str | None
-    ) -> tuple[np.ndarray, np.ndarray] | None:
+    def encode(self, frames: Sequence[np.ndarray | Frame], views: Sequence[str]) -> np.ndarray:
+        """Unit-norm embeddings of `frames` (one per view name in `views`, for error messages).
+
+        Frames from files go through the encoder's cache; live arrays are new every step, so they do not."""
+        if all(isinstance(f, Frame) for f in frames):
+            return self.encoder.encode_frames([f for f in frames if isinstance(f, Frame)])
+        images = [
+            f.load() if isinstance(f, Frame) else as_rgb(f, source=f"view {v}")
+            for v, f in zip(views, frames, strict=True)
+        ]
+        return l2_normalize(self.encoder.encoder.encode(images))
+
+    def retrieve(
+        self,
+        task: str,
+        first: Mapping[str, np.ndarray],
+        current: Mapping[str, np.ndarray],
+        *,
+        exclude_episode: str | None = None,
+    ) -> Retrieved:
+        """The batched core of `run` and `step`: pair queries, one search per memory for all views and frames.
+
+        `first` holds f(I_0) per view, `current` the (T, d) embeddings of T frames per view.
+        """
+        views = list(current)
+        queries = {
+            view: pair_vectors(
+                np.repeat(np.atleast_2d(first[view]), len(current[view]), axis=0), current[view]
+            )
+            for view in views
+        }
+        stacked = np.concatenate([queries[view] for view in views])
+        sims, ids = self.memory.search(stacked, task, self.k, exclude_episode=exclude_episode)
+        bounds = np.cumsum([0] + [len(queries[view]) for view in views])
+        rows = {view: slice(int(bounds[i]), int(bounds[i + 1])) for i, view in enumerate(views)}
+        success_similarity: dict[str, np.ndarray] = {}
+        success_ids: dict[str, np.ndarray] = {}
         successes = self.memory.successes
-        if successes is None:
-            return None
-        return successes.search(queries, task, exclude_episode=exclude)
+        if successes is not None:
+            success_sims, success_rows = successes.search(stacked, task, exclude_episode=exclude_episode)
+            success_similarity = {view: success_sims[rows[view]] for view in views}
+            success_ids = {view: success_rows[rows[view]] for view in views}
+        return Retrieved(
+            queries=queries,
+            neighbor_similarity={view: sims[rows[view]] for view in views},
+            neighbor_ids={view: ids[rows[view]] for view in views},
+            success_similarity=success_similarity,
+            success_ids=success_ids,
+        )
 
     def session(
         self, task: str, *, exclude_episode: str | None = None, sink: StepSink | None = None
@@ -141,62 +196,66 @@ class FailureDetector:
         views = list(used)
         steps = np.arange(0, length, stride)
         frames = [used[view][int(t)] for view in views for t in steps]
-        embeddings = self.encoder.encode_frames(frames).reshape(len(views), len(steps), -1)
-        exclude = trajectory.episode if leave_one_out else None
-        similarity, ids, sims, queries = {}, {}, {}, {}
-        success_similarity, success_ids = {}, {}
-        for position, view in enumerate(views):
-            view_embeddings = embeddings[position]
-            queries[view] = pair_vectors(np.repeat(view_embeddings[:1], len(steps), axis=0), view_embeddings)
-        stacked = np.concatenate([queries[view] for view in views])  # one search per memory, all views
-        all_sims, all_ids = self.memory.search(stacked, trajectory.task, self.k, exclude_episode=exclude)
-        all_success = self.success_search(stacked, trajectory.task, exclude)
-        for position, view in enumerate(views):
-            rows = slice(position * len(steps), (position + 1) * len(steps))
-            query = queries[view]
-            top_sims, top_ids = all_sims[rows], all_ids[rows]
-            if stride > 1:  # back onto original frame numbers: unscored frames never fire
-                full_sims = np.full((length, self.k), np.nan, dtype=top_sims.dtype)
-                full_ids = np.full((length, self.k), -1, dtype=top_ids.dtype)
-                full_sims[steps], full_ids[steps] = top_sims, top_ids
-                top_sims, top_ids = full_sims, full_ids
-            similarity[view] = top_sims[:, 0].copy()
-            ids[view], sims[view], queries[view] = top_ids, top_sims, query
-            if all_success is not None:
-                success_sims, success_rows = all_success[0][rows], all_success[1][rows]
-                if stride > 1:  # as above: S⁺ only at scored frames
-                    full_success = np.full(length, np.nan, dtype=success_sims.dtype)
-                    full_rows = np.full(length, -1, dtype=success_rows.dtype)
-                    full_success[steps], full_rows[steps] = success_sims, success_rows
-                    success_sims, success_rows = full_success, full_rows
-                success_similarity[view], success_ids[view] = success_sims, success_rows
+        embeddings = self.encode(frames, [view for view in views for _ in steps]).reshape(
+            len(views), len(steps), -1
+        )
+        current = {view: embeddings[position] for position, view in enumerate(views)}
+        found = self.retrieve(
+            trajectory.task,
+            {view: current[view][0] for view in views},
+            current,
+            exclude_episode=trajectory.episode if leave_one_out else None,
+        )
+
+        def on_frames(values: np.ndarray, fill: float) -> np.ndarray:
+            """Scored rows back onto original frame numbers: unscored frames never fire."""
+            if stride == 1:
+                return values
+            full = np.full((length, *values.shape[1:]), fill, dtype=values.dtype)
+            full[steps] = values
+            return full
+
+        neighbor_similarity = {view: on_frames(found.neighbor_similarity[view], np.nan) for view in views}
         return DetectionTrace(
             task=trajectory.task,
             episode=trajectory.episode,
             length=length,
-            delta=self.delta,
+            rule=self.rule,
+            thresholds=dict(self.thresholds),
             k=self.k,
             encoder=self.encoder.identity,
             views=views,
-            similarity=similarity,
-            neighbor_ids=ids,
-            neighbor_similarity=sims,
-            queries=queries,
+            similarity={view: neighbor_similarity[view][:, 0].copy() for view in views},
+            neighbor_ids={view: on_frames(found.neighbor_ids[view], -1) for view in views},
+            neighbor_similarity=neighbor_similarity,
+            queries=found.queries,
             memory=self.memory,
             skipped_views=skipped,
             view_frames={view: len(frames) for view, frames in trajectory.views.items()},
             stride=stride,
             skipped_inputs=list(trajectory.skipped),
-            rule=self.rule,
-            gamma=self.gamma,
-            success_similarity=success_similarity,
-            success_ids=success_ids,
+            success_similarity={v: on_frames(s, np.nan) for v, s in found.success_similarity.items()},
+            success_ids={v: on_frames(i, -1) for v, i in found.success_ids.items()},
         )
 
 
-def default_rule(memory: FailureMemory) -> ScoreRule:
-    """`contrast` when the memory holds success runs, else the paper's rule."""
-    return ScoreRule.CONTRAST if memory.successes is not None else ScoreRule.PAPER
+def stored_threshold(memory: FailureMemory, rule: ScoringRule) -> float | None:
+    """`rule`'s threshold as the memory's calibration stored it for the memory's encoder, or None."""
+    calibration = memory.manifest.calibration
+    return calibration.threshold_for(memory.encoder, rule.threshold_key) if calibration is not None else None
+
+
+def _thresholds(memory: FailureMemory, given: Mapping[str, float | None]) -> dict[str, float]:
+    """Every registered rule's threshold by name: `given` (by its threshold key), else stored, else default."""
+    thresholds = {}
+    for rule in RULES.values():
+        value = given.get(rule.threshold_key)
+        if value is not None:
+            rule.check_threshold(value)
+        else:
+            value = stored_threshold(memory, rule)
+        thresholds[rule.name] = float(value if value is not None else rule.default_threshold)
+    return thresholds
 
 
 class DetectorSession:
@@ -220,51 +279,45 @@ class DetectorSession:
 
     def step(self, frames: Mapping[str, np.ndarray | Frame]) -> StepResult:
         """Feed the current frame of each view; the first call also fixes I_0 per view."""
+        detector = self.detector
         views = list(frames)
-        values = list(frames.values())
-        if all(isinstance(f, Frame) for f in values):
-            embeddings = self.detector.encoder.encode_frames([f for f in values if isinstance(f, Frame)])
-        else:  # live frames are new every step: no cache round trip
-            images = [
-                f.load() if isinstance(f, Frame) else as_rgb(f, source=f"view {v}") for v, f in frames.items()
-            ]
-            embeddings = l2_normalize(self.detector.encoder.encoder.encode(images))
-        similarity: dict[str, float] = {}
-        success: dict[str, float] = {}
-        nearest: dict[str, SuccessMatch | None] = {}
-        neighbors: dict[str, list[Neighbor]] = {}
-        queries: dict[str, np.ndarray] = {}
-        for view, embedding in zip(views, embeddings, strict=True):
-            first = self._first.setdefault(view, embedding)
-            queries[view] = pair_vectors(first, embedding)[0]
-        stacked = np.stack([queries[view] for view in views])  # one search per memory for all views
-        sims, ids = self.detector.memory.search(
-            stacked, self.task, self.detector.k, exclude_episode=self.exclude_episode
-        )
-        found = self.detector.success_search(stacked, self.task, self.exclude_episode)
-        successes = self.detector.memory.successes
-        for row, view in enumerate(views):
-            similarity[view] = float(sims[row, 0])
-            neighbors[view] = self.detector.memory.neighbors(sims[row], ids[row])
-            success[view] = float(found[0][row]) if found is not None else float("nan")
-            if found is not None and successes is not None:
-                nearest[view] = successes.match(success[view], int(found[1][row]))
-        contrasts = {v: similarity[v] - success[v] for v in views}
-        rule, threshold = self.detector.rule, self.detector.threshold
-        scores = similarity if rule is ScoreRule.PAPER else contrasts
-        fired = [v for v in views if scores[v] >= threshold]  # NaN never fires
+        embeddings = detector.encode(list(frames.values()), views)
+        current = {view: embedding[None] for view, embedding in zip(views, embeddings, strict=True)}
+        first = {view: self._first.setdefault(view, current[view][0]) for view in views}
+        found = detector.retrieve(self.task, first, current, exclude_episode=self.exclude_episode)
+        missing = np.full(1, np.nan, np.float32)
+        failure = {view: found.similarity(view) for view in views}
+        success = {view: found.success_similarity.get(view, missing) for view in views}
+        rule, threshold = detector.rule, detector.threshold
+        scores = ViewScores({view: rule.score(failure[view], success[view]) for view in views}, 1)
+        successes = detector.memory.successes
+        fired = scores.firing(threshold, 0)
         result = StepResult(
             t=self.t,
-            similarity=similarity,
-            neighbors=neighbors,
-            state=bool(fired),
+            similarity={view: float(failure[view][0]) for view in views},
+            neighbors={
+                view: detector.memory.neighbors(
+                    found.neighbor_similarity[view][0], found.neighbor_ids[view][0]
+                )
+                for view in views
+            },
+            alarm=bool(fired),
             fired_views=fired,
-            queries=queries,
-            success_similarity=success,
-            nearest_success=nearest,
-            contrast=contrasts,
+            score={view: float(scores.by_view[view][0]) for view in views},
             rule=rule,
             threshold=threshold,
+            detected_view=scores.strongest(threshold, 0),
+            success_similarity={view: float(success[view][0]) for view in views},
+            nearest_success={
+                view: successes.match(
+                    float(found.success_similarity[view][0]), int(found.success_ids[view][0])
+                )
+                for view in views
+            }
+            if successes is not None
+            else {},
+            contrast={view: float(CONTRAST.score(failure[view], success[view])[0]) for view in views},
+            queries={view: found.queries[view][0] for view in views},
         )
         if fired and self.fired_at is None:
             self.fired_at = self.t

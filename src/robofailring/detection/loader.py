@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from robofailring.detection.detector import DEFAULT_K, FailureDetector
-from robofailring.detection.rules import ScoreRule
+from robofailring.detection.rules import ScoringRule
 from robofailring.encoders import open_encoder
 from robofailring.memory.failure import FailureMemory, encoder_spec_for
 
@@ -14,7 +14,7 @@ def open_detector(
     memory_dir: str | Path,
     *,
     device: str | None = None,
-    rule: ScoreRule | str | None = None,
+    rule: ScoringRule | str | None = None,
     delta: float | None = None,
     gamma: float | None = None,
     k: int = DEFAULT_K,

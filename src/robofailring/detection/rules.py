@@ -1,124 +1,117 @@
-"""Scoring rules and their calibration: the paper's S_t ≥ δ, and success contrast C_t = S⁻_t − S⁺_t ≥ γ.
+"""Scoring rules: which score the detector thresholds, each rule one class behind one interface.
 
-`paper` is the rule of paper §3.3 (eq. 6–7). `contrast` is this project's addition (README,
-"Success contrast"): the same query is also matched against the task's success runs, and the alarm
-needs the current state to be nearer a failure's end than anything seen in a normal run.
+`paper` is the rule of paper §3.3 (eq. 6–7): S⁻_t ≥ δ. `contrast` is this project's addition
+(README, "Success contrast"): the same query is also matched against the task's success runs, and
+the alarm needs the current state to be nearer a failure's end than anything seen in a normal run,
+C_t = S⁻_t − S⁺_t ≥ γ. Both thresholds are set by split-conformal calibration
+(`robofailring.detection.conformal`).
 
-Thresholds are set by split conformal calibration: with n success runs' peak scores, the threshold
-sits just above the ⌈(n+1)(1−α)⌉-th smallest, so a new exchangeable success run fires with
-probability ≤ α.
+A new rule is one `ScoringRule` subclass added to `RULES`: the detector, its trace, the live step,
+the evaluation, the CLI's `--score` and the recordings all ask the rule object.
 """
 
 from __future__ import annotations
 
-import math
-from collections.abc import Sequence
-from enum import StrEnum
-from typing import Final
+from abc import ABC, abstractmethod
+from typing import ClassVar, Final
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from robofailring.errors import DataError, SettingError
-
-DEFAULT_GAMMA: Final[float] = 0.0  # uncalibrated contrast: nearer a failure's end than any success frame
-PAPER_DELTA: Final[float] = 0.92  # the paper's default δ (§4), used until a memory is calibrated
+from robofailring.errors import SettingError
 
 
-class ScoreRule(StrEnum):
-    """Which score the detector thresholds: S⁻_t against δ (paper) or C_t against γ (contrast)."""
+class ScoringRule(ABC):
+    """One scoring rule: the score it computes from S⁻ and S⁺, and the threshold it is judged against."""
 
-    PAPER = "paper"
-    CONTRAST = "contrast"
+    name: ClassVar[str]  # written into JSON, manifests and recordings, and `--score`'s choices
+    symbol: ClassVar[str]  # the threshold's symbol, e.g. δ
+    score_name: ClassVar[str]  # the score's symbol, e.g. S_t
+    formula: ClassVar[str]  # what the score is, for help texts
+    threshold_key: ClassVar[str]  # the threshold's name in a memory's stored calibration and the options
+    bounds: ClassVar[tuple[float, float]]  # the valid threshold range
+    default_threshold: ClassVar[float]  # used until a memory is calibrated
+    needs_successes: ClassVar[bool]  # the score needs S⁺, so a memory with success runs
 
-    @property
-    def symbol(self) -> str:
-        """The threshold's name: δ or γ."""
-        return "δ" if self is ScoreRule.PAPER else "γ"
+    @abstractmethod
+    def score(self, failure_similarity: ArrayLike, success_similarity: ArrayLike) -> np.ndarray:
+        """The rule's score from S⁻ and S⁺ (scalars or arrays alike); NaN where it cannot be scored."""
 
-    @property
-    def score_name(self) -> str:
-        return "S_t" if self is ScoreRule.PAPER else "C_t"
-
-    @classmethod
-    def parse(cls, value: str | ScoreRule) -> ScoreRule:
-        """A rule from its name; SettingError naming the choices otherwise."""
-        if isinstance(value, ScoreRule):
-            return value
-        try:
-            return cls(value)
-        except ValueError:
+    def check_threshold(self, value: float) -> float:
+        """`value` when it lies in the rule's range; SettingError otherwise (NaN too)."""
+        low, high = self.bounds
+        if not low <= value <= high:
             raise SettingError(
-                f"unknown scoring rule {value!r}; choose one of {[rule.value for rule in cls]}"
-            ) from None
+                f"{self.symbol} must lie in [{low:g}, {high:g}] for the {self.name} rule, got {value}"
+            )
+        return value
+
+    def fires(self, score: ArrayLike, threshold: float) -> np.ndarray:
+        """Where `score` reaches `threshold` (NaN never fires)."""
+        return np.asarray(np.asarray(score, dtype=np.float32) >= threshold)
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}()"
+
+    def __str__(self) -> str:
+        return self.name
 
 
-def check_target_fpr(target_fpr: float) -> float:
-    """A target false-positive rate α for (conformal) calibration: within (0, 1) (SettingError otherwise)."""
-    if not 0.0 < target_fpr < 1.0:
-        raise SettingError(f"target FPR must be in (0, 1), got {target_fpr}")
-    return target_fpr
+class PaperRule(ScoringRule):
+    """The paper's rule (§3.3, eq. 6–7): fire when S⁻_t, the nearest failure end's similarity, reaches δ."""
+
+    name = "paper"
+    symbol = "δ"
+    score_name = "S_t"
+    formula = "S_t"
+    threshold_key = "delta"
+    bounds = (-1.0, 1.0)  # a cosine similarity
+    default_threshold = 0.92  # the paper's δ (§4)
+    needs_successes = False
+
+    def score(self, failure_similarity: ArrayLike, success_similarity: ArrayLike) -> np.ndarray:
+        return np.asarray(failure_similarity, dtype=np.float32)
 
 
-def check_threshold(rule: ScoreRule, value: float) -> float:
-    """δ lies in [-1, 1] (a cosine), γ in [-2, 2] (a difference of two cosines); SettingError otherwise."""
-    bound = 1.0 if rule is ScoreRule.PAPER else 2.0
-    if not -bound <= value <= bound:  # also rejects NaN
-        raise SettingError(
-            f"{rule.symbol} must lie in [{-bound:g}, {bound:g}] for the {rule.value} rule, got {value}"
+class ContrastRule(ScoringRule):
+    """Success contrast: fire when C_t = S⁻_t − S⁺_t reaches γ (nearer a failure's end than any success frame)."""
+
+    name = "contrast"
+    symbol = "γ"
+    score_name = "C_t"
+    formula = "C_t = S⁻_t − S⁺_t"
+    threshold_key = "gamma"
+    bounds = (-2.0, 2.0)  # a difference of two cosines
+    default_threshold = 0.0
+    needs_successes = True
+
+    def score(self, failure_similarity: ArrayLike, success_similarity: ArrayLike) -> np.ndarray:
+        return np.asarray(failure_similarity, dtype=np.float32) - np.asarray(
+            success_similarity, dtype=np.float32
         )
-    return value
 
 
-def contrast(failure: np.ndarray, success: np.ndarray) -> np.ndarray:
-    """C_t = S⁻_t − S⁺_t; NaN where either is missing (NaN never fires)."""
-    return np.asarray(failure, dtype=np.float32) - np.asarray(success, dtype=np.float32)
+PAPER: Final[ScoringRule] = PaperRule()
+CONTRAST: Final[ScoringRule] = ContrastRule()
+RULES: Final[dict[str, ScoringRule]] = {rule.name: rule for rule in (PAPER, CONTRAST)}
+PAPER_DELTA: Final[float] = PaperRule.default_threshold  # the paper's default δ (§4)
 
 
-def successes_needed(alpha: float) -> int:
-    """The fewest success runs for which a conformal threshold at level α exists: ⌈1/α − 1⌉."""
-    return max(math.ceil(1.0 / alpha - 1.0 - 1e-9), 1)
+def rule_named(name: str | ScoringRule) -> ScoringRule:
+    """The registered rule of this name (a rule is returned as it is); SettingError naming the choices."""
+    if isinstance(name, ScoringRule):
+        return name
+    try:
+        return RULES[name]
+    except KeyError:
+        raise SettingError(f"unknown scoring rule {name!r}; choose one of {list(RULES)}") from None
 
 
-def smallest_target_fpr(successes: int) -> float:
-    """The smallest α that `successes` calibration runs allow: 1/(n+1) (n ≥ 1/α − 1)."""
-    return 1.0 / (successes + 1)
+def rules_for(*, successes: bool) -> list[ScoringRule]:
+    """The registered rules a memory supports: those needing S⁺ only when it holds success runs."""
+    return [rule for rule in RULES.values() if successes or not rule.needs_successes]
 
 
-def conformal_threshold(peaks: Sequence[float], alpha: float) -> float:
-    """The split-conformal threshold for success peak scores at level α.
-
-    The alarm fires when a score reaches the threshold; it is set just above the
-    ⌈(n+1)(1−α)⌉-th smallest peak, so an exchangeable new success run fires with probability
-    at most α. With n < 1/α − 1 runs no such threshold exists: DataError says how many are needed
-    and the smallest α these runs allow (1/(n+1)).
-    """
-    check_target_fpr(alpha)
-    values = np.sort(np.asarray([p for p in peaks if math.isfinite(p)], dtype=np.float32))
-    n = int(values.size)
-    rank = math.ceil((n + 1) * (1.0 - alpha) - 1e-9)
-    if n == 0 or rank > n:
-        smallest = f"; the smallest α these {n} runs allow is {smallest_target_fpr(n):.4g}" if n else ""
-        raise DataError(
-            f"a guaranteed false-positive rate of {alpha:g} needs at least {successes_needed(alpha)} success "
-            f"runs to calibrate on, got {n}{smallest}"
-        )
-    return float(np.nextafter(values[rank - 1], np.float32(np.inf)))
-
-
-def empirical_fpr(peaks: Sequence[float], threshold: float) -> float:
-    """The share of these peak scores that reach the threshold."""
-    values = np.asarray(peaks, dtype=np.float32)
-    return float(np.count_nonzero(values >= np.float32(threshold))) / max(values.size, 1)
-
-
-def auc(failure_peaks: Sequence[float], success_peaks: Sequence[float]) -> float:
-    """Area under the ROC curve of peak scores: P(failure peak > success peak), ties count half."""
-    positives = np.asarray(failure_peaks, dtype=np.float64)
-    negatives = np.asarray(success_peaks, dtype=np.float64)
-    if positives.size == 0 or negatives.size == 0:
-        return float("nan")
-    positives = np.nan_to_num(positives, nan=-np.inf)
-    negatives = np.nan_to_num(negatives, nan=-np.inf)
-    greater = (positives[:, None] > negatives[None, :]).sum()
-    ties = (positives[:, None] == negatives[None, :]).sum()
-    return float((greater + 0.5 * ties) / (positives.size * negatives.size))
+def default_rule(*, successes: bool) -> ScoringRule:
+    """`contrast` when the memory holds success runs, else the paper's rule."""
+    return CONTRAST if successes else PAPER

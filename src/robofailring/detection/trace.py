@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from robofailring.data.model import Skipped
-from robofailring.detection.rules import DEFAULT_GAMMA, PAPER_DELTA, ScoreRule, contrast
+from robofailring.detection.rules import CONTRAST, PAPER, ScoringRule
 from robofailring.detection.view_scores import ViewScores
 from robofailring.memory.failure import FailureMemory, Neighbor
 from robofailring.memory.success import SuccessMatch
@@ -22,14 +22,21 @@ class StepResult:
     t: int
     similarity: dict[str, float]  # S⁻_t per view (the paper's S_t)
     neighbors: dict[str, list[Neighbor]]
-    state: bool
-    fired_views: list[str]
+    alarm: bool  # State_t: some view's score reaches the threshold
+    fired_views: list[str]  # the views whose score reaches it, in view order
+    score: dict[str, float]  # the rule's score per view (S_t or C_t; NaN: not scored)
+    rule: ScoringRule
+    threshold: float
+    detected_view: str | None  # the firing view with the highest score, None without an alarm
     success_similarity: dict[str, float] = field(default_factory=dict)  # S⁺_t per view (NaN: none)
     nearest_success: dict[str, SuccessMatch | None] = field(default_factory=dict)  # its success frame
     contrast: dict[str, float] = field(default_factory=dict)  # C_t = S⁻_t − S⁺_t per view
-    rule: ScoreRule = ScoreRule.PAPER
-    threshold: float = PAPER_DELTA
     queries: dict[str, np.ndarray] = field(default_factory=dict, repr=False)  # (f(I_0) ‖ f(I_t)) per view
+
+    @property
+    def state(self) -> bool:
+        """`alarm`, by its name in the paper (State_t, eq. 7)."""
+        return self.alarm
 
 
 @dataclass
@@ -39,7 +46,8 @@ class DetectionTrace:
     task: str
     episode: str
     length: int
-    delta: float
+    rule: ScoringRule
+    thresholds: dict[str, float]  # per rule name (δ, γ, …): the trace is judged by `rule` at its own
     k: int
     encoder: str
     views: list[str]
@@ -58,30 +66,45 @@ class DetectionTrace:
         """Indices (original frame numbers) of the frames that were scored: 0, stride, 2·stride, …"""
         return np.arange(0, self.length, self.stride)
 
-    rule: ScoreRule = ScoreRule.PAPER
-    gamma: float = DEFAULT_GAMMA
     success_similarity: dict[str, np.ndarray] = field(default_factory=dict)  # S⁺_t per view
     success_ids: dict[str, np.ndarray] = field(default_factory=dict)  # its success-memory row, -1: none
 
     @property
     def threshold(self) -> float:
-        """δ for the paper rule, γ for the contrast rule."""
-        return self.delta if self.rule is ScoreRule.PAPER else self.gamma
+        """The rule's threshold (δ for the paper rule, γ for the contrast rule)."""
+        return self.threshold_of(self.rule)
+
+    def threshold_of(self, rule: ScoringRule) -> float:
+        """Another rule's threshold, as the detector had it (e.g. γ to draw beside δ)."""
+        return self.thresholds.get(rule.name, rule.default_threshold)
 
     @property
-    def contrast(self) -> dict[str, np.ndarray]:
-        """C_t = S⁻_t − S⁺_t per view (NaN throughout when the memory has no success runs)."""
+    def delta(self) -> float:
+        """The paper rule's δ."""
+        return self.threshold_of(PAPER)
+
+    @property
+    def gamma(self) -> float:
+        """The contrast rule's γ."""
+        return self.threshold_of(CONTRAST)
+
+    def scores_of(self, rule: ScoringRule) -> dict[str, np.ndarray]:
+        """`rule`'s score per view from S⁻ and S⁺ (S⁺ NaN throughout when the memory has no success runs)."""
+        missing = np.full(self.length, np.nan, np.float32)
         return {
-            view: contrast(self.similarity[view], self.success_similarity[view])
-            if view in self.success_similarity
-            else np.full(self.length, np.nan, np.float32)
+            view: rule.score(self.similarity[view], self.success_similarity.get(view, missing))
             for view in self.views
         }
 
     @property
+    def contrast(self) -> dict[str, np.ndarray]:
+        """C_t = S⁻_t − S⁺_t per view (NaN throughout when the memory has no success runs)."""
+        return self.scores_of(CONTRAST)
+
+    @property
     def scores(self) -> dict[str, np.ndarray]:
         """The score the rule thresholds, per view: S⁻_t (paper) or C_t (contrast)."""
-        return self.similarity if self.rule is ScoreRule.PAPER else self.contrast
+        return self.scores_of(self.rule)
 
     @property
     def view_scores(self) -> ViewScores:
@@ -132,13 +155,13 @@ class DetectionTrace:
         return self.memory.neighbors(self.neighbor_similarity[view][t], self.neighbor_ids[view][t])
 
     def with_delta(self, delta: float) -> DetectionTrace:
-        """The same trace judged at another threshold (S_t does not depend on δ)."""
-        return DetectionTrace(**{**self.__dict__, "delta": delta})
+        """The same trace with another δ (S_t does not depend on δ); its rule stays."""
+        return DetectionTrace(**{**self.__dict__, "thresholds": {**self.thresholds, PAPER.name: delta}})
 
-    def with_rule(self, rule: ScoreRule, threshold: float) -> DetectionTrace:
+    def with_rule(self, rule: ScoringRule, threshold: float) -> DetectionTrace:
         """The same trace judged by another rule at its threshold (the scores do not change)."""
-        key = "delta" if rule is ScoreRule.PAPER else "gamma"
-        return DetectionTrace(**{**self.__dict__, "rule": rule, key: threshold})
+        thresholds = {**self.thresholds, rule.name: threshold}
+        return DetectionTrace(**{**self.__dict__, "rule": rule, "thresholds": thresholds})
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON shape of `robofailring detect --json`."""
@@ -173,7 +196,7 @@ class DetectionTrace:
             "episode": self.episode,
             "length": self.length,
             "delta": self.delta,
-            "score": self.rule.value,
+            "score": self.rule.name,
             "threshold": self.threshold,
             "k": self.k,
             "encoder": self.encoder,

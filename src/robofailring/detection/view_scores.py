@@ -1,7 +1,8 @@
 """One trajectory's per-view scores and how they are fused over views (paper eq. 7), written once.
 
-The detector's trace (`robofailring.detection.trace.DetectionTrace`) and the evaluation's scored trajectories
-(`robofailring.evaluation.metrics.ScoredTrajectory`) both judge through `ViewScores`: the fused score is the max
+Firing, t_det and the detected view are judged here and nowhere else: the detector's live step,
+its trace (`robofailring.detection.trace.DetectionTrace`) and the evaluation's scored trajectories
+(`robofailring.evaluation.metrics.ScoredTrajectory`) all judge through `ViewScores`: the fused score is the max
 over views, a NaN (a frame not scored, or no success memory) counts as −∞ and so never fires, and
 t_det is the first frame whose fused score reaches the threshold.
 """
@@ -41,9 +42,16 @@ class ViewScores:
         fired = np.flatnonzero(self.state(threshold, views))
         return int(fired[0]) if fired.size else None
 
+    def firing(self, threshold: float, t: int, views: Sequence[str] | None = None) -> list[str]:
+        """The chosen views whose score at frame `t` reaches `threshold`, in view order (NaN never fires)."""
+        return [v for v in self.chosen(views) if self.by_view[v][t] >= threshold]
+
+    def strongest(self, threshold: float, t: int, views: Sequence[str] | None = None) -> str | None:
+        """The firing view with the highest score at frame `t` (the first of equals, in view order), or None."""
+        fired = self.firing(threshold, t, views)
+        return max(fired, key=lambda v: float(self.by_view[v][t])) if fired else None
+
     def detected_view(self, threshold: float, views: Sequence[str] | None = None) -> str | None:
         """The view with the highest score at t_det (the first of equals, in view order), or None."""
         t = self.first_at_or_above(threshold, views)
-        if t is None:
-            return None
-        return max(self.chosen(views), key=lambda v: np.nan_to_num(self.by_view[v][t], nan=-np.inf))
+        return None if t is None else self.strongest(threshold, t, views)

@@ -3,7 +3,7 @@
 Each success run is replayed with its own episode hidden from both memories (leave-one-out), so
 its frames never match themselves in the success memory; its peak score over frames and views is
 one conformal score. The threshold of each rule is the split-conformal one of
-`robofailring.detection.rules.conformal_threshold`, pooled over tasks.
+`robofailring.detection.conformal.conformal_threshold`, pooled over tasks.
 """
 
 from __future__ import annotations
@@ -16,9 +16,10 @@ from pathlib import Path
 
 from robofailring.data.layouts import load_dataset
 from robofailring.data.model import Skipped, Trajectory
-from robofailring.detection.detector import PAPER_DELTA, FailureDetector, check_k, check_stride
+from robofailring.detection.conformal import check_target_fpr, conformal_threshold, empirical_fpr
+from robofailring.detection.detector import FailureDetector, check_k, check_stride
 from robofailring.detection.loader import open_detector
-from robofailring.detection.rules import ScoreRule, check_target_fpr, conformal_threshold, empirical_fpr
+from robofailring.detection.rules import CONTRAST, PAPER, PAPER_DELTA, ScoringRule, rules_for
 from robofailring.errors import DataError
 from robofailring.memory.manifest import StoredCalibration
 from robofailring.progress import progress_bar
@@ -28,32 +29,30 @@ from robofailring.progress import progress_bar
 class RuleCalibration:
     """One rule's conformal threshold and what it achieved on the runs it was set from."""
 
-    rule: ScoreRule
+    rule: ScoringRule
     threshold: float
     target_fpr: float
     achieved_fpr: float  # share of the calibration runs that reach the threshold (≤ α by construction)
     successes: int
 
 
-def available_rules(detector: FailureDetector) -> list[ScoreRule]:
+def available_rules(detector: FailureDetector) -> list[ScoringRule]:
     """The rules this detector's memory supports: contrast needs success runs."""
-    if detector.memory.successes is None:
-        return [ScoreRule.PAPER]
-    return [ScoreRule.PAPER, ScoreRule.CONTRAST]
+    return rules_for(successes=detector.memory.successes is not None)
 
 
 def success_peaks(
     detector: FailureDetector,
     successes: Sequence[Trajectory],
-    rules: Sequence[ScoreRule],
+    rules: Sequence[ScoringRule],
     *,
     progress: Callable[[int], None] | None = None,
     stride: int = 1,
-) -> dict[ScoreRule, list[float]]:
+) -> dict[ScoringRule, list[float]]:
     """Per rule, each success run's peak score, its episode left out of both memories.
 
     `stride` scores every N-th frame, as the runs the threshold will judge are scored."""
-    peaks: dict[ScoreRule, list[float]] = {rule: [] for rule in rules}
+    peaks: dict[ScoringRule, list[float]] = {rule: [] for rule in rules}
     for trajectory in successes:
         with contextlib.suppress(DataError):  # no view with 2 frames: nothing to score
             trace = detector.run(trajectory, leave_one_out=True, stride=stride)
@@ -69,10 +68,10 @@ def calibrate_rules(
     successes: Sequence[Trajectory],
     target_fpr: float,
     *,
-    rules: Sequence[ScoreRule] | None = None,
+    rules: Sequence[ScoringRule] | None = None,
     progress: Callable[[int], None] | None = None,
     stride: int = 1,
-) -> dict[ScoreRule, RuleCalibration]:
+) -> dict[ScoringRule, RuleCalibration]:
     """The conformal threshold of every rule (default: all the memory supports) at level `target_fpr`."""
     chosen = list(rules) if rules is not None else available_rules(detector)
     peaks = success_peaks(detector, successes, chosen, progress=progress, stride=stride)
@@ -137,7 +136,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
         device=config.device,
         cache_dir=config.cache_dir,
         k=config.k,
-        rule=ScoreRule.PAPER,
+        rule=PAPER,
         delta=PAPER_DELTA,
     )
     memory = detector.memory
@@ -164,7 +163,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
         found = calibrate_rules(
             detector, successes, config.target_fpr, progress=advance, stride=config.stride
         )
-    paper, contrast = found[ScoreRule.PAPER], found.get(ScoreRule.CONTRAST)
+    paper, contrast = found[PAPER], found.get(CONTRAST)
     calibrated = memory.with_calibration(
         StoredCalibration(
             encoder=memory.encoder,

@@ -76,7 +76,7 @@ def comparison_table(results: Sequence[EvaluationResult]) -> str:
         latency = f"{result.latency_ms.get('total', float('nan')):.2f}"
         for rule in result.rules.values():
             lines.append(
-                f"| `{result.encoder}` | {rule.rule.value} | {rule.rule.symbol} = {rule.threshold:.4f} | "
+                f"| `{result.encoder}` | {rule.rule.name} | {rule.rule.symbol} = {rule.threshold:.4f} | "
                 f"{_pct(rule.recall)} | {_pct(rule.fpr)} | {_pct(rule.ts_mean)} | {rule.auc:.3f} | {latency} |"
             )
     return "\n".join(lines)

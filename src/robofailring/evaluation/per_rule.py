@@ -7,8 +7,9 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from robofailring.detection.conformal import auc
 from robofailring.detection.detector import DetectionTrace
-from robofailring.detection.rules import ScoreRule, auc
+from robofailring.detection.rules import ScoringRule
 from robofailring.evaluation.metrics import ScoredTrajectory, json_number, rates, timeliness
 
 
@@ -16,7 +17,7 @@ from robofailring.evaluation.metrics import ScoredTrajectory, json_number, rates
 class RuleResult:
     """One rule at one threshold over the test set."""
 
-    rule: ScoreRule
+    rule: ScoringRule
     threshold: float
     calibrated: bool  # conformal threshold from training successes (else the default/stored one)
     tp: int
@@ -59,7 +60,7 @@ class RuleResult:
     def markdown_row(self, target_fpr: float | None) -> str:
         target = "—" if target_fpr is None or not self.calibrated else f"{100 * target_fpr:g}"
         return (
-            f"| {self.rule.value} | {self.rule.symbol} = {self.threshold:.4f} | {target} | {_pct(self.recall)} | "
+            f"| {self.rule.name} | {self.rule.symbol} = {self.threshold:.4f} | {target} | {_pct(self.recall)} | "
             f"{_pct(self.fpr)} | {self.tp} | {self.fn} | {self.fp} | {self.tn} | {_pct(self.ts_mean)} | "
             f"{self.auc:.3f} |"
         )
@@ -72,7 +73,7 @@ MARKDOWN_HEADER = (
 
 
 def scored_by_rule(
-    traces: Mapping[str, DetectionTrace], labels: Mapping[str, ScoredTrajectory], rule: ScoreRule
+    traces: Mapping[str, DetectionTrace], labels: Mapping[str, ScoredTrajectory], rule: ScoringRule
 ) -> list[ScoredTrajectory]:
     """The test trajectories with the rule's per-view score in place of S_t."""
     scored = []
@@ -92,7 +93,7 @@ def scored_by_rule(
 
 
 def evaluate_rule(
-    scored: Sequence[ScoredTrajectory], rule: ScoreRule, threshold: float, *, calibrated: bool
+    scored: Sequence[ScoredTrajectory], rule: ScoringRule, threshold: float, *, calibrated: bool
 ) -> RuleResult:
     """Counts, T_s and AUC of one rule at `threshold` on trajectories scored by that rule."""
     at = rates(scored, threshold)

@@ -13,7 +13,7 @@ from robofailring.data.model import Skipped
 from robofailring.detection.detector import (
     DetectionTrace,
 )
-from robofailring.detection.rules import ScoreRule
+from robofailring.detection.rules import ScoringRule
 from robofailring.evaluation.metrics import (
     PAPER_DELTAS,
     Rates,
@@ -63,11 +63,11 @@ class EvaluationResult:
     def successes(self) -> int:
         return sum(not t.is_failure for t in self.scored)
 
-    def rule_trace(self, key: str, rule: ScoreRule) -> DetectionTrace:
+    def rule_trace(self, key: str, rule: ScoringRule) -> DetectionTrace:
         """A test trajectory's trace judged by `rule` at its evaluated threshold."""
-        return self.traces[key].with_rule(rule, self.rules[rule.value].threshold)
+        return self.traces[key].with_rule(rule, self.rules[rule.name].threshold)
 
-    def rule_scored(self, rule: ScoreRule) -> list[ScoredTrajectory]:
+    def rule_scored(self, rule: ScoringRule) -> list[ScoredTrajectory]:
         """The test trajectories with `rule`'s score (S_t or C_t) per view."""
         return scored_by_rule(self.traces, {t.key: t for t in self.scored}, rule)
 
@@ -90,10 +90,10 @@ class EvaluationResult:
         ablation["fusion"] = rates(scored, delta)
         return ablation
 
-    def rule_charts(self, rule: ScoreRule, rate_row: Callable[[Rates], dict[str, Any]]) -> dict[str, Any]:
+    def rule_charts(self, rule: ScoringRule, rate_row: Callable[[Rates], dict[str, Any]]) -> dict[str, Any]:
         """A rule's own sweep, recall per type and per view, and detection progress at its threshold."""
         scored = self.rule_scored(rule)
-        threshold = self.rules[rule.value].threshold
+        threshold = self.rules[rule.name].threshold
         counts, edges = timeliness(scored, threshold).histogram()
         return {
             "operating_threshold": threshold,

@@ -14,14 +14,15 @@ from robofailring.atomic import write_text_atomic
 from robofailring.data.layouts import Dataset, load_dataset
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.data.splits import split_of
+from robofailring.detection.conformal import check_target_fpr
 from robofailring.detection.detector import (
     DetectionTrace,
     FailureDetector,
-    check_delta,
     check_k,
     check_stride,
+    stored_threshold,
 )
-from robofailring.detection.rules import ScoreRule, check_target_fpr
+from robofailring.detection.rules import PAPER, ScoringRule
 from robofailring.encoders import CachedEncoder, open_encoder
 from robofailring.errors import DataError, RoboFailRingError, SettingError
 from robofailring.evaluation.metrics import PAPER_DELTAS, ScoredTrajectory
@@ -68,7 +69,7 @@ class EvaluateConfig:
         if self.deployment_successes < 0:
             raise SettingError(f"deployment successes must be ≥ 0, got {self.deployment_successes}")
         for delta in self.deltas:
-            check_delta(delta)
+            PAPER.check_threshold(delta)
         if not 0.0 < self.test_fraction < 1.0:
             raise SettingError(f"test fraction must lie in (0, 1), got {self.test_fraction}")
 
@@ -193,7 +194,7 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
     memory, test = _deploy_successes(memory, test, config.deployment_successes, encoder, config.success_step)
     detector = FailureDetector(memory, encoder, k=config.k)
     thresholds, calibrated = _thresholds(config, detector, train)
-    operating = thresholds[ScoreRule.PAPER]
+    operating = thresholds[PAPER]
     known = set(memory.tasks)
     scored: list[ScoredTrajectory] = []
     traces: dict[str, DetectionTrace] = {}
@@ -227,20 +228,16 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
         )
     views = sorted({v for s in scored for v in s.similarity})
     first = next(t for t in test if t.key in traces)
-    traces = {  # the paper rule at δ, γ kept beside it: the paper tables below read these traces
+    evaluated = {rule.name: threshold for rule, threshold in thresholds.items()}
+    traces = {  # the paper rule at δ, the other rules' thresholds beside it: the paper tables read these
         key: DetectionTrace(
-            **{
-                **trace.__dict__,
-                "rule": ScoreRule.PAPER,
-                "delta": operating,
-                "gamma": thresholds.get(ScoreRule.CONTRAST, trace.gamma),
-            }
+            **{**trace.__dict__, "rule": PAPER, "thresholds": {**trace.thresholds, **evaluated}}
         )
         for key, trace in traces.items()
     }
     labels = {t.key: t for t in scored}
     rules = {
-        rule.value: evaluate_rule(
+        rule.name: evaluate_rule(
             scored_by_rule(traces, labels, rule), rule, threshold, calibrated=calibrated[rule]
         )
         for rule, threshold in thresholds.items()
@@ -251,7 +248,7 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
         memory=str(memory_dir),
         k=config.k,
         operating_delta=operating,
-        calibrated=calibrated[ScoreRule.PAPER],
+        calibrated=calibrated[PAPER],
         rules=rules,
         target_fpr=config.target_fpr if config.target_fpr is not None else _stored_target(memory),
         deployment_successes=config.deployment_successes,
@@ -291,18 +288,14 @@ def _deploy_successes(
 
 def _thresholds(
     config: EvaluateConfig, detector: FailureDetector, train: Sequence[Trajectory]
-) -> tuple[dict[ScoreRule, float], dict[ScoreRule, bool]]:
+) -> tuple[dict[ScoringRule, float], dict[ScoringRule, bool]]:
     """Each rule's threshold: conformal on the training successes, or the memory's stored/default one."""
     from robofailring.evaluation.calibration import available_rules, calibrate_rules
 
     rules = available_rules(detector)
-    defaults = {ScoreRule.PAPER: detector.delta, ScoreRule.CONTRAST: detector.gamma}
     if config.target_fpr is None:
-        stored = {
-            ScoreRule.PAPER: detector.memory.calibrated_delta,
-            ScoreRule.CONTRAST: detector.memory.calibrated_gamma,
-        }
-        return {r: defaults[r] for r in rules}, {r: stored[r] is not None for r in rules}
+        stored = {r: stored_threshold(detector.memory, r) for r in rules}
+        return {r: detector.threshold_of(r) for r in rules}, {r: stored[r] is not None for r in rules}
     known = set(detector.memory.tasks)
     successes = [t for t in train if not t.is_failure and t.task in known]
     with progress_bar(total=len(successes), desc="calibrating", unit="traj") as bar:

@@ -28,7 +28,7 @@ class WatchedRun:
     @property
     def fired_at(self) -> int | None:
         """The first frame with State_t = 1, None without an alarm."""
-        return next((step.t for step in self.steps if step.state), None)
+        return next((step.t for step in self.steps if step.alarm), None)
 
 
 @dataclass(frozen=True)
@@ -146,15 +146,16 @@ def run_watched(
             for view, rgb in images.items():
                 kept.setdefault(view, []).append(rgb)
                 size = (rgb.shape[1], rgb.shape[0])
-            if act and step.state:
+            if act and step.alarm:
                 run.stop()  # the goal is checked on the scene as the robot leaves it now
         result = run.run_to_end()
     return WatchedRun(steps=steps, frames=kept, size=size, result=result)
 
 
 def alarm(step: StepResult) -> tuple[str, Neighbor]:
-    """The view that fired with the highest S_t, and its nearest memory entry."""
-    view = max(step.fired_views, key=lambda v: step.similarity[v])
+    """The view that fired with the highest score, and its nearest memory entry."""
+    view = step.detected_view
+    assert view is not None, "alarm() of a step that did not fire"
     return view, step.neighbors[view][0]
 
 

@@ -129,8 +129,9 @@ class StoredCalibration:
         return ordered | written | self.extra
 
     def threshold_for(self, encoder: str, name: str) -> float | None:
-        """δ or γ (`name`) when calibrated with `encoder` and stored as a finite float; otherwise None."""
-        value = getattr(self, name)
+        """δ or γ (`name`, a rule's threshold key) when calibrated with `encoder` and stored as a finite float;
+        otherwise None (also for a key this section does not have)."""
+        value = getattr(self, name, None)
         if self.encoder == encoder and isinstance(value, float):
             return value if math.isfinite(value) else None
         return None

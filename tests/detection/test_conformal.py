@@ -1,4 +1,4 @@
-"""Scoring rules and the split-conformal threshold against hand-worked cases."""
+"""The split-conformal threshold and the peak-score AUC against hand-worked cases."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from robofailring.detection.rules import ScoreRule, auc, conformal_threshold, empirical_fpr, successes_needed
+from robofailring.detection.conformal import auc, conformal_threshold, empirical_fpr, successes_needed
 from robofailring.errors import DataError, SettingError
 
 
@@ -43,9 +43,3 @@ def test_auc_counts_pairs_and_ties() -> None:
     assert auc([0.1], [0.9]) == 0.0
     assert auc([0.5, 0.9], [0.5, 0.1]) == pytest.approx((0.5 + 1 + 1 + 1) / 4)
     assert math.isnan(auc([], [0.1]))
-
-
-def test_rule_names() -> None:
-    assert ScoreRule.parse("contrast") is ScoreRule.CONTRAST and ScoreRule.PAPER.symbol == "δ"
-    with pytest.raises(SettingError, match="paper"):
-        ScoreRule.parse("both")
