@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -14,8 +14,10 @@ from robofailring.data.model import Trajectory
 from robofailring.detection.detector import DEFAULT_K, DetectionTrace, check_stride
 from robofailring.detection.loader import open_detector
 from robofailring.explain.report import FailureReport, report_for
-from robofailring.explain.vlm import VLMAnswer, VLMConfig, ask_vlm
 from robofailring.memory.references import ReferenceCheck, check_references
+
+if TYPE_CHECKING:
+    from robofailring.explain.vlm import VLMAnswer, VLMConfig  # httpx: loaded only when a VLM is asked
 
 
 @dataclass(frozen=True)
@@ -135,5 +137,9 @@ def run_detect(config: DetectConfig) -> DetectResult:
         neighbors = trace.neighbors(trace.detected_view, trace.t_det)
         references = check_references(ref for n in neighbors for ref in (n.entry.start, n.entry.end))
     report = report_for(trace, loaded)
-    answer = ask_vlm(report, config.vlm) if config.vlm is not None and report is not None else None
+    answer = None  # no VLM, or nothing detected to ask about
+    if config.vlm is not None and report is not None:
+        from robofailring.explain.vlm import ask_vlm
+
+        answer = ask_vlm(report, config.vlm)
     return DetectResult(trace=trace, report=report, vlm=config.vlm, answer=answer, references=references)
