@@ -16,7 +16,8 @@ import numpy as np
 
 from robofailring.data.layouts import load_dataset
 from robofailring.detection.detector import FailureDetector
-from robofailring.detection.rules import ScoreRule, conformal_threshold
+from robofailring.detection.conformal import conformal_threshold
+from robofailring.detection.rules import CONTRAST
 from robofailring.encoders import CachedEncoder, default_cache_dir, load_encoder
 from robofailring.errors import DataError
 from robofailring.memory.failure import FailureMemory
@@ -31,7 +32,7 @@ def _bins(length: int, count: int) -> np.ndarray:
 def main() -> None:
     root = default_cache_dir() / "bench-quality"
     memory = FailureMemory.load(root / "runs" / "pixels" / "memory")
-    detector = FailureDetector(memory, CachedEncoder(load_encoder("pixels")), rule=ScoreRule.CONTRAST)
+    detector = FailureDetector(memory, CachedEncoder(load_encoder("pixels")), rule=CONTRAST)
     data = list(load_dataset(root / "sim-id").trajectories())
     calibration = [
         detector.run(t, leave_one_out=True).max_score()

@@ -16,20 +16,18 @@ from robofailring.cli.options import (
     DataRootOption,
     DeviceOption,
     EncoderOption,
+    KOption,
     LabelsOption,
     ScoreOption,
     StrideOption,
     SuccessStepOption,
     VLMModelOption,
     VLMUrlOption,
-    exit_with_error,
     report_skipped,
     vlm_config,
     warn_missing_references,
 )
-from robofailring.errors import RoboFailRingError
 from robofailring.memory.thinning import DEFAULT_STEP
-from robofailring.outputs import check_output_folder
 
 app = typer.Typer(add_completion=False)  # composed into the one `robofailring` command by rfr_viz.cli.app
 
@@ -45,7 +43,7 @@ def evaluate_cmd(
     ] = None,
     train_split: Annotated[str, typer.Option(help="Split whose failures build the memory.")] = "train",
     test_split: Annotated[str, typer.Option(help="Split to test on.")] = "test",
-    k: Annotated[int, typer.Option(help="Neighbours retrieved per query.")] = 5,
+    k: KOption = 5,
     name: Annotated[str, typer.Option(help="Name of this evaluation in the outputs.")] = "evaluation",
     stride: StrideOption = 1,
     labels: LabelsOption = None,
@@ -63,12 +61,11 @@ def evaluate_cmd(
     device: DeviceOption = None,
 ) -> None:
     """Both scoring rules side by side at one α, then the paper's tables: Recall/FPR sweep, T_s, per type and view."""
-    from rfr_viz.charts.report_html import REPORT_NAME, write_report
-    from rfr_viz.recordings.evaluation import record_evaluation
-    from robofailring.evaluation.run import EvaluateConfig, run_evaluation, write_evaluation
+    from rfr_viz.jobs.evaluate import evaluate
+    from robofailring.evaluation.run import EvaluateConfig
 
-    try:
-        config = EvaluateConfig(
+    outcome = evaluate(
+        EvaluateConfig(
             data=data,
             out=out,
             encoder=encoder,
@@ -86,23 +83,15 @@ def evaluate_cmd(
             deployment_successes=deployment_successes,
             success_step=success_step,
         )
-        check_output_folder(out, inputs=[data, test_data, memory])
-        result = run_evaluation(config)
-    except RoboFailRingError as error:
-        exit_with_error(error)
-    report_skipped(result.skipped_inputs)
-    json_path, md_path = write_evaluation(result, out)
-    rrd_path = record_evaluation([result], out=Path(out) / f"{name}.rrd")
-    report = write_report(
-        [result.to_dict()],
-        Path(out) / REPORT_NAME,
-        markdown=[result.to_markdown()],
-        recordings={"summary recording (charts and tables)": rrd_path},
     )
-    typer.echo(result.to_markdown())
-    typer.echo(f"\nwrote {md_path}, {json_path} and {rrd_path} (open with: {open_command(rrd_path)})")
-    typer.echo(f"report for a browser: {report}")
-    finish(skipped=len(result.skipped_unknown_task) + len(result.skipped_too_short))  # listed in the table
+    report_skipped(outcome.result.skipped_inputs)
+    typer.echo(outcome.result.to_markdown())
+    typer.echo(
+        f"\nwrote {outcome.markdown_path}, {outcome.json_path} and {outcome.recording} "
+        f"(open with: {open_command(outcome.recording)})"
+    )
+    typer.echo(f"report for a browser: {outcome.report}")
+    finish(skipped=outcome.skipped)  # listed in the table
 
 
 @app.command("review")
@@ -125,25 +114,21 @@ def review_cmd(
     """Replay only the false alarms (or the misses) of an evaluation, each recording focused on the moment."""
     from rfr_viz.jobs.review import ReviewConfig, review
 
-    vlm = vlm_config(vlm_url, vlm_model)
-    try:
-        result = review(
-            ReviewConfig(
-                evaluation=evaluation,
-                data=data,
-                kind=kind,
-                out=out,
-                memory=memory,
-                camera_codec=camera_codec,
-                score=score,
-                cache_dir=cache_dir,
-                device=device,
-                data_root=data_root,
-                vlm=vlm,
-            )
+    result = review(
+        ReviewConfig(
+            evaluation=evaluation,
+            data=data,
+            kind=kind,
+            out=out,
+            memory=memory,
+            camera_codec=camera_codec,
+            score=score,
+            cache_dir=cache_dir,
+            device=device,
+            data_root=data_root,
+            vlm=vlm_config(vlm_url, vlm_model),
         )
-    except RoboFailRingError as error:
-        exit_with_error(error)
+    )
     report_skipped(result.skipped_inputs)
     for memory_dir, check in result.references.items():
         warn_missing_references(memory_dir, check)
@@ -167,7 +152,7 @@ def compare_encoders_cmd(
         float, typer.Option("--target-fpr", help="Calibrate each encoder's δ to this FPR.")
     ] = 0.05,
     recordings: Annotated[int, typer.Option(help="Per-trajectory comparison recordings to write.")] = 3,
-    k: Annotated[int, typer.Option(help="Neighbours retrieved per query.")] = 5,
+    k: KOption = 5,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
 ) -> None:
@@ -175,22 +160,18 @@ def compare_encoders_cmd(
     from rfr_viz.jobs.compare_encoders import run_encoder_comparison
     from robofailring.evaluation.comparison import CompareEncodersConfig
 
-    try:
-        check_output_folder(out, inputs=[data])
-        comparison = run_encoder_comparison(
-            CompareEncodersConfig(
-                data=data,
-                out=out,
-                encoders=tuple(encoders),
-                target_fpr=target_fpr,
-                k=k,
-                cache_dir=cache_dir,
-                device=device,
-            ),
-            recordings=recordings,
-        )
-    except (RoboFailRingError, ValueError) as error:
-        exit_with_error(error)
+    comparison = run_encoder_comparison(
+        CompareEncodersConfig(
+            data=data,
+            out=out,
+            encoders=tuple(encoders),
+            target_fpr=target_fpr,
+            k=k,
+            cache_dir=cache_dir,
+            device=device,
+        ),
+        recordings=recordings,
+    )
     typer.echo(comparison.table)
     typer.echo(f"\nwrote {comparison.table_path}")
     for path in comparison.recordings:
@@ -218,24 +199,21 @@ def demo_cmd(
     """The main job on the embedded default: simulate, build the memory, calibrate, evaluate, record."""
     from rfr_viz.jobs.demo import DemoConfig, run_demo
 
-    try:
-        result = run_demo(
-            DemoConfig(
-                out=out,
-                episodes=episodes,
-                success_episodes=success_episodes,
-                ood_episodes=ood_episodes,
-                image_size=image_size,
-                frames=frames,
-                target_fpr=target_fpr,
-                data_dir=data_dir,
-                camera_codec=camera_codec,
-                cache_dir=cache_dir,
-            ),
-            say=typer.echo,
-        )
-    except (RoboFailRingError, ValueError) as error:
-        exit_with_error(error)
+    result = run_demo(
+        DemoConfig(
+            out=out,
+            episodes=episodes,
+            success_episodes=success_episodes,
+            ood_episodes=ood_episodes,
+            image_size=image_size,
+            frames=frames,
+            target_fpr=target_fpr,
+            data_dir=data_dir,
+            camera_codec=camera_codec,
+            cache_dir=cache_dir,
+        ),
+        say=typer.echo,
+    )
     for evaluation in result.evaluations:
         typer.echo("\n" + evaluation.to_markdown())
     typer.echo("\nTables: " + ", ".join(str(p) for p in result.tables))

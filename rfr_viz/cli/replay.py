@@ -9,47 +9,34 @@ import typer
 
 from rfr_viz.jobs.replay import DEFAULT_OUT, CompareConfig, ReplayConfig, ReplayResult, compare, replay
 from rfr_viz.panels.camera_video import CameraCodec, CameraCodecOption
-from rfr_viz.viewer.control import DEFAULT_PORT, ViewerUnavailable, open_at, open_command
+from rfr_viz.viewer.control import DEFAULT_PORT, open_command
 from robofailring.cli.exit_codes import finish
 from robofailring.cli.options import (
     CacheOption,
+    DataArgument,
     DataRootOption,
+    DeltaOption,
     DeviceOption,
+    FpsOption,
     GammaOption,
+    KOption,
     LabelsOption,
+    LeaveOneOutOption,
+    MemoryEncoderOption,
+    MemoryOption,
+    RecordingsOutOption,
     ScoreOption,
     StrideOption,
     TaskOption,
+    TrajectoriesOption,
     VLMModelOption,
     VLMUrlOption,
-    exit_with_error,
     report_skipped,
     vlm_config,
     warn_missing_references,
 )
-from robofailring.errors import DataError, RoboFailRingError
-from robofailring.outputs import is_recording
 
 app = typer.Typer(add_completion=False)  # composed into the one `robofailring` command by rfr_viz.cli.app
-
-DataArgument = Annotated[
-    Path, typer.Argument(help="Dataset root (any supported layout) or one episode folder.")
-]
-OutOption = Annotated[Path, typer.Option("--out", help="Folder for the .rrd files (one per trajectory).")]
-TrajectoryOption = Annotated[
-    list[str] | None,
-    typer.Option(
-        "--trajectory", help="Only this trajectory (`<task>/<episode>` or the episode); repeatable."
-    ),
-]
-KOption = Annotated[int, typer.Option("--k", help="Neighbours retrieved and logged per view and frame.")]
-LeaveOneOutOption = Annotated[
-    bool, typer.Option("--leave-one-out", help="Hide each trajectory's own episode from the memory.")
-]
-FpsOption = Annotated[
-    float | None,
-    typer.Option("--fps", help="Frame rate of the `time` timeline (default: the data's, else 10)."),
-]
 
 
 def warn_vlm_errors(result: ReplayResult) -> None:
@@ -65,8 +52,7 @@ def _report(result: ReplayResult, out: Path) -> None:
     warn_vlm_errors(result)
     for key, reason in result.skipped:
         typer.echo(f"skipped {key}: {reason}")
-    if not result.recordings:
-        exit_with_error(DataError(f"no recording written ({len(result.skipped)} trajectories skipped)"))
+    finish(failure=result.failure)
     typer.echo(
         f"{len(result.recordings)} recording(s) in {out.resolve()}"
         + (f", {len(result.skipped)} trajectories skipped" if result.skipped else "")
@@ -79,18 +65,16 @@ def _report(result: ReplayResult, out: Path) -> None:
 @app.command("replay")
 def replay_cmd(
     data: DataArgument,
-    memory: Annotated[Path, typer.Option("--memory", help="Memory directory (its map is cached there).")],
-    out: OutOption = DEFAULT_OUT,
-    trajectory: TrajectoryOption = None,
-    delta: Annotated[
-        float | None, typer.Option(help="Threshold δ (default: the memory's calibrated δ, else 0.92).")
-    ] = None,
+    memory: MemoryOption,
+    out: RecordingsOutOption = DEFAULT_OUT,
+    trajectory: TrajectoriesOption = None,
+    delta: DeltaOption = None,
     k: KOption = 5,
     score: ScoreOption = None,
     gamma: GammaOption = None,
     task: TaskOption = None,
     leave_one_out: LeaveOneOutOption = False,
-    encoder: Annotated[str | None, typer.Option(help="Encoder spec (default: the memory's).")] = None,
+    encoder: MemoryEncoderOption = None,
     fps: FpsOption = None,
     stride: StrideOption = 1,
     labels: LabelsOption = None,
@@ -123,11 +107,7 @@ def replay_cmd(
         data_root=data_root,
         vlm=vlm_config(vlm_url, vlm_model),
     )
-    try:
-        result = replay(config)
-    except (RoboFailRingError, ValueError) as error:
-        exit_with_error(error)
-    _report(result, out)
+    _report(replay(config), out)
 
 
 @app.command("compare")
@@ -136,8 +116,8 @@ def compare_cmd(
     memory: Annotated[
         list[Path], typer.Option("--memory", help="Memory directory, one per encoder; give two or more.")
     ],
-    out: OutOption = DEFAULT_OUT,
-    trajectory: TrajectoryOption = None,
+    out: RecordingsOutOption = DEFAULT_OUT,
+    trajectory: TrajectoriesOption = None,
     delta: Annotated[
         list[float] | None,
         typer.Option(
@@ -177,11 +157,7 @@ def compare_cmd(
         device=device,
         data_roots=tuple(data_root or ()),
     )
-    try:
-        result = compare(config)
-    except (RoboFailRingError, ValueError) as error:
-        exit_with_error(error)
-    _report(result, out)
+    _report(compare(config), out)
 
 
 @app.command("open")
@@ -195,16 +171,9 @@ def open_cmd(
     ),
 ) -> None:
     """Open a recording in the Rerun viewer paused at its alarm (a review's false alarm, a miss's peak)."""
-    if not recording.is_file():
-        exit_with_error(DataError(f"no recording at {recording}"))
-    if not is_recording(recording):
-        exit_with_error(DataError(f"{recording} is not a Rerun recording (.rrd); open one that replay wrote"))
-    try:
-        opened = open_at(recording, frame, port=port)
-    except (ViewerUnavailable, ValueError) as error:
-        exit_with_error(error)
-    started = "started a viewer" if opened.process is not None else "reused the viewer"
-    typer.echo(f"{opened.recording}: paused at frame {opened.frame} ({started} on port {opened.port})")
+    from rfr_viz.jobs.viewer import open_recording, opened_line
+
+    typer.echo(opened_line(open_recording(recording, frame, port=port)))
 
 
 @app.command("share")
@@ -217,29 +186,6 @@ def share_cmd(
     web_port: Annotated[int, typer.Option("--web-port", help="HTTP port of the web viewer.")] = 9090,
 ) -> None:
     """Serve a folder of recordings to the Rerun web viewer (and native viewers) until Ctrl-C."""
-    import time
+    from rfr_viz.jobs.viewer import serve_recordings
 
-    from rfr_viz.viewer.share import share_folder
-
-    try:
-        shared = share_folder(folder, host=host, grpc_port=port, web_port=web_port)
-    except (RoboFailRingError, ViewerUnavailable) as error:
-        exit_with_error(error)
-    try:
-        typer.echo(f"serving {len(shared.recordings)} recording(s) from {folder} on {host}:")
-        typer.echo(f"  web viewer:    {shared.web_url}")
-        typer.echo(f"  native viewer: rerun {shared.grpc_url}")
-        if host == "127.0.0.1":
-            typer.echo("  (this machine only; --host 0.0.0.0 opens it to the LAN)")
-        typer.echo("Ctrl-C stops it.")
-        while shared.process is not None and shared.process.poll() is None:
-            time.sleep(0.5)
-        exit_with_error(
-            RuntimeError(
-                f"the Rerun server stopped (exit code {shared.process.returncode if shared.process else '?'})"
-            )
-        )
-    except KeyboardInterrupt:
-        typer.echo("stopped")
-    finally:
-        shared.stop()
+    serve_recordings(folder, host=host, port=port, web_port=web_port, say=typer.echo)

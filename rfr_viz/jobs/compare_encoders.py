@@ -9,6 +9,7 @@ from rfr_viz.jobs.replay import CompareConfig, compare
 from robofailring.atomic import write_text_atomic
 from robofailring.evaluation.comparison import CompareEncodersConfig, compare_encoders, comparison_table
 from robofailring.evaluation.run import EvaluationResult
+from robofailring.outputs import check_output_folder
 
 
 @dataclass
@@ -21,6 +22,7 @@ class EncoderComparison:
 
 def run_encoder_comparison(config: CompareEncodersConfig, *, recordings: int = 3) -> EncoderComparison:
     """Evaluate every encoder on the same split, write `out/comparison.md` and replay the first failures."""
+    check_output_folder(config.out, inputs=[config.data])
     results = compare_encoders(config)
     table = comparison_table(results)
     table_path = Path(config.out) / "comparison.md"

@@ -3,11 +3,50 @@
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 
 from rfr_viz.viewer.control import recording_properties
-from robofailring.errors import DataError
+from robofailring.errors import DataError, SettingError
 from robofailring.explain.report import FailureReport
+from robofailring.explain.vlm import VLMAnswer, VLMCallError, VLMConfig, ask_vlm
+
+
+@dataclass(frozen=True)
+class Explanation:
+    """A VLM's answer about a failure report read back from a recording or `detect --json`."""
+
+    report: FailureReport
+    answer: VLMAnswer
+
+    @property
+    def failure(self) -> VLMCallError | None:
+        """Why there is no answer: the VLM call failed."""
+        return (
+            None if self.answer.error is None else VLMCallError(f"the VLM call failed: {self.answer.error}")
+        )
+
+    def to_json(self) -> str:
+        """`{model, answer, latency_s}`, or `{model, error}` when the call failed."""
+        return json.dumps(self.answer.to_dict())
+
+    def to_text(self) -> str:
+        report, answer = self.report, self.answer
+        return (
+            f"{report.current_task}: failure at frame {report.t_det} in view {report.view} "
+            f"(S_t = {report.similarity:.3f}); {answer.model} answered in {answer.latency_s:.1f} s:\n\n"
+            f"{answer.answer}"
+        )
+
+
+def explain(source: Path, vlm: VLMConfig | None, *, data_root: Path | None = None) -> Explanation:
+    """Ask `vlm` about the report in `source` (its images looked up under `data_root` when the data moved)."""
+    if vlm is None:
+        raise SettingError("explain needs --vlm-url and --vlm-model")
+    report = read_report(source)
+    if data_root is not None:
+        report = report.relocated(data_root)
+    return Explanation(report=report, answer=ask_vlm(report, vlm))
 
 
 def read_report(source: Path) -> FailureReport:

@@ -92,6 +92,13 @@ class ReplayResult:
             self.vlm_errors.append((trajectory.key, answer.error))
         return answer
 
+    @property
+    def failure(self) -> DataError | None:
+        """Why the replay failed, once its skipped trajectories are listed: no recording was written."""
+        if self.recordings:
+            return None
+        return DataError(f"no recording written ({len(self.skipped)} trajectories skipped)")
+
 
 def recording_name(trajectory: Trajectory, suffix: str = "") -> str:
     """`<task>__<episode>.rrd`, collision-free: distinct trajectories never share a name.
@@ -281,14 +288,16 @@ def compare(config: CompareConfig) -> ReplayResult:
 
 def _compare(config: CompareConfig) -> ReplayResult:
     if len(config.memories) < 2:
-        raise ValueError("compare needs at least two memories (--memory A --memory B)")
+        raise SettingError(
+            f"compare needs at least two memories (--memory A --memory B), got {len(config.memories)}"
+        )
     if config.deltas and len(config.deltas) != len(config.memories):
-        raise ValueError(
+        raise SettingError(
             f"{len(config.deltas)} δ values for {len(config.memories)} memories: give one per memory"
         )
     deltas: Sequence[float | None] = config.deltas or [None] * len(config.memories)
     if len(config.data_roots) not in (0, 1, len(config.memories)):
-        raise ValueError(
+        raise SettingError(
             f"{len(config.data_roots)} data roots for {len(config.memories)} memories: give one, or one per memory"
         )
     roots: Sequence[Path | None] = (

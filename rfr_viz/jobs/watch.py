@@ -6,13 +6,13 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from rfr_viz.jobs.replay import load_detector
+from rfr_viz.jobs.replay import check_fps, load_detector
 from rfr_viz.panels.camera_video import CameraCodec
 from rfr_viz.paths import DEFAULT_FPS
 from rfr_viz.recordings.live import LiveRecording, LiveTarget
 from robofailring.data.layouts import load_trajectory
 from robofailring.detection.detector import DEFAULT_K
-from robofailring.errors import DataError
+from robofailring.errors import DataError, SettingError
 
 
 @dataclass(frozen=True)
@@ -40,11 +40,22 @@ class WatchResult:
     saved: Path | None
     lost: str | None = None  # why the viewer did not get the whole stream, if it did not
 
+    def to_text(self) -> str:
+        """What `robofailring watch` says at the end: the steps, the alarm (or none), the saved file."""
+        if self.fired_at is None:
+            text = f"{self.steps} steps watched: no failure detected"
+        else:
+            text = (
+                f"{self.steps} steps watched: FAILURE at frame {self.fired_at} in view {self.detected_view}"
+            )
+        return text if self.saved is None else f"{text}\nsaved the stream to {self.saved}"
+
 
 def watch(config: WatchConfig) -> WatchResult:
     """Feed one episode through `detector.session(...).step` frame by frame, streaming every step."""
     if config.speed < 0:
-        raise ValueError(f"--speed must be ≥ 0, got {config.speed}")
+        raise SettingError(f"--speed must be ≥ 0, got {config.speed}")
+    check_fps(config.fps)
     loaded = load_detector(
         config.memory,
         delta=config.delta,

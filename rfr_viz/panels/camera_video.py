@@ -22,7 +22,7 @@ import rerun as rr
 import typer
 
 from robofailring.data.model import Frame
-from robofailring.errors import DataError
+from robofailring.errors import DataError, SettingError
 
 if TYPE_CHECKING:
     from av.video.codeccontext import VideoCodecContext
@@ -163,7 +163,7 @@ class VideoEncoder:
         keyframe_interval: int = KEYFRAME_INTERVAL,
     ) -> None:
         if codec not in ENCODERS:
-            raise ValueError(f"{codec.value!r} is not a video codec ({[c.value for c in ENCODERS]})")
+            raise SettingError(f"{codec.value!r} is not a video codec ({[c.value for c in ENCODERS]})")
         self.codec, self.fps, self.source, self.keyframe_interval = codec, fps, source, keyframe_interval
         self.frames = 0  # frames given so far
         self.shape: tuple[int, ...] | None = None  # (height, width, 3) after padding, from the first frame

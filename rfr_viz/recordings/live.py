@@ -38,7 +38,7 @@ from robofailring.atomic import atomic_path
 from robofailring.data.layouts import load_trajectory
 from robofailring.data.model import Frame
 from robofailring.detection.detector import DEFAULT_K, DetectorSession, FailureDetector, StepResult
-from robofailring.errors import DataError
+from robofailring.errors import DataError, SettingError
 from robofailring.explain.report import FailureReport
 
 DEFAULT_VIEWER_URL: Final[str] = f"rerun+http://127.0.0.1:{DEFAULT_PORT}/proxy"
@@ -55,7 +55,14 @@ class LiveTarget:
 
     def __post_init__(self) -> None:
         if self.connect is None and not self.spawn and self.save is None:
-            raise ValueError("a live recording needs somewhere to go: a viewer URL, spawn, or a file")
+            raise SettingError("a live recording needs somewhere to go: a viewer URL, spawn, or a file")
+
+    @classmethod
+    def chosen(cls, *, connect: str | None, spawn: bool, save: Path | None) -> LiveTarget:
+        """The target a user asked for; none at all: the viewer on the default port."""
+        if connect is None and not spawn and save is None:
+            connect = DEFAULT_VIEWER_URL
+        return cls(connect=connect, spawn=spawn, save=save)
 
 
 def check_viewer(url: str) -> None:
@@ -64,7 +71,7 @@ def check_viewer(url: str) -> None:
 
     parsed = urlparse(url)
     if not parsed.scheme.startswith("rerun") or parsed.hostname is None:
-        raise ValueError(f"viewer URL {url!r} is not like rerun+http://127.0.0.1:9876/proxy")
+        raise SettingError(f"viewer URL {url!r} is not like rerun+http://127.0.0.1:9876/proxy")
     port = parsed.port or DEFAULT_PORT
     with contextlib.suppress(OSError), socket.create_connection((parsed.hostname, port), timeout=2.0):
         return

@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
 from rfr_viz.paths import FRAME, PROPERTIES
+from robofailring.errors import RoboFailRingError
 
 if TYPE_CHECKING:
     from rerun.experimental import Recording, ViewerClient, ViewerState
@@ -30,8 +31,10 @@ ICD_GLOBS: Final[tuple[str, ...]] = (
 )
 
 
-class ViewerUnavailable(RuntimeError):
-    """The headless viewer cannot run here (no Vulkan driver, or no viewer binary)."""
+class ViewerUnavailable(RoboFailRingError, RuntimeError):
+    """The viewer cannot run here (no Vulkan driver, no viewer binary, a server that stopped): exit 1."""
+
+    exit_code = 1  # an error of the environment, not of the input
 
 
 @dataclass(frozen=True)

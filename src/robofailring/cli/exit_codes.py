@@ -36,8 +36,11 @@ def fail(error: BaseException) -> NoReturn:
     raise typer.Exit(code=exit_code_for(error))
 
 
-def finish(*, skipped: int) -> None:
-    """End a command that did its work: status 3 when some inputs were skipped (already reported)."""
+def finish(*, skipped: int = 0, failure: RoboFailRingError | None = None) -> None:
+    """End a command once its summary is printed: `failure` (a job's result says its work failed) is
+    raised for `ErrorMappingGroup` to print and map; else status 3 when some inputs were skipped."""
+    if failure is not None:
+        raise failure
     if skipped:
         raise typer.Exit(code=SKIPPED)
 
@@ -45,8 +48,9 @@ def finish(*, skipped: int) -> None:
 class ErrorMappingGroup(TyperGroup):
     """A typer command group whose verbs end in one line and an exit status instead of a traceback.
 
-    Errors the library raises on purpose (`RoboFailRingError`) and operating-system errors
-    (permission, disk full, a file where a folder belongs) are caught here, for every verb.
+    Errors the library raises on purpose (`RoboFailRingError`: a bad setting is a `SettingError`)
+    and operating-system errors (permission, disk full, a file where a folder belongs) are caught
+    here, for every verb; no verb catches errors of its own.
     """
 
     def invoke(self, ctx: _click.Context) -> Any:

@@ -1,6 +1,6 @@
 """Command-line options and messages shared by every verb (each option is declared once, here).
 
-The verbs live in `robofailring.cli.verbs` (the library's) and `rfr_viz.cli_*` (those that record);
+The verbs live in `robofailring.cli.verbs` (the library's) and `rfr_viz.cli.*` (those that record);
 `rfr_viz.cli.app` assembles them into the one `robofailring` command (docs/architecture.md).
 """
 
@@ -8,13 +8,13 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, NoReturn
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from robofailring.cli.exit_codes import fail
 from robofailring.data.model import Skipped
 from robofailring.detection.rules import RULES
+from robofailring.errors import SettingError
 from robofailring.memory.references import ReferenceCheck
 
 if TYPE_CHECKING:
@@ -107,9 +107,15 @@ DataRootOption = Annotated[
 ]
 
 
-def warn_missing_references(memory: Path, check: ReferenceCheck) -> None:
+def print_notes(notes: Sequence[str]) -> None:
+    """Warnings and notes a job returned, one line each on stderr."""
+    for note in notes:
+        typer.secho(note, fg=typer.colors.YELLOW, err=True)
+
+
+def warn_missing_references(memory: Path, check: ReferenceCheck | None) -> None:
     """One warning line when a memory's reference images cannot be found (nothing silent)."""
-    if not check.ok:
+    if check is not None and not check.ok:
         typer.secho(
             f"warning: memory {memory}: "
             + check.summary(
@@ -120,23 +126,15 @@ def warn_missing_references(memory: Path, check: ReferenceCheck) -> None:
         )
 
 
-def exit_with_error(error: Exception) -> NoReturn:
-    fail(error)
-
-
 def vlm_config(url: str | None, model: str | None) -> VLMConfig | None:
-    """The VLM to ask, from --vlm-url and --vlm-model (both or neither; bad usage otherwise)."""
-    from robofailring.explain.vlm import VLMConfig, VLMError
+    """The VLM to ask, from --vlm-url and --vlm-model (both or neither: a SettingError otherwise)."""
+    from robofailring.explain.vlm import VLMConfig
 
     if url is None or model is None:
         if url is not None or model is not None:
-            exit_with_error(ValueError("--vlm-url and --vlm-model go together: give both or neither"))
+            raise SettingError("--vlm-url and --vlm-model go together: give both or neither")
         return None
-    try:
-        return VLMConfig(url=url, model=model)
-    except VLMError as error:
-        exit_with_error(error)
-        return None
+    return VLMConfig(url=url, model=model)
 
 
 TaskOption = Annotated[
@@ -144,5 +142,33 @@ TaskOption = Annotated[
     typer.Option(
         help="Task of episodes whose names do not say it (an episode folder, video episodes); "
         "replay and compare on a dataset root keep only this task."
+    ),
+]
+MemoryOption = Annotated[Path, typer.Option("--memory", help="Memory directory.")]
+DeltaOption = Annotated[
+    float | None,
+    typer.Option("--delta", help="Threshold δ (default: the memory's calibrated δ, else 0.92)."),
+]
+KOption = Annotated[int, typer.Option("--k", help="Neighbours retrieved per query.")]
+MemoryEncoderOption = Annotated[
+    str | None, typer.Option("--encoder", help="Encoder spec (default: the memory's).")
+]
+LeaveOneOutOption = Annotated[
+    bool, typer.Option("--leave-one-out", help="Hide each trajectory's own episode from the memory.")
+]
+FpsOption = Annotated[
+    float | None,
+    typer.Option("--fps", help="Frame rate of the `time` timeline (default: the data's, else 10)."),
+]
+DataArgument = Annotated[
+    Path, typer.Argument(help="Dataset root (any supported layout) or one episode folder.")
+]
+RecordingsOutOption = Annotated[
+    Path, typer.Option("--out", help="Folder for the .rrd files (one per trajectory).")
+]
+TrajectoriesOption = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--trajectory", help="Only this trajectory (`<task>/<episode>` or the episode); repeatable."
     ),
 ]

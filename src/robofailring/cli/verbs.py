@@ -7,41 +7,37 @@ with the recording verbs into the one `robofailring` command.
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import Annotated
 
-import numpy as np
 import typer
 
 from robofailring.cli.exit_codes import ErrorMappingGroup, finish
-from robofailring.data.layouts import read_project_manifest
-from robofailring.errors import RoboFailRingError
-from robofailring.memory.references import check_references
-from robofailring.memory.thinning import DEFAULT_STEP
-from robofailring.progress import progress_bar
-
-if TYPE_CHECKING:
-    pass
-
 from robofailring.cli.options import (
     CacheOption,
     DataRootOption,
+    DeltaOption,
     DeviceOption,
     EncoderOption,
     GammaOption,
+    KOption,
     LabelsOption,
+    LeaveOneOutOption,
+    MemoryEncoderOption,
+    MemoryOption,
     ScoreOption,
     StrideOption,
     SuccessStepOption,
     TaskOption,
     VLMModelOption,
     VLMUrlOption,
-    exit_with_error,
+    print_notes,
     report_skipped,
     vlm_config,
     warn_missing_references,
 )
+from robofailring.memory.thinning import DEFAULT_STEP
+from robofailring.progress import progress_bar
 
 app = typer.Typer(  # unnamed, so rfr_viz.cli.app merges its verbs into the one `robofailring` command
     cls=ErrorMappingGroup,  # every verb: a one-line error and its exit status (robofailring.cli.exit_codes)
@@ -73,29 +69,22 @@ def generate_cmd(
     workers: Annotated[int, typer.Option(help="Simulation processes.")] = 2,
 ) -> None:
     """Simulate the embedded FailGen (PyBullet Panda): failures injected by perturbing keyframes, plus successes."""
-    from robofailring.sim import TASKS, GenerateConfig, generate_dataset
+    from robofailring.sim import TASKS, GenerateConfig, describe_dataset, generate_dataset
 
-    try:
-        config = GenerateConfig(
-            out=out,
-            tasks=tuple(tasks) if tasks else TASKS,
-            episodes=episodes,
-            success_episodes=success_episodes,
-            seed=seed,
-            ood=ood,
-            image_size=image_size,
-            frames=frames,
-            workers=workers,
-        )
-        with progress_bar(total=config.total_episodes, desc="simulating", unit="episode") as bar:
-            root = generate_dataset(config, progress=bar.update)
-    except (RoboFailRingError, ValueError) as error:
-        exit_with_error(error)
-    manifest = read_project_manifest(root)
-    failures = sum(e["outcome"] == "failure" for e in manifest["episodes"])
-    typer.echo(
-        f"dataset {root}: {len(manifest['episodes'])} episodes ({failures} failures), {manifest['fps']} fps"
+    config = GenerateConfig(
+        out=out,
+        tasks=tuple(tasks) if tasks else TASKS,
+        episodes=episodes,
+        success_episodes=success_episodes,
+        seed=seed,
+        ood=ood,
+        image_size=image_size,
+        frames=frames,
+        workers=workers,
     )
+    with progress_bar(total=config.total_episodes, desc="simulating", unit="episode") as bar:
+        root = generate_dataset(config, progress=bar.update)
+    typer.echo(describe_dataset(root))
 
 
 @app.command("build-memory")
@@ -119,23 +108,20 @@ def build_memory_cmd(
     """Build a failure memory (Algorithm 1) from the failure trajectories of DATA, and a success memory."""
     from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 
-    try:
-        memory, stats = build_memory(
-            BuildMemoryConfig(
-                data=data,
-                encoder=encoder,
-                out=out,
-                split=split,
-                cache_dir=cache_dir,
-                device=device,
-                labels=labels,
-                successes=not no_successes,
-                task=task,
-                success_step=success_step,
-            )
+    memory, stats = build_memory(
+        BuildMemoryConfig(
+            data=data,
+            encoder=encoder,
+            out=out,
+            split=split,
+            cache_dir=cache_dir,
+            device=device,
+            labels=labels,
+            successes=not no_successes,
+            task=task,
+            success_step=success_step,
         )
-    except RoboFailRingError as error:
-        exit_with_error(error)
+    )
     typer.echo(
         f"memory {out}: {len(memory)} entries ({memory.dim}-d, encoder {memory.encoder}) from "
         f"{stats.failures} failure trajectories over {len(memory.tasks)} tasks; "
@@ -165,19 +151,15 @@ def detect_cmd(
     trajectory: Annotated[
         Path, typer.Argument(help="One episode folder, or a dataset root with --trajectory.")
     ],
-    memory: Annotated[Path, typer.Option("--memory", help="Memory directory.")],
-    delta: Annotated[
-        float | None, typer.Option(help="Threshold δ (default: the memory's calibrated δ, else 0.92).")
-    ] = None,
-    k: Annotated[int, typer.Option(help="Neighbours retrieved per query.")] = 5,
+    memory: MemoryOption,
+    delta: DeltaOption = None,
+    k: KOption = 5,
     score: ScoreOption = None,
     gamma: GammaOption = None,
     task: TaskOption = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the full trace as one JSON object.")] = False,
-    leave_one_out: Annotated[
-        bool, typer.Option("--leave-one-out", help="Hide the trajectory's own episode from the memory.")
-    ] = False,
-    encoder: Annotated[str | None, typer.Option(help="Encoder spec (default: the memory's).")] = None,
+    leave_one_out: LeaveOneOutOption = False,
+    encoder: MemoryEncoderOption = None,
     key: Annotated[
         str | None,
         typer.Option(
@@ -193,95 +175,38 @@ def detect_cmd(
     vlm_model: VLMModelOption = None,
 ) -> None:
     """Replay one trajectory through the detector and say if and when it fires."""
-    from robofailring.explain.report import report_for
-    from robofailring.explain.vlm import ask_vlm
-    from robofailring.jobs.detect import DetectConfig, detect_trajectory
+    from robofailring.jobs.detect import DetectConfig, run_detect
 
-    vlm = vlm_config(vlm_url, vlm_model)
-    try:
-        trace, loaded = detect_trajectory(
-            DetectConfig(
-                trajectory=trajectory,
-                memory=memory,
-                delta=delta,
-                k=k,
-                score=score,
-                gamma=gamma,
-                task=task,
-                leave_one_out=leave_one_out,
-                encoder=encoder,
-                cache_dir=cache_dir,
-                device=device,
-                key=key,
-                stride=stride,
-                labels=labels,
-                data_root=data_root,
-            )
+    result = run_detect(
+        DetectConfig(
+            trajectory=trajectory,
+            memory=memory,
+            delta=delta,
+            k=k,
+            score=score,
+            gamma=gamma,
+            task=task,
+            leave_one_out=leave_one_out,
+            encoder=encoder,
+            cache_dir=cache_dir,
+            device=device,
+            key=key,
+            stride=stride,
+            labels=labels,
+            data_root=data_root,
+            vlm=vlm_config(vlm_url, vlm_model),
         )
-    except RoboFailRingError as error:
-        exit_with_error(error)
-    report_skipped(trace.skipped_inputs)
-    if trace.t_det is not None and trace.detected_view is not None:
-        neighbors = trace.neighbors(trace.detected_view, trace.t_det)
-        warn_missing_references(
-            memory, check_references(ref for n in neighbors for ref in (n.entry.start, n.entry.end))
-        )
-    report = report_for(trace, loaded)
-    answer = ask_vlm(report, vlm) if vlm is not None and report is not None else None
-    if answer is not None and answer.error is not None:
-        typer.secho(f"warning: the VLM call failed: {answer.error}", fg=typer.colors.YELLOW, err=True)
-    for view, count in trace.truncated_views.items():
-        typer.secho(
-            f"note: view {view} has {trace.length + count} frames; the last {count} are not scored "
-            f"(views are scored in step up to the shortest one, L = {trace.length})",
-            fg=typer.colors.YELLOW,
-            err=True,
-        )
-    if trace.skipped_views:
-        typer.secho(
-            f"note: views with fewer than 2 frames skipped: {', '.join(trace.skipped_views)}", err=True
-        )
-    if as_json:
-        found = {**trace.to_dict(), "report": report.to_dict() if report is not None else None}
-        if vlm is not None:
-            found["vlm"] = (
-                answer.to_dict() if answer is not None else None
-            )  # None: nothing detected to ask about
-        json.dump(found, sys.stdout)
-        sys.stdout.write("\n")
-        return
-    rule = trace.rule
-    scored = f", every {trace.stride}th frame scored" if trace.stride > 1 else ""
-    typer.echo(
-        f"task {trace.task}, L = {trace.length} frames{scored}, rule {rule.name}: {rule.score_name} ≥ "
-        f"{rule.symbol} = {trace.threshold:.3f}, K = {trace.k}"
     )
-    contrasts = trace.contrast
-    for view in trace.views:
-        line = f"  {view:>10}: max S⁻_t = {float(np.nanmax(trace.similarity[view])):.3f}"
-        if view in trace.success_similarity:
-            line += f", max C_t = {float(np.nanmax(contrasts[view])):.3f}"
-        typer.echo(line)
-    if trace.t_det is None:
-        typer.echo("no failure detected")
-    else:
-        fired_view = trace.detected_view
-        assert fired_view is not None
-        top = trace.neighbors(fired_view, trace.t_det)[0]
-        fired_score = float(trace.scores[fired_view][trace.t_det])
-        typer.echo(
-            f"FAILURE detected at frame {trace.t_det}/{trace.length} in view {fired_view} "
-            f"({rule.name} rule: {rule.score_name} = {fired_score:.3f}, S⁻_t = {top.similarity:.3f}); nearest memory entry {top.entry.task}/{top.entry.episode} "
-            f"[{top.entry.view}] {top.entry.symbol}: {top.entry.description}"
-        )
-        if answer is not None and answer.answer is not None:
-            typer.echo(f"\nVLM ({answer.model}, {answer.latency_s:.1f} s):\n{answer.answer}")
+    report_skipped(result.trace.skipped_inputs)
+    warn_missing_references(memory, result.references)
+    print_notes(result.notes)
+    typer.echo(result.to_json() if as_json else result.to_text())
 
 
 @app.command("calibrate")
 def calibrate_cmd(
     data: Annotated[Path, typer.Argument(help="Dataset holding success trajectories of the memory's tasks.")],
-    memory: Annotated[Path, typer.Option("--memory", help="Memory directory; δ is stored in its manifest.")],
+    memory: MemoryOption,
     target_fpr: Annotated[float, typer.Option("--target-fpr", help="False-positive rate to allow.")] = 0.05,
     split: Annotated[str | None, typer.Option(help="Successes of this split (project layout).")] = "train",
     stride: StrideOption = 1,
@@ -292,31 +217,20 @@ def calibrate_cmd(
     """Set δ and γ (split conformal) for a target false-positive rate on success runs; detect then uses them."""
     from robofailring.evaluation.calibration import CalibrateConfig, calibrate
 
-    try:
-        result = calibrate(
-            CalibrateConfig(
-                data=data,
-                memory=memory,
-                target_fpr=target_fpr,
-                split=split,
-                cache_dir=cache_dir,
-                device=device,
-                stride=stride,
-                labels=labels,
-            )
+    result = calibrate(
+        CalibrateConfig(
+            data=data,
+            memory=memory,
+            target_fpr=target_fpr,
+            split=split,
+            cache_dir=cache_dir,
+            device=device,
+            stride=stride,
+            labels=labels,
         )
-    except (RoboFailRingError, ValueError) as error:
-        exit_with_error(error)
-    report_skipped(result.skipped_inputs)
-    typer.echo(
-        f"δ = {result.delta:.6f} (paper rule) for encoder {result.encoder}: FPR {100 * result.achieved_fpr:.1f} % on "
-        f"{result.successes} success runs (target {100 * result.target_fpr:.1f} %); stored in {memory}/manifest.json"
     )
-    if result.gamma is not None and result.gamma_achieved_fpr is not None:
-        typer.echo(
-            f"γ = {result.gamma:.6f} (contrast rule): FPR {100 * result.gamma_achieved_fpr:.1f} % on the same runs, "
-            "each scored with its own episode left out of the success memory"
-        )
+    report_skipped(result.skipped_inputs)
+    typer.echo(result.to_text(memory))
 
 
 @app.command("memory-info")
@@ -328,15 +242,8 @@ def memory_info_cmd(
     """What a memory holds: encoder, entries per task and view, threshold, data root, reference images found."""
     from robofailring.memory.info import MemoryInfo
 
-    try:
-        info = MemoryInfo.read(memory, data_root=data_root)
-    except RoboFailRingError as error:
-        exit_with_error(error)
-    if as_json:
-        json.dump(info.to_dict(), sys.stdout)
-        sys.stdout.write("\n")
-    else:
-        typer.echo(info.to_text())
+    info = MemoryInfo.read(memory, data_root=data_root)
+    typer.echo(json.dumps(info.to_dict()) if as_json else info.to_text())
     warn_missing_references(memory, info.references)
 
 
@@ -368,19 +275,16 @@ def train_encoder_cmd(
     """Train an encoder on your own runs: labels failure type × progress quarter × view, augmented."""
     from robofailring.encoders.training import TrainEncoderConfig, train_encoder
 
-    try:
-        config = TrainEncoderConfig(
-            data=data,
-            out=out,
-            split=split,
-            image_size=image_size,
-            epochs=epochs,
-            seed=seed,
-            init=init,
-            threads=threads,
-            device=device,
-        )
-        folder = train_encoder(config, say=typer.echo)
-    except (RoboFailRingError, ValueError) as error:
-        exit_with_error(error)
+    config = TrainEncoderConfig(
+        data=data,
+        out=out,
+        split=split,
+        image_size=image_size,
+        epochs=epochs,
+        seed=seed,
+        init=init,
+        threads=threads,
+        device=device,
+    )
+    folder = train_encoder(config, say=typer.echo)
     typer.echo(f"use it with: --encoder trained:{folder}")

@@ -128,6 +128,19 @@ class Calibration:
     gamma: float | None = None  # the contrast rule's γ, when the memory has success runs
     gamma_achieved_fpr: float | None = None
 
+    def to_text(self, memory: Path) -> str:
+        """The summary `robofailring calibrate` prints: δ, and γ when the memory has success runs."""
+        text = (
+            f"δ = {self.delta:.6f} (paper rule) for encoder {self.encoder}: FPR {100 * self.achieved_fpr:.1f} % on "
+            f"{self.successes} success runs (target {100 * self.target_fpr:.1f} %); stored in {memory}/manifest.json"
+        )
+        if self.gamma is not None and self.gamma_achieved_fpr is not None:
+            text += (
+                f"\nγ = {self.gamma:.6f} (contrast rule): FPR {100 * self.gamma_achieved_fpr:.1f} % on the same "
+                "runs, each scored with its own episode left out of the success memory"
+            )
+        return text
+
 
 def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None = None) -> Calibration:
     """Set δ and γ (split conformal, level = target FPR) on success runs and store them in the manifest."""

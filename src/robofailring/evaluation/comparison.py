@@ -8,6 +8,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from robofailring.encoders import EncoderSpec, open_encoder
+from robofailring.errors import SettingError
 from robofailring.evaluation.calibration import CalibrateConfig, calibrate
 from robofailring.evaluation.run import (
     EvaluateConfig,
@@ -33,7 +34,9 @@ class CompareEncodersConfig:
 def compare_encoders(config: CompareEncodersConfig) -> list[EvaluationResult]:
     """Build, calibrate and evaluate one memory per encoder on the same split."""
     if len(config.encoders) < 2:
-        raise ValueError("an encoder comparison needs at least two encoders")
+        raise SettingError(
+            f"an encoder comparison needs at least two encoders (--encoder A --encoder B), got {len(config.encoders)}"
+        )
     results = []
     for spec in config.encoders:
         slug = EncoderSpec.slug(open_encoder(spec, device=config.device, cache_dir=config.cache_dir).identity)

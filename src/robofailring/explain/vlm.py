@@ -34,6 +34,12 @@ class VLMError(RoboFailRingError):
     """The VLM server could not be reached, refused the request, or answered something unusable."""
 
 
+class VLMCallError(VLMError):
+    """A VLM call that a command depends on failed: an error of the environment (exit 1), not of the input."""
+
+    exit_code = 1
+
+
 @dataclass(frozen=True)
 class VLMConfig:
     """Where to ask: an OpenAI-compatible server and the model it serves."""

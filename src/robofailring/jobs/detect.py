@@ -1,14 +1,23 @@
-"""The detect job: one trajectory replayed through a memory's detector."""
+"""The detect job: one trajectory replayed through a memory's detector, its report, and the VLM's answer."""
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from robofailring.data.layouts import load_trajectory
 from robofailring.data.model import Trajectory
 from robofailring.detection.detector import DEFAULT_K, DetectionTrace, check_stride
 from robofailring.detection.loader import open_detector
+from robofailring.explain.report import FailureReport, report_for
+from robofailring.memory.references import ReferenceCheck, check_references
+
+if TYPE_CHECKING:
+    from robofailring.explain.vlm import VLMAnswer, VLMConfig  # httpx: loaded only when a VLM is asked
 
 
 @dataclass(frozen=True)
@@ -28,6 +37,7 @@ class DetectConfig:
     stride: int = 1  # score every stride-th frame (I_0 stays frame 0; t_det in original frames)
     labels: Path | None = None  # labels file (LeRobot): outcome and symbol per episode
     data_root: Path | None = None  # where the memory's images are now, when its data moved
+    vlm: VLMConfig | None = None  # ask this VLM about the report, when the detector fires
 
 
 def detect(config: DetectConfig) -> DetectionTrace:
@@ -51,3 +61,85 @@ def detect_trajectory(config: DetectConfig) -> tuple[DetectionTrace, Trajectory]
     )
     trajectory = load_trajectory(config.trajectory, task=config.task, key=config.key, labels=config.labels)
     return detector.run(trajectory, leave_one_out=config.leave_one_out, stride=config.stride), trajectory
+
+
+@dataclass(frozen=True)
+class DetectResult:
+    """What `robofailring detect` found: the trace, its report, the VLM's answer, and what to warn about."""
+
+    trace: DetectionTrace
+    report: FailureReport | None  # None: nothing detected
+    vlm: VLMConfig | None  # the VLM asked, if any
+    answer: VLMAnswer | None  # None: no VLM, or nothing detected to ask about
+    references: ReferenceCheck | None  # the fired neighbours' reference images (None: nothing fired)
+
+    @property
+    def notes(self) -> list[str]:
+        """Warnings and notes for stderr: a failed VLM call, frames left unscored, views skipped."""
+        trace, notes = self.trace, []
+        if self.answer is not None and self.answer.error is not None:
+            notes.append(f"warning: the VLM call failed: {self.answer.error}")
+        for view, count in trace.truncated_views.items():
+            notes.append(
+                f"note: view {view} has {trace.length + count} frames; the last {count} are not scored "
+                f"(views are scored in step up to the shortest one, L = {trace.length})"
+            )
+        if trace.skipped_views:
+            notes.append(f"note: views with fewer than 2 frames skipped: {', '.join(trace.skipped_views)}")
+        return notes
+
+    def to_dict(self) -> dict[str, Any]:
+        """The full trace, the report (None without a detection) and, when a VLM was given, its answer."""
+        found = {**self.trace.to_dict(), "report": self.report.to_dict() if self.report is not None else None}
+        if self.vlm is not None:
+            found["vlm"] = self.answer.to_dict() if self.answer is not None else None  # None: nothing to ask
+        return found
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict())
+
+    def to_text(self) -> str:
+        """The summary: the rule and threshold, each view's peak scores, and the detection (or none)."""
+        trace, rule = self.trace, self.trace.rule
+        scored = f", every {trace.stride}th frame scored" if trace.stride > 1 else ""
+        lines = [
+            f"task {trace.task}, L = {trace.length} frames{scored}, rule {rule.name}: {rule.score_name} ≥ "
+            f"{rule.symbol} = {trace.threshold:.3f}, K = {trace.k}"
+        ]
+        contrasts = trace.contrast
+        for view in trace.views:
+            line = f"  {view:>10}: max S⁻_t = {float(np.nanmax(trace.similarity[view])):.3f}"
+            if view in trace.success_similarity:
+                line += f", max C_t = {float(np.nanmax(contrasts[view])):.3f}"
+            lines.append(line)
+        if trace.t_det is None or trace.detected_view is None:
+            lines.append("no failure detected")
+            return "\n".join(lines)
+        fired_view = trace.detected_view
+        top = trace.neighbors(fired_view, trace.t_det)[0]
+        fired_score = float(trace.scores[fired_view][trace.t_det])
+        lines.append(
+            f"FAILURE detected at frame {trace.t_det}/{trace.length} in view {fired_view} "
+            f"({rule.name} rule: {rule.score_name} = {fired_score:.3f}, S⁻_t = {top.similarity:.3f}); "
+            f"nearest memory entry {top.entry.task}/{top.entry.episode} "
+            f"[{top.entry.view}] {top.entry.symbol}: {top.entry.description}"
+        )
+        if self.answer is not None and self.answer.answer is not None:
+            lines.append(f"\nVLM ({self.answer.model}, {self.answer.latency_s:.1f} s):\n{self.answer.answer}")
+        return "\n".join(lines)
+
+
+def run_detect(config: DetectConfig) -> DetectResult:
+    """`robofailring detect`: the trace, the failure report when it fires, and the VLM's answer about it."""
+    trace, loaded = detect_trajectory(config)
+    references = None
+    if trace.t_det is not None and trace.detected_view is not None:
+        neighbors = trace.neighbors(trace.detected_view, trace.t_det)
+        references = check_references(ref for n in neighbors for ref in (n.entry.start, n.entry.end))
+    report = report_for(trace, loaded)
+    answer = None  # no VLM, or nothing detected to ask about
+    if config.vlm is not None and report is not None:
+        from robofailring.explain.vlm import ask_vlm
+
+        answer = ask_vlm(report, config.vlm)
+    return DetectResult(trace=trace, report=report, vlm=config.vlm, answer=answer, references=references)

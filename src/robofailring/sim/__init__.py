@@ -7,7 +7,13 @@ from robofailring.sim.episode import DURATION_S, EpisodeResult, EpisodeRun, run_
 from robofailring.sim.perturb import FAILURE_FAMILIES, FAILURE_MODES, KINDS, SUCCESS, Perturbation
 from robofailring.sim.sheet import contact_sheet
 from robofailring.sim.tasks import TASKS, GoalCheck
-from robofailring.sim.writer import GenerateConfig, episode_dir_name, episode_seed, generate_dataset
+from robofailring.sim.writer import (
+    GenerateConfig,
+    describe_dataset,
+    episode_dir_name,
+    episode_seed,
+    generate_dataset,
+)
 
 __all__ = [
     "DURATION_S",
@@ -23,6 +29,7 @@ __all__ = [
     "GoalCheck",
     "Perturbation",
     "contact_sheet",
+    "describe_dataset",
     "episode_dir_name",
     "episode_seed",
     "generate_dataset",

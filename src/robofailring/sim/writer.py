@@ -14,7 +14,7 @@ from typing import Any, Final
 
 from robofailring.atomic import atomic_directory
 from robofailring.data.images import write_png
-from robofailring.data.layouts import PROJECT_FORMAT, PROJECT_MANIFEST
+from robofailring.data.layouts import PROJECT_FORMAT, PROJECT_MANIFEST, read_project_manifest
 from robofailring.errors import DataError, SettingError
 from robofailring.sim.cameras import VIEWS
 from robofailring.sim.episode import DURATION_S, EpisodeResult, episode_fps, run_episode
@@ -51,13 +51,15 @@ class GenerateConfig:
         object.__setattr__(self, "modes", tuple(self.modes))
         unknown = [t for t in self.tasks if t not in TASKS]
         if unknown or not self.tasks:
-            raise ValueError(f"unknown task(s) {unknown}; expected some of {list(TASKS)}")
+            raise SettingError(f"unknown task(s) {unknown}; expected some of {list(TASKS)}")
         allowed = (*KINDS, *FAILURE_MODES)
         bad = [m for m in self.modes if m not in allowed]
         if bad or not self.modes:
-            raise ValueError(f"unknown mode(s) {bad}; expected some of {list(allowed)}")
+            raise SettingError(f"unknown mode(s) {bad}; expected some of {list(allowed)}")
         if len(set(self.modes)) != len(self.modes) or len(set(self.tasks)) != len(self.tasks):
-            raise ValueError("tasks and modes must not repeat")
+            raise SettingError(
+                f"tasks and modes must not repeat, got tasks {list(self.tasks)} and modes {list(self.modes)}"
+            )
         if self.success_episodes is not None and self.success_episodes < 0:
             raise SettingError(f"--success-episodes must be at least 0, got {self.success_episodes}")
         for flag, value, least in (
@@ -260,6 +262,15 @@ def manifest_for(config: GenerateConfig, records: list[dict[str, Any]]) -> dict[
         },
         "episodes": records,
     }
+
+
+def describe_dataset(root: Path) -> str:
+    """One line about a generated dataset: its episodes, how many are failures, its frame rate."""
+    manifest = read_project_manifest(root)
+    failures = sum(e["outcome"] == "failure" for e in manifest["episodes"])
+    return (
+        f"dataset {root}: {len(manifest['episodes'])} episodes ({failures} failures), {manifest['fps']} fps"
+    )
 
 
 def generate_dataset(config: GenerateConfig, *, progress: Callable[[int], None] | None = None) -> Path:
