@@ -22,10 +22,8 @@ from robofailring.memory.pairs import pair_vectors
 
 
 @pytest.fixture()
-def memory_and_encoder(aha_dataset: Path, cache_dir: Path) -> tuple[FailureMemory, CachedEncoder]:
-    encoder = CachedEncoder(load_encoder("pixels"), cache_dir=cache_dir)
-    memory, _ = FailureMemory.build(load_dataset(aha_dataset), encoder)
-    return memory, encoder
+def memory_and_encoder(pixels_memory: FailureMemory, cache_dir: Path) -> tuple[FailureMemory, CachedEncoder]:
+    return pixels_memory, CachedEncoder(load_encoder("pixels"), cache_dir=cache_dir)
 
 
 def test_trace_equals_brute_force(
