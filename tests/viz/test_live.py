@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rerun as rr
+from environment import require_viewer
 from rrd import batches, entity_paths, properties, rows
 from synthetic import VIEWS, synthetic_frame, write_episode
 from typer.testing import CliRunner
@@ -28,7 +29,7 @@ from rfr_viz.panels.live_camera import LiveCameras, live_codec
 from rfr_viz.panels.scores import set_frame_time
 from rfr_viz.paths import REPLAY, camera
 from rfr_viz.recordings.live import LiveRecording, LiveTarget
-from rfr_viz.viewer.control import WINDOW, ViewerUnavailable, _viewer_process, check_vulkan
+from rfr_viz.viewer.control import WINDOW, _viewer_process
 from robofailring import (
     DetectorSession,
     FailureDetector,
@@ -241,10 +242,7 @@ def test_a_failed_block_leaves_no_file(pixels_memory_dir: Path, tmp_path: Path) 
 
 @pytest.mark.viewer
 def test_watch_connect_streams_into_a_running_viewer(episode: Path, pixels_memory_dir: Path) -> None:
-    try:
-        check_vulkan()
-    except ViewerUnavailable as error:
-        pytest.skip(f"headless Rerun viewer unavailable: {error}")
+    require_viewer()
     from rerun.experimental import ViewerClient
 
     deadline = time.monotonic() + 90

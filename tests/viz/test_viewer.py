@@ -7,6 +7,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from environment import require_viewer, viewer_available
 from synthetic import write_episode, write_project_dataset
 
 from rfr_viz.recordings.blueprint import FOCUS_MARGIN
@@ -36,10 +37,7 @@ pytestmark = pytest.mark.viewer
 
 @pytest.fixture(scope="module")
 def viewer_ready() -> None:
-    try:
-        check_vulkan()
-    except ViewerUnavailable as error:
-        pytest.skip(f"headless Rerun viewer unavailable: {error}")
+    require_viewer()
 
 
 def test_replay_renders_in_the_real_viewer(
@@ -53,10 +51,8 @@ def test_replay_renders_in_the_real_viewer(
     trace = first.with_delta(float(np.median(first.max_similarity())))
     assert trace.t_det is not None
     recording = record_replay(trajectory, trace, out=tmp_path / "replay.rrd")
-    try:
+    with viewer_available():
         shot = render_screenshot(recording, tmp_path / "replay.png", frame=trace.t_det)
-    except ViewerUnavailable as error:
-        pytest.skip(f"headless Rerun viewer unavailable: {error}")
     assert shot.errors == [], shot.errors
     image = cv2.imread(str(shot.path), cv2.IMREAD_COLOR)
     assert image is not None and image.shape[1] >= 1280 and image.shape[0] >= 720

@@ -2,18 +2,18 @@
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
+from environment import require_ffmpeg, require_viewer
 from lerobot_writer import encode_video as write_mp4
 from synthetic import synthetic_frame, write_episode
 
 from rfr_viz.panels.camera_video import CameraCodec
 from rfr_viz.recordings.replay import record_replay
-from rfr_viz.viewer.control import ViewerUnavailable, check_vulkan, recording_properties, render_screenshot
+from rfr_viz.viewer.control import recording_properties, render_screenshot
 from robofailring import (
     CachedEncoder,
     FailureDetector,
@@ -49,12 +49,9 @@ def _difference(shown: np.ndarray, source: np.ndarray) -> float:
 def test_the_camera_panel_shows_the_video_frame(
     codec: CameraCodec, pixels_memory: FailureMemory, tmp_path: Path
 ) -> None:
-    try:
-        check_vulkan()
-    except ViewerUnavailable as error:
-        pytest.skip(f"headless Rerun viewer unavailable: {error}")
-    if codec is CameraCodec.H264 and shutil.which("ffmpeg") is None:
-        pytest.skip("the Rerun viewer decodes H.264 with ffmpeg (≥ 5.1), which is not installed here")
+    require_viewer()
+    if codec is CameraCodec.H264:
+        require_ffmpeg()
     encoder = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "cache")
     folder = write_episode(tmp_path / "push_cube_slip_wp3_episode5", "push_cube", "slip_wp3", length=LENGTH)
     frames = [synthetic_frame("push_cube", "slip_wp3", 0, t, LENGTH, size=SIZE) for t in range(LENGTH)]
@@ -77,10 +74,7 @@ def test_a_video_source_logged_as_its_own_samples_renders(
     pixels_memory: FailureMemory, tmp_path: Path
 ) -> None:
     """An AV1 `<view>.mp4` kept as the file's samples (rfr_viz.panels.video_passthrough) shows its frames."""
-    try:
-        check_vulkan()
-    except ViewerUnavailable as error:
-        pytest.skip(f"headless Rerun viewer unavailable: {error}")
+    require_viewer()
     encoder = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "cache")
     folder = tmp_path / "push_cube_slip_wp3_episode5"
     frames = [synthetic_frame("push_cube", "slip_wp3", 0, t, LENGTH, size=SIZE) for t in range(LENGTH)]
