@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Set up everything the project needs on a fresh machine: a virtualenv in .venv with the package
-# (and, with --dev, the test tools), plus the software Vulkan driver the headless Rerun viewer needs.
+# (and, with --dev, the test tools, ffmpeg and Chromium), plus the software Vulkan driver the headless
+# Rerun viewer needs. scripts/test.sh runs this; its viewer and report tests fail where a piece is missing.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PYTHON=${PYTHON:-python3}
@@ -21,13 +22,19 @@ if [ "${1:-}" = "--dev" ]; then extras="[dev]"; fi
 if ! ldconfig -p 2>/dev/null | grep -q libvulkan.so.1 || [ ! -e /usr/share/vulkan/icd.d/lvp_icd.x86_64.json ]; then
   if [ "$(id -u)" = "0" ] && command -v apt-get >/dev/null; then
     (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
-      mesa-vulkan-drivers libvulkan1 >/dev/null) || echo "warning: could not install mesa-vulkan-drivers; viewer screenshots will be skipped" >&2
+      mesa-vulkan-drivers libvulkan1 >/dev/null) || echo "warning: could not install mesa-vulkan-drivers; the viewer tests will fail" >&2
   else
     echo "note: install mesa-vulkan-drivers and libvulkan1 to render recordings headless" >&2
   fi
 fi
-# The viewer decodes H.264 camera streams with ffmpeg (>= 5.1); the tests check it where installed.
+# The viewer decodes H.264 camera streams with ffmpeg (>= 5.1); the H.264 viewer test needs it.
 if [ -n "$extras" ] && ! command -v ffmpeg >/dev/null && [ "$(id -u)" = "0" ] && command -v apt-get >/dev/null; then
   (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends ffmpeg >/dev/null) \
-    || echo "warning: could not install ffmpeg; the H.264 viewer test will be skipped" >&2
+    || echo "warning: could not install ffmpeg; the H.264 viewer test will fail" >&2
+fi
+# The report test renders report.html in headless Chromium (Debian's package `chromium`).
+if [ -n "$extras" ] && ! command -v chromium >/dev/null && ! command -v chromium-browser >/dev/null \
+  && [ "$(id -u)" = "0" ] && command -v apt-get >/dev/null; then
+  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends chromium >/dev/null) \
+    || echo "warning: could not install chromium; the report.html rendering test will fail" >&2
 fi

@@ -1,4 +1,4 @@
-"""Shared fixtures: tiny synthetic datasets written as real PNG files."""
+"""Shared fixtures: tiny synthetic datasets written as real PNG files, and the pixels memory built from one."""
 
 from __future__ import annotations
 
@@ -11,10 +11,29 @@ pytest.register_assert_rewrite("fault_helpers")  # the fault tests' shared check
 
 from synthetic import write_aha_dataset  # noqa: E402
 
+from robofailring import CachedEncoder, FailureMemory, load_dataset, load_encoder  # noqa: E402
+
 
 @pytest.fixture(scope="session")
 def aha_dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return write_aha_dataset(tmp_path_factory.mktemp("aha"))
+
+
+@pytest.fixture(scope="session")
+def pixels_memory_dir(aha_dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The AHA fixture's failures as a saved pixels-encoder memory, built once for the whole run.
+
+    Shared by every test that asks for it: a test that changes a memory saves its own copy first.
+    """
+    encoder = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path_factory.mktemp("pixels-cache"))
+    memory, _ = FailureMemory.build(load_dataset(aha_dataset), encoder)
+    return memory.save(tmp_path_factory.mktemp("memory") / "pixels")
+
+
+@pytest.fixture()
+def pixels_memory(pixels_memory_dir: Path) -> FailureMemory:
+    """The shared pixels memory, loaded afresh for each test so that no test sees another's changes."""
+    return FailureMemory.load(pixels_memory_dir)
 
 
 @pytest.fixture()

@@ -1,11 +1,12 @@
-"""Helpers for the fault tests: the CLI run in-process, a refusal check, a tiny dataset and memory."""
+"""Helpers for the fault tests: the CLI run in-process, a refusal check, what a write left behind.
+
+Their fixtures (a tiny dataset, its cache and memory) live in tests/cli/conftest.py.
+"""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-import pytest
-from synthetic import write_aha_dataset
 from typer.testing import CliRunner, Result
 
 from rfr_viz.cli.app import app
@@ -34,26 +35,3 @@ def hidden(folder: Path) -> list[str]:
 
 def tree(root: Path) -> dict[str, bytes]:
     return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
-
-
-@pytest.fixture(scope="module")
-def data(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return write_aha_dataset(
-        tmp_path_factory.mktemp("faults") / "data",
-        symbols=("grasp_wp2", "wrong_object"),
-        episodes=1,
-        length=3,
-    )
-
-
-@pytest.fixture(scope="module")
-def cache(tmp_path_factory: pytest.TempPathFactory) -> list[str]:
-    return ["--cache-dir", str(tmp_path_factory.mktemp("cache"))]
-
-
-@pytest.fixture()
-def memory(data: Path, cache: list[str], tmp_path: Path) -> Path:
-    out = tmp_path / "memory"
-    result = cli("build-memory", data, "--out", out, *cache)
-    assert result.exit_code == 0, result.output
-    return out

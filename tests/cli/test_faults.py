@@ -19,8 +19,6 @@ from synthetic import write_aha_dataset, write_episode, write_project_dataset
 
 from rfr_viz.viewer.control import recording_properties
 
-pytest_plugins = ("fault_helpers",)  # its fixtures: data, cache, memory
-
 # ---------------------------------------------------------------- data loss
 
 

@@ -17,8 +17,6 @@ import pytest
 from fault_helpers import cli, refused
 from synthetic import synthetic_frame, write_episode
 
-pytest_plugins = ("fault_helpers",)  # its fixtures: data, cache, memory
-
 
 def test_malformed_memory_content_is_named(memory: Path, data: Path, cache: list[str]) -> None:
     episode = data / "pick_cube_grasp_wp2_episode0"

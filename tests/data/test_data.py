@@ -6,14 +6,13 @@ import json
 from pathlib import Path
 
 import pytest
+from environment import shared_data
 from synthetic import write_episode
 
 from robofailring import Outcome, load_dataset, load_trajectory
 from robofailring.data.images import numeric_sort_key, write_png
 from robofailring.data.layouts import LAYOUTS_HELP, parse_aha_name
 from robofailring.errors import DataError
-
-SHARED_EPISODE = Path(__file__).resolve().parents[3] / "shared" / "data" / "maniskill-failgen-episode"
 
 
 def test_numeric_order() -> None:
@@ -143,9 +142,8 @@ def test_episode_without_task_asks_for_it(tmp_path: Path) -> None:
         load_trajectory(folder)
 
 
-@pytest.mark.skipif(not SHARED_EPISODE.is_dir(), reason="../shared/data is not beside this checkout")
 def test_real_maniskill_episode() -> None:
-    trajectory = load_trajectory(SHARED_EPISODE, task="FailPickCube-v1")
+    trajectory = load_trajectory(shared_data("maniskill-failgen-episode"), task="FailPickCube-v1")
     assert trajectory.view_names == ["front", "side", "wrist"]
     assert trajectory.length == 69
     assert trajectory.views["side"][-1].path.name == "68.png"

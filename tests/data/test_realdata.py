@@ -33,6 +33,11 @@ REAL_NAMES = (
     "fold_towel_wrong_sequence_wp5_episode2",
     "pour_water_slip_wp1_episode4",
 )
+# Why a folder under an AHA-layout root that is not named like an episode was not read.
+NOT_AN_EPISODE_NAME = (
+    "name is not <task>_<failtype>_wp<k>_episode<e>, <task>_wrong_object[_wp<k>]_episode<e> "
+    "or <task>_success_episode<e>"
+)
 
 
 def write_real_set(root: Path) -> Path:
@@ -106,12 +111,12 @@ def test_nothing_under_a_root_is_dropped_silently(tmp_path: Path, aha_dataset: P
     }
     assert "unknown failure type 'twist'" in reasons["pick_cube_twist_wp1_episode2"]
     assert "no images" in reasons["pick_cube_grasp_wp3_episode3"]
-    # the CLI: one summary line and the first names; the exit is not an error
+    # the CLI: one summary line and the first names; status 3, done but inputs were skipped
     runner = CliRunner()
     result = runner.invoke(
         app, ["build-memory", str(root), "--out", str(tmp_path / "m"), "--cache-dir", str(tmp_path / "c")]
     )
-    assert result.exit_code in (0, 3), result.output
+    assert result.exit_code == 3, result.output
     assert "5 folder(s)/file(s) under the data were not read" in result.output
     assert "pick_cube_twist_wp1_episode2: unknown failure type 'twist'" in result.output
     manifest = json.loads((tmp_path / "m" / "manifest.json").read_text())
@@ -144,6 +149,7 @@ def test_frames_without_a_number_are_reported_and_counted(tmp_path: Path) -> Non
     result = runner.invoke(
         app, ["build-memory", str(root), "--out", str(tmp_path / "m"), "--cache-dir", str(tmp_path / "c")]
     )
+    assert result.exit_code == 3, result.output
     assert "0 views skipped" not in result.output
     assert "skipped: 0 view(s) with < 2 frames, 1 folder(s)/file(s) not read" in result.output
     assert "without a frame number" in result.output
@@ -160,7 +166,7 @@ def test_frames_without_a_number_are_reported_and_counted(tmp_path: Path) -> Non
             str(tmp_path / "c"),
         ],
     )
-    assert result.exit_code in (0, 3), result.output
+    assert result.exception is None, result.output  # its status: test_a_verb_that_skipped_inputs_ends_with_3
     assert json.loads(result.stdout)["skipped_inputs"] == [skipped.to_dict()]
     assert "without a frame number" in result.stderr
 
@@ -230,14 +236,48 @@ def test_evaluate_with_a_stride_reports_original_frames_and_what_was_not_read(tm
             str(tmp_path / "c"),
         ],
     )
-    assert result.exit_code in (0, 3), result.output
+    assert result.exception is None, result.output  # its status: test_a_verb_that_skipped_inputs_ends_with_3
     assert "1 folder(s)/file(s) under the data were not read" in result.output
     report = json.loads((out / "evaluation.json").read_text())
     assert report["stride"] == 3
-    assert report["skipped_inputs"] == [
-        {"path": str(root / "stray"), "reason": report["skipped_inputs"][0]["reason"]}
-    ]
+    assert report["skipped_inputs"] == [{"path": str(root / "stray"), "reason": NOT_AN_EPISODE_NAME}]
     detected = [row["t_det"] for row in report["trajectories"] if row["t_det"] is not None]
     assert any(t > 0 for t in detected) and all(t % 3 == 0 for t in detected)  # original frame numbers
     assert {row["length"] for row in report["trajectories"]} == {9}
     assert "stray" in (out / "evaluation.md").read_text()
+
+
+NOT_YET_3 = "the verb reports skipped inputs but ends with 0: it does not count them in finish(skipped=...)"
+
+
+@pytest.mark.parametrize(
+    "verb",
+    [
+        "build-memory",
+        pytest.param("detect", marks=pytest.mark.xfail(strict=True, reason=NOT_YET_3)),
+        pytest.param("evaluate", marks=pytest.mark.xfail(strict=True, reason=NOT_YET_3)),
+    ],
+)
+def test_a_verb_that_skipped_inputs_ends_with_3(verb: str, tmp_path: Path) -> None:
+    """Status 3 is "done, but some inputs were skipped" (robofailring.cli.exit_codes), for every verb."""
+    root = tmp_path / "data"
+    for episode in range(4):  # evaluate's split: even episodes build, odd ones are scored
+        for symbol in ("grasp_wp2", None):
+            name = f"pick_cube_{symbol or 'success'}_episode{episode}"
+            write_episode(root / name, "pick_cube", symbol, layout="aha", length=3, shift=episode)
+    runner = CliRunner()
+    cache = ["--cache-dir", str(tmp_path / "c")]
+    memory = tmp_path / "memory"
+    built = runner.invoke(app, ["build-memory", str(root), "--out", str(memory), *cache])
+    assert built.exit_code == 0, built.output  # nothing skipped yet: done
+    (root / "stray").mkdir()
+    episode = root / "pick_cube_grasp_wp2_episode1"
+    write_png(episode / "front_a.png", np.zeros((8, 8, 3), np.uint8))  # a frame without a number
+    arguments = {
+        "build-memory": ["build-memory", str(root), "--out", str(tmp_path / "again")],
+        "detect": ["detect", str(episode), "--memory", str(memory), "--json"],
+        "evaluate": ["evaluate", str(root), "--out", str(tmp_path / "eval"), "--target-fpr", "0.5"],
+    }
+    result = runner.invoke(app, [*arguments[verb], *cache])
+    assert "without a frame number" in result.output
+    assert result.exit_code == 3, result.output

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
+from environment import shared_data
 from lerobot_writer import encode_video, scene, write_lerobot_v3, write_lerobot_v21
 from rrd import properties, rows
 from typer.testing import CliRunner
@@ -26,7 +27,6 @@ from robofailring.data.images import read_image
 from robofailring.data.video import open_video
 from robofailring.errors import DataError
 
-SHARED_EPISODE = Path(__file__).resolve().parents[3] / "shared" / "data" / "maniskill-failgen-episode"
 V3_LENGTHS = (12, 9, 15)
 
 
@@ -173,9 +173,9 @@ def test_video_episodes_and_the_real_episode_as_mp4(tmp_path: Path) -> None:
     assert (plain.task, plain.episode, plain.length) == ("pick_cube", "run_7", 11)
     assert mean_abs(plain.views["wrist"][7].load(), scene(1, 1, 7)) <= 8
     assert {item.path.name for item in dataset.skipped} == {"empty", "notes.txt"}
-    if not SHARED_EPISODE.is_dir():
-        pytest.skip("../shared/data is not beside this checkout")
-    pngs = sorted((SHARED_EPISODE / "front").glob("*.png"), key=lambda p: int(p.stem))
+    pngs = sorted(
+        (shared_data("maniskill-failgen-episode") / "front").glob("*.png"), key=lambda p: int(p.stem)
+    )
     sources = [read_image(p) for p in pngs]
     encode_video(tmp_path / "real" / "front.mp4", sources, 10, "av1")
     real = load_trajectory(tmp_path / "real", task="FailPickCube-v1")

@@ -22,10 +22,8 @@ from robofailring.memory.pairs import pair_vectors
 
 
 @pytest.fixture()
-def memory_and_encoder(aha_dataset: Path, cache_dir: Path) -> tuple[FailureMemory, CachedEncoder]:
-    encoder = CachedEncoder(load_encoder("pixels"), cache_dir=cache_dir)
-    memory, _ = FailureMemory.build(load_dataset(aha_dataset), encoder)
-    return memory, encoder
+def memory_and_encoder(pixels_memory: FailureMemory, cache_dir: Path) -> tuple[FailureMemory, CachedEncoder]:
+    return pixels_memory, CachedEncoder(load_encoder("pixels"), cache_dir=cache_dir)
 
 
 def test_trace_equals_brute_force(
@@ -57,7 +55,15 @@ def test_detection_and_fusion(memory_and_encoder: tuple[FailureMemory, CachedEnc
     )
     detector = FailureDetector(memory, encoder, delta=0.999, k=2)
     trace = detector.run(failure)  # its own entries are in memory: the last frame matches exactly
-    assert trace.t_det is not None and trace.t_det <= trace.length - 1
+    raw = load_encoder("pixels")
+    members = memory.vectors[[i for i, e in enumerate(memory.entries) if e.task == failure.task]]
+    by_view = []
+    for frames in failure.views.values():
+        embeddings = raw.encode([f.load() for f in frames])
+        queries = pair_vectors(np.repeat(embeddings[:1], len(frames), axis=0), embeddings)
+        by_view.append((queries @ members.T).max(axis=1))
+    reached = np.flatnonzero(np.stack(by_view).max(axis=0) >= 0.999)  # the fused S_t reaches δ
+    assert reached.size > 0 and trace.t_det == int(reached[0])
     assert trace.similarity[trace.detected_view][trace.length - 1] == pytest.approx(1.0, abs=1e-5)
     held_out = detector.run(failure, leave_one_out=True)
     assert all(

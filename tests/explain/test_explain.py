@@ -13,16 +13,8 @@ from vlm_server import ANSWER, chat_server
 
 from rfr_viz.cli.app import app
 from rfr_viz.paths import REPLAY
-from robofailring import CachedEncoder, FailureMemory, load_dataset, load_encoder
 
 runner = CliRunner()
-
-
-@pytest.fixture(scope="module")
-def memory_dir(aha_dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    encoder = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path_factory.mktemp("cache"))
-    memory, _ = FailureMemory.build(load_dataset(aha_dataset), encoder)
-    return memory.save(tmp_path_factory.mktemp("memory") / "pixels")
 
 
 @pytest.fixture(scope="module")
@@ -31,9 +23,20 @@ def episode(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return write_episode(folder, "push_cube", "grasp_wp2", length=6, shift=1)
 
 
-def _replay(episode: Path, memory_dir: Path, out: Path, delta: str, *vlm: str) -> Path:
+def _replay(episode: Path, pixels_memory_dir: Path, out: Path, delta: str, *vlm: str) -> Path:
     result = runner.invoke(
-        app, ["replay", str(episode), "--memory", str(memory_dir), "--out", str(out), "--delta", delta, *vlm]
+        app,
+        [
+            "replay",
+            str(episode),
+            "--memory",
+            str(pixels_memory_dir),
+            "--out",
+            str(out),
+            "--delta",
+            delta,
+            *vlm,
+        ],
     )
     assert result.exit_code == 0, result.output
     (recording,) = out.glob("*.rrd")
@@ -41,11 +44,18 @@ def _replay(episode: Path, memory_dir: Path, out: Path, delta: str, *vlm: str) -
 
 
 def test_replay_puts_the_answer_into_the_report_and_explain_asks_again(
-    episode: Path, memory_dir: Path, tmp_path: Path
+    episode: Path, pixels_memory_dir: Path, tmp_path: Path
 ) -> None:
     with chat_server(("ok", ANSWER), ("ok", "asked again")) as server:
         recording = _replay(
-            episode, memory_dir, tmp_path / "rec", "-1", "--vlm-url", server.url, "--vlm-model", "llava"
+            episode,
+            pixels_memory_dir,
+            tmp_path / "rec",
+            "-1",
+            "--vlm-url",
+            server.url,
+            "--vlm-model",
+            "llava",
         )
         found = properties(recording)
         assert found["t_det"] == 0 and found["vlm_model"] == "llava" and found["vlm_answer"] == ANSWER
@@ -66,9 +76,9 @@ def test_replay_puts_the_answer_into_the_report_and_explain_asks_again(
     assert first == second  # the report read back from the recording is the one replay asked about
 
 
-def test_explain_reads_detect_json(episode: Path, memory_dir: Path, tmp_path: Path) -> None:
+def test_explain_reads_detect_json(episode: Path, pixels_memory_dir: Path, tmp_path: Path) -> None:
     detected = runner.invoke(
-        app, ["detect", str(episode), "--memory", str(memory_dir), "--delta", "-1", "--json"]
+        app, ["detect", str(episode), "--memory", str(pixels_memory_dir), "--delta", "-1", "--json"]
     )
     assert detected.exit_code == 0, detected.output
     saved = tmp_path / "detect.json"
@@ -82,7 +92,7 @@ def test_explain_reads_detect_json(episode: Path, memory_dir: Path, tmp_path: Pa
 
 
 def test_a_failed_vlm_call_keeps_the_recording_and_says_so(
-    episode: Path, memory_dir: Path, tmp_path: Path
+    episode: Path, pixels_memory_dir: Path, tmp_path: Path
 ) -> None:
     with chat_server(("status", 400)) as server:
         result = runner.invoke(
@@ -91,7 +101,7 @@ def test_a_failed_vlm_call_keeps_the_recording_and_says_so(
                 "replay",
                 str(episode),
                 "--memory",
-                str(memory_dir),
+                str(pixels_memory_dir),
                 "--out",
                 str(tmp_path / "rec"),
                 "--delta",
@@ -112,9 +122,9 @@ def test_a_failed_vlm_call_keeps_the_recording_and_says_so(
     assert explained.exit_code == 1 and "HTTP 400" in explained.stderr
 
 
-def test_explain_without_a_detection_or_a_report(memory_dir: Path, tmp_path: Path) -> None:
+def test_explain_without_a_detection_or_a_report(pixels_memory_dir: Path, tmp_path: Path) -> None:
     success = write_episode(tmp_path / "push_cube_success_episode9", "push_cube", None, length=6)
-    quiet = _replay(success, memory_dir, tmp_path / "quiet", "1.0")
+    quiet = _replay(success, pixels_memory_dir, tmp_path / "quiet", "1.0")
     assert properties(quiet)["t_det"] == -1 and "report" not in properties(quiet)
     vlm = ["--vlm-url", "http://127.0.0.1:9/v1", "--vlm-model", "m"]
     result = runner.invoke(app, ["explain", str(quiet), *vlm])
@@ -169,6 +179,6 @@ def test_review_puts_the_answer_into_each_false_alarm(tmp_path: Path) -> None:
     assert len(recordings) == len(alarms) == len(server.received)
     for recording in recordings:
         found = properties(recording)
-        assert found["vlm_answer"] == ANSWER and found["t_det"] >= 0
+        assert found["vlm_answer"] == ANSWER and found["t_det"] == 0  # at δ = -1 the first frame fires
         text = rows(recording, REPLAY.report, "TextDocument:text")[-1][1][0]
         assert "VLM answer (llava" in text and ANSWER in text

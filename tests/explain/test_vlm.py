@@ -14,10 +14,8 @@ from typer.testing import CliRunner
 from vlm_server import ANSWER, chat_server
 
 from robofailring import (
-    CachedEncoder,
     FailureDetector,
     FailureMemory,
-    load_dataset,
     load_encoder,
     load_trajectory,
 )
@@ -30,21 +28,14 @@ runner = CliRunner()
 
 
 @pytest.fixture(scope="module")
-def memory_dir(aha_dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    encoder = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path_factory.mktemp("cache"))
-    memory, _ = FailureMemory.build(load_dataset(aha_dataset), encoder)
-    return memory.save(tmp_path_factory.mktemp("memory") / "pixels")
-
-
-@pytest.fixture(scope="module")
 def episode(tmp_path_factory: pytest.TempPathFactory) -> Path:
     folder = tmp_path_factory.mktemp("episodes") / "pick_cube_grasp_wp2_episode9"
     return write_episode(folder, "pick_cube", "grasp_wp2", length=6, shift=2)
 
 
 @pytest.fixture(scope="module")
-def report(memory_dir: Path, episode: Path) -> FailureReport:
-    memory = FailureMemory.load(memory_dir)
+def report(pixels_memory_dir: Path, episode: Path) -> FailureReport:
+    memory = FailureMemory.load(pixels_memory_dir)
     trajectory = load_trajectory(episode)
     trace = FailureDetector(memory, load_encoder("pixels"), delta=-1.0, k=3).run(trajectory)
     found = report_for(trace, trajectory)
@@ -165,17 +156,30 @@ def test_bad_settings() -> None:
         VLMConfig(url="http://localhost:11434/v1", model="")
 
 
-def _detect(episode: Path, memory_dir: Path, *extra: str) -> tuple[int, dict, str]:
+def _detect(episode: Path, pixels_memory_dir: Path, *extra: str) -> tuple[int, dict, str]:
     result = runner.invoke(
         app,
-        ["detect", str(episode), "--memory", str(memory_dir), "--delta", "-1", "--k", "3", "--json", *extra],
+        [
+            "detect",
+            str(episode),
+            "--memory",
+            str(pixels_memory_dir),
+            "--delta",
+            "-1",
+            "--k",
+            "3",
+            "--json",
+            *extra,
+        ],
     )
     return result.exit_code, json.loads(result.stdout) if result.stdout.strip() else {}, result.stderr
 
 
-def test_detect_asks_the_vlm_at_the_detection(episode: Path, memory_dir: Path) -> None:
+def test_detect_asks_the_vlm_at_the_detection(episode: Path, pixels_memory_dir: Path) -> None:
     with chat_server() as server:
-        code, found, stderr = _detect(episode, memory_dir, "--vlm-url", server.url, "--vlm-model", "llava")
+        code, found, stderr = _detect(
+            episode, pixels_memory_dir, "--vlm-url", server.url, "--vlm-model", "llava"
+        )
     assert code == 0, stderr
     assert found["t_det"] == 0 and found["vlm"]["model"] == "llava" and found["vlm"]["answer"] == ANSWER
     assert found["vlm"]["latency_s"] >= 0
@@ -183,9 +187,11 @@ def test_detect_asks_the_vlm_at_the_detection(episode: Path, memory_dir: Path) -
     assert server.received[0].body["model"] == "llava"
 
 
-def test_detect_keeps_the_detection_when_the_vlm_fails(episode: Path, memory_dir: Path) -> None:
+def test_detect_keeps_the_detection_when_the_vlm_fails(episode: Path, pixels_memory_dir: Path) -> None:
     with chat_server(("status", 502)) as server:
-        code, found, stderr = _detect(episode, memory_dir, "--vlm-url", server.url, "--vlm-model", "llava")
+        code, found, stderr = _detect(
+            episode, pixels_memory_dir, "--vlm-url", server.url, "--vlm-model", "llava"
+        )
     assert code == 0
     assert (
         found["t_det"] == 0
@@ -197,8 +203,8 @@ def test_detect_keeps_the_detection_when_the_vlm_fails(episode: Path, memory_dir
     assert len(server.received) == 3
 
 
-def test_detect_vlm_options_go_together(episode: Path, memory_dir: Path) -> None:
-    code, _, stderr = _detect(episode, memory_dir, "--vlm-url", "http://127.0.0.1:9/v1")
+def test_detect_vlm_options_go_together(episode: Path, pixels_memory_dir: Path) -> None:
+    code, _, stderr = _detect(episode, pixels_memory_dir, "--vlm-url", "http://127.0.0.1:9/v1")
     assert code == 2 and "--vlm-url and --vlm-model go together" in stderr
 
 

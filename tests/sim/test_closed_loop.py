@@ -8,11 +8,12 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from environment import viewer_available
 from rrd import entity_paths, properties, reader, static_value, values
 
 from rfr_viz.paths import APPLICATION_ID, CLOSED_LOOP_SUMMARY, UNSTOPPED, WATCHED
 from rfr_viz.recordings.closed_loop import ClosedLoopResult, run_closed_loop
-from rfr_viz.viewer.control import ViewerUnavailable, render_screenshot
+from rfr_viz.viewer.control import render_screenshot
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
 from robofailring.jobs.closed_loop import watch_episode
 from robofailring.sim import VIEWS, EpisodeResult, GenerateConfig, generate_dataset, run_episode
@@ -215,10 +216,8 @@ def test_no_alarm_lets_both_runs_complete(
 def test_closed_loop_renders_in_the_real_viewer(
     stopped: ClosedLoopResult, stop_frame: int, tmp_path: Path
 ) -> None:
-    try:
+    with viewer_available():
         shot = render_screenshot(stopped.path, tmp_path / "closed.png", frame=stop_frame)
-    except ViewerUnavailable as error:
-        pytest.skip(f"headless Rerun viewer unavailable: {error}")
     assert shot.errors == [], shot.errors
     image = cv2.imread(str(shot.path), cv2.IMREAD_COLOR)
     assert image is not None and image.shape[1] >= 1280 and float(image.std()) > 20.0

@@ -25,7 +25,6 @@ from robofailring import (
     CachedEncoder,
     FailureDetector,
     FailureMemory,
-    load_dataset,
     load_encoder,
     load_trajectory,
 )
@@ -44,11 +43,11 @@ def _psnr(a: np.ndarray, b: np.ndarray) -> float:
 
 @pytest.fixture(scope="module")
 def replayed(
-    aha_dataset: Path, tmp_path_factory: pytest.TempPathFactory
+    pixels_memory_dir: Path, tmp_path_factory: pytest.TempPathFactory
 ) -> tuple[Trajectory, DetectionTrace]:
     tmp = tmp_path_factory.mktemp("video")
     encoder = CachedEncoder(load_encoder("pixels"), cache_dir=tmp / "cache")
-    memory, _ = FailureMemory.build(load_dataset(aha_dataset), encoder)
+    memory = FailureMemory.load(pixels_memory_dir)
     folder = tmp / "push_cube_slip_wp3_episode5"
     write_episode(folder, "push_cube", "slip_wp3", length=LENGTH)
     for view in ("front",):  # one view at 96 px, so that video has some real pixels to compress

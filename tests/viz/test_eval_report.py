@@ -5,7 +5,6 @@ from __future__ import annotations
 import copy
 import json
 import re
-import shutil
 import subprocess
 from pathlib import Path
 from typing import Any
@@ -13,6 +12,7 @@ from typing import Any
 import cv2
 import numpy as np
 import pytest
+from environment import chromium
 from rrd import columns
 from synthetic import write_project_dataset
 from typer.testing import CliRunner
@@ -148,9 +148,7 @@ def test_report_html_is_self_contained_with_charts_tables_and_links(
 def test_report_html_renders_in_headless_chromium(
     evaluated: tuple[Path, dict[str, Any]], tmp_path: Path
 ) -> None:
-    browser = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
-    if browser is None:
-        pytest.skip("no Chromium here (apt-get install chromium) to render report.html")
+    browser = chromium()
     out, _ = evaluated
     shot = tmp_path / "report.png"
     subprocess.run(

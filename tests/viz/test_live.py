@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rerun as rr
+from environment import require_viewer
 from rrd import batches, entity_paths, properties, rows
 from synthetic import VIEWS, synthetic_frame, write_episode
 from typer.testing import CliRunner
@@ -28,15 +29,13 @@ from rfr_viz.panels.live_camera import LiveCameras, live_codec
 from rfr_viz.panels.scores import set_frame_time
 from rfr_viz.paths import REPLAY, camera
 from rfr_viz.recordings.live import LiveRecording, LiveTarget
-from rfr_viz.viewer.control import WINDOW, ViewerUnavailable, _viewer_process, check_vulkan
+from rfr_viz.viewer.control import WINDOW, _viewer_process
 from robofailring import (
-    CachedEncoder,
     DetectorSession,
     FailureDetector,
     FailureMemory,
     Frame,
     StepResult,
-    load_dataset,
     load_encoder,
     load_trajectory,
 )
@@ -47,34 +46,28 @@ DELTA = "0.97"  # the synthetic episode's S_t crosses it part-way through (frame
 
 
 @pytest.fixture(scope="module")
-def memory_dir(aha_dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    encoder = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path_factory.mktemp("cache"))
-    memory, _ = FailureMemory.build(load_dataset(aha_dataset), encoder)
-    return memory.save(tmp_path_factory.mktemp("memory") / "pixels")
-
-
-@pytest.fixture(scope="module")
 def episode(tmp_path_factory: pytest.TempPathFactory) -> Path:
     folder = tmp_path_factory.mktemp("episodes") / "pick_cube_grasp_wp2_episode9"
     return write_episode(folder, "pick_cube", "grasp_wp2", length=8, shift=1)
 
 
-def _detect_json(episode: Path, memory_dir: Path) -> dict:
+def _detect_json(episode: Path, pixels_memory_dir: Path) -> dict:
     result = runner.invoke(
-        app, ["detect", str(episode), "--memory", str(memory_dir), "--delta", DELTA, "--k", "3", "--json"]
+        app,
+        ["detect", str(episode), "--memory", str(pixels_memory_dir), "--delta", DELTA, "--k", "3", "--json"],
     )
     assert result.exit_code == 0, result.output
     return json.loads(result.stdout)
 
 
-def _watch(episode: Path, memory_dir: Path, *target: str) -> str:
+def _watch(episode: Path, pixels_memory_dir: Path, *target: str) -> str:
     result = runner.invoke(
         app,
         [
             "watch",
             str(episode),
             "--memory",
-            str(memory_dir),
+            str(pixels_memory_dir),
             "--delta",
             DELTA,
             "--k",
@@ -88,11 +81,11 @@ def _watch(episode: Path, memory_dir: Path, *target: str) -> str:
     return result.stdout
 
 
-def test_watch_save_equals_detect_json(episode: Path, memory_dir: Path, tmp_path: Path) -> None:
-    detected = _detect_json(episode, memory_dir)
+def test_watch_save_equals_detect_json(episode: Path, pixels_memory_dir: Path, tmp_path: Path) -> None:
+    detected = _detect_json(episode, pixels_memory_dir)
     assert detected["t_det"] is not None and 0 < detected["t_det"] < detected["length"]
     saved = tmp_path / "live.rrd"
-    out = _watch(episode, memory_dir, "--save", str(saved))
+    out = _watch(episode, pixels_memory_dir, "--save", str(saved))
     assert f"FAILURE at frame {detected['t_det']} in view {detected['detected_view']}" in out
     for view, scored in detected["views"].items():
         found = rows(saved, REPLAY.score(view), "Scalars:scalars")
@@ -117,7 +110,7 @@ def test_watch_save_equals_detect_json(episode: Path, memory_dir: Path, tmp_path
             "replay",
             str(episode),
             "--memory",
-            str(memory_dir),
+            str(pixels_memory_dir),
             "--delta",
             DELTA,
             "--k",
@@ -133,7 +126,7 @@ def test_watch_save_equals_detect_json(episode: Path, memory_dir: Path, tmp_path
 
 @pytest.mark.parametrize("codec", ["av1", "h264"])
 def test_watch_encodes_video_frame_by_frame(
-    episode: Path, memory_dir: Path, tmp_path: Path, codec: str
+    episode: Path, pixels_memory_dir: Path, tmp_path: Path, codec: str
 ) -> None:
     folder = tmp_path / episode.name  # the episode at 96 px, so that video has real pixels to compress
     for v, view in enumerate(VIEWS):
@@ -143,7 +136,7 @@ def test_watch_encodes_video_frame_by_frame(
                 folder / view / f"{t}.png", synthetic_frame("pick_cube", "grasp_wp2", v, t + 1, 9, size=96)
             )
     saved = tmp_path / f"live-{codec}.rrd"
-    _watch(folder, memory_dir, "--save", str(saved), "--camera-codec", codec)
+    _watch(folder, pixels_memory_dir, "--save", str(saved), "--camera-codec", codec)
     trajectory = load_trajectory(folder)
     length = properties(saved)["L"]
     assert length == 8
@@ -212,9 +205,9 @@ class Collect:
 
 
 def test_a_robot_loop_with_its_own_sink_and_the_rerun_sink(
-    episode: Path, memory_dir: Path, tmp_path: Path
+    episode: Path, pixels_memory_dir: Path, tmp_path: Path
 ) -> None:
-    memory = FailureMemory.load(memory_dir)
+    memory = FailureMemory.load(pixels_memory_dir)
     detector = FailureDetector(memory, load_encoder("pixels"), delta=float(DELTA), k=3)
     trajectory = load_trajectory(episode)
     frames = [{view: trajectory.views[view][t].load() for view in trajectory.views} for t in range(8)]
@@ -236,8 +229,8 @@ def test_a_robot_loop_with_its_own_sink_and_the_rerun_sink(
     assert live.report is not None and live.report.current_image is None  # an array has no file to show a VLM
 
 
-def test_a_failed_block_leaves_no_file(memory_dir: Path, tmp_path: Path) -> None:
-    detector = FailureDetector(FailureMemory.load(memory_dir), load_encoder("pixels"))
+def test_a_failed_block_leaves_no_file(pixels_memory_dir: Path, tmp_path: Path) -> None:
+    detector = FailureDetector(FailureMemory.load(pixels_memory_dir), load_encoder("pixels"))
     saved = tmp_path / "broken.rrd"
     opened = LiveRecording.open(detector, "pick_cube", views=["front"], target=LiveTarget(save=saved))
     with pytest.raises(RuntimeError, match="robot fell over"), opened:
@@ -248,17 +241,14 @@ def test_a_failed_block_leaves_no_file(memory_dir: Path, tmp_path: Path) -> None
 
 
 @pytest.mark.viewer
-def test_watch_connect_streams_into_a_running_viewer(episode: Path, memory_dir: Path) -> None:
-    try:
-        check_vulkan()
-    except ViewerUnavailable as error:
-        pytest.skip(f"headless Rerun viewer unavailable: {error}")
+def test_watch_connect_streams_into_a_running_viewer(episode: Path, pixels_memory_dir: Path) -> None:
+    require_viewer()
     from rerun.experimental import ViewerClient
 
     deadline = time.monotonic() + 90
     with _viewer_process(WINDOW, deadline) as port:
         url = f"rerun+http://127.0.0.1:{port}/proxy"
-        _watch(episode, memory_dir, "--connect", url)
+        _watch(episode, pixels_memory_dir, "--connect", url)
         client = ViewerClient.connect(url)
         while True:
             state = client.get_state()
@@ -279,7 +269,7 @@ def test_watch_connect_streams_into_a_running_viewer(episode: Path, memory_dir: 
         assert (frame.start, frame.end) == (0, 7)
 
 
-def test_watch_without_a_viewer_is_a_clear_error(episode: Path, memory_dir: Path) -> None:
+def test_watch_without_a_viewer_is_a_clear_error(episode: Path, pixels_memory_dir: Path) -> None:
     import socket
 
     with socket.socket() as probe:  # a port nobody listens on
@@ -291,7 +281,7 @@ def test_watch_without_a_viewer_is_a_clear_error(episode: Path, memory_dir: Path
             "watch",
             str(episode),
             "--memory",
-            str(memory_dir),
+            str(pixels_memory_dir),
             "--connect",
             f"rerun+http://127.0.0.1:{port}/proxy",
         ],

@@ -7,6 +7,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from environment import require_viewer, viewer_available
 from synthetic import write_episode, write_project_dataset
 
 from rfr_viz.recordings.blueprint import FOCUS_MARGIN
@@ -25,7 +26,6 @@ from robofailring import (
     DetectionTrace,
     FailureDetector,
     FailureMemory,
-    load_dataset,
     load_encoder,
     load_trajectory,
 )
@@ -37,26 +37,22 @@ pytestmark = pytest.mark.viewer
 
 @pytest.fixture(scope="module")
 def viewer_ready() -> None:
-    try:
-        check_vulkan()
-    except ViewerUnavailable as error:
-        pytest.skip(f"headless Rerun viewer unavailable: {error}")
+    require_viewer()
 
 
-def test_replay_renders_in_the_real_viewer(viewer_ready: None, aha_dataset: Path, tmp_path: Path) -> None:
+def test_replay_renders_in_the_real_viewer(
+    viewer_ready: None, pixels_memory: FailureMemory, tmp_path: Path
+) -> None:
     encoder = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "cache")
-    memory, _ = FailureMemory.build(load_dataset(aha_dataset), encoder)
     trajectory = load_trajectory(
         write_episode(tmp_path / "push_cube_slip_wp3_episode5", "push_cube", "slip_wp3")
     )
-    first = FailureDetector(memory, encoder, k=3).run(trajectory)
+    first = FailureDetector(pixels_memory, encoder, k=3).run(trajectory)
     trace = first.with_delta(float(np.median(first.max_similarity())))
     assert trace.t_det is not None
     recording = record_replay(trajectory, trace, out=tmp_path / "replay.rrd")
-    try:
+    with viewer_available():
         shot = render_screenshot(recording, tmp_path / "replay.png", frame=trace.t_det)
-    except ViewerUnavailable as error:
-        pytest.skip(f"headless Rerun viewer unavailable: {error}")
     assert shot.errors == [], shot.errors
     image = cv2.imread(str(shot.path), cv2.IMREAD_COLOR)
     assert image is not None and image.shape[1] >= 1280 and image.shape[0] >= 720
@@ -68,10 +64,11 @@ def test_replay_renders_in_the_real_viewer(viewer_ready: None, aha_dataset: Path
     assert int(yellow.sum()) > 500
 
 
-def _success_replay(aha_dataset: Path, tmp_path: Path, *, length: int) -> tuple[Trajectory, DetectionTrace]:
+def _success_replay(
+    memory: FailureMemory, tmp_path: Path, *, length: int
+) -> tuple[Trajectory, DetectionTrace]:
     """A success episode of `length` frames scored against the AHA fixture's memory (K = 2)."""
     encoder = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "cache")
-    memory, _ = FailureMemory.build(load_dataset(aha_dataset), encoder)
     trajectory = load_trajectory(
         write_episode(tmp_path / "pick_cube_success_episode9", "pick_cube", None, length=length)
     )
@@ -79,10 +76,10 @@ def _success_replay(aha_dataset: Path, tmp_path: Path, *, length: int) -> tuple[
 
 
 def test_a_review_recording_plays_around_its_alarm(
-    viewer_ready: None, aha_dataset: Path, tmp_path: Path
+    viewer_ready: None, pixels_memory: FailureMemory, tmp_path: Path
 ) -> None:
     """Opened without seeking, a recording with a focus frame reaches the alarm and loops there."""
-    trajectory, trace = _success_replay(aha_dataset, tmp_path, length=36)
+    trajectory, trace = _success_replay(pixels_memory, tmp_path, length=36)
     focus = 26
     recording = record_replay(trajectory, trace, out=tmp_path / "alarm.rrd", focus_frame=focus)
     positions = [p for p in playback_positions(recording, seconds=12.0, interval=0.15) if p is not None]
@@ -96,9 +93,9 @@ def test_a_review_recording_plays_around_its_alarm(
 
 
 def test_open_pauses_at_the_alarm_and_reuses_a_running_viewer(
-    viewer_ready: None, aha_dataset: Path, tmp_path: Path
+    viewer_ready: None, pixels_memory: FailureMemory, tmp_path: Path
 ) -> None:
-    trajectory, trace = _success_replay(aha_dataset, tmp_path, length=30)
+    trajectory, trace = _success_replay(pixels_memory, tmp_path, length=30)
     alarm = record_replay(trajectory, trace, out=tmp_path / "alarm.rrd", focus_frame=17)
     plain = record_replay(trajectory, trace.with_delta(1.0), out=tmp_path / "plain.rrd")
     assert focus_frame(alarm) == 17 and focus_frame(plain) == 0  # no focus, no detection: the start

@@ -2,23 +2,22 @@
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
+from environment import require_ffmpeg, require_viewer
 from lerobot_writer import encode_video as write_mp4
 from synthetic import synthetic_frame, write_episode
 
 from rfr_viz.panels.camera_video import CameraCodec
 from rfr_viz.recordings.replay import record_replay
-from rfr_viz.viewer.control import ViewerUnavailable, check_vulkan, recording_properties, render_screenshot
+from rfr_viz.viewer.control import recording_properties, render_screenshot
 from robofailring import (
     CachedEncoder,
     FailureDetector,
     FailureMemory,
-    load_dataset,
     load_encoder,
     load_trajectory,
 )
@@ -48,22 +47,18 @@ def _difference(shown: np.ndarray, source: np.ndarray) -> float:
 
 @pytest.mark.parametrize("codec", [CameraCodec.AV1, CameraCodec.H264, CameraCodec.JPEG])
 def test_the_camera_panel_shows_the_video_frame(
-    codec: CameraCodec, aha_dataset: Path, tmp_path: Path
+    codec: CameraCodec, pixels_memory: FailureMemory, tmp_path: Path
 ) -> None:
-    try:
-        check_vulkan()
-    except ViewerUnavailable as error:
-        pytest.skip(f"headless Rerun viewer unavailable: {error}")
-    if codec is CameraCodec.H264 and shutil.which("ffmpeg") is None:
-        pytest.skip("the Rerun viewer decodes H.264 with ffmpeg (≥ 5.1), which is not installed here")
+    require_viewer()
+    if codec is CameraCodec.H264:
+        require_ffmpeg()
     encoder = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "cache")
-    memory, _ = FailureMemory.build(load_dataset(aha_dataset), encoder)
     folder = write_episode(tmp_path / "push_cube_slip_wp3_episode5", "push_cube", "slip_wp3", length=LENGTH)
     frames = [synthetic_frame("push_cube", "slip_wp3", 0, t, LENGTH, size=SIZE) for t in range(LENGTH)]
     for t, frame in enumerate(frames):
         write_png(folder / f"front_{t}.png", frame)
     trajectory = load_trajectory(folder)
-    trace = FailureDetector(memory, encoder, k=2).run(trajectory)
+    trace = FailureDetector(pixels_memory, encoder, k=2).run(trajectory)
     recording = record_replay(trajectory, trace, out=tmp_path / f"{codec.value}.rrd", camera_codec=codec)
     shot = render_screenshot(
         recording, tmp_path / "shot.png", frame=SHOWN, views=["/camera/front"], settle=1.5
@@ -75,19 +70,17 @@ def test_the_camera_panel_shows_the_video_frame(
     assert _difference(shown, frames[OTHER]) > 2 * _difference(shown, frames[SHOWN])
 
 
-def test_a_video_source_logged_as_its_own_samples_renders(aha_dataset: Path, tmp_path: Path) -> None:
+def test_a_video_source_logged_as_its_own_samples_renders(
+    pixels_memory: FailureMemory, tmp_path: Path
+) -> None:
     """An AV1 `<view>.mp4` kept as the file's samples (rfr_viz.panels.video_passthrough) shows its frames."""
-    try:
-        check_vulkan()
-    except ViewerUnavailable as error:
-        pytest.skip(f"headless Rerun viewer unavailable: {error}")
+    require_viewer()
     encoder = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "cache")
-    memory, _ = FailureMemory.build(load_dataset(aha_dataset), encoder)
     folder = tmp_path / "push_cube_slip_wp3_episode5"
     frames = [synthetic_frame("push_cube", "slip_wp3", 0, t, LENGTH, size=SIZE) for t in range(LENGTH)]
     write_mp4(folder / "front.mp4", frames, 10, "av1")
     trajectory = load_trajectory(folder)
-    trace = FailureDetector(memory, encoder, k=2).run(trajectory)
+    trace = FailureDetector(pixels_memory, encoder, k=2).run(trajectory)
     recording = record_replay(trajectory, trace, out=tmp_path / "kept.rrd", camera_codec=CameraCodec.AV1)
     assert recording_properties(recording, group="camera")["as_recorded"] == "front"
     shot = render_screenshot(

@@ -49,19 +49,13 @@ def encoder(tmp_path_factory: pytest.TempPathFactory) -> CachedEncoder:
 
 
 @pytest.fixture(scope="module")
-def memory_dir(aha_dataset: Path, encoder: CachedEncoder, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    memory, _ = FailureMemory.build(load_dataset(aha_dataset), encoder)
-    return memory.save(tmp_path_factory.mktemp("memory") / "pixels")
+def memory(pixels_memory_dir: Path) -> FailureMemory:
+    return FailureMemory.load(pixels_memory_dir)
 
 
 @pytest.fixture(scope="module")
-def memory(memory_dir: Path) -> FailureMemory:
-    return FailureMemory.load(memory_dir)
-
-
-@pytest.fixture(scope="module")
-def mapped(memory: FailureMemory, memory_dir: Path) -> MemoryMap:
-    return memory_map(memory, directory=memory_dir)
+def mapped(memory: FailureMemory, pixels_memory_dir: Path) -> MemoryMap:
+    return memory_map(memory, directory=pixels_memory_dir)
 
 
 @pytest.fixture(scope="module")
@@ -256,7 +250,7 @@ def test_a_failed_write_leaves_nothing_under_the_final_name(
 # ------------------------------------------------------------------ the memory map
 def test_map_is_fitted_once_and_cached_beside_the_memory(
     memory: FailureMemory,
-    memory_dir: Path,
+    pixels_memory_dir: Path,
     aha_dataset: Path,
     tmp_path: Path,
     monkeypatch: pytest.MonkeyPatch,
@@ -399,7 +393,7 @@ def test_comparison_recording_has_every_encoder_under_its_slug(
 runner = CliRunner()
 
 
-def test_cli_replay_and_compare(aha_dataset: Path, memory_dir: Path, tmp_path: Path) -> None:
+def test_cli_replay_and_compare(aha_dataset: Path, pixels_memory_dir: Path, tmp_path: Path) -> None:
     out = tmp_path / "recordings"
     key = "push_cube/push_cube_rotation_x_wp1_episode1"
     result = runner.invoke(
@@ -408,7 +402,7 @@ def test_cli_replay_and_compare(aha_dataset: Path, memory_dir: Path, tmp_path: P
             "replay",
             str(aha_dataset),
             "--memory",
-            str(memory_dir),
+            str(pixels_memory_dir),
             "--out",
             str(out),
             "--trajectory",
@@ -432,16 +426,43 @@ def test_cli_replay_and_compare(aha_dataset: Path, memory_dir: Path, tmp_path: P
     # one episode folder, task given on the command line
     episode = write_episode(tmp_path / "an_episode", "pick_cube", None, length=5, views=("front", "side"))
     single = runner.invoke(
-        app, ["replay", str(episode), "--memory", str(memory_dir), "--task", "pick_cube", "--out", str(out)]
+        app,
+        [
+            "replay",
+            str(episode),
+            "--memory",
+            str(pixels_memory_dir),
+            "--task",
+            "pick_cube",
+            "--out",
+            str(out),
+        ],
     )
     assert single.exit_code == 0, single.output
     assert (out / "pick_cube__an_episode.rrd").is_file()
     unknown = runner.invoke(
-        app, ["replay", str(episode), "--memory", str(memory_dir), "--task", "open_door", "--out", str(out)]
+        app,
+        [
+            "replay",
+            str(episode),
+            "--memory",
+            str(pixels_memory_dir),
+            "--task",
+            "open_door",
+            "--out",
+            str(out),
+        ],
     )
     assert unknown.exit_code == 2 and "open_door" in unknown.output
     # two memories -> one comparison recording per trajectory
-    arguments = ["compare", str(episode), "--memory", str(memory_dir), "--memory", str(memory_dir)]
+    arguments = [
+        "compare",
+        str(episode),
+        "--memory",
+        str(pixels_memory_dir),
+        "--memory",
+        str(pixels_memory_dir),
+    ]
     arguments += ["--task", "pick_cube", "--out", str(out), "--delta", "0.9", "--delta", "0.95"]
     compared = runner.invoke(app, arguments)
     assert compared.exit_code == 0, compared.output
