@@ -15,8 +15,8 @@ from collections.abc import Callable
 import numpy as np
 
 from robofailring.data.layouts import load_dataset
-from robofailring.detection.detector import FailureDetector
 from robofailring.detection.conformal import conformal_threshold
+from robofailring.detection.detector import FailureDetector
 from robofailring.detection.rules import CONTRAST
 from robofailring.encoders import CachedEncoder, default_cache_dir, load_encoder
 from robofailring.errors import DataError
