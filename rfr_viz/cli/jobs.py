@@ -63,9 +63,8 @@ def evaluate_cmd(
     device: DeviceOption = None,
 ) -> None:
     """Both scoring rules side by side at one α, then the paper's tables: Recall/FPR sweep, T_s, per type and view."""
-    from rfr_viz.charts.report_html import REPORT_NAME, write_report
-    from rfr_viz.recordings.evaluation import record_evaluation
-    from robofailring.evaluation.run import EvaluateConfig, run_evaluation, write_evaluation
+    from rfr_viz.jobs.evaluate import evaluate
+    from robofailring.evaluation.run import EvaluateConfig
 
     try:
         config = EvaluateConfig(
@@ -86,22 +85,17 @@ def evaluate_cmd(
             deployment_successes=deployment_successes,
             success_step=success_step,
         )
-        check_output_folder(out, inputs=[data, test_data, memory])
-        result = run_evaluation(config)
+        written = evaluate(config)
     except RoboFailRingError as error:
         exit_with_error(error)
+    result = written.result
     report_skipped(result.skipped_inputs)
-    json_path, md_path = write_evaluation(result, out)
-    rrd_path = record_evaluation([result], out=Path(out) / f"{name}.rrd")
-    report = write_report(
-        [result.to_dict()],
-        Path(out) / REPORT_NAME,
-        markdown=[result.to_markdown()],
-        recordings={"summary recording (charts and tables)": rrd_path},
-    )
     typer.echo(result.to_markdown())
-    typer.echo(f"\nwrote {md_path}, {json_path} and {rrd_path} (open with: {open_command(rrd_path)})")
-    typer.echo(f"report for a browser: {report}")
+    rrd_path = written.recording
+    typer.echo(
+        f"\nwrote {written.md_path}, {written.json_path} and {rrd_path} (open with: {open_command(rrd_path)})"
+    )
+    typer.echo(f"report for a browser: {written.report}")
     finish(skipped=len(result.skipped_unknown_task) + len(result.skipped_too_short))  # listed in the table
 
 
