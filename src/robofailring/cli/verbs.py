@@ -317,6 +317,13 @@ def calibrate_cmd(
             f"γ = {result.gamma:.6f} (contrast rule): FPR {100 * result.gamma_achieved_fpr:.1f} % on the same runs, "
             "each scored with its own episode left out of the success memory"
         )
+    if result.skipped_too_short:
+        typer.echo(
+            f"skipped: {len(result.skipped_too_short)} success run(s) with no view of 2+ frames (nothing to score)"
+        )
+    for key in result.skipped_too_short[:10]:
+        typer.echo(f"  skipped {key}")
+    finish(skipped=len(result.skipped_too_short) + len(result.skipped_inputs))
 
 
 @app.command("memory-info")

@@ -8,7 +8,6 @@ one conformal score. The threshold of each rule is the split-conformal one of
 
 from __future__ import annotations
 
-import contextlib
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -49,14 +48,20 @@ def success_peaks(
     *,
     progress: Callable[[int], None] | None = None,
     stride: int = 1,
+    too_short: list[str] | None = None,
 ) -> dict[ScoreRule, list[float]]:
     """Per rule, each success run's peak score, its episode left out of both memories.
 
-    `stride` scores every N-th frame, as the runs the threshold will judge are scored."""
+    `stride` scores every N-th frame, as the runs the threshold will judge are scored; the keys of
+    runs with no view of 2+ frames (nothing to score) are appended to `too_short`."""
     peaks: dict[ScoreRule, list[float]] = {rule: [] for rule in rules}
     for trajectory in successes:
-        with contextlib.suppress(DataError):  # no view with 2 frames: nothing to score
+        try:
             trace = detector.run(trajectory, leave_one_out=True, stride=stride)
+        except DataError:
+            if too_short is not None:
+                too_short.append(trajectory.key)
+        else:
             for rule in rules:
                 peaks[rule].append(float(trace.with_rule(rule, 0.0).max_score().max()))
         if progress is not None:
@@ -72,10 +77,11 @@ def calibrate_rules(
     rules: Sequence[ScoreRule] | None = None,
     progress: Callable[[int], None] | None = None,
     stride: int = 1,
+    too_short: list[str] | None = None,
 ) -> dict[ScoreRule, RuleCalibration]:
     """The conformal threshold of every rule (default: all the memory supports) at level `target_fpr`."""
     chosen = list(rules) if rules is not None else available_rules(detector)
-    peaks = success_peaks(detector, successes, chosen, progress=progress, stride=stride)
+    peaks = success_peaks(detector, successes, chosen, progress=progress, stride=stride, too_short=too_short)
     calibrations = {}
     for rule, values in peaks.items():
         if not values:
@@ -128,6 +134,7 @@ class Calibration:
     skipped_inputs: list[Skipped] = field(default_factory=list)  # folders/files of the data not read
     gamma: float | None = None  # the contrast rule's γ, when the memory has success runs
     gamma_achieved_fpr: float | None = None
+    skipped_too_short: list[str] = field(default_factory=list)  # success runs with no view of 2+ frames
 
 
 def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None = None) -> Calibration:
@@ -154,6 +161,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
         raise DataError(
             f"no success trajectories of the memory's tasks in {config.data} (split {config.split!r})"
         )
+    too_short: list[str] = []
     with progress_bar(total=len(successes), desc="calibrating", unit="traj") as bar:
 
         def advance(count: int) -> None:
@@ -162,7 +170,12 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
                 progress(count)
 
         found = calibrate_rules(
-            detector, successes, config.target_fpr, progress=advance, stride=config.stride
+            detector,
+            successes,
+            config.target_fpr,
+            progress=advance,
+            stride=config.stride,
+            too_short=too_short,
         )
     paper, contrast = found[ScoreRule.PAPER], found.get(ScoreRule.CONTRAST)
     memory.manifest.calibration = StoredCalibration(
@@ -189,4 +202,5 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
         skipped_inputs=dataset.skipped,
         gamma=contrast.threshold if contrast is not None else None,
         gamma_achieved_fpr=contrast.achieved_fpr if contrast is not None else None,
+        skipped_too_short=too_short,
     )
