@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from rfr_viz.jobs.replay import CompareConfig, compare
-from robofailring.atomic import write_text_atomic
+from robofailring.atomic import output_lock, remove_file_leftovers, write_text_atomic
 from robofailring.evaluation.comparison import CompareEncodersConfig, compare_encoders, comparison_table
 from robofailring.evaluation.run import EvaluationResult
 from robofailring.outputs import check_output_folder
@@ -23,6 +23,12 @@ class EncoderComparison:
 def run_encoder_comparison(config: CompareEncodersConfig, *, recordings: int = 3) -> EncoderComparison:
     """Evaluate every encoder on the same split, write `out/comparison.md` and replay the first failures."""
     check_output_folder(config.out, inputs=[config.data])
+    with output_lock(config.out):
+        remove_file_leftovers(config.out)
+        return _run_encoder_comparison(config, recordings=recordings)
+
+
+def _run_encoder_comparison(config: CompareEncodersConfig, *, recordings: int) -> EncoderComparison:
     results = compare_encoders(config)
     table = comparison_table(results)
     table_path = Path(config.out) / "comparison.md"

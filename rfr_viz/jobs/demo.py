@@ -15,6 +15,7 @@ from rfr_viz.panels.camera_video import CameraCodec
 from rfr_viz.panels.umap import memory_map
 from rfr_viz.recordings.evaluation import record_evaluation
 from rfr_viz.recordings.replay import record_replay
+from robofailring.atomic import output_lock, remove_file_leftovers
 from robofailring.data.grounding import failure_type
 from robofailring.data.layouts import load_dataset
 from robofailring.detection.rules import CONTRAST, PAPER, ScoringRule
@@ -29,6 +30,7 @@ from robofailring.evaluation.run import (
     run_evaluation,
     write_evaluation,
 )
+from robofailring.outputs import check_output_folder
 from robofailring.progress import progress_bar
 from robofailring.sim import TASKS, GenerateConfig, generate_dataset
 
@@ -125,6 +127,13 @@ def simulate_datasets(config: DemoConfig, data_dir: Path) -> tuple[Path, Path]:
 def run_demo(config: DemoConfig, *, say: Callable[[str], None] = print) -> DemoResult:
     """Generate (cached) in- and out-of-distribution sets, then memory, calibration, evaluation, recordings."""
     data_dir = config.data_dir or default_cache_dir() / "demo-data"
+    check_output_folder(config.out, inputs=[data_dir])
+    with output_lock(config.out):
+        remove_file_leftovers(config.out)
+        return _run_demo(config, data_dir, say)
+
+
+def _run_demo(config: DemoConfig, data_dir: Path, say: Callable[[str], None]) -> DemoResult:
     out = Path(config.out)
     in_dist, out_dist = simulate_datasets(config, data_dir)
     say(f"datasets: {in_dist} (in-distribution), {out_dist} (out-of-distribution)")

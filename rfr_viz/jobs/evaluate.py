@@ -7,6 +7,7 @@ from pathlib import Path
 
 from rfr_viz.charts.report_html import REPORT_NAME, write_report
 from rfr_viz.recordings.evaluation import record_evaluation
+from robofailring.atomic import output_lock, remove_file_leftovers
 from robofailring.evaluation.run import EvaluateConfig, EvaluationResult, run_evaluation, write_evaluation
 from robofailring.outputs import check_output_folder
 
@@ -23,22 +24,27 @@ class EvaluateOutcome:
 
     @property
     def skipped(self) -> int:
-        """Test trajectories not scored (an unknown task, too short); listed in the table."""
-        return len(self.result.skipped_unknown_task) + len(self.result.skipped_too_short)
+        """Inputs not read and test trajectories not scored (an unknown task, too short), all listed."""
+        result = self.result
+        return len(result.skipped_unknown_task) + len(result.skipped_too_short) + len(result.skipped_inputs)
 
 
 def evaluate(config: EvaluateConfig) -> EvaluateOutcome:
-    """Check the output folder, run the evaluation, and write its tables, recording and report."""
-    check_output_folder(config.out, inputs=[config.data, config.test_data, config.memory])
-    result = run_evaluation(config)
-    json_path, markdown_path = write_evaluation(result, config.out)
-    recording = record_evaluation([result], out=Path(config.out) / f"{config.name}.rrd")
-    report = write_report(
-        [result.to_dict()],
-        Path(config.out) / REPORT_NAME,
-        markdown=[result.to_markdown()],
-        recordings={"summary recording (charts and tables)": recording},
-    )
+    """Check the output folder, run the evaluation, and write its tables, recording and report,
+    holding the output's lock throughout (two runs into one folder never interleave)."""
+    out = Path(config.out)
+    check_output_folder(out, inputs=[config.data, config.test_data, config.memory])
+    with output_lock(out):
+        remove_file_leftovers(out)
+        result = run_evaluation(config)
+        json_path, markdown_path = write_evaluation(result, out)
+        recording = record_evaluation([result], out=out / f"{config.name}.rrd")
+        report = write_report(
+            [result.to_dict()],
+            out / REPORT_NAME,
+            markdown=[result.to_markdown()],
+            recordings={"summary recording (charts and tables)": recording},
+        )
     return EvaluateOutcome(
         result=result, json_path=json_path, markdown_path=markdown_path, recording=recording, report=report
     )

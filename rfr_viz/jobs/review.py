@@ -12,8 +12,9 @@ import numpy as np
 from rfr_viz.jobs.replay import DEFAULT_OUT, ReplayResult, load_detector, recording_name
 from rfr_viz.panels.camera_video import CameraCodec
 from rfr_viz.recordings.replay import record_replay
+from robofailring.atomic import output_lock, remove_file_leftovers
 from robofailring.data.layouts import load_dataset
-from robofailring.detection.rules import CONTRAST, PAPER, rule_named
+from robofailring.detection.rules import CONTRAST, PAPER, ScoringRule, rule_named
 from robofailring.errors import DataError
 from robofailring.explain.vlm import VLMConfig
 from robofailring.outputs import check_output_folder, check_recording_file
@@ -61,6 +62,15 @@ def review(config: ReviewConfig) -> ReplayResult:
             f"{config.evaluation} is not an evaluation written by `robofailring evaluate` ({error})"
         ) from error
     check_output_folder(config.out, inputs=[config.data, memory_dir])
+    with output_lock(config.out):
+        remove_file_leftovers(config.out)
+        remove_file_leftovers(Path(config.out) / config.kind)
+        return _replay_keys(config, keys, rule, threshold, k, memory_dir)
+
+
+def _replay_keys(
+    config: ReviewConfig, keys: list[str], rule: ScoringRule, threshold: float, k: int, memory_dir: Path
+) -> ReplayResult:
     result = ReplayResult()
     if not keys:
         return result

@@ -201,6 +201,7 @@ def detect_cmd(
     warn_missing_references(memory, result.references)
     print_notes(result.notes)
     typer.echo(result.to_json() if as_json else result.to_text())
+    finish(skipped=len(result.trace.skipped_inputs))  # listed above
 
 
 @app.command("calibrate")
@@ -231,6 +232,7 @@ def calibrate_cmd(
     )
     report_skipped(result.skipped_inputs)
     typer.echo(result.to_text(memory))
+    finish(skipped=len(result.skipped_too_short) + len(result.skipped_inputs))
 
 
 @app.command("memory-info")

@@ -38,6 +38,7 @@ STAGES: Final[dict[int, str]] = {
 
 _STAGE_TOKEN = re.compile(r"^(wp|stage|s)?(\d+)$")
 _EPISODE_TOKEN = re.compile(r"^episode\d*$")
+_MAX_STAGE_DIGITS: Final[int] = 9  # int() refuses thousands of digits; no task has a billion stages
 
 
 @dataclass(frozen=True)
@@ -75,6 +76,10 @@ def parse_symbol(symbol: str) -> ParsedSymbol:
     if not tokens:
         raise SymbolError(f"empty failure symbol {symbol!r}; the vocabulary is {_vocabulary()}")
     tokens = [token for token in tokens if not _EPISODE_TOKEN.match(token)]
+    if not tokens:
+        raise SymbolError(
+            f"failure symbol {symbol!r} names only an episode, no failure; the vocabulary is {_vocabulary()}"
+        )
     error_type: str | None = None
     for width in (2, 1):
         head = "_".join(tokens[:width])
@@ -100,6 +105,8 @@ def parse_symbol(symbol: str) -> ParsedSymbol:
             raise SymbolError(
                 f"unknown stage token {tokens[0]!r} in symbol {symbol!r}; the vocabulary is {_vocabulary()}"
             )
+        if len(match.group(2)) > _MAX_STAGE_DIGITS:
+            raise SymbolError(f"stage token {tokens[0]!r} in symbol {symbol!r} is not a waypoint number")
         stage = int(match.group(2))
         waypoint = match.group(1) == "wp"
         tokens.pop(0)

@@ -8,7 +8,6 @@ one conformal score. The threshold of each rule is the split-conformal one of
 
 from __future__ import annotations
 
-import contextlib
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -48,14 +47,20 @@ def success_peaks(
     *,
     progress: Callable[[int], None] | None = None,
     stride: int = 1,
+    too_short: list[str] | None = None,
 ) -> dict[ScoringRule, list[float]]:
     """Per rule, each success run's peak score, its episode left out of both memories.
 
-    `stride` scores every N-th frame, as the runs the threshold will judge are scored."""
+    `stride` scores every N-th frame, as the runs the threshold will judge are scored; the keys of
+    runs with no view of 2+ frames (nothing to score) are appended to `too_short`."""
     peaks: dict[ScoringRule, list[float]] = {rule: [] for rule in rules}
     for trajectory in successes:
-        with contextlib.suppress(DataError):  # no view with 2 frames: nothing to score
+        try:
             trace = detector.run(trajectory, leave_one_out=True, stride=stride)
+        except DataError:
+            if too_short is not None:
+                too_short.append(trajectory.key)
+        else:
             for rule in rules:
                 peaks[rule].append(float(trace.with_rule(rule, 0.0).max_score().max()))
         if progress is not None:
@@ -71,10 +76,11 @@ def calibrate_rules(
     rules: Sequence[ScoringRule] | None = None,
     progress: Callable[[int], None] | None = None,
     stride: int = 1,
+    too_short: list[str] | None = None,
 ) -> dict[ScoringRule, RuleCalibration]:
     """The conformal threshold of every rule (default: all the memory supports) at level `target_fpr`."""
     chosen = list(rules) if rules is not None else available_rules(detector)
-    peaks = success_peaks(detector, successes, chosen, progress=progress, stride=stride)
+    peaks = success_peaks(detector, successes, chosen, progress=progress, stride=stride, too_short=too_short)
     calibrations = {}
     for rule, values in peaks.items():
         if not values:
@@ -127,6 +133,7 @@ class Calibration:
     skipped_inputs: list[Skipped] = field(default_factory=list)  # folders/files of the data not read
     gamma: float | None = None  # the contrast rule's γ, when the memory has success runs
     gamma_achieved_fpr: float | None = None
+    skipped_too_short: list[str] = field(default_factory=list)  # success runs with no view of 2+ frames
 
     def to_text(self, memory: Path) -> str:
         """The summary `robofailring calibrate` prints: δ, and γ when the memory has success runs."""
@@ -139,6 +146,9 @@ class Calibration:
                 f"\nγ = {self.gamma:.6f} (contrast rule): FPR {100 * self.gamma_achieved_fpr:.1f} % on the same "
                 "runs, each scored with its own episode left out of the success memory"
             )
+        if self.skipped_too_short:
+            text += f"\nskipped: {len(self.skipped_too_short)} success run(s) with no view of 2+ frames (nothing to score)"
+            text += "".join(f"\n  skipped {key}" for key in self.skipped_too_short[:10])
         return text
 
 
@@ -166,6 +176,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
         raise DataError(
             f"no success trajectories of the memory's tasks in {config.data} (split {config.split!r})"
         )
+    too_short: list[str] = []
     with progress_bar(total=len(successes), desc="calibrating", unit="traj") as bar:
 
         def advance(count: int) -> None:
@@ -174,7 +185,12 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
                 progress(count)
 
         found = calibrate_rules(
-            detector, successes, config.target_fpr, progress=advance, stride=config.stride
+            detector,
+            successes,
+            config.target_fpr,
+            progress=advance,
+            stride=config.stride,
+            too_short=too_short,
         )
     paper, contrast = found[PAPER], found.get(CONTRAST)
     calibrated = memory.with_calibration(
@@ -203,4 +219,5 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
         skipped_inputs=dataset.skipped,
         gamma=contrast.threshold if contrast is not None else None,
         gamma_achieved_fpr=contrast.achieved_fpr if contrast is not None else None,
+        skipped_too_short=too_short,
     )

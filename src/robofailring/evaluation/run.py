@@ -298,6 +298,12 @@ def _thresholds(
         return {r: detector.threshold_of(r) for r in rules}, {r: stored[r] is not None for r in rules}
     known = set(detector.memory.tasks)
     successes = [t for t in train if not t.is_failure and t.task in known]
+    if not successes:
+        raise DataError(
+            f"no success trajectory of the memory's tasks in {config.data} (split {config.train_split!r}): "
+            "the evaluation calibrates its thresholds on success runs; add success episodes of those tasks "
+            "to that split, or name another with --train-split"
+        )
     with progress_bar(total=len(successes), desc="calibrating", unit="traj") as bar:
         found = calibrate_rules(
             detector, successes, config.target_fpr, rules=rules, progress=bar.update, stride=config.stride

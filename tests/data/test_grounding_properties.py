@@ -1,0 +1,28 @@
+"""Failure symbols are user input (labels files, folder names, memories): any string grounds or raises SymbolError."""
+
+from __future__ import annotations
+
+from hypothesis import given
+from hypothesis import strategies as st
+
+from robofailring.data.grounding import AXES, ERROR_ALIASES, ERROR_TYPES, ground, parse_symbol
+from robofailring.errors import SymbolError
+
+# tokens near the vocabulary, so generated symbols reach every branch of the parser
+TOKENS = st.one_of(
+    st.sampled_from([*ERROR_TYPES, *ERROR_ALIASES, *AXES, "episode", "wp", "stage", "s", "x"]),
+    st.from_regex(r"(wp|stage|s|episode)?[0-9]{1,12}", fullmatch=True),
+    st.text(max_size=6),
+)
+SYMBOLS = st.one_of(st.text(), st.lists(TOKENS, max_size=5).map("_".join))
+
+
+@given(SYMBOLS)
+def test_any_symbol_grounds_or_raises_a_symbol_error_naming_it(symbol: str) -> None:
+    try:
+        sentence = ground(symbol)
+    except SymbolError as error:
+        assert repr(symbol) in str(error)
+    else:
+        assert sentence.startswith("The failure was caused by ")
+        assert ground(parse_symbol(symbol).canonical) == sentence  # the canonical spelling means the same
