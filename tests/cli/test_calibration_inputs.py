@@ -7,8 +7,6 @@ from pathlib import Path
 from fault_helpers import cli, refused
 from synthetic import write_aha_dataset, write_episode
 
-pytest_plugins = ("fault_helpers",)  # its fixtures: data, cache, memory
-
 
 def test_calibrate_exits_3_and_names_the_short_success_runs_it_skipped(
     memory: Path, cache: list[str], tmp_path: Path

@@ -20,8 +20,6 @@ import rfr_viz.cli.replay
 import robofailring.cli.verbs
 from robofailring.cli.exit_codes import BAD_INPUT, ERROR
 
-pytest_plugins = ("fault_helpers",)  # its fixtures: data, cache, memory
-
 VERB_MODULES = [robofailring.cli.verbs, rfr_viz.cli.replay, rfr_viz.cli.jobs, rfr_viz.cli.live]
 
 

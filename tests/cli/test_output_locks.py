@@ -17,8 +17,6 @@ import pytest
 from fault_helpers import cli, refused, tree
 from synthetic import write_project_dataset
 
-pytest_plugins = ("fault_helpers",)  # its fixtures: data, cache, memory
-
 _HOLD = (
     "import sys; from robofailring.atomic import output_lock\n"
     "with output_lock(sys.argv[1]):\n    print('held', flush=True); sys.stdin.read()"
