@@ -312,7 +312,7 @@ class FailureMemory:
             raise MemoryFormatError(f"{directory} is not a failure memory: {MANIFEST} is missing")
         try:
             manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
-        except json.JSONDecodeError as error:
+        except ValueError as error:  # not JSON, not UTF-8, or a number too long to read
             raise MemoryFormatError(f"{manifest_path} is not valid JSON: {error}") from error
         version = manifest.get("format_version") if isinstance(manifest, dict) else None
         if version not in READABLE_VERSIONS:
@@ -337,7 +337,7 @@ class FailureMemory:
                             raise MemoryFormatError(
                                 f"{entries_path}:{number}: bad entry ({error})"
                             ) from error
-        except OSError as error:
+        except (OSError, UnicodeDecodeError) as error:
             raise MemoryFormatError(f"cannot read {entries_path}: {error}") from error
         if index.ntotal != manifest.count or len(entries) != manifest.count or index.d != manifest.dim:
             raise MemoryFormatError(

@@ -18,7 +18,7 @@ def parse_entry(line: str, path: Path, number: int) -> dict[str, Any]:
     """One line of entries.jsonl as the entry's fields; its failure symbol must parse (paper Table 5)."""
     try:
         record = json.loads(line)
-    except json.JSONDecodeError as error:
+    except ValueError as error:  # not JSON, or a number too long to read
         raise MemoryFormatError(f"{path}:{number}: not JSON ({error})") from error
     if not isinstance(record, dict) or not set(ENTRY_FIELDS) <= set(record):
         raise MemoryFormatError(f"{path}:{number}: an entry is an object with {', '.join(ENTRY_FIELDS)}")
