@@ -276,7 +276,7 @@ def _v2(root: Path, info: dict[str, Any], cameras: dict[str, str]) -> list[Traje
             if not _exists(file):
                 raise DataError(f"{where}: video {file} is missing")
             views[view] = VideoFrames(open_video(file), stamps)
-        task = _task_of(record["tasks"] if "tasks" in record else None, where)
+        task = _task_of(record.get("tasks"), where)
         trajectories.append(_trajectory(root, index, task, fps, views, length, where))
     return trajectories
 
