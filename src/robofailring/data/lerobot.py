@@ -21,7 +21,7 @@ import numpy as np
 from robofailring.data.model import Frame, Skipped, Trajectory
 from robofailring.data.registry import Layout, register
 from robofailring.data.video import VideoFrames, open_video
-from robofailring.errors import DataError
+from robofailring.errors import DataError, describe
 
 INFO: Final[str] = "meta/info.json"
 IMAGE_PREFIX: Final[str] = "observation.images."
@@ -111,7 +111,7 @@ def _read_jsonl(path: Path) -> list[dict[str, Any]]:
     try:
         lines = path.read_text(encoding="utf-8").splitlines()
     except (OSError, UnicodeDecodeError) as error:
-        raise DataError(f"cannot read {path}: {error.strerror or error}") from error
+        raise DataError(f"cannot read {path}: {describe(error)}") from error
     rows = []
     for number, line in enumerate(lines, 1):
         if line.strip():
