@@ -15,7 +15,7 @@ from synthetic import write_aha_dataset  # noqa: E402
 from robofailring import CachedEncoder, FailureMemory, load_dataset, load_encoder  # noqa: E402
 
 # Property tests (tests/**/test_*_properties.py): fast, and no example database written into the repo.
-settings.register_profile("robofailring", max_examples=60, deadline=None, database=None)
+settings.register_profile("robofailring", max_examples=25, deadline=None, database=None)
 settings.load_profile("robofailring")
 
 

@@ -186,7 +186,11 @@ def test_both_memories_name_the_file_and_line_of_a_bad_row(
     folder = memory.save(tmp_path / "memory")
     for name, broken, expected in (
         (ENTRIES, {"task": "pick_cube"}, "an entry is an object with task, symbol"),
-        (RUNS, {"task": "pick_cube", "episode": "e", "view": "front"}, r"bad success run \('frames'\)"),
+        (
+            RUNS,
+            {"task": "pick_cube", "episode": "e", "view": "front"},
+            r"bad success run \('frames' must be a list",
+        ),
     ):
         original = (folder / name).read_text(encoding="utf-8")
         lines = original.splitlines()

@@ -11,7 +11,8 @@ the shared PyAV reader: frame i of an episode is at `from_timestamp + timestamp_
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+import math
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, Final
 
@@ -20,7 +21,7 @@ import numpy as np
 from robofailring.data.model import Frame, Skipped, Trajectory
 from robofailring.data.registry import Layout, register
 from robofailring.data.video import VideoFrames, open_video
-from robofailring.errors import DataError
+from robofailring.errors import DataError, describe
 
 INFO: Final[str] = "meta/info.json"
 IMAGE_PREFIX: Final[str] = "observation.images."
@@ -35,12 +36,54 @@ def read_info(root: Path) -> dict[str, Any]:
     path = Path(root) / INFO
     try:
         info = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError) as error:
+    except (OSError, ValueError) as error:  # unreadable, not UTF-8, not JSON
         raise DataError(f"cannot read LeRobot info {path}: {error}") from error
-    for key in ("codebase_version", "fps", "features"):
+    required = ("codebase_version", "fps", "features")
+    for key in required:
         if not isinstance(info, dict) or key not in info:
             raise DataError(f"LeRobot info {path} lacks {key!r}")
+    for key, valid, expected in _INFO_TYPES:
+        if key in info and (info[key] is not None or key in required) and not valid(info[key]):
+            raise DataError(f"LeRobot info {path}: {key!r} must be {expected}, not {info[key]!r}")
     return dict(info)
+
+
+def _positive(value: Any) -> bool:
+    return (
+        isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) and value > 0
+    )
+
+
+_INFO_TYPES: Final[tuple[tuple[str, Callable[[Any], bool], str], ...]] = (
+    ("codebase_version", lambda v: isinstance(v, str), "a version string such as 'v3.0'"),
+    ("fps", _positive, "a positive number"),
+    (
+        "features",
+        lambda v: isinstance(v, dict) and all(isinstance(f, dict) for f in v.values()),
+        "an object of feature objects",
+    ),
+    ("chunks_size", lambda v: _positive(v) and isinstance(v, int), "a positive whole number"),
+    ("data_path", lambda v: isinstance(v, str), "a path template string"),
+    ("video_path", lambda v: isinstance(v, str), "a path template string"),
+)
+
+
+def _path(root: Path, template: str, **keys: object) -> Path:
+    """`root / template.format(**keys)`; a template that does not format names info.json."""
+    try:
+        return root / template.format(**keys)
+    except (KeyError, IndexError, ValueError, AttributeError, TypeError) as error:
+        raise DataError(
+            f"{root / INFO}: path template {template!r} does not format with {sorted(keys)} ({error!r})"
+        ) from error
+
+
+def _exists(file: Path) -> bool:
+    """Whether a file is there; a path the system refuses to look up (too long) is not."""
+    try:
+        return file.is_file()
+    except OSError:
+        return False
 
 
 def _read_table(path: Path, columns: Sequence[str] | None = None) -> dict[str, list[Any]]:
@@ -67,14 +110,14 @@ def _read_table(path: Path, columns: Sequence[str] | None = None) -> dict[str, l
 def _read_jsonl(path: Path) -> list[dict[str, Any]]:
     try:
         lines = path.read_text(encoding="utf-8").splitlines()
-    except OSError as error:
-        raise DataError(f"cannot read {path}: {error.strerror or error}") from error
+    except (OSError, UnicodeDecodeError) as error:
+        raise DataError(f"cannot read {path}: {describe(error)}") from error
     rows = []
     for number, line in enumerate(lines, 1):
         if line.strip():
             try:
                 rows.append(json.loads(line))
-            except json.JSONDecodeError as error:
+            except ValueError as error:  # not JSON, or a number too long to read
                 raise DataError(f"{path}:{number}: not valid JSON ({error})") from error
     return rows
 
@@ -115,8 +158,13 @@ def _timestamps(paths: Sequence[Path]) -> dict[int, np.ndarray]:
     by_episode: dict[int, list[tuple[int, float]]] = {}
     for path in paths:
         table = _read_table(path, _FRAME_COLUMNS)
-        for episode, frame, stamp in zip(*(table[c] for c in _FRAME_COLUMNS), strict=True):
-            by_episode.setdefault(int(episode), []).append((int(frame), float(stamp)))
+        try:
+            for episode, frame, stamp in zip(*(table[c] for c in _FRAME_COLUMNS), strict=True):
+                by_episode.setdefault(int(episode), []).append((int(frame), float(stamp)))
+        except (TypeError, ValueError, OverflowError) as error:
+            raise DataError(
+                f"parquet file {path}: a frame row has no valid {_FRAME_COLUMNS} ({error})"
+            ) from error
     return {
         episode: np.asarray([stamp for _, stamp in sorted(rows)], dtype=np.float64)
         for episode, rows in by_episode.items()
@@ -163,24 +211,44 @@ def _v3(root: Path, info: dict[str, Any], cameras: dict[str, str]) -> list[Traje
             columns += [f"videos/{key}/{c}" for c in ("chunk_index", "file_index", "from_timestamp")]
         table = _read_table(path, columns)
         for row in range(len(table["episode_index"])):
-            index = int(table["episode_index"][row])
-            where = f"{path} (episode {index})"
-            if index not in stamps:
-                raise DataError(f"{where}: no frame rows for this episode in {root / 'data'}")
-            views = {}
-            for key, view in cameras.items():
-                file = root / video_path.format(
-                    video_key=key,
-                    chunk_index=int(table[f"videos/{key}/chunk_index"][row]),
-                    file_index=int(table[f"videos/{key}/file_index"][row]),
-                )
-                if not file.is_file():
-                    raise DataError(f"{where}: video {file} is missing")
-                start = float(table[f"videos/{key}/from_timestamp"][row])
-                views[view] = VideoFrames(open_video(file), start + stamps[index])
-            task = _task_of(table["tasks"][row], where)
-            trajectories.append(_trajectory(root, index, task, fps, views, int(table["length"][row]), where))
+            trajectories.append(_v3_episode(root, path, table, row, cameras, video_path, stamps, fps))
     return sorted(trajectories, key=lambda t: int(t.episode.split("_")[-1]))
+
+
+def _v3_episode(
+    root: Path,
+    path: Path,
+    table: dict[str, list[Any]],
+    row: int,
+    cameras: dict[str, str],
+    video_path: str,
+    stamps: dict[int, np.ndarray],
+    fps: float,
+) -> Trajectory:
+    """Row `row` of the episode table `path`; a missing or mistyped value names the file and row."""
+    try:
+        index = int(table["episode_index"][row])
+        length = int(table["length"][row])
+        videos = {
+            key: tuple(
+                kind(table[f"videos/{key}/{column}"][row])
+                for column, kind in (("chunk_index", int), ("file_index", int), ("from_timestamp", float))
+            )
+            for key in cameras
+        }
+    except (TypeError, ValueError, OverflowError) as error:
+        raise DataError(f"{path} row {row}: a missing or mistyped value ({error})") from error
+    where = f"{path} (episode {index})"
+    if index not in stamps:
+        raise DataError(f"{where}: no frame rows for this episode in {root / 'data'}")
+    views = {}
+    for key, view in cameras.items():
+        chunk, number, start = videos[key]
+        file = _path(root, video_path, video_key=key, chunk_index=chunk, file_index=number)
+        if not _exists(file):
+            raise DataError(f"{where}: video {file} is missing")
+        views[view] = VideoFrames(open_video(file), start + stamps[index])
+    return _trajectory(root, index, _task_of(table["tasks"][row], where), fps, views, length, where)
 
 
 def _v2(root: Path, info: dict[str, Any], cameras: dict[str, str]) -> list[Trajectory]:
@@ -195,17 +263,17 @@ def _v2(root: Path, info: dict[str, Any], cameras: dict[str, str]) -> list[Traje
         try:
             index = int(record["episode_index"])
             length = int(record["length"])
-        except (KeyError, TypeError, ValueError) as error:
-            raise DataError(f"{where}: bad episode record ({error})") from error
+        except (KeyError, TypeError, ValueError, OverflowError) as error:
+            raise DataError(f"{where}: bad episode record ({error!r})") from error
         chunk = index // chunks
-        data = root / data_path.format(episode_chunk=chunk, episode_index=index)
+        data = _path(root, data_path, episode_chunk=chunk, episode_index=index)
         stamps = _timestamps([data]).get(index)
         if stamps is None:
             raise DataError(f"{data}: no frame rows for episode {index}")
         views = {}
         for key, view in cameras.items():
-            file = root / video_path.format(episode_chunk=chunk, video_key=key, episode_index=index)
-            if not file.is_file():
+            file = _path(root, video_path, episode_chunk=chunk, video_key=key, episode_index=index)
+            if not _exists(file):
                 raise DataError(f"{where}: video {file} is missing")
             views[view] = VideoFrames(open_video(file), stamps)
         task = _task_of(record.get("tasks"), where)

@@ -224,7 +224,7 @@ class FailureMemory:
             raise MemoryFormatError(f"{directory} is not a failure memory: {MANIFEST} is missing")
         try:
             manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
-        except json.JSONDecodeError as error:
+        except ValueError as error:  # not JSON, not UTF-8, or a number too long to read
             raise MemoryFormatError(f"{manifest_path} is not valid JSON: {error}") from error
         version = manifest.get("format_version") if isinstance(manifest, dict) else None
         if version not in READABLE_VERSIONS:

@@ -33,7 +33,7 @@ def read_jsonl(path: Path, parse: Callable[[Any], Row], *, what: str) -> list[Ro
                     continue
                 try:
                     record = json.loads(line)
-                except json.JSONDecodeError as error:
+                except ValueError as error:  # not JSON, or a number too long to read
                     raise MemoryFormatError(f"{path}:{number}: not JSON ({error})") from error
                 try:
                     rows.append(parse(record))

@@ -36,6 +36,21 @@ RUNS: Final[str] = "success_runs.jsonl"
 MANIFEST_KEY: Final[str] = "successes"  # the failure memory manifest's section on the success memory
 
 
+def _run_fields(fields: Any) -> dict[str, Any]:
+    """A success_runs.jsonl row's fields, each of the type `SuccessRun` holds (TypeError otherwise)."""
+    if not isinstance(fields, dict):
+        raise TypeError(f"a run is a JSON object, not {fields!r}")
+    wrong = [k for k in ("task", "episode", "view", "kind") if k in fields and not isinstance(fields[k], str)]
+    if wrong:
+        raise TypeError(f"{wrong[0]!r} must be a string, not {fields[wrong[0]]!r}")
+    frames, numbers = fields.get("frames"), fields.get("frame_numbers", [])
+    if not isinstance(frames, list) or not all(isinstance(f, str) for f in frames):
+        raise TypeError(f"'frames' must be a list of image references, not {frames!r}")
+    if not isinstance(numbers, list) or not all(type(n) is int for n in numbers):
+        raise TypeError(f"'frame_numbers' must be a list of whole numbers, not {numbers!r}")
+    return fields
+
+
 @dataclass(frozen=True)
 class SuccessRun:
     """One view of one success trajectory: its rows in the success memory are its frames, in order."""
@@ -256,7 +271,8 @@ class SuccessMemory:
 
         `resolve` turns stored frame references into absolute ones (see `references.stored_resolver`)."""
 
-        def parse(fields: dict[str, Any]) -> SuccessRun:
+        def parse(record: Any) -> SuccessRun:
+            fields = _run_fields(record)
             stored = tuple(resolve(f) if resolve else f for f in fields["frames"])
             numbers = tuple(int(n) for n in fields.get("frame_numbers", ()))
             return SuccessRun(**{**fields, "frames": stored, "frame_numbers": numbers})

@@ -1,0 +1,75 @@
+"""The CLI's numeric options are user input: any text for --delta, --gamma, --k, --stride, --target-fpr or
+--fps is used or refused with exit status 2 and a message, never a traceback; the checks behind them
+return the value or raise SettingError."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pytest
+from fault_helpers import cli
+from hypothesis import given
+from hypothesis import strategies as st
+
+from rfr_viz.jobs.replay import check_fps
+from robofailring.detection.detector import check_delta, check_k, check_stride
+from robofailring.detection.rules import ScoreRule, check_target_fpr, check_threshold
+from robofailring.errors import SettingError
+from robofailring.memory.thinning import check_step
+
+TEXT = st.one_of(
+    st.sampled_from(
+        ["nan", "-nan", "inf", "-inf", "1e309", "-0", "0", "1", "0.5", "-1", "", " ", "1_0", "0x10"]
+    ),
+    st.integers(-(10**30), 10**30).map(str),
+    st.floats().map(str),
+    st.text(max_size=8),
+).filter(lambda text: "\0" not in text)
+
+OPTIONS = {
+    "detect": ("--delta", "--gamma", "--k", "--stride"),
+    "calibrate": ("--target-fpr", "--stride"),
+    "replay": ("--fps", "--k", "--stride", "--delta"),
+}
+
+
+@pytest.fixture(scope="module")
+def missing(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return tmp_path_factory.mktemp("numeric") / "nothing-here"
+
+
+@given(st.sampled_from(sorted(OPTIONS)), st.data())
+def test_any_numeric_option_text_is_refused_with_status_2_not_a_traceback(
+    missing: Path, verb: str, data: st.DataObject
+) -> None:
+    option, value = data.draw(st.sampled_from(OPTIONS[verb])), data.draw(TEXT)
+    extra = ("--out", missing / "rec") if verb == "replay" else ()
+    result = cli(verb, missing, "--memory", missing, *extra, option, value)
+    assert result.exit_code == 2, result.output  # a bad value, or (for a good one) the missing memory
+    assert isinstance(result.exception, SystemExit), repr(result.exception)
+    assert "Traceback" not in result.output and "rror" in result.output
+
+
+NUMBER = st.one_of(st.floats(), st.integers(-(10**6), 10**6))
+CHECKS: dict[str, Callable[[Any], Any]] = {
+    "k": check_k,
+    "stride": check_stride,
+    "delta": check_delta,
+    "target_fpr": check_target_fpr,
+    "gamma": lambda value: check_threshold(ScoreRule.CONTRAST, value),
+    "fps": check_fps,
+    "success_step": check_step,
+}
+
+
+@given(st.sampled_from(sorted(CHECKS)), NUMBER)
+def test_every_setting_check_returns_the_value_or_raises_a_setting_error(name: str, value: float) -> None:
+    try:
+        checked = CHECKS[name](value)
+    except SettingError as error:
+        assert str(value) in str(error)
+    else:
+        assert checked == value and not math.isnan(value)

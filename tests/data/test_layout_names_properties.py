@@ -1,0 +1,77 @@
+"""Folder names are user input: the AHA and ManiSkill layouts read any name as an episode whose symbol
+grounds (or is refused with SymbolError), or skip it with a reason; never another exception."""
+
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+
+import numpy as np
+from hypothesis import given
+from hypothesis import strategies as st
+
+from robofailring.data.grounding import parse_symbol
+from robofailring.data.images import write_png
+from robofailring.data.layout_aha import AHA_FAILURES, aha_name_problem, aha_trajectories, parse_aha_name
+from robofailring.data.layout_maniskill import MANISKILL_FAILURES, maniskill_trajectories
+from robofailring.errors import SymbolError
+
+PARTS = st.one_of(
+    st.sampled_from(
+        [*AHA_FAILURES, *MANISKILL_FAILURES, "wrong_object", "success", "episode", "wp", "stage"]
+    ),
+    st.from_regex(r"(wp|episode|stage)?[0-9]{1,4}", fullmatch=True),
+    st.text(st.characters(exclude_characters="/\0"), min_size=1, max_size=8),
+)
+NAMES = st.one_of(
+    st.text(st.characters(exclude_characters="/\0"), min_size=1, max_size=30),
+    st.lists(PARTS, min_size=1, max_size=5).map("_".join),
+).filter(lambda name: name not in (".", "..") and len(name.encode()) < 200)
+
+
+def _symbol_grounds_or_is_refused(symbol: str | None) -> None:
+    if symbol is not None:
+        try:
+            parse_symbol(symbol)
+        except SymbolError as error:
+            assert repr(symbol) in str(error)
+
+
+@given(NAMES)
+def test_any_aha_name_parses_or_says_why_not(name: str) -> None:
+    parsed = parse_aha_name(name)
+    if parsed is None:
+        assert aha_name_problem(name)
+    else:
+        task, symbol, episode = parsed
+        assert task and episode.isdigit()
+        _symbol_grounds_or_is_refused(symbol)
+
+
+def _frame(folder: Path, name: str) -> None:
+    folder.mkdir(parents=True, exist_ok=True)
+    write_png(folder / name, np.zeros((4, 4, 3), np.uint8))
+
+
+@given(NAMES)
+def test_an_aha_folder_of_any_name_is_read_or_skipped(name: str) -> None:
+    with tempfile.TemporaryDirectory() as root:
+        _frame(Path(root) / name, "front_0.png")
+        _frame(Path(root) / name, "front_1.png")
+        found, skipped = aha_trajectories(Path(root))
+        for trajectory in found:
+            _symbol_grounds_or_is_refused(trajectory.symbol)
+        assert all(item.reason for item in skipped)
+
+
+@given(NAMES)
+def test_a_maniskill_folder_of_any_name_is_read_or_skipped(name: str) -> None:
+    with tempfile.TemporaryDirectory() as root:
+        episode = Path(root) / "PickCube-v1" / "seed0" / name / "front"
+        _frame(episode, "0.png")
+        _frame(episode, "1.png")
+        found, skipped = maniskill_trajectories(Path(root))
+        for trajectory in found:
+            assert trajectory.task == "PickCube-v1"
+            _symbol_grounds_or_is_refused(trajectory.symbol)
+        assert all(item.reason for item in skipped)
