@@ -7,6 +7,7 @@ content key digests the row's own bytes (raw pixels or the stored JPEG), so noth
 
 from __future__ import annotations
 
+import os
 import threading
 from collections import OrderedDict
 from collections.abc import Sequence
@@ -22,7 +23,7 @@ from robofailring.errors import DataError
 
 HDF5_SUFFIXES: Final[tuple[str, ...]] = (".hdf5", ".h5", ".he5")
 _OPEN_LIMIT: Final[int] = 8
-_OPEN: OrderedDict[str, Any] = OrderedDict()
+_OPEN: OrderedDict[str, tuple[Any, tuple[int, int]]] = OrderedDict()  # path -> (handle, mtime, size)
 _LOCK = threading.RLock()
 
 
@@ -35,18 +36,25 @@ def open_hdf5(path: Path) -> Any:
     import h5py
 
     key = str(Path(path).resolve())
+    try:
+        stat = os.stat(key)
+    except OSError as error:
+        raise DataError(f"cannot read HDF5 file {path}: {error.strerror or error}") from error
+    version = (stat.st_mtime_ns, stat.st_size)  # a file written again is opened again
     with _LOCK:
-        handle = _OPEN.get(key)
-        if handle is not None and handle.id.valid:
-            _OPEN.move_to_end(key)
-            return handle
+        found = _OPEN.pop(key, None)
+        if found is not None and found[1] == version and found[0].id.valid:
+            _OPEN[key] = found
+            return found[0]
+        if found is not None:
+            found[0].close()
         try:
             handle = h5py.File(key, "r")
         except OSError as error:
             raise DataError(f"cannot read HDF5 file {path}: {error}") from error
-        _OPEN[key] = handle
+        _OPEN[key] = (handle, version)
         while len(_OPEN) > _OPEN_LIMIT:
-            _, oldest = _OPEN.popitem(last=False)
+            _, (oldest, _) = _OPEN.popitem(last=False)
             oldest.close()
         return handle
 
