@@ -19,6 +19,7 @@ from robofailring.cli.options import (
     MemoryEncoderOption,
     MemoryOption,
     TaskOption,
+    ViewsOption,
     VLMModelOption,
     VLMUrlOption,
     vlm_config,
@@ -67,6 +68,7 @@ def watch_cmd(
         Path | None, typer.Option("--save", help="Also write the same stream to this .rrd.")
     ] = None,
     task: TaskOption = None,
+    views: ViewsOption = None,
     delta: DeltaOption = None,
     k: KOption = 5,
     speed: Annotated[
@@ -90,6 +92,7 @@ def watch_cmd(
             memory=memory,
             target=LiveTarget.chosen(connect=connect, spawn=spawn, save=save),
             task=task,
+            views=views,
             delta=delta,
             k=k,
             encoder=encoder,

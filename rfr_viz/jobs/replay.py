@@ -52,6 +52,7 @@ class ReplayConfig:
     labels: Path | None = None  # labels file (LeRobot): outcome and symbol shown in the recording
     data_root: Path | None = None  # where the memory's images are now, when its data moved
     vlm: VLMConfig | None = None  # ask this VLM about each detection; its answer joins the report
+    views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
 
 
 @dataclass(frozen=True)
@@ -70,6 +71,7 @@ class CompareConfig:
     device: str | None = None
     data_roots: tuple[Path, ...] = ()  # one per memory (or one for all): where its images are now
     camera_codec: CameraCodec = CameraCodec.AUTO
+    views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
 
 
 @dataclass
@@ -145,6 +147,7 @@ def select_trajectories(
     keys: Sequence[str] = (),
     task: str | None = None,
     labels: Path | None = None,
+    views: str | None = None,
     skipped: list[Skipped] | None = None,
 ) -> list[Trajectory]:
     """The trajectories of a dataset root (optionally by key and task) or of one episode folder.
@@ -153,11 +156,11 @@ def select_trajectories(
     """
     data = Path(data)
     if detect_layout(data) == "episode":
-        trajectory = load_trajectory(data, task=task)
+        trajectory = load_trajectory(data, task=task, views=views)
         if skipped is not None:
             skipped += trajectory.skipped
         return [trajectory]
-    dataset = load_dataset(data, task=task, labels=labels)
+    dataset = load_dataset(data, task=task, labels=labels, views=views)
     if skipped is not None:
         skipped += dataset.skipped
     chosen = dataset.select(keys=list(keys) or None)
@@ -238,6 +241,7 @@ def _replay(config: ReplayConfig) -> ReplayResult:
         keys=config.trajectories,
         task=config.task,
         labels=config.labels,
+        views=config.views,
         skipped=result.skipped_inputs,
     )
     written: dict[Path, str] = {}
@@ -321,7 +325,11 @@ def _compare(config: CompareConfig) -> ReplayResult:
         references={Path(m): found.references for m, found in zip(config.memories, detectors, strict=True)}
     )
     trajectories = select_trajectories(
-        config.data, keys=config.trajectories, task=config.task, skipped=result.skipped_inputs
+        config.data,
+        keys=config.trajectories,
+        task=config.task,
+        views=config.views,
+        skipped=result.skipped_inputs,
     )
     suffix = "__" + "-vs-".join(slugs)
     written: dict[Path, str] = {}

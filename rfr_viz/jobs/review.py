@@ -36,6 +36,7 @@ class ReviewConfig:
     data_root: Path | None = None  # where the memory's images are now, when its data moved
     vlm: VLMConfig | None = None  # ask this VLM about each alarm; its answer joins the report
     camera_codec: CameraCodec = CameraCodec.AUTO  # jpeg, av1, h264, or auto (by size)
+    views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
 
 
 def review(config: ReviewConfig) -> ReplayResult:
@@ -85,7 +86,7 @@ def _replay_keys(
         device=config.device,
         data_root=config.data_root,
     )
-    dataset = load_dataset(config.data)
+    dataset = load_dataset(config.data, views=config.views)
     result.skipped_inputs += dataset.skipped
     trajectories = {t.key: t for t in dataset.select(keys=keys)}
     result.references[memory_dir] = loaded.references

@@ -21,6 +21,7 @@ class WatchConfig:
     memory: Path  # memory directory (its cached map is shown)
     target: LiveTarget  # viewer URL, spawn, and/or a file
     task: str | None = None  # when the folder name does not say
+    views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
     delta: float | None = None  # default: the memory's calibrated δ, else 0.92
     k: int = DEFAULT_K
     encoder: str | None = None  # default: the memory's encoder spec
@@ -65,7 +66,7 @@ def watch(config: WatchConfig) -> WatchResult:
         device=config.device,
         data_root=config.data_root,
     )
-    trajectory = load_trajectory(config.episode, task=config.task)
+    trajectory = load_trajectory(config.episode, task=config.task, views=config.views)
     used = {view: frames for view, frames in trajectory.views.items() if len(frames) >= 2}
     if not used:
         raise DataError(f"episode {config.episode} has no view with at least 2 frames")

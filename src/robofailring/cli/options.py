@@ -46,7 +46,7 @@ LabelsOption = Annotated[
     typer.Option(
         "--labels",
         help="Outcome and failure symbol per episode: a JSON list or CSV of episode_index, outcome, symbol "
-        "(LeRobot datasets; `episode` names an episode folder).",
+        "and optionally task (`episode` names an episode folder, an HDF5 demo or episode file).",
     ),
 ]
 VLMUrlOption = Annotated[
@@ -142,6 +142,14 @@ TaskOption = Annotated[
     typer.Option(
         help="Task of episodes whose names do not say it (an episode folder, video episodes); "
         "replay and compare on a dataset root keep only this task."
+    ),
+]
+ViewsOption = Annotated[
+    str | None,
+    typer.Option(
+        "--views",
+        help="Views to use, in order: `a,b` picks views; `src=name` renames one (a camera, an HDF5 image key); "
+        "default: every view the data has.",
     ),
 ]
 MemoryOption = Annotated[Path, typer.Option("--memory", help="Memory directory.")]

@@ -29,6 +29,7 @@ from robofailring.cli.options import (
     StrideOption,
     SuccessStepOption,
     TaskOption,
+    ViewsOption,
     VLMModelOption,
     VLMUrlOption,
     print_notes,
@@ -89,12 +90,13 @@ def generate_cmd(
 
 @app.command("build-memory")
 def build_memory_cmd(
-    data: Annotated[Path, typer.Argument(help="Dataset root (AHA, ManiSkill-failgen or project layout).")],
+    data: Annotated[Path, typer.Argument(help="Dataset root (any supported layout; an HDF5 file).")],
     out: Annotated[Path, typer.Option("--out", help="Memory directory to write.")],
     encoder: EncoderOption = "pixels",
     split: Annotated[str | None, typer.Option(help="Only this split (project layout).")] = None,
     labels: LabelsOption = None,
     task: TaskOption = None,
+    views: ViewsOption = None,
     no_successes: Annotated[
         bool,
         typer.Option(
@@ -119,6 +121,7 @@ def build_memory_cmd(
             labels=labels,
             successes=not no_successes,
             task=task,
+            views=views,
             success_step=success_step,
         )
     )
@@ -157,6 +160,7 @@ def detect_cmd(
     score: ScoreOption = None,
     gamma: GammaOption = None,
     task: TaskOption = None,
+    views: ViewsOption = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the full trace as one JSON object.")] = False,
     leave_one_out: LeaveOneOutOption = False,
     encoder: MemoryEncoderOption = None,
@@ -186,6 +190,7 @@ def detect_cmd(
             score=score,
             gamma=gamma,
             task=task,
+            views=views,
             leave_one_out=leave_one_out,
             encoder=encoder,
             cache_dir=cache_dir,
@@ -212,6 +217,8 @@ def calibrate_cmd(
     split: Annotated[str | None, typer.Option(help="Successes of this split (project layout).")] = "train",
     stride: StrideOption = 1,
     labels: LabelsOption = None,
+    task: TaskOption = None,
+    views: ViewsOption = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
 ) -> None:
@@ -228,6 +235,8 @@ def calibrate_cmd(
             device=device,
             stride=stride,
             labels=labels,
+            task=task,
+            views=views,
         )
     )
     report_skipped(result.skipped_inputs)
@@ -272,6 +281,7 @@ def train_encoder_cmd(
         ),
     ] = None,
     threads: Annotated[int | None, typer.Option(help="torch CPU threads (default: half the cores).")] = None,
+    views: ViewsOption = None,
     device: DeviceOption = None,
 ) -> None:
     """Train an encoder on your own runs: labels failure type × progress quarter × view, augmented."""
@@ -286,6 +296,7 @@ def train_encoder_cmd(
         seed=seed,
         init=init,
         threads=threads,
+        views=views,
         device=device,
     )
     folder = train_encoder(config, say=typer.echo)

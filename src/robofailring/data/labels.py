@@ -2,7 +2,8 @@
 
 A JSON list of objects or a CSV file with a header, one row per episode:
 `episode_index` (a LeRobot episode) or `episode` (an episode folder's name), `outcome`
-(`success` or `failure`) and `symbol` (the failure symbol, e.g. `grasp_wp2`; empty for a success).
+(`success` or `failure`) and `symbol` (the failure symbol, e.g. `grasp_wp2`; empty for a success);
+an optional `task` column names the episode's task (it wins over `--task` and the data's own).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ class Label:
     episode: str  # `episode_<index>` for LeRobot, else the episode folder's name
     outcome: Outcome
     symbol: str | None
+    task: str | None = None  # the episode's task, when the labels file says it
 
 
 def read_labels(path: Path) -> dict[str, Label]:
@@ -52,7 +54,7 @@ def read_labels(path: Path) -> dict[str, Label]:
             raise DataError(f"{path} row {number}: episode {label.episode!r} is labelled twice")
         labels[label.episode] = label
     if not labels:
-        raise DataError(f"labels file {path} holds no rows (columns: episode_index, outcome, symbol)")
+        raise DataError(f"labels file {path} holds no rows (columns: episode_index, outcome, symbol[, task])")
     return labels
 
 
@@ -79,7 +81,10 @@ def _label(row: dict[str, object], *, where: str) -> Label:
             raise DataError(f"{where}: {error}") from error
     if outcome is Outcome.FAILURE and symbol is None:
         raise DataError(f"{where}: a failure needs a symbol (e.g. grasp_wp2)")
-    return Label(episode=episode, outcome=outcome, symbol=symbol if outcome is Outcome.FAILURE else None)
+    task = str(row.get("task") or "").strip() or None
+    return Label(
+        episode=episode, outcome=outcome, symbol=symbol if outcome is Outcome.FAILURE else None, task=task
+    )
 
 
 def apply_labels(
@@ -93,7 +98,9 @@ def apply_labels(
         label = labels.get(key)
         if label is not None:
             found.add(key)
-            trajectory = replace(trajectory, outcome=label.outcome, symbol=label.symbol)
+            trajectory = replace(
+                trajectory, outcome=label.outcome, symbol=label.symbol, task=label.task or trajectory.task
+            )
         labelled.append(trajectory)
     missing = [episode for episode in labels if episode not in found]
     if missing:

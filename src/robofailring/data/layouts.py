@@ -3,15 +3,18 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Final
 
 from robofailring.data import (
     layout_aha,
+    layout_aloha,
     layout_episode,
+    layout_images,
     layout_maniskill,
     layout_project,
+    layout_robomimic,
     layout_videos,
     lerobot,
 )
@@ -27,6 +30,7 @@ from robofailring.data.layout_project import (
 )
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.data.registry import Layout, layouts_help
+from robofailring.data.views import select_views
 from robofailring.errors import DataError
 
 __all__ = [
@@ -45,13 +49,18 @@ __all__ = [
     "read_project_manifest",
 ]
 
-# Detection order: the first layout whose `detect` says yes reads the root.
+# Detection order: the first layout whose `detect` says yes reads the root. The HDF5 layouts look
+# for files no other layout has; folders of image episodes with any names come after the named
+# layouts (AHA, ManiSkill) and before one episode folder, which they would otherwise be read as.
 LAYOUTS: Final[tuple[Layout, ...]] = (
     layout_project.LAYOUT,
     lerobot.LAYOUT,
+    layout_aloha.LAYOUT,
+    layout_robomimic.LAYOUT,
     layout_videos.LAYOUT,
     layout_aha.LAYOUT,
     layout_maniskill.LAYOUT,
+    layout_images.LAYOUT,
     layout_episode.LAYOUT,
 )
 
@@ -71,6 +80,11 @@ class Dataset:
     unread: tuple[Skipped, ...] = field(default=(), repr=False)
     manifest: dict[str, Any] | None = None
     labelled: bool = False  # outcomes come from the data itself or from a labels file
+
+    @property
+    def views(self) -> list[str]:
+        """The views read (after `--views`), in the order they first appear."""
+        return list(dict.fromkeys(view for trajectory in self.episodes for view in trajectory.views))
 
     def __iter__(self) -> Iterator[Trajectory]:
         return self.trajectories()
@@ -110,6 +124,14 @@ class Dataset:
 
 def _layout(root: Path) -> Layout:
     root = Path(root)
+    if root.is_file():
+        for layout in LAYOUTS:
+            if layout.reads_files and layout.detect(root):
+                return layout
+        readers = ", ".join(layout.name for layout in LAYOUTS if layout.reads_files)
+        raise DataError(
+            f"dataset root {root} is a file of no layout read from one file ({readers}); {LAYOUTS_HELP}"
+        )
     if not root.is_dir():
         raise DataError(f"dataset root {root} is not a directory")
     for layout in LAYOUTS:
@@ -118,16 +140,33 @@ def _layout(root: Path) -> Layout:
     raise DataError(f"{root} matches no known dataset layout; {LAYOUTS_HELP}")
 
 
+def _finish(
+    trajectories: list[Trajectory], *, layout: str, root: Path, views: str | None
+) -> list[Trajectory]:
+    """Every trajectory with its layout and the views `--views` picks; one without a task is an error."""
+    untold = [t.episode for t in trajectories if not t.task]
+    if untold:
+        raise DataError(
+            f"cannot tell the task of {len(untold)} episode(s) of {root} ({layout} layout), e.g. {untold[0]!r}: "
+            "pass --task, or a task column in the --labels file"
+        )
+    chosen = select_views(trajectories, views, where=f"{root} ({layout} layout)")
+    return [replace(t, layout=layout) for t in chosen]
+
+
 def detect_layout(root: Path) -> str:
     """The layout name of a dataset root, or DataError naming the layouts expected."""
     return _layout(root).name
 
 
-def load_dataset(root: Path, *, task: str | None = None, labels: Path | None = None) -> Dataset:
+def load_dataset(
+    root: Path, *, task: str | None = None, labels: Path | None = None, views: str | None = None
+) -> Dataset:
     """Open a dataset root of any supported layout (auto-detected), listing what it does not read.
 
     `task` names the task of episodes whose names do not say it (one episode, video episodes);
-    `labels` is a labels file (see `robofailring.data.labels`) giving outcome and symbol per episode.
+    `labels` is a labels file (see `robofailring.data.labels`) giving outcome, symbol and task per
+    episode; `views` (`a,b` or `src=name,…`, see `robofailring.data.views`) picks and names the views.
     """
     root = Path(root)
     layout = _layout(root)
@@ -135,28 +174,40 @@ def load_dataset(root: Path, *, task: str | None = None, labels: Path | None = N
     found, skipped = layout.read(root, task=task)
     if labels is not None:
         found = apply_labels(found, read_labels(labels), source=Path(labels))
+    labelled = labels is not None or layout.outcomes_in_data or any(t.outcome is not None for t in found)
     return Dataset(
         root=root,
         layout=layout.name,
-        episodes=tuple(found),
+        episodes=tuple(_finish(found, layout=layout.name, root=root, views=views)),
         unread=tuple(skipped),
         manifest=manifest,
-        labelled=labels is not None or layout.name != "lerobot",
+        labelled=labelled,
     )
 
 
 def load_trajectory(
-    path: Path, *, task: str | None = None, key: str | None = None, labels: Path | None = None
+    path: Path,
+    *,
+    task: str | None = None,
+    key: str | None = None,
+    labels: Path | None = None,
+    views: str | None = None,
 ) -> Trajectory:
     """One trajectory from an episode folder of any layout, or the one named `key` in a dataset root.
 
-    The task comes from the folder name where the layout encodes it, else from `task`.
+    The task comes from the folder name where the layout encodes it, else from `task`; `views` as
+    in `load_dataset`.
     """
     path = Path(path)
-    if not path.is_dir():
+    if not path.is_dir() and not path.is_file():
         raise DataError(f"trajectory {path} is not a directory")
-    if key is not None or (path / PROJECT_MANIFEST).is_file() or detect_layout(path) != "episode":
-        dataset = load_dataset(path, task=task, labels=labels)
+    if (
+        path.is_file()
+        or key is not None
+        or (path / PROJECT_MANIFEST).is_file()
+        or detect_layout(path) != "episode"
+    ):
+        dataset = load_dataset(path, task=task, labels=labels, views=views)
         found = dataset.select(keys=[key]) if key is not None else list(dataset.trajectories())
         if len(found) != 1:
             raise DataError(
@@ -169,5 +220,5 @@ def load_trajectory(
     if parent_manifest.is_file():
         for trajectory in project_trajectories(path.parent, read_project_manifest(path.parent))[0]:
             if trajectory.source is not None and trajectory.source.resolve() == path.resolve():
-                return trajectory
-    return episode_trajectory(path, task=task)
+                return _finish([trajectory], layout="project", root=path, views=views)[0]
+    return _finish([episode_trajectory(path, task=task)], layout="episode", root=path, views=views)[0]

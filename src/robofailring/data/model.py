@@ -114,6 +114,7 @@ class Trajectory:
     fps: float | None = None
     split: str | None = None
     skipped: tuple[Skipped, ...] = ()  # files of this episode that were not read, with the reason
+    layout: str | None = None  # the dataset layout it was read from (set by `load_dataset`)
 
     @property
     def key(self) -> str:

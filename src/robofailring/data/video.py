@@ -254,8 +254,15 @@ class VideoFrames(Sequence[Frame]):
 
 
 def read_video_reference(reference: str) -> np.ndarray | None:
-    """The frame a `<video file>#frame=<index>` reference (a memory entry's start/end) points at, or None."""
+    """The frame a `<video file>#frame=<index>` reference (a memory entry's start/end) points at, or None.
+
+    A row of an HDF5 image dataset (`<file>#/<dataset>#frame=<index>`) is read by its own reader.
+    """
     path, marker, index = reference.rpartition("#frame=")
+    if marker and "#/" in path:
+        from robofailring.data.hdf5 import read_hdf5_reference
+
+        return read_hdf5_reference(reference)
     if not marker or not index.isdigit() or not Path(path).is_file():
         return None
     return open_video(Path(path)).decode(int(index))

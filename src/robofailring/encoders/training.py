@@ -75,6 +75,7 @@ class TrainEncoderConfig:
     init: str | None = None  # open_clip:<model>:<weights>: train a projection head on that frozen tower
     test_fraction: float = 0.5  # layouts without splits use the evaluation's hash split
     device: str | None = None  # default: cuda when available
+    views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
     threads: int | None = (
         None  # torch CPU threads (default: half the cores, at least 1: the machine is shared)
     )
@@ -122,7 +123,7 @@ def _kind(trajectory: Trajectory) -> str | None:
 def training_samples(config: TrainEncoderConfig) -> tuple[list[Sample], int, list[str]]:
     """(samples of the chosen split, trajectories used, keys of unlabelled trajectories skipped)."""
 
-    trajectories = list(load_dataset(config.data).trajectories())
+    trajectories = list(load_dataset(config.data, views=config.views).trajectories())
     has_splits = any(t.split for t in trajectories)
     chosen = [
         t

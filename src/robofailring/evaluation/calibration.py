@@ -116,6 +116,8 @@ class CalibrateConfig:
     device: str | None = None
     stride: int = 1  # score every stride-th frame of each success run
     labels: Path | None = None  # labels file for data whose names do not say the outcome (LeRobot)
+    task: str | None = None  # task of episodes whose names do not say it
+    views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
         check_k(self.k)
@@ -163,7 +165,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
         delta=PAPER_DELTA,
     )
     memory = detector.memory
-    dataset = load_dataset(config.data, labels=config.labels)
+    dataset = load_dataset(config.data, task=config.task, labels=config.labels, views=config.views)
     dataset.require_labels("calibrate")
     source = list(dataset.trajectories())
     has_splits = any(t.split for t in source)

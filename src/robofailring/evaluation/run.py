@@ -60,6 +60,8 @@ class EvaluateConfig:
         DEFAULT_STEP  # thinning of success runs (robofailring.memory.thinning); 0 keeps every frame
     )
     deployment_successes: int = 0  # per task: test success runs moved into the success memory
+    task: str | None = None  # task of episodes whose names do not say it
+    views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
         check_k(self.k)
@@ -86,7 +88,7 @@ class Splits:
 
 def select_splits(config: EvaluateConfig) -> Splits:
     """The training and test trajectories, disjoint by construction and checked."""
-    dataset = load_dataset(config.data, labels=config.labels)
+    dataset = load_dataset(config.data, task=config.task, labels=config.labels, views=config.views)
     dataset.require_labels("evaluate")
     source = list(dataset.trajectories())
     skipped = list(dataset.skipped)
@@ -103,7 +105,9 @@ def select_splits(config: EvaluateConfig) -> Splits:
             if split_of(t, has_splits=has_splits, test_fraction=config.test_fraction) == config.test_split
         ]
     else:
-        other_dataset = load_dataset(config.test_data, labels=config.labels)
+        other_dataset = load_dataset(
+            config.test_data, task=config.task, labels=config.labels, views=config.views
+        )
         other_dataset.require_labels("evaluate")
         other = list(other_dataset.trajectories())
         skipped += other_dataset.skipped
@@ -166,6 +170,7 @@ def build_training_memory(
         data=Path(config.data),
         encoder=config.encoder,
         layout=splits.dataset.layout,
+        views=splits.dataset.views,
         split=config.train_split,
         skipped_inputs=splits.dataset.skipped,
     )

@@ -28,6 +28,7 @@ class BuildMemoryConfig:
     successes: bool = True  # also build the success memory (contrast rule); False: the paper's memory alone
     success_step: float = DEFAULT_STEP  # keep a success frame only this far (cosine) from the last kept one
     task: str | None = None  # task of episodes whose names do not say it (one episode folder, video episodes)
+    views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
 
 
 def build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
@@ -44,7 +45,7 @@ def build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
 
 def _build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
     encoder = open_encoder(config.encoder, device=config.device, cache_dir=config.cache_dir)
-    dataset = load_dataset(config.data, task=config.task, labels=config.labels)
+    dataset = load_dataset(config.data, task=config.task, labels=config.labels, views=config.views)
     dataset.require_labels("build-memory")
     trajectories = list(dataset.trajectories())
     if config.split is not None:
@@ -65,6 +66,7 @@ def _build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]
         data=Path(config.data),
         encoder=config.encoder,
         layout=dataset.layout,
+        views=dataset.views,
         split=config.split,
         skipped_inputs=dataset.skipped,
     )

@@ -38,6 +38,7 @@ class DetectConfig:
     labels: Path | None = None  # labels file (LeRobot): outcome and symbol per episode
     data_root: Path | None = None  # where the memory's images are now, when its data moved
     vlm: VLMConfig | None = None  # ask this VLM about the report, when the detector fires
+    views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
 
 
 def detect(config: DetectConfig) -> DetectionTrace:
@@ -59,7 +60,9 @@ def detect_trajectory(config: DetectConfig) -> tuple[DetectionTrace, Trajectory]
         encoder=config.encoder,
         cache_dir=config.cache_dir,
     )
-    trajectory = load_trajectory(config.trajectory, task=config.task, key=config.key, labels=config.labels)
+    trajectory = load_trajectory(
+        config.trajectory, task=config.task, key=config.key, labels=config.labels, views=config.views
+    )
     return detector.run(trajectory, leave_one_out=config.leave_one_out, stride=config.stride), trajectory
 
 
@@ -72,6 +75,8 @@ class DetectResult:
     vlm: VLMConfig | None  # the VLM asked, if any
     answer: VLMAnswer | None  # None: no VLM, or nothing detected to ask about
     references: ReferenceCheck | None  # the fired neighbours' reference images (None: nothing fired)
+    layout: str | None = None  # the layout the trajectory was read from
+    views_read: tuple[str, ...] = ()  # its views (after `--views`)
 
     @property
     def notes(self) -> list[str]:
@@ -90,7 +95,12 @@ class DetectResult:
 
     def to_dict(self) -> dict[str, Any]:
         """The full trace, the report (None without a detection) and, when a VLM was given, its answer."""
-        found = {**self.trace.to_dict(), "report": self.report.to_dict() if self.report is not None else None}
+        found = {
+            **self.trace.to_dict(),
+            "report": self.report.to_dict() if self.report is not None else None,
+            "layout": self.layout,
+            "views_read": list(self.views_read),
+        }
         if self.vlm is not None:
             found["vlm"] = self.answer.to_dict() if self.answer is not None else None  # None: nothing to ask
         return found
@@ -142,4 +152,12 @@ def run_detect(config: DetectConfig) -> DetectResult:
         from robofailring.explain.vlm import ask_vlm
 
         answer = ask_vlm(report, config.vlm)
-    return DetectResult(trace=trace, report=report, vlm=config.vlm, answer=answer, references=references)
+    return DetectResult(
+        trace=trace,
+        report=report,
+        vlm=config.vlm,
+        answer=answer,
+        references=references,
+        layout=loaded.layout,
+        views_read=tuple(loaded.views),
+    )

@@ -28,6 +28,7 @@ class Provenance:
     data: Path  # the dataset root: recorded as `source`, and the root references are stored under
     encoder: str  # the encoder spec the memory was built with (recorded portable, to reopen it)
     layout: str | None = None  # the dataset's layout
+    views: Sequence[str] | None = None  # the views read from it (after `--views`)
     split: str | None = None  # the split the trajectories were taken from (None: all of them)
     skipped_inputs: Sequence[Skipped] = ()  # folders and files of the dataset that were not read
 
@@ -59,6 +60,7 @@ def build_memories(
         skipped_inputs=[skipped.to_dict() for skipped in provenance.skipped_inputs],
         source=str(root),
         layout=provenance.layout,
+        data_views=list(provenance.views) if provenance.views is not None else None,
         encoder_spec=portable_spec(provenance.encoder),
         split=provenance.split,
         data_root=str(root),

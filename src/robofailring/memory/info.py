@@ -53,6 +53,8 @@ class MemoryInfo:
             "calibrated_gamma": self.memory.calibrated_gamma,
             "successes": self._successes(),
             "source": manifest.source,
+            "layout": manifest.layout,
+            "views_read": manifest.data_views,
             "data_root": self.recorded_root,
             "data_root_used": str(self.memory.data_root) if self.memory.data_root else None,
             "references": {
@@ -89,6 +91,9 @@ class MemoryInfo:
             + (f", γ = {gamma:.6f}" if gamma is not None else ""),
             f"  data root   {info['data_root'] or '(not recorded: references are as given at build time)'}",
         ]
+        if info["layout"]:
+            views = ", ".join(info["views_read"] or []) or "(not recorded)"
+            lines.append(f"  read as     {info['layout']} layout, views {views}")
         if info["data_root_used"] and info["data_root_used"] != info["data_root"]:
             lines.append(f"  looked in   {info['data_root_used']} (--data-root)")
         found = info["successes"]

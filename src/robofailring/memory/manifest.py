@@ -24,6 +24,7 @@ _ORDER: Final[tuple[str, ...]] = (
     "skipped_inputs",
     "source",
     "layout",
+    "data_views",
     "encoder_spec",
     "split",
     "data_root",
@@ -56,6 +57,7 @@ _KINDS: Final[dict[str, Any]] = {
     "skipped_inputs": lambda v: isinstance(v, list),
     "source": lambda v: isinstance(v, str),
     "layout": lambda v: isinstance(v, str),
+    "data_views": lambda v: isinstance(v, list),
     "encoder_spec": lambda v: isinstance(v, str),
     "split": lambda v: isinstance(v, str),
     "data_root": lambda v: isinstance(v, str),
@@ -157,6 +159,7 @@ class MemoryManifest:
     data_root: str | None = None  # absolute root the entries' references are stored relative to
     source: str | None = None  # the dataset the memory was built from
     layout: str | None = None  # that dataset's layout
+    data_views: list[str] | None = None  # the views read from it (after `--views`)
     split: str | None = None  # the split the memory was built from
     encoder_spec: str | None = None  # the spec that opens the encoder again (`--encoder`)
     skipped_inputs: list[dict[str, Any]] | None = None  # dataset folders/files not read

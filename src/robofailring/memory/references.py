@@ -86,9 +86,10 @@ class ReferenceCheck:
 
 
 def reference_file(reference: str) -> str:
-    """The file behind a reference: a video frame ``<file>#frame=<i>`` lives in ``<file>``."""
+    """The file behind a reference: a video frame ``<file>#frame=<i>`` lives in ``<file>``, an HDF5 row
+    ``<file>#/<dataset>#frame=<i>`` too."""
     path, marker, _ = reference.rpartition(VIDEO_FRAME_MARKER)
-    return path if marker else reference
+    return path.partition("#/")[0] if marker else reference
 
 
 def check_references(references: Iterable[str]) -> ReferenceCheck:

@@ -1,0 +1,166 @@
+"""HDF5 image datasets read lazily with h5py: a frame is one row sliced on demand, never the whole array.
+
+Files are opened per read through a small cache of open handles (`_OPEN_LIMIT`), so a dataset of
+many episode files keeps few open. A frame's reference is `<file>#<dataset path>#frame=<i>`; its
+content key digests the row's own bytes (raw pixels or the stored JPEG), so nothing else is read.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from collections import OrderedDict
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Final, overload
+
+import numpy as np
+
+from robofailring.data.images import as_rgb, content_digest, decode_image
+from robofailring.data.model import Frame
+from robofailring.errors import DataError
+
+HDF5_SUFFIXES: Final[tuple[str, ...]] = (".hdf5", ".h5", ".he5")
+_OPEN_LIMIT: Final[int] = 8
+_OPEN: OrderedDict[str, tuple[Any, tuple[int, int]]] = OrderedDict()  # path -> (handle, mtime, size)
+_LOCK = threading.RLock()
+
+
+def is_hdf5(path: Path) -> bool:
+    return Path(path).is_file() and Path(path).suffix.lower() in HDF5_SUFFIXES
+
+
+def open_hdf5(path: Path) -> Any:
+    """The shared read-only h5py handle of a file (at most `_OPEN_LIMIT` stay open)."""
+    import h5py
+
+    key = str(Path(path).resolve())
+    try:
+        stat = os.stat(key)
+    except OSError as error:
+        raise DataError(f"cannot read HDF5 file {path}: {error.strerror or error}") from error
+    version = (stat.st_mtime_ns, stat.st_size)  # a file written again is opened again
+    with _LOCK:
+        found = _OPEN.pop(key, None)
+        if found is not None and found[1] == version and found[0].id.valid:
+            _OPEN[key] = found
+            return found[0]
+        if found is not None:
+            found[0].close()
+        try:
+            handle = h5py.File(key, "r")
+        except OSError as error:
+            raise DataError(f"cannot read HDF5 file {path}: {error}") from error
+        _OPEN[key] = (handle, version)
+        while len(_OPEN) > _OPEN_LIMIT:
+            _, (oldest, _) = _OPEN.popitem(last=False)
+            oldest.close()
+        return handle
+
+
+def describe(handle: Any, *, limit: int = 12) -> str:
+    """What an HDF5 file holds, for errors: its datasets with shapes (the first `limit`)."""
+    found: list[str] = []
+
+    def visit(name: str, item: Any) -> None:
+        if hasattr(item, "shape"):
+            found.append(f"/{name} {tuple(item.shape)} {item.dtype}")
+
+    handle.visititems(visit)
+    shown = "; ".join(found[:limit]) + (f"; … ({len(found)} datasets)" if len(found) > limit else "")
+    return shown or "no datasets (groups: " + (", ".join(handle.keys()) or "none") + ")"
+
+
+def is_image_array(item: Any) -> bool:
+    """An (N, H, W, 3) uint8 dataset: one RGB camera's frames."""
+    return hasattr(item, "shape") and len(item.shape) == 4 and item.shape[-1] == 3 and item.dtype == np.uint8
+
+
+def is_jpeg_rows(item: Any) -> bool:
+    """An (N, L) uint8 dataset of padded encoded images (ALOHA's `compress`)."""
+    return hasattr(item, "shape") and len(item.shape) == 2 and item.dtype == np.uint8
+
+
+@dataclass(frozen=True)
+class HDF5Frame:
+    """Row `index` of an image dataset: raw (H, W, 3) pixels, or a padded JPEG/PNG row of `length` bytes."""
+
+    file: Path
+    dataset: str
+    index: int
+    encoded: bool = False
+    length: int | None = None  # the encoded image's bytes in the padded row (None: the whole row)
+
+    def _row(self) -> np.ndarray:
+        with _LOCK:
+            handle = open_hdf5(self.file)
+            try:
+                row = np.asarray(handle[self.dataset][self.index])
+            except (KeyError, IndexError, OSError) as error:
+                raise DataError(f"cannot read {self.reference}: {error}") from error
+        return row if self.length is None else row[: self.length]
+
+    def load(self) -> np.ndarray:
+        row = self._row()
+        if self.encoded:
+            return decode_image(row.tobytes(), source=self.reference)
+        return as_rgb(row, source=self.reference)
+
+    def content_key(self) -> str:
+        row = self._row()
+        return content_digest(f"hdf5:{row.shape}:".encode() + row.tobytes())
+
+    @property
+    def reference(self) -> str:
+        return f"{self.file}#{self.dataset}#frame={self.index}"
+
+
+class HDF5Frames(Sequence[Frame]):
+    """The frames of one image dataset as a lazy sequence of `Frame` (nothing read until loaded)."""
+
+    def __init__(
+        self,
+        file: Path,
+        dataset: str,
+        count: int,
+        *,
+        encoded: bool = False,
+        lengths: Sequence[int] | None = None,
+    ) -> None:
+        self.file, self.dataset, self.size, self.encoded = Path(file), dataset, count, encoded
+        self.lengths = None if lengths is None else [int(n) for n in lengths]
+
+    def __len__(self) -> int:
+        return self.size
+
+    @overload
+    def __getitem__(self, item: int) -> Frame: ...
+    @overload
+    def __getitem__(self, item: slice) -> Sequence[Frame]: ...
+    def __getitem__(self, item: int | slice) -> Frame | Sequence[Frame]:
+        if isinstance(item, slice):
+            return [self[i] for i in range(*item.indices(len(self)))]
+        if item < 0:
+            item += self.size
+        if not 0 <= item < self.size:
+            raise IndexError(f"frame {item} of {self.size}")
+        length = self.lengths[item] if self.lengths is not None else None
+        return Frame(source=HDF5Frame(self.file, self.dataset, item, encoded=self.encoded, length=length))
+
+    def __repr__(self) -> str:
+        return f"HDF5Frames({str(self.file)!r}, {self.dataset!r}, {self.size} frames)"
+
+
+def read_hdf5_reference(reference: str) -> np.ndarray | None:
+    """The frame a `<file>#<dataset>#frame=<i>` reference points at, or None when it is not one."""
+    head, marker, index = reference.rpartition("#frame=")
+    file, hash_, dataset = head.partition("#")
+    if not marker or not hash_ or not index.isdigit() or not Path(file).is_file():
+        return None
+    handle = open_hdf5(Path(file))
+    item = handle.get(dataset)
+    if item is None:
+        return None
+    encoded = not is_image_array(item)
+    return HDF5Frame(Path(file), dataset, int(index), encoded=encoded).load()

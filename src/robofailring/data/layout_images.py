@@ -1,0 +1,85 @@
+"""Folders of image episodes with any names: `<root>/<episode>/<view>/<n>.<png|jpg>` or `<root>/<episode>/<view>_<n>.<png|jpg>`.
+
+Tried after the named layouts (AHA, ManiSkill), before one episode folder. A folder of
+`<view>_<n>` images is an episode when it holds two views or more (one view of `frame_<n>` images
+is a view folder of one episode, as before). The task: `--task`, else the `task` column of the
+labels file, else an AHA-style episode name; outcome and symbol from that name or `--labels`.
+Trajectories are keyed by the episode folder's name.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Final
+
+from robofailring.data.folders import Views, aha_files, subdirs, view_folders, visible
+from robofailring.data.images import IMAGE_SUFFIXES
+from robofailring.data.layout_aha import parse_aha_name
+from robofailring.data.model import Outcome, Skipped, Trajectory
+from robofailring.data.registry import Found, Layout, register
+
+SHAPE: Final[str] = "image episodes <root>/<episode>/<view>/<n>.png or <root>/<episode>/<view>_<n>.png"
+
+
+def flat_episode(directory: Path) -> bool:
+    """A folder of `<view>_<n>` images of two views or more (read as one view folder, its numbers clash)."""
+    return len(aha_files(directory)[0]) >= 2
+
+
+def nested_episode(directory: Path) -> bool:
+    """A folder of view sub-folders of numbered images."""
+    return bool(subdirs(directory)) and bool(view_folders(directory)[0])
+
+
+def _episode_views(directory: Path) -> tuple[Views, list[Skipped]]:
+    if flat_episode(directory):
+        views, skipped = aha_files(directory)
+        kind = "an episode of images named <view>_<n>"
+        others = [p for p in visible(directory) if not (p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)]
+    else:
+        views, skipped = view_folders(directory)
+        kind, others = "an episode of view folders", [p for p in visible(directory) if p.is_file()]
+    return views, skipped + [Skipped(p, f"not part of {kind}") for p in others]
+
+
+def image_trajectories(root: Path, *, task: str | None = None) -> Found:
+    """One trajectory per episode folder; folders that hold no episode are listed as skipped."""
+    found: list[Trajectory] = []
+    skipped: list[Skipped] = [
+        Skipped(p, "a file beside the episode folders") for p in visible(root) if p.is_file()
+    ]
+    for directory in subdirs(root):
+        if not (flat_episode(directory) or nested_episode(directory)):
+            skipped.append(Skipped(directory, f"not an episode folder ({SHAPE})"))
+            continue
+        views, inside = _episode_views(directory)
+        parsed = parse_aha_name(directory.name)
+        symbol = parsed[1] if parsed is not None else None
+        found.append(
+            Trajectory(
+                task=task or (parsed[0] if parsed is not None else ""),  # "": from the labels' task column
+                episode=directory.name,
+                views=views,
+                symbol=symbol,
+                outcome=(Outcome.FAILURE if symbol else Outcome.SUCCESS) if parsed is not None else None,
+                source=directory,
+                skipped=tuple(inside),
+            )
+        )
+    return found, skipped
+
+
+def _detect(root: Path) -> bool:
+    return any(flat_episode(d) or nested_episode(d) for d in subdirs(root))
+
+
+LAYOUT: Final = register(
+    Layout(
+        name="images",
+        detect=_detect,
+        read=image_trajectories,
+        help=SHAPE,
+        listed=7,
+        outcomes_in_data=False,
+    )
+)

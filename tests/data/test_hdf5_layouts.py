@@ -1,0 +1,179 @@
+"""robomimic/LIBERO files and ALOHA episode folders written with h5py, read lazily and through every verb."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from hdf5_writer import write_aloha, write_robomimic
+from pipeline import invoke, run_pipeline
+from synthetic import synthetic_frame
+
+from robofailring import load_dataset, load_trajectory
+from robofailring.data.hdf5 import HDF5Frame
+from robofailring.data.images import decode_image, encode_jpeg
+from robofailring.data.model import Trajectory
+from robofailring.data.splits import split_of
+from robofailring.errors import DataError
+
+LENGTH = 10
+FAILED = {0: "grasp_wp2", 1: "slip_wp1", 4: "grasp_wp2", 5: "slip_wp1"}  # demo -> symbol; others succeed
+
+
+def frame(demo: int, camera: int, t: int, symbols: dict[int, str] = FAILED) -> np.ndarray:
+    return synthetic_frame("pick_cube", symbols.get(demo), camera, t, LENGTH, size=32)
+
+
+def write_labels(path: Path, symbols: dict[str, str], episodes: list[str], task: str | None = None) -> Path:
+    with path.open("w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(["episode", "outcome", "symbol", *(["task"] if task else [])])
+        for episode in episodes:
+            symbol = symbols.get(episode)
+            row = [episode, "failure" if symbol else "success", symbol or ""]
+            writer.writerow(row + ([task] if task else []))
+    return path
+
+
+@pytest.fixture
+def robomimic(tmp_path: Path) -> tuple[Path, Path]:
+    path = write_robomimic(
+        tmp_path / "lift_ph_image.hdf5",
+        frame,
+        demos=8,
+        length=LENGTH,
+        masks={"train": range(4), "valid": range(4, 8)},
+    )
+    labels = write_labels(
+        tmp_path / "labels.csv", {f"demo_{d}": s for d, s in FAILED.items()}, [f"demo_{d}" for d in range(8)]
+    )
+    return path, labels
+
+
+def test_a_robomimic_file_reads_lazily_with_its_masks_as_splits(robomimic: tuple[Path, Path]) -> None:
+    path, labels = robomimic
+    dataset = load_dataset(path, labels=labels)
+    assert dataset.layout == "robomimic" and dataset.views == ["agentview", "robot0_eye_in_hand"]
+    by_key = {t.episode: t for t in dataset}
+    assert list(by_key) == [f"demo_{d}" for d in range(8)]
+    demo = by_key["demo_5"]
+    assert demo.task == "Lift" and demo.split == "valid" and demo.symbol == "slip_wp1" and demo.fps == 20.0
+    assert (
+        by_key["demo_2"].split == "train"
+        and by_key["demo_2"].outcome is not None
+        and not by_key["demo_2"].symbol
+    )
+    assert demo.length == LENGTH
+    source = demo.views["robot0_eye_in_hand"][7].source
+    assert isinstance(source, HDF5Frame) and source.reference.endswith(
+        "#/data/demo_5/obs/robot0_eye_in_hand_image#frame=7"
+    )
+    assert np.array_equal(demo.views["robot0_eye_in_hand"][7].load(), frame(5, 1, 7))
+    # the low-dimensional obs are not views; --task wins over env_args
+    assert load_dataset(path, task="lift the cube").episodes[0].task == "lift the cube"
+
+
+def test_a_robomimic_file_through_every_verb(tmp_path: Path, robomimic: tuple[Path, Path]) -> None:
+    path, labels = robomimic
+    found = run_pipeline(
+        tmp_path, path, trajectory="demo_4", options=["--labels", labels], evaluate=["--test-split", "valid"]
+    )
+    assert found["info"]["layout"] == "robomimic"
+    assert found["info"]["views_read"] == ["agentview", "robot0_eye_in_hand"]
+    assert found["info"]["entries"] == 8  # four failures, two views each
+    detected = found["detect"]
+    assert detected["layout"] == "robomimic" and detected["views_read"] == ["agentview", "robot0_eye_in_hand"]
+    assert detected["length"] == LENGTH and detected["task"] == "Lift"
+    assert [p.name for p in found["recordings"]] == ["Lift__demo_4.rrd"]
+    tested = sorted(row["key"].split("/")[-1] for row in found["evaluation"]["trajectories"])
+    assert tested == ["demo_4", "demo_5", "demo_6", "demo_7"]
+
+
+def test_libero_names_the_task_and_views_picks_and_renames(tmp_path: Path) -> None:
+    path = write_robomimic(
+        tmp_path / "libero.hdf5",
+        frame,
+        demos=2,
+        length=LENGTH,
+        cameras=("agentview_rgb", "eye_in_hand_rgb"),
+        instruction="put the bowl on the plate",
+    )
+    labels = write_labels(tmp_path / "labels.json.csv", {"demo_0": "grasp_wp2"}, ["demo_0", "demo_1"])
+    dataset = load_dataset(path, labels=labels, views="eye_in_hand=wrist")
+    assert [t.task for t in dataset] == ["put the bowl on the plate"] * 2 and dataset.views == ["wrist"]
+    assert np.array_equal(dataset.episodes[0].views["wrist"][3].load(), frame(0, 1, 3))
+    trajectory = load_trajectory(path, key="demo_1", views="agentview,eye_in_hand")
+    assert trajectory.view_names == ["agentview", "eye_in_hand"] and trajectory.layout == "robomimic"
+    memory = tmp_path / "memory"
+    invoke(["build-memory", path, "--out", memory, "--labels", labels, "--views", "agentview=front"])
+    info = invoke(["memory-info", memory])
+    assert "read as     robomimic layout, views front" in info.stdout
+
+
+def test_bad_hdf5_and_missing_views_are_named_errors_and_write_nothing(
+    tmp_path: Path, robomimic: tuple[Path, Path]
+) -> None:
+    other = tmp_path / "other.hdf5"
+    with h5py.File(other, "w") as handle:
+        handle.create_dataset("trajectories/poses", data=np.zeros((5, 7)))
+    memory = tmp_path / "memory"
+    failed = invoke(["build-memory", other, "--out", memory], code=2)
+    assert "is not robomimic-style" in failed.output and "/trajectories/poses (5, 7) float64" in failed.output
+    path, labels = robomimic
+    failed = invoke(
+        ["build-memory", path, "--out", memory, "--labels", labels, "--views", "agentview,side"], code=2
+    )
+    assert (
+        "no view 'side'" in failed.output and "its views are: agentview, robot0_eye_in_hand" in failed.output
+    )
+    assert not memory.exists()
+    with pytest.raises(DataError, match="not robomimic-style"):
+        load_dataset(other)
+
+
+def aloha_labels(tmp_path: Path, folder: Path, episodes: int) -> tuple[Path, dict[int, str]]:
+    """Two failures on each side of the hash split (the layout has no splits of its own)."""
+    sides: dict[str, list[int]] = {}
+    for e in range(episodes):
+        key = Trajectory(task=folder.name, episode=f"episode_{e}", views={})
+        sides.setdefault(split_of(key, has_splits=False, test_fraction=0.5), []).append(e)
+    symbols = {e: "grasp_wp2" for side in sides.values() for e in side[:2]}
+    labels = write_labels(
+        tmp_path / "labels.csv",
+        {f"episode_{e}": s for e, s in symbols.items()},
+        [f"episode_{e}" for e in range(episodes)],
+    )
+    return labels, symbols
+
+
+@pytest.mark.parametrize("compress", [False, True])
+def test_aloha_episodes_raw_or_jpeg_through_every_verb(tmp_path: Path, compress: bool) -> None:
+    folder = tmp_path / "aloha_transfer_cube"
+    episodes = 10
+    labels, symbols = aloha_labels(tmp_path, folder, episodes)
+    write_aloha(
+        folder, lambda e, c, t: frame(e, c, t, symbols), episodes=episodes, length=LENGTH, compress=compress
+    )
+    dataset = load_dataset(folder, labels=labels)
+    assert dataset.layout == "aloha" and dataset.views == ["cam_high", "cam_left_wrist"]
+    trajectory = next(t for t in dataset if t.episode == "episode_3")
+    assert trajectory.task == "aloha_transfer_cube" and trajectory.length == LENGTH
+    read, written = trajectory.views["cam_left_wrist"][6].load(), frame(3, 1, 6, symbols)
+    error = np.abs(read.astype(int) - written.astype(int))
+    if compress:  # what the writer's JPEG decodes to, exactly; a few grey levels from what was encoded
+        assert np.array_equal(read, decode_image(encode_jpeg(written, quality=90), source="written"))
+        assert 0 < error.mean() < 4
+    else:
+        assert error.max() == 0
+    found = run_pipeline(tmp_path, folder, trajectory="episode_3", options=["--labels", labels])
+    assert found["info"]["layout"] == "aloha" and found["detect"]["views_read"] == [
+        "cam_high",
+        "cam_left_wrist",
+    ]
+    assert found["info"]["entries"] == 8 and len(found["recordings"]) == 1
+    assert {row["key"].split("/")[-1] for row in found["evaluation"]["trajectories"]} <= {
+        f"episode_{e}" for e in range(episodes)
+    }

@@ -1,0 +1,99 @@
+"""Folders of image episodes with the user's own names, tasks from a labels file's task column."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pipeline import run_pipeline
+from synthetic import synthetic_frame
+
+from robofailring import load_dataset
+from robofailring.data.images import write_png
+from robofailring.data.model import Trajectory
+from robofailring.data.splits import split_of
+from robofailring.errors import DataError
+
+LENGTH = 10
+VIEWS = ("front", "wrist")
+
+
+def names(count: int) -> list[str]:
+    return [f"2026-11-30_14-{minute:02d}" for minute in range(count)]
+
+
+def write_runs(root: Path, symbols: dict[str, str | None], tasks: dict[str, str], *, nested: bool) -> Path:
+    for episode, symbol in symbols.items():
+        for v, view in enumerate(VIEWS):
+            for t in range(LENGTH):
+                image = synthetic_frame(tasks[episode], symbol, v, t, LENGTH, size=32)
+                if nested:
+                    (root / episode / view).mkdir(parents=True, exist_ok=True)
+                    write_png(root / episode / view / f"{t:06d}.png", image)
+                else:
+                    (root / episode).mkdir(parents=True, exist_ok=True)
+                    write_png(root / episode / f"{view}_{t}.png", image)
+    return root
+
+
+def plan(count: int) -> tuple[dict[str, str | None], dict[str, str]]:
+    """Two tasks; per task and side of the hash split, one failure and one success at least."""
+    tasks = {name: ("pick_cube", "push_cube")[i % 2] for i, name in enumerate(names(count))}
+    symbols: dict[str, str | None] = {}
+    seen: dict[tuple[str, str], int] = {}
+    for name, task in tasks.items():
+        side = split_of(Trajectory(task=task, episode=name, views={}), has_splits=False, test_fraction=0.5)
+        number = seen[(task, side)] = seen.get((task, side), 0) + 1
+        symbols[name] = "grasp_wp2" if number == 1 else None
+    return symbols, tasks
+
+
+def write_labels(path: Path, symbols: dict[str, str | None], tasks: dict[str, str]) -> Path:
+    with path.open("w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(["episode", "outcome", "symbol", "task"])
+        for name, symbol in symbols.items():
+            writer.writerow([name, "failure" if symbol else "success", symbol or "", tasks[name]])
+    return path
+
+
+@pytest.mark.parametrize("nested", [False, True])
+def test_image_episodes_with_any_names_through_every_verb(tmp_path: Path, nested: bool) -> None:
+    symbols, tasks = plan(16)
+    root = write_runs(tmp_path / "runs", symbols, tasks, nested=nested)
+    labels = write_labels(tmp_path / "labels.csv", symbols, tasks)
+    dataset = load_dataset(root, labels=labels)
+    assert dataset.layout == "images" and dataset.views == list(VIEWS) and dataset.skipped == []
+    first = dataset.episodes[3]
+    assert first.episode == names(16)[3] and first.task == tasks[first.episode]
+    written = synthetic_frame(first.task, symbols[first.episode], 1, 4, LENGTH, size=32)
+    assert np.array_equal(first.views["wrist"][4].load(), written)
+    failure = next(name for name, symbol in symbols.items() if symbol)
+    found = run_pipeline(tmp_path, root, trajectory=failure, options=["--labels", labels])
+    assert found["info"]["layout"] == "images" and found["info"]["views_read"] == list(VIEWS)
+    assert sorted(found["info"]["tasks"]) == ["pick_cube", "push_cube"]
+    assert found["detect"]["layout"] == "images" and found["detect"]["task"] == tasks[failure]
+    assert len(found["recordings"]) == 1 and found["evaluation"]["trajectories"]
+
+
+def test_without_a_task_the_error_says_how_to_give_one(tmp_path: Path) -> None:
+    symbols, tasks = plan(2)
+    root = write_runs(tmp_path / "runs", symbols, tasks, nested=False)
+    with pytest.raises(DataError, match="cannot tell the task of 2 episode"):
+        load_dataset(root)
+    assert {t.task for t in load_dataset(root, task="pick_cube")} == {"pick_cube"}
+
+
+def test_view_named_files_one_level_down_are_episodes_not_views(tmp_path: Path) -> None:
+    """Before this layout, `run_a/front_0.png` made `run_a` a view and the error named two frames 0 in it."""
+    root = tmp_path / "runs"
+    for episode in ("run_a", "run_b"):
+        for v, view in enumerate(VIEWS):
+            (root / episode).mkdir(parents=True, exist_ok=True)
+            write_png(root / episode / f"{view}_0.png", np.full((8, 8, 3), v, np.uint8))
+            write_png(root / episode / f"{view}_1.png", np.full((8, 8, 3), v, np.uint8))
+    dataset = load_dataset(root, task="pick_cube")
+    assert dataset.layout == "images" and [t.episode for t in dataset] == ["run_a", "run_b"]
+    assert dataset.views == list(VIEWS)

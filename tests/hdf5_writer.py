@@ -1,0 +1,101 @@
+"""robomimic/LIBERO and ALOHA episode files written with h5py, in the layouts those projects document."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from robofailring.data.images import encode_jpeg
+
+Frames = Callable[[int, int, int], np.ndarray]  # (episode, camera, t) -> (H, W, 3) uint8
+
+
+def write_robomimic(
+    path: Path,
+    frames: Frames,
+    *,
+    demos: int,
+    length: int,
+    cameras: Sequence[str] = ("agentview_image", "robot0_eye_in_hand_image"),
+    masks: dict[str, Sequence[int]] | None = None,
+    env_name: str = "Lift",
+    instruction: str | None = None,
+) -> Path:
+    """robomimic's `data/demo_<i>/{obs/<cam>, actions, dones, rewards, states}` and `mask/<split>` (LIBERO:
+    `problem_info` with the language instruction)."""
+    with h5py.File(path, "w") as handle:
+        data = handle.create_group("data")
+        data.attrs["total"] = demos * length
+        data.attrs["env_args"] = json.dumps(
+            {
+                "env_name": env_name,
+                "type": 1,
+                "env_kwargs": {"control_freq": 20, "camera_names": list(cameras)},
+            }
+        )
+        if instruction is not None:
+            data.attrs["problem_info"] = json.dumps(
+                {"problem_name": "libero_tabletop_manipulation", "language_instruction": instruction}
+            )
+        for demo in range(demos):
+            group = data.create_group(f"demo_{demo}")
+            group.attrs["num_samples"] = length
+            group.create_dataset("actions", data=np.zeros((length, 7), np.float64))
+            group.create_dataset("dones", data=np.eye(1, length, length - 1, dtype=np.int64)[0])
+            group.create_dataset("rewards", data=np.zeros(length))
+            group.create_dataset("states", data=np.zeros((length, 32)))
+            obs = group.create_group("obs")
+            for c, camera in enumerate(cameras):
+                stack = np.stack([frames(demo, c, t) for t in range(length)])
+                obs.create_dataset(camera, data=stack, chunks=(1, *stack.shape[1:]), compression="gzip")
+            obs.create_dataset("robot0_eef_pos", data=np.zeros((length, 3)))
+        if masks:
+            group = handle.create_group("mask")
+            for split, members in masks.items():
+                group.create_dataset(split, data=np.array([f"demo_{i}".encode() for i in members], dtype="S"))
+    return path
+
+
+def write_aloha(
+    folder: Path,
+    frames: Frames,
+    *,
+    episodes: int,
+    length: int,
+    cameras: Sequence[str] = ("cam_high", "cam_left_wrist"),
+    compress: bool = False,
+) -> Path:
+    """ACT/ALOHA's `record_episodes.py`: `/observations/images/<cam>` raw or JPEG rows, qpos, qvel, action."""
+    folder.mkdir(parents=True, exist_ok=True)
+    for episode in range(episodes):
+        images = {cam: [frames(episode, c, t) for t in range(length)] for c, cam in enumerate(cameras)}
+        with h5py.File(folder / f"episode_{episode}.hdf5", "w", rdcc_nbytes=1024**2 * 2) as root:
+            root.attrs["sim"] = False
+            root.attrs["compress"] = compress
+            obs = root.create_group("observations")
+            group = obs.create_group("images")
+            lengths = np.zeros((len(cameras), length))
+            for c, cam in enumerate(cameras):
+                if compress:
+                    encoded = [
+                        np.frombuffer(encode_jpeg(image, quality=90), np.uint8) for image in images[cam]
+                    ]
+                    padded = max(len(row) for row in encoded) + 16
+                    rows = np.zeros((length, padded), np.uint8)
+                    for t, row in enumerate(encoded):
+                        rows[t, : len(row)] = row
+                        lengths[c, t] = len(row)
+                    group.create_dataset(cam, data=rows, dtype="uint8", chunks=(1, padded))
+                else:
+                    stack = np.stack(images[cam])
+                    group.create_dataset(cam, data=stack, dtype="uint8", chunks=(1, *stack.shape[1:]))
+            obs.create_dataset("qpos", data=np.zeros((length, 14)))
+            obs.create_dataset("qvel", data=np.zeros((length, 14)))
+            root.create_dataset("action", data=np.zeros((length, 14)))
+            if compress:
+                root.create_dataset("compress_len", data=lengths)
+    return folder
