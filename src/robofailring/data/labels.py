@@ -2,7 +2,10 @@
 
 A JSON list of objects or a CSV file with a header, one row per episode:
 `episode_index` (a LeRobot episode) or `episode` (an episode folder's name), `outcome`
-(`success` or `failure`) and `symbol` (the failure symbol, e.g. `grasp_wp2`; empty for a success).
+(`success` or `failure`), `symbol` (the failure symbol, e.g. `grasp_wp2`, or one of the
+dataset's vocabulary; empty for a success, and for a failure whose type was not labelled: it gets
+the symbol `failure`) and an optional `description` (free text: that failure's grounded sentence).
+Other columns (e.g. those `review --write-labels` adds) are ignored.
 """
 
 from __future__ import annotations
@@ -13,7 +16,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from robofailring.data.grounding import parse_symbol
+from robofailring.data.grounding import UNTYPED, Vocabulary, parse_symbol
 from robofailring.data.model import Outcome, Trajectory
 from robofailring.errors import DataError, SymbolError
 
@@ -23,10 +26,14 @@ class Label:
     episode: str  # `episode_<index>` for LeRobot, else the episode folder's name
     outcome: Outcome
     symbol: str | None
+    description: str | None = None  # the failure in the labeller's own words
 
 
-def read_labels(path: Path) -> dict[str, Label]:
-    """Labels by episode; every bad row is an error naming the file, the row and the value."""
+def read_labels(path: Path, *, vocabulary: Vocabulary | None = None) -> dict[str, Label]:
+    """Labels by episode; every bad row is an error naming the file, the row and the value.
+
+    Symbols are checked against Table 5 and `vocabulary` (a dataset's own symbols).
+    """
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -47,7 +54,7 @@ def read_labels(path: Path) -> dict[str, Label]:
         rows = [dict(row) for row in csv.DictReader(text.splitlines())]
     labels: dict[str, Label] = {}
     for number, row in enumerate(rows, 1):
-        label = _label(row, where=f"{path} row {number}")
+        label = _label(row, where=f"{path} row {number}", vocabulary=vocabulary)
         if label.episode in labels:
             raise DataError(f"{path} row {number}: episode {label.episode!r} is labelled twice")
         labels[label.episode] = label
@@ -56,7 +63,7 @@ def read_labels(path: Path) -> dict[str, Label]:
     return labels
 
 
-def _label(row: dict[str, object], *, where: str) -> Label:
+def _label(row: dict[str, object], *, where: str, vocabulary: Vocabulary | None) -> Label:
     index, name = row.get("episode_index"), row.get("episode")
     if index not in (None, ""):
         try:
@@ -74,12 +81,13 @@ def _label(row: dict[str, object], *, where: str) -> Label:
     symbol = str(row.get("symbol") or "").strip() or None
     if symbol is not None:
         try:
-            parse_symbol(symbol)
+            parse_symbol(symbol, vocabulary)
         except SymbolError as error:
             raise DataError(f"{where}: {error}") from error
-    if outcome is Outcome.FAILURE and symbol is None:
-        raise DataError(f"{where}: a failure needs a symbol (e.g. grasp_wp2)")
-    return Label(episode=episode, outcome=outcome, symbol=symbol if outcome is Outcome.FAILURE else None)
+    description = " ".join(str(row.get("description") or "").split()) or None
+    if outcome is not Outcome.FAILURE:
+        return Label(episode=episode, outcome=outcome, symbol=None)
+    return Label(episode=episode, outcome=outcome, symbol=symbol or UNTYPED, description=description)
 
 
 def apply_labels(
@@ -93,7 +101,9 @@ def apply_labels(
         label = labels.get(key)
         if label is not None:
             found.add(key)
-            trajectory = replace(trajectory, outcome=label.outcome, symbol=label.symbol)
+            trajectory = replace(
+                trajectory, outcome=label.outcome, symbol=label.symbol, description=label.description
+            )
         labelled.append(trajectory)
     missing = [episode for episode in labels if episode not in found]
     if missing:

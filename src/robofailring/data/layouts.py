@@ -15,6 +15,7 @@ from robofailring.data import (
     layout_videos,
     lerobot,
 )
+from robofailring.data.grounding import Vocabulary
 from robofailring.data.labels import apply_labels, read_labels
 from robofailring.data.layout_aha import AHA_FAILURES, parse_aha_name
 from robofailring.data.layout_episode import episode_trajectory
@@ -123,18 +124,25 @@ def detect_layout(root: Path) -> str:
     return _layout(root).name
 
 
-def load_dataset(root: Path, *, task: str | None = None, labels: Path | None = None) -> Dataset:
+def load_dataset(
+    root: Path,
+    *,
+    task: str | None = None,
+    labels: Path | None = None,
+    vocabulary: Vocabulary | None = None,
+) -> Dataset:
     """Open a dataset root of any supported layout (auto-detected), listing what it does not read.
 
     `task` names the task of episodes whose names do not say it (one episode, video episodes);
-    `labels` is a labels file (see `robofailring.data.labels`) giving outcome and symbol per episode.
+    `labels` is a labels file (see `robofailring.data.labels`) giving outcome and symbol per episode,
+    its symbols checked against Table 5 and `vocabulary` (the dataset's own symbols).
     """
     root = Path(root)
     layout = _layout(root)
     manifest = layout.manifest(root) if layout.manifest is not None else None
     found, skipped = layout.read(root, task=task)
     if labels is not None:
-        found = apply_labels(found, read_labels(labels), source=Path(labels))
+        found = apply_labels(found, read_labels(labels, vocabulary=vocabulary), source=Path(labels))
     return Dataset(
         root=root,
         layout=layout.name,
@@ -146,7 +154,12 @@ def load_dataset(root: Path, *, task: str | None = None, labels: Path | None = N
 
 
 def load_trajectory(
-    path: Path, *, task: str | None = None, key: str | None = None, labels: Path | None = None
+    path: Path,
+    *,
+    task: str | None = None,
+    key: str | None = None,
+    labels: Path | None = None,
+    vocabulary: Vocabulary | None = None,
 ) -> Trajectory:
     """One trajectory from an episode folder of any layout, or the one named `key` in a dataset root.
 
@@ -156,7 +169,7 @@ def load_trajectory(
     if not path.is_dir():
         raise DataError(f"trajectory {path} is not a directory")
     if key is not None or (path / PROJECT_MANIFEST).is_file() or detect_layout(path) != "episode":
-        dataset = load_dataset(path, task=task, labels=labels)
+        dataset = load_dataset(path, task=task, labels=labels, vocabulary=vocabulary)
         found = dataset.select(keys=[key]) if key is not None else list(dataset.trajectories())
         if len(found) != 1:
             raise DataError(

@@ -163,7 +163,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
         delta=PAPER_DELTA,
     )
     memory = detector.memory
-    dataset = load_dataset(config.data, labels=config.labels)
+    dataset = load_dataset(config.data, labels=config.labels, vocabulary=memory.vocabulary)
     dataset.require_labels("calibrate")
     source = list(dataset.trajectories())
     has_splits = any(t.split for t in source)

@@ -59,7 +59,13 @@ def detect_trajectory(config: DetectConfig) -> tuple[DetectionTrace, Trajectory]
         encoder=config.encoder,
         cache_dir=config.cache_dir,
     )
-    trajectory = load_trajectory(config.trajectory, task=config.task, key=config.key, labels=config.labels)
+    trajectory = load_trajectory(
+        config.trajectory,
+        task=config.task,
+        key=config.key,
+        labels=config.labels,
+        vocabulary=detector.memory.vocabulary,
+    )
     return detector.run(trajectory, leave_one_out=config.leave_one_out, stride=config.stride), trajectory
 
 
