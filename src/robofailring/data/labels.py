@@ -17,7 +17,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from robofailring.data.grounding import UNTYPED, Vocabulary, parse_symbol
-from robofailring.data.model import Outcome, Trajectory
+from robofailring.data.model import Outcome, Skipped, Trajectory
 from robofailring.errors import DataError, SymbolError
 
 
@@ -34,6 +34,36 @@ def read_labels(path: Path, *, vocabulary: Vocabulary | None = None) -> dict[str
 
     Symbols are checked against Table 5 and `vocabulary` (a dataset's own symbols).
     """
+    path = Path(path)
+    rows = _rows(path)
+    labels: dict[str, Label] = {}
+    for number, row in enumerate(rows, 1):
+        if not str(row.get("outcome") or "").strip():
+            continue  # a row not labelled yet (`review --write-labels` leaves outcome empty): counted by `unlabelled_rows`
+        label = _label(row, where=f"{path} row {number}", vocabulary=vocabulary)
+        if label.episode in labels:
+            raise DataError(f"{path} row {number}: episode {label.episode!r} is labelled twice")
+        labels[label.episode] = label
+    if not labels:
+        raise DataError(
+            f"labels file {path} holds no labelled row (columns: episode_index or episode, outcome, symbol, "
+            "description; fill in `outcome`)"
+        )
+    return labels
+
+
+def unlabelled_rows(path: Path) -> Skipped | None:
+    """What a labels file left unlabelled (rows with an empty outcome), as a Skipped to report, or None."""
+    blank = sum(not str(row.get("outcome") or "").strip() for row in _rows(Path(path)))
+    if not blank:
+        return None
+    return Skipped(
+        path=Path(path), reason=f"{blank} row(s) with an empty outcome (not labelled yet) were not applied"
+    )
+
+
+def _rows(path: Path) -> list[dict[str, object]]:
+    """The rows of a labels file (JSON list of objects, else CSV with a header)."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -52,15 +82,7 @@ def read_labels(path: Path, *, vocabulary: Vocabulary | None = None) -> dict[str
         rows = loaded
     else:
         rows = [dict(row) for row in csv.DictReader(text.splitlines())]
-    labels: dict[str, Label] = {}
-    for number, row in enumerate(rows, 1):
-        label = _label(row, where=f"{path} row {number}", vocabulary=vocabulary)
-        if label.episode in labels:
-            raise DataError(f"{path} row {number}: episode {label.episode!r} is labelled twice")
-        labels[label.episode] = label
-    if not labels:
-        raise DataError(f"labels file {path} holds no rows (columns: episode_index, outcome, symbol)")
-    return labels
+    return rows
 
 
 def _label(row: dict[str, object], *, where: str, vocabulary: Vocabulary | None) -> Label:
@@ -90,6 +112,14 @@ def _label(row: dict[str, object], *, where: str, vocabulary: Vocabulary | None)
     return Label(episode=episode, outcome=outcome, symbol=symbol or UNTYPED, description=description)
 
 
+def label_key(trajectory: Trajectory, labels: dict[str, Label]) -> str | None:
+    """The key of `labels` that labels `trajectory` (its episode, or its folder's name), None when none does."""
+    for key in (trajectory.episode, trajectory.episode.rsplit("/", 1)[-1]):
+        if key in labels:
+            return key
+    return None
+
+
 def apply_labels(
     trajectories: Iterable[Trajectory], labels: dict[str, Label], *, source: Path
 ) -> list[Trajectory]:
@@ -97,9 +127,9 @@ def apply_labels(
     labelled = []
     found: set[str] = set()
     for trajectory in trajectories:
-        key = trajectory.episode if trajectory.episode in labels else trajectory.episode.rsplit("/", 1)[-1]
-        label = labels.get(key)
-        if label is not None:
+        key = label_key(trajectory, labels)
+        label = labels.get(key) if key is not None else None
+        if key is not None and label is not None:
             found.add(key)
             trajectory = replace(
                 trajectory, outcome=label.outcome, symbol=label.symbol, description=label.description

@@ -16,7 +16,7 @@ from robofailring.data import (
     lerobot,
 )
 from robofailring.data.grounding import Vocabulary
-from robofailring.data.labels import apply_labels, read_labels
+from robofailring.data.labels import apply_labels, read_labels, unlabelled_rows
 from robofailring.data.layout_aha import AHA_FAILURES, parse_aha_name
 from robofailring.data.layout_episode import episode_trajectory
 from robofailring.data.layout_maniskill import MANISKILL_FAILURES
@@ -143,6 +143,8 @@ def load_dataset(
     found, skipped = layout.read(root, task=task)
     if labels is not None:
         found = apply_labels(found, read_labels(labels, vocabulary=vocabulary), source=Path(labels))
+        blank = unlabelled_rows(Path(labels))
+        skipped = [*skipped, *([blank] if blank is not None else [])]
     return Dataset(
         root=root,
         layout=layout.name,

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from robofailring.atomic import output_lock
+from robofailring.data.labels import label_key, read_labels
 from robofailring.data.layouts import Dataset, load_dataset
 from robofailring.data.model import Trajectory
 from robofailring.data.vocabulary import read_vocabulary
@@ -43,6 +44,10 @@ def build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
     output is checked (and locked against a second build) before anything is encoded; a build
     that would hold no entry is an error and replaces nothing.
     """
+    if config.add_to and not is_memory_dir(config.out):
+        raise MemoryFormatError(
+            f"--add-to {config.out} is not a failure memory (no manifest.json); nothing was written"
+        )
     check_memory_target(config.out, inputs=[config.data])
     with output_lock(config.out):
         return _add_to_memory(config) if config.add_to else _build_memory(config)
@@ -86,10 +91,6 @@ def _build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]
 
 def _add_to_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
     """The memory at `config.out` grown by the dataset's runs, saved in its place (atomically)."""
-    if not is_memory_dir(config.out):
-        raise MemoryFormatError(
-            f"--add-to {config.out} is not a failure memory (no manifest.json); nothing was written"
-        )
     memory = FailureMemory.load(config.out)
     if config.vocabulary is not None and read_vocabulary(config.vocabulary) != memory.vocabulary:
         raise SettingError(
@@ -100,6 +101,11 @@ def _add_to_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats
     dataset = load_dataset(config.data, task=config.task, labels=config.labels, vocabulary=memory.vocabulary)
     dataset.require_labels("build-memory --add-to")
     trajectories = _selected(config, dataset)
+    if (
+        config.labels is not None
+    ):  # the runs a person labelled (`review --write-labels`), not the whole dataset
+        labelled = read_labels(config.labels, vocabulary=memory.vocabulary)
+        trajectories = [t for t in trajectories if label_key(t, labelled) is not None]
     if not any(t.outcome is not None for t in trajectories):
         raise DataError(f"{config.data} holds no labelled run to add; nothing was written")
     grown, stats = add_to(
