@@ -217,7 +217,8 @@ def write_review_labels(config: ReviewConfig) -> ReviewLabels:
 
 
 def _label_row(trace: DetectionTrace, *, kind: str) -> dict[str, str]:
-    """One labels row: the detector's view of a trajectory at its alarm (else its peak score)."""
+    """One labels row: the evaluation's outcome for a trajectory and the detector's view of it at its
+    alarm (a run that does not fire now: at its peak score)."""
     focus = trace.t_det if trace.t_det is not None else int(np.nanargmax(trace.max_score()))
     scores = trace.scores
     view = trace.detected_view or max(
@@ -227,8 +228,8 @@ def _label_row(trace: DetectionTrace, *, kind: str) -> dict[str, str]:
     return {
         "episode": trace.episode,
         "task": trace.task,
-        "review": kind.removesuffix("s").replace("false-alarm", "false alarm"),
-        "detected": "failure" if trace.detected else "success",
+        "review": "false alarm" if kind == "false-alarms" else "miss",
+        "detected": "failure" if kind == "false-alarms" else "success",  # as the evaluation found it
         "suggested_symbol": nearest[0].entry.symbol if nearest else "",
         "frame": str(focus),
         "view": view,
