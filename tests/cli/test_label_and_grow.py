@@ -80,7 +80,9 @@ def test_label_the_flagged_runs_grow_the_memory_and_detect_finds_the_new_failure
     assert detected.exit_code == 0, detected.output
     report = json.loads(detected.stdout)["report"]
     nearest = report["neighbors"][0]
-    assert nearest["symbol"] == "failure" and nearest["description"] == MISS_TEXT  # only the new entry says it
+    assert (
+        nearest["symbol"] == "failure" and nearest["description"] == MISS_TEXT
+    )  # only the new entry says it
 
     again = cli("build-memory", data, "--labels", labels, "--add-to", memory, *cache)
     refused(again, 2, "already holds episode", "pick_cube_slip_wp3_episode1")
