@@ -42,7 +42,7 @@ def test_a_vocabulary_grounds_its_own_symbols_and_stages_and_refuses_bad_entries
         "object slippage from the gripper at the drawer-opening stage"
     )
     assert ground("failure") == UNTYPED_SENTENCE and failure_type("knocked_cup", vocabulary) == "knocked_cup"
-    with pytest.raises(SymbolError, match="unknown failure token 'knocked'.*--vocabulary"):
+    with pytest.raises(SymbolError, match=r"unknown failure token 'knocked'.*--vocabulary"):
         ground("knocked_cup_wp2")  # without the vocabulary it is still a named error
     for text, fault in [
         ('{"symbols": {"a": "x", "A": "y"}}', "defined twice"),
