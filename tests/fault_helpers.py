@@ -5,6 +5,9 @@ Their fixtures (a tiny dataset, its cache and memory) live in tests/cli/conftest
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 from typer.testing import CliRunner, Result
@@ -35,3 +38,34 @@ def hidden(folder: Path) -> list[str]:
 
 def tree(root: Path) -> dict[str, bytes]:
     return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+# ---------------------------------------------------------------- a write killed half-way
+
+DIE_ON_REPLACE = """
+import os, sys
+from pathlib import Path
+final = Path(sys.argv[1]).absolute()
+real = os.replace
+def killed_before_the_new_memory_is_in(src, dst):
+    if Path(dst).absolute() == final:  # the old memory is already moved aside
+        os._exit(137)
+    real(src, dst)
+os.replace = killed_before_the_new_memory_is_in
+from rfr_viz.cli.app import app
+app(sys.argv[2:])
+"""
+
+DIE_WHILE_WRITING = """
+import os, sys
+import faiss
+faiss.write_index = lambda *args: os._exit(137)
+from rfr_viz.cli.app import app
+app(sys.argv[2:])
+"""
+
+
+def killed(script: str, memory: Path, *args: object) -> None:
+    command = [sys.executable, "-c", script, str(memory), *map(str, args)]
+    env = {**os.environ, "ROBOFAILRING_PROGRESS": "0"}
+    assert subprocess.run(command, capture_output=True, env=env, check=False).returncode == 137

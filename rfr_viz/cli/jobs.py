@@ -25,6 +25,7 @@ from robofailring.cli.options import (
     ViewsOption,
     VLMModelOption,
     VLMUrlOption,
+    VocabularyOption,
     report_skipped,
     vlm_config,
     warn_missing_references,
@@ -51,6 +52,7 @@ def evaluate_cmd(
     labels: LabelsOption = None,
     task: TaskOption = None,
     views: ViewsOption = None,
+    vocabulary: VocabularyOption = None,
     target_fpr: Annotated[
         float,
         typer.Option(
@@ -85,6 +87,7 @@ def evaluate_cmd(
             labels=labels,
             task=task,
             views=views,
+            vocabulary=vocabulary,
             target_fpr=target_fpr,
             deployment_successes=deployment_successes,
             success_step=success_step,
@@ -117,26 +120,43 @@ def review_cmd(
     data_root: DataRootOption = None,
     vlm_url: VLMUrlOption = None,
     vlm_model: VLMModelOption = None,
+    write_labels: Annotated[
+        Path | None,
+        typer.Option(
+            "--write-labels",
+            help="Instead of recordings, write this labels CSV: one row per false alarm and per miss (the "
+            "detector's outcome, the nearest failure's symbol, frame and score) with empty outcome/symbol/"
+            "description columns to fill, then grow the memory with `build-memory --labels FILE --add-to`.",
+        ),
+    ] = None,
 ) -> None:
     """Replay only the false alarms (or the misses) of an evaluation, each recording focused on the moment."""
-    from rfr_viz.jobs.review import ReviewConfig, review
+    from rfr_viz.jobs.review import ReviewConfig, review, write_review_labels
 
-    result = review(
-        ReviewConfig(
-            evaluation=evaluation,
-            data=data,
-            kind=kind,
-            out=out,
-            memory=memory,
-            camera_codec=camera_codec,
-            score=score,
-            views=views,
-            cache_dir=cache_dir,
-            device=device,
-            data_root=data_root,
-            vlm=vlm_config(vlm_url, vlm_model),
-        )
+    config = ReviewConfig(
+        evaluation=evaluation,
+        data=data,
+        kind=kind,
+        out=out,
+        memory=memory,
+        camera_codec=camera_codec,
+        score=score,
+        views=views,
+        cache_dir=cache_dir,
+        device=device,
+        data_root=data_root,
+        vlm=vlm_config(vlm_url, vlm_model),
+        write_labels=write_labels,
     )
+    if write_labels is not None:
+        written = write_review_labels(config)
+        report_skipped(written.skipped_inputs)
+        typer.echo(
+            f"wrote {written.path}: {len(written.rows)} row(s) to label (fill in outcome, symbol or description), "
+            f"then: robofailring build-memory {data} --labels {written.path} --add-to MEMORY"
+        )
+        return
+    result = review(config)
     report_skipped(result.skipped_inputs)
     for memory_dir, check in result.references.items():
         warn_missing_references(memory_dir, check)

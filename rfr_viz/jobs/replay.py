@@ -14,6 +14,7 @@ from rfr_viz.panels.camera_video import CameraCodec
 from rfr_viz.panels.umap import MemoryMap, memory_map
 from rfr_viz.recordings.replay import compare_recording, record_replay
 from robofailring.atomic import output_lock, remove_file_leftovers
+from robofailring.data.grounding import Vocabulary
 from robofailring.data.layouts import detect_layout, load_dataset, load_trajectory
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.detection.detector import DEFAULT_K, DetectionTrace, FailureDetector, check_stride
@@ -149,10 +150,12 @@ def select_trajectories(
     labels: Path | None = None,
     views: str | None = None,
     skipped: list[Skipped] | None = None,
+    vocabulary: Vocabulary | None = None,
 ) -> list[Trajectory]:
     """The trajectories of a dataset root (optionally by key and task) or of one episode folder.
 
-    What the loader did not read is appended to `skipped`.
+    What the loader did not read is appended to `skipped`; labels' symbols are checked against
+    Table 5 and `vocabulary` (the memory's own symbols).
     """
     data = Path(data)
     if detect_layout(data) == "episode":
@@ -160,7 +163,7 @@ def select_trajectories(
         if skipped is not None:
             skipped += trajectory.skipped
         return [trajectory]
-    dataset = load_dataset(data, task=task, labels=labels, views=views)
+    dataset = load_dataset(data, task=task, labels=labels, views=views, vocabulary=vocabulary)
     if skipped is not None:
         skipped += dataset.skipped
     chosen = dataset.select(keys=list(keys) or None)
@@ -243,6 +246,7 @@ def _replay(config: ReplayConfig) -> ReplayResult:
         labels=config.labels,
         views=config.views,
         skipped=result.skipped_inputs,
+        vocabulary=found.detector.memory.vocabulary,
     )
     written: dict[Path, str] = {}
     with progress_bar(total=len(trajectories), desc="replaying", unit="trajectory") as bar:

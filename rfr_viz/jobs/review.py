@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import csv
+import io
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -12,12 +14,15 @@ import numpy as np
 from rfr_viz.jobs.replay import DEFAULT_OUT, ReplayResult, load_detector, recording_name
 from rfr_viz.panels.camera_video import CameraCodec
 from rfr_viz.recordings.replay import record_replay
-from robofailring.atomic import output_lock, remove_file_leftovers
+from robofailring.atomic import output_lock, remove_file_leftovers, write_text_atomic
 from robofailring.data.layouts import load_dataset
+from robofailring.data.model import Skipped
+from robofailring.detection.loader import open_detector
 from robofailring.detection.rules import CONTRAST, PAPER, ScoringRule, rule_named
-from robofailring.errors import DataError
+from robofailring.detection.trace import DetectionTrace
+from robofailring.errors import DataError, OutputError
 from robofailring.explain.vlm import VLMConfig
-from robofailring.outputs import check_output_folder, check_recording_file
+from robofailring.outputs import check_not_input, check_output_folder, check_recording_file, check_writable
 from robofailring.progress import progress_bar
 
 KINDS: Final[tuple[str, ...]] = ("false-alarms", "misses")
@@ -37,22 +42,52 @@ class ReviewConfig:
     vlm: VLMConfig | None = None  # ask this VLM about each alarm; its answer joins the report
     camera_codec: CameraCodec = CameraCodec.AUTO  # jpeg, av1, h264, or auto (by size)
     views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
+    write_labels: Path | None = None  # `write_review_labels`: the labels CSV of every false alarm and miss
+
+
+@dataclass(frozen=True)
+class Reviewed:
+    """What an evaluation says to review: its rule, threshold, K, memory, and keys per kind."""
+
+    rule: ScoringRule
+    threshold: float
+    k: int
+    memory_dir: Path
+    keys: dict[str, list[str]]  # per kind (KINDS): the trajectory keys
 
 
 def review(config: ReviewConfig) -> ReplayResult:
-    """One recording per false alarm (focused on the alarm) or per miss (focused on its peak S_t)."""
+    """One recording per false alarm (focused on the alarm) or per miss (focused on its peak S_t).
+
+    `write_review_labels` writes a labels file of both kinds instead.
+    """
     if config.kind not in KINDS:
         raise DataError(f"review kind {config.kind!r} is not one of {list(KINDS)}")
+    reviewed = _read_evaluation(config)
+    check_output_folder(config.out, inputs=[config.data, reviewed.memory_dir])
+    with output_lock(config.out):
+        remove_file_leftovers(config.out)
+        remove_file_leftovers(Path(config.out) / config.kind)
+        return _replay_keys(
+            config,
+            reviewed.keys[config.kind],
+            reviewed.rule,
+            reviewed.threshold,
+            reviewed.k,
+            reviewed.memory_dir,
+        )
+
+
+def _read_evaluation(config: ReviewConfig) -> Reviewed:
     try:
         evaluation = json.loads(Path(config.evaluation).read_text(encoding="utf-8"))
         rules = evaluation.get("rules") or {}
         rule = rule_named(config.score or (CONTRAST.name if CONTRAST.name in rules else PAPER.name))
-        field = "false_alarms" if config.kind == "false-alarms" else "misses"
         if rule.name in rules:
-            keys = list(rules[rule.name][field])
+            keys = {kind: list(rules[rule.name][kind.replace("-", "_")]) for kind in KINDS}
             threshold = float(rules[rule.name]["threshold"])
         elif rule.name == PAPER.name:  # an evaluation written before both rules were reported
-            keys = [row["key"] for row in evaluation[field]]
+            keys = {kind: [row["key"] for row in evaluation[kind.replace("-", "_")]] for kind in KINDS}
             threshold = float(evaluation["operating_delta"])
         else:
             raise DataError(f"{config.evaluation} has no results for the {rule.name} rule")
@@ -62,11 +97,7 @@ def review(config: ReviewConfig) -> ReplayResult:
         raise DataError(
             f"{config.evaluation} is not an evaluation written by `robofailring evaluate` ({error})"
         ) from error
-    check_output_folder(config.out, inputs=[config.data, memory_dir])
-    with output_lock(config.out):
-        remove_file_leftovers(config.out)
-        remove_file_leftovers(Path(config.out) / config.kind)
-        return _replay_keys(config, keys, rule, threshold, k, memory_dir)
+    return Reviewed(rule=rule, threshold=threshold, k=k, memory_dir=memory_dir, keys=keys)
 
 
 def _replay_keys(
@@ -75,10 +106,11 @@ def _replay_keys(
     result = ReplayResult()
     if not keys:
         return result
+    delta, gamma = _thresholds(rule, threshold)
     loaded = load_detector(
         memory_dir,
-        delta=threshold if rule.threshold_key == PAPER.threshold_key else None,
-        gamma=threshold if rule.threshold_key == CONTRAST.threshold_key else None,
+        delta=delta,
+        gamma=gamma,
         score=rule.name,
         k=k,
         encoder=None,
@@ -110,3 +142,109 @@ def _replay_keys(
             )
             bar.update(1)
     return result
+
+
+#: The columns of `review --write-labels`: what the detector said, then `outcome`, `symbol` and
+#: `description` left empty for a person to fill (`robofailring.data.labels` reads them back).
+LABEL_COLUMNS: Final[tuple[str, ...]] = (
+    "episode",
+    "task",
+    "review",
+    "detected",
+    "suggested_symbol",
+    "frame",
+    "view",
+    "score",
+    "rule",
+    "outcome",
+    "symbol",
+    "description",
+)
+
+
+@dataclass(frozen=True)
+class ReviewLabels:
+    """The labels file `review --write-labels` wrote: its path, its rows, what the data loader did not read."""
+
+    path: Path
+    rows: list[dict[str, str]]
+    skipped_inputs: list[Skipped]
+
+
+def write_review_labels(config: ReviewConfig) -> ReviewLabels:
+    """A labels CSV with one row per false alarm and per miss of the evaluation, written atomically.
+
+    Each row: the episode, what the detector said (`detected`), the nearest failure's symbol at the
+    alarm (a miss: at its peak score) as `suggested_symbol`, that frame, view and score, and empty
+    `outcome`, `symbol` and `description` columns to fill; `--labels` reads the file back (rows
+    still without an outcome are reported as not applied).
+    """
+    if config.write_labels is None:
+        raise DataError("write_review_labels needs a labels file to write (--write-labels FILE)")
+    reviewed = _read_evaluation(config)
+    path = Path(config.write_labels)
+    inputs = [config.data, reviewed.memory_dir, config.evaluation]
+    check_not_input(path, inputs, replaces=False, flag="--write-labels")
+    if path.is_dir():
+        raise OutputError(f"--write-labels {path} is a folder; name a CSV file, e.g. labels.csv")
+    check_writable(path.absolute().parent)
+    with output_lock(path):
+        delta, gamma = _thresholds(reviewed.rule, reviewed.threshold)
+        detector = open_detector(
+            reviewed.memory_dir,
+            rule=reviewed.rule,
+            delta=delta,
+            gamma=gamma,
+            k=reviewed.k,
+            device=config.device,
+            cache_dir=config.cache_dir,
+            data_root=config.data_root,
+        )
+        dataset = load_dataset(config.data, vocabulary=detector.memory.vocabulary)
+        wanted = [key for kind in KINDS for key in reviewed.keys[kind]]
+        trajectories = {t.key: t for t in dataset.select(keys=wanted)}
+        rows = []
+        with progress_bar(total=len(wanted), desc="reviewing", unit="trajectory") as bar:
+            for kind in KINDS:
+                for key in reviewed.keys[kind]:
+                    rows.append(_label_row(detector.run(trajectories[key]), kind=kind))
+                    bar.update(1)
+        buffer = io.StringIO()
+        writer = csv.DictWriter(buffer, fieldnames=LABEL_COLUMNS, lineterminator="\n")
+        writer.writeheader()
+        writer.writerows(rows)
+        write_text_atomic(path, buffer.getvalue())
+    return ReviewLabels(path=path, rows=rows, skipped_inputs=list(dataset.skipped))
+
+
+def _label_row(trace: DetectionTrace, *, kind: str) -> dict[str, str]:
+    """One labels row: the evaluation's outcome for a trajectory and the detector's view of it at its
+    alarm (a run that does not fire now: at its peak score)."""
+    focus = trace.t_det if trace.t_det is not None else int(np.nanargmax(trace.max_score()))
+    scores = trace.scores
+    view = trace.detected_view or max(
+        trace.views, key=lambda v: float(np.nan_to_num(scores[v][focus], nan=-np.inf))
+    )
+    nearest = trace.neighbors(view, focus)
+    return {
+        "episode": trace.episode,
+        "task": trace.task,
+        "review": "false alarm" if kind == "false-alarms" else "miss",
+        "detected": "failure" if kind == "false-alarms" else "success",  # as the evaluation found it
+        "suggested_symbol": nearest[0].entry.symbol if nearest else "",
+        "frame": str(focus),
+        "view": view,
+        "score": f"{float(scores[view][focus]):.6f}",
+        "rule": trace.rule.name,
+        "outcome": "",
+        "symbol": "",
+        "description": "",
+    }
+
+
+def _thresholds(rule: ScoringRule, threshold: float) -> tuple[float | None, float | None]:
+    """(δ, γ) for reviewing `rule` at `threshold` (None: the memory's own)."""
+    return (
+        threshold if rule.threshold_key == PAPER.threshold_key else None,
+        threshold if rule.threshold_key == CONTRAST.threshold_key else None,
+    )

@@ -12,7 +12,7 @@ from rfr_viz.panels.scores import time_columns
 from rfr_viz.panels.umap import MemoryMap
 from rfr_viz.paths import DetectorPaths
 from rfr_viz.styles import FAILURE_CLASSES, UNKNOWN_CLASS, VIEW_COLOURS
-from robofailring.data.grounding import failure_type
+from robofailring.data.grounding import Vocabulary, failure_type
 from robofailring.detection.detector import DetectionTrace
 from robofailring.errors import SymbolError
 from robofailring.memory.failure import MemoryEntry
@@ -34,10 +34,10 @@ def legend_positions(count: int) -> np.ndarray:
     )
 
 
-def class_id(symbol: str) -> int:
-    """The map class of a failure symbol: its failure type (grounding Table 5), 0 when unknown."""
+def class_id(symbol: str, vocabulary: Vocabulary | None = None) -> int:
+    """The map class of a failure symbol: its Table 5 failure type, 0 when unknown (also a `vocabulary`'s own)."""
     try:
-        kind = failure_type(symbol)
+        kind = failure_type(symbol, vocabulary)
     except SymbolError:
         return UNKNOWN_CLASS[0]
     return FAILURE_CLASSES[kind][0] if kind in FAILURE_CLASSES else UNKNOWN_CLASS[0]
@@ -74,7 +74,7 @@ def log_memory_map(
     views: Sequence[str],
 ) -> None:
     """The static memory map (classes = failure types, hover labels, legend) and each view's query marker."""
-    classes = np.asarray([class_id(entry.symbol) for entry in entries], dtype=np.uint16)
+    classes = np.asarray([class_id(entry.symbol, entry.vocabulary) for entry in entries], dtype=np.uint16)
     rec.log(paths.umap, annotation_context(), static=True)
     rec.log(
         paths.umap,
@@ -144,7 +144,7 @@ def _log_legend(rec: rr.RecordingStream, paths: DetectorPaths, classes: np.ndarr
 
 def legend_size(trace: DetectionTrace) -> int:
     """Entries of the map legend: the failure types present in the memory."""
-    return len({class_id(entry.symbol) for entry in trace.memory.entries})
+    return len({class_id(entry.symbol, entry.vocabulary) for entry in trace.memory.entries})
 
 
 def map_title(memory_map: MemoryMap) -> str:

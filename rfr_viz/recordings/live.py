@@ -139,7 +139,7 @@ class LiveRecording:
         blueprint = replay_blueprint(
             views=views,
             map_title=map_title(memory_map) if memory_map is not None else "memory map (not given)",
-            legend_entries=len({class_id(entry.symbol) for entry in entries}),
+            legend_entries=len({class_id(entry.symbol, entry.vocabulary) for entry in entries}),
             cell=cell,
             k=detector.k,
             fps=fps,

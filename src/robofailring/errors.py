@@ -23,6 +23,10 @@ class SymbolError(RoboFailRingError):
     """A failure symbol has a token outside the grounding vocabulary (paper Table 5)."""
 
 
+class VocabularyError(RoboFailRingError):
+    """A vocabulary file (a dataset's own failure symbols) is unreadable, repeats a symbol or has an empty sentence."""
+
+
 class EncoderError(RoboFailRingError):
     """An encoder spec is malformed or its weights are not available."""
 

@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from fault_helpers import cli, hidden, refused, tree
+from fault_helpers import DIE_ON_REPLACE, DIE_WHILE_WRITING, cli, hidden, killed, refused, tree
 from synthetic import write_aha_dataset, write_episode, write_project_dataset
 
 from rfr_viz.viewer.control import recording_properties
@@ -126,34 +126,6 @@ def test_build_memory_exits_3_when_views_were_skipped(data: Path, cache: list[st
 
 # ---------------------------------------------------------------- a replace killed half-way
 
-_DIE_ON_REPLACE = """
-import os, sys
-from pathlib import Path
-final = Path(sys.argv[1]).absolute()
-real = os.replace
-def killed_before_the_new_memory_is_in(src, dst):
-    if Path(dst).absolute() == final:  # the old memory is already moved aside
-        os._exit(137)
-    real(src, dst)
-os.replace = killed_before_the_new_memory_is_in
-from rfr_viz.cli.app import app
-app(sys.argv[2:])
-"""
-
-_DIE_WHILE_WRITING = """
-import os, sys
-import faiss
-faiss.write_index = lambda *args: os._exit(137)
-from rfr_viz.cli.app import app
-app(sys.argv[2:])
-"""
-
-
-def _killed(script: str, memory: Path, *args: object) -> None:
-    command = [sys.executable, "-c", script, str(memory), *map(str, args)]
-    env = {**os.environ, "ROBOFAILRING_PROGRESS": "0"}
-    assert subprocess.run(command, capture_output=True, env=env, check=False).returncode == 137
-
 
 def test_a_replace_killed_between_its_renames_leaves_the_old_memory_recoverable(
     memory: Path, data: Path, cache: list[str], tmp_path: Path
@@ -162,7 +134,7 @@ def test_a_replace_killed_between_its_renames_leaves_the_old_memory_recoverable(
     one_task = write_aha_dataset(
         tmp_path / "one", tasks=("pick_cube",), symbols=("grasp_wp2",), episodes=1, length=3
     )
-    _killed(_DIE_ON_REPLACE, memory, "build-memory", one_task, "--out", memory, *cache)
+    killed(DIE_ON_REPLACE, memory, "build-memory", one_task, "--out", memory, *cache)
     # what SIGKILL leaves: the old memory moved aside, the new one not yet in place, the lock file
     assert not memory.exists() and sorted(name.rsplit(".", 1)[1] for name in hidden(tmp_path)) == [
         "lock",
@@ -174,7 +146,7 @@ def test_a_replace_killed_between_its_renames_leaves_the_old_memory_recoverable(
     assert detected.exit_code == 0, detected.output
     assert json.loads((memory / "manifest.json").read_text())["tasks"] == old_tasks and hidden(tmp_path) == []
 
-    _killed(_DIE_WHILE_WRITING, memory, "build-memory", one_task, "--out", memory, *cache)
+    killed(DIE_WHILE_WRITING, memory, "build-memory", one_task, "--out", memory, *cache)
     assert sorted(name.rsplit(".", 1)[1] for name in hidden(tmp_path)) == ["lock", "tmp"]
     assert json.loads((memory / "manifest.json").read_text())["tasks"] == old_tasks
     rebuilt = cli("build-memory", one_task, "--out", memory, *cache)

@@ -46,7 +46,16 @@ LabelsOption = Annotated[
     typer.Option(
         "--labels",
         help="Outcome and failure symbol per episode: a JSON list or CSV of episode_index, outcome, symbol "
-        "and optionally task (`episode` names an episode folder, an HDF5 demo or episode file).",
+        "and optionally task and description (`episode` names an episode folder, an HDF5 demo or episode "
+        "file; a failure without a symbol is 'a failure (type not labelled)').",
+    ),
+]
+VocabularyOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--vocabulary",
+        help="Your own failure symbols beyond Table 5: a JSON or YAML file of `symbols` (symbol: the words "
+        "for its cause) and optional `stages` (number: words); kept in the memory's folder.",
     ),
 ]
 VLMUrlOption = Annotated[

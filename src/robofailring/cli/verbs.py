@@ -32,11 +32,13 @@ from robofailring.cli.options import (
     ViewsOption,
     VLMModelOption,
     VLMUrlOption,
+    VocabularyOption,
     print_notes,
     report_skipped,
     vlm_config,
     warn_missing_references,
 )
+from robofailring.errors import SettingError
 from robofailring.memory.thinning import DEFAULT_STEP
 from robofailring.progress import progress_bar
 
@@ -91,10 +93,19 @@ def generate_cmd(
 @app.command("build-memory")
 def build_memory_cmd(
     data: Annotated[Path, typer.Argument(help="Dataset root (any supported layout; an HDF5 file).")],
-    out: Annotated[Path, typer.Option("--out", help="Memory directory to write.")],
+    out: Annotated[Path | None, typer.Option("--out", help="Memory directory to write.")] = None,
+    add_to: Annotated[
+        Path | None,
+        typer.Option(
+            "--add-to",
+            help="Grow this memory in place with DATA's runs (same encoder; episodes it holds are refused) "
+            "instead of writing a new one with --out.",
+        ),
+    ] = None,
     encoder: EncoderOption = "pixels",
     split: Annotated[str | None, typer.Option(help="Only this split (project layout).")] = None,
     labels: LabelsOption = None,
+    vocabulary: VocabularyOption = None,
     task: TaskOption = None,
     views: ViewsOption = None,
     no_successes: Annotated[
@@ -110,11 +121,19 @@ def build_memory_cmd(
     """Build a failure memory (Algorithm 1) from the failure trajectories of DATA, and a success memory."""
     from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 
+    if (out is None) == (add_to is None):
+        raise SettingError(
+            "pass --out DIR (build a new memory) or --add-to DIR (grow one), exactly one of them"
+        )
+    target = out if out is not None else add_to
+    assert target is not None
     memory, stats = build_memory(
         BuildMemoryConfig(
             data=data,
             encoder=encoder,
-            out=out,
+            out=target,
+            add_to=add_to is not None,
+            vocabulary=vocabulary,
             split=split,
             cache_dir=cache_dir,
             device=device,
@@ -126,7 +145,7 @@ def build_memory_cmd(
         )
     )
     typer.echo(
-        f"memory {out}: {len(memory)} entries ({memory.dim}-d, encoder {memory.encoder}) from "
+        f"memory {target}: {len(memory)} entries ({memory.dim}-d, encoder {memory.encoder}) from "
         f"{stats.failures} failure trajectories over {len(memory.tasks)} tasks; "
         f"{stats.ignored_non_failures} non-failures ignored"
     )

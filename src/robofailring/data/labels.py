@@ -2,8 +2,11 @@
 
 A JSON list of objects or a CSV file with a header, one row per episode:
 `episode_index` (a LeRobot episode) or `episode` (an episode folder's name), `outcome`
-(`success` or `failure`) and `symbol` (the failure symbol, e.g. `grasp_wp2`; empty for a success);
-an optional `task` column names the episode's task (it wins over `--task` and the data's own).
+(`success` or `failure`), `symbol` (the failure symbol, e.g. `grasp_wp2`, or one of the
+dataset's vocabulary; empty for a success, and for a failure whose type was not labelled: it gets
+the symbol `failure`) and an optional `description` (free text: that failure's grounded sentence).
+An optional `task` column names the episode's task (it wins over `--task` and the data's own).
+Other columns (e.g. those `review --write-labels` adds) are ignored.
 """
 
 from __future__ import annotations
@@ -14,8 +17,8 @@ from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from robofailring.data.grounding import parse_symbol
-from robofailring.data.model import Outcome, Trajectory
+from robofailring.data.grounding import UNTYPED, Vocabulary, parse_symbol
+from robofailring.data.model import Outcome, Skipped, Trajectory
 from robofailring.errors import DataError, SymbolError
 
 
@@ -25,10 +28,44 @@ class Label:
     outcome: Outcome
     symbol: str | None
     task: str | None = None  # the episode's task, when the labels file says it
+    description: str | None = None  # the failure in the labeller's own words
 
 
-def read_labels(path: Path) -> dict[str, Label]:
-    """Labels by episode; every bad row is an error naming the file, the row and the value."""
+def read_labels(path: Path, *, vocabulary: Vocabulary | None = None) -> dict[str, Label]:
+    """Labels by episode; every bad row is an error naming the file, the row and the value.
+
+    Symbols are checked against Table 5 and `vocabulary` (a dataset's own symbols).
+    """
+    path = Path(path)
+    rows = _rows(path)
+    labels: dict[str, Label] = {}
+    for number, row in enumerate(rows, 1):
+        if not str(row.get("outcome") or "").strip():
+            continue  # a row not labelled yet (`review --write-labels` leaves outcome empty): counted by `unlabelled_rows`
+        label = _label(row, where=f"{path} row {number}", vocabulary=vocabulary)
+        if label.episode in labels:
+            raise DataError(f"{path} row {number}: episode {label.episode!r} is labelled twice")
+        labels[label.episode] = label
+    if not labels:
+        raise DataError(
+            f"labels file {path} holds no labelled row (columns: episode_index or episode, outcome, symbol, "
+            "description; fill in `outcome`)"
+        )
+    return labels
+
+
+def unlabelled_rows(path: Path) -> Skipped | None:
+    """What a labels file left unlabelled (rows with an empty outcome), as a Skipped to report, or None."""
+    blank = sum(not str(row.get("outcome") or "").strip() for row in _rows(Path(path)))
+    if not blank:
+        return None
+    return Skipped(
+        path=Path(path), reason=f"{blank} row(s) with an empty outcome (not labelled yet) were not applied"
+    )
+
+
+def _rows(path: Path) -> list[dict[str, object]]:
+    """The rows of a labels file (JSON list of objects, else CSV with a header)."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -47,18 +84,10 @@ def read_labels(path: Path) -> dict[str, Label]:
         rows = loaded
     else:
         rows = [dict(row) for row in csv.DictReader(text.splitlines())]
-    labels: dict[str, Label] = {}
-    for number, row in enumerate(rows, 1):
-        label = _label(row, where=f"{path} row {number}")
-        if label.episode in labels:
-            raise DataError(f"{path} row {number}: episode {label.episode!r} is labelled twice")
-        labels[label.episode] = label
-    if not labels:
-        raise DataError(f"labels file {path} holds no rows (columns: episode_index, outcome, symbol[, task])")
-    return labels
+    return rows
 
 
-def _label(row: dict[str, object], *, where: str) -> Label:
+def _label(row: dict[str, object], *, where: str, vocabulary: Vocabulary | None) -> Label:
     index, name = row.get("episode_index"), row.get("episode")
     if index not in (None, ""):
         try:
@@ -76,15 +105,24 @@ def _label(row: dict[str, object], *, where: str) -> Label:
     symbol = str(row.get("symbol") or "").strip() or None
     if symbol is not None:
         try:
-            parse_symbol(symbol)
+            parse_symbol(symbol, vocabulary)
         except SymbolError as error:
             raise DataError(f"{where}: {error}") from error
-    if outcome is Outcome.FAILURE and symbol is None:
-        raise DataError(f"{where}: a failure needs a symbol (e.g. grasp_wp2)")
+    description = " ".join(str(row.get("description") or "").split()) or None
     task = str(row.get("task") or "").strip() or None
+    if outcome is not Outcome.FAILURE:
+        return Label(episode=episode, outcome=outcome, symbol=None, task=task)
     return Label(
-        episode=episode, outcome=outcome, symbol=symbol if outcome is Outcome.FAILURE else None, task=task
+        episode=episode, outcome=outcome, symbol=symbol or UNTYPED, description=description, task=task
     )
+
+
+def label_key(trajectory: Trajectory, labels: dict[str, Label]) -> str | None:
+    """The key of `labels` that labels `trajectory` (its episode, or its folder's name), None when none does."""
+    for key in (trajectory.episode, trajectory.episode.rsplit("/", 1)[-1]):
+        if key in labels:
+            return key
+    return None
 
 
 def apply_labels(
@@ -94,12 +132,16 @@ def apply_labels(
     labelled = []
     found: set[str] = set()
     for trajectory in trajectories:
-        key = trajectory.episode if trajectory.episode in labels else trajectory.episode.rsplit("/", 1)[-1]
-        label = labels.get(key)
-        if label is not None:
+        key = label_key(trajectory, labels)
+        label = labels.get(key) if key is not None else None
+        if key is not None and label is not None:
             found.add(key)
             trajectory = replace(
-                trajectory, outcome=label.outcome, symbol=label.symbol, task=label.task or trajectory.task
+                trajectory,
+                outcome=label.outcome,
+                symbol=label.symbol,
+                description=label.description,
+                task=label.task or trajectory.task,
             )
         labelled.append(trajectory)
     missing = [episode for episode in labels if episode not in found]

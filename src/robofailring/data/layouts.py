@@ -18,7 +18,8 @@ from robofailring.data import (
     layout_videos,
     lerobot,
 )
-from robofailring.data.labels import apply_labels, read_labels
+from robofailring.data.grounding import Vocabulary
+from robofailring.data.labels import apply_labels, read_labels, unlabelled_rows
 from robofailring.data.layout_aha import AHA_FAILURES, parse_aha_name
 from robofailring.data.layout_episode import episode_trajectory
 from robofailring.data.layout_maniskill import MANISKILL_FAILURES
@@ -160,20 +161,28 @@ def detect_layout(root: Path) -> str:
 
 
 def load_dataset(
-    root: Path, *, task: str | None = None, labels: Path | None = None, views: str | None = None
+    root: Path,
+    *,
+    task: str | None = None,
+    labels: Path | None = None,
+    views: str | None = None,
+    vocabulary: Vocabulary | None = None,
 ) -> Dataset:
     """Open a dataset root of any supported layout (auto-detected), listing what it does not read.
 
     `task` names the task of episodes whose names do not say it (one episode, video episodes);
     `labels` is a labels file (see `robofailring.data.labels`) giving outcome, symbol and task per
-    episode; `views` (`a,b` or `src=name,…`, see `robofailring.data.views`) picks and names the views.
+    episode, its symbols checked against Table 5 and `vocabulary` (the dataset's own symbols); `views`
+    (`a,b` or `src=name,…`, see `robofailring.data.views`) picks and names the views.
     """
     root = Path(root)
     layout = _layout(root)
     manifest = layout.manifest(root) if layout.manifest is not None else None
     found, skipped = layout.read(root, task=task)
     if labels is not None:
-        found = apply_labels(found, read_labels(labels), source=Path(labels))
+        found = apply_labels(found, read_labels(labels, vocabulary=vocabulary), source=Path(labels))
+        blank = unlabelled_rows(Path(labels))
+        skipped = [*skipped, *([blank] if blank is not None else [])]
     labelled = labels is not None or layout.outcomes_in_data or any(t.outcome is not None for t in found)
     return Dataset(
         root=root,
@@ -192,6 +201,7 @@ def load_trajectory(
     key: str | None = None,
     labels: Path | None = None,
     views: str | None = None,
+    vocabulary: Vocabulary | None = None,
 ) -> Trajectory:
     """One trajectory from an episode folder of any layout, or the one named `key` in a dataset root.
 
@@ -207,7 +217,7 @@ def load_trajectory(
         or (path / PROJECT_MANIFEST).is_file()
         or detect_layout(path) != "episode"
     ):
-        dataset = load_dataset(path, task=task, labels=labels, views=views)
+        dataset = load_dataset(path, task=task, labels=labels, views=views, vocabulary=vocabulary)
         found = dataset.select(keys=[key]) if key is not None else list(dataset.trajectories())
         if len(found) != 1:
             raise DataError(

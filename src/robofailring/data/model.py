@@ -111,6 +111,7 @@ class Trajectory:
     symbol: str | None = None
     outcome: Outcome | None = None
     source: Path | None = None
+    description: str | None = None  # a labels file's own words for this failure (its grounded sentence)
     fps: float | None = None
     split: str | None = None
     skipped: tuple[Skipped, ...] = ()  # files of this episode that were not read, with the reason

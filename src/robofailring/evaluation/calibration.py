@@ -165,7 +165,9 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
         delta=PAPER_DELTA,
     )
     memory = detector.memory
-    dataset = load_dataset(config.data, task=config.task, labels=config.labels, views=config.views)
+    dataset = load_dataset(
+        config.data, task=config.task, labels=config.labels, views=config.views, vocabulary=memory.vocabulary
+    )
     dataset.require_labels("calibrate")
     source = list(dataset.trajectories())
     has_splits = any(t.split for t in source)

@@ -8,7 +8,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from robofailring.data.grounding import failure_type
+from robofailring.data.grounding import Vocabulary, failure_type
 from robofailring.data.model import Skipped
 from robofailring.detection.detector import (
     DetectionTrace,
@@ -48,6 +48,7 @@ class EvaluationResult:
     rules: dict[str, RuleResult] = field(default_factory=dict)  # both rules at their thresholds
     target_fpr: float | None = None
     deployment_successes: int = 0
+    vocabulary: Vocabulary | None = field(default=None, repr=False)  # the memory's own failure symbols
     paper_rates: list[Rates] = field(init=False)
     curve: list[Rates] = field(init=False)
 
@@ -76,9 +77,10 @@ class EvaluationResult:
     ) -> dict[str, Rates]:
         """Recall per failure type at `delta` (of `scored`: another rule's scores; default the paper's)."""
         scored = self.scored if scored is None else scored
-        types = sorted({failure_type(t.symbol) for t in scored if t.is_failure and t.symbol})
+        words = self.vocabulary
+        types = sorted({failure_type(t.symbol, words) for t in scored if t.is_failure and t.symbol})
         return {
-            kind: rates([t for t in scored if t.is_failure and failure_type(t.symbol) == kind], delta)
+            kind: rates([t for t in scored if t.is_failure and failure_type(t.symbol, words) == kind], delta)
             for kind in types
         }
 

@@ -14,6 +14,7 @@ from robofailring.atomic import write_text_atomic
 from robofailring.data.layouts import Dataset, load_dataset
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.data.splits import split_of
+from robofailring.data.vocabulary import read_vocabulary
 from robofailring.detection.conformal import check_target_fpr
 from robofailring.detection.detector import (
     DetectionTrace,
@@ -54,6 +55,7 @@ class EvaluateConfig:
     device: str | None = None
     stride: int = 1  # score every stride-th frame of a test trajectory (t_det, T_s in original frames)
     labels: Path | None = None  # labels file for data whose names do not say the outcome (LeRobot)
+    vocabulary: Path | None = None  # the data's own failure symbols (JSON/YAML), kept with the memory built
     target_fpr: float | None = 0.05  # calibrate both rules on training successes; None: stored thresholds
     successes: bool = True  # build the success memory beside the failure memory (contrast rule)
     success_step: float = (
@@ -88,7 +90,10 @@ class Splits:
 
 def select_splits(config: EvaluateConfig) -> Splits:
     """The training and test trajectories, disjoint by construction and checked."""
-    dataset = load_dataset(config.data, task=config.task, labels=config.labels, views=config.views)
+    vocabulary = read_vocabulary(config.vocabulary) if config.vocabulary is not None else None
+    dataset = load_dataset(
+        config.data, task=config.task, labels=config.labels, views=config.views, vocabulary=vocabulary
+    )
     dataset.require_labels("evaluate")
     source = list(dataset.trajectories())
     skipped = list(dataset.skipped)
@@ -106,7 +111,11 @@ def select_splits(config: EvaluateConfig) -> Splits:
         ]
     else:
         other_dataset = load_dataset(
-            config.test_data, task=config.task, labels=config.labels, views=config.views
+            config.test_data,
+            task=config.task,
+            labels=config.labels,
+            views=config.views,
+            vocabulary=vocabulary,
         )
         other_dataset.require_labels("evaluate")
         other = list(other_dataset.trajectories())
@@ -180,6 +189,7 @@ def build_training_memory(
         provenance=provenance,
         successes=config.successes,
         success_step=config.success_step,
+        vocabulary=read_vocabulary(config.vocabulary) if config.vocabulary is not None else None,
     )
     memory_dir = config.memory_out or Path(config.out) / "memory"
     memory.save(memory_dir)
@@ -265,6 +275,7 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
         skipped_too_short=too_short,
         skipped_inputs=splits.skipped,
         stride=config.stride,
+        vocabulary=memory.vocabulary,
     )
 
 

@@ -6,10 +6,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from robofailring.atomic import output_lock
-from robofailring.data.layouts import load_dataset
+from robofailring.data.labels import label_key, read_labels
+from robofailring.data.layouts import Dataset, load_dataset
+from robofailring.data.model import Trajectory
+from robofailring.data.vocabulary import read_vocabulary
 from robofailring.encoders import open_encoder
-from robofailring.errors import DataError, MemoryFormatError
-from robofailring.memory.builder import Provenance, build_memories
+from robofailring.errors import DataError, MemoryFormatError, SettingError
+from robofailring.memory.builder import Provenance, add_to, build_memories
 from robofailring.memory.encoding import BuildStats
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.thinning import DEFAULT_STEP
@@ -29,6 +32,10 @@ class BuildMemoryConfig:
     success_step: float = DEFAULT_STEP  # keep a success frame only this far (cosine) from the last kept one
     task: str | None = None  # task of episodes whose names do not say it (one episode folder, video episodes)
     views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
+    vocabulary: Path | None = (
+        None  # the dataset's own failure symbols (JSON/YAML), kept in the memory's folder
+    )
+    add_to: bool = False  # grow the memory at `out` with the dataset's runs instead of replacing it
 
 
 def build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
@@ -38,24 +45,23 @@ def build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
     output is checked (and locked against a second build) before anything is encoded; a build
     that would hold no entry is an error and replaces nothing.
     """
+    if config.add_to and not is_memory_dir(config.out):
+        raise MemoryFormatError(
+            f"--add-to {config.out} is not a failure memory (no manifest.json); nothing was written"
+        )
     check_memory_target(config.out, inputs=[config.data])
     with output_lock(config.out):
-        return _build_memory(config)
+        return _add_to_memory(config) if config.add_to else _build_memory(config)
 
 
 def _build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
+    vocabulary = read_vocabulary(config.vocabulary) if config.vocabulary is not None else None
     encoder = open_encoder(config.encoder, device=config.device, cache_dir=config.cache_dir)
-    dataset = load_dataset(config.data, task=config.task, labels=config.labels, views=config.views)
+    dataset = load_dataset(
+        config.data, task=config.task, labels=config.labels, views=config.views, vocabulary=vocabulary
+    )
     dataset.require_labels("build-memory")
-    trajectories = list(dataset.trajectories())
-    if config.split is not None:
-        splits = sorted({str(t.split) for t in trajectories if t.split is not None})
-        trajectories = dataset.select(split=config.split)
-        if not trajectories:
-            raise DataError(
-                f"no trajectory of split {config.split!r} in {config.data}; its splits are: "
-                + (", ".join(splits) or "none (this layout has no splits: leave out --split)")
-            )
+    trajectories = _selected(config, dataset)
     entries_expected = sum(len(t.views) for t in trajectories if t.symbol)
     if not entries_expected:
         raise DataError(
@@ -76,6 +82,7 @@ def _build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]
         provenance=provenance,
         successes=config.successes,
         success_step=config.success_step,
+        vocabulary=vocabulary,
     )
     if not len(memory):
         raise DataError(
@@ -84,6 +91,53 @@ def _build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]
     stats.notes.extend(_dropped_calibration(config.out))
     memory.save(config.out)
     return memory, stats
+
+
+def _add_to_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
+    """The memory at `config.out` grown by the dataset's runs, saved in its place (atomically)."""
+    memory = FailureMemory.load(config.out)
+    if config.vocabulary is not None and read_vocabulary(config.vocabulary) != memory.vocabulary:
+        raise SettingError(
+            f"--vocabulary {config.vocabulary} differs from the vocabulary of the memory at {config.out}: "
+            "a memory keeps the vocabulary it was built with (leave out --vocabulary, or rebuild)"
+        )
+    encoder = open_encoder(config.encoder, device=config.device, cache_dir=config.cache_dir)
+    dataset = load_dataset(config.data, task=config.task, labels=config.labels, vocabulary=memory.vocabulary)
+    dataset.require_labels("build-memory --add-to")
+    trajectories = _selected(config, dataset)
+    if (
+        config.labels is not None
+    ):  # the runs a person labelled (`review --write-labels`), not the whole dataset
+        labelled = read_labels(config.labels, vocabulary=memory.vocabulary)
+        trajectories = [t for t in trajectories if label_key(t, labelled) is not None]
+    if not any(t.outcome is not None for t in trajectories):
+        raise DataError(f"{config.data} holds no labelled run to add; nothing was written")
+    grown, stats = add_to(
+        memory,
+        trajectories,
+        encoder,
+        successes=config.successes,
+        success_step=config.success_step,
+        skipped_inputs=dataset.skipped,
+    )
+    stats.notes.extend(_dropped_calibration(config.out))
+    grown.save(config.out)
+    return grown, stats
+
+
+def _selected(config: BuildMemoryConfig, dataset: Dataset) -> list[Trajectory]:
+    """The trajectories of `config.split` (all of them without one); DataError naming the splits there are."""
+    trajectories = list(dataset.trajectories())
+    if config.split is None:
+        return trajectories
+    chosen = dataset.select(split=config.split)
+    if not chosen:
+        splits = sorted({str(t.split) for t in trajectories if t.split is not None})
+        raise DataError(
+            f"no trajectory of split {config.split!r} in {config.data}; its splits are: "
+            + (", ".join(splits) or "none (this layout has no splits: leave out --split)")
+        )
+    return chosen
 
 
 def _dropped_calibration(out: Path) -> list[str]:

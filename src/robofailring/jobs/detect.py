@@ -61,7 +61,12 @@ def detect_trajectory(config: DetectConfig) -> tuple[DetectionTrace, Trajectory]
         cache_dir=config.cache_dir,
     )
     trajectory = load_trajectory(
-        config.trajectory, task=config.task, key=config.key, labels=config.labels, views=config.views
+        config.trajectory,
+        task=config.task,
+        key=config.key,
+        labels=config.labels,
+        vocabulary=detector.memory.vocabulary,
+        views=config.views,
     )
     return detector.run(trajectory, leave_one_out=config.leave_one_out, stride=config.stride), trajectory
 

@@ -1,20 +1,25 @@
 """The one way a complete memory is built: failure entries, success runs and a manifest that says where they came from.
 
 `build_memories` is what `build-memory` and `evaluate` use; it returns the memory finished, so
-nothing sets its success memory or manifest fields afterwards. (`FailureMemory.build` gives the
+nothing sets its success memory or manifest fields afterwards. `add_to` grows a memory the same
+way: it returns a new complete memory with the new runs added (`build-memory --add-to`). (`FailureMemory.build` gives the
 paper's memory alone, without success runs or provenance, for tests and benchmarks.)
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
+import numpy as np
+
+from robofailring.data.grounding import Vocabulary
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.encoders import portable_spec
 from robofailring.encoders.cache import CachedEncoder
-from robofailring.memory.encoding import BuildStats, encode_failures, is_failure
+from robofailring.errors import DataError, EncoderMismatchError
+from robofailring.memory.encoding import BuildStats, EncodedFailures, encode_failures, is_failure
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.success import SuccessMemory
 from robofailring.memory.thinning import DEFAULT_STEP
@@ -40,21 +45,19 @@ def build_memories(
     provenance: Provenance,
     successes: bool = True,
     success_step: float = DEFAULT_STEP,
+    vocabulary: Vocabulary | None = None,
 ) -> tuple[FailureMemory, BuildStats]:
     """The failure memory of the failure `trajectories` with, when `successes`, the success memory of all of them.
 
     A dataset without a success run gives the paper's memory alone (no success memory). Image
     references are kept relative to the dataset root. `stats.skipped_inputs` is the provenance's.
+    `vocabulary` (the dataset's own symbols beyond Table 5) is kept with the memory.
     """
     root = Path(provenance.data).resolve()
-    total = sum(len(t.views) for t in trajectories if is_failure(t))
-    with progress_bar(total=total, desc="encoding memory", unit="entry") as bar:
-        encoded = encode_failures(trajectories, encoder, progress=bar.update)
-    success_memory = None
-    if successes:
-        with progress_bar(total=len(trajectories), desc="encoding success memory", unit="traj") as bar:
-            built = SuccessMemory.build(trajectories, encoder, progress=bar.update, step=success_step)
-        success_memory = built if built.success_runs else None  # none: the paper's memory
+    encoded, built = _encode(
+        trajectories, encoder, successes=successes, success_step=success_step, vocabulary=vocabulary
+    )
+    success_memory = built if built is not None and built.success_runs else None  # none: the paper's memory
     manifest = encoded.manifest(
         encoder.identity,
         skipped_inputs=[skipped.to_dict() for skipped in provenance.skipped_inputs],
@@ -72,6 +75,90 @@ def build_memories(
         manifest=manifest,
         data_root=root,
         successes=success_memory,
+        vocabulary=vocabulary,
     )
     encoded.stats.skipped_inputs = list(provenance.skipped_inputs)
     return memory, encoded.stats
+
+
+def add_to(
+    memory: FailureMemory,
+    trajectories: Sequence[Trajectory],
+    encoder: CachedEncoder,
+    *,
+    successes: bool = True,
+    success_step: float = DEFAULT_STEP,
+    skipped_inputs: Sequence[Skipped] = (),
+) -> tuple[FailureMemory, BuildStats]:
+    """A new complete memory: `memory` with the failure (and, when `successes`, success) runs of `trajectories` added.
+
+    The same encoder is required (EncoderMismatchError) and an episode the memory already holds is
+    refused (DataError), both before anything is encoded. The memory keeps its data root,
+    provenance and vocabulary (new symbols are checked against it); its stored calibration is
+    dropped, as a rebuild's is: thresholds depend on the entries.
+    """
+    if encoder.identity != memory.encoder:
+        raise EncoderMismatchError(
+            f"the memory was built with encoder {memory.encoder!r}, the runs to add would be encoded with "
+            f"{encoder.identity!r}: add with --encoder {memory.manifest.encoder_spec or memory.encoder}"
+        )
+    held = {(e.task, e.episode) for e in memory.entries}
+    if memory.successes is not None:
+        held |= {(run.task, run.episode) for run in memory.successes.runs}
+    repeated = sorted(f"{t.task}/{t.episode}" for t in trajectories if (t.task, t.episode) in held)
+    if repeated:
+        raise DataError(
+            f"the memory already holds episode {repeated[0]!r}"
+            + (f" and {len(repeated) - 1} more" if len(repeated) > 1 else "")
+            + "; add only new episodes (or rebuild the memory)"
+        )
+    encoded, new_successes = _encode(
+        trajectories, encoder, successes=successes, success_step=success_step, vocabulary=memory.vocabulary
+    )
+    joined = memory.successes
+    if new_successes is not None and len(new_successes):
+        if joined is not None:
+            joined = joined.extended(new_successes)
+        elif new_successes.success_runs:
+            joined = new_successes
+    old = memory.manifest
+    stats = encoded.stats
+    manifest = replace(
+        old,
+        failures=(old.failures or 0) + stats.failures,
+        ignored_non_failures=(old.ignored_non_failures or 0) + stats.ignored_non_failures,
+        skipped_views=(old.skipped_views or 0) + len(stats.skipped_views),
+        skipped=[*(old.skipped or []), *stats.skipped_views],
+        skipped_inputs=[*(old.skipped_inputs or []), *(s.to_dict() for s in skipped_inputs)],
+        calibration=None,
+    )
+    grown = FailureMemory(
+        np.concatenate([memory.vectors, encoded.vectors]) if len(encoded.vectors) else memory.vectors,
+        [*memory.entries, *encoded.entries],
+        encoder=memory.encoder,
+        manifest=manifest,
+        data_root=memory.data_root,
+        successes=joined,
+        vocabulary=memory.vocabulary,
+    )
+    stats.skipped_inputs = list(skipped_inputs)
+    return grown, stats
+
+
+def _encode(
+    trajectories: Sequence[Trajectory],
+    encoder: CachedEncoder,
+    *,
+    successes: bool,
+    success_step: float,
+    vocabulary: Vocabulary | None,
+) -> tuple[EncodedFailures, SuccessMemory | None]:
+    """Algorithm 1 over the failures and, when `successes`, the success memory of all `trajectories`."""
+    total = sum(len(t.views) for t in trajectories if is_failure(t))
+    with progress_bar(total=total, desc="encoding memory", unit="entry") as bar:
+        encoded = encode_failures(trajectories, encoder, progress=bar.update, vocabulary=vocabulary)
+    if not successes:
+        return encoded, None
+    with progress_bar(total=len(trajectories), desc="encoding success memory", unit="traj") as bar:
+        built = SuccessMemory.build(trajectories, encoder, progress=bar.update, step=success_step)
+    return encoded, built

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from robofailring.data.grounding import parse_symbol
+from robofailring.data.grounding import Vocabulary, parse_symbol
 from robofailring.data.model import Frame, Outcome, Skipped, Trajectory
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import SymbolError
@@ -63,10 +63,11 @@ def encode_failures(
     encoder: CachedEncoder,
     *,
     progress: Callable[[int], None] | None = None,
+    vocabulary: Vocabulary | None = None,
 ) -> EncodedFailures:
     """Algorithm 1 over the failure trajectories; views with < 2 frames are skipped and counted.
 
-    Symbols are validated first, so an unknown token fails the build before anything is encoded.
+    Symbols are validated first (Table 5 and `vocabulary`, the dataset's own symbols), so an unknown token fails the build before anything is encoded.
     `progress` is told how many entries each chunk encoded.
     """
     stats = BuildStats()
@@ -80,7 +81,7 @@ def encode_failures(
         if not trajectory.symbol:
             raise SymbolError(f"failure trajectory {trajectory.key} has no failure symbol")
         try:
-            parse_symbol(trajectory.symbol)
+            parse_symbol(trajectory.symbol, vocabulary)
         except SymbolError as error:
             raise SymbolError(f"trajectory {trajectory.key} ({trajectory.source}): {error}") from error
         for view, frames in trajectory.views.items():
@@ -96,6 +97,8 @@ def encode_failures(
                 view=view,
                 start=absolute_reference(frames[0].reference),
                 end=absolute_reference(frames[-1].reference),
+                written=trajectory.description,
+                vocabulary=vocabulary,
             )
             pending.append((entry, frames[0], frames[-1]))
     vectors = np.zeros((0, encoder.dim * 2), dtype=np.float32)

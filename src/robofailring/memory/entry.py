@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
-from robofailring.data.grounding import ground
+from robofailring.data.grounding import Vocabulary, ground
 
 
 @dataclass(frozen=True)
@@ -13,7 +13,8 @@ class MemoryEntry:
     """Grounded metadata of one memory vector (one view of one failure trajectory).
 
     `start` and `end` are absolute image paths in a loaded or built memory; on disk they are
-    stored relative to the memory's data root (`robofailring.memory.references`).
+    stored relative to the memory's data root (`robofailring.memory.references`). `vocabulary` is
+    the memory's own (its symbols beyond Table 5), given by the memory that holds the entry.
     """
 
     task: str
@@ -22,11 +23,25 @@ class MemoryEntry:
     view: str
     start: str
     end: str
+    written: str | None = None  # the label's own description of this failure, stored as `description`
+    vocabulary: Vocabulary | None = field(default=None, compare=False, repr=False)
 
     @property
     def description(self) -> str:
-        """G(symbol), the grounded sentence."""
-        return ground(self.symbol)
+        """The grounded sentence: the label's own description, else G(symbol) with the memory's vocabulary."""
+        return self.written if self.written else ground(self.symbol, self.vocabulary)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The entry as `entries.jsonl` stores it (`description` only when the label wrote one)."""
+        stored: dict[str, Any] = {
+            "task": self.task,
+            "symbol": self.symbol,
+            "episode": self.episode,
+            "view": self.view,
+            "start": self.start,
+            "end": self.end,
+        }
+        return stored | ({"description": self.written} if self.written else {})
 
 
 @dataclass(frozen=True)
@@ -38,4 +53,4 @@ class Neighbor:
     entry: MemoryEntry
 
     def to_dict(self) -> dict[str, Any]:
-        return {"index": self.index, "similarity": round(self.similarity, 6), **asdict(self.entry)}
+        return {"index": self.index, "similarity": round(self.similarity, 6), **self.entry.to_dict()}

@@ -6,7 +6,7 @@ import copy
 import json
 from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import asdict, replace
+from dataclasses import replace
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
@@ -15,10 +15,12 @@ import faiss
 import numpy as np
 
 from robofailring.atomic import atomic_directory, output_lock, restore_interrupted, write_text_atomic
+from robofailring.data.grounding import Vocabulary
 from robofailring.data.model import Trajectory
+from robofailring.data.vocabulary import read_vocabulary
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.encoders.spec import EncoderSpec
-from robofailring.errors import EncoderMismatchError, MemoryFormatError, UnknownTaskError
+from robofailring.errors import EncoderMismatchError, MemoryFormatError, UnknownTaskError, VocabularyError
 from robofailring.memory.encoding import BuildStats, encode_failures
 from robofailring.memory.entry import MemoryEntry, Neighbor
 from robofailring.memory.format import parse_entry, read_jsonl
@@ -42,6 +44,7 @@ READABLE_VERSIONS: Final[tuple[int, ...]] = (1, 2)
 MANIFEST: Final[str] = "manifest.json"
 INDEX: Final[str] = "index.faiss"
 ENTRIES: Final[str] = "entries.jsonl"
+VOCABULARY: Final[str] = "vocabulary.json"  # the memory's own symbols, when it has a vocabulary
 
 
 class FailureMemory:
@@ -56,12 +59,17 @@ class FailureMemory:
         manifest: MemoryManifest | None = None,
         data_root: Path | None = None,
         successes: SuccessMemory | None = None,
+        vocabulary: Vocabulary | None = None,
     ) -> None:
         vectors = np.ascontiguousarray(vectors, dtype=np.float32)
         if vectors.ndim != 2 or len(vectors) != len(entries):
             raise MemoryFormatError(f"{len(entries)} entries but vectors of shape {vectors.shape}")
         self.vectors = vectors
-        self.entries = list(entries)
+        self.vocabulary = vocabulary  # the memory's own symbols beyond Table 5 (saved as vocabulary.json)
+        self.entries = [  # every entry grounds with the memory's vocabulary
+            entry if entry.vocabulary is vocabulary else replace(entry, vocabulary=vocabulary)
+            for entry in entries
+        ]
         self.encoder = encoder
         self.dim = int(vectors.shape[1]) if vectors.size else (manifest.dim if manifest is not None else 0)
         self.manifest = manifest if manifest is not None else MemoryManifest(encoder=encoder, dim=self.dim)
@@ -80,6 +88,7 @@ class FailureMemory:
         *,
         progress: Callable[[int], None] | None = None,
         data_root: Path | None = None,
+        vocabulary: Vocabulary | None = None,
     ) -> tuple[FailureMemory, BuildStats]:
         """The paper's memory alone (Algorithm 1), without success runs or provenance.
 
@@ -87,13 +96,14 @@ class FailureMemory:
         Image references are kept relative to `data_root` when saved (default: the folder that
         holds all of them), so the memory resolves from any working directory.
         """
-        encoded = encode_failures(trajectories, encoder, progress=progress)
+        encoded = encode_failures(trajectories, encoder, progress=progress, vocabulary=vocabulary)
         memory = cls(
             encoded.vectors,
             encoded.entries,
             encoder=encoder.identity,
             manifest=encoded.manifest(encoder.identity),
             data_root=data_root,
+            vocabulary=vocabulary,
         )
         return memory, encoded.stats
 
@@ -168,13 +178,17 @@ class FailureMemory:
             faiss.write_index(index, str(tmp / INDEX))
             with (tmp / ENTRIES).open("w", encoding="utf-8") as handle:
                 for entry in self.entries:
-                    stored = asdict(entry) | {
+                    stored = entry.to_dict() | {
                         "start": to_stored(entry.start, root),
                         "end": to_stored(entry.end, root),
                     }
                     handle.write(json.dumps(stored) + "\n")
             if self.successes is not None:
                 self.successes.write(tmp, root=root)
+            if self.vocabulary is not None:
+                (tmp / VOCABULARY).write_text(
+                    json.dumps(self.vocabulary.to_dict(), indent=2), encoding="utf-8"
+                )
             (tmp / MANIFEST).write_text(json.dumps(manifest.to_dict(), indent=2), encoding="utf-8")
         return directory
 
@@ -188,6 +202,7 @@ class FailureMemory:
             tasks=dict(sorted(Counter(e.task for e in self.entries).items())),
             views=sorted({e.view for e in self.entries}),
             symbols=dict(sorted(Counter(e.symbol for e in self.entries).items())),
+            vocabulary=VOCABULARY if self.vocabulary is not None else None,
             successes=self.successes.manifest() if self.successes is not None else None,
             created=self.manifest.created or datetime.now(UTC).isoformat(timespec="seconds"),
         )
@@ -233,12 +248,13 @@ class FailureMemory:
                 f"{manifest_path}: format_version {version!r}, this version of robofailring reads {readable}"
             )
         manifest = MemoryManifest.parse(manifest, manifest_path)
+        vocabulary = _stored_vocabulary(directory, manifest)
         try:
             index = faiss.read_index(str(directory / INDEX))
         except RuntimeError as error:
             raise MemoryFormatError(f"cannot read Faiss index {directory / INDEX}: {error}") from error
         entries = read_jsonl(
-            directory / ENTRIES, lambda record: MemoryEntry(**parse_entry(record)), what="entry"
+            directory / ENTRIES, lambda record: MemoryEntry(**parse_entry(record, vocabulary)), what="entry"
         )
         if index.ntotal != manifest.count or len(entries) != manifest.count or index.d != manifest.dim:
             raise MemoryFormatError(
@@ -263,6 +279,7 @@ class FailureMemory:
             manifest=manifest,
             data_root=root,
             successes=successes,
+            vocabulary=vocabulary,
         )
 
     def check_references(self) -> ReferenceCheck:
@@ -283,6 +300,20 @@ class FailureMemory:
     def _calibrated(self, key: str) -> float | None:
         calibration = self.manifest.calibration
         return calibration.threshold_for(self.encoder, key) if calibration is not None else None
+
+
+def _stored_vocabulary(directory: Path, manifest: MemoryManifest) -> Vocabulary | None:
+    """The vocabulary file a memory's manifest names (in the memory's own folder), or None."""
+    if manifest.vocabulary is None:
+        return None
+    if Path(manifest.vocabulary).name != manifest.vocabulary:
+        raise MemoryFormatError(
+            f"{directory / MANIFEST}: 'vocabulary' must name a file in the memory's folder"
+        )
+    try:
+        return read_vocabulary(directory / manifest.vocabulary)
+    except VocabularyError as error:
+        raise MemoryFormatError(f"{directory}: its vocabulary cannot be read: {error}") from error
 
 
 def encoder_spec_for(memory: FailureMemory) -> str:

@@ -11,7 +11,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Final, TypeVar
 
-from robofailring.data.grounding import parse_symbol
+from robofailring.data.grounding import Vocabulary, parse_symbol
 from robofailring.errors import MemoryFormatError, SymbolError
 
 ENTRY_FIELDS: Final[tuple[str, ...]] = ("task", "symbol", "episode", "view", "start", "end")
@@ -48,15 +48,19 @@ def read_jsonl(path: Path, parse: Callable[[Any], Row], *, what: str) -> list[Ro
     return rows
 
 
-def parse_entry(record: Any) -> dict[str, Any]:
-    """One row of entries.jsonl as the entry's fields; its failure symbol must parse (paper Table 5)."""
+def parse_entry(record: Any, vocabulary: Vocabulary | None = None) -> dict[str, Any]:
+    """One row of entries.jsonl as the entry's fields; its failure symbol must parse (paper Table 5
+    and the memory's `vocabulary`); an optional `description` is the label's own text."""
     if not isinstance(record, dict) or not set(ENTRY_FIELDS) <= set(record):
         raise MemoryFormatError(f"an entry is an object with {', '.join(ENTRY_FIELDS)}")
     wrong = [key for key in ENTRY_FIELDS if not isinstance(record[key], str)]
     if wrong:
         raise MemoryFormatError(f"{wrong[0]!r} must be a string, not {record[wrong[0]]!r}")
+    written = record.get("description")
+    if written is not None and not isinstance(written, str):
+        raise MemoryFormatError(f"'description' must be a string, not {written!r}")
     try:
-        parse_symbol(record["symbol"])
+        parse_symbol(record["symbol"], vocabulary)
     except SymbolError as error:
         raise MemoryFormatError(str(error)) from error
-    return record
+    return {key: record[key] for key in ENTRY_FIELDS} | {"written": written, "vocabulary": vocabulary}

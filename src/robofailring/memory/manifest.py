@@ -28,6 +28,7 @@ _ORDER: Final[tuple[str, ...]] = (
     "encoder_spec",
     "split",
     "data_root",
+    "vocabulary",
     "format_version",
     "encoder",
     "count",
@@ -61,6 +62,7 @@ _KINDS: Final[dict[str, Any]] = {
     "encoder_spec": lambda v: isinstance(v, str),
     "split": lambda v: isinstance(v, str),
     "data_root": lambda v: isinstance(v, str),
+    "vocabulary": lambda v: isinstance(v, str),
     "format_version": _whole,
     "tasks": lambda v: isinstance(v, dict),
     "views": lambda v: isinstance(v, list),
@@ -157,6 +159,7 @@ class MemoryManifest:
     views: list[str] | None = None
     symbols: dict[str, int] | None = None  # entries per failure symbol
     data_root: str | None = None  # absolute root the entries' references are stored relative to
+    vocabulary: str | None = None  # the memory's own symbols beyond Table 5: that file in its folder
     source: str | None = None  # the dataset the memory was built from
     layout: str | None = None  # that dataset's layout
     data_views: list[str] | None = None  # the views read from it (after `--views`)

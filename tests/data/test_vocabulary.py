@@ -1,0 +1,144 @@
+"""Your own failure words: outcome-only labels, free-text descriptions and a vocabulary file."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+from lerobot_writer import write_lerobot_v3
+from rrd import rows
+from synthetic import write_aha_dataset
+from typer.testing import CliRunner
+
+from rfr_viz.cli.app import app
+from rfr_viz.paths import REPLAY
+from robofailring import FailureMemory, ground
+from robofailring.data.grounding import UNTYPED_SENTENCE, Vocabulary, failure_type
+from robofailring.data.vocabulary import read_vocabulary
+from robofailring.errors import SymbolError, VocabularyError
+
+runner = CliRunner()
+KNOCKED = "the gripper knocking the cup over"
+
+
+def _run(*args: object) -> str:
+    result = runner.invoke(app, [str(arg) for arg in args])
+    assert result.exit_code == 0, result.output
+    return result.stdout
+
+
+def test_a_vocabulary_grounds_its_own_symbols_and_stages_and_refuses_bad_entries(tmp_path: Path) -> None:
+    words = tmp_path / "words.yaml"
+    words.write_text(f"symbols:\n  Knocked_Cup: {KNOCKED}.\nstages:\n  2: drawer-opening stage\n")
+    vocabulary = read_vocabulary(words)
+    assert vocabulary == Vocabulary(symbols={"knocked_cup": KNOCKED}, stages={2: "drawer-opening stage"})
+    assert (
+        ground("knocked_cup_wp2", vocabulary)
+        == f"The failure was caused by {KNOCKED} at the drawer-opening stage"
+    )
+    assert ground("slip_wp2", vocabulary).endswith(
+        "object slippage from the gripper at the drawer-opening stage"
+    )
+    assert ground("failure") == UNTYPED_SENTENCE and failure_type("knocked_cup", vocabulary) == "knocked_cup"
+    with pytest.raises(SymbolError, match=r"unknown failure token 'knocked'.*--vocabulary"):
+        ground("knocked_cup_wp2")  # without the vocabulary it is still a named error
+    for text, fault in [
+        ('{"symbols": {"a": "x", "A": "y"}}', "defined twice"),
+        ('{"symbols": {"a": "x", "a": "y"}}', "defined twice"),
+        ('{"symbols": {"a": ""}}', "empty sentence"),
+        ('{"symbols": {"slip": "mine"}}', "already a Table 5 symbol"),
+        ('{"symbols": {"a b": "x"}}', "lower-case words"),
+        ('{"symbols": {}}', "defines no symbol"),
+        ('{"words": {}}', "must be an object with 'symbols'"),
+    ]:
+        bad = tmp_path / "bad.json"
+        bad.write_text(text)
+        with pytest.raises(VocabularyError, match=fault):
+            read_vocabulary(bad)
+
+
+def test_outcome_only_labels_with_descriptions_build_detect_and_replay_on_lerobot(tmp_path: Path) -> None:
+    data = write_lerobot_v3(tmp_path / "so101", lengths=(8, 7, 9), tasks=("pick up the cube",) * 3)
+    labels = tmp_path / "labels.csv"
+    labels.write_text(
+        "episode_index,outcome,symbol,description\n"
+        "0,failure,,knocked the cup over\n"
+        "1,success,,\n"
+        "2,failure,,\n"
+    )
+    cache = ["--cache-dir", tmp_path / "cache"]
+    memory = tmp_path / "memory"
+    _run("build-memory", data, "--out", memory, "--labels", labels, *cache)
+    built = FailureMemory.load(memory)
+    sentences = {e.episode: (e.symbol, e.description) for e in built.entries}
+    assert sentences == {
+        "episode_0": ("failure", "knocked the cup over"),
+        "episode_2": ("failure", UNTYPED_SENTENCE),
+    }
+    found = json.loads(
+        _run(
+            "detect",
+            data,
+            "--memory",
+            memory,
+            "--trajectory",
+            "episode_0",
+            "--delta",
+            "0.5",
+            "--json",
+            *cache,
+        )
+    )
+    assert found["report"]["neighbors"][0]["description"] == "knocked the cup over"
+    out = tmp_path / "recordings"
+    _run(
+        "replay",
+        data,
+        "--memory",
+        memory,
+        "--trajectory",
+        "episode_0",
+        "--delta",
+        "0.5",
+        "--out",
+        out,
+        *cache,
+    )
+    (recording,) = out.glob("*.rrd")
+    text = rows(recording, REPLAY.report, "TextDocument:text")[-1][1][0]
+    assert "| `failure` | knocked the cup over |" in text  # the report's table of nearest entries
+
+
+def test_a_memory_keeps_its_vocabulary_and_grounds_the_same_when_copied(tmp_path: Path) -> None:
+    data = write_aha_dataset(
+        tmp_path / "data", tasks=("pick_cube",), symbols=("grasp_wp2",), episodes=2, length=3
+    )
+    words = tmp_path / "words.json"
+    words.write_text(json.dumps({"symbols": {"knocked_cup": KNOCKED}, "stages": {"2": "reach for the cup"}}))
+    labels = tmp_path / "labels.json"
+    labels.write_text(
+        json.dumps(
+            [{"episode": "pick_cube_grasp_wp2_episode0", "outcome": "failure", "symbol": "knocked_cup_wp2"}]
+        )
+    )
+    cache = ["--cache-dir", tmp_path / "cache"]
+    memory = tmp_path / "memory"
+    refused = runner.invoke(app, ["build-memory", str(data), "--out", str(memory), "--labels", str(labels)])
+    assert (
+        refused.exit_code == 2 and "unknown failure token 'knocked'" in refused.output and not memory.exists()
+    )
+    _run("build-memory", data, "--out", memory, "--labels", labels, "--vocabulary", words, *cache)
+    assert json.loads((memory / "manifest.json").read_text())["vocabulary"] == "vocabulary.json"
+    sentence = f"The failure was caused by {KNOCKED} at the reach for the cup"
+    copied = tmp_path / "elsewhere" / "memory"
+    shutil.copytree(memory, copied)
+    words.unlink()  # the copy needs nothing outside its folder
+    for folder in (memory, copied):
+        loaded = FailureMemory.load(folder)
+        assert {e.description for e in loaded.entries if e.symbol == "knocked_cup_wp2"} == {sentence}
+    episode = data / "pick_cube_grasp_wp2_episode0"
+    found = json.loads(_run("detect", episode, "--memory", copied, "--delta", "0.5", "--json", *cache))
+    assert found["report"]["neighbors"][0]["description"] in {sentence, ground("grasp_wp2")}
+    assert sentence in {n["description"] for n in found["report"]["neighbors"]}
