@@ -15,8 +15,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from rfr_viz.jobs.replay import check_fps
-from robofailring.detection.detector import check_delta, check_k, check_stride
-from robofailring.detection.rules import ScoreRule, check_target_fpr, check_threshold
+from robofailring.detection.conformal import check_target_fpr
+from robofailring.detection.detector import check_k, check_stride
+from robofailring.detection.rules import RULES
 from robofailring.errors import SettingError
 from robofailring.memory.thinning import check_step
 
@@ -57,9 +58,8 @@ NUMBER = st.one_of(st.floats(), st.integers(-(10**6), 10**6))
 CHECKS: dict[str, Callable[[Any], Any]] = {
     "k": check_k,
     "stride": check_stride,
-    "delta": check_delta,
     "target_fpr": check_target_fpr,
-    "gamma": lambda value: check_threshold(ScoreRule.CONTRAST, value),
+    **{rule.threshold_key: rule.check_threshold for rule in RULES.values()},
     "fps": check_fps,
     "success_step": check_step,
 }
