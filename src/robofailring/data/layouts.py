@@ -12,6 +12,7 @@ from robofailring.data import (
     layout_episode,
     layout_maniskill,
     layout_project,
+    layout_rosbag,
     layout_videos,
     lerobot,
 )
@@ -49,6 +50,7 @@ __all__ = [
 LAYOUTS: Final[tuple[Layout, ...]] = (
     layout_project.LAYOUT,
     lerobot.LAYOUT,
+    layout_rosbag.LAYOUT,
     layout_videos.LAYOUT,
     layout_aha.LAYOUT,
     layout_maniskill.LAYOUT,
