@@ -97,7 +97,9 @@ def write_bag(
     with writer:
         connections = []
         for topic, encoding in topics:
-            msgtype = "sensor_msgs/msg/CompressedImage" if encoding in ("jpeg", "png") else "sensor_msgs/msg/Image"
+            msgtype = (
+                "sensor_msgs/msg/CompressedImage" if encoding in ("jpeg", "png") else "sensor_msgs/msg/Image"
+            )
             connections.append(writer.add_connection(topic, msgtype, typestore=store))
         for name in extra_topics:
             text = writer.add_connection(name, "std_msgs/msg/String", typestore=store)

@@ -8,7 +8,7 @@ time, so a long bag is never held whole, and at most `_OPEN_LIMIT` bags are open
 Encodings rgb8, bgr8, mono8 and JPEG/PNG compressed images are read; any other is an error naming
 the topic and its encoding. The trajectory key is the bag's name (its folder, or the `.bag` file's
 stem); outcome and symbol come from `--labels` (`episode` column = the bag's name), the task from
-`--task`.
+`--task`, else it is the name of the folder holding the bag.
 """
 
 from __future__ import annotations
@@ -106,11 +106,11 @@ class BagFile:
     def _index(self) -> dict[str, Topic]:
         reader = self._open()
         images = [c for c in reader.connections if c.msgtype in (IMAGE, COMPRESSED)]
-        self._others = sorted(
-            {f"{c.topic} ({c.msgtype})" for c in reader.connections if c not in images}
-        )
+        self._others = sorted({f"{c.topic} ({c.msgtype})" for c in reader.connections if c not in images})
         stamps: dict[str, list[int]] = {c.topic: [] for c in images}
         types = {c.topic: c.msgtype for c in images}
+        if not images:  # rosbags reads every topic when given none
+            return {}
         try:
             for connection, stamp, _ in reader.messages(connections=images):
                 stamps[connection.topic].append(int(stamp))
@@ -189,7 +189,9 @@ def to_rgb(message: Any, msgtype: str, *, where: str) -> np.ndarray:
     channels = 1 if message.encoding == "mono8" else 3
     data = np.asarray(message.data, dtype=np.uint8)
     if step < width * channels or data.size < height * step:
-        raise DataError(f"{where}: {height}×{width} {message.encoding} needs {height * width * channels} bytes")
+        raise DataError(
+            f"{where}: {height}×{width} {message.encoding} needs {height * width * channels} bytes"
+        )
     rows = data[: height * step].reshape(height, step)[:, : width * channels]
     image = rows.reshape(height, width, channels)
     if channels == 1:
@@ -285,7 +287,10 @@ def read_bag_reference(reference: str) -> np.ndarray | None:
 
 
 def bag_trajectory(path: Path, *, task: str | None) -> Trajectory:
-    """One bag as one trajectory: a view per image topic; an error when it has none or one is unreadable."""
+    """One bag as one trajectory: a view per image topic; an error when it has none or one is unreadable.
+
+    The task is `task`, else the name of the folder holding the bag (bags carry no task).
+    """
     bag = open_bag(path)
     topics = bag.topics
     if not topics:
@@ -295,17 +300,17 @@ def bag_trajectory(path: Path, *, task: str | None) -> Trajectory:
         )
     for name in topics:
         bag.check(name)
-    if task is None:
-        raise DataError(f"cannot tell the task of ROS bag {path}; pass it with --task")
     first = next(iter(topics.values())).times
     span = (int(first[-1]) - int(first[0])) / 1e9
     return Trajectory(
-        task=task,
+        task=task or path.resolve().parent.name,
         episode=bag_name(path),
         views={name: BagFrames(bag, name) for name in topics},
         source=path,
         fps=(len(first) - 1) / span if span > 0 else None,
-        skipped=tuple(Skipped(path, f"topic {other}: not an image topic, not read") for other in bag.other_topics),
+        skipped=tuple(
+            Skipped(path, f"topic {other}: not an image topic, not read") for other in bag.other_topics
+        ),
     )
 
 
