@@ -61,7 +61,7 @@ def _child(mode: str, bag: str, memory: str, out: str, cache: str) -> None:
 
 
 def _measure(mode: str, bag: Path, memory: Path, work: Path) -> float:
-    out, cache = work / f"rec-{mode}-{bag.name}", work / "cache"
+    out, cache = work / f"rec-{mode}-{bag.name}", work / "cache"  # `bag`: a folder holding one episode
     command = [sys.executable, __file__, "--child", mode, str(bag), str(memory), str(out), str(cache)]
     env = {**os.environ, "ROBOFAILRING_PROGRESS": "0", "PYTHONPATH": os.pathsep.join(sys.path[:3])}
     done = subprocess.run(command, capture_output=True, text=True, env=env, check=False)
@@ -118,14 +118,14 @@ def main() -> None:
         print(f"{'messages':>9} {'bag MiB':>8} {'read MiB':>9} {'replay MiB':>11} {'PNG replay MiB':>15}")
         for length in lengths:
             bag = write_bag(
-                work / "bags" / f"run_{length}{suffix}",
+                work / f"bags_{length}" / f"run_{length}{suffix}",
                 kind=args.kind,
                 topics=topics,
                 frames=_frames(args.size),
                 count=length,
             )
-            read = _measure("read", bag, memory, work)
-            replay = _measure("replay", bag, memory, work)
+            read = _measure("read", bag.parent, memory, work)  # a folder of one bag (a .bag file too)
+            replay = _measure("replay", bag.parent, memory, work)
             folder = work / "png" / f"run_{length}" / "front"
             folder.mkdir(parents=True)
             for t in range(length):
