@@ -6,7 +6,8 @@ Bags are written with rosbags' own writer (one `rgb8` topic, `--size` px). A mem
 failure bags is built once with the `pixels` encoder. Each measurement runs in a fresh subprocess,
 which reports its own peak RSS (`resource.getrusage(RUSAGE_SELF).ru_maxrss`):
   read:   open the bag and decode every frame once (the layout's reader alone);
-  replay: `robofailring replay BAG --memory M --out DIR` (reader, detector and recording together).
+  replay: `robofailring replay FOLDER --memory M --out DIR` on a folder holding the one bag (reader,
+          detector and recording together).
 The bag's size on disk is printed beside them: a reader that kept the messages would grow by it.
 Control: the same frames as a folder of PNG files (`<episode>/<view>/<n>.png`) replayed the same way,
 so what the replay itself keeps per frame (scores, the recording) is told apart from the bag reader.

@@ -15,12 +15,13 @@ def test_layouts_are_tried_in_the_detection_order() -> None:
     assert [layout.name for layout in LAYOUTS] == [
         "project",
         "lerobot",
+        "rosbag",
         "videos",
         "aha",
         "maniskill",
         "episode",
     ]
-    assert sorted(layout.listed for layout in LAYOUTS) == [1, 2, 3, 4, 5, 6]
+    assert sorted(layout.listed for layout in LAYOUTS) == [1, 2, 3, 4, 5, 6, 7]
     for layout in LAYOUTS:  # the error lists every layout's help under its number
         assert f"({layout.listed}) {layout.help}" in LAYOUTS_HELP
 

@@ -343,6 +343,6 @@ LAYOUT: Final = register(
         detect=_detect,
         read=bag_trajectories,
         help="ROS bags: a ROS 2 bag folder (metadata.yaml + .mcap/.db3), or a folder of them or of ROS 1 .bag files",
-        listed=10,
+        listed=7,
     )
 )
