@@ -6,6 +6,7 @@ from pathlib import Path
 from typing import Final
 
 from robofailring.data.images import encode_jpeg, read_image
+from robofailring.data.layout_rosbag import BAG_MESSAGE_MARKER, read_bag_reference
 from robofailring.data.model import Frame
 from robofailring.data.video import read_video_reference
 from robofailring.errors import DataError
@@ -30,9 +31,10 @@ def frame_jpeg(frame: Frame, *, quality: int = JPEG_QUALITY) -> bytes:
 def reference_jpeg(reference: str, *, quality: int = JPEG_QUALITY) -> bytes | None:
     """JPEG bytes of a memory entry's start/end image, or None when the file is not there."""
     path = Path(reference)
-    if "#frame=" in reference:  # a frame of a video (LeRobot camera, video episode)
+    if BAG_MESSAGE_MARKER in reference or "#frame=" in reference:  # a bag message, a video frame
+        read = read_bag_reference if BAG_MESSAGE_MARKER in reference else read_video_reference
         try:
-            image = read_video_reference(reference)
+            image = read(reference)
         except DataError:
             return None
         return None if image is None else encode_jpeg(image, quality=quality)

@@ -17,13 +17,14 @@ def test_layouts_are_tried_in_the_detection_order() -> None:
         "lerobot",
         "aloha",
         "robomimic",
+        "rosbag",
         "videos",
         "aha",
         "maniskill",
         "images",
         "episode",
     ]
-    assert sorted(layout.listed for layout in LAYOUTS) == [1, 2, 3, 4, 5, 6, 7, 8, 9]
+    assert sorted(layout.listed for layout in LAYOUTS) == [1, 2, 3, 4, 5, 6, 7, 8, 9, 10]
     for layout in LAYOUTS:  # the error lists every layout's help under its number
         assert f"({layout.listed}) {layout.help}" in LAYOUTS_HELP
 

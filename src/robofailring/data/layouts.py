@@ -15,6 +15,7 @@ from robofailring.data import (
     layout_maniskill,
     layout_project,
     layout_robomimic,
+    layout_rosbag,
     layout_videos,
     lerobot,
 )
@@ -58,6 +59,7 @@ LAYOUTS: Final[tuple[Layout, ...]] = (
     lerobot.LAYOUT,
     layout_aloha.LAYOUT,
     layout_robomimic.LAYOUT,
+    layout_rosbag.LAYOUT,
     layout_videos.LAYOUT,
     layout_aha.LAYOUT,
     layout_maniskill.LAYOUT,

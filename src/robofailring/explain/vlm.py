@@ -18,6 +18,7 @@ from typing import Any, Final
 import httpx
 
 from robofailring.data.images import encode_jpeg, read_image
+from robofailring.data.layout_rosbag import BAG_MESSAGE_MARKER, read_bag_reference
 from robofailring.data.video import read_video_reference
 from robofailring.errors import DataError, RoboFailRingError
 from robofailring.explain.report import FailureReport, VLMClient
@@ -92,10 +93,12 @@ class VLMAnswer:
 
 def image_data_url(reference: str) -> str:
     """A report image as a `data:image/jpeg;base64,…` URL (JPEG files pass through unchanged)."""
-    if VIDEO_FRAME_MARKER in reference:  # a frame of a video (LeRobot camera, video episode)
-        image = read_video_reference(reference)
+    if BAG_MESSAGE_MARKER in reference or VIDEO_FRAME_MARKER in reference:  # a bag message, a video frame
+        bag = BAG_MESSAGE_MARKER in reference
+        image = read_bag_reference(reference) if bag else read_video_reference(reference)
         if image is None:
-            raise DataError(f"report image {reference} is not a readable video frame; the VLM needs it")
+            what = "ROS bag message" if bag else "video frame"
+            raise DataError(f"report image {reference} is not a readable {what}; the VLM needs it")
         return "data:image/jpeg;base64," + base64.b64encode(encode_jpeg(image, quality=90)).decode("ascii")
     path = Path(reference)
     if reference.startswith("<") or not path.is_file():

@@ -13,6 +13,8 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 
+from robofailring.data.layout_rosbag import BAG_MESSAGE_MARKER
+
 ARRAY_REFERENCE = "<array>"
 VIDEO_FRAME_MARKER = "#frame="
 
@@ -87,15 +89,24 @@ class ReferenceCheck:
 
 def reference_file(reference: str) -> str:
     """The file behind a reference: a video frame ``<file>#frame=<i>`` lives in ``<file>``, an HDF5 row
-    ``<file>#/<dataset>#frame=<i>`` too."""
+    ``<file>#/<dataset>#frame=<i>`` too, and a ROS bag message ``<bag>#topic=<topic>&message=<i>`` in
+    ``<bag>`` (a ROS 2 bag is a folder)."""
+    bag, marker, _ = reference.partition(BAG_MESSAGE_MARKER)
+    if marker:
+        return bag
     path, marker, _ = reference.rpartition(VIDEO_FRAME_MARKER)
     return path.partition("#/")[0] if marker else reference
+
+
+def _is_there(file: str) -> bool:
+    """A reference's file exists (an image, a video, a `.bag` file or a ROS 2 bag folder)."""
+    return os.path.isfile(file) or os.path.isdir(file)
 
 
 def check_references(references: Iterable[str]) -> ReferenceCheck:
     """Stat each distinct file reference once."""
     unique = sorted({ref for ref in references if is_file_reference(ref)})
-    missing = tuple(ref for ref in unique if not os.path.isfile(reference_file(ref)))
+    missing = tuple(ref for ref in unique if not _is_there(reference_file(ref)))
     return ReferenceCheck(total=len(unique), missing=missing)
 
 
@@ -141,13 +152,13 @@ def relocate(reference: str, root: Path) -> str:
     The longest trailing part of its path that exists under `root` wins; a reference that exists,
     or is found nowhere under `root`, is returned unchanged.
     """
-    if not is_file_reference(reference) or os.path.isfile(reference_file(reference)):
+    if not is_file_reference(reference) or _is_there(reference_file(reference)):
         return reference
     file = reference_file(reference)
-    fragment = reference[len(file) :]  # `#frame=<i>` of a video frame, else empty
+    fragment = reference[len(file) :]  # `#frame=<i>` of a video frame, `#topic=…` of a bag, else empty
     parts = Path(file).parts
     for keep in range(len(parts) - 1, 0, -1):
         candidate = Path(root, *parts[-keep:])
-        if candidate.is_file():
+        if _is_there(str(candidate)):
             return f"{candidate}{fragment}"
     return reference

@@ -1,0 +1,349 @@
+"""ROS bags: a ROS 2 bag folder (`metadata.yaml` + `.mcap` or `.db3`) or a ROS 1 `.bag` file per episode.
+
+Read with `rosbags` (pure Python, both ROS 2 storage formats). Each `sensor_msgs/msg/Image` or
+`sensor_msgs/msg/CompressedImage` topic is a view named by its topic (`/cam_front/image_raw`); frame
+i of a view is the topic's i-th message in log-time order. Opening a bag lists every image
+message's log time once (nothing kept but the times); a frame reads its one message on demand, by
+time, so a long bag is never held whole, and at most `_OPEN_LIMIT` bags are open at once.
+Encodings rgb8, bgr8, mono8 and JPEG/PNG compressed images are read; any other is an error naming
+the topic and its encoding. The trajectory key is the bag's name (its folder, or the `.bag` file's
+stem); outcome and symbol come from `--labels` (`episode` column = the bag's name), the task from
+`--task`, else it is the name of the folder holding the bag.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections import OrderedDict
+from collections.abc import Sequence
+from contextlib import closing
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Final, overload
+
+import numpy as np
+
+from robofailring.data.folders import visible
+from robofailring.data.images import content_digest, decode_image
+from robofailring.data.model import Frame, Skipped, Trajectory
+from robofailring.data.registry import Found, Layout, register
+from robofailring.errors import DataError
+
+ROS2_METADATA: Final[str] = "metadata.yaml"
+ROS1_SUFFIX: Final[str] = ".bag"
+IMAGE: Final[str] = "sensor_msgs/msg/Image"
+COMPRESSED: Final[str] = "sensor_msgs/msg/CompressedImage"
+RAW_ENCODINGS: Final[tuple[str, ...]] = ("rgb8", "bgr8", "mono8")
+COMPRESSED_FORMATS: Final[tuple[str, ...]] = ("jpeg", "jpg", "png")
+#: A bag frame's reference: `<bag>#topic=<topic>&message=<i>` (the bag is `reference_file`'s file).
+BAG_MESSAGE_MARKER: Final[str] = "#topic="
+_OPEN_LIMIT: Final[int] = 8  # bags kept open at once (a folder of bags is read one bag after another)
+
+
+def is_bag(path: Path) -> bool:
+    """A ROS 2 bag folder (it holds `metadata.yaml`) or a ROS 1 `.bag` file."""
+    return (path.is_dir() and (path / ROS2_METADATA).is_file()) or (
+        path.is_file() and path.suffix == ROS1_SUFFIX
+    )
+
+
+def bag_name(path: Path) -> str:
+    """The trajectory key of a bag: its folder's name, or the `.bag` file's stem."""
+    return path.stem if path.is_file() else path.name
+
+
+@dataclass(frozen=True)
+class Topic:
+    """One image topic of a bag: its message type and the log time (ns) of each message, in order."""
+
+    name: str
+    msgtype: str
+    times: np.ndarray  # int64 log times, sorted
+    repeat: np.ndarray  # how many earlier messages of the topic share each time (read the n-th one)
+
+
+class BagFile:
+    """One bag: its image topics listed once, one message read and decoded on demand."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = Path(path)
+        self._reader: Any = None
+        self._topics: dict[str, Topic] | None = None
+        self._others: list[str] = []  # non-image topics, `name (type)`
+        self._lock = threading.RLock()
+
+    def __repr__(self) -> str:
+        return f"BagFile({str(self.path)!r})"
+
+    def _open(self) -> Any:
+        from rosbags.highlevel import AnyReader, AnyReaderError
+        from rosbags.typesys import Stores, get_typestore
+
+        if self._reader is None:
+            reader = AnyReader([self.path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
+            try:
+                reader.open()
+            except (AnyReaderError, OSError, ValueError, KeyError) as error:
+                raise DataError(f"cannot read ROS bag {self.path}: {error}") from error
+            self._reader = reader
+            _remember_open(self)
+        return self._reader
+
+    @property
+    def topics(self) -> dict[str, Topic]:
+        """The image topics by name, their messages' log times listed once (no message decoded)."""
+        with self._lock:
+            if self._topics is None:
+                self._topics = self._index()
+            return self._topics
+
+    @property
+    def other_topics(self) -> list[str]:
+        """The topics that are not images, as `name (type)`."""
+        _ = self.topics
+        return list(self._others)
+
+    def _index(self) -> dict[str, Topic]:
+        reader = self._open()
+        images = [c for c in reader.connections if c.msgtype in (IMAGE, COMPRESSED)]
+        self._others = sorted({f"{c.topic} ({c.msgtype})" for c in reader.connections if c not in images})
+        stamps: dict[str, list[int]] = {c.topic: [] for c in images}
+        types = {c.topic: c.msgtype for c in images}
+        if not images:  # rosbags reads every topic when given none
+            return {}
+        try:
+            for connection, stamp, _ in reader.messages(connections=images):
+                stamps[connection.topic].append(int(stamp))
+        except Exception as error:  # rosbags raises its own reader errors per storage format
+            raise DataError(f"cannot read ROS bag {self.path}: {error}") from error
+        topics = {}
+        for name in sorted(stamps):
+            times = np.asarray(sorted(stamps[name]), dtype=np.int64)
+            if not len(times):
+                continue
+            starts = np.searchsorted(times, times, side="left")
+            topics[name] = Topic(name, types[name], times, np.arange(len(times)) - starts)
+        return topics
+
+    def raw(self, topic: str, index: int) -> tuple[str, bytes]:
+        """The message type and serialized bytes of message `index` of `topic`."""
+        found = self.topics.get(topic)
+        if found is None or not 0 <= index < len(found.times):
+            count = 0 if found is None else len(found.times)
+            raise DataError(f"ROS bag {self.path} has {count} messages on {topic}; no message {index}")
+        stamp, repeat = int(found.times[index]), int(found.repeat[index])
+        with self._lock:
+            reader = self._open()
+            connections = [c for c in reader.connections if c.topic == topic]
+            with closing(reader.messages(connections=connections, start=stamp, stop=stamp + 1)) as messages:
+                for number, (_, _, data) in enumerate(messages):
+                    if number == repeat:
+                        return found.msgtype, bytes(data)
+        raise DataError(f"ROS bag {self.path}: message {index} of {topic} (at {stamp} ns) is not there")
+
+    def image(self, topic: str, index: int) -> np.ndarray:
+        """Message `index` of `topic` as (H, W, 3) uint8 RGB."""
+        msgtype, data = self.raw(topic, index)
+        with self._lock:
+            message = self._open().deserialize(data, msgtype)
+        return to_rgb(message, msgtype, where=f"{topic} message {index} of ROS bag {self.path}")
+
+    def check(self, topic: str) -> None:
+        """An error naming the topic and its encoding when its first message is not a readable image."""
+        msgtype, data = self.raw(topic, 0)
+        with self._lock:
+            message = self._open().deserialize(data, msgtype)
+        problem = encoding_problem(message, msgtype)
+        if problem is not None:
+            raise DataError(
+                f"ROS bag {self.path}: topic {topic} has {problem}; readable: Image encodings "
+                f"{', '.join(RAW_ENCODINGS)} and CompressedImage {'/'.join(COMPRESSED_FORMATS)}"
+            )
+
+    def close(self) -> None:
+        with self._lock:
+            if self._reader is not None:
+                self._reader.close()
+            self._reader = None
+
+
+def encoding_problem(message: Any, msgtype: str) -> str | None:
+    """What makes an image message unreadable (`encoding '16UC1'`), or None when it is readable."""
+    if msgtype == IMAGE:
+        encoding = str(message.encoding)
+        return None if encoding in RAW_ENCODINGS else f"encoding {encoding!r}"
+    form = str(message.format).lower()
+    if any(name in form for name in COMPRESSED_FORMATS) and "compresseddepth" not in form:
+        return None
+    return f"CompressedImage format {message.format!r}"
+
+
+def to_rgb(message: Any, msgtype: str, *, where: str) -> np.ndarray:
+    """An Image (rgb8, bgr8, mono8) or CompressedImage (JPEG, PNG) message as (H, W, 3) uint8 RGB."""
+    problem = encoding_problem(message, msgtype)
+    if problem is not None:
+        raise DataError(f"{where}: {problem} is not readable")
+    if msgtype == COMPRESSED:
+        return decode_image(bytes(message.data), source=where)
+    height, width, step = int(message.height), int(message.width), int(message.step)
+    channels = 1 if message.encoding == "mono8" else 3
+    data = np.asarray(message.data, dtype=np.uint8)
+    if step < width * channels or data.size < height * step:
+        raise DataError(
+            f"{where}: {height}×{width} {message.encoding} needs {height * width * channels} bytes"
+        )
+    rows = data[: height * step].reshape(height, step)[:, : width * channels]
+    image = rows.reshape(height, width, channels)
+    if channels == 1:
+        image = np.repeat(image, 3, axis=2)
+    elif message.encoding == "bgr8":
+        image = image[:, :, ::-1]
+    return np.ascontiguousarray(image)
+
+
+_OPEN: OrderedDict[int, BagFile] = OrderedDict()
+_OPEN_LOCK = threading.Lock()
+
+
+def _remember_open(bag: BagFile) -> None:
+    """Keep at most `_OPEN_LIMIT` bags open; close the least recently opened beyond that."""
+    with _OPEN_LOCK:
+        _OPEN[id(bag)] = bag
+        _OPEN.move_to_end(id(bag))
+        while len(_OPEN) > _OPEN_LIMIT:
+            _, oldest = _OPEN.popitem(last=False)
+            if oldest is not bag:
+                oldest.close()
+
+
+_BAGS: dict[str, BagFile] = {}
+
+
+def open_bag(path: Path) -> BagFile:
+    """The shared reader of one bag (the frames of a bag share its index)."""
+    key = str(Path(path).resolve())
+    found = _BAGS.get(key)
+    if found is None:
+        found = _BAGS[key] = BagFile(Path(path))
+    return found
+
+
+@dataclass(frozen=True)
+class BagFrame:
+    """Where one frame lives: message `index` of an image topic of a bag."""
+
+    bag: BagFile
+    topic: str
+    index: int
+
+    def load(self) -> np.ndarray:
+        return self.bag.image(self.topic, self.index)
+
+    def content_key(self) -> str:
+        """Keyed by the message's serialized bytes (read, not decoded)."""
+        msgtype, data = self.bag.raw(self.topic, self.index)
+        return content_digest(b"rosbag:" + msgtype.encode() + b":" + data)
+
+    @property
+    def reference(self) -> str:
+        return f"{self.bag.path}{BAG_MESSAGE_MARKER}{self.topic}&message={self.index}"
+
+
+class BagFrames(Sequence[Frame]):
+    """The messages of one image topic of a bag as a lazy sequence of `Frame`."""
+
+    def __init__(self, bag: BagFile, topic: str) -> None:
+        self.bag = bag
+        self.topic = topic
+        self._count = len(bag.topics[topic].times)
+
+    def __len__(self) -> int:
+        return self._count
+
+    @overload
+    def __getitem__(self, item: int) -> Frame: ...
+    @overload
+    def __getitem__(self, item: slice) -> Sequence[Frame]: ...
+    def __getitem__(self, item: int | slice) -> Frame | Sequence[Frame]:
+        if isinstance(item, slice):
+            return [self[i] for i in range(*item.indices(len(self)))]
+        if item < 0:
+            item += self._count
+        if not 0 <= item < self._count:
+            raise IndexError(f"frame {item} of {self._count}")
+        return Frame(source=BagFrame(self.bag, self.topic, item))
+
+    def __repr__(self) -> str:
+        return f"BagFrames({self.bag!r}, {self.topic!r}, {self._count} messages)"
+
+
+def read_bag_reference(reference: str) -> np.ndarray | None:
+    """The frame a `<bag>#topic=<topic>&message=<i>` reference points at, or None when it is not one."""
+    path, marker, rest = reference.partition(BAG_MESSAGE_MARKER)
+    topic, _, index = rest.rpartition("&message=")
+    if not marker or not index.isdigit() or not is_bag(Path(path)):
+        return None
+    return open_bag(Path(path)).image(topic, int(index))
+
+
+def bag_trajectory(path: Path, *, task: str | None) -> Trajectory:
+    """One bag as one trajectory: a view per image topic; an error when it has none or one is unreadable.
+
+    The task is `task`, else the name of the folder holding the bag (bags carry no task).
+    """
+    bag = open_bag(path)
+    topics = bag.topics
+    if not topics:
+        there = ", ".join(bag.other_topics) or "no topics with messages"
+        raise DataError(
+            f"ROS bag {path} has no image topic ({IMAGE} or {COMPRESSED} with messages); it holds: {there}"
+        )
+    for name in topics:
+        bag.check(name)
+    first = next(iter(topics.values())).times
+    span = (int(first[-1]) - int(first[0])) / 1e9
+    return Trajectory(
+        task=task or path.resolve().parent.name,
+        episode=bag_name(path),
+        views={name: BagFrames(bag, name) for name in topics},
+        source=path,
+        fps=(len(first) - 1) / span if span > 0 else None,
+        skipped=tuple(
+            Skipped(path, f"topic {other}: not an image topic, not read") for other in bag.other_topics
+        ),
+    )
+
+
+def bag_trajectories(root: Path, *, task: str | None = None) -> Found:
+    """A ROS 2 bag folder (one episode), or a folder of bags (one episode each); other entries reported."""
+    root = Path(root)
+    if is_bag(root):
+        return [bag_trajectory(root, task=task)], []
+    found: list[Trajectory] = []
+    skipped: list[Skipped] = []
+    for entry in visible(root):
+        if is_bag(entry):
+            found.append(bag_trajectory(entry, task=task))
+        else:
+            skipped.append(Skipped(entry, "not a ROS bag (a folder with metadata.yaml, or a .bag file)"))
+    names = [t.episode for t in found]
+    twice = sorted({name for name in names if names.count(name) > 1})
+    if twice:
+        raise DataError(f"{root} holds two bags named {twice[0]!r} (a folder and a .bag file); rename one")
+    return found, skipped
+
+
+def _detect(root: Path) -> bool:
+    return is_bag(root) or any(is_bag(entry) for entry in visible(root))
+
+
+LAYOUT: Final = register(
+    Layout(
+        name="rosbag",
+        detect=_detect,
+        read=bag_trajectories,
+        help="ROS bags: a ROS 2 bag folder (metadata.yaml + .mcap/.db3), or a folder of them or of ROS 1 .bag files",
+        listed=10,
+        outcomes_in_data=False,
+    )
+)

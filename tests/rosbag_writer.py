@@ -1,0 +1,113 @@
+"""Small ROS bags written with rosbags' own writers (ROS 1 `.bag`; ROS 2 with MCAP or SQLite storage).
+
+Each image topic is written as `sensor_msgs/msg/Image` in its encoding (rgb8, bgr8, mono8, or any
+other name, e.g. 16UC1, written as two bytes a pixel) or as a JPEG/PNG `sensor_msgs/msg/CompressedImage`
+(encoding `jpeg` / `png`). Frames come from `FrameFn(topic number, t)` as RGB; mono8 topics store
+their first channel. Messages of a topic are 0.1 s apart, log time = header stamp.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+FrameFn = Callable[[int, int], np.ndarray]  # (topic number, t) -> RGB
+Topics = Sequence[tuple[str, str]]  # (topic, encoding: rgb8 | bgr8 | mono8 | jpeg | png | other)
+START_NS = 1_700_000_000 * 10**9
+PERIOD_NS = 100_000_000
+
+
+def stored(image: np.ndarray, encoding: str) -> np.ndarray:
+    """What a topic of this encoding holds of an RGB frame, read back as RGB (exact for raw ones)."""
+    if encoding == "mono8":
+        return np.repeat(image[:, :, :1], 3, axis=2)
+    return image
+
+
+def _typestore() -> Any:
+    from rosbags.typesys import Stores, get_typestore
+
+    return get_typestore(Stores.ROS2_HUMBLE)
+
+
+def _message(store: Any, image: np.ndarray, encoding: str, stamp: int) -> tuple[str, Any]:
+    types = store.types
+    header = types["std_msgs/msg/Header"](
+        stamp=types["builtin_interfaces/msg/Time"](sec=stamp // 10**9, nanosec=stamp % 10**9), frame_id="cam"
+    )
+    height, width = image.shape[:2]
+    if encoding in ("jpeg", "png"):
+        ok, data = cv2.imencode(f".{'jpg' if encoding == 'jpeg' else 'png'}", image[:, :, ::-1])
+        assert ok
+        message = types["sensor_msgs/msg/CompressedImage"](
+            header=header, format=encoding, data=np.asarray(data, dtype=np.uint8).ravel()
+        )
+        return "sensor_msgs/msg/CompressedImage", message
+    if encoding == "rgb8":
+        pixels = image
+    elif encoding == "bgr8":
+        pixels = image[:, :, ::-1]
+    elif encoding == "mono8":
+        pixels = image[:, :, :1]
+    else:  # another encoding (16UC1, …): two bytes a pixel, whatever they hold
+        pixels = np.repeat(image[:, :, :1], 2, axis=2)
+    data = np.ascontiguousarray(pixels, dtype=np.uint8).ravel()
+    message = types["sensor_msgs/msg/Image"](
+        header=header,
+        height=height,
+        width=width,
+        encoding=encoding,
+        is_bigendian=0,
+        step=width * pixels.shape[2],
+        data=data,
+    )
+    return "sensor_msgs/msg/Image", message
+
+
+def write_bag(
+    path: Path,
+    *,
+    kind: str,
+    topics: Topics,
+    frames: FrameFn,
+    count: int,
+    extra_topics: Sequence[str] = (),
+) -> Path:
+    """A bag at `path` (`kind`: ros1 → a `.bag` file; mcap / sqlite3 → a ROS 2 bag folder).
+
+    `extra_topics` are `std_msgs/msg/String` topics with one message each (not images).
+    """
+    from rosbags.rosbag1 import Writer as Writer1
+    from rosbags.rosbag2 import StoragePlugin
+    from rosbags.rosbag2 import Writer as Writer2
+
+    store = _typestore()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if kind == "ros1":
+        writer: Any = Writer1(path)
+        serialize = store.serialize_ros1
+    else:
+        plugin = StoragePlugin.MCAP if kind == "mcap" else StoragePlugin.SQLITE3
+        writer = Writer2(path, version=9, storage_plugin=plugin)
+        serialize = store.serialize_cdr
+    with writer:
+        connections = []
+        for topic, encoding in topics:
+            msgtype = (
+                "sensor_msgs/msg/CompressedImage" if encoding in ("jpeg", "png") else "sensor_msgs/msg/Image"
+            )
+            connections.append(writer.add_connection(topic, msgtype, typestore=store))
+        for name in extra_topics:
+            text = writer.add_connection(name, "std_msgs/msg/String", typestore=store)
+            string = store.types["std_msgs/msg/String"](data="hello")
+            writer.write(text, START_NS, serialize(string, "std_msgs/msg/String"))
+        for t in range(count):
+            stamp = START_NS + t * PERIOD_NS
+            for number, ((_, encoding), connection) in enumerate(zip(topics, connections, strict=True)):
+                msgtype, message = _message(store, frames(number, t), encoding, stamp)
+                writer.write(connection, stamp, serialize(message, msgtype))
+    return path
