@@ -14,7 +14,7 @@ from rfr_viz.panels.camera_video import CameraCodec
 from rfr_viz.recordings.replay import record_replay
 from robofailring.atomic import output_lock, remove_file_leftovers
 from robofailring.data.layouts import load_dataset
-from robofailring.detection.rules import CONTRAST, PAPER, ScoringRule, rule_named
+from robofailring.detection.rules import CONTRAST, NOVELTY, PAPER, ScoringRule, rule_named
 from robofailring.errors import DataError
 from robofailring.explain.vlm import VLMConfig
 from robofailring.outputs import check_output_folder, check_recording_file
@@ -45,7 +45,8 @@ def review(config: ReviewConfig) -> ReplayResult:
     try:
         evaluation = json.loads(Path(config.evaluation).read_text(encoding="utf-8"))
         rules = evaluation.get("rules") or {}
-        rule = rule_named(config.score or (CONTRAST.name if CONTRAST.name in rules else PAPER.name))
+        shown = next((r.name for r in (CONTRAST, NOVELTY) if r.name in rules), PAPER.name)
+        rule = rule_named(config.score or shown)
         field = "false_alarms" if config.kind == "false-alarms" else "misses"
         if rule.name in rules:
             keys = list(rules[rule.name][field])
@@ -76,8 +77,9 @@ def _replay_keys(
         return result
     loaded = load_detector(
         memory_dir,
-        delta=threshold if rule.threshold_key == PAPER.threshold_key else None,
-        gamma=threshold if rule.threshold_key == CONTRAST.threshold_key else None,
+        delta=threshold if rule is PAPER else None,
+        gamma=threshold if rule is CONTRAST else None,
+        eta=threshold if rule is NOVELTY else None,
         score=rule.name,
         k=k,
         encoder=None,
