@@ -2,7 +2,7 @@
 
 Charts are built from the evaluation JSON (`EvaluationResult.to_dict()`), one series per scoring
 rule: today's evaluation has the paper's rule (S_t ≥ δ); an evaluation whose JSON has a `rules`
-mapping (e.g. `rules.paper`, `rules.contrast`) shows every rule side by side. A rule's dict holds
+mapping (e.g. `rules.paper`, `rules.contrast`, `rules.novelty`) shows every rule side by side. A rule's dict holds
 the same keys as the top level (`sweep`, `paper_deltas`, `recall_per_type`, `view_ablation`,
 `progress_histogram`, `operating_delta`); rows and operating points may name their threshold
 `delta`, `gamma` or `threshold`.
@@ -91,7 +91,12 @@ def _rule(name: str, data: Mapping[str, Any], top: Mapping[str, Any]) -> Rule:
     def get(key: str, default: Any = None) -> Any:
         return data.get(key, top.get(key, default))
 
-    symbol = "γ" if name == "contrast" or any("gamma" in r for r in get("sweep", [])[:1]) else "δ"
+    symbol = (
+        data.get("symbol")
+        or (  # evaluations written before rules named their symbol
+            "γ" if name == "contrast" or any("gamma" in r for r in get("sweep", [])[:1]) else "δ"
+        )
+    )
     keys = ("operating_threshold", "operating_delta", "operating_gamma")  # the rule's own first
     found = [source[key] for source in (data, top) for key in keys if source.get(key) is not None]
     operating = float(found[0]) if found else math.nan

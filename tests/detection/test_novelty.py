@@ -56,7 +56,9 @@ def success_only(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, 
     root = tmp_path_factory.mktemp("novelty")
     data = write_project_dataset(root / "data", tasks=("pick_cube",), symbols=(), episodes=6, length=6)
     build_memory(
-        BuildMemoryConfig(data=data, encoder="pixels", out=root / "memory", split="train", cache_dir=root / "c")
+        BuildMemoryConfig(
+            data=data, encoder="pixels", out=root / "memory", split="train", cache_dir=root / "c"
+        )
     )
     return data, root / "memory", root / "c"
 
@@ -64,22 +66,33 @@ def success_only(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, 
 def test_success_runs_alone_build_a_memory_with_an_empty_failure_memory(
     success_only: tuple[Path, Path, Path],
 ) -> None:
-    data, memory_dir, _ = success_only
+    _data, memory_dir, _ = success_only
     memory = FailureMemory.load(memory_dir)
     assert len(memory) == 0 and memory.successes is not None
     assert memory.tasks == ["pick_cube"] and not memory.has_failures("pick_cube")
-    assert memory.task_size("pick_cube") == 0 and memory.successes.success_runs == 3 * 3  # 3 train runs × 3 views
+    assert (
+        memory.task_size("pick_cube") == 0 and memory.successes.success_runs == 3 * 3
+    )  # 3 train runs × 3 views
     manifest = json.loads((memory_dir / "manifest.json").read_text(encoding="utf-8"))
-    assert manifest["count"] == 0 and manifest["tasks"] == {} and manifest["successes"]["tasks"] == {"pick_cube": 9}
+    assert (
+        manifest["count"] == 0
+        and manifest["tasks"] == {}
+        and manifest["successes"]["tasks"] == {"pick_cube": 9}
+    )
     sims, ids = memory.search(np.ones((2, memory.dim), np.float32) / np.sqrt(memory.dim), "pick_cube", 3)
     assert np.isnan(sims).all() and (ids == -1).all() and sims.shape == (2, 3)
     text = MemoryInfo.read(memory_dir).to_text()
-    assert "entries     0 × " in text and "no failures pick_cube: success runs only, judged by the novelty rule" in text
+    assert (
+        "entries     0 × " in text
+        and "no failures pick_cube: success runs only, judged by the novelty rule" in text
+    )
 
 
 def test_no_success_and_no_failure_is_still_an_error(tmp_path: Path) -> None:
     data = write_project_dataset(tmp_path / "data", tasks=("pick_cube",), symbols=(), episodes=2)
-    with pytest.raises(DataError, match="--no-successes leaves out its success runs: a memory needs one or the other"):
+    with pytest.raises(
+        DataError, match="--no-successes leaves out its success runs: a memory needs one or the other"
+    ):
         build_memory(BuildMemoryConfig(data=data, encoder="pixels", out=tmp_path / "m", successes=False))
     assert not (tmp_path / "m").exists()
 
@@ -100,7 +113,9 @@ def test_eta_is_calibrated_on_training_successes_and_judges_the_task(
 
     encoder = CachedEncoder(load_encoder("pixels"), cache_dir=cache)
     detector = FailureDetector(loaded, encoder, k=2)
-    assert detector.rule is NOVELTY and detector.rule_for("pick_cube") is NOVELTY and detector.eta == found.eta
+    assert (
+        detector.rule is NOVELTY and detector.rule_for("pick_cube") is NOVELTY and detector.eta == found.eta
+    )
     # η is the conformal bound of the leave-one-out peaks of the training successes, recomputed here
     from robofailring.detection.conformal import conformal_threshold
 
@@ -115,7 +130,9 @@ def test_eta_is_calibrated_on_training_successes_and_judges_the_task(
         np.testing.assert_allclose(trace.scores[view], 1 - trace.success_similarity[view], atol=1e-6)
         assert np.isnan(trace.similarity[view]).all()
     body = trace.to_dict()
-    assert body["score"] == "novelty" and body["thresholds"]["eta"] == found.eta and body["failure_entries"] == 0
+    assert (
+        body["score"] == "novelty" and body["thresholds"]["eta"] == found.eta and body["failure_entries"] == 0
+    )
     assert body["views"][trace.views[0]]["novelty"][3] == pytest.approx(
         float(1 - trace.success_similarity[trace.views[0]][3]), abs=1e-6
     )
@@ -135,9 +152,7 @@ def test_detect_says_novelty_fired_with_no_failure_to_compare(
     data, memory_dir, cache = success_only
     trajectory = load_dataset(data).select(split="test")[0]
     result = run_detect(
-        DetectConfig(
-            trajectory=data, key=trajectory.key, memory=memory_dir, eta=0.0, cache_dir=cache
-        )
+        DetectConfig(trajectory=data, key=trajectory.key, memory=memory_dir, eta=0.0, cache_dir=cache)
     )
     assert result.trace.rule is NOVELTY and result.trace.eta == 0.0 and result.trace.t_det == 0
     text = result.to_text()
@@ -157,7 +172,9 @@ def test_a_memory_with_both_kinds_of_task_judges_each_by_its_own_default(tmp_pat
     manifest["episodes"] += extra
     (both / "manifest.json").write_text(json.dumps(manifest), encoding="utf-8")
     memory, _ = build_memory(
-        BuildMemoryConfig(data=both, encoder="pixels", out=tmp_path / "m", split="train", cache_dir=tmp_path / "c")
+        BuildMemoryConfig(
+            data=both, encoder="pixels", out=tmp_path / "m", split="train", cache_dir=tmp_path / "c"
+        )
     )
     assert memory.tasks == ["pick_cube", "push_cube"] and memory.has_failures("pick_cube")
     encoder = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "c")
@@ -168,7 +185,11 @@ def test_a_memory_with_both_kinds_of_task_judges_each_by_its_own_default(tmp_pat
     assert detector.run(tests["push_cube"]).rule is NOVELTY
     explicit = FailureDetector(memory, encoder, k=2, rule="novelty")  # an explicit rule applies to every task
     assert explicit.run(tests["pick_cube"]).rule is NOVELTY
-    with pytest.raises(SettingError, match="task 'push_cube' has no failure runs in the memory, so the contrast"):
+    with pytest.raises(
+        SettingError, match="task 'push_cube' has no failure runs in the memory, so the contrast"
+    ):
         FailureDetector(memory, encoder, rule="contrast").run(tests["push_cube"])
-    found = calibrate(CalibrateConfig(data=both, memory=tmp_path / "m", target_fpr=0.5, cache_dir=tmp_path / "c"))
+    found = calibrate(
+        CalibrateConfig(data=both, memory=tmp_path / "m", target_fpr=0.5, cache_dir=tmp_path / "c")
+    )
     assert None not in (found.delta, found.gamma, found.eta)

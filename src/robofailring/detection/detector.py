@@ -10,7 +10,15 @@ import numpy as np
 
 from robofailring.data.images import as_rgb
 from robofailring.data.model import Frame, Trajectory
-from robofailring.detection.rules import CONTRAST, NOVELTY, PAPER, RULES, ScoringRule, default_rule, rule_named
+from robofailring.detection.rules import (
+    CONTRAST,
+    NOVELTY,
+    PAPER,
+    RULES,
+    ScoringRule,
+    default_rule,
+    rule_named,
+)
 from robofailring.detection.trace import DetectionTrace, StepResult
 from robofailring.detection.view_scores import ViewScores
 from robofailring.encoders.base import Encoder, l2_normalize

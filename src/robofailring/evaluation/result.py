@@ -306,7 +306,7 @@ class EvaluationResult:
             else ""
         )
         return [
-            "Both scoring rules, each calibrated on the training successes (split conformal, each run's own "
+            "Every scoring rule, each calibrated on the training successes (split conformal, each run's own "
             f"episode left out):{deployed}",
             "",
             MARKDOWN_HEADER,

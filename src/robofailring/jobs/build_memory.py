@@ -7,10 +7,10 @@ from pathlib import Path
 
 from robofailring.atomic import output_lock
 from robofailring.data.layouts import load_dataset
+from robofailring.data.model import Outcome
 from robofailring.encoders import open_encoder
 from robofailring.errors import DataError, MemoryFormatError
 from robofailring.memory.builder import Provenance, build_memories
-from robofailring.data.model import Outcome
 from robofailring.memory.encoding import BuildStats, is_failure
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.thinning import DEFAULT_STEP
@@ -87,6 +87,12 @@ def _build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]
     if not len(memory) and memory.successes is None:
         raise DataError(
             f"no memory entry from {config.data}: every view has fewer than 2 frames; nothing was written"
+        )
+    success_only = [task for task in memory.tasks if not memory.has_failures(task)]
+    if success_only:
+        stats.notes.append(
+            f"no failure run of {', '.join(success_only)}: judged by the novelty rule (N_t = 1 − S⁺_t ≥ η) "
+            "until failure runs are added; calibrate η with `robofailring calibrate`"
         )
     stats.notes.extend(_dropped_calibration(config.out))
     memory.save(config.out)

@@ -125,7 +125,9 @@ class FailureMemory:
             )
 
     def _check_task(self, task: str) -> None:
-        if task not in self.index.by_task and not (self.successes is not None and self.successes.has_task(task)):
+        if task not in self.index.by_task and not (
+            self.successes is not None and self.successes.has_task(task)
+        ):
             known = ", ".join(self.tasks[:20]) + (" …" if len(self.tasks) > 20 else "")
             raise UnknownTaskError(f"task {task!r} has no entry in the memory; its tasks are: {known}")
 

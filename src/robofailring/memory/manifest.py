@@ -90,7 +90,9 @@ class StoredCalibration:
     delta: float | None  # the paper rule's threshold δ (None: a memory without failure runs)
     encoder: str | None = None  # the encoder identity the thresholds were chosen with
     gamma: float | None = None  # the contrast rule's threshold γ (None: no success memory)
-    eta: float | None = None  # the novelty rule's threshold η (None: no success memory, or calibrated before it)
+    eta: float | None = (
+        None  # the novelty rule's threshold η (None: no success memory, or calibrated before it)
+    )
     method: str | None = None
     target_fpr: float | None = None
     achieved_fpr: float | None = None
