@@ -161,3 +161,34 @@ def test_the_replay_shows_n_against_eta_and_the_nearest_success_frame(session: d
 
     info = runner.invoke(app, ["memory-info", str(session["memory"])])
     assert info.exit_code == 0 and "η = " in info.output and "entries     0 × " in info.output
+
+
+def test_live_streams_n_against_eta_and_says_there_is_no_failure_neighbour(
+    session: dict[str, Path], tmp_path: Path
+) -> None:
+    from rfr_viz.recordings.live import LiveRecording, LiveTarget
+
+    memory = FailureMemory.load(session["memory"])
+    detector = FailureDetector(memory, load_encoder("pixels"), eta=0.0005)
+    trajectory = load_dataset(session["data"]).select(split="test")[0]
+    frames = [{view: trajectory.views[view][t].load() for view in trajectory.views} for t in range(6)]
+    saved = tmp_path / "live.rrd"
+    with LiveRecording.open(
+        detector, "pick_cube", views=list(trajectory.views), target=LiveTarget(save=saved)
+    ) as live:
+        stream = detector.session("pick_cube", sink=live)
+        steps = [stream.step(images) for images in frames]
+    assert all(step.rule is NOVELTY for step in steps) and live.fired_at == stream.fired_at is not None
+    view = trajectory.views and next(iter(trajectory.views))
+    found = rows(saved, REPLAY.novelty_score(view), "Scalars:scalars")
+    np.testing.assert_allclose([value[0] for _, value in found], [s.novelty[view] for s in steps], atol=1e-6)
+    assert len(rows(saved, REPLAY.eta, "Scalars:scalars")) == 6 and REPLAY.score(view) not in entity_paths(
+        saved
+    )
+    said = static_value(saved, REPLAY.neighbor(view, 0, "info"), "TextDocument:text")
+    assert "No failure neighbours" in said[0]
+    event = rows(saved, REPLAY.event, "TextLog:text")
+    assert (
+        "(novelty rule): N_t = " in event[0][1][0]
+        and "no failure of this task in the memory" in event[0][1][0]
+    )
