@@ -193,3 +193,31 @@ def test_a_memory_with_both_kinds_of_task_judges_each_by_its_own_default(tmp_pat
         CalibrateConfig(data=both, memory=tmp_path / "m", target_fpr=0.5, cache_dir=tmp_path / "c")
     )
     assert None not in (found.delta, found.gamma, found.eta)
+
+
+def test_an_evaluation_grows_from_success_runs_only_to_labelled_failures(tmp_path: Path) -> None:
+    from robofailring.evaluation.run import EvaluateConfig, labelled_failures, run_evaluation
+
+    data = write_project_dataset(tmp_path / "data", episodes=4)
+    train = load_dataset(data).select(split="train")
+    for per_task in (0, 1, 2):
+        kept = labelled_failures(train, per_task)
+        counts = {
+            task: sum(t.is_failure and t.task == task for t in kept) for task in ("pick_cube", "push_cube")
+        }
+        assert counts == {"pick_cube": per_task, "push_cube": per_task}
+        assert sum(not t.is_failure for t in kept) == sum(not t.is_failure for t in train)  # every success
+    assert len({t.symbol for t in labelled_failures(train, 2) if t.task == "pick_cube" and t.is_failure}) == 2
+    cold = run_evaluation(
+        EvaluateConfig(
+            data=data, out=tmp_path / "e0", cache_dir=tmp_path / "c", target_fpr=0.5, failures_per_task=0
+        )
+    )
+    assert list(cold.rules) == ["novelty"] and cold.failures == 12
+    grown = run_evaluation(
+        EvaluateConfig(
+            data=data, out=tmp_path / "e1", cache_dir=tmp_path / "c", target_fpr=0.5, failures_per_task=1
+        )
+    )
+    assert list(grown.rules) == ["paper", "contrast", "novelty"]
+    assert len(FailureMemory.load(tmp_path / "e1" / "memory")) == 2 * 3  # one failure per task, 3 views
