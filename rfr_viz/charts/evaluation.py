@@ -231,4 +231,24 @@ def evaluation_charts(evaluation: Mapping[str, Any]) -> list[Chart]:
             x_label="detected failures by t_det / L (%)",
         )
     )
+    growth = evaluation.get("growth") or []
+    if growth:
+        charts.append(growth_chart(growth))
     return charts
+
+
+def growth_chart(points: Sequence[Mapping[str, Any]]) -> Chart:
+    """The learning curve (`evaluate --growth`): recall and FPR per level of labelled failures per task."""
+    return Chart(
+        key="growth",
+        title="Learning curve: labelled failures per task → Recall and FPR (default rule)",
+        categories=[
+            f"{'all' if p['failures_per_task'] is None else p['failures_per_task']} · {p['rule']}"
+            for p in points
+        ],
+        series=[
+            Series("Recall", RECALL_COLOUR, [_rate(p.get("recall")) for p in points]),
+            Series("FPR", FPR_COLOUR, [_rate(p.get("fpr")) for p in points]),
+        ],
+        x_label="labelled failures per task · rule",
+    )

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from rrd import entity_paths, properties, rows, static_value
+from rrd import columns, entity_paths, properties, rows, static_value
 from synthetic import write_project_dataset
 from typer.testing import CliRunner
 
@@ -192,3 +192,47 @@ def test_live_streams_n_against_eta_and_says_there_is_no_failure_neighbour(
         "(novelty rule): N_t = " in event[0][1][0]
         and "no failure of this task in the memory" in event[0][1][0]
     )
+
+
+def test_evaluate_growth_charts_the_learning_curve(tmp_path: Path) -> None:
+    data = write_project_dataset(tmp_path / "data", episodes=4)
+    out = tmp_path / "eval"
+    result = runner.invoke(
+        app,
+        ["evaluate", str(data), "--out", str(out), "--target-fpr", "0.5", "--growth", "0,1"]
+        + ["--cache-dir", str(tmp_path / "cache")],
+    )
+    assert result.exit_code == 0, result.output
+    evaluation = json.loads((out / "evaluation.json").read_text(encoding="utf-8"))
+    growth = evaluation["growth"]
+    assert [(p["failures_per_task"], p["rule"]) for p in growth] == [
+        (0, "novelty"),
+        (1, "contrast"),
+        (None, "contrast"),
+    ]
+    assert growth[-1]["recall"] == evaluation["rules"]["contrast"]["recall"]  # "all" is the evaluation itself
+    one = json.loads((out / "growth-1" / "growth-1.json").read_text(encoding="utf-8"))
+    assert growth[1]["recall"] == one["rules"]["contrast"]["recall"]
+    assert len(FailureMemory.load(out / "growth-0" / "memory")) == 0
+    assert "Learning curve: labelled failures per task" in (out / "report.html").read_text(encoding="utf-8")
+    assert "| 0 | novelty | η = " in result.output
+    labels = []
+    for row in columns(out / "evaluation.rrd", "/eval/evaluation/growth/categories").get(
+        "Points2D:labels", []
+    ):
+        labels += row or []
+    assert labels == ["0 · novelty", "1 · contrast", "all · contrast"]
+    refused = runner.invoke(
+        app,
+        [
+            "evaluate",
+            str(data),
+            "--out",
+            str(tmp_path / "e2"),
+            "--growth",
+            "0,x",
+            "--cache-dir",
+            str(tmp_path / "cache"),
+        ],
+    )
+    assert refused.exit_code == 2 and "--growth takes whole numbers" in refused.output

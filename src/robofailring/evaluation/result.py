@@ -14,6 +14,7 @@ from robofailring.detection.detector import (
     DetectionTrace,
 )
 from robofailring.detection.rules import ScoringRule
+from robofailring.evaluation.growth import GrowthPoint, growth_markdown
 from robofailring.evaluation.metrics import (
     PAPER_DELTAS,
     Rates,
@@ -48,6 +49,7 @@ class EvaluationResult:
     rules: dict[str, RuleResult] = field(default_factory=dict)  # both rules at their thresholds
     target_fpr: float | None = None
     deployment_successes: int = 0
+    growth: list[GrowthPoint] = field(default_factory=list)  # `evaluate --growth`: the learning curve
     paper_rates: list[Rates] = field(init=False)
     curve: list[Rates] = field(init=False)
 
@@ -187,6 +189,7 @@ class EvaluationResult:
             "latency_ms": self.latency_ms,
             "target_fpr": self.target_fpr,
             "deployment_successes": self.deployment_successes,
+            **({"growth": [point.to_dict() for point in self.growth]} if self.growth else {}),
             "rules": {
                 name: result.to_dict() | self.rule_charts(result.rule, rate_row)
                 for name, result in self.rules.items()
@@ -227,6 +230,7 @@ class EvaluationResult:
             f"operating δ = {delta:.4f} ({'calibrated' if self.calibrated else 'paper default'}).",
             "",
             *self._rules_markdown(),
+            *growth_markdown(self.growth),
             "| δ | Recall (%) | FPR (%) | TP | FN | FP | TN | mean T_s (%) | median progress (%) |",
             "|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
         ]

@@ -6,7 +6,7 @@ import hashlib
 import json
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +26,7 @@ from robofailring.detection.detector import (
 from robofailring.detection.rules import PAPER, ScoringRule
 from robofailring.encoders import CachedEncoder, open_encoder
 from robofailring.errors import DataError, RoboFailRingError, SettingError
+from robofailring.evaluation.growth import GrowthPoint, judged
 from robofailring.evaluation.metrics import PAPER_DELTAS, ScoredTrajectory
 from robofailring.evaluation.per_rule import evaluate_rule, scored_by_rule
 from robofailring.evaluation.result import EvaluationResult
@@ -284,6 +285,37 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
         skipped_inputs=splits.skipped,
         stride=config.stride,
     )
+
+
+def check_growth(config: EvaluateConfig) -> None:
+    """A curve builds a memory per level from the training data: SettingError for a given memory."""
+    if config.memory is not None:
+        raise SettingError("--growth builds a memory per level from the training data: leave out --memory")
+
+
+def growth_curve(
+    config: EvaluateConfig, levels: Sequence[int], *, full: EvaluationResult
+) -> list[GrowthPoint]:
+    """Each level's evaluation of `config` (an `EvaluateConfig` building its memory: `memory` None) with
+    `failures_per_task` set, written to `<out>/growth-<n>/` (its memory and `growth-<n>.json`/`.md`),
+    then `full` (the evaluation with every failure)."""
+    check_growth(config)
+    points = []
+    for level in levels:
+        folder = Path(config.out) / f"growth-{level}"
+        result = run_evaluation(
+            replace(
+                config,
+                failures_per_task=level,
+                out=folder,
+                memory_out=folder / "memory",
+                name=f"growth-{level}",
+            )
+        )
+        write_evaluation(result, folder)
+        points.append(GrowthPoint(level, judged(result.rules, failures=level > 0)))
+    points.append(GrowthPoint(None, judged(full.rules, failures=True)))
+    return points
 
 
 def _stored_target(memory: FailureMemory) -> float | None:
