@@ -199,8 +199,18 @@ def test_evaluate_growth_charts_the_learning_curve(tmp_path: Path) -> None:
     out = tmp_path / "eval"
     result = runner.invoke(
         app,
-        ["evaluate", str(data), "--out", str(out), "--target-fpr", "0.5", "--growth", "0,1"]
-        + ["--cache-dir", str(tmp_path / "cache")],
+        [
+            "evaluate",
+            str(data),
+            "--out",
+            str(out),
+            "--target-fpr",
+            "0.5",
+            "--growth",
+            "0,1",
+            "--cache-dir",
+            str(tmp_path / "cache"),
+        ],
     )
     assert result.exit_code == 0, result.output
     evaluation = json.loads((out / "evaluation.json").read_text(encoding="utf-8"))
