@@ -125,7 +125,7 @@ def build_memory_cmd(
     )
     typer.echo(
         f"memory {out}: {len(memory)} entries ({memory.dim}-d, encoder {memory.encoder}) from "
-        f"{stats.failures} failure trajectories over {len(memory.tasks)} tasks; "
+        f"{stats.failures} failure trajectories over {sum(map(memory.has_failures, memory.tasks))} tasks; "
         f"{stats.ignored_non_failures} non-failures ignored"
     )
     if memory.successes is not None:
