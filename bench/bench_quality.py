@@ -33,14 +33,25 @@ OOD_EPISODES = 2  # per task and failure family, all tested
 OOD_SUCCESSES = 8  # per task: 2 join the success memory under the deployment protocol, 6 tested
 
 
-def datasets(workers: int = 2) -> tuple[Path, Path]:
-    """The in-distribution and OOD sets, simulated once and cached under the robofailring cache dir."""
+def datasets(
+    workers: int = 2,
+    *,
+    id_episodes: int = ID_EPISODES,
+    id_successes: int = ID_SUCCESSES,
+    ood_episodes: int = OOD_EPISODES,
+    ood_successes: int = OOD_SUCCESSES,
+) -> tuple[Path, Path]:
+    """The in-distribution and OOD sets, simulated once and cached under the robofailring cache dir
+    (sets of another size than this bench's own are cached in folders named by their size)."""
     root = default_cache_dir() / "bench-quality"
+    sizes = (id_episodes, id_successes, ood_episodes, ood_successes)
+    own = sizes == (ID_EPISODES, ID_SUCCESSES, OOD_EPISODES, OOD_SUCCESSES)
+    suffix = "" if own else "-" + "-".join(map(str, sizes))
     in_dist = GenerateConfig(
-        out=root / "sim-id",
+        out=root / f"sim-id{suffix}",
         tasks=TASKS,
-        episodes=ID_EPISODES,
-        success_episodes=ID_SUCCESSES,
+        episodes=id_episodes,
+        success_episodes=id_successes,
         seed=0,
         image_size=IMAGE_SIZE,
         frames=FRAMES,
@@ -48,9 +59,9 @@ def datasets(workers: int = 2) -> tuple[Path, Path]:
     )
     out_dist = replace(
         in_dist,
-        out=root / "sim-ood",
-        episodes=OOD_EPISODES,
-        success_episodes=OOD_SUCCESSES,
+        out=root / f"sim-ood{suffix}",
+        episodes=ood_episodes,
+        success_episodes=ood_successes,
         seed=1000,
         ood=True,
     )

@@ -57,6 +57,15 @@ class DetectorPaths:
         """Scalars: γ, the contrast rule's threshold line."""
         return f"{self.score_root}/gamma"
 
+    def novelty_score(self, view: str) -> str:
+        """Scalars: N_t = 1 − S⁺_t of one view (how far from every success frame)."""
+        return f"{self.score(view)}/novelty"
+
+    @property
+    def eta(self) -> str:
+        """Scalars: η, the novelty rule's threshold line."""
+        return f"{self.score_root}/eta"
+
     @property
     def nearest_success_root(self) -> str:
         return f"{self.prefix}/nearest_success"

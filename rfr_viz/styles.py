@@ -28,6 +28,7 @@ STATE_COLOUR: Final[tuple[int, int, int]] = (170, 170, 170)
 STOP_COLOUR: Final[tuple[int, int, int]] = (235, 60, 60)  # the frame around a stopped robot's cameras
 #: Few, large chunks: every chunk carries its own schema, so many small ones would dominate the file.
 GAMMA_COLOUR: Final[tuple[int, int, int]] = (255, 120, 200)
+ETA_COLOUR: Final[tuple[int, int, int]] = (120, 230, 230)
 
 
 def shade(colour: tuple[int, int, int], position: int, count: int) -> tuple[int, int, int]:

@@ -2,7 +2,7 @@
 
 Charts are built from the evaluation JSON (`EvaluationResult.to_dict()`), one series per scoring
 rule: today's evaluation has the paper's rule (S_t ≥ δ); an evaluation whose JSON has a `rules`
-mapping (e.g. `rules.paper`, `rules.contrast`) shows every rule side by side. A rule's dict holds
+mapping (e.g. `rules.paper`, `rules.contrast`, `rules.novelty`) shows every rule side by side. A rule's dict holds
 the same keys as the top level (`sweep`, `paper_deltas`, `recall_per_type`, `view_ablation`,
 `progress_histogram`, `operating_delta`); rows and operating points may name their threshold
 `delta`, `gamma` or `threshold`.
@@ -91,7 +91,12 @@ def _rule(name: str, data: Mapping[str, Any], top: Mapping[str, Any]) -> Rule:
     def get(key: str, default: Any = None) -> Any:
         return data.get(key, top.get(key, default))
 
-    symbol = "γ" if name == "contrast" or any("gamma" in r for r in get("sweep", [])[:1]) else "δ"
+    symbol = (
+        data.get("symbol")
+        or (  # evaluations written before rules named their symbol
+            "γ" if name == "contrast" or any("gamma" in r for r in get("sweep", [])[:1]) else "δ"
+        )
+    )
     keys = ("operating_threshold", "operating_delta", "operating_gamma")  # the rule's own first
     found = [source[key] for source in (data, top) for key in keys if source.get(key) is not None]
     operating = float(found[0]) if found else math.nan
@@ -226,4 +231,24 @@ def evaluation_charts(evaluation: Mapping[str, Any]) -> list[Chart]:
             x_label="detected failures by t_det / L (%)",
         )
     )
+    growth = evaluation.get("growth") or []
+    if growth:
+        charts.append(growth_chart(growth))
     return charts
+
+
+def growth_chart(points: Sequence[Mapping[str, Any]]) -> Chart:
+    """The learning curve (`evaluate --growth`): recall and FPR per level of labelled failures per task."""
+    return Chart(
+        key="growth",
+        title="Learning curve: labelled failures per task → Recall and FPR (default rule)",
+        categories=[
+            f"{'all' if p['failures_per_task'] is None else p['failures_per_task']} · {p['rule']}"
+            for p in points
+        ],
+        series=[
+            Series("Recall", RECALL_COLOUR, [_rate(p.get("recall")) for p in points]),
+            Series("FPR", FPR_COLOUR, [_rate(p.get("fpr")) for p in points]),
+        ],
+        x_label="labelled failures per task · rule",
+    )

@@ -63,11 +63,19 @@ def evaluate_cmd(
         int, typer.Option(help="Per task, this many test success runs join the success memory (not tested).")
     ] = 0,
     success_step: SuccessStepOption = DEFAULT_STEP,
+    growth: Annotated[
+        str | None,
+        typer.Option(
+            help="Learning curve: labelled failures per task, e.g. 0,1,2,4 (0: success runs only, the novelty "
+            "rule); one more evaluation each, then the full memory."
+        ),
+    ] = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
 ) -> None:
-    """Both scoring rules side by side at one α, then the paper's tables: Recall/FPR sweep, T_s, per type and view."""
+    """Every scoring rule side by side at one α, then the paper's tables: Recall/FPR sweep, T_s, per type and view."""
     from rfr_viz.jobs.evaluate import evaluate
+    from robofailring.evaluation.growth import parse_growth
     from robofailring.evaluation.run import EvaluateConfig
 
     outcome = evaluate(
@@ -91,7 +99,8 @@ def evaluate_cmd(
             target_fpr=target_fpr,
             deployment_successes=deployment_successes,
             success_step=success_step,
-        )
+        ),
+        growth=parse_growth(growth) if growth is not None else (),
     )
     report_skipped(outcome.result.skipped_inputs)
     typer.echo(outcome.result.to_markdown())

@@ -8,7 +8,14 @@ from pathlib import Path
 from rfr_viz.charts.report_html import REPORT_NAME, write_report
 from rfr_viz.recordings.evaluation import record_evaluation
 from robofailring.atomic import output_lock, remove_file_leftovers
-from robofailring.evaluation.run import EvaluateConfig, EvaluationResult, run_evaluation, write_evaluation
+from robofailring.evaluation.run import (
+    EvaluateConfig,
+    EvaluationResult,
+    check_growth,
+    growth_curve,
+    run_evaluation,
+    write_evaluation,
+)
 from robofailring.outputs import check_output_folder
 
 
@@ -29,14 +36,21 @@ class EvaluateOutcome:
         return len(result.skipped_unknown_task) + len(result.skipped_too_short) + len(result.skipped_inputs)
 
 
-def evaluate(config: EvaluateConfig) -> EvaluateOutcome:
+def evaluate(config: EvaluateConfig, *, growth: tuple[int, ...] = ()) -> EvaluateOutcome:
     """Check the output folder, run the evaluation, and write its tables, recording and report,
-    holding the output's lock throughout (two runs into one folder never interleave)."""
+    holding the output's lock throughout (two runs into one folder never interleave).
+
+    `growth` (labelled failures per task, e.g. 0, 1, 2, 4) adds the learning curve: one more
+    evaluation per level, its memory under `<out>/growth-<n>/`."""
     out = Path(config.out)
     check_output_folder(out, inputs=[config.data, config.test_data, config.memory])
+    if growth:
+        check_growth(config)
     with output_lock(out):
         remove_file_leftovers(out)
         result = run_evaluation(config)
+        if growth:
+            result.growth = growth_curve(config, growth, full=result)
         json_path, markdown_path = write_evaluation(result, out)
         recording = record_evaluation([result], out=out / f"{config.name}.rrd")
         report = write_report(

@@ -40,8 +40,9 @@ class ReplayConfig:
     trajectories: tuple[str, ...] = ()  # `<task>/<episode>` keys or episode names; empty = all
     delta: float | None = None  # default: the memory's calibrated δ, else the paper's 0.92
     k: int = DEFAULT_K  # neighbours retrieved (and logged) per view and frame
-    score: str | None = None  # `paper` or `contrast` (default: contrast when the memory has successes)
+    score: str | None = None  # a rule's name (default per task: contrast, novelty or paper)
     gamma: float | None = None  # contrast threshold (default: the memory's calibrated γ, else 0)
+    eta: float | None = None  # novelty threshold (default: the memory's calibrated η, else 0.1)
     task: str | None = None  # task of an episode folder whose name does not say; on a root, a filter
     leave_one_out: bool = False  # hide each trajectory's own episode from the memory
     encoder: str | None = None  # encoder spec; default: the one that built the memory
@@ -194,6 +195,7 @@ def load_detector(
     data_root: Path | None = None,
     score: str | None = None,
     gamma: float | None = None,
+    eta: float | None = None,
 ) -> LoadedDetector:
     detector = open_detector(
         memory_dir,
@@ -201,6 +203,7 @@ def load_detector(
         rule=score,
         delta=delta,
         gamma=gamma,
+        eta=eta,
         k=k,
         data_root=data_root,
         encoder=encoder,
@@ -233,6 +236,7 @@ def _replay(config: ReplayConfig) -> ReplayResult:
         k=config.k,
         score=config.score,
         gamma=config.gamma,
+        eta=config.eta,
         encoder=config.encoder,
         cache_dir=config.cache_dir,
         device=config.device,

@@ -18,7 +18,7 @@ from robofailring.atomic import output_lock, remove_file_leftovers, write_text_a
 from robofailring.data.layouts import load_dataset
 from robofailring.data.model import Skipped
 from robofailring.detection.loader import open_detector
-from robofailring.detection.rules import CONTRAST, PAPER, ScoringRule, rule_named
+from robofailring.detection.rules import CONTRAST, NOVELTY, PAPER, ScoringRule, rule_named
 from robofailring.detection.trace import DetectionTrace
 from robofailring.errors import DataError, OutputError
 from robofailring.explain.vlm import VLMConfig
@@ -82,7 +82,8 @@ def _read_evaluation(config: ReviewConfig) -> Reviewed:
     try:
         evaluation = json.loads(Path(config.evaluation).read_text(encoding="utf-8"))
         rules = evaluation.get("rules") or {}
-        rule = rule_named(config.score or (CONTRAST.name if CONTRAST.name in rules else PAPER.name))
+        shown = next((r.name for r in (CONTRAST, NOVELTY) if r.name in rules), PAPER.name)
+        rule = rule_named(config.score or shown)
         if rule.name in rules:
             keys = {kind: list(rules[rule.name][kind.replace("-", "_")]) for kind in KINDS}
             threshold = float(rules[rule.name]["threshold"])
@@ -106,11 +107,12 @@ def _replay_keys(
     result = ReplayResult()
     if not keys:
         return result
-    delta, gamma = _thresholds(rule, threshold)
+    delta, gamma, eta = _thresholds(rule, threshold)
     loaded = load_detector(
         memory_dir,
         delta=delta,
         gamma=gamma,
+        eta=eta,
         score=rule.name,
         k=k,
         encoder=None,
@@ -189,12 +191,13 @@ def write_review_labels(config: ReviewConfig) -> ReviewLabels:
         raise OutputError(f"--write-labels {path} is a folder; name a CSV file, e.g. labels.csv")
     check_writable(path.absolute().parent)
     with output_lock(path):
-        delta, gamma = _thresholds(reviewed.rule, reviewed.threshold)
+        delta, gamma, eta = _thresholds(reviewed.rule, reviewed.threshold)
         detector = open_detector(
             reviewed.memory_dir,
             rule=reviewed.rule,
             delta=delta,
             gamma=gamma,
+            eta=eta,
             k=reviewed.k,
             device=config.device,
             cache_dir=config.cache_dir,
@@ -242,9 +245,10 @@ def _label_row(trace: DetectionTrace, *, kind: str) -> dict[str, str]:
     }
 
 
-def _thresholds(rule: ScoringRule, threshold: float) -> tuple[float | None, float | None]:
-    """(δ, γ) for reviewing `rule` at `threshold` (None: the memory's own)."""
+def _thresholds(rule: ScoringRule, threshold: float) -> tuple[float | None, float | None, float | None]:
+    """(δ, γ, η) for reviewing `rule` at `threshold` (None: the memory's own)."""
     return (
         threshold if rule.threshold_key == PAPER.threshold_key else None,
         threshold if rule.threshold_key == CONTRAST.threshold_key else None,
+        threshold if rule.threshold_key == NOVELTY.threshold_key else None,
     )

@@ -1,4 +1,4 @@
-"""Success contrast in a recording: S⁺_t and C_t per view, γ, and the nearest success frame."""
+"""Success contrast in a recording: S⁺_t, C_t and N_t per view, γ and η, and the nearest success frame."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from rfr_viz.panels.images import JPEG_MEDIA_TYPE, reference_jpeg
 from rfr_viz.panels.neighbors import changes
 from rfr_viz.panels.scores import set_frame_time, time_columns
 from rfr_viz.paths import DetectorPaths
-from rfr_viz.styles import GAMMA_COLOUR
+from rfr_viz.styles import ETA_COLOUR, GAMMA_COLOUR
 from robofailring.detection.detector import DetectionTrace
 from robofailring.memory.success import SuccessMatch
 
@@ -34,10 +34,13 @@ def log_contrast_styles(
     *,
     views: list[str],
     gamma: float,
+    eta: float,
     colours: list[tuple[int, int, int]],
     prefix: str = "",
+    failures: bool = True,
 ) -> None:
-    """Static line styles of S⁺_t and C_t per view and of γ (a replay's and a live stream's)."""
+    """Static line styles of S⁺_t, C_t and N_t per view and of γ and η (a replay's and a live stream's);
+    without failure entries of the task (`failures` False) C_t and γ are left out."""
     for position, view in enumerate(views):
         colour = colours[position % len(colours)]
         faded = (colour[0] // 2 + 60, colour[1] // 2 + 60, colour[2] // 2 + 60)
@@ -46,14 +49,28 @@ def log_contrast_styles(
             rr.SeriesLines(colors=[faded], widths=[1.0], names=[f"{prefix}{view} S⁺ (success)"]),
             static=True,
         )
+        if failures:
+            rec.log(
+                paths.contrast_score(view),
+                rr.SeriesLines(colors=[colour], widths=[2.0], names=[f"{prefix}{view} C = S⁻ − S⁺"]),
+                static=True,
+            )
         rec.log(
-            paths.contrast_score(view),
-            rr.SeriesLines(colors=[colour], widths=[2.0], names=[f"{prefix}{view} C = S⁻ − S⁺"]),
+            paths.novelty_score(view),
+            rr.SeriesLines(
+                colors=[colour], widths=[2.0 if not failures else 1.0], names=[f"{prefix}{view} N = 1 − S⁺"]
+            ),
+            static=True,
+        )
+    if failures:
+        rec.log(
+            paths.gamma,
+            rr.SeriesLines(colors=[GAMMA_COLOUR], widths=[1.0], names=[f"{prefix}γ = {gamma:.3f}"]),
             static=True,
         )
     rec.log(
-        paths.gamma,
-        rr.SeriesLines(colors=[GAMMA_COLOUR], widths=[1.0], names=[f"{prefix}γ = {gamma:.3f}"]),
+        paths.eta,
+        rr.SeriesLines(colors=[ETA_COLOUR], widths=[1.0], names=[f"{prefix}η = {eta:.3f}"]),
         static=True,
     )
 
@@ -102,18 +119,33 @@ def log_contrast(
     colours: list[tuple[int, int, int]],
     prefix: str = "",
 ) -> None:
-    """`/score/<view>/success`, `/score/<view>/contrast`, `/score/gamma` and `/nearest_success/<view>`.
+    """`/score/<view>/{success,contrast,novelty}`, `/score/gamma`, `/score/eta` and `/nearest_success/<view>`.
 
-    Nothing is logged when the memory has no success runs (a paper-only memory).
+    Nothing is logged when the memory has no success runs (a paper-only memory); C_t and γ are
+    left out for a task without failure entries (judged by novelty alone).
     """
     if not trace.success_similarity:
         return
-    log_contrast_styles(rec, paths, views=trace.views, gamma=trace.gamma, colours=colours, prefix=prefix)
-    contrasts = trace.contrast
+    failures = trace.has_failures
+    log_contrast_styles(
+        rec,
+        paths,
+        views=trace.views,
+        gamma=trace.gamma,
+        eta=trace.eta,
+        colours=colours,
+        prefix=prefix,
+        failures=failures,
+    )
+    contrasts, novelties = trace.contrast, trace.novelty
     for view in trace.views:
         _series(rec, paths.success_score(view), trace.success_similarity[view], fps=fps)
-        _series(rec, paths.contrast_score(view), contrasts[view], fps=fps)
-    _series(rec, paths.gamma, np.full(trace.length, float(trace.gamma)), fps=fps)
+        if failures:
+            _series(rec, paths.contrast_score(view), contrasts[view], fps=fps)
+        _series(rec, paths.novelty_score(view), novelties[view], fps=fps)
+    if failures:
+        _series(rec, paths.gamma, np.full(trace.length, float(trace.gamma)), fps=fps)
+    _series(rec, paths.eta, np.full(trace.length, float(trace.eta)), fps=fps)
     _log_nearest_success(rec, trace, paths, fps)
 
 

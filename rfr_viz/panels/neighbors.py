@@ -125,6 +125,23 @@ def neighbor_info(entry: MemoryEntry, rank: int, similarity: float, t: int) -> s
     )
 
 
+def no_failures_text(task: str) -> str:
+    """Markdown for the neighbour panel of a task without failure entries (the novelty rule's)."""
+    return (
+        f"**No failure neighbours:** the memory holds no failure run of task `{task}` (success runs only).  \n"
+        "It is judged by the novelty rule, N_t = 1 − S⁺_t ≥ η: see the nearest success frame."
+    )
+
+
+def log_no_failures(rec: rr.RecordingStream, paths: DetectorPaths, view: str, *, task: str) -> None:
+    """A static text where a view's nearest failure would be: there is none to show."""
+    rec.log(
+        paths.neighbor(view, 0, "info"),
+        rr.TextDocument(no_failures_text(task), media_type=rr.MediaType.MARKDOWN),
+        static=True,
+    )
+
+
 def _parts(entry: MemoryEntry) -> tuple[tuple[NeighborPart, str], ...]:
     return (("start", entry.start), ("end", entry.end))
 
@@ -142,7 +159,12 @@ def log_neighbors(
 
     Ranks are laid out as a grid (row = rank, start | end) by static translations, so one 2-D view
     per camera view holds all K. The info is re-sent at t_det so it shows the similarity that fired.
+    A task without failure entries gets a text saying so instead (`log_no_failures`).
     """
+    if not trace.has_failures:
+        for view in trace.views:
+            log_no_failures(rec, paths, view, task=trace.task)
+        return
     for view in trace.views:
         ids = trace.neighbor_ids[view]
         log_neighbor_layout(rec, paths, view, k=ids.shape[1], cell=cell)

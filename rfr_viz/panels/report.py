@@ -15,6 +15,7 @@ from robofailring.detection.rules import ScoringRule
 from robofailring.explain.report import FailureReport, report_for
 from robofailring.explain.vlm import VLMAnswer
 from robofailring.memory.failure import Neighbor
+from robofailring.memory.success import SuccessMatch
 
 _MARKDOWN_IMAGE = re.compile(r"!\[([^\]]*)\]\(([^)]*)\)")
 
@@ -68,17 +69,23 @@ def log_detection(
     )
     success = trace.nearest_success(view, t_det)
     contrast_line = ""
-    if success is not None:
+    if success is not None and neighbors:
         contrast_line = (
             f"Contrast: S⁻ = {neighbors[0].similarity:.3f} (nearest failure end) − S⁺ = {success.similarity:.3f} "
             f"(nearest success frame: {success.run.episode}, frame {success.frame}) = "
             f"C = {neighbors[0].similarity - success.similarity:.3f}.\n\n"
         )
+    elif success is not None:
+        contrast_line = (
+            f"Novelty: N = 1 − S⁺ = {1 - success.similarity:.3f} (nearest success frame: "
+            f"{success.run.episode}, frame {success.frame}); no failure of this task in the memory.\n\n"
+        )
     log_alarm(
         rec,
         paths,
         report=report,
-        top=neighbors[0],
+        top=neighbors[0] if neighbors else None,
+        nearest_success=success,
         rule=rule,
         fired=fired,
         summary=summary
@@ -93,21 +100,33 @@ def log_alarm(
     paths: DetectorPaths,
     *,
     report: FailureReport,
-    top: Neighbor,
+    top: Neighbor | None,
     rule: ScoringRule,
     fired: str,
     summary: str,
     vlm_answer: VLMAnswer | None = None,
+    nearest_success: SuccessMatch | None = None,
 ) -> None:
     """At the detection instant (the current time): the event line and the failure report document.
 
-    `fired` says on what score `rule` fired (e.g. "S⁻_t = 0.970 ≥ δ = 0.950")."""
+    `fired` says on what score `rule` fired (e.g. "S⁻_t = 0.970 ≥ δ = 0.950"); without a failure
+    neighbour (`top` None: a task of success runs only) the event names the nearest success frame."""
+    if top is not None:
+        nearest = (
+            f"nearest memory entry {top.entry.task}/{top.entry.episode} [{top.entry.view}] "
+            f"{top.entry.symbol}: {top.entry.description}"
+        )
+    else:
+        nearest = "no failure of this task in the memory" + (
+            f"; nearest success frame {nearest_success.run.episode} frame {nearest_success.frame} "
+            f"(S⁺ = {nearest_success.similarity:.3f})"
+            if nearest_success is not None
+            else ""
+        )
     rec.log(
         paths.event,
         rr.TextLog(
-            f"FAILURE at frame {report.t_det} in view {report.view} ({rule.name} rule): {fired}; "
-            f"nearest memory entry {top.entry.task}/{top.entry.episode} [{top.entry.view}] "
-            f"{top.entry.symbol}: {top.entry.description}",
+            f"FAILURE at frame {report.t_det} in view {report.view} ({rule.name} rule): {fired}; {nearest}",
             level=rr.TextLogLevel.WARN,
         ),
     )

@@ -1,4 +1,6 @@
-"""The scores panel: S⁻_t per view against δ and State_t, with the two timelines (frame, time)."""
+"""The scores panel: S⁻_t per view against δ and State_t, with the two timelines (frame, time).
+
+A task without failure entries has no S⁻_t: only State_t is logged here (N_t and η are the contrast panel's)."""
 
 from __future__ import annotations
 
@@ -35,10 +37,12 @@ def log_score_styles(
     rule: ScoringRule = PAPER,
     label: str | None = None,
     colour: tuple[int, int, int] | None = None,
+    failures: bool = True,
 ) -> None:
-    """Static line styles of S⁻_t per view, δ and State_t under `rule` (names, colours, widths)."""
+    """Static line styles of S⁻_t per view, δ and State_t under `rule` (names, colours, widths);
+    S⁻_t and δ only where the task has failure entries (`failures`)."""
     prefix = f"{label} · " if label else ""
-    for position, view in enumerate(views):
+    for position, view in enumerate(views if failures else ()):
         view_colour = (
             shade(colour, position, len(views)) if colour else VIEW_COLOURS[position % len(VIEW_COLOURS)]
         )
@@ -48,11 +52,12 @@ def log_score_styles(
             static=True,
         )
     delta_colour = DELTA_COLOUR if colour is None else shade(colour, 0, 1)
-    rec.log(
-        paths.delta,
-        rr.SeriesLines(colors=[delta_colour], widths=[1.0], names=[f"{prefix}δ = {delta:.3f}"]),
-        static=True,
-    )
+    if failures:
+        rec.log(
+            paths.delta,
+            rr.SeriesLines(colors=[delta_colour], widths=[1.0], names=[f"{prefix}δ = {delta:.3f}"]),
+            static=True,
+        )
     rec.log(
         paths.state,
         rr.SeriesLines(
@@ -73,10 +78,18 @@ def log_scores(
     label: str | None,
     colour: tuple[int, int, int] | None,
 ) -> None:
+    failures = trace.has_failures
     log_score_styles(
-        rec, paths, views=trace.views, delta=trace.delta, rule=trace.rule, label=label, colour=colour
+        rec,
+        paths,
+        views=trace.views,
+        delta=trace.delta,
+        rule=trace.rule,
+        label=label,
+        colour=colour,
+        failures=failures,
     )
-    for view in trace.views:
+    for view in trace.views if failures else ():
         similarity = np.asarray(trace.similarity[view], dtype=np.float64)
         present = np.flatnonzero(np.isfinite(similarity))
         rec.send_columns(
@@ -85,11 +98,12 @@ def log_scores(
             columns=rr.Scalars.columns(scalars=similarity[present]),
         )
     frames = np.arange(trace.length)
-    rec.send_columns(
-        paths.delta,
-        indexes=time_columns(frames, fps),
-        columns=rr.Scalars.columns(scalars=np.full(trace.length, float(trace.delta))),
-    )
+    if failures:
+        rec.send_columns(
+            paths.delta,
+            indexes=time_columns(frames, fps),
+            columns=rr.Scalars.columns(scalars=np.full(trace.length, float(trace.delta))),
+        )
     scored = trace.scored_frames  # with a stride, State_t exists only where frames were scored
     rec.send_columns(
         paths.state,

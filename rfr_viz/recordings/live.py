@@ -27,7 +27,14 @@ from rfr_viz.panels.camera_video import CameraCodec
 from rfr_viz.panels.contrast import log_contrast_styles, log_nearest_success
 from rfr_viz.panels.live_camera import LiveCameras
 from rfr_viz.panels.umap import MemoryMap
-from rfr_viz.panels.neighbors import DEFAULT_CELL, Cell, NeighborImages, log_neighbor_entry, log_neighbor_layout
+from rfr_viz.panels.neighbors import (
+    DEFAULT_CELL,
+    Cell,
+    NeighborImages,
+    log_neighbor_entry,
+    log_neighbor_layout,
+    log_no_failures,
+)
 from rfr_viz.panels.map import class_id, log_memory_map, map_title
 from rfr_viz.panels.report import log_alarm
 from rfr_viz.panels.scores import log_score_styles, set_frame_time
@@ -186,13 +193,28 @@ class LiveRecording:
         self.cameras = LiveCameras(
             self.rec, self.views, codec=self.camera_codec, fps=self.fps, name=self.name
         )
+        failures = self.detector.memory.has_failures(self.task)
         log_score_styles(
-            self.rec, paths, views=self.views, delta=self.detector.delta, rule=self.detector.rule
+            self.rec,
+            paths,
+            views=self.views,
+            delta=self.detector.delta,
+            rule=self.detector.rule_for(self.task),
+            failures=failures,
         )
         if self.detector.memory.successes is not None:
             log_contrast_styles(
-                self.rec, paths, views=self.views, gamma=self.detector.gamma, colours=list(VIEW_COLOURS)
+                self.rec,
+                paths,
+                views=self.views,
+                gamma=self.detector.gamma,
+                eta=self.detector.eta,
+                colours=list(VIEW_COLOURS),
+                failures=failures,
             )
+        if not failures:
+            for view in self.views:
+                log_no_failures(self.rec, paths, view, task=self.task)
         if self.memory_map is not None:
             log_memory_map(
                 self.rec,
@@ -213,10 +235,10 @@ class LiveRecording:
         )
 
     def _summary(self) -> str:
-        rule = self.detector.rule
+        rule = self.detector.rule_for(self.task)
         return (
             f"**{self.name}** — encoder `{self.detector.encoder.identity}`, rule **{rule.name}** "
-            f"({rule.score_name} ≥ {rule.symbol} = {self.detector.threshold:.3f}), K = {self.detector.k}, live.\n\n"
+            f"({rule.score_name} ≥ {rule.symbol} = {self.detector.threshold_of(rule):.3f}), K = {self.detector.k}, live.\n\n"
         )
 
     def on_step(
@@ -225,17 +247,24 @@ class LiveRecording:
         """Log one step at frame `result.t`: cameras, S_t, δ, State_t, map query, neighbours, alarm."""
         rec, paths, t = self.rec, REPLAY, result.t
         set_frame_time(rec, t, self.fps)
+        failures = self.detector.memory.has_failures(self.task)
         for view, frame in frames.items():
             self.cameras.log(view, frame, t)
-            rec.log(paths.score(view), rr.Scalars(result.similarity[view]))
-        rec.log(paths.delta, rr.Scalars(self.detector.delta))
+            if failures:
+                rec.log(paths.score(view), rr.Scalars(result.similarity[view]))
+        if failures:
+            rec.log(paths.delta, rr.Scalars(self.detector.delta))
         rec.log(paths.state, rr.Scalars(float(result.alarm)))
         if self.detector.memory.successes is not None:
-            rec.log(paths.gamma, rr.Scalars(self.detector.gamma))
+            if failures:
+                rec.log(paths.gamma, rr.Scalars(self.detector.gamma))
+            rec.log(paths.eta, rr.Scalars(self.detector.eta))
             for view, match in result.nearest_success.items():
                 if np.isfinite(result.success_similarity[view]):
                     rec.log(paths.success_score(view), rr.Scalars(result.success_similarity[view]))
-                    rec.log(paths.contrast_score(view), rr.Scalars(result.contrast[view]))
+                    if failures:
+                        rec.log(paths.contrast_score(view), rr.Scalars(result.contrast[view]))
+                    rec.log(paths.novelty_score(view), rr.Scalars(result.novelty[view]))
                 changed = self._success_shown.get(view, -1) != (match.index if match else -1)
                 self._success_shown[view] = match.index if match else -1
                 log_nearest_success(rec, paths, view, match, t=t, images=self._success_images, image=changed)
@@ -288,7 +317,8 @@ class LiveRecording:
             self.rec,
             REPLAY,
             report=self.report,
-            top=result.neighbors[view][0],
+            top=result.neighbors[view][0] if result.neighbors[view] else None,
+            nearest_success=result.nearest_success.get(view),
             rule=result.rule,
             fired=f"{result.rule.score_name} = {result.score[view]:.3f} ≥ {result.rule.symbol} = {result.threshold:.3f}",
             summary=self._summary(),

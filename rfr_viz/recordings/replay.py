@@ -227,6 +227,8 @@ def _detector_properties(trace: DetectionTrace, memory_map: MemoryMap) -> dict[s
         "score": trace.rule.name,
         "threshold": float(trace.threshold),
         "gamma": float(trace.gamma),
+        "eta": float(trace.eta),
+        "failure_entries": trace.memory.task_size(trace.task),
         "success_entries": len(trace.memory.successes) if trace.memory.successes is not None else 0,
         "k": trace.k,
         "t_det": trace.t_det if trace.t_det is not None else -1,  # -1: the detector never fired

@@ -79,7 +79,12 @@ def test_an_empty_memory_is_an_error_and_replaces_nothing(
         write_episode(
             successes / f"pick_cube_success_episode{episode}", "pick_cube", None, length=3, layout="aha"
         )
-    refused(cli("build-memory", successes, "--out", memory, *cache), 2, "holds no failure trajectory")
+    refused(  # success runs alone build a memory (novelty rule), but not without them
+        cli("build-memory", successes, "--out", memory, "--no-successes", *cache),
+        2,
+        "holds no failure trajectory",
+        "--no-successes leaves out its success runs",
+    )
     assert tree(memory) == good and hidden(tmp_path) == []
 
 

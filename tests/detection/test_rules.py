@@ -13,6 +13,7 @@ from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dat
 from robofailring.cli.options import ScoreOption
 from robofailring.detection.rules import (
     CONTRAST,
+    NOVELTY,
     PAPER,
     RULES,
     ContrastRule,
@@ -57,15 +58,16 @@ def test_the_contrast_rule_scores_s_minus_minus_s_plus_against_gamma() -> None:
 
 
 def test_the_registry_names_the_rules_everywhere() -> None:
-    assert list(RULES) == ["paper", "contrast"]
-    assert rules_for(successes=False) == [PAPER] and rules_for(successes=True) == [PAPER, CONTRAST]
+    assert list(RULES) == ["paper", "contrast", "novelty"]
+    assert rules_for(successes=False) == [PAPER] and rules_for(successes=True) == [PAPER, CONTRAST, NOVELTY]
     assert rule_named(CONTRAST) is CONTRAST and str(CONTRAST) == "contrast"
     with pytest.raises(
-        SettingError, match=r"unknown scoring rule 'both'; choose one of \['paper', 'contrast'\]"
+        SettingError, match=r"unknown scoring rule 'both'; choose one of \['paper', 'contrast', 'novelty'\]"
     ):
         rule_named("both")
     help_text = ScoreOption.__metadata__[0].help
     assert "`paper` (S_t ≥ δ)" in help_text and "`contrast` (C_t = S⁻_t − S⁺_t ≥ γ)" in help_text
+    assert "`novelty` (N_t = 1 − S⁺_t ≥ η)" in help_text
 
 
 class FarFromSuccessRule(ScoringRule):

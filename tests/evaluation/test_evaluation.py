@@ -60,8 +60,8 @@ def test_evaluation_files_and_counts(dataset: Path, tmp_path: Path) -> None:
     assert set(report["recall_per_type"]) == {"grasp", "slip", "wrong_object"}
     assert len(report["trajectories"]) == 16 and report["latency_ms"]["total"] > 0
     assert "| 0.92 |" in md_path.read_text()
-    # both rules, each calibrated on the 4 training successes at α = 0.2 (rank ⌈5 · 0.8⌉ = 4 of 4)
-    assert set(report["rules"]) == {"paper", "contrast"}
+    # every rule, each calibrated on the 4 training successes at α = 0.2 (rank ⌈5 · 0.8⌉ = 4 of 4)
+    assert set(report["rules"]) == {"paper", "contrast", "novelty"}
     for name, row in report["rules"].items():
         assert row["calibrated"] and row["tp"] + row["fn"] == 12 and row["fp"] + row["tn"] == 4
         assert row["recall"] == pytest.approx(row["tp"] / 12) and 0.0 <= row["auc"] <= 1.0
@@ -87,6 +87,7 @@ def test_calibration_is_stored_and_used(dataset: Path, tmp_path: Path) -> None:
     detector = FailureDetector(memory, CachedEncoder(load_encoder("pixels"), cache_dir=cache), rule="paper")
     assert detector.delta == calibration.delta and detector.gamma == calibration.gamma
     assert manifest["calibration"]["gamma"] == calibration.gamma
+    assert manifest["calibration"]["eta"] == calibration.eta == detector.eta is not None
     assert FailureDetector(memory, load_encoder("pixels"), delta=0.5).delta == 0.5  # --delta wins
     # on the calibration successes, the achieved FPR is what calibration reported
     successes = [t for t in load_dataset(dataset) if not t.is_failure and t.split == "train"]

@@ -17,7 +17,7 @@ from rrd import columns
 from synthetic import write_project_dataset
 from typer.testing import CliRunner
 
-from rfr_viz.charts.evaluation import evaluation_charts, rules_of
+from rfr_viz.charts.evaluation import RULE_COLOURS, evaluation_charts, rules_of
 from rfr_viz.charts.report_html import write_report
 from rfr_viz.cli.app import app
 from rfr_viz.recordings.evaluation import record_evaluation
@@ -64,6 +64,7 @@ def test_charts_carry_the_evaluation_values_and_names(evaluated: tuple[Path, dic
         "roc",
         "sweep_paper",
         "sweep_contrast",
+        "sweep_novelty",
         "recall_per_type",
         "recall_per_view",
         "progress_histogram",
@@ -78,6 +79,10 @@ def test_charts_carry_the_evaluation_values_and_names(evaluated: tuple[Path, dic
         contrast["recall_per_type"][k]["recall"] for k in per_type.categories
     ]
     assert charts["sweep_contrast"].series[0].x == [row["delta"] for row in contrast["sweep"]]
+    novelty = evaluation["rules"]["novelty"]  # the novelty rule, N_t against η, charted like the others
+    assert (novelty["symbol"], novelty["score_name"]) == ("η", "N_t")
+    assert per_type.series[2].values == [novelty["recall_per_type"][k]["recall"] for k in per_type.categories]
+    assert [s.name for s in charts["roc"].series][2] == f"novelty (η = {novelty['threshold']:.3f})"
     assert charts["recall_per_view"].categories == [*evaluation["view_ablation"]]
     assert sum(charts["progress_histogram"].series[0].values) == sum(
         evaluation["progress_histogram"]["counts"]
@@ -119,10 +124,10 @@ def test_the_summary_recording_names_categories_on_the_charts(
         evaluation["recall_per_type"]
     )
     values = _labels(recorded, "/eval/evaluation/recall_per_type/values")
-    assert values == [
+    assert values == [  # per category, each rule's bar
         f"{100 * rule['recall_per_type'][k]['recall']:.0f}%"
-        for rule in (evaluation, evaluation["rules"]["contrast"])
         for k in sorted(evaluation["recall_per_type"])
+        for rule in (evaluation, evaluation["rules"]["contrast"], evaluation["rules"]["novelty"])
     ]
     assert _labels(recorded, "/eval/evaluation/recall_per_view/categories") == [*evaluation["view_ablation"]]
     both = record_evaluation([_two_rules(evaluation)], out=tmp_path / "both.rrd")
@@ -158,5 +163,7 @@ def test_report_html_renders_in_headless_chromium(
     )  # fmt: skip
     image = cv2.imread(str(shot), cv2.IMREAD_COLOR)
     assert image is not None and image.shape[:2] == (900, 1280)
-    bar_blue = np.all(np.abs(image.astype(int) - (220, 120, 60)) < 12, axis=2)  # BGR of the rule colour
-    assert int(bar_blue.sum()) > 2000, "no chart bars drawn in the browser"
+    drawn = sum(  # pixels of the rules' colours (BGR): bars and lines of the charts
+        int(np.all(np.abs(image.astype(int) - colour[::-1]) < 12, axis=2).sum()) for colour in RULE_COLOURS
+    )
+    assert drawn > 2000, "no chart drawn in the browser"

@@ -75,12 +75,17 @@ ScoreOption = Annotated[
         "--score",
         help="Scoring rule: "
         + " or ".join(f"`{rule.name}` ({rule.formula} ≥ {rule.symbol})" for rule in RULES.values())
-        + "; default: contrast when the memory has success runs, else paper.",
+        + "; default per task: contrast with success and failure runs, novelty with success runs only, "
+        "paper with failure runs only.",
     ),
 ]
 GammaOption = Annotated[
     float | None,
     typer.Option(help="Contrast threshold γ (default: the memory's calibrated γ, else 0)."),
+]
+EtaOption = Annotated[
+    float | None,
+    typer.Option(help="Novelty threshold η (default: the memory's calibrated η, else 0.1)."),
 ]
 
 

@@ -19,6 +19,7 @@ from robofailring.cli.options import (
     DeltaOption,
     DeviceOption,
     EncoderOption,
+    EtaOption,
     GammaOption,
     KOption,
     LabelsOption,
@@ -146,7 +147,7 @@ def build_memory_cmd(
     )
     typer.echo(
         f"memory {target}: {len(memory)} entries ({memory.dim}-d, encoder {memory.encoder}) from "
-        f"{stats.failures} failure trajectories over {len(memory.tasks)} tasks; "
+        f"{stats.failures} failure trajectories over {sum(map(memory.has_failures, memory.tasks))} tasks; "
         f"{stats.ignored_non_failures} non-failures ignored"
     )
     if memory.successes is not None:
@@ -178,6 +179,7 @@ def detect_cmd(
     k: KOption = 5,
     score: ScoreOption = None,
     gamma: GammaOption = None,
+    eta: EtaOption = None,
     task: TaskOption = None,
     views: ViewsOption = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the full trace as one JSON object.")] = False,
@@ -208,6 +210,7 @@ def detect_cmd(
             k=k,
             score=score,
             gamma=gamma,
+            eta=eta,
             task=task,
             views=views,
             leave_one_out=leave_one_out,

@@ -10,7 +10,15 @@ import numpy as np
 
 from robofailring.data.images import as_rgb
 from robofailring.data.model import Frame, Trajectory
-from robofailring.detection.rules import CONTRAST, PAPER, RULES, ScoringRule, default_rule, rule_named
+from robofailring.detection.rules import (
+    CONTRAST,
+    NOVELTY,
+    PAPER,
+    RULES,
+    ScoringRule,
+    default_rule,
+    rule_named,
+)
 from robofailring.detection.trace import DetectionTrace, StepResult
 from robofailring.detection.view_scores import ViewScores
 from robofailring.encoders.base import Encoder, l2_normalize
@@ -62,9 +70,11 @@ class StepSink(Protocol):
 class FailureDetector:
     """Matches (first frame ‖ current frame) queries against one task's failure memory.
 
-    It judges by one scoring rule (`robofailring.detection.rules`) at that rule's threshold; the
-    thresholds of every rule come from `delta`/`gamma` when given, else the memory's stored
-    calibration, else the rule's default.
+    It judges by one scoring rule (`robofailring.detection.rules`) at that rule's threshold: the
+    one given for every task, else each task's default (`rule_for`: contrast with success and
+    failure runs, novelty with success runs only, paper with failures only). The thresholds of
+    every rule come from `delta`/`gamma`/`eta` when given, else the memory's stored calibration,
+    else the rule's default.
     """
 
     def __init__(
@@ -76,25 +86,48 @@ class FailureDetector:
         k: int = DEFAULT_K,
         rule: ScoringRule | str | None = None,
         gamma: float | None = None,
+        eta: float | None = None,
     ) -> None:
         memory.check_encoder(encoder.identity)
         check_k(k)
-        self.thresholds = _thresholds(memory, {"delta": delta, "gamma": gamma})
-        self.rule = default_rule(successes=memory.successes is not None) if rule is None else rule_named(rule)
+        self.thresholds = _thresholds(memory, {"delta": delta, "gamma": gamma, "eta": eta})
+        self.chosen_rule = rule_named(rule) if rule is not None else None  # None: each task's default
+        self.memory = memory
         if self.rule.needs_successes and memory.successes is None:
             raise SettingError(
                 f"the {self.rule.name} rule needs success runs in the memory, and this one has none (built with "
                 "--no-successes or before success contrast existed); use --score paper or rebuild the memory"
             )
-        self.memory = memory
+        if self.rule.needs_failures and not len(memory):
+            raise SettingError(
+                f"the {self.rule.name} rule needs failure runs in the memory, and this one has none (built from "
+                "success runs only); use --score novelty or add failure runs"
+            )
         self.encoder = (
             encoder if isinstance(encoder, CachedEncoder) else CachedEncoder(encoder, enabled=False)
         )
         self.k = k
 
     @property
+    def rule(self) -> ScoringRule:
+        """The rule given, else the memory's default as a whole (`default_rule` over all its tasks)."""
+        if self.chosen_rule is not None:
+            return self.chosen_rule
+        return default_rule(successes=self.memory.successes is not None, failures=len(self.memory) > 0)
+
+    def rule_for(self, task: str) -> ScoringRule:
+        """The rule `task` is judged by: the one given, else the task's default (what its memory holds)."""
+        if self.chosen_rule is not None:
+            return self.chosen_rule
+        successes = self.memory.successes
+        return default_rule(
+            successes=successes is not None and successes.has_task(task),
+            failures=self.memory.has_failures(task),
+        )
+
+    @property
     def threshold(self) -> float:
-        """The rule's threshold: δ (paper rule), γ (contrast rule), …"""
+        """The rule's threshold: δ (paper rule), γ (contrast rule), η (novelty rule), …"""
         return self.threshold_of(self.rule)
 
     def threshold_of(self, rule: ScoringRule) -> float:
@@ -111,15 +144,27 @@ class FailureDetector:
         """The contrast rule's γ."""
         return self.threshold_of(CONTRAST)
 
-    def _check_task(self, task: str) -> None:
-        """Unknown task, or a rule needing success runs for a task without any: a clear error up front."""
+    @property
+    def eta(self) -> float:
+        """The novelty rule's η."""
+        return self.threshold_of(NOVELTY)
+
+    def _check_task(self, task: str) -> ScoringRule:
+        """The task's rule; unknown task, or a rule needing runs the task lacks: a clear error up front."""
         self.memory.task_size(task)
+        rule = self.rule_for(task)
         successes = self.memory.successes
-        if self.rule.needs_successes and successes is not None and not successes.has_task(task):
+        if rule.needs_successes and successes is not None and not successes.has_task(task):
             raise SettingError(
-                f"task {task!r} has no success runs in the memory, so the {self.rule.name} rule cannot judge it; "
+                f"task {task!r} has no success runs in the memory, so the {rule.name} rule cannot judge it; "
                 "use --score paper or add success runs of this task"
             )
+        if rule.needs_failures and not self.memory.has_failures(task):
+            raise SettingError(
+                f"task {task!r} has no failure runs in the memory, so the {rule.name} rule cannot judge it; "
+                "use --score novelty (or leave --score out) or add failure runs of this task"
+            )
+        return rule
 
     def encode(self, frames: Sequence[np.ndarray | Frame], views: Sequence[str]) -> np.ndarray:
         """Unit-norm embeddings of `frames` (one per view name in `views`, for error messages).
@@ -175,8 +220,8 @@ class FailureDetector:
         self, task: str, *, exclude_episode: str | None = None, sink: StepSink | None = None
     ) -> DetectorSession:
         """A live session for a robot: feed each step's frames with `step`; `sink` sees every step."""
-        self._check_task(task)  # unknown task -> clear error before the robot moves
-        return DetectorSession(self, task, exclude_episode=exclude_episode, sink=sink)
+        rule = self._check_task(task)  # unknown task -> clear error before the robot moves
+        return DetectorSession(self, task, rule, exclude_episode=exclude_episode, sink=sink)
 
     def run(self, trajectory: Trajectory, *, leave_one_out: bool = False, stride: int = 1) -> DetectionTrace:
         """Detect over a whole trajectory; `leave_one_out` hides its own episode from both memories.
@@ -185,7 +230,7 @@ class FailureDetector:
         trace keeps original frame numbers (t_det, L), unscored frames hold NaN.
         """
         check_stride(stride)
-        self._check_task(trajectory.task)
+        rule = self._check_task(trajectory.task)
         used = {view: frames for view, frames in trajectory.views.items() if len(frames) >= 2}
         skipped = [view for view in trajectory.views if view not in used]
         if not used:
@@ -220,7 +265,7 @@ class FailureDetector:
             task=trajectory.task,
             episode=trajectory.episode,
             length=length,
-            rule=self.rule,
+            rule=rule,
             thresholds=dict(self.thresholds),
             k=self.k,
             encoder=self.encoder.identity,
@@ -265,12 +310,14 @@ class DetectorSession:
         self,
         detector: FailureDetector,
         task: str,
+        rule: ScoringRule,
         *,
         exclude_episode: str | None,
         sink: StepSink | None = None,
     ) -> None:
         self.detector = detector
         self.task = task
+        self.rule = rule  # the task's rule (`FailureDetector.rule_for`)
         self.exclude_episode = exclude_episode
         self.sink = sink
         self._first: dict[str, np.ndarray] = {}
@@ -288,7 +335,8 @@ class DetectorSession:
         missing = np.full(1, np.nan, np.float32)
         failure = {view: found.similarity(view) for view in views}
         success = {view: found.success_similarity.get(view, missing) for view in views}
-        rule, threshold = detector.rule, detector.threshold
+        rule = self.rule
+        threshold = detector.threshold_of(rule)
         scores = ViewScores({view: rule.score(failure[view], success[view]) for view in views}, 1)
         successes = detector.memory.successes
         fired = scores.firing(threshold, 0)
@@ -317,6 +365,7 @@ class DetectorSession:
             if successes is not None
             else {},
             contrast={view: float(CONTRAST.score(failure[view], success[view])[0]) for view in views},
+            novelty={view: float(NOVELTY.score(failure[view], success[view])[0]) for view in views},
             queries={view: found.queries[view][0] for view in views},
         )
         if fired and self.fired_at is None:

@@ -17,6 +17,7 @@ def open_detector(
     rule: ScoringRule | str | None = None,
     delta: float | None = None,
     gamma: float | None = None,
+    eta: float | None = None,
     k: int = DEFAULT_K,
     data_root: str | Path | None = None,
     encoder: str | None = None,
@@ -24,8 +25,8 @@ def open_detector(
 ) -> FailureDetector:
     """Load the memory at `memory_dir` and its encoder, and return its detector.
 
-    Thresholds default to the memory's calibrated δ and γ (else the paper's δ = 0.92 and γ = 0);
-    the rule defaults to `contrast` when the memory holds success runs, else the paper's. `encoder`
+    Thresholds default to the memory's calibrated δ, γ and η (else the paper's δ = 0.92, γ = 0
+    and η = 0.1); the rule defaults per task (`FailureDetector.rule_for`). `encoder`
     overrides the spec the memory was built with (it must give the same identity); `data_root` is
     where the memory's images are now, when its data moved; `device` is the torch device for CLIP.
     """
@@ -37,4 +38,4 @@ def open_detector(
         device=device,
         cache_dir=Path(cache_dir) if cache_dir is not None else None,
     )
-    return FailureDetector(memory, opened, delta=delta, k=k, rule=rule, gamma=gamma)
+    return FailureDetector(memory, opened, delta=delta, k=k, rule=rule, gamma=gamma, eta=eta)

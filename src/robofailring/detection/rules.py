@@ -3,8 +3,9 @@
 `paper` is the rule of paper §3.3 (eq. 6–7): S⁻_t ≥ δ. `contrast` is this project's addition
 (README, "Success contrast"): the same query is also matched against the task's success runs, and
 the alarm needs the current state to be nearer a failure's end than anything seen in a normal run,
-C_t = S⁻_t − S⁺_t ≥ γ. Both thresholds are set by split-conformal calibration
-(`robofailring.detection.conformal`).
+C_t = S⁻_t − S⁺_t ≥ γ. `novelty` needs no failure at all (README, "Success runs only"): how far
+the current pair is from anything seen in the task's success runs, N_t = 1 − S⁺_t ≥ η. Every
+threshold is set by split-conformal calibration (`robofailring.detection.conformal`).
 
 A new rule is one `ScoringRule` subclass added to `RULES`: the detector, its trace, the live step,
 the evaluation, the CLI's `--score` and the recordings all ask the rule object.
@@ -32,6 +33,7 @@ class ScoringRule(ABC):
     bounds: ClassVar[tuple[float, float]]  # the valid threshold range
     default_threshold: ClassVar[float]  # used until a memory is calibrated
     needs_successes: ClassVar[bool]  # the score needs S⁺, so a memory with success runs
+    needs_failures: ClassVar[bool] = True  # the score needs S⁻, so failure entries of the task
 
     @abstractmethod
     def score(self, failure_similarity: ArrayLike, success_similarity: ArrayLike) -> np.ndarray:
@@ -91,9 +93,30 @@ class ContrastRule(ScoringRule):
         )
 
 
+class NoveltyRule(ScoringRule):
+    """Success novelty: fire when N_t = 1 − S⁺_t reaches η (far from every success frame of the task).
+
+    It needs no failure run, so it judges a task whose memory holds success runs only; it cannot
+    say which failure a run looks like (the neighbour panel says there is none to show)."""
+
+    name = "novelty"
+    symbol = "η"
+    score_name = "N_t"
+    formula = "N_t = 1 − S⁺_t"
+    threshold_key = "eta"
+    bounds = (0.0, 2.0)  # one minus a cosine
+    default_threshold = 0.1
+    needs_successes = True
+    needs_failures = False
+
+    def score(self, failure_similarity: ArrayLike, success_similarity: ArrayLike) -> np.ndarray:
+        return np.asarray(1.0 - np.asarray(success_similarity, dtype=np.float32), dtype=np.float32)
+
+
 PAPER: Final[ScoringRule] = PaperRule()
 CONTRAST: Final[ScoringRule] = ContrastRule()
-RULES: Final[dict[str, ScoringRule]] = {rule.name: rule for rule in (PAPER, CONTRAST)}
+NOVELTY: Final[ScoringRule] = NoveltyRule()
+RULES: Final[dict[str, ScoringRule]] = {rule.name: rule for rule in (PAPER, CONTRAST, NOVELTY)}
 PAPER_DELTA: Final[float] = PaperRule.default_threshold  # the paper's default δ (§4)
 
 
@@ -107,11 +130,19 @@ def rule_named(name: str | ScoringRule) -> ScoringRule:
         raise SettingError(f"unknown scoring rule {name!r}; choose one of {list(RULES)}") from None
 
 
-def rules_for(*, successes: bool) -> list[ScoringRule]:
-    """The registered rules a memory supports: those needing S⁺ only when it holds success runs."""
-    return [rule for rule in RULES.values() if successes or not rule.needs_successes]
+def rules_for(*, successes: bool, failures: bool = True) -> list[ScoringRule]:
+    """The registered rules a memory (or one task of it) supports: those needing S⁺ only with success
+    runs, those needing S⁻ only with failure entries."""
+    return [
+        rule
+        for rule in RULES.values()
+        if (successes or not rule.needs_successes) and (failures or not rule.needs_failures)
+    ]
 
 
-def default_rule(*, successes: bool) -> ScoringRule:
-    """`contrast` when the memory holds success runs, else the paper's rule."""
-    return CONTRAST if successes else PAPER
+def default_rule(*, successes: bool, failures: bool = True) -> ScoringRule:
+    """The rule a task is judged by when none is chosen: `contrast` with both success runs and
+    failure entries, `novelty` with success runs only, the paper's rule with failures only."""
+    if successes:
+        return CONTRAST if failures else NOVELTY
+    return PAPER

@@ -1,4 +1,4 @@
-"""What the detector produces: a trace over a whole trajectory (S⁻, S⁺, C per view, t_det) and
+"""What the detector produces: a trace over a whole trajectory (S⁻, S⁺, C, N per view, t_det) and
 the result of one live step."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from robofailring.data.model import Skipped
-from robofailring.detection.rules import CONTRAST, PAPER, ScoringRule
+from robofailring.detection.rules import CONTRAST, NOVELTY, PAPER, RULES, ScoringRule
 from robofailring.detection.view_scores import ViewScores
 from robofailring.memory.failure import FailureMemory, Neighbor
 from robofailring.memory.success import SuccessMatch
@@ -24,13 +24,14 @@ class StepResult:
     neighbors: dict[str, list[Neighbor]]
     alarm: bool  # State_t: some view's score reaches the threshold
     fired_views: list[str]  # the views whose score reaches it, in view order
-    score: dict[str, float]  # the rule's score per view (S_t or C_t; NaN: not scored)
+    score: dict[str, float]  # the rule's score per view (S_t, C_t or N_t; NaN: not scored)
     rule: ScoringRule
     threshold: float
     detected_view: str | None  # the firing view with the highest score, None without an alarm
     success_similarity: dict[str, float] = field(default_factory=dict)  # S⁺_t per view (NaN: none)
     nearest_success: dict[str, SuccessMatch | None] = field(default_factory=dict)  # its success frame
     contrast: dict[str, float] = field(default_factory=dict)  # C_t = S⁻_t − S⁺_t per view
+    novelty: dict[str, float] = field(default_factory=dict)  # N_t = 1 − S⁺_t per view
     queries: dict[str, np.ndarray] = field(default_factory=dict, repr=False)  # (f(I_0) ‖ f(I_t)) per view
 
     @property
@@ -88,6 +89,11 @@ class DetectionTrace:
         """The contrast rule's γ."""
         return self.threshold_of(CONTRAST)
 
+    @property
+    def eta(self) -> float:
+        """The novelty rule's η."""
+        return self.threshold_of(NOVELTY)
+
     def scores_of(self, rule: ScoringRule) -> dict[str, np.ndarray]:
         """`rule`'s score per view from S⁻ and S⁺ (S⁺ NaN throughout when the memory has no success runs)."""
         missing = np.full(self.length, np.nan, np.float32)
@@ -102,8 +108,18 @@ class DetectionTrace:
         return self.scores_of(CONTRAST)
 
     @property
+    def novelty(self) -> dict[str, np.ndarray]:
+        """N_t = 1 − S⁺_t per view (NaN throughout when the memory has no success runs)."""
+        return self.scores_of(NOVELTY)
+
+    @property
+    def has_failures(self) -> bool:
+        """Whether the memory holds failure entries of this trace's task (neighbours to show)."""
+        return self.memory.has_failures(self.task)
+
+    @property
     def scores(self) -> dict[str, np.ndarray]:
-        """The score the rule thresholds, per view: S⁻_t (paper) or C_t (contrast)."""
+        """The score the rule thresholds, per view: S⁻_t (paper), C_t (contrast) or N_t (novelty)."""
         return self.scores_of(self.rule)
 
     @property
@@ -166,7 +182,7 @@ class DetectionTrace:
     def to_dict(self) -> dict[str, Any]:
         """The JSON shape of `robofailring detect --json`."""
         views: dict[str, Any] = {}
-        contrasts = self.contrast
+        contrasts, novelties = self.contrast, self.novelty
         for view in self.views:
             top = []
             for t in range(self.length):
@@ -190,6 +206,7 @@ class DetectionTrace:
                     self.success_similarity.get(view, np.full(self.length, np.nan))
                 ),
                 "contrast": _rounded(contrasts[view]),
+                "novelty": _rounded(novelties[view]),
             }
         return {
             "task": self.task,
@@ -198,6 +215,8 @@ class DetectionTrace:
             "delta": self.delta,
             "score": self.rule.name,
             "threshold": self.threshold,
+            "thresholds": {rule.threshold_key: self.threshold_of(rule) for rule in RULES.values()},
+            "failure_entries": self.memory.task_size(self.task),
             "k": self.k,
             "encoder": self.encoder,
             "t_det": self.t_det,

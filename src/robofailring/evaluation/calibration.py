@@ -1,4 +1,4 @@
-"""Calibration with a guarantee (README, "Calibration with a guarantee"): δ and γ from success runs.
+"""Calibration with a guarantee (README, "Calibration with a guarantee"): δ, γ and η from success runs.
 
 Each success run is replayed with its own episode hidden from both memories (leave-one-out), so
 its frames never match themselves in the success memory; its peak score over frames and views is
@@ -18,7 +18,7 @@ from robofailring.data.model import Skipped, Trajectory
 from robofailring.detection.conformal import check_target_fpr, conformal_threshold, empirical_fpr
 from robofailring.detection.detector import FailureDetector, check_k, check_stride
 from robofailring.detection.loader import open_detector
-from robofailring.detection.rules import CONTRAST, PAPER, PAPER_DELTA, ScoringRule, rules_for
+from robofailring.detection.rules import CONTRAST, NOVELTY, PAPER, PAPER_DELTA, ScoringRule, rules_for
 from robofailring.errors import DataError
 from robofailring.memory.manifest import StoredCalibration
 from robofailring.progress import progress_bar
@@ -36,8 +36,9 @@ class RuleCalibration:
 
 
 def available_rules(detector: FailureDetector) -> list[ScoringRule]:
-    """The rules this detector's memory supports: contrast needs success runs."""
-    return rules_for(successes=detector.memory.successes is not None)
+    """The rules this detector's memory supports: contrast and novelty need success runs, paper and
+    contrast failure runs."""
+    return rules_for(successes=detector.memory.successes is not None, failures=len(detector.memory) > 0)
 
 
 def success_peaks(
@@ -127,27 +128,35 @@ class CalibrateConfig:
 
 @dataclass(frozen=True)
 class Calibration:
-    delta: float
+    delta: float | None  # None: the memory has no failure runs (success runs only)
     target_fpr: float
-    achieved_fpr: float
+    achieved_fpr: float | None  # δ's
     successes: int
     encoder: str
     skipped_inputs: list[Skipped] = field(default_factory=list)  # folders/files of the data not read
-    gamma: float | None = None  # the contrast rule's γ, when the memory has success runs
+    gamma: float | None = None  # the contrast rule's γ, when the memory has success and failure runs
     gamma_achieved_fpr: float | None = None
     skipped_too_short: list[str] = field(default_factory=list)  # success runs with no view of 2+ frames
+    eta: float | None = None  # the novelty rule's η, when the memory has success runs
+    eta_achieved_fpr: float | None = None
 
     def to_text(self, memory: Path) -> str:
-        """The summary `robofailring calibrate` prints: δ, and γ when the memory has success runs."""
-        text = (
-            f"δ = {self.delta:.6f} (paper rule) for encoder {self.encoder}: FPR {100 * self.achieved_fpr:.1f} % on "
-            f"{self.successes} success runs (target {100 * self.target_fpr:.1f} %); stored in {memory}/manifest.json"
+        """The summary `robofailring calibrate` prints: δ, γ and η, those the memory supports."""
+        head = (
+            f"calibrated for encoder {self.encoder} on {self.successes} success runs (target FPR "
+            f"{100 * self.target_fpr:.1f} %); stored in {memory}/manifest.json"
         )
-        if self.gamma is not None and self.gamma_achieved_fpr is not None:
-            text += (
-                f"\nγ = {self.gamma:.6f} (contrast rule): FPR {100 * self.gamma_achieved_fpr:.1f} % on the same "
-                "runs, each scored with its own episode left out of the success memory"
-            )
+        lines = [head]
+        for rule, threshold, achieved, note in (
+            (PAPER, self.delta, self.achieved_fpr, ""),
+            (CONTRAST, self.gamma, self.gamma_achieved_fpr, ", own episode left out of the success memory"),
+            (NOVELTY, self.eta, self.eta_achieved_fpr, ", own episode left out of the success memory"),
+        ):
+            if threshold is not None and achieved is not None:
+                lines.append(
+                    f"{rule.symbol} = {threshold:.6f} ({rule.name} rule): FPR {100 * achieved:.1f} % on those runs{note}"
+                )
+        text = "\n".join(lines)
         if self.skipped_too_short:
             text += f"\nskipped: {len(self.skipped_too_short)} success run(s) with no view of 2+ frames (nothing to score)"
             text += "".join(f"\n  skipped {key}" for key in self.skipped_too_short[:10])
@@ -161,7 +170,6 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
         device=config.device,
         cache_dir=config.cache_dir,
         k=config.k,
-        rule=PAPER,
         delta=PAPER_DELTA,
     )
     memory = detector.memory
@@ -196,17 +204,19 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
             stride=config.stride,
             too_short=too_short,
         )
-    paper, contrast = found[PAPER], found.get(CONTRAST)
+    paper, contrast, novelty = found.get(PAPER), found.get(CONTRAST), found.get(NOVELTY)
     calibrated = memory.with_calibration(
         StoredCalibration(
             encoder=memory.encoder,
-            delta=paper.threshold,
+            delta=paper.threshold if paper is not None else None,
             gamma=contrast.threshold if contrast is not None else None,
+            eta=novelty.threshold if novelty is not None else None,
             method="split conformal, own episode left out",
             target_fpr=config.target_fpr,
-            achieved_fpr=paper.achieved_fpr,
+            achieved_fpr=paper.achieved_fpr if paper is not None else None,
             gamma_achieved_fpr=contrast.achieved_fpr if contrast is not None else None,
-            successes=paper.successes,
+            eta_achieved_fpr=novelty.achieved_fpr if novelty is not None else None,
+            successes=max(calibration.successes for calibration in found.values()),
             data=str(Path(config.data).resolve()),
             split=config.split,
             k=config.k,
@@ -214,14 +224,18 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
         )
     )
     calibrated.write_manifest(config.memory)
+    stored = calibrated.manifest.calibration
+    assert stored is not None
     return Calibration(
-        delta=paper.threshold,
+        delta=stored.delta,
         target_fpr=config.target_fpr,
-        achieved_fpr=paper.achieved_fpr,
-        successes=paper.successes,
+        achieved_fpr=stored.achieved_fpr,
+        successes=stored.successes or 0,
         encoder=memory.encoder,
         skipped_inputs=dataset.skipped,
-        gamma=contrast.threshold if contrast is not None else None,
-        gamma_achieved_fpr=contrast.achieved_fpr if contrast is not None else None,
+        gamma=stored.gamma,
+        gamma_achieved_fpr=stored.gamma_achieved_fpr,
         skipped_too_short=too_short,
+        eta=stored.eta,
+        eta_achieved_fpr=stored.eta_achieved_fpr,
     )

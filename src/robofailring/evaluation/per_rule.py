@@ -1,4 +1,4 @@
-"""Both scoring rules measured on the same replays: threshold, recall, FPR, T_s and peak-score AUC."""
+"""Every scoring rule measured on the same replays: threshold, recall, FPR, T_s and peak-score AUC."""
 
 from __future__ import annotations
 
@@ -41,6 +41,8 @@ class RuleResult:
 
     def to_dict(self) -> dict[str, Any]:
         return {
+            "symbol": self.rule.symbol,
+            "score_name": self.rule.score_name,
             "threshold": self.threshold,
             "calibrated": self.calibrated,
             "recall": json_number(self.recall),

@@ -14,6 +14,7 @@ from robofailring.detection.detector import (
     DetectionTrace,
 )
 from robofailring.detection.rules import ScoringRule
+from robofailring.evaluation.growth import GrowthPoint, growth_markdown
 from robofailring.evaluation.metrics import (
     PAPER_DELTAS,
     Rates,
@@ -49,6 +50,7 @@ class EvaluationResult:
     target_fpr: float | None = None
     deployment_successes: int = 0
     vocabulary: Vocabulary | None = field(default=None, repr=False)  # the memory's own failure symbols
+    growth: list[GrowthPoint] = field(default_factory=list)  # `evaluate --growth`: the learning curve
     paper_rates: list[Rates] = field(init=False)
     curve: list[Rates] = field(init=False)
 
@@ -189,6 +191,7 @@ class EvaluationResult:
             "latency_ms": self.latency_ms,
             "target_fpr": self.target_fpr,
             "deployment_successes": self.deployment_successes,
+            **({"growth": [point.to_dict() for point in self.growth]} if self.growth else {}),
             "rules": {
                 name: result.to_dict() | self.rule_charts(result.rule, rate_row)
                 for name, result in self.rules.items()
@@ -229,6 +232,7 @@ class EvaluationResult:
             f"operating δ = {delta:.4f} ({'calibrated' if self.calibrated else 'paper default'}).",
             "",
             *self._rules_markdown(),
+            *growth_markdown(self.growth),
             "| δ | Recall (%) | FPR (%) | TP | FN | FP | TN | mean T_s (%) | median progress (%) |",
             "|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
         ]
@@ -308,7 +312,7 @@ class EvaluationResult:
             else ""
         )
         return [
-            "Both scoring rules, each calibrated on the training successes (split conformal, each run's own "
+            "Every scoring rule, each calibrated on the training successes (split conformal, each run's own "
             f"episode left out):{deployed}",
             "",
             MARKDOWN_HEADER,

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +27,7 @@ from robofailring.detection.detector import (
 from robofailring.detection.rules import PAPER, ScoringRule
 from robofailring.encoders import CachedEncoder, open_encoder
 from robofailring.errors import DataError, RoboFailRingError, SettingError
+from robofailring.evaluation.growth import GrowthPoint, judged
 from robofailring.evaluation.metrics import PAPER_DELTAS, ScoredTrajectory
 from robofailring.evaluation.per_rule import evaluate_rule, scored_by_rule
 from robofailring.evaluation.result import EvaluationResult
@@ -64,6 +66,8 @@ class EvaluateConfig:
     deployment_successes: int = 0  # per task: test success runs moved into the success memory
     task: str | None = None  # task of episodes whose names do not say it
     views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
+    failures_per_task: int | None = None  # the memory built here holds N training failures per task
+    # (`labelled_failures`; 0: success runs only, judged by the novelty rule); None: all of them
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
         check_k(self.k)
@@ -72,6 +76,8 @@ class EvaluateConfig:
             check_target_fpr(self.target_fpr)
         if self.deployment_successes < 0:
             raise SettingError(f"deployment successes must be ≥ 0, got {self.deployment_successes}")
+        if self.failures_per_task is not None and self.failures_per_task < 0:
+            raise SettingError(f"failures per task must be ≥ 0, got {self.failures_per_task}")
         for delta in self.deltas:
             PAPER.check_threshold(delta)
         if not 0.0 < self.test_fraction < 1.0:
@@ -184,7 +190,7 @@ def build_training_memory(
         skipped_inputs=splits.dataset.skipped,
     )
     memory, _ = build_memories(
-        splits.train,
+        labelled_failures(splits.train, config.failures_per_task),
         encoder,
         provenance=provenance,
         successes=config.successes,
@@ -194,6 +200,24 @@ def build_training_memory(
     memory_dir = config.memory_out or Path(config.out) / "memory"
     memory.save(memory_dir)
     return memory_dir
+
+
+def labelled_failures(trajectories: Sequence[Trajectory], per_task: int | None) -> list[Trajectory]:
+    """The success runs and `per_task` failure runs of each task (None: all of them), the failures
+    in a fixed pseudo-random order (a hash of their key), so the few that are labelled are of mixed types."""
+    if per_task is None:
+        return list(trajectories)
+    kept: dict[str, int] = {}
+    chosen = []
+    for trajectory in sorted(
+        trajectories, key=lambda t: hashlib.blake2b(t.key.encode(), digest_size=8).digest()
+    ):
+        if trajectory.is_failure:
+            if kept.get(trajectory.task, 0) >= per_task:
+                continue
+            kept[trajectory.task] = kept.get(trajectory.task, 0) + 1
+        chosen.append(trajectory)
+    return chosen
 
 
 def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
@@ -209,7 +233,7 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
     memory, test = _deploy_successes(memory, test, config.deployment_successes, encoder, config.success_step)
     detector = FailureDetector(memory, encoder, k=config.k)
     thresholds, calibrated = _thresholds(config, detector, train)
-    operating = thresholds[PAPER]
+    operating = thresholds.get(PAPER, PAPER.default_threshold)  # no failure runs: the paper tables are empty
     known = set(memory.tasks)
     scored: list[ScoredTrajectory] = []
     traces: dict[str, DetectionTrace] = {}
@@ -263,7 +287,7 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
         memory=str(memory_dir),
         k=config.k,
         operating_delta=operating,
-        calibrated=calibrated[PAPER],
+        calibrated=calibrated.get(PAPER, False),
         rules=rules,
         target_fpr=config.target_fpr if config.target_fpr is not None else _stored_target(memory),
         deployment_successes=config.deployment_successes,
@@ -277,6 +301,37 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
         stride=config.stride,
         vocabulary=memory.vocabulary,
     )
+
+
+def check_growth(config: EvaluateConfig) -> None:
+    """A curve builds a memory per level from the training data: SettingError for a given memory."""
+    if config.memory is not None:
+        raise SettingError("--growth builds a memory per level from the training data: leave out --memory")
+
+
+def growth_curve(
+    config: EvaluateConfig, levels: Sequence[int], *, full: EvaluationResult
+) -> list[GrowthPoint]:
+    """Each level's evaluation of `config` (an `EvaluateConfig` building its memory: `memory` None) with
+    `failures_per_task` set, written to `<out>/growth-<n>/` (its memory and `growth-<n>.json`/`.md`),
+    then `full` (the evaluation with every failure)."""
+    check_growth(config)
+    points = []
+    for level in levels:
+        folder = Path(config.out) / f"growth-{level}"
+        result = run_evaluation(
+            replace(
+                config,
+                failures_per_task=level,
+                out=folder,
+                memory_out=folder / "memory",
+                name=f"growth-{level}",
+            )
+        )
+        write_evaluation(result, folder)
+        points.append(GrowthPoint(level, judged(result.rules, failures=level > 0)))
+    points.append(GrowthPoint(None, judged(full.rules, failures=True)))
+    return points
 
 
 def _stored_target(memory: FailureMemory) -> float | None:

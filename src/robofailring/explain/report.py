@@ -32,6 +32,10 @@ TASKS = (
     "4. Suggest a concrete repair action."
 )
 ASSISTANT_PRIMER = "Got it. Here's the analysis of the current situation:"
+NO_FAILURES = (
+    "No failure of this task in the memory (success runs only): the run is far from every success run, "
+    "but there is no past failure to compare it with."
+)
 
 
 @dataclass(frozen=True)
@@ -200,6 +204,8 @@ class FailureReport:
             lines.append(
                 f"| {rank} | {item.task} | {item.view} | {item.similarity:.3f} | `{item.symbol}` | {item.description} |"
             )
+        if not self.items:
+            lines += ["", NO_FAILURES]
         missing = self.missing_images()
         if missing:
             lines += ["", *(f"**image not found:** `{reference}`  " for reference in missing)]

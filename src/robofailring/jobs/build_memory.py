@@ -8,12 +8,12 @@ from pathlib import Path
 from robofailring.atomic import output_lock
 from robofailring.data.labels import label_key, read_labels
 from robofailring.data.layouts import Dataset, load_dataset
-from robofailring.data.model import Trajectory
+from robofailring.data.model import Outcome, Trajectory
 from robofailring.data.vocabulary import read_vocabulary
 from robofailring.encoders import open_encoder
 from robofailring.errors import DataError, MemoryFormatError, SettingError
 from robofailring.memory.builder import Provenance, add_to, build_memories
-from robofailring.memory.encoding import BuildStats
+from robofailring.memory.encoding import BuildStats, is_failure
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.thinning import DEFAULT_STEP
 from robofailring.outputs import check_memory_target, is_memory_dir
@@ -43,7 +43,8 @@ def build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
 
     `stats.skipped_inputs` lists what under the dataset root was not read, with the reason. The
     output is checked (and locked against a second build) before anything is encoded; a build
-    that would hold no entry is an error and replaces nothing.
+    that would hold no entry is an error and replaces nothing. Data with success runs and no
+    failure run gives a memory with an empty failure memory (the novelty rule judges its tasks).
     """
     if config.add_to and not is_memory_dir(config.out):
         raise MemoryFormatError(
@@ -62,11 +63,18 @@ def _build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]
     )
     dataset.require_labels("build-memory")
     trajectories = _selected(config, dataset)
-    entries_expected = sum(len(t.views) for t in trajectories if t.symbol)
-    if not entries_expected:
+    where = f"{config.data}{f' (split {config.split})' if config.split else ''}"
+    failures = sum(1 for t in trajectories if is_failure(t))
+    successes = sum(1 for t in trajectories if t.outcome is Outcome.SUCCESS)
+    if not failures and not (config.successes and successes):
         raise DataError(
-            f"{config.data}{f' (split {config.split})' if config.split else ''} holds no failure trajectory "
-            f"among its {len(trajectories)}: a failure memory needs failures; nothing was written"
+            f"{where} holds no failure trajectory among its {len(trajectories)}"
+            + (
+                " and --no-successes leaves out its success runs: a memory needs one or the other"
+                if successes
+                else " and no success run: a memory needs one or the other"
+            )
+            + "; nothing was written"
         )
     provenance = Provenance(
         data=Path(config.data),
@@ -84,9 +92,15 @@ def _build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]
         success_step=config.success_step,
         vocabulary=vocabulary,
     )
-    if not len(memory):
+    if not len(memory) and memory.successes is None:
         raise DataError(
-            f"no memory entry from {config.data}: every failure view has fewer than 2 frames; nothing was written"
+            f"no memory entry from {config.data}: every view has fewer than 2 frames; nothing was written"
+        )
+    success_only = [task for task in memory.tasks if not memory.has_failures(task)]
+    if success_only:
+        stats.notes.append(
+            f"no failure run of {', '.join(success_only)}: judged by the novelty rule (N_t = 1 − S⁺_t ≥ η) "
+            "until failure runs are added; calibrate η with `robofailring calibrate`"
         )
     stats.notes.extend(_dropped_calibration(config.out))
     memory.save(config.out)
@@ -141,20 +155,26 @@ def _selected(config: BuildMemoryConfig, dataset: Dataset) -> list[Trajectory]:
 
 
 def _dropped_calibration(out: Path) -> list[str]:
-    """A note when the memory being replaced had a calibrated δ: it is not carried over.
+    """A note when the memory being replaced had calibrated thresholds: they are not carried over.
 
-    δ is chosen against the old memory's entries; new entries move every S_t, so a stale δ would
-    silently change the false-positive rate. Calibrate the new memory again.
+    δ (or η, for a memory of success runs only) is chosen against the old memory's entries; new
+    entries move every score, so a stale threshold would silently change the false-positive rate.
+    Calibrate the new memory again.
     """
     if not is_memory_dir(out):
         return []
     try:
-        old = FailureMemory.load(out).calibrated_delta
+        old = FailureMemory.load(out)
     except MemoryFormatError:
         return []
-    if old is None:
+    delta, eta = old.calibrated_delta, old.calibrated_eta
+    if delta is not None:
+        said = f"δ = {delta:.6f}"
+    elif eta is not None:
+        said = f"η = {eta:.6f}"
+    else:
         return []
     return [
-        f"the memory replaced at {out} had a calibrated δ = {old:.6f}; the new one is uncalibrated "
-        f"(δ depends on the entries): run `robofailring calibrate DATA --memory {out}` again"
+        f"the memory replaced at {out} had a calibrated {said}; the new one is uncalibrated "
+        f"(thresholds depend on the entries): run `robofailring calibrate DATA --memory {out}` again"
     ]

@@ -26,8 +26,9 @@ class DetectConfig:
     memory: Path  # memory directory
     delta: float | None = None  # default: the memory's calibrated δ, else the paper's 0.92
     k: int = DEFAULT_K
-    score: str | None = None  # `paper` or `contrast` (default: contrast when the memory has successes)
+    score: str | None = None  # a rule's name (default per task: contrast, novelty or paper)
     gamma: float | None = None  # contrast threshold (default: the memory's calibrated γ, else 0)
+    eta: float | None = None  # novelty threshold (default: the memory's calibrated η, else 0.1)
     task: str | None = None  # needed when the folder name does not encode the task
     leave_one_out: bool = False  # hide the trajectory's own episode from the memory
     encoder: str | None = None  # default: the spec the memory was built with
@@ -55,6 +56,7 @@ def detect_trajectory(config: DetectConfig) -> tuple[DetectionTrace, Trajectory]
         rule=config.score,
         delta=config.delta,
         gamma=config.gamma,
+        eta=config.eta,
         k=config.k,
         data_root=config.data_root,
         encoder=config.encoder,
@@ -121,24 +123,35 @@ class DetectResult:
             f"task {trace.task}, L = {trace.length} frames{scored}, rule {rule.name}: {rule.score_name} ≥ "
             f"{rule.symbol} = {trace.threshold:.3f}, K = {trace.k}"
         ]
-        contrasts = trace.contrast
+        contrasts, novelties = trace.contrast, trace.novelty
         for view in trace.views:
-            line = f"  {view:>10}: max S⁻_t = {float(np.nanmax(trace.similarity[view])):.3f}"
+            parts = []
+            if trace.has_failures:
+                parts.append(f"max S⁻_t = {float(np.nanmax(trace.similarity[view])):.3f}")
             if view in trace.success_similarity:
-                line += f", max C_t = {float(np.nanmax(contrasts[view])):.3f}"
-            lines.append(line)
+                if trace.has_failures:
+                    parts.append(f"max C_t = {float(np.nanmax(contrasts[view])):.3f}")
+                parts.append(f"max N_t = {float(np.nanmax(novelties[view])):.3f}")
+            lines.append(f"  {view:>10}: " + ", ".join(parts))
         if trace.t_det is None or trace.detected_view is None:
             lines.append("no failure detected")
             return "\n".join(lines)
         fired_view = trace.detected_view
-        top = trace.neighbors(fired_view, trace.t_det)[0]
+        found = trace.neighbors(fired_view, trace.t_det)
         fired_score = float(trace.scores[fired_view][trace.t_det])
-        lines.append(
-            f"FAILURE detected at frame {trace.t_det}/{trace.length} in view {fired_view} "
-            f"({rule.name} rule: {rule.score_name} = {fired_score:.3f}, S⁻_t = {top.similarity:.3f}); "
-            f"nearest memory entry {top.entry.task}/{top.entry.episode} "
-            f"[{top.entry.view}] {top.entry.symbol}: {top.entry.description}"
-        )
+        said = f"FAILURE detected at frame {trace.t_det}/{trace.length} in view {fired_view} ({rule.name} rule: {rule.score_name} = {fired_score:.3f}"
+        if found:
+            top = found[0]
+            said += (
+                f", S⁻_t = {top.similarity:.3f}); nearest memory entry {top.entry.task}/{top.entry.episode} "
+                f"[{top.entry.view}] {top.entry.symbol}: {top.entry.description}"
+            )
+        else:
+            said += "); no failure of this task in the memory to compare with"
+        match = trace.nearest_success(fired_view, trace.t_det)
+        if match is not None:
+            said += f"; nearest success frame {match.run.episode} frame {match.frame} (S⁺_t = {match.similarity:.3f})"
+        lines.append(said)
         if self.answer is not None and self.answer.answer is not None:
             lines.append(f"\nVLM ({self.answer.model}, {self.answer.latency_s:.1f} s):\n{self.answer.answer}")
         return "\n".join(lines)

@@ -110,14 +110,21 @@ class FailureMemory:
     # ---------------------------------------------------------------- queries
     @property
     def tasks(self) -> list[str]:
-        return self.index.tasks
+        """Every task the memory knows: those with failure entries and those with success runs only."""
+        known = set(self.index.tasks) | set(self.successes.tasks if self.successes is not None else ())
+        return sorted(known)
 
     def __len__(self) -> int:
         return len(self.entries)
 
     def task_size(self, task: str) -> int:
+        """Failure entries of `task` (0 for a task with success runs only); UnknownTaskError for another."""
         self._check_task(task)
-        return self.index.by_task[task].size
+        return self.index.by_task[task].size if task in self.index.by_task else 0
+
+    def has_failures(self, task: str) -> bool:
+        """Whether `task` has failure entries (a task with success runs only has none)."""
+        return task in self.index.by_task
 
     def check_encoder(self, identity: str) -> None:
         """Raise EncoderMismatchError unless `identity` is the encoder that built the memory."""
@@ -128,7 +135,9 @@ class FailureMemory:
             )
 
     def _check_task(self, task: str) -> None:
-        if task not in self.index.by_task:
+        if task not in self.index.by_task and not (
+            self.successes is not None and self.successes.has_task(task)
+        ):
             known = ", ".join(self.tasks[:20]) + (" …" if len(self.tasks) > 20 else "")
             raise UnknownTaskError(f"task {task!r} has no entry in the memory; its tasks are: {known}")
 
@@ -138,13 +147,16 @@ class FailureMemory:
         """Top-`k` entries of `task` for each query row (eq. 5).
 
         Returns (similarities, global ids), both (n, k); rows are padded with NaN and -1 when the
-        task has fewer than k usable entries. `exclude_episode` hides that episode's entries
-        (leave-one-out). All query rows (e.g. the views of one step) go to Faiss in one call.
+        task has fewer than k usable entries (all of them for a task with success runs only).
+        `exclude_episode` hides that episode's entries (leave-one-out). All query rows (e.g. the
+        views of one step) go to Faiss in one call.
         """
         queries = np.ascontiguousarray(np.atleast_2d(queries), dtype=np.float32)
         if queries.shape[1] != self.dim:
             raise MemoryFormatError(f"query dimension {queries.shape[1]} != memory dimension {self.dim}")
         self._check_task(task)
+        if not self.has_failures(task):
+            return np.full((len(queries), k), np.nan, np.float32), np.full((len(queries), k), -1, np.int64)
         return self.index.search(queries, task, k, exclude_episode=exclude_episode)
 
     def neighbors(self, similarities: np.ndarray, ids: np.ndarray) -> list[Neighbor]:
@@ -296,6 +308,11 @@ class FailureMemory:
     def calibrated_gamma(self) -> float | None:
         """γ (contrast rule) stored by calibration for this memory's encoder, if any."""
         return self._calibrated("gamma")
+
+    @property
+    def calibrated_eta(self) -> float | None:
+        """η (novelty rule) stored by calibration for this memory's encoder, if any."""
+        return self._calibrated("eta")
 
     def _calibrated(self, key: str) -> float | None:
         calibration = self.manifest.calibration

@@ -51,6 +51,8 @@ class MemoryInfo:
             "calibration": manifest.calibration.to_dict() if manifest.calibration else None,
             "calibrated_delta": self.memory.calibrated_delta,
             "calibrated_gamma": self.memory.calibrated_gamma,
+            "calibrated_eta": self.memory.calibrated_eta,
+            "success_only_tasks": [t for t in self.memory.tasks if not self.memory.has_failures(t)],
             "successes": self._successes(),
             "source": manifest.source,
             "layout": manifest.layout,
@@ -80,7 +82,7 @@ class MemoryInfo:
 
     def to_text(self) -> str:
         info = self.to_dict()
-        delta, gamma = info["calibrated_delta"], info["calibrated_gamma"]
+        delta, gamma, eta = info["calibrated_delta"], info["calibrated_gamma"], info["calibrated_eta"]
         lines = [
             f"memory {self.directory} (format {info['format_version']}, created {info['created'] or '?'})",
             f"  encoder     {info['encoder']}"
@@ -88,7 +90,8 @@ class MemoryInfo:
             f"  entries     {info['entries']} × {info['dim']}-d over {len(info['tasks'])} task(s)",
             "  thresholds  "
             + (f"calibrated δ = {delta:.6f}" if delta is not None else "δ not calibrated (0.92 by default)")
-            + (f", γ = {gamma:.6f}" if gamma is not None else ""),
+            + (f", γ = {gamma:.6f}" if gamma is not None else "")
+            + (f", η = {eta:.6f}" if eta is not None else ""),
             f"  data root   {info['data_root'] or '(not recorded: references are as given at build time)'}",
         ]
         if info["layout"]:
@@ -111,6 +114,10 @@ class MemoryInfo:
         lines.append(f"  images      {refs['found']} of {refs['total']} reference images found")
         if refs["first_missing"]:
             lines.append(f"              first missing: {refs['first_missing']}")
+        if info["success_only_tasks"]:
+            lines.append(
+                f"  no failures {', '.join(info['success_only_tasks'])}: success runs only, judged by the novelty rule"
+            )
         lines.append("  per task and view:")
         width = max((len(task) for task in info["tasks"]), default=4)
         for task, views in info["tasks"].items():

@@ -76,6 +76,8 @@ _KINDS: Final[dict[str, Any]] = {
     "target_fpr": _number,
     "achieved_fpr": _number,
     "gamma_achieved_fpr": _number,
+    "eta": _number,
+    "eta_achieved_fpr": _number,
     "data": lambda v: isinstance(v, str),
     "k": _whole,
     "stride": _whole,
@@ -89,13 +91,17 @@ class StoredCalibration:
     Numbers are kept as JSON gave them (an int stays an int), so a rewrite gives the same file.
     """
 
-    delta: float  # the paper rule's threshold δ
+    delta: float | None  # the paper rule's threshold δ (None: a memory without failure runs)
     encoder: str | None = None  # the encoder identity the thresholds were chosen with
     gamma: float | None = None  # the contrast rule's threshold γ (None: no success memory)
+    eta: float | None = (
+        None  # the novelty rule's threshold η (None: no success memory, or calibrated before it)
+    )
     method: str | None = None
     target_fpr: float | None = None
     achieved_fpr: float | None = None
     gamma_achieved_fpr: float | None = None
+    eta_achieved_fpr: float | None = None
     successes: int | None = None  # success runs calibrated on
     data: str | None = None
     split: str | None = None
@@ -112,7 +118,11 @@ class StoredCalibration:
                 "remove it and run `robofailring calibrate` again"
             )
         delta = section.get("delta")
-        if not isinstance(delta, (int, float)) or isinstance(delta, bool) or not math.isfinite(delta):
+        if delta is None and not _number(section.get("eta")):
+            raise MemoryFormatError(
+                f"{path}: calibration has neither 'delta' nor 'eta'; remove it and run `robofailring calibrate` again"
+            )
+        if delta is not None and (not _number(delta) or not math.isfinite(delta)):
             raise MemoryFormatError(f"{path}: calibration 'delta' must be a finite number, not {delta!r}")
         known = [f.name for f in fields(cls) if f.name not in ("delta", "extra", "absent")]
         typed = {k: section[k] for k in known if section.get(k) is not None and _KINDS[k](section[k])}
