@@ -45,7 +45,7 @@ def test_demo_writes_everything_it_names(demo: tuple[Path, DemoResult]) -> None:
     assert [e.name for e in result.evaluations] == ["in-distribution", "out-of-distribution"]
     for name in ("in-distribution", "out-of-distribution"):
         report = json.loads((out / f"{name}.json").read_text())
-        assert report["target_fpr"] == 0.5 and set(report["rules"]) == {"paper", "contrast"}
+        assert report["target_fpr"] == 0.5 and set(report["rules"]) == {"paper", "contrast", "novelty"}
         assert report["calibrated"] is True and [r["delta"] for r in report["paper_deltas"]] == [
             0.85,
             0.9,
@@ -119,7 +119,7 @@ def test_demo_compares_pixels_with_an_encoder_trained_on_its_training_split(
     assert comparison is not None and comparison.table_path == root / "out" / "encoders" / "comparison.md"
     encoders = [r.encoder for r in comparison.results]
     assert encoders[0].startswith("pixels") and encoders[1].startswith("trained:cnn4-64px-256d:")
-    assert comparison.table_path.read_text().count("| `") == 4  # two encoders × two scoring rules
+    assert comparison.table_path.read_text().count("| `") == 6  # two encoders × three scoring rules
     trained = json.loads((root / "data" / "trained-encoder" / "encoder.json").read_text())
     assert trained["training"]["recipe"]["split"] == "train"
     assert trained["training"]["recipe"]["data"] == str((root / "data" / "sim-id").resolve())

@@ -92,7 +92,7 @@ def test_two_encoders_side_by_side(compared: Compared) -> None:
         assert result.failures == 6 and result.successes == 2
     table = comparison_table(results)
     assert (
-        table.count("\n") == 1 + 2 * 2
+        table.count("\n") == 1 + 2 * 3
         and "| contrast |" in table
         and "`pixels-v2-24px-512d`" in table
         and "open_clip:TinyViT-test" in table
@@ -108,7 +108,7 @@ def test_needs_two_encoders(tmp_path: Path) -> None:
 
 def test_compare_encoders_verb_writes_table_and_recordings(compared: Compared) -> None:
     assert compared.cli.exit_code == 0, compared.cli.output
-    assert (compared.out / "comparison.md").read_text().count("\n") == 2 + 2 * 2
+    assert (compared.out / "comparison.md").read_text().count("\n") == 2 + 2 * 3
     recordings = sorted((compared.out / "recordings").glob("*.rrd"))
     assert len(recordings) == 2
     for path in recordings:

@@ -130,7 +130,7 @@ def test_a_recording_without_a_frame_timeline_renders(viewer_ready: None, tmp_pa
     result = run_evaluation(
         EvaluateConfig(data=data, out=tmp_path / "eval", cache_dir=tmp_path / "cache", target_fpr=0.2)
     )
-    assert set(result.rules) == {"paper", "contrast"}  # both rules' operating points are drawn
+    assert set(result.rules) == {"paper", "contrast", "novelty"}  # every rule's operating point is drawn
     recording = record_evaluation([result], out=tmp_path / "evaluation.rrd")
     shot = render_screenshot(recording, tmp_path / "evaluation.png", settle=1.0)
     assert shot.errors == [], shot.errors
