@@ -12,6 +12,8 @@ FRAME: Final[str] = "frame"  # sequence timeline: frame index t
 TIME: Final[str] = "time"  # duration timeline: t / fps seconds
 DEFAULT_FPS: Final[float] = 10.0  # when the data source does not say
 PROPERTIES: Final[str] = "robofailring"  # recording property group (task, label, outcome, …)
+# property: the trajectory is one of the memory's own episodes, scored without leave-one-out (a self-match)
+IN_MEMORY: Final[str] = "in_memory"
 
 CAMERA_ROOT: Final[str] = "/camera"
 

@@ -33,6 +33,7 @@ from robofailring.cli.options import (
     ViewsOption,
     VLMModelOption,
     VLMUrlOption,
+    print_notes,
     report_skipped,
     vlm_config,
     warn_missing_references,
@@ -52,6 +53,7 @@ def _report(result: ReplayResult, out: Path) -> None:
     for memory_dir, check in result.references.items():
         warn_missing_references(memory_dir, check)
     warn_vlm_errors(result)
+    print_notes(result.notes)
     for key, reason in result.skipped:
         typer.echo(f"skipped {key}: {reason}")
     finish(failure=result.failure)

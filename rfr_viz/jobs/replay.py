@@ -19,6 +19,7 @@ from robofailring.data.layouts import detect_layout, load_dataset, load_trajecto
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.detection.detector import DEFAULT_K, DetectionTrace, FailureDetector, check_stride
 from robofailring.detection.loader import open_detector
+from robofailring.detection.trace import self_match_warning
 from robofailring.encoders import EncoderSpec
 from robofailring.errors import DataError, SettingError, UnknownTaskError
 from robofailring.explain.report import report_for
@@ -85,6 +86,17 @@ class ReplayResult:
     skipped_inputs: list[Skipped] = field(default_factory=list)  # folders/files of the data not read
     references: dict[Path, ReferenceCheck] = field(default_factory=dict)  # per memory directory
     vlm_errors: list[tuple[str, str]] = field(default_factory=list)  # (trajectory, why the VLM call failed)
+    in_memory: list[str] = field(default_factory=list)  # trajectories that are the memory's own episodes
+
+    def saw(self, trace: DetectionTrace, key: str) -> None:
+        """Note a trajectory scored against a memory holding it (one warning for them all)."""
+        if trace.in_memory and key not in self.in_memory:
+            self.in_memory.append(key)
+
+    @property
+    def notes(self) -> list[str]:
+        """Warnings for stderr: the trajectories that met themselves in the memory (no --leave-one-out)."""
+        return [self_match_warning(self.in_memory)] if self.in_memory else []
 
     def ask(self, vlm: VLMConfig | None, trace: DetectionTrace, trajectory: Trajectory) -> VLMAnswer | None:
         """The VLM's answer about the trace's detection (None: no VLM, or nothing detected); failures are kept."""
@@ -262,6 +274,7 @@ def _replay(config: ReplayConfig) -> ReplayResult:
             except (UnknownTaskError, DataError) as error:
                 result.skipped.append((trajectory.key, str(error)))
             else:
+                result.saw(trace, trajectory.key)
                 out = _target(config.out, recording_name(trajectory), written, trajectory.key)
                 answer = result.ask(config.vlm, trace, trajectory)
                 result.recordings.append(
@@ -351,6 +364,8 @@ def _compare(config: CompareConfig) -> ReplayResult:
             except (UnknownTaskError, DataError) as error:
                 result.skipped.append((trajectory.key, str(error)))
             else:
+                for trace in traces.values():
+                    result.saw(trace, trajectory.key)
                 out = _target(config.out, recording_name(trajectory, suffix), written, trajectory.key)
                 maps = {slug: found.map for slug, found in zip(slugs, detectors, strict=True)}
                 result.recordings.append(

@@ -21,7 +21,7 @@ from rfr_viz.panels.neighbors import Cell, NeighborImages, log_neighbors
 from rfr_viz.panels.map import legend_size, log_map, map_title
 from rfr_viz.panels.report import log_detection
 from rfr_viz.panels.scores import log_scores, time_columns
-from rfr_viz.paths import APPLICATION_ID, DEFAULT_FPS, PROPERTIES, REPLAY, DetectorPaths
+from rfr_viz.paths import APPLICATION_ID, DEFAULT_FPS, IN_MEMORY, PROPERTIES, REPLAY, DetectorPaths
 from rfr_viz.styles import ENCODER_COLOURS, VIEW_COLOURS, shade
 from robofailring.atomic import atomic_path
 from robofailring.data.model import Trajectory
@@ -238,6 +238,7 @@ def _detector_properties(trace: DetectionTrace, memory_map: MemoryMap) -> dict[s
         "unscored_frames": ", ".join(f"{view}: {count}" for view, count in trace.truncated_views.items()),
         "stride": trace.stride,  # frames 0, stride, 2·stride, … were scored; every camera frame is kept
         "memory_entries": len(trace.memory),
+        IN_MEMORY: trace.in_memory,  # scored against a memory holding this trajectory (no --leave-one-out)
         "map": memory_map.method,
         "map_note": memory_map.note,
     }

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import wave
 from dataclasses import replace
 from pathlib import Path
 
@@ -203,6 +204,14 @@ def test_bad_video_data_names_the_file_or_value(v3: Path, tmp_path: Path) -> Non
     trajectory = load_trajectory(broken, task="pick_cube")
     with pytest.raises(DataError, match=r"front\.mp4"):
         trajectory.views["front"][0].load()
+    # a container FFmpeg reads that holds no video (sound saved as .mp4): said, not "tuple index out of range"
+    with wave.open(str(broken / "front.mp4"), "wb") as sound:
+        sound.setnchannels(1)
+        sound.setsampwidth(2)
+        sound.setframerate(8000)
+        sound.writeframes(bytes(1600))
+    with pytest.raises(DataError, match=r"front\.mp4: it holds no video stream 0"):
+        len(load_trajectory(broken, task="pick_cube").views["front"])
     # a parquet missing a column
     copy = write_lerobot_v3(tmp_path / "nocol", lengths=(4, 5), tasks=("a", "b"), cameras=("front",))
     data = copy / "data" / "chunk-000" / "file-000.parquet"

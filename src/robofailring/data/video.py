@@ -56,9 +56,14 @@ class VideoFile:
             try:
                 self._container = av.open(str(self.path))
                 stream = self._container.streams.video[self.stream]
-            except (av.FFmpegError, OSError, IndexError) as error:
+            except (av.FFmpegError, OSError) as error:
                 self.close()
                 raise DataError(f"cannot read video {self.path}: {_why(error)}") from error
+            except IndexError as error:  # a container without that video stream ("tuple index out of range")
+                self.close()
+                raise DataError(
+                    f"cannot read video {self.path}: it holds no video stream {self.stream}"
+                ) from error
             stream.thread_type = "AUTO"
             _remember_open(self)
         return self._container

@@ -26,6 +26,7 @@ from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import DataError, SettingError
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.pairs import pair_vectors
+from robofailring.memory.references import absolute_reference
 
 DEFAULT_K: Final[int] = 5
 
@@ -261,6 +262,11 @@ class FailureDetector:
             return full
 
         neighbor_similarity = {view: on_frames(found.neighbor_similarity[view], np.nan) for view in views}
+        own = self.memory.own_episode(
+            trajectory.task,
+            (absolute_reference(used[view][0].reference) for view in views),
+            exclude_episode=trajectory.episode if leave_one_out else None,
+        )
         return DetectionTrace(
             task=trajectory.task,
             episode=trajectory.episode,
@@ -281,6 +287,7 @@ class FailureDetector:
             skipped_inputs=list(trajectory.skipped),
             success_similarity={v: on_frames(s, np.nan) for v, s in found.success_similarity.items()},
             success_ids={v: on_frames(i, -1) for v, i in found.success_ids.items()},
+            in_memory=own is not None,
         )
 
 

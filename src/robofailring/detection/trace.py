@@ -3,6 +3,7 @@ the result of one live step."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -69,6 +70,7 @@ class DetectionTrace:
 
     success_similarity: dict[str, np.ndarray] = field(default_factory=dict)  # S⁺_t per view
     success_ids: dict[str, np.ndarray] = field(default_factory=dict)  # its success-memory row, -1: none
+    in_memory: bool = False  # one of the memory's own episodes, not left out: it meets itself
 
     @property
     def threshold(self) -> float:
@@ -225,8 +227,23 @@ class DetectionTrace:
             "unscored_frames": self.truncated_views,
             "stride": self.stride,
             "skipped_inputs": [skipped.to_dict() for skipped in self.skipped_inputs],
+            "in_memory": self.in_memory,
             "views": views,
         }
+
+
+def self_match_warning(keys: Sequence[str], *, shown: int = 5) -> str:
+    """The one warning line for trajectories scored against a memory that holds them (`in_memory`)."""
+    named = ", ".join(keys[:shown]) + (f" and {len(keys) - shown} more" if len(keys) > shown else "")
+    which = (
+        f"trajectory {named} is one of the memory's own episodes"
+        if len(keys) == 1
+        else f"{len(keys)} trajectories are the memory's own episodes ({named})"
+    )
+    return (
+        f"warning: {which}, so its scores include a self-match (S⁻ = 1 is no detection); "
+        "pass --leave-one-out to hide each trajectory's own episode"
+    )
 
 
 def _rounded(values: np.ndarray) -> list[float | None]:

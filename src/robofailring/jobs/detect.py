@@ -13,6 +13,7 @@ from robofailring.data.layouts import load_trajectory
 from robofailring.data.model import Trajectory
 from robofailring.detection.detector import DEFAULT_K, DetectionTrace, check_stride
 from robofailring.detection.loader import open_detector
+from robofailring.detection.trace import self_match_warning
 from robofailring.explain.report import FailureReport, report_for
 from robofailring.memory.references import ReferenceCheck, check_references
 
@@ -87,8 +88,10 @@ class DetectResult:
 
     @property
     def notes(self) -> list[str]:
-        """Warnings and notes for stderr: a failed VLM call, frames left unscored, views skipped."""
+        """Warnings and notes for stderr: a self-match, a failed VLM call, frames left unscored, views skipped."""
         trace, notes = self.trace, []
+        if trace.in_memory:
+            notes.append(self_match_warning([f"{trace.task}/{trace.episode}"]))
         if self.answer is not None and self.answer.error is not None:
             notes.append(f"warning: the VLM call failed: {self.answer.error}")
         for view, count in trace.truncated_views.items():

@@ -8,6 +8,7 @@ from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import replace
 from datetime import UTC, datetime
+from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
@@ -159,6 +160,31 @@ class FailureMemory:
             return np.full((len(queries), k), np.nan, np.float32), np.full((len(queries), k), -1, np.int64)
         return self.index.search(queries, task, k, exclude_episode=exclude_episode)
 
+    def own_episode(
+        self, task: str, starts: Iterable[str], *, exclude_episode: str | None = None
+    ) -> str | None:
+        """The memory's episode of `task` that starts at one of `starts` (a trajectory's first frame per
+        view, as absolute references), or None: a trajectory of the memory's own data meets itself.
+
+        Its failure entries and success runs count (leave-one-out hides `exclude_episode`'s). Frames, not
+        names, decide: a new dataset reuses episode names (`pick_cube_success_episode0`).
+        """
+        for start in starts:
+            for episode in self._episodes_by_start.get((task, start), ()):
+                if episode != exclude_episode:
+                    return episode
+        return None
+
+    @cached_property
+    def _episodes_by_start(self) -> dict[tuple[str, str], set[str]]:
+        """(task, first-frame reference) -> episodes, over failure entries and success runs."""
+        found: dict[tuple[str, str], set[str]] = {}
+        runs = self.successes.runs if self.successes is not None else []
+        starts = [(e.task, e.start, e.episode) for e in self.entries]
+        for task, start, episode in starts + [(r.task, r.frames[0], r.episode) for r in runs if r.frames]:
+            found.setdefault((task, start), set()).add(episode)
+        return found
+
     def neighbors(self, similarities: np.ndarray, ids: np.ndarray) -> list[Neighbor]:
         """Neighbour objects for one row of a search result."""
         return [
@@ -229,6 +255,7 @@ class FailureMemory:
 
     def _with(self, **changed: Any) -> FailureMemory:
         other = copy.copy(self)  # entries, vectors and indexes are shared: none is changed in place
+        other.__dict__.pop("_episodes_by_start", None)  # its successes may change
         other.__dict__.update(changed)
         return other
 

@@ -1,0 +1,124 @@
+"""Random bytes where the CLI expects images, videos, a memory's manifest and a labels file, run as a user would.
+
+Each case is the real `robofailring` process on files of seeded random bytes (the same bytes every run). It
+ends in one `error:` line naming the file and status 2, or, where the verb did its work around the bad
+input, status 3 with the file named among what was not read; never a traceback.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fault_helpers import cli
+
+EPISODE = "pick_cube_grasp_wp2_episode0"  # an episode of the `data` fixture (tests/cli/conftest.py)
+
+
+TEXT = np.frombuffer(
+    b'episode_index,outcome,symbol\nsuccess failure grasp_wp2 0123456789"{}[]:;_- ', np.uint8
+)
+
+
+def random_bytes(path: Path, rng: np.random.Generator, *, text: bool = False) -> Path:
+    """`path` filled with 1–2,000 random bytes (the generator decides how many); `text`: drawn from
+    the characters of a labels file (commas, newlines, its column names), so a parser gets past decoding."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    size = int(rng.integers(1, 2_000))
+    path.write_bytes(rng.choice(TEXT, size).tobytes() if text else rng.bytes(size))
+    return path
+
+
+@dataclass(frozen=True)
+class Inputs:
+    data: Path  # a copy of the tiny AHA dataset, free to damage
+    memory: Path  # a copy of the memory built from it, free to damage
+    work: Path  # where a case writes new files and outputs
+    rng: np.random.Generator
+
+
+@pytest.fixture(scope="module")
+def built(data: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    memory = tmp_path_factory.mktemp("fuzz") / "memory"
+    assert cli("build-memory", data, "--out", memory, "--cache-dir", memory.parent / "cache").exit_code == 0
+    return memory
+
+
+def images_in_an_episode(given: Inputs) -> tuple[list[object], Path, int]:
+    for image in sorted((given.data / EPISODE).glob("*.png")):
+        random_bytes(image, given.rng)
+    return ["build-memory", given.data, "--out", given.work / "out"], given.data / EPISODE / "front_0.png", 2
+
+
+def an_image_beside_the_episodes(given: Inputs) -> tuple[list[object], Path, int]:
+    stray = random_bytes(given.data / "front_0.png", given.rng)  # not read: the memory is built, status 3
+    return ["build-memory", given.data, "--out", given.work / "out"], stray, 3
+
+
+def videos_to_detect(given: Inputs) -> tuple[list[object], Path, int]:
+    episode = given.work / "videos" / EPISODE
+    for view in ("front", "wrist"):
+        random_bytes(episode / f"{view}.mp4", given.rng)
+    return ["detect", episode, "--memory", given.memory], episode / "front.mp4", 2
+
+
+def a_manifest_to_read(given: Inputs) -> tuple[list[object], Path, int]:
+    manifest = random_bytes(given.memory / "manifest.json", given.rng)
+    return ["memory-info", given.memory], manifest, 2  # the one verb here without --cache-dir
+
+
+def labels_to_build_with(given: Inputs) -> tuple[list[object], Path, int]:
+    labels = random_bytes(given.work / "labels.csv", given.rng, text=True)
+    return ["build-memory", given.data, "--out", given.work / "out", "--labels", labels], labels, 2
+
+
+def labels_to_calibrate_with(given: Inputs) -> tuple[list[object], Path, int]:
+    labels = random_bytes(given.work / "labels.json", given.rng)
+    return ["calibrate", given.data, "--memory", given.memory, "--labels", labels], labels, 2
+
+
+CASES: list[Callable[[Inputs], tuple[list[object], Path, int]]] = [
+    images_in_an_episode,
+    an_image_beside_the_episodes,
+    videos_to_detect,
+    a_manifest_to_read,
+    labels_to_build_with,
+    labels_to_calibrate_with,
+]
+
+
+@pytest.mark.parametrize("case", CASES, ids=[case.__name__ for case in CASES])
+def test_random_bytes_end_in_one_error_line_not_a_traceback(
+    case: Callable[[Inputs], tuple[list[object], Path, int]], data: Path, built: Path, tmp_path: Path
+) -> None:
+    given = Inputs(
+        data=Path(shutil.copytree(data, tmp_path / "data")),
+        memory=Path(shutil.copytree(built, tmp_path / "memory")),
+        work=tmp_path / "work",
+        rng=np.random.default_rng(CASES.index(case) + 24),  # issue 24: the same bytes every run
+    )
+    args, bad_file, status = case(given)
+    cache = [] if args[0] == "memory-info" else ["--cache-dir", tmp_path / "cache"]
+    command = [Path(sys.executable).with_name("robofailring"), *args, *cache]
+    ran = subprocess.run(
+        [str(arg) for arg in command],
+        capture_output=True,
+        text=True,
+        check=False,
+        env={**os.environ, "ROBOFAILRING_PROGRESS": "0"},
+        timeout=300,
+    )
+    assert "Traceback" not in ran.stderr, ran.stderr
+    assert ran.returncode == status, ran.stdout + ran.stderr
+    errors = [line for line in ran.stderr.splitlines() if line.startswith("error:")]
+    if status == 2:
+        assert len(errors) == 1 and str(bad_file) in errors[0], ran.stderr
+    else:  # done around the bad input: nothing failed, and the file is named among what was not read
+        assert errors == [] and f"  {bad_file}: " in ran.stderr, ran.stderr
