@@ -82,6 +82,7 @@ def test_bad_settings_are_one_line_and_status_2(tmp_path: Path) -> None:
     refused(cli("open", tmp_path / "none.rrd"), BAD_INPUT, "no recording at")
 
 
+@pytest.mark.slow  # an end-to-end run of every verb: the full lane
 def test_environment_errors_are_one_line_and_status_1(
     memory: Path, data: Path, cache: list[str], tmp_path: Path
 ) -> None:

@@ -76,6 +76,7 @@ def test_a_robomimic_file_reads_lazily_with_its_masks_as_splits(robomimic: tuple
     assert load_dataset(path, task="lift the cube").episodes[0].task == "lift the cube"
 
 
+@pytest.mark.slow  # an end-to-end run of every verb: the full lane
 def test_a_robomimic_file_through_every_verb(tmp_path: Path, robomimic: tuple[Path, Path]) -> None:
     path, labels = robomimic
     found = run_pipeline(
@@ -149,6 +150,7 @@ def aloha_labels(tmp_path: Path, folder: Path, episodes: int) -> tuple[Path, dic
     return labels, symbols
 
 
+@pytest.mark.slow  # an end-to-end run of every verb: the full lane
 @pytest.mark.parametrize("compress", [False, True])
 def test_aloha_episodes_raw_or_jpeg_through_every_verb(tmp_path: Path, compress: bool) -> None:
     folder = tmp_path / "aloha_transfer_cube"

@@ -59,6 +59,7 @@ def write_labels(path: Path, symbols: dict[str, str | None], tasks: dict[str, st
     return path
 
 
+@pytest.mark.slow  # an end-to-end run of every verb: the full lane
 @pytest.mark.parametrize("nested", [False, True])
 def test_image_episodes_with_any_names_through_every_verb(tmp_path: Path, nested: bool) -> None:
     symbols, tasks = plan(16)

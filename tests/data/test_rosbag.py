@@ -126,6 +126,7 @@ def write_runs(root: Path) -> Path:
     return labels
 
 
+@pytest.mark.slow  # an end-to-end run of every verb: the full lane
 def test_a_folder_of_bags_goes_through_every_verb(tmp_path: Path) -> None:
     labels = write_runs(tmp_path)
     bags = tmp_path / "bags"

@@ -195,6 +195,7 @@ def test_a_memory_with_both_kinds_of_task_judges_each_by_its_own_default(tmp_pat
     assert None not in (found.delta, found.gamma, found.eta)
 
 
+@pytest.mark.slow  # an end-to-end run of every verb: the full lane
 def test_an_evaluation_grows_from_success_runs_only_to_labelled_failures(tmp_path: Path) -> None:
     from robofailring.evaluation.run import EvaluateConfig, labelled_failures, run_evaluation
 

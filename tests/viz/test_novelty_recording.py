@@ -194,6 +194,7 @@ def test_live_streams_n_against_eta_and_says_there_is_no_failure_neighbour(
     )
 
 
+@pytest.mark.slow  # an end-to-end run of every verb: the full lane
 def test_evaluate_growth_charts_the_learning_curve(tmp_path: Path) -> None:
     data = write_project_dataset(tmp_path / "data", episodes=4)
     out = tmp_path / "eval"
