@@ -1,8 +1,10 @@
-"""A local OpenAI-compatible test server (127.0.0.1, a free port) that records what it was sent."""
+"""A local OpenAI-compatible test server (127.0.0.1, a free port) that records what it was sent, and one that
+never answers."""
 
 from __future__ import annotations
 
 import json
+import socket
 import threading
 import time
 from collections.abc import Iterator
@@ -84,3 +86,41 @@ def chat_server(*replies: tuple[str, Any]) -> Iterator[ChatServer]:
     finally:
         server.shutdown()
         server.server_close()
+
+
+@dataclass
+class SilentServer:
+    """A listening socket that accepts every connection and never reads or writes a byte."""
+
+    url: str
+    accepted: list[socket.socket] = field(default_factory=list)
+
+
+@contextmanager
+def silent_server() -> Iterator[SilentServer]:
+    """A VLM endpoint that takes the connection and never answers (a hung server, a stuck proxy)."""
+    listener = socket.create_server(("127.0.0.1", 0))
+    state = SilentServer(url=f"http://127.0.0.1:{listener.getsockname()[1]}/v1")
+    stop = threading.Event()
+
+    def accept() -> None:
+        listener.settimeout(0.1)
+        while not stop.is_set():
+            try:
+                connection, _ = listener.accept()
+            except TimeoutError:
+                continue
+            except OSError:  # closed under us at the end
+                return
+            state.accepted.append(connection)  # held open, silent, until the end
+
+    thread = threading.Thread(target=accept, daemon=True)
+    thread.start()
+    try:
+        yield state
+    finally:
+        stop.set()
+        thread.join(timeout=5)
+        for connection in state.accepted:
+            connection.close()
+        listener.close()

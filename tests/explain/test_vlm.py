@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import base64
 import json
+import threading
+import time
 from pathlib import Path
 
 import cv2
@@ -11,7 +13,7 @@ import numpy as np
 import pytest
 from synthetic import write_episode
 from typer.testing import CliRunner
-from vlm_server import ANSWER, chat_server
+from vlm_server import ANSWER, chat_server, silent_server
 
 from robofailring import (
     FailureDetector,
@@ -23,6 +25,7 @@ from robofailring.cli.verbs import app
 from robofailring.data.images import read_image
 from robofailring.explain.report import SYSTEM_PROMPT, TASKS, FailureReport, report_for
 from robofailring.explain.vlm import API_KEY_ENV, ChatCompletionsClient, VLMConfig, VLMError, ask_vlm
+from robofailring.jobs.detect import DetectConfig, DetectResult, run_detect
 
 runner = CliRunner()
 
@@ -216,3 +219,27 @@ def test_no_server_is_an_error_naming_the_url(report: FailureReport) -> None:
         url = f"http://127.0.0.1:{probe.getsockname()[1]}/v1"
     answer = ask_vlm(report, _config(url))
     assert answer.error is not None and answer.error.startswith(f"cannot reach {url}/chat/completions")
+
+
+def test_a_server_that_never_answers_is_abandoned_and_the_detection_kept(
+    episode: Path, pixels_memory_dir: Path
+) -> None:
+    """A real socket that accepts and never writes: each attempt ends at the client's timeout."""
+    done: list[DetectResult] = []
+    with silent_server() as server:
+        vlm = VLMConfig(url=server.url, model="m", timeout_s=0.5, retries=1, backoff_s=0.0)
+        config = DetectConfig(trajectory=episode, memory=pixels_memory_dir, delta=-1.0, k=3, vlm=vlm)
+        worker = threading.Thread(target=lambda: done.append(run_detect(config)), daemon=True)
+        started = time.monotonic()
+        worker.start()
+        worker.join(timeout=vlm.timeout_s * (vlm.retries + 1) + 60)  # generous: a busy machine
+        took = time.monotonic() - started
+        accepted = len(server.accepted)
+    assert not worker.is_alive() and done, f"detect still waiting on the VLM after {took:.0f} s"
+    assert accepted == vlm.retries + 1  # every attempt reached the server and was kept waiting
+    assert took >= vlm.timeout_s * (vlm.retries + 1)  # abandoned by the timeout, not refused
+    found = done[0].to_dict()
+    assert found["t_det"] == 0 and found["report"]["t_det"] == 0  # the detection is kept
+    assert set(found["vlm"]) == {"model", "error"}
+    assert "did not answer within 0.5 s (2 attempts)" in found["vlm"]["error"]
+    assert any(note.startswith("warning: the VLM call failed") for note in done[0].notes)
