@@ -2,20 +2,35 @@
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 from typing import Any
 
 import pyarrow as pa
 from rerun.chunk import RrdReader
 
+from rfr_viz.viewer.control import NO_FOOTER
+
 
 def reader(path: Path) -> RrdReader:
-    """The recording's reader, for its store entries (`recordings()`) and saved blueprints (`blueprints()`)."""
-    return RrdReader(path)
+    """The recording's reader, for its store entries (`recordings()`) and saved blueprints (`blueprints()`).
+
+    A saved live recording has no footer on purpose (rfr_viz.recordings.live): not worth a warning here."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=NO_FOOTER)
+        return RrdReader(path)
+
+
+def has_footer(path: Path) -> bool:
+    """Whether the file ends in Rerun's footer (a manifest of every chunk); RrdReader warns when not."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        RrdReader(path)
+    return not any(NO_FOOTER in str(warning.message) for warning in caught)
 
 
 def batches(path: Path, content: str) -> list[pa.RecordBatch]:
-    return [chunk.to_record_batch() for chunk in RrdReader(path).stream().filter(content=content).to_chunks()]
+    return [chunk.to_record_batch() for chunk in reader(path).stream().filter(content=content).to_chunks()]
 
 
 def rows(path: Path, entity: str, column: str) -> list[tuple[int, Any]]:
@@ -57,7 +72,7 @@ def static_value(path: Path, entity: str, column: str) -> Any:
 
 
 def entity_paths(path: Path) -> set[str]:
-    return {str(chunk.entity_path) for chunk in RrdReader(path).stream().to_chunks()}
+    return {str(chunk.entity_path) for chunk in reader(path).stream().to_chunks()}
 
 
 def properties(path: Path, group: str = "robofailring") -> dict[str, Any]:

@@ -154,8 +154,9 @@ class LiveRecording:
         with ExitStack() as stack:
             rec = rr.RecordingStream(APPLICATION_ID, recording_id=str(uuid.uuid4()))
             sinks: list[Any] = []
-            if target.save is not None:
-                sinks.append(rr.FileSink(stack.enter_context(atomic_path(Path(target.save), suffix=".rrd"))))
+            if target.save is not None:  # no footer: its chunk manifest would grow with every step held in RAM
+                saved = stack.enter_context(atomic_path(Path(target.save), suffix=".rrd"))
+                sinks.append(rr.FileSink(saved, write_footer=False))
             url = target.connect
             if url is not None:
                 check_viewer(url)

@@ -12,6 +12,7 @@ import socket
 import subprocess
 import tempfile
 import time
+import warnings
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,6 +25,7 @@ if TYPE_CHECKING:
     from rerun.experimental import Recording, ViewerClient, ViewerState
 
 WINDOW: Final[tuple[int, int]] = (1280, 720)
+NO_FOOTER: Final[str] = "RRD file has no footer"  # what RrdReader warns on a saved live recording
 ICD_GLOBS: Final[tuple[str, ...]] = (
     "/usr/share/vulkan/icd.d/*.json",
     "/etc/vulkan/icd.d/*.json",
@@ -283,7 +285,10 @@ def recording_properties(recording: Path, group: str = PROPERTIES) -> dict[str, 
     """A recording's property group (task, label, t_det, focus_frame, …) read back from the file."""
     from rerun.chunk import RrdReader
 
-    chunks = RrdReader(Path(recording)).stream().filter(content=f"/__properties/{group}").to_chunks()
+    with warnings.catch_warnings():  # a saved live recording has no footer on purpose (recordings.live)
+        warnings.filterwarnings("ignore", message=NO_FOOTER)
+        reader = RrdReader(Path(recording))
+    chunks = reader.stream().filter(content=f"/__properties/{group}").to_chunks()
     for chunk in chunks:
         columns = chunk.to_record_batch().to_pydict()
         return {name: values[0][0] for name, values in columns.items() if not name.startswith("rerun.")}

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import rerun as rr
 from environment import require_viewer
-from rrd import batches, entity_paths, properties, rows
+from rrd import batches, entity_paths, has_footer, properties, rows
 from synthetic import VIEWS, synthetic_frame, write_episode
 from typer.testing import CliRunner
 
@@ -227,6 +227,8 @@ def test_a_robot_loop_with_its_own_sink_and_the_rerun_sink(
     np.testing.assert_allclose([value[0] for _, value in found], similarity, atol=1e-6)
     assert len(rows(saved, camera("front"), "EncodedImage:blob")) == 8
     assert live.report is not None and live.report.current_image is None  # an array has no file to show a VLM
+    # no footer: its manifest of every chunk would stay in memory for the whole session (bench/bench_soak.py)
+    assert not has_footer(saved)
 
 
 def test_a_failed_block_leaves_no_file(pixels_memory_dir: Path, tmp_path: Path) -> None:
