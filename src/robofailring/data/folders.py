@@ -28,7 +28,7 @@ def visible(directory: Path) -> list[Path]:
 
 def natural_key(path: Path) -> list[tuple[int, int | str]]:
     """`episode2` before `episode10`, `seed 3` before `seed 10`; names otherwise alphabetical."""
-    return [(0, int(part)) if part.isdigit() else (1, part) for part in re.split(r"(\d+)", path.name)]
+    return [(0, int(part)) if part.isdecimal() else (1, part) for part in re.split(r"(\d+)", path.name)]
 
 
 def subdirs(directory: Path) -> list[Path]:

@@ -156,7 +156,7 @@ def read_hdf5_reference(reference: str) -> np.ndarray | None:
     """The frame a `<file>#<dataset>#frame=<i>` reference points at, or None when it is not one."""
     head, marker, index = reference.rpartition("#frame=")
     file, hash_, dataset = head.partition("#")
-    if not marker or not hash_ or not index.isdigit() or not Path(file).is_file():
+    if not marker or not hash_ or not index.isdecimal() or not Path(file).is_file():
         return None
     handle = open_hdf5(Path(file))
     item = handle.get(dataset)

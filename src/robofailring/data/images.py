@@ -71,7 +71,7 @@ def numeric_sort_key(path: Path) -> tuple[int, int | str, str]:
     stem = path.stem
     digits = ""
     for char in reversed(stem):
-        if char.isdigit():
+        if char.isdecimal():
             digits = char + digits
         elif digits:
             break

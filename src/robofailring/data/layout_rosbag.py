@@ -281,7 +281,7 @@ def read_bag_reference(reference: str) -> np.ndarray | None:
     """The frame a `<bag>#topic=<topic>&message=<i>` reference points at, or None when it is not one."""
     path, marker, rest = reference.partition(BAG_MESSAGE_MARKER)
     topic, _, index = rest.rpartition("&message=")
-    if not marker or not index.isdigit() or not is_bag(Path(path)):
+    if not marker or not index.isdecimal() or not is_bag(Path(path)):
         return None
     return open_bag(Path(path)).image(topic, int(index))
 

@@ -268,7 +268,7 @@ def read_video_reference(reference: str) -> np.ndarray | None:
         from robofailring.data.hdf5 import read_hdf5_reference
 
         return read_hdf5_reference(reference)
-    if not marker or not index.isdigit() or not Path(path).is_file():
+    if not marker or not index.isdecimal() or not Path(path).is_file():
         return None
     return open_video(Path(path)).decode(int(index))
 

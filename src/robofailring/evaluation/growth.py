@@ -44,7 +44,7 @@ def parse_growth(text: str) -> tuple[int, ...]:
     """`0,1,2,4` → (0, 1, 2, 4); SettingError naming a part that is not a whole number ≥ 0."""
     levels = []
     for part in (p.strip() for p in text.split(",")):
-        if not part.isdigit():
+        if not part.isdecimal():
             raise SettingError(
                 f"--growth takes whole numbers ≥ 0 separated by commas (0,1,2,4), got {part!r}"
             )
