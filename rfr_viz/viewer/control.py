@@ -26,6 +26,7 @@ if TYPE_CHECKING:
 
 WINDOW: Final[tuple[int, int]] = (1280, 720)
 NO_FOOTER: Final[str] = "RRD file has no footer"  # what RrdReader warns on a saved live recording
+NO_FOOTER_VERIFY: Final[str] = "Missing RRD footer"  # what `rerun rrd verify` says of one
 ICD_GLOBS: Final[tuple[str, ...]] = (
     "/usr/share/vulkan/icd.d/*.json",
     "/etc/vulkan/icd.d/*.json",
@@ -81,19 +82,41 @@ def viewer_environment(runtime_dir: str) -> dict[str, str]:
 
 
 def verify_recording(recording: Path) -> None:
-    """`rerun rrd verify`: the only rrd subcommand that fails on a corrupt file (raises ValueError)."""
+    """`rerun rrd verify`: the only rrd subcommand that fails on a corrupt file (raises ValueError).
+
+    A footer (Rerun's index of the chunks) is required, except in a recording that says it is a saved
+    live session (`live` in its properties): those are written without one on purpose (recordings.live).
+    A file cut short loses its footer, so any other recording without one is refused."""
+    result = _rrd_verify(recording, check_footers=True)
+    if result.returncode != 0 and NO_FOOTER_VERIFY in (result.stderr + result.stdout):
+        try:
+            live = recording_properties(recording).get("live") is True
+        except Exception:  # unreadable properties (any reader error): the file is refused below
+            live = False
+        if live:
+            result = _rrd_verify(recording, check_footers=False)
+    if result.returncode != 0:
+        raise ValueError(f"{recording} is not a valid recording: {(result.stderr or result.stdout).strip()}")
+
+
+def _rrd_verify(recording: Path, *, check_footers: bool) -> subprocess.CompletedProcess[str]:
     with tempfile.TemporaryDirectory(prefix="rfr-viewer-") as runtime_dir:
         os.chmod(runtime_dir, 0o700)
-        result = subprocess.run(
-            [str(viewer_binary()), "rrd", "verify", str(recording)],
+        return subprocess.run(
+            [
+                str(viewer_binary()),
+                "rrd",
+                "verify",
+                "--check-footers",
+                str(check_footers).lower(),
+                str(recording),
+            ],
             env=viewer_environment(runtime_dir),
             capture_output=True,
             text=True,
             timeout=120,
             check=False,
         )
-    if result.returncode != 0:
-        raise ValueError(f"{recording} is not a valid recording: {(result.stderr or result.stdout).strip()}")
 
 
 def _free_port() -> int:
