@@ -12,14 +12,17 @@ from rfr_viz.charts.report_html import REPORT_NAME, write_report
 from rfr_viz.jobs.compare_encoders import EncoderComparison, run_encoder_comparison
 from rfr_viz.jobs.replay import recording_name
 from rfr_viz.panels.camera_video import CameraCodec
-from rfr_viz.panels.umap import memory_map
+from rfr_viz.panels.map import placer
+from rfr_viz.panels.umap import MemoryMap, memory_map
 from rfr_viz.recordings.evaluation import record_evaluation
 from rfr_viz.recordings.replay import record_replay
 from robofailring.atomic import output_lock, remove_file_leftovers
 from robofailring.data.grounding import failure_type
 from robofailring.data.layouts import load_dataset
+from robofailring.data.model import Trajectory
+from robofailring.detection.detector import DetectionTrace, FailureDetector
 from robofailring.detection.rules import CONTRAST, PAPER, ScoringRule
-from robofailring.encoders import default_cache_dir
+from robofailring.encoders import default_cache_dir, open_encoder
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
 from robofailring.evaluation.calibration import CalibrateConfig, calibrate
 from robofailring.evaluation.comparison import CompareEncodersConfig
@@ -124,6 +127,24 @@ def simulate_datasets(config: DemoConfig, data_dir: Path) -> tuple[Path, Path]:
     return in_dist, out_dist
 
 
+def _placed_trace(
+    evaluation: EvaluationResult,
+    key: str,
+    rule: ScoringRule,
+    trajectory: Trajectory,
+    mapped: MemoryMap,
+    config: DemoConfig,
+) -> DetectionTrace:
+    """`key`'s evaluated trace judged by `rule`, scored again (from the encoder's cache) with its
+    queries placed on the map: an evaluation keeps scores, not every frame's query vectors."""
+    kept = evaluation.traces[key]
+    detector = FailureDetector(
+        kept.memory, open_encoder(config.encoder, cache_dir=config.cache_dir), k=kept.k
+    )
+    trace = detector.run(trajectory, stride=kept.stride, keep_queries=False, place=placer(mapped))
+    return trace.with_rule(rule, evaluation.rules[rule.name].threshold)
+
+
 def run_demo(config: DemoConfig, *, say: Callable[[str], None] = print) -> DemoResult:
     """Generate (cached) in- and out-of-distribution sets, then memory, calibration, evaluation, recordings."""
     data_dir = config.data_dir or default_cache_dir() / "demo-data"
@@ -182,7 +203,7 @@ def _run_demo(config: DemoConfig, data_dir: Path, say: Callable[[str], None]) ->
             path = out / "recordings" / f"{kind}__{evaluation.name}__{recording_name(trajectory)}"
             result.recordings[kind] = record_replay(
                 trajectory,
-                evaluation.rule_trace(key, rule),
+                _placed_trace(evaluation, key, rule, trajectory, mapped, config),
                 out=path,
                 memory_map=mapped,
                 focus_frame=focus,

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Final
 
 from rfr_viz.panels.camera_video import CameraCodec
+from rfr_viz.panels.map import placer
 from rfr_viz.panels.umap import MemoryMap, memory_map
 from rfr_viz.recordings.replay import compare_recording, record_replay
 from robofailring.atomic import output_lock, remove_file_leftovers
@@ -269,7 +270,11 @@ def _replay(config: ReplayConfig) -> ReplayResult:
         for trajectory in trajectories:
             try:
                 trace = found.detector.run(
-                    trajectory, leave_one_out=config.leave_one_out, stride=config.stride
+                    trajectory,
+                    leave_one_out=config.leave_one_out,
+                    stride=config.stride,
+                    keep_queries=False,
+                    place=placer(found.map),
                 )
             except (UnknownTaskError, DataError) as error:
                 result.skipped.append((trajectory.key, str(error)))
@@ -358,7 +363,12 @@ def _compare(config: CompareConfig) -> ReplayResult:
         for trajectory in trajectories:
             try:
                 traces = {
-                    slug: found.detector.run(trajectory, leave_one_out=config.leave_one_out)
+                    slug: found.detector.run(
+                        trajectory,
+                        leave_one_out=config.leave_one_out,
+                        keep_queries=False,
+                        place=placer(found.map),
+                    )
                     for slug, found in zip(slugs, detectors, strict=True)
                 }
             except (UnknownTaskError, DataError) as error:

@@ -13,6 +13,7 @@ import numpy as np
 
 from rfr_viz.jobs.replay import DEFAULT_OUT, ReplayResult, load_detector, recording_name
 from rfr_viz.panels.camera_video import CameraCodec
+from rfr_viz.panels.map import placer
 from rfr_viz.recordings.replay import record_replay
 from robofailring.atomic import output_lock, remove_file_leftovers, write_text_atomic
 from robofailring.data.layouts import load_dataset
@@ -127,7 +128,7 @@ def _replay_keys(
     with progress_bar(total=len(keys), desc=f"replaying {config.kind}", unit="trajectory") as bar:
         for key in keys:
             trajectory = trajectories[key]
-            trace = loaded.detector.run(trajectory)
+            trace = loaded.detector.run(trajectory, keep_queries=False, place=placer(loaded.map))
             focus = trace.t_det if trace.t_det is not None else int(np.argmax(trace.max_score()))
             out = Path(config.out) / config.kind / recording_name(trajectory)
             check_recording_file(out)
@@ -210,7 +211,7 @@ def write_review_labels(config: ReviewConfig) -> ReviewLabels:
         with progress_bar(total=len(wanted), desc="reviewing", unit="trajectory") as bar:
             for kind in KINDS:
                 for key in reviewed.keys[kind]:
-                    rows.append(_label_row(detector.run(trajectories[key]), kind=kind))
+                    rows.append(_label_row(detector.run(trajectories[key], keep_queries=False), kind=kind))
                     bar.update(1)
         buffer = io.StringIO()
         writer = csv.DictWriter(buffer, fieldnames=LABEL_COLUMNS, lineterminator="\n")

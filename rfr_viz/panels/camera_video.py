@@ -11,7 +11,7 @@ machine. Neighbour and success-frame images stay JPEG images whatever the codec.
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 from fractions import Fraction
@@ -259,6 +259,42 @@ def log_video(
         indexes=indexes,
         columns=rr.VideoStream.columns(sample=video.samples, is_keyframe=video.keyframes),
     )
+
+
+def stream_video(
+    rec: rr.RecordingStream,
+    entity: str,
+    images: Iterable[np.ndarray],
+    codec: CameraCodec,
+    *,
+    fps: float,
+    indexes: Callable[[np.ndarray], Sequence[rr.TimeColumn]],
+    source: str = "camera",
+) -> None:
+    """Encode RGB frames as video and send the samples as they come, CAMERA_BATCH at a time: the
+    same stream as `log_video(encode_video(…))`, with memory that does not grow with the episode."""
+    encoder = VideoEncoder(codec, fps=fps, source=source)
+    log_video_codec(rec, entity, codec)
+
+    def send(packets: list[Packet]) -> None:
+        if packets:
+            rec.send_columns(
+                entity,
+                indexes=indexes(np.array([packet.frame for packet in packets])),
+                columns=rr.VideoStream.columns(
+                    sample=[packet.data for packet in packets],
+                    is_keyframe=[packet.keyframe for packet in packets],
+                ),
+            )
+            rec.flush()  # written before the next batch: a busy machine's slow sink holds no backlog
+
+    pending: list[Packet] = []
+    for image in images:
+        pending += encoder.encode(image)  # no B-frames: packets come in frame order
+        if len(pending) >= CAMERA_BATCH:
+            send(pending)
+            pending = []
+    send(pending + encoder.flush())
 
 
 def log_video_codec(rec: rr.RecordingStream, entity: str, codec: CameraCodec) -> None:

@@ -10,9 +10,9 @@ import rerun as rr
 from rfr_viz.panels.camera_video import (
     CAMERA_BATCH,
     CameraCodec,
-    encode_video,
     log_video,
     send_camera_properties,
+    stream_video,
     view_codec,
 )
 from rfr_viz.panels.images import JPEG_MEDIA_TYPE, frame_jpeg
@@ -49,16 +49,16 @@ def log_camera_views(
                     indexes=indexes(np.arange(start, start + len(blobs))),
                     columns=rr.EncodedImage.columns(blob=blobs, media_type=[JPEG_MEDIA_TYPE] * len(blobs)),
                 )
+                rec.flush()  # written before the next batch: a busy machine's slow sink holds no backlog
         else:
             source = f"{trajectory.key} [{view}]"
             fps = float(trajectory.fps or DEFAULT_FPS)
             video = passthrough(frames, count, used[view])
             if video is not None:
                 as_recorded.append(view)
+                log_video(rec, camera(view), video, indexes(np.arange(count)))
             else:
-                video = encode_video(
-                    (frame.load() for frame in frames[:count]), used[view], fps=fps, source=source
-                )
-            log_video(rec, camera(view), video, indexes(np.arange(count)))
+                images = (frame.load() for frame in frames[:count])
+                stream_video(rec, camera(view), images, used[view], fps=fps, indexes=indexes, source=source)
     send_camera_properties(rec, used, as_recorded=as_recorded)
     return used

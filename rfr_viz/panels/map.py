@@ -13,7 +13,7 @@ from rfr_viz.panels.umap import MemoryMap
 from rfr_viz.paths import DetectorPaths
 from rfr_viz.styles import FAILURE_CLASSES, UNKNOWN_CLASS, VIEW_COLOURS
 from robofailring.data.grounding import Vocabulary, failure_type
-from robofailring.detection.detector import DetectionTrace
+from robofailring.detection.detector import DetectionTrace, Place
 from robofailring.errors import SymbolError
 from robofailring.memory.failure import MemoryEntry
 
@@ -102,23 +102,26 @@ def log_memory_map(
         )
 
 
+def placer(memory_map: MemoryMap) -> Place:
+    """The `place` of `FailureDetector.run` that keeps each query as its point on this map, not its vector."""
+    return lambda view, queries: memory_map.project(queries)
+
+
 def log_map(
     rec: rr.RecordingStream, trace: DetectionTrace, paths: DetectorPaths, memory_map: MemoryMap, fps: float
 ) -> None:
-    """The static memory map and each view's query, moving with time."""
+    """The static memory map and each view's query, moving with time (from `trace.placed` when
+    `run(place=placer(memory_map))` made the trace, else projected from `trace.queries`)."""
     log_memory_map(
         rec, paths, entries=trace.memory.entries, memory_map=memory_map, task=trace.task, views=trace.views
     )
     scored = trace.scored_frames  # the query moves only at scored frames (every `stride`-th)
-    stacked = np.concatenate([trace.queries[view] for view in trace.views])
-    placed = memory_map.project(stacked).reshape(len(trace.views), len(scored), 2)
-    for position, view in enumerate(trace.views):
+    for view in trace.views:
+        placed = trace.placed[view] if view in trace.placed else memory_map.project(trace.queries[view])
         rec.send_columns(
             paths.umap_query(view),
             indexes=time_columns(scored, fps),
-            columns=rr.Points2D.columns(positions=placed[position]).partition(
-                np.ones(len(scored), dtype=np.int64)
-            ),
+            columns=rr.Points2D.columns(positions=placed).partition(np.ones(len(scored), dtype=np.int64)),
         )
 
 

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, replace
 from typing import Final, Protocol
 
 import numpy as np
@@ -29,6 +29,9 @@ from robofailring.memory.pairs import pair_vectors
 from robofailring.memory.references import absolute_reference
 
 DEFAULT_K: Final[int] = 5
+CHUNK_FRAMES: Final[int] = 256  # scored frames per view encoded and searched at once in `run`
+
+Place = Callable[[str, np.ndarray], np.ndarray]  # (view, (n, 2d) queries) -> (n, m) rows, e.g. map points
 
 
 def check_k(k: int) -> int:
@@ -58,6 +61,26 @@ class Retrieved:
     def similarity(self, view: str) -> np.ndarray:
         """S⁻_t of `view`: the nearest failure end's similarity per frame."""
         return self.neighbor_similarity[view][:, 0].copy()
+
+    def without_queries(self) -> Retrieved:
+        """The same answer without its (T, 2d) queries, the one part as large as the frames' embeddings."""
+        return replace(self, queries={})
+
+    @staticmethod
+    def joined(parts: Sequence[Retrieved]) -> Retrieved:
+        """Consecutive chunks of frames of the same views, as one answer."""
+
+        def join(field: str) -> dict[str, np.ndarray]:
+            views = getattr(parts[0], field)
+            return {view: np.concatenate([getattr(part, field)[view] for part in parts]) for view in views}
+
+        return Retrieved(
+            queries=join("queries"),
+            neighbor_similarity=join("neighbor_similarity"),
+            neighbor_ids=join("neighbor_ids"),
+            success_similarity=join("success_similarity"),
+            success_ids=join("success_ids"),
+        )
 
 
 class StepSink(Protocol):
@@ -224,11 +247,25 @@ class FailureDetector:
         rule = self._check_task(task)  # unknown task -> clear error before the robot moves
         return DetectorSession(self, task, rule, exclude_episode=exclude_episode, sink=sink)
 
-    def run(self, trajectory: Trajectory, *, leave_one_out: bool = False, stride: int = 1) -> DetectionTrace:
+    def run(
+        self,
+        trajectory: Trajectory,
+        *,
+        leave_one_out: bool = False,
+        stride: int = 1,
+        keep_queries: bool = True,
+        place: Place | None = None,
+    ) -> DetectionTrace:
         """Detect over a whole trajectory; `leave_one_out` hides its own episode from both memories.
 
         With `stride` N only frames 0, N, 2N, … are decoded and scored (I_0 stays frame 0); the
         trace keeps original frame numbers (t_det, L), unscored frames hold NaN.
+
+        Frames are encoded and searched CHUNK_FRAMES at a time. The (f(I_0) ‖ f(I_t)) queries, as
+        large as the frames' embeddings, are kept in `trace.queries`; with `keep_queries=False` they
+        are not, and memory does not grow with the episode beyond its per-frame scores.
+        `place(view, queries)` reduces each chunk's queries to the rows kept in `trace.placed` (e.g.
+        points of a 2-D map), so a recording needs no queries either.
         """
         check_stride(stride)
         rule = self._check_task(trajectory.task)
@@ -241,17 +278,24 @@ class FailureDetector:
         length = min(len(frames) for frames in used.values())
         views = list(used)
         steps = np.arange(0, length, stride)
-        frames = [used[view][int(t)] for view in views for t in steps]
-        embeddings = self.encode(frames, [view for view in views for _ in steps]).reshape(
-            len(views), len(steps), -1
-        )
-        current = {view: embeddings[position] for position, view in enumerate(views)}
-        found = self.retrieve(
-            trajectory.task,
-            {view: current[view][0] for view in views},
-            current,
-            exclude_episode=trajectory.episode if leave_one_out else None,
-        )
+        exclude = trajectory.episode if leave_one_out else None
+        first: dict[str, np.ndarray] = {}
+        parts: list[Retrieved] = []
+        placed: dict[str, list[np.ndarray]] = {view: [] for view in views}
+        for start in range(0, len(steps), CHUNK_FRAMES):
+            chunk = steps[start : start + CHUNK_FRAMES]
+            frames = [used[view][int(t)] for view in views for t in chunk]
+            embeddings = self.encode(frames, [view for view in views for _ in chunk]).reshape(
+                len(views), len(chunk), -1
+            )
+            current = {view: embeddings[position] for position, view in enumerate(views)}
+            first = first or {view: current[view][0] for view in views}
+            part = self.retrieve(trajectory.task, first, current, exclude_episode=exclude)
+            if place is not None:
+                for view in views:
+                    placed[view].append(np.asarray(place(view, part.queries[view])))
+            parts.append(part if keep_queries else part.without_queries())
+        found = Retrieved.joined(parts)
 
         def on_frames(values: np.ndarray, fill: float) -> np.ndarray:
             """Scored rows back onto original frame numbers: unscored frames never fire."""
@@ -265,7 +309,7 @@ class FailureDetector:
         own = self.memory.own_episode(
             trajectory.task,
             (absolute_reference(used[view][0].reference) for view in views),
-            exclude_episode=trajectory.episode if leave_one_out else None,
+            exclude_episode=exclude,
         )
         return DetectionTrace(
             task=trajectory.task,
@@ -280,6 +324,7 @@ class FailureDetector:
             neighbor_ids={view: on_frames(found.neighbor_ids[view], -1) for view in views},
             neighbor_similarity=neighbor_similarity,
             queries=found.queries,
+            placed={view: np.concatenate(rows) for view, rows in placed.items()} if place is not None else {},
             memory=self.memory,
             skipped_views=skipped,
             view_frames={view: len(frames) for view, frames in trajectory.views.items()},

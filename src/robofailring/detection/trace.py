@@ -56,7 +56,8 @@ class DetectionTrace:
     similarity: dict[str, np.ndarray]
     neighbor_ids: dict[str, np.ndarray]
     neighbor_similarity: dict[str, np.ndarray]
-    queries: dict[str, np.ndarray] = field(repr=False)  # one row per scored frame
+    # one row per scored frame; {} after run(keep_queries=False)
+    queries: dict[str, np.ndarray] = field(repr=False)
     memory: FailureMemory = field(repr=False)
     skipped_views: list[str] = field(default_factory=list)
     view_frames: dict[str, int] = field(default_factory=dict)  # frames each view had (L bounds them)
@@ -71,6 +72,9 @@ class DetectionTrace:
     success_similarity: dict[str, np.ndarray] = field(default_factory=dict)  # S⁺_t per view
     success_ids: dict[str, np.ndarray] = field(default_factory=dict)  # its success-memory row, -1: none
     in_memory: bool = False  # one of the memory's own episodes, not left out: it meets itself
+    placed: dict[str, np.ndarray] = field(
+        default_factory=dict, repr=False
+    )  # run(place=…) rows per scored frame
 
     @property
     def threshold(self) -> float:

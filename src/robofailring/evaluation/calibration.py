@@ -57,7 +57,7 @@ def success_peaks(
     peaks: dict[ScoringRule, list[float]] = {rule: [] for rule in rules}
     for trajectory in successes:
         try:
-            trace = detector.run(trajectory, leave_one_out=True, stride=stride)
+            trace = detector.run(trajectory, leave_one_out=True, stride=stride, keep_queries=False)
         except DataError:
             if too_short is not None:
                 too_short.append(trajectory.key)

@@ -246,7 +246,7 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
                 skipped.append(trajectory.key)
                 continue
             try:
-                trace = detector.run(trajectory, stride=config.stride)
+                trace = detector.run(trajectory, stride=config.stride, keep_queries=False)
             except DataError:
                 too_short.append(trajectory.key)
                 continue

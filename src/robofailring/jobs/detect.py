@@ -71,7 +71,9 @@ def detect_trajectory(config: DetectConfig) -> tuple[DetectionTrace, Trajectory]
         vocabulary=detector.memory.vocabulary,
         views=config.views,
     )
-    return detector.run(trajectory, leave_one_out=config.leave_one_out, stride=config.stride), trajectory
+    return detector.run(
+        trajectory, leave_one_out=config.leave_one_out, stride=config.stride, keep_queries=False
+    ), trajectory
 
 
 @dataclass(frozen=True)
