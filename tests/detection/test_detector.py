@@ -17,6 +17,7 @@ from robofailring import (
     load_encoder,
     load_trajectory,
 )
+from robofailring.detection import detector as detector_module
 from robofailring.errors import EncoderMismatchError, UnknownTaskError
 from robofailring.memory.pairs import pair_vectors
 
@@ -46,6 +47,40 @@ def test_trace_equals_brute_force(
     fused = np.stack([trace.similarity[v] for v in trace.views]).max(axis=0) >= 0.9
     np.testing.assert_array_equal(trace.state, fused)
     assert trace.t_det == (int(np.argmax(fused)) if fused.any() else None)
+
+
+@pytest.mark.parametrize("stride", [1, 2])
+def test_chunks_score_as_one_batch_and_keep_only_what_is_asked(
+    memory_and_encoder: tuple[FailureMemory, CachedEncoder],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    stride: int,
+) -> None:
+    memory, encoder = memory_and_encoder
+    trajectory = load_trajectory(
+        write_episode(tmp_path / "ep", "pick_cube", "grasp_wp2", length=11), task="pick_cube"
+    )
+    whole = FailureDetector(memory, encoder, k=3).run(trajectory, stride=stride)
+    monkeypatch.setattr(detector_module, "CHUNK_FRAMES", 2)  # 11 frames: 6 or 3 chunks, the last short
+    placed_rows: list[tuple[str, int]] = []
+
+    def place(view: str, queries: np.ndarray) -> np.ndarray:
+        placed_rows.append((view, len(queries)))
+        return queries[:, :2] * 10.0
+
+    chunked = FailureDetector(memory, encoder, k=3).run(
+        trajectory, stride=stride, keep_queries=False, place=place
+    )
+    assert chunked.queries == {} and len(placed_rows) == 3 * -(-len(whole.scored_frames) // 2)
+    for view in whole.views:
+        np.testing.assert_allclose(
+            chunked.similarity[view], whole.similarity[view], atol=1e-6, equal_nan=True
+        )
+        np.testing.assert_array_equal(chunked.neighbor_ids[view], whole.neighbor_ids[view])
+        np.testing.assert_allclose(chunked.placed[view], whole.queries[view][:, :2] * 10.0, atol=1e-6)
+    assert (
+        chunked.t_det == whole.t_det and chunked.success_similarity.keys() == whole.success_similarity.keys()
+    )
 
 
 def test_detection_and_fusion(memory_and_encoder: tuple[FailureMemory, CachedEncoder]) -> None:
