@@ -9,7 +9,7 @@ cd "$(dirname "$0")/.."
 lane=()
 if [ "${1:-}" = "--fast" ]; then
   shift
-  lane=(-m "not slow and not viewer")
+  lane=(-m "not slow and not viewer" -n 2)  # two workers (pytest-xdist): the machine's two cores
 fi
 bash scripts/setup.sh --dev
 export ROBOFAILRING_PROGRESS=0
