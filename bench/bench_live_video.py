@@ -20,7 +20,8 @@ from pathlib import Path
 import rerun as rr
 from bench_video import SHARED_EPISODE, simulated_episode
 
-from rfr_viz.panels.camera_video import CameraCodec, VideoEncoder
+from rfr_viz.codecs import CameraCodec
+from rfr_viz.panels.camera_video import VideoEncoder
 from rfr_viz.panels.live_camera import LiveCameras
 from rfr_viz.panels.scores import set_frame_time
 from robofailring import load_trajectory

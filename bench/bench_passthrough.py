@@ -23,14 +23,8 @@ from pathlib import Path
 import av
 from bench_video import SHARED_EPISODE, camera_recording_bytes, psnr, simulated_episode
 
-from rfr_viz.panels.camera_video import (
-    AV1_CRF,
-    AV1_PRESET,
-    CameraCodec,
-    EncodedVideo,
-    decode_video,
-    encode_video,
-)
+from rfr_viz.codecs import CameraCodec
+from rfr_viz.panels.camera_video import AV1_CRF, AV1_PRESET, EncodedVideo, decode_video, encode_video
 from rfr_viz.panels.video_passthrough import passthrough
 from robofailring import load_trajectory
 from robofailring.data.model import Trajectory

@@ -25,13 +25,8 @@ import cv2
 import numpy as np
 import rerun.blueprint as rrb
 
-from rfr_viz.panels.camera_video import (
-    KEYFRAME_INTERVAL,
-    CameraCodec,
-    EncodedVideo,
-    decode_video,
-    encode_video,
-)
+from rfr_viz.codecs import CameraCodec
+from rfr_viz.panels.camera_video import KEYFRAME_INTERVAL, EncodedVideo, decode_video, encode_video
 from rfr_viz.panels.cameras import log_camera_views
 from rfr_viz.panels.scores import time_columns
 from rfr_viz.recordings.replay import open_recording

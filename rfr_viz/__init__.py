@@ -1,7 +1,10 @@
 """Rerun recordings of replayed trajectories (all Rerun code of the project lives here).
 
-The closed-loop simulator run is recorded by `run_closed_loop` (imported on first use: it loads pybullet).
-`LiveRecording` is the step API's sink that streams a live session to a viewer (`rfr_viz.recordings.live`).
+Every name is imported on first use: `import rfr_viz` (and the `robofailring` command it holds) loads
+no Rerun, so the core install runs without the `viz` extra, and a name that needs it says so
+(`robofailring.errors.MissingExtraError`). The closed-loop simulator run is recorded by
+`run_closed_loop` (it also loads pybullet). `LiveRecording` is the step API's sink that streams a live
+session to a viewer (`rfr_viz.recordings.live`).
 """
 
 from __future__ import annotations
@@ -10,21 +13,44 @@ import importlib
 from typing import TYPE_CHECKING
 
 from rfr_viz import _moved as _moved  # old module paths, deprecated (one release)
-from rfr_viz.jobs.replay import CompareConfig, ReplayConfig, ReplayResult, compare, replay
-from rfr_viz.jobs.review import ReviewConfig, review
-from rfr_viz.panels.umap import MemoryMap, fit_map, memory_map
-from rfr_viz.paths import APPLICATION_ID, DetectorPaths
-from rfr_viz.recordings.blueprint import compare_blueprint, replay_blueprint
-from rfr_viz.recordings.evaluation import record_evaluation
-from rfr_viz.recordings.live import LiveRecording, LiveTarget
-from rfr_viz.recordings.replay import compare_recording, record_replay
-from rfr_viz.viewer.control import Screenshot, ViewerUnavailable, open_command, render_screenshot
 
 if TYPE_CHECKING:
+    from rfr_viz.jobs.replay import CompareConfig, ReplayConfig, ReplayResult, compare, replay
+    from rfr_viz.jobs.review import ReviewConfig, review
+    from rfr_viz.panels.umap import MemoryMap, fit_map, memory_map
+    from rfr_viz.paths import APPLICATION_ID, DetectorPaths
+    from rfr_viz.recordings.blueprint import compare_blueprint, replay_blueprint
     from rfr_viz.recordings.closed_loop import ClosedLoopResult, run_closed_loop
+    from rfr_viz.recordings.evaluation import record_evaluation
+    from rfr_viz.recordings.live import LiveRecording, LiveTarget
+    from rfr_viz.recordings.replay import compare_recording, record_replay
+    from rfr_viz.viewer.control import Screenshot, ViewerUnavailable, open_command, render_screenshot
 
-_LAZY = {  # name -> module: the closed-loop recording runs the simulator, so it is imported on first use
+_LAZY = {  # name -> the module it is imported from on first use
+    "APPLICATION_ID": "rfr_viz.paths",
     "ClosedLoopResult": "rfr_viz.recordings.closed_loop",
+    "CompareConfig": "rfr_viz.jobs.replay",
+    "DetectorPaths": "rfr_viz.paths",
+    "LiveRecording": "rfr_viz.recordings.live",
+    "LiveTarget": "rfr_viz.recordings.live",
+    "MemoryMap": "rfr_viz.panels.umap",
+    "ReplayConfig": "rfr_viz.jobs.replay",
+    "ReplayResult": "rfr_viz.jobs.replay",
+    "ReviewConfig": "rfr_viz.jobs.review",
+    "Screenshot": "rfr_viz.viewer.control",
+    "ViewerUnavailable": "rfr_viz.viewer.control",
+    "compare": "rfr_viz.jobs.replay",
+    "compare_blueprint": "rfr_viz.recordings.blueprint",
+    "compare_recording": "rfr_viz.recordings.replay",
+    "fit_map": "rfr_viz.panels.umap",
+    "memory_map": "rfr_viz.panels.umap",
+    "open_command": "rfr_viz.viewer.control",
+    "record_evaluation": "rfr_viz.recordings.evaluation",
+    "record_replay": "rfr_viz.recordings.replay",
+    "render_screenshot": "rfr_viz.viewer.control",
+    "replay": "rfr_viz.jobs.replay",
+    "replay_blueprint": "rfr_viz.recordings.blueprint",
+    "review": "rfr_viz.jobs.review",
     "run_closed_loop": "rfr_viz.recordings.closed_loop",
 }
 
@@ -35,7 +61,11 @@ def __getattr__(name: str) -> object:
     return getattr(importlib.import_module(_LAZY[name]), name)
 
 
-__all__ = [
+def __dir__() -> list[str]:
+    return sorted([*globals(), *_LAZY])
+
+
+__all__ = [  # every name of _LAZY
     "APPLICATION_ID",
     "ClosedLoopResult",
     "CompareConfig",

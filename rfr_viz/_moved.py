@@ -11,7 +11,7 @@ MOVED: Final[Mapping[str, str]] = dict(
     {
         "rfr_viz._images": "rfr_viz.panels.images",
         "rfr_viz.blueprint": "rfr_viz.recordings.blueprint rfr_viz.panels.map",
-        "rfr_viz.camera_video": "rfr_viz.panels.camera_video rfr_viz.panels.cameras",
+        "rfr_viz.camera_video": "rfr_viz.panels.camera_video rfr_viz.panels.cameras rfr_viz.codecs",
         "rfr_viz.chart_rerun": "rfr_viz.charts.to_rerun",
         "rfr_viz.chart_svg": "rfr_viz.charts.to_svg",
         "rfr_viz.cli_jobs": "rfr_viz.cli.jobs",

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Final, Literal
 
 NeighborPart = Literal["start", "end", "info"]
 
 APPLICATION_ID: Final[str] = "robofailring"
+DEFAULT_OUT: Final[Path] = Path("recordings")  # the recordings' folder unless --out names one
 FRAME: Final[str] = "frame"  # sequence timeline: frame index t
 TIME: Final[str] = "time"  # duration timeline: t / fps seconds
 DEFAULT_FPS: Final[float] = 10.0  # when the data source does not say

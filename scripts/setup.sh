@@ -14,10 +14,11 @@ if [ ! -x .venv/bin/python ]; then
   "$PYTHON" -m venv .venv
 fi
 .venv/bin/python -m pip install --quiet --upgrade pip
-extras=""
-if [ "${1:-}" = "--dev" ]; then extras="[dev]"; fi
-# torch/torchvision: the registry's matching pair (see README, "Why this torch").
-.venv/bin/python -m pip install --quiet -e ".${extras}"
+dev=""
+if [ "${1:-}" = "--dev" ]; then dev=1; fi
+# Every extra (README, "Install"), and with --dev the test tools; torch/torchvision: the registry's
+# matching pair, pinned in constraints.txt (README, "Why this torch").
+.venv/bin/python -m pip install --quiet -c constraints.txt -e ".[all${dev:+,dev}]"
 # The Rerun viewer renders headless only with Mesa's software Vulkan driver (lavapipe).
 if ! ldconfig -p 2>/dev/null | grep -q libvulkan.so.1 || [ ! -e /usr/share/vulkan/icd.d/lvp_icd.x86_64.json ]; then
   if [ "$(id -u)" = "0" ] && command -v apt-get >/dev/null; then
@@ -28,12 +29,12 @@ if ! ldconfig -p 2>/dev/null | grep -q libvulkan.so.1 || [ ! -e /usr/share/vulka
   fi
 fi
 # The viewer decodes H.264 camera streams with ffmpeg (>= 5.1); the H.264 viewer test needs it.
-if [ -n "$extras" ] && ! command -v ffmpeg >/dev/null && [ "$(id -u)" = "0" ] && command -v apt-get >/dev/null; then
+if [ -n "$dev" ] && ! command -v ffmpeg >/dev/null && [ "$(id -u)" = "0" ] && command -v apt-get >/dev/null; then
   (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends ffmpeg >/dev/null) \
     || echo "warning: could not install ffmpeg; the H.264 viewer test will fail" >&2
 fi
 # The report test renders report.html in headless Chromium (Debian's package `chromium`).
-if [ -n "$extras" ] && ! command -v chromium >/dev/null && ! command -v chromium-browser >/dev/null \
+if [ -n "$dev" ] && ! command -v chromium >/dev/null && ! command -v chromium-browser >/dev/null \
   && [ "$(id -u)" = "0" ] && command -v apt-get >/dev/null; then
   (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends chromium >/dev/null) \
     || echo "warning: could not install chromium; the report.html rendering test will fail" >&2

@@ -12,10 +12,13 @@ from collections.abc import Sequence
 from typing import Final
 
 import numpy as np
-import rerun as rr
-import rerun.blueprint as rrb
 
 from rfr_viz.charts.evaluation import Chart, Colour
+from robofailring.extras import needs_extra
+
+with needs_extra("viz"):
+    import rerun as rr
+    import rerun.blueprint as rrb
 
 AXIS_COLOUR: Final[Colour] = (120, 120, 120)
 TEXT_COLOUR: Final[Colour] = (210, 210, 210)

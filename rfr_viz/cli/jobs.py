@@ -7,8 +7,9 @@ from typing import Annotated
 
 import typer
 
+from rfr_viz.cli.options import CameraCodecOption
 from rfr_viz.cli.replay import warn_vlm_errors
-from rfr_viz.panels.camera_video import CameraCodec, CameraCodecOption
+from rfr_viz.codecs import CameraCodec
 from rfr_viz.viewer.control import open_at_command, open_command
 from robofailring.cli.exit_codes import finish
 from robofailring.cli.options import (

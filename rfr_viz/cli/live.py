@@ -7,7 +7,8 @@ from typing import Annotated
 
 import typer
 
-from rfr_viz.panels.camera_video import CameraCodec, LiveCameraCodecOption
+from rfr_viz.cli.options import LiveCameraCodecOption
+from rfr_viz.codecs import CameraCodec
 from robofailring.cli.exit_codes import finish
 from robofailring.cli.options import (
     CacheOption,

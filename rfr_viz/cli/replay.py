@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from rfr_viz.jobs.replay import DEFAULT_OUT, CompareConfig, ReplayConfig, ReplayResult, compare, replay
-from rfr_viz.panels.camera_video import CameraCodec, CameraCodecOption
+from rfr_viz.cli.options import CameraCodecOption
+from rfr_viz.codecs import CameraCodec
+from rfr_viz.paths import DEFAULT_OUT
 from rfr_viz.viewer.control import DEFAULT_PORT, open_command
 from robofailring.cli.exit_codes import finish
 from robofailring.cli.options import (
@@ -38,6 +39,9 @@ from robofailring.cli.options import (
     vlm_config,
     warn_missing_references,
 )
+
+if TYPE_CHECKING:
+    from rfr_viz.jobs.replay import ReplayResult
 
 app = typer.Typer(add_completion=False)  # composed into the one `robofailring` command by rfr_viz.cli.app
 
@@ -92,6 +96,8 @@ def replay_cmd(
     vlm_model: VLMModelOption = None,
 ) -> None:
     """Replay trajectories through the detector, one self-contained Rerun recording (.rrd) each."""
+    from rfr_viz.jobs.replay import ReplayConfig, replay
+
     config = ReplayConfig(
         data=data,
         memory=memory,
@@ -150,6 +156,8 @@ def compare_cmd(
     ] = None,
 ) -> None:
     """Replay trajectories under two or more encoders' memories, one comparison recording each."""
+    from rfr_viz.jobs.replay import CompareConfig, compare
+
     config = CompareConfig(
         data=data,
         memories=tuple(memory),

@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 
 from rfr_viz.charts.report_html import REPORT_NAME, write_report
+from rfr_viz.codecs import CameraCodec
 from rfr_viz.jobs.compare_encoders import EncoderComparison, run_encoder_comparison
 from rfr_viz.jobs.replay import recording_name
-from rfr_viz.panels.camera_video import CameraCodec
 from rfr_viz.panels.map import placer
 from rfr_viz.panels.umap import MemoryMap, memory_map
 from rfr_viz.recordings.evaluation import record_evaluation

@@ -8,11 +8,11 @@ import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Final
 
-from rfr_viz.panels.camera_video import CameraCodec
+from rfr_viz.codecs import CameraCodec
 from rfr_viz.panels.map import placer
 from rfr_viz.panels.umap import MemoryMap, memory_map
+from rfr_viz.paths import DEFAULT_OUT
 from rfr_viz.recordings.replay import compare_recording, record_replay
 from robofailring.atomic import output_lock, remove_file_leftovers
 from robofailring.data.grounding import Vocabulary
@@ -30,7 +30,6 @@ from robofailring.memory.references import ReferenceCheck
 from robofailring.outputs import check_output_folder, check_recording_file
 from robofailring.progress import progress_bar
 
-DEFAULT_OUT: Final[Path] = Path("recordings")
 _UNSAFE = re.compile(r"[^A-Za-z0-9._+-]+")
 
 

@@ -11,9 +11,10 @@ from typing import Final
 
 import numpy as np
 
-from rfr_viz.jobs.replay import DEFAULT_OUT, ReplayResult, load_detector, recording_name
-from rfr_viz.panels.camera_video import CameraCodec
+from rfr_viz.codecs import CameraCodec
+from rfr_viz.jobs.replay import ReplayResult, load_detector, recording_name
 from rfr_viz.panels.map import placer
+from rfr_viz.paths import DEFAULT_OUT
 from rfr_viz.recordings.replay import record_replay
 from robofailring.atomic import output_lock, remove_file_leftovers, write_text_atomic
 from robofailring.data.layouts import load_dataset

@@ -6,8 +6,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from rfr_viz.codecs import CameraCodec
 from rfr_viz.jobs.replay import check_fps, load_detector
-from rfr_viz.panels.camera_video import CameraCodec
 from rfr_viz.paths import DEFAULT_FPS
 from rfr_viz.recordings.live import LiveRecording, LiveTarget
 from robofailring.data.layouts import load_trajectory

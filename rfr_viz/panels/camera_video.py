@@ -13,36 +13,24 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from enum import StrEnum
 from fractions import Fraction
-from typing import TYPE_CHECKING, Annotated, Any, Final, NamedTuple, cast
+from typing import TYPE_CHECKING, Any, Final, NamedTuple, cast
 
 import numpy as np
-import rerun as rr
-import typer
 
+from rfr_viz.codecs import CameraCodec, resolve_codec
 from robofailring.data.model import Frame
 from robofailring.errors import DataError, SettingError
+from robofailring.extras import needs_extra
+
+with needs_extra("viz"):
+    import rerun as rr
 
 if TYPE_CHECKING:
     from av.video.codeccontext import VideoCodecContext
     from av.video.frame import VideoFrame
 
 
-class CameraCodec(StrEnum):
-    """How `/camera/<view>` is stored: JPEG per frame, AV1 or H.264 video, or chosen by size."""
-
-    JPEG = "jpeg"
-    AV1 = "av1"
-    H264 = "h264"
-    AUTO = "auto"
-
-
-#: `auto` picks AV1 when one view's stream has at least this many pixels (frames × width × height),
-#: JPEG below: e.g. 256 px × 256 px × 31 frames. Measured by bench/bench_video.py (README "Camera
-#: codecs"): below it a view's JPEGs take ~0.1 MB or less and AV1 saves under 0.1 MB at a lower PSNR;
-#: at it AV1 takes 0.42× the bytes, on the real 256 px × 69-frame episode 0.14×, at 480 px 0.17×.
-AUTO_AV1_PIXELS: Final[int] = 2_000_000
 #: Frames between keyframes: showing any frame decodes at most this many (bench: a few ms at 480 px).
 KEYFRAME_INTERVAL: Final[int] = 30
 AV1_CRF: Final[int] = 35
@@ -55,35 +43,6 @@ ENCODERS: Final[dict[CameraCodec, tuple[str, rr.VideoCodec]]] = {
     CameraCodec.AV1: ("libsvtav1", rr.VideoCodec.AV1),
     CameraCodec.H264: ("libx264", rr.VideoCodec.H264),
 }
-
-CameraCodecOption = Annotated[
-    CameraCodec,
-    typer.Option(
-        "--camera-codec",
-        case_sensitive=False,
-        help="How camera frames are stored: jpeg images, av1 or h264 video, or auto "
-        f"(av1 when a view has ≥ {AUTO_AV1_PIXELS / 1e6:g} Mpx over all its frames, else jpeg). "
-        "AV1 plays in the Rerun viewer as is; H.264 needs ffmpeg ≥ 5.1 where it is viewed.",
-    ),
-]
-LiveCameraCodecOption = Annotated[
-    CameraCodec,
-    typer.Option(
-        "--camera-codec",
-        case_sensitive=False,
-        help="How camera frames are stored: jpeg images, or av1 or h264 video encoded frame by frame; "
-        "auto means jpeg live (no frame size is known in advance). "
-        "AV1 plays in the Rerun viewer as is; H.264 needs ffmpeg ≥ 5.1 where it is viewed.",
-    ),
-]
-
-
-def resolve_codec(codec: CameraCodec | str, *, width: int, height: int, frames: int) -> CameraCodec:
-    """The codec a view is stored with: `codec` itself, or for `auto` the choice by stream size."""
-    codec = CameraCodec(codec)
-    if codec is not CameraCodec.AUTO:
-        return codec
-    return CameraCodec.AV1 if frames * width * height >= AUTO_AV1_PIXELS else CameraCodec.JPEG
 
 
 @dataclass(frozen=True)
@@ -110,7 +69,8 @@ def _even(image: np.ndarray) -> np.ndarray:
 
 
 def _context(codec: CameraCodec, width: int, height: int, fps: float, gop: int) -> VideoCodecContext:
-    import av
+    with needs_extra("viz"):
+        import av
 
     os.environ.setdefault("SVT_LOG", "1")  # SVT-AV1 logs every setting to stderr otherwise
     name, _ = ENCODERS[codec]
@@ -171,7 +131,8 @@ class VideoEncoder:
         self._given = 0  # packets given out so far
 
     def encode(self, image: np.ndarray) -> list[Packet]:
-        import av
+        with needs_extra("viz"):
+            import av
 
         image = _even(np.ascontiguousarray(image))
         if self._context is None:
@@ -234,7 +195,8 @@ def encode_video(
 
 def decode_video(video: EncodedVideo, *, upto: int | None = None) -> list[np.ndarray]:
     """Decode samples back to RGB frames (from the first sample up to `upto` inclusive): for checks."""
-    import av
+    with needs_extra("viz"):
+        import av
 
     name = {CameraCodec.AV1: "libdav1d", CameraCodec.H264: "h264"}[video.codec]
     context = cast("VideoCodecContext", av.CodecContext.create(name, "r"))

@@ -5,11 +5,10 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 
 import numpy as np
-import rerun as rr
 
+from rfr_viz.codecs import CameraCodec
 from rfr_viz.panels.camera_video import (
     CAMERA_BATCH,
-    CameraCodec,
     log_video,
     send_camera_properties,
     stream_video,
@@ -19,6 +18,10 @@ from rfr_viz.panels.images import JPEG_MEDIA_TYPE, frame_jpeg
 from rfr_viz.panels.video_passthrough import passthrough
 from rfr_viz.paths import DEFAULT_FPS, camera
 from robofailring.data.model import Trajectory
+from robofailring.extras import needs_extra
+
+with needs_extra("viz"):
+    import rerun as rr
 
 
 def log_camera_views(

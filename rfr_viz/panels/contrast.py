@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-import rerun as rr
 
 from rfr_viz.panels.images import JPEG_MEDIA_TYPE, reference_jpeg
 from rfr_viz.panels.neighbors import changes
@@ -11,7 +10,11 @@ from rfr_viz.panels.scores import set_frame_time, time_columns
 from rfr_viz.paths import DetectorPaths
 from rfr_viz.styles import ETA_COLOUR, GAMMA_COLOUR
 from robofailring.detection.detector import DetectionTrace
+from robofailring.extras import needs_extra
 from robofailring.memory.success import SuccessMatch
+
+with needs_extra("viz"):
+    import rerun as rr
 
 
 def _series(

@@ -12,20 +12,18 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-import rerun as rr
 
-from rfr_viz.panels.camera_video import (
-    CameraCodec,
-    Packet,
-    VideoEncoder,
-    log_video_codec,
-    send_camera_properties,
-)
+from rfr_viz.codecs import CameraCodec
+from rfr_viz.panels.camera_video import Packet, VideoEncoder, log_video_codec, send_camera_properties
 from rfr_viz.panels.images import JPEG_MEDIA_TYPE, JPEG_QUALITY, frame_jpeg
 from rfr_viz.panels.scores import set_frame_time
 from rfr_viz.paths import camera
 from robofailring.data.images import as_rgb, encode_jpeg
 from robofailring.data.model import Frame
+from robofailring.extras import needs_extra
+
+with needs_extra("viz"):
+    import rerun as rr
 
 
 def live_codec(codec: CameraCodec | str) -> CameraCodec:

@@ -6,7 +6,6 @@ from collections.abc import Sequence
 from typing import Final
 
 import numpy as np
-import rerun as rr
 
 from rfr_viz.panels.scores import time_columns
 from rfr_viz.panels.umap import MemoryMap
@@ -15,7 +14,11 @@ from rfr_viz.styles import FAILURE_CLASSES, UNKNOWN_CLASS, VIEW_COLOURS
 from robofailring.data.grounding import Vocabulary, failure_type
 from robofailring.detection.detector import DetectionTrace, Place
 from robofailring.errors import SymbolError
+from robofailring.extras import needs_extra
 from robofailring.memory.failure import MemoryEntry
+
+with needs_extra("viz"):
+    import rerun as rr
 
 LABELLED_ENTRIES_MAX: Final[int] = 5_000  # larger memories label only the replayed task's map points
 

@@ -7,13 +7,16 @@ from typing import Final
 
 import cv2
 import numpy as np
-import rerun as rr
 
 from rfr_viz.panels.images import JPEG_MEDIA_TYPE, JPEG_QUALITY, reference_jpeg
 from rfr_viz.paths import FRAME, TIME, DetectorPaths, NeighborPart
 from robofailring.data.images import encode_jpeg
 from robofailring.detection.detector import DetectionTrace
+from robofailring.extras import needs_extra
 from robofailring.memory.failure import MemoryEntry
+
+with needs_extra("viz"):
+    import rerun as rr
 
 
 @dataclass(frozen=True)

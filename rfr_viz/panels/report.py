@@ -5,7 +5,6 @@ from __future__ import annotations
 import re
 
 import numpy as np
-import rerun as rr
 
 from rfr_viz.panels.scores import set_frame_time
 from rfr_viz.paths import DetectorPaths
@@ -14,8 +13,12 @@ from robofailring.detection.detector import DetectionTrace
 from robofailring.detection.rules import ScoringRule
 from robofailring.explain.report import FailureReport, report_for
 from robofailring.explain.vlm import VLMAnswer
+from robofailring.extras import needs_extra
 from robofailring.memory.failure import Neighbor
 from robofailring.memory.success import SuccessMatch
+
+with needs_extra("viz"):
+    import rerun as rr
 
 _MARKDOWN_IMAGE = re.compile(r"!\[([^\]]*)\]\(([^)]*)\)")
 

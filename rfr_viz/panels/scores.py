@@ -7,12 +7,15 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-import rerun as rr
 
 from rfr_viz.paths import FRAME, TIME, DetectorPaths
 from rfr_viz.styles import DELTA_COLOUR, STATE_COLOUR, VIEW_COLOURS, shade
 from robofailring.detection.detector import DetectionTrace
 from robofailring.detection.rules import PAPER, ScoringRule
+from robofailring.extras import needs_extra
+
+with needs_extra("viz"):
+    import rerun as rr
 
 
 def time_columns(frames: np.ndarray, fps: float) -> list[rr.TimeColumn]:

@@ -11,6 +11,7 @@ from typing import Any, Final, Literal
 import numpy as np
 
 from robofailring.atomic import atomic_path
+from robofailring.extras import needs_extra
 from robofailring.memory.failure import FailureMemory
 
 CACHE_FILE: Final[str] = "umap.npz"
@@ -149,7 +150,9 @@ def _extent(points: np.ndarray, *, centred: bool = True) -> float:
 def _umap_embedding(vectors: np.ndarray, n_neighbors: int) -> np.ndarray:
     """UMAP with cosine metric on exact nearest neighbours from Faiss (faster than NN-descent)."""
     import faiss
-    import umap
+
+    with needs_extra("viz"):
+        import umap
 
     index = faiss.IndexFlatIP(vectors.shape[1])
     index.add(vectors)

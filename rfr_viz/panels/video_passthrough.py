@@ -14,9 +14,11 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Final
 
-from rfr_viz.panels.camera_video import ENCODERS, CameraCodec, EncodedVideo
+from rfr_viz.codecs import CameraCodec
+from rfr_viz.panels.camera_video import ENCODERS, EncodedVideo
 from robofailring.data.model import Frame
 from robofailring.data.video import VideoFrames
+from robofailring.extras import needs_extra
 
 #: FFmpeg's name of each codec the samples may be taken from as they are.
 SOURCE_CODECS: Final[dict[CameraCodec, str]] = {CameraCodec.AV1: "av1", CameraCodec.H264: "h264"}
@@ -24,7 +26,8 @@ SOURCE_CODECS: Final[dict[CameraCodec, str]] = {CameraCodec.AV1: "av1", CameraCo
 
 def passthrough(frames: Sequence[Frame], count: int, codec: CameraCodec) -> EncodedVideo | None:
     """The first `count` samples of the view's video file, when they can be logged as they are."""
-    import av
+    with needs_extra("viz"):
+        import av
 
     if codec not in ENCODERS or not isinstance(frames, VideoFrames) or not frames.whole_file or count < 1:
         return None
@@ -43,7 +46,8 @@ def passthrough(frames: Sequence[Frame], count: int, codec: CameraCodec) -> Enco
         if not keyframes[0]:
             return None
         if codec is CameraCodec.H264:
-            from av.bitstream import BitStreamFilterContext
+            with needs_extra("viz"):
+                from av.bitstream import BitStreamFilterContext
 
             annexb = BitStreamFilterContext("h264_mp4toannexb", stream)
             converted = [out for packet in packets for out in annexb.filter(packet)] + annexb.filter(None)

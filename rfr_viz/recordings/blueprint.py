@@ -5,7 +5,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-import rerun.blueprint as rrb
 
 from rfr_viz.panels.neighbors import Cell
 from rfr_viz.panels.map import LEGEND_ROW, LEGEND_TOP
@@ -19,6 +18,10 @@ from rfr_viz.paths import (
     DetectorPaths,
     camera,
 )
+from robofailring.extras import needs_extra
+
+with needs_extra("viz"):
+    import rerun.blueprint as rrb
 
 MAP_BACKGROUND = (22, 22, 26)
 

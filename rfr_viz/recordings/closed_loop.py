@@ -10,7 +10,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import rerun as rr
 
 from rfr_viz.panels.images import JPEG_MEDIA_TYPE, JPEG_QUALITY
 from rfr_viz.recordings.blueprint import closed_loop_blueprint
@@ -27,6 +26,10 @@ from robofailring.detection.rules import PAPER
 from robofailring.sim import VIEWS, EpisodeResult
 from robofailring.jobs.closed_loop import WatchedRun, alarm, outcome_line, watch_episode
 from robofailring.sim.episode import episode_fps
+from robofailring.extras import needs_extra
+
+with needs_extra("viz"):
+    import rerun as rr
 
 __all__ = ["ClosedLoopResult", "run_closed_loop"]
 

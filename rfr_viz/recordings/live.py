@@ -20,10 +20,9 @@ from pathlib import Path
 from typing import Any, Final
 
 import numpy as np
-import rerun as rr
 
 from rfr_viz.recordings.blueprint import replay_blueprint
-from rfr_viz.panels.camera_video import CameraCodec
+from rfr_viz.codecs import CameraCodec
 from rfr_viz.panels.contrast import log_contrast_styles, log_nearest_success
 from rfr_viz.panels.live_camera import LiveCameras
 from rfr_viz.panels.umap import MemoryMap
@@ -47,6 +46,10 @@ from robofailring.data.model import Frame
 from robofailring.detection.detector import DEFAULT_K, DetectorSession, FailureDetector, StepResult
 from robofailring.errors import DataError, SettingError
 from robofailring.explain.report import FailureReport
+from robofailring.extras import needs_extra
+
+with needs_extra("viz"):
+    import rerun as rr
 
 DEFAULT_VIEWER_URL: Final[str] = f"rerun+http://127.0.0.1:{DEFAULT_PORT}/proxy"
 FLUSH_TIMEOUT_S: Final[float] = 10.0  # at the end, wait this long at most for a viewer to take the rest

@@ -9,11 +9,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
-import rerun as rr
-import rerun.blueprint as rrb
 
 from rfr_viz.recordings.blueprint import compare_blueprint, replay_blueprint
-from rfr_viz.panels.camera_video import CameraCodec
+from rfr_viz.codecs import CameraCodec
 from rfr_viz.panels.cameras import log_camera_views
 from rfr_viz.panels.contrast import log_contrast
 from rfr_viz.panels.umap import MemoryMap, fit_map
@@ -28,6 +26,11 @@ from robofailring.data.model import Trajectory
 from robofailring.detection.detector import DetectionTrace
 from robofailring.explain.report import report_for
 from robofailring.explain.vlm import VLMAnswer
+from robofailring.extras import needs_extra
+
+with needs_extra("viz"):
+    import rerun as rr
+    import rerun.blueprint as rrb
 
 BATCHING: Final[rr.ChunkBatcherConfig] = rr.ChunkBatcherConfig(
     flush_tick=60.0, flush_num_bytes=4 * 1024 * 1024

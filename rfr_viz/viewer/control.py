@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any, Final
 
 from rfr_viz.paths import FRAME, PROPERTIES
 from robofailring.errors import RoboFailRingError
+from robofailring.extras import needs_extra
 
 if TYPE_CHECKING:
     from rerun.experimental import Recording, ViewerClient, ViewerState
@@ -52,10 +53,8 @@ class Screenshot:
 
 def viewer_binary() -> Path:
     """The real viewer executable inside the `rerun_cli` package (not the Python console script)."""
-    try:
+    with needs_extra("viz"):
         import rerun_cli
-    except ImportError as error:
-        raise ViewerUnavailable("the rerun_cli package (part of rerun-sdk) is not installed") from error
     binary = Path(rerun_cli.__file__).parent / "rerun"
     if not binary.is_file():
         raise ViewerUnavailable(f"no viewer binary at {binary}")
@@ -265,7 +264,8 @@ def _show(
     """Open `recording` in the viewer on `port`, wait until it is loaded, and return the client and
     the recording's timelines; with `require_frame`, a recording without the `frame` timeline is a
     ValueError naming the file."""
-    from rerun.experimental import ViewerClient
+    with needs_extra("viz"):
+        from rerun.experimental import ViewerClient
 
     client = ViewerClient.connect(f"rerun+http://127.0.0.1:{port}/proxy")
     client.open(str(recording))
@@ -306,7 +306,8 @@ def _active_recording(state: ViewerState) -> Recording | None:
 
 def recording_properties(recording: Path, group: str = PROPERTIES) -> dict[str, Any]:
     """A recording's property group (task, label, t_det, focus_frame, …) read back from the file."""
-    from rerun.chunk import RrdReader
+    with needs_extra("viz"):
+        from rerun.chunk import RrdReader
 
     with warnings.catch_warnings():  # a saved live recording has no footer on purpose (recordings.live)
         warnings.filterwarnings("ignore", message=NO_FOOTER)

@@ -63,6 +63,20 @@ class WriteError(RoboFailRingError):
     exit_code = 1
 
 
+class MissingExtraError(RoboFailRingError, ModuleNotFoundError):
+    """A module of an optional part of the install is not installed; the message names the extra.
+
+    An error of the environment (exit status 1); still a `ModuleNotFoundError`, for code that probes
+    for optional modules (`robofailring.extras.needs_extra` raises it).
+    """
+
+    exit_code = 1
+
+    def __init__(self, message: str, *, name: str, extra: str) -> None:
+        super().__init__(message, name=name)
+        self.extra = extra
+
+
 def describe(error: BaseException) -> str:
     """One sentence for an error: an OSError names the file and what went wrong, without errno noise."""
     if not isinstance(error, OSError) or error.strerror is None:

@@ -10,15 +10,8 @@ import pytest
 from rrd import columns as rrd_columns
 from synthetic import synthetic_frame, write_episode
 
-from rfr_viz.panels.camera_video import (
-    AUTO_AV1_PIXELS,
-    KEYFRAME_INTERVAL,
-    CameraCodec,
-    EncodedVideo,
-    decode_video,
-    encode_video,
-    resolve_codec,
-)
+from rfr_viz.codecs import AUTO_AV1_PIXELS, CameraCodec, resolve_codec
+from rfr_viz.panels.camera_video import KEYFRAME_INTERVAL, EncodedVideo, decode_video, encode_video
 from rfr_viz.recordings.replay import record_replay
 from rfr_viz.viewer.control import recording_properties
 from robofailring import (

@@ -17,14 +17,9 @@ from synthetic import VIEWS, synthetic_frame, write_episode
 from typer.testing import CliRunner
 
 from rfr_viz.cli.app import app
+from rfr_viz.codecs import CameraCodec
 from rfr_viz.jobs.explain import read_report
-from rfr_viz.panels.camera_video import (
-    KEYFRAME_INTERVAL,
-    CameraCodec,
-    EncodedVideo,
-    decode_video,
-    encode_video,
-)
+from rfr_viz.panels.camera_video import KEYFRAME_INTERVAL, EncodedVideo, decode_video, encode_video
 from rfr_viz.panels.live_camera import LiveCameras, live_codec
 from rfr_viz.panels.scores import set_frame_time
 from rfr_viz.paths import REPLAY, camera

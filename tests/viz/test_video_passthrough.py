@@ -15,7 +15,8 @@ from lerobot_writer import encode_video as write_lerobot_mp4
 from rrd import properties, rows
 from synthetic import synthetic_frame
 
-from rfr_viz.panels.camera_video import KEYFRAME_INTERVAL, CameraCodec, EncodedVideo, decode_video
+from rfr_viz.codecs import CameraCodec
+from rfr_viz.panels.camera_video import KEYFRAME_INTERVAL, EncodedVideo, decode_video
 from rfr_viz.panels.cameras import log_camera_views
 from rfr_viz.panels.scores import time_columns
 from rfr_viz.paths import camera

@@ -11,7 +11,7 @@ from environment import require_ffmpeg, require_viewer
 from lerobot_writer import encode_video as write_mp4
 from synthetic import synthetic_frame, write_episode
 
-from rfr_viz.panels.camera_video import CameraCodec
+from rfr_viz.codecs import CameraCodec
 from rfr_viz.recordings.replay import record_replay
 from rfr_viz.viewer.control import recording_properties, render_screenshot
 from robofailring import (

@@ -15,6 +15,7 @@ import typer
 from robofailring.data.model import Skipped
 from robofailring.detection.rules import RULES
 from robofailring.errors import SettingError
+from robofailring.extras import require
 from robofailring.memory.references import ReferenceCheck
 
 if TYPE_CHECKING:
@@ -148,6 +149,7 @@ def vlm_config(url: str | None, model: str | None) -> VLMConfig | None:
         if url is not None or model is not None:
             raise SettingError("--vlm-url and --vlm-model go together: give both or neither")
         return None
+    require("vlm")  # before any work: the VLM is asked once the detections are made
     return VLMConfig(url=url, model=model)
 
 

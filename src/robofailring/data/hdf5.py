@@ -20,6 +20,7 @@ import numpy as np
 from robofailring.data.images import as_rgb, content_digest, decode_image
 from robofailring.data.model import Frame
 from robofailring.errors import DataError
+from robofailring.extras import needs_extra
 
 HDF5_SUFFIXES: Final[tuple[str, ...]] = (".hdf5", ".h5", ".he5")
 _OPEN_LIMIT: Final[int] = 8
@@ -33,7 +34,8 @@ def is_hdf5(path: Path) -> bool:
 
 def open_hdf5(path: Path) -> Any:
     """The shared read-only h5py handle of a file (at most `_OPEN_LIMIT` stay open)."""
-    import h5py
+    with needs_extra("hdf5"):
+        import h5py
 
     key = str(Path(path).resolve())
     try:

@@ -28,6 +28,7 @@ from robofailring.data.images import content_digest, decode_image
 from robofailring.data.model import Frame, Skipped, Trajectory
 from robofailring.data.registry import Found, Layout, register
 from robofailring.errors import DataError
+from robofailring.extras import needs_extra
 
 ROS2_METADATA: Final[str] = "metadata.yaml"
 ROS1_SUFFIX: Final[str] = ".bag"
@@ -76,8 +77,9 @@ class BagFile:
         return f"BagFile({str(self.path)!r})"
 
     def _open(self) -> Any:
-        from rosbags.highlevel import AnyReader, AnyReaderError
-        from rosbags.typesys import Stores, get_typestore
+        with needs_extra("rosbag"):
+            from rosbags.highlevel import AnyReader, AnyReaderError
+            from rosbags.typesys import Stores, get_typestore
 
         if self._reader is None:
             reader = AnyReader([self.path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))

@@ -22,6 +22,7 @@ from robofailring.data.model import Frame, Skipped, Trajectory
 from robofailring.data.registry import Layout, register
 from robofailring.data.video import VideoFrames, open_video
 from robofailring.errors import DataError, describe
+from robofailring.extras import needs_extra
 
 INFO: Final[str] = "meta/info.json"
 IMAGE_PREFIX: Final[str] = "observation.images."
@@ -88,7 +89,8 @@ def _exists(file: Path) -> bool:
 
 def _read_table(path: Path, columns: Sequence[str] | None = None) -> dict[str, list[Any]]:
     """Columns of a parquet file as Python lists; a missing file or column names both."""
-    import pyarrow.parquet as pq
+    with needs_extra("video"):
+        import pyarrow.parquet as pq
 
     try:
         schema_names = pq.read_schema(path).names

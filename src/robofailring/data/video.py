@@ -21,6 +21,7 @@ import numpy as np
 from robofailring.data.images import content_digest
 from robofailring.data.model import Frame
 from robofailring.errors import DataError
+from robofailring.extras import needs_extra
 
 VIDEO_SUFFIXES: Final[tuple[str, ...]] = (".mp4", ".webm", ".mkv")
 #: Decode forward instead of seeking when the wanted frame is at most this many frames ahead and
@@ -50,7 +51,8 @@ class VideoFile:
 
     # ------------------------------------------------------------ container facts
     def _open(self) -> Any:
-        import av
+        with needs_extra("video"):
+            import av
 
         if self._container is None:
             try:
@@ -72,7 +74,8 @@ class VideoFile:
     def times(self) -> np.ndarray:
         """Presentation time (s) of every frame, in order, listed from the packets (nothing decoded)."""
         if self._times is None:
-            import av
+            with needs_extra("video"):
+                import av
 
             container = self._open()
             stream = container.streams.video[self.stream]
@@ -127,7 +130,8 @@ class VideoFile:
     # ------------------------------------------------------------ decoding
     def decode(self, index: int) -> np.ndarray:
         """Frame `index` of the stream as (H, W, 3) uint8 RGB."""
-        import av
+        with needs_extra("video"):
+            import av
 
         times = self.times
         if not 0 <= index < len(times):

@@ -13,6 +13,7 @@ import numpy as np
 
 from robofailring.encoders.base import l2_normalize
 from robofailring.errors import EncoderError
+from robofailring.extras import needs_extra
 
 _HOW_TO_PROVIDE = (
     "No weights can be downloaded on this machine. Provide them in one of two ways: "
@@ -34,7 +35,8 @@ def _file_digest(path: Path) -> str:
 
 def _resolve_model_name(model: str) -> str:
     """A model name, or a path to an open_clip model-config JSON that is registered first."""
-    import open_clip
+    with needs_extra("clip"):
+        import open_clip
 
     candidate = Path(model)
     if candidate.suffix == ".json":
@@ -88,7 +90,8 @@ def _offline_unless_reachable() -> Iterator[None]:
 
 def pick_device(device: str | None = None) -> str:
     """`cuda` when available (or as asked), else `cpu`."""
-    import torch
+    with needs_extra("clip"):
+        import torch
 
     if device:
         return device
@@ -117,8 +120,9 @@ class OpenClipEncoder:
     """An open_clip image tower, batched, on CUDA when available."""
 
     def __init__(self, model: str, weights: str, *, device: str | None = None, batch_size: int = 64) -> None:
-        import open_clip
-        import torch
+        with needs_extra("clip"):
+            import open_clip
+            import torch
 
         if not weights:
             raise EncoderError(
@@ -180,7 +184,8 @@ class OpenClipEncoder:
 
     def preprocess_batch(self, images: Sequence[np.ndarray]) -> Any:
         """open_clip's own preprocessing (resize, centre crop, normalise) stacked into one tensor."""
-        from PIL import Image
+        with needs_extra("clip"):
+            from PIL import Image
 
         return self._torch.stack([self.preprocess(Image.fromarray(image)) for image in images])
 

@@ -27,6 +27,7 @@ import numpy as np
 
 from robofailring.encoders.base import l2_normalize
 from robofailring.errors import EncoderError
+from robofailring.extras import needs_extra
 
 CONFIG_NAME: Final[str] = "encoder.json"
 WEIGHTS_NAME: Final[str] = "weights.pt"
@@ -65,8 +66,9 @@ def build_network(architecture: dict[str, Any], classes: int, backbone: Any = No
 
     `backbone` is the open_clip model for `open_clip_head` (frozen, not part of the state dict).
     """
-    import torch
-    from torch import nn
+    with needs_extra("clip"):
+        import torch
+        from torch import nn
 
     class SmallCNN(nn.Module):
         def __init__(self, widths: Sequence[int]) -> None:
@@ -130,14 +132,16 @@ def build_network(architecture: dict[str, Any], classes: int, backbone: Any = No
 
 def to_tensor(batch: np.ndarray, device: str) -> Any:
     """(N, S, S, 3) uint8 → (N, 3, S, S) float32 in [0, 1] on `device`."""
-    import torch
+    with needs_extra("clip"):
+        import torch
 
     return torch.from_numpy(np.ascontiguousarray(batch)).to(device).permute(0, 3, 1, 2).float().div_(255.0)
 
 
 def normalizer(config: dict[str, Any], device: str) -> tuple[Any, Any]:
     """(mean, std) tensors shaped (1, 3, 1, 1) from an encoder config's `normalize`."""
-    import torch
+    with needs_extra("clip"):
+        import torch
 
     mean = torch.tensor(config["normalize"]["mean"], dtype=torch.float32, device=device).view(1, 3, 1, 1)
     std = torch.tensor(config["normalize"]["std"], dtype=torch.float32, device=device).view(1, 3, 1, 1)
@@ -196,7 +200,8 @@ class TrainedEncoder:
     """A trained encoder folder, batched, on CUDA when available (see the module docstring)."""
 
     def __init__(self, directory: Path, *, device: str | None = None, batch_size: int = 256) -> None:
-        import torch
+        with needs_extra("clip"):
+            import torch
 
         from robofailring.encoders.openclip import pick_device
 

@@ -45,6 +45,7 @@ from robofailring.encoders.trained import (
     to_tensor,
 )
 from robofailring.errors import DataError, SettingError
+from robofailring.extras import needs_extra
 from robofailring.progress import progress_bar
 
 HELD_OUT_SPLITS: Final[frozenset[str]] = frozenset({"test", "ood"})
@@ -168,8 +169,9 @@ def _read(samples: list[Sample], size: int) -> tuple[np.ndarray, str]:
 
 def augment(pixels: Any, generator: Any) -> Any:
     """Photometric and small geometric augmentation of a (B, 3, S, S) batch in [0, 1], seeded."""
-    import torch
-    import torch.nn.functional as F
+    with needs_extra("clip"):
+        import torch
+        import torch.nn.functional as F
 
     count = pixels.shape[0]
 
@@ -238,7 +240,8 @@ def train_encoder(
     With `reuse`, a folder already holding an encoder of the same recipe trained on the same
     frames (labels and image bytes) is returned as it is.
     """
-    import torch
+    with needs_extra("clip"):
+        import torch
 
     from robofailring.encoders.openclip import pick_device
 

@@ -13,16 +13,18 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Final
-
-import httpx
+from typing import TYPE_CHECKING, Any, Final
 
 from robofailring.data.images import encode_jpeg, read_image
 from robofailring.data.layout_rosbag import BAG_MESSAGE_MARKER, read_bag_reference
 from robofailring.data.video import read_video_reference
 from robofailring.errors import DataError, RoboFailRingError
 from robofailring.explain.report import FailureReport, VLMClient
+from robofailring.extras import needs_extra
 from robofailring.memory.references import VIDEO_FRAME_MARKER
+
+if TYPE_CHECKING:
+    import httpx
 
 API_KEY_ENV: Final[str] = "ROBOFAILRING_VLM_API_KEY"
 DEFAULT_TIMEOUT_S: Final[float] = 120.0  # a local VLM reading three images can take a while
@@ -169,6 +171,9 @@ class ChatCompletionsClient:
 
     def complete(self, messages: list[dict[str, Any]]) -> str:
         """Send the conversation (report images as data URLs) and return the model's answer."""
+        with needs_extra("vlm"):
+            import httpx
+
         payload = {"model": self.config.model, "messages": openai_messages(messages)}
         endpoint = self.config.endpoint
         attempts = self.config.retries + 1

@@ -8,12 +8,14 @@ import sys
 from collections.abc import Iterator
 from typing import Any
 
-import pybullet
-import pybullet_data
-from pybullet_utils.bullet_client import BulletClient
-
+from robofailring.extras import needs_extra
 from robofailring.sim.appearance import RGBA, Look
 from robofailring.sim.geometry import Vec3, axis_angle
+
+with needs_extra("sim"):
+    import pybullet
+    import pybullet_data
+    from pybullet_utils.bullet_client import BulletClient
 
 PHYSICS_HZ = 240
 TABLE_TOP = 0.0
