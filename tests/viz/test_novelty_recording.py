@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from rrd import columns, entity_paths, properties, rows, static_value
 from synthetic import write_project_dataset
-from typer.testing import CliRunner
+from typer.testing import CliRunner, Result
 
 from rfr_viz.cli.app import app
 from rfr_viz.paths import REPLAY
@@ -192,6 +192,52 @@ def test_live_streams_n_against_eta_and_says_there_is_no_failure_neighbour(
         "(novelty rule): N_t = " in event[0][1][0]
         and "no failure of this task in the memory" in event[0][1][0]
     )
+
+
+def test_watch_takes_eta_and_streams_what_detect_finds(session: dict[str, Path], tmp_path: Path) -> None:
+    trajectory = load_dataset(session["data"]).select(split="test")[0]
+    memory, cache, saved = str(session["memory"]), str(session["cache"]), tmp_path / "live.rrd"
+    found = runner.invoke(
+        app,
+        [
+            "detect",
+            str(session["data"]),
+            "--trajectory",
+            trajectory.key,
+            "--memory",
+            memory,
+            "--eta",
+            "0.0005",
+            "--json",
+            "--cache-dir",
+            cache,
+        ],
+    )
+    assert found.exit_code == 0, found.output
+    detected = json.loads(found.output)
+    assert detected["score"] == "novelty" and detected["t_det"] is not None
+
+    def watch(*options: str) -> Result:
+        folder = session["data"] / trajectory.episode  # the episode folder, as a robot's run is given
+        arguments = ["watch", str(folder), "--memory", memory, "--speed", "0", "--save", str(saved)]
+        return runner.invoke(app, [*arguments, "--cache-dir", cache, *options])
+
+    watched = watch("--eta", "0.0005")
+    assert watched.exit_code == 0, watched.output
+    assert f"FAILURE at frame {detected['t_det']} in view {detected['detected_view']}" in watched.output
+    props = properties(saved)
+    assert (props["score"], props["eta"], props["t_det"]) == ("novelty", 0.0005, detected["t_det"])
+    assert props["threshold"] == 0.0005
+    for view, scored in detected["views"].items():
+        logged = rows(saved, REPLAY.novelty_score(view), "Scalars:scalars")
+        np.testing.assert_allclose([value[0] for _, value in logged], scored["novelty"], atol=1e-6)
+    assert {value[0] for _, value in rows(saved, REPLAY.eta, "Scalars:scalars")} == {0.0005}
+
+    quiet = watch("--eta", "2")  # N_t ≤ 1 never reaches η = 2
+    assert quiet.exit_code == 0 and "steps watched: no failure detected" in quiet.output, quiet.output
+    assert properties(saved)["eta"] == 2.0
+    refused = watch("--score", "paper")
+    assert refused.exit_code == 2 and "the paper rule needs failure runs in the memory" in refused.output
 
 
 @pytest.mark.slow  # an end-to-end run of every verb: the full lane
