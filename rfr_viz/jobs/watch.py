@@ -24,6 +24,9 @@ class WatchConfig:
     views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
     delta: float | None = None  # default: the memory's calibrated δ, else 0.92
     k: int = DEFAULT_K
+    score: str | None = None  # scoring rule; default per task (contrast, novelty or paper)
+    gamma: float | None = None  # default: the memory's calibrated γ, else 0
+    eta: float | None = None  # default: the memory's calibrated η, else 0.1
     encoder: str | None = None  # default: the memory's encoder spec
     speed: float = 1.0  # 1: the data's frame rate; 2: twice as fast; 0: as fast as the detector goes
     fps: float | None = None  # default: the data's, else 10
@@ -65,6 +68,9 @@ def watch(config: WatchConfig) -> WatchResult:
         cache_dir=config.cache_dir,
         device=config.device,
         data_root=config.data_root,
+        score=config.score,
+        gamma=config.gamma,
+        eta=config.eta,
     )
     trajectory = load_trajectory(config.episode, task=config.task, views=config.views)
     used = {view: frames for view, frames in trajectory.views.items() if len(frames) >= 2}

@@ -24,6 +24,7 @@ with needs_extra("viz"):
     import rerun.blueprint as rrb
 
 MAP_BACKGROUND = (22, 22, 26)
+RULE_PLOT = "C_t = S⁻_t − S⁺_t against γ, N_t = 1 − S⁺_t against η, per view"
 
 
 def map_bounds(legend_entries: int) -> rrb.VisualBounds2D:
@@ -39,14 +40,23 @@ def _cameras(views: Sequence[str]) -> rrb.Container:
 def _score_plot(
     detectors: Sequence[DetectorPaths], *, name: str, views: Sequence[str] = (), contrast: bool = False
 ) -> rrb.Container:
-    """S⁻_t (and S⁺_t) of every view with δ; with `contrast` C_t and γ in a plot of their own;
-    State_t (0/1) in a thin plot below, so each keeps its scale."""
-    contrast_paths = [paths.contrast_score(v) for paths in detectors for v in views]
-    gamma_paths = [paths.gamma for paths in detectors]
+    """S⁻_t (and S⁺_t) of every view with δ; with `contrast` (a success memory) the rules' own scores in
+    a plot of their own, C_t against γ and N_t against η; State_t (0/1) in a thin plot below, so each
+    keeps its scale."""
+    rule_paths = [
+        path
+        for paths in detectors
+        for path in (
+            *(paths.contrast_score(v) for v in views),
+            paths.gamma,
+            *(paths.novelty_score(v) for v in views),
+            paths.eta,
+        )
+    ]
     scores = rrb.TimeSeriesView(
         origin="/",
         contents=[f"+ {paths.score_root}/**" for paths in detectors]
-        + [f"- {path}" for path in (*contrast_paths, *gamma_paths) if contrast],
+        + [f"- {path}" for path in rule_paths if contrast],
         name=name,
         plot_legend=rrb.PlotLegend(corner=rrb.Corner2D.LeftBottom, visible=True),
     )
@@ -59,13 +69,13 @@ def _score_plot(
     )
     if not contrast:
         return rrb.Vertical(scores, state, row_shares=[3, 1.2])
-    contrasts = rrb.TimeSeriesView(
+    rules = rrb.TimeSeriesView(
         origin="/",
-        contents=[*contrast_paths, *gamma_paths],
-        name="C_t = S⁻_t − S⁺_t per view and γ",
+        contents=rule_paths,
+        name=RULE_PLOT,
         plot_legend=rrb.PlotLegend(corner=rrb.Corner2D.LeftBottom, visible=True),
     )
-    return rrb.Vertical(scores, contrasts, state, row_shares=[2.4, 2.4, 1.0])
+    return rrb.Vertical(scores, rules, state, row_shares=[2.4, 2.4, 1.0])
 
 
 def _map(paths: DetectorPaths, *, name: str, legend_entries: int) -> rrb.Spatial2DView:

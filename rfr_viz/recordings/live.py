@@ -330,6 +330,7 @@ class LiveRecording:
 
     def _finish(self) -> None:
         self.cameras.finish()  # the frames a video encoder still held, at their own frames
+        rule = self.detector.rule_for(self.task)
         found: dict[str, Any] = {
             "task": self.task,
             "episode": self.name,
@@ -337,6 +338,10 @@ class LiveRecording:
             "fps": float(self.fps),
             "encoder": self.detector.encoder.identity,
             "delta": float(self.detector.delta),
+            "score": rule.name,
+            "threshold": float(self.detector.threshold_of(rule)),
+            "gamma": float(self.detector.gamma),
+            "eta": float(self.detector.eta),
             "k": self.detector.k,
             "t_det": self.fired_at if self.fired_at is not None else -1,  # -1: the detector never fired
             "views": ", ".join(self.views),

@@ -141,7 +141,9 @@ def test_bad_vocabulary_labels_and_add_to_targets_are_named_errors(
     new = write_aha_dataset(
         tmp_path / "new", tasks=("pick_cube",), symbols=("slip_wp3",), episodes=1, length=3
     )
+    before_other = tree(other)
     refused(cli("build-memory", new, "--add-to", other, *cache), 2, "built with encoder", "--encoder")
+    assert tree(other) == before_other and hidden(tmp_path) == []
     folder = tmp_path / "notes"
     folder.mkdir()
     (folder / "a.txt").write_text("mine")

@@ -142,3 +142,20 @@ def test_a_memory_keeps_its_vocabulary_and_grounds_the_same_when_copied(tmp_path
     found = json.loads(_run("detect", episode, "--memory", copied, "--delta", "0.5", "--json", *cache))
     assert found["report"]["neighbors"][0]["description"] in {sentence, ground("grasp_wp2")}
     assert sentence in {n["description"] for n in found["report"]["neighbors"]}
+
+    # the copy grows with the dataset's own symbol and no --vocabulary: it grounds with the one it keeps
+    more = write_aha_dataset(
+        tmp_path / "more", tasks=("pick_cube",), symbols=("slip_wp3",), episodes=1, length=3
+    )
+    more_labels = tmp_path / "more.json"
+    more_labels.write_text(
+        json.dumps(
+            [{"episode": "pick_cube_slip_wp3_episode0", "outcome": "failure", "symbol": "knocked_cup_wp2"}]
+        )
+    )
+    _run("build-memory", more, "--labels", more_labels, "--add-to", copied, *cache)
+    grown = FailureMemory.load(copied)
+    assert {e.description for e in grown.entries if e.episode == "pick_cube_slip_wp3_episode0"} == {sentence}
+    assert (
+        grown.vocabulary == FailureMemory.load(memory).vocabulary and (copied / "vocabulary.json").is_file()
+    )

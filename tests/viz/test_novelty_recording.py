@@ -8,12 +8,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import rerun.blueprint as rrb
 from rrd import columns, entity_paths, properties, rows, static_value
 from synthetic import write_project_dataset
-from typer.testing import CliRunner
+from typer.testing import CliRunner, Result
 
 from rfr_viz.cli.app import app
+from rfr_viz.panels.neighbors import Cell
 from rfr_viz.paths import REPLAY
+from rfr_viz.recordings.blueprint import RULE_PLOT, replay_blueprint
 from rfr_viz.viewer.control import verify_recording
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
 from robofailring.detection.rules import NOVELTY
@@ -163,6 +166,43 @@ def test_the_replay_shows_n_against_eta_and_the_nearest_success_frame(session: d
     assert info.exit_code == 0 and "η = " in info.output and "entries     0 × " in info.output
 
 
+def _time_series(part: object) -> dict[str, list[str]]:
+    """Every time-series view under a blueprint part: its name → its contents."""
+    if isinstance(part, rrb.TimeSeriesView):
+        return {str(part.name): list(part.contents)}
+    found: dict[str, list[str]] = {}
+    for child in getattr(part, "contents", None) or []:
+        if not isinstance(child, str):
+            found |= _time_series(child)
+    return found
+
+
+def test_n_and_eta_have_a_plot_of_their_own_beside_c_and_gamma() -> None:
+    blueprint = replay_blueprint(
+        views=["front", "wrist"], map_title="map", legend_entries=1, cell=Cell(64, 64), k=3, contrast=True
+    )
+    plots = _time_series(blueprint.root_container)
+    rules = plots.pop(RULE_PLOT)
+    assert set(rules) == {
+        REPLAY.novelty_score("front"),
+        REPLAY.novelty_score("wrist"),
+        REPLAY.eta,
+        REPLAY.contrast_score("front"),
+        REPLAY.contrast_score("wrist"),
+        REPLAY.gamma,
+    }
+    scores = next(contents for name, contents in plots.items() if "S⁺_t" in name)
+    assert f"- {REPLAY.novelty_score('front')}" in scores and f"- {REPLAY.eta}" in scores  # not under S_t
+    paper = _time_series(
+        replay_blueprint(
+            views=["front"], map_title="map", legend_entries=1, cell=Cell(64, 64), k=3
+        ).root_container
+    )
+    assert RULE_PLOT not in paper and not any(
+        line.startswith("- ") for lines in paper.values() for line in lines
+    )
+
+
 def test_live_streams_n_against_eta_and_says_there_is_no_failure_neighbour(
     session: dict[str, Path], tmp_path: Path
 ) -> None:
@@ -192,6 +232,52 @@ def test_live_streams_n_against_eta_and_says_there_is_no_failure_neighbour(
         "(novelty rule): N_t = " in event[0][1][0]
         and "no failure of this task in the memory" in event[0][1][0]
     )
+
+
+def test_watch_takes_eta_and_streams_what_detect_finds(session: dict[str, Path], tmp_path: Path) -> None:
+    trajectory = load_dataset(session["data"]).select(split="test")[0]
+    memory, cache, saved = str(session["memory"]), str(session["cache"]), tmp_path / "live.rrd"
+    found = runner.invoke(
+        app,
+        [
+            "detect",
+            str(session["data"]),
+            "--trajectory",
+            trajectory.key,
+            "--memory",
+            memory,
+            "--eta",
+            "0.0005",
+            "--json",
+            "--cache-dir",
+            cache,
+        ],
+    )
+    assert found.exit_code == 0, found.output
+    detected = json.loads(found.output)
+    assert detected["score"] == "novelty" and detected["t_det"] is not None
+
+    def watch(*options: str) -> Result:
+        folder = session["data"] / trajectory.episode  # the episode folder, as a robot's run is given
+        arguments = ["watch", str(folder), "--memory", memory, "--speed", "0", "--save", str(saved)]
+        return runner.invoke(app, [*arguments, "--cache-dir", cache, *options])
+
+    watched = watch("--eta", "0.0005")
+    assert watched.exit_code == 0, watched.output
+    assert f"FAILURE at frame {detected['t_det']} in view {detected['detected_view']}" in watched.output
+    props = properties(saved)
+    assert (props["score"], props["eta"], props["t_det"]) == ("novelty", 0.0005, detected["t_det"])
+    assert props["threshold"] == 0.0005
+    for view, scored in detected["views"].items():
+        logged = rows(saved, REPLAY.novelty_score(view), "Scalars:scalars")
+        np.testing.assert_allclose([value[0] for _, value in logged], scored["novelty"], atol=1e-6)
+    assert {value[0] for _, value in rows(saved, REPLAY.eta, "Scalars:scalars")} == {0.0005}
+
+    quiet = watch("--eta", "2")  # N_t ≤ 1 never reaches η = 2
+    assert quiet.exit_code == 0 and "steps watched: no failure detected" in quiet.output, quiet.output
+    assert properties(saved)["eta"] == 2.0
+    refused = watch("--score", "paper")
+    assert refused.exit_code == 2 and "the paper rule needs failure runs in the memory" in refused.output
 
 
 @pytest.mark.slow  # an end-to-end run of every verb: the full lane
