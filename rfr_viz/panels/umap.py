@@ -1,4 +1,9 @@
-"""The memory's 2-D map: UMAP (cosine) of the memory vectors, fitted once and cached beside the memory."""
+"""The memory's 2-D map: UMAP (cosine) of the memory vectors, fitted once and cached beside the memory.
+
+The UMAP is umap-learn's algorithm: exact neighbours from Faiss, the fuzzy simplicial set built here in
+numpy (umap-learn's numba version is compiled, uncached, in every fresh process: ~18 s before the
+first map of a replay), and umap-learn's `simplicial_set_embedding` for the layout itself.
+"""
 
 from __future__ import annotations
 
@@ -9,17 +14,21 @@ from pathlib import Path
 from typing import Any, Final, Literal
 
 import numpy as np
+from scipy import sparse
 
 from robofailring.atomic import atomic_path
 from robofailring.memory.failure import FailureMemory
 
 CACHE_FILE: Final[str] = "umap.npz"
-CACHE_VERSION: Final[int] = 1
+CACHE_VERSION: Final[int] = 2  # 2: UMAP's fuzzy graph built in numpy (maps differ in the last bits)
 N_NEIGHBORS: Final[int] = 15  # umap-learn's default
 MIN_DIST: Final[float] = 0.1  # umap-learn's default
 MIN_UMAP_ENTRIES: Final[int] = 4  # below this the map is a PCA projection
 SEED: Final[int] = 0  # the same memory always gets the same map
 PROJECT_BATCH: Final[int] = 512  # queries placed per matrix product
+BISECTION_STEPS: Final[int] = 64  # umap-learn's smooth_knn_dist
+SMOOTH_K_TOLERANCE: Final[float] = 1e-5  # umap-learn's
+MIN_K_DIST_SCALE: Final[float] = 1e-3  # umap-learn's floor on σ, relative to the mean distance
 
 Method = Literal["umap", "pca"]
 
@@ -69,26 +78,34 @@ class MemoryMap:
         return placed
 
 
-def membership_weights(distances: np.ndarray, *, iterations: int = 64) -> np.ndarray:
+def membership_weights(distances: np.ndarray) -> np.ndarray:
     """UMAP's fuzzy set memberships of each row's k neighbours (its `smooth_knn_dist`, vectorised).
 
     ρ is the nearest distance, σ is found by bisection so that Σ exp(-(d - ρ)/σ) = log2(k).
     """
     distances = np.asarray(distances, dtype=np.float64)
-    k = distances.shape[1]
-    target = np.log2(max(k, 2))
     excess = np.maximum(distances - distances.min(axis=1, keepdims=True), 0.0)
-    low = np.zeros(len(distances))
-    high = np.full(len(distances), np.inf)
-    sigma = np.ones(len(distances))
-    for _ in range(iterations):
-        total = np.exp(-excess / sigma[:, None]).sum(axis=1)
-        too_wide = total > target
-        high = np.where(too_wide, sigma, high)
-        low = np.where(too_wide, low, sigma)
-        sigma = np.where(np.isinf(high), sigma * 2.0, (low + high) / 2.0)
-    sigma = np.maximum(sigma, 1e-3 * max(float(np.mean(distances)), 1e-12))
+    sigma = bandwidths(excess, target=float(np.log2(max(distances.shape[1], 2))))
+    sigma = np.maximum(sigma, MIN_K_DIST_SCALE * max(float(np.mean(distances)), 1e-12))
     return np.exp(-excess / sigma[:, None])
+
+
+def bandwidths(excess: np.ndarray, *, target: float) -> np.ndarray:
+    """σ per row, by umap-learn's bisection: Σ_j exp(-max(excess_j, 0)/σ) = target (64 steps, tolerance 1e-5)."""
+    rows = len(excess)
+    low, high, sigma = np.zeros(rows), np.full(rows, np.inf), np.ones(rows)
+    active = np.ones(rows, dtype=bool)
+    for _ in range(BISECTION_STEPS):
+        total = np.exp(-np.maximum(excess, 0.0) / sigma[:, None]).sum(axis=1)
+        active &= np.abs(total - target) >= SMOOTH_K_TOLERANCE
+        if not active.any():
+            break
+        too_wide = active & (total > target)
+        too_narrow = active & ~too_wide
+        high = np.where(too_wide, sigma, high)
+        low = np.where(too_narrow, sigma, low)
+        sigma = np.where(active, np.where(np.isinf(high), sigma * 2.0, (low + high) / 2.0), sigma)
+    return sigma
 
 
 def vectors_digest(vectors: np.ndarray) -> str:
@@ -124,10 +141,7 @@ def fit_map(vectors: np.ndarray) -> MemoryMap:
             fitted=True,
         )
     n_neighbors = max(2, min(N_NEIGHBORS, count - 1))
-    embedding = _umap_embedding(vectors, n_neighbors)
-    embedding = (embedding - (embedding.max(axis=0) + embedding.min(axis=0)) / 2) / _extent(
-        embedding, centred=False
-    )
+    embedding = scaled_to_unit_box(_umap_embedding(vectors, n_neighbors))
     return MemoryMap(
         embedding=embedding,
         method="umap",
@@ -136,6 +150,12 @@ def fit_map(vectors: np.ndarray) -> MemoryMap:
         vectors=vectors,
         fitted=True,
     )
+
+
+def scaled_to_unit_box(embedding: np.ndarray) -> np.ndarray:
+    """A layout moved and scaled (aspect kept) so that its bounding box is centred and its longer side spans [-1, 1]."""
+    centre = (embedding.max(axis=0) + embedding.min(axis=0)) / 2
+    return ((embedding - centre) / _extent(embedding, centred=False)).astype(np.float32)
 
 
 def _extent(points: np.ndarray, *, centred: bool = True) -> float:
@@ -147,28 +167,71 @@ def _extent(points: np.ndarray, *, centred: bool = True) -> float:
 
 
 def _umap_embedding(vectors: np.ndarray, n_neighbors: int) -> np.ndarray:
-    """UMAP with cosine metric on exact nearest neighbours from Faiss (faster than NN-descent)."""
+    """UMAP (cosine) of unit vectors: exact neighbours from Faiss, the fuzzy graph in numpy, umap's layout.
+
+    The same algorithm as `umap.UMAP(metric="cosine", random_state=SEED, precomputed_knn=...).fit` with
+    umap-learn's defaults (spread 1, local_connectivity 1, spectral init, 500 epochs below 10,000 points).
+    """
     import faiss
-    import umap
+    from sklearn.utils import check_random_state
+    from umap.distances import named_distances
+    from umap.umap_ import find_ab_params, simplicial_set_embedding
 
     index = faiss.IndexFlatIP(vectors.shape[1])
     index.add(vectors)
     similarities, ids = index.search(vectors, n_neighbors)
     distances = np.clip(1.0 - similarities, 0.0, 2.0).astype(np.float32)
-    reducer = umap.UMAP(
-        n_components=2,
-        n_neighbors=n_neighbors,
-        min_dist=MIN_DIST,
-        metric="cosine",
-        random_state=SEED,
-        n_jobs=1,
-        precomputed_knn=(ids, distances, None),
+    a, b = find_ab_params(1.0, MIN_DIST)
+    embedding, _ = simplicial_set_embedding(
+        vectors,
+        fuzzy_simplicial_set(ids, distances),
+        2,  # n_components
+        1.0,  # initial_alpha: UMAP's learning_rate
+        a,
+        b,
+        1.0,  # gamma: UMAP's repulsion_strength
+        5,  # negative_sample_rate
+        None,  # n_epochs: umap's default for the graph's size
+        "spectral",
+        check_random_state(SEED),
+        named_distances["cosine"],
+        {},
+        False,  # densmap
+        {},
+        False,  # output_dens
+        tqdm_kwds={"disable": True},
     )
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message=".*knn_search_index.*")
-        warnings.filterwarnings("ignore", message=".*n_jobs.*")
-        embedding = reducer.fit_transform(vectors)
     return np.asarray(embedding, dtype=np.float32)
+
+
+def fuzzy_simplicial_set(ids: np.ndarray, distances: np.ndarray) -> sparse.csr_matrix:
+    """UMAP's fuzzy simplicial set of a k-NN graph (`umap.umap_.fuzzy_simplicial_set`, local_connectivity 1).
+
+    `ids`/`distances` (N, k) hold each point's neighbours, nearest first, itself among them. Per point ρ
+    is its nearest non-zero distance and σ solves Σ_{j≥1} exp(-(d_j - ρ)/σ) = log2(k); an edge weighs
+    exp(-(d - ρ)/σ) (1 up to ρ, 0 to itself); the graph is the fuzzy union G + Gᵀ − G∘Gᵀ. Float32 where
+    umap-learn's is, so the weights agree with its to the last bit or two.
+    """
+    count, k = ids.shape
+    distances = np.asarray(distances, dtype=np.float32)
+    rho = np.where(distances > 0.0, distances, np.inf).min(axis=1)
+    rho = np.where(np.isfinite(rho), rho, 0.0).astype(np.float32)
+    excess = distances - rho[:, None]
+    sigma = bandwidths(excess[:, 1:].astype(np.float64), target=float(np.log2(k)))
+    floor = MIN_K_DIST_SCALE * np.where(rho > 0.0, distances.mean(axis=1), distances.mean())
+    sigma = np.maximum(sigma, floor).astype(np.float32)
+    weights = np.where(
+        excess <= 0.0, 1.0, np.exp(-(np.maximum(excess, 0.0) / sigma[:, None]).astype(np.float64))
+    ).astype(np.float32)
+    weights[(ids == np.arange(count)[:, None]) | (ids < 0)] = 0.0
+    graph = sparse.coo_matrix(
+        (weights.ravel(), (np.repeat(np.arange(count), k), np.maximum(ids, 0).ravel())), shape=(count, count)
+    ).tocsr()
+    graph.eliminate_zeros()
+    transpose = graph.transpose().tocsr()
+    union = graph + transpose - graph.multiply(transpose)
+    union.eliminate_zeros()
+    return union.tocsr()
 
 
 def memory_map(memory: FailureMemory, *, directory: Path | None = None) -> MemoryMap:
@@ -229,3 +292,21 @@ def _write_cache(path: Path, fitted: MemoryMap) -> None:
             embedding=fitted.embedding,
             **extra,
         )
+
+
+def knn_purity(points: np.ndarray, labels: np.ndarray, *, k: int = 5) -> float:
+    """How well a map keeps labelled groups together: the mean share of each point's k nearest other
+    points (Euclidean, exact) that carry its label; the chance level is Σ_c p_c²."""
+    import faiss
+
+    points = np.ascontiguousarray(points, dtype=np.float32)
+    labels = np.asarray(labels)
+    count = len(points)
+    if count < 2:
+        return float("nan")
+    k = min(k, count - 1)
+    index = faiss.IndexFlatL2(points.shape[1])
+    index.add(points)
+    _, ids = index.search(points, k + 1)
+    others = np.array([[j for j in row if j != i][:k] for i, row in enumerate(ids)])
+    return float((labels[others] == labels[:, None]).mean())
