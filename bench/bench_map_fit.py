@@ -1,13 +1,14 @@
 """The first memory map of a fresh process: umap-learn's `UMAP.fit` against rfr_viz's fit, on the simulator's failures.
 
-Run: .venv/bin/python bench/bench_map_fit.py [--data DIR] [--encoder SPEC]...
+Run: .venv/bin/python bench/bench_map_fit.py [--data DIR] [--encoder SPEC]... [--repeat 3]
 
 The map before: `umap.UMAP(metric="cosine", precomputed_knn=Faiss neighbours).fit_transform`, whose
 fuzzy-graph code (numba, not cached) is compiled in every new process. The map now
-(`rfr_viz.panels.umap`): the same fuzzy simplicial set built in numpy, then umap-learn's
+(`rfr_viz.panels.umap_layout`): the same fuzzy simplicial set built in numpy, then umap-learn's
 `simplicial_set_embedding` with UMAP's defaults. Each runs in its own fresh interpreter (as the first
 replay of a session does), on the same vectors: `import umap` + Faiss, the first fit, a second fit in
-the same process. Then each map's failure-type purity (share of a point's 5 nearest map neighbours
+the same process; the two alternate `--repeat` times and the medians are printed (on a shared machine
+one run is noisy). Then each map's failure-type purity (share of a point's 5 nearest map neighbours
 with its failure type; chance = Σ p²) and how far apart the two maps are.
 """
 
@@ -15,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -46,9 +48,9 @@ def _child(variant: str, vectors_file: Path, out: Path) -> None:
 
 
 def _rfr_viz(vectors: np.ndarray) -> np.ndarray:
-    from rfr_viz.panels.umap import fit_map
+    from rfr_viz.panels.umap_layout import fit_map_2d
 
-    return fit_map(vectors).embedding
+    return fit_map_2d(vectors).embedding
 
 
 def _umap_learn(vectors: np.ndarray) -> np.ndarray:
@@ -58,7 +60,7 @@ def _umap_learn(vectors: np.ndarray) -> np.ndarray:
     import faiss
     import umap
 
-    from rfr_viz.panels.umap import MIN_DIST, N_NEIGHBORS, SEED, scaled_to_unit_box
+    from rfr_viz.panels.umap_layout import MIN_DIST, N_NEIGHBORS, SEED, scaled_to_unit_box
 
     n_neighbors = max(2, min(N_NEIGHBORS, len(vectors) - 1))
     index = faiss.IndexFlatIP(vectors.shape[1])
@@ -95,12 +97,13 @@ def main() -> None:
         "--data", type=Path, default=None, help="dataset root (default: the demo's simulated set)"
     )
     parser.add_argument("--encoder", action="append", default=None, help="encoder spec (repeatable)")
+    parser.add_argument("--repeat", type=int, default=3, help="fresh processes per variant (medians)")
     parser.add_argument("--child", nargs=3, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
         _child(args.child[0], Path(args.child[1]), Path(args.child[2]))
         return
-    from rfr_viz.panels.umap import knn_purity
+    from rfr_viz.panels.umap_layout import knn_purity
 
     data = args.data or default_data()
     print(f"data: {data}")
@@ -115,15 +118,18 @@ def main() -> None:
         with tempfile.TemporaryDirectory() as folder:
             vectors_file = Path(folder) / "vectors.npy"
             np.save(vectors_file, np.ascontiguousarray(labelled.memory.vectors, dtype=np.float32))
-            maps = {}
-            for name, variant in VARIANTS.items():
-                out = Path(folder) / f"{variant}.npy"
-                timings = _run(variant, vectors_file, out)
-                maps[name] = np.load(out)
-                reference = next(iter(maps.values()))
+            runs: dict[str, list[dict[str, float]]] = {name: [] for name in VARIANTS}
+            for _ in range(args.repeat):  # alternating, so both see the same load
+                for name, variant in VARIANTS.items():
+                    runs[name].append(_run(variant, vectors_file, Path(folder) / f"{variant}.npy"))
+            maps = {name: np.load(Path(folder) / f"{variant}.npy") for name, variant in VARIANTS.items()}
+            reference = maps[next(iter(VARIANTS))]
+            for name, timings in runs.items():
+                median = {key: statistics.median(run[key] for run in timings) for key in timings[0]}
+                total = statistics.median(run["import"] + run["first"] for run in timings)
                 print(
-                    f"| {spec} | {len(types)} | {name} | {timings['import']:.1f} | {timings['first']:.1f} "
-                    f"| {timings['second']:.2f} | {timings['import'] + timings['first']:.1f} "
+                    f"| {spec.split(':')[0]} | {len(types)} | {name} | {median['import']:.1f} | {median['first']:.1f} "
+                    f"| {median['second']:.2f} | {total:.1f} "
                     f"| {knn_purity(maps[name], types):.3f} | {chance_purity(types):.3f} "
                     f"| {np.abs(maps[name] - reference).max():.2g} |"
                 )

@@ -23,6 +23,7 @@ VIEW_COLOURS: Final[tuple[tuple[int, int, int], ...]] = (
     (240, 220, 80),
 )
 ENCODER_COLOURS: Final[tuple[tuple[int, int, int], ...]] = ((80, 160, 255), (255, 150, 60), (90, 210, 110))
+MAP_FRAME_COLOUR: Final[tuple[int, int, int]] = (90, 90, 100)  # the box around each view's memory map
 DELTA_COLOUR: Final[tuple[int, int, int]] = (235, 60, 60)
 STATE_COLOUR: Final[tuple[int, int, int]] = (170, 170, 170)
 STOP_COLOUR: Final[tuple[int, int, int]] = (235, 60, 60)  # the frame around a stopped robot's cameras

@@ -8,7 +8,7 @@ import numpy as np
 import rerun.blueprint as rrb
 
 from rfr_viz.panels.neighbors import Cell
-from rfr_viz.panels.map import LEGEND_ROW, LEGEND_TOP
+from rfr_viz.panels.map import MapGrid
 from rfr_viz.paths import (
     CLOSED_LOOP_SUMMARY,
     DEFAULT_FPS,
@@ -23,10 +23,10 @@ from rfr_viz.paths import (
 MAP_BACKGROUND = (22, 22, 26)
 
 
-def map_bounds(legend_entries: int) -> rrb.VisualBounds2D:
-    """The map's viewport: the [-1, 1]² map and its legend below."""
-    rows = (legend_entries + 1) // 2
-    return rrb.VisualBounds2D(x_range=(-1.3, 1.3), y_range=(-1.15, LEGEND_TOP + rows * LEGEND_ROW + 0.05))
+def map_bounds(grid: MapGrid) -> rrb.VisualBounds2D:
+    """The map panel's viewport: every view's map and the legend."""
+    x_range, y_range = grid.bounds()
+    return rrb.VisualBounds2D(x_range=x_range, y_range=y_range)
 
 
 def _cameras(views: Sequence[str]) -> rrb.Container:
@@ -65,9 +65,9 @@ def _score_plot(
     return rrb.Vertical(scores, contrasts, state, row_shares=[2.4, 2.4, 1.0])
 
 
-def _map(paths: DetectorPaths, *, name: str, legend_entries: int) -> rrb.Spatial2DView:
+def _map(paths: DetectorPaths, *, name: str, grid: MapGrid) -> rrb.Spatial2DView:
     return rrb.Spatial2DView(
-        origin=paths.umap, name=name, background=MAP_BACKGROUND, visual_bounds=map_bounds(legend_entries)
+        origin=paths.map_root, name=name, background=MAP_BACKGROUND, visual_bounds=map_bounds(grid)
     )
 
 
@@ -136,7 +136,7 @@ def replay_blueprint(
     *,
     views: Sequence[str],
     map_title: str,
-    legend_entries: int,
+    map_grid: MapGrid,
     cell: Cell,
     k: int,
     fps: float = DEFAULT_FPS,
@@ -152,7 +152,7 @@ def replay_blueprint(
             views=views,
             contrast=contrast,
         ),
-        _map(REPLAY, name=map_title, legend_entries=legend_entries),
+        _map(REPLAY, name=map_title, grid=map_grid),
         column_shares=[0.85 * len(views), 2.2, 2.0],
     )
     neighbors = rrb.Grid(
@@ -179,7 +179,7 @@ def compare_blueprint(
     views: Sequence[str],
     encoders: Sequence[str],
     map_titles: Sequence[str],
-    legend_entries: Sequence[int],
+    map_grids: Sequence[MapGrid],
     cells: Sequence[Cell],
     fps: float = DEFAULT_FPS,
     contrast: bool = False,
@@ -194,10 +194,8 @@ def compare_blueprint(
     )
     maps = rrb.Horizontal(
         *(
-            _map(paths, name=f"{slug} · {title}", legend_entries=entries)
-            for slug, paths, title, entries in zip(
-                encoders, detectors, map_titles, legend_entries, strict=True
-            )
+            _map(paths, name=f"{slug} · {title}", grid=grid)
+            for slug, paths, title, grid in zip(encoders, detectors, map_titles, map_grids, strict=True)
         )
     )
     nearest = rrb.Grid(

@@ -18,7 +18,7 @@ from rfr_viz.panels.cameras import log_camera_views
 from rfr_viz.panels.contrast import log_contrast
 from rfr_viz.panels.umap import MemoryMap, fit_map
 from rfr_viz.panels.neighbors import Cell, NeighborImages, log_neighbors
-from rfr_viz.panels.map import legend_size, log_map, map_title
+from rfr_viz.panels.map import log_map, map_title, trace_map_grid
 from rfr_viz.panels.report import log_detection
 from rfr_viz.panels.scores import log_scores, time_columns
 from rfr_viz.paths import APPLICATION_ID, DEFAULT_FPS, IN_MEMORY, PROPERTIES, REPLAY, DetectorPaths
@@ -77,13 +77,13 @@ def record_replay(
     one it is fitted here, uncached. `fps` drives the "time" timeline (default: the data's, else 10).
     """
     info = RecordingInfo.of(trajectory, fps=fps)
-    mapped = memory_map if memory_map is not None else fit_map(trace.memory.vectors)
+    mapped = memory_map if memory_map is not None else fit_map(trace.memory)
     images = NeighborImages()
     cell = images.cell(trace)
     blueprint = replay_blueprint(
         views=trace.views,
         map_title=map_title(mapped),
-        legend_entries=legend_size(trace),
+        map_grid=trace_map_grid(trace, mapped),
         cell=cell,
         k=trace.k,
         fps=info.fps,
@@ -136,7 +136,7 @@ def compare_recording(
     info = RecordingInfo.of(trajectory, fps=fps)
     slugs = list(traces)
     maps = {
-        slug: (memory_maps or {}).get(slug) or fit_map(trace.memory.vectors) for slug, trace in traces.items()
+        slug: (memory_maps or {}).get(slug) or fit_map(trace.memory) for slug, trace in traces.items()
     }
     images = NeighborImages()
     cells = {slug: images.cell(trace) for slug, trace in traces.items()}
@@ -146,7 +146,7 @@ def compare_recording(
         views=views,
         encoders=slugs,
         map_titles=[map_title(maps[slug]) for slug in slugs],
-        legend_entries=[legend_size(traces[slug]) for slug in slugs],
+        map_grids=[trace_map_grid(traces[slug], maps[slug]) for slug in slugs],
         cells=[cells[slug] for slug in slugs],
         fps=info.fps,
         contrast=any(trace.success_similarity for trace in traces.values()),

@@ -8,7 +8,7 @@ import faiss
 import numpy as np
 import pytest
 
-from rfr_viz.panels.umap import bandwidths, fuzzy_simplicial_set
+from rfr_viz.panels.umap_layout import bandwidths, fuzzy_simplicial_set
 from robofailring.memory.failure import FailureMemory
 
 
