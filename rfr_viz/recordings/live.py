@@ -22,7 +22,7 @@ from typing import Any, Final
 import numpy as np
 import rerun as rr
 
-from rfr_viz.recordings.blueprint import replay_blueprint
+from rfr_viz.recordings.blueprint import ScorePlots, replay_blueprint
 from rfr_viz.panels.camera_video import CameraCodec
 from rfr_viz.panels.contrast import log_contrast_styles, log_nearest_success
 from rfr_viz.panels.live_camera import LiveCameras
@@ -45,6 +45,7 @@ from robofailring.atomic import atomic_path
 from robofailring.data.layouts import load_trajectory
 from robofailring.data.model import Frame
 from robofailring.detection.detector import DEFAULT_K, DetectorSession, FailureDetector, StepResult
+from robofailring.detection.rules import NOVELTY
 from robofailring.errors import DataError, SettingError
 from robofailring.explain.report import FailureReport
 
@@ -84,6 +85,18 @@ def check_viewer(url: str) -> None:
         return
     raise ViewerUnavailable(
         f"no Rerun viewer listens at {url}: start one (`rerun`), pass --spawn, or only --save to a file"
+    )
+
+
+def _score_plots(detector: FailureDetector, task: str) -> ScorePlots:
+    """The live session's score plots, as a replay of its task would have them."""
+    return ScorePlots.of(
+        delta=detector.delta,
+        gamma=detector.gamma,
+        eta=detector.eta,
+        failures=detector.memory.has_failures(task),
+        successes=detector.memory.successes is not None,
+        novelty=detector.rule_for(task).name == NOVELTY.name,
     )
 
 
@@ -153,6 +166,7 @@ class LiveRecording:
             ),
             cell=cell,
             k=detector.k,
+            plots=_score_plots(detector, task),
             fps=fps,
         )
         with ExitStack() as stack:
