@@ -90,7 +90,7 @@ def main() -> None:
         folder = Path(tmp)
         memory = random_memory(args.entries, folder, frames)
         started = time.perf_counter()
-        memory_map = fit_map(memory.vectors)
+        memory_map = fit_map(memory)
         fit_s = time.perf_counter() - started
         detector = FailureDetector(memory, load_encoder("pixels"), delta=1.0, k=5)  # δ = 1: no alarm
         target = LiveTarget(connect=args.connect, save=folder / "live.rrd")

@@ -117,7 +117,7 @@ def main() -> None:
         samples: list[tuple[int, int]] = []  # (step, RSS) every 100 steps
         started = time.perf_counter()
         with LiveRecording.open(
-            detector, TASK, views=VIEWS, target=target, memory_map=fit_map(memory.vectors)
+            detector, TASK, views=VIEWS, target=target, memory_map=fit_map(memory)
         ) as live:
             session = detector.session(TASK, sink=live)
             for t in range(args.steps):

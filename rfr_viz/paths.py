@@ -109,13 +109,31 @@ class DetectorPaths:
         return f"{self.neighbor_rank(view, rank)}/{part}"
 
     @property
-    def umap(self) -> str:
-        """Static Points2D of all memory entries (and their AnnotationContext)."""
-        return f"{self.prefix}/memory/umap"
+    def map_root(self) -> str:
+        """The memory map: one map per view side by side, their AnnotationContext and the legend."""
+        return f"{self.prefix}/memory"
+
+    def umap(self, view: str) -> str:
+        """Static Points2D of one view's memory entries in that view's map, placed beside the others by a
+        static Transform3D."""
+        return f"{self.map_root}/umap/{view}"
 
     def umap_query(self, view: str) -> str:
-        """Points2D: the current query of a view projected into the memory map."""
-        return f"{self.umap}/query/{view}"
+        """Points2D: the current query of a view projected into that view's map."""
+        return f"{self.umap(view)}/query"
+
+    def umap_frame(self, view: str) -> str:
+        """Static Boxes2D around one view's map."""
+        return f"{self.umap(view)}/frame"
+
+    def umap_title(self, view: str) -> str:
+        """Static Points2D: the name of one view's map (and its entry count) at the top of its box."""
+        return f"{self.umap(view)}/title"
+
+    @property
+    def map_legend(self) -> str:
+        """Static Points2D: the failure types of the memory, their colours and counts."""
+        return f"{self.map_root}/legend"
 
     @property
     def report(self) -> str:

@@ -22,17 +22,10 @@ VIEW_COLOURS: Final[tuple[tuple[int, int, int], ...]] = (
     (200, 120, 255),
     (240, 220, 80),
 )
-ENCODER_COLOURS: Final[tuple[tuple[int, int, int], ...]] = ((80, 160, 255), (255, 150, 60), (90, 210, 110))
+MAP_FRAME_COLOUR: Final[tuple[int, int, int]] = (90, 90, 100)  # the box around each view's memory map
 DELTA_COLOUR: Final[tuple[int, int, int]] = (235, 60, 60)
 STATE_COLOUR: Final[tuple[int, int, int]] = (170, 170, 170)
 STOP_COLOUR: Final[tuple[int, int, int]] = (235, 60, 60)  # the frame around a stopped robot's cameras
 #: Few, large chunks: every chunk carries its own schema, so many small ones would dominate the file.
 GAMMA_COLOUR: Final[tuple[int, int, int]] = (255, 120, 200)
 ETA_COLOUR: Final[tuple[int, int, int]] = (120, 230, 230)
-
-
-def shade(colour: tuple[int, int, int], position: int, count: int) -> tuple[int, int, int]:
-    """Views of one encoder in a comparison: its hue, from full strength to lighter."""
-    mix = 0.6 * position / max(count - 1, 1)
-    red, green, blue = (int(c + (255 - c) * mix) for c in colour)
-    return red, green, blue

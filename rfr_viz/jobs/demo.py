@@ -141,7 +141,9 @@ def _placed_trace(
     detector = FailureDetector(
         kept.memory, open_encoder(config.encoder, cache_dir=config.cache_dir), k=kept.k
     )
-    trace = detector.run(trajectory, stride=kept.stride, keep_queries=False, place=placer(mapped))
+    trace = detector.run(
+        trajectory, stride=kept.stride, keep_queries=False, place=placer(mapped, trajectory.task)
+    )
     return trace.with_rule(rule, evaluation.rules[rule.name].threshold)
 
 

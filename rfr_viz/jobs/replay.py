@@ -273,7 +273,7 @@ def _replay(config: ReplayConfig) -> ReplayResult:
                     leave_one_out=config.leave_one_out,
                     stride=config.stride,
                     keep_queries=False,
-                    place=placer(found.map),
+                    place=placer(found.map, trajectory.task),
                 )
             except (UnknownTaskError, DataError) as error:
                 result.skipped.append((trajectory.key, str(error)))
@@ -366,7 +366,7 @@ def _compare(config: CompareConfig) -> ReplayResult:
                         trajectory,
                         leave_one_out=config.leave_one_out,
                         keep_queries=False,
-                        place=placer(found.map),
+                        place=placer(found.map, trajectory.task),
                     )
                     for slug, found in zip(slugs, detectors, strict=True)
                 }

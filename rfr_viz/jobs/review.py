@@ -129,7 +129,9 @@ def _replay_keys(
     with progress_bar(total=len(keys), desc=f"replaying {config.kind}", unit="trajectory") as bar:
         for key in keys:
             trajectory = trajectories[key]
-            trace = loaded.detector.run(trajectory, keep_queries=False, place=placer(loaded.map))
+            trace = loaded.detector.run(
+                trajectory, keep_queries=False, place=placer(loaded.map, trajectory.task)
+            )
             focus = trace.t_det if trace.t_det is not None else int(np.argmax(trace.max_score()))
             out = Path(config.out) / config.kind / recording_name(trajectory)
             check_recording_file(out)

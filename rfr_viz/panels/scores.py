@@ -9,7 +9,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from rfr_viz.paths import FRAME, TIME, DetectorPaths
-from rfr_viz.styles import DELTA_COLOUR, STATE_COLOUR, VIEW_COLOURS, shade
+from rfr_viz.styles import DELTA_COLOUR, STATE_COLOUR, VIEW_COLOURS
 from robofailring.detection.detector import DetectionTrace
 from robofailring.detection.rules import PAPER, ScoringRule
 from robofailring.extras import needs_extra
@@ -39,32 +39,31 @@ def log_score_styles(
     delta: float,
     rule: ScoringRule = PAPER,
     label: str | None = None,
-    colour: tuple[int, int, int] | None = None,
     failures: bool = True,
 ) -> None:
     """Static line styles of S⁻_t per view, δ and State_t under `rule` (names, colours, widths);
     S⁻_t and δ only where the task has failure entries (`failures`)."""
     prefix = f"{label} · " if label else ""
     for position, view in enumerate(views if failures else ()):
-        view_colour = (
-            shade(colour, position, len(views)) if colour else VIEW_COLOURS[position % len(VIEW_COLOURS)]
-        )
         rec.log(
             paths.score(view),
-            rr.SeriesLines(colors=[view_colour], widths=[2.0], names=[f"{prefix}{view} S⁻ (failure)"]),
+            rr.SeriesLines(
+                colors=[VIEW_COLOURS[position % len(VIEW_COLOURS)]],
+                widths=[2.0],
+                names=[f"{prefix}{view} S⁻ (failure)"],
+            ),
             static=True,
         )
-    delta_colour = DELTA_COLOUR if colour is None else shade(colour, 0, 1)
     if failures:
         rec.log(
             paths.delta,
-            rr.SeriesLines(colors=[delta_colour], widths=[1.0], names=[f"{prefix}δ = {delta:.3f}"]),
+            rr.SeriesLines(colors=[DELTA_COLOUR], widths=[1.5], names=[f"{prefix}δ = {delta:.3f}"]),
             static=True,
         )
     rec.log(
         paths.state,
         rr.SeriesLines(
-            colors=[STATE_COLOUR if colour is None else colour],
+            colors=[STATE_COLOUR],
             widths=[1.5],
             names=[f"{prefix}State_t ({rule.name}: any view {rule.score_name} ≥ {rule.symbol})"],
         ),
@@ -79,7 +78,6 @@ def log_scores(
     fps: float,
     *,
     label: str | None,
-    colour: tuple[int, int, int] | None,
 ) -> None:
     failures = trace.has_failures
     log_score_styles(
@@ -89,7 +87,6 @@ def log_scores(
         delta=trace.delta,
         rule=trace.rule,
         label=label,
-        colour=colour,
         failures=failures,
     )
     for view in trace.views if failures else ():

@@ -1,191 +1,163 @@
-"""The memory's 2-D map: UMAP (cosine) of the memory vectors, fitted once and cached beside the memory."""
+"""The memory's map: one 2-D map per camera view of what changed in each failure, cached beside the memory.
+
+A memory vector is `norm([norm f(I_start) ‖ norm f(I_end)])`; its first-frame half is nearly the same
+for every run of one task seen by one camera, so a map of the vectors themselves is one blob per view
+(and per task) with the failure types mixed inside. Each view's map is therefore fitted on that view's
+entries alone, on what changed from the first frame, `norm(norm f(I_end) − norm f(I_start))`, with the
+mean change of the entry's task in that view removed (the task's typical motion): what is left is how
+the failure differed, and failure types form the clusters (`bench/bench_memory_map.py` measures it).
+A query `norm([f(I_0) ‖ f(I_t)])` is placed the same way in its view's map, with its task's mean.
+"""
 
 from __future__ import annotations
 
 import hashlib
 import warnings
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Final, Literal
+from typing import Any, Final
 
 import numpy as np
 
+from rfr_viz.panels.umap_layout import Map2D, fit_map_2d
 from robofailring.atomic import atomic_path
-from robofailring.extras import needs_extra
+from robofailring.memory.entry import MemoryEntry
 from robofailring.memory.failure import FailureMemory
 
 CACHE_FILE: Final[str] = "umap.npz"
-CACHE_VERSION: Final[int] = 1
-N_NEIGHBORS: Final[int] = 15  # umap-learn's default
-MIN_DIST: Final[float] = 0.1  # umap-learn's default
-MIN_UMAP_ENTRIES: Final[int] = 4  # below this the map is a PCA projection
-SEED: Final[int] = 0  # the same memory always gets the same map
-PROJECT_BATCH: Final[int] = 512  # queries placed per matrix product
+# 3: one map per view of the task-centred change (2: the fuzzy graph in numpy; 1: one map of the vectors)
+CACHE_VERSION: Final[int] = 3
+FEATURES: Final[str] = "change-task-centred-v1"  # what the maps are fitted on (part of the cache key)
+MIN_TASK_ENTRIES: Final[int] = 2  # a task with fewer entries in a view is centred on the view's mean
 
-Method = Literal["umap", "pca"]
+
+def change_features(vectors: np.ndarray) -> np.ndarray:
+    """Pair vectors (N, 2d) -> (N, d) `norm(end half − start half)`: what changed since the first frame."""
+    vectors = np.atleast_2d(np.asarray(vectors, dtype=np.float32))
+    if vectors.shape[1] % 2:
+        raise ValueError(
+            f"memory vectors of odd dimension {vectors.shape[1]} are not pair vectors [start ‖ end]"
+        )
+    half = vectors.shape[1] // 2
+    return _unit(vectors[:, half:] - vectors[:, :half])
+
+
+def _unit(rows: np.ndarray) -> np.ndarray:
+    norms = np.linalg.norm(rows, axis=1, keepdims=True)
+    return (rows / np.maximum(norms, 1e-12)).astype(np.float32)
+
+
+@dataclass(frozen=True)
+class Centres:
+    """The mean change of each (view, task) of the memory, and of each view (for tasks with too few entries)."""
+
+    by_task: Mapping[tuple[str, str], np.ndarray]
+    by_view: Mapping[str, np.ndarray]
+
+    def of(self, view: str, task: str) -> np.ndarray:
+        return self.by_task.get((view, task), self.by_view[view])
+
+    def centred(self, view: str, task: str, features: np.ndarray) -> np.ndarray:
+        return _unit(features - self.of(view, task))
 
 
 @dataclass(frozen=True)
 class MemoryMap:
-    """2-D coordinates of every memory entry, and how to place new queries in the same map.
+    """The memory laid out per camera view (module docstring): each view's map and its entries' rows."""
 
-    Queries are placed as UMAP's own `transform` initialises new points: the fuzzy-membership
-    weighted mean of the coordinates of their `n_neighbors` nearest memory entries (cosine), without
-    umap's refinement epochs. A query lands among the entries it is most similar to, and placing a
-    whole trace costs one matrix product, with no UMAP model to keep. The PCA fallback is linear.
-    """
-
-    embedding: np.ndarray  # (N, 2) float32 in [-1, 1]², centred; row i = memory entry i
-    method: Method
-    n_neighbors: int  # UMAP neighbourhood size after clamping to the memory size
-    digest: str  # of the memory vectors the map was fitted on
-    vectors: np.ndarray  # (N, D) the memory vectors (not cached: they live in the memory)
-    pca_mean: np.ndarray | None = None  # (D,) for the PCA fallback
-    pca_components: np.ndarray | None = None  # (2, D) for the PCA fallback
+    maps: Mapping[str, Map2D]  # view -> the map of its entries, views in the memory's order
+    rows: Mapping[str, np.ndarray]  # view -> indices into the memory's entries, in the map's order
+    centres: Centres
+    digest: str  # of the memory vectors, views and tasks the maps were fitted on
     fitted: bool = False  # True when this object did the fitting (False when read from the cache)
 
     @property
+    def views(self) -> list[str]:
+        return list(self.maps)
+
+    @property
+    def size(self) -> int:
+        """Memory entries on the maps."""
+        return sum(len(rows) for rows in self.rows.values())
+
+    @property
+    def method(self) -> str:
+        """`umap`, `pca` (every view too small for UMAP) or `umap+pca`."""
+        methods = {view_map.method for view_map in self.maps.values()} or {"umap"}
+        return "umap+pca" if len(methods) > 1 else methods.pop()
+
+    @property
     def note(self) -> str:
-        """A one-line statement of how the map was made (shown in the recording)."""
-        if self.method == "umap":
-            return f"UMAP (cosine, n_neighbors={self.n_neighbors}) of {len(self.embedding)} memory entries"
-        return f"PCA of {len(self.embedding)} memory entries: fewer than {MIN_UMAP_ENTRIES}, too few for UMAP"
-
-    def project(self, queries: np.ndarray) -> np.ndarray:
-        """(n, D) query vectors -> (n, 2) map coordinates, batched."""
-        queries = np.ascontiguousarray(np.atleast_2d(queries), dtype=np.float32)
-        if len(queries) == 0 or len(self.embedding) == 0:
-            return np.zeros((len(queries), 2), dtype=np.float32)
-        if self.method == "pca":
-            assert self.pca_mean is not None and self.pca_components is not None
-            return ((queries - self.pca_mean) @ self.pca_components.T).astype(np.float32)
-        k = min(self.n_neighbors, len(self.vectors))
-        placed = np.empty((len(queries), 2), dtype=np.float32)
-        for start in range(0, len(queries), PROJECT_BATCH):
-            distances = 1.0 - queries[start : start + PROJECT_BATCH] @ self.vectors.T
-            nearest = np.argpartition(distances, k - 1, axis=1)[:, :k]
-            weights = membership_weights(np.take_along_axis(distances, nearest, axis=1))
-            weights /= weights.sum(axis=1, keepdims=True)
-            placed[start : start + PROJECT_BATCH] = np.einsum("nk,nkc->nc", weights, self.embedding[nearest])
-        return placed
-
-
-def membership_weights(distances: np.ndarray, *, iterations: int = 64) -> np.ndarray:
-    """UMAP's fuzzy set memberships of each row's k neighbours (its `smooth_knn_dist`, vectorised).
-
-    ρ is the nearest distance, σ is found by bisection so that Σ exp(-(d - ρ)/σ) = log2(k).
-    """
-    distances = np.asarray(distances, dtype=np.float64)
-    k = distances.shape[1]
-    target = np.log2(max(k, 2))
-    excess = np.maximum(distances - distances.min(axis=1, keepdims=True), 0.0)
-    low = np.zeros(len(distances))
-    high = np.full(len(distances), np.inf)
-    sigma = np.ones(len(distances))
-    for _ in range(iterations):
-        total = np.exp(-excess / sigma[:, None]).sum(axis=1)
-        too_wide = total > target
-        high = np.where(too_wide, sigma, high)
-        low = np.where(too_wide, low, sigma)
-        sigma = np.where(np.isinf(high), sigma * 2.0, (low + high) / 2.0)
-    sigma = np.maximum(sigma, 1e-3 * max(float(np.mean(distances)), 1e-12))
-    return np.exp(-excess / sigma[:, None])
-
-
-def vectors_digest(vectors: np.ndarray) -> str:
-    """What the cache is keyed on: the memory vectors themselves."""
-    data = np.ascontiguousarray(vectors, dtype=np.float32)
-    return (
-        f"{data.shape[0]}x{data.shape[1] if data.ndim == 2 else 0}-"
-        + hashlib.blake2b(data.tobytes(), digest_size=16).hexdigest()
-    )
-
-
-def fit_map(vectors: np.ndarray) -> MemoryMap:
-    """Fit the map of a set of unit vectors (UMAP, or PCA below MIN_UMAP_ENTRIES entries)."""
-    vectors = np.ascontiguousarray(vectors, dtype=np.float32)
-    digest = vectors_digest(vectors)
-    count = len(vectors)
-    if count < MIN_UMAP_ENTRIES:
-        mean = vectors.mean(axis=0) if count else np.zeros(vectors.shape[1], np.float32)
-        components = np.zeros((2, vectors.shape[1]), dtype=np.float32)
-        if count >= 2:
-            _, _, vt = np.linalg.svd(vectors - mean, full_matrices=False)
-            components[: min(2, len(vt))] = vt[:2]
-        components /= _extent((vectors - mean) @ components.T)
-        embedding = ((vectors - mean) @ components.T).astype(np.float32)
-        return MemoryMap(
-            embedding=embedding,
-            method="pca",
-            n_neighbors=0,
-            digest=digest,
-            vectors=vectors,
-            pca_mean=mean.astype(np.float32),
-            pca_components=components,
-            fitted=True,
+        """A one-line statement of how the maps were made (shown in the recording)."""
+        per_view = "; ".join(f"{view}: {view_map.note}" for view, view_map in self.maps.items())
+        return (
+            "one map per view of what changed since the first frame, norm(f(I_end) − f(I_start)), "
+            f"each task's mean change in that view removed ({per_view or 'no entries'})"
         )
-    n_neighbors = max(2, min(N_NEIGHBORS, count - 1))
-    embedding = _umap_embedding(vectors, n_neighbors)
-    embedding = (embedding - (embedding.max(axis=0) + embedding.min(axis=0)) / 2) / _extent(
-        embedding, centred=False
-    )
-    return MemoryMap(
-        embedding=embedding,
-        method="umap",
-        n_neighbors=n_neighbors,
-        digest=digest,
-        vectors=vectors,
-        fitted=True,
-    )
+
+    def project(self, view: str, task: str, queries: np.ndarray) -> np.ndarray | None:
+        """(n, 2d) query pair vectors of one view and task -> (n, 2) coordinates in that view's map
+        (None: the memory has no entry of that view)."""
+        if view not in self.maps:
+            return None
+        features = self.centres.centred(view, task, change_features(queries))
+        return self.maps[view].project(features)
 
 
-def _extent(points: np.ndarray, *, centred: bool = True) -> float:
-    """Half the largest side of the bounding box (or the largest |coordinate|): maps land in [-1, 1]²."""
-    if not len(points):
-        return 1.0
-    half = np.abs(points).max() if centred else float((points.max(axis=0) - points.min(axis=0)).max() / 2)
-    return float(half) if half > 1e-12 else 1.0
+def fit_map(memory: FailureMemory) -> MemoryMap:
+    """Fit the memory's maps, one per view (UMAP, or PCA for a view below MIN_UMAP_ENTRIES entries)."""
+    rows, centres, features = _view_features(memory.vectors, memory.entries)
+    maps = {view: fit_map_2d(features[view]) for view in rows}
+    return MemoryMap(maps=maps, rows=rows, centres=centres, digest=memory_digest(memory), fitted=True)
 
 
-def _umap_embedding(vectors: np.ndarray, n_neighbors: int) -> np.ndarray:
-    """UMAP with cosine metric on exact nearest neighbours from Faiss (faster than NN-descent)."""
-    import faiss
+def _view_features(
+    vectors: np.ndarray, entries: list[MemoryEntry]
+) -> tuple[dict[str, np.ndarray], Centres, dict[str, np.ndarray]]:
+    """Per view: its entries' rows, the centres, and its entries' centred change features."""
+    views = np.asarray([entry.view for entry in entries], dtype=object)
+    tasks = np.asarray([entry.task for entry in entries], dtype=object)
+    change = change_features(vectors) if len(entries) else np.zeros((0, 1), np.float32)
+    rows = {view: np.flatnonzero(views == view) for view in dict.fromkeys(views.tolist())}
+    by_view = {view: change[found].mean(axis=0) for view, found in rows.items()}
+    by_task = {}
+    for view, found in rows.items():
+        for task in dict.fromkeys(tasks[found].tolist()):
+            members = found[tasks[found] == task]
+            if len(members) >= MIN_TASK_ENTRIES:
+                by_task[(view, task)] = change[members].mean(axis=0)
+    centres = Centres(by_task=by_task, by_view=by_view)
+    centred = np.empty_like(change)
+    for view, found in rows.items():
+        for task in dict.fromkeys(tasks[found].tolist()):
+            members = found[tasks[found] == task]
+            centred[members] = centres.centred(view, task, change[members])
+    features = {view: centred[found] for view, found in rows.items()}
+    return rows, centres, features
 
-    with needs_extra("viz"):
-        import umap
 
-    index = faiss.IndexFlatIP(vectors.shape[1])
-    index.add(vectors)
-    similarities, ids = index.search(vectors, n_neighbors)
-    distances = np.clip(1.0 - similarities, 0.0, 2.0).astype(np.float32)
-    reducer = umap.UMAP(
-        n_components=2,
-        n_neighbors=n_neighbors,
-        min_dist=MIN_DIST,
-        metric="cosine",
-        random_state=SEED,
-        n_jobs=1,
-        precomputed_knn=(ids, distances, None),
-    )
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message=".*knn_search_index.*")
-        warnings.filterwarnings("ignore", message=".*n_jobs.*")
-        embedding = reducer.fit_transform(vectors)
-    return np.asarray(embedding, dtype=np.float32)
+def memory_digest(memory: FailureMemory) -> str:
+    """What the cache is keyed on: the memory vectors, each entry's view and task, and the features used."""
+    data = np.ascontiguousarray(memory.vectors, dtype=np.float32)
+    digest = hashlib.blake2b(data.tobytes(), digest_size=16)
+    digest.update(FEATURES.encode())
+    for entry in memory.entries:
+        digest.update(f"\0{entry.view}\0{entry.task}".encode())
+    return f"{data.shape[0]}x{data.shape[1] if data.ndim == 2 else 0}-{digest.hexdigest()}"
 
 
 def memory_map(memory: FailureMemory, *, directory: Path | None = None) -> MemoryMap:
-    """The map of a memory, read from `<directory>/umap.npz` when it was fitted on the same vectors.
+    """The memory's maps, read from `<directory>/umap.npz` when fitted on the same memory.
 
     Otherwise fitted and (with a directory) written there atomically, so the next replay does no
     UMAP work at all. A read-only memory directory only costs the caching, with a warning.
     """
-    digest = vectors_digest(memory.vectors)
     if directory is not None:
-        cached = _read_cache(Path(directory) / CACHE_FILE, memory.vectors, digest)
+        cached = _read_cache(Path(directory) / CACHE_FILE, memory)
         if cached is not None:
             return cached
-    fitted = fit_map(memory.vectors)
+    fitted = fit_map(memory)
     if directory is not None:
         try:
             _write_cache(Path(directory) / CACHE_FILE, fitted)
@@ -194,41 +166,60 @@ def memory_map(memory: FailureMemory, *, directory: Path | None = None) -> Memor
     return fitted
 
 
-def _read_cache(path: Path, vectors: np.ndarray, digest: str) -> MemoryMap | None:
+def _read_cache(path: Path, memory: FailureMemory) -> MemoryMap | None:
     if not path.is_file():
         return None
+    digest = memory_digest(memory)
     try:
         with np.load(path, allow_pickle=False) as data:
             if int(data["version"]) != CACHE_VERSION or str(data["digest"]) != digest:
                 return None
-            method = str(data["method"])
-            if method not in ("umap", "pca"):
+            rows, centres, features = _view_features(memory.vectors, memory.entries)
+            if [str(view) for view in data["views"]] != list(rows):
                 return None
-            has_pca = method == "pca"
-            return MemoryMap(
-                embedding=data["embedding"].astype(np.float32),
-                method="umap" if method == "umap" else "pca",
-                n_neighbors=int(data["n_neighbors"]),
-                digest=digest,
-                vectors=np.ascontiguousarray(vectors, dtype=np.float32),
-                pca_mean=data["pca_mean"] if has_pca else None,
-                pca_components=data["pca_components"] if has_pca else None,
-            )
+            maps = {view: _cached_map(data, position, features[view]) for position, view in enumerate(rows)}
     except (OSError, ValueError, KeyError):
         return None  # unreadable or older cache: refit and overwrite
+    if any(view_map is None for view_map in maps.values()):
+        return None
+    return MemoryMap(
+        maps={view: view_map for view, view_map in maps.items() if view_map is not None},
+        rows=rows,
+        centres=centres,
+        digest=digest,
+    )
+
+
+def _cached_map(data: Any, position: int, features: np.ndarray) -> Map2D | None:
+    method = str(data[f"method_{position}"])
+    embedding = data[f"embedding_{position}"].astype(np.float32)
+    if method not in ("umap", "pca") or len(embedding) != len(features):
+        return None
+    has_pca = method == "pca"
+    return Map2D(
+        embedding=embedding,
+        method="umap" if method == "umap" else "pca",
+        n_neighbors=int(data[f"n_neighbors_{position}"]),
+        vectors=features,
+        pca_mean=data[f"pca_mean_{position}"] if has_pca else None,
+        pca_components=data[f"pca_components_{position}"] if has_pca else None,
+    )
 
 
 def _write_cache(path: Path, fitted: MemoryMap) -> None:
-    extra: dict[str, Any] = {}
-    if fitted.pca_mean is not None and fitted.pca_components is not None:
-        extra = {"pca_mean": fitted.pca_mean, "pca_components": fitted.pca_components}
+    arrays: dict[str, Any] = {}
+    for position, view_map in enumerate(fitted.maps.values()):
+        arrays[f"method_{position}"] = np.str_(view_map.method)
+        arrays[f"n_neighbors_{position}"] = np.int64(view_map.n_neighbors)
+        arrays[f"embedding_{position}"] = view_map.embedding
+        if view_map.pca_mean is not None and view_map.pca_components is not None:
+            arrays[f"pca_mean_{position}"] = view_map.pca_mean
+            arrays[f"pca_components_{position}"] = view_map.pca_components
     with atomic_path(path, suffix=".npz") as tmp, tmp.open("wb") as handle:
         np.savez(
             handle,
             version=np.int64(CACHE_VERSION),
             digest=np.str_(fitted.digest),
-            method=np.str_(fitted.method),
-            n_neighbors=np.int64(fitted.n_neighbors),
-            embedding=fitted.embedding,
-            **extra,
+            views=np.asarray(fitted.views, dtype=np.str_),
+            **arrays,
         )

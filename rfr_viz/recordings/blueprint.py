@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
 from rfr_viz.panels.neighbors import Cell
-from rfr_viz.panels.map import LEGEND_ROW, LEGEND_TOP
+from rfr_viz.panels.map import MapGrid
 from rfr_viz.paths import (
     CLOSED_LOOP_SUMMARY,
     DEFAULT_FPS,
@@ -24,63 +25,89 @@ with needs_extra("viz"):
     import rerun.blueprint as rrb
 
 MAP_BACKGROUND = (22, 22, 26)
-RULE_PLOT = "C_t = S⁻_t − S⁺_t against γ, N_t = 1 − S⁺_t against η, per view"
 
 
-def map_bounds(legend_entries: int) -> rrb.VisualBounds2D:
-    """The map's viewport: the [-1, 1]² map and its legend below."""
-    rows = (legend_entries + 1) // 2
-    return rrb.VisualBounds2D(x_range=(-1.3, 1.3), y_range=(-1.15, LEGEND_TOP + rows * LEGEND_ROW + 0.05))
+def map_bounds(grid: MapGrid) -> rrb.VisualBounds2D:
+    """The map panel's viewport: every view's map and the legend."""
+    x_range, y_range = grid.bounds()
+    return rrb.VisualBounds2D(x_range=x_range, y_range=y_range)
 
 
 def _cameras(views: Sequence[str]) -> rrb.Container:
     return rrb.Horizontal(*(rrb.Spatial2DView(origin=camera(view), name=view) for view in views))
 
 
-def _score_plot(
-    detectors: Sequence[DetectorPaths], *, name: str, views: Sequence[str] = (), contrast: bool = False
-) -> rrb.Container:
-    """S⁻_t (and S⁺_t) of every view with δ; with `contrast` (a success memory) the rules' own scores in
-    a plot of their own, C_t against γ and N_t against η; State_t (0/1) in a thin plot below, so each
-    keeps its scale."""
-    rule_paths = [
-        path
-        for paths in detectors
-        for path in (
-            *(paths.contrast_score(v) for v in views),
-            paths.gamma,
-            *(paths.novelty_score(v) for v in views),
-            paths.eta,
+@dataclass(frozen=True)
+class ScorePlots:
+    """What one detector's score plots show; their titles name each threshold with its value."""
+
+    delta: float | None = None  # S⁻_t per view and δ (None: the task has no failure entries)
+    gamma: float | None = None  # C_t per view and γ, in a plot of their own (success contrast)
+    eta: float | None = None  # N_t per view and η (the novelty rule, or a task without failure entries)
+    successes: bool = False  # S⁺_t per view, faint, beside S⁻_t
+
+    @classmethod
+    def of(
+        cls, *, delta: float, gamma: float, eta: float, failures: bool, successes: bool, novelty: bool
+    ) -> ScorePlots:
+        """S⁻ and δ where the task has failure entries; S⁺, and C with γ, where the memory has success runs;
+        N and η under the novelty rule (`novelty`) or without failure entries."""
+        return cls(
+            delta=float(delta) if failures else None,
+            gamma=float(gamma) if successes and failures else None,
+            eta=float(eta) if successes and (novelty or not failures) else None,
+            successes=successes,
         )
-    ]
+
+
+# Score plots have no legend: at 1280×720 one covered a third of the plot and still cut lines off. Their
+# titles name each threshold with its value, first (what a narrow title keeps); a view's colour is its
+# query marker's in the memory map, under the view's name; every line's name shows on hover.
+NO_LEGEND = rrb.PlotLegend(visible=False)
+
+
+def _score_plot(
+    paths: DetectorPaths, *, views: Sequence[str], plots: ScorePlots, label: str = ""
+) -> rrb.Container:
+    """S⁻_t (and S⁺_t, faint) of every view with δ; C_t and γ in a plot of their own; State_t (0/1) in a thin
+    plot below, so each keeps its scale."""
+    contents: list[str] = []
+    titles = []
+    if plots.delta is not None:
+        contents += [paths.score(view) for view in views] + [paths.delta]
+        titles.append(f"δ = {plots.delta:.3f} · S⁻_t" + (" (bold), S⁺_t (faint)" if plots.successes else "") + " per view")
+    elif plots.successes:
+        titles.append("S⁺_t per view")
+    if plots.successes:
+        contents += [paths.success_score(view) for view in views]
+    if plots.eta is not None:
+        contents += [paths.novelty_score(view) for view in views] + [paths.eta]
+        titles.append(f"η = {plots.eta:.3f} · N_t = 1 − S⁺_t")
     scores = rrb.TimeSeriesView(
-        origin="/",
-        contents=[f"+ {paths.score_root}/**" for paths in detectors]
-        + [f"- {path}" for path in rule_paths if contrast],
-        name=name,
-        plot_legend=rrb.PlotLegend(corner=rrb.Corner2D.LeftBottom, visible=True),
+        origin="/", contents=contents, name=label + " · ".join(titles), plot_legend=NO_LEGEND
     )
     state = rrb.TimeSeriesView(
         origin="/",
-        contents=[paths.state for paths in detectors],
-        name="State_t (fused over views)",
-        plot_legend=rrb.PlotLegend(visible=False),
+        contents=[paths.state],
+        name=f"{label}State_t (fused over views)",
+        plot_legend=NO_LEGEND,
         axis_y=rrb.ScalarAxis(range=(-0.1, 1.1), zoom_lock=True),
     )
-    if not contrast:
+    if plots.gamma is None:
         return rrb.Vertical(scores, state, row_shares=[3, 1.2])
-    rules = rrb.TimeSeriesView(
+    contrast = [paths.contrast_score(view) for view in views] + [paths.gamma]
+    contrasts = rrb.TimeSeriesView(
         origin="/",
-        contents=rule_paths,
-        name=RULE_PLOT,
-        plot_legend=rrb.PlotLegend(corner=rrb.Corner2D.LeftBottom, visible=True),
+        contents=contrast,
+        name=f"{label}γ = {plots.gamma:.3f} · C_t = S⁻_t − S⁺_t per view",
+        plot_legend=NO_LEGEND,
     )
-    return rrb.Vertical(scores, rules, state, row_shares=[2.4, 2.4, 1.0])
+    return rrb.Vertical(scores, contrasts, state, row_shares=[2.4, 2.4, 1.0])
 
 
-def _map(paths: DetectorPaths, *, name: str, legend_entries: int) -> rrb.Spatial2DView:
+def _map(paths: DetectorPaths, *, name: str, grid: MapGrid) -> rrb.Spatial2DView:
     return rrb.Spatial2DView(
-        origin=paths.umap, name=name, background=MAP_BACKGROUND, visual_bounds=map_bounds(legend_entries)
+        origin=paths.map_root, name=name, background=MAP_BACKGROUND, visual_bounds=map_bounds(grid)
     )
 
 
@@ -149,31 +176,26 @@ def replay_blueprint(
     *,
     views: Sequence[str],
     map_title: str,
-    legend_entries: int,
+    map_grid: MapGrid,
     cell: Cell,
     k: int,
+    plots: ScorePlots,
     fps: float = DEFAULT_FPS,
     focus: int | None = None,
-    contrast: bool = False,
 ) -> rrb.Blueprint:
     """Cameras, score plots and memory map on top; neighbours (and nearest successes) and the report below."""
     top = rrb.Horizontal(
         _cameras(views),
-        _score_plot(
-            [REPLAY],
-            name="S⁻_t (failure) and S⁺_t (success) per view, δ" if contrast else "S_t per view and δ",
-            views=views,
-            contrast=contrast,
-        ),
-        _map(REPLAY, name=map_title, legend_entries=legend_entries),
+        _score_plot(REPLAY, views=views, plots=plots),
+        _map(REPLAY, name=map_title, grid=map_grid),
         column_shares=[0.85 * len(views), 2.2, 2.0],
     )
     neighbors = rrb.Grid(
         *_neighbor_grids(views, k, REPLAY, cell),
-        *(_nearest_successes(views, REPLAY) if contrast else []),
+        *(_nearest_successes(views, REPLAY) if plots.successes else []),
         *_neighbor_infos(views, REPLAY),
         grid_columns=len(views),
-        row_shares=[1, 0.8, 0.8] if contrast else [1, 1],
+        row_shares=[1, 0.8, 0.8] if plots.successes else [1, 1],
         name="nearest memory entries",
     )
     side = rrb.Tabs(
@@ -192,25 +214,26 @@ def compare_blueprint(
     views: Sequence[str],
     encoders: Sequence[str],
     map_titles: Sequence[str],
-    legend_entries: Sequence[int],
+    map_grids: Sequence[MapGrid],
     cells: Sequence[Cell],
+    plots: Sequence[ScorePlots],
     fps: float = DEFAULT_FPS,
-    contrast: bool = False,
 ) -> rrb.Blueprint:
-    """Shared cameras and one plot of every encoder's S_t and δ (and C_t, γ); per encoder its map, nearest entries
-    and report."""
+    """Shared cameras and, per encoder, its own score plots (S_t and δ, C_t and γ, State_t), its map, nearest
+    entries and report."""
     detectors = [DetectorPaths.for_encoder(slug) for slug in encoders]
     top = rrb.Horizontal(
         _cameras(views),
-        _score_plot(detectors, name="S_t and δ per encoder", views=views, contrast=contrast),
-        column_shares=[len(views), 3],
+        *(
+            _score_plot(paths, views=views, plots=each, label=f"{slug} · ")
+            for slug, paths, each in zip(encoders, detectors, plots, strict=True)
+        ),
+        column_shares=[0.9 * len(views), *([2.0] * len(encoders))],
     )
     maps = rrb.Horizontal(
         *(
-            _map(paths, name=f"{slug} · {title}", legend_entries=entries)
-            for slug, paths, title, entries in zip(
-                encoders, detectors, map_titles, legend_entries, strict=True
-            )
+            _map(paths, name=f"{slug} · {title}", grid=grid)
+            for slug, paths, title, grid in zip(encoders, detectors, map_titles, map_grids, strict=True)
         )
     )
     nearest = rrb.Grid(

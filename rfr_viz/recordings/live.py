@@ -21,7 +21,7 @@ from typing import Any, Final
 
 import numpy as np
 
-from rfr_viz.recordings.blueprint import replay_blueprint
+from rfr_viz.recordings.blueprint import ScorePlots, replay_blueprint
 from rfr_viz.codecs import CameraCodec
 from rfr_viz.panels.contrast import log_contrast_styles, log_nearest_success
 from rfr_viz.panels.live_camera import LiveCameras
@@ -34,7 +34,7 @@ from rfr_viz.panels.neighbors import (
     log_neighbor_layout,
     log_no_failures,
 )
-from rfr_viz.panels.map import class_id, log_memory_map, map_title
+from rfr_viz.panels.map import MapGrid, class_id, log_memory_map, map_grid, map_title
 from rfr_viz.panels.report import log_alarm
 from rfr_viz.panels.scores import log_score_styles, set_frame_time
 from rfr_viz.paths import APPLICATION_ID, DEFAULT_FPS, PROPERTIES, REPLAY
@@ -44,6 +44,7 @@ from robofailring.atomic import atomic_path
 from robofailring.data.layouts import load_trajectory
 from robofailring.data.model import Frame
 from robofailring.detection.detector import DEFAULT_K, DetectorSession, FailureDetector, StepResult
+from robofailring.detection.rules import NOVELTY
 from robofailring.errors import DataError, SettingError
 from robofailring.explain.report import FailureReport
 from robofailring.extras import needs_extra
@@ -87,6 +88,18 @@ def check_viewer(url: str) -> None:
         return
     raise ViewerUnavailable(
         f"no Rerun viewer listens at {url}: start one (`rerun`), pass --spawn, or only --save to a file"
+    )
+
+
+def _score_plots(detector: FailureDetector, task: str) -> ScorePlots:
+    """The live session's score plots, as a replay of its task would have them."""
+    return ScorePlots.of(
+        delta=detector.delta,
+        gamma=detector.gamma,
+        eta=detector.eta,
+        failures=detector.memory.has_failures(task),
+        successes=detector.memory.successes is not None,
+        novelty=detector.rule_for(task).name == NOVELTY.name,
     )
 
 
@@ -149,9 +162,14 @@ class LiveRecording:
         blueprint = replay_blueprint(
             views=views,
             map_title=map_title(memory_map) if memory_map is not None else "memory map (not given)",
-            legend_entries=len({class_id(entry.symbol, entry.vocabulary) for entry in entries}),
+            map_grid=(
+                map_grid(memory_map, [class_id(entry.symbol, entry.vocabulary) for entry in entries])
+                if memory_map is not None
+                else MapGrid(views=0, legend_entries=0)
+            ),
             cell=cell,
             k=detector.k,
+            plots=_score_plots(detector, task),
             fps=fps,
         )
         with ExitStack() as stack:
@@ -272,13 +290,11 @@ class LiveRecording:
                 changed = self._success_shown.get(view, -1) != (match.index if match else -1)
                 self._success_shown[view] = match.index if match else -1
                 log_nearest_success(rec, paths, view, match, t=t, images=self._success_images, image=changed)
-        if self.memory_map is not None and result.queries:
-            views = list(result.queries)
-            placed = self.memory_map.project(
-                np.stack([result.queries[view] for view in views]).reshape(len(views), -1)
-            )
-            for view, position in zip(views, placed, strict=True):
-                rec.log(paths.umap_query(view), rr.Points2D.from_fields(positions=[position]))
+        if self.memory_map is not None:
+            for view, query in result.queries.items():
+                placed = self.memory_map.project(view, self.task, query)
+                if placed is not None:
+                    rec.log(paths.umap_query(view), rr.Points2D.from_fields(positions=placed[:1]))
         first_alarm = result.alarm and self.fired_at is None
         self._log_neighbors(
             result, every=first_alarm

@@ -10,20 +10,21 @@ from pathlib import Path
 from typing import Any, Final
 
 
-from rfr_viz.recordings.blueprint import compare_blueprint, replay_blueprint
+from rfr_viz.recordings.blueprint import ScorePlots, compare_blueprint, replay_blueprint
 from rfr_viz.codecs import CameraCodec
 from rfr_viz.panels.cameras import log_camera_views
 from rfr_viz.panels.contrast import log_contrast
 from rfr_viz.panels.umap import MemoryMap, fit_map
 from rfr_viz.panels.neighbors import Cell, NeighborImages, log_neighbors
-from rfr_viz.panels.map import legend_size, log_map, map_title
+from rfr_viz.panels.map import log_map, map_title, trace_map_grid
 from rfr_viz.panels.report import log_detection
 from rfr_viz.panels.scores import log_scores, time_columns
 from rfr_viz.paths import APPLICATION_ID, DEFAULT_FPS, IN_MEMORY, PROPERTIES, REPLAY, DetectorPaths
-from rfr_viz.styles import ENCODER_COLOURS, VIEW_COLOURS, shade
+from rfr_viz.styles import VIEW_COLOURS
 from robofailring.atomic import atomic_path
 from robofailring.data.model import Trajectory
 from robofailring.detection.detector import DetectionTrace
+from robofailring.detection.rules import NOVELTY
 from robofailring.explain.report import report_for
 from robofailring.explain.vlm import VLMAnswer
 from robofailring.extras import needs_extra
@@ -80,18 +81,18 @@ def record_replay(
     one it is fitted here, uncached. `fps` drives the "time" timeline (default: the data's, else 10).
     """
     info = RecordingInfo.of(trajectory, fps=fps)
-    mapped = memory_map if memory_map is not None else fit_map(trace.memory.vectors)
+    mapped = memory_map if memory_map is not None else fit_map(trace.memory)
     images = NeighborImages()
     cell = images.cell(trace)
     blueprint = replay_blueprint(
         views=trace.views,
         map_title=map_title(mapped),
-        legend_entries=legend_size(trace),
+        map_grid=trace_map_grid(trace, mapped),
         cell=cell,
         k=trace.k,
         fps=info.fps,
         focus=focus_frame,
-        contrast=bool(trace.success_similarity),
+        plots=score_plots(trace),
     )
     with open_recording(out, blueprint, recording_id=recording_id) as rec:
         rec.send_recording_name(f"{info.task}/{info.episode}")
@@ -132,14 +133,14 @@ def compare_recording(
     """One recording of a trajectory replayed under several encoders, `traces` keyed by encoder slug.
 
     Cameras are shared at `/camera/<view>`; everything that depends on the detector lives under
-    `/<slug>/…`, and all S_t curves and δ lines share one plot.
+    `/<slug>/…`; each encoder has score plots of its own (S_t and δ, C_t and γ, State_t).
     """
     if not traces:
         raise ValueError("compare_recording needs at least one trace")
     info = RecordingInfo.of(trajectory, fps=fps)
     slugs = list(traces)
     maps = {
-        slug: (memory_maps or {}).get(slug) or fit_map(trace.memory.vectors) for slug, trace in traces.items()
+        slug: (memory_maps or {}).get(slug) or fit_map(trace.memory) for slug, trace in traces.items()
     }
     images = NeighborImages()
     cells = {slug: images.cell(trace) for slug, trace in traces.items()}
@@ -149,10 +150,10 @@ def compare_recording(
         views=views,
         encoders=slugs,
         map_titles=[map_title(maps[slug]) for slug in slugs],
-        legend_entries=[legend_size(traces[slug]) for slug in slugs],
+        map_grids=[trace_map_grid(traces[slug], maps[slug]) for slug in slugs],
         cells=[cells[slug] for slug in slugs],
+        plots=[score_plots(traces[slug]) for slug in slugs],
         fps=info.fps,
-        contrast=any(trace.success_similarity for trace in traces.values()),
     )
     with open_recording(out, blueprint, recording_id=recording_id) as rec:
         rec.send_recording_name(f"{info.task}/{info.episode} ({' vs '.join(slugs)})")
@@ -165,7 +166,7 @@ def compare_recording(
             ),
         )
         log_cameras(rec, trajectory, views=views, length=length, fps=info.fps, codec=camera_codec)
-        for position, (slug, trace) in enumerate(traces.items()):
+        for slug, trace in traces.items():
             rec.send_property(slug, rr.AnyValues(**_detector_properties(trace, maps[slug])))
             log_detector(
                 rec,
@@ -177,9 +178,20 @@ def compare_recording(
                 images=images,
                 cell=cells[slug],
                 label=slug,
-                colour=ENCODER_COLOURS[position % len(ENCODER_COLOURS)],
             )
     return Path(out)
+
+
+def score_plots(trace: DetectionTrace) -> ScorePlots:
+    """What a trace's score plots show (`ScorePlots.of`)."""
+    return ScorePlots.of(
+        delta=trace.delta,
+        gamma=trace.gamma,
+        eta=trace.eta,
+        failures=trace.has_failures,
+        successes=bool(trace.success_similarity),
+        novelty=trace.rule.name == NOVELTY.name,
+    )
 
 
 @contextmanager
@@ -272,18 +284,12 @@ def log_detector(
     images: NeighborImages | None = None,
     cell: Cell | None = None,
     label: str | None = None,
-    colour: tuple[int, int, int] | None = None,
     vlm_answer: VLMAnswer | None = None,
 ) -> None:
     """Everything that depends on the detector: scores, δ, state, map, neighbours, event and report."""
     images = images or NeighborImages()
-    log_scores(rec, trace, paths, fps, label=label, colour=colour)
-    view_colours = (
-        [shade(colour, i, len(trace.views)) for i in range(len(trace.views))]
-        if colour
-        else list(VIEW_COLOURS)
-    )
-    log_contrast(rec, trace, paths, fps=fps, colours=view_colours, prefix=f"{label} · " if label else "")
+    log_scores(rec, trace, paths, fps, label=label)
+    log_contrast(rec, trace, paths, fps=fps, colours=list(VIEW_COLOURS), prefix=f"{label} · " if label else "")
     log_map(rec, trace, paths, memory_map, fps)
     log_neighbors(rec, trace, paths, fps=fps, images=images, cell=cell or images.cell(trace))
     log_detection(rec, trace, paths, fps, trajectory, vlm_answer)

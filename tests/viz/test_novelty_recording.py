@@ -8,15 +8,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import rerun.blueprint as rrb
 from rrd import columns, entity_paths, properties, rows, static_value
 from synthetic import write_project_dataset
 from typer.testing import CliRunner, Result
 
 from rfr_viz.cli.app import app
-from rfr_viz.panels.neighbors import Cell
 from rfr_viz.paths import REPLAY
-from rfr_viz.recordings.blueprint import RULE_PLOT, replay_blueprint
 from rfr_viz.viewer.control import verify_recording
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
 from robofailring.detection.rules import NOVELTY
@@ -164,43 +161,6 @@ def test_the_replay_shows_n_against_eta_and_the_nearest_success_frame(session: d
 
     info = runner.invoke(app, ["memory-info", str(session["memory"])])
     assert info.exit_code == 0 and "η = " in info.output and "entries     0 × " in info.output
-
-
-def _time_series(part: object) -> dict[str, list[str]]:
-    """Every time-series view under a blueprint part: its name → its contents."""
-    if isinstance(part, rrb.TimeSeriesView):
-        return {str(part.name): list(part.contents)}
-    found: dict[str, list[str]] = {}
-    for child in getattr(part, "contents", None) or []:
-        if not isinstance(child, str):
-            found |= _time_series(child)
-    return found
-
-
-def test_n_and_eta_have_a_plot_of_their_own_beside_c_and_gamma() -> None:
-    blueprint = replay_blueprint(
-        views=["front", "wrist"], map_title="map", legend_entries=1, cell=Cell(64, 64), k=3, contrast=True
-    )
-    plots = _time_series(blueprint.root_container)
-    rules = plots.pop(RULE_PLOT)
-    assert set(rules) == {
-        REPLAY.novelty_score("front"),
-        REPLAY.novelty_score("wrist"),
-        REPLAY.eta,
-        REPLAY.contrast_score("front"),
-        REPLAY.contrast_score("wrist"),
-        REPLAY.gamma,
-    }
-    scores = next(contents for name, contents in plots.items() if "S⁺_t" in name)
-    assert f"- {REPLAY.novelty_score('front')}" in scores and f"- {REPLAY.eta}" in scores  # not under S_t
-    paper = _time_series(
-        replay_blueprint(
-            views=["front"], map_title="map", legend_entries=1, cell=Cell(64, 64), k=3
-        ).root_container
-    )
-    assert RULE_PLOT not in paper and not any(
-        line.startswith("- ") for lines in paper.values() for line in lines
-    )
 
 
 def test_live_streams_n_against_eta_and_says_there_is_no_failure_neighbour(

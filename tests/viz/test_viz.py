@@ -16,7 +16,7 @@ from synthetic import write_episode
 from typer.testing import CliRunner
 
 import rfr_viz.panels.map as map_panel
-import rfr_viz.panels.umap as memory_umap_module
+import rfr_viz.panels.umap_layout as umap_layout
 import rfr_viz.recordings.replay as record_module
 from rfr_viz.cli.app import app
 from rfr_viz.jobs.replay import ReplayConfig, recording_name, replay
@@ -84,8 +84,9 @@ def recording(
 def test_every_entity_of_the_contract_is_there(recording: Path, trace: DetectionTrace) -> None:
     paths = entity_paths(recording)
     expected = {camera(v) for v in VIEWS} | {REPLAY.score(v) for v in VIEWS}
-    expected |= {REPLAY.delta, REPLAY.state, REPLAY.event, REPLAY.umap, REPLAY.report}
-    expected |= {REPLAY.umap_query(v) for v in VIEWS}
+    expected |= {REPLAY.delta, REPLAY.state, REPLAY.event, REPLAY.map_root, REPLAY.map_legend, REPLAY.report}
+    expected |= {path for v in VIEWS for path in (REPLAY.umap(v), REPLAY.umap_query(v), REPLAY.umap_frame(v))}
+    expected |= {REPLAY.umap_title(v) for v in VIEWS}
     expected |= {
         REPLAY.neighbor(v, r, p) for v in VIEWS for r in range(trace.k) for p in ("start", "end", "info")
     }
@@ -258,13 +259,13 @@ def test_map_is_fitted_once_and_cached_beside_the_memory(
     directory = tmp_path / "memory"
     memory.save(directory)
     fits: list[int] = []
-    real_fit = memory_umap_module._umap_embedding
+    real_fit = umap_layout._umap_embedding
 
     def counting(vectors: np.ndarray, n_neighbors: int) -> np.ndarray:
         fits.append(len(vectors))
         return real_fit(vectors, n_neighbors)
 
-    monkeypatch.setattr(memory_umap_module, "_umap_embedding", counting)
+    monkeypatch.setattr(umap_layout, "_umap_embedding", counting)
     config = ReplayConfig(
         data=aha_dataset,
         memory=directory,
@@ -274,23 +275,35 @@ def test_map_is_fitted_once_and_cached_beside_the_memory(
     )
     first = replay(config)
     cache = directory / CACHE_FILE
-    assert fits == [len(memory)] and cache.is_file()
+    per_view = [len(memory) // 3] * 3  # one UMAP per view
+    assert fits == per_view and cache.is_file()
     stamp = cache.stat().st_mtime_ns
     second = replay(config)
-    assert fits == [len(memory)], "the second replay does no UMAP work"
+    assert fits == per_view, "the second replay does no UMAP work"
     assert cache.stat().st_mtime_ns == stamp
     assert len(first.recordings) == len(second.recordings) == 1
     cached = memory_map(memory, directory=directory)
-    assert not cached.fitted and cached.method == "umap" and cached.n_neighbors == 15
-    # the map spans [-1, 1]² and a memory vector is placed near its own entry
-    assert np.abs(cached.embedding).max() == pytest.approx(1.0, abs=1e-5)
-    placed = cached.project(memory.vectors)
-    own = np.linalg.norm(placed - cached.embedding, axis=1).mean()
-    shuffled = np.linalg.norm(placed - np.roll(cached.embedding, 7, axis=0), axis=1).mean()
-    assert own < 0.3 * shuffled
+    assert not cached.fitted and cached.method == "umap" and cached.views == VIEWS
+    for view, view_map in cached.maps.items():
+        assert view_map.n_neighbors == len(memory) // 3 - 1  # clamped to the view's entries
+        # each map spans [-1, 1]² and a memory vector is placed near its own entry, in its view's map
+        assert np.abs(view_map.embedding).max() == pytest.approx(1.0, abs=1e-5)
+        placed = np.concatenate(
+            [_placed(cached, view, memory.entries[i].task, memory.vectors[i]) for i in cached.rows[view]]
+        )
+        own = np.linalg.norm(placed - view_map.embedding, axis=1).mean()
+        shuffled = np.linalg.norm(placed - np.roll(view_map.embedding, 5, axis=0), axis=1).mean()
+        assert own < 0.3 * shuffled
+    assert cached.project("side", "pick_cube", memory.vectors[:2]) is None  # the memory has no such view
     # a changed memory does not reuse a stale map
-    other = FailureMemory(memory.vectors[:20], memory.entries[:20], encoder=memory.encoder)
-    assert memory_map(other, directory=directory).fitted and len(fits) == 2
+    other = FailureMemory(memory.vectors[:18], memory.entries[:18], encoder=memory.encoder)
+    assert memory_map(other, directory=directory).fitted and len(fits) == 6
+
+
+def _placed(mapped: MemoryMap, view: str, task: str, queries: np.ndarray) -> np.ndarray:
+    placed = mapped.project(view, task, queries)
+    assert placed is not None, f"the memory has a map of {view}"
+    return placed
 
 
 def _tiny_memory(count: int) -> FailureMemory:
@@ -306,43 +319,63 @@ def _tiny_memory(count: int) -> FailureMemory:
 
 
 def test_tiny_memories_clamp_neighbours_or_fall_back_to_pca(tmp_path: Path) -> None:
-    five = fit_map(_tiny_memory(5).vectors)
-    assert five.method == "umap" and five.n_neighbors == 4 and five.embedding.shape == (5, 2)
+    five = fit_map(_tiny_memory(5))
+    assert five.method == "umap" and five.maps["front"].n_neighbors == 4
+    assert five.maps["front"].embedding.shape == (5, 2)
     three = _tiny_memory(3)
     pca = memory_map(three, directory=tmp_path)
     assert pca.method == "pca" and "PCA" in pca.note and "too few for UMAP" in pca.note
-    np.testing.assert_allclose(pca.project(three.vectors), pca.embedding, atol=1e-5)
+    np.testing.assert_allclose(
+        pca.project("front", "pick_cube", three.vectors), pca.maps["front"].embedding, atol=1e-5
+    )
     again = memory_map(three, directory=tmp_path)
     assert not again.fitted and again.method == "pca"
-    np.testing.assert_allclose(again.project(three.vectors), pca.embedding, atol=1e-5)
-    one = fit_map(_tiny_memory(1).vectors)
-    assert one.method == "pca" and np.isfinite(one.embedding).all()
+    np.testing.assert_allclose(
+        again.project("front", "pick_cube", three.vectors), pca.maps["front"].embedding, atol=1e-5
+    )
+    one = fit_map(_tiny_memory(1))
+    assert one.method == "pca" and np.isfinite(one.maps["front"].embedding).all()
 
 
 def test_map_points_classes_labels_and_moving_queries(
     recording: Path, trace: DetectionTrace, mapped: MemoryMap
 ) -> None:
-    positions = static_value(recording, REPLAY.umap, "Points2D:positions")
-    np.testing.assert_allclose(positions, mapped.embedding, atol=1e-6)
-    classes = static_value(recording, REPLAY.umap, "Points2D:class_ids")
+    """One map per view, side by side: each holds that view's entries only, and that view's query moves in it."""
+    entries = trace.memory.entries
     expected = {"grasp_wp2": 3, "rotation_x_wp1": 1, "wrong_object": 7}
-    assert classes == [expected[entry.symbol] for entry in trace.memory.entries]
-    labels = static_value(recording, REPLAY.umap, "Points2D:labels")
-    first = trace.memory.entries[0]
-    assert labels[0] == f"{first.task} · {first.symbol} · {first.view} · {first.episode}"
-    context = static_value(recording, REPLAY.umap, "AnnotationContext:context")
+    assert mapped.views == VIEWS and mapped.size == len(entries)
+    offsets = []
+    for view in VIEWS:
+        rows_of_view = mapped.rows[view]
+        assert {entries[i].view for i in rows_of_view} == {view}
+        positions = static_value(recording, REPLAY.umap(view), "Points2D:positions")
+        np.testing.assert_allclose(positions, mapped.maps[view].embedding, atol=1e-6)
+        classes = static_value(recording, REPLAY.umap(view), "Points2D:class_ids")
+        assert classes == [expected[entries[i].symbol] for i in rows_of_view]
+        labels = static_value(recording, REPLAY.umap(view), "Points2D:labels")
+        first = entries[rows_of_view[0]]
+        assert labels[0] == f"{first.task} · {first.symbol} · {first.view} · {first.episode}"
+        offsets.append(tuple(static_value(recording, REPLAY.umap(view), "Transform3D:translation")[0]))
+        title = static_value(recording, REPLAY.umap_title(view), "Points2D:labels")
+        assert title == [f"{view} · {len(rows_of_view)} entries"]
+        moving = rows(recording, REPLAY.umap_query(view), "Points2D:positions")
+        assert [frame for frame, _ in moving] == list(range(trace.length))
+        np.testing.assert_allclose(
+            [value[0] for _, value in moving],
+            mapped.project(view, trace.task, trace.queries[view]),
+            atol=1e-5,
+        )
+    grid = [(0.0, 0.0, 0.0), (map_panel.PITCH, 0.0, 0.0), (0.0, map_panel.PITCH + map_panel.TITLE, 0.0)]
+    np.testing.assert_allclose(offsets, grid, atol=1e-6)  # two maps on top, the third below, float32
+    legend = static_value(recording, REPLAY.map_legend, "Points2D:labels")
+    assert legend == ["rotation (12)", "grasp (12)", "wrong_object (12)"]
+    context = static_value(recording, REPLAY.map_root, "AnnotationContext:context")
     info = {item["class_id"]: item["class_description"]["info"] for item in context[0]}
     assert (
         info[1]["label"] == "rotation" and info[3]["label"] == "grasp" and info[7]["label"] == "wrong_object"
     )
     assert info[1]["color"] == 0xE65546FF  # fixed colours: rotation is always (230, 85, 70)
     assert len({item["color"] for item in info.values()}) == len(info)
-    for view in VIEWS:
-        moving = rows(recording, REPLAY.umap_query(view), "Points2D:positions")
-        assert [frame for frame, _ in moving] == list(range(trace.length))
-        np.testing.assert_allclose(
-            [value[0] for _, value in moving], mapped.project(trace.queries[view]), atol=1e-5
-        )
 
 
 # ------------------------------------------------------------------ encoder comparison
@@ -376,7 +409,12 @@ def test_comparison_recording_has_every_encoder_under_its_slug(
         for view in VIEWS:
             scores = rows(out, encoder_paths.score(view), "Scalars:scalars")
             np.testing.assert_allclose([v[0] for _, v in scores], each.similarity[view], atol=1e-6)
-        assert {encoder_paths.delta, encoder_paths.state, encoder_paths.umap, encoder_paths.report} <= paths
+        assert {
+            encoder_paths.delta,
+            encoder_paths.state,
+            encoder_paths.umap("front"),
+            encoder_paths.report,
+        } <= paths
         events = rows(out, encoder_paths.event, "TextLog:text")
         assert [frame for frame, _ in events] == ([each.t_det] if each.t_det is not None else [])
         group = properties(out, slug)
