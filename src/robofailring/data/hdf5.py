@@ -13,12 +13,12 @@ from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Final, overload
+from typing import Any, Final
 
 import numpy as np
 
 from robofailring.data.images import as_rgb, content_digest, decode_image
-from robofailring.data.model import Frame
+from robofailring.data.model import Frame, LazyFrames
 from robofailring.errors import DataError
 from robofailring.extras import needs_extra
 
@@ -118,7 +118,7 @@ class HDF5Frame:
         return f"{self.file}#{self.dataset}#frame={self.index}"
 
 
-class HDF5Frames(Sequence[Frame]):
+class HDF5Frames(LazyFrames):
     """The frames of one image dataset as a lazy sequence of `Frame` (nothing read until loaded)."""
 
     def __init__(
@@ -136,19 +136,9 @@ class HDF5Frames(Sequence[Frame]):
     def __len__(self) -> int:
         return self.size
 
-    @overload
-    def __getitem__(self, item: int) -> Frame: ...
-    @overload
-    def __getitem__(self, item: slice) -> Sequence[Frame]: ...
-    def __getitem__(self, item: int | slice) -> Frame | Sequence[Frame]:
-        if isinstance(item, slice):
-            return [self[i] for i in range(*item.indices(len(self)))]
-        if item < 0:
-            item += self.size
-        if not 0 <= item < self.size:
-            raise IndexError(f"frame {item} of {self.size}")
-        length = self.lengths[item] if self.lengths is not None else None
-        return Frame(source=HDF5Frame(self.file, self.dataset, item, encoded=self.encoded, length=length))
+    def frame(self, index: int) -> Frame:
+        length = self.lengths[index] if self.lengths is not None else None
+        return Frame(source=HDF5Frame(self.file, self.dataset, index, encoded=self.encoded, length=length))
 
     def __repr__(self) -> str:
         return f"HDF5Frames({str(self.file)!r}, {self.dataset!r}, {self.size} frames)"

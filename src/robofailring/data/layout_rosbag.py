@@ -14,18 +14,17 @@ stem); outcome and symbol come from `--labels` (`episode` column = the bag's nam
 from __future__ import annotations
 
 import threading
-from collections import OrderedDict
-from collections.abc import Sequence
 from contextlib import closing
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Final, overload
+from typing import Any, Final
 
 import numpy as np
 
 from robofailring.data.folders import visible
 from robofailring.data.images import content_digest, decode_image
-from robofailring.data.model import Frame, Skipped, Trajectory
+from robofailring.data.model import Frame, LazyFrames, Skipped, Trajectory
+from robofailring.data.open_files import OpenLimit
 from robofailring.data.registry import Found, Layout, register
 from robofailring.errors import DataError
 from robofailring.extras import needs_extra
@@ -88,7 +87,7 @@ class BagFile:
             except (AnyReaderError, OSError, ValueError, KeyError) as error:
                 raise DataError(f"cannot read ROS bag {self.path}: {error}") from error
             self._reader = reader
-            _remember_open(self)
+            _OPEN.remember(self)
         return self._reader
 
     @property
@@ -203,19 +202,7 @@ def to_rgb(message: Any, msgtype: str, *, where: str) -> np.ndarray:
     return np.ascontiguousarray(image)
 
 
-_OPEN: OrderedDict[int, BagFile] = OrderedDict()
-_OPEN_LOCK = threading.Lock()
-
-
-def _remember_open(bag: BagFile) -> None:
-    """Keep at most `_OPEN_LIMIT` bags open; close the least recently opened beyond that."""
-    with _OPEN_LOCK:
-        _OPEN[id(bag)] = bag
-        _OPEN.move_to_end(id(bag))
-        while len(_OPEN) > _OPEN_LIMIT:
-            _, oldest = _OPEN.popitem(last=False)
-            if oldest is not bag:
-                oldest.close()
+_OPEN: OpenLimit[BagFile] = OpenLimit(_OPEN_LIMIT)
 
 
 _BAGS: dict[str, BagFile] = {}
@@ -251,7 +238,7 @@ class BagFrame:
         return f"{self.bag.path}{BAG_MESSAGE_MARKER}{self.topic}&message={self.index}"
 
 
-class BagFrames(Sequence[Frame]):
+class BagFrames(LazyFrames):
     """The messages of one image topic of a bag as a lazy sequence of `Frame`."""
 
     def __init__(self, bag: BagFile, topic: str) -> None:
@@ -262,18 +249,8 @@ class BagFrames(Sequence[Frame]):
     def __len__(self) -> int:
         return self._count
 
-    @overload
-    def __getitem__(self, item: int) -> Frame: ...
-    @overload
-    def __getitem__(self, item: slice) -> Sequence[Frame]: ...
-    def __getitem__(self, item: int | slice) -> Frame | Sequence[Frame]:
-        if isinstance(item, slice):
-            return [self[i] for i in range(*item.indices(len(self)))]
-        if item < 0:
-            item += self._count
-        if not 0 <= item < self._count:
-            raise IndexError(f"frame {item} of {self._count}")
-        return Frame(source=BagFrame(self.bag, self.topic, item))
+    def frame(self, index: int) -> Frame:
+        return Frame(source=BagFrame(self.bag, self.topic, index))
 
     def __repr__(self) -> str:
         return f"BagFrames({self.bag!r}, {self.topic!r}, {self._count} messages)"

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 from functools import cached_property
 from pathlib import Path
-from typing import Protocol
+from typing import Protocol, overload
 
 import numpy as np
 
@@ -95,6 +95,28 @@ class Frame:
         if self.source is not None:
             return self.source.reference
         return str(self.path) if self.path is not None else "<array>"
+
+
+class LazyFrames(Sequence[Frame]):
+    """Frames read on demand (a dataset's rows, a bag's messages, a video's frames): a subclass gives
+    `__len__` and `frame(index)` for 0 ≤ index < len; indexing, negative indices and slices are here."""
+
+    def frame(self, index: int) -> Frame:
+        raise NotImplementedError
+
+    @overload
+    def __getitem__(self, item: int) -> Frame: ...
+    @overload
+    def __getitem__(self, item: slice) -> Sequence[Frame]: ...
+    def __getitem__(self, item: int | slice) -> Frame | Sequence[Frame]:
+        if isinstance(item, slice):
+            return [self.frame(i) for i in range(*item.indices(len(self)))]
+        count = len(self)
+        if item < 0:
+            item += count
+        if not 0 <= item < count:
+            raise IndexError(f"frame {item} of {count}")
+        return self.frame(item)
 
 
 @dataclass(frozen=True)

@@ -10,16 +10,16 @@ from __future__ import annotations
 
 import hashlib
 import threading
-from collections import OrderedDict
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Final, overload
+from typing import Any, Final
 
 import numpy as np
 
 from robofailring.data.images import content_digest
-from robofailring.data.model import Frame
+from robofailring.data.model import Frame, LazyFrames
+from robofailring.data.open_files import OpenLimit
 from robofailring.errors import DataError
 from robofailring.extras import needs_extra
 
@@ -67,7 +67,7 @@ class VideoFile:
                     f"cannot read video {self.path}: it holds no video stream {self.stream}"
                 ) from error
             stream.thread_type = "AUTO"
-            _remember_open(self)
+            _OPEN.remember(self)
         return self._container
 
     @property
@@ -176,19 +176,7 @@ def _why(error: BaseException) -> str:
     return str(getattr(error, "strerror", None) or error)
 
 
-_OPEN: OrderedDict[int, VideoFile] = OrderedDict()
-_OPEN_LOCK = threading.Lock()
-
-
-def _remember_open(video: VideoFile) -> None:
-    """Keep at most `_OPEN_LIMIT` containers open; close the least recently opened beyond that."""
-    with _OPEN_LOCK:
-        _OPEN[id(video)] = video
-        _OPEN.move_to_end(id(video))
-        while len(_OPEN) > _OPEN_LIMIT:
-            _, oldest = _OPEN.popitem(last=False)
-            if oldest is not video:
-                oldest.close()
+_OPEN: OpenLimit[VideoFile] = OpenLimit(_OPEN_LIMIT)
 
 
 _FILES: dict[tuple[str, int], VideoFile] = {}
@@ -227,7 +215,7 @@ class VideoFrame:
         return f"{self.video.path}#frame={self.frame_index()}"
 
 
-class VideoFrames(Sequence[Frame]):
+class VideoFrames(LazyFrames):
     """The frames of a video (all of them, or those at given times) as a lazy sequence of `Frame`."""
 
     def __init__(self, video: VideoFile, times: Sequence[float] | np.ndarray | None = None) -> None:
@@ -242,21 +230,10 @@ class VideoFrames(Sequence[Frame]):
         """Every frame of the file in order (a video-episode folder), not frames picked by time."""
         return self._times is None
 
-    @overload
-    def __getitem__(self, item: int) -> Frame: ...
-    @overload
-    def __getitem__(self, item: slice) -> Sequence[Frame]: ...
-    def __getitem__(self, item: int | slice) -> Frame | Sequence[Frame]:
-        if isinstance(item, slice):
-            return [self[i] for i in range(*item.indices(len(self)))]
-        count = len(self)
-        if item < 0:
-            item += count
-        if not 0 <= item < count:
-            raise IndexError(f"frame {item} of {count}")
+    def frame(self, index: int) -> Frame:
         if self._times is None:
-            return Frame(source=VideoFrame(self.video, index=item))
-        return Frame(source=VideoFrame(self.video, seconds=float(self._times[item])))
+            return Frame(source=VideoFrame(self.video, index=index))
+        return Frame(source=VideoFrame(self.video, seconds=float(self._times[index])))
 
     def __repr__(self) -> str:
         return f"VideoFrames({self.video!r}, {len(self) if self._times is not None else '?'} frames)"
