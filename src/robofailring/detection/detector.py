@@ -13,8 +13,8 @@ from robofailring.detection.retrieved import Retrieved
 from robofailring.detection.rules import (
     CONTRAST,
     NOVELTY,
-    PAPER,
     RULES,
+    RuleThresholds,
     ScoringRule,
     default_rule,
     rule_named,
@@ -56,7 +56,7 @@ class StepSink(Protocol):
     ) -> None: ...
 
 
-class FailureDetector:
+class FailureDetector(RuleThresholds):
     """Matches (first frame ‖ current frame) queries against one task's failure memory.
 
     It judges by one scoring rule (`robofailring.detection.rules`) at that rule's threshold: the
@@ -118,25 +118,6 @@ class FailureDetector:
     def threshold(self) -> float:
         """The rule's threshold: δ (paper rule), γ (contrast rule), η (novelty rule), …"""
         return self.threshold_of(self.rule)
-
-    def threshold_of(self, rule: ScoringRule) -> float:
-        """Any rule's threshold as this detector has it."""
-        return self.thresholds.get(rule.name, rule.default_threshold)
-
-    @property
-    def delta(self) -> float:
-        """The paper rule's δ."""
-        return self.threshold_of(PAPER)
-
-    @property
-    def gamma(self) -> float:
-        """The contrast rule's γ."""
-        return self.threshold_of(CONTRAST)
-
-    @property
-    def eta(self) -> float:
-        """The novelty rule's η."""
-        return self.threshold_of(NOVELTY)
 
     def _check_task(self, task: str) -> ScoringRule:
         """The task's rule; unknown task, or a rule needing runs the task lacks: a clear error up front."""

@@ -146,3 +146,28 @@ def default_rule(*, successes: bool, failures: bool = True) -> ScoringRule:
     if successes:
         return CONTRAST if failures else NOVELTY
     return PAPER
+
+
+class RuleThresholds:
+    """Each rule's threshold by rule name (`thresholds`), for the detector and its traces alike."""
+
+    thresholds: dict[str, float]
+
+    def threshold_of(self, rule: ScoringRule) -> float:
+        """Any rule's threshold as held here (its default where none was set)."""
+        return self.thresholds.get(rule.name, rule.default_threshold)
+
+    @property
+    def delta(self) -> float:
+        """The paper rule's δ."""
+        return self.threshold_of(PAPER)
+
+    @property
+    def gamma(self) -> float:
+        """The contrast rule's γ."""
+        return self.threshold_of(CONTRAST)
+
+    @property
+    def eta(self) -> float:
+        """The novelty rule's η."""
+        return self.threshold_of(NOVELTY)

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from robofailring.data.model import Skipped
-from robofailring.detection.rules import CONTRAST, NOVELTY, PAPER, RULES, ScoringRule
+from robofailring.detection.rules import CONTRAST, NOVELTY, PAPER, RULES, RuleThresholds, ScoringRule
 from robofailring.detection.view_scores import ViewScores
 from robofailring.memory.failure import FailureMemory, Neighbor
 from robofailring.memory.success import SuccessMatch
@@ -42,7 +42,7 @@ class StepResult:
 
 
 @dataclass
-class DetectionTrace:
+class DetectionTrace(RuleThresholds):
     """A whole replayed trajectory: S_t per view per frame, neighbours, t_det and L."""
 
     task: str
@@ -80,25 +80,6 @@ class DetectionTrace:
     def threshold(self) -> float:
         """The rule's threshold (δ for the paper rule, γ for the contrast rule)."""
         return self.threshold_of(self.rule)
-
-    def threshold_of(self, rule: ScoringRule) -> float:
-        """Another rule's threshold, as the detector had it (e.g. γ to draw beside δ)."""
-        return self.thresholds.get(rule.name, rule.default_threshold)
-
-    @property
-    def delta(self) -> float:
-        """The paper rule's δ."""
-        return self.threshold_of(PAPER)
-
-    @property
-    def gamma(self) -> float:
-        """The contrast rule's γ."""
-        return self.threshold_of(CONTRAST)
-
-    @property
-    def eta(self) -> float:
-        """The novelty rule's η."""
-        return self.threshold_of(NOVELTY)
 
     def scores_of(self, rule: ScoringRule) -> dict[str, np.ndarray]:
         """`rule`'s score per view from S⁻ and S⁺ (S⁺ NaN throughout when the memory has no success runs)."""
