@@ -11,7 +11,7 @@ from typing import Any
 
 import pytest
 from fault_helpers import cli
-from hypothesis import given
+from hypothesis import example, given
 from hypothesis import strategies as st
 
 from rfr_viz.jobs.replay import check_fps
@@ -66,6 +66,8 @@ CHECKS: dict[str, Callable[[Any], Any]] = {
 
 
 @given(st.sampled_from(sorted(CHECKS)), NUMBER)
+@example("k", math.nan)  # found by this test: check_k let NaN (and 2.5) through to Faiss
+@example("stride", 2.5)
 def test_every_setting_check_returns_the_value_or_raises_a_setting_error(name: str, value: float) -> None:
     try:
         checked = CHECKS[name](value)
@@ -73,3 +75,5 @@ def test_every_setting_check_returns_the_value_or_raises_a_setting_error(name: s
         assert str(value) in str(error)
     else:
         assert checked == value and not math.isnan(value)
+        if name in ("k", "stride"):
+            assert isinstance(checked, int), f"{name} accepted the non-integer {value!r}"

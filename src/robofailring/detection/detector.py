@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Callable, Mapping, Sequence
 from typing import Final, Protocol
 
@@ -34,17 +35,22 @@ CHUNK_FRAMES: Final[int] = 256  # scored frames per view encoded and searched at
 Place = Callable[[str, np.ndarray], np.ndarray]  # (view, (n, 2d) queries) -> (n, m) rows, e.g. map points
 
 
+def _whole_number(value: object) -> bool:
+    """An int (or numpy integer) that is not a bool: what Faiss and slicing take as a count."""
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
 def check_k(k: int) -> int:
-    """K, the neighbours retrieved per query: at least 1 (SettingError otherwise)."""
-    if k < 1:
-        raise SettingError(f"k (neighbours per query) must be at least 1, got {k}")
+    """K, the neighbours retrieved per query: a whole number, at least 1 (SettingError otherwise)."""
+    if not _whole_number(k) or k < 1:
+        raise SettingError(f"k (neighbours per query) must be a whole number of at least 1, got {k}")
     return k
 
 
 def check_stride(stride: int) -> int:
-    """The scoring stride: at least 1 (SettingError otherwise)."""
-    if stride < 1:
-        raise SettingError(f"stride must be at least 1 (1 scores every frame), got {stride}")
+    """The scoring stride: a whole number, at least 1 (SettingError otherwise)."""
+    if not _whole_number(stride) or stride < 1:
+        raise SettingError(f"stride must be a whole number of at least 1 (1 scores every frame), got {stride}")
     return stride
 
 
