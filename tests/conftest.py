@@ -18,6 +18,15 @@ from robofailring import CachedEncoder, FailureMemory, load_dataset, load_encode
 settings.register_profile("robofailring", max_examples=25, deadline=None, database=None)
 settings.load_profile("robofailring")
 
+TORCH_FIXTURES = frozenset({"tiny_checkpoint"})  # fixtures that import torch and open_clip
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """The fast lane never imports torch (~8 s per worker): a test that asks for a torch fixture is slow."""
+    for item in items:
+        if TORCH_FIXTURES & set(getattr(item, "fixturenames", ())):
+            item.add_marker(pytest.mark.slow)
+
 
 @pytest.fixture(scope="session")
 def aha_dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:

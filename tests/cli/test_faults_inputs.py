@@ -114,7 +114,7 @@ def test_a_broken_cache_warns_once_and_is_rebuilt_or_skipped(
 
 
 def test_unclear_messages_now_name_the_value(
-    memory: Path, data: Path, cache: list[str], tmp_path: Path, tiny_checkpoint: tuple[Path, Path]
+    memory: Path, data: Path, cache: list[str], tmp_path: Path
 ) -> None:
     unknown = write_episode(
         tmp_path / "pick_cube_teleport_wp2_episode0", "pick_cube", "grasp_wp2", length=3, layout="aha"
@@ -126,17 +126,24 @@ def test_unclear_messages_now_name_the_value(
     assert "--trajectory" in result.output and "--trajectory" in cli("detect", "--help").output
     refused(cli("generate", "--out", tmp_path / "gen", "--episodes", "-1"), 2, "--episodes", "got -1")
     refused(cli("generate", "--out", tmp_path / "gen", "--image-size", "8"), 2, "--image-size", "got 8")
+
+
+def test_a_junk_checkpoint_is_named(
+    memory: Path, cache: list[str], tmp_path: Path, tiny_checkpoint: tuple[Path, Path]
+) -> None:
+    episode = write_episode(
+        tmp_path / "pick_cube_grasp_wp2_episode0", "pick_cube", "grasp_wp2", length=3, layout="aha"
+    )
     config, _ = tiny_checkpoint
     junk = tmp_path / "junk.pt"
     junk.write_bytes(np.random.default_rng(0).bytes(1000))
     refused(
         cli(
             "detect",
-            unknown,
+            episode,
             "--memory",
             memory,
-            "--task",
-            "pick_cube",
+            *cache,
             "--encoder",
             f"open_clip:{config}:{junk}",
         ),

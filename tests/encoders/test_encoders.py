@@ -118,6 +118,7 @@ def test_cache_second_pass_encodes_nothing(tmp_path: Path, cache_dir: Path) -> N
     assert counting.encoded == 6
 
 
+@pytest.mark.slow  # imports open_clip and torch: the fast lane never does (tests/conftest.py)
 def test_pretrained_tag_without_network_fails_fast_with_instructions() -> None:
     with pytest.raises(EncoderError, match="not available here") as error:
         load_encoder("open_clip:ViT-B-32:openai")

@@ -25,6 +25,8 @@ from robofailring.encoders.trained import CONFIG_NAME, WEIGHTS_NAME
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder, training_samples
 from robofailring.errors import EncoderMismatchError, SettingError
 
+pytestmark = pytest.mark.slow  # trains with torch: the fast lane never imports it (tests/conftest.py)
+
 runner = CliRunner()
 
 
