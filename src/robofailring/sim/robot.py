@@ -2,12 +2,21 @@
 
 from __future__ import annotations
 
+import functools
+import hashlib
 import math
+import tempfile
+from pathlib import Path
 from typing import Any, Final
 
 import numpy as np
 
+from robofailring.atomic import write_text_atomic
+from robofailring.extras import needs_extra
 from robofailring.sim.geometry import Pose, Quat, Vec3, invert, multiply, quat_matrix
+
+with needs_extra("sim"):
+    import pybullet_data
 
 ARM_JOINTS: Final[tuple[int, ...]] = (0, 1, 2, 3, 4, 5, 6)
 FINGER_JOINTS: Final[tuple[int, int]] = (9, 10)
@@ -22,6 +31,31 @@ FINGER_OPEN: Final[float] = 0.04
 #: geometric check passes (see `Panda.graspable`); the pads still push with friction.
 _FINGER_FORCE: Final[float] = 0.3
 _PAD_FRICTION: Final[float] = 0.4
+#: Arm links drawn with their collision mesh (300 triangles each): their visual meshes hold ~94k
+#: triangles, which the TinyRenderer transforms for every image (18 of the 21 ms of a 128-px render,
+#: whatever its size). The hand and fingers, close to the wrist camera, keep their visual meshes.
+LOW_POLY_LINKS: Final[tuple[str, ...]] = ("link1", "link2", "link3", "link4", "link5", "link6")
+
+
+@functools.cache
+def panda_urdf() -> str:
+    """pybullet_data's Panda with the arm links' visual meshes replaced by their collision meshes.
+
+    Written once per content into the temporary folder (mesh paths made absolute), so the package
+    folder is never written to.
+    """
+    root = Path(pybullet_data.getDataPath()) / "franka_panda"
+    text = (root / "panda.urdf").read_text(encoding="utf-8")
+    for link in LOW_POLY_LINKS:
+        text = text.replace(f"package://meshes/visual/{link}.obj", f"package://meshes/collision/{link}.obj")
+    text = text.replace("package://meshes/", f"{(root / 'meshes').as_posix()}/")
+    path = (
+        Path(tempfile.gettempdir())
+        / f"robofailring-panda-{hashlib.sha256(text.encode()).hexdigest()[:12]}.urdf"
+    )
+    if not path.is_file():
+        write_text_atomic(path, text)
+    return str(path)
 
 
 class Panda:
@@ -30,7 +64,7 @@ class Panda:
     def __init__(self, client: Any) -> None:
         self.client = client
         self.body: int = client.loadURDF(
-            "franka_panda/panda.urdf",
+            panda_urdf(),
             basePosition=(0.0, 0.0, 0.0),
             useFixedBase=True,
             flags=client.URDF_ENABLE_CACHED_GRAPHICS_SHAPES,

@@ -25,7 +25,7 @@ from robofailring.sim.tasks import TASKS
 FORMAT_VERSION: Final[int] = 1
 GENERATOR: Final[str] = "robofailring.sim"
 #: Bumped whenever the simulator's output changes for the same config (invalidates caches).
-SIM_VERSION: Final[int] = 1
+SIM_VERSION: Final[int] = 2  # 2: the arm drawn with low-poly meshes (robot.LOW_POLY_LINKS)
 _SUCCESS_RETRIES: Final[int] = 3
 
 
