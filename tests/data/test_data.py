@@ -129,7 +129,7 @@ def test_project_layout_reads_a_failures_onset_frame(tmp_path: Path) -> None:
     assert onsets["pick_cube_grasp_wp2_episode0"] is None and onsets["pick_cube_success_episode0"] is None
     for bad, phrase in (
         (6, "not a frame of the trajectory (its 6 frames are 0 to 5)"),
-        (-1, "not a frame"),
+        (-1, "is negative"),
         (1.5, "not an integer"),
         ("soon", "not an integer"),
         (True, "not an integer"),
@@ -142,6 +142,31 @@ def test_project_layout_reads_a_failures_onset_frame(tmp_path: Path) -> None:
             error.value
         )
         assert phrase in str(error.value) and repr(bad) in str(error.value)
+
+
+def test_a_labels_files_onset_frame_wins_and_is_checked_against_the_episode(tmp_path: Path) -> None:
+    data = write_project_dataset(tmp_path / "data", tasks=("pick_cube",), episodes=2, length=6)
+    labels = tmp_path / "labels.csv"
+    header = "episode,outcome,symbol,onset_frame\n"
+    labels.write_text(
+        header + "pick_cube_slip_wp3_episode0,failure,slip_wp3,4\npick_cube_success_episode1,success,,\n"
+    )
+    onsets = {t.episode: t.onset_frame for t in load_dataset(data, labels=labels)}
+    assert onsets["pick_cube_slip_wp3_episode0"] == 4 and onsets["pick_cube_success_episode1"] is None
+    labels.write_text(header + "pick_cube_slip_wp3_episode0,failure,slip_wp3,6\n")
+    with pytest.raises(DataError) as error:
+        load_dataset(data, labels=labels)
+    assert str(error.value) == (
+        f"{labels} row 1 (episode pick_cube_slip_wp3_episode0): onset_frame 6 is not a frame of the "
+        "trajectory (its 6 frames are 0 to 5)"
+    )
+    for bad, phrase in (("-2", "is negative"), ("2.5", "is not an integer"), ("x", "is not an integer")):
+        labels.write_text(header + f"pick_cube_slip_wp3_episode0,failure,slip_wp3,{bad}\n")
+        with pytest.raises(DataError, match=f"{labels} row 1: onset_frame '{bad}' {phrase}"):
+            load_dataset(data, labels=labels)
+    labels.write_text(header + "pick_cube_success_episode1,success,,2\n")
+    with pytest.raises(DataError, match="row 1: onset_frame '2' given for a success"):
+        load_dataset(data, labels=labels)
 
 
 def test_unknown_layout_names_the_expected_ones(tmp_path: Path) -> None:

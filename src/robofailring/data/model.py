@@ -170,9 +170,10 @@ class Trajectory:
         return self.outcome.value if self.outcome is not None else "unlabelled"
 
 
-def parse_onset_frame(value: object, *, length: int, where: str) -> int | None:
+def parse_onset_frame(value: object, *, length: int | None, where: str) -> int | None:
     """A failure's onset frame as a manifest or labels file gives it (an integer, `12`, or `"12"`; empty:
-    None), checked to be a frame of the trajectory's `length`: DataError naming `where` and the value."""
+    None), checked to be a frame of the trajectory's `length` (None: only ≥ 0): DataError naming `where`
+    and the value."""
     if value is None or (isinstance(value, str) and not value.strip()):
         return None
     number: float | None = None
@@ -187,7 +188,9 @@ def parse_onset_frame(value: object, *, length: int, where: str) -> int | None:
 
     if number is None or not math.isfinite(number) or not number.is_integer():
         raise DataError(f"{where}: onset_frame {value!r} is not an integer frame number")
-    if not 0 <= number < length:
+    if number < 0:
+        raise DataError(f"{where}: onset_frame {value!r} is negative; frames count from 0")
+    if length is not None and number >= length:
         raise DataError(
             f"{where}: onset_frame {value!r} is not a frame of the trajectory (its {length} frames are 0 to "
             f"{length - 1})"
