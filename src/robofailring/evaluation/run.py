@@ -259,6 +259,8 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
                     is_failure=trajectory.is_failure,
                     length=trace.length,
                     similarity=trace.similarity,
+                    onset_frame=trajectory.onset_frame,
+                    fps=trajectory.fps,
                 )
             )
     if not scored:
