@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
+import pytest
 from fault_helpers import cli, refused
 from synthetic import write_aha_dataset, write_episode
 
@@ -37,3 +39,24 @@ def test_evaluate_on_data_without_success_runs_says_what_is_missing(cache: list[
         "split 'train'",
         "add success episodes",
     )
+
+
+def test_calibrate_says_how_far_the_test_fpr_can_stray_with_its_runs(
+    memory: Path, cache: list[str], tmp_path: Path
+) -> None:
+    successes = tmp_path / "successes"
+    for episode in range(4):
+        write_episode(
+            successes / f"pick_cube_success_episode{episode}", "pick_cube", None, length=3, layout="aha"
+        )
+    result = cli("calibrate", successes, "--memory", memory, "--target-fpr", "0.2", *cache)
+    assert result.exit_code == 0, result.output
+    # n = 4 at α = 0.2: k = ⌈5 · 0.8⌉ = 4, the realised FPR is Beta(1, 4), quantile q at 1 − (1 − q)^(1/4)
+    assert "with 4 calibration runs the test FPR at α = 20 % lies in 1.3–52.7 %" in result.output
+    assert "mean 20.0 %" in result.output
+    assert "1110 runs would keep the 95 % quantile ≤ 22.0 % (α + 2 points)" in result.output
+    stored = json.loads((memory / "manifest.json").read_text())["calibration"]["fpr_spread"]
+    assert stored["successes"] == 4 and stored["levels"] == [0.05, 0.95]
+    assert stored["low"] == pytest.approx(1 - 0.95**0.25, abs=1e-6)
+    assert stored["high"] == pytest.approx(1 - 0.05**0.25, abs=1e-6)
+    assert stored["bound"] == pytest.approx(0.22) and stored["runs_for_bound"] == 1110

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 from environment import shared_data
-from synthetic import write_episode
+from synthetic import write_episode, write_project_dataset
 
 from robofailring import Outcome, load_dataset, load_trajectory
 from robofailring.data.images import numeric_sort_key, write_png
@@ -114,6 +114,59 @@ def test_project_layout_manifest(tmp_path: Path) -> None:
     (tmp_path / "manifest.json").write_text(json.dumps(manifest))
     with pytest.raises(DataError, match="gone"):
         list(load_dataset(tmp_path))
+
+
+def test_project_layout_reads_a_failures_onset_frame(tmp_path: Path) -> None:
+    data = write_project_dataset(tmp_path / "data", tasks=("pick_cube",), episodes=2, length=6)
+    manifest = json.loads((data / "manifest.json").read_text())
+    by_dir = {record["dir"]: record for record in manifest["episodes"]}
+    by_dir["pick_cube_slip_wp3_episode0"]["onset_frame"] = 3
+    by_dir["pick_cube_success_episode0"]["onset_frame"] = None
+    (data / "manifest.json").write_text(json.dumps(manifest))
+    onsets = {t.episode: t.onset_frame for t in load_dataset(data)}
+    assert onsets["pick_cube_slip_wp3_episode0"] == 3
+    # a manifest written before onsets (no key) and every success: unknown
+    assert onsets["pick_cube_grasp_wp2_episode0"] is None and onsets["pick_cube_success_episode0"] is None
+    for bad, phrase in (
+        (6, "not a frame of the trajectory (its 6 frames are 0 to 5)"),
+        (-1, "is negative"),
+        (1.5, "not an integer"),
+        ("soon", "not an integer"),
+        (True, "not an integer"),
+    ):
+        by_dir["pick_cube_slip_wp3_episode0"]["onset_frame"] = bad
+        (data / "manifest.json").write_text(json.dumps(manifest))
+        with pytest.raises(DataError) as error:
+            list(load_dataset(data))
+        assert str(data / "manifest.json") in str(error.value) and "pick_cube_slip_wp3_episode0" in str(
+            error.value
+        )
+        assert phrase in str(error.value) and repr(bad) in str(error.value)
+
+
+def test_a_labels_files_onset_frame_wins_and_is_checked_against_the_episode(tmp_path: Path) -> None:
+    data = write_project_dataset(tmp_path / "data", tasks=("pick_cube",), episodes=2, length=6)
+    labels = tmp_path / "labels.csv"
+    header = "episode,outcome,symbol,onset_frame\n"
+    labels.write_text(
+        header + "pick_cube_slip_wp3_episode0,failure,slip_wp3,4\npick_cube_success_episode1,success,,\n"
+    )
+    onsets = {t.episode: t.onset_frame for t in load_dataset(data, labels=labels)}
+    assert onsets["pick_cube_slip_wp3_episode0"] == 4 and onsets["pick_cube_success_episode1"] is None
+    labels.write_text(header + "pick_cube_slip_wp3_episode0,failure,slip_wp3,6\n")
+    with pytest.raises(DataError) as error:
+        load_dataset(data, labels=labels)
+    assert str(error.value) == (
+        f"{labels} row 1 (episode pick_cube_slip_wp3_episode0): onset_frame 6 is not a frame of the "
+        "trajectory (its 6 frames are 0 to 5)"
+    )
+    for bad, phrase in (("-2", "is negative"), ("2.5", "is not an integer"), ("x", "is not an integer")):
+        labels.write_text(header + f"pick_cube_slip_wp3_episode0,failure,slip_wp3,{bad}\n")
+        with pytest.raises(DataError, match=f"{labels} row 1: onset_frame '{bad}' {phrase}"):
+            load_dataset(data, labels=labels)
+    labels.write_text(header + "pick_cube_success_episode1,success,,2\n")
+    with pytest.raises(DataError, match="row 1: onset_frame '2' given for a success"):
+        load_dataset(data, labels=labels)
 
 
 def test_unknown_layout_names_the_expected_ones(tmp_path: Path) -> None:

@@ -7,7 +7,18 @@ import math
 import numpy as np
 import pytest
 
-from robofailring.detection.conformal import auc, conformal_threshold, empirical_fpr, successes_needed
+from robofailring.detection.conformal import (
+    auc,
+    beta_cdf,
+    beta_quantile,
+    binomial_tail,
+    conformal_threshold,
+    empirical_fpr,
+    fpr_spread,
+    realised_fpr_parameters,
+    runs_for_bound,
+    successes_needed,
+)
 from robofailring.errors import DataError, SettingError
 
 
@@ -43,3 +54,61 @@ def test_auc_counts_pairs_and_ties() -> None:
     assert auc([0.1], [0.9]) == 0.0
     assert auc([0.5, 0.9], [0.5, 0.1]) == pytest.approx((0.5 + 1 + 1 + 1) / 4)
     assert math.isnan(auc([], [0.1]))
+
+
+@pytest.mark.parametrize(("n", "alpha"), [(19, 0.05), (39, 0.05), (60, 0.1), (24, 0.2)])
+def test_fpr_spread_matches_simulated_calibration_sets(n: int, alpha: float) -> None:
+    """Many calibration sets of uniform success scores: the realised FPR of each set's threshold (the
+    chance a new uniform score reaches it, 1 − threshold) has the quantiles `fpr_spread` reports."""
+    rng = np.random.default_rng(n)
+    realised = np.array(
+        [1.0 - conformal_threshold(rng.random(n).tolist(), alpha) for _ in range(6000)], dtype=np.float64
+    )
+    spread = fpr_spread(n, alpha)
+    assert np.quantile(realised, 0.05) == pytest.approx(spread.low, abs=0.006)
+    assert np.quantile(realised, 0.95) == pytest.approx(spread.high, abs=0.012)
+    assert realised.mean() == pytest.approx(spread.mean, abs=0.003)
+    assert spread.mean <= alpha + 1e-12  # the promise holds on average ...
+    assert spread.high > alpha  # ... and one calibration set can miss it
+
+
+def test_fpr_spread_known_values() -> None:
+    # n = 19 at α = 0.05: k = 19, Beta(1, 19), whose quantile q is 1 − (1 − q)^(1/19)
+    spread = fpr_spread(19, 0.05)
+    assert spread.low == pytest.approx(1 - 0.95 ** (1 / 19), abs=1e-9)
+    assert spread.high == pytest.approx(1 - 0.05 ** (1 / 19), abs=1e-9)
+    assert spread.mean == pytest.approx(1 / 20) and spread.bound == pytest.approx(0.07)
+    assert realised_fpr_parameters(39, 0.05) == (2, 38) and realised_fpr_parameters(100, 0.05) == (5, 96)
+    # Beta(5, 96): values of scipy.stats.beta.ppf
+    assert beta_quantile(0.05, 5, 96) == pytest.approx(0.0199055637, abs=1e-8)
+    assert beta_quantile(0.95, 5, 96) == pytest.approx(0.0891962502, abs=1e-8)
+    assert beta_cdf(0.3, 1, 1) == pytest.approx(0.3) and beta_cdf(0.5, 3, 3) == pytest.approx(0.5)
+    assert binomial_tail(4, 0.5, 2) == pytest.approx(11 / 16)
+    assert "0.3–14.6 %" in spread.to_text() and "360 runs" in spread.to_text()
+    with pytest.raises(DataError, match="at least 19 needed"):
+        fpr_spread(10, 0.05)
+
+
+@pytest.mark.parametrize("alpha", [0.01, 0.05, 0.1, 0.2])
+def test_runs_for_bound_is_the_first_n_from_which_the_quantile_stays_within(alpha: float) -> None:
+    bound = alpha + 0.02
+    runs = runs_for_bound(alpha, bound)
+    assert runs is not None
+
+    def within(n: int) -> bool:  # the 95 % quantile ≤ bound ⟺ P(realised FPR ≤ bound) ≥ 0.95
+        return beta_cdf(bound, *realised_fpr_parameters(n, alpha)) >= 0.95
+
+    assert all(within(n) for n in range(runs, 2 * runs))  # every n from there on keeps it within
+    if runs > successes_needed(alpha):
+        assert not within(runs - 1)  # and one fewer does not
+    assert fpr_spread(runs, alpha).high <= bound
+    with pytest.raises(SettingError, match="bound"):
+        runs_for_bound(alpha, alpha)
+
+
+def test_beta_quantiles_agree_with_scipy() -> None:
+    stats = pytest.importorskip("scipy.stats")
+    for n, alpha in [(19, 0.05), (250, 0.05), (77, 0.1), (1000, 0.01)]:
+        a, b = realised_fpr_parameters(n, alpha)
+        for q in (0.05, 0.5, 0.95):
+            assert beta_quantile(q, a, b) == pytest.approx(float(stats.beta.ppf(q, a, b)), abs=1e-8)

@@ -67,6 +67,16 @@ def test_evaluation_files_and_counts(dataset: Path, tmp_path: Path) -> None:
         assert row["recall"] == pytest.approx(row["tp"] / 12) and 0.0 <= row["auc"] <= 1.0
         assert f"| {name} |" in md_path.read_text()
     assert report["rules"]["paper"]["threshold"] == report["operating_delta"]
+    # beside α, how far the test FPR can stray with 4 calibration runs: Beta(1, 4)
+    for row in report["rules"].values():
+        assert row["fpr_spread"]["successes"] == 4
+        assert row["fpr_spread"]["high"] == pytest.approx(1 - 0.05**0.25, abs=1e-6)
+    markdown = md_path.read_text()
+    assert "one calibration set can miss it" in markdown
+    assert (
+        "- paper, contrast, novelty: with 4 calibration runs the test FPR at α = 20 % lies in 1.3–52.7 %"
+        in markdown
+    )
     assert (tmp_path / "memory" / "manifest.json").is_file()
     # the memory holds only training failures
     memory = FailureMemory.load(tmp_path / "memory")

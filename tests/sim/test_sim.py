@@ -77,7 +77,9 @@ def test_layout_and_manifest(dataset: Path) -> None:
         assert record["split"] == ("train" if number % 2 == 0 else "test")
         if record["label"] is None:
             assert record["dir"] == f"{TASK}_success_episode{number}"
+            assert record["onset_frame"] is None
         else:
+            assert isinstance(record["onset_frame"], int) and 0 <= record["onset_frame"] < FRAMES
             assert record["dir"] == f"{TASK}_{record['label']}_episode{number}"
             ground(record["label"])  # a FailGen symbol the grounding accepts
 
@@ -90,6 +92,7 @@ def test_layout_and_manifest(dataset: Path) -> None:
         assert trajectory.symbol == record["label"]
         assert trajectory.outcome == Outcome(record["outcome"])
         assert trajectory.split == record["split"]
+        assert trajectory.onset_frame == record["onset_frame"]
         assert {view: len(frames) for view, frames in trajectory.views.items()} == dict.fromkeys(
             VIEWS, FRAMES
         )

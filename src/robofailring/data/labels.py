@@ -5,7 +5,9 @@ A JSON list of objects or a CSV file with a header, one row per episode:
 (`success` or `failure`), `symbol` (the failure symbol, e.g. `grasp_wp2`, or one of the
 dataset's vocabulary; empty for a success, and for a failure whose type was not labelled: it gets
 the symbol `failure`) and an optional `description` (free text: that failure's grounded sentence).
-An optional `task` column names the episode's task (it wins over `--task` and the data's own).
+An optional `task` column names the episode's task (it wins over `--task` and the data's own), and
+an optional `onset_frame` a failure's first frame of the fault (an integer from 0, below the
+episode's length; it wins over the data's own, e.g. the simulator's manifest).
 Other columns (e.g. those `review --write-labels` adds) are ignored.
 """
 
@@ -18,7 +20,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from robofailring.data.grounding import UNTYPED, Vocabulary, parse_symbol
-from robofailring.data.model import Outcome, Skipped, Trajectory
+from robofailring.data.model import Outcome, Skipped, Trajectory, parse_onset_frame
 from robofailring.errors import DataError, SymbolError
 
 
@@ -29,6 +31,10 @@ class Label:
     symbol: str | None
     task: str | None = None  # the episode's task, when the labels file says it
     description: str | None = None  # the failure in the labeller's own words
+    onset_frame: int | None = (
+        None  # where the failure starts (checked against the episode's length when applied)
+    )
+    row: int | None = None  # the row of the labels file it was read from (for errors naming it)
 
 
 def read_labels(path: Path, *, vocabulary: Vocabulary | None = None) -> dict[str, Label]:
@@ -42,7 +48,7 @@ def read_labels(path: Path, *, vocabulary: Vocabulary | None = None) -> dict[str
     for number, row in enumerate(rows, 1):
         if not str(row.get("outcome") or "").strip():
             continue  # a row not labelled yet (`review --write-labels` leaves outcome empty): counted by `unlabelled_rows`
-        label = _label(row, where=f"{path} row {number}", vocabulary=vocabulary)
+        label = replace(_label(row, where=f"{path} row {number}", vocabulary=vocabulary), row=number)
         if label.episode in labels:
             raise DataError(f"{path} row {number}: episode {label.episode!r} is labelled twice")
         labels[label.episode] = label
@@ -110,10 +116,20 @@ def _label(row: dict[str, object], *, where: str, vocabulary: Vocabulary | None)
             raise DataError(f"{where}: {error}") from error
     description = " ".join(str(row.get("description") or "").split()) or None
     task = str(row.get("task") or "").strip() or None
+    onset = parse_onset_frame(row.get("onset_frame"), length=None, where=where)
     if outcome is not Outcome.FAILURE:
+        if onset is not None:
+            raise DataError(
+                f"{where}: onset_frame {row.get('onset_frame')!r} given for a success (only failures start)"
+            )
         return Label(episode=episode, outcome=outcome, symbol=None, task=task)
     return Label(
-        episode=episode, outcome=outcome, symbol=symbol or UNTYPED, description=description, task=task
+        episode=episode,
+        outcome=outcome,
+        symbol=symbol or UNTYPED,
+        description=description,
+        task=task,
+        onset_frame=onset,
     )
 
 
@@ -123,6 +139,16 @@ def label_key(trajectory: Trajectory, labels: dict[str, Label]) -> str | None:
         if key in labels:
             return key
     return None
+
+
+def _onset(trajectory: Trajectory, label: Label, source: Path) -> int | None:
+    """The labelled onset, checked against the episode's length; else the data's own for a failure."""
+    if label.outcome is not Outcome.FAILURE:
+        return None
+    if label.onset_frame is None:
+        return trajectory.onset_frame
+    where = f"{source} row {label.row} (episode {label.episode})"
+    return parse_onset_frame(label.onset_frame, length=trajectory.length, where=where)
 
 
 def apply_labels(
@@ -142,6 +168,7 @@ def apply_labels(
                 symbol=label.symbol,
                 description=label.description,
                 task=label.task or trajectory.task,
+                onset_frame=_onset(trajectory, label, source),
             )
         labelled.append(trajectory)
     missing = [episode for episode in labels if episode not in found]

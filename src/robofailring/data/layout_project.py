@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Final
 
 from robofailring.data.folders import aha_files
-from robofailring.data.model import Outcome, Skipped, Trajectory
+from robofailring.data.model import Outcome, Skipped, Trajectory, parse_onset_frame
 from robofailring.data.registry import Found, Layout, register
 from robofailring.errors import DataError
 
@@ -44,19 +45,22 @@ def project_trajectories(root: Path, manifest: dict[str, Any]) -> Found:
         wanted = record.get("views")
         if wanted:
             views = {view: views.get(view, ()) for view in wanted}
-        found.append(
-            Trajectory(
-                task=task,
-                episode=record.get("episode", record["dir"]),
-                views=views,
-                symbol=record.get("label"),
-                outcome=outcome,
-                source=directory,
-                fps=record.get("fps", manifest.get("fps")),
-                split=record.get("split"),
-                skipped=tuple(inside),
-            )
+        trajectory = Trajectory(
+            task=task,
+            episode=record.get("episode", record["dir"]),
+            views=views,
+            symbol=record.get("label"),
+            outcome=outcome,
+            source=directory,
+            fps=record.get("fps", manifest.get("fps")),
+            split=record.get("split"),
+            skipped=tuple(inside),
         )
+        if outcome is Outcome.FAILURE:  # manifests from before onsets have none: unknown
+            where = f"{root / PROJECT_MANIFEST} episode {record['dir']}"
+            onset = parse_onset_frame(record.get("onset_frame"), length=trajectory.length, where=where)
+            trajectory = replace(trajectory, onset_frame=onset)
+        found.append(trajectory)
     unlisted = [
         Skipped(p, f"not listed in {PROJECT_MANIFEST}")
         for p in sorted(root.iterdir())

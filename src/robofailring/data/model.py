@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
@@ -124,7 +125,9 @@ class Trajectory:
     """A replayable episode: task, label and per-view ordered frames.
 
     `symbol` is the FailGen failure symbol (e.g. ``rotation_x_wp1``) or None for a success or an
-    unlabelled trajectory; `outcome` is None when the source does not say.
+    unlabelled trajectory; `outcome` is None when the source does not say. `onset_frame` is where a
+    failure starts (the simulator's manifest, a labels file's `onset_frame`), None for a success
+    and when unknown: alarms before it came before there was anything to see.
     """
 
     task: str
@@ -138,6 +141,7 @@ class Trajectory:
     split: str | None = None
     skipped: tuple[Skipped, ...] = ()  # files of this episode that were not read, with the reason
     layout: str | None = None  # the dataset layout it was read from (set by `load_dataset`)
+    onset_frame: int | None = None  # a failure's first frame of the fault (its perturbation); None: unknown
 
     @property
     def key(self) -> str:
@@ -166,6 +170,34 @@ class Trajectory:
         return self.outcome.value if self.outcome is not None else "unlabelled"
 
 
+def parse_onset_frame(value: object, *, length: int | None, where: str) -> int | None:
+    """A failure's onset frame as a manifest or labels file gives it (an integer, `12`, or `"12"`; empty:
+    None), checked to be a frame of the trajectory's `length` (None: only ≥ 0): DataError naming `where`
+    and the value."""
+    if value is None or (isinstance(value, str) and not value.strip()):
+        return None
+    number: float | None = None
+    if isinstance(value, int | float) and not isinstance(value, bool):
+        number = float(value)
+    elif isinstance(value, str):
+        try:
+            number = float(value.strip())
+        except ValueError:
+            number = None
+    from robofailring.errors import DataError
+
+    if number is None or not math.isfinite(number) or not number.is_integer():
+        raise DataError(f"{where}: onset_frame {value!r} is not an integer frame number")
+    if number < 0:
+        raise DataError(f"{where}: onset_frame {value!r} is negative; frames count from 0")
+    if length is not None and number >= length:
+        raise DataError(
+            f"{where}: onset_frame {value!r} is not a frame of the trajectory (its {length} frames are 0 to "
+            f"{length - 1})"
+        )
+    return int(number)
+
+
 def frames_from_files(paths: Sequence[Path]) -> tuple[Frame, ...]:
     return tuple(Frame(path=Path(path)) for path in paths)
 
@@ -183,5 +215,6 @@ __all__ = [
     "Trajectory",
     "frames_from_files",
     "load_frames",
+    "parse_onset_frame",
     "read_image",
 ]

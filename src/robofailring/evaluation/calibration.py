@@ -15,7 +15,13 @@ from pathlib import Path
 
 from robofailring.data.layouts import load_dataset
 from robofailring.data.model import Skipped, Trajectory
-from robofailring.detection.conformal import check_target_fpr, conformal_threshold, empirical_fpr
+from robofailring.detection.conformal import (
+    FprSpread,
+    check_target_fpr,
+    conformal_threshold,
+    empirical_fpr,
+    fpr_spread,
+)
 from robofailring.detection.detector import FailureDetector, check_k, check_stride
 from robofailring.detection.loader import open_detector
 from robofailring.detection.rules import CONTRAST, NOVELTY, PAPER, PAPER_DELTA, ScoringRule, rules_for
@@ -33,6 +39,11 @@ class RuleCalibration:
     target_fpr: float
     achieved_fpr: float  # share of the calibration runs that reach the threshold (≤ α by construction)
     successes: int
+
+    @property
+    def spread(self) -> FprSpread:
+        """How far the test FPR of this threshold can stray from α with these `successes` runs."""
+        return fpr_spread(self.successes, self.target_fpr)
 
 
 def available_rules(detector: FailureDetector) -> list[ScoringRule]:
@@ -139,6 +150,7 @@ class Calibration:
     skipped_too_short: list[str] = field(default_factory=list)  # success runs with no view of 2+ frames
     eta: float | None = None  # the novelty rule's η, when the memory has success runs
     eta_achieved_fpr: float | None = None
+    fpr_spread: FprSpread | None = None  # the realised test FPR's range with these `successes` runs
 
     def to_text(self, memory: Path) -> str:
         """The summary `robofailring calibrate` prints: δ, γ and η, those the memory supports."""
@@ -156,6 +168,8 @@ class Calibration:
                 lines.append(
                     f"{rule.symbol} = {threshold:.6f} ({rule.name} rule): FPR {100 * achieved:.1f} % on those runs{note}"
                 )
+        if self.fpr_spread is not None:
+            lines.append(f"the promise holds on average: {self.fpr_spread.to_text()}")
         text = "\n".join(lines)
         if self.skipped_too_short:
             text += f"\nskipped: {len(self.skipped_too_short)} success run(s) with no view of 2+ frames (nothing to score)"
@@ -205,6 +219,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
             too_short=too_short,
         )
     paper, contrast, novelty = found.get(PAPER), found.get(CONTRAST), found.get(NOVELTY)
+    widest = max(found.values(), key=lambda calibration: calibration.successes)
     calibrated = memory.with_calibration(
         StoredCalibration(
             encoder=memory.encoder,
@@ -216,7 +231,8 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
             achieved_fpr=paper.achieved_fpr if paper is not None else None,
             gamma_achieved_fpr=contrast.achieved_fpr if contrast is not None else None,
             eta_achieved_fpr=novelty.achieved_fpr if novelty is not None else None,
-            successes=max(calibration.successes for calibration in found.values()),
+            successes=widest.successes,
+            fpr_spread=widest.spread.to_dict(),
             data=str(Path(config.data).resolve()),
             split=config.split,
             k=config.k,
@@ -238,4 +254,5 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
         skipped_too_short=too_short,
         eta=stored.eta,
         eta_achieved_fpr=stored.eta_achieved_fpr,
+        fpr_spread=widest.spread,
     )

@@ -24,6 +24,8 @@ class ScoredTrajectory:
     is_failure: bool
     length: int
     similarity: dict[str, np.ndarray]  # the score per view: S_t, or the contrast rule's C_t (rule_evaluation)
+    onset_frame: int | None = None  # where the failure starts (Trajectory.onset_frame), None: unknown
+    fps: float | None = None  # the data's frame rate, for delays in seconds
 
     @property
     def view_scores(self) -> ViewScores:

@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
-from robofailring.detection.conformal import auc
+from robofailring.detection.conformal import FprSpread, auc
 from robofailring.detection.detector import DetectionTrace
 from robofailring.detection.rules import ScoringRule
 from robofailring.evaluation.metrics import ScoredTrajectory, json_number, rates, timeliness
+from robofailring.evaluation.onset import ONSET_HEADER, OnsetDelay, onset_delay
 
 
 @dataclass(frozen=True)
@@ -30,6 +31,8 @@ class RuleResult:
     frame0_success_alarms: int  # success runs whose alarm is at frame 0
     false_alarms: tuple[str, ...] = ()  # keys of the success runs that fired
     misses: tuple[str, ...] = ()  # keys of the failures that did not
+    spread: FprSpread | None = None  # calibrated here: how far its test FPR can stray from α
+    onset: OnsetDelay | None = None  # alarms against the failures' known onsets
 
     @property
     def recall(self) -> float:
@@ -57,6 +60,8 @@ class RuleResult:
             "frame0_success_alarms": self.frame0_success_alarms,
             "false_alarms": list(self.false_alarms),
             "misses": list(self.misses),
+            "fpr_spread": self.spread.to_dict() if self.spread is not None else None,
+            "onset": self.onset.to_dict() if self.onset is not None else None,
         }
 
     def markdown_row(self, target_fpr: float | None) -> str:
@@ -81,21 +86,17 @@ def scored_by_rule(
     scored = []
     for key, base in labels.items():
         trace = traces[key].with_rule(rule, traces[key].threshold)
-        scored.append(
-            ScoredTrajectory(
-                key=base.key,
-                task=base.task,
-                symbol=base.symbol,
-                is_failure=base.is_failure,
-                length=base.length,
-                similarity=trace.scores,
-            )
-        )
+        scored.append(replace(base, similarity=dict(trace.scores)))
     return scored
 
 
 def evaluate_rule(
-    scored: Sequence[ScoredTrajectory], rule: ScoringRule, threshold: float, *, calibrated: bool
+    scored: Sequence[ScoredTrajectory],
+    rule: ScoringRule,
+    threshold: float,
+    *,
+    calibrated: bool,
+    spread: FprSpread | None = None,
 ) -> RuleResult:
     """Counts, T_s and AUC of one rule at `threshold` on trajectories scored by that rule."""
     at = rates(scored, threshold)
@@ -116,7 +117,44 @@ def evaluate_rule(
         frame0_success_alarms=sum(1 for t in scored if not t.is_failure and t.t_det(threshold) == 0),
         false_alarms=tuple(t.key for t in scored if not t.is_failure and t.t_det(threshold) is not None),
         misses=tuple(t.key for t in scored if t.is_failure and t.t_det(threshold) is None),
+        spread=spread,
+        onset=onset_delay(scored, threshold),
     )
+
+
+def onset_markdown(results: Sequence[RuleResult]) -> list[str]:
+    """Each rule's alarms against the failures' onsets, or a line saying no onset is known."""
+    onsets = [(result, result.onset) for result in results if result.onset is not None]
+    if not onsets:
+        return []
+    if not any(onset.known for _, onset in onsets):
+        return [
+            "",
+            "No failure run has a known onset (`onset_frame`): detection delay and premature alarms not measured.",
+        ]
+    return [
+        "",
+        "Alarms against the failure's onset (its first frame of the fault; delays over the alarms at or after it):",
+        "",
+        ONSET_HEADER,
+        *(f"| {result.rule.name} {onset.markdown_cells()}" for result, onset in onsets),
+    ]
+
+
+def spread_markdown(results: Sequence[RuleResult]) -> list[str]:
+    """The FPR promise beside α: one line per number of calibration runs the rules were set from."""
+    spreads = {result.spread.successes: result.spread for result in results if result.spread is not None}
+    if not spreads:
+        return []
+    rules = {
+        n: ", ".join(r.rule.name for r in results if r.spread and r.spread.successes == n) for n in spreads
+    }
+    return [
+        "",
+        "The target FPR holds on average over calibration sets; one calibration set can miss it:",
+        "",
+        *(f"- {rules[n]}: {spread.to_text()}." for n, spread in sorted(spreads.items())),
+    ]
 
 
 def _pct(value: float) -> str:

@@ -25,7 +25,13 @@ from robofailring.evaluation.metrics import (
     sweep,
     timeliness,
 )
-from robofailring.evaluation.per_rule import MARKDOWN_HEADER, RuleResult, scored_by_rule
+from robofailring.evaluation.per_rule import (
+    MARKDOWN_HEADER,
+    RuleResult,
+    onset_markdown,
+    scored_by_rule,
+    spread_markdown,
+)
 
 
 @dataclass
@@ -317,6 +323,8 @@ class EvaluationResult:
             "",
             MARKDOWN_HEADER,
             *(result.markdown_row(self.target_fpr) for result in self.rules.values()),
+            *spread_markdown(list(self.rules.values())),
+            *onset_markdown(list(self.rules.values())),
             "",
             "The tables below are the paper rule (S_t ≥ δ).",
             "",

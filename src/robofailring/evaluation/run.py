@@ -16,7 +16,7 @@ from robofailring.data.layouts import Dataset, load_dataset
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.data.splits import split_of
 from robofailring.data.vocabulary import read_vocabulary
-from robofailring.detection.conformal import check_target_fpr
+from robofailring.detection.conformal import FprSpread, check_target_fpr
 from robofailring.detection.detector import (
     DetectionTrace,
     FailureDetector,
@@ -232,7 +232,7 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
     check_disjoint(memory, test)
     memory, test = _deploy_successes(memory, test, config.deployment_successes, encoder, config.success_step)
     detector = FailureDetector(memory, encoder, k=config.k)
-    thresholds, calibrated = _thresholds(config, detector, train)
+    thresholds, calibrated, spreads = _thresholds(config, detector, train)
     operating = thresholds.get(PAPER, PAPER.default_threshold)  # no failure runs: the paper tables are empty
     known = set(memory.tasks)
     scored: list[ScoredTrajectory] = []
@@ -259,6 +259,8 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
                     is_failure=trajectory.is_failure,
                     length=trace.length,
                     similarity=trace.similarity,
+                    onset_frame=trajectory.onset_frame,
+                    fps=trajectory.fps,
                 )
             )
     if not scored:
@@ -277,7 +279,11 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
     labels = {t.key: t for t in scored}
     rules = {
         rule.name: evaluate_rule(
-            scored_by_rule(traces, labels, rule), rule, threshold, calibrated=calibrated[rule]
+            scored_by_rule(traces, labels, rule),
+            rule,
+            threshold,
+            calibrated=calibrated[rule],
+            spread=spreads.get(rule),
         )
         for rule, threshold in thresholds.items()
     }
@@ -359,14 +365,15 @@ def _deploy_successes(
 
 def _thresholds(
     config: EvaluateConfig, detector: FailureDetector, train: Sequence[Trajectory]
-) -> tuple[dict[ScoringRule, float], dict[ScoringRule, bool]]:
-    """Each rule's threshold: conformal on the training successes, or the memory's stored/default one."""
+) -> tuple[dict[ScoringRule, float], dict[ScoringRule, bool], dict[ScoringRule, FprSpread]]:
+    """Each rule's threshold: conformal on the training successes, or the memory's stored/default one;
+    and, when calibrated here, how far its test FPR can stray with the runs it was set from."""
     from robofailring.evaluation.calibration import available_rules, calibrate_rules
 
     rules = available_rules(detector)
     if config.target_fpr is None:
         stored = {r: stored_threshold(detector.memory, r) for r in rules}
-        return {r: detector.threshold_of(r) for r in rules}, {r: stored[r] is not None for r in rules}
+        return {r: detector.threshold_of(r) for r in rules}, {r: stored[r] is not None for r in rules}, {}
     known = set(detector.memory.tasks)
     successes = [t for t in train if not t.is_failure and t.task in known]
     if not successes:
@@ -379,7 +386,11 @@ def _thresholds(
         found = calibrate_rules(
             detector, successes, config.target_fpr, rules=rules, progress=bar.update, stride=config.stride
         )
-    return {r: c.threshold for r, c in found.items()}, {r: True for r in found}
+    return (
+        {r: c.threshold for r, c in found.items()},
+        {r: True for r in found},
+        {r: c.spread for r, c in found.items()},
+    )
 
 
 def write_evaluation(result: EvaluationResult, out: Path) -> tuple[Path, Path]:

@@ -78,6 +78,7 @@ _KINDS: Final[dict[str, Any]] = {
     "gamma_achieved_fpr": _number,
     "eta": _number,
     "eta_achieved_fpr": _number,
+    "fpr_spread": lambda v: isinstance(v, dict),
     "data": lambda v: isinstance(v, str),
     "k": _whole,
     "stride": _whole,
@@ -103,6 +104,8 @@ class StoredCalibration:
     gamma_achieved_fpr: float | None = None
     eta_achieved_fpr: float | None = None
     successes: int | None = None  # success runs calibrated on
+    # the realised test FPR's 5–95 % range with those runs (detection.conformal.FprSpread.to_dict)
+    fpr_spread: dict[str, Any] | None = None
     data: str | None = None
     split: str | None = None
     k: int | None = None

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 from types import TracebackType
@@ -12,7 +13,7 @@ import numpy as np
 from robofailring.sim.appearance import make_look
 from robofailring.sim.cameras import CameraRig
 from robofailring.sim.controller import Controller
-from robofailring.sim.perturb import SUCCESS, Perturbation, apply, choose, resolve_mode
+from robofailring.sim.perturb import SUCCESS, Perturbation, apply, choose, onset_time, resolve_mode
 from robofailring.sim.robot import Panda
 from robofailring.sim.scene import PHYSICS_HZ, add_table, connect
 from robofailring.sim.tasks import TASK_CLASSES, TASKS, GoalCheck
@@ -31,6 +32,9 @@ class EpisodeResult:
     goal: GoalCheck
     frames: int
     stopped_early: bool
+    #: The first rendered frame after the perturbation begins to act (None: no perturbation, or
+    #: it begins after the last rendered frame).
+    perturbation_frame: int | None = None
 
     @property
     def outcome(self) -> Literal["success", "failure"]:
@@ -44,6 +48,11 @@ class EpisodeResult:
             return None
         return self.perturbation.symbol
 
+    @property
+    def onset_frame(self) -> int | None:
+        """Where the failure starts: the perturbation's first frame, for a failure only."""
+        return self.perturbation_frame if self.label is not None else None
+
 
 def frame_steps(frames: int) -> list[int]:
     """Physics-step indices of the rendered frames: the first at t = 0, the last at DURATION_S."""
@@ -51,6 +60,17 @@ def frame_steps(frames: int) -> list[int]:
     if frames < 2:
         raise ValueError(f"an episode needs at least 2 frames, got {frames}")
     return [round(i * total / (frames - 1)) for i in range(frames)]
+
+
+def frame_after(steps: list[int], seconds: float | None) -> int | None:
+    """The first rendered frame whose physics step comes after the moment `seconds` (None: none does).
+
+    A frame at step s shows the scene after s physics steps; what is commanded at step e acts in
+    step e and is seen from the first frame whose step is past e."""
+    if seconds is None:
+        return None
+    commanded = math.floor(seconds * PHYSICS_HZ + 1e-9)
+    return next((index for index, step in enumerate(steps) if step > commanded), None)
 
 
 def episode_fps(frames: int) -> float:
@@ -96,6 +116,9 @@ class EpisodeRun:
             self._layout = self._task.build(self._client, look, rng)
             obj = "distractor" if self.mode == "wrong_object" else "target"
             plan = apply(self._task.plan(self._layout, obj=obj), self.perturbation)
+            self.perturbation_frame = frame_after(
+                self._steps, onset_time(self._task.plan(self._layout), plan)
+            )
             self._controller = Controller(
                 self._client, self._robot, plan, graspable=self._layout.cubes, half_size=self._layout.size / 2
             )
@@ -154,6 +177,11 @@ class EpisodeRun:
             goal=goal,
             frames=self._rendered,
             stopped_early=self._rendered < len(self._steps),
+            perturbation_frame=(
+                self.perturbation_frame
+                if self.perturbation_frame is not None and self.perturbation_frame < self._rendered
+                else None
+            ),
         )
 
     def run_to_end(self) -> EpisodeResult:

@@ -168,6 +168,26 @@ def apply(plan: Plan, perturbation: Perturbation | None) -> Plan:
     return tuple(frames)
 
 
+def onset_time(nominal: Plan, perturbed: Plan) -> float | None:
+    """When (s) the perturbed plan first commands something the nominal one does not, None if never.
+
+    At the first keyframe that differs: a changed pose or timing deviates as its motion starts, a
+    slip when the grasp opens, a skipped gripper action when the keyframe is reached. Every
+    perturbation keeps the slots' durations, so both plans share their timeline up to there."""
+    start = 0.0
+    for before, after in zip(nominal, perturbed, strict=True):
+        if before != after:
+            pose_or_timing = replace(after, action=before.action, release_at=before.release_at) != before
+            moments = [start] if pose_or_timing else []
+            if after.release_at != before.release_at:
+                moments.append(start + (after.release_at or before.release_at or 0.0) * before.duration)
+            if after.action != before.action:
+                moments.append(start + before.duration)
+            return min(moments)
+        start += before.duration + before.hold
+    return None
+
+
 def _turn_about_wrist(keyframe: Keyframe, turn: Quat) -> Keyframe:
     """The keyframe's hand turned by the world-frame rotation `turn` about the wrist flange.
 

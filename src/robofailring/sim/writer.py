@@ -25,7 +25,7 @@ from robofailring.sim.tasks import TASKS
 FORMAT_VERSION: Final[int] = 1
 GENERATOR: Final[str] = "robofailring.sim"
 #: Bumped whenever the simulator's output changes for the same config (invalidates caches).
-SIM_VERSION: Final[int] = 2  # 2: the arm drawn with low-poly meshes (robot.LOW_POLY_LINKS)
+SIM_VERSION: Final[int] = 3  # 2: the arm drawn with low-poly meshes (robot.LOW_POLY_LINKS); 3: onset_frame
 _SUCCESS_RETRIES: Final[int] = 3
 
 
@@ -188,6 +188,7 @@ def _run_job(job: _Job) -> dict[str, Any]:
         "outcome": result.outcome,
         "views": list(VIEWS),
         "frames": result.frames,
+        "onset_frame": result.onset_frame,  # the frame the failure's perturbation starts at (null: success)
         "fps": episode_fps(job.frames),
         "seed": seed,
         "retries": retries,
