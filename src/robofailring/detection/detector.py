@@ -50,7 +50,9 @@ def check_k(k: int) -> int:
 def check_stride(stride: int) -> int:
     """The scoring stride: a whole number, at least 1 (SettingError otherwise)."""
     if not _whole_number(stride) or stride < 1:
-        raise SettingError(f"stride must be a whole number of at least 1 (1 scores every frame), got {stride}")
+        raise SettingError(
+            f"stride must be a whole number of at least 1 (1 scores every frame), got {stride}"
+        )
     return stride
 
 
