@@ -65,3 +65,12 @@ def test_the_check_finds_private_uses() -> None:
         "robofailring.atomic",
         "robofailring.evaluation",
     ]
+
+
+def test_the_notebook_is_stored_without_outputs() -> None:
+    """A run's outputs (widget state, paths of the machine it ran on) stay out of the repository."""
+    notebook = json.loads((EXAMPLES / "notebook.ipynb").read_text())
+    code = [cell for cell in notebook["cells"] if cell["cell_type"] == "code"]
+    assert code and all(cell["outputs"] == [] and cell["execution_count"] is None for cell in code)
+    assert "widgets" not in notebook["metadata"]
+    assert notebook["metadata"]["kernelspec"]["name"] == "python3"
