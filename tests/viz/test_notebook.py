@@ -7,6 +7,8 @@ with RrdReader, blueprint store and all.
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -131,3 +133,16 @@ def test_wrong_inputs_are_the_projects_errors(
     (tmp_path / "notes.rrd").write_text("not a recording")
     with pytest.raises(DataError, match="is not a Rerun recording"):
         show(tmp_path / "notes.rrd", display=False)
+
+
+def test_without_rerun_notebook_show_names_the_notebook_extra() -> None:
+    probe = (
+        "import sys; sys.modules['rerun_notebook'] = None\n"
+        "import rfr_viz\n"
+        "try:\n    rfr_viz.show\nexcept ImportError as error:\n    print(type(error).__name__, error.extra, error)\n"
+    )
+    printed = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, check=True, timeout=120
+    )
+    assert printed.stdout.startswith("MissingExtraError notebook rerun-notebook is not installed"), printed
+    assert 'pip install "robofailring[notebook]"' in printed.stdout
