@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from robofailring.evaluation.comparison import CompareEncodersConfig, compare_encoders, comparison_table
+from robofailring import CompareEncodersConfig, compare_encoders, comparison_table
 
 
 def main() -> None:

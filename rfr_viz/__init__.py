@@ -4,7 +4,8 @@ Every name is imported on first use: `import rfr_viz` (and the `robofailring` co
 no Rerun, so the core install runs without the `viz` extra, and a name that needs it says so
 (`robofailring.errors.MissingExtraError`). The closed-loop simulator run is recorded by
 `run_closed_loop` (it also loads pybullet). `LiveRecording` is the step API's sink that streams a live
-session to a viewer (`rfr_viz.recordings.live`).
+session to a viewer (`rfr_viz.recordings.live`). In a notebook, `show(path or trace)` displays a recording
+inline with its own blueprint (`rfr_viz.recordings.notebook`, the `notebook` extra).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ if TYPE_CHECKING:
     from rfr_viz.recordings.closed_loop import ClosedLoopResult, run_closed_loop
     from rfr_viz.recordings.evaluation import record_evaluation
     from rfr_viz.recordings.live import LiveRecording, LiveTarget
+    from rfr_viz.recordings.notebook import InlineRecording, show
     from rfr_viz.recordings.replay import compare_recording, record_replay
     from rfr_viz.viewer.control import Screenshot, ViewerUnavailable, open_command, render_screenshot
 
@@ -31,6 +33,7 @@ _LAZY = {  # name -> the module it is imported from on first use
     "ClosedLoopResult": "rfr_viz.recordings.closed_loop",
     "CompareConfig": "rfr_viz.jobs.replay",
     "DetectorPaths": "rfr_viz.paths",
+    "InlineRecording": "rfr_viz.recordings.notebook",
     "LiveRecording": "rfr_viz.recordings.live",
     "LiveTarget": "rfr_viz.recordings.live",
     "MemoryMap": "rfr_viz.panels.umap",
@@ -52,6 +55,7 @@ _LAZY = {  # name -> the module it is imported from on first use
     "replay_blueprint": "rfr_viz.recordings.blueprint",
     "review": "rfr_viz.jobs.review",
     "run_closed_loop": "rfr_viz.recordings.closed_loop",
+    "show": "rfr_viz.recordings.notebook",
 }
 
 
@@ -70,6 +74,7 @@ __all__ = [  # every name of _LAZY
     "ClosedLoopResult",
     "CompareConfig",
     "DetectorPaths",
+    "InlineRecording",
     "LiveRecording",
     "LiveTarget",
     "MemoryMap",
@@ -91,4 +96,5 @@ __all__ = [  # every name of _LAZY
     "replay_blueprint",
     "review",
     "run_closed_loop",
+    "show",
 ]

@@ -79,3 +79,16 @@ def properties(path: Path, group: str = "robofailring") -> dict[str, Any]:
     for batch in batches(path, f"/__properties/{group}"):
         return {k: v[0][0] for k, v in batch.to_pydict().items() if k != "rerun.controls.RowId"}
     raise AssertionError(f"no property group {group}")
+
+
+def blueprint_names(path: Path) -> list[str]:
+    """The display names of the views and containers in the recording's saved blueprint, sorted."""
+    read = reader(path)
+    names = []
+    for store in read.blueprints():
+        for chunk in read.stream(store=store).to_chunks():
+            batch = chunk.to_record_batch()
+            for column in batch.schema.names:
+                if column.endswith("Blueprint:display_name"):
+                    names += [value[0] for value in batch.column(column).to_pylist() if value]
+    return sorted(names)
