@@ -6,13 +6,15 @@ task) is built once; then `robofailring detect` and `robofailring replay` (to a 
 fresh process per file and report their peak RSS (`resource.getrusage(RUSAGE_SELF).ru_maxrss`).
 Frames are rows sliced on demand and scored in chunks (`FailureDetector.run`), and the replay keeps
 each query as its map point, not its vector, so the figures should differ by little more than the
-per-frame scores. Run:
+per-frame scores. `--codec` is the replay's `--camera-codec` (default auto: AV1 at these sizes), `--lengths`
+the demo lengths. Run:
 
-    PYTHONPATH=src:. python bench/bench_hdf5_memory.py
+    PYTHONPATH=src:. python bench/bench_hdf5_memory.py [--codec jpeg] [--lengths 500 2000 4000]
 """
 
 from __future__ import annotations
 
+import argparse
 import itertools
 import json
 import subprocess
@@ -84,6 +86,11 @@ def run(arguments: list[str], script: str = MEASURE) -> int:
 
 
 def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
+    parser.add_argument("--lengths", type=int, nargs="+", default=list(LENGTHS), help="frames per demo")
+    parser.add_argument("--codec", default="auto", help="the replay's --camera-codec (jpeg, av1, h264, auto)")
+    options = parser.parse_args()
+    lengths: list[int] = options.lengths
     with tempfile.TemporaryDirectory() as folder:
         tmp = Path(folder)
         source = write(tmp / "memory.hdf5", demos=2, length=20)
@@ -96,19 +103,20 @@ def main() -> None:
             check=True, capture_output=True,
         )  # fmt: skip
         # fits the memory's map once (cached beside it) and fills the embedding cache, as a user's first replay would
-        run(["replay", str(source), "--memory", str(memory), "--out", str(tmp / "warm"), *cache])
+        codec = ["--camera-codec", options.codec]
+        run(["replay", str(source), "--memory", str(memory), "--out", str(tmp / "warm"), *cache, *codec])
         peaks: dict[str, dict[int, int]] = {"read": {}, "detect": {}, "replay": {}}
-        for length in LENGTHS:
+        for length in lengths:
             path = write(tmp / f"demo_{length}.hdf5", demos=1, length=length)
             size = path.stat().st_size / 1e6
             raw = 3 * length * SIZE * SIZE * 3 / 1e6
             peaks["read"][length] = run([str(path)], READ)
             target = [str(path), "--memory", str(memory), "--trajectory", "demo_0", *cache]
             peaks["detect"][length] = run(["detect", *target])
-            peaks["replay"][length] = run(["replay", *target, "--out", str(tmp / f"rec_{length}")])
+            peaks["replay"][length] = run(["replay", *target, "--out", str(tmp / f"rec_{length}"), *codec])
             print(f"{length:>5} frames × 3 cameras: file {size:6.1f} MB (raw pixels {raw:6.1f} MB), peak RSS: "
                   + ", ".join(f"{job} {peaks[job][length] / 1024:6.1f} MiB" for job in peaks))  # fmt: skip
-        for short, long in itertools.pairwise(LENGTHS):
+        for short, long in itertools.pairwise(lengths):
             print(f"growth {short} → {long} frames: "
                   + ", ".join(f"{job} {(peaks[job][long] - peaks[job][short]) / 1024:+.1f} MiB" for job in peaks))  # fmt: skip
 

@@ -6,7 +6,7 @@ import numpy as np
 
 from rfr_viz.panels.images import JPEG_MEDIA_TYPE, reference_jpeg
 from rfr_viz.panels.neighbors import changes
-from rfr_viz.panels.scores import set_frame_time, time_columns
+from rfr_viz.panels.scores import ROW_BATCH, set_time_columns, time_columns
 from rfr_viz.paths import DetectorPaths
 from rfr_viz.styles import ETA_COLOUR, GAMMA_COLOUR
 from robofailring.detection.detector import DetectionTrace
@@ -156,14 +156,70 @@ def _log_nearest_success(
     rec: rr.RecordingStream, trace: DetectionTrace, paths: DetectorPaths, fps: float
 ) -> None:
     """The nearest success frame per view, its picture re-logged only where it changes (text every
-    scored frame; with a stride, unscored frames have none)."""
+    scored frame; with a stride, unscored frames have none): the rows `log_nearest_success` logs one
+    frame at a time, sent as columns ROW_BATCH frames at a time and flushed, so a long episode holds
+    no more pending rows than a short one."""
     cache: dict[str, bytes | None] = {}
     scored = trace.scored_frames
     for view in trace.views:
         ids = trace.success_ids[view][scored]
         changed = {int(scored[step]) for _, step, _ in changes(ids[:, None])}
-        for t in scored:
-            t = int(t)
-            set_frame_time(rec, t, fps)
-            match = trace.nearest_success(view, t)
-            log_nearest_success(rec, paths, view, match, t=t, images=cache, image=t in changed)
+        for start in range(0, len(scored), ROW_BATCH):
+            frames = [int(t) for t in scored[start : start + ROW_BATCH]]
+            matches = [(t, trace.nearest_success(view, t)) for t in frames]
+            _send_nearest_success(rec, paths, view, matches, changed=changed, images=cache, fps=fps)
+            rec.flush()
+
+
+def _send_nearest_success(
+    rec: rr.RecordingStream,
+    paths: DetectorPaths,
+    view: str,
+    matches: list[tuple[int, SuccessMatch | None]],
+    *,
+    changed: set[int],
+    images: dict[str, bytes | None],
+    fps: float,
+) -> None:
+    """One batch of `log_nearest_success`'s rows as columns: a Clear where there is no match (or its
+    picture is missing), the picture where it changed, the text wherever there is a match."""
+    cleared: list[int] = []
+    pictured: list[tuple[int, bytes]] = []
+    texts: list[tuple[int, str]] = []
+    for t, match in matches:
+        if match is None:
+            cleared.append(t)
+            continue
+        if t in changed:
+            jpeg = images.setdefault(match.image, reference_jpeg(match.image))
+            if jpeg is None:
+                cleared.append(t)
+            else:
+                pictured.append((t, jpeg))
+        text = success_info(match, t)
+        if images.get(match.image, b"") is None:
+            text += f"  \n**image not found:** `{match.image}`"
+        texts.append((t, text))
+    at = lambda frames: set_time_columns(np.asarray(frames, dtype=np.int64), fps)  # noqa: E731
+    if cleared:
+        rec.send_columns(
+            paths.nearest_success(view),
+            indexes=at(cleared),
+            columns=rr.Clear.columns(is_recursive=[False] * len(cleared)),
+        )
+    if pictured:
+        rec.send_columns(
+            paths.nearest_success(view),
+            indexes=at([t for t, _ in pictured]),
+            columns=rr.EncodedImage.columns(
+                blob=[jpeg for _, jpeg in pictured], media_type=[JPEG_MEDIA_TYPE] * len(pictured)
+            ),
+        )
+    if texts:
+        rec.send_columns(
+            paths.nearest_success_info(view),
+            indexes=at([t for t, _ in texts]),
+            columns=rr.TextDocument.columns(
+                text=[text for _, text in texts], media_type=[rr.MediaType.MARKDOWN.value] * len(texts)
+            ),
+        )

@@ -53,6 +53,9 @@ class Cell:
 
 
 DEFAULT_CELL: Final[Cell] = Cell(256, 256)
+CHANGE_BATCH: Final[int] = 64
+"""Neighbour changes logged between two flushes (each 3 rows: start and end JPEGs, info): a neighbour can
+change at every frame, and rows left pending cost Rerun ~3.5 KB each (bench/bench_hdf5_memory.py)."""
 
 
 class NeighborImages:
@@ -172,7 +175,9 @@ def log_neighbors(
         ids = trace.neighbor_ids[view]
         log_neighbor_layout(rec, paths, view, k=ids.shape[1], cell=cell)
         scored = trace.scored_frames  # with a stride, neighbours exist only at scored frames
-        for rank, step, index in changes(ids[scored]):
+        for count, (rank, step, index) in enumerate(changes(ids[scored]), start=1):
+            if count % CHANGE_BATCH == 0:
+                rec.flush()
             t = int(scored[step])
             rec.set_time(FRAME, sequence=t)
             rec.set_time(TIME, duration=t / fps)

@@ -5,6 +5,7 @@ A task without failure entries has no S⁻_t: only State_t is logged here (N_t a
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Final
 
 import numpy as np
 
@@ -18,12 +19,24 @@ with needs_extra("viz"):
     import rerun as rr
 
 
+ROW_BATCH: Final[int] = 256
+"""Per-frame rows of a replay sent (or logged) between two flushes: what Rerun holds pending for an entity,
+and the backlog a slow sink can build, stay this size however long the episode (bench/bench_hdf5_memory.py)."""
+
+
 def time_columns(frames: np.ndarray, fps: float) -> list[rr.TimeColumn]:
     """The two timelines of a batch of frames: "frame" (sequence) and "time" (seconds)."""
     return [
         rr.TimeColumn(FRAME, sequence=frames),
         rr.TimeColumn(TIME, duration=frames.astype(np.float64) / fps),
     ]
+
+
+def set_time_columns(frames: np.ndarray, fps: float) -> list[rr.TimeColumn]:
+    """The time columns of rows that `set_frame_time` would stamp one at a time: "time" rounded to the
+    nanosecond as `rr.set_time` rounds it (`time_columns` truncates, so a frame can sit 1 ns earlier)."""
+    nanos = np.round(1e9 * (frames.astype(np.float64) / fps)).astype("timedelta64[ns]")
+    return [rr.TimeColumn(FRAME, sequence=frames), rr.TimeColumn(TIME, duration=nanos)]
 
 
 def set_frame_time(rec: rr.RecordingStream, t: int, fps: float) -> None:
