@@ -11,6 +11,17 @@ import numpy as np
 
 from robofailring.detection.view_scores import ViewScores
 
+
+def mean_or_nan(values: Sequence[float]) -> float:
+    """The mean of `values`, NaN when there are none (a table shows it as —)."""
+    return float(np.mean(values)) if len(values) else float("nan")
+
+
+def median_or_nan(values: Sequence[float]) -> float:
+    """The median of `values`, NaN when there are none."""
+    return float(np.median(values)) if len(values) else float("nan")
+
+
 PAPER_DELTAS: Final[tuple[float, ...]] = (0.85, 0.90, 0.92, 0.95)
 
 
@@ -102,11 +113,11 @@ class Timeliness:
 
     @property
     def mean_progress(self) -> float:
-        return float(np.mean(self.progress)) if self.progress else float("nan")
+        return mean_or_nan(self.progress)
 
     @property
     def median_progress(self) -> float:
-        return float(np.median(self.progress)) if self.progress else float("nan")
+        return median_or_nan(self.progress)
 
     @property
     def mean_saving(self) -> float:

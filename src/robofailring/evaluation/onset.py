@@ -13,9 +13,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
-
-from robofailring.evaluation.metrics import ScoredTrajectory, json_number
+from robofailring.evaluation.metrics import ScoredTrajectory, json_number, mean_or_nan, median_or_nan
 
 
 @dataclass(frozen=True)
@@ -35,19 +33,19 @@ class OnsetDelay:
 
     @property
     def mean_frames(self) -> float:
-        return float(np.mean(self.delays)) if self.delays else float("nan")
+        return mean_or_nan(self.delays)
 
     @property
     def median_frames(self) -> float:
-        return float(np.median(self.delays)) if self.delays else float("nan")
+        return median_or_nan(self.delays)
 
     @property
     def mean_seconds(self) -> float:
-        return float(np.mean(self.delay_seconds)) if self.delay_seconds else float("nan")
+        return mean_or_nan(self.delay_seconds or ())
 
     @property
     def median_seconds(self) -> float:
-        return float(np.median(self.delay_seconds)) if self.delay_seconds else float("nan")
+        return median_or_nan(self.delay_seconds or ())
 
     def to_dict(self) -> dict[str, Any]:
         return {
