@@ -6,7 +6,7 @@ import numpy as np
 
 from rfr_viz.panels.images import JPEG_MEDIA_TYPE, reference_jpeg
 from rfr_viz.panels.neighbors import changes
-from rfr_viz.panels.scores import ROW_BATCH, set_time_columns, time_columns
+from rfr_viz.panels.scores import ROW_BATCH, time_columns
 from rfr_viz.paths import DetectorPaths
 from rfr_viz.styles import ETA_COLOUR, GAMMA_COLOUR
 from robofailring.detection.detector import DetectionTrace
@@ -200,7 +200,7 @@ def _send_nearest_success(
         if images.get(match.image, b"") is None:
             text += f"  \n**image not found:** `{match.image}`"
         texts.append((t, text))
-    at = lambda frames: set_time_columns(np.asarray(frames, dtype=np.int64), fps)  # noqa: E731
+    at = lambda frames: time_columns(np.asarray(frames, dtype=np.int64), fps)  # noqa: E731
     if cleared:
         rec.send_columns(
             paths.nearest_success(view),

@@ -25,16 +25,8 @@ and the backlog a slow sink can build, stay this size however long the episode (
 
 
 def time_columns(frames: np.ndarray, fps: float) -> list[rr.TimeColumn]:
-    """The two timelines of a batch of frames: "frame" (sequence) and "time" (seconds)."""
-    return [
-        rr.TimeColumn(FRAME, sequence=frames),
-        rr.TimeColumn(TIME, duration=frames.astype(np.float64) / fps),
-    ]
-
-
-def set_time_columns(frames: np.ndarray, fps: float) -> list[rr.TimeColumn]:
-    """The time columns of rows that `set_frame_time` would stamp one at a time: "time" rounded to the
-    nanosecond as `rr.set_time` rounds it (`time_columns` truncates, so a frame can sit 1 ns earlier)."""
+    """The two timelines of a batch of frames: "frame" (sequence) and "time", t / fps rounded to the
+    nanosecond as `rr.set_time` rounds it, so columns and rows logged one at a time share their instants."""
     nanos = np.round(1e9 * (frames.astype(np.float64) / fps)).astype("timedelta64[ns]")
     return [rr.TimeColumn(FRAME, sequence=frames), rr.TimeColumn(TIME, duration=nanos)]
 
