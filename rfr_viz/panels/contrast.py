@@ -93,15 +93,28 @@ def log_nearest_success(
         rec.log(paths.nearest_success(view), rr.Clear(recursive=False))
         return
     if image:
-        jpeg = images.setdefault(match.image, reference_jpeg(match.image))
+        jpeg = _success_jpeg(match, images)
         if jpeg is None:
             rec.log(paths.nearest_success(view), rr.Clear(recursive=False))
         else:
             rec.log(paths.nearest_success(view), rr.EncodedImage(contents=jpeg, media_type=JPEG_MEDIA_TYPE))
+    text = _success_text(match, t, images)
+    rec.log(paths.nearest_success_info(view), rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN))
+
+
+def _success_jpeg(match: SuccessMatch, images: dict[str, bytes | None]) -> bytes | None:
+    """The match's picture as JPEG, read and encoded once per recording (None: the file is missing)."""
+    if match.image not in images:
+        images[match.image] = reference_jpeg(match.image)
+    return images[match.image]
+
+
+def _success_text(match: SuccessMatch, t: int, images: dict[str, bytes | None]) -> str:
+    """The info text, naming the picture when it was looked for and is missing."""
     text = success_info(match, t)
     if images.get(match.image, b"") is None:
         text += f"  \n**image not found:** `{match.image}`"
-    rec.log(paths.nearest_success_info(view), rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN))
+    return text
 
 
 def success_info(match: SuccessMatch, t: int) -> str:
@@ -191,15 +204,12 @@ def _send_nearest_success(
             cleared.append(t)
             continue
         if t in changed:
-            jpeg = images.setdefault(match.image, reference_jpeg(match.image))
+            jpeg = _success_jpeg(match, images)
             if jpeg is None:
                 cleared.append(t)
             else:
                 pictured.append((t, jpeg))
-        text = success_info(match, t)
-        if images.get(match.image, b"") is None:
-            text += f"  \n**image not found:** `{match.image}`"
-        texts.append((t, text))
+        texts.append((t, _success_text(match, t, images)))
     at = lambda frames: time_columns(np.asarray(frames, dtype=np.int64), fps)  # noqa: E731
     if cleared:
         rec.send_columns(
