@@ -31,9 +31,8 @@ class Label:
     symbol: str | None
     task: str | None = None  # the episode's task, when the labels file says it
     description: str | None = None  # the failure in the labeller's own words
-    onset_frame: int | None = (
-        None  # where the failure starts (checked against the episode's length when applied)
-    )
+    # where the failure starts (checked against the episode's length when applied)
+    onset_frame: int | None = None
     row: int | None = None  # the row of the labels file it was read from (for errors naming it)
 
 

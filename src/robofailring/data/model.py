@@ -13,6 +13,7 @@ from typing import Protocol, overload
 import numpy as np
 
 from robofailring.data.images import as_rgb, content_digest, read_image
+from robofailring.errors import DataError
 
 
 class Outcome(StrEnum):
@@ -73,8 +74,6 @@ class Frame:
         """The encoded file content, or None for an in-memory frame or a frame of a video."""
         if self.path is None:
             return None
-        from robofailring.errors import DataError
-
         try:
             return self.path.read_bytes()
         except OSError as error:
@@ -184,8 +183,6 @@ def parse_onset_frame(value: object, *, length: int | None, where: str) -> int |
             number = float(value.strip())
         except ValueError:
             number = None
-    from robofailring.errors import DataError
-
     if number is None or not math.isfinite(number) or not number.is_integer():
         raise DataError(f"{where}: onset_frame {value!r} is not an integer frame number")
     if number < 0:

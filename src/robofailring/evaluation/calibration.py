@@ -220,6 +220,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
         )
     paper, contrast, novelty = found.get(PAPER), found.get(CONTRAST), found.get(NOVELTY)
     widest = max(found.values(), key=lambda calibration: calibration.successes)
+    spread = widest.spread  # computed once: it searches for the runs a tighter bound needs
     calibrated = memory.with_calibration(
         StoredCalibration(
             encoder=memory.encoder,
@@ -232,7 +233,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
             gamma_achieved_fpr=contrast.achieved_fpr if contrast is not None else None,
             eta_achieved_fpr=novelty.achieved_fpr if novelty is not None else None,
             successes=widest.successes,
-            fpr_spread=widest.spread.to_dict(),
+            fpr_spread=spread.to_dict(),
             data=str(Path(config.data).resolve()),
             split=config.split,
             k=config.k,
@@ -254,5 +255,5 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
         skipped_too_short=too_short,
         eta=stored.eta,
         eta_achieved_fpr=stored.eta_achieved_fpr,
-        fpr_spread=widest.spread,
+        fpr_spread=spread,
     )
