@@ -18,9 +18,10 @@ from robofailring.data.layouts import load_dataset
 from robofailring.detection.conformal import conformal_threshold
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.rules import CONTRAST
-from robofailring.encoders import CachedEncoder, default_cache_dir, load_encoder
+from robofailring.encoders import CachedEncoder, default_cache_dir, encoder_slug, load_encoder
 from robofailring.errors import DataError
 from robofailring.memory.failure import FailureMemory
+from robofailring.memory.thinning import DEFAULT_STEP
 
 ALPHA = 0.05
 
@@ -31,7 +32,8 @@ def _bins(length: int, count: int) -> np.ndarray:
 
 def main() -> None:
     root = default_cache_dir() / "bench-quality"
-    memory = FailureMemory.load(root / "runs" / "pixels" / "memory")
+    slug = f"{encoder_slug(load_encoder('pixels').identity)}-step{DEFAULT_STEP:g}-default"  # bench_quality's
+    memory = FailureMemory.load(root / "runs" / slug / "memory")
     detector = FailureDetector(memory, CachedEncoder(load_encoder("pixels")), rule=CONTRAST)
     data = list(load_dataset(root / "sim-id").trajectories())
     calibration = [

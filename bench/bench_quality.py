@@ -1,21 +1,34 @@
-"""Detection quality: both scoring rules at one α, in distribution, out of distribution, and OOD with
-deployment successes, on simulated sets (cached under the robofailring cache dir).
+"""Detection quality: every scoring rule at one α on simulated sets (cached under the robofailring
+cache dir), on both halves of the in-distribution split and out of distribution with and without
+deployment successes, with the counts each figure rests on.
 
 Run: .venv/bin/python bench/bench_quality.py [--encoder SPEC]... [--alpha 0.05] [--success-step S]...
-     [--train-encoder]
+     [--train-encoder] [--variant LABEL:FIELD=VALUE,...]...
+
+Cells, per encoder and variant (the issue-21 protocol: one lucky split cannot carry a claim):
+- `ID`: memory and calibration from the ID set's `train` half, tested on its `test` half;
+- `ID swapped`: the halves exchanged (memory and calibration from `test`, tested on `train`);
+- `OOD`: the ID `train` memory and thresholds, tested on the OOD set;
+- `OOD + 2 deployment successes/task`: the same, with 2 OOD success runs per task moved into the
+  success memory (and out of the test set).
 
 Each encoder spec is one more block of rows (e.g. `--encoder pixels --encoder trained:DIR`);
-`--train-encoder` trains one on the ID training split (cached) and adds its rows, with the training
-time; each `--success-step` (success-frame thinning, 0 = every frame) is one more block per encoder.
+`--train-encoder` trains one encoder per ID half (cached), so the swapped cell's encoder never saw
+the frames it is tested on; a `trained:DIR` given with `--encoder` was trained on one half only, so
+its swapped cell is left out (said in the output). Each `--success-step` (success-frame thinning,
+0 = every frame) and each `--variant` (fields of `EvaluateConfig`, e.g.
+`--variant dense:failure_frames=dense`) is one more block per encoder.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
+from typing import Any
 
 from robofailring.encoders import default_cache_dir, encoder_slug, load_encoder
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
@@ -31,6 +44,8 @@ ID_EPISODES = 8  # per task and failure family: 4 tasks x 7 families x 8 = 224 f
 ID_SUCCESSES = 26  # per task: 104 successes, 52 train (calibration) and 52 test
 OOD_EPISODES = 2  # per task and failure family, all tested
 OOD_SUCCESSES = 8  # per task: 2 join the success memory under the deployment protocol, 6 tested
+DEPLOYED = 2  # OOD success runs per task that join the success memory under the deployment protocol
+SWAPPED = "swapped"  # the ID set with its halves exchanged, beside it in the cache
 
 
 def datasets(
@@ -72,7 +87,55 @@ def datasets(
     return paths[0], paths[1]
 
 
-DEPLOYED = 2  # OOD success runs per task that join the success memory under the deployment protocol
+def swapped_halves(in_dist: Path) -> Path:
+    """The ID set with its `train` and `test` halves exchanged: a folder beside it holding a copy of
+    its manifest with the two split names swapped and a link to each episode folder (no frame copied)."""
+    manifest = json.loads((in_dist / "manifest.json").read_text(encoding="utf-8"))
+    exchange = {"train": "test", "test": "train"}
+    for record in manifest["episodes"]:
+        record["split"] = exchange.get(record.get("split"), record.get("split"))
+    out = in_dist.with_name(f"{in_dist.name}-{SWAPPED}")
+    out.mkdir(exist_ok=True)
+    for record in manifest["episodes"]:
+        link = out / record["dir"]
+        if not link.is_symlink():
+            link.symlink_to((in_dist / record["dir"]).resolve(), target_is_directory=True)
+    staged = out / "manifest.json.tmp"
+    staged.write_text(json.dumps(manifest, indent=1), encoding="utf-8")
+    staged.replace(out / "manifest.json")
+    return out
+
+
+@dataclass(frozen=True)
+class Variant:
+    """One block of rows: a label and the `EvaluateConfig` fields it sets."""
+
+    label: str
+    settings: dict[str, Any]
+
+    @staticmethod
+    def parse(text: str) -> Variant:
+        """`LABEL:field=value,field=value` (numbers are read as numbers, the rest as text)."""
+        label, _, body = text.partition(":")
+        known = {f.name for f in fields(EvaluateConfig)}
+        settings: dict[str, Any] = {}
+        for item in filter(None, body.split(",")):
+            name, sep, value = item.partition("=")
+            if not sep or name not in known:
+                raise SystemExit(
+                    f"--variant {text!r}: {item!r} is not FIELD=VALUE with a field of EvaluateConfig"
+                )
+            settings[name] = _value(value)
+        return Variant(label or "default", settings)
+
+
+def _value(text: str) -> Any:
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return {"true": True, "false": False, "none": None}.get(text.lower(), text)
 
 
 @dataclass(frozen=True)
@@ -90,11 +153,15 @@ def evaluate_encoder(
     *,
     alpha: float,
     out: Path,
+    swapped: tuple[Path, str] | None,
     cache_dir: Path | None = None,
     success_step: float = DEFAULT_STEP,
+    variant: Variant = Variant("default", {}),
 ) -> list[QualityRow]:
-    """ID, OOD and OOD-with-deployment-successes evaluations of one encoder spec, both rules at α."""
-    slug = f"{encoder_slug(load_encoder(encoder).identity)}-step{success_step:g}"
+    """The four cells of one encoder spec and variant, every rule at α; `swapped`: the halves-swapped
+    set and the encoder to judge it with (None: the cell is left out)."""
+    slug = f"{encoder_slug(load_encoder(encoder).identity)}-step{success_step:g}-{variant.label}"
+    name = f"{encoder} (step {success_step:g}, {variant.label})"
     base = EvaluateConfig(
         data=in_dist,
         out=out / slug,
@@ -105,9 +172,25 @@ def evaluate_encoder(
         name="in-distribution",
         success_step=success_step,
     )
+    base = replace(base, **variant.settings)
     ood = replace(base, memory=out / slug / "memory", test_data=out_dist, test_split="ood", name="ood")
-    protocols = [
-        ("ID", base),
+    protocols = [("ID", base)]
+    if swapped is not None:
+        data, spec = swapped
+        protocols.append(
+            (
+                "ID swapped",
+                replace(
+                    base,
+                    data=data,
+                    encoder=spec,
+                    out=out / f"{slug}-swapped",
+                    memory_out=out / f"{slug}-swapped" / "memory",
+                    name="in-distribution-swapped",
+                ),
+            )
+        )
+    protocols += [
         ("OOD", ood),
         (
             f"OOD + {DEPLOYED} deployment successes/task",
@@ -119,9 +202,7 @@ def evaluate_encoder(
         start = time.perf_counter()
         result = run_evaluation(config)
         write_evaluation(result, config.out)  # <name>.json and .md, e.g. for `robofailring review`
-        rows.append(
-            QualityRow(f"{encoder} (step {success_step:g})", label, result, time.perf_counter() - start)
-        )
+        rows.append(QualityRow(name, label, result, time.perf_counter() - start))
     return rows
 
 
@@ -129,19 +210,37 @@ def _pct(value: float) -> str:
     return "—" if math.isnan(value) else f"{100 * value:5.1f}"
 
 
+def _onset(rule: Any) -> str:
+    onset = rule.onset
+    if onset is None or not onset.known:
+        return "—"
+    median = "—" if math.isnan(onset.median_frames) else f"{onset.median_frames:.0f}"
+    return f"{median} / {onset.premature}"
+
+
 def print_rows(rows: list[QualityRow], alpha: float) -> None:
     print(
         f"\n| encoder | test set | rule | threshold | Recall (%) | FPR (%) | T_s mean (%) | AUC | "
-        f"frame-0 success alarms | failures / successes tested |  (α = {alpha:g}, split conformal on ID training successes)"
+        f"delay after onset, median frames / premature | frame-0 success alarms | failures / successes tested |"
+        f"  (α = {alpha:g}, split conformal on the memory half's successes)"
     )
-    print("|---|---|---|---:|---:|---:|---:|---:|---:|---:|")
+    print("|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     for row in rows:
         for rule in row.result.rules.values():
             print(
                 f"| {row.encoder} | {row.protocol} | {rule.rule.name} | {rule.rule.symbol} = {rule.threshold:.4f} | "
-                f"{_pct(rule.recall)} | {_pct(rule.fpr)} | {_pct(rule.ts_mean)} | {rule.auc:.3f} | "
+                f"{_pct(rule.recall)} | {_pct(rule.fpr)} | {_pct(rule.ts_mean)} | {rule.auc:.3f} | {_onset(rule)} | "
                 f"{rule.frame0_success_alarms} | {row.result.failures} / {row.result.successes} |"
             )
+
+
+def _trained(data: Path, out: Path) -> str:
+    started = time.perf_counter()
+    trained = train_encoder(TrainEncoderConfig(data=data, out=out), reuse=True)
+    print(
+        f"trained encoder {trained} on {data.name}'s train half: {time.perf_counter() - started:.0f} s (0: cached)"
+    )
+    return f"trained:{trained}"
 
 
 def main() -> None:
@@ -149,46 +248,70 @@ def main() -> None:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--encoder", action="append", help="encoder spec (repeatable; default: pixels)")
-    parser.add_argument("--alpha", type=float, default=0.05, help="target FPR α of both rules")
+    parser.add_argument("--alpha", type=float, default=0.05, help="target FPR α of every rule")
     parser.add_argument("--workers", type=int, default=2, help="simulation processes")
     parser.add_argument(
         "--success-step", type=float, action="append", help=f"thinning step(s) (default {DEFAULT_STEP})"
     )
-    parser.add_argument("--train-encoder", action="store_true", help="add a trained encoder's rows")
+    parser.add_argument(
+        "--train-encoder", action="store_true", help="add a trained encoder's rows (one per half)"
+    )
+    parser.add_argument(
+        "--variant",
+        action="append",
+        type=Variant.parse,
+        help="LABEL:FIELD=VALUE,... of EvaluateConfig (repeatable)",
+    )
     args = parser.parse_args()
     start = time.perf_counter()
     in_dist, out_dist = datasets(args.workers)
+    swapped = swapped_halves(in_dist)
     print(
-        f"datasets (cached): {in_dist}, {out_dist} ({time.perf_counter() - start:.0f} s to simulate or find)"
+        f"datasets (cached): {in_dist}, {out_dist}, {swapped} ({time.perf_counter() - start:.0f} s to simulate or find)"
     )
     print(
         f"  {IMAGE_SIZE} px, {FRAMES} frames per episode; ID {ID_EPISODES} episodes per task and failure family, "
-        f"{ID_SUCCESSES} successes per task (even episodes train, odd test); OOD {OOD_EPISODES} per family, "
+        f"{ID_SUCCESSES} successes per task (even episodes one half, odd the other); OOD {OOD_EPISODES} per family, "
         f"{OOD_SUCCESSES} successes per task"
     )
     out = default_cache_dir() / "bench-quality" / "runs"
-    encoders = list(args.encoder or ["pixels"])
-    if args.train_encoder:
-        started = time.perf_counter()
-        trained = train_encoder(
-            TrainEncoderConfig(data=in_dist, out=default_cache_dir() / "bench-quality" / "trained-encoder"),
-            reuse=True,
-        )
-        print(
-            f"trained encoder {trained}: {time.perf_counter() - started:.0f} s (0 when reused from the cache)"
-        )
-        encoders.append(f"trained:{trained}")
-    rows = []
-    for encoder in encoders:
-        for step in args.success_step or [DEFAULT_STEP]:
-            found = evaluate_encoder(encoder, in_dist, out_dist, alpha=args.alpha, out=out, success_step=step)
-            rows += found
-            loaded = FailureMemory.load(Path(found[0].result.memory))
-            successes = loaded.successes
+    pairs: list[tuple[str, str | None]] = []  # (encoder, the swapped cell's encoder or None)
+    for spec in args.encoder or ["pixels"]:
+        untrained = not spec.startswith("trained:")
+        pairs.append((spec, spec if untrained else None))
+        if not untrained:
             print(
-                f"{encoder} (step {step:g}): failure memory {len(loaded)} entries; success memory "
-                f"{len(successes) if successes else 0} frames kept of {successes.offered if successes else 0}"
+                f"{spec}: trained on one half only, so its 'ID swapped' cell is left out (use --train-encoder)"
             )
+    if args.train_encoder:
+        cache = default_cache_dir() / "bench-quality"
+        pairs.append(
+            (
+                _trained(in_dist, cache / "trained-encoder"),
+                _trained(swapped, cache / "trained-encoder-swapped"),
+            )
+        )
+    rows = []
+    for encoder, swapped_encoder in pairs:
+        for step in args.success_step or [DEFAULT_STEP]:
+            for variant in args.variant or [Variant("default", {})]:
+                found = evaluate_encoder(
+                    encoder,
+                    in_dist,
+                    out_dist,
+                    alpha=args.alpha,
+                    out=out,
+                    swapped=None if swapped_encoder is None else (swapped, swapped_encoder),
+                    success_step=step,
+                    variant=variant,
+                )
+                rows += found
+                loaded = FailureMemory.load(Path(found[0].result.memory))
+                successes = loaded.successes
+                print(
+                    f"{found[0].encoder}: failure memory {len(loaded)} entries; success memory "
+                    f"{len(successes) if successes else 0} frames kept of {successes.offered if successes else 0}"
+                )
     for row in rows:
         print(f"{row.encoder} {row.protocol}: evaluated in {row.seconds:.0f} s")
     print_rows(rows, args.alpha)
