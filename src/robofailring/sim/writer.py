@@ -8,6 +8,8 @@ import os
 import shutil
 import zlib
 from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Final
@@ -206,10 +208,23 @@ def _execute(jobs: list[_Job], workers: int) -> Iterator[dict[str, Any]]:
         yield from map(_run_job, jobs)
         return
     # Each worker process opens its own pybullet DIRECT client; spawn keeps them independent of
-    # whatever the parent has loaded (torch, a GUI client, ...).
+    # whatever the parent has loaded (torch, a GUI client, ...). An executor, not a Pool: a worker
+    # that dies while starting (a script without a `__main__` guard re-runs itself in each one)
+    # breaks it with an error here, where a Pool would start new workers forever.
     context = multiprocessing.get_context("spawn")
-    with context.Pool(processes=min(workers, len(jobs))) as pool:
-        yield from pool.imap_unordered(_run_job, jobs, chunksize=1)
+    with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=context) as pool:
+        pending = [pool.submit(_run_job, job) for job in jobs]
+        try:
+            for done in as_completed(pending):
+                yield done.result()
+        except BrokenProcessPool as error:
+            for future in pending:
+                future.cancel()
+            raise SettingError(
+                f"a simulation worker process stopped before finishing its episode ({error}); if "
+                "generate_dataset is called from a script, put the call under "
+                '`if __name__ == "__main__":` (each worker re-imports the script), or pass workers=1'
+            ) from error
 
 
 def _cached(config: GenerateConfig) -> bool:
