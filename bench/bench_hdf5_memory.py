@@ -6,7 +6,8 @@ task) is built once; then `robofailring detect` and `robofailring replay` (to a 
 fresh process per file and report their peak RSS (`resource.getrusage(RUSAGE_SELF).ru_maxrss`).
 Frames are rows sliced on demand and scored in chunks (`FailureDetector.run`), and the replay keeps
 each query as its map point, not its vector, so the figures should differ by little more than the
-per-frame scores. `--codec` is the replay's `--camera-codec` (default auto: AV1 at these sizes), `--lengths`
+per-frame scores. Control: `h5py` reads the same rows in a bare h5py loop, so what libhdf5 itself keeps
+per chunk read (its chunk index, ~0.3 KB per one-frame chunk) is told apart from the project's reader. `--codec` is the replay's `--camera-codec` (default auto: AV1 at these sizes), `--lengths`
 the demo lengths. Run:
 
     PYTHONPATH=src:. python bench/bench_hdf5_memory.py [--codec jpeg] [--lengths 500 2000 4000]
@@ -77,6 +78,16 @@ print("PEAK_RSS_KB", resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, file=sy
 """
 
 
+H5PY = """
+import resource, sys
+import h5py
+with h5py.File(sys.argv[1], "r") as handle:
+    cameras = handle["data/demo_0/obs"]
+    total = sum(int(cameras[name][t][0, 0, 0]) for name in cameras for t in range(len(cameras[name])))
+print("PEAK_RSS_KB", resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, file=sys.stderr)
+"""
+
+
 def run(arguments: list[str], script: str = MEASURE) -> int:
     done = subprocess.run([sys.executable, "-c", script, *arguments], capture_output=True, text=True)
     peak = [line for line in done.stderr.splitlines() if line.startswith("PEAK_RSS_KB")]
@@ -105,11 +116,12 @@ def main() -> None:
         # fits the memory's map once (cached beside it) and fills the embedding cache, as a user's first replay would
         codec = ["--camera-codec", options.codec]
         run(["replay", str(source), "--memory", str(memory), "--out", str(tmp / "warm"), *cache, *codec])
-        peaks: dict[str, dict[int, int]] = {"read": {}, "detect": {}, "replay": {}}
+        peaks: dict[str, dict[int, int]] = {"h5py": {}, "read": {}, "detect": {}, "replay": {}}
         for length in lengths:
             path = write(tmp / f"demo_{length}.hdf5", demos=1, length=length)
             size = path.stat().st_size / 1e6
             raw = 3 * length * SIZE * SIZE * 3 / 1e6
+            peaks["h5py"][length] = run([str(path)], H5PY)
             peaks["read"][length] = run([str(path)], READ)
             target = [str(path), "--memory", str(memory), "--trajectory", "demo_0", *cache]
             peaks["detect"][length] = run(["detect", *target])
