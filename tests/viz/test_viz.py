@@ -291,9 +291,10 @@ def test_map_is_fitted_once_and_cached_beside_the_memory(
         placed = np.concatenate(
             [_placed(cached, view, memory.entries[i].task, memory.vectors[i]) for i in cached.rows[view]]
         )
-        own = np.linalg.norm(placed - view_map.embedding, axis=1).mean()
-        shuffled = np.linalg.norm(placed - np.roll(view_map.embedding, 5, axis=0), axis=1).mean()
-        assert own < 0.3 * shuffled
+        # against every entry's point: its own is nearer than most (a broken projection ranks it at random)
+        distances = np.linalg.norm(placed[:, None, :] - view_map.embedding[None, :, :], axis=2)
+        own_rank = (distances < np.diag(distances)[:, None]).sum(axis=1) / (len(placed) - 1)
+        assert np.median(own_rank) < 0.25 and np.diag(distances).mean() < 0.5 * distances.mean()
     assert cached.project("side", "pick_cube", memory.vectors[:2]) is None  # the memory has no such view
     # a changed memory does not reuse a stale map
     other = FailureMemory(memory.vectors[:18], memory.entries[:18], encoder=memory.encoder)
