@@ -13,6 +13,7 @@ from rfr_viz.codecs import CameraCodec
 from rfr_viz.viewer.control import open_at_command, open_command
 from robofailring.cli.exit_codes import finish
 from robofailring.cli.options import (
+    BandOption,
     CacheOption,
     DataRootOption,
     DeviceOption,
@@ -31,6 +32,7 @@ from robofailring.cli.options import (
     vlm_config,
     warn_missing_references,
 )
+from robofailring.detection.band import DEFAULT_BAND
 from robofailring.memory.thinning import DEFAULT_STEP
 
 app = typer.Typer(add_completion=False)  # composed into the one `robofailring` command by rfr_viz.cli.app
@@ -64,6 +66,7 @@ def evaluate_cmd(
         int, typer.Option(help="Per task, this many test success runs join the success memory (not tested).")
     ] = 0,
     success_step: SuccessStepOption = DEFAULT_STEP,
+    band: BandOption = DEFAULT_BAND,
     growth: Annotated[
         str | None,
         typer.Option(
@@ -100,6 +103,7 @@ def evaluate_cmd(
             target_fpr=target_fpr,
             deployment_successes=deployment_successes,
             success_step=success_step,
+            band=band,
         ),
         growth=parse_growth(growth) if growth is not None else (),
     )

@@ -2,14 +2,18 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 
 from rfr_viz.panels.images import JPEG_MEDIA_TYPE, reference_jpeg
 from rfr_viz.panels.neighbors import changes
-from rfr_viz.panels.scores import ROW_BATCH, time_columns
+from rfr_viz.panels.scores import ROW_BATCH, threshold_label, time_columns
 from rfr_viz.paths import DetectorPaths
 from rfr_viz.styles import ETA_COLOUR, GAMMA_COLOUR
+from robofailring.detection.band import Band
 from robofailring.detection.detector import DetectionTrace
+from robofailring.detection.rules import CONTRAST, NOVELTY
 from robofailring.extras import needs_extra
 from robofailring.memory.success import SuccessMatch
 
@@ -41,9 +45,12 @@ def log_contrast_styles(
     colours: list[tuple[int, int, int]],
     prefix: str = "",
     failures: bool = True,
+    bands: Mapping[str, Band] | None = None,
 ) -> None:
     """Static line styles of S⁺_t, C_t and N_t per view and of γ and η (a replay's and a live stream's);
-    without failure entries of the task (`failures` False) C_t and γ are left out."""
+    without failure entries of the task (`failures` False) C_t and γ are left out. A rule with a band
+    (`bands`, by rule name) has its threshold named as the line over time it is."""
+    bands = bands or {}
     for position, view in enumerate(views):
         colour = colours[position % len(colours)]
         faded = (colour[0] // 2 + 60, colour[1] // 2 + 60, colour[2] // 2 + 60)
@@ -68,12 +75,20 @@ def log_contrast_styles(
     if failures:
         rec.log(
             paths.gamma,
-            rr.SeriesLines(colors=[GAMMA_COLOUR], widths=[1.0], names=[f"{prefix}γ = {gamma:.3f}"]),
+            rr.SeriesLines(
+                colors=[GAMMA_COLOUR],
+                widths=[1.0],
+                names=[prefix + threshold_label(CONTRAST, gamma, bands.get(CONTRAST.name))],
+            ),
             static=True,
         )
     rec.log(
         paths.eta,
-        rr.SeriesLines(colors=[ETA_COLOUR], widths=[1.0], names=[f"{prefix}η = {eta:.3f}"]),
+        rr.SeriesLines(
+            colors=[ETA_COLOUR],
+            widths=[1.0],
+            names=[prefix + threshold_label(NOVELTY, eta, bands.get(NOVELTY.name))],
+        ),
         static=True,
     )
 
@@ -152,6 +167,7 @@ def log_contrast(
         colours=colours,
         prefix=prefix,
         failures=failures,
+        bands=trace.bands,
     )
     contrasts, novelties = trace.contrast, trace.novelty
     for view in trace.views:
@@ -160,8 +176,8 @@ def log_contrast(
             _series(rec, paths.contrast_score(view), contrasts[view], fps=fps)
         _series(rec, paths.novelty_score(view), novelties[view], fps=fps)
     if failures:
-        _series(rec, paths.gamma, np.full(trace.length, float(trace.gamma)), fps=fps)
-    _series(rec, paths.eta, np.full(trace.length, float(trace.eta)), fps=fps)
+        _series(rec, paths.gamma, trace.threshold_line(CONTRAST), fps=fps)
+    _series(rec, paths.eta, trace.threshold_line(NOVELTY), fps=fps)
     _log_nearest_success(rec, trace, paths, fps)
 
 

@@ -6,7 +6,7 @@ import re
 
 import numpy as np
 
-from rfr_viz.panels.scores import set_frame_time
+from rfr_viz.panels.scores import set_frame_time, threshold_label
 from rfr_viz.paths import DetectorPaths
 from robofailring.data.model import Trajectory
 from robofailring.detection.detector import DetectionTrace
@@ -39,19 +39,22 @@ def log_detection(
     """The detection event and the failure report at t_det (and the VLM's answer); a summary at frame 0."""
     t_det, view = trace.t_det, trace.detected_view
     rule = trace.rule
-    peak = trace.max_score()
+    peak = trace.max_score()  # judged (band-corrected), so its highest frame is the nearest miss
     peak_frame = int(np.argmax(peak))
+    line = trace.threshold_line()
     summary = (
         f"**{trace.task} · {trace.episode}** — encoder `{trace.encoder}`, rule **{rule.name}** "
-        f"({rule.score_name} ≥ {rule.symbol} = {trace.threshold:.3f}), K = {trace.k}, L = {trace.length} frames.\n\n"
+        f"({rule.score_name} ≥ {threshold_label(rule, trace.threshold, trace.band)}), K = {trace.k}, "
+        f"L = {trace.length} frames.\n\n"
     )
     set_frame_time(rec, 0, fps)
     if t_det is None or view is None:
         rec.log(
             paths.report,
             rr.TextDocument(
-                summary + f"**No failure detected.** The highest {rule.score_name} over all views is "
-                f"{float(peak[peak_frame]):.3f} at frame {peak_frame}, below {rule.symbol}.",
+                summary + f"**No failure detected.** {rule.score_name} came nearest its threshold at frame "
+                f"{peak_frame}: {float(trace.raw_max_score(rule)[peak_frame]):.3f} (highest over all views), "
+                f"below {rule.symbol} = {float(line[peak_frame]):.3f} there.",
                 media_type=rr.MediaType.MARKDOWN,
             ),
         )
@@ -67,9 +70,7 @@ def log_detection(
     assert report is not None  # t_det is set
     neighbors = trace.neighbors(view, t_det)
     set_frame_time(rec, t_det, fps)
-    fired = (
-        f"{rule.score_name} = {float(trace.scores[view][t_det]):.3f} ≥ {rule.symbol} = {trace.threshold:.3f}"
-    )
+    fired = f"{rule.score_name} = {float(trace.scores[view][t_det]):.3f} ≥ {rule.symbol} = {float(line[t_det]):.3f}"
     success = trace.nearest_success(view, t_det)
     contrast_line = ""
     if success is not None and neighbors:

@@ -11,6 +11,7 @@ import numpy as np
 
 from rfr_viz.paths import FRAME, TIME, DetectorPaths
 from rfr_viz.styles import DELTA_COLOUR, STATE_COLOUR, VIEW_COLOURS
+from robofailring.detection.band import Band
 from robofailring.detection.detector import DetectionTrace
 from robofailring.detection.rules import PAPER, ScoringRule
 from robofailring.extras import needs_extra
@@ -29,6 +30,12 @@ def time_columns(frames: np.ndarray, fps: float) -> list[rr.TimeColumn]:
     nanosecond as `rr.set_time` rounds it, so columns and rows logged one at a time share their instants."""
     nanos = np.round(1e9 * (frames.astype(np.float64) / fps)).astype("timedelta64[ns]")
     return [rr.TimeColumn(FRAME, sequence=frames), rr.TimeColumn(TIME, duration=nanos)]
+
+
+def threshold_label(rule: ScoringRule, threshold: float, band: Band | None) -> str:
+    """A threshold's name in a plot legend: `γ = 0.030`, or with a band the line it is on the raw score,
+    `γ_t = μ_t + 1.230·σ_t (norm band)`."""
+    return f"{rule.symbol} = {threshold:.3f}" if band is None else band.label(rule.symbol, threshold)
 
 
 def set_frame_time(rec: rr.RecordingStream, t: int, fps: float) -> None:
@@ -107,7 +114,7 @@ def log_scores(
         rec.send_columns(
             paths.delta,
             indexes=time_columns(frames, fps),
-            columns=rr.Scalars.columns(scalars=np.full(trace.length, float(trace.delta))),
+            columns=rr.Scalars.columns(scalars=trace.threshold_line(PAPER).astype(np.float64)),
         )
     scored = trace.scored_frames  # with a stride, State_t exists only where frames were scored
     rec.send_columns(

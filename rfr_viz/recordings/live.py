@@ -44,7 +44,7 @@ from robofailring.atomic import atomic_path
 from robofailring.data.layouts import load_trajectory
 from robofailring.data.model import Frame
 from robofailring.detection.detector import DEFAULT_K, DetectorSession, FailureDetector, StepResult
-from robofailring.detection.rules import NOVELTY
+from robofailring.detection.rules import CONTRAST, NOVELTY, PAPER
 from robofailring.errors import DataError, SettingError
 from robofailring.explain.report import FailureReport
 from robofailring.extras import needs_extra
@@ -233,6 +233,7 @@ class LiveRecording:
                 eta=self.detector.eta,
                 colours=list(VIEW_COLOURS),
                 failures=failures,
+                bands=self.detector.bands,
             )
         if not failures:
             for view in self.views:
@@ -275,12 +276,12 @@ class LiveRecording:
             if failures:
                 rec.log(paths.score(view), rr.Scalars(result.similarity[view]))
         if failures:
-            rec.log(paths.delta, rr.Scalars(self.detector.delta))
+            rec.log(paths.delta, rr.Scalars(self.detector.threshold_at(PAPER, t)))
         rec.log(paths.state, rr.Scalars(float(result.alarm)))
         if self.detector.memory.successes is not None:
             if failures:
-                rec.log(paths.gamma, rr.Scalars(self.detector.gamma))
-            rec.log(paths.eta, rr.Scalars(self.detector.eta))
+                rec.log(paths.gamma, rr.Scalars(self.detector.threshold_at(CONTRAST, t)))
+            rec.log(paths.eta, rr.Scalars(self.detector.threshold_at(NOVELTY, t)))
             for view, match in result.nearest_success.items():
                 if np.isfinite(result.success_similarity[view]):
                     rec.log(paths.success_score(view), rr.Scalars(result.success_similarity[view]))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +21,7 @@ from robofailring import (
     load_dataset,
     load_encoder,
 )
+from robofailring.detection.band import NORM, fit_band
 from robofailring.detection.rules import CONTRAST
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 
@@ -91,3 +93,27 @@ def test_report_and_properties_say_which_rule_fired(
     assert reports[-1][0] == trace.t_det and "Fired by the contrast rule" in reports[-1][1][0]
     event = rows(recording, REPLAY.event, "TextLog:text")
     assert event[0][0] == trace.t_det and "(contrast rule): C_t = " in event[0][1][0]
+
+
+def test_a_banded_threshold_is_drawn_as_the_line_it_is(
+    replayed: tuple[Trajectory, DetectionTrace, Path], tmp_path: Path
+) -> None:
+    trajectory, trace, _ = replayed
+    runs = [
+        np.linspace(0.2, -0.1, trace.length) + 0.02 * np.sin(np.arange(trace.length) + k) for k in range(12)
+    ]
+    band = fit_band(NORM, runs)
+    banded = replace(trace, bands={CONTRAST.name: band})
+    line = banded.threshold_line(CONTRAST)
+    assert not np.allclose(line, line[0])
+    recording = record_replay(trajectory, banded, out=tmp_path / "banded.rrd")
+    gamma = rows(recording, REPLAY.gamma, "Scalars:scalars")
+    assert [frame for frame, _ in gamma] == list(range(trace.length))
+    np.testing.assert_allclose([value[0] for _, value in gamma], line, atol=1e-6)
+    assert static_value(recording, REPLAY.gamma, "SeriesLines:names") == [
+        f"γ_t = μ_t + {trace.gamma:.3f}·σ_t (norm band)"
+    ]
+    # the detection instant is where the raw contrast first reaches the line
+    assert properties(recording)["t_det"] == (-1 if banded.t_det is None else banded.t_det)
+    crossing = np.flatnonzero(banded.raw_max_score(CONTRAST) >= line)
+    assert banded.t_det == (int(crossing[0]) if crossing.size else None)

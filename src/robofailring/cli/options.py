@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from robofailring.data.model import Skipped
+from robofailring.detection.band import BAND_KINDS, DEFAULT_BAND
 from robofailring.detection.rules import RULES
 from robofailring.errors import SettingError
 from robofailring.extras import require
@@ -40,6 +41,15 @@ StrideOption = Annotated[
     typer.Option(
         "--stride",
         help="Score every Nth frame of long episodes (I_0 stays frame 0; t_det and T_s in original frames).",
+    ),
+]
+BandOption = Annotated[
+    str,
+    typer.Option(
+        "--band",
+        help=f"Time-indexed thresholds, one of {', '.join(BAND_KINDS)}: the contrast and novelty scores are "
+        "corrected by the calibration successes' mean (shift) or mean and spread (norm) at the same frame "
+        f"index before their peak is calibrated; none: one threshold (default {DEFAULT_BAND}).",
     ),
 ]
 LabelsOption = Annotated[

@@ -14,6 +14,7 @@ import typer
 
 from robofailring.cli.exit_codes import ErrorMappingGroup, finish
 from robofailring.cli.options import (
+    BandOption,
     CacheOption,
     DataRootOption,
     DeltaOption,
@@ -39,6 +40,7 @@ from robofailring.cli.options import (
     vlm_config,
     warn_missing_references,
 )
+from robofailring.detection.band import DEFAULT_BAND
 from robofailring.errors import SettingError
 from robofailring.memory.thinning import DEFAULT_STEP
 from robofailring.progress import progress_bar
@@ -238,13 +240,14 @@ def calibrate_cmd(
     target_fpr: Annotated[float, typer.Option("--target-fpr", help="False-positive rate to allow.")] = 0.05,
     split: Annotated[str | None, typer.Option(help="Successes of this split (project layout).")] = "train",
     stride: StrideOption = 1,
+    band: BandOption = DEFAULT_BAND,
     labels: LabelsOption = None,
     task: TaskOption = None,
     views: ViewsOption = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
 ) -> None:
-    """Set δ and γ (split conformal) for a target false-positive rate on success runs; detect then uses them."""
+    """Set δ, γ and η (split conformal) for a target false-positive rate on success runs; detect then uses them."""
     from robofailring.evaluation.calibration import CalibrateConfig, calibrate
 
     result = calibrate(
@@ -259,6 +262,7 @@ def calibrate_cmd(
             labels=labels,
             task=task,
             views=views,
+            band=band,
         )
     )
     report_skipped(result.skipped_inputs)

@@ -10,6 +10,7 @@ import numpy as np
 
 from robofailring.data.images import as_rgb
 from robofailring.data.model import Frame, Trajectory
+from robofailring.detection.band import Band
 from robofailring.detection.retrieved import Retrieved
 from robofailring.detection.rules import (
     CONTRAST,
@@ -20,6 +21,7 @@ from robofailring.detection.rules import (
     default_rule,
     rule_named,
 )
+from robofailring.detection.stored import stored_bands, stored_thresholds
 from robofailring.detection.trace import DetectionTrace, StepResult
 from robofailring.detection.view_scores import ViewScores
 from robofailring.encoders.base import Encoder, l2_normalize
@@ -71,7 +73,9 @@ class FailureDetector(RuleThresholds):
     one given for every task, else each task's default (`rule_for`: contrast with success and
     failure runs, novelty with success runs only, paper with failures only). The thresholds of
     every rule come from `delta`/`gamma`/`eta` when given, else the memory's stored calibration,
-    else the rule's default.
+    else the rule's default. A stored threshold comes with its time-indexed band when it was calibrated
+    with one (`robofailring.detection.band`); `bands` replaces those (e.g. thresholds calibrated in
+    process by the evaluation). A threshold given here is one number, without a band.
     """
 
     def __init__(
@@ -84,10 +88,21 @@ class FailureDetector(RuleThresholds):
         rule: ScoringRule | str | None = None,
         gamma: float | None = None,
         eta: float | None = None,
+        bands: Mapping[str, Band] | None = None,
     ) -> None:
         memory.check_encoder(encoder.identity)
         check_k(k)
-        self.thresholds = _thresholds(memory, {"delta": delta, "gamma": gamma, "eta": eta})
+        given = {"delta": delta, "gamma": gamma, "eta": eta}
+        self.thresholds = stored_thresholds(memory, given)
+        self.bands: dict[str, Band] = (  # per rule name: the band its threshold applies to
+            dict(bands)
+            if bands is not None
+            else {
+                name: band
+                for name, band in stored_bands(memory).items()
+                if name in RULES and given[RULES[name].threshold_key] is None
+            }
+        )
         self.chosen_rule = rule_named(rule) if rule is not None else None  # None: each task's default
         self.memory = memory
         if self.rule.needs_successes and memory.successes is None:
@@ -287,26 +302,14 @@ class FailureDetector(RuleThresholds):
             success_similarity={v: on_frames(s, np.nan) for v, s in found.success_similarity.items()},
             success_ids={v: on_frames(i, -1) for v, i in found.success_ids.items()},
             in_memory=own is not None,
+            bands=dict(self.bands),
         )
 
-
-def stored_threshold(memory: FailureMemory, rule: ScoringRule) -> float | None:
-    """`rule`'s threshold as the memory's calibration stored it for the memory's encoder, or None."""
-    calibration = memory.manifest.calibration
-    return calibration.threshold_for(memory.encoder, rule.threshold_key) if calibration is not None else None
-
-
-def _thresholds(memory: FailureMemory, given: Mapping[str, float | None]) -> dict[str, float]:
-    """Every registered rule's threshold by name: `given` (by its threshold key), else stored, else default."""
-    thresholds = {}
-    for rule in RULES.values():
-        value = given.get(rule.threshold_key)
-        if value is not None:
-            rule.check_threshold(value)
-        else:
-            value = stored_threshold(memory, rule)
-        thresholds[rule.name] = float(value if value is not None else rule.default_threshold)
-    return thresholds
+    def threshold_at(self, rule: ScoringRule, t: int) -> float:
+        """`rule`'s threshold on its raw score at frame index `t`: θ, or μ_t + θ·σ_t with a band."""
+        band = self.bands.get(rule.name)
+        threshold = self.threshold_of(rule)
+        return threshold if band is None else band.line_at(threshold, t)
 
 
 class DetectorSession:
@@ -342,7 +345,7 @@ class DetectorSession:
         failure = {view: found.similarity(view) for view in views}
         success = {view: found.success_similarity.get(view, missing) for view in views}
         rule = self.rule
-        threshold = detector.threshold_of(rule)
+        threshold = detector.threshold_at(rule, self.t)
         scores = ViewScores({view: rule.score(failure[view], success[view]) for view in views}, 1)
         successes = detector.memory.successes
         fired = scores.firing(threshold, 0)

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from robofailring.data.model import Skipped
+from robofailring.detection.band import Band
 from robofailring.detection.rules import CONTRAST, NOVELTY, PAPER, RULES, RuleThresholds, ScoringRule
 from robofailring.detection.view_scores import ViewScores
 from robofailring.memory.failure import FailureMemory, Neighbor
@@ -27,7 +28,7 @@ class StepResult:
     fired_views: list[str]  # the views whose score reaches it, in view order
     score: dict[str, float]  # the rule's score per view (S_t, C_t or N_t; NaN: not scored)
     rule: ScoringRule
-    threshold: float
+    threshold: float  # what `score` is judged against at this step: θ, or μ_t + θ·σ_t with a band
     detected_view: str | None  # the firing view with the highest score, None without an alarm
     success_similarity: dict[str, float] = field(default_factory=dict)  # S⁺_t per view (NaN: none)
     nearest_success: dict[str, SuccessMatch | None] = field(default_factory=dict)  # its success frame
@@ -75,6 +76,8 @@ class DetectionTrace(RuleThresholds):
     placed: dict[str, np.ndarray] = field(
         default_factory=dict, repr=False
     )  # run(place=…) rows per scored frame
+    # per rule name: the time-indexed band its calibrated threshold applies to (robofailring.detection.band)
+    bands: dict[str, Band] = field(default_factory=dict, repr=False)
 
     @property
     def threshold(self) -> float:
@@ -88,6 +91,27 @@ class DetectionTrace(RuleThresholds):
             view: rule.score(self.similarity[view], self.success_similarity.get(view, missing))
             for view in self.views
         }
+
+    def judged_scores_of(self, rule: ScoringRule) -> dict[str, np.ndarray]:
+        """What `rule`'s threshold judges, per view: its score, corrected by its band when it has one."""
+        scores = self.scores_of(rule)
+        band = self.bands.get(rule.name)
+        return scores if band is None else {view: band.correct(values) for view, values in scores.items()}
+
+    def threshold_line(self, rule: ScoringRule | None = None) -> np.ndarray:
+        """The threshold of `rule` (default: the trace's) on its raw score, per frame: constant without
+        a band, μ_t + θ·σ_t with one (what a recording draws)."""
+        rule = rule or self.rule
+        threshold = self.threshold_of(rule)
+        band = self.bands.get(rule.name)
+        if band is None:
+            return np.full(self.length, threshold, dtype=np.float32)
+        return band.line(threshold, self.length)
+
+    @property
+    def band(self) -> Band | None:
+        """The band of the trace's rule, None when its threshold is one number."""
+        return self.bands.get(self.rule.name)
 
     @property
     def contrast(self) -> dict[str, np.ndarray]:
@@ -111,8 +135,9 @@ class DetectionTrace(RuleThresholds):
 
     @property
     def view_scores(self) -> ViewScores:
-        """The rule's per-view scores, fused over this trace's views (`robofailring.detection.view_scores`)."""
-        scores = self.scores
+        """The rule's judged per-view scores (band-corrected when it has a band), fused over this trace's
+        views (`robofailring.detection.view_scores`)."""
+        scores = self.judged_scores_of(self.rule)
         return ViewScores({view: scores[view] for view in self.views}, self.length)
 
     def nearest_success(self, view: str, t: int) -> SuccessMatch | None:
@@ -151,8 +176,14 @@ class DetectionTrace(RuleThresholds):
         return ViewScores({view: self.similarity[view] for view in self.views}, self.length).fused_max()
 
     def max_score(self) -> np.ndarray:
-        """max over views of the rule's score, per frame (NaN counts as −∞)."""
+        """max over views of the rule's judged score, per frame (NaN counts as −∞)."""
         return self.view_scores.fused_max()
+
+    def raw_max_score(self, rule: ScoringRule) -> np.ndarray:
+        """max over views of `rule`'s uncorrected score, per frame (NaN where no view was scored)."""
+        scores = self.scores_of(rule)
+        fused = ViewScores({view: scores[view] for view in self.views}, self.length).fused_max()
+        return np.where(np.isfinite(fused), fused, np.nan)
 
     def neighbors(self, view: str, t: int) -> list[Neighbor]:
         return self.memory.neighbors(self.neighbor_similarity[view][t], self.neighbor_ids[view][t])
@@ -206,6 +237,8 @@ class DetectionTrace(RuleThresholds):
             "failure_entries": self.memory.task_size(self.task),
             "k": self.k,
             "encoder": self.encoder,
+            "band": self.band.kind if self.band is not None else None,
+            "threshold_line": _rounded(self.threshold_line()) if self.band is not None else None,
             "t_det": self.t_det,
             "detected_view": self.detected_view,
             "skipped_views": self.skipped_views,

@@ -3,18 +3,33 @@
 Each success run is replayed with its own episode hidden from both memories (leave-one-out), so
 its frames never match themselves in the success memory; its peak score over frames and views is
 one conformal score. The threshold of each rule is the split-conformal one of
-`robofailring.detection.conformal.conformal_threshold`, pooled over tasks.
+`robofailring.detection.conformal.conformal_threshold`, pooled over tasks. With a band
+(`robofailring.detection.band`: `shift`, `norm`), each run's per-frame score is first corrected by
+the band of the other runs, and its peak is the conformal score; the band of all runs is stored.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
+
+import numpy as np
 
 from robofailring.data.layouts import load_dataset
 from robofailring.data.model import Skipped, Trajectory
+from robofailring.detection.band import (
+    DEFAULT_BAND,
+    MIN_BAND_RUNS,
+    NONE,
+    Band,
+    bands_to_dict,
+    check_band,
+    fit_band,
+    leave_one_out,
+)
 from robofailring.detection.conformal import (
     FprSpread,
     check_target_fpr,
@@ -39,6 +54,7 @@ class RuleCalibration:
     target_fpr: float
     achieved_fpr: float  # share of the calibration runs that reach the threshold (≤ α by construction)
     successes: int
+    band: Band | None = None  # the time-indexed band the threshold applies to (None: one number)
 
     @property
     def spread(self) -> FprSpread:
@@ -52,7 +68,7 @@ def available_rules(detector: FailureDetector) -> list[ScoringRule]:
     return rules_for(successes=detector.memory.successes is not None, failures=len(detector.memory) > 0)
 
 
-def success_peaks(
+def success_scores(
     detector: FailureDetector,
     successes: Sequence[Trajectory],
     rules: Sequence[ScoringRule],
@@ -60,12 +76,13 @@ def success_peaks(
     progress: Callable[[int], None] | None = None,
     stride: int = 1,
     too_short: list[str] | None = None,
-) -> dict[ScoringRule, list[float]]:
-    """Per rule, each success run's peak score, its episode left out of both memories.
+) -> dict[ScoringRule, list[np.ndarray]]:
+    """Per rule, each success run's per-frame score (max over views, uncorrected; NaN where unscored),
+    its episode left out of both memories.
 
     `stride` scores every N-th frame, as the runs the threshold will judge are scored; the keys of
     runs with no view of 2+ frames (nothing to score) are appended to `too_short`."""
-    peaks: dict[ScoringRule, list[float]] = {rule: [] for rule in rules}
+    scores: dict[ScoringRule, list[np.ndarray]] = {rule: [] for rule in rules}
     for trajectory in successes:
         try:
             trace = detector.run(trajectory, leave_one_out=True, stride=stride, keep_queries=False)
@@ -74,10 +91,28 @@ def success_peaks(
                 too_short.append(trajectory.key)
         else:
             for rule in rules:
-                peaks[rule].append(float(trace.with_rule(rule, 0.0).max_score().max()))
+                scores[rule].append(trace.raw_max_score(rule))
         if progress is not None:
             progress(1)
-    return peaks
+    return scores
+
+
+def conformal_peaks(runs: Sequence[np.ndarray], band: str) -> tuple[list[float], Band | None]:
+    """Each run's conformal score (its peak; with a band, the peak of its score corrected by the band of
+    the other runs) and the band of all of them (None for `none`, and with fewer than `MIN_BAND_RUNS`
+    runs). A run with nothing scored (the only success run of its task: nothing to contrast it with)
+    gives NaN."""
+    finite = [run for run in runs if np.isfinite(run).any()]
+    if band == NONE or len(finite) < MIN_BAND_RUNS:
+        return [_peak(run) for run in runs], None
+    others = iter(leave_one_out(band, finite))
+    peaks = [_peak(next(others).correct(run)) if np.isfinite(run).any() else float("nan") for run in runs]
+    return peaks, fit_band(band, finite)
+
+
+def _peak(values: np.ndarray) -> float:
+    finite = values[np.isfinite(values)]
+    return float(finite.max()) if finite.size else float("nan")
 
 
 def calibrate_rules(
@@ -89,14 +124,21 @@ def calibrate_rules(
     progress: Callable[[int], None] | None = None,
     stride: int = 1,
     too_short: list[str] | None = None,
+    band: str = DEFAULT_BAND,
 ) -> dict[ScoringRule, RuleCalibration]:
-    """The conformal threshold of every rule (default: all the memory supports) at level `target_fpr`."""
+    """The conformal threshold of every rule (default: all the memory supports) at level `target_fpr`,
+    on the `band` (`none`, `shift`, `norm`) fitted on the same runs; the paper rule keeps one δ, as in
+    the paper (§3.3)."""
+    check_band(band)
     chosen = list(rules) if rules is not None else available_rules(detector)
-    peaks = success_peaks(detector, successes, chosen, progress=progress, stride=stride, too_short=too_short)
+    scores = success_scores(
+        detector, successes, chosen, progress=progress, stride=stride, too_short=too_short
+    )
     calibrations = {}
-    for rule, values in peaks.items():
-        if not values:
+    for rule, runs in scores.items():
+        if not runs:
             raise DataError(f"none of the {len(successes)} success trajectories has a view of 2+ frames")
+        values, fitted = conformal_peaks(runs, band if rule is not PAPER else NONE)  # δ stays the paper's
         scored = [v for v in values if math.isfinite(v)]
         try:
             threshold = conformal_threshold(scored, target_fpr)
@@ -113,6 +155,7 @@ def calibrate_rules(
             target_fpr=target_fpr,
             achieved_fpr=empirical_fpr(scored, threshold),
             successes=len(scored),
+            band=fitted,
         )
     return calibrations
 
@@ -130,11 +173,13 @@ class CalibrateConfig:
     labels: Path | None = None  # labels file for data whose names do not say the outcome (LeRobot)
     task: str | None = None  # task of episodes whose names do not say it
     views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
+    band: str = DEFAULT_BAND  # time-indexed thresholds: none, shift (μ_t) or norm (μ_t, σ_t)
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
         check_k(self.k)
         check_stride(self.stride)
         check_target_fpr(self.target_fpr)
+        check_band(self.band)
 
 
 @dataclass(frozen=True)
@@ -151,6 +196,8 @@ class Calibration:
     eta: float | None = None  # the novelty rule's η, when the memory has success runs
     eta_achieved_fpr: float | None = None
     fpr_spread: FprSpread | None = None  # the realised test FPR's range with these `successes` runs
+    band: str = NONE  # the thresholds' time-indexed band (none: each threshold is one number)
+    band_asked: str = NONE  # the band asked for (none is used with fewer than MIN_BAND_RUNS runs)
 
     def to_text(self, memory: Path) -> str:
         """The summary `robofailring calibrate` prints: δ, γ and η, those the memory supports."""
@@ -159,6 +206,17 @@ class Calibration:
             f"{100 * self.target_fpr:.1f} %); stored in {memory}/manifest.json"
         )
         lines = [head]
+        if self.band_asked != NONE and self.band == NONE:
+            lines.append(
+                f"no time-indexed band: {self.successes} calibration runs are too few to fit one (at least "
+                f"{MIN_BAND_RUNS}); each threshold is one number"
+            )
+        if self.band != NONE:
+            lines.append(
+                f"time-indexed band {self.band!r}: each threshold applies to the score corrected by the "
+                + ("mean" if self.band == "shift" else "mean and spread")
+                + " of these runs' scores at the same frame (a line over time on the raw score)"
+            )
         for rule, threshold, achieved, note in (
             (PAPER, self.delta, self.achieved_fpr, ""),
             (CONTRAST, self.gamma, self.gamma_achieved_fpr, ", own episode left out of the success memory"),
@@ -217,6 +275,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
             progress=advance,
             stride=config.stride,
             too_short=too_short,
+            band=config.band,
         )
     paper, contrast, novelty = found.get(PAPER), found.get(CONTRAST), found.get(NOVELTY)
     widest = max(found.values(), key=lambda calibration: calibration.successes)
@@ -238,6 +297,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
             split=config.split,
             k=config.k,
             stride=config.stride,
+            band=_stored_band(config.band, found.values()),
         )
     )
     calibrated.write_manifest(config.memory)
@@ -256,4 +316,12 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
         eta=stored.eta,
         eta_achieved_fpr=stored.eta_achieved_fpr,
         fpr_spread=spread,
+        band=next((c.band.kind for c in found.values() if c.band is not None), NONE),
+        band_asked=config.band,
     )
+
+
+def _stored_band(kind: str, calibrations: Iterable[RuleCalibration]) -> dict[str, Any] | None:
+    """The stored calibration's `band` section: each rule's fitted band, None without one."""
+    bands = {c.rule.name: c.band for c in calibrations if c.band is not None}
+    return bands_to_dict(kind, bands) if bands else None

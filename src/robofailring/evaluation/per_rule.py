@@ -82,11 +82,11 @@ MARKDOWN_HEADER = (
 def scored_by_rule(
     traces: Mapping[str, DetectionTrace], labels: Mapping[str, ScoredTrajectory], rule: ScoringRule
 ) -> list[ScoredTrajectory]:
-    """The test trajectories with the rule's per-view score in place of S_t."""
+    """The test trajectories with the rule's judged per-view score (band-corrected when it has a band) in
+    place of S_t."""
     scored = []
     for key, base in labels.items():
-        trace = traces[key].with_rule(rule, traces[key].threshold)
-        scored.append(replace(base, similarity=dict(trace.scores)))
+        scored.append(replace(base, similarity=traces[key].judged_scores_of(rule)))
     return scored
 
 

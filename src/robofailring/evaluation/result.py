@@ -55,6 +55,7 @@ class EvaluationResult:
     rules: dict[str, RuleResult] = field(default_factory=dict)  # both rules at their thresholds
     target_fpr: float | None = None
     deployment_successes: int = 0
+    band: str = "none"  # the time-indexed band the rules beyond the paper's were judged on
     vocabulary: Vocabulary | None = field(default=None, repr=False)  # the memory's own failure symbols
     growth: list[GrowthPoint] = field(default_factory=list)  # `evaluate --growth`: the learning curve
     paper_rates: list[Rates] = field(init=False)
@@ -197,6 +198,7 @@ class EvaluationResult:
             "latency_ms": self.latency_ms,
             "target_fpr": self.target_fpr,
             "deployment_successes": self.deployment_successes,
+            "band": self.band,
             **({"growth": [point.to_dict() for point in self.growth]} if self.growth else {}),
             "rules": {
                 name: result.to_dict() | self.rule_charts(result.rule, rate_row)
@@ -317,9 +319,15 @@ class EvaluationResult:
             if self.deployment_successes
             else ""
         )
+        banded = (
+            f" The contrast and novelty thresholds apply to the score corrected per frame index by the "
+            f"calibration successes' {'mean' if self.band == 'shift' else 'mean and spread'} (band `{self.band}`)."
+            if self.band != "none"
+            else ""
+        )
         return [
             "Every scoring rule, each calibrated on the training successes (split conformal, each run's own "
-            f"episode left out):{deployed}",
+            f"episode left out):{deployed}{banded}",
             "",
             MARKDOWN_HEADER,
             *(result.markdown_row(self.target_fpr) for result in self.rules.values()),

@@ -4,30 +4,29 @@ from __future__ import annotations
 
 import hashlib
 import json
-import time
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-
-import numpy as np
 
 from robofailring.atomic import write_text_atomic
 from robofailring.data.layouts import Dataset, load_dataset
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.data.splits import split_of
 from robofailring.data.vocabulary import read_vocabulary
+from robofailring.detection.band import DEFAULT_BAND, Band, check_band
 from robofailring.detection.conformal import FprSpread, check_target_fpr
 from robofailring.detection.detector import (
     DetectionTrace,
     FailureDetector,
     check_k,
     check_stride,
-    stored_threshold,
 )
 from robofailring.detection.rules import PAPER, ScoringRule
+from robofailring.detection.stored import stored_threshold
 from robofailring.encoders import CachedEncoder, open_encoder
 from robofailring.errors import DataError, RoboFailRingError, SettingError
 from robofailring.evaluation.growth import GrowthPoint, judged
+from robofailring.evaluation.latency import measure_latency
 from robofailring.evaluation.metrics import PAPER_DELTAS, ScoredTrajectory
 from robofailring.evaluation.per_rule import evaluate_rule, scored_by_rule
 from robofailring.evaluation.result import EvaluationResult
@@ -66,12 +65,14 @@ class EvaluateConfig:
     deployment_successes: int = 0  # per task: test success runs moved into the success memory
     task: str | None = None  # task of episodes whose names do not say it
     views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
+    band: str = DEFAULT_BAND  # time-indexed thresholds when calibrating here: none, shift or norm
     failures_per_task: int | None = None  # the memory built here holds N training failures per task
     # (`labelled_failures`; 0: success runs only, judged by the novelty rule); None: all of them
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
         check_k(self.k)
         check_stride(self.stride)
+        check_band(self.band)
         if self.target_fpr is not None:
             check_target_fpr(self.target_fpr)
         if self.deployment_successes < 0:
@@ -151,28 +152,6 @@ def check_disjoint(memory: FailureMemory, test: Sequence[Trajectory]) -> None:
                 )
 
 
-def measure_latency(
-    detector: FailureDetector, trajectory: Trajectory, *, frames: int = 8
-) -> dict[str, float]:
-    """Per-frame detection latency on real frames, uncached: encode all views, then retrieve."""
-    views = [v for v, f in trajectory.views.items() if len(f) >= 2]
-    count = min(frames, trajectory.length)
-    images = [[trajectory.views[v][t].load() for v in views] for t in range(count)]
-    raw = detector.encoder.encoder
-    raw.encode(images[0])  # warm-up
-    session = detector.session(trajectory.task)
-    encode_ms, total_ms = [], []
-    for step_images in images:
-        start = time.perf_counter()
-        raw.encode(step_images)
-        encode_ms.append((time.perf_counter() - start) * 1000)
-        start = time.perf_counter()
-        session.step(dict(zip(views, step_images, strict=True)))
-        total_ms.append((time.perf_counter() - start) * 1000)
-    encode, total = float(np.median(encode_ms)), float(np.median(total_ms))
-    return {"encode": encode, "retrieval": max(total - encode, 0.0), "total": total}
-
-
 def build_training_memory(
     config: EvaluateConfig, splits: Splits | None = None, encoder: CachedEncoder | None = None
 ) -> Path:
@@ -232,7 +211,9 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
     check_disjoint(memory, test)
     memory, test = _deploy_successes(memory, test, config.deployment_successes, encoder, config.success_step)
     detector = FailureDetector(memory, encoder, k=config.k)
-    thresholds, calibrated, spreads = _thresholds(config, detector, train)
+    thresholds, calibrated, spreads, bands = _thresholds(config, detector, train)
+    if bands is not None:  # calibrated here: the test runs are judged on the bands fitted with the thresholds
+        detector = FailureDetector(memory, encoder, k=config.k, bands=bands)
     operating = thresholds.get(PAPER, PAPER.default_threshold)  # no failure runs: the paper tables are empty
     known = set(memory.tasks)
     scored: list[ScoredTrajectory] = []
@@ -297,6 +278,7 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
         rules=rules,
         target_fpr=config.target_fpr if config.target_fpr is not None else _stored_target(memory),
         deployment_successes=config.deployment_successes,
+        band=next((band.kind for band in detector.bands.values()), "none"),
         views=views,
         scored=scored,
         traces=traces,
@@ -365,15 +347,23 @@ def _deploy_successes(
 
 def _thresholds(
     config: EvaluateConfig, detector: FailureDetector, train: Sequence[Trajectory]
-) -> tuple[dict[ScoringRule, float], dict[ScoringRule, bool], dict[ScoringRule, FprSpread]]:
+) -> tuple[
+    dict[ScoringRule, float], dict[ScoringRule, bool], dict[ScoringRule, FprSpread], dict[str, Band] | None
+]:
     """Each rule's threshold: conformal on the training successes, or the memory's stored/default one;
-    and, when calibrated here, how far its test FPR can stray with the runs it was set from."""
+    when calibrated here, how far its test FPR can stray with the runs it was set from, and the rules'
+    bands (None: the stored thresholds, with the memory's own bands)."""
     from robofailring.evaluation.calibration import available_rules, calibrate_rules
 
     rules = available_rules(detector)
     if config.target_fpr is None:
         stored = {r: stored_threshold(detector.memory, r) for r in rules}
-        return {r: detector.threshold_of(r) for r in rules}, {r: stored[r] is not None for r in rules}, {}
+        return (
+            {r: detector.threshold_of(r) for r in rules},
+            {r: stored[r] is not None for r in rules},
+            {},
+            None,
+        )
     known = set(detector.memory.tasks)
     successes = [t for t in train if not t.is_failure and t.task in known]
     if not successes:
@@ -384,12 +374,19 @@ def _thresholds(
         )
     with progress_bar(total=len(successes), desc="calibrating", unit="traj") as bar:
         found = calibrate_rules(
-            detector, successes, config.target_fpr, rules=rules, progress=bar.update, stride=config.stride
+            detector,
+            successes,
+            config.target_fpr,
+            rules=rules,
+            progress=bar.update,
+            stride=config.stride,
+            band=config.band,
         )
     return (
         {r: c.threshold for r, c in found.items()},
         {r: True for r in found},
         {r: c.spread for r, c in found.items()},
+        {r.name: c.band for r, c in found.items() if c.band is not None},
     )
 
 

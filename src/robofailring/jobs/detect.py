@@ -124,9 +124,15 @@ class DetectResult:
         """The summary: the rule and threshold, each view's peak scores, and the detection (or none)."""
         trace, rule = self.trace, self.trace.rule
         scored = f", every {trace.stride}th frame scored" if trace.stride > 1 else ""
+        band = trace.band
+        judged = (
+            f"{rule.symbol} = {trace.threshold:.3f}"
+            if band is None
+            else f"{band.label(rule.symbol, trace.threshold)}, fitted on {band.runs} calibration runs"
+        )
         lines = [
             f"task {trace.task}, L = {trace.length} frames{scored}, rule {rule.name}: {rule.score_name} ≥ "
-            f"{rule.symbol} = {trace.threshold:.3f}, K = {trace.k}"
+            f"{judged}, K = {trace.k}"
         ]
         contrasts, novelties = trace.contrast, trace.novelty
         for view in trace.views:
@@ -144,7 +150,11 @@ class DetectResult:
         fired_view = trace.detected_view
         found = trace.neighbors(fired_view, trace.t_det)
         fired_score = float(trace.scores[fired_view][trace.t_det])
-        said = f"FAILURE detected at frame {trace.t_det}/{trace.length} in view {fired_view} ({rule.name} rule: {rule.score_name} = {fired_score:.3f}"
+        line = float(trace.threshold_line()[trace.t_det])
+        said = (
+            f"FAILURE detected at frame {trace.t_det}/{trace.length} in view {fired_view} ({rule.name} rule: "
+            f"{rule.score_name} = {fired_score:.3f} ≥ {line:.3f}"
+        )
         if found:
             top = found[0]
             said += (

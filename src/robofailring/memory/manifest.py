@@ -83,6 +83,12 @@ _KINDS: Final[dict[str, Any]] = {
     "k": _whole,
     "stride": _whole,
 }
+# the calibration section's own kinds: its `successes` is a run count (the manifest's is the success
+# memory's section), and its `band` the time-indexed statistic (robofailring.detection.band)
+_CALIBRATION_KINDS: Final[dict[str, Any]] = _KINDS | {
+    "successes": _whole,
+    "band": lambda v: isinstance(v, dict),
+}
 
 
 @dataclass
@@ -110,6 +116,9 @@ class StoredCalibration:
     split: str | None = None
     k: int | None = None
     stride: int | None = None
+    # the thresholds' time-indexed band: {"kind": "shift"|"norm", "rules": {rule: {mean, scale, runs}}}; None:
+    # one threshold per rule (calibrated with --band none, or before bands existed)
+    band: dict[str, Any] | None = None
     extra: dict[str, Any] = field(default_factory=dict)  # keys this version does not know, kept verbatim
     absent: frozenset[str] = field(default=frozenset(), repr=False)  # known keys the file did not have
 
@@ -128,7 +137,9 @@ class StoredCalibration:
         if delta is not None and (not _number(delta) or not math.isfinite(delta)):
             raise MemoryFormatError(f"{path}: calibration 'delta' must be a finite number, not {delta!r}")
         known = [f.name for f in fields(cls) if f.name not in ("delta", "extra", "absent")]
-        typed = {k: section[k] for k in known if section.get(k) is not None and _KINDS[k](section[k])}
+        typed = {
+            k: section[k] for k in known if section.get(k) is not None and _CALIBRATION_KINDS[k](section[k])
+        }
         extra = {
             k: v
             for k, v in section.items()

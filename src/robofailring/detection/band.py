@@ -1,0 +1,202 @@
+"""Time-indexed thresholds (functional conformal prediction, as FAIL-Detect does): a band per frame index.
+
+A rule's score at frame t of a normal run is not the same at every t: the first frames of every run
+match the memories closely, a grasp looks more like a failure than a reach. A single threshold has
+to sit above the noisiest moment of every success run, so it is late everywhere else. A band
+corrects the score by a statistic of the calibration successes' scores at the same frame index t
+(which a live run knows): `shift` subtracts their mean μ_t, `norm` also divides by their spread
+σ_t. The peak of the corrected score is then calibrated split-conformally
+(`robofailring.detection.conformal`), each calibration run corrected by a band fitted on the other
+runs (`leave_one_out`), so a new success run fires with probability ≤ α as before. On the raw score
+the threshold becomes the time-varying line μ_t + θ·σ_t, which recordings draw.
+
+Beyond the longest calibration run, or where fewer than `MIN_RUNS` runs reach a frame index, the
+statistic of the last well-covered frame is held. σ_t is floored at `SCALE_FLOOR` × its median
+(and `MIN_SCALE`), so a frame where every run scores alike does not turn noise into alarms. With
+fewer than `MIN_BAND_RUNS` calibration runs no band is fitted (calibration says so).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, Final
+
+import numpy as np
+
+from robofailring.errors import MemoryFormatError, SettingError
+
+NONE: Final[str] = "none"
+SHIFT: Final[str] = "shift"
+NORM: Final[str] = "norm"
+BAND_KINDS: Final[tuple[str, ...]] = (NONE, SHIFT, NORM)
+DEFAULT_BAND: Final[str] = NORM  # the benchmark's best (README, "Time-indexed thresholds")
+MIN_RUNS: Final[int] = 5  # calibration runs a frame index needs for its own statistic
+MIN_BAND_RUNS: Final[int] = 10  # fewer calibration runs fit no band: the threshold stays one number
+SCALE_FLOOR: Final[float] = 0.25  # σ_t ≥ this share of the median σ …
+MIN_SCALE: Final[float] = 1e-3  # … and ≥ this (scores are cosines or their differences)
+
+
+def check_band(kind: str) -> str:
+    """A band kind (`none`, `shift`, `norm`); SettingError naming the choices otherwise."""
+    if kind not in BAND_KINDS:
+        raise SettingError(f"unknown band {kind!r}; choose one of {list(BAND_KINDS)}")
+    return kind
+
+
+@dataclass(frozen=True)
+class Band:
+    """One rule's per-frame-index statistic: corrected = (score − mean_t) / scale_t."""
+
+    kind: str  # `shift` or `norm`
+    mean: np.ndarray  # (T,) μ_t
+    scale: np.ndarray  # (T,) σ_t (ones for `shift`)
+    runs: int  # calibration runs it was fitted on
+
+    def _at(self, values: np.ndarray, frames: np.ndarray) -> np.ndarray:
+        return values[np.minimum(frames, len(values) - 1)]
+
+    def statistic(self, length: int) -> tuple[np.ndarray, np.ndarray]:
+        """(μ_t, σ_t) for frames 0 … length−1, the last value held beyond the calibration runs."""
+        frames = np.arange(length)
+        return self._at(self.mean, frames), self._at(self.scale, frames)
+
+    def correct(self, scores: np.ndarray) -> np.ndarray:
+        """The corrected score of frames 0 … L−1 (NaN stays NaN); `scores` is (L,) or (L, …)."""
+        scores = np.asarray(scores, dtype=np.float32)
+        mean, scale = self.statistic(len(scores))
+        shape = (len(scores),) + (1,) * (scores.ndim - 1)
+        return ((scores - mean.reshape(shape)) / scale.reshape(shape)).astype(np.float32)
+
+    def line(self, threshold: float, length: int) -> np.ndarray:
+        """The threshold on the raw score at frames 0 … length−1: μ_t + θ·σ_t."""
+        mean, scale = self.statistic(length)
+        return (mean + threshold * scale).astype(np.float32)
+
+    def line_at(self, threshold: float, t: int) -> float:
+        """μ_t + θ·σ_t at one frame index (a live step)."""
+        frame = min(t, len(self.mean) - 1)
+        return float(self.mean[frame] + threshold * self.scale[frame])
+
+    def label(self, symbol: str, threshold: float) -> str:
+        """The threshold as the line it is on the raw score: `γ_t = μ_t + 1.230·σ_t (norm band)`."""
+        spread = "·σ_t" if self.kind == NORM else ""
+        return f"{symbol}_t = μ_t + {threshold:.3f}{spread} ({self.kind} band)"
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "runs": self.runs,
+            "mean": [round(float(v), 6) for v in self.mean],
+            "scale": [round(float(v), 6) for v in self.scale],
+        }
+
+    @classmethod
+    def from_dict(cls, kind: str, section: Any, *, where: str) -> Band:
+        """A band as `to_dict` stored it; MemoryFormatError naming `where` when it is not one."""
+        try:
+            mean = np.asarray(section["mean"], dtype=np.float32)
+            scale = np.asarray(section["scale"], dtype=np.float32)
+            runs = section["runs"]
+        except (KeyError, TypeError, ValueError) as error:
+            raise MemoryFormatError(f"{where}: a band needs 'mean', 'scale' and 'runs' ({error})") from None
+        if (
+            kind not in (SHIFT, NORM)
+            or mean.ndim != 1
+            or mean.shape != scale.shape
+            or not len(mean)
+            or not np.isfinite(mean).all()
+            or not (scale > 0).all()
+            or not isinstance(runs, int)
+        ):
+            raise MemoryFormatError(
+                f"{where}: a {kind!r} band needs equal-length finite 'mean' and positive 'scale' lists and a "
+                "whole 'runs'; run `robofailring calibrate` again"
+            )
+        return cls(kind=kind, mean=mean, scale=scale, runs=runs)
+
+
+def _stacked(runs: Sequence[np.ndarray]) -> np.ndarray:
+    """(n, T) scores, NaN where a run has no finite score (unscored, shorter, or nothing to compare)."""
+    length = max(len(run) for run in runs)
+    table = np.full((len(runs), length), np.nan, dtype=np.float64)
+    for row, run in enumerate(runs):
+        values = np.asarray(run, dtype=np.float64)
+        table[row, : len(values)] = np.where(np.isfinite(values), values, np.nan)
+    return table
+
+
+def _held(values: np.ndarray, covered: np.ndarray) -> np.ndarray:
+    """`values` where `covered`, else the last covered value (the first covered one before it)."""
+    index = np.where(covered, np.arange(len(values)), -1)
+    index = np.maximum.accumulate(index)
+    first = int(np.flatnonzero(covered)[0])
+    return values[np.where(index < 0, first, index)]
+
+
+def _statistic(
+    count: np.ndarray, total: np.ndarray, squares: np.ndarray, kind: str
+) -> tuple[np.ndarray, np.ndarray]:
+    covered = count >= min(MIN_RUNS, int(count.max()))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = total / count
+        variance = np.maximum(squares / count - mean**2, 0.0) * count / np.maximum(count - 1, 1)
+    mean = _held(mean, covered)
+    if kind == SHIFT:
+        return mean, np.ones_like(mean)
+    scale = _held(np.sqrt(variance), covered)
+    floor = max(SCALE_FLOOR * float(np.median(scale)), MIN_SCALE)
+    return mean, np.maximum(scale, floor)
+
+
+def fit_band(kind: str, runs: Sequence[np.ndarray]) -> Band:
+    """The band of `kind` (`shift` or `norm`) fitted on calibration runs' per-frame scores."""
+    bands = _fit(kind, runs, leave_one_out=False)
+    return bands[0]
+
+
+def leave_one_out(kind: str, runs: Sequence[np.ndarray]) -> list[Band]:
+    """For each run, the band fitted on all the other runs (what that run's conformal score is corrected by)."""
+    return _fit(kind, runs, leave_one_out=True)
+
+
+def _fit(kind: str, runs: Sequence[np.ndarray], *, leave_one_out: bool) -> list[Band]:
+    check_band(kind)
+    if kind == NONE:
+        raise SettingError("the band 'none' has no statistic to fit")
+    if len(runs) < 2:
+        raise SettingError(f"a band needs at least 2 calibration runs, got {len(runs)}")
+    table = _stacked(runs)
+    finite = np.isfinite(table)
+    values = np.where(finite, table, 0.0)
+    count, total, squares = finite.sum(axis=0), values.sum(axis=0), (values**2).sum(axis=0)
+    if not count.any():
+        raise SettingError("no calibration run has a finite score to fit a band on")
+    if not leave_one_out:
+        mean, scale = _statistic(count, total, squares, kind)
+        return [Band(kind, mean.astype(np.float32), scale.astype(np.float32), len(runs))]
+    bands = []
+    for row in range(len(runs)):
+        others = count - finite[row]
+        if not others.any():
+            raise SettingError("a band needs calibration runs with finite scores besides each one")
+        mean, scale = _statistic(others, total - values[row], squares - values[row] ** 2, kind)
+        bands.append(Band(kind, mean.astype(np.float32), scale.astype(np.float32), len(runs) - 1))
+    return bands
+
+
+def bands_to_dict(kind: str, bands: Mapping[str, Band]) -> dict[str, Any]:
+    """The stored calibration's `band` section: its kind and one band per rule name."""
+    return {"kind": kind, "rules": {name: band.to_dict() for name, band in bands.items()}}
+
+
+def bands_from_dict(section: Any, *, where: str) -> dict[str, Band]:
+    """The bands by rule name of a stored `band` section (`none`: no band)."""
+    if not isinstance(section, dict) or not isinstance(section.get("rules", {}), dict):
+        raise MemoryFormatError(f"{where}: 'band' must be an object with 'kind' and 'rules', not {section!r}")
+    kind = section.get("kind")
+    if kind == NONE:
+        return {}
+    return {
+        name: Band.from_dict(str(kind), stored, where=f"{where} band of rule {name!r}")
+        for name, stored in section.get("rules", {}).items()
+    }
