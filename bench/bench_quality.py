@@ -115,7 +115,7 @@ class Variant:
 
     @staticmethod
     def parse(text: str) -> Variant:
-        """`LABEL:field=value,field=value` (numbers are read as numbers, the rest as text)."""
+        """`LABEL:field=value,field=value` (numbers are read as numbers, true/false/null as such, the rest as text)."""
         label, _, body = text.partition(":")
         known = {f.name for f in fields(EvaluateConfig)}
         settings: dict[str, Any] = {}
@@ -135,7 +135,7 @@ def _value(text: str) -> Any:
             return kind(text)
         except ValueError:
             pass
-    return {"true": True, "false": False, "none": None}.get(text.lower(), text)
+    return {"true": True, "false": False, "null": None}.get(text.lower(), text)
 
 
 @dataclass(frozen=True)
