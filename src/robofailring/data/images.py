@@ -13,13 +13,17 @@ from robofailring.errors import DataError
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".webp")
 
 
-def decode_image(data: bytes, *, source: str) -> np.ndarray:
-    """Decode encoded image bytes to an (H, W, 3) uint8 RGB array."""
+def decode_image(data: bytes, *, source: str, stored_rgb: bool = False) -> np.ndarray:
+    """Decode encoded image bytes to an (H, W, 3) uint8 RGB array.
+
+    `stored_rgb`: the encoder was given an RGB array as it was (ALOHA's `cv2.imencode` on the camera's
+    RGB frame), so the channels decode as RGB already and are not swapped.
+    """
     buffer = np.frombuffer(data, dtype=np.uint8)
     image = cv2.imdecode(buffer, cv2.IMREAD_COLOR) if buffer.size else None
     if image is None:
         raise DataError(f"cannot decode image {source}: not a readable PNG/JPEG/BMP/WebP file")
-    return np.ascontiguousarray(image[:, :, ::-1])
+    return np.ascontiguousarray(image if stored_rgb else image[:, :, ::-1])
 
 
 def read_image(path: Path) -> np.ndarray:

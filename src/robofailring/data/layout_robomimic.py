@@ -3,7 +3,8 @@
 `data/demo_<i>/obs/<camera>_image` (LIBERO: `<camera>_rgb`) as (N, H, W, 3) uint8 is view `<camera>`;
 `data` attributes hold `env_args` (JSON) and, in LIBERO, `problem_info` (JSON with the
 `language_instruction`, the task); `mask/<split>` lists demo names, used as splits. Trajectories are
-keyed by the demo's name (`demo_3`); frames are rows sliced on demand. Outcome and symbol come from
+keyed by the demo's name (`demo_3`); frames are rows sliced on demand, LIBERO's bottom-up rows
+(`data` attribute `macros_image_convention` = `opengl`) flipped upright. Outcome and symbol come from
 `--labels`. The task: `--task`, else LIBERO's instruction, else `env_args`'s `env_name`.
 """
 
@@ -15,7 +16,7 @@ from pathlib import Path
 from typing import Any, Final
 
 from robofailring.data.folders import natural_key
-from robofailring.data.hdf5 import HDF5Frames, describe, is_hdf5, is_image_array, open_hdf5
+from robofailring.data.hdf5 import HDF5Frames, describe, is_hdf5, is_image_array, open_hdf5, row_format
 from robofailring.data.model import Frame, Skipped, Trajectory
 from robofailring.data.registry import Found, Layout, register
 from robofailring.errors import DataError
@@ -93,7 +94,10 @@ def robomimic_trajectories(root: Path, *, task: str | None = None) -> Found:
         for key in obs.keys() if obs is not None else ():
             item = obs[key]
             if is_image_array(item):
-                views[view_name(key)] = HDF5Frames(root, f"/data/{demo}/obs/{key}", int(item.shape[0]))
+                dataset = f"/data/{demo}/obs/{key}"
+                views[view_name(key)] = HDF5Frames(
+                    root, dataset, int(item.shape[0]), form=row_format(handle, dataset)
+                )
             elif hasattr(item, "shape") and len(item.shape) in (3, 4):
                 skipped.setdefault(
                     key,
