@@ -28,6 +28,7 @@ def write_robomimic(
     """robomimic's `data/demo_<i>/{obs/<cam>, actions, dones, rewards, states}` and `mask/<split>` (LIBERO:
     `problem_info` with the language instruction; `opengl`: LIBERO's `macros_image_convention`, the
     rendered frames stored bottom row first, as robosuite's OpenGL renderer gives them)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
     with h5py.File(path, "w") as handle:
         data = handle.create_group("data")
         if opengl:
