@@ -8,6 +8,7 @@ import h5py
 import numpy as np
 import pytest
 from hdf5_writer import write_robomimic
+from pipeline import invoke
 from synthetic import synthetic_frame
 
 from robofailring import load_dataset, load_trajectory
@@ -113,3 +114,27 @@ def test_a_folder_of_one_file_keeps_demo_keys_and_a_minority_is_no_dataset(tmp_p
             handle.create_dataset("poses", data=np.zeros((4, 7)))
     with pytest.raises(DataError, match="matches no known dataset layout"):
         load_dataset(folder)
+
+
+def test_build_memory_says_which_runs_are_unlabelled_not_ignored(tmp_path: Path) -> None:
+    folder = tmp_path / "mimicgen_stack"
+    for name in ("demo", "demo_failed"):
+        write_robomimic(folder / f"{name}.hdf5", frame, demos=3, length=LENGTH, env_name="Stack_D0")
+    labels = tmp_path / "labels.csv"
+    labels.write_text("episode,outcome,symbol\ndemo/demo_0,success,\n")
+    built = invoke(
+        [
+            "build-memory",
+            folder,
+            "--labels",
+            labels,
+            "--out",
+            tmp_path / "memory",
+            "--cache-dir",
+            tmp_path / "c",
+        ]
+    )
+    assert (
+        "from 3 failure trajectories over 1 tasks; 1 non-failures ignored; "
+        "2 unlabelled run(s) not used (give their outcome with --labels)" in built.stdout
+    )
