@@ -10,7 +10,7 @@ import pytest
 from pipeline import run_pipeline
 from synthetic import synthetic_frame
 
-from robofailring import load_dataset
+from robofailring import load_dataset, load_trajectory
 from robofailring.data.images import write_png
 from robofailring.data.model import Trajectory
 from robofailring.data.splits import split_of
@@ -98,3 +98,18 @@ def test_view_named_files_one_level_down_are_episodes_not_views(tmp_path: Path) 
     dataset = load_dataset(root, task="pick_cube")
     assert dataset.layout == "images" and [t.episode for t in dataset] == ["run_a", "run_b"]
     assert dataset.views == list(VIEWS)
+
+
+def test_trajectory_is_chosen_before_views_are_checked(tmp_path: Path) -> None:
+    """`--trajectory run_a --views wrist` reads run_a's wrist; run_b has no wrist camera and is not asked for."""
+    root = tmp_path / "runs"
+    for episode, views in (("run_a", VIEWS), ("run_b", VIEWS[:1])):
+        for v, view in enumerate(views):
+            (root / episode / view).mkdir(parents=True)
+            for t in range(3):
+                write_png(root / episode / view / f"{t}.png", np.full((8, 8, 3), 10 * v + t, np.uint8))
+    chosen = load_trajectory(root, key="run_a", task="pick_cube", views="wrist=hand")
+    assert chosen.episode == "run_a" and chosen.view_names == ["hand"]
+    assert int(chosen.views["hand"][2].load()[0, 0, 0]) == 12
+    with pytest.raises(DataError, match="no view 'wrist' in trajectory pick_cube/run_b"):
+        load_dataset(root, task="pick_cube", views="wrist")  # every trajectory is used: each needs it
