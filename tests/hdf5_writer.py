@@ -6,10 +6,9 @@ import json
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+import cv2
 import h5py
 import numpy as np
-
-from robofailring.data.images import encode_jpeg
 
 Frames = Callable[[int, int, int], np.ndarray]  # (episode, camera, t) -> (H, W, 3) uint8
 
@@ -24,11 +23,16 @@ def write_robomimic(
     masks: dict[str, Sequence[int]] | None = None,
     env_name: str = "Lift",
     instruction: str | None = None,
+    opengl: bool = False,
 ) -> Path:
     """robomimic's `data/demo_<i>/{obs/<cam>, actions, dones, rewards, states}` and `mask/<split>` (LIBERO:
-    `problem_info` with the language instruction)."""
+    `problem_info` with the language instruction; `opengl`: LIBERO's `macros_image_convention`, the
+    rendered frames stored bottom row first, as robosuite's OpenGL renderer gives them)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
     with h5py.File(path, "w") as handle:
         data = handle.create_group("data")
+        if opengl:
+            data.attrs["macros_image_convention"] = "opengl"
         data.attrs["total"] = demos * length
         data.attrs["env_args"] = json.dumps(
             {
@@ -51,6 +55,8 @@ def write_robomimic(
             obs = group.create_group("obs")
             for c, camera in enumerate(cameras):
                 stack = np.stack([frames(demo, c, t) for t in range(length)])
+                if opengl:
+                    stack = stack[:, ::-1]
                 obs.create_dataset(camera, data=stack, chunks=(1, *stack.shape[1:]), compression="gzip")
             obs.create_dataset("robot0_eef_pos", data=np.zeros((length, 3)))
         if masks:
@@ -69,7 +75,11 @@ def write_aloha(
     cameras: Sequence[str] = ("cam_high", "cam_left_wrist"),
     compress: bool = False,
 ) -> Path:
-    """ACT/ALOHA's `record_episodes.py`: `/observations/images/<cam>` raw or JPEG rows, qpos, qvel, action."""
+    """ACT/ALOHA's `record_episodes.py`: `/observations/images/<cam>` raw or JPEG rows, qpos, qvel, action.
+
+    Compressed as upstream does it: `cv2.imencode('.jpg', image)` on the camera's RGB array as it is
+    (so the JPEG holds RGB bytes where OpenCV expects BGR; ACT's `cv2.imdecode(row, 1)` gives RGB back).
+    """
     folder.mkdir(parents=True, exist_ok=True)
     for episode in range(episodes):
         images = {cam: [frames(episode, c, t) for t in range(length)] for c, cam in enumerate(cameras)}
@@ -82,7 +92,8 @@ def write_aloha(
             for c, cam in enumerate(cameras):
                 if compress:
                     encoded = [
-                        np.frombuffer(encode_jpeg(image, quality=90), np.uint8) for image in images[cam]
+                        cv2.imencode(".jpg", image, [int(cv2.IMWRITE_JPEG_QUALITY), 90])[1].ravel()
+                        for image in images[cam]
                     ]
                     padded = max(len(row) for row in encoded) + 16
                     rows = np.zeros((length, padded), np.uint8)

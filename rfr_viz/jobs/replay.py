@@ -176,10 +176,10 @@ def select_trajectories(
         if skipped is not None:
             skipped += trajectory.skipped
         return [trajectory]
-    dataset = load_dataset(data, task=task, labels=labels, views=views, vocabulary=vocabulary)
+    dataset = load_dataset(data, task=task, labels=labels, views=views, vocabulary=vocabulary, keys=keys)
     if skipped is not None:
         skipped += dataset.skipped
-    chosen = dataset.select(keys=list(keys) or None)
+    chosen = list(dataset.trajectories())
     if task is not None:
         chosen = [trajectory for trajectory in chosen if trajectory.task == task]
         if not chosen:

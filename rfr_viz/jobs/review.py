@@ -122,9 +122,9 @@ def _replay_keys(
         device=config.device,
         data_root=config.data_root,
     )
-    dataset = load_dataset(config.data, views=config.views)
+    dataset = load_dataset(config.data, views=config.views, keys=keys)
     result.skipped_inputs += dataset.skipped
-    trajectories = {t.key: t for t in dataset.select(keys=keys)}
+    trajectories = {t.key: t for t in dataset.trajectories()}
     result.references[memory_dir] = loaded.references
     with progress_bar(total=len(keys), desc=f"replaying {config.kind}", unit="trajectory") as bar:
         for key in keys:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from decimal import Decimal
 from pathlib import Path
 
 import pytest
@@ -10,16 +11,33 @@ from environment import shared_data
 from synthetic import write_episode, write_project_dataset
 
 from robofailring import Outcome, load_dataset, load_trajectory
-from robofailring.data.images import numeric_sort_key, write_png
+from robofailring.data.folders import frame_number
+from robofailring.data.images import write_png
 from robofailring.data.layouts import LAYOUTS_HELP, parse_aha_name
 from robofailring.errors import DataError
 
 
 def test_numeric_order() -> None:
     names = [Path(f"{i}.png") for i in (10, 9, 1, 0, 100, 2)]
-    assert [p.stem for p in sorted(names, key=numeric_sort_key)] == ["0", "1", "2", "9", "10", "100"]
+    assert [p.stem for p in sorted(names, key=lambda p: frame_number(p.stem))] == [
+        "0",
+        "1",
+        "2",
+        "9",
+        "10",
+        "100",
+    ]
     views = [Path(f"front_{i}.png") for i in (11, 2, 1)]
-    assert [p.stem for p in sorted(views, key=numeric_sort_key)] == ["front_1", "front_2", "front_11"]
+    assert [p.stem for p in sorted(views, key=lambda p: frame_number(p.stem))] == [
+        "front_1",
+        "front_2",
+        "front_11",
+    ]
+    stamps = [Path(f"{s}.png") for s in ("1700000001.1", "1700000000.8", "1700000000.85")]
+    assert [frame_number(p.stem) for p in sorted(stamps, key=lambda p: frame_number(p.stem))] == [
+        Decimal("1700000000.8"), Decimal("1700000000.85"), Decimal("1700000001.1"),
+    ]  # fmt: skip
+    assert frame_number("frame") is None
 
 
 @pytest.mark.parametrize(

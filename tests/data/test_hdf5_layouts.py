@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import csv
+import shutil
 from pathlib import Path
 
+import cv2
 import h5py
 import numpy as np
 import pytest
@@ -13,8 +15,7 @@ from pipeline import invoke, run_pipeline
 from synthetic import synthetic_frame
 
 from robofailring import load_dataset, load_trajectory
-from robofailring.data.hdf5 import HDF5Frame
-from robofailring.data.images import decode_image, encode_jpeg
+from robofailring.data.hdf5 import HDF5Frame, read_hdf5_reference
 from robofailring.data.model import Trajectory
 from robofailring.data.splits import split_of
 from robofailring.errors import DataError
@@ -135,6 +136,51 @@ def test_bad_hdf5_and_missing_views_are_named_errors_and_write_nothing(
         load_dataset(other)
 
 
+def red_over_blue(episode: int, camera: int, t: int) -> np.ndarray:
+    """A frame whose colours and rows are told apart: red on top, blue below, a grey bar at row t."""
+    image = np.zeros((32, 32, 3), np.uint8)
+    image[:16] = (200, 10 * camera, 20 + episode)
+    image[16:] = (30, 10 * camera, 210)
+    image[t] = 128
+    return image
+
+
+def test_aloha_jpeg_rows_read_as_the_camera_gave_them(tmp_path: Path) -> None:
+    """record_episodes.py encodes the RGB array as it is; reading it back must not swap red and blue."""
+    folder = write_aloha(tmp_path / "transfer_cube", red_over_blue, episodes=2, length=4, compress=True)
+    trajectory = load_dataset(folder, task="transfer").episodes[1]
+    read = trajectory.views["cam_left_wrist"][2].load().astype(int)
+    written = red_over_blue(1, 1, 2).astype(int)
+    assert np.abs(read - written).mean() < 8  # JPEG's error at the edges; swapped, it is over 100
+    assert read[4:12, :, 0].mean() > 190 and read[4:12, :, 2].mean() < 35  # red stays on top
+    assert read[20:28, :, 2].mean() > 200 and read[20:28, :, 0].mean() < 40
+    reference = trajectory.views["cam_left_wrist"][2].reference  # a memory entry's image reads the same
+    assert np.array_equal(read_hdf5_reference(reference), read)
+
+
+def test_libero_opengl_frames_are_turned_upright(tmp_path: Path) -> None:
+    path = write_robomimic(
+        tmp_path / "TASK0_demo.hdf5",
+        red_over_blue,
+        demos=2,
+        length=6,
+        cameras=("agentview_rgb", "eye_in_hand_rgb"),
+        instruction="open the top drawer",
+        opengl=True,
+    )
+    plain = tmp_path / "plain.hdf5"  # the same rows without the attribute are another image
+    shutil.copy(path, plain)
+    with h5py.File(plain, "a") as handle:
+        assert np.array_equal(handle["data/demo_1/obs/agentview_rgb"][3], red_over_blue(1, 0, 3)[::-1])
+        del handle["data"].attrs["macros_image_convention"]
+    frames = load_dataset(path).episodes[1].views["agentview"]
+    assert np.array_equal(frames[3].load(), red_over_blue(1, 0, 3))
+    assert np.array_equal(read_hdf5_reference(frames[3].reference), red_over_blue(1, 0, 3))
+    unflipped = load_dataset(plain).episodes[1].views["agentview"]
+    assert np.array_equal(unflipped[3].load(), red_over_blue(1, 0, 3)[::-1])
+    assert unflipped[3].content_key() != frames[3].content_key()
+
+
 def aloha_labels(tmp_path: Path, folder: Path, episodes: int) -> tuple[Path, dict[int, str]]:
     """Two failures on each side of the hash split (the layout has no splits of its own)."""
     sides: dict[str, list[int]] = {}
@@ -165,8 +211,9 @@ def test_aloha_episodes_raw_or_jpeg_through_every_verb(tmp_path: Path, compress:
     assert trajectory.task == "aloha_transfer_cube" and trajectory.length == LENGTH
     read, written = trajectory.views["cam_left_wrist"][6].load(), frame(3, 1, 6, symbols)
     error = np.abs(read.astype(int) - written.astype(int))
-    if compress:  # what the writer's JPEG decodes to, exactly; a few grey levels from what was encoded
-        assert np.array_equal(read, decode_image(encode_jpeg(written, quality=90), source="written"))
+    if compress:  # what ACT's cv2.imdecode(row, 1) gives, exactly; a few grey levels from what was encoded
+        jpeg = cv2.imencode(".jpg", written, [int(cv2.IMWRITE_JPEG_QUALITY), 90])[1]
+        assert np.array_equal(read, cv2.imdecode(jpeg, cv2.IMREAD_COLOR))
         assert 0 < error.mean() < 4
     else:
         assert error.max() == 0

@@ -10,7 +10,7 @@ import pytest
 from pipeline import run_pipeline
 from synthetic import synthetic_frame
 
-from robofailring import load_dataset
+from robofailring import load_dataset, load_trajectory
 from robofailring.data.images import write_png
 from robofailring.data.model import Trajectory
 from robofailring.data.splits import split_of
@@ -98,3 +98,89 @@ def test_view_named_files_one_level_down_are_episodes_not_views(tmp_path: Path) 
     dataset = load_dataset(root, task="pick_cube")
     assert dataset.layout == "images" and [t.episode for t in dataset] == ["run_a", "run_b"]
     assert dataset.views == list(VIEWS)
+
+
+def test_trajectory_is_chosen_before_views_are_checked(tmp_path: Path) -> None:
+    """`--trajectory run_a --views wrist` reads run_a's wrist; run_b has no wrist camera and is not asked for."""
+    root = tmp_path / "runs"
+    for episode, views in (("run_a", VIEWS), ("run_b", VIEWS[:1])):
+        for v, view in enumerate(views):
+            (root / episode / view).mkdir(parents=True)
+            for t in range(3):
+                write_png(root / episode / view / f"{t}.png", np.full((8, 8, 3), 10 * v + t, np.uint8))
+    chosen = load_trajectory(root, key="run_a", task="pick_cube", views="wrist=hand")
+    assert chosen.episode == "run_a" and chosen.view_names == ["hand"]
+    assert int(chosen.views["hand"][2].load()[0, 0, 0]) == 12
+    with pytest.raises(DataError, match="no view 'wrist' in trajectory pick_cube/run_b"):
+        load_dataset(root, task="pick_cube", views="wrist")  # every trajectory is used: each needs it
+
+
+def write_frames(folder: Path, names: list[str], value: int = 0) -> None:
+    """PNG frames whose first pixel holds their place in `names` (and `value` in the blue channel)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    for place, name in enumerate(names):
+        write_png(folder / name, np.full((8, 8, 3), (place, 50, value), np.uint8))
+
+
+def test_episode_folders_of_one_camera_are_episodes_named_by_the_files(tmp_path: Path) -> None:
+    root = tmp_path / "runs"
+    for run in range(3):
+        write_frames(root / f"run_{run}", [f"front_{t}.png" for t in range(4 + run)], value=run)
+    dataset = load_dataset(root, task="pick_cube", views="front=scene")
+    assert dataset.layout == "images" and dataset.skipped == []
+    assert [(t.episode, t.view_names, t.length) for t in dataset] == [
+        ("run_0", ["scene"], 4), ("run_1", ["scene"], 5), ("run_2", ["scene"], 6),
+    ]  # fmt: skip
+    assert dataset.episodes[2].views["scene"][5].load()[0, 0].tolist() == [5, 50, 2]
+    alone = load_trajectory(root / "run_1", task="pick_cube")  # one of them, given alone
+    assert alone.view_names == ["front"] and alone.length == 5
+    write_frames(root / "run_3", [f"{t:06d}.png" for t in range(3)], value=3)  # a number alone: view `image`
+    bare = load_trajectory(root / "run_3", task="pick_cube")
+    assert bare.view_names == ["image"] and bare.views["image"][2].load()[0, 0].tolist() == [2, 50, 3]
+
+
+@pytest.mark.parametrize(
+    "names",
+    [
+        {"front": "frame_{t}.png", "wrist": "frame_{t}.png"},  # a frame word names no camera
+        {"front": "front_{t}.png", "wrist": "wrist_{t}.png"},  # the folder's own name
+    ],
+)
+def test_view_folders_of_one_episode_stay_one_episode(tmp_path: Path, names: dict[str, str]) -> None:
+    episode = tmp_path / "2026-11-30_14-02"
+    for v, (view, pattern) in enumerate(names.items()):
+        write_frames(episode / view, [pattern.format(t=t) for t in range(3)], value=v)
+    for trajectory in (load_trajectory(episode, task="t"), *load_dataset(episode, task="t")):
+        assert trajectory.episode == "2026-11-30_14-02" and trajectory.view_names == ["front", "wrist"]
+        assert trajectory.views["wrist"][1].load()[0, 0].tolist() == [1, 50, 1]
+
+
+def test_folders_of_images_numbered_alone_are_one_episode_and_a_dataset_verb_says_so(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """`runs/run_0/000.png` looks like `ep/front/000.png`: read as README says, one episode, with a warning."""
+    root = tmp_path / "runs"
+    for run in range(3):
+        write_frames(root / f"run_{run}", [f"{t:06d}.png" for t in range(3)], value=run)
+    with caplog.at_level("WARNING", logger="robofailring"):
+        assert load_trajectory(root, task="t").view_names == ["run_0", "run_1", "run_2"]
+        assert not caplog.records  # one episode is what detect asked for
+        dataset = load_dataset(root, task="t")
+    assert dataset.layout == "episode" and [t.view_names for t in dataset] == [["run_0", "run_1", "run_2"]]
+    (record,) = caplog.records
+    assert f"{root} is read as one episode whose views are its folders run_0, run_1, run_2" in record.message
+    assert "name its images <camera>_<n>.png" in record.message
+    write_frames(tmp_path / "one" / "run_0", ["front_0.png", "front_1.png"])  # one folder: a view folder
+    (single,) = load_dataset(tmp_path / "one", task="t")
+    assert single.episode == "one" and single.view_names == ["run_0"]
+
+
+def test_view_folders_named_in_their_files_are_read_without_a_warning(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    episode = tmp_path / "ep"
+    for view in VIEWS:
+        write_frames(episode / view, [f"{view}_{t}.png" for t in range(3)])
+    with caplog.at_level("WARNING", logger="robofailring"):
+        assert [t.view_names for t in load_dataset(episode, task="t")] == [list(VIEWS)]
+    assert not caplog.records

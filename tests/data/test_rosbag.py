@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from rosbag_writer import stored, write_bag
+from rosbag_writer import START_NS, stored, write_bag
 from rrd import properties, rows
 from synthetic import synthetic_frame
 from typer.testing import CliRunner
@@ -15,6 +15,7 @@ from typer.testing import CliRunner
 from rfr_viz.cli.app import app
 from robofailring import load_dataset, load_trajectory
 from robofailring.data.layout_rosbag import BagFile, read_bag_reference
+from robofailring.errors import DataError
 from robofailring.memory.references import check_references, reference_file
 
 ENCODINGS = (
@@ -22,6 +23,9 @@ ENCODINGS = (
     ("/cam_left/image_raw", "bgr8"),
     ("/cam_wrist/image_mono", "mono8"),
     ("/cam_top/image_raw/compressed", "jpeg"),
+    ("/camera/color/image_rgba", "rgba8"),
+    ("/zed/left/image_rect_color", "bgra8"),  # the ZED wrapper's encoding
+    ("/cv_bridge/image", "8UC3"),  # OpenCV's BGR under its type name
 )
 KINDS = ("ros1", "mcap", "sqlite3")
 
@@ -202,20 +206,45 @@ def test_a_bag_without_an_image_topic_is_a_named_error(tmp_path: Path) -> None:
         ],
     )
     assert result.exit_code == 2, result.output
-    assert "has no image topic" in result.output
+    assert "has no readable image topic" in result.output
     assert "/chatter (std_msgs/msg/String), /tf (std_msgs/msg/String)" in result.output
     assert not (tmp_path / "memory").exists()
 
 
+DEPTH = (
+    ("/camera/depth/image_rect_raw", "16UC1"),  # RealSense
+    ("/camera/depth/image_rect_raw/compressedDepth", "compressedDepth"),
+    ("/camera/ir/image", "mono16"),
+)
+
+
 @pytest.mark.parametrize("kind", KINDS)
-def test_an_unsupported_encoding_is_a_named_error(kind: str, tmp_path: Path) -> None:
+def test_depth_topics_are_listed_as_not_read_and_the_colour_topic_is_read(kind: str, tmp_path: Path) -> None:
     write_bag(
         bag_path(tmp_path / "bags", "run_1", kind),
         kind=kind,
-        topics=(("/cam_front/image_raw", "rgb8"), ("/depth/image_raw", "16UC1")),
+        topics=(("/camera/color/image_raw", "rgb8"), *DEPTH),
         frames=frame,
         count=3,
     )
+    (trajectory,) = load_dataset(tmp_path / "bags", task="pick_cube")
+    assert trajectory.view_names == ["/camera/color/image_raw"] and trajectory.length == 3
+    assert np.array_equal(trajectory.views["/camera/color/image_raw"][2].load(), frame(0, 2))
+    reasons = {s.view: s.reason for s in trajectory.skipped}
+    assert set(reasons) == {topic for topic, _ in DEPTH}
+    assert reasons["/camera/depth/image_rect_raw"].startswith(
+        "topic /camera/depth/image_rect_raw has encoding '16UC1' (a depth image, not a colour camera): not read"
+    )
+    assert "format '16UC1; compressedDepth png' (a depth image" in reasons[DEPTH[1][0]]
+    assert "encoding 'mono16' (a depth image" in reasons["/camera/ir/image"]
+    with pytest.raises(DataError) as error:  # asked for by name: why it is not there
+        load_trajectory(tmp_path / "bags", key="run_1", task="t", views="/camera/depth/image_rect_raw=depth")
+    assert "view '/camera/depth/image_rect_raw' of trajectory t/run_1" in str(error.value)
+    assert "has encoding '16UC1' (a depth image, not a colour camera)" in str(error.value)
+
+
+def test_a_bag_of_depth_topics_only_is_a_named_error(tmp_path: Path) -> None:
+    write_bag(tmp_path / "bags" / "run_1", kind="mcap", topics=DEPTH[:1], frames=frame, count=3)
     result = CliRunner().invoke(
         app,
         [
@@ -228,11 +257,64 @@ def test_an_unsupported_encoding_is_a_named_error(kind: str, tmp_path: Path) -> 
         ],
     )
     assert result.exit_code == 2, result.output
-    assert (
-        "topic /depth/image_raw has encoding '16UC1'" in result.output
-        and "rgb8, bgr8, mono8" in result.output
-    )
+    assert "has no readable image topic" in result.output and "rgb8, bgr8, 8UC3" in result.output
+    assert "it holds: /camera/depth/image_rect_raw (encoding '16UC1' (a depth image" in result.output
     assert not (tmp_path / "memory").exists()
+
+
+def test_views_at_different_rates_follow_the_slowest_topics_messages(tmp_path: Path) -> None:
+    """30 Hz, 10 Hz, and 20 Hz from 0.15 s: frame i is each topic's latest message at or before 0.1·i s."""
+    timing = {"/fast": (0, 33_333_333), "/late": (150_000_000, 50_000_000)}
+    topics = (("/fast", "rgb8"), ("/slow", "rgb8"), ("/late", "jpeg"))
+    write_bag(
+        tmp_path / "rates" / "run_1",
+        kind="mcap",
+        topics=topics,
+        frames=lambda number, t: np.full((8, 8, 3), (60 * number, 8 * t, 7), np.uint8),
+        count=10,
+        timing=timing,
+    )
+    trajectory = load_trajectory(tmp_path / "rates" / "run_1", task="t")
+    assert {view: len(trajectory.views[view]) for view in trajectory.views} == {
+        "/fast": 10,
+        "/late": 10,
+        "/slow": 10,
+    }
+    assert trajectory.fps == pytest.approx(10.0)
+    expected = {
+        "/slow": list(range(10)),
+        "/fast": [3 * i for i in range(10)],
+        "/late": [0, 0, *range(1, 17, 2)],
+    }
+    bag = BagFile(tmp_path / "rates" / "run_1")
+    for topic, _ in topics:
+        frames = trajectory.views[topic]
+        messages = [frames[i].source.index for i in range(10)]
+        assert messages == expected[topic], topic
+        stamps = [int(bag.topics[topic].times[m]) for m in messages]
+        start, period = timing.get(topic, (0, 100_000_000))
+        assert stamps == [START_NS + start + m * period for m in messages]
+        assert all(
+            stamp <= START_NS + i * 100_000_000 or m == 0
+            for i, (stamp, m) in enumerate(zip(stamps, messages, strict=True))
+        )
+        read = [round(frames[i].load()[0, 0, 1] / 8) for i in (0, 5, 9)]  # each message's own t
+        assert read == [messages[i] for i in (0, 5, 9)]
+
+
+def test_a_bare_mcap_file_is_a_bag(tmp_path: Path) -> None:
+    bags = tmp_path / "bags"
+    write_bag(bags / "run_07.mcap", kind="mcap_file", topics=ENCODINGS[:2], frames=frame, count=4)
+    write_bag(bags / "run_08", kind="mcap", topics=ENCODINGS[:2], frames=frame, count=4)
+    assert sorted(p.name for p in bags.iterdir()) == ["run_07.mcap", "run_08"]
+    dataset = load_dataset(bags, task="pick_cube")
+    assert dataset.layout == "rosbag" and [t.episode for t in dataset] == ["run_07", "run_08"]
+    assert dataset.skipped == []
+    trajectory = load_trajectory(bags, key="run_07", task="pick_cube")
+    assert np.array_equal(trajectory.views["/cam_left/image_raw"][3].load(), frame(1, 3))
+    reference = trajectory.views["/cam_left/image_raw"][3].reference
+    assert reference == f"{bags / 'run_07.mcap'}#topic=/cam_left/image_raw&message=3"
+    assert np.array_equal(read_bag_reference(reference), frame(1, 3))
 
 
 def test_open_bags_are_bounded(tmp_path: Path) -> None:

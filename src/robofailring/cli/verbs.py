@@ -151,6 +151,11 @@ def build_memory_cmd(
         f"memory {target}: {len(memory)} entries ({memory.dim}-d, encoder {memory.encoder}) from "
         f"{stats.failures} failure trajectories over {sum(map(memory.has_failures, memory.tasks))} tasks; "
         f"{stats.ignored_non_failures} non-failures ignored"
+        + (
+            f"; {stats.unlabelled} unlabelled run(s) not used (give their outcome with --labels)"
+            if stats.unlabelled
+            else ""
+        )
     )
     if memory.successes is not None:
         typer.echo(

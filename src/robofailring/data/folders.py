@@ -2,21 +2,33 @@
 
 Every function here returns what it read *and* what it did not read (`Skipped`, with the reason):
 nothing under a dataset root is dropped silently. Hidden names (starting with `.`) are ignored.
+A frame's number is the last number in its name, a decimal part included (`1700000000.800000.png`,
+a timestamp, is frame 1700000000.8, not 800000); images named by a number alone directly in an
+episode folder are the view `image`. A view whose first frame is a 16-bit PNG (a depth camera) is
+not read as colour: it is listed as not read.
 """
 
 from __future__ import annotations
 
 import re
 from collections.abc import Sequence
+from decimal import Decimal
 from pathlib import Path
+from typing import Final
 
-from robofailring.data.images import IMAGE_SUFFIXES
+from robofailring.data.images import IMAGE_SUFFIXES, png_bit_depth
 from robofailring.data.model import Frame, Skipped
 from robofailring.data.video import VIDEO_SUFFIXES, VideoFrames, open_video
 from robofailring.errors import DataError
 
-_AHA_FRAME = re.compile(r"^(?P<view>.+)_(?P<idx>\d+)$")
-_LAST_NUMBER = re.compile(r"(\d+)(?!.*\d)")
+_NUMBER = r"\d+(?:\.\d+)?"
+_AHA_FRAME = re.compile(rf"^(?P<view>.+)_(?P<idx>{_NUMBER})$")
+_BARE_FRAME = re.compile(rf"^(?P<idx>{_NUMBER})$")
+_LAST_NUMBER = re.compile(rf"({_NUMBER})(?!.*\d)")
+#: The view of images named by a number alone (`000123.png`) directly in an episode folder.
+BARE_VIEW: Final[str] = "image"
+#: File-name words for a frame, not a camera: `frame_000123.png` names no view.
+FRAME_WORDS: Final[frozenset[str]] = frozenset({BARE_VIEW, "frame", "frames", "img", "im"})
 
 Views = dict[str, Sequence[Frame]]  # view name -> its frames in order
 
@@ -39,9 +51,15 @@ def _is_image(path: Path) -> bool:
     return path.is_file() and path.suffix.lower() in IMAGE_SUFFIXES
 
 
-def _numbered(paths: Sequence[tuple[Path, int]], where: Path, *, view: str) -> tuple[Frame, ...]:
+def frame_number(stem: str) -> Decimal | None:
+    """A frame's number: the last number in its name, a decimal part included (exact); None when none."""
+    match = _LAST_NUMBER.search(stem)
+    return Decimal(match.group(1)) if match else None
+
+
+def _numbered(paths: Sequence[tuple[Path, Decimal]], where: Path, *, view: str) -> tuple[Frame, ...]:
     """Frames ordered by number; two files with one number are an error naming both."""
-    seen: dict[int, Path] = {}
+    seen: dict[Decimal, Path] = {}
     for path, number in paths:
         if number in seen:
             raise DataError(
@@ -60,21 +78,49 @@ def _unnumbered(where: Path, names: list[str], pattern: str) -> Skipped:
     )
 
 
+def _colour(views: Views, skipped: list[Skipped]) -> tuple[Views, list[Skipped]]:
+    """The views whose first frame is not a 16-bit PNG; the others listed as not read."""
+    colour: Views = {}
+    for view, frames in views.items():
+        first = frames[0].path if frames else None
+        depth = png_bit_depth(first) if first is not None else None
+        if first is not None and depth is not None and depth > 8:
+            skipped.append(
+                Skipped(
+                    first.parent,
+                    f"view {view!r}: {depth}-bit PNG images (a depth camera?), not 8-bit colour: not read",
+                    view=view,
+                )
+            )
+        else:
+            colour[view] = frames
+    return colour, skipped
+
+
 def aha_files(directory: Path) -> tuple[Views, list[Skipped]]:
-    """Frames of an episode folder of `<view>_<idx>.png` files, grouped by view."""
-    grouped: dict[str, list[tuple[Path, int]]] = {}
+    """Frames of an episode folder of `<view>_<idx>.png` files (a number alone: view `image`), by view."""
+    grouped: dict[str, list[tuple[Path, Decimal]]] = {}
     unnumbered: list[str] = []
     for path in visible(directory):
         if not _is_image(path):
             continue
-        match = _AHA_FRAME.match(path.stem)
+        match = _AHA_FRAME.match(path.stem) or _BARE_FRAME.match(path.stem)
         if match:
-            grouped.setdefault(match["view"], []).append((path, int(match["idx"])))
+            view = match.groupdict().get("view") or BARE_VIEW
+            grouped.setdefault(view, []).append((path, Decimal(match["idx"])))
         else:
             unnumbered.append(path.name)
     views: Views = {view: _numbered(paths, directory, view=view) for view, paths in sorted(grouped.items())}
     skipped = [_unnumbered(directory, unnumbered, "<view>_<index>.<ext>")] if unnumbered else []
-    return views, skipped
+    return _colour(views, skipped)
+
+
+def camera_named(directory: Path) -> str | None:
+    """The one camera a folder's `<view>_<n>` images name, or None: several, none, or a frame word
+    (`frame_000123.png`, `000123.png`), where only the folder's own name could say what it holds."""
+    views = aha_files(directory)[0]
+    view = next(iter(views)) if len(views) == 1 else None
+    return None if view is None or view.lower() in FRAME_WORDS else view
 
 
 def view_folders(directory: Path) -> tuple[Views, list[Skipped]]:
@@ -82,14 +128,14 @@ def view_folders(directory: Path) -> tuple[Views, list[Skipped]]:
     views: Views = {}
     skipped: list[Skipped] = []
     for sub in subdirs(directory):
-        numbered: list[tuple[Path, int]] = []
+        numbered: list[tuple[Path, Decimal]] = []
         unnumbered: list[str] = []
         others: list[str] = []
         for path in visible(sub):
             if _is_image(path):
-                match = _LAST_NUMBER.search(path.stem)
-                if match:
-                    numbered.append((path, int(match.group(1))))
+                number = frame_number(path.stem)
+                if number is not None:
+                    numbered.append((path, number))
                 else:
                     unnumbered.append(path.name)
             else:
@@ -104,7 +150,7 @@ def view_folders(directory: Path) -> tuple[Views, list[Skipped]]:
             ]
         elif not numbered and not unnumbered:
             skipped.append(Skipped(sub, "no images in this view folder"))
-    return views, skipped
+    return _colour(views, skipped)
 
 
 def video_views(directory: Path) -> Views:

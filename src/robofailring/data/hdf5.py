@@ -2,7 +2,12 @@
 
 Files are opened per read through a small cache of open handles (`_OPEN_LIMIT`), so a dataset of
 many episode files keeps few open. A frame's reference is `<file>#<dataset path>#frame=<i>`; its
-content key digests the row's own bytes (raw pixels or the stored JPEG), so nothing else is read.
+content key digests the row's own bytes (raw pixels or the stored JPEG) and how they are read, so
+nothing else is read. How a dataset's rows are read (`RowFormat`) is decided from the file alone
+(`row_format`), by the layouts and by a memory's references alike: encoded rows are ALOHA's, JPEGs
+of the camera's RGB array given to `cv2.imencode` as it was (decoded without a channel swap), and a
+file whose `data` group says `macros_image_convention` = `opengl` (LIBERO) stores its images bottom
+row first (flipped back when read).
 """
 
 from __future__ import annotations
@@ -85,13 +90,38 @@ def is_jpeg_rows(item: Any) -> bool:
 
 
 @dataclass(frozen=True)
+class RowFormat:
+    """How the rows of an image dataset are stored, and what reading one undoes."""
+
+    encoded: bool = False  # padded JPEG rows of RGB arrays (ALOHA's `compress`), else raw (H, W, 3) pixels
+    flipped: bool = False  # bottom row first (LIBERO's `macros_image_convention` = opengl)
+
+    @property
+    def tag(self) -> str:
+        """A part of the content key: the same bytes read another way are another image."""
+        return ("rgb-jpeg:" if self.encoded else "") + ("flipud:" if self.flipped else "")
+
+
+def row_format(handle: Any, dataset: str) -> RowFormat:
+    """How the rows of `dataset` in an open file are read (the one decision, see the module's docstring)."""
+    data = handle.get("data")
+    convention = data.attrs.get("macros_image_convention") if data is not None else None
+    if isinstance(convention, bytes):
+        convention = convention.decode()
+    return RowFormat(
+        encoded=not is_image_array(handle[dataset]),
+        flipped=str(convention).strip().lower() == "opengl",
+    )
+
+
+@dataclass(frozen=True)
 class HDF5Frame:
-    """Row `index` of an image dataset: raw (H, W, 3) pixels, or a padded JPEG/PNG row of `length` bytes."""
+    """Row `index` of an image dataset: raw (H, W, 3) pixels, or a padded JPEG row of `length` bytes."""
 
     file: Path
     dataset: str
     index: int
-    encoded: bool = False
+    form: RowFormat = RowFormat()
     length: int | None = None  # the encoded image's bytes in the padded row (None: the whole row)
 
     def _row(self) -> np.ndarray:
@@ -105,13 +135,15 @@ class HDF5Frame:
 
     def load(self) -> np.ndarray:
         row = self._row()
-        if self.encoded:
-            return decode_image(row.tobytes(), source=self.reference)
-        return as_rgb(row, source=self.reference)
+        if self.form.encoded:
+            image = decode_image(row.tobytes(), source=self.reference, stored_rgb=True)
+        else:
+            image = as_rgb(row, source=self.reference)
+        return np.ascontiguousarray(image[::-1]) if self.form.flipped else image
 
     def content_key(self) -> str:
         row = self._row()
-        return content_digest(f"hdf5:{row.shape}:".encode() + row.tobytes())
+        return content_digest(f"hdf5:{row.shape}:{self.form.tag}".encode() + row.tobytes())
 
     @property
     def reference(self) -> str:
@@ -127,10 +159,10 @@ class HDF5Frames(LazyFrames):
         dataset: str,
         count: int,
         *,
-        encoded: bool = False,
+        form: RowFormat = RowFormat(),
         lengths: Sequence[int] | None = None,
     ) -> None:
-        self.file, self.dataset, self.size, self.encoded = Path(file), dataset, count, encoded
+        self.file, self.dataset, self.size, self.form = Path(file), dataset, count, form
         self.lengths = None if lengths is None else [int(n) for n in lengths]
 
     def __len__(self) -> int:
@@ -138,7 +170,7 @@ class HDF5Frames(LazyFrames):
 
     def frame(self, index: int) -> Frame:
         length = self.lengths[index] if self.lengths is not None else None
-        return Frame(source=HDF5Frame(self.file, self.dataset, index, encoded=self.encoded, length=length))
+        return Frame(source=HDF5Frame(self.file, self.dataset, index, form=self.form, length=length))
 
     def __repr__(self) -> str:
         return f"HDF5Frames({str(self.file)!r}, {self.dataset!r}, {self.size} frames)"
@@ -151,8 +183,6 @@ def read_hdf5_reference(reference: str) -> np.ndarray | None:
     if not marker or not hash_ or not index.isdecimal() or not Path(file).is_file():
         return None
     handle = open_hdf5(Path(file))
-    item = handle.get(dataset)
-    if item is None:
+    if handle.get(dataset) is None:
         return None
-    encoded = not is_image_array(item)
-    return HDF5Frame(Path(file), dataset, int(index), encoded=encoded).load()
+    return HDF5Frame(Path(file), dataset, int(index), form=row_format(handle, dataset)).load()

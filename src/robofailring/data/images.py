@@ -13,13 +13,33 @@ from robofailring.errors import DataError
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".webp")
 
 
-def decode_image(data: bytes, *, source: str) -> np.ndarray:
-    """Decode encoded image bytes to an (H, W, 3) uint8 RGB array."""
+def decode_image(data: bytes, *, source: str, stored_rgb: bool = False) -> np.ndarray:
+    """Decode encoded image bytes to an (H, W, 3) uint8 RGB array; a 16-bit image is an error.
+
+    `stored_rgb`: the encoder was given an RGB array as it was (ALOHA's `cv2.imencode` on the camera's
+    RGB frame), so the channels decode as RGB already and are not swapped.
+    """
     buffer = np.frombuffer(data, dtype=np.uint8)
-    image = cv2.imdecode(buffer, cv2.IMREAD_COLOR) if buffer.size else None
+    image = cv2.imdecode(buffer, cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH) if buffer.size else None
     if image is None:
         raise DataError(f"cannot decode image {source}: not a readable PNG/JPEG/BMP/WebP file")
-    return np.ascontiguousarray(image[:, :, ::-1])
+    if image.dtype != np.uint8:
+        raise DataError(
+            f"image {source} has {8 * image.itemsize}-bit samples (a depth map?), not an 8-bit colour image"
+        )
+    return np.ascontiguousarray(image if stored_rgb else image[:, :, ::-1])
+
+
+def png_bit_depth(path: Path) -> int | None:
+    """The bit depth a PNG file's header gives (8, 16, …), or None for a file that is not a PNG."""
+    try:
+        with Path(path).open("rb") as handle:
+            head = handle.read(26)
+    except OSError:
+        return None
+    if len(head) < 26 or head[:8] != b"\x89PNG\r\n\x1a\n" or head[12:16] != b"IHDR":
+        return None
+    return head[24]
 
 
 def read_image(path: Path) -> np.ndarray:
@@ -64,17 +84,3 @@ def write_png(path: Path, image: np.ndarray) -> None:
     """Write an RGB image as PNG (the caller handles atomicity of whole datasets)."""
     if not cv2.imwrite(str(path), image[:, :, ::-1]):
         raise DataError(f"cannot write image {path}")
-
-
-def numeric_sort_key(path: Path) -> tuple[int, int | str, str]:
-    """Order frames numerically by the last integer in their stem (`10.png` after `9.png`)."""
-    stem = path.stem
-    digits = ""
-    for char in reversed(stem):
-        if char.isdecimal():
-            digits = char + digits
-        elif digits:
-            break
-    if digits:
-        return (0, int(digits), stem)
-    return (1, stem, stem)

@@ -153,14 +153,18 @@ def _onset(trajectory: Trajectory, label: Label, source: Path) -> int | None:
 def apply_labels(
     trajectories: Iterable[Trajectory], labels: dict[str, Label], *, source: Path
 ) -> list[Trajectory]:
-    """The trajectories with their labelled outcome and symbol; a label for a missing episode is an error."""
+    """The trajectories with their labelled outcome and symbol; a label for a missing episode is an error,
+    and so is one naming by its last part (`demo_0`) episodes of several folders or files."""
     labelled = []
     found: set[str] = set()
+    by_last_part: dict[str, list[str]] = {}
     for trajectory in trajectories:
         key = label_key(trajectory, labels)
         label = labels.get(key) if key is not None else None
         if key is not None and label is not None:
             found.add(key)
+            if key != trajectory.episode:
+                by_last_part.setdefault(key, []).append(trajectory.episode)
             trajectory = replace(
                 trajectory,
                 outcome=label.outcome,
@@ -170,6 +174,12 @@ def apply_labels(
                 onset_frame=_onset(trajectory, label, source),
             )
         labelled.append(trajectory)
+    for key, episodes in by_last_part.items():
+        if len(episodes) > 1:
+            raise DataError(
+                f"labels file {source} row {labels[key].row}: episode {key!r} names {len(episodes)} episodes "
+                f"({', '.join(episodes[:3])}{' …' if len(episodes) > 3 else ''}); name one by its whole key"
+            )
     missing = [episode for episode in labels if episode not in found]
     if missing:
         known = ", ".join(t.episode for t in labelled[:5]) + (" …" if len(labelled) > 5 else "")

@@ -1,7 +1,9 @@
 """ALOHA / ACT episodes: a folder of `episode_<i>.hdf5`, each `/observations/images/<cam>` (+ qpos, action).
 
 A camera is raw (N, H, W, 3) uint8, or, when the file's `compress` attribute is true, (N, L) uint8
-rows each holding one JPEG padded with zeros; either is read a row at a time. Each camera is a view;
+rows each holding one JPEG padded with zeros; either is read a row at a time. ALOHA's
+`record_episodes.py` JPEG-encodes the camera's RGB array as it is (`cv2.imencode`) and ACT reads it
+back with `cv2.imdecode` and no swap, so a row decodes to RGB without a channel swap. Each camera is a view;
 trajectories are keyed by the file's stem (`episode_3`); the task is `--task`, else the folder's
 name; outcome and symbol come from `--labels`.
 """
@@ -14,7 +16,15 @@ from pathlib import Path
 from typing import Final
 
 from robofailring.data.folders import visible
-from robofailring.data.hdf5 import HDF5Frames, describe, is_hdf5, is_image_array, is_jpeg_rows, open_hdf5
+from robofailring.data.hdf5 import (
+    HDF5Frames,
+    describe,
+    is_hdf5,
+    is_image_array,
+    is_jpeg_rows,
+    open_hdf5,
+    row_format,
+)
 from robofailring.data.model import Frame, Skipped, Trajectory
 from robofailring.data.registry import Found, Layout, register
 from robofailring.errors import DataError
@@ -32,11 +42,9 @@ def aloha_episode(path: Path, *, task: str) -> Trajectory:
     compressed = bool(handle.attrs.get("compress", False))
     views: dict[str, Sequence[Frame]] = {}
     for cam in images:
-        item = images[cam]
-        if is_image_array(item):
-            views[cam] = HDF5Frames(path, f"/observations/images/{cam}", int(item.shape[0]))
-        elif compressed and is_jpeg_rows(item):
-            views[cam] = HDF5Frames(path, f"/observations/images/{cam}", int(item.shape[0]), encoded=True)
+        item, dataset = images[cam], f"/observations/images/{cam}"
+        if is_image_array(item) or (compressed and is_jpeg_rows(item)):
+            views[cam] = HDF5Frames(path, dataset, int(item.shape[0]), form=row_format(handle, dataset))
         else:
             raise DataError(
                 f"{path}: camera {cam!r} is {tuple(item.shape)} {item.dtype}: neither (N, H, W, 3) uint8 nor "

@@ -1,20 +1,26 @@
-"""One episode folder: `<dir>/{<view>}/<n>.png`, `<dir>/<view>_<n>.png` or `<dir>/<view>.mp4`.
+"""One episode folder: `<dir>/{<view>}/<n>.png`, `<dir>/<view>_<n>.png`, `<dir>/<n>.png` or `<dir>/<view>.mp4`.
 
 The task and outcome come from the folder name where it follows the AHA or ManiSkill naming, else
-from `--task`.
+from `--task`. Read as a dataset (`load_dataset`: build-memory, evaluate, …), a folder whose views
+are sub-folders of images could also be a root of episodes of one camera each (`runs/run_0/000.png`);
+it is read as one episode, as README's layouts say, with a warning saying so and how to name the
+images for the other reading.
 """
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 from typing import Final
 
-from robofailring.data.folders import episode_views
+from robofailring.data.folders import camera_named, episode_views
 from robofailring.data.layout_aha import aha_name_problem, parse_aha_name
 from robofailring.data.layout_maniskill import MANISKILL_FAILURE, MANISKILL_SUCCESS
 from robofailring.data.model import Outcome, Trajectory
 from robofailring.data.registry import Found, Layout, layouts_help, register
 from robofailring.errors import DataError
+
+_log = logging.getLogger("robofailring")
 
 
 def episode_trajectory(path: Path, *, task: str | None) -> Trajectory:
@@ -60,7 +66,19 @@ def _detect(root: Path) -> bool:
 
 
 def _read(root: Path, *, task: str | None = None) -> Found:
-    return [episode_trajectory(root, task=task)], []
+    trajectory = episode_trajectory(root, task=task)
+    folders = [view for view in trajectory.views if (root / view).is_dir()]
+    plain = all(camera_named(root / view) is None for view in folders)  # no file name says a camera
+    if len(folders) >= 2 and plain and trajectory.outcome is None:  # an AHA or ManiSkill name says "episode"
+        shown = ", ".join(folders[:4]) + (", …" if len(folders) > 4 else "")
+        _log.warning(
+            "warning: %s is read as one episode whose views are its folders %s; if each folder is an "
+            "episode of one camera instead, name its images <camera>_<n>.png (front_000123.png): such "
+            "folders are read as episodes of view <camera>",
+            root,
+            shown,
+        )
+    return [trajectory], []
 
 
 LAYOUT: Final = register(
@@ -68,7 +86,7 @@ LAYOUT: Final = register(
         name="episode",
         detect=_detect,
         read=_read,
-        help="one episode: <dir>/{<view>}/<n>.png, <dir>/<view>_<n>.png or <dir>/<view>.mp4",
+        help="one episode: <dir>/{<view>}/<n>.png, <dir>/<view>_<n>.png, <dir>/<n>.png or <dir>/<view>.mp4",
         listed=6,
     )
 )

@@ -1,10 +1,14 @@
 """Folders of image episodes with any names: `<root>/<episode>/<view>/<n>.<png|jpg>` or `<root>/<episode>/<view>_<n>.<png|jpg>`.
 
 Tried after the named layouts (AHA, ManiSkill), before one episode folder. A folder of
-`<view>_<n>` images is an episode when it holds two views or more (one view of `frame_<n>` images
-is a view folder of one episode, as before). The task: `--task`, else the `task` column of the
-labels file, else an AHA-style episode name; outcome and symbol from that name or `--labels`.
-Trajectories are keyed by the episode folder's name.
+`<view>_<n>` images is an episode when it holds two views or more, or when it holds one view whose
+name is neither the folder's nor a word for a frame (`frame`, `img`, `image`: `folders.FRAME_WORDS`)
+and the root holds two such folders or more (`runs/run_0/front_0.png`, `runs/run_1/front_0.png`:
+episodes of one camera, view `front`). A root whose folders hold images named by a number alone (`run_0/000123.png`) or by
+a frame word (`frame_000123.png`) is ambiguous — views of one episode (`ep/front/000123.png`) look
+the same — and is left to one episode folder (README, "Folders of image episodes"). The task:
+`--task`, else the `task` column of the labels file, else an AHA-style episode name; outcome and
+symbol from that name or `--labels`. Trajectories are keyed by the episode folder's name.
 """
 
 from __future__ import annotations
@@ -12,18 +16,28 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Final
 
-from robofailring.data.folders import Views, aha_files, subdirs, view_folders, visible
+from robofailring.data.folders import Views, aha_files, camera_named, subdirs, view_folders, visible
 from robofailring.data.images import IMAGE_SUFFIXES
 from robofailring.data.layout_aha import parse_aha_name
 from robofailring.data.model import Outcome, Skipped, Trajectory
 from robofailring.data.registry import Found, Layout, register
 
-SHAPE: Final[str] = "image episodes <root>/<episode>/<view>/<n>.png or <root>/<episode>/<view>_<n>.png"
+SHAPE: Final[str] = (
+    "image episodes <root>/<episode>/<view>/<n>.png or <root>/<episode>/<view>_<n>.png (one view: two such "
+    "episode folders or more)"
+)
 
 
 def flat_episode(directory: Path) -> bool:
     """A folder of `<view>_<n>` images of two views or more (read as one view folder, its numbers clash)."""
     return len(aha_files(directory)[0]) >= 2
+
+
+def one_view_episode(directory: Path) -> bool:
+    """A folder of one camera's `<view>_<n>` images, `<view>` naming a camera: neither the folder's own
+    name (a view folder `front/front_0.png`) nor a frame word (`front/frame_0.png`)."""
+    camera = camera_named(directory)
+    return camera is not None and camera.lower() != directory.name.lower()
 
 
 def nested_episode(directory: Path) -> bool:
@@ -32,7 +46,7 @@ def nested_episode(directory: Path) -> bool:
 
 
 def _episode_views(directory: Path) -> tuple[Views, list[Skipped]]:
-    if flat_episode(directory):
+    if flat_episode(directory) or one_view_episode(directory):
         views, skipped = aha_files(directory)
         kind = "an episode of images named <view>_<n>"
         others = [p for p in visible(directory) if not (p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)]
@@ -49,7 +63,7 @@ def image_trajectories(root: Path, *, task: str | None = None) -> Found:
         Skipped(p, "a file beside the episode folders") for p in visible(root) if p.is_file()
     ]
     for directory in subdirs(root):
-        if not (flat_episode(directory) or nested_episode(directory)):
+        if not (flat_episode(directory) or nested_episode(directory) or one_view_episode(directory)):
             skipped.append(Skipped(directory, f"not an episode folder ({SHAPE})"))
             continue
         views, inside = _episode_views(directory)
@@ -70,7 +84,10 @@ def image_trajectories(root: Path, *, task: str | None = None) -> Found:
 
 
 def _detect(root: Path) -> bool:
-    return any(flat_episode(d) or nested_episode(d) for d in subdirs(root))
+    folders = subdirs(root)
+    return any(flat_episode(d) or nested_episode(d) for d in folders) or (
+        sum(map(one_view_episode, folders)) >= 2
+    )
 
 
 LAYOUT: Final = register(

@@ -1,10 +1,17 @@
-"""robomimic-style HDF5 (robomimic, LIBERO, RoboCasa, MimicGen): one file, one trajectory per demo.
+"""robomimic-style HDF5 (robomimic, LIBERO, RoboCasa, MimicGen): a file, or a folder of files, one trajectory per demo.
 
 `data/demo_<i>/obs/<camera>_image` (LIBERO: `<camera>_rgb`) as (N, H, W, 3) uint8 is view `<camera>`;
 `data` attributes hold `env_args` (JSON) and, in LIBERO, `problem_info` (JSON with the
 `language_instruction`, the task); `mask/<split>` lists demo names, used as splits. Trajectories are
-keyed by the demo's name (`demo_3`); frames are rows sliced on demand. Outcome and symbol come from
-`--labels`. The task: `--task`, else LIBERO's instruction, else `env_args`'s `env_name`.
+keyed by the demo's name (`demo_3`); frames are rows sliced on demand, LIBERO's bottom-up rows
+(`data` attribute `macros_image_convention` = `opengl`) flipped upright. The task: `--task`, else
+LIBERO's instruction, else `env_args`'s `env_name`.
+
+A folder whose HDF5 files are mostly robomimic-style is a dataset of them (LIBERO's suite folder of
+`<task>_demo.hdf5`, MimicGen's `demo.hdf5` beside `demo_failed.hdf5`); with more than one such file
+its trajectories are keyed `<file stem>/demo_<i>`, and what else the folder holds is listed as not
+read. Outcome and symbol come from `--labels`, except that the demos of a file named
+`demo_failed.hdf5` (MimicGen's failed attempts) are failures without a symbol unless labelled.
 """
 
 from __future__ import annotations
@@ -14,15 +21,17 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Final
 
-from robofailring.data.folders import natural_key
-from robofailring.data.hdf5 import HDF5Frames, describe, is_hdf5, is_image_array, open_hdf5
-from robofailring.data.model import Frame, Skipped, Trajectory
+from robofailring.data.folders import natural_key, visible
+from robofailring.data.grounding import UNTYPED
+from robofailring.data.hdf5 import HDF5Frames, describe, is_hdf5, is_image_array, open_hdf5, row_format
+from robofailring.data.model import Frame, Outcome, Skipped, Trajectory
 from robofailring.data.registry import Found, Layout, register
 from robofailring.errors import DataError
 
 _IMAGE_SUFFIXES: Final[tuple[str, ...]] = ("_image", "_rgb")
 _SPLIT_ORDER: Final[tuple[str, ...]] = ("train", "valid", "test")
 SHAPE: Final[str] = "data/demo_<i>/obs/<camera>_image (N, H, W, 3) uint8"
+FAILED_FILE: Final[str] = "demo_failed"  # MimicGen's file of failed generation attempts
 
 
 def view_name(key: str) -> str:
@@ -68,8 +77,47 @@ def _task(data: Any, root: Path, task: str | None) -> str:
     return root.stem
 
 
+def is_robomimic_file(path: Path) -> bool:
+    """An HDF5 file whose `data` group holds `demo*` groups (whether they have images is not checked)."""
+    if not is_hdf5(path):
+        return False
+    try:
+        data = open_hdf5(path).get("data")
+    except DataError:
+        return False
+    return data is not None and hasattr(data, "keys") and any(key.startswith("demo") for key in data)
+
+
 def robomimic_trajectories(root: Path, *, task: str | None = None) -> Found:
-    """Every demo of a robomimic-style file; image-like arrays that are not RGB are listed as skipped."""
+    """Every demo of a robomimic-style file, or of each such file of a folder; what is not read is listed."""
+    if root.is_file():
+        return _file_trajectories(root, task=task, prefix="")
+    entries = visible(root)
+    files = [path for path in entries if is_robomimic_file(path)]
+    skipped = [
+        Skipped(path, f"not a robomimic-style HDF5 file ({SHAPE})") for path in entries if path not in files
+    ]
+    found: list[Trajectory] = []
+    for path in files:
+        try:
+            demos, inside = _file_trajectories(
+                path, task=task, prefix=f"{path.stem}/" if len(files) > 1 else ""
+            )
+        except DataError as error:  # a file of the structure without image observations (low_dim.hdf5)
+            skipped.append(Skipped(path, f"not read: {error}"))
+            continue
+        found += demos
+        skipped += inside
+    if not found:
+        raise DataError(
+            f"{root}: no robomimic-style HDF5 file in it has a demo with an image observation ({SHAPE}); "
+            + "; ".join(f"{s.path.name}: {s.reason}" for s in skipped[:3])
+        )
+    return found, skipped
+
+
+def _file_trajectories(root: Path, *, task: str | None, prefix: str) -> Found:
+    """Every demo of one file, keyed `<prefix><demo>`; image-like arrays that are not RGB are listed as skipped."""
     handle = open_hdf5(root)
     data = handle.get("data")
     demos = (
@@ -85,6 +133,7 @@ def robomimic_trajectories(root: Path, *, task: str | None = None) -> Found:
     name = _task(data, root, task)
     fps = _json_attr(data, "env_args", f"{root} /data").get("env_kwargs", {}).get("control_freq")
     splits = _splits(handle)
+    failed = root.stem == FAILED_FILE
     found: list[Trajectory] = []
     skipped: dict[str, Skipped] = {}
     for demo in demos:
@@ -93,7 +142,10 @@ def robomimic_trajectories(root: Path, *, task: str | None = None) -> Found:
         for key in obs.keys() if obs is not None else ():
             item = obs[key]
             if is_image_array(item):
-                views[view_name(key)] = HDF5Frames(root, f"/data/{demo}/obs/{key}", int(item.shape[0]))
+                dataset = f"/data/{demo}/obs/{key}"
+                views[view_name(key)] = HDF5Frames(
+                    root, dataset, int(item.shape[0]), form=row_format(handle, dataset)
+                )
             elif hasattr(item, "shape") and len(item.shape) in (3, 4):
                 skipped.setdefault(
                     key,
@@ -111,8 +163,10 @@ def robomimic_trajectories(root: Path, *, task: str | None = None) -> Found:
         found.append(
             Trajectory(
                 task=name,
-                episode=demo,
+                episode=f"{prefix}{demo}",
                 views=views,
+                symbol=UNTYPED if failed else None,
+                outcome=Outcome.FAILURE if failed else None,
                 source=root,
                 fps=float(fps) if isinstance(fps, (int, float)) else None,
                 split=splits.get(demo),
@@ -126,7 +180,11 @@ def robomimic_trajectories(root: Path, *, task: str | None = None) -> Found:
 
 
 def _detect(root: Path) -> bool:
-    return is_hdf5(root)
+    """One HDF5 file, or a folder where more than half of the HDF5 files are robomimic-style."""
+    if root.is_file():
+        return is_hdf5(root)
+    files = [path for path in visible(root) if is_hdf5(path)]
+    return 2 * sum(map(is_robomimic_file, files)) > len(files)
 
 
 LAYOUT: Final = register(
@@ -134,7 +192,7 @@ LAYOUT: Final = register(
         name="robomimic",
         detect=_detect,
         read=robomimic_trajectories,
-        help=f"a robomimic/LIBERO HDF5 file ({SHAPE}, mask/<split>)",
+        help=f"a robomimic/LIBERO HDF5 file ({SHAPE}, mask/<split>), or a folder of them",
         listed=8,
         reads_files=True,
         outcomes_in_data=False,

@@ -1,14 +1,19 @@
-"""ROS bags: a ROS 2 bag folder (`metadata.yaml` + `.mcap` or `.db3`) or a ROS 1 `.bag` file per episode.
+"""ROS bags: a ROS 2 bag folder (`metadata.yaml` + `.mcap` or `.db3`), a bare `.mcap` or a ROS 1 `.bag` file per episode.
 
-Read with `rosbags` (pure Python, both ROS 2 storage formats). Each `sensor_msgs/msg/Image` or
-`sensor_msgs/msg/CompressedImage` topic is a view named by its topic (`/cam_front/image_raw`); frame
-i of a view is the topic's i-th message in log-time order. Opening a bag lists every image
-message's log time once (nothing kept but the times); a frame reads its one message on demand, by
-time, so a long bag is never held whole, and at most `_OPEN_LIMIT` bags are open at once.
-Encodings rgb8, bgr8, mono8 and JPEG/PNG compressed images are read; any other is an error naming
-the topic and its encoding. The trajectory key is the bag's name (its folder, or the `.bag` file's
-stem); outcome and symbol come from `--labels` (`episode` column = the bag's name), the task from
-`--task`, else it is the name of the folder holding the bag.
+Read with `rosbags` (pure Python, both ROS 2 storage formats; a `.mcap` file without its
+`metadata.yaml` opens alone). Each `sensor_msgs/msg/Image` or `sensor_msgs/msg/CompressedImage`
+topic is a view named by its topic (`/cam_front/image_raw`). Views are put on one timeline: the
+slowest topic's (the one with the fewest messages) message log times are the frames, and frame i of
+every other topic is its latest message at or before frame i's time (its first message when none
+is), so no frame of the slowest topic repeats and a faster topic's frames are the ones seen then.
+Opening a bag lists every image message's log time once (nothing kept but the times); a frame reads
+its one message on demand, by time, so a long bag is never held whole, and at most `_OPEN_LIMIT`
+bags are open at once. Encodings rgb8, bgr8, 8UC3 (OpenCV's BGR), rgba8, bgra8 (alpha dropped),
+mono8 and JPEG/PNG compressed images are read; a topic of another (16UC1 or mono16 depth,
+compressedDepth, Bayer, …) is listed as not read, naming the topic and its encoding, and a bag
+with no readable image topic is an error naming what it holds. The trajectory key is the bag's name
+(its folder, or the file's stem); outcome and symbol come from `--labels` (`episode` column = the
+bag's name), the task from `--task`, else it is the name of the folder holding the bag.
 """
 
 from __future__ import annotations
@@ -31,24 +36,37 @@ from robofailring.extras import needs_extra
 
 ROS2_METADATA: Final[str] = "metadata.yaml"
 ROS1_SUFFIX: Final[str] = ".bag"
+MCAP_SUFFIX: Final[str] = ".mcap"  # a ROS 2 bag's storage file, also read without its metadata.yaml
 IMAGE: Final[str] = "sensor_msgs/msg/Image"
 COMPRESSED: Final[str] = "sensor_msgs/msg/CompressedImage"
-RAW_ENCODINGS: Final[tuple[str, ...]] = ("rgb8", "bgr8", "mono8")
+#: Image encodings read, with their channels and whether those are in BGR order.
+RAW_ENCODINGS: Final[dict[str, tuple[int, bool]]] = {
+    "rgb8": (3, False),
+    "bgr8": (3, True),
+    "8UC3": (3, True),  # OpenCV's default channel order
+    "rgba8": (4, False),
+    "bgra8": (4, True),
+    "mono8": (1, False),
+}
+DEPTH_ENCODINGS: Final[tuple[str, ...]] = ("16UC1", "mono16", "32FC1")
 COMPRESSED_FORMATS: Final[tuple[str, ...]] = ("jpeg", "jpg", "png")
+READABLE: Final[str] = (
+    f"readable: Image encodings {', '.join(RAW_ENCODINGS)} and CompressedImage {'/'.join(COMPRESSED_FORMATS)}"
+)
 #: A bag frame's reference: `<bag>#topic=<topic>&message=<i>` (the bag is `reference_file`'s file).
 BAG_MESSAGE_MARKER: Final[str] = "#topic="
 _OPEN_LIMIT: Final[int] = 8  # bags kept open at once (a folder of bags is read one bag after another)
 
 
 def is_bag(path: Path) -> bool:
-    """A ROS 2 bag folder (it holds `metadata.yaml`) or a ROS 1 `.bag` file."""
+    """A ROS 2 bag folder (it holds `metadata.yaml`), a bare `.mcap` file or a ROS 1 `.bag` file."""
     return (path.is_dir() and (path / ROS2_METADATA).is_file()) or (
-        path.is_file() and path.suffix == ROS1_SUFFIX
+        path.is_file() and path.suffix in (ROS1_SUFFIX, MCAP_SUFFIX)
     )
 
 
 def bag_name(path: Path) -> str:
-    """The trajectory key of a bag: its folder's name, or the `.bag` file's stem."""
+    """The trajectory key of a bag: its folder's name, or the `.bag`/`.mcap` file's stem."""
     return path.stem if path.is_file() else path.name
 
 
@@ -149,17 +167,12 @@ class BagFile:
             message = self._open().deserialize(data, msgtype)
         return to_rgb(message, msgtype, where=f"{topic} message {index} of ROS bag {self.path}")
 
-    def check(self, topic: str) -> None:
-        """An error naming the topic and its encoding when its first message is not a readable image."""
+    def problem(self, topic: str) -> str | None:
+        """What makes a topic unreadable, judged by its first message (`encoding '16UC1' …`), or None."""
         msgtype, data = self.raw(topic, 0)
         with self._lock:
             message = self._open().deserialize(data, msgtype)
-        problem = encoding_problem(message, msgtype)
-        if problem is not None:
-            raise DataError(
-                f"ROS bag {self.path}: topic {topic} has {problem}; readable: Image encodings "
-                f"{', '.join(RAW_ENCODINGS)} and CompressedImage {'/'.join(COMPRESSED_FORMATS)}"
-            )
+        return encoding_problem(message, msgtype)
 
     def close(self) -> None:
         with self._lock:
@@ -169,25 +182,31 @@ class BagFile:
 
 
 def encoding_problem(message: Any, msgtype: str) -> str | None:
-    """What makes an image message unreadable (`encoding '16UC1'`), or None when it is readable."""
+    """What makes an image message unreadable (`encoding '16UC1' (…)`), or None when it is readable."""
     if msgtype == IMAGE:
         encoding = str(message.encoding)
-        return None if encoding in RAW_ENCODINGS else f"encoding {encoding!r}"
+        if encoding in RAW_ENCODINGS:
+            return None
+        if encoding in DEPTH_ENCODINGS:
+            return f"encoding {encoding!r} (a depth image, not a colour camera)"
+        return f"encoding {encoding!r}"
     form = str(message.format).lower()
-    if any(name in form for name in COMPRESSED_FORMATS) and "compresseddepth" not in form:
+    if "compresseddepth" in form:
+        return f"CompressedImage format {message.format!r} (a depth image, not a colour camera)"
+    if any(name in form for name in COMPRESSED_FORMATS):
         return None
     return f"CompressedImage format {message.format!r}"
 
 
 def to_rgb(message: Any, msgtype: str, *, where: str) -> np.ndarray:
-    """An Image (rgb8, bgr8, mono8) or CompressedImage (JPEG, PNG) message as (H, W, 3) uint8 RGB."""
+    """A readable Image or CompressedImage message (`RAW_ENCODINGS`, JPEG, PNG) as (H, W, 3) uint8 RGB."""
     problem = encoding_problem(message, msgtype)
     if problem is not None:
         raise DataError(f"{where}: {problem} is not readable")
     if msgtype == COMPRESSED:
         return decode_image(bytes(message.data), source=where)
     height, width, step = int(message.height), int(message.width), int(message.step)
-    channels = 1 if message.encoding == "mono8" else 3
+    channels, bgr = RAW_ENCODINGS[str(message.encoding)]
     data = np.asarray(message.data, dtype=np.uint8)
     if step < width * channels or data.size < height * step:
         raise DataError(
@@ -196,10 +215,8 @@ def to_rgb(message: Any, msgtype: str, *, where: str) -> np.ndarray:
     rows = data[: height * step].reshape(height, step)[:, : width * channels]
     image = rows.reshape(height, width, channels)
     if channels == 1:
-        image = np.repeat(image, 3, axis=2)
-    elif message.encoding == "bgr8":
-        image = image[:, :, ::-1]
-    return np.ascontiguousarray(image)
+        return np.ascontiguousarray(np.repeat(image, 3, axis=2))
+    return np.ascontiguousarray(image[:, :, 2::-1] if bgr else image[:, :, :3])
 
 
 _OPEN: OpenLimit[BagFile] = OpenLimit(_OPEN_LIMIT)
@@ -239,21 +256,27 @@ class BagFrame:
 
 
 class BagFrames(LazyFrames):
-    """The messages of one image topic of a bag as a lazy sequence of `Frame`."""
+    """One image topic of a bag on the timeline of topic `timeline`: frame i is the topic's latest
+    message at or before that topic's message i (its first message when none is)."""
 
-    def __init__(self, bag: BagFile, topic: str) -> None:
+    def __init__(self, bag: BagFile, topic: str, *, timeline: str) -> None:
         self.bag = bag
         self.topic = topic
-        self._count = len(bag.topics[topic].times)
+        own = bag.topics[topic].times
+        if topic == timeline:  # every message once, two at one time included
+            self._messages = np.arange(len(own))
+        else:
+            times = bag.topics[timeline].times
+            self._messages = np.maximum(np.searchsorted(own, times, side="right") - 1, 0)
 
     def __len__(self) -> int:
-        return self._count
+        return len(self._messages)
 
     def frame(self, index: int) -> Frame:
-        return Frame(source=BagFrame(self.bag, self.topic, index))
+        return Frame(source=BagFrame(self.bag, self.topic, int(self._messages[index])))
 
     def __repr__(self) -> str:
-        return f"BagFrames({self.bag!r}, {self.topic!r}, {self._count} messages)"
+        return f"BagFrames({self.bag!r}, {self.topic!r}, {len(self)} frames)"
 
 
 def read_bag_reference(reference: str) -> np.ndarray | None:
@@ -266,29 +289,39 @@ def read_bag_reference(reference: str) -> np.ndarray | None:
 
 
 def bag_trajectory(path: Path, *, task: str | None) -> Trajectory:
-    """One bag as one trajectory: a view per image topic; an error when it has none or one is unreadable.
+    """One bag as one trajectory: a view per readable image topic, on the slowest topic's timeline.
 
-    The task is `task`, else the name of the folder holding the bag (bags carry no task).
+    Unreadable image topics and other topics are listed as not read; a bag with no readable image
+    topic is an error naming what it holds. The task is `task`, else the name of the folder holding
+    the bag (bags carry no task).
     """
     bag = open_bag(path)
     topics = bag.topics
-    if not topics:
-        there = ", ".join(bag.other_topics) or "no topics with messages"
+    problems = {name: bag.problem(name) for name in topics}
+    readable = [name for name in topics if problems[name] is None]
+    if not readable:
+        held = [f"{name} ({problems[name]})" for name in topics] + bag.other_topics
         raise DataError(
-            f"ROS bag {path} has no image topic ({IMAGE} or {COMPRESSED} with messages); it holds: {there}"
+            f"ROS bag {path} has no readable image topic ({IMAGE} or {COMPRESSED} with messages; "
+            f"{READABLE}); it holds: {', '.join(held) or 'no topics with messages'}"
         )
-    for name in topics:
-        bag.check(name)
-    first = next(iter(topics.values())).times
-    span = (int(first[-1]) - int(first[0])) / 1e9
+    slowest = min(readable, key=lambda name: len(topics[name].times))
+    times = topics[slowest].times
+    span = (int(times[-1]) - int(times[0])) / 1e9
+    unread = [
+        Skipped(path, f"topic {name} has {problem}: not read ({READABLE})", view=name)
+        for name, problem in problems.items()
+        if problem is not None
+    ]
     return Trajectory(
         task=task or path.resolve().parent.name,
         episode=bag_name(path),
-        views={name: BagFrames(bag, name) for name in topics},
+        views={name: BagFrames(bag, name, timeline=slowest) for name in readable},
         source=path,
-        fps=(len(first) - 1) / span if span > 0 else None,
-        skipped=tuple(
-            Skipped(path, f"topic {other}: not an image topic, not read") for other in bag.other_topics
+        fps=(len(times) - 1) / span if span > 0 else None,
+        skipped=(
+            *unread,
+            *(Skipped(path, f"topic {other}: not an image topic, not read") for other in bag.other_topics),
         ),
     )
 
@@ -304,11 +337,15 @@ def bag_trajectories(root: Path, *, task: str | None = None) -> Found:
         if is_bag(entry):
             found.append(bag_trajectory(entry, task=task))
         else:
-            skipped.append(Skipped(entry, "not a ROS bag (a folder with metadata.yaml, or a .bag file)"))
+            skipped.append(
+                Skipped(entry, "not a ROS bag (a folder with metadata.yaml, a .mcap or a .bag file)")
+            )
     names = [t.episode for t in found]
     twice = sorted({name for name in names if names.count(name) > 1})
     if twice:
-        raise DataError(f"{root} holds two bags named {twice[0]!r} (a folder and a .bag file); rename one")
+        raise DataError(
+            f"{root} holds two bags named {twice[0]!r} (a folder and a .bag/.mcap file); rename one"
+        )
     return found, skipped
 
 
@@ -321,7 +358,8 @@ LAYOUT: Final = register(
         name="rosbag",
         detect=_detect,
         read=bag_trajectories,
-        help="ROS bags: a ROS 2 bag folder (metadata.yaml + .mcap/.db3), or a folder of them or of ROS 1 .bag files",
+        help="ROS bags: a ROS 2 bag folder (metadata.yaml + .mcap/.db3), or a folder of them, of .mcap files or of "
+        "ROS 1 .bag files",
         listed=10,
         outcomes_in_data=False,
     )

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Final
@@ -108,21 +108,24 @@ class Dataset:
                 "say: pass --labels FILE (a JSON list or CSV of episode_index, outcome, symbol)"
             )
 
-    def select(self, *, split: str | None = None, keys: list[str] | None = None) -> list[Trajectory]:
+    def select(self, *, split: str | None = None, keys: Sequence[str] | None = None) -> list[Trajectory]:
         """Trajectories of a split and/or with given keys (`<task>/<episode>` or the episode alone)."""
-        chosen = []
-        for trajectory in self.trajectories():
-            if split is not None and trajectory.split != split:
-                continue
-            if keys and trajectory.key not in keys and trajectory.episode not in keys:
-                continue
-            chosen.append(trajectory)
-        if keys:
-            found = {t.key for t in chosen} | {t.episode for t in chosen}
-            missing = [k for k in keys if k not in found]
-            if missing:
-                raise DataError(f"no trajectory {missing[0]!r} in {self.root} ({self.layout} layout)")
-        return chosen
+        chosen = [t for t in self.trajectories() if split is None or t.split == split]
+        return _with_keys(chosen, keys, where=f"{self.root} ({self.layout} layout)")
+
+
+def _with_keys(
+    trajectories: Sequence[Trajectory], keys: Sequence[str] | None, *, where: str
+) -> list[Trajectory]:
+    """The trajectories with given keys (`<task>/<episode>` or the episode alone); all when `keys` is empty."""
+    if not keys:
+        return list(trajectories)
+    chosen = [t for t in trajectories if t.key in keys or t.episode in keys]
+    found = {t.key for t in chosen} | {t.episode for t in chosen}
+    missing = [k for k in keys if k not in found]
+    if missing:
+        raise DataError(f"no trajectory {missing[0]!r} in {where}")
+    return chosen
 
 
 def _layout(root: Path) -> Layout:
@@ -169,13 +172,15 @@ def load_dataset(
     labels: Path | None = None,
     views: str | None = None,
     vocabulary: Vocabulary | None = None,
+    keys: Sequence[str] | None = None,
 ) -> Dataset:
     """Open a dataset root of any supported layout (auto-detected), listing what it does not read.
 
     `task` names the task of episodes whose names do not say it (one episode, video episodes);
     `labels` is a labels file (see `robofailring.data.labels`) giving outcome, symbol and task per
-    episode, its symbols checked against Table 5 and `vocabulary` (the dataset's own symbols); `views`
-    (`a,b` or `src=name,…`, see `robofailring.data.views`) picks and names the views.
+    episode, its symbols checked against Table 5 and `vocabulary` (the dataset's own symbols); `keys`
+    keeps only the trajectories named (`<task>/<episode>` or the episode: `--trajectory`), chosen
+    before `views` (`a,b` or `src=name,…`, see `robofailring.data.views`) picks and names their views.
     """
     root = Path(root)
     layout = _layout(root)
@@ -186,6 +191,7 @@ def load_dataset(
         blank = unlabelled_rows(Path(labels))
         skipped = [*skipped, *([blank] if blank is not None else [])]
     labelled = labels is not None or layout.outcomes_in_data or any(t.outcome is not None for t in found)
+    found = _with_keys(found, keys, where=f"{root} ({layout.name} layout)")
     return Dataset(
         root=root,
         layout=layout.name,
@@ -219,8 +225,15 @@ def load_trajectory(
         or (path / PROJECT_MANIFEST).is_file()
         or detect_layout(path) != "episode"
     ):
-        dataset = load_dataset(path, task=task, labels=labels, views=views, vocabulary=vocabulary)
-        found = dataset.select(keys=[key]) if key is not None else list(dataset.trajectories())
+        dataset = load_dataset(
+            path,
+            task=task,
+            labels=labels,
+            views=views,
+            vocabulary=vocabulary,
+            keys=[key] if key is not None else None,
+        )
+        found = list(dataset.trajectories())
         if len(found) != 1:
             raise DataError(
                 f"{path} is a {dataset.layout} dataset with {len(found)} trajectories; pass one of its episode "

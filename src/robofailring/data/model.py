@@ -40,6 +40,7 @@ class Skipped:
 
     path: Path
     reason: str
+    view: str | None = None  # the view it would have been (a bag's depth topic): `--views` naming it says why
 
     def to_dict(self) -> dict[str, str]:
         return {"path": str(self.path), "reason": self.reason}

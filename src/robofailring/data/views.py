@@ -2,7 +2,7 @@
 
 `a,b` keeps views `a` and `b` in that order; `src=name` keeps view `src` and calls it `name`. Frames
 are lazy, so choosing views after a layout read them costs nothing. A name that is not there is a
-DataError listing the views that are.
+DataError listing the views that are, or, for a view the layout did not read (a depth topic), saying why.
 """
 
 from __future__ import annotations
@@ -40,6 +40,12 @@ class ViewSelection:
         """The trajectory with only the chosen views, renamed; a missing view names those there are."""
         views: dict[str, Sequence[Frame]] = {}
         for source, name in self.picks:
+            unread = next((s for s in trajectory.skipped if s.view == source), None)
+            if source not in trajectory.views and unread is not None:
+                raise DataError(
+                    f"--views: view {source!r} of trajectory {trajectory.key} of {where} is not read: "
+                    f"{unread.reason}; its views are: {', '.join(trajectory.views) or 'none'}"
+                )
             if source not in trajectory.views:
                 raise DataError(
                     f"--views: no view {source!r} in trajectory {trajectory.key} of {where}; "

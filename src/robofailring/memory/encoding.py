@@ -29,7 +29,8 @@ class BuildStats:
 
     trajectories: int = 0
     failures: int = 0
-    ignored_non_failures: int = 0
+    ignored_non_failures: int = 0  # success runs (labelled), which hold no failure entry
+    unlabelled: int = 0  # runs whose outcome nothing gave (no labels row): neither failure nor success
     entries: int = 0
     skipped_views: list[dict[str, Any]] = field(default_factory=list)
     skipped_inputs: list[Skipped] = field(default_factory=list)  # folders/files of the dataset not read
@@ -75,7 +76,10 @@ def encode_failures(
     for trajectory in trajectories:
         stats.trajectories += 1
         if not is_failure(trajectory):
-            stats.ignored_non_failures += 1
+            if trajectory.outcome is None:
+                stats.unlabelled += 1
+            else:
+                stats.ignored_non_failures += 1
             continue
         stats.failures += 1
         if not trajectory.symbol:
