@@ -21,10 +21,10 @@ PARTS = st.one_of(
         [*AHA_FAILURES, *MANISKILL_FAILURES, "wrong_object", "success", "episode", "wp", "stage"]
     ),
     st.from_regex(r"(wp|episode|stage)?[0-9]{1,4}", fullmatch=True),
-    st.text(st.characters(exclude_characters="/\0"), min_size=1, max_size=8),
+    st.text(st.characters(codec="utf-8", exclude_characters="/\0"), min_size=1, max_size=8),
 )
 NAMES = st.one_of(
-    st.text(st.characters(exclude_characters="/\0"), min_size=1, max_size=30),
+    st.text(st.characters(codec="utf-8", exclude_characters="/\0"), min_size=1, max_size=30),
     st.lists(PARTS, min_size=1, max_size=5).map("_".join),
 ).filter(lambda name: name not in (".", "..") and len(name.encode()) < 200)
 
