@@ -82,8 +82,10 @@ def write_project_dataset(
     symbols: tuple[str, ...] = ("grasp_wp2", "slip_wp3", "wrong_object"),
     episodes: int = 4,
     length: int = 6,
+    onset: int | None = None,
 ) -> Path:
-    """A project-layout dataset (manifest + AHA-style folders) with successes and train/test splits."""
+    """A project-layout dataset (manifest + AHA-style folders) with successes and train/test splits;
+    `onset`: every failure's onset frame (None: not recorded, as in manifests from before onsets)."""
     import json
 
     records = []
@@ -109,6 +111,7 @@ def write_project_dataset(
                         "split": "train" if episode % 2 == 0 else "test",
                         "views": list(VIEWS),
                     }
+                    | ({"onset_frame": onset} if onset is not None and symbol is not None else {})
                 )
     manifest = {"format": "robofailring-dataset", "format_version": 1, "fps": 10, "episodes": records}
     (root / "manifest.json").write_text(json.dumps(manifest))

@@ -115,6 +115,33 @@ def test_any_entries_line_parses_or_raises_naming_the_file_and_line(line: str) -
             assert all(isinstance(row[key], str) for row in rows for key in ENTRY_FIELDS)
 
 
+MOMENT = st.one_of(JSON, st.integers(min_value=-3, max_value=12))
+
+
+@given(
+    st.fixed_dictionaries(dict.fromkeys(ENTRY_FIELDS, st.just("pick_cube"))).map(
+        lambda row: row | {"symbol": "grasp_wp2"}
+    ),
+    st.dictionaries(st.sampled_from(["frame", "length"]), MOMENT),
+)
+def test_any_frame_and_length_parse_to_a_moment_or_raise_naming_the_line(
+    row: dict[str, Any], moment: dict[str, Any]
+) -> None:
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / ENTRIES
+        path.write_text("\n" + json.dumps(row | moment) + "\n", encoding="utf-8")
+        try:
+            (parsed,) = read_jsonl(path, parse_entry, what="entry")
+        except MemoryFormatError as error:
+            assert f"{path}:2: " in str(error) and ("'frame'" in str(error) or "'length'" in str(error))
+        else:
+            frame, length = parsed["frame"], parsed["length"]
+            assert (frame, length) == (moment.get("frame"), moment.get("length"))
+            assert (frame is None and length is None) or (
+                type(frame) is int and type(length) is int and 0 <= frame < length
+            )
+
+
 @given(st.one_of(st.binary(max_size=100), _lines(ENTRY_FIELDS).map(str.encode)))
 def test_any_entries_file_loads_or_raises_naming_it(scratch: Path, saved: Path, content: bytes) -> None:
     _load_with(scratch, saved, ENTRIES, content)

@@ -32,6 +32,7 @@ from robofailring.evaluation.per_rule import (
     scored_by_rule,
     spread_markdown,
 )
+from robofailring.memory.entry import END, failure_frames_note
 
 
 @dataclass
@@ -57,6 +58,7 @@ class EvaluationResult:
     deployment_successes: int = 0
     vocabulary: Vocabulary | None = field(default=None, repr=False)  # the memory's own failure symbols
     growth: list[GrowthPoint] = field(default_factory=list)  # `evaluate --growth`: the learning curve
+    failure_frames: str = END  # the memory's failure frames: `end` (the paper's) or `dense` (memory.entry)
     paper_rates: list[Rates] = field(init=False)
     curve: list[Rates] = field(init=False)
 
@@ -165,6 +167,7 @@ class EvaluationResult:
             "name": self.name,
             "encoder": self.encoder,
             "memory": self.memory,
+            "failure_frames": self.failure_frames,
             "k": self.k,
             "operating_delta": delta,
             "calibrated": self.calibrated,
@@ -232,9 +235,10 @@ class EvaluationResult:
     def to_markdown(self) -> str:
         delta = self.operating_delta
         lines = [
-            f"## {self.name} — encoder `{self.encoder}`, K = {self.k}",
+            f"## {self.name} — encoder `{self.encoder}`, K = {self.k}, {self.failure_frames} failure memory",
             "",
-            f"{self.failures} failure and {self.successes} success test trajectories; memory `{self.memory}`; "
+            f"{self.failures} failure and {self.successes} success test trajectories; memory `{self.memory}` "
+            f"({failure_frames_note(self.failure_frames)}); "
             f"operating δ = {delta:.4f} ({'calibrated' if self.calibrated else 'paper default'}).",
             "",
             *self._rules_markdown(),
