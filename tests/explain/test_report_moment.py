@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from synthetic import write_episode, write_project_dataset
+from synthetic import write_repeated_failure
 
 from robofailring import CachedEncoder, FailureDetector, load_dataset, load_encoder, load_trajectory
 from robofailring.explain.report import FailureReport, report_for
@@ -24,9 +24,7 @@ def encoder(tmp_path_factory: pytest.TempPathFactory) -> CachedEncoder:
 def _report(root: Path, encoder: CachedEncoder, failure_frames: str) -> FailureReport:
     """The report of a new grasp failure whose frames are those of the memory's episode 0, fired at the
     first frame that pairs exactly like one of the memory's entries."""
-    data = write_project_dataset(
-        root / "data", tasks=("pick_cube",), symbols=("grasp_wp2",), episodes=2, length=LENGTH, onset=ONSET
-    )
+    data, episode = write_repeated_failure(root, length=LENGTH, onset=ONSET)
     memory, _ = build_memories(
         list(load_dataset(data)),
         encoder,
@@ -34,7 +32,6 @@ def _report(root: Path, encoder: CachedEncoder, failure_frames: str) -> FailureR
         failure_frames=failure_frames,
         successes=False,
     )
-    episode = write_episode(root / "pick_cube_grasp_wp2_episode9", "pick_cube", "grasp_wp2", length=LENGTH)
     trajectory = load_trajectory(episode)
     trace = FailureDetector(memory, encoder, k=3, rule="paper").run(trajectory)
     fired = trace.with_delta(1.0 - 1e-5)

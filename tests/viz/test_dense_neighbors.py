@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from rrd import properties, rows
-from synthetic import write_episode, write_project_dataset
+from rrd import properties, rows, static_value
+from synthetic import write_repeated_failure
 
 from rfr_viz.panels.images import reference_jpeg
 from rfr_viz.paths import REPLAY
@@ -22,18 +22,14 @@ def _recording(root: Path, failure_frames: str) -> Path:
     """A new grasp failure whose frames are those of the memory's episode 0, replayed against a memory of
     `failure_frames` (K = 2)."""
     encoder = CachedEncoder(load_encoder("pixels"), cache_dir=root / "cache")
-    data = write_project_dataset(
-        root / "data", tasks=("pick_cube",), symbols=("grasp_wp2",), episodes=2, length=LENGTH, onset=ONSET
-    )
+    data, episode = write_repeated_failure(root, length=LENGTH, onset=ONSET)
     memory, _ = build_memories(
         list(load_dataset(data)),
         encoder,
         provenance=Provenance(data=data, encoder="pixels"),
         failure_frames=failure_frames,
     )
-    trajectory = load_trajectory(
-        write_episode(root / "pick_cube_grasp_wp2_episode9", "pick_cube", "grasp_wp2", length=LENGTH)
-    )
+    trajectory = load_trajectory(episode)
     trace = FailureDetector(memory, encoder, k=2, rule="paper").run(trajectory)
     return record_replay(trajectory, trace.with_delta(1.0 - 1e-5), out=root / "replay.rrd")
 
@@ -54,6 +50,10 @@ def test_the_dense_panel_names_the_frame_it_matched(tmp_path: Path) -> None:
     log = rows(recording, REPLAY.neighbor("front", 0, "info"), "TextLog:text")
     assert any(f"frame {ONSET} of {LENGTH}" in text[0] for _, text in log)
     assert properties(recording)["failure_frames"] == "dense"
+    # every dense entry is a point of its view's map, its hover label naming its frame
+    labels = static_value(recording, REPLAY.umap("front"), "Points2D:labels")
+    assert len(labels) == 2 * (LENGTH - ONSET)  # two failure runs, frames 2-7 each (all differ: none thinned)
+    assert "pick_cube · grasp_wp2 · front · pick_cube_grasp_wp2_episode0 · frame 2/8" in labels
 
 
 def test_the_papers_panel_says_end_of_the_run(tmp_path: Path) -> None:
