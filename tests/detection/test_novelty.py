@@ -222,4 +222,6 @@ def test_an_evaluation_grows_from_success_runs_only_to_labelled_failures(tmp_pat
         )
     )
     assert list(grown.rules) == ["paper", "contrast", "novelty"]
-    assert len(FailureMemory.load(tmp_path / "e1" / "memory")) == 2 * 3  # one failure per task, 3 views
+    entries = FailureMemory.load(tmp_path / "e1" / "memory").entries
+    assert len({(e.episode, e.view) for e in entries}) == 2 * 3  # one failure per task, 3 views
+    assert len(entries) == 2 * 3 * 5  # dense: frames 1-5 of each (6 frames, all different)
