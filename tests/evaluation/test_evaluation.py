@@ -90,6 +90,11 @@ def test_evaluation_files_and_counts(dataset: Path, tmp_path: Path) -> None:
     memory = FailureMemory.load(tmp_path / "memory")
     assert {e.episode.rsplit("episode", 1)[1] for e in memory.entries} <= {"0", "2"}
     assert memory.manifest.failure_mode == result.failure_frames == report["failure_frames"] == "dense"
+    blamed = result.false_alarm_entries(0.5)  # at δ = 0.5 every success run fires
+    assert blamed and all(row["moment"] == memory.entries[row["index"]].moment for row in blamed)
+    assert all(
+        row["moment"].startswith("frame ") for row in blamed
+    )  # a dense run's entries differ only there
     assert markdown.startswith(
         "## in-distribution — encoder `pixels-v2-24px-512d`, K = 5, dense failure memory"
     )

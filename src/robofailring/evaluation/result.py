@@ -143,6 +143,7 @@ class EvaluationResult:
                     "symbol": entry.symbol,
                     "episode": entry.episode,
                     "view": entry.view,
+                    "moment": entry.moment,  # a dense memory's entries of one run differ only here
                 }
             )
         return rows
@@ -282,13 +283,13 @@ class EvaluationResult:
                 "",
                 "Memory entries behind the most false alarms (candidates to prune):",
                 "",
-                "| entry | false alarms | task | symbol | episode | view |",
-                "|---:|---:|---|---|---|---|",
+                "| entry | false alarms | task | symbol | episode | view | moment |",
+                "|---:|---:|---|---|---|---|---|",
             ]
             for row in blamed[:10]:
                 lines.append(
                     f"| {row['index']} | {row['false_alarms']} | {row['task']} | `{row['symbol']}` | "
-                    f"{row['episode']} | {row['view']} |"
+                    f"{row['episode']} | {row['view']} | {row['moment']} |"
                 )
         if self.skipped_too_short:
             lines += [
