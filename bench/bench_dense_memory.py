@@ -80,15 +80,15 @@ def main() -> None:
     provenance = Provenance(data=data, encoder=args.encoder)
     print(f"data: {data} ({len(failures)} failure runs, {failures[0].length} frames each)")
     print(
-        "| memory | entries | per view (mean) | build s | first map fit s (import s) | type purity, map "
+        "| memory | entries | per view (mean) | frames offered per view (mean) | build s | first map fit s (import s) | type purity, map "
         "| replay s | replay .rrd MB |"
     )
-    print("|---|---:|---:|---:|---:|---:|---:|---:|")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     build_memories(failures, encoder, provenance=provenance, successes=False, failure_frames="dense")  # warm
     with tempfile.TemporaryDirectory() as folder:
         for kind in KINDS:
             start = time.perf_counter()
-            memory, _ = build_memories(
+            memory, stats = build_memories(
                 failures, encoder, provenance=provenance, successes=False, failure_frames=kind
             )
             built = time.perf_counter() - start
@@ -104,7 +104,8 @@ def main() -> None:
             recording = record_replay(trajectory, trace, out=Path(folder) / f"{kind}.rrd", memory_map=mapped)
             replayed = time.perf_counter() - start
             print(
-                f"| {kind} | {len(memory):,} | {np.mean(list(views.values())):.1f} | {built:.1f} "
+                f"| {kind} | {len(memory):,} | {np.mean(list(views.values())):.1f} "
+                f"| {stats.offered / stats.views:.1f} | {built:.1f} "
                 f"| {fit:.1f} ({imported:.1f}) | {fits[0]['purity']:.3f} | {replayed:.1f} "
                 f"| {recording.stat().st_size / 1e6:.2f} |"
             )

@@ -61,7 +61,7 @@ class EncodedFailures:
             encoder=encoder,
             dim=int(self.vectors.shape[1]),
             failure_frames=self.failure_frames,
-            failure_step=self.step if self.failure_frames == DENSE else None,
+            failure_step=self.step,
             skipped_views=len(self.stats.skipped_views),
             skipped=self.stats.skipped_views,
             failures=self.stats.failures,
@@ -168,7 +168,7 @@ def encode_failures(
     """
     check_step(step)
     dense = planned.failure_frames == DENSE
-    stats = planned.stats
+    stats = replace(planned.stats)  # the plan's counts, with what encoding adds
     entries: list[MemoryEntry] = []
     vectors: list[np.ndarray] = []
     for view, embeddings in _embedded(planned.views, encoder, progress):
