@@ -37,13 +37,15 @@ MANIFEST_KEYS = (
     "successes",
     "calibration",
     "data_root",
+    "failure_frames",
+    "failure_step",
 )
 RUN_KEYS = ("task", "episode", "view", "frames", "kind", "frame_numbers")
 
 
 def _objects(keys: tuple[str, ...]) -> st.SearchStrategy[dict[str, Any]]:
     """Objects with some (or all) of `keys`, their values of any JSON type."""
-    value = JSON | st.sampled_from([0, 2, "pixels", "a/b", ["x"], ["1", "x"], {}])
+    value = JSON | st.sampled_from([0, 2, 0.5, "pixels", "a/b", "end", "dense", ["x"], ["1", "x"], {}])
     return st.dictionaries(st.sampled_from(keys), value) | st.fixed_dictionaries(dict.fromkeys(keys, value))
 
 
