@@ -47,7 +47,8 @@ class BuildStats:
 
 @dataclass(frozen=True)
 class EncodedFailures:
-    """Algorithm 1's output before it is indexed: one pair vector and one entry per failure view."""
+    """Algorithm 1's output before it is indexed: a pair vector and an entry per failure view (per kept
+    frame of each failure view, in a dense memory)."""
 
     vectors: np.ndarray
     entries: list[MemoryEntry]
