@@ -7,6 +7,9 @@ and cached. Every failure episode of every split goes into the memory: the map s
 
 from __future__ import annotations
 
+import json
+import subprocess
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -75,3 +78,13 @@ def chance_purity(labels: np.ndarray) -> float:
     _, counts = np.unique(labels, return_counts=True)
     shares = counts / counts.sum()
     return float((shares**2).sum())
+
+
+def in_fresh_process(script: str, *args: str) -> dict[str, float]:
+    """Run `script --child ARGS…` in a new interpreter (as the first replay of a session runs) and read
+    the JSON object it prints last."""
+    done = subprocess.run(
+        [sys.executable, script, "--child", *args], capture_output=True, text=True, check=True
+    )
+    found: dict[str, float] = json.loads(done.stdout.strip().splitlines()[-1])
+    return found

@@ -17,14 +17,12 @@ from __future__ import annotations
 import argparse
 import json
 import statistics
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
-from _sim_memories import chance_purity, default_data, default_encoders, failure_memory
+from _sim_memories import chance_purity, default_data, default_encoders, failure_memory, in_fresh_process
 
 VARIANTS = {"umap-learn UMAP.fit": "umap-learn", "rfr_viz (numpy graph)": "rfr_viz"}
 
@@ -83,10 +81,7 @@ def _umap_learn(vectors: np.ndarray) -> np.ndarray:
 
 
 def _run(variant: str, vectors_file: Path, out: Path) -> dict[str, float]:
-    command = [sys.executable, __file__, "--child", variant, str(vectors_file), str(out)]
-    done = subprocess.run(command, capture_output=True, text=True, check=True)
-    timings: dict[str, float] = json.loads(done.stdout.strip().splitlines()[-1])
-    return timings
+    return in_fresh_process(__file__, variant, str(vectors_file), str(out))
 
 
 def main() -> None:

@@ -12,6 +12,7 @@ Cells, per encoder and variant (the issue-21 protocol: one lucky split cannot ca
 - `OOD + 2 deployment successes/task`: the same, with 2 OOD success runs per task moved into the
   success memory (and out of the test set).
 
+Every row says which failure memory it used (`dense` by default, `end`: the paper's).
 Each encoder spec is one more block of rows (e.g. `--encoder pixels --encoder trained:DIR`);
 `--train-encoder` trains one encoder per ID half (cached), so the swapped cell's encoder never saw
 the frames it is tested on; a `trained:DIR` given with `--encoder` was trained on one half only, so
@@ -220,15 +221,15 @@ def _onset(rule: Any) -> str:
 
 def print_rows(rows: list[QualityRow], alpha: float) -> None:
     print(
-        f"\n| encoder | test set | rule | threshold | Recall (%) | FPR (%) | T_s mean (%) | AUC | "
+        f"\n| encoder | failure memory | test set | rule | threshold | Recall (%) | FPR (%) | T_s mean (%) | AUC | "
         f"delay after onset, median frames / premature | frame-0 success alarms | failures / successes tested |"
         f"  (α = {alpha:g}, split conformal on the memory half's successes)"
     )
-    print("|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+    print("|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     for row in rows:
         for rule in row.result.rules.values():
             print(
-                f"| {row.encoder} | {row.protocol} | {rule.rule.name} | {rule.rule.symbol} = {rule.threshold:.4f} | "
+                f"| {row.encoder} | {row.result.failure_frames} | {row.protocol} | {rule.rule.name} | {rule.rule.symbol} = {rule.threshold:.4f} | "
                 f"{_pct(rule.recall)} | {_pct(rule.fpr)} | {_pct(rule.ts_mean)} | {rule.auc:.3f} | {_onset(rule)} | "
                 f"{rule.frame0_success_alarms} | {row.result.failures} / {row.result.successes} |"
             )
@@ -309,7 +310,7 @@ def main() -> None:
                 loaded = FailureMemory.load(Path(found[0].result.memory))
                 successes = loaded.successes
                 print(
-                    f"{found[0].encoder}: failure memory {len(loaded)} entries; success memory "
+                    f"{found[0].encoder}: {loaded.manifest.failure_mode} failure memory {len(loaded)} entries; success memory "
                     f"{len(successes) if successes else 0} frames kept of {successes.offered if successes else 0}"
                 )
     for row in rows:

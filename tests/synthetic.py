@@ -82,8 +82,10 @@ def write_project_dataset(
     symbols: tuple[str, ...] = ("grasp_wp2", "slip_wp3", "wrong_object"),
     episodes: int = 4,
     length: int = 6,
+    onset: int | None = None,
 ) -> Path:
-    """A project-layout dataset (manifest + AHA-style folders) with successes and train/test splits."""
+    """A project-layout dataset (manifest + AHA-style folders) with successes and train/test splits;
+    `onset`: every failure's onset frame (None: not recorded, as in manifests from before onsets)."""
     import json
 
     records = []
@@ -109,7 +111,18 @@ def write_project_dataset(
                         "split": "train" if episode % 2 == 0 else "test",
                         "views": list(VIEWS),
                     }
+                    | ({"onset_frame": onset} if onset is not None and symbol is not None else {})
                 )
     manifest = {"format": "robofailring-dataset", "format_version": 1, "fps": 10, "episodes": records}
     (root / "manifest.json").write_text(json.dumps(manifest))
     return root
+
+
+def write_repeated_failure(root: Path, *, length: int, onset: int) -> tuple[Path, Path]:
+    """A project dataset of two `grasp_wp2` failures of `pick_cube` with a known `onset`, and a new run
+    (`<root>/pick_cube_grasp_wp2_episode9`) whose frames are those of the dataset's episode 0: from the
+    onset on, its frame t pairs with its first exactly as episode 0's frame t does."""
+    data = write_project_dataset(
+        root / "data", tasks=("pick_cube",), symbols=("grasp_wp2",), episodes=2, length=length, onset=onset
+    )
+    return data, write_episode(root / "pick_cube_grasp_wp2_episode9", "pick_cube", "grasp_wp2", length=length)

@@ -120,8 +120,11 @@ def write_report(
         if text.startswith("## "):  # its heading is the section's
             text = text.partition("\n")[2]
         tables = markdown_html(text)
+        frames = evaluation.get("failure_frames")  # which failure memory (absent in older evaluations)
+        memory = f", {html.escape(str(frames))} failure memory" if frames else ""
         sections += [
-            f"<h2>{html.escape(name)} — encoder <code>{html.escape(str(evaluation.get('encoder', '?')))}</code></h2>",
+            f"<h2>{html.escape(name)} — encoder <code>{html.escape(str(evaluation.get('encoder', '?')))}</code>"
+            f"{memory}</h2>",
             f'<div class="charts">{charts}</div>',
             _review(evaluation, f"{name}.json"),
             f"<details open><summary>Tables</summary>{tables}</details>" if tables else "",

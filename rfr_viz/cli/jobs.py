@@ -18,6 +18,7 @@ from robofailring.cli.options import (
     DataRootOption,
     DeviceOption,
     EncoderOption,
+    FailureFramesOption,
     KOption,
     LabelsOption,
     ScoreOption,
@@ -33,6 +34,7 @@ from robofailring.cli.options import (
     warn_missing_references,
 )
 from robofailring.detection.band import DEFAULT_BAND
+from robofailring.memory.entry import DENSE
 from robofailring.memory.thinning import DEFAULT_STEP
 
 app = typer.Typer(add_completion=False)  # composed into the one `robofailring` command by rfr_viz.cli.app
@@ -66,6 +68,7 @@ def evaluate_cmd(
         int, typer.Option(help="Per task, this many test success runs join the success memory (not tested).")
     ] = 0,
     success_step: SuccessStepOption = DEFAULT_STEP,
+    failure_frames: FailureFramesOption = None,
     band: BandOption = DEFAULT_BAND,
     growth: Annotated[
         str | None,
@@ -103,6 +106,7 @@ def evaluate_cmd(
             target_fpr=target_fpr,
             deployment_successes=deployment_successes,
             success_step=success_step,
+            failure_frames=failure_frames or DENSE,
             band=band,
         ),
         growth=parse_growth(growth) if growth is not None else (),
@@ -195,6 +199,7 @@ def compare_encoders_cmd(
     ] = 0.05,
     recordings: Annotated[int, typer.Option(help="Per-trajectory comparison recordings to write.")] = 3,
     k: KOption = 5,
+    failure_frames: FailureFramesOption = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
 ) -> None:
@@ -211,6 +216,7 @@ def compare_encoders_cmd(
             k=k,
             cache_dir=cache_dir,
             device=device,
+            failure_frames=failure_frames or DENSE,
         ),
         recordings=recordings,
     )
@@ -236,6 +242,7 @@ def demo_cmd(
     ] = 0.05,
     data_dir: Annotated[Path | None, typer.Option(help="Where simulated datasets are cached.")] = None,
     camera_codec: CameraCodecOption = CameraCodec.AUTO,
+    failure_frames: FailureFramesOption = None,
     cache_dir: CacheOption = None,
 ) -> None:
     """The main job on the embedded default: simulate, build the memory, calibrate, evaluate, record."""
@@ -252,6 +259,7 @@ def demo_cmd(
             target_fpr=target_fpr,
             data_dir=data_dir,
             camera_codec=camera_codec,
+            failure_frames=failure_frames or DENSE,
             cache_dir=cache_dir,
         ),
         say=typer.echo,

@@ -33,6 +33,7 @@ from robofailring.evaluation.run import (
     run_evaluation,
     write_evaluation,
 )
+from robofailring.memory.entry import DENSE, check_failure_frames
 from robofailring.outputs import check_output_folder
 from robofailring.progress import progress_bar
 from robofailring.sim import TASKS, GenerateConfig, generate_dataset
@@ -54,6 +55,10 @@ class DemoConfig:
     cache_dir: Path | None = None
     camera_codec: CameraCodec = CameraCodec.AUTO  # jpeg, av1, h264, or auto (by size)
     trained_epochs: int = 10  # fourth output: train-encoder on the ID training split vs pixels (0: skip)
+    failure_frames: str = DENSE  # the memories built: `dense` or `end` (the paper's; memory.entry)
+
+    def __post_init__(self) -> None:
+        check_failure_frames(self.failure_frames)
 
 
 @dataclass
@@ -162,7 +167,12 @@ def _run_demo(config: DemoConfig, data_dir: Path, say: Callable[[str], None]) ->
     say(f"datasets: {in_dist} (in-distribution), {out_dist} (out-of-distribution)")
 
     base = EvaluateConfig(
-        data=in_dist, out=out, encoder=config.encoder, cache_dir=config.cache_dir, memory_out=out / "memory"
+        data=in_dist,
+        out=out,
+        encoder=config.encoder,
+        cache_dir=config.cache_dir,
+        memory_out=out / "memory",
+        failure_frames=config.failure_frames,
     )
     memory_dir = build_training_memory(base)
     calibration = calibrate(
@@ -240,6 +250,7 @@ def _compare_with_trained(
             encoders=("pixels", f"trained:{trained}"),
             target_fpr=config.target_fpr,  # each encoder calibrated at the demo's α
             cache_dir=config.cache_dir,
+            failure_frames=config.failure_frames,
         )
     )
 

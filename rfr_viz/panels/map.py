@@ -107,7 +107,8 @@ def annotation_context() -> rr.AnnotationContext:
 
 
 def map_labels(entries: Sequence[MemoryEntry], *, task: str) -> list[str]:
-    """Hover labels "task · symbol · view · episode" of the map's points.
+    """Hover labels "task · symbol · view · episode" of the map's points (a dense entry adds its frame,
+    "· frame 34/40").
 
     Up to LABELLED_ENTRIES_MAX entries all are labelled; in larger memories only the replayed task's
     entries (the only ones the detector can retrieve), the others show their failure type (class) on
@@ -115,7 +116,10 @@ def map_labels(entries: Sequence[MemoryEntry], *, task: str) -> list[str]:
     """
     everyone = len(entries) <= LABELLED_ENTRIES_MAX
     return [
-        f"{e.task} · {e.symbol} · {e.view} · {e.episode}" if everyone or e.task == task else ""
+        f"{e.task} · {e.symbol} · {e.view} · {e.episode}"
+        + (f" · frame {e.frame}/{e.length}" if e.frame is not None else "")
+        if everyone or e.task == task
+        else ""
         for e in entries
     ]
 

@@ -123,10 +123,12 @@ def changes(ids: np.ndarray) -> list[tuple[int, int, int]]:
 
 
 def neighbor_info(entry: MemoryEntry, rank: int, similarity: float, t: int) -> str:
-    """Markdown: rank, similarity, task, symbol, view, episode and the grounded sentence."""
+    """Markdown: rank, similarity, task, symbol, view, episode, the moment of that run the entry's right-hand
+    image is (a dense memory's frame, or the end of the run) and the grounded sentence."""
     return (
         f"**#{rank + 1}** · cos **{similarity:.3f}** at frame {t}  \n"
         f"`{entry.task}` · `{entry.symbol}` · {entry.view} · {entry.episode}  \n"
+        f"matched: {entry.moment}  \n"
         f"{entry.description}"
     )
 
@@ -268,7 +270,8 @@ def _log_info(
         paths.neighbor(view, rank, "info"),
         rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN),
         rr.TextLog(
-            f"{view} #{rank + 1}: {entry.symbol} ({entry.task}/{entry.episode} [{entry.view}]) cos {similarity:.3f}",
+            f"{view} #{rank + 1}: {entry.symbol} ({entry.task}/{entry.episode} [{entry.view}], {entry.moment}) "
+            f"cos {similarity:.3f}",
             level="INFO",
         ),
     )

@@ -23,9 +23,14 @@ def test_build_memory_then_detect_json(aha_dataset: Path, tmp_path: Path) -> Non
         app, ["build-memory", str(aha_dataset), "--out", str(memory), "--cache-dir", str(cache)]
     )
     assert built.exit_code == 0, built.output
-    assert "36 entries" in built.output
+    # dense by default: frames 1-5 of each of the 36 failure views (6 frames, onsets not known)
+    assert (
+        "180 entries" in built.output
+        and "failure memory: dense, 180 entries from 36 failure views" in built.output
+    )
     manifest = json.loads((memory / "manifest.json").read_text())
-    assert {"format_version", "encoder", "dim", "count"} <= set(manifest) and manifest["count"] == 36
+    assert {"format_version", "encoder", "dim", "count"} <= set(manifest) and manifest["count"] == 180
+    assert (manifest["failure_frames"], manifest["failure_step"]) == ("dense", 0.002)
 
     episode = write_episode(tmp_path / "pick_cube_grasp_wp2_episode9", "pick_cube", "grasp_wp2", length=6)
     result = runner.invoke(
@@ -52,6 +57,7 @@ def test_build_memory_then_detect_json(aha_dataset: Path, tmp_path: Path) -> Non
     assert len(front["similarity"]) == 6 and len(front["top_neighbor"]) == 6
     assert front["top_neighbor"][0]["task"] == "pick_cube"
     assert {"task", "symbol", "view", "episode"} <= set(front["top_neighbor"][0])
+    assert all(0 < n["frame"] < n["length"] == 6 for n in front["top_neighbor"])  # the moment each matched
     first_over = min(
         (
             t

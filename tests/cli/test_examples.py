@@ -42,7 +42,8 @@ def test_build_memory_from_aha_example(tmp_path: Path) -> None:
         env={"ROBOFAILRING_CACHE": str(tmp_path / "cache"), "PATH": "/usr/bin:/bin", **_PYTHONPATH},
     )
     assert result.returncode == 0, result.stderr
-    assert "aha layout" in result.stdout and "memory: 9 entries over 1 tasks" in result.stdout
+    # dense by default: frames 1-5 of each of the 9 failure views (6 frames, no onset known)
+    assert "aha layout" in result.stdout and "memory: 45 entries over 1 tasks" in result.stdout
     assert "failure at frame" in result.stdout and "The failure was caused by" in result.stdout
     assert (tmp_path / "memory" / "manifest.json").is_file()
 

@@ -124,7 +124,7 @@ def test_build_memory_exits_3_when_views_were_skipped(data: Path, cache: list[st
     result = cli("build-memory", tmp_path / "data", "--out", tmp_path / "memory", *cache)
     assert result.exit_code == 3, result.output
     assert (
-        "3 entries" in result.output
+        "6 entries" in result.output  # dense: frames 1 and 2 of each of the 3 views with 3 frames
         and "skipped pick_cube/pick_cube_grasp_wp2_episode0 view side" in result.output
     )
 
@@ -156,7 +156,9 @@ def test_a_replace_killed_between_its_renames_leaves_the_old_memory_recoverable(
     assert json.loads((memory / "manifest.json").read_text())["tasks"] == old_tasks
     rebuilt = cli("build-memory", one_task, "--out", memory, *cache)
     assert rebuilt.exit_code == 0 and hidden(tmp_path) == []  # the killed build's leftover is gone
-    assert json.loads((memory / "manifest.json").read_text())["tasks"] == {"pick_cube": 3}
+    assert json.loads((memory / "manifest.json").read_text())["tasks"] == {
+        "pick_cube": 6
+    }  # 3 views × 2 frames
 
 
 def test_a_failed_replace_puts_the_old_memory_back(

@@ -63,10 +63,15 @@ def test_label_the_flagged_runs_grow_the_memory_and_detect_finds_the_new_failure
     assert grown.exit_code == 0, grown.output
     after = FailureMemory.load(memory)
     added = after.entries[len(before.entries) :]
-    assert len(after) == len(before) + 3 and after.vectors[: len(before)].tolist() == before.vectors.tolist()
+    # evaluate built a dense memory, so the new failure is added dense: frames 1-4 of 5 of each of its 3 views
+    assert after.manifest.failure_mode == before.manifest.failure_mode == "dense"
+    assert len(after) == len(before) + 12 and after.vectors[: len(before)].tolist() == before.vectors.tolist()
     assert {(e.episode, e.symbol, e.description) for e in added} == {
         ("pick_cube_slip_wp3_episode1", "failure", MISS_TEXT)
     }
+    assert sorted((e.view, e.frame, e.length) for e in added) == [
+        (view, frame, 5) for view in ("front", "overhead", "wrist") for frame in (1, 2, 3, 4)
+    ]
     assert after.successes is not None and before.successes is not None
     assert (
         len(after.successes.runs) == len(before.successes.runs) + 6

@@ -14,7 +14,7 @@ from hdf5_writer import write_aloha, write_robomimic
 from pipeline import invoke, run_pipeline
 from synthetic import synthetic_frame
 
-from robofailring import load_dataset, load_trajectory
+from robofailring import FailureMemory, load_dataset, load_trajectory
 from robofailring.data.hdf5 import HDF5Frame, read_hdf5_reference
 from robofailring.data.model import Trajectory
 from robofailring.data.splits import split_of
@@ -85,7 +85,7 @@ def test_a_robomimic_file_through_every_verb(tmp_path: Path, robomimic: tuple[Pa
     )
     assert found["info"]["layout"] == "robomimic"
     assert found["info"]["views_read"] == ["agentview", "robot0_eye_in_hand"]
-    assert found["info"]["entries"] == 8  # four failures, two views each
+    assert _failure_views_to_their_end(found["memory"]) == 8  # four failures, two views each
     detected = found["detect"]
     assert detected["layout"] == "robomimic" and detected["views_read"] == ["agentview", "robot0_eye_in_hand"]
     assert detected["length"] == LENGTH and detected["task"] == "Lift"
@@ -222,7 +222,16 @@ def test_aloha_episodes_raw_or_jpeg_through_every_verb(tmp_path: Path, compress:
         "cam_high",
         "cam_left_wrist",
     ]
-    assert found["info"]["entries"] == 8 and len(found["recordings"]) == 1
+    assert _failure_views_to_their_end(found["memory"]) == 8 and len(found["recordings"]) == 1
     assert {row["key"].split("/")[-1] for row in found["evaluation"]["trajectories"]} <= {
         f"episode_{e}" for e in range(episodes)
     }
+
+
+def _failure_views_to_their_end(memory: Path) -> int:
+    """The failure views of a (dense) memory, each checked to run from frame 1 to its last frame."""
+    frames: dict[tuple[str, str], list[int | None]] = {}
+    for entry in FailureMemory.load(memory).entries:
+        frames.setdefault((entry.episode, entry.view), []).append(entry.frame)
+    assert all(kept[0] == 1 and kept[-1] == LENGTH - 1 for kept in frames.values()), frames
+    return len(frames)

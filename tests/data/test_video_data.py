@@ -93,13 +93,18 @@ def test_labels_build_a_memory_and_replay_a_recording(v3: Path, tmp_path: Path) 
         app, ["build-memory", str(v3), "--out", str(memory), "--labels", str(labels), *cache]
     )
     assert built.exit_code == 0, built.output
-    assert "6 entries" in built.output and "2 failure trajectories over 1 tasks" in built.output
+    assert "from 6 failure views" in built.output and "2 failure trajectories over 1 tasks" in built.output
     entries = [json.loads(line) for line in (memory / "entries.jsonl").read_text().splitlines()]
     assert {(e["episode"], e["symbol"]) for e in entries} == {
         ("episode_0", "grasp_wp2"),
         ("episode_2", "wrong_object_wp0"),
     }
-    assert entries[0]["end"].endswith("file-000.mp4#frame=11")
+    # dense, from frame 1 (no onset given) to the end, each entry's image the video frame it says
+    first_view = [
+        e for e in entries if (e["episode"], e["view"]) == (entries[0]["episode"], entries[0]["view"])
+    ]
+    assert first_view[0]["frame"] == 1 and (first_view[-1]["frame"], first_view[-1]["length"]) == (11, 12)
+    assert all(e["end"].endswith(f"file-000.mp4#frame={e['frame']}") for e in first_view)
     # unlabelled data still replays and detects
     out = tmp_path / "recordings"
     replayed = runner.invoke(

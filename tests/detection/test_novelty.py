@@ -197,7 +197,8 @@ def test_a_memory_with_both_kinds_of_task_judges_each_by_its_own_default(tmp_pat
 
 @pytest.mark.slow  # an end-to-end run of every verb: the full lane
 def test_an_evaluation_grows_from_success_runs_only_to_labelled_failures(tmp_path: Path) -> None:
-    from robofailring.evaluation.run import EvaluateConfig, labelled_failures, run_evaluation
+    from robofailring.evaluation.run import run_evaluation
+    from robofailring.evaluation.training import EvaluateConfig, labelled_failures
 
     data = write_project_dataset(tmp_path / "data", episodes=4)
     train = load_dataset(data).select(split="train")
@@ -221,4 +222,6 @@ def test_an_evaluation_grows_from_success_runs_only_to_labelled_failures(tmp_pat
         )
     )
     assert list(grown.rules) == ["paper", "contrast", "novelty"]
-    assert len(FailureMemory.load(tmp_path / "e1" / "memory")) == 2 * 3  # one failure per task, 3 views
+    entries = FailureMemory.load(tmp_path / "e1" / "memory").entries
+    assert len({(e.episode, e.view) for e in entries}) == 2 * 3  # one failure per task, 3 views
+    assert len(entries) == 2 * 3 * 5  # dense: frames 1-5 of each (6 frames, all different)

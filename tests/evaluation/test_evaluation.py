@@ -16,6 +16,7 @@ from robofailring import (
     load_dataset,
     load_encoder,
 )
+from robofailring.errors import SettingError
 from robofailring.evaluation.calibration import CalibrateConfig, calibrate
 from robofailring.evaluation.run import (
     EvaluateConfig,
@@ -24,6 +25,7 @@ from robofailring.evaluation.run import (
     select_splits,
     write_evaluation,
 )
+from robofailring.memory.builder import Provenance, build_memories
 
 
 @pytest.fixture(scope="module")
@@ -43,6 +45,12 @@ def test_splits_keep_memory_and_test_apart(dataset: Path, tmp_path: Path) -> Non
         check_disjoint(leaky, test)
     honest, _ = FailureMemory.build(train, encoder)
     check_disjoint(honest, test)
+    provenance = Provenance(data=dataset, encoder="pixels")
+    dense, _ = build_memories(
+        list(load_dataset(dataset)), encoder, provenance=provenance, failure_frames="dense"
+    )
+    with pytest.raises(RoboFailRingError, match="also in the memory"):
+        check_disjoint(dense, test)
 
 
 def test_evaluation_files_and_counts(dataset: Path, tmp_path: Path) -> None:
@@ -78,9 +86,37 @@ def test_evaluation_files_and_counts(dataset: Path, tmp_path: Path) -> None:
         in markdown
     )
     assert (tmp_path / "memory" / "manifest.json").is_file()
-    # the memory holds only training failures
+    # the memory holds only training failures, dense by default, and every table says so
     memory = FailureMemory.load(tmp_path / "memory")
     assert {e.episode.rsplit("episode", 1)[1] for e in memory.entries} <= {"0", "2"}
+    assert memory.manifest.failure_mode == result.failure_frames == report["failure_frames"] == "dense"
+    blamed = result.false_alarm_entries(0.5)  # at δ = 0.5 every success run fires
+    assert blamed and all(row["moment"] == memory.entries[row["index"]].moment for row in blamed)
+    assert all(
+        row["moment"].startswith("frame ") for row in blamed
+    )  # a dense run's entries differ only there
+    assert markdown.startswith(
+        "## in-distribution — encoder `pixels-v2-24px-512d`, K = 5, dense failure memory"
+    )
+    assert "(dense: each failure run's frames from its onset on, thinned; `--failure-frames end`" in markdown
+
+
+def test_an_evaluation_of_the_papers_memory_says_so(dataset: Path, tmp_path: Path) -> None:
+    with pytest.raises(SettingError, match="failure frames must be end or dense, got 'all'"):
+        EvaluateConfig(data=dataset, out=tmp_path, failure_frames="all")
+    result = run_evaluation(
+        EvaluateConfig(
+            data=dataset, out=tmp_path, cache_dir=tmp_path / "cache", target_fpr=0.2, failure_frames="end"
+        )
+    )
+    json_path, md_path = write_evaluation(result, tmp_path)
+    assert json.loads(json_path.read_text())["failure_frames"] == "end"
+    markdown = md_path.read_text()
+    assert ", K = 5, end failure memory" in markdown.splitlines()[0]
+    assert "(end: the paper's memory, one (I_0 ‖ I_end) entry per failure view)" in markdown
+    assert (
+        len(FailureMemory.load(tmp_path / "memory")) == 2 * 3 * 2 * 3
+    )  # one entry per training failure view
 
 
 def test_calibration_is_stored_and_used(dataset: Path, tmp_path: Path) -> None:

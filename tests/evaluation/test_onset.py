@@ -51,7 +51,13 @@ def test_evaluation_reports_delay_and_premature_alarms_per_rule(tmp_path: Path) 
             )
     (data / "manifest.json").write_text(json.dumps(manifest))
     result = run_evaluation(
-        EvaluateConfig(data=data, out=tmp_path / "out", cache_dir=tmp_path / "cache", target_fpr=0.5)
+        EvaluateConfig(  # the paper's memory: its failure entries are their runs' ends, after any onset
+            data=data,
+            out=tmp_path / "out",
+            cache_dir=tmp_path / "cache",
+            target_fpr=0.5,
+            failure_frames="end",
+        )
     )
     json_path, md_path = write_evaluation(result, tmp_path / "out")
     report = json.loads(json_path.read_text())

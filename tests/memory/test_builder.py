@@ -56,7 +56,9 @@ def test_one_call_builds_the_complete_memory(dataset: Path, encoder: CachedEncod
 
     failures = [t for t in train if t.is_failure]
     successes = [t for t in train if not t.is_failure]
-    assert len(memory) == stats.entries == sum(len(t.views) for t in failures) > 0
+    # dense by default: frames 1-5 of every failure view (no onset recorded; these frames all differ)
+    assert len(memory) == stats.entries == sum(len(t.views) * (t.length - 1) for t in failures) > 0
+    assert stats.views == sum(len(t.views) for t in failures)
     assert memory.data_root == dataset.resolve()
     manifest = memory.manifest
     assert manifest.source == manifest.data_root == str(dataset.resolve())
@@ -73,8 +75,8 @@ def test_one_call_builds_the_complete_memory(dataset: Path, encoder: CachedEncod
 def test_no_success_run_or_none_asked_gives_the_paper_memory(tmp_path: Path, encoder: CachedEncoder) -> None:
     aha = write_aha_dataset(tmp_path / "aha", tasks=("pick_cube",), episodes=1)  # failures only
     provenance = Provenance(data=aha, encoder="pixels", layout="aha")
-    memory, _ = build_memories(list(load_dataset(aha)), encoder, provenance=provenance)
-    assert memory.successes is None and len(memory) == 9
+    memory, _ = build_memories(list(load_dataset(aha)), encoder, provenance=provenance, failure_frames="end")
+    assert memory.successes is None and len(memory) == 9 and memory.manifest.failure_frames == "end"
 
     project = write_project_dataset(tmp_path / "project", tasks=("pick_cube",), episodes=2)
     memory, _ = build_memories(

@@ -37,13 +37,15 @@ MANIFEST_KEYS = (
     "successes",
     "calibration",
     "data_root",
+    "failure_frames",
+    "failure_step",
 )
 RUN_KEYS = ("task", "episode", "view", "frames", "kind", "frame_numbers")
 
 
 def _objects(keys: tuple[str, ...]) -> st.SearchStrategy[dict[str, Any]]:
     """Objects with some (or all) of `keys`, their values of any JSON type."""
-    value = JSON | st.sampled_from([0, 2, "pixels", "a/b", ["x"], ["1", "x"], {}])
+    value = JSON | st.sampled_from([0, 2, 0.5, "pixels", "a/b", "end", "dense", ["x"], ["1", "x"], {}])
     return st.dictionaries(st.sampled_from(keys), value) | st.fixed_dictionaries(dict.fromkeys(keys, value))
 
 
@@ -113,6 +115,33 @@ def test_any_entries_line_parses_or_raises_naming_the_file_and_line(line: str) -
             assert f"{path}:7" in str(error)
         else:
             assert all(isinstance(row[key], str) for row in rows for key in ENTRY_FIELDS)
+
+
+MOMENT = st.one_of(JSON, st.integers(min_value=-3, max_value=12))
+
+
+@given(
+    st.fixed_dictionaries(dict.fromkeys(ENTRY_FIELDS, st.just("pick_cube"))).map(
+        lambda row: row | {"symbol": "grasp_wp2"}
+    ),
+    st.dictionaries(st.sampled_from(["frame", "length"]), MOMENT),
+)
+def test_any_frame_and_length_parse_to_a_moment_or_raise_naming_the_line(
+    row: dict[str, Any], moment: dict[str, Any]
+) -> None:
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / ENTRIES
+        path.write_text("\n" + json.dumps(row | moment) + "\n", encoding="utf-8")
+        try:
+            (parsed,) = read_jsonl(path, parse_entry, what="entry")
+        except MemoryFormatError as error:
+            assert f"{path}:2: " in str(error) and ("'frame'" in str(error) or "'length'" in str(error))
+        else:
+            frame, length = parsed["frame"], parsed["length"]
+            assert (frame, length) == (moment.get("frame"), moment.get("length"))
+            assert (frame is None and length is None) or (
+                type(frame) is int and type(length) is int and 0 <= frame < length
+            )
 
 
 @given(st.one_of(st.binary(max_size=100), _lines(ENTRY_FIELDS).map(str.encode)))

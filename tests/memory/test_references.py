@@ -148,7 +148,10 @@ def test_moved_data_is_reported_missing_then_rerooted(
         "first_missing": None,
     }
     assert info["data_root"] == str(data.resolve()) and info["data_root_used"] == str(moved.resolve())
-    assert info["tasks"] == {"pick_cube": {"front": 4, "overhead": 4, "wrist": 4}}
+    assert info["tasks"] == {
+        "pick_cube": {"front": 20, "overhead": 20, "wrist": 20}
+    }  # dense: frames 1-5 of 4 runs
+    assert (info["failure_frames"], info["failure_step"]) == ("dense", 0.002)
 
 
 def test_memory_info_text(relative_build: tuple[Path, Path]) -> None:
@@ -156,9 +159,12 @@ def test_memory_info_text(relative_build: tuple[Path, Path]) -> None:
     code, stdout, stderr = _invoke(["memory-info", str(memory_dir)])
     assert code == 0, stderr
     assert f"data root   {data.resolve()}" in stdout
-    assert "24 of 24 reference images found" in stdout
-    assert "12 × 1024-d over 1 task(s)" in stdout
-    assert "pick_cube  front 4, overhead 4, wrist 4" in stdout
+    assert "72 of 72 reference images found" in stdout  # every frame of 4 failure runs × 3 views
+    assert "60 × 1024-d over 1 task(s)" in stdout
+    assert (
+        "failures    dense, 60 entries from 12 failure views" in stdout and "thinned at step 0.002" in stdout
+    )
+    assert "pick_cube  front 20, overhead 20, wrist 20" in stdout
     assert "δ not calibrated" in stdout and "successes   none" in stdout
 
 

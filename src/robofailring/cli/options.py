@@ -122,6 +122,16 @@ SuccessStepOption = Annotated[
         "1 - STEP (0 keeps every frame).",
     ),
 ]
+FailureFramesOption = Annotated[
+    str | None,
+    typer.Option(
+        "--failure-frames",
+        help="`dense`: each failure run's frames from its onset on (all when it is not known), thinned like "
+        "the success memory (--success-step), so a neighbour shows the moment of the past failure that "
+        "matches; `end`: the paper's memory, one (I_0 ‖ I_end) entry per failure view. Default: dense "
+        "(growing a memory with --add-to keeps its own).",
+    ),
+]
 DataRootOption = Annotated[
     Path | None,
     typer.Option(

@@ -21,6 +21,7 @@ from robofailring.cli.options import (
     DeviceOption,
     EncoderOption,
     EtaOption,
+    FailureFramesOption,
     GammaOption,
     KOption,
     LabelsOption,
@@ -118,11 +119,13 @@ def build_memory_cmd(
         ),
     ] = False,
     success_step: SuccessStepOption = DEFAULT_STEP,
+    failure_frames: FailureFramesOption = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
 ) -> None:
     """Build a failure memory (Algorithm 1) from the failure trajectories of DATA, and a success memory."""
     from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
+    from robofailring.memory.info import failure_memory_text
 
     if (out is None) == (add_to is None):
         raise SettingError(
@@ -145,6 +148,7 @@ def build_memory_cmd(
             task=task,
             views=views,
             success_step=success_step,
+            failure_frames=failure_frames,
         )
     )
     typer.echo(
@@ -157,6 +161,7 @@ def build_memory_cmd(
             else ""
         )
     )
+    typer.echo(f"failure memory: {failure_memory_text(memory)}")
     if memory.successes is not None:
         typer.echo(
             f"success memory: {len(memory.successes)} frames kept of {memory.successes.offered} offered "

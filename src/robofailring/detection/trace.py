@@ -202,18 +202,22 @@ class DetectionTrace(RuleThresholds):
         views: dict[str, Any] = {}
         contrasts, novelties = self.contrast, self.novelty
         for view in self.views:
-            top = []
+            top: list[dict[str, Any] | None] = []
             for t in range(self.length):
                 found = self.neighbors(view, t)
+                if not found:
+                    top.append(None)
+                    continue
+                entry = found[0].entry
+                moment = {"frame": entry.frame, "length": entry.length} if entry.frame is not None else {}
                 top.append(
-                    None
-                    if not found
-                    else {
-                        "task": found[0].entry.task,
-                        "symbol": found[0].entry.symbol,
-                        "view": found[0].entry.view,
-                        "episode": found[0].entry.episode,
+                    {
+                        "task": entry.task,
+                        "symbol": entry.symbol,
+                        "view": entry.view,
+                        "episode": entry.episode,
                         "similarity": round(found[0].similarity, 6),
+                        **moment,  # a dense memory's entry: the moment of its run that matched
                     }
                 )
             views[view] = {

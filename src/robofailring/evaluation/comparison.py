@@ -16,6 +16,7 @@ from robofailring.evaluation.run import (
     build_training_memory,
     run_evaluation,
 )
+from robofailring.memory.entry import DENSE, check_failure_frames
 
 
 @dataclass(frozen=True)
@@ -29,6 +30,10 @@ class CompareEncodersConfig:
     k: int = 5
     cache_dir: Path | None = None
     device: str | None = None
+    failure_frames: str = DENSE  # each encoder's memory: `dense` or `end` (the paper's; memory.entry)
+
+    def __post_init__(self) -> None:
+        check_failure_frames(self.failure_frames)
 
 
 def compare_encoders(config: CompareEncodersConfig) -> list[EvaluationResult]:
@@ -51,6 +56,7 @@ def compare_encoders(config: CompareEncodersConfig) -> list[EvaluationResult]:
             name=slug,
             cache_dir=config.cache_dir,
             device=config.device,
+            failure_frames=config.failure_frames,
         )
         build_training_memory(replace(base, memory_out=memory_dir))
         if config.target_fpr is not None:
@@ -70,16 +76,18 @@ def compare_encoders(config: CompareEncodersConfig) -> list[EvaluationResult]:
 
 
 def comparison_table(results: Sequence[EvaluationResult]) -> str:
-    """Markdown: each encoder under each scoring rule at its threshold: recall, FPR, T_s, AUC, latency."""
+    """Markdown: each encoder under each scoring rule at its threshold: recall, FPR, T_s, AUC, latency,
+    and the failure memory it used (`end` or `dense`)."""
     lines = [
-        "| encoder | rule | threshold | Recall (%) | FPR (%) | mean T_s (%) | AUC | latency per frame (ms) |",
-        "|---|---|---:|---:|---:|---:|---:|---:|",
+        "| encoder | failure memory | rule | threshold | Recall (%) | FPR (%) | mean T_s (%) | AUC | "
+        "latency per frame (ms) |",
+        "|---|---|---|---:|---:|---:|---:|---:|---:|",
     ]
     for result in results:
         latency = f"{result.latency_ms.get('total', float('nan')):.2f}"
         for rule in result.rules.values():
             lines.append(
-                f"| `{result.encoder}` | {rule.rule.name} | {rule.rule.symbol} = {rule.threshold:.4f} | "
+                f"| `{result.encoder}` | {result.failure_frames} | {rule.rule.name} | {rule.rule.symbol} = {rule.threshold:.4f} | "
                 f"{_pct(rule.recall)} | {_pct(rule.fpr)} | {_pct(rule.ts_mean)} | {rule.auc:.3f} | {latency} |"
             )
     return "\n".join(lines)

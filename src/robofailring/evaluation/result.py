@@ -32,6 +32,7 @@ from robofailring.evaluation.per_rule import (
     scored_by_rule,
     spread_markdown,
 )
+from robofailring.memory.entry import END, failure_frames_note
 
 
 @dataclass
@@ -58,6 +59,7 @@ class EvaluationResult:
     band: str = "none"  # the time-indexed band the rules beyond the paper's were judged on
     vocabulary: Vocabulary | None = field(default=None, repr=False)  # the memory's own failure symbols
     growth: list[GrowthPoint] = field(default_factory=list)  # `evaluate --growth`: the learning curve
+    failure_frames: str = END  # the memory's failure frames: `end` (the paper's) or `dense` (memory.entry)
     paper_rates: list[Rates] = field(init=False)
     curve: list[Rates] = field(init=False)
 
@@ -142,6 +144,7 @@ class EvaluationResult:
                     "symbol": entry.symbol,
                     "episode": entry.episode,
                     "view": entry.view,
+                    "moment": entry.moment,  # a dense memory's entries of one run differ only here
                 }
             )
         return rows
@@ -166,6 +169,7 @@ class EvaluationResult:
             "name": self.name,
             "encoder": self.encoder,
             "memory": self.memory,
+            "failure_frames": self.failure_frames,
             "k": self.k,
             "operating_delta": delta,
             "calibrated": self.calibrated,
@@ -234,9 +238,10 @@ class EvaluationResult:
     def to_markdown(self) -> str:
         delta = self.operating_delta
         lines = [
-            f"## {self.name} — encoder `{self.encoder}`, K = {self.k}",
+            f"## {self.name} — encoder `{self.encoder}`, K = {self.k}, {self.failure_frames} failure memory",
             "",
-            f"{self.failures} failure and {self.successes} success test trajectories; memory `{self.memory}`; "
+            f"{self.failures} failure and {self.successes} success test trajectories; memory `{self.memory}` "
+            f"({failure_frames_note(self.failure_frames)}); "
             f"operating δ = {delta:.4f} ({'calibrated' if self.calibrated else 'paper default'}).",
             "",
             *self._rules_markdown(),
@@ -280,13 +285,13 @@ class EvaluationResult:
                 "",
                 "Memory entries behind the most false alarms (candidates to prune):",
                 "",
-                "| entry | false alarms | task | symbol | episode | view |",
-                "|---:|---:|---|---|---|---|",
+                "| entry | false alarms | task | symbol | episode | view | moment |",
+                "|---:|---:|---|---|---|---|---|",
             ]
             for row in blamed[:10]:
                 lines.append(
                     f"| {row['index']} | {row['false_alarms']} | {row['task']} | `{row['symbol']}` | "
-                    f"{row['episode']} | {row['view']} |"
+                    f"{row['episode']} | {row['view']} | {row['moment']} |"
                 )
         if self.skipped_too_short:
             lines += [

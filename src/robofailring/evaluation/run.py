@@ -2,201 +2,34 @@
 
 from __future__ import annotations
 
-import hashlib
 import json
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 
 from robofailring.atomic import write_text_atomic
-from robofailring.data.layouts import Dataset, load_dataset
-from robofailring.data.model import Skipped, Trajectory
-from robofailring.data.splits import split_of
-from robofailring.data.vocabulary import read_vocabulary
-from robofailring.detection.band import DEFAULT_BAND, Band, check_band
-from robofailring.detection.conformal import FprSpread, check_target_fpr
-from robofailring.detection.detector import (
-    DetectionTrace,
-    FailureDetector,
-    check_k,
-    check_stride,
-)
+from robofailring.data.model import Trajectory
+from robofailring.detection.band import Band
+from robofailring.detection.conformal import FprSpread
+from robofailring.detection.detector import DetectionTrace, FailureDetector
 from robofailring.detection.rules import PAPER, ScoringRule
 from robofailring.detection.stored import stored_threshold
 from robofailring.encoders import CachedEncoder, open_encoder
-from robofailring.errors import DataError, RoboFailRingError, SettingError
+from robofailring.errors import DataError, SettingError
 from robofailring.evaluation.growth import GrowthPoint, judged
 from robofailring.evaluation.latency import measure_latency
-from robofailring.evaluation.metrics import PAPER_DELTAS, ScoredTrajectory
+from robofailring.evaluation.metrics import ScoredTrajectory
 from robofailring.evaluation.per_rule import evaluate_rule, scored_by_rule
 from robofailring.evaluation.result import EvaluationResult
-from robofailring.memory.builder import Provenance, build_memories
+from robofailring.evaluation.training import (
+    EvaluateConfig,
+    build_training_memory,
+    check_disjoint,
+    select_splits,
+)
 from robofailring.memory.failure import FailureMemory
-from robofailring.memory.references import absolute_reference
 from robofailring.memory.success import SuccessMemory
-from robofailring.memory.thinning import DEFAULT_STEP
 from robofailring.progress import progress_bar
-
-
-@dataclass(frozen=True)
-class EvaluateConfig:
-    data: Path  # dataset whose training split's failures form the memory
-    out: Path  # folder for evaluation.json and evaluation.md (and memory/ when built here)
-    encoder: str = "pixels"  # encoder spec; must match --memory when one is given
-    memory: Path | None = None  # an existing memory (its failures must not be in the test set)
-    memory_out: Path | None = None  # where a memory built here is saved (default out/memory)
-    test_data: Path | None = None  # a second dataset to test on (e.g. out-of-distribution)
-    train_split: str = "train"
-    test_split: str = "test"
-    test_fraction: float = 0.5  # for datasets without splits: a deterministic hash split
-    deltas: tuple[float, ...] = PAPER_DELTAS
-    k: int = 5
-    name: str = "evaluation"
-    cache_dir: Path | None = None
-    device: str | None = None
-    stride: int = 1  # score every stride-th frame of a test trajectory (t_det, T_s in original frames)
-    labels: Path | None = None  # labels file for data whose names do not say the outcome (LeRobot)
-    vocabulary: Path | None = None  # the data's own failure symbols (JSON/YAML), kept with the memory built
-    target_fpr: float | None = 0.05  # calibrate both rules on training successes; None: stored thresholds
-    successes: bool = True  # build the success memory beside the failure memory (contrast rule)
-    success_step: float = (
-        DEFAULT_STEP  # thinning of success runs (robofailring.memory.thinning); 0 keeps every frame
-    )
-    deployment_successes: int = 0  # per task: test success runs moved into the success memory
-    task: str | None = None  # task of episodes whose names do not say it
-    views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
-    band: str = DEFAULT_BAND  # time-indexed thresholds when calibrating here: none, shift or norm
-    failures_per_task: int | None = None  # the memory built here holds N training failures per task
-    # (`labelled_failures`; 0: success runs only, judged by the novelty rule); None: all of them
-
-    def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
-        check_k(self.k)
-        check_stride(self.stride)
-        check_band(self.band)
-        if self.target_fpr is not None:
-            check_target_fpr(self.target_fpr)
-        if self.deployment_successes < 0:
-            raise SettingError(f"deployment successes must be ≥ 0, got {self.deployment_successes}")
-        if self.failures_per_task is not None and self.failures_per_task < 0:
-            raise SettingError(f"failures per task must be ≥ 0, got {self.failures_per_task}")
-        for delta in self.deltas:
-            PAPER.check_threshold(delta)
-        if not 0.0 < self.test_fraction < 1.0:
-            raise SettingError(f"test fraction must lie in (0, 1), got {self.test_fraction}")
-
-
-@dataclass(frozen=True)
-class Splits:
-    """The training and test trajectories of an evaluation, and the dataset the training ones come from."""
-
-    train: list[Trajectory]
-    test: list[Trajectory]
-    dataset: Dataset  # `config.data`: the training split's dataset
-    skipped: list[Skipped]  # what the loaders of the training and test datasets did not read
-
-
-def select_splits(config: EvaluateConfig) -> Splits:
-    """The training and test trajectories, disjoint by construction and checked."""
-    vocabulary = read_vocabulary(config.vocabulary) if config.vocabulary is not None else None
-    dataset = load_dataset(
-        config.data, task=config.task, labels=config.labels, views=config.views, vocabulary=vocabulary
-    )
-    dataset.require_labels("evaluate")
-    source = list(dataset.trajectories())
-    skipped = list(dataset.skipped)
-    has_splits = any(t.split for t in source)
-    train = [
-        t
-        for t in source
-        if split_of(t, has_splits=has_splits, test_fraction=config.test_fraction) == config.train_split
-    ]
-    if config.test_data is None:
-        test = [
-            t
-            for t in source
-            if split_of(t, has_splits=has_splits, test_fraction=config.test_fraction) == config.test_split
-        ]
-    else:
-        other_dataset = load_dataset(
-            config.test_data,
-            task=config.task,
-            labels=config.labels,
-            views=config.views,
-            vocabulary=vocabulary,
-        )
-        other_dataset.require_labels("evaluate")
-        other = list(other_dataset.trajectories())
-        skipped += other_dataset.skipped
-        other_has_splits = any(t.split for t in other)
-        test = [t for t in other if not other_has_splits or t.split == config.test_split]
-    if not test:
-        raise DataError(
-            f"no test trajectories (split {config.test_split!r}) in {config.test_data or config.data}"
-        )
-    return Splits(train=train, test=test, dataset=dataset, skipped=skipped)
-
-
-def check_disjoint(memory: FailureMemory, test: Sequence[Trajectory]) -> None:
-    """No trajectory may be both in the memory and in the test set (compared by its image files)."""
-    in_memory = {absolute_reference(ref) for entry in memory.entries for ref in (entry.start, entry.end)}
-    for trajectory in test:
-        for frames in trajectory.views.values():
-            if (
-                frames
-                and {absolute_reference(frames[0].reference), absolute_reference(frames[-1].reference)}
-                & in_memory
-            ):
-                raise RoboFailRingError(
-                    f"test trajectory {trajectory.key} ({trajectory.source}) is also in the memory; "
-                    "evaluate on a split the memory was not built from"
-                )
-
-
-def build_training_memory(
-    config: EvaluateConfig, splits: Splits | None = None, encoder: CachedEncoder | None = None
-) -> Path:
-    """Build the memory from the training split's failures (and successes) and save it to `config.memory_out`."""
-    if encoder is None:
-        encoder = open_encoder(config.encoder, device=config.device, cache_dir=config.cache_dir)
-    if splits is None:
-        splits = select_splits(config)
-    provenance = Provenance(
-        data=Path(config.data),
-        encoder=config.encoder,
-        layout=splits.dataset.layout,
-        views=splits.dataset.views,
-        split=config.train_split,
-        skipped_inputs=splits.dataset.skipped,
-    )
-    memory, _ = build_memories(
-        labelled_failures(splits.train, config.failures_per_task),
-        encoder,
-        provenance=provenance,
-        successes=config.successes,
-        success_step=config.success_step,
-        vocabulary=read_vocabulary(config.vocabulary) if config.vocabulary is not None else None,
-    )
-    memory_dir = config.memory_out or Path(config.out) / "memory"
-    memory.save(memory_dir)
-    return memory_dir
-
-
-def labelled_failures(trajectories: Sequence[Trajectory], per_task: int | None) -> list[Trajectory]:
-    """The success runs and `per_task` failure runs of each task (None: all of them), the failures
-    in a fixed pseudo-random order (a hash of their key), so the few that are labelled are of mixed types."""
-    if per_task is None:
-        return list(trajectories)
-    kept: dict[str, int] = {}
-    chosen = []
-    for trajectory in sorted(
-        trajectories, key=lambda t: hashlib.blake2b(t.key.encode(), digest_size=8).digest()
-    ):
-        if trajectory.is_failure:
-            if kept.get(trajectory.task, 0) >= per_task:
-                continue
-            kept[trajectory.task] = kept.get(trajectory.task, 0) + 1
-        chosen.append(trajectory)
-    return chosen
 
 
 def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
@@ -288,6 +121,7 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
         skipped_inputs=splits.skipped,
         stride=config.stride,
         vocabulary=memory.vocabulary,
+        failure_frames=memory.manifest.failure_mode,
     )
 
 

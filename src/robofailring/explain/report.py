@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
 from robofailring.errors import DataError
+from robofailring.memory.entry import moment_text
 from robofailring.memory.failure import Neighbor
 from robofailring.memory.references import absolute_reference, check_references, relocate
 
@@ -40,7 +41,8 @@ NO_FAILURES = (
 
 @dataclass(frozen=True)
 class ReportItem:
-    """One tuple of eq. 8: (τ, G(y_sym), ω, I_start, I_end) plus the similarity and symbol."""
+    """One tuple of eq. 8: (τ, G(y_sym), ω, I_start, I_end) plus the similarity and symbol; in a dense
+    memory `end_image` is the run's frame `frame` of `length` (None: its last, the paper's)."""
 
     task: str
     symbol: str
@@ -49,6 +51,20 @@ class ReportItem:
     similarity: float
     start_image: str
     end_image: str
+    frame: int | None = None
+    length: int | None = None
+
+    @property
+    def moment(self) -> str:
+        """Which moment of the past failure run `end_image` is (`memory.entry.moment_text`)."""
+        return moment_text(self.frame, self.length)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The item as a report's JSON holds it (`frame` and `length` only for a dense memory's entry)."""
+        stored = {**self.__dict__, "similarity": round(self.similarity, 6)}
+        return {
+            key: value for key, value in stored.items() if key not in ("frame", "length") or value is not None
+        }
 
     @classmethod
     def from_neighbor(cls, neighbor: Neighbor) -> ReportItem:
@@ -61,6 +77,8 @@ class ReportItem:
             similarity=neighbor.similarity,
             start_image=entry.start,
             end_image=entry.end,
+            frame=entry.frame,
+            length=entry.length,
         )
 
 
@@ -102,6 +120,8 @@ class FailureReport:
                     similarity=float(item["similarity"]),
                     start_image=str(item["start_image"]),
                     end_image=str(item["end_image"]),
+                    frame=_whole_or_none(item.get("frame")),
+                    length=_whole_or_none(item.get("length")),
                 )
                 for item in data["neighbors"]
             )
@@ -124,7 +144,7 @@ class FailureReport:
             "t_det": self.t_det,
             "similarity": round(self.similarity, 6),
             "current_image": self.current_image,
-            "neighbors": [{**item.__dict__, "similarity": round(item.similarity, 6)} for item in self.items],
+            "neighbors": [item.to_dict() for item in self.items],
         }
 
     def missing_images(self) -> list[str]:
@@ -175,7 +195,7 @@ class FailureReport:
                     },
                     {"type": "text", "text": "Reference Start Frame (Task Context):"},
                     {"type": "image", "path": absolute_reference(top.start_image)},
-                    {"type": "text", "text": "Reference End Frame (Failure State):"},
+                    {"type": "text", "text": _reference_label(top)},
                     {"type": "image", "path": absolute_reference(top.end_image)},
                 ],
             },
@@ -197,12 +217,13 @@ class FailureReport:
             "",
             f"Detected at frame **{self.t_det}** in view **{self.view}** with S_t = **{self.similarity:.3f}**.",
             "",
-            "| rank | task | view | similarity | symbol | grounded failure |",
-            "|---:|---|---|---:|---|---|",
+            "| rank | task | view | similarity | symbol | grounded failure | matched moment of that run |",
+            "|---:|---|---|---:|---|---|---|",
         ]
         for rank, item in enumerate(self.items):
             lines.append(
-                f"| {rank} | {item.task} | {item.view} | {item.similarity:.3f} | `{item.symbol}` | {item.description} |"
+                f"| {rank} | {item.task} | {item.view} | {item.similarity:.3f} | `{item.symbol}` | {item.description} | "
+                f"{item.moment} |"
             )
         if not self.items:
             lines += ["", NO_FAILURES]
@@ -219,6 +240,18 @@ class FailureReport:
                     )
                 lines += [f"**{message['role']}**:", "", "```text", str(content), "```", ""]
         return "\n".join(lines)
+
+
+def _reference_label(item: ReportItem) -> str:
+    """Appendix B's label of the reference's second image; a dense memory's moment before the run's end says which."""
+    if item.frame is None or item.length is None or item.frame == item.length - 1:
+        return "Reference End Frame (Failure State):"
+    return f"Reference Frame at the Matched Moment, {item.moment}:"
+
+
+def _whole_or_none(value: Any) -> int | None:
+    """A report's optional frame number (absent in reports of the paper's memory)."""
+    return None if value is None else int(value)
 
 
 def report_for(trace: DetectionTrace, trajectory: Trajectory | None = None) -> FailureReport | None:

@@ -14,6 +14,7 @@ from robofailring.encoders import open_encoder
 from robofailring.errors import DataError, MemoryFormatError, SettingError
 from robofailring.memory.builder import Provenance, add_to, build_memories
 from robofailring.memory.encoding import BuildStats, is_failure
+from robofailring.memory.entry import DENSE, check_failure_frames
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.thinning import DEFAULT_STEP
 from robofailring.outputs import check_memory_target, is_memory_dir
@@ -36,6 +37,12 @@ class BuildMemoryConfig:
         None  # the dataset's own failure symbols (JSON/YAML), kept in the memory's folder
     )
     add_to: bool = False  # grow the memory at `out` with the dataset's runs instead of replacing it
+    # `dense` or `end` (the paper's memory); None: dense for a new memory, the memory's own with `add_to`
+    failure_frames: str | None = None
+
+    def __post_init__(self) -> None:  # a bad setting fails before anything is read
+        if self.failure_frames is not None:
+            check_failure_frames(self.failure_frames)
 
 
 def build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
@@ -90,6 +97,7 @@ def _build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]
         provenance=provenance,
         successes=config.successes,
         success_step=config.success_step,
+        failure_frames=config.failure_frames or DENSE,
         vocabulary=vocabulary,
     )
     if not len(memory) and memory.successes is None:
@@ -110,6 +118,12 @@ def _build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]
 def _add_to_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
     """The memory at `config.out` grown by the dataset's runs, saved in its place (atomically)."""
     memory = FailureMemory.load(config.out)
+    held = memory.manifest.failure_mode
+    if config.failure_frames not in (None, held):
+        raise SettingError(
+            f"--failure-frames {config.failure_frames} differs from the memory at {config.out}, which holds "
+            f"{held} failure frames: a grown memory keeps its own (leave out --failure-frames, or rebuild)"
+        )
     if config.vocabulary is not None and read_vocabulary(config.vocabulary) != memory.vocabulary:
         raise SettingError(
             f"--vocabulary {config.vocabulary} differs from the vocabulary of the memory at {config.out}: "

@@ -2,7 +2,8 @@
 
 `build_memories` is what `build-memory` and `evaluate` use; it returns the memory finished, so
 nothing sets its success memory or manifest fields afterwards. `add_to` grows a memory the same
-way: it returns a new complete memory with the new runs added (`build-memory --add-to`). (`FailureMemory.build` gives the
+way: it returns a new complete memory with the new runs added (`build-memory --add-to`), with the
+memory's own failure frames (`end` or `dense`) and thinning step, so a grown memory stays one kind. (`FailureMemory.build` gives the
 paper's memory alone, without success runs or provenance, for tests and benchmarks.)
 """
 
@@ -19,7 +20,8 @@ from robofailring.data.model import Skipped, Trajectory
 from robofailring.encoders import portable_spec
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import DataError, EncoderMismatchError
-from robofailring.memory.encoding import BuildStats, EncodedFailures, encode_failures, is_failure
+from robofailring.memory.encoding import BuildStats, EncodedFailures, encode_failures, failure_views
+from robofailring.memory.entry import DENSE
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.success import SuccessMemory
 from robofailring.memory.thinning import DEFAULT_STEP
@@ -45,17 +47,25 @@ def build_memories(
     provenance: Provenance,
     successes: bool = True,
     success_step: float = DEFAULT_STEP,
+    failure_frames: str = DENSE,
     vocabulary: Vocabulary | None = None,
 ) -> tuple[FailureMemory, BuildStats]:
     """The failure memory of the failure `trajectories` with, when `successes`, the success memory of all of them.
 
-    A dataset without a success run gives the paper's memory alone (no success memory). Image
-    references are kept relative to the dataset root. `stats.skipped_inputs` is the provenance's.
+    `failure_frames`: `dense` (each failure view's frames from its onset on, thinned at `success_step`)
+    or `end` (the paper's one entry per view). A dataset without a success run gives no success memory.
+    Image references are kept relative to the dataset root. `stats.skipped_inputs` is the provenance's.
     `vocabulary` (the dataset's own symbols beyond Table 5) is kept with the memory.
     """
     root = Path(provenance.data).resolve()
     encoded, built = _encode(
-        trajectories, encoder, successes=successes, success_step=success_step, vocabulary=vocabulary
+        trajectories,
+        encoder,
+        successes=successes,
+        success_step=success_step,
+        failure_frames=failure_frames,
+        failure_step=success_step,
+        vocabulary=vocabulary,
     )
     success_memory = built if built is not None and built.success_runs else None  # none: the paper's memory
     manifest = encoded.manifest(
@@ -112,8 +122,15 @@ def add_to(
             + (f" and {len(repeated) - 1} more" if len(repeated) > 1 else "")
             + "; add only new episodes (or rebuild the memory)"
         )
+    old = memory.manifest
     encoded, new_successes = _encode(
-        trajectories, encoder, successes=successes, success_step=success_step, vocabulary=memory.vocabulary
+        trajectories,
+        encoder,
+        successes=successes,
+        success_step=success_step,
+        failure_frames=old.failure_mode,
+        failure_step=old.failure_step if old.failure_step is not None else success_step,
+        vocabulary=memory.vocabulary,
     )
     joined = memory.successes
     if new_successes is not None and len(new_successes):
@@ -121,7 +138,6 @@ def add_to(
             joined = joined.extended(new_successes)
         elif new_successes.success_runs:
             joined = new_successes
-    old = memory.manifest
     stats = encoded.stats
     manifest = replace(
         old,
@@ -151,12 +167,14 @@ def _encode(
     *,
     successes: bool,
     success_step: float,
+    failure_frames: str,
+    failure_step: float,
     vocabulary: Vocabulary | None,
 ) -> tuple[EncodedFailures, SuccessMemory | None]:
-    """Algorithm 1 over the failures and, when `successes`, the success memory of all `trajectories`."""
-    total = sum(len(t.views) for t in trajectories if is_failure(t))
-    with progress_bar(total=total, desc="encoding memory", unit="entry") as bar:
-        encoded = encode_failures(trajectories, encoder, progress=bar.update, vocabulary=vocabulary)
+    """The failure memory's entries and, when `successes`, the success memory of all `trajectories`."""
+    planned = failure_views(trajectories, failure_frames=failure_frames, vocabulary=vocabulary)
+    with progress_bar(total=planned.frames, desc="encoding memory", unit="frame") as bar:
+        encoded = encode_failures(planned, encoder, step=failure_step, progress=bar.update)
     if not successes:
         return encoded, None
     with progress_bar(total=len(trajectories), desc="encoding success memory", unit="traj") as bar:

@@ -22,7 +22,7 @@ from robofailring.data.vocabulary import read_vocabulary
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.encoders.spec import EncoderSpec
 from robofailring.errors import EncoderMismatchError, MemoryFormatError, UnknownTaskError, VocabularyError
-from robofailring.memory.encoding import BuildStats, encode_failures
+from robofailring.memory.encoding import BuildStats, encode_failures, failure_views
 from robofailring.memory.entry import MemoryEntry, Neighbor
 from robofailring.memory.format import parse_entry, read_jsonl
 from robofailring.memory.index import FLAT, TaskIndexSet
@@ -91,13 +91,16 @@ class FailureMemory:
         data_root: Path | None = None,
         vocabulary: Vocabulary | None = None,
     ) -> tuple[FailureMemory, BuildStats]:
-        """The paper's memory alone (Algorithm 1), without success runs or provenance.
+        """The paper's memory alone (Algorithm 1: one end entry per failure view), without success runs
+        or provenance; `progress` is told the frames encoded.
 
         `robofailring.memory.builder.build_memories` builds the complete memory a job saves.
         Image references are kept relative to `data_root` when saved (default: the folder that
         holds all of them), so the memory resolves from any working directory.
         """
-        encoded = encode_failures(trajectories, encoder, progress=progress, vocabulary=vocabulary)
+        encoded = encode_failures(
+            failure_views(trajectories, vocabulary=vocabulary), encoder, progress=progress
+        )
         memory = cls(
             encoded.vectors,
             encoded.entries,

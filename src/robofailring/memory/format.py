@@ -50,7 +50,8 @@ def read_jsonl(path: Path, parse: Callable[[Any], Row], *, what: str) -> list[Ro
 
 def parse_entry(record: Any, vocabulary: Vocabulary | None = None) -> dict[str, Any]:
     """One row of entries.jsonl as the entry's fields; its failure symbol must parse (paper Table 5
-    and the memory's `vocabulary`); an optional `description` is the label's own text."""
+    and the memory's `vocabulary`); an optional `description` is the label's own text, optional
+    `frame` and `length` (together) the moment of the run a dense entry is."""
     if not isinstance(record, dict) or not set(ENTRY_FIELDS) <= set(record):
         raise MemoryFormatError(f"an entry is an object with {', '.join(ENTRY_FIELDS)}")
     wrong = [key for key in ENTRY_FIELDS if not isinstance(record[key], str)]
@@ -63,4 +64,24 @@ def parse_entry(record: Any, vocabulary: Vocabulary | None = None) -> dict[str, 
         parse_symbol(record["symbol"], vocabulary)
     except SymbolError as error:
         raise MemoryFormatError(str(error)) from error
-    return {key: record[key] for key in ENTRY_FIELDS} | {"written": written, "vocabulary": vocabulary}
+    return {key: record[key] for key in ENTRY_FIELDS} | {
+        "written": written,
+        "vocabulary": vocabulary,
+        **_moment(record),
+    }
+
+
+def _moment(record: dict[str, Any]) -> dict[str, int | None]:
+    """`frame` and `length` of an entry row: both absent (the run's end), or whole numbers 0 ≤ frame < length."""
+    frame, length = record.get("frame"), record.get("length")
+    if frame is None and length is None:
+        return {"frame": None, "length": None}
+    whole = [key for key, value in (("frame", frame), ("length", length)) if type(value) is not int]
+    if whole:
+        raise MemoryFormatError(
+            f"{whole[0]!r} must be a whole number (with 'frame' and 'length' together), not {record.get(whole[0])!r}"
+        )
+    assert isinstance(frame, int) and isinstance(length, int)
+    if not 0 <= frame < length:
+        raise MemoryFormatError(f"'frame' must lie in 0 … length − 1 = {length - 1}, not {frame}")
+    return {"frame": frame, "length": length}

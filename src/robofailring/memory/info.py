@@ -7,8 +7,24 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from robofailring.memory.entry import DENSE
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.references import ReferenceCheck
+
+
+def failure_memory_text(memory: FailureMemory) -> str:
+    """Which failure memory `memory` holds, with its counts: "dense, 1,904 entries from 112 failure views
+    (…)" or "end (the paper's), 112 entries from 112 failure views (…)"."""
+    manifest = memory.manifest
+    views = len({(entry.task, entry.episode, entry.view) for entry in memory.entries})
+    counts = f"{len(memory):,} entries from {views:,} failure views"
+    if manifest.failure_mode == DENSE:
+        step = f"{manifest.failure_step:g}" if manifest.failure_step is not None else "?"
+        return (
+            f"dense, {counts} (each view's frames from the failure's onset on, from frame 1 where it is "
+            f"not known, thinned at step {step})"
+        )
+    return f"end (the paper's), {counts} (each view's first and last frame)"
 
 
 @dataclass(frozen=True)
@@ -46,6 +62,8 @@ class MemoryInfo:
             "encoder_spec": manifest.encoder_spec,
             "dim": self.memory.dim,
             "entries": len(self.memory),
+            "failure_frames": manifest.failure_mode,
+            "failure_step": manifest.failure_step,
             "tasks": self.counts(),
             "symbols": dict(sorted(Counter(e.symbol for e in self.memory.entries).items())),
             "calibration": manifest.calibration.to_dict() if manifest.calibration else None,
@@ -88,6 +106,7 @@ class MemoryInfo:
             f"  encoder     {info['encoder']}"
             + (f"  (spec {info['encoder_spec']})" if info["encoder_spec"] else ""),
             f"  entries     {info['entries']} × {info['dim']}-d over {len(info['tasks'])} task(s)",
+            f"  failures    {failure_memory_text(self.memory)}",
             "  thresholds  "
             + (f"calibrated δ = {delta:.6f}" if delta is not None else "δ not calibrated (0.92 by default)")
             + (f", γ = {gamma:.6f}" if gamma is not None else "")

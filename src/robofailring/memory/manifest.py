@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any, Final
 
 from robofailring.errors import MemoryFormatError
+from robofailring.memory.entry import END, FAILURE_FRAMES
 
 # the order keys are written in: that of a memory built by `build-memory` and then calibrated
 _ORDER: Final[tuple[str, ...]] = (
@@ -21,6 +22,8 @@ _ORDER: Final[tuple[str, ...]] = (
     "skipped",
     "failures",
     "ignored_non_failures",
+    "failure_frames",
+    "failure_step",
     "skipped_inputs",
     "source",
     "layout",
@@ -55,6 +58,8 @@ _KINDS: Final[dict[str, Any]] = {
     "skipped": lambda v: isinstance(v, list),
     "failures": _whole,
     "ignored_non_failures": _whole,
+    "failure_frames": lambda v: isinstance(v, str),
+    "failure_step": _number,
     "skipped_inputs": lambda v: isinstance(v, list),
     "source": lambda v: isinstance(v, str),
     "layout": lambda v: isinstance(v, str),
@@ -194,6 +199,10 @@ class MemoryManifest:
     skipped: list[dict[str, Any]] | None = None  # those views
     failures: int | None = None
     ignored_non_failures: int | None = None
+    failure_frames: str | None = (
+        None  # "end" or "dense" (robofailring.memory.entry); None: built before, "end"
+    )
+    failure_step: float | None = None  # a dense memory's thinning step of its failure frames
     successes: dict[str, Any] | None = None  # the success memory's section (robofailring.memory.success)
     created: str | None = None
     calibration: StoredCalibration | None = None
@@ -215,6 +224,14 @@ class MemoryManifest:
             value = manifest[key]
             if not _whole(value) or value < 0:
                 raise MemoryFormatError(f"{path}: {key!r} must be a whole number ≥ 0, not {value!r}")
+        frames, step = manifest.get("failure_frames"), manifest.get("failure_step")
+        if frames is not None and frames not in FAILURE_FRAMES:
+            readable = " or ".join(FAILURE_FRAMES)
+            raise MemoryFormatError(f"{path}: 'failure_frames' is {frames!r}, this version reads {readable}")
+        if step is not None and not (_number(step) and 0.0 <= step <= 2.0):
+            raise MemoryFormatError(
+                f"{path}: 'failure_step' must be a cosine step within [0, 2], not {step!r}"
+            )
         calibration = manifest.get("calibration")
         parsed = StoredCalibration.parse(calibration, path) if calibration is not None else None
         optional = [
@@ -233,6 +250,12 @@ class MemoryManifest:
             **typed,
             extra=extra,
         )
+
+    @property
+    def failure_mode(self) -> str:
+        """The failure frames the memory holds: `end` (the paper's; also every memory built before the
+        choice existed) or `dense`."""
+        return self.failure_frames or END
 
     def to_dict(self) -> dict[str, Any]:
         """The manifest as JSON: typed fields that are set, then `extra`, in the order build writes them."""
