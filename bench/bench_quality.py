@@ -229,7 +229,7 @@ def print_rows(rows: list[QualityRow], alpha: float) -> None:
     for row in rows:
         for rule in row.result.rules.values():
             print(
-                f"| {row.encoder} | {row.result.failure_frames} | {row.protocol} | {rule.rule.name} | {rule.rule.symbol} = {rule.threshold:.4f} | "
+                f"| {row.encoder} | {row.result.failure_frames}, {row.result.pairing} | {row.protocol} | {rule.rule.name} | {rule.rule.symbol} = {rule.threshold:.4f} | "
                 f"{_pct(rule.recall)} | {_pct(rule.fpr)} | {_pct(rule.ts_mean)} | {rule.auc:.3f} | {_onset(rule)} | "
                 f"{rule.frame0_success_alarms} | {row.result.failures} / {row.result.successes} |"
             )

@@ -121,7 +121,9 @@ def write_report(
             text = text.partition("\n")[2]
         tables = markdown_html(text)
         frames = evaluation.get("failure_frames")  # which failure memory (absent in older evaluations)
+        pairing = evaluation.get("pairing")  # how it pairs frames (absent in older evaluations)
         memory = f", {html.escape(str(frames))} failure memory" if frames else ""
+        memory += f", {html.escape(str(pairing))} pairing" if pairing else ""
         sections += [
             f"<h2>{html.escape(name)} — encoder <code>{html.escape(str(evaluation.get('encoder', '?')))}</code>"
             f"{memory}</h2>",

@@ -21,6 +21,7 @@ from robofailring.cli.options import (
     FailureFramesOption,
     KOption,
     LabelsOption,
+    PairingOption,
     ScoreOption,
     StrideOption,
     SuccessStepOption,
@@ -35,6 +36,7 @@ from robofailring.cli.options import (
 )
 from robofailring.detection.band import DEFAULT_BAND
 from robofailring.memory.entry import DENSE
+from robofailring.memory.pairs import DEFAULT_PAIRING
 from robofailring.memory.thinning import DEFAULT_STEP
 
 app = typer.Typer(add_completion=False)  # composed into the one `robofailring` command by rfr_viz.cli.app
@@ -69,6 +71,7 @@ def evaluate_cmd(
     ] = 0,
     success_step: SuccessStepOption = DEFAULT_STEP,
     failure_frames: FailureFramesOption = None,
+    pairing: PairingOption = None,
     band: BandOption = DEFAULT_BAND,
     growth: Annotated[
         str | None,
@@ -107,6 +110,7 @@ def evaluate_cmd(
             deployment_successes=deployment_successes,
             success_step=success_step,
             failure_frames=failure_frames or DENSE,
+            pairing=pairing or DEFAULT_PAIRING,
             band=band,
         ),
         growth=parse_growth(growth) if growth is not None else (),
@@ -200,6 +204,7 @@ def compare_encoders_cmd(
     recordings: Annotated[int, typer.Option(help="Per-trajectory comparison recordings to write.")] = 3,
     k: KOption = 5,
     failure_frames: FailureFramesOption = None,
+    pairing: PairingOption = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
 ) -> None:
@@ -217,6 +222,7 @@ def compare_encoders_cmd(
             cache_dir=cache_dir,
             device=device,
             failure_frames=failure_frames or DENSE,
+            pairing=pairing or DEFAULT_PAIRING,
         ),
         recordings=recordings,
     )
@@ -243,6 +249,7 @@ def demo_cmd(
     data_dir: Annotated[Path | None, typer.Option(help="Where simulated datasets are cached.")] = None,
     camera_codec: CameraCodecOption = CameraCodec.AUTO,
     failure_frames: FailureFramesOption = None,
+    pairing: PairingOption = None,
     cache_dir: CacheOption = None,
 ) -> None:
     """The main job on the embedded default: simulate, build the memory, calibrate, evaluate, record."""
@@ -260,6 +267,7 @@ def demo_cmd(
             data_dir=data_dir,
             camera_codec=camera_codec,
             failure_frames=failure_frames or DENSE,
+            pairing=pairing or DEFAULT_PAIRING,
             cache_dir=cache_dir,
         ),
         say=typer.echo,

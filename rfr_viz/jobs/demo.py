@@ -34,6 +34,7 @@ from robofailring.evaluation.run import (
     write_evaluation,
 )
 from robofailring.memory.entry import DENSE, check_failure_frames
+from robofailring.memory.pairs import DEFAULT_PAIRING, check_pairing
 from robofailring.outputs import check_output_folder
 from robofailring.progress import progress_bar
 from robofailring.sim import TASKS, GenerateConfig, generate_dataset
@@ -56,9 +57,11 @@ class DemoConfig:
     camera_codec: CameraCodec = CameraCodec.AUTO  # jpeg, av1, h264, or auto (by size)
     trained_epochs: int = 10  # fourth output: train-encoder on the ID training split vs pixels (0: skip)
     failure_frames: str = DENSE  # the memories built: `dense` or `end` (the paper's; memory.entry)
+    pairing: str = DEFAULT_PAIRING  # the memories built: `change` or `concat` (the paper's; memory.pairs)
 
     def __post_init__(self) -> None:
         check_failure_frames(self.failure_frames)
+        check_pairing(self.pairing)
 
 
 @dataclass
@@ -173,6 +176,7 @@ def _run_demo(config: DemoConfig, data_dir: Path, say: Callable[[str], None]) ->
         cache_dir=config.cache_dir,
         memory_out=out / "memory",
         failure_frames=config.failure_frames,
+        pairing=config.pairing,
     )
     memory_dir = build_training_memory(base)
     calibration = calibrate(
@@ -251,6 +255,7 @@ def _compare_with_trained(
             target_fpr=config.target_fpr,  # each encoder calibrated at the demo's α
             cache_dir=config.cache_dir,
             failure_frames=config.failure_frames,
+            pairing=config.pairing,
         )
     )
 

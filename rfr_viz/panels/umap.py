@@ -24,23 +24,13 @@ from rfr_viz.panels.umap_layout import Map2D, fit_map_2d
 from robofailring.atomic import atomic_path
 from robofailring.memory.entry import MemoryEntry
 from robofailring.memory.failure import FailureMemory
+from robofailring.memory.pairs import CONCAT, change_of
 
 CACHE_FILE: Final[str] = "umap.npz"
 # 3: one map per view of the task-centred change (2: the fuzzy graph in numpy; 1: one map of the vectors)
 CACHE_VERSION: Final[int] = 3
 FEATURES: Final[str] = "change-task-centred-v1"  # what the maps are fitted on (part of the cache key)
 MIN_TASK_ENTRIES: Final[int] = 2  # a task with fewer entries in a view is centred on the view's mean
-
-
-def change_features(vectors: np.ndarray) -> np.ndarray:
-    """Pair vectors (N, 2d) -> (N, d) `norm(end half − start half)`: what changed since the first frame."""
-    vectors = np.atleast_2d(np.asarray(vectors, dtype=np.float32))
-    if vectors.shape[1] % 2:
-        raise ValueError(
-            f"memory vectors of odd dimension {vectors.shape[1]} are not pair vectors [start ‖ end]"
-        )
-    half = vectors.shape[1] // 2
-    return _unit(vectors[:, half:] - vectors[:, :half])
 
 
 def _unit(rows: np.ndarray) -> np.ndarray:
@@ -71,6 +61,7 @@ class MemoryMap:
     centres: Centres
     digest: str  # of the memory vectors, views and tasks the maps were fitted on
     fitted: bool = False  # True when this object did the fitting (False when read from the cache)
+    pairing: str = CONCAT  # how the memory's (and its queries') vectors pair frames (memory.pairs)
 
     @property
     def views(self) -> list[str]:
@@ -101,24 +92,31 @@ class MemoryMap:
         (None: the memory has no entry of that view)."""
         if view not in self.maps:
             return None
-        features = self.centres.centred(view, task, change_features(queries))
+        features = self.centres.centred(view, task, change_of(queries, pairing=self.pairing))
         return self.maps[view].project(features)
 
 
 def fit_map(memory: FailureMemory) -> MemoryMap:
     """Fit the memory's maps, one per view (UMAP, or PCA for a view below MIN_UMAP_ENTRIES entries)."""
-    rows, centres, features = _view_features(memory.vectors, memory.entries)
+    rows, centres, features = _view_features(memory.vectors, memory.entries, memory.pairing)
     maps = {view: fit_map_2d(features[view]) for view in rows}
-    return MemoryMap(maps=maps, rows=rows, centres=centres, digest=memory_digest(memory), fitted=True)
+    return MemoryMap(
+        maps=maps,
+        rows=rows,
+        centres=centres,
+        digest=memory_digest(memory),
+        fitted=True,
+        pairing=memory.pairing,
+    )
 
 
 def _view_features(
-    vectors: np.ndarray, entries: list[MemoryEntry]
+    vectors: np.ndarray, entries: list[MemoryEntry], pairing: str
 ) -> tuple[dict[str, np.ndarray], Centres, dict[str, np.ndarray]]:
     """Per view: its entries' rows, the centres, and its entries' centred change features."""
     views = np.asarray([entry.view for entry in entries], dtype=object)
     tasks = np.asarray([entry.task for entry in entries], dtype=object)
-    change = change_features(vectors) if len(entries) else np.zeros((0, 1), np.float32)
+    change = change_of(vectors, pairing=pairing) if len(entries) else np.zeros((0, 1), np.float32)
     rows = {view: np.flatnonzero(views == view) for view in dict.fromkeys(views.tolist())}
     by_view = {view: change[found].mean(axis=0) for view, found in rows.items()}
     by_task = {}
@@ -141,7 +139,7 @@ def memory_digest(memory: FailureMemory) -> str:
     """What the cache is keyed on: the memory vectors, each entry's view and task, and the features used."""
     data = np.ascontiguousarray(memory.vectors, dtype=np.float32)
     digest = hashlib.blake2b(data.tobytes(), digest_size=16)
-    digest.update(FEATURES.encode())
+    digest.update(f"{FEATURES}\0{memory.pairing}".encode())
     for entry in memory.entries:
         digest.update(f"\0{entry.view}\0{entry.task}".encode())
     return f"{data.shape[0]}x{data.shape[1] if data.ndim == 2 else 0}-{digest.hexdigest()}"
@@ -174,7 +172,7 @@ def _read_cache(path: Path, memory: FailureMemory) -> MemoryMap | None:
         with np.load(path, allow_pickle=False) as data:
             if int(data["version"]) != CACHE_VERSION or str(data["digest"]) != digest:
                 return None
-            rows, centres, features = _view_features(memory.vectors, memory.entries)
+            rows, centres, features = _view_features(memory.vectors, memory.entries, memory.pairing)
             if [str(view) for view in data["views"]] != list(rows):
                 return None
             maps = {view: _cached_map(data, position, features[view]) for position, view in enumerate(rows)}
@@ -187,6 +185,7 @@ def _read_cache(path: Path, memory: FailureMemory) -> MemoryMap | None:
         rows=rows,
         centres=centres,
         digest=digest,
+        pairing=memory.pairing,
     )
 
 

@@ -254,6 +254,7 @@ def _detector_properties(trace: DetectionTrace, memory_map: MemoryMap) -> dict[s
         "stride": trace.stride,  # frames 0, stride, 2·stride, … were scored; every camera frame is kept
         "memory_entries": len(trace.memory),
         "failure_frames": trace.memory.manifest.failure_mode,  # `end` (the paper's memory) or `dense`
+        "pairing": trace.memory.pairing,  # `concat` (the paper's) or `change`
         IN_MEMORY: trace.in_memory,  # scored against a memory holding this trajectory (no --leave-one-out)
         "map": memory_map.method,
         "map_note": memory_map.note,

@@ -19,7 +19,7 @@ from robofailring.memory.builder import Provenance, add_to, build_memories
 from robofailring.memory.failure import ENTRIES, MANIFEST
 from robofailring.memory.format import ENTRY_FIELDS
 from robofailring.memory.info import MemoryInfo
-from robofailring.memory.pairs import pair_vectors
+from robofailring.memory.pairs import CONCAT, pair_vectors
 
 LENGTH = 9
 ONSET = 3
@@ -43,7 +43,7 @@ def encoder(tmp_path: Path) -> CachedEncoder:
     return CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "cache")
 
 
-def _build(data: Path, encoder: CachedEncoder, failure_frames: str, **options: float) -> FailureMemory:
+def _build(data: Path, encoder: CachedEncoder, failure_frames: str, **options: float | str) -> FailureMemory:
     trajectories = list(load_dataset(data))
     provenance = Provenance(data=data, encoder="pixels")
     memory, _ = build_memories(
@@ -76,7 +76,9 @@ def test_dense_entries_run_from_the_onset_to_the_end_each_its_own_pair(
             assert [e.end for e in entries] == [frames[t].reference for t in range(ONSET, LENGTH)]
             assert {e.start for e in entries} == {frames[0].reference}
             embedded = encoder.encode_frames(list(frames))
-            expected = pair_vectors(np.repeat(embedded[:1], LENGTH - ONSET, axis=0), embedded[ONSET:])
+            expected = pair_vectors(
+                np.repeat(embedded[:1], LENGTH - ONSET, axis=0), embedded[ONSET:], pairing=memory.pairing
+            )
             np.testing.assert_allclose(memory.vectors[rows], expected, atol=1e-6)
     assert (memory.manifest.failure_frames, memory.manifest.failure_step) == ("dense", 0.002)
     assert memory.entries[rows[-1]].moment == f"frame {LENGTH - 1} of {LENGTH} (end of the run)"
@@ -112,7 +114,7 @@ def test_thinning_drops_repeated_frames_and_keeps_the_end(tmp_path: Path, encode
 def test_end_is_the_papers_memory_one_pair_of_first_and_last_frame(
     data: Path, encoder: CachedEncoder, tmp_path: Path
 ) -> None:
-    memory = _build(data, encoder, "end")
+    memory = _build(data, encoder, "end", pairing=CONCAT)
     failures = _failures(data)
     firsts = [frames[0] for t in failures for frames in t.views.values()]
     lasts = [frames[-1] for t in failures for frames in t.views.values()]

@@ -45,7 +45,7 @@ def _trajectories(dataset: Path, *, split: str, failure: bool) -> list[Trajector
 
 
 def _brute_force(
-    trajectory: Trajectory, train: list[Trajectory], *, exclude_own: bool
+    trajectory: Trajectory, train: list[Trajectory], *, exclude_own: bool, pairing: str
 ) -> dict[str, np.ndarray]:
     """S⁺ per view: max cosine over every frame of every same-task training success and the first frame of
     every same-task training failure (own episode out)."""
@@ -53,7 +53,7 @@ def _brute_force(
 
     def pairs(frames: list[np.ndarray]) -> np.ndarray:
         embeddings = raw.encode(frames)
-        return pair_vectors(np.repeat(embeddings[:1], len(frames), axis=0), embeddings)
+        return pair_vectors(np.repeat(embeddings[:1], len(frames), axis=0), embeddings, pairing=pairing)
 
     pool = np.concatenate(
         [
@@ -84,7 +84,7 @@ def test_success_and_contrast_equal_brute_force(
     own_success = train_successes[0]  # its own frames are in the success memory: leave-one-out hides them
     for trajectory, leave_out in ((test_failure, False), (own_success, True)):
         trace = detector.run(trajectory, leave_one_out=leave_out)
-        expected = _brute_force(trajectory, train, exclude_own=leave_out)
+        expected = _brute_force(trajectory, train, exclude_own=leave_out, pairing=memory.pairing)
         for view in trace.views:
             np.testing.assert_allclose(trace.success_similarity[view], expected[view], atol=1e-5)
             np.testing.assert_allclose(
@@ -205,7 +205,7 @@ def test_calibration_leaves_each_run_out(
     peaks = []
     train = list(load_dataset(dataset).select(split="train"))
     for trajectory in successes:
-        splus = _brute_force(trajectory, train, exclude_own=True)
+        splus = _brute_force(trajectory, train, exclude_own=True, pairing=memory.pairing)
         trace = detector.run(trajectory, leave_one_out=True)
         peaks.append(max(float(np.max(trace.similarity[v] - splus[v])) for v in trace.views))
     assert found[CONTRAST].threshold == pytest.approx(conformal_threshold(peaks, 1 / 6), abs=1e-5)

@@ -146,7 +146,9 @@ def test_report_html_is_self_contained_with_charts_tables_and_links(
         assert f">{kind}</text>" in page and f"<td>{kind}</td>" in page
     links = re.findall(r'href="([^"]+)"', page)
     assert links == ["evaluation.rrd"] and (out / links[0]).is_file()
-    assert f"<code>{evaluation['encoder']}</code>, dense failure memory</h2>" in page  # which memory it used
+    assert (
+        f"<code>{evaluation['encoder']}</code>, dense failure memory, change pairing</h2>" in page
+    )  # which memory
     report = write_report([_two_rules(evaluation)], tmp_path / "report.html")
     assert "Recall and FPR against γ (contrast rule)" in report.read_text(encoding="utf-8")
 

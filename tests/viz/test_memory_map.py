@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from rfr_viz.panels.map import FRAME, PITCH, MapGrid
-from rfr_viz.panels.umap import CACHE_FILE, change_features, fit_map, memory_map
+from rfr_viz.panels.umap import CACHE_FILE, fit_map, memory_map
 from rfr_viz.panels.umap_layout import fit_map_2d, knn_purity
 from robofailring.memory.failure import FailureMemory, MemoryEntry
 from robofailring.memory.pairs import pair_vectors
@@ -68,13 +68,6 @@ def test_a_query_lands_in_its_own_view_among_its_failure_type() -> None:
     view_map = mapped.maps[view]
     nearest = np.argsort(np.linalg.norm(view_map.embedding - placed, axis=1))[:5]
     assert [memory.entries[mapped.rows[view][i]].symbol for i in nearest] == [symbol] * 5
-
-
-def test_change_features_are_what_changed_since_the_first_frame() -> None:
-    start, end = np.eye(4)[:1], np.eye(4)[1:2]
-    np.testing.assert_allclose(change_features(pair_vectors(start, end)), _unit(end - start), atol=1e-6)
-    with pytest.raises(ValueError, match="odd dimension 5"):
-        change_features(np.ones((2, 5)))
 
 
 def test_the_cache_is_keyed_on_views_and_tasks_and_refits_older_caches(tmp_path: Path) -> None:

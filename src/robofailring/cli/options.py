@@ -132,6 +132,16 @@ FailureFramesOption = Annotated[
         "(growing a memory with --add-to keeps its own).",
     ),
 ]
+PairingOption = Annotated[
+    str | None,
+    typer.Option(
+        "--pairing",
+        help="How a first and a current frame become one memory vector: `change`, the first frame at half "
+        "weight beside what changed since it, norm([½ z_0 ‖ z_t − z_0]) (holds up under new lighting, colours "
+        "and cameras); `concat`, the paper's norm([z_0 ‖ z_t]). Default: change (growing a memory with "
+        "--add-to keeps its own).",
+    ),
+]
 DataRootOption = Annotated[
     Path | None,
     typer.Option(

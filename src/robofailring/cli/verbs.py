@@ -28,6 +28,7 @@ from robofailring.cli.options import (
     LeaveOneOutOption,
     MemoryEncoderOption,
     MemoryOption,
+    PairingOption,
     ScoreOption,
     StrideOption,
     SuccessStepOption,
@@ -120,6 +121,7 @@ def build_memory_cmd(
     ] = False,
     success_step: SuccessStepOption = DEFAULT_STEP,
     failure_frames: FailureFramesOption = None,
+    pairing: PairingOption = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
 ) -> None:
@@ -149,6 +151,7 @@ def build_memory_cmd(
             views=views,
             success_step=success_step,
             failure_frames=failure_frames,
+            pairing=pairing,
         )
     )
     typer.echo(

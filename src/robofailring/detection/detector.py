@@ -186,7 +186,9 @@ class FailureDetector(RuleThresholds):
         views = list(current)
         queries = {
             view: pair_vectors(
-                np.repeat(np.atleast_2d(first[view]), len(current[view]), axis=0), current[view]
+                np.repeat(np.atleast_2d(first[view]), len(current[view]), axis=0),
+                current[view],
+                pairing=self.memory.pairing,
             )
             for view in views
         }

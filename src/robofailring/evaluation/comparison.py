@@ -17,6 +17,7 @@ from robofailring.evaluation.run import (
     run_evaluation,
 )
 from robofailring.memory.entry import DENSE, check_failure_frames
+from robofailring.memory.pairs import DEFAULT_PAIRING, check_pairing
 
 
 @dataclass(frozen=True)
@@ -31,9 +32,11 @@ class CompareEncodersConfig:
     cache_dir: Path | None = None
     device: str | None = None
     failure_frames: str = DENSE  # each encoder's memory: `dense` or `end` (the paper's; memory.entry)
+    pairing: str = DEFAULT_PAIRING  # each encoder's memory: `change` or `concat` (the paper's; memory.pairs)
 
     def __post_init__(self) -> None:
         check_failure_frames(self.failure_frames)
+        check_pairing(self.pairing)
 
 
 def compare_encoders(config: CompareEncodersConfig) -> list[EvaluationResult]:
@@ -57,6 +60,7 @@ def compare_encoders(config: CompareEncodersConfig) -> list[EvaluationResult]:
             cache_dir=config.cache_dir,
             device=config.device,
             failure_frames=config.failure_frames,
+            pairing=config.pairing,
         )
         build_training_memory(replace(base, memory_out=memory_dir))
         if config.target_fpr is not None:
@@ -87,7 +91,7 @@ def comparison_table(results: Sequence[EvaluationResult]) -> str:
         latency = f"{result.latency_ms.get('total', float('nan')):.2f}"
         for rule in result.rules.values():
             lines.append(
-                f"| `{result.encoder}` | {result.failure_frames} | {rule.rule.name} | {rule.rule.symbol} = {rule.threshold:.4f} | "
+                f"| `{result.encoder}` | {result.failure_frames}, {result.pairing} | {rule.rule.name} | {rule.rule.symbol} = {rule.threshold:.4f} | "
                 f"{_pct(rule.recall)} | {_pct(rule.fpr)} | {_pct(rule.ts_mean)} | {rule.auc:.3f} | {latency} |"
             )
     return "\n".join(lines)

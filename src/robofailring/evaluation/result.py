@@ -33,6 +33,7 @@ from robofailring.evaluation.per_rule import (
     spread_markdown,
 )
 from robofailring.memory.entry import END, failure_frames_note
+from robofailring.memory.pairs import CONCAT
 
 
 @dataclass
@@ -60,6 +61,7 @@ class EvaluationResult:
     vocabulary: Vocabulary | None = field(default=None, repr=False)  # the memory's own failure symbols
     growth: list[GrowthPoint] = field(default_factory=list)  # `evaluate --growth`: the learning curve
     failure_frames: str = END  # the memory's failure frames: `end` (the paper's) or `dense` (memory.entry)
+    pairing: str = CONCAT  # the memory's pairing: `concat` (the paper's) or `change` (memory.pairs)
     paper_rates: list[Rates] = field(init=False)
     curve: list[Rates] = field(init=False)
 
@@ -170,6 +172,7 @@ class EvaluationResult:
             "encoder": self.encoder,
             "memory": self.memory,
             "failure_frames": self.failure_frames,
+            "pairing": self.pairing,
             "k": self.k,
             "operating_delta": delta,
             "calibrated": self.calibrated,
@@ -238,7 +241,8 @@ class EvaluationResult:
     def to_markdown(self) -> str:
         delta = self.operating_delta
         lines = [
-            f"## {self.name} — encoder `{self.encoder}`, K = {self.k}, {self.failure_frames} failure memory",
+            f"## {self.name} — encoder `{self.encoder}`, K = {self.k}, {self.failure_frames} failure memory, "
+            f"{self.pairing} pairing",
             "",
             f"{self.failures} failure and {self.successes} success test trajectories; memory `{self.memory}` "
             f"({failure_frames_note(self.failure_frames)}); "

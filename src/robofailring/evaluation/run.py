@@ -122,6 +122,7 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
         stride=config.stride,
         vocabulary=memory.vocabulary,
         failure_frames=memory.manifest.failure_mode,
+        pairing=memory.pairing,
     )
 
 
@@ -173,7 +174,7 @@ def _deploy_successes(
         runs = sorted((t for t in test if t.task == task and not t.is_failure), key=lambda t: t.key)
         chosen += runs[:per_task]
     deployed = memory.with_successes(
-        memory.successes.extended(SuccessMemory.build(chosen, encoder, step=step))
+        memory.successes.extended(SuccessMemory.build(chosen, encoder, step=step, pairing=memory.pairing))
     )
     keys = {t.key for t in chosen}
     return deployed, [t for t in test if t.key not in keys]

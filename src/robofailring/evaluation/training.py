@@ -22,6 +22,7 @@ from robofailring.evaluation.metrics import PAPER_DELTAS
 from robofailring.memory.builder import Provenance, build_memories
 from robofailring.memory.entry import DENSE, check_failure_frames
 from robofailring.memory.failure import FailureMemory
+from robofailring.memory.pairs import DEFAULT_PAIRING, check_pairing
 from robofailring.memory.references import absolute_reference
 from robofailring.memory.thinning import DEFAULT_STEP
 
@@ -56,12 +57,14 @@ class EvaluateConfig:
     failures_per_task: int | None = None  # the memory built here holds N training failures per task
     # (`labelled_failures`; 0: success runs only, judged by the novelty rule); None: all of them
     failure_frames: str = DENSE  # the memory built here: `dense` or `end` (the paper's; memory.entry)
+    pairing: str = DEFAULT_PAIRING  # the memory built here: `change` or `concat` (the paper's; memory.pairs)
     band: str = DEFAULT_BAND  # time-indexed thresholds when calibrating here: none, shift or norm
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
         check_k(self.k)
         check_stride(self.stride)
         check_failure_frames(self.failure_frames)
+        check_pairing(self.pairing)
         check_band(self.band)
         if self.target_fpr is not None:
             check_target_fpr(self.target_fpr)
@@ -165,6 +168,7 @@ def build_training_memory(
         successes=config.successes,
         success_step=config.success_step,
         failure_frames=config.failure_frames,
+        pairing=config.pairing,
         vocabulary=read_vocabulary(config.vocabulary) if config.vocabulary is not None else None,
     )
     memory_dir = config.memory_out or Path(config.out) / "memory"

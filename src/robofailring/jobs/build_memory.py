@@ -16,6 +16,7 @@ from robofailring.memory.builder import Provenance, add_to, build_memories
 from robofailring.memory.encoding import BuildStats, is_failure
 from robofailring.memory.entry import DENSE, check_failure_frames
 from robofailring.memory.failure import FailureMemory
+from robofailring.memory.pairs import DEFAULT_PAIRING, check_pairing
 from robofailring.memory.thinning import DEFAULT_STEP
 from robofailring.outputs import check_memory_target, is_memory_dir
 
@@ -39,10 +40,14 @@ class BuildMemoryConfig:
     add_to: bool = False  # grow the memory at `out` with the dataset's runs instead of replacing it
     # `dense` or `end` (the paper's memory); None: dense for a new memory, the memory's own with `add_to`
     failure_frames: str | None = None
+    # `change` or `concat` (the paper's pairing); None: change for a new memory, the memory's own with `add_to`
+    pairing: str | None = None
 
     def __post_init__(self) -> None:  # a bad setting fails before anything is read
         if self.failure_frames is not None:
             check_failure_frames(self.failure_frames)
+        if self.pairing is not None:
+            check_pairing(self.pairing)
 
 
 def build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
@@ -98,6 +103,7 @@ def _build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]
         successes=config.successes,
         success_step=config.success_step,
         failure_frames=config.failure_frames or DENSE,
+        pairing=config.pairing or DEFAULT_PAIRING,
         vocabulary=vocabulary,
     )
     if not len(memory) and memory.successes is None:
@@ -123,6 +129,11 @@ def _add_to_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats
         raise SettingError(
             f"--failure-frames {config.failure_frames} differs from the memory at {config.out}, which holds "
             f"{held} failure frames: a grown memory keeps its own (leave out --failure-frames, or rebuild)"
+        )
+    if config.pairing not in (None, memory.pairing):
+        raise SettingError(
+            f"--pairing {config.pairing} differs from the memory at {config.out}, which pairs frames by "
+            f"{memory.pairing}: a grown memory keeps its own (leave out --pairing, or rebuild)"
         )
     if config.vocabulary is not None and read_vocabulary(config.vocabulary) != memory.vocabulary:
         raise SettingError(

@@ -23,6 +23,7 @@ from robofailring.errors import DataError, EncoderMismatchError
 from robofailring.memory.encoding import BuildStats, EncodedFailures, encode_failures, failure_views
 from robofailring.memory.entry import DENSE
 from robofailring.memory.failure import FailureMemory
+from robofailring.memory.pairs import DEFAULT_PAIRING
 from robofailring.memory.success import SuccessMemory
 from robofailring.memory.thinning import DEFAULT_STEP
 from robofailring.progress import progress_bar
@@ -48,12 +49,14 @@ def build_memories(
     successes: bool = True,
     success_step: float = DEFAULT_STEP,
     failure_frames: str = DENSE,
+    pairing: str = DEFAULT_PAIRING,
     vocabulary: Vocabulary | None = None,
 ) -> tuple[FailureMemory, BuildStats]:
     """The failure memory of the failure `trajectories` with, when `successes`, the success memory of all of them.
 
     `failure_frames`: `dense` (each failure view's frames from its onset on, thinned at `success_step`)
-    or `end` (the paper's one entry per view). A dataset without a success run gives no success memory.
+    or `end` (the paper's one entry per view); `pairing`: `change` or `concat` (the paper's;
+    `robofailring.memory.pairs`), for both memories. A dataset without a success run gives no success memory.
     Image references are kept relative to the dataset root. `stats.skipped_inputs` is the provenance's.
     `vocabulary` (the dataset's own symbols beyond Table 5) is kept with the memory.
     """
@@ -65,6 +68,7 @@ def build_memories(
         success_step=success_step,
         failure_frames=failure_frames,
         failure_step=success_step,
+        pairing=pairing,
         vocabulary=vocabulary,
     )
     success_memory = built if built is not None and built.success_runs else None  # none: the paper's memory
@@ -130,6 +134,7 @@ def add_to(
         success_step=success_step,
         failure_frames=old.failure_mode,
         failure_step=old.failure_step if old.failure_step is not None else success_step,
+        pairing=old.pairing_mode,
         vocabulary=memory.vocabulary,
     )
     joined = memory.successes
@@ -169,14 +174,17 @@ def _encode(
     success_step: float,
     failure_frames: str,
     failure_step: float,
+    pairing: str,
     vocabulary: Vocabulary | None,
 ) -> tuple[EncodedFailures, SuccessMemory | None]:
     """The failure memory's entries and, when `successes`, the success memory of all `trajectories`."""
     planned = failure_views(trajectories, failure_frames=failure_frames, vocabulary=vocabulary)
     with progress_bar(total=planned.frames, desc="encoding memory", unit="frame") as bar:
-        encoded = encode_failures(planned, encoder, step=failure_step, progress=bar.update)
+        encoded = encode_failures(planned, encoder, step=failure_step, progress=bar.update, pairing=pairing)
     if not successes:
         return encoded, None
     with progress_bar(total=len(trajectories), desc="encoding success memory", unit="traj") as bar:
-        built = SuccessMemory.build(trajectories, encoder, progress=bar.update, step=success_step)
+        built = SuccessMemory.build(
+            trajectories, encoder, progress=bar.update, step=success_step, pairing=pairing
+        )
     return encoded, built

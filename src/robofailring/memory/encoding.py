@@ -23,7 +23,7 @@ from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import SymbolError
 from robofailring.memory.entry import DENSE, END, MemoryEntry, check_failure_frames
 from robofailring.memory.manifest import MemoryManifest
-from robofailring.memory.pairs import pair_vectors
+from robofailring.memory.pairs import CONCAT, check_pairing, pair_vectors
 from robofailring.memory.references import absolute_reference
 from robofailring.memory.thinning import DEFAULT_STEP, check_step, thin_run
 
@@ -56,6 +56,7 @@ class EncodedFailures:
     stats: BuildStats
     failure_frames: str = END
     step: float | None = None  # the dense memory's thinning step
+    pairing: str = CONCAT  # how first and current frames were paired (robofailring.memory.pairs)
 
     def manifest(self, encoder: str, **provenance: Any) -> MemoryManifest:
         """The manifest of a memory of these entries; `provenance`: its other fields (source, split, …)."""
@@ -64,6 +65,7 @@ class EncodedFailures:
             dim=int(self.vectors.shape[1]),
             failure_frames=self.failure_frames,
             failure_step=self.step,
+            pairing=self.pairing,
             skipped_views=len(self.stats.skipped_views),
             skipped=self.stats.skipped_views,
             failures=self.stats.failures,
@@ -163,6 +165,7 @@ def encode_failures(
     *,
     step: float = DEFAULT_STEP,
     progress: Callable[[int], None] | None = None,
+    pairing: str = CONCAT,
 ) -> EncodedFailures:
     """The entries of the planned views: per view, its candidates paired with its first frame and thinned
     (`thinning.thin_run` at `step`; the last frame is always kept), one entry per frame kept.
@@ -172,12 +175,15 @@ def encode_failures(
     per view, without a frame number.
     """
     check_step(step)
+    check_pairing(pairing)
     dense = planned.failure_frames == DENSE
     stats = replace(planned.stats)  # the plan's counts, with what encoding adds
     entries: list[MemoryEntry] = []
     vectors: list[np.ndarray] = []
     for view, embeddings in _embedded(planned.views, encoder, progress):
-        paired = pair_vectors(np.repeat(embeddings[:1], len(view.candidates), axis=0), embeddings[1:])
+        paired = pair_vectors(
+            np.repeat(embeddings[:1], len(view.candidates), axis=0), embeddings[1:], pairing=pairing
+        )
         kept = thin_run(paired, step=step).kept
         vectors.append(paired[kept])
         for row in kept.tolist():
@@ -194,7 +200,7 @@ def encode_failures(
         stats.offered += len(view.candidates)
     stats.entries = len(entries)
     stacked = np.concatenate(vectors) if vectors else np.zeros((0, encoder.dim * 2), dtype=np.float32)
-    return EncodedFailures(stacked, entries, stats, planned.failure_frames, step if dense else None)
+    return EncodedFailures(stacked, entries, stats, planned.failure_frames, step if dense else None, pairing)
 
 
 def _embedded(

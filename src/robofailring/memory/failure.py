@@ -113,6 +113,12 @@ class FailureMemory:
 
     # ---------------------------------------------------------------- queries
     @property
+    def pairing(self) -> str:
+        """How the memory pairs a first and a current frame, queries alike: `concat` (the paper's) or
+        `change` (`robofailring.memory.pairs`)."""
+        return self.manifest.pairing_mode
+
+    @property
     def tasks(self) -> list[str]:
         """Every task the memory knows: those with failure entries and those with success runs only."""
         known = set(self.index.tasks) | set(self.successes.tasks if self.successes is not None else ())

@@ -9,6 +9,7 @@ from typing import Any
 
 from robofailring.memory.entry import DENSE
 from robofailring.memory.failure import FailureMemory
+from robofailring.memory.pairs import CHANGE
 from robofailring.memory.references import ReferenceCheck
 
 
@@ -18,13 +19,18 @@ def failure_memory_text(memory: FailureMemory) -> str:
     manifest = memory.manifest
     views = len({(entry.task, entry.episode, entry.view) for entry in memory.entries})
     counts = f"{len(memory):,} entries from {views:,} failure views"
+    pairing = (
+        "paired as the change since the first frame, norm([½ z_0 ‖ z_t − z_0])"
+        if manifest.pairing_mode == CHANGE
+        else "paired as the paper's norm([z_0 ‖ z_t])"
+    )
     if manifest.failure_mode == DENSE:
         step = f"{manifest.failure_step:g}" if manifest.failure_step is not None else "?"
         return (
             f"dense, {counts} (each view's frames from the failure's onset on, from frame 1 where it is "
-            f"not known, thinned at step {step})"
+            f"not known, thinned at step {step}; {pairing})"
         )
-    return f"end (the paper's), {counts} (each view's first and last frame)"
+    return f"end (the paper's), {counts} (each view's first and last frame; {pairing})"
 
 
 @dataclass(frozen=True)
@@ -63,6 +69,7 @@ class MemoryInfo:
             "dim": self.memory.dim,
             "entries": len(self.memory),
             "failure_frames": manifest.failure_mode,
+            "pairing": manifest.pairing_mode,
             "failure_step": manifest.failure_step,
             "tasks": self.counts(),
             "symbols": dict(sorted(Counter(e.symbol for e in self.memory.entries).items())),

@@ -14,6 +14,7 @@ from typing import Any, Final
 
 from robofailring.errors import MemoryFormatError
 from robofailring.memory.entry import END, FAILURE_FRAMES
+from robofailring.memory.pairs import CONCAT, PAIRINGS
 
 # the order keys are written in: that of a memory built by `build-memory` and then calibrated
 _ORDER: Final[tuple[str, ...]] = (
@@ -24,6 +25,7 @@ _ORDER: Final[tuple[str, ...]] = (
     "ignored_non_failures",
     "failure_frames",
     "failure_step",
+    "pairing",
     "skipped_inputs",
     "source",
     "layout",
@@ -60,6 +62,7 @@ _KINDS: Final[dict[str, Any]] = {
     "ignored_non_failures": _whole,
     "failure_frames": lambda v: isinstance(v, str),
     "failure_step": _number,
+    "pairing": lambda v: isinstance(v, str),
     "skipped_inputs": lambda v: isinstance(v, list),
     "source": lambda v: isinstance(v, str),
     "layout": lambda v: isinstance(v, str),
@@ -203,6 +206,9 @@ class MemoryManifest:
         None  # "end" or "dense" (robofailring.memory.entry); None: built before, "end"
     )
     failure_step: float | None = None  # a dense memory's thinning step of its failure frames
+    pairing: str | None = (
+        None  # "concat" or "change" (robofailring.memory.pairs); None: built before, "concat"
+    )
     successes: dict[str, Any] | None = None  # the success memory's section (robofailring.memory.success)
     created: str | None = None
     calibration: StoredCalibration | None = None
@@ -232,6 +238,11 @@ class MemoryManifest:
             raise MemoryFormatError(
                 f"{path}: 'failure_step' must be a cosine step within [0, 2], not {step!r}"
             )
+        pairing = manifest.get("pairing")
+        if pairing is not None and pairing not in PAIRINGS:
+            raise MemoryFormatError(
+                f"{path}: 'pairing' is {pairing!r}, this version reads {' or '.join(PAIRINGS)}"
+            )
         calibration = manifest.get("calibration")
         parsed = StoredCalibration.parse(calibration, path) if calibration is not None else None
         optional = [
@@ -256,6 +267,12 @@ class MemoryManifest:
         """The failure frames the memory holds: `end` (the paper's; also every memory built before the
         choice existed) or `dense`."""
         return self.failure_frames or END
+
+    @property
+    def pairing_mode(self) -> str:
+        """How the memory pairs a first and a current frame: `concat` (the paper's; also every memory built
+        before the choice existed) or `change`."""
+        return self.pairing or CONCAT
 
     def to_dict(self) -> dict[str, Any]:
         """The manifest as JSON: typed fields that are set, then `extra`, in the order build writes them."""

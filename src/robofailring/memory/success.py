@@ -26,7 +26,7 @@ from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import MemoryFormatError
 from robofailring.memory.format import read_jsonl
 from robofailring.memory.index import TaskIndexSet
-from robofailring.memory.pairs import pair_vectors
+from robofailring.memory.pairs import CONCAT, check_pairing, pair_vectors
 from robofailring.memory.references import absolute_reference, to_stored
 from robofailring.memory.thinning import DEFAULT_STEP, check_step, thin_run
 
@@ -136,11 +136,14 @@ class SuccessMemory:
         progress: Callable[[int], None] | None = None,
         step: float = DEFAULT_STEP,
         cap: int | None = None,
+        pairing: str = CONCAT,
     ) -> SuccessMemory:
         """The frames of every view (≥ 2 frames) of the success trajectories that add something
         (`thinning.thin_run`: cosine `step`, at most `cap` per run; step 0 keeps every frame), and
-        the first frame of every failure view; unlabelled trajectories are ignored."""
+        the first frame of every failure view; unlabelled trajectories are ignored. `pairing`: the
+        failure memory's (`robofailring.memory.pairs`)."""
         check_step(step)
+        check_pairing(pairing)
         runs: list[SuccessRun] = []
         vectors: list[np.ndarray] = []
         offered = 0
@@ -153,7 +156,9 @@ class SuccessMemory:
                     continue
                 frames = list(all_frames) if success else [all_frames[0]]
                 embeddings = encoder.encode_frames(frames)
-                paired = pair_vectors(np.repeat(embeddings[:1], len(frames), axis=0), embeddings)
+                paired = pair_vectors(
+                    np.repeat(embeddings[:1], len(frames), axis=0), embeddings, pairing=pairing
+                )
                 kept = thin_run(paired, step=step, cap=cap).kept if success else np.zeros(1, np.int64)
                 offered += len(frames)
                 vectors.append(paired[kept])
