@@ -94,7 +94,7 @@ def test_two_encoders_side_by_side(compared: Compared) -> None:
     assert (
         table.count("\n") == 1 + 2 * 3
         and "| contrast |" in table
-        and table.count("| dense |") == 2 * 3  # each encoder's memory, as every table says
+        and table.count("| dense, change |") == 2 * 3  # each encoder's memory, as every table says
         and "`pixels-v2-24px-512d`" in table
         and "open_clip:TinyViT-test" in table
     )

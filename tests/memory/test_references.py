@@ -149,8 +149,8 @@ def test_moved_data_is_reported_missing_then_rerooted(
     }
     assert info["data_root"] == str(data.resolve()) and info["data_root_used"] == str(moved.resolve())
     assert info["tasks"] == {
-        "pick_cube": {"front": 20, "overhead": 20, "wrist": 20}
-    }  # dense: frames 1-5 of 4 runs
+        "pick_cube": {"front": 19, "overhead": 19, "wrist": 19}
+    }  # dense: frames 1-5 of 4 runs, less one run's frame 1, where its square has not yet moved from frame 0
     assert (info["failure_frames"], info["failure_step"]) == ("dense", 0.002)
 
 
@@ -159,12 +159,12 @@ def test_memory_info_text(relative_build: tuple[Path, Path]) -> None:
     code, stdout, stderr = _invoke(["memory-info", str(memory_dir)])
     assert code == 0, stderr
     assert f"data root   {data.resolve()}" in stdout
-    assert "72 of 72 reference images found" in stdout  # every frame of 4 failure runs × 3 views
-    assert "60 × 1024-d over 1 task(s)" in stdout
+    assert "69 of 69 reference images found" in stdout  # 19 entries per view and 4 first frames, × 3 views
+    assert "57 × 1024-d over 1 task(s)" in stdout
     assert (
-        "failures    dense, 60 entries from 12 failure views" in stdout and "thinned at step 0.002" in stdout
+        "failures    dense, 57 entries from 12 failure views" in stdout and "thinned at step 0.002" in stdout
     )
-    assert "pick_cube  front 20, overhead 20, wrist 20" in stdout
+    assert "pick_cube  front 19, overhead 19, wrist 19" in stdout
     assert "δ not calibrated" in stdout and "successes   none" in stdout
 
 

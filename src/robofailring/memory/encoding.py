@@ -168,7 +168,9 @@ def encode_failures(
     pairing: str = CONCAT,
 ) -> EncodedFailures:
     """The entries of the planned views: per view, its candidates paired with its first frame and thinned
-    (`thinning.thin_run` at `step`; the last frame is always kept), one entry per frame kept.
+    (`thinning.thin_run` at `step`, starting from the first frame paired with itself, so a candidate
+    that has not yet moved away from the start is not kept: it would match every run's first frame;
+    the last frame is always kept), one entry per frame kept.
 
     Frames are decoded CHUNK_FRAMES at a time, and a view's embeddings are let go once it is paired.
     `progress` is told how many frames each chunk encoded. The paper's memory (`end`) has one entry
@@ -182,9 +184,10 @@ def encode_failures(
     vectors: list[np.ndarray] = []
     for view, embeddings in _embedded(planned.views, encoder, progress):
         paired = pair_vectors(
-            np.repeat(embeddings[:1], len(view.candidates), axis=0), embeddings[1:], pairing=pairing
-        )
-        kept = thin_run(paired, step=step).kept
+            np.repeat(embeddings[:1], len(view.candidates) + 1, axis=0), embeddings, pairing=pairing
+        )  # row 0: the first frame paired with itself, the state before anything happened
+        kept = thin_run(paired, step=step).kept[1:] - 1  # a frame must differ from it to be kept
+        paired = paired[1:]
         vectors.append(paired[kept])
         for row in kept.tolist():
             frame = view.candidates[row]
