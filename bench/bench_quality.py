@@ -33,10 +33,10 @@ from typing import Any
 from robofailring.encoders import default_cache_dir, encoder_slug, load_encoder
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
 from robofailring.evaluation.run import EvaluateConfig, EvaluationResult, run_evaluation, write_evaluation
+from robofailring.jobs.simulate import simulate
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.thinning import DEFAULT_STEP
-from robofailring.progress import progress_bar
-from robofailring.sim import TASKS, GenerateConfig, generate_dataset
+from robofailring.sim import TASKS, GenerateConfig
 
 IMAGE_SIZE = 64
 FRAMES = 28
@@ -80,11 +80,7 @@ def datasets(
         seed=1000,
         ood=True,
     )
-    paths = []
-    for label, config in (("ID", in_dist), ("OOD", out_dist)):
-        with progress_bar(total=config.total_episodes, desc=f"simulating {label}", unit="episode") as bar:
-            paths.append(generate_dataset(config, progress=bar.update))
-    return paths[0], paths[1]
+    return simulate(in_dist, label="ID"), simulate(out_dist, label="OOD")
 
 
 def swapped_halves(in_dist: Path) -> Path:

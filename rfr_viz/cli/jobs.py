@@ -19,6 +19,7 @@ from robofailring.cli.options import (
     EncoderOption,
     KOption,
     LabelsOption,
+    RandomizeOption,
     ScoreOption,
     StrideOption,
     SuccessStepOption,
@@ -233,6 +234,7 @@ def demo_cmd(
     data_dir: Annotated[Path | None, typer.Option(help="Where simulated datasets are cached.")] = None,
     camera_codec: CameraCodecOption = CameraCodec.AUTO,
     cache_dir: CacheOption = None,
+    randomize: RandomizeOption = 64,
 ) -> None:
     """The main job on the embedded default: simulate, build the memory, calibrate, evaluate, record."""
     from rfr_viz.jobs.demo import DemoConfig, run_demo
@@ -249,6 +251,7 @@ def demo_cmd(
             data_dir=data_dir,
             camera_codec=camera_codec,
             cache_dir=cache_dir,
+            randomize=randomize,
         ),
         say=typer.echo,
     )

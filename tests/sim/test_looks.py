@@ -42,7 +42,10 @@ def test_random_looks_stay_within_their_ranges() -> None:
             rgba = getattr(look, field)
             _, saturation, value = colorsys.rgb_to_hsv(*rgba[:3])
             assert rgba[3] == 1.0
-            assert _within(saturation, f"{role}_saturation") and _within(value, f"{role}_value"), (seed, field)
+            assert _within(saturation, f"{role}_saturation") and _within(value, f"{role}_value"), (
+                seed,
+                field,
+            )
         assert all(_within(c, "light_channel") for c in look.light_color)
         for component, axis in zip(look.light_direction, "xyz", strict=True):
             assert _within(component, f"light_{axis}")
