@@ -83,6 +83,22 @@ def datasets(
     return simulate(in_dist, label="ID"), simulate(out_dist, label="OOD")
 
 
+def bench_sets(workers: int) -> tuple[Path, Path, Path]:
+    """The ID, OOD and ID-halves-swapped sets (simulated once, then found), printed with their sizes."""
+    start = time.perf_counter()
+    in_dist, out_dist = datasets(workers)
+    swapped = swapped_halves(in_dist)
+    print(
+        f"datasets (cached): {in_dist}, {out_dist}, {swapped} ({time.perf_counter() - start:.0f} s to simulate or find)"
+    )
+    print(
+        f"  {IMAGE_SIZE} px, {FRAMES} frames per episode; ID {ID_EPISODES} episodes per task and failure family, "
+        f"{ID_SUCCESSES} successes per task (even episodes one half, odd the other); OOD {OOD_EPISODES} per family, "
+        f"{OOD_SUCCESSES} successes per task"
+    )
+    return in_dist, out_dist, swapped
+
+
 def swapped_halves(in_dist: Path) -> Path:
     """The ID set with its `train` and `test` halves exchanged: a folder beside it holding a copy of
     its manifest with the two split names swapped and a link to each episode folder (no frame copied)."""
@@ -259,17 +275,7 @@ def main() -> None:
         help="LABEL:FIELD=VALUE,... of EvaluateConfig (repeatable)",
     )
     args = parser.parse_args()
-    start = time.perf_counter()
-    in_dist, out_dist = datasets(args.workers)
-    swapped = swapped_halves(in_dist)
-    print(
-        f"datasets (cached): {in_dist}, {out_dist}, {swapped} ({time.perf_counter() - start:.0f} s to simulate or find)"
-    )
-    print(
-        f"  {IMAGE_SIZE} px, {FRAMES} frames per episode; ID {ID_EPISODES} episodes per task and failure family, "
-        f"{ID_SUCCESSES} successes per task (even episodes one half, odd the other); OOD {OOD_EPISODES} per family, "
-        f"{OOD_SUCCESSES} successes per task"
-    )
+    in_dist, out_dist, swapped = bench_sets(args.workers)
     out = default_cache_dir() / "bench-quality" / "runs"
     pairs: list[tuple[str, str | None]] = []  # (encoder, the swapped cell's encoder or None)
     for spec in args.encoder or ["pixels"]:

@@ -234,7 +234,7 @@ def demo_cmd(
     data_dir: Annotated[Path | None, typer.Option(help="Where simulated datasets are cached.")] = None,
     camera_codec: CameraCodecOption = CameraCodec.AUTO,
     cache_dir: CacheOption = None,
-    randomize: RandomizeOption = 64,
+    randomize: RandomizeOption = 32,
 ) -> None:
     """The main job on the embedded default: simulate, build the memory, calibrate, evaluate, record."""
     from rfr_viz.jobs.demo import DemoConfig, run_demo

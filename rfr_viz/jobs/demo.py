@@ -55,7 +55,7 @@ class DemoConfig:
     cache_dir: Path | None = None
     camera_codec: CameraCodec = CameraCodec.AUTO  # jpeg, av1, h264, or auto (by size)
     trained_epochs: int = 10  # fourth output: train-encoder on the ID training split vs pixels (0: skip)
-    randomize: int = 64  # randomised-look episodes the trained encoder also trains on (0: none)
+    randomize: int = 32  # randomised-look episodes the trained encoder also trains on (0: none)
 
 
 @dataclass
