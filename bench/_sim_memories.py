@@ -17,9 +17,9 @@ import numpy as np
 
 from robofailring.data.layouts import load_dataset
 from robofailring.encoders import default_cache_dir, open_encoder
+from robofailring.jobs.simulate import simulate
 from robofailring.memory.failure import FailureMemory
-from robofailring.progress import progress_bar
-from robofailring.sim import TASKS, GenerateConfig, generate_dataset
+from robofailring.sim import TASKS, GenerateConfig
 
 DEMO_DATA = "demo-data/sim-id"  # under the robofailring cache dir, written by `robofailring demo`
 DEMO_TRAINED = "demo-data/trained-encoder"  # the demo's trained encoder, when it trained one
@@ -40,8 +40,7 @@ def default_data(workers: int = 2) -> Path:
         frames=40,
         workers=workers,
     )
-    with progress_bar(total=config.total_episodes, desc="simulating", unit="episode") as bar:
-        return generate_dataset(config, progress=bar.update)
+    return simulate(config)
 
 
 def default_encoders() -> list[str]:

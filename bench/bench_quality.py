@@ -34,10 +34,10 @@ from typing import Any
 from robofailring.encoders import default_cache_dir, encoder_slug, load_encoder
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
 from robofailring.evaluation.run import EvaluateConfig, EvaluationResult, run_evaluation, write_evaluation
+from robofailring.jobs.simulate import simulate
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.thinning import DEFAULT_STEP
-from robofailring.progress import progress_bar
-from robofailring.sim import TASKS, GenerateConfig, generate_dataset
+from robofailring.sim import TASKS, GenerateConfig
 
 IMAGE_SIZE = 64
 FRAMES = 28
@@ -81,11 +81,23 @@ def datasets(
         seed=1000,
         ood=True,
     )
-    paths = []
-    for label, config in (("ID", in_dist), ("OOD", out_dist)):
-        with progress_bar(total=config.total_episodes, desc=f"simulating {label}", unit="episode") as bar:
-            paths.append(generate_dataset(config, progress=bar.update))
-    return paths[0], paths[1]
+    return simulate(in_dist, label="ID"), simulate(out_dist, label="OOD")
+
+
+def bench_sets(workers: int) -> tuple[Path, Path, Path]:
+    """The ID, OOD and ID-halves-swapped sets (simulated once, then found), printed with their sizes."""
+    start = time.perf_counter()
+    in_dist, out_dist = datasets(workers)
+    swapped = swapped_halves(in_dist)
+    print(
+        f"datasets (cached): {in_dist}, {out_dist}, {swapped} ({time.perf_counter() - start:.0f} s to simulate or find)"
+    )
+    print(
+        f"  {IMAGE_SIZE} px, {FRAMES} frames per episode; ID {ID_EPISODES} episodes per task and failure family, "
+        f"{ID_SUCCESSES} successes per task (even episodes one half, odd the other); OOD {OOD_EPISODES} per family, "
+        f"{OOD_SUCCESSES} successes per task"
+    )
+    return in_dist, out_dist, swapped
 
 
 def swapped_halves(in_dist: Path) -> Path:
@@ -264,17 +276,7 @@ def main() -> None:
         help="LABEL:FIELD=VALUE,... of EvaluateConfig (repeatable)",
     )
     args = parser.parse_args()
-    start = time.perf_counter()
-    in_dist, out_dist = datasets(args.workers)
-    swapped = swapped_halves(in_dist)
-    print(
-        f"datasets (cached): {in_dist}, {out_dist}, {swapped} ({time.perf_counter() - start:.0f} s to simulate or find)"
-    )
-    print(
-        f"  {IMAGE_SIZE} px, {FRAMES} frames per episode; ID {ID_EPISODES} episodes per task and failure family, "
-        f"{ID_SUCCESSES} successes per task (even episodes one half, odd the other); OOD {OOD_EPISODES} per family, "
-        f"{OOD_SUCCESSES} successes per task"
-    )
+    in_dist, out_dist, swapped = bench_sets(args.workers)
     out = default_cache_dir() / "bench-quality" / "runs"
     pairs: list[tuple[str, str | None]] = []  # (encoder, the swapped cell's encoder or None)
     for spec in args.encoder or ["pixels"]:

@@ -27,7 +27,7 @@ def render_ms(urdf: str, *, size: int, repeat: int) -> float:
     """Median time of one capture of the three views of a table and a Panda loaded from `urdf`."""
     client = connect()
     try:
-        look = make_look(ood=False, rng=np.random.default_rng(0))
+        look = make_look("in", rng=np.random.default_rng(0))
         add_table(client, look)
         body = client.loadURDF(urdf, useFixedBase=True, flags=client.URDF_ENABLE_CACHED_GRAPHICS_SHAPES)
         rig = CameraRig(client, look, image_size=size)

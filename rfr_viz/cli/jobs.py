@@ -22,6 +22,7 @@ from robofailring.cli.options import (
     KOption,
     LabelsOption,
     PairingOption,
+    RandomizeOption,
     ScoreOption,
     StrideOption,
     SuccessStepOption,
@@ -251,6 +252,7 @@ def demo_cmd(
     failure_frames: FailureFramesOption = None,
     pairing: PairingOption = None,
     cache_dir: CacheOption = None,
+    randomize: RandomizeOption = 32,
 ) -> None:
     """The main job on the embedded default: simulate, build the memory, calibrate, evaluate, record."""
     from rfr_viz.jobs.demo import DemoConfig, run_demo
@@ -269,6 +271,7 @@ def demo_cmd(
             failure_frames=failure_frames or DENSE,
             pairing=pairing or DEFAULT_PAIRING,
             cache_dir=cache_dir,
+            randomize=randomize,
         ),
         say=typer.echo,
     )

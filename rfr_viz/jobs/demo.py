@@ -23,7 +23,7 @@ from robofailring.data.model import Trajectory
 from robofailring.detection.detector import DetectionTrace, FailureDetector
 from robofailring.detection.rules import CONTRAST, PAPER, ScoringRule
 from robofailring.encoders import default_cache_dir, open_encoder
-from robofailring.encoders.training import TrainEncoderConfig, train_encoder
+from robofailring.encoders.training import TrainEncoderConfig
 from robofailring.evaluation.calibration import CalibrateConfig, calibrate
 from robofailring.evaluation.comparison import CompareEncodersConfig
 from robofailring.evaluation.run import (
@@ -33,11 +33,12 @@ from robofailring.evaluation.run import (
     run_evaluation,
     write_evaluation,
 )
+from robofailring.jobs.simulate import simulate
+from robofailring.jobs.train_encoder import TrainEncoderJob, run_train_encoder
 from robofailring.memory.entry import DENSE, check_failure_frames
 from robofailring.memory.pairs import DEFAULT_PAIRING, check_pairing
 from robofailring.outputs import check_output_folder
-from robofailring.progress import progress_bar
-from robofailring.sim import TASKS, GenerateConfig, generate_dataset
+from robofailring.sim import TASKS, GenerateConfig
 
 
 @dataclass(frozen=True)
@@ -58,6 +59,7 @@ class DemoConfig:
     trained_epochs: int = 10  # fourth output: train-encoder on the ID training split vs pixels (0: skip)
     failure_frames: str = DENSE  # the memories built: `dense` or `end` (the paper's; memory.entry)
     pairing: str = DEFAULT_PAIRING  # the memories built: `change` or `concat` (the paper's; memory.pairs)
+    randomize: int = 32  # randomised-look episodes the trained encoder also trains on (0: none)
 
     def __post_init__(self) -> None:
         check_failure_frames(self.failure_frames)
@@ -73,11 +75,6 @@ class DemoResult:
     notes: list[str] = field(default_factory=list)
     report: Path | None = None  # report.html: charts, tables and links to the recordings
     comparison: EncoderComparison | None = None  # pixels against the encoder trained on the training split
-
-
-def _simulate(config: GenerateConfig, label: str) -> Path:
-    with progress_bar(total=config.total_episodes, desc=f"simulating {label}", unit="episode") as bar:
-        return generate_dataset(config, progress=bar.update)
 
 
 def _pick(result: EvaluationResult, kind: str, rule: ScoringRule) -> tuple[str, int] | None:
@@ -120,8 +117,8 @@ def simulate_datasets(config: DemoConfig, data_dir: Path) -> tuple[Path, Path]:
         frames=config.frames,
         workers=config.workers,
     )
-    in_dist = _simulate(simulated, "ID")
-    out_dist = _simulate(
+    in_dist = simulate(simulated, label="ID")
+    out_dist = simulate(
         replace(
             simulated,
             out=data_dir / "sim-ood",
@@ -130,7 +127,7 @@ def simulate_datasets(config: DemoConfig, data_dir: Path) -> tuple[Path, Path]:
             seed=1000,
             ood=True,
         ),
-        "OOD",
+        label="OOD",
     )
     return in_dist, out_dist
 
@@ -261,9 +258,12 @@ def _compare_with_trained(
 
 
 def _trained_encoder(config: DemoConfig, in_dist: Path, data_dir: Path, say: Callable[[str], None]) -> Path:
-    """The encoder trained on the ID training split, trained once and reused while its recipe and frames hold."""
-    return train_encoder(
-        TrainEncoderConfig(data=in_dist, out=data_dir / "trained-encoder", epochs=config.trained_epochs),
-        reuse=True,
-        say=say,
+    """The encoder trained on the ID training split and `config.randomize` randomised-look episodes
+    (simulated beside the demo's sets), trained once and reused while its recipe and frames hold."""
+    training = TrainEncoderConfig(
+        data=in_dist, out=data_dir / "trained-encoder", epochs=config.trained_epochs
     )
+    job = TrainEncoderJob(
+        training, randomize=config.randomize, workers=config.workers, sim_cache=data_dir / "randomized"
+    )
+    return run_train_encoder(job, reuse=True, say=say)

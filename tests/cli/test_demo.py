@@ -30,6 +30,7 @@ def tiny_demo(root: Path, out: str) -> DemoConfig:
         workers=1,
         target_fpr=0.5,
         cache_dir=root / "cache",
+        randomize=8,  # one randomised-look episode per kind
     )
 
 
@@ -123,6 +124,10 @@ def test_demo_compares_pixels_with_an_encoder_trained_on_its_training_split(
     trained = json.loads((root / "data" / "trained-encoder" / "encoder.json").read_text())
     assert trained["training"]["recipe"]["split"] == "train"
     assert trained["training"]["recipe"]["data"] == str((root / "data" / "sim-id").resolve())
+    (randomized,) = (root / "data" / "randomized").iterdir()  # simulated beside the demo's sets
+    assert trained["training"]["extra_data"] == [
+        {"data": str(randomized.resolve()), "trajectories": 8, "frames": 8 * 3 * 4}  # 8 frames, stride 2
+    ]
     assert comparison.recordings
     for path in comparison.recordings:
         verify_recording(path)
@@ -132,4 +137,4 @@ def test_demo_compares_pixels_with_an_encoder_trained_on_its_training_split(
     stamp = weights.stat().st_mtime_ns
     said: list[str] = []
     _trained_encoder(tiny_demo(root, "out3"), root / "data" / "sim-id", root / "data", said.append)
-    assert weights.stat().st_mtime_ns == stamp and said[0].startswith("reusing the trained encoder")
+    assert weights.stat().st_mtime_ns == stamp and said[-1].startswith("reusing the trained encoder")

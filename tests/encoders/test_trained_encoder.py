@@ -81,14 +81,15 @@ def test_only_the_chosen_split_is_read_and_held_out_splits_are_refused(
     trained: tuple[Path, Path, Path],
 ) -> None:
     data, _, _ = trained
-    samples, used, _ = training_samples(_config(data, data / "unused"))
+    found = training_samples(_config(data, data / "unused"))
     train_files = {
         frame.reference
         for t in load_dataset(data).select(split="train")
         for frames in t.views.values()
         for frame in frames
     }
-    assert used == 16 and {s.frame.reference for s in samples} == train_files
+    assert found.trajectories == 16 and {s.frame.reference for s in found.samples} == train_files
+    assert found.extra == []
     for held_out in ("test", "ood"):
         with pytest.raises(SettingError, match=f"refusing to train an encoder on the '{held_out}' split"):
             _config(data, data / "unused", split=held_out)
@@ -160,6 +161,35 @@ def test_train_encoder_verb_and_reuse(tmp_path: Path) -> None:
     )
     assert refused.exit_code == 2 and "refusing to replace it" in refused.output
     assert (tmp_path / "other" / "notes.txt").read_text() == "keep me"
+
+
+def test_train_encoder_randomize_adds_simulated_episodes_to_its_recipe_and_frames(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("ROBOFAILRING_CACHE", str(tmp_path / "cache"))
+    data = write_project_dataset(tmp_path / "data", tasks=("pick_cube",), episodes=2, length=4)
+    args = ["--image-size", "24", "--epochs", "1", "--threads", "1", "--workers", "1"]
+    plain = runner.invoke(app, ["train-encoder", str(data), "--out", str(tmp_path / "plain"), *args])
+    randomized = runner.invoke(
+        app, ["train-encoder", str(data), "--out", str(tmp_path / "random"), "--randomize", "8", *args]
+    )
+    assert plain.exit_code == 0 and randomized.exit_code == 0, randomized.output
+    assert "randomised looks: dataset" in randomized.output and "8 episodes" in randomized.output
+    without = json.loads((tmp_path / "plain" / CONFIG_NAME).read_text())["training"]
+    with_random = json.loads((tmp_path / "random" / CONFIG_NAME).read_text())["training"]
+    (simulated,) = (tmp_path / "cache" / "encoder-extra-data").iterdir()
+    assert simulated.name.startswith("random-")
+    manifest = json.loads((simulated / "manifest.json").read_text())
+    assert manifest["look"] == "random" and manifest["tasks"] == ["pick_cube"]
+    assert manifest["image_size"] == 48 and manifest["config"]["frames"] == 4  # the data's own
+    assert manifest["config"]["seed"] == 5000  # RANDOMIZE_SEED + the training seed 0
+    # 8 episodes, one per kind, three views, frames 0 and 2 of 4 (stride 2)
+    assert with_random["extra_data"] == [{"data": str(simulated), "trajectories": 8, "frames": 8 * 3 * 2}]
+    assert without["extra_data"] == [] and "extra_data" not in without["recipe"]
+    assert with_random["recipe"]["extra_data"] == [str(simulated)]
+    assert with_random["frames"] == without["frames"] + 48
+    assert with_random["trajectories"] == without["trajectories"] + 8
+    assert with_random["data_digest"] != without["data_digest"]
 
 
 def test_projection_head_on_a_frozen_clip(tiny_checkpoint: tuple[Path, Path], tmp_path: Path) -> None:

@@ -226,3 +226,13 @@ TrajectoriesOption = Annotated[
         "--trajectory", help="Only this trajectory (`<task>/<episode>` or the episode); repeatable."
     ),
 ]
+WorkersOption = Annotated[int, typer.Option("--workers", help="Simulation processes.")]
+RandomizeOption = Annotated[
+    int,
+    typer.Option(
+        "--randomize",
+        help="The trained encoder also trains on N simulated episodes of the data's tasks under random looks "
+        "(object, table, tray and goal colours, light, camera shifts, object size) at the data's image size "
+        "and frames, spread over every failure family and success; simulated once and cached (0: none).",
+    ),
+]

@@ -29,6 +29,7 @@ from robofailring.cli.options import (
     MemoryEncoderOption,
     MemoryOption,
     PairingOption,
+    RandomizeOption,
     ScoreOption,
     StrideOption,
     SuccessStepOption,
@@ -37,6 +38,7 @@ from robofailring.cli.options import (
     VLMModelOption,
     VLMUrlOption,
     VocabularyOption,
+    WorkersOption,
     print_notes,
     report_skipped,
     vlm_config,
@@ -45,7 +47,6 @@ from robofailring.cli.options import (
 from robofailring.detection.band import DEFAULT_BAND
 from robofailring.errors import SettingError
 from robofailring.memory.thinning import DEFAULT_STEP
-from robofailring.progress import progress_bar
 
 app = typer.Typer(  # unnamed, so rfr_viz.cli.app merges its verbs into the one `robofailring` command
     cls=ErrorMappingGroup,  # every verb: a one-line error and its exit status (robofailring.cli.exit_codes)
@@ -69,15 +70,22 @@ def generate_cmd(
         int | None, typer.Option(help="Success episodes per task (default: --episodes).")
     ] = None,
     seed: Annotated[int, typer.Option(help="Base seed: the same seed gives identical images.")] = 0,
-    ood: Annotated[
-        bool, typer.Option("--ood", help="Out-of-distribution lighting, colours, cameras, sizes.")
-    ] = False,
+    look: Annotated[
+        str,
+        typer.Option(
+            "--look",
+            help="`in` (the in-distribution look), `ood` (out-of-distribution palettes, light, cameras, "
+            "sizes: the `ood` split) or `random` (colours, light, cameras and sizes drawn from wide ranges).",
+        ),
+    ] = "in",
+    ood: Annotated[bool, typer.Option("--ood", help="The same as --look ood.")] = False,
     image_size: Annotated[int, typer.Option("--image-size", help="Square image size in pixels.")] = 128,
     frames: Annotated[int, typer.Option(help="Frames per episode.")] = 40,
-    workers: Annotated[int, typer.Option(help="Simulation processes.")] = 2,
+    workers: WorkersOption = 2,
 ) -> None:
     """Simulate the embedded FailGen (PyBullet Panda): failures injected by perturbing keyframes, plus successes."""
-    from robofailring.sim import TASKS, GenerateConfig, describe_dataset, generate_dataset
+    from robofailring.jobs.simulate import simulate
+    from robofailring.sim import TASKS, GenerateConfig, describe_dataset
 
     config = GenerateConfig(
         out=out,
@@ -86,13 +94,12 @@ def generate_cmd(
         success_episodes=success_episodes,
         seed=seed,
         ood=ood,
+        look=look,
         image_size=image_size,
         frames=frames,
         workers=workers,
     )
-    with progress_bar(total=config.total_episodes, desc="simulating", unit="episode") as bar:
-        root = generate_dataset(config, progress=bar.update)
-    typer.echo(describe_dataset(root))
+    typer.echo(describe_dataset(simulate(config)))
 
 
 @app.command("build-memory")
@@ -322,9 +329,12 @@ def train_encoder_cmd(
     threads: Annotated[int | None, typer.Option(help="torch CPU threads (default: half the cores).")] = None,
     views: ViewsOption = None,
     device: DeviceOption = None,
+    randomize: RandomizeOption = 0,
+    workers: WorkersOption = 2,
 ) -> None:
     """Train an encoder on your own runs: labels failure type × progress quarter × view, augmented."""
-    from robofailring.encoders.training import TrainEncoderConfig, train_encoder
+    from robofailring.encoders.training import TrainEncoderConfig
+    from robofailring.jobs.train_encoder import TrainEncoderJob, run_train_encoder
 
     config = TrainEncoderConfig(
         data=data,
@@ -338,5 +348,5 @@ def train_encoder_cmd(
         views=views,
         device=device,
     )
-    folder = train_encoder(config, say=typer.echo)
+    folder = run_train_encoder(TrainEncoderJob(config, randomize=randomize, workers=workers), say=typer.echo)
     typer.echo(f"use it with: --encoder trained:{folder}")

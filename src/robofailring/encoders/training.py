@@ -5,7 +5,9 @@ failure type × progress bucket × view (successes are their own type), so the n
 what went wrong, how far the run is and which camera looks, while photometric augmentation
 (brightness, contrast, saturation, colour gains, offsets) and small shifts and scalings keep it from keying
 on lighting and exact framing. The test split is refused: an encoder must never see the frames
-it is evaluated on. Training is deterministic for a seed on a given device and thread count.
+it is evaluated on. Extra datasets (`extra_data`, e.g. simulated episodes under random looks) add
+every frame of every split, labelled the same way: they are training data only. Training is
+deterministic for a seed on a given device and thread count.
 """
 
 from __future__ import annotations
@@ -80,8 +82,15 @@ class TrainEncoderConfig:
     threads: int | None = (
         None  # torch CPU threads (default: half the cores, at least 1: the machine is shared)
     )
+    extra_data: tuple[Path, ...] = ()  # more training datasets, every split of each (never test data)
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is read
+        object.__setattr__(self, "extra_data", tuple(Path(root) for root in self.extra_data))
+        if Path(self.data).resolve() in {root.resolve() for root in self.extra_data}:
+            raise SettingError(
+                f"{self.data} is both the training data and an extra dataset: every split of an extra "
+                "dataset is trained on, so its held-out frames would be seen"
+            )
         if self.split in HELD_OUT_SPLITS:
             raise SettingError(
                 f"refusing to train an encoder on the {self.split!r} split: it is held out for evaluation, "
@@ -99,9 +108,11 @@ class TrainEncoderConfig:
     def recipe(self) -> dict[str, Any]:
         """The settings that decide the weights (not where they go or how fast)."""
         settings = asdict(self)
-        for key in ("out", "device", "threads"):
+        for key in ("out", "device", "threads", "extra_data"):
             settings.pop(key)
         settings["data"] = str(Path(self.data).resolve())
+        if self.extra_data:  # absent when none: encoders trained before `extra_data` keep their recipe
+            settings["extra_data"] = [str(root.resolve()) for root in self.extra_data]
         return settings
 
 
@@ -121,20 +132,52 @@ def _kind(trajectory: Trajectory) -> str | None:
     return None  # unlabelled: nothing to learn from
 
 
-def training_samples(config: TrainEncoderConfig) -> tuple[list[Sample], int, list[str]]:
-    """(samples of the chosen split, trajectories used, keys of unlabelled trajectories skipped)."""
-
+def training_trajectories(config: TrainEncoderConfig) -> list[Trajectory]:
+    """The trajectories of the chosen split of `config.data` (the extra datasets not included)."""
     trajectories = list(load_dataset(config.data, views=config.views).trajectories())
     has_splits = any(t.split for t in trajectories)
-    chosen = [
+    return [
         t
         for t in trajectories
         if split_of(t, has_splits=has_splits, test_fraction=config.test_fraction) == config.split
     ]
+
+
+@dataclass(frozen=True)
+class TrainingSet:
+    """What an encoder trains on: the chosen split of its data, then every split of each extra dataset."""
+
+    samples: list[Sample]
+    trajectories: int
+    skipped: list[str]  # keys of unlabelled trajectories (nothing to learn from)
+    extra: list[dict[str, Any]]  # per extra dataset: its root, trajectories and frames
+
+
+def training_samples(config: TrainEncoderConfig) -> TrainingSet:
+    """The labelled samples of the chosen split of `config.data` and of every split of each extra dataset."""
+    samples, used, skipped = _labelled(training_trajectories(config), config)
+    if not samples:
+        raise DataError(f"no labelled frames in split {config.split!r} of {config.data}")
+    extra = []
+    for root in config.extra_data:
+        more, count, unlabelled = _labelled(
+            list(load_dataset(root, views=config.views).trajectories()), config
+        )
+        if not more:
+            raise DataError(f"no labelled frames in the extra training dataset {root}")
+        samples, used, skipped = samples + more, used + count, skipped + unlabelled
+        extra.append({"data": str(root.resolve()), "trajectories": count, "frames": len(more)})
+    return TrainingSet(samples, used, skipped, extra)
+
+
+def _labelled(
+    trajectories: list[Trajectory], config: TrainEncoderConfig
+) -> tuple[list[Sample], int, list[str]]:
+    """(samples, trajectories used, keys of unlabelled trajectories skipped)."""
     samples: list[Sample] = []
     skipped: list[str] = []
     used = 0
-    for trajectory in chosen:
+    for trajectory in trajectories:
         kind = _kind(trajectory)
         if kind is None:
             skipped.append(trajectory.key)
@@ -144,8 +187,6 @@ def training_samples(config: TrainEncoderConfig) -> tuple[list[Sample], int, lis
             for t in range(0, len(frames), config.frame_stride):
                 bucket = min(int(config.progress_buckets * t / len(frames)), config.progress_buckets - 1)
                 samples.append(Sample(frames[t], f"{kind}|p{bucket}|{view}"))
-    if not samples:
-        raise DataError(f"no labelled frames in split {config.split!r} of {config.data}")
     return samples, used, skipped
 
 
@@ -212,7 +253,7 @@ def _architecture(config: TrainEncoderConfig) -> tuple[dict[str, Any], Any, int,
     return architecture, backbone, size, mean, std
 
 
-def _existing(out: Path) -> dict[str, Any] | None:
+def existing_encoder(out: Path) -> dict[str, Any] | None:
     """The encoder.json at `out`, None when `out` is absent or empty; refuses to replace anything else."""
     if not out.exists():
         return None
@@ -246,8 +287,9 @@ def train_encoder(
     from robofailring.encoders.openclip import pick_device
 
     out = Path(config.out)
-    previous = _existing(out)
-    samples, trajectories, skipped = training_samples(config)
+    previous = existing_encoder(out)
+    found = training_samples(config)
+    samples = found.samples
     architecture, backbone, size, mean, std = _architecture(config)
     images, data_digest = _read(samples, size)
     training = previous.get("training", {}) if previous else {}
@@ -324,8 +366,9 @@ def train_encoder(
             "recipe": config.recipe(),
             "data_digest": data_digest,
             "frames": len(samples),
-            "trajectories": trajectories,
-            "skipped_unlabelled": skipped,
+            "trajectories": found.trajectories,
+            "extra_data": found.extra,
+            "skipped_unlabelled": found.skipped,
             "augmentation": AUGMENTATION,
             "device": device,
             "threads": threads,
@@ -341,8 +384,11 @@ def train_encoder(
         record["weights_digest"] = file_digest(folder / WEIGHTS_NAME)
         (folder / CONFIG_NAME).write_text(json.dumps(record, indent=1) + "\n", encoding="utf-8")
     if say:
+        extra_frames = sum(extra["frames"] for extra in found.extra)
         say(
-            f"trained encoder {out}: {len(samples)} frames of {trajectories} trajectories, {len(classes)} classes, "
+            f"trained encoder {out}: {len(samples)} frames of {found.trajectories} trajectories"
+            + (f" ({extra_frames} of them from extra data)" if found.extra else "")
+            + f", {len(classes)} classes, "
             f"{config.epochs} epochs in {seconds:.1f} s on {device} ({threads} threads), "
             f"training accuracy {100 * accuracy:.1f} %"
         )

@@ -10,7 +10,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from robofailring.sim.appearance import make_look
+from robofailring.sim.appearance import look_mode, make_look
 from robofailring.sim.cameras import CameraRig
 from robofailring.sim.controller import Controller
 from robofailring.sim.perturb import SUCCESS, Perturbation, apply, choose, onset_time, resolve_mode
@@ -94,6 +94,7 @@ class EpisodeRun:
         seed: int,
         *,
         ood: bool = False,
+        look: str = "in",
         image_size: int = 128,
         frames: int = 40,
         waypoint: int | None = None,
@@ -107,13 +108,13 @@ class EpisodeRun:
         self.mode = resolve_mode(mode, rng)
         self.perturbation = choose(task, self.mode, rng, waypoint=waypoint)
         self.fps = episode_fps(frames)
-        look = make_look(ood=ood, rng=rng)
+        self.look = make_look(look_mode(look, ood=ood), rng=rng)
         self._client: Any = connect()
         try:
-            add_table(self._client, look)
+            add_table(self._client, self.look)
             self._robot = Panda(self._client)
             self._task = TASK_CLASSES[task]()
-            self._layout = self._task.build(self._client, look, rng)
+            self._layout = self._task.build(self._client, self.look, rng)
             obj = "distractor" if self.mode == "wrong_object" else "target"
             plan = apply(self._task.plan(self._layout, obj=obj), self.perturbation)
             self.perturbation_frame = frame_after(
@@ -122,7 +123,7 @@ class EpisodeRun:
             self._controller = Controller(
                 self._client, self._robot, plan, graspable=self._layout.cubes, half_size=self._layout.size / 2
             )
-            self._cameras = CameraRig(self._client, look, image_size=image_size)
+            self._cameras = CameraRig(self._client, self.look, image_size=image_size)
         except BaseException:
             self._client.disconnect()
             raise
@@ -214,10 +215,14 @@ def run_episode(
     seed: int = 0,
     *,
     ood: bool = False,
+    look: str = "in",
     image_size: int = 128,
     frames: int = 40,
     waypoint: int | None = None,
 ) -> EpisodeRun:
     """Start one episode: `mode` is ``success``, a failure family (``rotation``) or a concrete mode
-    (``rotation_x``); the axis, waypoint and object poses are drawn from `seed`."""
-    return EpisodeRun(task, mode, seed, ood=ood, image_size=image_size, frames=frames, waypoint=waypoint)
+    (``rotation_x``); the axis, waypoint and object poses are drawn from `seed`. `look` is ``in``,
+    ``ood`` or ``random`` (`robofailring.sim.appearance`); ``ood=True`` is ``look="ood"``."""
+    return EpisodeRun(
+        task, mode, seed, ood=ood, look=look, image_size=image_size, frames=frames, waypoint=waypoint
+    )

@@ -18,6 +18,7 @@ from robofailring.atomic import atomic_directory
 from robofailring.data.images import write_png
 from robofailring.data.layouts import PROJECT_FORMAT, PROJECT_MANIFEST, read_project_manifest
 from robofailring.errors import DataError, SettingError
+from robofailring.sim.appearance import look_mode
 from robofailring.sim.cameras import VIEWS
 from robofailring.sim.episode import DURATION_S, EpisodeResult, episode_fps, run_episode
 from robofailring.sim.perturb import FAILURE_MODES, KINDS, SUCCESS
@@ -34,7 +35,9 @@ _SUCCESS_RETRIES: Final[int] = 3
 @dataclass(frozen=True)
 class GenerateConfig:
     """What to generate: `episodes` per kind per task; a kind is a failure family, a concrete
-    mode (``rotation_x``) or ``success``; axial families draw their axis per episode."""
+    mode (``rotation_x``) or ``success``; axial families draw their axis per episode. `look` is
+    ``in``, ``ood`` (every episode in the ``ood`` split) or ``random`` (`robofailring.sim.appearance`);
+    ``ood=True`` is ``look="ood"`` and, after construction, `ood` says whether the look is ``ood``."""
 
     out: Path
     tasks: tuple[str, ...] = TASKS
@@ -46,9 +49,12 @@ class GenerateConfig:
     image_size: int = 128
     frames: int = 40
     workers: int = 2
+    look: str = "in"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "out", Path(self.out))
+        object.__setattr__(self, "look", look_mode(self.look, ood=self.ood))
+        object.__setattr__(self, "ood", self.look == "ood")
         object.__setattr__(self, "tasks", tuple(self.tasks))
         object.__setattr__(self, "modes", tuple(self.modes))
         unknown = [t for t in self.tasks if t not in TASKS]
@@ -99,6 +105,8 @@ class GenerateConfig:
         }
         if self.success_episodes is not None:
             content["success_episodes"] = self.success_episodes
+        if self.look == "random":  # absent for `in` and `ood`: their sets cached before `look` still hold
+            content["look"] = self.look
         return content
 
 
@@ -109,7 +117,7 @@ class _Job:
     repeat: int
     episode: int
     seed: int
-    ood: bool
+    look: str
     image_size: int
     frames: int
     root: str = field(default="")
@@ -134,7 +142,7 @@ def _jobs(config: GenerateConfig, root: Path) -> list[_Job]:
                         repeat=repeat,
                         episode=first + repeat,
                         seed=episode_seed(config.seed, task, kind, repeat),
-                        ood=config.ood,
+                        look=config.look,
                         image_size=config.image_size,
                         frames=config.frames,
                         root=str(root),
@@ -155,7 +163,7 @@ def _simulate(job: _Job, seed: int, staging: Path) -> EpisodeResult:
         shutil.rmtree(staging)
     staging.mkdir()
     with run_episode(
-        job.task, job.kind, seed, ood=job.ood, image_size=job.image_size, frames=job.frames
+        job.task, job.kind, seed, look=job.look, image_size=job.image_size, frames=job.frames
     ) as run:
         for index, images in enumerate(run):
             for view in VIEWS:
@@ -194,7 +202,7 @@ def _run_job(job: _Job) -> dict[str, Any]:
         "fps": episode_fps(job.frames),
         "seed": seed,
         "retries": retries,
-        "split": "ood" if job.ood else ("train" if job.episode % 2 == 0 else "test"),
+        "split": "ood" if job.look == "ood" else ("train" if job.episode % 2 == 0 else "test"),
         "kind": job.kind,
         "perturbation": None if perturbation is None else perturbation.mode,
         "perturbed_waypoint": None if perturbation is None else perturbation.waypoint,
@@ -268,6 +276,7 @@ def manifest_for(config: GenerateConfig, records: list[dict[str, Any]]) -> dict[
         "fps": episode_fps(config.frames),
         "image_size": config.image_size,
         "ood": config.ood,
+        "look": config.look,
         "views": list(VIEWS),
         "tasks": list(config.tasks),
         "config": config.content(),
