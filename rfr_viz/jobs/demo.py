@@ -52,11 +52,12 @@ class DemoConfig:
     image_size: int = 128
     frames: int = 40
     target_fpr: float = 0.05  # α: split-conformal calibration of both rules on the training successes
-    encoder: str = "pixels"
+    # the headline detector's encoder; None: the trained one (pixels without training)
+    encoder: str | None = None
     workers: int = 2
     cache_dir: Path | None = None
     camera_codec: CameraCodec = CameraCodec.AUTO  # jpeg, av1, h264, or auto (by size)
-    trained_epochs: int = 10  # fourth output: train-encoder on the ID training split vs pixels (0: skip)
+    trained_epochs: int = 10  # train-encoder on the ID split (and random looks): the headline (0: none)
     failure_frames: str = DENSE  # the memories built: `dense` or `end` (the paper's; memory.entry)
     pairing: str = DEFAULT_PAIRING  # the memories built: `change` or `concat` (the paper's; memory.pairs)
     randomize: int = 32  # randomised-look episodes the trained encoder also trains on (0: none)
@@ -74,7 +75,8 @@ class DemoResult:
     recordings: dict[str, Path] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     report: Path | None = None  # report.html: charts, tables and links to the recordings
-    comparison: EncoderComparison | None = None  # pixels against the encoder trained on the training split
+    comparison: EncoderComparison | None = None  # the headline encoder against pixels, each calibrated
+    encoder: str = "pixels"  # the headline detector's encoder spec
 
 
 def _pick(result: EvaluationResult, kind: str, rule: ScoringRule) -> tuple[str, int] | None:
@@ -139,13 +141,12 @@ def _placed_trace(
     trajectory: Trajectory,
     mapped: MemoryMap,
     config: DemoConfig,
+    encoder: str,
 ) -> DetectionTrace:
     """`key`'s evaluated trace judged by `rule`, scored again (from the encoder's cache) with its
     queries placed on the map: an evaluation keeps scores, not every frame's query vectors."""
     kept = evaluation.traces[key]
-    detector = FailureDetector(
-        kept.memory, open_encoder(config.encoder, cache_dir=config.cache_dir), k=kept.k
-    )
+    detector = FailureDetector(kept.memory, open_encoder(encoder, cache_dir=config.cache_dir), k=kept.k)
     trace = detector.run(
         trajectory, stride=kept.stride, keep_queries=False, place=placer(mapped, trajectory.task)
     )
@@ -165,11 +166,17 @@ def _run_demo(config: DemoConfig, data_dir: Path, say: Callable[[str], None]) ->
     out = Path(config.out)
     in_dist, out_dist = simulate_datasets(config, data_dir)
     say(f"datasets: {in_dist} (in-distribution), {out_dist} (out-of-distribution)")
+    encoder = _headline_encoder(config, in_dist, data_dir, say)
+    say(
+        f"detector: encoder {encoder}, {config.failure_frames} failure memory, {config.pairing} pairing, "
+        f"contrast rule on a time-indexed band, calibrated to α = {config.target_fpr:g} (the paper's rule beside "
+        "it; pixels in encoders/comparison.md)"
+    )
 
     base = EvaluateConfig(
         data=in_dist,
         out=out,
-        encoder=config.encoder,
+        encoder=encoder,
         cache_dir=config.cache_dir,
         memory_out=out / "memory",
         failure_frames=config.failure_frames,
@@ -192,7 +199,8 @@ def _run_demo(config: DemoConfig, data_dir: Path, say: Callable[[str], None]) ->
         run_evaluation(replace(stored, name="out-of-distribution", test_data=out_dist, test_split="ood")),
     ]
     for evaluation in evaluations:
-        for row in evaluation.rules.values():
+        rows = sorted(evaluation.rules.values(), key=lambda row: row.rule is PAPER)  # the paper's last
+        for row in rows:
             say(
                 f"{evaluation.name}, {row.rule.name} rule ({row.rule.symbol} = {row.threshold:.4f}): recall "
                 f"{100 * row.recall:.1f} %, FPR {100 * row.fpr:.1f} %, mean T_s "
@@ -202,7 +210,7 @@ def _run_demo(config: DemoConfig, data_dir: Path, say: Callable[[str], None]) ->
     rule = CONTRAST if CONTRAST.name in evaluations[0].rules else PAPER
     tables = [path for result in evaluations for path in write_evaluation(result, out)]
     summary = record_evaluation(evaluations, out=out / "evaluation.rrd")
-    result = DemoResult(evaluations=evaluations, summary=summary, tables=tables)
+    result = DemoResult(evaluations=evaluations, summary=summary, tables=tables, encoder=encoder)
 
     mapped = memory_map(evaluations[0].traces[next(iter(evaluations[0].traces))].memory, directory=memory_dir)
     sources = {"in-distribution": in_dist, "out-of-distribution": out_dist}
@@ -216,7 +224,7 @@ def _run_demo(config: DemoConfig, data_dir: Path, say: Callable[[str], None]) ->
             path = out / "recordings" / f"{kind}__{evaluation.name}__{recording_name(trajectory)}"
             result.recordings[kind] = record_replay(
                 trajectory,
-                _placed_trace(evaluation, key, rule, trajectory, mapped, config),
+                _placed_trace(evaluation, key, rule, trajectory, mapped, config, encoder),
                 out=path,
                 memory_map=mapped,
                 focus_frame=focus,
@@ -234,21 +242,27 @@ def _run_demo(config: DemoConfig, data_dir: Path, say: Callable[[str], None]) ->
         recordings={"evaluation summary": summary} | result.recordings,
         title="RoboFailRing demo: simulated FailGen, in and out of distribution",
     )
-    if config.trained_epochs:
-        result.comparison = _compare_with_trained(config, in_dist, data_dir, out, say)
+    if encoder != "pixels":
+        result.comparison = _compare_with_pixels(config, in_dist, out, encoder)
     return result
 
 
-def _compare_with_trained(
-    config: DemoConfig, in_dist: Path, data_dir: Path, out: Path, say: Callable[[str], None]
-) -> EncoderComparison:
-    """Train (or reuse, same recipe and frames) an encoder on the ID training split; compare it with pixels."""
-    trained = _trained_encoder(config, in_dist, data_dir, say)
+def _headline_encoder(config: DemoConfig, in_dist: Path, data_dir: Path, say: Callable[[str], None]) -> str:
+    """The encoder the demo leads with: the one given, else the trained one (trained or reused), else pixels."""
+    if config.encoder is not None:
+        return config.encoder
+    if not config.trained_epochs:
+        return "pixels"
+    return f"trained:{_trained_encoder(config, in_dist, data_dir, say)}"
+
+
+def _compare_with_pixels(config: DemoConfig, in_dist: Path, out: Path, encoder: str) -> EncoderComparison:
+    """The headline encoder against the weight-free pixels one, each calibrated at the demo's α."""
     return run_encoder_comparison(
         CompareEncodersConfig(
             data=in_dist,
             out=out / "encoders",
-            encoders=("pixels", f"trained:{trained}"),
+            encoders=(encoder, "pixels"),
             target_fpr=config.target_fpr,  # each encoder calibrated at the demo's α
             cache_dir=config.cache_dir,
             failure_frames=config.failure_frames,

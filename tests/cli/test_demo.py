@@ -112,14 +112,24 @@ def test_review_replays_the_listed_trajectories(demo: tuple[Path, DemoResult]) -
         review(ReviewConfig(evaluation=out / "memory" / "manifest.json", data=root))
 
 
-def test_demo_compares_pixels_with_an_encoder_trained_on_its_training_split(
+def test_demo_leads_with_its_trained_encoder_and_compares_it_with_pixels(
     demo: tuple[Path, DemoResult],
 ) -> None:
     root, result = demo
     comparison = result.comparison
     assert comparison is not None and comparison.table_path == root / "out" / "encoders" / "comparison.md"
     encoders = [r.encoder for r in comparison.results]
-    assert encoders[0].startswith("pixels") and encoders[1].startswith("trained:cnn4-64px-256d:")
+    assert encoders[0].startswith("trained:cnn4-64px-256d:") and encoders[1].startswith("pixels")
+    # the headline: the demo's memory, tables and recordings are the trained encoder's
+    assert result.encoder == f"trained:{root / 'data' / 'trained-encoder'}"
+    assert all(e.encoder == encoders[0] for e in result.evaluations)
+    manifest = json.loads((root / "out" / "memory" / "manifest.json").read_text())
+    band = manifest["calibration"].get("band")
+    assert manifest["encoder"] == encoders[0]
+    assert (
+        band is None if manifest["calibration"]["successes"] < 10 else band["kind"] == "shift"
+    )  # 10+ fit one
+    assert (manifest["failure_frames"], manifest["pairing"]) == ("dense", "change")
     assert comparison.table_path.read_text().count("| `") == 6  # two encoders × three scoring rules
     trained = json.loads((root / "data" / "trained-encoder" / "encoder.json").read_text())
     assert trained["training"]["recipe"]["split"] == "train"

@@ -229,9 +229,11 @@ def test_aloha_episodes_raw_or_jpeg_through_every_verb(tmp_path: Path, compress:
 
 
 def _failure_views_to_their_end(memory: Path) -> int:
-    """The failure views of a (dense) memory, each checked to run from frame 1 to its last frame."""
-    frames: dict[tuple[str, str], list[int | None]] = {}
+    """The failure views of a (dense) memory, each checked to keep frames in order up to its last frame."""
+    frames: dict[tuple[str, str], list[int]] = {}
     for entry in FailureMemory.load(memory).entries:
-        frames.setdefault((entry.episode, entry.view), []).append(entry.frame)
-    assert all(kept[0] == 1 and kept[-1] == LENGTH - 1 for kept in frames.values()), frames
+        frames.setdefault((entry.episode, entry.view), []).append(-1 if entry.frame is None else entry.frame)
+    assert all(
+        kept == sorted(kept) and kept[0] >= 1 and kept[-1] == LENGTH - 1 for kept in frames.values()
+    ), frames
     return len(frames)
