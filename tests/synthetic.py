@@ -6,7 +6,9 @@ from pathlib import Path
 
 import numpy as np
 
+from robofailring import CachedEncoder, FailureMemory, Trajectory, load_dataset, load_trajectory
 from robofailring.data.images import write_png
+from robofailring.memory.builder import Provenance, build_memories
 
 VIEWS = ("front", "overhead", "wrist")
 TASK_COLOURS = {"pick_cube": (40, 90, 160), "push_cube": (150, 60, 40), "stack_cube": (60, 140, 60)}
@@ -126,3 +128,24 @@ def write_repeated_failure(root: Path, *, length: int, onset: int) -> tuple[Path
         root / "data", tasks=("pick_cube",), symbols=("grasp_wp2",), episodes=2, length=length, onset=onset
     )
     return data, write_episode(root / "pick_cube_grasp_wp2_episode9", "pick_cube", "grasp_wp2", length=length)
+
+
+def repeated_failure_memory(
+    root: Path,
+    encoder: CachedEncoder,
+    *,
+    length: int,
+    onset: int,
+    failure_frames: str,
+    successes: bool = True,
+) -> tuple[FailureMemory, Trajectory]:
+    """`write_repeated_failure`'s memory (of `failure_frames`) and its new run, loaded."""
+    data, episode = write_repeated_failure(root, length=length, onset=onset)
+    memory, _ = build_memories(
+        list(load_dataset(data)),
+        encoder,
+        provenance=Provenance(data=data, encoder="pixels"),
+        failure_frames=failure_frames,
+        successes=successes,
+    )
+    return memory, load_trajectory(episode)

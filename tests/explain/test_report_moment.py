@@ -6,11 +6,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from synthetic import write_repeated_failure
+from synthetic import repeated_failure_memory
 
-from robofailring import CachedEncoder, FailureDetector, load_dataset, load_encoder, load_trajectory
+from robofailring import CachedEncoder, FailureDetector, load_encoder
 from robofailring.explain.report import FailureReport, report_for
-from robofailring.memory.builder import Provenance, build_memories
 
 LENGTH = 8
 ONSET = 2
@@ -24,15 +23,9 @@ def encoder(tmp_path_factory: pytest.TempPathFactory) -> CachedEncoder:
 def _report(root: Path, encoder: CachedEncoder, failure_frames: str) -> FailureReport:
     """The report of a new grasp failure whose frames are those of the memory's episode 0, fired at the
     first frame that pairs exactly like one of the memory's entries."""
-    data, episode = write_repeated_failure(root, length=LENGTH, onset=ONSET)
-    memory, _ = build_memories(
-        list(load_dataset(data)),
-        encoder,
-        provenance=Provenance(data=data, encoder="pixels"),
-        failure_frames=failure_frames,
-        successes=False,
+    memory, trajectory = repeated_failure_memory(
+        root, encoder, length=LENGTH, onset=ONSET, failure_frames=failure_frames, successes=False
     )
-    trajectory = load_trajectory(episode)
     trace = FailureDetector(memory, encoder, k=3, rule="paper").run(trajectory)
     fired = trace.with_delta(1.0 - 1e-5)
     report = report_for(fired, trajectory)

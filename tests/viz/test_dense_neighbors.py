@@ -6,13 +6,12 @@ from __future__ import annotations
 from pathlib import Path
 
 from rrd import properties, rows, static_value
-from synthetic import write_repeated_failure
+from synthetic import repeated_failure_memory
 
 from rfr_viz.panels.images import reference_jpeg
 from rfr_viz.paths import REPLAY
 from rfr_viz.recordings.replay import record_replay
-from robofailring import CachedEncoder, FailureDetector, load_dataset, load_encoder, load_trajectory
-from robofailring.memory.builder import Provenance, build_memories
+from robofailring import CachedEncoder, FailureDetector, load_encoder
 
 LENGTH = 8
 ONSET = 2
@@ -22,14 +21,9 @@ def _recording(root: Path, failure_frames: str) -> Path:
     """A new grasp failure whose frames are those of the memory's episode 0, replayed against a memory of
     `failure_frames` (K = 2)."""
     encoder = CachedEncoder(load_encoder("pixels"), cache_dir=root / "cache")
-    data, episode = write_repeated_failure(root, length=LENGTH, onset=ONSET)
-    memory, _ = build_memories(
-        list(load_dataset(data)),
-        encoder,
-        provenance=Provenance(data=data, encoder="pixels"),
-        failure_frames=failure_frames,
+    memory, trajectory = repeated_failure_memory(
+        root, encoder, length=LENGTH, onset=ONSET, failure_frames=failure_frames
     )
-    trajectory = load_trajectory(episode)
     trace = FailureDetector(memory, encoder, k=2, rule="paper").run(trajectory)
     return record_replay(trajectory, trace.with_delta(1.0 - 1e-5), out=root / "replay.rrd")
 
