@@ -290,6 +290,6 @@ def demo_cmd(
         typer.echo(f"\nEncoders compared on the in-distribution test split ({result.comparison.table_path}):")
         typer.echo(result.comparison.table)
         for path in result.comparison.recordings:
-            typer.echo(f"  {open_command(path)}    # pixels vs trained, side by side")
+            typer.echo(f"  {open_command(path)}    # the encoders side by side")
     for note in result.notes:
         typer.echo(f"note: {note}")

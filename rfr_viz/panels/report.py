@@ -48,13 +48,14 @@ def log_detection(
         f"L = {trace.length} frames.\n\n"
     )
     set_frame_time(rec, 0, fps)
+    symbol = rule.symbol if rule.name not in trace.bands else f"{rule.symbol}_t"  # a band's line at that t
     if t_det is None or view is None:
         rec.log(
             paths.report,
             rr.TextDocument(
                 summary + f"**No failure detected.** {rule.score_name} came nearest its threshold at frame "
                 f"{peak_frame}: {float(trace.raw_max_score(rule)[peak_frame]):.3f} (highest over all views), "
-                f"below {rule.symbol} = {float(line[peak_frame]):.3f} there.",
+                f"below {symbol} = {float(line[peak_frame]):.3f} there.",
                 media_type=rr.MediaType.MARKDOWN,
             ),
         )
@@ -70,12 +71,15 @@ def log_detection(
     assert report is not None  # t_det is set
     neighbors = trace.neighbors(view, t_det)
     set_frame_time(rec, t_det, fps)
-    fired = f"{rule.score_name} = {float(trace.scores[view][t_det]):.3f} ≥ {rule.symbol} = {float(line[t_det]):.3f}"
+    fired = (
+        f"{rule.score_name} = {float(trace.scores[view][t_det]):.3f} ≥ {symbol} = {float(line[t_det]):.3f}"
+    )
     success = trace.nearest_success(view, t_det)
     contrast_line = ""
     if success is not None and neighbors:
         contrast_line = (
-            f"Contrast: S⁻ = {neighbors[0].similarity:.3f} (nearest failure end) − S⁺ = {success.similarity:.3f} "
+            f"Contrast: S⁻ = {neighbors[0].similarity:.3f} (nearest failure: {neighbors[0].entry.episode}, "
+            f"{neighbors[0].entry.moment}) − S⁺ = {success.similarity:.3f} "
             f"(nearest success frame: {success.run.episode}, frame {success.frame}) = "
             f"C = {neighbors[0].similarity - success.similarity:.3f}.\n\n"
         )

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from rfr_viz.panels.neighbors import Cell
 from rfr_viz.panels.map import MapGrid
+from rfr_viz.panels.scores import threshold_label
 from rfr_viz.paths import (
     CLOSED_LOOP_SUMMARY,
     DEFAULT_FPS,
@@ -19,6 +20,8 @@ from rfr_viz.paths import (
     DetectorPaths,
     camera,
 )
+from robofailring.detection.band import Band
+from robofailring.detection.rules import CONTRAST, NOVELTY
 from robofailring.extras import needs_extra
 
 with needs_extra("viz"):
@@ -45,18 +48,29 @@ class ScorePlots:
     gamma: float | None = None  # C_t per view and γ, in a plot of their own (success contrast)
     eta: float | None = None  # N_t per view and η (the novelty rule, or a task without failure entries)
     successes: bool = False  # S⁺_t per view, faint, beside S⁻_t
+    bands: Mapping[str, Band] = field(default_factory=dict)  # per rule name: its time-indexed band, if any
 
     @classmethod
     def of(
-        cls, *, delta: float, gamma: float, eta: float, failures: bool, successes: bool, novelty: bool
+        cls,
+        *,
+        delta: float,
+        gamma: float,
+        eta: float,
+        failures: bool,
+        successes: bool,
+        novelty: bool,
+        bands: Mapping[str, Band] | None = None,
     ) -> ScorePlots:
         """S⁻ and δ where the task has failure entries; S⁺, and C with γ, where the memory has success runs;
-        N and η under the novelty rule (`novelty`) or without failure entries."""
+        N and η under the novelty rule (`novelty`) or without failure entries; γ and η named as the lines
+        their `bands` make of them."""
         return cls(
             delta=float(delta) if failures else None,
             gamma=float(gamma) if successes and failures else None,
             eta=float(eta) if successes and (novelty or not failures) else None,
             successes=successes,
+            bands=dict(bands or {}),
         )
 
 
@@ -82,7 +96,7 @@ def _score_plot(
         contents += [paths.success_score(view) for view in views]
     if plots.eta is not None:
         contents += [paths.novelty_score(view) for view in views] + [paths.eta]
-        titles.append(f"η = {plots.eta:.3f} · N_t = 1 − S⁺_t")
+        titles.append(f"{threshold_label(NOVELTY, plots.eta, plots.bands.get(NOVELTY.name))} · N_t = 1 − S⁺_t")
     scores = rrb.TimeSeriesView(
         origin="/", contents=contents, name=label + " · ".join(titles), plot_legend=NO_LEGEND
     )
@@ -99,7 +113,7 @@ def _score_plot(
     contrasts = rrb.TimeSeriesView(
         origin="/",
         contents=contrast,
-        name=f"{label}γ = {plots.gamma:.3f} · C_t = S⁻_t − S⁺_t per view",
+        name=f"{label}{threshold_label(CONTRAST, plots.gamma, plots.bands.get(CONTRAST.name))} · C_t = S⁻_t − S⁺_t per view",
         plot_legend=NO_LEGEND,
     )
     return rrb.Vertical(scores, contrasts, state, row_shares=[2.4, 2.4, 1.0])

@@ -100,6 +100,7 @@ def _score_plots(detector: FailureDetector, task: str) -> ScorePlots:
         failures=detector.memory.has_failures(task),
         successes=detector.memory.successes is not None,
         novelty=detector.rule_for(task).name == NOVELTY.name,
+        bands=detector.bands,
     )
 
 

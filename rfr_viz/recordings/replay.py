@@ -191,6 +191,7 @@ def score_plots(trace: DetectionTrace) -> ScorePlots:
         failures=trace.has_failures,
         successes=bool(trace.success_similarity),
         novelty=trace.rule.name == NOVELTY.name,
+        bands=trace.bands,
     )
 
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from rrd import entity_paths, properties, rows, static_value
+from rrd import blueprint_names, entity_paths, properties, rows, static_value
 from synthetic import write_project_dataset
 
 from rfr_viz.paths import REPLAY
@@ -91,6 +91,8 @@ def test_report_and_properties_say_which_rule_fired(
     assert props["t_det"] == trace.t_det
     reports = rows(recording, REPLAY.report, "TextDocument:text")
     assert reports[-1][0] == trace.t_det and "Fired by the contrast rule" in reports[-1][1][0]
+    top = trace.neighbors(trace.detected_view, trace.t_det)[0].entry  # type: ignore[arg-type]
+    assert f"(nearest failure: {top.episode}, {top.moment})" in reports[-1][1][0]
     event = rows(recording, REPLAY.event, "TextLog:text")
     assert event[0][0] == trace.t_det and "(contrast rule): C_t = " in event[0][1][0]
 
@@ -113,6 +115,9 @@ def test_a_banded_threshold_is_drawn_as_the_line_it_is(
     assert static_value(recording, REPLAY.gamma, "SeriesLines:names") == [
         f"γ_t = μ_t + {trace.gamma:.3f}·σ_t (norm band)"
     ]
+    # the plot's title names the line too (its legend is hidden: titles carry the thresholds)
+    titles = [name for name in blueprint_names(recording) if "C_t = S⁻_t − S⁺_t" in name]
+    assert titles == [f"γ_t = μ_t + {trace.gamma:.3f}·σ_t (norm band) · C_t = S⁻_t − S⁺_t per view"]
     # the detection instant is where the raw contrast first reaches the line
     assert properties(recording)["t_det"] == (-1 if banded.t_det is None else banded.t_det)
     crossing = np.flatnonzero(banded.raw_max_score(CONTRAST) >= line)
