@@ -15,7 +15,8 @@ prints the contrast rule's recall, FPR and AUC per cell and encoder, the AUC gai
 runs with a paired bootstrap interval (the test runs' sampling; `--seed` repeats everything with
 other training seeds, the encoders' own spread), then every rule's full rows.
 
-Run: .venv/bin/python bench/bench_randomize.py [--randomize N]... [--seed S]... [--alpha 0.05] [--workers 2]
+Run: .venv/bin/python bench/bench_randomize.py [--randomize N]... [--seed S]... [--no-control] [--alpha 0.05]
+     [--workers 2]
 """
 
 from __future__ import annotations
@@ -145,7 +146,7 @@ def print_gains(blocks: dict[Arm, list[QualityRow]]) -> None:
     for arm in blocks:
         if arm.kind != "ID":
             pairs.append((Arm("ID", seed=arm.seed), arm))
-        if arm.kind == "random":
+        if arm.kind == "random" and Arm("more ID", arm.episodes, arm.seed) in blocks:
             pairs.append((Arm("more ID", arm.episodes, arm.seed), arm))
     for base, other in pairs:
         rows = {row.protocol: row for row in blocks[base]}, {row.protocol: row for row in blocks[other]}
@@ -163,18 +164,22 @@ def main() -> None:
     parser.add_argument(
         "--seed", type=int, action="append", help="training seed(s) of every encoder (repeatable; default 0)"
     )
+    parser.add_argument(
+        "--no-control", action="store_true", help="leave out the `more ID` encoders (the frame-count control)"
+    )
     parser.add_argument("--alpha", type=float, default=0.05, help="target FPR α of every rule")
     parser.add_argument("--workers", type=int, default=2, help="simulation processes")
     args = parser.parse_args()
     start = time.perf_counter()
     in_dist, out_dist, swapped = bench_sets(args.workers)
     cache = default_cache_dir() / "bench-quality"
+    kinds = ("random",) if args.no_control else ("random", "more ID")
     arms = [
         arm
         for seed in args.seed or [0]
         for arm in (
             Arm("ID", seed=seed),
-            *(Arm(kind, n, seed) for n in args.randomize or [160] for kind in ("random", "more ID")),
+            *(Arm(kind, n, seed) for n in args.randomize or [160] for kind in kinds),
         )
     ]
     blocks: dict[Arm, list[QualityRow]] = {}
