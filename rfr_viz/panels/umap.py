@@ -22,6 +22,7 @@ import numpy as np
 
 from rfr_viz.panels.umap_layout import Map2D, fit_map_2d
 from robofailring.atomic import atomic_path
+from robofailring.encoders.base import l2_normalize
 from robofailring.memory.entry import MemoryEntry
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.pairs import CONCAT, change_of
@@ -31,11 +32,6 @@ CACHE_FILE: Final[str] = "umap.npz"
 CACHE_VERSION: Final[int] = 3
 FEATURES: Final[str] = "change-task-centred-v1"  # what the maps are fitted on (part of the cache key)
 MIN_TASK_ENTRIES: Final[int] = 2  # a task with fewer entries in a view is centred on the view's mean
-
-
-def _unit(rows: np.ndarray) -> np.ndarray:
-    norms = np.linalg.norm(rows, axis=1, keepdims=True)
-    return (rows / np.maximum(norms, 1e-12)).astype(np.float32)
 
 
 @dataclass(frozen=True)
@@ -49,7 +45,7 @@ class Centres:
         return self.by_task.get((view, task), self.by_view[view])
 
     def centred(self, view: str, task: str, features: np.ndarray) -> np.ndarray:
-        return _unit(features - self.of(view, task))
+        return l2_normalize(features - self.of(view, task))
 
 
 @dataclass(frozen=True)

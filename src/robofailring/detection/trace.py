@@ -3,7 +3,7 @@ the result of one live step."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -137,7 +137,10 @@ class DetectionTrace(RuleThresholds):
     def view_scores(self) -> ViewScores:
         """The rule's judged per-view scores (band-corrected when it has a band), fused over this trace's
         views (`robofailring.detection.view_scores`)."""
-        scores = self.judged_scores_of(self.rule)
+        return self._over_views(self.judged_scores_of(self.rule))
+
+    def _over_views(self, scores: Mapping[str, np.ndarray]) -> ViewScores:
+        """`scores` of this trace's views (in its view order), for fusing."""
         return ViewScores({view: scores[view] for view in self.views}, self.length)
 
     def nearest_success(self, view: str, t: int) -> SuccessMatch | None:
@@ -173,7 +176,7 @@ class DetectionTrace(RuleThresholds):
 
     def max_similarity(self) -> np.ndarray:
         """max over views of S⁻_t (the paper's S_t), per frame."""
-        return ViewScores({view: self.similarity[view] for view in self.views}, self.length).fused_max()
+        return self._over_views(self.similarity).fused_max()
 
     def max_score(self) -> np.ndarray:
         """max over views of the rule's judged score, per frame (NaN counts as −∞)."""
@@ -181,8 +184,7 @@ class DetectionTrace(RuleThresholds):
 
     def raw_max_score(self, rule: ScoringRule) -> np.ndarray:
         """max over views of `rule`'s uncorrected score, per frame (NaN where no view was scored)."""
-        scores = self.scores_of(rule)
-        fused = ViewScores({view: scores[view] for view in self.views}, self.length).fused_max()
+        fused = self._over_views(self.scores_of(rule)).fused_max()
         return np.where(np.isfinite(fused), fused, np.nan)
 
     def neighbors(self, view: str, t: int) -> list[Neighbor]:

@@ -91,33 +91,31 @@ class Splits:
 def select_splits(config: EvaluateConfig) -> Splits:
     """The training and test trajectories, disjoint by construction and checked."""
     vocabulary = read_vocabulary(config.vocabulary) if config.vocabulary is not None else None
-    dataset = load_dataset(
-        config.data, task=config.task, labels=config.labels, views=config.views, vocabulary=vocabulary
-    )
-    dataset.require_labels("evaluate")
+
+    def labelled(path: Path) -> Dataset:
+        loaded = load_dataset(
+            path, task=config.task, labels=config.labels, views=config.views, vocabulary=vocabulary
+        )
+        loaded.require_labels("evaluate")
+        return loaded
+
+    dataset = labelled(config.data)
     source = list(dataset.trajectories())
     skipped = list(dataset.skipped)
     has_splits = any(t.split for t in source)
-    train = [
-        t
-        for t in source
-        if split_of(t, has_splits=has_splits, test_fraction=config.test_fraction) == config.train_split
-    ]
-    if config.test_data is None:
-        test = [
+
+    def of_split(split: str) -> list[Trajectory]:
+        return [
             t
             for t in source
-            if split_of(t, has_splits=has_splits, test_fraction=config.test_fraction) == config.test_split
+            if split_of(t, has_splits=has_splits, test_fraction=config.test_fraction) == split
         ]
+
+    train = of_split(config.train_split)
+    if config.test_data is None:
+        test = of_split(config.test_split)
     else:
-        other_dataset = load_dataset(
-            config.test_data,
-            task=config.task,
-            labels=config.labels,
-            views=config.views,
-            vocabulary=vocabulary,
-        )
-        other_dataset.require_labels("evaluate")
+        other_dataset = labelled(config.test_data)
         other = list(other_dataset.trajectories())
         skipped += other_dataset.skipped
         other_has_splits = any(t.split for t in other)

@@ -56,5 +56,4 @@ def change_of(vectors: np.ndarray, *, pairing: str = CONCAT) -> np.ndarray:
     half = vectors.shape[1] // 2
     check_pairing(pairing)
     change = vectors[:, half:] - vectors[:, :half] if pairing == CONCAT else vectors[:, half:]
-    norms = np.linalg.norm(change, axis=1, keepdims=True)
-    return (change / np.maximum(norms, 1e-12)).astype(np.float32)
+    return l2_normalize(change)
