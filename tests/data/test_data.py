@@ -187,6 +187,22 @@ def test_a_labels_files_onset_frame_wins_and_is_checked_against_the_episode(tmp_
         load_dataset(data, labels=labels)
 
 
+def test_a_labels_files_split_column_gives_image_episodes_their_splits(tmp_path: Path) -> None:
+    data = tmp_path / "runs"
+    for name in ("run_a", "run_b", "run_c", "run_d"):
+        write_episode(data / name, "pick_cube", None, length=4)
+    labels = tmp_path / "labels.csv"
+    labels.write_text(
+        "episode,task,outcome,symbol,onset_frame,split\n"
+        "run_a,pick_cube,success,,,train\nrun_b,pick_cube,failure,slip_wp3,2,test\n"
+        "run_c,pick_cube,success,,,ood\nrun_d,pick_cube,success,,,\n"
+    )
+    dataset = load_dataset(data, labels=labels)
+    splits = {t.episode: t.split for t in dataset.trajectories()}
+    assert splits == {"run_a": "train", "run_b": "test", "run_c": "ood", "run_d": None}
+    assert [t.episode for t in dataset.select(split="ood")] == ["run_c"]
+
+
 def test_unknown_layout_names_the_expected_ones(tmp_path: Path) -> None:
     (tmp_path / "notes").mkdir()
     (tmp_path / "notes" / "readme.txt").write_text("hello")

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from synthetic import synthetic_frame, write_project_dataset
+from synthetic import synthetic_frame, write_episode, write_project_dataset
 from typer.testing import CliRunner
 
 from robofailring import (
@@ -23,7 +23,7 @@ from robofailring.cli.verbs import app
 from robofailring.encoders import encoder_slug
 from robofailring.encoders.trained import CONFIG_NAME, WEIGHTS_NAME
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder, training_samples
-from robofailring.errors import EncoderMismatchError, SettingError
+from robofailring.errors import DataError, EncoderMismatchError, SettingError
 
 pytestmark = pytest.mark.slow  # trains with torch: the fast lane never imports it (tests/conftest.py)
 
@@ -96,6 +96,21 @@ def test_only_the_chosen_split_is_read_and_held_out_splits_are_refused(
     result = runner.invoke(app, ["train-encoder", str(data), "--out", str(data / "never"), "--split", "test"])
     assert result.exit_code == 2 and "held out for evaluation" in result.output
     assert not (data / "never").exists()
+
+
+def test_a_labels_file_labels_the_frames_and_names_the_split(tmp_path: Path) -> None:
+    data = tmp_path / "runs"
+    rows = ["episode,task,outcome,symbol,split"]
+    for index, symbol in enumerate((None, "slip_wp3", None, "grasp_wp2")):
+        write_episode(data / f"run_{index}", "pick_cube", symbol, length=4)
+        split = "train" if index < 2 else "test"
+        rows.append(f"run_{index},pick_cube,{'failure' if symbol else 'success'},{symbol or ''},{split}")
+    labels = tmp_path / "labels.csv"
+    labels.write_text("\n".join(rows) + "\n")
+    with pytest.raises(DataError, match="a task column in the --labels file"):
+        training_samples(_config(data, tmp_path / "unused"))  # image episodes name neither task nor outcome
+    found = training_samples(_config(data, tmp_path / "unused", labels=labels))
+    assert found.trajectories == 2 and {s.label.split("|")[0] for s in found.samples} == {"success", "slip"}
 
 
 def test_trained_encoder_round_trips_and_its_identity_follows_its_weights(

@@ -7,7 +7,9 @@ dataset's vocabulary; empty for a success, and for a failure whose type was not 
 the symbol `failure`) and an optional `description` (free text: that failure's grounded sentence).
 An optional `task` column names the episode's task (it wins over `--task` and the data's own), and
 an optional `onset_frame` a failure's first frame of the fault (an integer from 0, below the
-episode's length; it wins over the data's own, e.g. the simulator's manifest).
+episode's length; it wins over the data's own, e.g. the simulator's manifest), and an optional
+`split` column the episode's split (`train`, `test`, `ood`, …; it wins over the data's own: once
+one episode has a split, the dataset is not hash-split, and an episode without one is in none).
 Other columns (e.g. those `review --write-labels` adds) are ignored.
 """
 
@@ -33,6 +35,7 @@ class Label:
     description: str | None = None  # the failure in the labeller's own words
     # where the failure starts (checked against the episode's length when applied)
     onset_frame: int | None = None
+    split: str | None = None  # the episode's split, when the labels file says it
     row: int | None = None  # the row of the labels file it was read from (for errors naming it)
 
 
@@ -115,13 +118,14 @@ def _label(row: dict[str, object], *, where: str, vocabulary: Vocabulary | None)
             raise DataError(f"{where}: {error}") from error
     description = " ".join(str(row.get("description") or "").split()) or None
     task = str(row.get("task") or "").strip() or None
+    split = str(row.get("split") or "").strip() or None
     onset = parse_onset_frame(row.get("onset_frame"), length=None, where=where)
     if outcome is not Outcome.FAILURE:
         if onset is not None:
             raise DataError(
                 f"{where}: onset_frame {row.get('onset_frame')!r} given for a success (only failures start)"
             )
-        return Label(episode=episode, outcome=outcome, symbol=None, task=task)
+        return Label(episode=episode, outcome=outcome, symbol=None, task=task, split=split)
     return Label(
         episode=episode,
         outcome=outcome,
@@ -129,6 +133,7 @@ def _label(row: dict[str, object], *, where: str, vocabulary: Vocabulary | None)
         description=description,
         task=task,
         onset_frame=onset,
+        split=split,
     )
 
 
@@ -172,6 +177,7 @@ def apply_labels(
                 description=label.description,
                 task=label.task or trajectory.task,
                 onset_frame=_onset(trajectory, label, source),
+                split=label.split or trajectory.split,
             )
         labelled.append(trajectory)
     for key, episodes in by_last_part.items():

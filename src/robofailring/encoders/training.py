@@ -83,6 +83,7 @@ class TrainEncoderConfig:
         None  # torch CPU threads (default: half the cores, at least 1: the machine is shared)
     )
     extra_data: tuple[Path, ...] = ()  # more training datasets, every split of each (never test data)
+    labels: Path | None = None  # labels file of `data` (outcome, symbol, split per episode; data.labels)
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is read
         object.__setattr__(self, "extra_data", tuple(Path(root) for root in self.extra_data))
@@ -134,7 +135,7 @@ def _kind(trajectory: Trajectory) -> str | None:
 
 def training_trajectories(config: TrainEncoderConfig) -> list[Trajectory]:
     """The trajectories of the chosen split of `config.data` (the extra datasets not included)."""
-    trajectories = list(load_dataset(config.data, views=config.views).trajectories())
+    trajectories = list(load_dataset(config.data, views=config.views, labels=config.labels).trajectories())
     has_splits = any(t.split for t in trajectories)
     return [
         t
