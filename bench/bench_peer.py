@@ -1,0 +1,273 @@
+"""Detection quality on a peer's simulator: a FailGen-style set made with ManiSkill3, read back as a
+user's data (image-episode folders and a labels file), every encoder and scoring rule at one α.
+
+Run: .venv/bin/python bench/bench_peer.py [--train-encoder] [--encoder SPEC]... [--alpha 0.05] [--peer-env DIR]
+
+The set (docs/bench_peer.md): 3 ManiSkill3 tasks (PickCube, StackCube, PushCube), the Panda with its
+hand camera plus the task's sensor and render cameras, a motion-planned script with FailGen's
+failures injected at one waypoint, the outcome decided by the environment's own success check and
+the onset recorded; an in-distribution set and an out-of-distribution one (ManiSkill's lighting,
+colour and camera randomisation). `bench/peer_generate.py` simulates it in the bench-only venv
+that `bench/setup_peer.sh` makes (run here when that venv is not ready; never the project's .venv),
+and it is cached under the robofailring cache dir by its recipe (generator source, requirements,
+sizes, seeds). It is then one root of episode folders with three labels files naming each
+episode's task, outcome, symbol, onset and split: `labels.csv` (ID halves `train`/`test`, the OOD
+set `ood`), `labels-swapped.csv` (the halves exchanged). The cells are bench_quality.py's:
+`ID`, `ID swapped`, `OOD`, `OOD + 2 deployment successes/task`, each through `run_evaluation`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import hashlib
+import json
+import os
+import shutil
+import subprocess
+import time
+from collections import Counter
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+from bench_quality import DEPLOYED, QualityRow, print_rows
+
+from robofailring.encoders import default_cache_dir, encoder_slug, load_encoder
+from robofailring.encoders.training import TrainEncoderConfig, train_encoder
+from robofailring.evaluation.run import EvaluateConfig, run_evaluation, write_evaluation
+
+HERE = Path(__file__).resolve().parent
+GENERATOR = HERE / "peer_generate.py"
+SETUP = HERE / "setup_peer.sh"
+REQUIREMENTS = HERE / "requirements-peer.txt"
+# per task: 4 episodes of each failure family and 16 unperturbed runs (even index: train, odd: test)
+ID_SET: dict[str, Any] = {"episodes": 4, "successes": 16, "seed": 0, "size": 64, "frames": 28}
+# per task: 2 episodes of each failure family, 8 unperturbed runs (2 join the success memory under
+# the deployment protocol), ManiSkill's randomisation of lighting, colours and cameras
+OOD_SET: dict[str, Any] = {
+    "episodes": 2,
+    "successes": 8,
+    "seed": 500_000,
+    "size": 64,
+    "frames": 28,
+    "ood": True,
+}
+LABEL_COLUMNS = ("episode", "task", "outcome", "symbol", "onset_frame", "description", "split")
+
+
+@dataclass(frozen=True)
+class PeerSet:
+    """The generated set: one root of episode folders and its labels files."""
+
+    root: Path  # episodes/<episode>/<view>/<n>.png
+    labels: Path  # split: train / test (ID halves), ood
+    swapped_labels: Path  # the ID halves exchanged
+    runs: list[dict[str, Any]]  # per episode: intent, the environment's verdict, split
+
+
+def default_peer_env() -> Path:
+    return Path(os.environ.get("ROBOFAILRING_PEER_ENV", default_cache_dir() / "peer-env"))
+
+
+def ready_peer_env(env_dir: Path) -> Path:
+    """The bench-only venv with Mesa 25, made by setup_peer.sh when it is not ready yet."""
+    if not (env_dir / "ready").is_file():
+        subprocess.run(["bash", str(SETUP), str(env_dir)], check=True)
+    return env_dir
+
+
+def recipe() -> dict[str, Any]:
+    digest = hashlib.sha256(GENERATOR.read_bytes() + REQUIREMENTS.read_bytes()).hexdigest()
+    return {"generator_and_requirements": digest, "id": ID_SET, "ood": OOD_SET}
+
+
+def _generate(env_dir: Path, out: Path, settings: dict[str, Any], workers: int) -> None:
+    command = [str(env_dir / "venv" / "bin" / "python"), str(GENERATOR), "--out", str(out)]
+    for name, value in settings.items():
+        command += [f"--{name}"] if value is True else [f"--{name}", str(value)]
+    mesa = env_dir / "mesa" / "usr" / "lib" / "x86_64-linux-gnu"
+    env = {
+        **os.environ,
+        "VK_ICD_FILENAMES": str(env_dir / "lvp_icd.json"),
+        "LD_LIBRARY_PATH": ":".join(filter(None, [str(mesa), os.environ.get("LD_LIBRARY_PATH")])),
+    }
+    subprocess.run([*command, "--workers", str(workers)], check=True, env=env)
+
+
+def _write_labels(path: Path, rows: list[dict[str, Any]]) -> None:
+    with path.open("w", newline="", encoding="utf-8") as file:
+        writer = csv.DictWriter(file, fieldnames=LABEL_COLUMNS, extrasaction="ignore")
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+def _assemble(staging: Path) -> None:
+    """The two generated sets as one root of episode folders (OOD ones named `ood-…`) and its labels files."""
+    episodes = staging / "episodes"
+    episodes.mkdir()
+    runs: list[dict[str, Any]] = []
+    for part in ("id", "ood"):
+        generated = staging / f"gen-{part}"
+        for line in (generated / "runs.jsonl").read_text(encoding="utf-8").splitlines():
+            run = json.loads(line)
+            name = run["episode"] if part == "id" else f"ood-{run['episode']}"
+            (generated / "episodes" / run["episode"]).rename(episodes / name)
+            split = "ood" if part == "ood" else ("train" if run["spec"]["index"] % 2 == 0 else "test")
+            runs.append({**run, "episode": name, "split": split})
+        shutil.rmtree(generated)
+    exchange = {"train": "test", "test": "train", "ood": "ood"}
+    _write_labels(staging / "labels.csv", runs)
+    _write_labels(staging / "labels-swapped.csv", [{**r, "split": exchange[r["split"]]} for r in runs])
+    with (staging / "runs.jsonl").open("w", encoding="utf-8") as file:
+        file.writelines(json.dumps(run) + "\n" for run in runs)
+
+
+def peer_set(env_dir: Path | None, workers: int) -> PeerSet:
+    """The set of this recipe: found in the cache, else simulated (in the peer venv) and cached."""
+    wanted = recipe()
+    key = hashlib.sha256(json.dumps(wanted, sort_keys=True).encode()).hexdigest()[:12]
+    root = default_cache_dir() / "bench-peer" / key
+    if not (root / "recipe.json").is_file():
+        env_dir = ready_peer_env(env_dir or default_peer_env())
+        staging = root.with_name(f"{key}.partial")
+        shutil.rmtree(staging, ignore_errors=True)
+        staging.mkdir(parents=True)
+        started = time.perf_counter()
+        for part, settings in (("id", ID_SET), ("ood", OOD_SET)):
+            _generate(env_dir, staging / f"gen-{part}", settings, workers)
+        _assemble(staging)
+        (staging / "recipe.json").write_text(json.dumps(wanted, indent=1), encoding="utf-8")
+        shutil.rmtree(root, ignore_errors=True)
+        staging.rename(root)
+        print(f"simulated the peer set in {time.perf_counter() - started:.0f} s")
+    runs = [json.loads(line) for line in (root / "runs.jsonl").read_text(encoding="utf-8").splitlines()]
+    return PeerSet(root / "episodes", root / "labels.csv", root / "labels-swapped.csv", runs)
+
+
+def describe(peer: PeerSet) -> None:
+    """The set's counts, and how often the environment's verdict differs from the intent."""
+    print(f"peer set (cached): {peer.root.parent}; labels {peer.labels.name}, {peer.swapped_labels.name}")
+    print(
+        f"  ID {ID_SET['episodes']} episodes per task and failure family, {ID_SET['successes']} unperturbed "
+        f"per task; OOD {OOD_SET['episodes']} and {OOD_SET['successes']}; {ID_SET['size']} px, "
+        f"{ID_SET['frames']} frames, views hand, base, render"
+    )
+    print(
+        "\n| task | split | failures (typed, onset known) | successes | injected, env says success | unperturbed, env says failure |"
+    )
+    print("|---|---|---:|---:|---:|---:|")
+    counts: Counter[tuple[str, str, str]] = Counter()
+    for run in peer.runs:
+        kind = run["outcome"]
+        if run["intent"] != "success" and run["env_success"]:
+            kind = "survived"
+        elif run["intent"] == "success" and not run["env_success"]:
+            kind = "broke"
+        counts[(run["task"], run["split"], kind)] += 1
+        if run["outcome"] == "failure" and run["symbol"] and run["onset_frame"] != "":
+            counts[(run["task"], run["split"], "onset")] += 1
+    for task in sorted({run["task"] for run in peer.runs}):
+        for split in ("train", "test", "ood"):
+            c = {
+                kind: counts[(task, split, kind)]
+                for kind in ("failure", "onset", "success", "survived", "broke")
+            }
+            failures = c["failure"] + c["broke"]
+            print(
+                f"| {task} | {split} | {failures} ({c['onset']}) | {c['success'] + c['survived']} | "
+                f"{c['survived']} | {c['broke']} |"
+            )
+
+
+def evaluate_encoder(
+    encoder: str, swapped_encoder: str | None, peer: PeerSet, *, alpha: float, out: Path
+) -> list[QualityRow]:
+    """bench_quality's four cells on the peer set: ID, ID swapped (when `swapped_encoder`), OOD, OOD + deployment."""
+    slug = encoder_slug(load_encoder(encoder).identity)
+    base = EvaluateConfig(
+        data=peer.root,
+        labels=peer.labels,
+        out=out / slug,
+        encoder=encoder,
+        target_fpr=alpha,
+        memory_out=out / slug / "memory",
+        name="in-distribution",
+    )
+    protocols = [("ID", base)]
+    if swapped_encoder is not None:
+        swapped = replace(
+            base,
+            labels=peer.swapped_labels,
+            encoder=swapped_encoder,
+            out=out / f"{slug}-swapped",
+            memory_out=out / f"{slug}-swapped" / "memory",
+            name="in-distribution-swapped",
+        )
+        protocols.append(("ID swapped", swapped))
+    ood = replace(base, memory=out / slug / "memory", memory_out=None, test_split="ood", name="ood")
+    protocols += [
+        ("OOD", ood),
+        (
+            f"OOD + {DEPLOYED} deployment successes/task",
+            replace(ood, deployment_successes=DEPLOYED, name="ood-deployed"),
+        ),
+    ]
+    rows = []
+    for label, config in protocols:
+        start = time.perf_counter()
+        result = run_evaluation(config)
+        write_evaluation(result, config.out)
+        rows.append(QualityRow(encoder, label, result, time.perf_counter() - start))
+    return rows
+
+
+def _trained(peer: PeerSet, labels: Path, out: Path) -> str:
+    started = time.perf_counter()
+    trained = train_encoder(TrainEncoderConfig(data=peer.root, out=out, labels=labels), reuse=True)
+    print(
+        f"trained encoder {trained} on the train half of {labels.name}: {time.perf_counter() - started:.0f} s"
+    )
+    return f"trained:{trained}"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--encoder", action="append", help="encoder spec (repeatable; default: pixels)")
+    parser.add_argument(
+        "--train-encoder", action="store_true", help="add a trained encoder's rows (one per half)"
+    )
+    parser.add_argument("--alpha", type=float, default=0.05, help="target FPR α of every rule")
+    parser.add_argument("--workers", type=int, default=2, help="simulation processes")
+    parser.add_argument(
+        "--peer-env",
+        type=Path,
+        default=None,
+        help="bench-only venv folder (default: $ROBOFAILRING_PEER_ENV or the cache's peer-env)",
+    )
+    args = parser.parse_args()
+    peer = peer_set(args.peer_env, args.workers)
+    describe(peer)
+    cache = peer.root.parent
+    pairs: list[tuple[str, str | None]] = [
+        (spec, None if spec.startswith("trained:") else spec) for spec in args.encoder or ["pixels"]
+    ]
+    if args.train_encoder:
+        pairs.append(
+            (
+                _trained(peer, peer.labels, cache / "trained-encoder"),
+                _trained(peer, peer.swapped_labels, cache / "trained-encoder-swapped"),
+            )
+        )
+    rows = []
+    for encoder, swapped_encoder in pairs:
+        rows += evaluate_encoder(encoder, swapped_encoder, peer, alpha=args.alpha, out=cache / "runs")
+    for row in rows:
+        print(f"{row.encoder} {row.protocol}: evaluated in {row.seconds:.0f} s")
+    print_rows(rows, args.alpha)
+
+
+if __name__ == "__main__":
+    main()
