@@ -1,7 +1,8 @@
 """Detection quality on a peer's simulator: a FailGen-style set made with ManiSkill3, read back as a
 user's data (image-episode folders and a labels file), every encoder and scoring rule at one α.
 
-Run: .venv/bin/python bench/bench_peer.py [--train-encoder] [--encoder SPEC]... [--alpha 0.05] [--peer-env DIR]
+Run: .venv/bin/python bench/bench_peer.py [--train-encoder] [--randomize N] [--encoder SPEC]... [--alpha 0.05]
+     [--peer-env DIR]
 
 The set (docs/bench_peer.md): 3 ManiSkill3 tasks (PickCube, StackCube, PushCube), the Panda with its
 hand camera plus the task's sensor and render cameras, a motion-planned script with FailGen's
@@ -53,6 +54,10 @@ OOD_SET: dict[str, Any] = {
     "frames": 28,
     "ood": True,
 }
+# `--randomize N`: N episodes per task and failure family and 4N unperturbed runs per task under the
+# OOD randomisation (its own seeds), the trained encoder's extra training data only (never memory,
+# calibration or test)
+RANDOM_SET: dict[str, Any] = {"seed": 900_000, "size": 64, "frames": 28, "ood": True}
 LABEL_COLUMNS = ("episode", "task", "outcome", "symbol", "onset_frame", "description", "split")
 
 
@@ -145,6 +150,34 @@ def peer_set(env_dir: Path | None, workers: int) -> PeerSet:
     return PeerSet(root / "episodes", root / "labels.csv", root / "labels-swapped.csv", runs)
 
 
+def random_look_set(env_dir: Path | None, workers: int, per_family: int) -> Path:
+    """Random-look episodes for training only, as AHA-named episode folders (the name says the task and
+    the environment's verdict; runs it judged failed with no fault injected are left out)."""
+    settings = {**RANDOM_SET, "episodes": per_family, "successes": 4 * per_family}
+    wanted = {**recipe(), "random_looks": settings}
+    key = hashlib.sha256(json.dumps(wanted, sort_keys=True).encode()).hexdigest()[:12]
+    root = default_cache_dir() / "bench-peer" / f"random-looks-{key}"
+    if not (root / "recipe.json").is_file():
+        env_dir = ready_peer_env(env_dir or default_peer_env())
+        staging = root.with_name(f"{root.name}.partial")
+        shutil.rmtree(staging, ignore_errors=True)
+        staging.mkdir(parents=True)
+        _generate(env_dir, staging / "gen", settings, workers)
+        (staging / "episodes").mkdir()
+        for line in (staging / "gen" / "runs.jsonl").read_text(encoding="utf-8").splitlines():
+            run = json.loads(line)
+            if run["outcome"] == "failure" and not run["symbol"]:
+                continue
+            kind = run["symbol"] or "success"
+            name = f"{run['task']}_{kind}_episode{run['spec']['seed']}"
+            (staging / "gen" / "episodes" / run["episode"]).rename(staging / "episodes" / name)
+        shutil.rmtree(staging / "gen")
+        (staging / "recipe.json").write_text(json.dumps(wanted, indent=1), encoding="utf-8")
+        shutil.rmtree(root, ignore_errors=True)
+        staging.rename(root)
+    return root / "episodes"
+
+
 def describe(peer: PeerSet) -> None:
     """The set's counts, and how often the environment's verdict differs from the intent."""
     print(f"peer set (cached): {peer.root.parent}; labels {peer.labels.name}, {peer.swapped_labels.name}")
@@ -222,11 +255,13 @@ def evaluate_encoder(
     return rows
 
 
-def _trained(peer: PeerSet, labels: Path, out: Path) -> str:
+def _trained(peer: PeerSet, labels: Path, out: Path, extra: tuple[Path, ...] = ()) -> str:
     started = time.perf_counter()
-    trained = train_encoder(TrainEncoderConfig(data=peer.root, out=out, labels=labels), reuse=True)
+    config = TrainEncoderConfig(data=peer.root, out=out, labels=labels, extra_data=extra)
+    trained = train_encoder(config, reuse=True)
     print(
-        f"trained encoder {trained} on the train half of {labels.name}: {time.perf_counter() - started:.0f} s"
+        f"trained encoder {trained} on the train half of {labels.name}"
+        f"{' + random looks' if extra else ''}: {time.perf_counter() - started:.0f} s"
     )
     return f"trained:{trained}"
 
@@ -247,6 +282,13 @@ def main() -> None:
         default=None,
         help="bench-only venv folder (default: $ROBOFAILRING_PEER_ENV or the cache's peer-env)",
     )
+    parser.add_argument(
+        "--randomize",
+        type=int,
+        default=0,
+        help="N: also a trained encoder with N random-look episodes per task and failure family (and 4N "
+        "unperturbed per task) as extra training data",
+    )
     args = parser.parse_args()
     peer = peer_set(args.peer_env, args.workers)
     describe(peer)
@@ -259,6 +301,15 @@ def main() -> None:
             (
                 _trained(peer, peer.labels, cache / "trained-encoder"),
                 _trained(peer, peer.swapped_labels, cache / "trained-encoder-swapped"),
+            )
+        )
+    if args.randomize:
+        extra = (random_look_set(args.peer_env, args.workers, args.randomize),)
+        suffix = f"random{args.randomize}"
+        pairs.append(
+            (
+                _trained(peer, peer.labels, cache / f"trained-encoder-{suffix}", extra),
+                _trained(peer, peer.swapped_labels, cache / f"trained-encoder-{suffix}-swapped", extra),
             )
         )
     rows = []
