@@ -255,6 +255,32 @@ def evaluate_encoder(
     return rows
 
 
+def print_targets(rows: list[QualityRow]) -> None:
+    """Issue 31's targets for the contrast rule, met or missed and by how much (points of recall or FPR)."""
+    print("\n| encoder | cell | target | recall (%) | FPR (%) | T_s (%) | met |")
+    print("|---|---|---|---:|---:|---:|---|")
+    for row in rows:
+        rule = row.result.rules.get("contrast")
+        if rule is None:
+            continue
+        trained = row.encoder.startswith("trained:")
+        if row.protocol.startswith("ID"):
+            recall, fpr, ts = (95.0, 5.0, 60.0) if trained else (90.0, 5.0, None)
+        elif "deployment" in row.protocol:
+            recall, fpr, ts = 80.0, 8.0, None
+        else:
+            continue
+        misses = [f"recall {100 * rule.recall - recall:+.1f}"] if not 100 * rule.recall >= recall else []
+        misses += [f"FPR {100 * rule.fpr - fpr:+.1f}"] if not 100 * rule.fpr <= fpr else []
+        if ts is not None and not 100 * rule.ts_mean >= ts:
+            misses.append(f"T_s {100 * rule.ts_mean - ts:+.1f}")
+        target = f"≥ {recall:g} % at ≤ {fpr:g} %" + (f", T_s ≥ {ts:g} %" if ts else "")
+        print(
+            f"| {row.encoder} | {row.protocol} | {target} | {100 * rule.recall:.1f} | {100 * rule.fpr:.1f} | "
+            f"{100 * rule.ts_mean:.1f} | {'yes' if not misses else 'no: ' + ', '.join(misses)} |"
+        )
+
+
 def _trained(peer: PeerSet, labels: Path, out: Path, extra: tuple[Path, ...] = ()) -> str:
     started = time.perf_counter()
     config = TrainEncoderConfig(data=peer.root, out=out, labels=labels, extra_data=extra)
@@ -318,6 +344,7 @@ def main() -> None:
     for row in rows:
         print(f"{row.encoder} {row.protocol}: evaluated in {row.seconds:.0f} s")
     print_rows(rows, args.alpha)
+    print_targets(rows)
 
 
 if __name__ == "__main__":
