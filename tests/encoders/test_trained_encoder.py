@@ -111,6 +111,13 @@ def test_a_labels_file_labels_the_frames_and_names_the_split(tmp_path: Path) -> 
         training_samples(_config(data, tmp_path / "unused"))  # image episodes name neither task nor outcome
     found = training_samples(_config(data, tmp_path / "unused", labels=labels))
     assert found.trajectories == 2 and {s.label.split("|")[0] for s in found.samples} == {"success", "slip"}
+    said: list[str] = []
+    for _ in range(2):  # the labels file is part of the recipe, so a second run reuses the first's weights
+        trained = train_encoder(_config(data, tmp_path / "enc", labels=labels), reuse=True, say=said.append)
+    assert json.loads((trained / CONFIG_NAME).read_text())["training"]["recipe"]["labels"] == str(
+        labels.resolve()
+    )
+    assert any(line.startswith("reusing the trained encoder") for line in said)
 
 
 def test_trained_encoder_round_trips_and_its_identity_follows_its_weights(

@@ -112,6 +112,10 @@ class TrainEncoderConfig:
         for key in ("out", "device", "threads", "extra_data"):
             settings.pop(key)
         settings["data"] = str(Path(self.data).resolve())
+        if self.labels is not None:  # absent when none: encoders trained before `labels` keep their recipe
+            settings["labels"] = str(Path(self.labels).resolve())
+        else:
+            settings.pop("labels")
         if self.extra_data:  # absent when none: encoders trained before `extra_data` keep their recipe
             settings["extra_data"] = [str(root.resolve()) for root in self.extra_data]
         return settings
