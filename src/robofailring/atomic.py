@@ -130,6 +130,25 @@ def output_lock(final: Path) -> Iterator[None]:
             lock.unlink(missing_ok=True)
 
 
+FolderState = tuple[tuple[str, int, int, int], ...]
+
+
+def folder_state(folder: Path) -> FolderState:
+    """One version of a folder written by this module: its own inode, and each visible file's inode,
+    size and modification time. Replacing the folder (`atomic_directory`) or any file in it
+    (`atomic_path`) changes it, so a writer can tell the folder it read from the one there now.
+    Temporary and lock names (leading dot) are not part of it; an absent folder is `()`.
+    """
+    folder = Path(folder)
+    try:
+        own = folder.stat()
+        files = sorted(entry for entry in folder.iterdir() if not entry.name.startswith("."))
+        stats = [(entry.name, entry.stat()) for entry in files if entry.is_file()]
+    except FileNotFoundError:  # replaced while being listed: a state no reader saw whole
+        return ()
+    return (("", own.st_ino, 0, 0), *((name, st.st_ino, st.st_size, st.st_mtime_ns) for name, st in stats))
+
+
 def restore_interrupted(final: Path) -> bool:
     """Put back a folder whose replacement was killed half-way (its `.old` beside it); True if restored."""
     final = Path(final)
