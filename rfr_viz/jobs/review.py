@@ -17,6 +17,7 @@ from rfr_viz.panels.map import placer
 from rfr_viz.paths import DEFAULT_OUT
 from rfr_viz.recordings.replay import record_replay
 from robofailring.atomic import output_lock, remove_file_leftovers, write_text_atomic
+from robofailring.data.labels import merge_label_rows
 from robofailring.data.layouts import load_dataset
 from robofailring.data.model import Skipped
 from robofailring.detection.loader import open_detector
@@ -183,7 +184,9 @@ def write_review_labels(config: ReviewConfig) -> ReviewLabels:
     Each row: the episode, what the detector said (`detected`), the nearest failure's symbol at the
     alarm (a miss: at its peak score) as `suggested_symbol`, that frame, view and score, and empty
     `outcome`, `symbol` and `description` columns to fill; `--labels` reads the file back (rows
-    still without an outcome are reported as not applied).
+    still without an outcome are reported as not applied). Into an existing labels CSV the rows are
+    merged (`robofailring.data.labels.merge_label_rows`): what a person filled in is kept, other
+    episodes' rows stay, and a file that is not a labels CSV is refused before any work.
     """
     if config.write_labels is None:
         raise DataError("write_review_labels needs a labels file to write (--write-labels FILE)")
@@ -195,6 +198,7 @@ def write_review_labels(config: ReviewConfig) -> ReviewLabels:
         raise OutputError(f"--write-labels {path} is a folder; name a CSV file, e.g. labels.csv")
     check_writable(path.absolute().parent)
     with output_lock(path):
+        merge_label_rows(path, [], LABEL_COLUMNS)  # refuse a file that is not a labels CSV before any work
         delta, gamma, eta = _thresholds(reviewed.rule, reviewed.threshold)
         detector = open_detector(
             reviewed.memory_dir,
@@ -216,10 +220,11 @@ def write_review_labels(config: ReviewConfig) -> ReviewLabels:
                 for key in reviewed.keys[kind]:
                     rows.append(_label_row(detector.run(trajectories[key], keep_queries=False), kind=kind))
                     bar.update(1)
+        columns, merged = merge_label_rows(path, rows, LABEL_COLUMNS)  # what a person filled in stays
         buffer = io.StringIO()
-        writer = csv.DictWriter(buffer, fieldnames=LABEL_COLUMNS, lineterminator="\n")
+        writer = csv.DictWriter(buffer, fieldnames=columns, lineterminator="\n")
         writer.writeheader()
-        writer.writerows(rows)
+        writer.writerows(merged)
         write_text_atomic(path, buffer.getvalue())
     return ReviewLabels(path=path, rows=rows, skipped_inputs=list(dataset.skipped))
 

@@ -8,12 +8,18 @@ the symbol `failure`) and an optional `description` (free text: that failure's g
 An optional `task` column names the episode's task (it wins over `--task` and the data's own), and
 an optional `onset_frame` a failure's first frame of the fault (an integer from 0, below the
 episode's length; it wins over the data's own, e.g. the simulator's manifest).
-Other columns (e.g. those `review --write-labels` adds) are ignored.
+Other columns (e.g. those `review --write-labels` adds) are ignored. A CSV saved by Excel as
+"CSV UTF-8" (a byte-order mark before the header) reads like any other.
+
+A tool that writes a labels file where one already is (`review --write-labels`) merges into it
+(`merge_label_rows`): what a person filled in is never blanked, and a file that is not a labels
+file is never written over.
 """
 
 from __future__ import annotations
 
 import csv
+import io
 import json
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
@@ -21,7 +27,10 @@ from pathlib import Path
 
 from robofailring.data.grounding import UNTYPED, Vocabulary, parse_symbol
 from robofailring.data.model import Outcome, Skipped, Trajectory, parse_onset_frame
-from robofailring.errors import DataError, SymbolError
+from robofailring.errors import DataError, OutputError, SymbolError
+
+#: The columns a person fills in: kept from an existing labels file whenever they are not empty.
+FILLED_COLUMNS: tuple[str, ...] = ("outcome", "symbol", "description", "task", "onset_frame")
 
 
 @dataclass(frozen=True)
@@ -73,7 +82,7 @@ def _rows(path: Path) -> list[dict[str, object]]:
     """The rows of a labels file (JSON list of objects, else CSV with a header)."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")  # Excel's "CSV UTF-8" starts with a byte-order mark
     except (OSError, UnicodeDecodeError) as error:
         raise DataError(f"cannot read labels file {path}: {error}") from error
     rows: list[dict[str, object]]
@@ -88,8 +97,57 @@ def _rows(path: Path) -> list[dict[str, object]]:
             )
         rows = loaded
     else:
-        rows = [dict(row) for row in csv.DictReader(text.splitlines())]
+        rows = [dict(row) for row in csv.DictReader(io.StringIO(text, newline=""))]
     return rows
+
+
+def _row_key(row: dict[str, object]) -> str | None:
+    """The episode a labels row names (`episode_<index>` or the episode's name), None when none."""
+    index, name = str(row.get("episode_index") or "").strip(), str(row.get("episode") or "").strip()
+    return f"episode_{index}" if index else (name or None)
+
+
+def merge_label_rows(
+    path: Path, rows: list[dict[str, str]], columns: Iterable[str]
+) -> tuple[list[str], list[dict[str, str]]]:
+    """The columns and rows to write to the labels CSV at `path`: `rows` merged into what is there.
+
+    No file at `path`: `rows` as they are. A labels CSV there (a header with `episode` or
+    `episode_index` and `outcome`): its rows are all kept, in their order and with their own extra
+    columns; a row for the same episode takes the new values of the tool's columns, but every
+    column a person fills in (`FILLED_COLUMNS`, and any column the tool does not write) keeps its
+    value when it is not empty; new episodes follow. Anything else at `path` (another CSV, a JSON
+    labels file, a file that is not text) is refused with OutputError before anything is written.
+    """
+    path = Path(path)
+    columns = list(columns)
+    if not path.exists():
+        return columns, rows
+    refused = f"{path} exists and is not a labels CSV"
+    if path.suffix.lower() == ".json":
+        raise OutputError(f"{refused} (a JSON labels file is not rewritten): name a .csv file")
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as error:
+        raise OutputError(f"{refused} ({error}); refusing to write over it") from error
+    reader = csv.DictReader(io.StringIO(text, newline=""))  # a quoted cell may hold a line break
+    header = [name for name in (reader.fieldnames or []) if name is not None]
+    if "outcome" not in header or not {"episode", "episode_index"} & set(header):
+        raise OutputError(
+            f"{refused} (its header has no episode/episode_index and outcome columns); "
+            "refusing to write over it: name a new file"
+        )
+    fresh = {_row_key(dict(row)): row for row in rows}
+    merged: list[dict[str, str]] = []
+    for old in reader:
+        kept = {name: value or "" for name, value in old.items() if name is not None}
+        new = fresh.pop(_row_key(dict(kept)), None)
+        if new is not None:
+            personal = set(FILLED_COLUMNS) | (set(kept) - set(columns))
+            kept = new | {name: value for name, value in kept.items() if name in personal and value.strip()}
+        merged.append(kept)
+    merged.extend(fresh.values())
+    return columns + [name for name in header if name not in columns], merged
 
 
 def _label(row: dict[str, object], *, where: str, vocabulary: Vocabulary | None) -> Label:
