@@ -254,4 +254,5 @@ def test_build_memory_takes_the_task_of_an_episode_folder_it_suggests(tmp_path: 
     told = runner.invoke(
         app, ["build-memory", str(episode), "--out", str(tmp_path / "m"), "--task", "pick_cube"]
     )
-    assert told.exit_code == 2 and "holds no failure trajectory" in told.output  # unlabelled: not a failure
+    # unlabelled: neither a failure nor a success, the error every layout without outcomes gives
+    assert told.exit_code == 2 and "needs to know which episodes failed" in told.output

@@ -85,6 +85,5 @@ LAYOUT: Final = register(
         help=f"ALOHA/ACT episodes <root>/{SHAPE}",
         listed=9,
         reads_files=True,
-        outcomes_in_data=False,
     )
 )

@@ -195,6 +195,5 @@ LAYOUT: Final = register(
         help=f"a robomimic/LIBERO HDF5 file ({SHAPE}, mask/<split>), or a folder of them",
         listed=8,
         reads_files=True,
-        outcomes_in_data=False,
     )
 )

@@ -361,6 +361,5 @@ LAYOUT: Final = register(
         help="ROS bags: a ROS 2 bag folder (metadata.yaml + .mcap/.db3), or a folder of them, of .mcap files or of "
         "ROS 1 .bag files",
         listed=10,
-        outcomes_in_data=False,
     )
 )

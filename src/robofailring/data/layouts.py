@@ -82,7 +82,7 @@ class Dataset:
     episodes: tuple[Trajectory, ...] = ()
     unread: tuple[Skipped, ...] = field(default=(), repr=False)
     manifest: dict[str, Any] | None = None
-    labelled: bool = False  # outcomes come from the data itself or from a labels file
+    labelled: bool = False  # some outcomes come from the data itself (its names) or from a labels file
 
     @property
     def views(self) -> list[str]:
@@ -107,6 +107,27 @@ class Dataset:
                 f"{what} needs to know which episodes failed, and the {self.layout} dataset {self.root} does not "
                 "say: pass --labels FILE (a JSON list or CSV of episode_index, outcome, symbol)"
             )
+
+    def judged(self, what: str) -> tuple[list[Trajectory], list[Skipped]]:
+        """For `what`, a verb that needs outcomes: the trajectories that have one, and what was not used.
+
+        One rule for every layout: a run is a success or a failure only when its name or a labels
+        file says so; a dataset that says it of none is an error (`require_labels`), and runs left
+        without an outcome beside labelled ones are never taken for successes: they are listed with
+        `skipped` as not used.
+        """
+        self.require_labels(what)
+        judged = [t for t in self.episodes if t.outcome is not None]
+        unlabelled = [t.key for t in self.episodes if t.outcome is None]
+        if not unlabelled:
+            return judged, self.skipped
+        shown = ", ".join(unlabelled[:3]) + (" …" if len(unlabelled) > 3 else "")
+        note = Skipped(
+            self.root,
+            f"{len(unlabelled)} episode(s) without an outcome (neither their name nor the labels file says "
+            f"success or failure: {shown}): not used by {what}",
+        )
+        return judged, [*self.skipped, note]
 
     def select(self, *, split: str | None = None, keys: Sequence[str] | None = None) -> list[Trajectory]:
         """Trajectories of a split and/or with given keys (`<task>/<episode>` or the episode alone)."""
@@ -190,7 +211,7 @@ def load_dataset(
         found = apply_labels(found, read_labels(labels, vocabulary=vocabulary), source=Path(labels))
         blank = unlabelled_rows(Path(labels))
         skipped = [*skipped, *([blank] if blank is not None else [])]
-    labelled = labels is not None or layout.outcomes_in_data or any(t.outcome is not None for t in found)
+    labelled = labels is not None or any(t.outcome is not None for t in found)
     found = _with_keys(found, keys, where=f"{root} ({layout.name} layout)")
     return Dataset(
         root=root,

@@ -248,8 +248,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
     dataset = load_dataset(
         config.data, task=config.task, labels=config.labels, views=config.views, vocabulary=memory.vocabulary
     )
-    dataset.require_labels("calibrate")
-    source = list(dataset.trajectories())
+    source, skipped_inputs = dataset.judged("calibrate")  # an unlabelled run is never taken for a success
     has_splits = any(t.split for t in source)
     successes = [
         t
@@ -309,7 +308,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
         achieved_fpr=stored.achieved_fpr,
         successes=stored.successes or 0,
         encoder=memory.encoder,
-        skipped_inputs=dataset.skipped,
+        skipped_inputs=skipped_inputs,
         gamma=stored.gamma,
         gamma_achieved_fpr=stored.gamma_achieved_fpr,
         skipped_too_short=too_short,

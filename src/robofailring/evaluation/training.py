@@ -92,16 +92,13 @@ def select_splits(config: EvaluateConfig) -> Splits:
     """The training and test trajectories, disjoint by construction and checked."""
     vocabulary = read_vocabulary(config.vocabulary) if config.vocabulary is not None else None
 
-    def labelled(path: Path) -> Dataset:
+    def labelled(path: Path) -> tuple[Dataset, list[Trajectory], list[Skipped]]:
         loaded = load_dataset(
             path, task=config.task, labels=config.labels, views=config.views, vocabulary=vocabulary
         )
-        loaded.require_labels("evaluate")
-        return loaded
+        return loaded, *loaded.judged("evaluate")  # an unlabelled run is never taken for a success
 
-    dataset = labelled(config.data)
-    source = list(dataset.trajectories())
-    skipped = list(dataset.skipped)
+    dataset, source, skipped = labelled(config.data)
     has_splits = any(t.split for t in source)
 
     def of_split(split: str) -> list[Trajectory]:
@@ -115,9 +112,8 @@ def select_splits(config: EvaluateConfig) -> Splits:
     if config.test_data is None:
         test = of_split(config.test_split)
     else:
-        other_dataset = labelled(config.test_data)
-        other = list(other_dataset.trajectories())
-        skipped += other_dataset.skipped
+        _, other, other_skipped = labelled(config.test_data)
+        skipped += other_skipped
         other_has_splits = any(t.split for t in other)
         test = [t for t in other if not other_has_splits or t.split == config.test_split]
     if not test:
