@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import logging
 import math
 import re
 from collections.abc import Sequence
@@ -31,6 +32,8 @@ from robofailring.outputs import check_output_folder, check_recording_file
 from robofailring.progress import progress_bar
 
 _UNSAFE = re.compile(r"[^A-Za-z0-9._+-]+")
+
+_log = logging.getLogger("robofailring")
 
 
 @dataclass(frozen=True)
@@ -221,6 +224,8 @@ def load_detector(
         encoder=encoder,
         cache_dir=cache_dir,
     )
+    for note in detector.uncalibrated:
+        _log.warning("warning: %s", note)
     memory = detector.memory
     return LoadedDetector(
         slug=EncoderSpec.slug(memory.encoder),

@@ -21,7 +21,7 @@ from robofailring.detection.rules import (
     default_rule,
     rule_named,
 )
-from robofailring.detection.stored import stored_bands, stored_thresholds
+from robofailring.detection.stored import stored_bands, stored_thresholds, uncalibrated_notes
 from robofailring.detection.trace import DetectionTrace, StepResult
 from robofailring.detection.view_scores import ViewScores
 from robofailring.encoders.base import Encoder, l2_normalize
@@ -119,6 +119,10 @@ class FailureDetector(RuleThresholds):
             encoder if isinstance(encoder, CachedEncoder) else CachedEncoder(encoder, enabled=False)
         )
         self.k = k
+        used = (
+            [self.chosen_rule] if self.chosen_rule is not None else [self.rule_for(t) for t in memory.tasks]
+        )
+        self.uncalibrated = uncalibrated_notes(memory, given, used)  # said by the jobs that detect
 
     @property
     def rule(self) -> ScoringRule:
@@ -203,13 +207,17 @@ class FailureDetector(RuleThresholds):
             success_sims, success_rows = successes.search(stacked, task, exclude_episode=exclude_episode)
             success_similarity = {view: success_sims[rows[view]] for view in views}
             success_ids = {view: success_rows[rows[view]] for view in views}
+        blank = {  # a zero embedding (first or current frame) is no image to the encoder: it matches nothing
+            view: (np.linalg.norm(current[view], axis=-1) < 0.5) | (np.linalg.norm(first[view]) < 0.5)
+            for view in views
+        }
         return Retrieved(
             queries=queries,
             neighbor_similarity={view: sims[rows[view]] for view in views},
             neighbor_ids={view: ids[rows[view]] for view in views},
             success_similarity=success_similarity,
             success_ids=success_ids,
-        )
+        ).without_blank(blank)
 
     def session(
         self, task: str, *, exclude_episode: str | None = None, sink: StepSink | None = None

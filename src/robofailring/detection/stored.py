@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 
 from robofailring.detection.band import Band, bands_from_dict
 from robofailring.detection.rules import RULES, ScoringRule
@@ -34,3 +34,19 @@ def stored_thresholds(memory: FailureMemory, given: Mapping[str, float | None]) 
             value = stored_threshold(memory, rule)
         thresholds[rule.name] = float(value if value is not None else rule.default_threshold)
     return thresholds
+
+
+def uncalibrated_notes(
+    memory: FailureMemory, given: Mapping[str, float | None], used: Iterable[ScoringRule]
+) -> list[str]:
+    """One sentence per rule in `used` judged at its default threshold: neither given (by its threshold
+    key) nor calibrated for the memory's encoder, so no false-alarm rate is promised for it."""
+    notes = []
+    for rule in dict.fromkeys(used):
+        if given.get(rule.threshold_key) is None and stored_threshold(memory, rule) is None:
+            notes.append(
+                f"the {rule.name} rule judges at its default {rule.symbol} = {rule.default_threshold:g}: the "
+                "memory is not calibrated for it, so no false-alarm rate is promised (run `robofailring "
+                f"calibrate SUCCESS_DATA --memory MEMORY`, or give --{rule.threshold_key})"
+            )
+    return notes

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import logging
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -16,6 +17,8 @@ from robofailring.detection.loader import open_detector
 from robofailring.detection.trace import self_match_warning
 from robofailring.explain.report import FailureReport, report_for
 from robofailring.memory.references import ReferenceCheck, check_references
+
+_log = logging.getLogger("robofailring")
 
 if TYPE_CHECKING:
     from robofailring.explain.vlm import VLMAnswer, VLMConfig  # httpx: loaded only when a VLM is asked
@@ -63,6 +66,8 @@ def detect_trajectory(config: DetectConfig) -> tuple[DetectionTrace, Trajectory]
         encoder=config.encoder,
         cache_dir=config.cache_dir,
     )
+    for note in detector.uncalibrated:
+        _log.warning("warning: %s", note)
     trajectory = load_trajectory(
         config.trajectory,
         task=config.task,
