@@ -112,7 +112,7 @@ def test_an_onset_frame_is_applied_within_the_episode_or_refused_naming_file_row
 _CELL = st.text(alphabet=st.characters(codec="utf-8", exclude_categories=("Cs",)), max_size=6)
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(
     existing=st.dictionaries(st.sampled_from(["e0", "e1", "e2", "e3"]), st.tuples(_CELL, _CELL), max_size=4),
     fresh=st.lists(st.sampled_from(["e1", "e2", "e4", "e5"]), unique=True, max_size=4),
@@ -160,3 +160,32 @@ def test_merging_refuses_what_is_not_a_labels_csv(tmp_path: Path) -> None:
         ["episode"],
         [{"episode": "a"}],
     )
+
+
+def test_labels_columns_quotes_and_onsets_are_read_exactly_or_refused(tmp_path: Path) -> None:
+    """Issue 35, item 9: an unterminated quote, a column named twice (`outcome` and `Outcome`) and an
+    onset that is not written as an integer are errors naming the file; a header in another case reads."""
+    path = tmp_path / "labels.csv"
+    path.write_text('episode,outcome,task\nrun_1,failure,"pick cube\nrun_2,success,pick_cube\n')
+    with pytest.raises(DataError, match=r"labels\.csv line \d+: not a readable CSV"):
+        read_labels(path)
+    path.write_text("episode,outcome,Outcome\nrun_1,failure,success\n")
+    with pytest.raises(DataError, match="columns 'outcome' and 'Outcome' both name 'outcome'"):
+        read_labels(path)
+    path.write_text("episode,outcome,outcome\nrun_1,failure,success\n")
+    with pytest.raises(DataError, match="both name 'outcome'"):
+        read_labels(path)
+    path.write_text(" Episode ,OUTCOME,Onset_Frame\nrun_1,failure,3\n")
+    assert read_labels(path)["run_1"].onset_frame == 3
+    for onset in ("3.0", "1e2", "0x10", "3 frames", "½"):
+        path.write_text(f"episode,outcome,onset_frame\nrun_1,failure,{onset}\n")
+        with pytest.raises(DataError, match="is not an integer frame number"):
+            read_labels(path)
+    as_json = tmp_path / "labels.json"
+    for onset, expected in ((3.0, None), (100, 100), ("7", 7)):
+        as_json.write_text(json.dumps([{"episode": "run_1", "outcome": "failure", "onset_frame": onset}]))
+        if expected is None:
+            with pytest.raises(DataError, match="is not an integer frame number"):
+                read_labels(as_json)
+        else:
+            assert read_labels(as_json)["run_1"].onset_frame == expected

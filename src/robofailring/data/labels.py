@@ -31,6 +31,8 @@ from robofailring.errors import DataError, OutputError, SymbolError
 
 #: The columns a person fills in: kept from an existing labels file whenever they are not empty.
 FILLED_COLUMNS: tuple[str, ...] = ("outcome", "symbol", "description", "task", "onset_frame")
+#: Every column this module reads (a header names them in any case, with spaces around).
+LABEL_COLUMNS: tuple[str, ...] = ("episode_index", "episode", *FILLED_COLUMNS)
 
 
 @dataclass(frozen=True)
@@ -97,8 +99,32 @@ def _rows(path: Path) -> list[dict[str, object]]:
             )
         rows = loaded
     else:
-        rows = [dict(row) for row in csv.DictReader(io.StringIO(text, newline=""))]
-    return rows
+        reader = csv.DictReader(io.StringIO(text, newline=""), strict=True)
+        try:
+            rows = [dict(row) for row in reader]
+        except csv.Error as error:  # e.g. a quote never closed: the rest of the file would be one cell
+            raise DataError(
+                f"labels file {path} line {reader.line_num}: not a readable CSV ({error})"
+            ) from error
+        _column_names(reader.fieldnames or [], path)  # a column named twice, even where no row follows
+    return [{_column_names(row, path).get(name, name): value for name, value in row.items()} for row in rows]
+
+
+def _column_names(names: Iterable[object], path: Path) -> dict[str, str]:
+    """The labels columns among `names`, as this module reads them (`Outcome`, ` outcome ` -> `outcome`);
+    a column named twice that way is an error, never one of the two picked silently."""
+    found: dict[str, str] = {}
+    for name in names:
+        known = str(name).strip().lower()
+        if known not in LABEL_COLUMNS:
+            continue
+        if known in found.values():
+            first = next(given for given, column in found.items() if column == known)
+            raise DataError(
+                f"labels file {path}: columns {first!r} and {name!r} both name {known!r}; keep one"
+            )
+        found[str(name)] = known
+    return found
 
 
 def _row_key(row: dict[str, object]) -> str | None:
@@ -114,9 +140,9 @@ def merge_label_rows(
 
     No file at `path`: `rows` as they are. A labels CSV there (a header with `episode` or
     `episode_index` and `outcome`): its rows are all kept, in their order and with their own extra
-    columns; a row for the same episode takes the new values of the tool's columns, but every
-    column a person fills in (`FILLED_COLUMNS`, and any column the tool does not write) keeps its
-    value when it is not empty; new episodes follow. Anything else at `path` (another CSV, a JSON
+    columns; a row for the same episode takes the new values of the tool's columns, but a column
+    the tool does not write keeps its value, and one a person fills in (`FILLED_COLUMNS`) keeps it
+    when it is not empty; new episodes follow. Anything else at `path` (another CSV, a JSON
     labels file, a file that is not text) is refused with OutputError before anything is written.
     """
     path = Path(path)
@@ -127,11 +153,14 @@ def merge_label_rows(
     if path.suffix.lower() == ".json":
         raise OutputError(f"{refused} (a JSON labels file is not rewritten): name a .csv file")
     try:
-        text = path.read_text(encoding="utf-8-sig")
-    except (OSError, UnicodeDecodeError) as error:
+        reader = csv.DictReader(io.StringIO(path.read_text(encoding="utf-8-sig"), newline=""), strict=True)
+        known = _column_names(
+            reader.fieldnames or [], path
+        )  # `Outcome` is `outcome`, as read_labels reads it
+        header = [known.get(name, name) for name in (reader.fieldnames or [])]
+        existing = [{known.get(k, k): v or "" for k, v in row.items() if k is not None} for row in reader]
+    except (OSError, UnicodeDecodeError, csv.Error, DataError) as error:
         raise OutputError(f"{refused} ({error}); refusing to write over it") from error
-    reader = csv.DictReader(io.StringIO(text, newline=""))  # a quoted cell may hold a line break
-    header = [name for name in (reader.fieldnames or []) if name is not None]
     if "outcome" not in header or not {"episode", "episode_index"} & set(header):
         raise OutputError(
             f"{refused} (its header has no episode/episode_index and outcome columns); "
@@ -139,12 +168,14 @@ def merge_label_rows(
         )
     fresh = {_row_key(dict(row)): row for row in rows}
     merged: list[dict[str, str]] = []
-    for old in reader:
-        kept = {name: value or "" for name, value in old.items() if name is not None}
+    for kept in existing:
         new = fresh.pop(_row_key(dict(kept)), None)
         if new is not None:
-            personal = set(FILLED_COLUMNS) | (set(kept) - set(columns))
-            kept = new | {name: value for name, value in kept.items() if name in personal and value.strip()}
+            kept = new | {  # the tool's own columns refreshed; a person's never blanked
+                name: value
+                for name, value in kept.items()
+                if name not in columns or (name in FILLED_COLUMNS and value.strip())
+            }
         merged.append(kept)
     merged.extend(fresh.values())
     return columns + [name for name in header if name not in columns], merged

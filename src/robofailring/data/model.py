@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import math
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
@@ -176,15 +176,12 @@ def parse_onset_frame(value: object, *, length: int | None, where: str) -> int |
     and the value."""
     if value is None or (isinstance(value, str) and not value.strip()):
         return None
-    number: float | None = None
-    if isinstance(value, int | float) and not isinstance(value, bool):
-        number = float(value)
-    elif isinstance(value, str):
-        try:
-            number = float(value.strip())
-        except ValueError:
-            number = None
-    if number is None or not math.isfinite(number) or not number.is_integer():
+    number: int | None = None
+    if isinstance(value, int) and not isinstance(value, bool):
+        number = value
+    elif isinstance(value, str) and re.fullmatch(r"\s*[-+]?[0-9]+\s*", value):
+        number = int(value)  # digits only: `3.0`, `1e2` and `0x10` are not frame numbers
+    if number is None:
         raise DataError(f"{where}: onset_frame {value!r} is not an integer frame number")
     if number < 0:
         raise DataError(f"{where}: onset_frame {value!r} is negative; frames count from 0")
@@ -193,7 +190,7 @@ def parse_onset_frame(value: object, *, length: int | None, where: str) -> int |
             f"{where}: onset_frame {value!r} is not a frame of the trajectory (its {length} frames are 0 to "
             f"{length - 1})"
         )
-    return int(number)
+    return number
 
 
 def frames_from_files(paths: Sequence[Path]) -> tuple[Frame, ...]:
