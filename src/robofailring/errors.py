@@ -31,6 +31,12 @@ class EncoderError(RoboFailRingError):
     """An encoder spec is malformed or its weights are not available."""
 
 
+class WeightsUnavailableError(EncoderError):
+    """An encoder's pretrained weights are not on this machine and cannot be fetched: the environment's fault."""
+
+    exit_code = 1
+
+
 class MemoryFormatError(RoboFailRingError):
     """A failure-memory directory is missing, corrupt, or of another format version."""
 

@@ -256,3 +256,20 @@ def test_build_memory_takes_the_task_of_an_episode_folder_it_suggests(tmp_path: 
     )
     # unlabelled: neither a failure nor a success, the error every layout without outcomes gives
     assert told.exit_code == 2 and "needs to know which episodes failed" in told.output
+
+
+def test_build_memory_and_memory_info_count_success_views_alike(tmp_path: Path) -> None:
+    """build-memory said "14 views" (success views and failure starts together) where memory-info
+    said 4 success views (issue 35, item 9): both now count success views, and build-memory the starts apart."""
+    from synthetic import write_project_dataset
+
+    data = write_project_dataset(tmp_path / "data", tasks=("pick_cube",), symbols=("grasp_wp2",), episodes=2)
+    runner = CliRunner()
+    built = runner.invoke(app, ["build-memory", str(data), "--out", str(tmp_path / "m"), "--split", "train"])
+    assert built.exit_code == 0, built.output
+    info = runner.invoke(app, ["memory-info", str(tmp_path / "m"), "--json"])
+    counted = json.loads(info.stdout)["successes"]["runs"]
+    line = next(line for line in built.output.splitlines() if line.startswith("success memory:"))
+    assert f"{counted} success views and " in line and " failure starts over 1 tasks" in line
+    starts = int(line.split(" success views and ")[1].split()[0])
+    assert counted == 3 and starts == 3  # one success and one failure run of 3 views in the train split

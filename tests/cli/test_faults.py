@@ -262,7 +262,7 @@ def test_replay_exits_3_when_trajectories_were_skipped_and_cleans_killed_writes(
     )
     out = tmp_path / "rec"
     out.mkdir()
-    leftover = out / ".pick_cube__x.rrd.abcd1234.tmp.rrd"  # what a replay killed mid-write leaves
+    leftover = out / ".pick_cube__x.rrd.rfr-abcd1234.tmp.rrd"  # what a replay killed mid-write leaves
     leftover.write_bytes(b"RRF2 half")
     result = cli("replay", mixed, "--memory", memory, "--out", out, *cache)
     assert result.exit_code == 3, result.output

@@ -146,6 +146,7 @@ print(written, refused)
 
 _REBUILD_LOOP = """
 import sys
+import time
 import numpy as np
 from pathlib import Path
 from robofailring.errors import OutputBusyError
@@ -161,6 +162,7 @@ for i in range(int(sys.argv[2])):
         written += 1
     except OutputBusyError:
         refused += 1
+    time.sleep(0.01)  # a refusal takes microseconds: spread the tries over the other loop's writes
 print(written, refused)
 """
 

@@ -175,7 +175,8 @@ def build_memory_cmd(
     if memory.successes is not None:
         typer.echo(
             f"success memory: {len(memory.successes)} frames kept of {memory.successes.offered} offered "
-            f"(thinning step {success_step:g}), {len(memory.successes.runs)} views over "
+            f"(thinning step {success_step:g}), {memory.successes.success_runs} success views and "
+            f"{len(memory.successes.runs) - memory.successes.success_runs} failure starts over "
             f"{len(memory.successes.tasks)} tasks"
         )
     if stats.skipped_views or stats.skipped_inputs:
