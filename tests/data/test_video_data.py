@@ -233,3 +233,35 @@ def test_bad_video_data_names_the_file_or_value(v3: Path, tmp_path: Path) -> Non
     labels.write_text(json.dumps([{"episode_index": 0, "outcome": "failure", "symbol": "twist_wp1"}]))
     with pytest.raises(DataError, match=r"labels\.json row 1: unknown failure token 'twist'"):
         load_dataset(v3, labels=labels)
+
+
+def test_video_episodes_take_their_task_from_the_labels(tmp_path: Path) -> None:
+    """One camera per episode, names that say nothing: the labels' task column is enough (no --task)."""
+    root = tmp_path / "clips"
+    for episode in range(3):
+        encode_video(
+            root / f"clip_{episode}" / "front.mp4", [scene(episode, 0, t) for t in range(6)], 10, "h264"
+        )
+    labels = tmp_path / "labels.csv"
+    labels.write_text(
+        "episode,outcome,symbol,task\nclip_0,success,,pick_cube\nclip_1,failure,grasp_wp2,pick_cube\n"
+        "clip_2,failure,,push_cube\n"
+    )
+    dataset = load_dataset(root, labels=labels)
+    assert dataset.layout == "videos" and dataset.labelled
+    assert [(t.episode, t.task, t.label, t.length) for t in dataset] == [
+        ("clip_0", "pick_cube", "success", 6),
+        ("clip_1", "pick_cube", "grasp_wp2", 6),
+        ("clip_2", "push_cube", "failure", 6),
+    ]
+    # without labels nothing says the task: an error naming how many episodes, one of them, and the remedies
+    with pytest.raises(
+        DataError,
+        match=r"cannot tell the task of 3 episode\(s\) of .*clips \(videos layout\), e\.g\. 'clip_0': pass --task, or a task column",
+    ):
+        load_dataset(root)
+    # with --task alone the outcome is still unknown: a verb that needs it says so
+    untold = load_dataset(root, task="pick_cube")
+    assert not untold.labelled and [t.outcome for t in untold] == [None] * 3
+    with pytest.raises(DataError, match=r"build-memory needs to know which episodes failed.*--labels"):
+        untold.require_labels("build-memory")

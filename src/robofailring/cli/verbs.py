@@ -329,6 +329,8 @@ def train_encoder_cmd(
     ] = None,
     threads: Annotated[int | None, typer.Option(help="torch CPU threads (default: half the cores).")] = None,
     views: ViewsOption = None,
+    labels: LabelsOption = None,
+    task: TaskOption = None,
     device: DeviceOption = None,
     randomize: RandomizeOption = 0,
     workers: WorkersOption = 2,
@@ -348,6 +350,8 @@ def train_encoder_cmd(
         threads=threads,
         views=views,
         device=device,
+        labels=labels,
+        task=task,
     )
     folder = run_train_encoder(TrainEncoderJob(config, randomize=randomize, workers=workers), say=typer.echo)
     typer.echo(f"use it with: --encoder trained:{folder}")

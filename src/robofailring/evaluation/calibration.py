@@ -32,6 +32,7 @@ from robofailring.detection.band import (
 )
 from robofailring.detection.conformal import (
     FprSpread,
+    attainable_target_fpr,
     check_target_fpr,
     conformal_threshold,
     empirical_fpr,
@@ -125,10 +126,15 @@ def calibrate_rules(
     stride: int = 1,
     too_short: list[str] | None = None,
     band: str = DEFAULT_BAND,
+    at_best: bool = False,
 ) -> dict[ScoringRule, RuleCalibration]:
     """The conformal threshold of every rule (default: all the memory supports) at level `target_fpr`,
     on the `band` (`none`, `shift`, `norm`) fitted on the same runs; the paper rule keeps one δ, as in
-    the paper (§3.3)."""
+    the paper (§3.3).
+
+    Too few runs for `target_fpr` are a DataError; with `at_best` (an evaluation on small data) a rule
+    is calibrated at the smallest level its runs allow instead (its `target_fpr` says which: no
+    guarantee at the asked one), and a rule none of whose runs could be scored is left out."""
     check_band(band)
     chosen = list(rules) if rules is not None else available_rules(detector)
     scores = success_scores(
@@ -140,8 +146,11 @@ def calibrate_rules(
             raise DataError(f"none of the {len(successes)} success trajectories has a view of 2+ frames")
         values, fitted = conformal_peaks(runs, band if rule is not PAPER else NONE)  # δ stays the paper's
         scored = [v for v in values if math.isfinite(v)]
+        if at_best and not scored:
+            continue
+        level = attainable_target_fpr(len(scored), target_fpr) if at_best else target_fpr
         try:
-            threshold = conformal_threshold(scored, target_fpr)
+            threshold = conformal_threshold(scored, level)
         except DataError as error:
             if len(scored) < len(values):
                 raise DataError(
@@ -152,7 +161,7 @@ def calibrate_rules(
         calibrations[rule] = RuleCalibration(
             rule=rule,
             threshold=threshold,
-            target_fpr=target_fpr,
+            target_fpr=level,
             achieved_fpr=empirical_fpr(scored, threshold),
             successes=len(scored),
             band=fitted,
