@@ -48,6 +48,5 @@ LAYOUT: Final = register(
         read=video_trajectories,
         help="video episodes <root>/<episode>/<view>.mp4|.webm|.mkv",
         listed=5,
-        outcomes_in_data=False,  # an AHA-style name says it; other names take it from a labels file
     )
 )
