@@ -15,7 +15,6 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING
 
-from robofailring import _moved as _moved  # old module paths, deprecated (one release)
 from robofailring.data.grounding import ground, parse_symbol
 from robofailring.data.layouts import Dataset, load_dataset, load_trajectory
 from robofailring.data.model import Frame, Outcome, Trajectory
