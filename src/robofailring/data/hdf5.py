@@ -7,7 +7,8 @@ nothing else is read. How a dataset's rows are read (`RowFormat`) is decided fro
 (`row_format`), by the layouts and by a memory's references alike: encoded rows are ALOHA's, JPEGs
 of the camera's RGB array given to `cv2.imencode` as it was (decoded without a channel swap), and a
 file whose `data` group says `macros_image_convention` = `opengl` (LIBERO) stores its images bottom
-row first (flipped back when read).
+row first (flipped back when read). A row is read only when its declared frame size is within
+`images.max_frame_pixels()` (an encoded row: its bytes within three bytes a pixel of it).
 """
 
 from __future__ import annotations
@@ -22,7 +23,14 @@ from typing import Any, Final
 
 import numpy as np
 
-from robofailring.data.images import as_rgb, content_digest, decode_image
+from robofailring.data.images import (
+    MAX_FRAME_PIXELS_SETTING,
+    as_rgb,
+    check_frame_size,
+    content_digest,
+    decode_image,
+    max_frame_pixels,
+)
 from robofailring.data.model import Frame, LazyFrames
 from robofailring.errors import DataError
 from robofailring.extras import needs_extra
@@ -128,10 +136,22 @@ class HDF5Frame:
         with _LOCK:
             handle = open_hdf5(self.file)
             try:
-                row = np.asarray(handle[self.dataset][self.index])
+                item = handle[self.dataset]
+                self._check_size(tuple(item.shape))
+                row = np.asarray(item[self.index])
             except (KeyError, IndexError, OSError) as error:
                 raise DataError(f"cannot read {self.reference}: {error}") from error
         return row if self.length is None else row[: self.length]
+
+    def _check_size(self, shape: tuple[int, ...]) -> None:
+        """Refuse a row larger than a frame may be, from the dataset's declared shape (nothing read)."""
+        if not self.form.encoded and len(shape) >= 3:
+            check_frame_size(shape[2], shape[1], source=self.reference)
+        elif self.form.encoded and len(shape) == 2 and shape[1] > 3 * max_frame_pixels():
+            raise DataError(
+                f"{self.reference}: an encoded row of {shape[1]:,} bytes is larger than a raw frame of the "
+                f"{max_frame_pixels():,} pixels a frame may have; set {MAX_FRAME_PIXELS_SETTING} to raise it"
+            )
 
     def load(self) -> np.ndarray:
         row = self._row()
