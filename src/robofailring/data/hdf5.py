@@ -8,7 +8,9 @@ nothing else is read. How a dataset's rows are read (`RowFormat`) is decided fro
 of the camera's RGB array given to `cv2.imencode` as it was (decoded without a channel swap), and a
 file whose `data` group says `macros_image_convention` = `opengl` (LIBERO) stores its images bottom
 row first (flipped back when read). A row is read only when its declared frame size is within
-`images.max_frame_pixels()` (an encoded row: its bytes within three bytes a pixel of it).
+`images.max_frame_pixels()` (an encoded row: its bytes within three bytes a pixel of it), and what
+h5py raises for a damaged file (a corrupt object header is a KeyError) is a DataError naming the file
+(`hdf5_faults`).
 """
 
 from __future__ import annotations
@@ -16,7 +18,8 @@ from __future__ import annotations
 import os
 import threading
 from collections import OrderedDict
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
@@ -72,6 +75,17 @@ def open_hdf5(path: Path) -> Any:
             _, (oldest, _) = _OPEN.popitem(last=False)
             oldest.close()
         return handle
+
+
+@contextmanager
+def hdf5_faults(path: Path | str) -> Iterator[None]:
+    """What h5py raises for a damaged file (a corrupt object header is a KeyError, a failed visit a
+    RuntimeError, an unreadable chunk an OSError) as one DataError naming the file."""
+    try:
+        yield
+    except (KeyError, RuntimeError, OSError) as error:
+        why = error.args[0] if isinstance(error, KeyError) and error.args else error
+        raise DataError(f"cannot read HDF5 file {path}: {why} (a damaged or unfinished file?)") from error
 
 
 def describe(handle: Any, *, limit: int = 12) -> str:
@@ -139,7 +153,7 @@ class HDF5Frame:
                 item = handle[self.dataset]
                 self._check_size(tuple(item.shape))
                 row = np.asarray(item[self.index])
-            except (KeyError, IndexError, OSError) as error:
+            except (KeyError, IndexError, OSError, RuntimeError) as error:
                 raise DataError(f"cannot read {self.reference}: {error}") from error
         return row if self.length is None else row[: self.length]
 
@@ -203,6 +217,8 @@ def read_hdf5_reference(reference: str) -> np.ndarray | None:
     if not marker or not hash_ or not index.isdecimal() or not Path(file).is_file():
         return None
     handle = open_hdf5(Path(file))
-    if handle.get(dataset) is None:
-        return None
-    return HDF5Frame(Path(file), dataset, int(index), form=row_format(handle, dataset)).load()
+    with hdf5_faults(file):
+        if handle.get(dataset) is None:
+            return None
+        form = row_format(handle, dataset)
+    return HDF5Frame(Path(file), dataset, int(index), form=form).load()
