@@ -27,7 +27,7 @@ from typing import Any, Final
 import numpy as np
 
 from robofailring.data.folders import visible
-from robofailring.data.images import content_digest, decode_image
+from robofailring.data.images import check_frame_size, content_digest, decode_image
 from robofailring.data.model import Frame, LazyFrames, Skipped, Trajectory
 from robofailring.data.open_files import OpenLimit
 from robofailring.data.registry import Found, Layout, register
@@ -206,6 +206,7 @@ def to_rgb(message: Any, msgtype: str, *, where: str) -> np.ndarray:
     if msgtype == COMPRESSED:
         return decode_image(bytes(message.data), source=where)
     height, width, step = int(message.height), int(message.width), int(message.step)
+    check_frame_size(width, height, source=where)
     channels, bgr = RAW_ENCODINGS[str(message.encoding)]
     data = np.asarray(message.data, dtype=np.uint8)
     if step < width * channels or data.size < height * step:

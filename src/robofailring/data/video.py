@@ -3,7 +3,8 @@
 Frames are decoded lazily and by timestamp: the stream's packets are listed once (no decoding)
 to get every frame's presentation time, so the frame count comes from the container; a request
 seeks to the keyframe before the wanted frame and decodes forward, and a run of requests in
-order keeps decoding without seeking again. A long episode is never decoded whole.
+order keeps decoding without seeking again. A long episode is never decoded whole, and a frame larger
+than `images.max_frame_pixels()` is refused from the stream's declared size before any is decoded.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from typing import Any, Final
 
 import numpy as np
 
-from robofailring.data.images import content_digest
+from robofailring.data.images import check_frame_size, content_digest
 from robofailring.data.model import Frame, LazyFrames
 from robofailring.data.open_files import OpenLimit
 from robofailring.errors import DataError
@@ -68,6 +69,10 @@ class VideoFile:
                 ) from error
             stream.thread_type = "AUTO"
             _OPEN.remember(self)
+        stream = self._container.streams.video[self.stream]
+        check_frame_size(
+            int(stream.codec_context.width), int(stream.codec_context.height), source=f"video {self.path}"
+        )
         return self._container
 
     @property
@@ -155,6 +160,7 @@ class VideoFile:
                 for frame in self._frames:
                     if frame.pts is None or frame.pts < target:
                         continue
+                    check_frame_size(frame.width, frame.height, source=f"frame {index} of video {self.path}")
                     image = frame.to_ndarray(format="rgb24")
                     self._last = (index, image)
                     return np.ascontiguousarray(image)

@@ -32,6 +32,7 @@ from robofailring.memory.pairs import pair_vectors
 from robofailring.memory.references import absolute_reference
 
 DEFAULT_K: Final[int] = 5
+MAX_STRIDE: Final[int] = 2**63 - 1  # frame numbers are int64: a larger stride scores frame 0 alone anyway
 CHUNK_FRAMES: Final[int] = 256  # scored frames per view encoded and searched at once in `run`
 
 Place = Callable[[str, np.ndarray], np.ndarray]  # (view, (n, 2d) queries) -> (n, m) rows, e.g. map points
@@ -50,10 +51,10 @@ def check_k(k: int) -> int:
 
 
 def check_stride(stride: int) -> int:
-    """The scoring stride: a whole number, at least 1 (SettingError otherwise)."""
-    if not _whole_number(stride) or stride < 1:
+    """The scoring stride: a whole number from 1 to `MAX_STRIDE` (SettingError otherwise)."""
+    if not _whole_number(stride) or not 1 <= stride <= MAX_STRIDE:
         raise SettingError(
-            f"stride must be a whole number of at least 1 (1 scores every frame), got {stride}"
+            f"stride must be a whole number from 1 (every frame scored) to {MAX_STRIDE}, got {stride}"
         )
     return stride
 
