@@ -200,9 +200,14 @@ def test_out_of_range_settings_are_refused_before_any_work(aha_dataset: Path, tm
     episode = str(aha_dataset / "pick_cube_wrong_object_episode1")
     cases = [
         (app, ["detect", episode, "--memory", str(memory), "--delta", "1.5"], "δ must lie in [-1, 1]"),
-        (app, ["detect", episode, "--memory", str(memory), "--k", "0"], "whole number of at least 1, got 0"),
+        (app, ["detect", episode, "--memory", str(memory), "--k", "0"], "whole number from 1 to 1024, got 0"),
         (app, ["calibrate", str(aha_dataset), "--memory", str(memory), "--target-fpr", "2"], "target FPR"),
-        (tool_app, ["evaluate", str(aha_dataset), "--out", str(tmp_path / "eval"), "--k", "0"], "at least 1"),
+        (
+            tool_app,
+            ["evaluate", str(aha_dataset), "--out", str(tmp_path / "eval"), "--k", "0"],
+            "from 1 to 1024",
+        ),
+        (app, ["detect", episode, "--memory", str(memory), "--k", "99999999999999999999"], "from 1 to 1024"),
         (
             tool_app,
             ["replay", episode, "--memory", str(memory), "--out", str(tmp_path / "rec"), "--delta", "-3"],

@@ -33,6 +33,9 @@ from robofailring.memory.references import absolute_reference
 
 DEFAULT_K: Final[int] = 5
 MAX_STRIDE: Final[int] = 2**63 - 1  # frame numbers are int64: a larger stride scores frame 0 alone anyway
+MAX_K: Final[int] = (
+    1024  # neighbours per query: each query row holds K similarities, allocated before the search
+)
 CHUNK_FRAMES: Final[int] = 256  # scored frames per view encoded and searched at once in `run`
 
 Place = Callable[[str, np.ndarray], np.ndarray]  # (view, (n, 2d) queries) -> (n, m) rows, e.g. map points
@@ -44,9 +47,9 @@ def _whole_number(value: object) -> bool:
 
 
 def check_k(k: int) -> int:
-    """K, the neighbours retrieved per query: a whole number, at least 1 (SettingError otherwise)."""
-    if not _whole_number(k) or k < 1:
-        raise SettingError(f"k (neighbours per query) must be a whole number of at least 1, got {k}")
+    """K, the neighbours retrieved per query: a whole number from 1 to `MAX_K` (SettingError otherwise)."""
+    if not _whole_number(k) or not 1 <= k <= MAX_K:
+        raise SettingError(f"k (neighbours per query) must be a whole number from 1 to {MAX_K}, got {k}")
     return k
 
 
