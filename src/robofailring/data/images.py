@@ -8,7 +8,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from robofailring.errors import DataError
+from robofailring.errors import DataError, read_error
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".webp")
 
@@ -47,7 +47,7 @@ def read_image(path: Path) -> np.ndarray:
     try:
         data = Path(path).read_bytes()
     except OSError as error:
-        raise DataError(f"cannot read image {path}: {error.strerror or error}") from error
+        raise read_error(f"cannot read image {path}: {error.strerror or error}", error) from error
     return decode_image(data, source=str(path))
 
 

@@ -31,7 +31,7 @@ from robofailring.data.images import content_digest, decode_image
 from robofailring.data.model import Frame, LazyFrames, Skipped, Trajectory
 from robofailring.data.open_files import OpenLimit
 from robofailring.data.registry import Found, Layout, register
-from robofailring.errors import DataError
+from robofailring.errors import DataError, read_error
 from robofailring.extras import needs_extra
 
 ROS2_METADATA: Final[str] = "metadata.yaml"
@@ -103,7 +103,7 @@ class BagFile:
             try:
                 reader.open()
             except (AnyReaderError, OSError, ValueError, KeyError) as error:
-                raise DataError(f"cannot read ROS bag {self.path}: {error}") from error
+                raise read_error(f"cannot read ROS bag {self.path}: {error}", error) from error
             self._reader = reader
             _OPEN.remember(self)
         return self._reader

@@ -33,7 +33,7 @@ from robofailring.data.layout_project import (
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.data.registry import Layout, layouts_help
 from robofailring.data.views import select_views
-from robofailring.errors import DataError
+from robofailring.errors import DataError, reading
 
 __all__ = [
     "AHA_FAILURES",
@@ -186,6 +186,7 @@ def detect_layout(root: Path) -> str:
     return _layout(root).name
 
 
+@reading()  # a folder or file this user may not read: status 1, naming it
 def load_dataset(
     root: Path,
     *,
@@ -223,6 +224,7 @@ def load_dataset(
     )
 
 
+@reading()
 def load_trajectory(
     path: Path,
     *,
