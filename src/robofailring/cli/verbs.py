@@ -79,7 +79,9 @@ def generate_cmd(
         ),
     ] = "in",
     ood: Annotated[bool, typer.Option("--ood", help="The same as --look ood.")] = False,
-    image_size: Annotated[int, typer.Option("--image-size", help="Square image size in pixels.")] = 128,
+    image_size: Annotated[
+        int, typer.Option("--image-size", help="Square image size in pixels (16 to 1024).")
+    ] = 128,
     frames: Annotated[int, typer.Option(help="Frames per episode.")] = 40,
     workers: WorkersOption = 2,
 ) -> None:
