@@ -248,11 +248,12 @@ def detect_cmd(
             vlm=vlm_config(vlm_url, vlm_model),
         )
     )
-    report_skipped(result.trace.skipped_inputs)
+    skipped = [*result.trace.skipped_inputs, *result.trace.short_views]
+    report_skipped(skipped)
     warn_missing_references(memory, result.references)
     print_notes(result.notes)
     typer.echo(result.to_json() if as_json else result.to_text())
-    finish(skipped=len(result.trace.skipped_inputs))  # listed above
+    finish(skipped=len(skipped))  # listed above
 
 
 @app.command("calibrate")
