@@ -203,6 +203,7 @@ def review_cmd(
     )
     for path in result.recordings:
         typer.echo(f"  {open_at_command(path)}")
+    finish(skipped=len(result.skipped_inputs))  # listed above
 
 
 @app.command("compare-encoders")

@@ -284,6 +284,7 @@ def _replay(config: ReplayConfig) -> ReplayResult:
                 result.skipped.append((trajectory.key, str(error)))
             else:
                 result.saw(trace, trajectory.key)
+                result.skipped_inputs += trace.short_views
                 out = _target(config.out, recording_name(trajectory), written, trajectory.key)
                 answer = result.ask(config.vlm, trace, trajectory)
                 result.recordings.append(
@@ -380,6 +381,7 @@ def _compare(config: CompareConfig) -> ReplayResult:
             else:
                 for trace in traces.values():
                     result.saw(trace, trajectory.key)
+                result.skipped_inputs += next(iter(traces.values())).short_views  # the same in every memory
                 out = _target(config.out, recording_name(trajectory, suffix), written, trajectory.key)
                 maps = {slug: found.map for slug, found in zip(slugs, detectors, strict=True)}
                 result.recordings.append(

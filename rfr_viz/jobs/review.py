@@ -133,6 +133,7 @@ def _replay_keys(
             trace = loaded.detector.run(
                 trajectory, keep_queries=False, place=placer(loaded.map, trajectory.task)
             )
+            result.skipped_inputs += trace.short_views
             focus = trace.t_det if trace.t_det is not None else int(np.argmax(trace.max_score()))
             out = Path(config.out) / config.kind / recording_name(trajectory)
             check_recording_file(out)

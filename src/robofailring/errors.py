@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 import errno
+import os
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
 
 
 class RoboFailRingError(Exception):
@@ -69,6 +73,16 @@ class WriteError(RoboFailRingError):
     exit_code = 1
 
 
+class ReadError(RoboFailRingError):
+    """An input (a frame, a folder or file of the data) could not be read for lack of permission.
+
+    An error of the environment (exit status 1), not of the input: the same data read by a user
+    allowed to is fine. Other read faults (a file gone, bytes that do not decode) are `DataError`s.
+    """
+
+    exit_code = 1
+
+
 class MissingExtraError(RoboFailRingError, ModuleNotFoundError):
     """A module of an optional part of the install is not installed; the message names the extra.
 
@@ -81,6 +95,36 @@ class MissingExtraError(RoboFailRingError, ModuleNotFoundError):
     def __init__(self, message: str, *, name: str, extra: str) -> None:
         super().__init__(message, name=name)
         self.extra = extra
+
+
+_NO_PERMISSION: tuple[int, ...] = (errno.EACCES, errno.EPERM)
+
+
+def read_error(message: str, error: BaseException) -> RoboFailRingError:
+    """The error to raise when reading an input failed with `error`: `message` as a `ReadError`
+    (status 1) when permission was lacking, else as a `DataError` (status 2)."""
+    if isinstance(error, OSError) and error.errno in _NO_PERMISSION:
+        return ReadError(message)
+    return DataError(message)
+
+
+@contextmanager
+def reading() -> Iterator[None]:
+    """Reading a dataset: a `PermissionError` from the file system becomes a `ReadError` naming the
+    file or folder that could not be read (a folder whose entries cannot be looked up, not a file in it)."""
+    try:
+        yield
+    except PermissionError as error:
+        if error.filename is None:
+            raise ReadError(f"cannot read the data: {error.strerror or error}") from error
+        path = Path(os.fsdecode(error.filename))
+        folder = path.parent
+        if not os.access(folder, os.R_OK | os.X_OK):  # its folder cannot be listed or entered
+            path = folder
+        kind = "folder " if os.path.isdir(path) else ""
+        raise ReadError(
+            f"cannot read {kind}{path}: permission denied; give this user read access to it"
+        ) from error
 
 
 def describe(error: BaseException) -> str:

@@ -179,7 +179,7 @@ def test_detect_says_which_frames_uneven_views_leave_unscored(aha_dataset: Path,
     result = runner.invoke(
         app, ["detect", str(episode), "--memory", str(memory), "--task", "pick_cube", "--json", *cache]
     )
-    assert result.exit_code == 0, result.output
+    assert result.exit_code == 3, result.output  # a view skipped: listed, status 3 as in every verb
     trace = json.loads(result.stdout)
     assert (
         trace["length"] == 5
@@ -188,7 +188,7 @@ def test_detect_says_which_frames_uneven_views_leave_unscored(aha_dataset: Path,
     )
     assert len(trace["views"]["front"]["similarity"]) == 5
     assert "view front has 8 frames; the last 3 are not scored" in result.stderr
-    assert "fewer than 2 frames skipped: side" in result.stderr
+    assert "view side: 1 frame(s), fewer than 2: not scored" in result.stderr
 
 
 def test_out_of_range_settings_are_refused_before_any_work(aha_dataset: Path, tmp_path: Path) -> None:

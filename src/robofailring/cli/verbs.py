@@ -79,7 +79,9 @@ def generate_cmd(
         ),
     ] = "in",
     ood: Annotated[bool, typer.Option("--ood", help="The same as --look ood.")] = False,
-    image_size: Annotated[int, typer.Option("--image-size", help="Square image size in pixels.")] = 128,
+    image_size: Annotated[
+        int, typer.Option("--image-size", help="Square image size in pixels (16 to 1024).")
+    ] = 128,
     frames: Annotated[int, typer.Option(help="Frames per episode.")] = 40,
     workers: WorkersOption = 2,
 ) -> None:
@@ -247,11 +249,12 @@ def detect_cmd(
             vlm=vlm_config(vlm_url, vlm_model),
         )
     )
-    report_skipped(result.trace.skipped_inputs)
+    skipped = [*result.trace.skipped_inputs, *result.trace.short_views]
+    report_skipped(skipped)
     warn_missing_references(memory, result.references)
     print_notes(result.notes)
     typer.echo(result.to_json() if as_json else result.to_text())
-    finish(skipped=len(result.trace.skipped_inputs))  # listed above
+    finish(skipped=len(skipped))  # listed above
 
 
 @app.command("calibrate")

@@ -16,7 +16,7 @@ from typing import Final
 import cv2
 import numpy as np
 
-from robofailring.errors import DataError, SettingError
+from robofailring.errors import DataError, SettingError, read_error
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".webp")
 MAX_FRAME_PIXELS: Final[int] = (
@@ -139,7 +139,7 @@ def read_image(path: Path) -> np.ndarray:
     try:
         data = Path(path).read_bytes()
     except OSError as error:
-        raise DataError(f"cannot read image {path}: {error.strerror or error}") from error
+        raise read_error(f"cannot read image {path}: {error.strerror or error}", error) from error
     return decode_image(data, source=str(path))
 
 

@@ -33,7 +33,7 @@ from robofailring.data.layout_project import (
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.data.registry import Layout, layouts_help
 from robofailring.data.views import select_views
-from robofailring.errors import DataError
+from robofailring.errors import DataError, reading
 
 __all__ = [
     "AHA_FAILURES",
@@ -136,16 +136,26 @@ class Dataset:
 
 
 def _with_keys(
-    trajectories: Sequence[Trajectory], keys: Sequence[str] | None, *, where: str
+    trajectories: Sequence[Trajectory],
+    keys: Sequence[str] | None,
+    *,
+    where: str,
+    unread: Sequence[Skipped] = (),
 ) -> list[Trajectory]:
-    """The trajectories with given keys (`<task>/<episode>` or the episode alone); all when `keys` is empty."""
+    """The trajectories with given keys (`<task>/<episode>` or the episode alone); all when `keys` is empty.
+
+    A key naming an entry the layout did not read (`unread`: a bag with no camera topic) says why."""
     if not keys:
         return list(trajectories)
     chosen = [t for t in trajectories if t.key in keys or t.episode in keys]
     found = {t.key for t in chosen} | {t.episode for t in chosen}
     missing = [k for k in keys if k not in found]
     if missing:
-        raise DataError(f"no trajectory {missing[0]!r} in {where}")
+        why = next((s for s in unread if missing[0] in (s.path.name, s.path.stem)), None)
+        raise DataError(
+            f"no trajectory {missing[0]!r} in {where}"
+            + (f"; {why.path}: {why.reason}" if why is not None else "")
+        )
     return chosen
 
 
@@ -186,6 +196,7 @@ def detect_layout(root: Path) -> str:
     return _layout(root).name
 
 
+@reading()  # a folder or file this user may not read: status 1, naming it
 def load_dataset(
     root: Path,
     *,
@@ -212,7 +223,7 @@ def load_dataset(
         blank = unlabelled_rows(Path(labels))
         skipped = [*skipped, *([blank] if blank is not None else [])]
     labelled = labels is not None or any(t.outcome is not None for t in found)
-    found = _with_keys(found, keys, where=f"{root} ({layout.name} layout)")
+    found = _with_keys(found, keys, where=f"{root} ({layout.name} layout)", unread=skipped)
     return Dataset(
         root=root,
         layout=layout.name,
@@ -223,6 +234,7 @@ def load_dataset(
     )
 
 
+@reading()
 def load_trajectory(
     path: Path,
     *,

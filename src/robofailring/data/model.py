@@ -13,7 +13,7 @@ from typing import Protocol, overload
 import numpy as np
 
 from robofailring.data.images import as_rgb, content_digest, read_image
-from robofailring.errors import DataError
+from robofailring.errors import DataError, read_error
 
 
 class Outcome(StrEnum):
@@ -78,7 +78,7 @@ class Frame:
         try:
             return self.path.read_bytes()
         except OSError as error:
-            raise DataError(f"cannot read image {self.path}: {error.strerror or error}") from error
+            raise read_error(f"cannot read image {self.path}: {error.strerror or error}", error) from error
 
     def content_key(self) -> str:
         """A digest of the image content (file bytes, array shape and bytes, or the video frame's key)."""

@@ -317,6 +317,7 @@ class FailureDetector(RuleThresholds):
             success_ids={v: on_frames(i, -1) for v, i in found.success_ids.items()},
             in_memory=own is not None,
             bands=dict(self.bands),
+            source=trajectory.source,
         )
 
     def threshold_at(self, rule: ScoringRule, t: int) -> float:

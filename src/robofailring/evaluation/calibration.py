@@ -77,12 +77,14 @@ def success_scores(
     progress: Callable[[int], None] | None = None,
     stride: int = 1,
     too_short: list[str] | None = None,
+    short_views: list[Skipped] | None = None,
 ) -> dict[ScoringRule, list[np.ndarray]]:
     """Per rule, each success run's per-frame score (max over views, uncorrected; NaN where unscored),
     its episode left out of both memories.
 
     `stride` scores every N-th frame, as the runs the threshold will judge are scored; the keys of
-    runs with no view of 2+ frames (nothing to score) are appended to `too_short`."""
+    runs with no view of 2+ frames (nothing to score) are appended to `too_short`, the views of fewer
+    than 2 frames of the runs scored to `short_views`."""
     scores: dict[ScoringRule, list[np.ndarray]] = {rule: [] for rule in rules}
     for trajectory in successes:
         try:
@@ -93,6 +95,8 @@ def success_scores(
         else:
             for rule in rules:
                 scores[rule].append(trace.raw_max_score(rule))
+            if short_views is not None:
+                short_views += trace.short_views
         if progress is not None:
             progress(1)
     return scores
@@ -125,6 +129,7 @@ def calibrate_rules(
     progress: Callable[[int], None] | None = None,
     stride: int = 1,
     too_short: list[str] | None = None,
+    short_views: list[Skipped] | None = None,
     band: str = DEFAULT_BAND,
     at_best: bool = False,
 ) -> dict[ScoringRule, RuleCalibration]:
@@ -138,7 +143,13 @@ def calibrate_rules(
     check_band(band)
     chosen = list(rules) if rules is not None else available_rules(detector)
     scores = success_scores(
-        detector, successes, chosen, progress=progress, stride=stride, too_short=too_short
+        detector,
+        successes,
+        chosen,
+        progress=progress,
+        stride=stride,
+        too_short=too_short,
+        short_views=short_views,
     )
     calibrations = {}
     for rule, runs in scores.items():
@@ -269,6 +280,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
             f"no success trajectories of the memory's tasks in {config.data} (split {config.split!r})"
         )
     too_short: list[str] = []
+    short_views: list[Skipped] = []  # listed with what was not read: status 3, as in every verb
     with progress_bar(total=len(successes), desc="calibrating", unit="traj") as bar:
 
         def advance(count: int) -> None:
@@ -283,6 +295,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
             progress=advance,
             stride=config.stride,
             too_short=too_short,
+            short_views=short_views,
             band=config.band,
         )
     paper, contrast, novelty = found.get(PAPER), found.get(CONTRAST), found.get(NOVELTY)
@@ -317,7 +330,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
         achieved_fpr=stored.achieved_fpr,
         successes=stored.successes or 0,
         encoder=memory.encoder,
-        skipped_inputs=skipped_inputs,
+        skipped_inputs=[*skipped_inputs, *short_views],
         gamma=stored.gamma,
         gamma_achieved_fpr=stored.gamma_achieved_fpr,
         skipped_too_short=too_short,

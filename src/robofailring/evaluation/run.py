@@ -120,7 +120,7 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
         skipped_unknown_task=skipped,
         latency_ms=measure_latency(detector, first),
         skipped_too_short=too_short,
-        skipped_inputs=splits.skipped,
+        skipped_inputs=[*splits.skipped, *(view for trace in traces.values() for view in trace.short_views)],
         stride=config.stride,
         vocabulary=memory.vocabulary,
         failure_frames=memory.manifest.failure_mode,

@@ -95,7 +95,7 @@ class DetectResult:
 
     @property
     def notes(self) -> list[str]:
-        """Warnings and notes for stderr: a self-match, a failed VLM call, frames left unscored, views skipped."""
+        """Warnings and notes for stderr: a self-match, a failed VLM call, frames left unscored."""
         trace, notes = self.trace, []
         if trace.in_memory:
             notes.append(self_match_warning([f"{trace.task}/{trace.episode}"]))
@@ -106,9 +106,7 @@ class DetectResult:
                 f"note: view {view} has {trace.length + count} frames; the last {count} are not scored "
                 f"(views are scored in step up to the shortest one, L = {trace.length})"
             )
-        if trace.skipped_views:
-            notes.append(f"note: views with fewer than 2 frames skipped: {', '.join(trace.skipped_views)}")
-        return notes
+        return notes  # views skipped for fewer than 2 frames: listed with what was not read
 
     def to_dict(self) -> dict[str, Any]:
         """The full trace, the report (None without a detection) and, when a VLM was given, its answer."""
