@@ -136,6 +136,8 @@ def describe(error: BaseException) -> str:
         where += f" -> {error.filename2}"
     if error.errno == errno.ENOSPC:
         return f"no space left on the device while writing{where}; free some space and run again"
-    if error.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
+    if error.errno == errno.EROFS:
         return f"cannot write{where}: {error.strerror.lower()}; choose a folder you can write to"
+    if error.errno in (errno.EACCES, errno.EPERM):  # reading or writing: the error does not say which
+        return f"no permission to use{where}; give this user access to it, or choose another path"
     return f"{error.strerror}:{where}" if where else error.strerror

@@ -130,3 +130,14 @@ def test_a_frame_or_folder_of_mode_000_is_status_1_naming_it(unprivileged: Path,
         error
     )  # was "cannot write …/metadata.yaml"
     assert not (work / "again").exists()
+
+
+def test_a_permission_error_that_says_neither_read_nor_write_is_worded_as_neither() -> None:
+    """describe() words an EACCES as it is: the error does not say whether a read or a write failed."""
+    import errno as codes
+
+    from robofailring.errors import describe
+
+    said = describe(PermissionError(codes.EACCES, "Permission denied", "/data/run_1"))
+    assert said == "no permission to use /data/run_1; give this user access to it, or choose another path"
+    assert describe(OSError(codes.EROFS, "Read-only file system", "/ro")).startswith("cannot write /ro")
