@@ -15,26 +15,13 @@ from typing import TYPE_CHECKING, Any, Final
 import faiss
 import numpy as np
 
-from robofailring.atomic import (
-    FolderState,
-    atomic_directory,
-    folder_state,
-    output_lock,
-    restore_interrupted,
-    write_text_atomic,
-)
+from robofailring.atomic import atomic_directory, output_lock, restore_interrupted, write_text_atomic
 from robofailring.data.grounding import Vocabulary
 from robofailring.data.model import Trajectory
 from robofailring.data.vocabulary import read_vocabulary
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.encoders.spec import EncoderSpec
-from robofailring.errors import (
-    EncoderMismatchError,
-    MemoryFormatError,
-    OutputBusyError,
-    UnknownTaskError,
-    VocabularyError,
-)
+from robofailring.errors import EncoderMismatchError, MemoryFormatError, UnknownTaskError, VocabularyError
 from robofailring.memory.encoding import BuildStats, encode_failures, failure_views
 from robofailring.memory.entry import MemoryEntry, Neighbor
 from robofailring.memory.format import parse_entry, read_jsonl
@@ -47,6 +34,7 @@ from robofailring.memory.references import (
     stored_resolver,
     to_stored,
 )
+from robofailring.memory.version import ReadFrom, read_whole, refuse_stale, require_read_from
 from robofailring.outputs import check_memory_target
 
 if TYPE_CHECKING:
@@ -91,7 +79,7 @@ class FailureMemory:
         self.successes = successes  # success runs for the contrast rule (robofailring.memory.success)
         # the folder this memory (or the one it was derived from) was read from, and that folder's
         # version then: writing back over it is refused once another process has replaced it
-        self.read_from: tuple[Path, FolderState] | None = None
+        self.read_from: ReadFrom | None = None
         self.index = TaskIndexSet.build(  # exact search: a failure memory is small (docs/scale.md)
             vectors, [e.task for e in self.entries], [e.episode for e in self.entries], kind=FLAT
         )
@@ -235,7 +223,7 @@ class FailureMemory:
         if root is not None:
             manifest = replace(manifest, data_root=str(root))
         with atomic_directory(directory) as tmp:
-            self._refuse_stale(directory)
+            refuse_stale(self.read_from, directory)
             index = faiss.IndexFlatIP(self.dim)
             if len(self.vectors):
                 index.add(self.vectors)
@@ -293,28 +281,9 @@ class FailureMemory:
         rebuilt or recalibrated it (OutputBusyError then, and nothing is written).
         """
         with output_lock(directory):
-            if self.read_from is None or self.read_from[0] != Path(directory).resolve():
-                raise OutputBusyError(
-                    f"cannot rewrite the manifest of {directory}: this memory was not read from there"
-                )
-            self._refuse_stale(directory)
+            require_read_from(self.read_from, directory)
             write_text_atomic(
                 Path(directory) / MANIFEST, json.dumps(self._full_manifest().to_dict(), indent=2)
-            )
-
-    def _refuse_stale(self, directory: Path) -> None:
-        """OutputBusyError when this memory was read from `directory` and the folder changed since.
-
-        Call holding `output_lock(directory)`: every writer of a memory holds it, so the check and
-        the write that follows it see one version of the folder.
-        """
-        if self.read_from is None or self.read_from[0] != Path(directory).resolve():
-            return
-        if folder_state(directory) != self.read_from[1]:
-            raise OutputBusyError(
-                f"the memory at {directory} changed after this process read it (another robofailring "
-                "process rebuilt, grew or calibrated it); nothing was written: run this command again "
-                "on the memory as it is now"
             )
 
     def derived_from(self, other: FailureMemory) -> FailureMemory:
@@ -329,22 +298,9 @@ class FailureMemory:
         A memory replaced by another process while it is read is read again (three tries), so the
         result is always one version of the folder, which it remembers (`read_from`).
         """
-        directory = Path(directory)
-        for _ in range(3):
-            before = folder_state(directory)
-            try:
-                memory = cls._read(directory, data_root=data_root)
-            except MemoryFormatError:
-                if folder_state(directory) == before:
-                    raise
-                continue  # it changed while being read: read the new version
-            if before and folder_state(directory) == before:
-                memory.read_from = (directory.resolve(), before)
-                return memory
-        raise OutputBusyError(
-            f"{directory} changed on each of three reads: another robofailring process is writing it; "
-            "try again when it is done"
-        )
+        memory, read_from = read_whole(Path(directory), lambda folder: cls._read(folder, data_root=data_root))
+        memory.read_from = read_from
+        return memory
 
     @classmethod
     def _read(cls, directory: Path, *, data_root: Path | None) -> FailureMemory:
