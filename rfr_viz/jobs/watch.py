@@ -85,7 +85,7 @@ def watch(config: WatchConfig) -> WatchResult:
     if not used:
         raise DataError(f"episode {config.episode} has no view with at least 2 frames")
     length = min(len(frames) for frames in used.values())  # views in step, as a replay scores them
-    fps = float(config.fps or trajectory.fps or DEFAULT_FPS)
+    fps = float(config.fps or trajectory.frame_rate or DEFAULT_FPS)
     with LiveRecording.open(
         loaded.detector,
         trajectory.task,

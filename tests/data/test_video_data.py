@@ -25,6 +25,7 @@ from robofailring import (
     load_trajectory,
 )
 from robofailring.data.images import read_image
+from robofailring.data.model import LazyFrames
 from robofailring.data.video import open_video
 from robofailring.errors import DataError
 
@@ -265,3 +266,45 @@ def test_video_episodes_take_their_task_from_the_labels(tmp_path: Path) -> None:
     assert not untold.labelled and [t.outcome for t in untold] == [None] * 3
     with pytest.raises(DataError, match=r"build-memory needs to know which episodes failed.*--labels"):
         untold.require_labels("build-memory")
+
+
+def test_video_episodes_take_their_frame_rate_from_the_container(tmp_path: Path) -> None:
+    """A clip's rate is the recording's `time` and the seconds of a detection delay (it was None: 10 fps)."""
+    root = tmp_path / "clips"
+    for episode, fps in enumerate((6, 25)):
+        encode_video(
+            root / f"clip_{episode}" / "front.mp4", [scene(episode, 0, t) for t in range(8)], fps, "h264"
+        )
+    labels = tmp_path / "labels.csv"
+    labels.write_text(
+        "episode,outcome,symbol,task,onset_frame\nclip_0,failure,,pick_cube,2\nclip_1,success,,pick_cube,\n"
+    )
+    dataset = load_dataset(root, labels=labels)
+    assert [(t.episode, t.frame_rate) for t in dataset] == [("clip_0", 6.0), ("clip_1", 25.0)]
+    assert load_trajectory(root / "clip_1", task="pick_cube").frame_rate == 25.0
+    assert open_video(root / "clip_0" / "front.mp4").fps == 6.0
+    # one frame has no rate: None (the recording's default), not a division by zero
+    encode_video(tmp_path / "still" / "front.mp4", [scene(0, 0, 0)], 6, "h264")
+    assert load_trajectory(tmp_path / "still", task="pick_cube").frame_rate is None
+    # a layout's own rate wins (LeRobot's info.json): its views are frames picked by time, without one
+    (lerobot,) = load_dataset(
+        write_lerobot_v3(tmp_path / "lerobot", lengths=(4,), tasks=("a",), cameras=("front",))
+    )
+    front = lerobot.views["front"]
+    assert isinstance(front, LazyFrames) and front.fps is None
+    assert (lerobot.fps, lerobot.frame_rate) == (10.0, 10.0)
+    runner = CliRunner()
+    cache = ["--cache-dir", str(tmp_path / "cache")]
+    memory = tmp_path / "memory"
+    built = runner.invoke(
+        app, ["build-memory", str(root), "--labels", str(labels), "--out", str(memory), *cache]
+    )
+    assert built.exit_code == 0, built.output
+    out = tmp_path / "recordings"
+    replayed = runner.invoke(
+        app,
+        ["replay", str(root), "--memory", str(memory), "--labels", str(labels), "--out", str(out), *cache],
+    )
+    assert replayed.exit_code == 0, replayed.output
+    rates = {properties(r)["episode"]: properties(r)["fps"] for r in out.glob("*.rrd")}
+    assert rates == {"clip_0": 6.0, "clip_1": 25.0}

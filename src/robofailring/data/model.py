@@ -105,6 +105,11 @@ class LazyFrames(Sequence[Frame]):
     def frame(self, index: int) -> Frame:
         raise NotImplementedError
 
+    @property
+    def fps(self) -> float | None:
+        """The frames' own rate where their source keeps one (a whole video file's container), else None."""
+        return None
+
     @overload
     def __getitem__(self, item: int) -> Frame: ...
     @overload
@@ -153,6 +158,17 @@ class Trajectory:
         """L: the number of synchronised frames (the shortest view bounds it)."""
         counts = [len(frames) for frames in self.views.values()]
         return min(counts) if counts else 0
+
+    @cached_property
+    def frame_rate(self) -> float | None:
+        """Frames per second: the layout's `fps`, else the first view's own (a video file's container), else
+        None. Asked for, not read at load: a video's packets are listed only when its rate is wanted."""
+        if self.fps is not None:
+            return self.fps
+        for frames in self.views.values():
+            if isinstance(frames, LazyFrames) and (rate := frames.fps) is not None:
+                return rate
+        return None
 
     @property
     def view_names(self) -> list[str]:

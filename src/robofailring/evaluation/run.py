@@ -75,7 +75,7 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
                     length=trace.length,
                     similarity=trace.similarity,
                     onset_frame=trajectory.onset_frame,
-                    fps=trajectory.fps,
+                    fps=trajectory.frame_rate,
                 )
             )
     if not scored:
