@@ -103,6 +103,21 @@ class CrossValidation:
             level <= self.target_fpr + 1e-12 for pooled in self.rules.values() for level in pooled.levels
         )
 
+    def _short_folds(self) -> int:
+        """Folds that judged some rule above the asked α (too few success runs among the others)."""
+        return max(
+            (
+                sum(level > self.target_fpr + 1e-12 for level in pooled.levels)
+                for pooled in self.rules.values()
+            ),
+            default=0,
+        )
+
+    @property
+    def plan_folds(self) -> int:
+        """Folds that judged some rule (the most over the rules)."""
+        return max((len(pooled.levels) for pooled in self.rules.values()), default=0)
+
     def to_dict(self) -> dict[str, Any]:
         return {
             "folds": self.plan.to_json(),
@@ -140,8 +155,9 @@ class CrossValidation:
             lines += [
                 "",
                 f"**No false-positive-rate guarantee holds here either:** α = {100 * self.target_fpr:g} % needs "
-                f"{successes_needed(self.target_fpr)} success runs to calibrate on and the folds had fewer, so the "
-                "pooled FPR is what these runs showed at the α used, not a promise.",
+                f"{successes_needed(self.target_fpr)} success runs to calibrate on and some folds had fewer "
+                f"({self._short_folds()} of {self.plan_folds} judged at a larger α), so the pooled FPR is what "
+                "these runs showed at the α used, not a promise.",
             ]
         unjudged = {name: pooled.unjudged for name, pooled in self.rules.items() if pooled.unjudged}
         if unjudged:
