@@ -133,6 +133,7 @@ def test_leave_one_episode_out_pools_every_labelled_run(
     )
     assert "| 12.5–14.3 | 6–7 |" in markdown
     assert "**No false-positive-rate guarantee holds here either:**" in markdown
+    assert "some folds had fewer (" in markdown and " judged at a larger α)" in markdown
 
 
 def test_folds_deal_failures_and_successes_evenly(runs: tuple[Path, Path]) -> None:
