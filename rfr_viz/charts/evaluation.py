@@ -193,7 +193,8 @@ def evaluation_charts(evaluation: Mapping[str, Any]) -> list[Chart]:
     charts = [
         Chart(
             key="roc",
-            title="ROC: FPR → Recall" + (" (both rules)" if len(rules) > 1 else ""),
+            title="ROC: FPR → Recall"
+            + ({1: "", 2: " (both rules)"}.get(len(rules), f" ({len(rules)} rules)")),
             x_label="false-positive rate",
             y_label="recall",
             series=[
