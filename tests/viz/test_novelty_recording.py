@@ -160,7 +160,9 @@ def test_the_replay_shows_n_against_eta_and_the_nearest_success_frame(session: d
     assert "Fired by the novelty rule" in reports[-1][1][0] and "Novelty: N = 1 − S⁺ = " in reports[-1][1][0]
 
     info = runner.invoke(app, ["memory-info", str(session["memory"])])
-    assert info.exit_code == 0 and "η = " in info.output and "entries     0 × " in info.output
+    assert (
+        info.exit_code == 0 and "calibrated: novelty 0." in info.output and "entries     0 × " in info.output
+    )
 
 
 def test_live_streams_n_against_eta_and_says_there_is_no_failure_neighbour(
