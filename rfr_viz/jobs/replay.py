@@ -6,7 +6,7 @@ import hashlib
 import logging
 import math
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -202,7 +202,7 @@ class LoadedDetector:
 def load_detector(
     memory_dir: Path,
     *,
-    delta: float | None,
+    delta: float | None = None,
     k: int,
     encoder: str | None,
     cache_dir: Path | None,
@@ -211,11 +211,13 @@ def load_detector(
     score: str | None = None,
     gamma: float | None = None,
     eta: float | None = None,
+    thresholds: Mapping[str, float] | None = None,
 ) -> LoadedDetector:
     detector = open_detector(
         memory_dir,
         device=device,
         rule=score,
+        thresholds=thresholds,
         delta=delta,
         gamma=gamma,
         eta=eta,

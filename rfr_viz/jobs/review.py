@@ -110,12 +110,9 @@ def _replay_keys(
     result = ReplayResult()
     if not keys:
         return result
-    delta, gamma, eta = _thresholds(rule, threshold)
     loaded = load_detector(
         memory_dir,
-        delta=delta,
-        gamma=gamma,
-        eta=eta,
+        thresholds={rule.name: threshold},
         score=rule.name,
         k=k,
         encoder=None,
@@ -200,13 +197,10 @@ def write_review_labels(config: ReviewConfig) -> ReviewLabels:
     check_writable(path.absolute().parent)
     with output_lock(path):
         merge_label_rows(path, [], LABEL_COLUMNS)  # refuse a file that is not a labels CSV before any work
-        delta, gamma, eta = _thresholds(reviewed.rule, reviewed.threshold)
         detector = open_detector(
             reviewed.memory_dir,
             rule=reviewed.rule,
-            delta=delta,
-            gamma=gamma,
-            eta=eta,
+            thresholds={reviewed.rule.name: reviewed.threshold},
             k=reviewed.k,
             device=config.device,
             cache_dir=config.cache_dir,
@@ -253,12 +247,3 @@ def _label_row(trace: DetectionTrace, *, kind: str) -> dict[str, str]:
         "symbol": "",
         "description": "",
     }
-
-
-def _thresholds(rule: ScoringRule, threshold: float) -> tuple[float | None, float | None, float | None]:
-    """(δ, γ, η) for reviewing `rule` at `threshold` (None: the memory's own)."""
-    return (
-        threshold if rule.threshold_key == PAPER.threshold_key else None,
-        threshold if rule.threshold_key == CONTRAST.threshold_key else None,
-        threshold if rule.threshold_key == NOVELTY.threshold_key else None,
-    )

@@ -56,7 +56,7 @@ def test_calibrate_says_how_far_the_test_fpr_can_stray_with_its_runs(
     assert "with 4 calibration runs the test FPR at α = 20 % lies in 1.3–52.7 %" in result.output
     assert "mean 20.0 %" in result.output
     assert "1110 runs would keep the 95 % quantile ≤ 22.0 % (α + 2 points)" in result.output
-    stored = json.loads((memory / "manifest.json").read_text())["calibration"]["fpr_spread"]
+    stored = json.loads((memory / "manifest.json").read_text())["calibration"]["rules"]["paper"]["fpr_spread"]
     assert stored["successes"] == 4 and stored["levels"] == [0.05, 0.95]
     assert stored["low"] == pytest.approx(1 - 0.95**0.25, abs=1e-6)
     assert stored["high"] == pytest.approx(1 - 0.05**0.25, abs=1e-6)

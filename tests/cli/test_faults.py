@@ -107,7 +107,7 @@ def test_rebuilding_says_the_calibrated_delta_is_dropped(cache: list[str], tmp_p
     assert cli("build-memory", project, "--out", memory, "--split", "train", *cache).exit_code == 0
     calibrated = cli("calibrate", project, "--memory", memory, "--target-fpr", "0.5", *cache)
     assert calibrated.exit_code == 0, calibrated.output
-    delta = json.loads((memory / "manifest.json").read_text())["calibration"]["delta"]
+    delta = json.loads((memory / "manifest.json").read_text())["calibration"]["rules"]["paper"]["threshold"]
     rebuilt = cli("build-memory", project, "--out", memory, "--split", "train", *cache)
     assert rebuilt.exit_code == 0, rebuilt.output
     assert f"calibrated δ = {delta:.6f}" in rebuilt.stderr and "robofailring calibrate" in rebuilt.stderr

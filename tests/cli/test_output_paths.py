@@ -10,7 +10,7 @@ from fault_helpers import cli, refused
 
 from robofailring.memory.entry import MemoryEntry
 from robofailring.memory.failure import FailureMemory
-from robofailring.memory.manifest import StoredCalibration
+from robofailring.memory.manifest import StoredCalibration, StoredRule
 
 
 def _memory(count: int) -> FailureMemory:
@@ -32,8 +32,10 @@ def test_a_memory_behind_a_symbolic_link_is_replaced_where_the_link_points(tmp_p
     assert sorted(p.name for p in tmp_path.iterdir()) == ["current", "store"]  # no `.current.*.old` left
     assert sorted(p.name for p in real.parent.iterdir()) == ["memory"]
     loaded = FailureMemory.load(link)  # calibrating through the link writes the manifest at the target
-    loaded.with_calibration(StoredCalibration(delta=0.5, encoder="pixels-32")).write_manifest(link)
-    assert FailureMemory.load(real).calibrated_delta == 0.5 and link.is_symlink()
+    loaded.with_calibration(
+        StoredCalibration(rules={"paper": StoredRule(threshold=0.5)}, encoder="pixels-32")
+    ).write_manifest(link)
+    assert FailureMemory.load(real).calibrated_threshold("paper") == 0.5 and link.is_symlink()
 
 
 def test_a_users_folder_named_like_a_leftover_is_never_removed(tmp_path: Path) -> None:

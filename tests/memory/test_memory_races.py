@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 from robofailring.errors import OutputBusyError
 from robofailring.memory.entry import MemoryEntry
 from robofailring.memory.failure import INDEX, MANIFEST, FailureMemory
-from robofailring.memory.manifest import MemoryManifest, StoredCalibration
+from robofailring.memory.manifest import MemoryManifest, StoredCalibration, StoredRule
 
 
 def _memory(count: int, *, offset: int = 0) -> FailureMemory:
@@ -39,7 +39,9 @@ def _memory(count: int, *, offset: int = 0) -> FailureMemory:
 
 
 def _calibrated(memory: FailureMemory, delta: float) -> FailureMemory:
-    return memory.with_calibration(StoredCalibration(delta=delta, encoder="pixels-32"))
+    return memory.with_calibration(
+        StoredCalibration(rules={"paper": StoredRule(threshold=delta)}, encoder="pixels-32")
+    )
 
 
 def test_a_calibration_read_before_a_rebuild_is_refused_and_the_rebuild_kept(tmp_path: Path) -> None:
@@ -50,7 +52,7 @@ def test_a_calibration_read_before_a_rebuild_is_refused_and_the_rebuild_kept(tmp
     with pytest.raises(OutputBusyError, match="changed after this process read it"):
         _calibrated(read_early, 0.5).write_manifest(folder)
     kept = FailureMemory.load(folder)
-    assert len(kept) == 5 and kept.calibrated_delta is None
+    assert len(kept) == 5 and kept.calibrated_threshold("paper") is None
 
 
 def test_a_grown_memory_is_not_saved_over_a_calibration_written_meanwhile(tmp_path: Path) -> None:
@@ -62,7 +64,7 @@ def test_a_grown_memory_is_not_saved_over_a_calibration_written_meanwhile(tmp_pa
     with pytest.raises(OutputBusyError, match="nothing was written"):
         grown.save(folder)
     kept = FailureMemory.load(folder)
-    assert len(kept) == 3 and kept.calibrated_delta == 0.25
+    assert len(kept) == 3 and kept.calibrated_threshold("paper") == 0.25
     FailureMemory.load(folder).derived_from(kept)  # read afresh, the same growth goes through
     _memory(4).derived_from(FailureMemory.load(folder)).save(folder)
     assert len(FailureMemory.load(folder)) == 4
@@ -75,7 +77,7 @@ def test_a_manifest_is_only_rewritten_in_the_folder_it_was_read_from(tmp_path: P
         _calibrated(FailureMemory.load(tmp_path / "a"), 0.5).write_manifest(tmp_path / "b")
     with pytest.raises(OutputBusyError, match="not read from there"):
         _calibrated(_memory(2), 0.5).write_manifest(tmp_path / "a")  # never read at all
-    assert FailureMemory.load(tmp_path / "b").calibrated_delta is None
+    assert FailureMemory.load(tmp_path / "b").calibrated_threshold("paper") is None
 
 
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -122,7 +124,7 @@ def test_any_interleaving_of_readers_and_writers_leaves_one_whole_version(
             version += 1
         del handles[who]  # a handle writes once; it reads again before its next write
     kept = FailureMemory.load(folder)
-    assert len(kept) == size and kept.calibrated_delta == delta
+    assert len(kept) == size and kept.calibrated_threshold("paper") == delta
 
 
 _CALIBRATE_LOOP = """
@@ -131,13 +133,13 @@ import time
 from pathlib import Path
 from robofailring.errors import OutputBusyError
 from robofailring.memory.failure import FailureMemory
-from robofailring.memory.manifest import StoredCalibration
+from robofailring.memory.manifest import StoredCalibration, StoredRule
 folder, written, refused = Path(sys.argv[1]), 0, 0
 for i in range(int(sys.argv[2])):
     try:
         memory = FailureMemory.load(folder)
         time.sleep(0.02)  # calibrating: the window in which another process replaces the folder
-        memory.with_calibration(StoredCalibration(delta=i / 1000, encoder="pixels-32")).write_manifest(folder)
+        memory.with_calibration(StoredCalibration(rules={"paper": StoredRule(threshold=i / 1000)}, encoder="pixels-32")).write_manifest(folder)
         written += 1
     except OutputBusyError:
         refused += 1

@@ -15,13 +15,17 @@ from robofailring.detection.retrieved import Retrieved
 from robofailring.detection.rules import (
     CONTRAST,
     NOVELTY,
-    RULES,
     RuleThresholds,
     ScoringRule,
     default_rule,
     rule_named,
 )
-from robofailring.detection.stored import stored_bands, stored_thresholds, uncalibrated_notes
+from robofailring.detection.stored import (
+    given_thresholds,
+    stored_bands,
+    stored_thresholds,
+    uncalibrated_notes,
+)
 from robofailring.detection.trace import DetectionTrace, StepResult
 from robofailring.detection.view_scores import ViewScores
 from robofailring.encoders.base import Encoder, l2_normalize
@@ -75,8 +79,9 @@ class FailureDetector(RuleThresholds):
 
     It judges by one scoring rule (`robofailring.detection.rules`) at that rule's threshold: the
     one given for every task, else each task's default (`rule_for`: contrast with success and
-    failure runs, novelty with success runs only, paper with failures only). The thresholds of
-    every rule come from `delta`/`gamma`/`eta` when given, else the memory's stored calibration,
+    failure runs, novelty with success runs only, paper with failures only). The threshold of
+    every registered rule comes from `thresholds` (by rule name; `delta`/`gamma`/`eta` are the
+    paper, contrast and novelty rules' there) when given, else the memory's stored calibration,
     else the rule's default. A stored threshold comes with its time-indexed band when it was calibrated
     with one (`robofailring.detection.band`); `bands` replaces those (e.g. thresholds calibrated in
     process by the evaluation). A threshold given here is one number, without a band.
@@ -87,6 +92,7 @@ class FailureDetector(RuleThresholds):
         memory: FailureMemory,
         encoder: Encoder | CachedEncoder,
         *,
+        thresholds: Mapping[str, float] | None = None,
         delta: float | None = None,
         k: int = DEFAULT_K,
         rule: ScoringRule | str | None = None,
@@ -96,16 +102,12 @@ class FailureDetector(RuleThresholds):
     ) -> None:
         memory.check_encoder(encoder.identity)
         check_k(k)
-        given = {"delta": delta, "gamma": gamma, "eta": eta}
+        given = given_thresholds(thresholds, delta=delta, gamma=gamma, eta=eta)
         self.thresholds = stored_thresholds(memory, given)
         self.bands: dict[str, Band] = (  # per rule name: the band its threshold applies to
             dict(bands)
             if bands is not None
-            else {
-                name: band
-                for name, band in stored_bands(memory).items()
-                if name in RULES and given[RULES[name].threshold_key] is None
-            }
+            else {name: band for name, band in stored_bands(memory).items() if name not in given}
         )
         self.chosen_rule = rule_named(rule) if rule is not None else None  # None: each task's default
         self.memory = memory

@@ -255,7 +255,7 @@ class DetectionTrace(RuleThresholds):
             "delta": self.delta,
             "score": self.rule.name,
             "threshold": self.threshold,
-            "thresholds": {rule.threshold_key: self.threshold_of(rule) for rule in RULES.values()},
+            "thresholds": {rule.name: self.threshold_of(rule) for rule in RULES.values()},  # by rule name
             "failure_entries": self.memory.task_size(self.task),
             "k": self.k,
             "encoder": self.encoder,

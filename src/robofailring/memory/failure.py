@@ -357,24 +357,10 @@ class FailureMemory:
         return check_references(ref for entry in self.entries for ref in (entry.start, entry.end))
 
     # ---------------------------------------------------------------- calibration
-    @property
-    def calibrated_delta(self) -> float | None:
-        """δ (paper rule) stored by calibration for this memory's encoder, if any."""
-        return self._calibrated("delta")
-
-    @property
-    def calibrated_gamma(self) -> float | None:
-        """γ (contrast rule) stored by calibration for this memory's encoder, if any."""
-        return self._calibrated("gamma")
-
-    @property
-    def calibrated_eta(self) -> float | None:
-        """η (novelty rule) stored by calibration for this memory's encoder, if any."""
-        return self._calibrated("eta")
-
-    def _calibrated(self, key: str) -> float | None:
+    def calibrated_threshold(self, rule: str) -> float | None:
+        """The threshold calibration stored for the rule named `rule` with this memory's encoder, if any."""
         calibration = self.manifest.calibration
-        return calibration.threshold_for(self.encoder, key) if calibration is not None else None
+        return calibration.threshold_for(self.encoder, rule) if calibration is not None else None
 
 
 def _stored_vocabulary(directory: Path, manifest: MemoryManifest) -> Vocabulary | None:
