@@ -19,7 +19,7 @@ from robofailring.detection.rules import RULES, ScoringRule
 from robofailring.encoders import CachedEncoder
 from robofailring.errors import DataError
 from robofailring.evaluation.calibration import RuleCalibration, available_rules, calibrate_rules
-from robofailring.evaluation.metrics import ScoredTrajectory, json_number, rates
+from robofailring.evaluation.metrics import ConfusionRates, ScoredTrajectory, json_number, rates
 from robofailring.evaluation.per_rule import auc_cell, pct, peaks
 from robofailring.evaluation.training import EvaluateConfig, FoldPlan
 from robofailring.memory.builder import Provenance, build_memories
@@ -27,7 +27,7 @@ from robofailring.progress import progress_bar
 
 
 @dataclass
-class PooledRule:
+class PooledRule(ConfusionRates):
     """One rule's counts and peak scores over every fold that could calibrate it."""
 
     rule: ScoringRule
@@ -44,14 +44,6 @@ class PooledRule:
     @property
     def judged(self) -> int:
         return self.tp + self.fn + self.fp + self.tn
-
-    @property
-    def recall(self) -> float:
-        return self.tp / (self.tp + self.fn) if self.tp + self.fn else float("nan")
-
-    @property
-    def fpr(self) -> float:
-        return self.fp / (self.fp + self.tn) if self.fp + self.tn else float("nan")
 
     @property
     def auc(self) -> float:

@@ -11,12 +11,12 @@ from typing import Any
 from robofailring.detection.conformal import AUC_LEVEL, FprSpread, auc, auc_interval, successes_needed
 from robofailring.detection.detector import DetectionTrace
 from robofailring.detection.rules import ScoringRule
-from robofailring.evaluation.metrics import ScoredTrajectory, json_number, rates, timeliness
+from robofailring.evaluation.metrics import ConfusionRates, ScoredTrajectory, json_number, rates, timeliness
 from robofailring.evaluation.onset import ONSET_HEADER, OnsetDelay, onset_delay
 
 
 @dataclass(frozen=True)
-class RuleResult:
+class RuleResult(ConfusionRates):
     """One rule at one threshold over the test set."""
 
     rule: ScoringRule
@@ -40,14 +40,6 @@ class RuleResult:
     auc_interval: tuple[float, float] | None = (
         None  # AUC's bootstrap interval (AUC_LEVEL); None without both kinds
     )
-
-    @property
-    def recall(self) -> float:
-        return self.tp / (self.tp + self.fn) if self.tp + self.fn else float("nan")
-
-    @property
-    def fpr(self) -> float:
-        return self.fp / (self.fp + self.tn) if self.fp + self.tn else float("nan")
 
     def to_dict(self) -> dict[str, Any]:
         return {
