@@ -13,8 +13,6 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING
 
-from rfr_viz import _moved as _moved  # old module paths, deprecated (one release)
-
 if TYPE_CHECKING:
     from rfr_viz.jobs.replay import CompareConfig, ReplayConfig, ReplayResult, compare, replay
     from rfr_viz.jobs.review import ReviewConfig, review

@@ -69,3 +69,39 @@ def killed(script: str, memory: Path, *args: object) -> None:
     command = [sys.executable, "-c", script, str(memory), *map(str, args)]
     env = {**os.environ, "ROBOFAILRING_PROGRESS": "0"}
     assert subprocess.run(command, capture_output=True, env=env, check=False).returncode == 137
+
+
+# ---------------------------------------------------------------- Ctrl-C, while loading or while writing
+
+SIGINT_WHILE_LOADING = """
+import importlib.abc, os, signal, sys
+class CtrlC(importlib.abc.MetaPathFinder):  # a Ctrl-C as the command starts loading numpy (its first half second)
+    def find_spec(self, name, path=None, target=None):
+        if name == "numpy":
+            sys.meta_path.remove(self)
+            os.kill(os.getpid(), signal.SIGINT)
+        return None
+sys.meta_path.insert(0, CtrlC())
+sys.argv[1:] = sys.argv[2:]
+from rfr_viz.cli.app import main  # what the console script runs
+sys.exit(main())
+"""
+
+SIGINT_WHILE_WRITING = """
+import os, signal, sys
+import faiss
+real = faiss.write_index
+def ctrl_c(*args):  # a Ctrl-C with the new memory half-written beside the old one
+    os.kill(os.getpid(), signal.SIGINT)
+    real(*args)
+faiss.write_index = ctrl_c
+sys.argv[1:] = sys.argv[2:]
+from rfr_viz.cli.app import main
+sys.exit(main())
+"""
+
+
+def interrupted(script: str, *args: object) -> subprocess.CompletedProcess[str]:
+    command = [sys.executable, "-c", script, "-", *map(str, args)]
+    env = {**os.environ, "ROBOFAILRING_PROGRESS": "0"}
+    return subprocess.run(command, capture_output=True, text=True, env=env, check=False)

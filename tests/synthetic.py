@@ -149,3 +149,43 @@ def repeated_failure_memory(
         successes=successes,
     )
     return memory, load_trajectory(episode)
+
+
+def write_labelled_runs(
+    root: Path,
+    *,
+    runs: int = 14,
+    task: str = "pick_cube",
+    length: int = 8,
+    views: tuple[str, ...] = ("front", "wrist"),
+) -> tuple[Path, Path]:
+    """`runs` image episodes `run_<i>` (`<view>_<t>.png`) whose names say neither task nor outcome, every
+    other one a failure (`grasp_wp2`, `slip_wp3` in turn), and a labels CSV with a `task` column beside
+    `root`: what a user with a handful of labelled rollouts has. Returns (root, labels file)."""
+    import csv
+
+    rows = []
+    for run in range(runs):
+        symbol = ("grasp_wp2", "slip_wp3")[run // 2 % 2] if run % 2 else None
+        folder = root / f"run_{run:02d}"
+        folder.mkdir(parents=True, exist_ok=True)
+        for v, view in enumerate(views):
+            for t in range(length):
+                write_png(
+                    folder / f"{view}_{t}.png",
+                    synthetic_frame(task, symbol, v, t + run % 3, length + run % 3),
+                )
+        rows.append(
+            {
+                "episode": folder.name,
+                "outcome": "failure" if symbol else "success",
+                "symbol": symbol or "",
+                "task": task,
+            }
+        )
+    labels = root.parent / f"{root.name}-labels.csv"
+    with labels.open("w", newline="", encoding="utf-8") as file:
+        writer = csv.DictWriter(file, fieldnames=["episode", "outcome", "symbol", "task"])
+        writer.writeheader()
+        writer.writerows(rows)
+    return root, labels

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Final
 
 Colour = tuple[int, int, int]
@@ -152,13 +152,49 @@ def _fifths(counts: Sequence[int]) -> list[int]:
     return [sum(c for b, c in enumerate(counts) if min(5 * b // bins, 4) == fifth) for fifth in range(5)]
 
 
+MARK_SPACING: Final[float] = 0.06  # of the plot's unit square: closer marks of one colour share one label
+
+
+LABEL_CHAR_WIDTH: Final[float] = 0.028  # one character of a name, of a chart's width at 1280×720 (measured)
+
+
+def label_rows(categories: Sequence[str]) -> int:
+    """Rows a bar chart's category names are staggered over (both renderers), 1 to 3: enough that
+    names in one row, that many groups apart, do not overlap at 1280×720."""
+    longest = max((len(name) for name in categories), default=0)
+    return min(3, max(1, math.ceil(longest * LABEL_CHAR_WIDTH * len(categories))))
+
+
+def marks_apart(marks: list[Mark]) -> list[Mark]:
+    """The marks with those of one colour that land within MARK_SPACING of an earlier one joined into
+    it (`δ=0.92, 0.95`), so no two labels are drawn over each other (two thresholds with one ROC point)."""
+    kept: list[Mark] = []
+    for mark in marks:
+        near = next(
+            (
+                i
+                for i, other in enumerate(kept)
+                if other.colour == mark.colour
+                and math.hypot(other.x - mark.x, other.y - mark.y) < MARK_SPACING
+            ),
+            None,
+        )
+        if near is None:
+            kept.append(mark)
+        else:
+            other = kept[near]
+            kept[near] = replace(other, label=f"{other.label}, {mark.label.split('=', 1)[-1]}")
+    return kept
+
+
 def evaluation_charts(evaluation: Mapping[str, Any]) -> list[Chart]:
     """ROC, Recall/FPR sweeps, recall per failure type and per view, detection-progress histogram."""
     rules = rules_of(evaluation)
     charts = [
         Chart(
             key="roc",
-            title="ROC: FPR → Recall" + (" (both rules)" if len(rules) > 1 else ""),
+            title="ROC: FPR → Recall"
+            + ({1: "", 2: " (both rules)"}.get(len(rules), f" ({len(rules)} rules)")),
             x_label="false-positive rate",
             y_label="recall",
             series=[
@@ -170,12 +206,14 @@ def evaluation_charts(evaluation: Mapping[str, Any]) -> list[Chart]:
                 )
                 for i, r in enumerate(rules)
             ],
-            marks=[
-                Mark(fpr, recall, f"{r.symbol}={t:.2f}", RULE_COLOURS[i % len(RULE_COLOURS)])
-                for i, r in enumerate(rules)
-                for t, recall, fpr in r.marked
-                if not (math.isnan(recall) or math.isnan(fpr))
-            ],
+            marks=marks_apart(
+                [
+                    Mark(fpr, recall, f"{r.symbol}={t:.2f}", RULE_COLOURS[i % len(RULE_COLOURS)])
+                    for i, r in enumerate(rules)
+                    for t, recall, fpr in r.marked
+                    if not (math.isnan(recall) or math.isnan(fpr))
+                ]
+            ),
         )
     ]
     for i, rule in enumerate(rules):

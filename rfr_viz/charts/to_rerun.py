@@ -13,7 +13,7 @@ from typing import Final
 
 import numpy as np
 
-from rfr_viz.charts.evaluation import Chart, Colour
+from rfr_viz.charts.evaluation import LABEL_CHAR_WIDTH, Chart, Colour, label_rows
 from robofailring.extras import needs_extra
 
 with needs_extra("viz"):
@@ -22,7 +22,7 @@ with needs_extra("viz"):
 
 AXIS_COLOUR: Final[Colour] = (120, 120, 120)
 TEXT_COLOUR: Final[Colour] = (210, 210, 210)
-BOUNDS: Final[rrb.VisualBounds2D] = rrb.VisualBounds2D(x_range=[-0.16, 1.06], y_range=[-1.24, 0.24])
+BOUNDS: Final[rrb.VisualBounds2D] = rrb.VisualBounds2D(x_range=[-0.16, 1.06], y_range=[-1.34, 0.24])
 BAR_LINES: Final[int] = 24  # vertical lines that fill one bar
 
 
@@ -81,11 +81,14 @@ def _frame(rec: rr.RecordingStream, origin: str, chart: Chart) -> None:
         [AXIS_COLOUR] * len(ticks),
     )
     if chart.x_label:  # the y axis is named in the title
-        _labels(rec, f"{origin}/axis_name", [(0.5, 0.14)], [chart.x_label], [TEXT_COLOUR])
+        below = 0.08 + 0.06 * label_rows(chart.categories) if chart.is_bars else 0.14  # under the names
+        _labels(rec, f"{origin}/axis_name", [(0.5, min(below, 0.2))], [chart.x_label], [TEXT_COLOUR])
     _labels(
         rec,
         f"{origin}/legend",
-        [(0.02 + 0.5 * (i % 2), -1.18 + 0.06 * (i // 2)) for i in range(len(chart.series))],
+        [
+            (0.02 + 0.5 * (i % 2), -1.3 + 0.06 * (i // 2)) for i in range(len(chart.series))
+        ],  # above the values
         [s.name for s in chart.series],
         [s.colour for s in chart.series],
     )
@@ -94,6 +97,7 @@ def _frame(rec: rr.RecordingStream, origin: str, chart: Chart) -> None:
 def _bars(rec: rr.RecordingStream, origin: str, chart: Chart) -> None:
     groups, per_group = len(chart.categories), max(len(chart.series), 1)
     width = 0.8 / max(groups, 1) / per_group
+    crowded = width < 4 * LABEL_CHAR_WIDTH  # "100%" is wider than one bar
     strips, radii, colours, tops, texts = [], [], [], [], []
     for g in range(groups):
         for s, series in enumerate(chart.series):
@@ -105,7 +109,8 @@ def _bars(rec: rr.RecordingStream, origin: str, chart: Chart) -> None:
                     strips.append([[float(x), 0.0], [float(x), -height]])
                     radii.append(0.6 * width / BAR_LINES)
                     colours.append(series.colour)
-            tops.append((centre, -height - 0.09))  # a label sits just below its point
+            # a label sits just below its point; the series of crowded bars take their own levels
+            tops.append((centre, -height - 0.09 - (0.05 * (s % 3) if crowded else 0.0)))
             texts.append(_value_text(chart, value))
     if strips:
         rec.log(f"{origin}/bars", rr.LineStrips2D(strips, radii=radii, colors=colours), static=True)
@@ -119,7 +124,7 @@ def _bars(rec: rr.RecordingStream, origin: str, chart: Chart) -> None:
     _labels(
         rec,
         f"{origin}/categories",
-        [((g + 0.5) / groups, 0.06 + (0.06 if groups > 5 and g % 2 else 0.0)) for g in range(groups)],
+        [((g + 0.5) / groups, 0.06 + 0.06 * (g % label_rows(chart.categories))) for g in range(groups)],
         chart.categories,
         [TEXT_COLOUR] * groups,
     )

@@ -7,7 +7,7 @@ from collections.abc import Callable
 from html import escape
 from typing import Final
 
-from rfr_viz.charts.evaluation import Chart, Colour
+from rfr_viz.charts.evaluation import Chart, Colour, label_rows
 
 WIDTH: Final[int] = 460
 HEIGHT: Final[int] = 300
@@ -71,9 +71,11 @@ def _bars(chart: Chart, plot_w: int, plot_h: int, y_of: Callable[[float], float]
     group_w = plot_w / max(groups, 1)
     bar_w = 0.8 * group_w / per_group
     parts = []
-    stagger = groups > 5  # many names: every other one a line lower, so that they do not overlap
+    rows = label_rows(
+        chart.categories
+    )  # many names: staggered a line lower each, so that they do not overlap
     for g, category in enumerate(chart.categories):
-        below = 15 + (12 if stagger and g % 2 else 0)
+        below = 15 + 12 * (g % rows)
         parts.append(_text(LEFT + (g + 0.5) * group_w, TOP + plot_h + below, category, size=10))
         for s, series in enumerate(chart.series):
             value = series.values[g] if g < len(series.values) else math.nan

@@ -3,17 +3,39 @@
 Each group of verbs is its own typer app (typer's "one file per command"); nobody registers verbs on
 another module's app. Options shared by several verbs are declared once, in
 `robofailring.cli.options`. Errors become one sentence and an exit status (`robofailring.cli.exit_codes`).
+
+Loading the verbs (numpy, OpenCV, Faiss, typer) takes most of a second and happens here, the first
+of the command's own code to run (`import robofailring` and `import rfr_viz` load none of it): a
+Ctrl-C meanwhile ends as one while a verb runs does, one `error:` line and status 130.
+
+The command speaks for itself: its own warnings (the `robofailring` logger, `warning: …`) and one
+`error:` line. What the libraries beneath it log on their own (open_clip's `ERROR:root:` before the
+error that explains it, Rerun's and OpenCV's `WARN` lines) is not printed unless asked for with
+`ROBOFAILRING_LOG=all` (`RUST_LOG` and `OPENCV_LOG_LEVEL`, when set, are left as they are).
 """
 
 from __future__ import annotations
 
-import typer
+import logging
+import os
+import sys
 
-from rfr_viz.cli.jobs import app as jobs_app
-from rfr_viz.cli.live import app as live_app
-from rfr_viz.cli.replay import app as replay_app
-from robofailring.cli.exit_codes import ErrorMappingGroup
-from robofailring.cli.verbs import app as library_app
+if os.environ.get("ROBOFAILRING_LOG") != "all":  # before Rerun and OpenCV load and read them
+    os.environ.setdefault("RUST_LOG", "error")
+    os.environ.setdefault("OPENCV_LOG_LEVEL", "ERROR")
+
+try:
+    import typer
+
+    from rfr_viz.cli.jobs import app as jobs_app
+    from rfr_viz.cli.live import app as live_app
+    from rfr_viz.cli.replay import app as replay_app
+    from robofailring.cli.exit_codes import ErrorMappingGroup
+    from robofailring.cli.verbs import app as library_app
+except KeyboardInterrupt:
+    from robofailring.cli.exit_codes import interrupted
+
+    raise SystemExit(interrupted()) from None
 
 __all__ = ["app", "main"]
 
@@ -29,8 +51,28 @@ for verbs in (library_app, replay_app, jobs_app, live_app):
     app.add_typer(verbs)
 
 
+class _OwnRecords(logging.Filter):
+    """The command's own log records only (the `robofailring` logger and its children)."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return record.name == "robofailring" or record.name.startswith("robofailring.")
+
+
+def _log_to_stderr() -> None:
+    """The command's warnings on stderr as their message alone; other loggers' records dropped, unless
+    `ROBOFAILRING_LOG=all` (a root handler also keeps `logging.error()` from configuring its own)."""
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("%(message)s"))
+    if os.environ.get("ROBOFAILRING_LOG") != "all":
+        handler.addFilter(_OwnRecords())
+    root = logging.getLogger()
+    root.addHandler(handler)
+    root.setLevel(logging.WARNING)
+
+
 def main() -> None:
     """Console entry point (`robofailring`)."""
+    _log_to_stderr()
     app()
 
 

@@ -64,7 +64,9 @@ def evaluate_cmd(
     target_fpr: Annotated[
         float,
         typer.Option(
-            "--target-fpr", help="α: both rules are calibrated to it (split conformal) on training successes."
+            "--target-fpr",
+            help="α: every rule is calibrated to it (split conformal) on training successes; with too few of "
+            "them, to the smallest α they allow, and the output says no guarantee holds.",
         ),
     ] = 0.05,
     deployment_successes: Annotated[
@@ -81,6 +83,13 @@ def evaluate_cmd(
             "rule); one more evaluation each, then the full memory."
         ),
     ] = None,
+    folds: Annotated[
+        str | None,
+        typer.Option(
+            help="Also cross-validate over every labelled run: K folds, or `loo` (leave one episode out); each "
+            "fold judged by a memory and thresholds of the other runs, pooled with counts (small data)."
+        ),
+    ] = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
 ) -> None:
@@ -88,6 +97,7 @@ def evaluate_cmd(
     from rfr_viz.jobs.evaluate import evaluate
     from robofailring.evaluation.growth import parse_growth
     from robofailring.evaluation.run import EvaluateConfig
+    from robofailring.evaluation.training import FoldPlan
 
     outcome = evaluate(
         EvaluateConfig(
@@ -113,6 +123,7 @@ def evaluate_cmd(
             failure_frames=failure_frames or DENSE,
             pairing=pairing or DEFAULT_PAIRING,
             band=band,
+            folds=FoldPlan.parse(folds) if folds is not None else None,
         ),
         growth=parse_growth(growth) if growth is not None else (),
     )
@@ -192,6 +203,7 @@ def review_cmd(
     )
     for path in result.recordings:
         typer.echo(f"  {open_at_command(path)}")
+    finish(skipped=len(result.skipped_inputs))  # listed above
 
 
 @app.command("compare-encoders")

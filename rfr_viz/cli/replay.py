@@ -67,7 +67,7 @@ def _report(result: ReplayResult, out: Path) -> None:
     )
     for path in result.recordings:
         typer.echo(f"  {open_command(path)}")
-    finish(skipped=len(result.skipped))
+    finish(skipped=len(result.skipped) + len(result.skipped_inputs))  # listed above
 
 
 @app.command("replay")

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import hashlib
+import logging
 import math
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -31,6 +32,8 @@ from robofailring.outputs import check_output_folder, check_recording_file
 from robofailring.progress import progress_bar
 
 _UNSAFE = re.compile(r"[^A-Za-z0-9._+-]+")
+
+_log = logging.getLogger("robofailring")
 
 
 @dataclass(frozen=True)
@@ -199,7 +202,7 @@ class LoadedDetector:
 def load_detector(
     memory_dir: Path,
     *,
-    delta: float | None,
+    delta: float | None = None,
     k: int,
     encoder: str | None,
     cache_dir: Path | None,
@@ -208,11 +211,13 @@ def load_detector(
     score: str | None = None,
     gamma: float | None = None,
     eta: float | None = None,
+    thresholds: Mapping[str, float] | None = None,
 ) -> LoadedDetector:
     detector = open_detector(
         memory_dir,
         device=device,
         rule=score,
+        thresholds=thresholds,
         delta=delta,
         gamma=gamma,
         eta=eta,
@@ -221,6 +226,8 @@ def load_detector(
         encoder=encoder,
         cache_dir=cache_dir,
     )
+    for note in detector.uncalibrated:
+        _log.warning("warning: %s", note)
     memory = detector.memory
     return LoadedDetector(
         slug=EncoderSpec.slug(memory.encoder),
@@ -279,6 +286,7 @@ def _replay(config: ReplayConfig) -> ReplayResult:
                 result.skipped.append((trajectory.key, str(error)))
             else:
                 result.saw(trace, trajectory.key)
+                result.skipped_inputs += trace.short_views
                 out = _target(config.out, recording_name(trajectory), written, trajectory.key)
                 answer = result.ask(config.vlm, trace, trajectory)
                 result.recordings.append(
@@ -375,6 +383,7 @@ def _compare(config: CompareConfig) -> ReplayResult:
             else:
                 for trace in traces.values():
                     result.saw(trace, trajectory.key)
+                result.skipped_inputs += next(iter(traces.values())).short_views  # the same in every memory
                 out = _target(config.out, recording_name(trajectory, suffix), written, trajectory.key)
                 maps = {slug: found.map for slug, found in zip(slugs, detectors, strict=True)}
                 result.recordings.append(

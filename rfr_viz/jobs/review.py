@@ -17,6 +17,7 @@ from rfr_viz.panels.map import placer
 from rfr_viz.paths import DEFAULT_OUT
 from rfr_viz.recordings.replay import record_replay
 from robofailring.atomic import output_lock, remove_file_leftovers, write_text_atomic
+from robofailring.data.labels import merge_label_rows
 from robofailring.data.layouts import load_dataset
 from robofailring.data.model import Skipped
 from robofailring.detection.loader import open_detector
@@ -109,12 +110,9 @@ def _replay_keys(
     result = ReplayResult()
     if not keys:
         return result
-    delta, gamma, eta = _thresholds(rule, threshold)
     loaded = load_detector(
         memory_dir,
-        delta=delta,
-        gamma=gamma,
-        eta=eta,
+        thresholds={rule.name: threshold},
         score=rule.name,
         k=k,
         encoder=None,
@@ -132,6 +130,7 @@ def _replay_keys(
             trace = loaded.detector.run(
                 trajectory, keep_queries=False, place=placer(loaded.map, trajectory.task)
             )
+            result.skipped_inputs += trace.short_views
             focus = trace.t_det if trace.t_det is not None else int(np.argmax(trace.max_score()))
             out = Path(config.out) / config.kind / recording_name(trajectory)
             check_recording_file(out)
@@ -183,7 +182,9 @@ def write_review_labels(config: ReviewConfig) -> ReviewLabels:
     Each row: the episode, what the detector said (`detected`), the nearest failure's symbol at the
     alarm (a miss: at its peak score) as `suggested_symbol`, that frame, view and score, and empty
     `outcome`, `symbol` and `description` columns to fill; `--labels` reads the file back (rows
-    still without an outcome are reported as not applied).
+    still without an outcome are reported as not applied). Into an existing labels CSV the rows are
+    merged (`robofailring.data.labels.merge_label_rows`): what a person filled in is kept, other
+    episodes' rows stay, and a file that is not a labels CSV is refused before any work.
     """
     if config.write_labels is None:
         raise DataError("write_review_labels needs a labels file to write (--write-labels FILE)")
@@ -195,13 +196,11 @@ def write_review_labels(config: ReviewConfig) -> ReviewLabels:
         raise OutputError(f"--write-labels {path} is a folder; name a CSV file, e.g. labels.csv")
     check_writable(path.absolute().parent)
     with output_lock(path):
-        delta, gamma, eta = _thresholds(reviewed.rule, reviewed.threshold)
+        merge_label_rows(path, [], LABEL_COLUMNS)  # refuse a file that is not a labels CSV before any work
         detector = open_detector(
             reviewed.memory_dir,
             rule=reviewed.rule,
-            delta=delta,
-            gamma=gamma,
-            eta=eta,
+            thresholds={reviewed.rule.name: reviewed.threshold},
             k=reviewed.k,
             device=config.device,
             cache_dir=config.cache_dir,
@@ -216,10 +215,11 @@ def write_review_labels(config: ReviewConfig) -> ReviewLabels:
                 for key in reviewed.keys[kind]:
                     rows.append(_label_row(detector.run(trajectories[key], keep_queries=False), kind=kind))
                     bar.update(1)
+        columns, merged = merge_label_rows(path, rows, LABEL_COLUMNS)  # what a person filled in stays
         buffer = io.StringIO()
-        writer = csv.DictWriter(buffer, fieldnames=LABEL_COLUMNS, lineterminator="\n")
+        writer = csv.DictWriter(buffer, fieldnames=columns, lineterminator="\n")
         writer.writeheader()
-        writer.writerows(rows)
+        writer.writerows(merged)
         write_text_atomic(path, buffer.getvalue())
     return ReviewLabels(path=path, rows=rows, skipped_inputs=list(dataset.skipped))
 
@@ -247,12 +247,3 @@ def _label_row(trace: DetectionTrace, *, kind: str) -> dict[str, str]:
         "symbol": "",
         "description": "",
     }
-
-
-def _thresholds(rule: ScoringRule, threshold: float) -> tuple[float | None, float | None, float | None]:
-    """(δ, γ, η) for reviewing `rule` at `threshold` (None: the memory's own)."""
-    return (
-        threshold if rule.threshold_key == PAPER.threshold_key else None,
-        threshold if rule.threshold_key == CONTRAST.threshold_key else None,
-        threshold if rule.threshold_key == NOVELTY.threshold_key else None,
-    )

@@ -13,6 +13,7 @@ from rfr_viz.recordings.live import LiveRecording, LiveTarget
 from robofailring.data.layouts import load_trajectory
 from robofailring.detection.detector import DEFAULT_K
 from robofailring.errors import DataError, SettingError
+from robofailring.outputs import check_not_input, check_recording_file, check_writable
 
 
 @dataclass(frozen=True)
@@ -60,6 +61,13 @@ def watch(config: WatchConfig) -> WatchResult:
     if config.speed < 0:
         raise SettingError(f"--speed must be ≥ 0, got {config.speed}")
     check_fps(config.fps)
+    if config.target.save is not None:  # before any work: never over an input, never over a non-recording
+        save = Path(config.target.save)
+        check_not_input(
+            save, [config.episode, config.memory, config.data_root], replaces=False, flag="--save"
+        )
+        check_recording_file(save)
+        check_writable(save.absolute().parent)
     loaded = load_detector(
         config.memory,
         delta=config.delta,
@@ -77,7 +85,7 @@ def watch(config: WatchConfig) -> WatchResult:
     if not used:
         raise DataError(f"episode {config.episode} has no view with at least 2 frames")
     length = min(len(frames) for frames in used.values())  # views in step, as a replay scores them
-    fps = float(config.fps or trajectory.fps or DEFAULT_FPS)
+    fps = float(config.fps or trajectory.frame_rate or DEFAULT_FPS)
     with LiveRecording.open(
         loaded.detector,
         trajectory.task,

@@ -55,7 +55,7 @@ def log_camera_views(
                 rec.flush()  # written before the next batch: a busy machine's slow sink holds no backlog
         else:
             source = f"{trajectory.key} [{view}]"
-            fps = float(trajectory.fps or DEFAULT_FPS)
+            fps = float(trajectory.frame_rate or DEFAULT_FPS)
             video = passthrough(frames, count, used[view])
             if video is not None:
                 as_recorded.append(view)

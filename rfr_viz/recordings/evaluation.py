@@ -5,7 +5,7 @@ from __future__ import annotations
 import uuid
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, Final
 
 
 from rfr_viz.charts.to_rerun import chart_view, log_chart
@@ -24,15 +24,37 @@ def _slug(name: str) -> str:
     return "".join(c if c.isalnum() or c in "-_" else "-" for c in name.lower())
 
 
+#: The pages of one evaluation's charts, each few enough to read at 1280×720 (issue 32, item 6): a
+#: chart's page by its key's first part.
+PAGES: Final[dict[str, str]] = {
+    "roc": "ROC, when",
+    "progress_histogram": "ROC, when",
+    "sweep": "thresholds",
+    "growth": "growth",
+}
+OTHER_PAGE: Final[str] = "per type, view"
+
+
+def chart_pages(shown: Sequence[Chart]) -> dict[str, list[Chart]]:
+    """The charts by page, pages in the order their first chart comes."""
+    pages: dict[str, list[Chart]] = {}
+    for chart in shown:
+        pages.setdefault(PAGES.get(chart.key.split("_")[0], PAGES.get(chart.key, OTHER_PAGE)), []).append(chart)
+    return pages
+
+
 def summary_blueprint(charts: Mapping[str, Sequence[Chart]]) -> rrb.Blueprint:
-    """A tab per evaluation (ROC, sweeps, recall per type and per view, histogram), the tables beside."""
+    """A tab per page of each evaluation's charts (ROC and when failures are detected; each rule's
+    Recall/FPR sweep; recall per failure type and per view), at most four charts a tab so that each is
+    large enough to read at 1280×720; the tables beside."""
     tabs = [
         rrb.Grid(
-            *(chart_view(f"{EVAL_ROOT}/{_slug(name)}/{chart.key}", chart) for chart in shown),
-            grid_columns=3,
-            name=name,
+            *(chart_view(f"{EVAL_ROOT}/{_slug(name)}/{chart.key}", chart) for chart in page),
+            grid_columns=2 if len(page) > 2 else len(page),
+            name=f"{name} · {title}" if len(charts) > 1 else title,
         )
         for name, shown in charts.items()
+        for title, page in chart_pages(shown).items()
     ]
     return rrb.Blueprint(
         rrb.Horizontal(

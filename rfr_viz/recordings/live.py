@@ -47,6 +47,7 @@ from robofailring.detection.detector import DEFAULT_K, DetectorSession, FailureD
 from robofailring.detection.rules import CONTRAST, NOVELTY, PAPER
 from robofailring.errors import DataError, SettingError
 from robofailring.explain.report import FailureReport
+from robofailring.outputs import check_recording_file
 from robofailring.extras import needs_extra
 
 with needs_extra("viz"):
@@ -158,6 +159,8 @@ class LiveRecording:
         On leaving the block the recording's properties (t_det, the report, …) are sent, the stream
         is flushed, and a saved file appears at `target.save` (not on error).
         """
+        if target.save is not None:
+            check_recording_file(Path(target.save))  # a memory's manifest, a labels file, a frame: never
         entries = detector.memory.entries
         cell = _cell(entries[0].start if entries else "", NeighborImages())
         blueprint = replay_blueprint(

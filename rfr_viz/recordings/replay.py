@@ -55,7 +55,7 @@ class RecordingInfo:
             episode=trajectory.episode,
             label=trajectory.label,
             outcome=trajectory.outcome.value if trajectory.outcome is not None else "unknown",
-            fps=float(fps or trajectory.fps or DEFAULT_FPS),
+            fps=float(fps or trajectory.frame_rate or DEFAULT_FPS),
         )
 
 

@@ -6,8 +6,11 @@ The names a robot loop, a notebook and an evaluation script need::
     session = detector.session("pick_cube")
     result = session.step({"front": rgb})   # result.alarm, result.score, result.threshold
 
-The simulator's names (`generate_dataset`, `GenerateConfig`, `run_episode`, `SIM_VIEWS`) load
-pybullet and are imported on first use; `import robofailring` loads no heavy package.
+Every name but the errors is imported on first use, so `import robofailring` loads no heavy package
+(numpy, OpenCV and Faiss come with the first name that needs them; the simulator's names,
+`generate_dataset`, `GenerateConfig`, `run_episode` and `SIM_VIEWS`, load pybullet), and the
+`robofailring` command reaches its own code before any of them (a Ctrl-C while they load ends as
+one during a verb: `robofailring.cli.exit_codes`).
 """
 
 from __future__ import annotations
@@ -15,16 +18,6 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING
 
-from robofailring import _moved as _moved  # old module paths, deprecated (one release)
-from robofailring.data.grounding import ground, parse_symbol
-from robofailring.data.layouts import Dataset, load_dataset, load_trajectory
-from robofailring.data.model import Frame, Outcome, Trajectory
-from robofailring.detection.conformal import smallest_target_fpr
-from robofailring.detection.detector import DetectorSession, FailureDetector, StepSink
-from robofailring.detection.loader import open_detector
-from robofailring.detection.rules import PAPER_DELTA, RULES, ScoringRule, rule_named
-from robofailring.detection.trace import DetectionTrace, StepResult
-from robofailring.encoders import CachedEncoder, Encoder, default_cache_dir, load_encoder, open_encoder
 from robofailring.errors import (
     DataError,
     EncoderError,
@@ -35,23 +28,74 @@ from robofailring.errors import (
     SymbolError,
     UnknownTaskError,
 )
-from robofailring.evaluation.calibration import CalibrateConfig, Calibration, calibrate
-from robofailring.evaluation.comparison import CompareEncodersConfig, compare_encoders, comparison_table
-from robofailring.evaluation.run import EvaluateConfig, run_evaluation
-from robofailring.explain.report import FailureReport, VLMClient
-from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
-from robofailring.jobs.detect import DetectConfig, detect
-from robofailring.memory.entry import MemoryEntry, Neighbor
-from robofailring.memory.failure import FailureMemory
-from robofailring.memory.success import SuccessMemory
 
 if TYPE_CHECKING:
+    from robofailring.data.grounding import ground, parse_symbol
+    from robofailring.data.layouts import Dataset, load_dataset, load_trajectory
+    from robofailring.data.model import Frame, Outcome, Trajectory
+    from robofailring.detection.conformal import smallest_target_fpr
+    from robofailring.detection.detector import DetectorSession, FailureDetector, StepSink
+    from robofailring.detection.loader import open_detector
+    from robofailring.detection.rules import PAPER_DELTA, RULES, ScoringRule, rule_named
+    from robofailring.detection.trace import DetectionTrace, StepResult
+    from robofailring.encoders import CachedEncoder, Encoder, default_cache_dir, load_encoder, open_encoder
+    from robofailring.evaluation.calibration import CalibrateConfig, Calibration, calibrate
+    from robofailring.evaluation.comparison import CompareEncodersConfig, compare_encoders, comparison_table
+    from robofailring.evaluation.run import EvaluateConfig, run_evaluation
+    from robofailring.explain.report import FailureReport, VLMClient
+    from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
+    from robofailring.jobs.detect import DetectConfig, detect
+    from robofailring.memory.entry import MemoryEntry, Neighbor
+    from robofailring.memory.failure import FailureMemory
+    from robofailring.memory.success import SuccessMemory
     from robofailring.sim import VIEWS as SIM_VIEWS
     from robofailring.sim import GenerateConfig, generate_dataset, run_episode
 
 __version__ = "0.1.0"
 
-_LAZY = {  # name -> (module, attribute): the simulator loads pybullet, so it is imported on first use
+_LAZY = {  # name -> (module, attribute), imported on first use (the simulator's load pybullet)
+    "BuildMemoryConfig": ("robofailring.jobs.build_memory", "BuildMemoryConfig"),
+    "CachedEncoder": ("robofailring.encoders", "CachedEncoder"),
+    "CalibrateConfig": ("robofailring.evaluation.calibration", "CalibrateConfig"),
+    "Calibration": ("robofailring.evaluation.calibration", "Calibration"),
+    "CompareEncodersConfig": ("robofailring.evaluation.comparison", "CompareEncodersConfig"),
+    "Dataset": ("robofailring.data.layouts", "Dataset"),
+    "DetectConfig": ("robofailring.jobs.detect", "DetectConfig"),
+    "DetectionTrace": ("robofailring.detection.trace", "DetectionTrace"),
+    "DetectorSession": ("robofailring.detection.detector", "DetectorSession"),
+    "Encoder": ("robofailring.encoders", "Encoder"),
+    "EvaluateConfig": ("robofailring.evaluation.run", "EvaluateConfig"),
+    "FailureDetector": ("robofailring.detection.detector", "FailureDetector"),
+    "FailureMemory": ("robofailring.memory.failure", "FailureMemory"),
+    "FailureReport": ("robofailring.explain.report", "FailureReport"),
+    "Frame": ("robofailring.data.model", "Frame"),
+    "MemoryEntry": ("robofailring.memory.entry", "MemoryEntry"),
+    "Neighbor": ("robofailring.memory.entry", "Neighbor"),
+    "Outcome": ("robofailring.data.model", "Outcome"),
+    "PAPER_DELTA": ("robofailring.detection.rules", "PAPER_DELTA"),
+    "RULES": ("robofailring.detection.rules", "RULES"),
+    "ScoringRule": ("robofailring.detection.rules", "ScoringRule"),
+    "StepResult": ("robofailring.detection.trace", "StepResult"),
+    "StepSink": ("robofailring.detection.detector", "StepSink"),
+    "SuccessMemory": ("robofailring.memory.success", "SuccessMemory"),
+    "Trajectory": ("robofailring.data.model", "Trajectory"),
+    "VLMClient": ("robofailring.explain.report", "VLMClient"),
+    "build_memory": ("robofailring.jobs.build_memory", "build_memory"),
+    "calibrate": ("robofailring.evaluation.calibration", "calibrate"),
+    "compare_encoders": ("robofailring.evaluation.comparison", "compare_encoders"),
+    "comparison_table": ("robofailring.evaluation.comparison", "comparison_table"),
+    "default_cache_dir": ("robofailring.encoders", "default_cache_dir"),
+    "detect": ("robofailring.jobs.detect", "detect"),
+    "ground": ("robofailring.data.grounding", "ground"),
+    "load_dataset": ("robofailring.data.layouts", "load_dataset"),
+    "load_encoder": ("robofailring.encoders", "load_encoder"),
+    "load_trajectory": ("robofailring.data.layouts", "load_trajectory"),
+    "open_detector": ("robofailring.detection.loader", "open_detector"),
+    "open_encoder": ("robofailring.encoders", "open_encoder"),
+    "parse_symbol": ("robofailring.data.grounding", "parse_symbol"),
+    "rule_named": ("robofailring.detection.rules", "rule_named"),
+    "run_evaluation": ("robofailring.evaluation.run", "run_evaluation"),
+    "smallest_target_fpr": ("robofailring.detection.conformal", "smallest_target_fpr"),
     "GenerateConfig": ("robofailring.sim", "GenerateConfig"),
     "generate_dataset": ("robofailring.sim", "generate_dataset"),
     "run_episode": ("robofailring.sim", "run_episode"),
@@ -64,6 +108,10 @@ def __getattr__(name: str) -> object:
         raise AttributeError(f"module 'robofailring' has no attribute {name!r}")
     module, attribute = _LAZY[name]
     return getattr(importlib.import_module(module), attribute)
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *_LAZY])
 
 
 __all__ = [

@@ -1,10 +1,14 @@
 """Atomic writes (public: the library and rfr_viz both use them): everything is written under a temporary name and renamed into place.
 
-Temporary names are `.<final name>.<8 random characters>.tmp[suffix]` beside the final path; a
-replaced folder is moved aside as `.<final name>.<8 characters>.old` until its successor is in
+Temporary names are `.<final name>.rfr-<8 random characters>.tmp[suffix]` beside the final path; a
+replaced folder is moved aside as `.<final name>.rfr-<8 characters>.old` until its successor is in
 place. A process killed half-way leaves only such names; `output_lock` finds them on the next
 write to the same path and removes them, or restores an `.old` folder whose successor never
-arrived.
+arrived. The `rfr-` mark keeps that cleaning to this module's own names: a user's
+`.<name>.<anything>.tmp` beside an output is never touched.
+
+A final path that is a symbolic link is written where it points: the link stays a link to the new
+version (replacing the link itself would leave the old version at its target, still in use).
 """
 
 from __future__ import annotations
@@ -23,6 +27,13 @@ from robofailring.errors import OutputBusyError
 
 _log = logging.getLogger("robofailring")
 _HELD: dict[Path, int] = {}  # lock files this process holds, with their nesting depth
+_MARK = "rfr-"  # in every temporary name this module makes, and only in those
+
+
+def _target(final: Path) -> Path:
+    """Where a write to `final` goes: `final`, or where it points when it is a symbolic link."""
+    final = Path(final).absolute()
+    return Path(os.path.realpath(final)) if final.is_symlink() else final
 
 
 def _umask() -> int:
@@ -34,9 +45,9 @@ def _umask() -> int:
 @contextlib.contextmanager
 def atomic_path(final: Path, *, suffix: str = "") -> Iterator[Path]:
     """Yield a temporary file path beside `final`; rename it onto `final` only if the block succeeds."""
-    final = Path(final)
+    final = _target(final)
     final.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{final.name}.", suffix=f".tmp{suffix}", dir=final.parent)
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{final.name}.{_MARK}", suffix=f".tmp{suffix}", dir=final.parent)
     os.close(fd)
     tmp = Path(tmp_name)
     try:
@@ -56,7 +67,7 @@ def write_text_atomic(final: Path, text: str) -> None:
 
 def _leftover(final: Path, name: str) -> str | None:
     """'tmp' or 'old' when `name` is a leftover of a write to `final`, else None."""
-    match = re.fullmatch(rf"\.{re.escape(final.name)}\.[A-Za-z0-9_]{{8}}\.(tmp|old)(\..+)?", name)
+    match = re.fullmatch(rf"\.{re.escape(final.name)}\.{_MARK}[A-Za-z0-9_]{{8}}\.(tmp|old)(\..+)?", name)
     return match[1] if match else None
 
 
@@ -72,7 +83,7 @@ def recover_leftovers(final: Path) -> None:
 
     Call only while holding `output_lock(final)`, so no live writer's files are touched.
     """
-    final = Path(final)
+    final = _target(final)
     if not final.parent.is_dir():
         return
     found = [(entry, _leftover(final, entry.name)) for entry in final.parent.iterdir()]
@@ -93,7 +104,7 @@ def remove_file_leftovers(folder: Path) -> None:
     """Remove the temporary files killed writes left inside `folder` (hold `output_lock(folder)`)."""
     if Path(folder).is_dir():
         for entry in Path(folder).iterdir():
-            if entry.is_file() and re.fullmatch(r"\..+\.[A-Za-z0-9_]{8}\.tmp(\..+)?", entry.name):
+            if entry.is_file() and re.fullmatch(rf"\..+\.{_MARK}[A-Za-z0-9_]{{8}}\.tmp(\..+)?", entry.name):
                 entry.unlink(missing_ok=True)
 
 
@@ -102,9 +113,10 @@ def output_lock(final: Path) -> Iterator[None]:
     """Hold `.<name>.lock` beside `final` while writing it; a second writer gets OutputBusyError.
 
     On entry, the leftovers of killed writes to `final` are cleaned (see `recover_leftovers`).
-    Re-entrant within one process.
+    Re-entrant within one process. Folders made to hold the lock are removed again if nothing was
+    written into them (a refused command leaves no empty folder).
     """
-    final = Path(final).absolute()
+    final = _target(final)
     lock = final.parent / f".{final.name}.lock"
     if lock in _HELD:
         _HELD[lock] += 1
@@ -113,8 +125,11 @@ def output_lock(final: Path) -> Iterator[None]:
         finally:
             _HELD[lock] -= 1
         return
+    made = [folder for folder in (final.parent, *final.parent.parents) if not folder.exists()]
     final.parent.mkdir(parents=True, exist_ok=True)
-    with lock.open("a") as handle:
+    with contextlib.ExitStack() as stack:
+        stack.callback(_remove_if_empty, made)
+        handle = stack.enter_context(lock.open("a"))
         try:
             fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -130,9 +145,35 @@ def output_lock(final: Path) -> Iterator[None]:
             lock.unlink(missing_ok=True)
 
 
+def _remove_if_empty(folders: list[Path]) -> None:
+    """Remove the folders (deepest first) that are still empty; any other is left as it is."""
+    for folder in folders:
+        with contextlib.suppress(OSError):
+            folder.rmdir()
+
+
+FolderState = tuple[tuple[str, int, int, int], ...]
+
+
+def folder_state(folder: Path) -> FolderState:
+    """One version of a folder written by this module: its own inode, and each visible file's inode,
+    size and modification time. Replacing the folder (`atomic_directory`) or any file in it
+    (`atomic_path`) changes it, so a writer can tell the folder it read from the one there now.
+    Temporary and lock names (leading dot) are not part of it; an absent folder is `()`.
+    """
+    folder = Path(folder)
+    try:
+        own = folder.stat()
+        files = sorted(entry for entry in folder.iterdir() if not entry.name.startswith("."))
+        stats = [(entry.name, entry.stat()) for entry in files if entry.is_file()]
+    except FileNotFoundError:  # replaced while being listed: a state no reader saw whole
+        return ()
+    return (("", own.st_ino, 0, 0), *((name, st.st_ino, st.st_size, st.st_mtime_ns) for name, st in stats))
+
+
 def restore_interrupted(final: Path) -> bool:
     """Put back a folder whose replacement was killed half-way (its `.old` beside it); True if restored."""
-    final = Path(final)
+    final = _target(final)
     if final.exists() or not final.parent.is_dir():
         return False
     if not any(_leftover(final, entry.name) == "old" for entry in final.parent.iterdir()):
@@ -146,7 +187,7 @@ def replace_directory(tmp: Path, final: Path) -> None:
     if not final.exists():
         os.replace(tmp, final)
         return
-    old = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".old", dir=final.parent))
+    old = Path(tempfile.mkdtemp(prefix=f".{final.name}.{_MARK}", suffix=".old", dir=final.parent))
     os.rmdir(old)
     os.replace(final, old)
     try:
@@ -166,9 +207,9 @@ def atomic_directory(final: Path) -> Iterator[Path]:
     interrupted write leaves the previous version under the final name, or beside it as an
     `.old` folder that the next write or memory load restores.
     """
-    final = Path(final)
+    final = _target(final)
     with output_lock(final):
-        tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".tmp", dir=final.parent))
+        tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.{_MARK}", suffix=".tmp", dir=final.parent))
         try:
             yield tmp
             os.chmod(tmp, 0o777 & ~_umask())  # mkdtemp makes 0700

@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 import errno
+import os
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
 
 
 class RoboFailRingError(Exception):
@@ -29,6 +33,12 @@ class VocabularyError(RoboFailRingError):
 
 class EncoderError(RoboFailRingError):
     """An encoder spec is malformed or its weights are not available."""
+
+
+class WeightsUnavailableError(EncoderError):
+    """An encoder's pretrained weights are not on this machine and cannot be fetched: the environment's fault."""
+
+    exit_code = 1
 
 
 class MemoryFormatError(RoboFailRingError):
@@ -63,6 +73,16 @@ class WriteError(RoboFailRingError):
     exit_code = 1
 
 
+class ReadError(RoboFailRingError):
+    """An input (a frame, a folder or file of the data) could not be read for lack of permission.
+
+    An error of the environment (exit status 1), not of the input: the same data read by a user
+    allowed to is fine. Other read faults (a file gone, bytes that do not decode) are `DataError`s.
+    """
+
+    exit_code = 1
+
+
 class MissingExtraError(RoboFailRingError, ModuleNotFoundError):
     """A module of an optional part of the install is not installed; the message names the extra.
 
@@ -77,6 +97,36 @@ class MissingExtraError(RoboFailRingError, ModuleNotFoundError):
         self.extra = extra
 
 
+_NO_PERMISSION: tuple[int, ...] = (errno.EACCES, errno.EPERM)
+
+
+def read_error(message: str, error: BaseException) -> RoboFailRingError:
+    """The error to raise when reading an input failed with `error`: `message` as a `ReadError`
+    (status 1) when permission was lacking, else as a `DataError` (status 2)."""
+    if isinstance(error, OSError) and error.errno in _NO_PERMISSION:
+        return ReadError(message)
+    return DataError(message)
+
+
+@contextmanager
+def reading() -> Iterator[None]:
+    """Reading a dataset: a `PermissionError` from the file system becomes a `ReadError` naming the
+    file or folder that could not be read (a folder whose entries cannot be looked up, not a file in it)."""
+    try:
+        yield
+    except PermissionError as error:
+        if error.filename is None:
+            raise ReadError(f"cannot read the data: {error.strerror or error}") from error
+        path = Path(os.fsdecode(error.filename))
+        folder = path.parent
+        if not os.access(folder, os.R_OK | os.X_OK):  # its folder cannot be listed or entered
+            path = folder
+        kind = "folder " if os.path.isdir(path) else ""
+        raise ReadError(
+            f"cannot read {kind}{path}: permission denied; give this user read access to it"
+        ) from error
+
+
 def describe(error: BaseException) -> str:
     """One sentence for an error: an OSError names the file and what went wrong, without errno noise."""
     if not isinstance(error, OSError) or error.strerror is None:
@@ -86,6 +136,8 @@ def describe(error: BaseException) -> str:
         where += f" -> {error.filename2}"
     if error.errno == errno.ENOSPC:
         return f"no space left on the device while writing{where}; free some space and run again"
-    if error.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
+    if error.errno == errno.EROFS:
         return f"cannot write{where}: {error.strerror.lower()}; choose a folder you can write to"
+    if error.errno in (errno.EACCES, errno.EPERM):  # reading or writing: the error does not say which
+        return f"no permission to use{where}; give this user access to it, or choose another path"
     return f"{error.strerror}:{where}" if where else error.strerror

@@ -14,7 +14,7 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Final
 
-from robofailring.errors import OutputError, WriteError, describe
+from robofailring.errors import OutputError, WriteError
 
 MEMORY_MANIFEST: Final[str] = "manifest.json"
 RRD_MAGIC: Final[bytes] = b"RRF"  # every Rerun .rrd file starts with RRF0/RRF1/RRF2
@@ -67,18 +67,37 @@ def check_not_input(
 
 
 def check_writable(folder: Path) -> None:
-    """Create `folder` if needed and prove a file can be written in it, before any long work."""
+    """Prove a file can be written in `folder`, or in the folder that would hold it, before any long work.
+
+    Nothing is created: a refused or failed command leaves no empty output folder behind; the
+    writers make the folder when they write its first file.
+    """
+    folder = Path(folder).absolute()
+    existing = next(
+        (
+            candidate
+            for candidate in (folder, *folder.parents)
+            if candidate.exists() or candidate.is_symlink()
+        ),
+        Path(folder.anchor),
+    )
+    if not existing.is_dir():
+        why = (
+            "a file is in the way of that folder"
+            if existing == folder
+            else "part of that path is a file, not a folder"
+        )
+        raise OutputError(f"cannot write into {folder}: {why}")
     try:
-        folder.mkdir(parents=True, exist_ok=True)
-        fd, probe = tempfile.mkstemp(prefix=".robofailring-probe.", dir=folder)
+        fd, probe = tempfile.mkstemp(prefix=".robofailring-probe.", dir=existing)
         os.close(fd)
         os.unlink(probe)
-    except FileExistsError:
-        raise OutputError(f"cannot write into {folder}: a file is in the way of that folder") from None
-    except NotADirectoryError:
-        raise OutputError(f"cannot write into {folder}: part of that path is a file, not a folder") from None
     except OSError as error:
-        raise WriteError(describe(error)) from error
+        reason = (error.strerror or type(error).__name__).lower()
+        place = "" if existing == folder else f" (it would be made in {existing})"
+        raise WriteError(
+            f"cannot write into {folder}{place}: {reason}; choose a folder you can write to"
+        ) from error
 
 
 def check_memory_target(out: Path, *, inputs: Iterable[Path | None] = ()) -> None:

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 from fault_helpers import cli, refused
+from lerobot_writer import encode_video, scene
 from synthetic import write_aha_dataset, write_episode
 
 
@@ -55,8 +56,36 @@ def test_calibrate_says_how_far_the_test_fpr_can_stray_with_its_runs(
     assert "with 4 calibration runs the test FPR at α = 20 % lies in 1.3–52.7 %" in result.output
     assert "mean 20.0 %" in result.output
     assert "1110 runs would keep the 95 % quantile ≤ 22.0 % (α + 2 points)" in result.output
-    stored = json.loads((memory / "manifest.json").read_text())["calibration"]["fpr_spread"]
+    stored = json.loads((memory / "manifest.json").read_text())["calibration"]["rules"]["paper"]["fpr_spread"]
     assert stored["successes"] == 4 and stored["levels"] == [0.05, 0.95]
     assert stored["low"] == pytest.approx(1 - 0.95**0.25, abs=1e-6)
     assert stored["high"] == pytest.approx(1 - 0.05**0.25, abs=1e-6)
     assert stored["bound"] == pytest.approx(0.22) and stored["runs_for_bound"] == 1110
+
+
+def test_calibrate_never_takes_an_unlabelled_run_for_a_success(
+    memory: Path, cache: list[str], tmp_path: Path
+) -> None:
+    """One rule for every layout (issue 35, item 4): an episode folder or video folder whose name does not
+    say the outcome is not a success; all unlabelled: the error image-episode folders give; some: those
+    are listed as not used and the rest calibrate."""
+    before = (memory / "manifest.json").read_bytes()
+    one = write_episode(tmp_path / "run_a", "pick_cube", "grasp_wp2", length=4)  # a failure, unnamed
+    videos = tmp_path / "videos"
+    for name in ("run_7", "pick_cube_success_episode3", "pick_cube_success_episode4"):
+        for c, view in enumerate(("front", "wrist")):
+            encode_video(videos / name / f"{view}.mp4", [scene(3, c, t) for t in range(6)], 10, "h264")
+    for data in (one, videos / "run_7"):
+        refused(
+            cli("calibrate", data, "--memory", memory, "--task", "pick_cube", *cache),
+            2,
+            "needs to know which episodes failed",
+            "--labels",
+        )
+        assert (memory / "manifest.json").read_bytes() == before  # nothing stored from a failure run
+    partly = cli(
+        "calibrate", videos, "--memory", memory, "--task", "pick_cube", "--target-fpr", "0.5", *cache
+    )
+    assert partly.exit_code == 3, partly.output
+    assert "on 2 success runs" in partly.output
+    assert "1 episode(s) without an outcome" in partly.output and "pick_cube/run_7" in partly.output

@@ -179,7 +179,7 @@ def test_detect_says_which_frames_uneven_views_leave_unscored(aha_dataset: Path,
     result = runner.invoke(
         app, ["detect", str(episode), "--memory", str(memory), "--task", "pick_cube", "--json", *cache]
     )
-    assert result.exit_code == 0, result.output
+    assert result.exit_code == 3, result.output  # a view skipped: listed, status 3 as in every verb
     trace = json.loads(result.stdout)
     assert (
         trace["length"] == 5
@@ -188,7 +188,7 @@ def test_detect_says_which_frames_uneven_views_leave_unscored(aha_dataset: Path,
     )
     assert len(trace["views"]["front"]["similarity"]) == 5
     assert "view front has 8 frames; the last 3 are not scored" in result.stderr
-    assert "fewer than 2 frames skipped: side" in result.stderr
+    assert "view side: 1 frame(s), fewer than 2: not scored" in result.stderr
 
 
 def test_out_of_range_settings_are_refused_before_any_work(aha_dataset: Path, tmp_path: Path) -> None:
@@ -200,9 +200,14 @@ def test_out_of_range_settings_are_refused_before_any_work(aha_dataset: Path, tm
     episode = str(aha_dataset / "pick_cube_wrong_object_episode1")
     cases = [
         (app, ["detect", episode, "--memory", str(memory), "--delta", "1.5"], "δ must lie in [-1, 1]"),
-        (app, ["detect", episode, "--memory", str(memory), "--k", "0"], "whole number of at least 1, got 0"),
+        (app, ["detect", episode, "--memory", str(memory), "--k", "0"], "whole number from 1 to 1024, got 0"),
         (app, ["calibrate", str(aha_dataset), "--memory", str(memory), "--target-fpr", "2"], "target FPR"),
-        (tool_app, ["evaluate", str(aha_dataset), "--out", str(tmp_path / "eval"), "--k", "0"], "at least 1"),
+        (
+            tool_app,
+            ["evaluate", str(aha_dataset), "--out", str(tmp_path / "eval"), "--k", "0"],
+            "from 1 to 1024",
+        ),
+        (app, ["detect", episode, "--memory", str(memory), "--k", "99999999999999999999"], "from 1 to 1024"),
         (
             tool_app,
             ["replay", episode, "--memory", str(memory), "--out", str(tmp_path / "rec"), "--delta", "-3"],
@@ -254,4 +259,22 @@ def test_build_memory_takes_the_task_of_an_episode_folder_it_suggests(tmp_path: 
     told = runner.invoke(
         app, ["build-memory", str(episode), "--out", str(tmp_path / "m"), "--task", "pick_cube"]
     )
-    assert told.exit_code == 2 and "holds no failure trajectory" in told.output  # unlabelled: not a failure
+    # unlabelled: neither a failure nor a success, the error every layout without outcomes gives
+    assert told.exit_code == 2 and "needs to know which episodes failed" in told.output
+
+
+def test_build_memory_and_memory_info_count_success_views_alike(tmp_path: Path) -> None:
+    """build-memory said "14 views" (success views and failure starts together) where memory-info
+    said 4 success views (issue 35, item 9): both now count success views, and build-memory the starts apart."""
+    from synthetic import write_project_dataset
+
+    data = write_project_dataset(tmp_path / "data", tasks=("pick_cube",), symbols=("grasp_wp2",), episodes=2)
+    runner = CliRunner()
+    built = runner.invoke(app, ["build-memory", str(data), "--out", str(tmp_path / "m"), "--split", "train"])
+    assert built.exit_code == 0, built.output
+    info = runner.invoke(app, ["memory-info", str(tmp_path / "m"), "--json"])
+    counted = json.loads(info.stdout)["successes"]["runs"]
+    line = next(line for line in built.output.splitlines() if line.startswith("success memory:"))
+    assert f"{counted} success views and " in line and " failure starts over 1 tasks" in line
+    starts = int(line.split(" success views and ")[1].split()[0])
+    assert counted == 3 and starts == 3  # one success and one failure run of 3 views in the train split

@@ -124,7 +124,7 @@ def test_core_verbs_and_step_api_without_extras(core: dict[str, Path], memory: P
 
     calibrated = _cli(core, "calibrate", core["successes"], "--memory", memory, "--target-fpr", "0.2")
     assert calibrated.returncode == 0, calibrated.stderr
-    delta = json.loads((memory / "manifest.json").read_text())["calibration"]["delta"]
+    delta = json.loads((memory / "manifest.json").read_text())["calibration"]["rules"]["paper"]["threshold"]
     assert -1.0 <= delta <= 1.0 + 1e-6  # just above the highest peak, which may be a cosine of 1
 
     detected = _cli(core, "detect", core["failures"] / EPISODE, "--memory", memory, "--json")

@@ -54,7 +54,10 @@ def test_demo_writes_everything_it_names(demo: tuple[Path, DemoResult]) -> None:
             0.95,
         ]
     manifest = json.loads((out / "memory" / "manifest.json").read_text())
-    assert manifest["calibration"]["target_fpr"] == 0.5 and manifest["calibration"]["achieved_fpr"] == 0.0
+    assert (
+        manifest["calibration"]["target_fpr"] == 0.5
+        and manifest["calibration"]["rules"]["paper"]["achieved_fpr"] == 0.0
+    )
     verify_recording(result.summary)
     recorded = result.recordings
     assert recorded, "the demo wrote no trajectory recording"
@@ -124,7 +127,7 @@ def test_demo_leads_with_its_trained_encoder_and_compares_it_with_pixels(
     assert result.encoder == f"trained:{root / 'data' / 'trained-encoder'}"
     assert all(e.encoder == encoders[0] for e in result.evaluations)
     manifest = json.loads((root / "out" / "memory" / "manifest.json").read_text())
-    band = manifest["calibration"].get("band")
+    band = manifest["calibration"]["rules"]["contrast"].get("band")
     assert manifest["encoder"] == encoders[0]
     assert (
         band is None if manifest["calibration"]["successes"] < 10 else band["kind"] == "shift"

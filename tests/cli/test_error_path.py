@@ -8,6 +8,9 @@ from __future__ import annotations
 
 import ast
 import json
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -106,3 +109,44 @@ def test_environment_errors_are_one_line_and_status_1(
         explained = cli("explain", trace, "--vlm-url", server.url, "--vlm-model", "m", "--json")
     refused(explained, ERROR, "the VLM call failed", "HTTP 400")
     assert "HTTP 400" in json.loads(explained.stdout)["error"]  # the JSON still says why, before the error
+
+
+_NOISY_DETECT = """
+import logging, sys
+import robofailring.jobs.detect as job
+from rfr_viz.cli.app import main
+real = job.open_detector
+def noisy(*args, **kwargs):
+    logging.error("Failed to download weights for tag 'openai'")  # as open_clip logs, on the root logger
+    logging.getLogger("rerun").warning("a library's own warning")
+    return real(*args, **kwargs)
+job.open_detector = noisy
+sys.argv = ["robofailring", "detect", sys.argv[1], "--memory", sys.argv[2]]
+main()
+"""
+
+
+@pytest.mark.parametrize("shown", ["", "all"])
+def test_libraries_log_lines_stay_out_of_the_commands_output(
+    memory: Path, data: Path, tmp_path: Path, shown: str
+) -> None:
+    """open_clip's `ERROR:root:` line before the error that explains it, and other libraries' own log
+    lines, are not printed (issue 35, item 9) unless ROBOFAILRING_LOG=all; the command's own warnings are."""
+    env = {**os.environ, "ROBOFAILRING_PROGRESS": "0", "ROBOFAILRING_LOG": shown}
+    missing = tmp_path / "no-such-episode"
+    run = subprocess.run(
+        [sys.executable, "-c", _NOISY_DETECT, str(missing), str(memory)],
+        capture_output=True,
+        text=True,
+        env=env,
+        check=False,
+        timeout=300,
+    )
+    assert run.returncode == BAD_INPUT, run.stderr
+    lines = run.stderr.splitlines()
+    assert lines[-1].startswith("error: ") and str(missing) in lines[-1]
+    assert any(line.startswith("warning: the ") and "not calibrated" in line for line in lines)  # its own
+    noise = [line for line in lines if "Failed to download" in line or "a library's own warning" in line]
+    assert noise == (
+        [] if shown != "all" else ["Failed to download weights for tag 'openai'", "a library's own warning"]
+    )

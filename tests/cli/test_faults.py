@@ -14,7 +14,18 @@ import sys
 from pathlib import Path
 
 import pytest
-from fault_helpers import DIE_ON_REPLACE, DIE_WHILE_WRITING, cli, hidden, killed, refused, tree
+from fault_helpers import (
+    DIE_ON_REPLACE,
+    DIE_WHILE_WRITING,
+    SIGINT_WHILE_LOADING,
+    SIGINT_WHILE_WRITING,
+    cli,
+    hidden,
+    interrupted,
+    killed,
+    refused,
+    tree,
+)
 from synthetic import write_aha_dataset, write_episode, write_project_dataset
 
 from rfr_viz.viewer.control import recording_properties
@@ -96,7 +107,7 @@ def test_rebuilding_says_the_calibrated_delta_is_dropped(cache: list[str], tmp_p
     assert cli("build-memory", project, "--out", memory, "--split", "train", *cache).exit_code == 0
     calibrated = cli("calibrate", project, "--memory", memory, "--target-fpr", "0.5", *cache)
     assert calibrated.exit_code == 0, calibrated.output
-    delta = json.loads((memory / "manifest.json").read_text())["calibration"]["delta"]
+    delta = json.loads((memory / "manifest.json").read_text())["calibration"]["rules"]["paper"]["threshold"]
     rebuilt = cli("build-memory", project, "--out", memory, "--split", "train", *cache)
     assert rebuilt.exit_code == 0, rebuilt.output
     assert f"calibrated δ = {delta:.6f}" in rebuilt.stderr and "robofailring calibrate" in rebuilt.stderr
@@ -262,7 +273,7 @@ def test_replay_exits_3_when_trajectories_were_skipped_and_cleans_killed_writes(
     )
     out = tmp_path / "rec"
     out.mkdir()
-    leftover = out / ".pick_cube__x.rrd.abcd1234.tmp.rrd"  # what a replay killed mid-write leaves
+    leftover = out / ".pick_cube__x.rrd.rfr-abcd1234.tmp.rrd"  # what a replay killed mid-write leaves
     leftover.write_bytes(b"RRF2 half")
     result = cli("replay", mixed, "--memory", memory, "--out", out, *cache)
     assert result.exit_code == 3, result.output
@@ -284,3 +295,18 @@ def test_evaluate_exits_3_when_test_trajectories_were_skipped(cache: list[str], 
     assert result.exit_code == 3, result.output
     assert "Skipped 4 test trajectories whose task has no memory entry" in result.output
     assert (tmp_path / "eval" / "evaluation.json").is_file()
+
+
+# ---------------------------------------------------------------- Ctrl-C (issue 35, item 6)
+
+
+def test_ctrl_c_while_the_command_loads_ends_as_one_while_it_runs(
+    memory: Path, data: Path, cache: list[str]
+) -> None:
+    """SIGINT in the first half second was a KeyboardInterrupt traceback; now both are one line and 130."""
+    good = tree(memory)
+    args = ("build-memory", data, "--out", memory, *cache)
+    for script in (SIGINT_WHILE_LOADING, SIGINT_WHILE_WRITING):
+        result = interrupted(script, *args)
+        assert (result.returncode, result.stderr, result.stdout) == (130, "error: interrupted (Ctrl-C)\n", "")
+        assert tree(memory) == good and hidden(memory.parent) == []  # the old memory, nothing half-written

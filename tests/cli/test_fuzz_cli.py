@@ -9,6 +9,8 @@ other than the CLI's own exit is one (tests/cli/test_cli.py runs the installed c
 from __future__ import annotations
 
 import shutil
+import struct
+import zlib
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,14 +25,18 @@ EPISODE = "pick_cube_grasp_wp2_episode0"  # an episode of the `data` fixture (te
 TEXT = np.frombuffer(
     b'episode_index,outcome,symbol\nsuccess failure grasp_wp2 0123456789"{}[]:;_- ', np.uint8
 )
+YAML = np.frombuffer(b"symbols:\nstages: knocked_cup 12 &a *a [] {} ? - , ' \" !!str #\n  ", np.uint8)
 
 
-def random_bytes(path: Path, rng: np.random.Generator, *, text: bool = False) -> Path:
+def random_bytes(
+    path: Path, rng: np.random.Generator, *, text: bool = False, alphabet: np.ndarray = TEXT
+) -> Path:
     """`path` filled with 1–2,000 random bytes (the generator decides how many); `text`: drawn from
-    the characters of a labels file (commas, newlines, its column names), so a parser gets past decoding."""
+    `alphabet`, by default the characters of a labels file (commas, newlines, its column names), so a
+    parser gets past decoding."""
     path.parent.mkdir(parents=True, exist_ok=True)
     size = int(rng.integers(1, 2_000))
-    path.write_bytes(rng.choice(TEXT, size).tobytes() if text else rng.bytes(size))
+    path.write_bytes(rng.choice(alphabet, size).tobytes() if text else rng.bytes(size))
     return path
 
 
@@ -82,6 +88,26 @@ def labels_to_calibrate_with(given: Inputs) -> tuple[list[object], Path, int]:
     return ["calibrate", given.data, "--memory", given.memory, "--labels", labels], labels, 2
 
 
+def a_vocabulary_to_build_with(given: Inputs) -> tuple[list[object], Path, int]:
+    words = random_bytes(given.work / "words.yaml", given.rng, text=True, alphabet=YAML)
+    return ["build-memory", given.data, "--out", given.work / "out", "--vocabulary", words], words, 2
+
+
+def an_hdf5_file_to_build_from(given: Inputs) -> tuple[list[object], Path, int]:
+    path = random_bytes(given.work / "hdf5" / "demo.hdf5", given.rng)
+    return ["build-memory", path, "--out", given.work / "out"], path, 2
+
+
+def a_png_header_declaring_any_size(given: Inputs) -> tuple[list[object], Path, int]:
+    """Each image of an episode declares a random width and height up to 2**31 - 1 (issue 35, item 7)."""
+    for image in sorted((given.data / EPISODE).glob("*.png")):
+        data = bytearray(image.read_bytes())
+        data[16:24] = struct.pack(">II", *(int(n) for n in given.rng.integers(1, 2**31, 2)))
+        data[29:33] = struct.pack(">I", zlib.crc32(bytes(data[12:29])))
+        image.write_bytes(bytes(data))
+    return ["build-memory", given.data, "--out", given.work / "out"], given.data / EPISODE / "front_0.png", 2
+
+
 CASES: list[Callable[[Inputs], tuple[list[object], Path, int]]] = [
     images_in_an_episode,
     an_image_beside_the_episodes,
@@ -89,6 +115,9 @@ CASES: list[Callable[[Inputs], tuple[list[object], Path, int]]] = [
     a_manifest_to_read,
     labels_to_build_with,
     labels_to_calibrate_with,
+    a_vocabulary_to_build_with,
+    an_hdf5_file_to_build_from,
+    a_png_header_declaring_any_size,
 ]
 
 

@@ -155,3 +155,51 @@ def test_bad_vocabulary_labels_and_add_to_targets_are_named_errors(
     refused(cli("build-memory", new, "--add-to", folder, *cache), 2, "is not a failure memory")
     refused(cli("build-memory", data, "--add-to", memory, *cache), 2, "already holds episode")
     assert tree(memory) == old and tree(folder) == {"a.txt": b"mine"}
+
+
+def test_review_merges_into_a_filled_labels_file_and_refuses_any_other_file(
+    cache: list[str], tmp_path: Path
+) -> None:
+    """Writing labels again keeps what a person filled in, other episodes' rows and their own columns
+    (issue 35, item 3); a CSV that is not a labels file, a memory's manifest or a JSON file is refused
+    and left as it was."""
+    data, json_path, _ = _evaluated(tmp_path, cache)
+    labels = tmp_path / "labels.csv"
+    assert (
+        cli(
+            "review", json_path, "--data", data, "--score", "paper", "--write-labels", labels, *cache
+        ).exit_code
+        == 0
+    )
+    rows = list(csv.DictReader(labels.read_text().splitlines()))
+    rows[1] |= {"outcome": "failure", "description": MISS_TEXT, "score": "0.5"}
+    for row in rows:
+        row["note"] = "seen by Ana" if row is rows[1] else ""
+    rows.append({name: "" for name in rows[0]} | {"episode": "someone_elses_run", "outcome": "success"})
+    with labels.open("w", newline="", encoding="utf-8-sig") as handle:  # as Excel saves "CSV UTF-8"
+        writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+
+    again = cli("review", json_path, "--data", data, "--score", "paper", "--write-labels", labels, *cache)
+    assert again.exit_code == 0, again.output
+    merged = {row["episode"]: row for row in csv.DictReader(labels.read_text().splitlines())}
+    assert list(merged) == ["pick_cube_success_episode1", "pick_cube_slip_wp3_episode1", "someone_elses_run"]
+    miss = merged["pick_cube_slip_wp3_episode1"]
+    assert (miss["outcome"], miss["description"], miss["note"]) == ("failure", MISS_TEXT, "seen by Ana")
+    assert (
+        miss["score"] != "0.5" and miss["review"] == "miss"
+    )  # the detector's columns are its own, refreshed
+    assert merged["someone_elses_run"]["outcome"] == "success"
+    assert merged["pick_cube_success_episode1"]["outcome"] == ""
+
+    other = tmp_path / "results.csv"
+    other.write_text("run,accuracy\n1,0.9\n")
+    manifest = tmp_path / "eval" / "memory" / "manifest.json"
+    for target, why in ((other, "not a labels CSV"), (manifest, "lies inside the input")):
+        before = target.read_bytes()
+        result = cli(
+            "review", json_path, "--data", data, "--score", "paper", "--write-labels", target, *cache
+        )
+        refused(result, 2, str(target), why)
+        assert target.read_bytes() == before

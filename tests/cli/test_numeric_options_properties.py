@@ -9,6 +9,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from fault_helpers import cli
 from hypothesis import example, given
@@ -68,6 +69,8 @@ CHECKS: dict[str, Callable[[Any], Any]] = {
 @given(st.sampled_from(sorted(CHECKS)), NUMBER)
 @example("k", math.nan)  # found by this test: check_k let NaN (and 2.5) through to Faiss
 @example("stride", 2.5)
+@example("stride", 10**20)  # issue 35: past int64, np.arange gave an object array (an IndexError later)
+@example("k", 10**20)
 def test_every_setting_check_returns_the_value_or_raises_a_setting_error(name: str, value: float) -> None:
     try:
         checked = CHECKS[name](value)
@@ -77,3 +80,15 @@ def test_every_setting_check_returns_the_value_or_raises_a_setting_error(name: s
         assert checked == value and not math.isnan(value)
         if name in ("k", "stride"):
             assert isinstance(checked, int), f"{name} accepted the non-integer {value!r}"
+
+
+@given(st.integers(-(10**30), 10**30))
+@example(2**63 - 1)
+@example(2**63)
+def test_an_accepted_stride_numbers_frames_as_int64(stride: int) -> None:
+    try:
+        check_stride(stride)
+    except SettingError as error:
+        assert str(stride) in str(error)
+    else:
+        assert np.arange(0, 10, stride).dtype == np.int64

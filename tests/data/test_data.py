@@ -193,7 +193,7 @@ def test_a_labels_files_split_column_gives_image_episodes_their_splits(tmp_path:
         write_episode(data / name, "pick_cube", None, length=4)
     labels = tmp_path / "labels.csv"
     labels.write_text(
-        "episode,task,outcome,symbol,onset_frame,split\n"
+        "episode,task,outcome,symbol,onset_frame, Split\n"
         "run_a,pick_cube,success,,,train\nrun_b,pick_cube,failure,slip_wp3,2,test\n"
         "run_c,pick_cube,success,,,ood\nrun_d,pick_cube,success,,,\n"
     )

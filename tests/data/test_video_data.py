@@ -25,6 +25,7 @@ from robofailring import (
     load_trajectory,
 )
 from robofailring.data.images import read_image
+from robofailring.data.model import LazyFrames
 from robofailring.data.video import open_video
 from robofailring.errors import DataError
 
@@ -233,3 +234,77 @@ def test_bad_video_data_names_the_file_or_value(v3: Path, tmp_path: Path) -> Non
     labels.write_text(json.dumps([{"episode_index": 0, "outcome": "failure", "symbol": "twist_wp1"}]))
     with pytest.raises(DataError, match=r"labels\.json row 1: unknown failure token 'twist'"):
         load_dataset(v3, labels=labels)
+
+
+def test_video_episodes_take_their_task_from_the_labels(tmp_path: Path) -> None:
+    """One camera per episode, names that say nothing: the labels' task column is enough (no --task)."""
+    root = tmp_path / "clips"
+    for episode in range(3):
+        encode_video(
+            root / f"clip_{episode}" / "front.mp4", [scene(episode, 0, t) for t in range(6)], 10, "h264"
+        )
+    labels = tmp_path / "labels.csv"
+    labels.write_text(
+        "episode,outcome,symbol,task\nclip_0,success,,pick_cube\nclip_1,failure,grasp_wp2,pick_cube\n"
+        "clip_2,failure,,push_cube\n"
+    )
+    dataset = load_dataset(root, labels=labels)
+    assert dataset.layout == "videos" and dataset.labelled
+    assert [(t.episode, t.task, t.label, t.length) for t in dataset] == [
+        ("clip_0", "pick_cube", "success", 6),
+        ("clip_1", "pick_cube", "grasp_wp2", 6),
+        ("clip_2", "push_cube", "failure", 6),
+    ]
+    # without labels nothing says the task: an error naming how many episodes, one of them, and the remedies
+    with pytest.raises(
+        DataError,
+        match=r"cannot tell the task of 3 episode\(s\) of .*clips \(videos layout\), e\.g\. 'clip_0': pass --task, or a task column",
+    ):
+        load_dataset(root)
+    # with --task alone the outcome is still unknown: a verb that needs it says so
+    untold = load_dataset(root, task="pick_cube")
+    assert not untold.labelled and [t.outcome for t in untold] == [None] * 3
+    with pytest.raises(DataError, match=r"build-memory needs to know which episodes failed.*--labels"):
+        untold.require_labels("build-memory")
+
+
+def test_video_episodes_take_their_frame_rate_from_the_container(tmp_path: Path) -> None:
+    """A clip's rate is the recording's `time` and the seconds of a detection delay (it was None: 10 fps)."""
+    root = tmp_path / "clips"
+    for episode, fps in enumerate((6, 25)):
+        encode_video(
+            root / f"clip_{episode}" / "front.mp4", [scene(episode, 0, t) for t in range(8)], fps, "h264"
+        )
+    labels = tmp_path / "labels.csv"
+    labels.write_text(
+        "episode,outcome,symbol,task,onset_frame\nclip_0,failure,,pick_cube,2\nclip_1,success,,pick_cube,\n"
+    )
+    dataset = load_dataset(root, labels=labels)
+    assert [(t.episode, t.frame_rate) for t in dataset] == [("clip_0", 6.0), ("clip_1", 25.0)]
+    assert load_trajectory(root / "clip_1", task="pick_cube").frame_rate == 25.0
+    assert open_video(root / "clip_0" / "front.mp4").fps == 6.0
+    # one frame has no rate: None (the recording's default), not a division by zero
+    encode_video(tmp_path / "still" / "front.mp4", [scene(0, 0, 0)], 6, "h264")
+    assert load_trajectory(tmp_path / "still", task="pick_cube").frame_rate is None
+    # a layout's own rate wins (LeRobot's info.json): its views are frames picked by time, without one
+    (lerobot,) = load_dataset(
+        write_lerobot_v3(tmp_path / "lerobot", lengths=(4,), tasks=("a",), cameras=("front",))
+    )
+    front = lerobot.views["front"]
+    assert isinstance(front, LazyFrames) and front.fps is None
+    assert (lerobot.fps, lerobot.frame_rate) == (10.0, 10.0)
+    runner = CliRunner()
+    cache = ["--cache-dir", str(tmp_path / "cache")]
+    memory = tmp_path / "memory"
+    built = runner.invoke(
+        app, ["build-memory", str(root), "--labels", str(labels), "--out", str(memory), *cache]
+    )
+    assert built.exit_code == 0, built.output
+    out = tmp_path / "recordings"
+    replayed = runner.invoke(
+        app,
+        ["replay", str(root), "--memory", str(memory), "--labels", str(labels), "--out", str(out), *cache],
+    )
+    assert replayed.exit_code == 0, replayed.output
+    rates = {properties(r)["episode"]: properties(r)["fps"] for r in out.glob("*.rrd")}
+    assert rates == {"clip_0": 6.0, "clip_1": 25.0}

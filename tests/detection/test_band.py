@@ -3,6 +3,8 @@ on corrected peaks, and what it stores."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -13,8 +15,6 @@ from robofailring.detection.band import (
     SCALE_FLOOR,
     SHIFT,
     Band,
-    bands_from_dict,
-    bands_to_dict,
     check_band,
     fit_band,
     leave_one_out,
@@ -119,21 +119,20 @@ def test_too_few_runs_fit_no_band() -> None:
 
 def test_bands_are_stored_and_read_back() -> None:
     band = fit_band(NORM, _runs(np.random.default_rng(7), 12))
-    section = bands_to_dict(NORM, {"contrast": band})
-    read = bands_from_dict(section, where="test")["contrast"]
+    read = Band.from_dict(json.loads(json.dumps(band.to_dict())), where="test")
     np.testing.assert_allclose(read.mean, band.mean, atol=1e-6)
     np.testing.assert_allclose(read.scale, band.scale, atol=1e-6)
     assert (read.kind, read.runs) == (NORM, 12)
-    assert bands_from_dict({"kind": "none", "rules": {}}, where="test") == {}
     for broken in (
-        {"kind": NORM, "rules": {"contrast": {"mean": [0.1], "scale": [0.0], "runs": 3}}},
-        {"kind": NORM, "rules": {"contrast": {"mean": [0.1, 0.2], "scale": [1.0], "runs": 3}}},
-        {"kind": NORM, "rules": {"contrast": {"mean": [0.1], "runs": 3}}},
-        {"kind": "wide", "rules": {"contrast": {"mean": [0.1], "scale": [1.0], "runs": 3}}},
+        {"kind": NORM, "mean": [0.1], "scale": [0.0], "runs": 3},
+        {"kind": NORM, "mean": [0.1, 0.2], "scale": [1.0], "runs": 3},
+        {"kind": NORM, "mean": [0.1], "runs": 3},
+        {"mean": [0.1], "scale": [1.0], "runs": 3},
+        {"kind": "wide", "mean": [0.1], "scale": [1.0], "runs": 3},
         ["not", "a", "band"],
     ):
         with pytest.raises(MemoryFormatError, match="test"):
-            bands_from_dict(broken, where="test")
+            Band.from_dict(broken, where="test")
 
 
 def test_band_settings_are_checked() -> None:

@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from robofailring.detection.conformal import (
+    attainable_target_fpr,
     auc,
+    auc_interval,
     beta_cdf,
     beta_quantile,
     binomial_tail,
@@ -47,6 +49,33 @@ def test_too_few_successes_says_how_many_and_the_smallest_alpha() -> None:
         conformal_threshold([], 0.5)
     with pytest.raises(SettingError, match="target FPR"):
         conformal_threshold([0.1] * 50, 0.0)
+
+
+def test_too_few_successes_fall_back_to_the_smallest_alpha_they_allow() -> None:
+    assert attainable_target_fpr(19, 0.05) == 0.05  # enough: α itself
+    assert attainable_target_fpr(5, 0.05) == pytest.approx(1 / 6)
+    assert attainable_target_fpr(1, 0.05) == pytest.approx(1 / 2)
+    peaks = [0.3, 0.1, 0.7, 0.2, 0.5]
+    threshold = conformal_threshold(peaks, attainable_target_fpr(len(peaks), 0.05))
+    assert threshold > 0.7 and np.nextafter(np.float32(threshold), np.float32(-1)) == np.float32(0.7)
+    with pytest.raises(DataError, match="no calibration run"):
+        attainable_target_fpr(0, 0.05)
+
+
+def test_auc_interval_resamples_each_kind_of_run() -> None:
+    assert auc_interval([0.9, 0.8, 0.7], [0.1, 0.2]) == (1.0, 1.0)  # every resample separates them
+    assert auc_interval([], [0.1]) is None and auc_interval([0.1], []) is None
+    rng = np.random.default_rng(3)
+    failures, successes = rng.normal(1.0, 1.0, 30), rng.normal(0.0, 1.0, 40)
+    low, high = auc_interval(failures.tolist(), successes.tolist()) or (0.0, 0.0)
+    assert low < auc(failures.tolist(), successes.tolist()) < high
+    assert auc_interval(failures.tolist(), successes.tolist()) == (low, high)  # a fixed seed
+    # the same interval as resampling the runs one draw at a time (up to the draws' own noise)
+    draws = [
+        auc(rng.choice(failures, failures.size).tolist(), rng.choice(successes, successes.size).tolist())
+        for _ in range(2000)
+    ]
+    assert np.percentile(draws, [2.5, 97.5]) == pytest.approx([low, high], abs=0.02)
 
 
 def test_auc_counts_pairs_and_ties() -> None:

@@ -107,9 +107,11 @@ def test_eta_is_calibrated_on_training_successes_and_judges_the_task(
     assert found.delta is None and found.gamma is None and found.eta is not None
     assert "η = " in found.to_text(memory) and "δ = " not in found.to_text(memory)
     stored = json.loads((memory / "manifest.json").read_text(encoding="utf-8"))["calibration"]
-    assert stored["eta"] == found.eta and stored["delta"] is None
+    assert list(stored["rules"]) == ["novelty"] and stored["rules"]["novelty"]["threshold"] == found.eta
     loaded = FailureMemory.load(memory)
-    assert loaded.calibrated_eta == found.eta and loaded.calibrated_delta is None
+    assert (
+        loaded.calibrated_threshold("novelty") == found.eta and loaded.calibrated_threshold("paper") is None
+    )
 
     encoder = CachedEncoder(load_encoder("pixels"), cache_dir=cache)
     detector = FailureDetector(loaded, encoder, k=2)
@@ -131,7 +133,9 @@ def test_eta_is_calibrated_on_training_successes_and_judges_the_task(
         assert np.isnan(trace.similarity[view]).all()
     body = trace.to_dict()
     assert (
-        body["score"] == "novelty" and body["thresholds"]["eta"] == found.eta and body["failure_entries"] == 0
+        body["score"] == "novelty"
+        and body["thresholds"]["novelty"] == found.eta
+        and body["failure_entries"] == 0
     )
     assert body["views"][trace.views[0]]["novelty"][3] == pytest.approx(
         float(1 - trace.success_similarity[trace.views[0]][3]), abs=1e-6

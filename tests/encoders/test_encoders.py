@@ -123,6 +123,7 @@ def test_pretrained_tag_without_network_fails_fast_with_instructions() -> None:
     with pytest.raises(EncoderError, match="not available here") as error:
         load_encoder("open_clip:ViT-B-32:openai")
     assert "open_clip:ViT-B-32:/path/to/checkpoint.pt" in str(error.value)
+    assert error.value.exit_code == 1  # the environment lacks them (issue 35, item 9): not bad input
 
 
 def test_cache_notices_a_rewritten_file(tmp_path: Path, cache_dir: Path) -> None:

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from synthetic import synthetic_frame, write_episode, write_project_dataset
+from synthetic import synthetic_frame, write_episode, write_labelled_runs, write_project_dataset
 from typer.testing import CliRunner
 
 from robofailring import (
@@ -233,3 +233,14 @@ def test_projection_head_on_a_frozen_clip(tiny_checkpoint: tuple[Path, Path], tm
 
     state = torch.load(out / WEIGHTS_NAME, weights_only=True)
     assert set(state) == {"head.weight", "head.bias", "classifier.weight", "classifier.bias"}
+
+
+def test_train_encoder_verb_on_runs_named_by_nothing_but_their_labels(tmp_path: Path) -> None:
+    data, labels = write_labelled_runs(tmp_path / "runs", runs=6, length=4)
+    out = tmp_path / "encoder"
+    args = ["train-encoder", str(data), "--labels", str(labels), "--out", str(out), "--image-size", "24"]
+    result = runner.invoke(app, [*args, "--epochs", "1", "--threads", "1"])
+    assert result.exit_code == 0, result.output
+    record = json.loads((out / CONFIG_NAME).read_text())
+    assert record["training"]["recipe"]["labels"] == str(labels.resolve())
+    assert record["training"]["skipped_unlabelled"] == [] and record["training"]["trajectories"] >= 1

@@ -88,7 +88,10 @@ def test_two_encoders_side_by_side(compared: Compared) -> None:
     for result in results:
         manifest = json.loads((Path(result.memory) / "manifest.json").read_text())
         assert manifest["calibration"]["encoder"] == result.encoder == manifest["encoder"]
-        assert result.operating_delta == manifest["calibration"]["delta"] and result.calibrated
+        assert (
+            result.operating_delta == manifest["calibration"]["rules"]["paper"]["threshold"]
+            and result.calibrated
+        )
         assert result.failures == 6 and result.successes == 2
     table = comparison_table(results)
     assert (

@@ -125,23 +125,26 @@ def test_calibration_is_stored_and_used(dataset: Path, tmp_path: Path) -> None:
     calibration = calibrate(
         CalibrateConfig(data=dataset, memory=tmp_path / "memory", target_fpr=0.5, cache_dir=cache)
     )
-    assert calibration.successes == 4 and calibration.achieved_fpr <= 0.5
+    assert calibration.successes == 4 and calibration.achieved_fprs["paper"] <= 0.5
+    assert list(calibration.thresholds) == ["paper", "contrast", "novelty"]  # every rule the memory supports
     manifest = json.loads((tmp_path / "memory" / "manifest.json").read_text())
-    assert manifest["calibration"]["delta"] == calibration.delta
+    stored = manifest["calibration"]["rules"]
+    assert stored["paper"]["threshold"] == calibration.delta and stored["paper"]["runs"] == 4
     assert manifest["calibration"]["encoder"] == manifest["encoder"]
     memory = FailureMemory.load(tmp_path / "memory")
     detector = FailureDetector(memory, CachedEncoder(load_encoder("pixels"), cache_dir=cache), rule="paper")
     assert detector.delta == calibration.delta and detector.gamma == calibration.gamma
-    assert manifest["calibration"]["gamma"] == calibration.gamma
-    assert manifest["calibration"]["eta"] == calibration.eta == detector.eta is not None
+    assert stored["contrast"]["threshold"] == calibration.gamma
+    assert stored["novelty"]["threshold"] == calibration.eta == detector.eta is not None
+    assert {name: rule["achieved_fpr"] for name, rule in stored.items()} == calibration.achieved_fprs
     assert FailureDetector(memory, load_encoder("pixels"), delta=0.5).delta == 0.5  # --delta wins
     # on the calibration successes, the achieved FPR is what calibration reported
     successes = [t for t in load_dataset(dataset) if not t.is_failure and t.split == "train"]
     fired = sum(detector.run(t).t_det is not None for t in successes)
-    assert fired / len(successes) == pytest.approx(calibration.achieved_fpr)
+    assert fired / len(successes) == pytest.approx(calibration.achieved_fprs["paper"])
     contrast = FailureDetector(memory, CachedEncoder(load_encoder("pixels"), cache_dir=cache))
     fired = sum(contrast.run(t, leave_one_out=True).t_det is not None for t in successes)
-    assert fired / len(successes) == pytest.approx(calibration.gamma_achieved_fpr)
+    assert fired / len(successes) == pytest.approx(calibration.achieved_fprs["contrast"])
 
 
 def test_too_short_test_trajectories_are_skipped_and_reported(tmp_path: Path) -> None:

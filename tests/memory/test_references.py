@@ -15,6 +15,7 @@ from typer.testing import CliRunner
 
 from rfr_viz.cli.app import app
 from robofailring.memory.failure import ENTRIES, MANIFEST, FailureMemory
+from robofailring.memory.manifest import StoredCalibration, StoredRule
 from robofailring.memory.references import check_references, reroot, resolve_stored, to_stored
 
 TASKS = ("pick_cube",)
@@ -165,7 +166,21 @@ def test_memory_info_text(relative_build: tuple[Path, Path]) -> None:
         "failures    dense, 57 entries from 12 failure views" in stdout and "thinned at step 0.002" in stdout
     )
     assert "pick_cube  front 19, overhead 19, wrist 19" in stdout
-    assert "δ not calibrated" in stdout and "successes   none" in stdout
+    assert "thresholds  not calibrated (each rule's default)" in stdout and "successes   none" in stdout
+
+
+def test_memory_info_names_each_calibrated_rule(relative_build: tuple[Path, Path], tmp_path: Path) -> None:
+    _, memory_dir = relative_build
+    copy = tmp_path / "memory"
+    shutil.copytree(memory_dir, copy)
+    loaded = FailureMemory.load(copy)
+    rules = {"paper": StoredRule(threshold=0.875), "mine": StoredRule(threshold=0.125)}
+    loaded.with_calibration(StoredCalibration(rules=rules, encoder=loaded.encoder)).write_manifest(copy)
+    code, stdout, stderr = _invoke(["memory-info", str(copy), "--json"])
+    assert code == 0, stderr
+    assert json.loads(stdout)["calibrated_thresholds"] == {"paper": 0.875, "mine": 0.125}
+    code, stdout, stderr = _invoke(["memory-info", str(copy)])
+    assert "thresholds  calibrated: paper 0.875000, mine 0.125000" in stdout
 
 
 def test_old_format_memory_still_resolves_and_reroots(

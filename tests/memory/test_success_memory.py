@@ -215,6 +215,10 @@ def test_calibration_leaves_each_run_out(
         DataError, match=r"needs at least 19 success runs.*smallest α these 6 runs allow is 0\.1429"
     ):
         calibrate_rules(detector, successes, 0.05)
+    at_best = calibrate_rules(detector, successes, 0.05, at_best=True)  # small data: the smallest α, 1/7
+    assert at_best[CONTRAST].target_fpr == pytest.approx(1 / 7) and at_best[CONTRAST].successes == 6
+    assert at_best[CONTRAST].threshold == pytest.approx(conformal_threshold(peaks, 1 / 7), abs=1e-5)
+    assert at_best[CONTRAST].threshold > max(peaks) - 1e-5 and at_best[CONTRAST].achieved_fpr == 0.0
 
 
 def test_detect_json_has_both_rules_fields(

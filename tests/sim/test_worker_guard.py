@@ -1,11 +1,20 @@
 """A script that calls generate_dataset with worker processes but no `__main__` guard gets an error
-that says so, where the process pool used to start new workers forever (and hold CI past its limit)."""
+that says so, where the process pool used to start new workers forever (and hold CI past its limit); an
+image size the simulator cannot render is refused before any worker starts, not blamed on the guard."""
 
 from __future__ import annotations
 
 import subprocess
 import sys
 from pathlib import Path
+
+import pytest
+from fault_helpers import cli
+from hypothesis import example, given
+from hypothesis import strategies as st
+
+from robofailring.sim import GenerateConfig
+from robofailring.sim.writer import MAX_IMAGE_SIZE
 
 SCRIPT = """
 from pathlib import Path
@@ -30,3 +39,25 @@ def test_a_script_without_a_main_guard_is_told_to_add_one(tmp_path: Path) -> Non
     assert 'if __name__ == "__main__":' in last and "workers=1" in last
     assert not out.exists()  # nothing half-written
     assert not [p for p in tmp_path.iterdir() if p.name not in {"unguarded.py"}]
+
+
+@pytest.fixture(scope="module")
+def nowhere(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return tmp_path_factory.mktemp("sizes")
+
+
+@given(st.integers(-(10**12), 10**12))
+@example(100_000)  # issue 35, item 9: the worker died of bad_alloc, and that was blamed on a `__main__` guard
+@example(MAX_IMAGE_SIZE + 1)
+def test_generate_refuses_an_image_size_it_cannot_render_before_any_work(nowhere: Path, size: int) -> None:
+    out = nowhere / f"data-{size}"
+    if 16 <= size <= MAX_IMAGE_SIZE:
+        assert GenerateConfig(out=out, image_size=size).image_size == size
+        return
+    result = cli("generate", "--out", out, "--image-size", size, "--tasks", "pick_cube")
+    assert result.exit_code == 2 and isinstance(result.exception, SystemExit), result.output
+    errors = [line for line in result.output.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1 and "--image-size must be at" in errors[0] and str(size) in errors[0], (
+        result.output
+    )
+    assert "__main__" not in result.output and not out.exists()

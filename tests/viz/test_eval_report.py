@@ -17,10 +17,10 @@ from rrd import columns
 from synthetic import write_project_dataset
 from typer.testing import CliRunner
 
-from rfr_viz.charts.evaluation import RULE_COLOURS, evaluation_charts, rules_of
+from rfr_viz.charts.evaluation import RULE_COLOURS, Mark, evaluation_charts, label_rows, marks_apart, rules_of
 from rfr_viz.charts.report_html import write_report
 from rfr_viz.cli.app import app
-from rfr_viz.recordings.evaluation import record_evaluation
+from rfr_viz.recordings.evaluation import chart_pages, record_evaluation
 
 runner = CliRunner()
 
@@ -170,3 +170,31 @@ def test_report_html_renders_in_headless_chromium(
         int(np.all(np.abs(image.astype(int) - colour[::-1]) < 12, axis=2).sum()) for colour in RULE_COLOURS
     )
     assert drawn > 2000, "no chart drawn in the browser"
+
+
+def test_charts_stay_readable_at_1280_by_720(evaluated: tuple[Path, dict[str, Any]]) -> None:
+    """Issue 32, item 6: at most four charts a tab, category names staggered by their length, and ROC
+    points of one rule that land together share one label instead of drawing two over each other."""
+    _, evaluation = evaluated
+    charts = evaluation_charts(evaluation)
+    pages = chart_pages(charts)
+    assert list(pages) == ["ROC, when", "thresholds", "per type, view"]
+    assert all(len(page) <= 4 for page in pages.values())
+    assert sorted(c.key for page in pages.values() for c in page) == sorted(c.key for c in charts)
+    assert label_rows(["front", "wrist"]) == 1 and label_rows(["0–20"] * 5) == 1
+    assert (
+        label_rows(
+            ["grasp", "no_rotation", "rotation", "slip", "translation", "wrong_object", "wrong_sequence"]
+        )
+        == 3
+    )
+    blue, orange = RULE_COLOURS[0], RULE_COLOURS[1]
+    marks = marks_apart(
+        [
+            Mark(0.0, 1.0, "δ=0.85", blue),
+            Mark(0.01, 1.0, "δ=0.90", blue),  # the same ROC point: one label
+            Mark(0.0, 1.0, "γ=0.10", orange),  # another rule's colour keeps its own
+            Mark(0.5, 0.5, "δ=0.95", blue),
+        ]
+    )
+    assert [(m.x, m.label) for m in marks] == [(0.0, "δ=0.85, 0.90"), (0.0, "γ=0.10"), (0.5, "δ=0.95")]

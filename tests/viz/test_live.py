@@ -35,6 +35,7 @@ from robofailring import (
     load_trajectory,
 )
 from robofailring.data.images import write_png
+from robofailring.errors import OutputError
 
 runner = CliRunner()
 DELTA = "0.97"  # the synthetic episode's S_t crosses it part-way through (frame 6 of 8)
@@ -287,3 +288,46 @@ def test_watch_without_a_viewer_is_a_clear_error(episode: Path, pixels_memory_di
     assert (
         result.exit_code == 1 and "no Rerun viewer listens at" in result.stderr and "--spawn" in result.stderr
     )
+
+
+def test_watch_save_refuses_any_file_that_is_not_a_recording(
+    episode: Path, pixels_memory_dir: Path, tmp_path: Path
+) -> None:
+    """`watch --save` never writes over a memory's manifest, a labels file or a frame of the episode it
+    watches (issue 35, item 2): one error line, before any work, each file as it was."""
+    labels = tmp_path / "labels.csv"
+    labels.write_text("episode,outcome\npick_cube_grasp_wp2_episode9,failure\n")
+    frame = next(path for path in sorted(episode.rglob("*.png")))
+    targets = {
+        pixels_memory_dir / "manifest.json": "lies inside the input",
+        labels: "is not a Rerun recording",
+        frame: "lies inside the input",
+        tmp_path: "is not a Rerun recording",  # a folder
+    }
+    for target, why in targets.items():
+        before = target.read_bytes() if target.is_file() else sorted(p.name for p in target.iterdir())
+        result = runner.invoke(
+            app,
+            [
+                "watch",
+                str(episode),
+                "--memory",
+                str(pixels_memory_dir),
+                "--speed",
+                "0",
+                "--save",
+                str(target),
+            ],
+        )
+        errors = [line for line in result.output.splitlines() if line.startswith("error:")]
+        assert result.exit_code == 2 and len(errors) == 1 and why in errors[0], result.output
+        after = target.read_bytes() if target.is_file() else sorted(p.name for p in target.iterdir())
+        assert after == before
+    detector = FailureDetector(FailureMemory.load(pixels_memory_dir), load_encoder("pixels"))
+    live = LiveRecording.open(detector, "pick_cube", views=list(VIEWS), target=LiveTarget(save=labels))
+    with (
+        pytest.raises(OutputError, match="is not a Rerun recording"),
+        live,
+    ):  # the library's live recording too
+        pass
+    assert labels.read_text().startswith("episode,outcome")

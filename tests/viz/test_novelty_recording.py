@@ -37,7 +37,7 @@ def session(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 
 
 def test_detect_json_is_judged_by_novelty_at_the_calibrated_eta(session: dict[str, Path]) -> None:
-    eta = FailureMemory.load(session["memory"]).calibrated_eta
+    eta = FailureMemory.load(session["memory"]).calibrated_threshold("novelty")
     assert eta is not None
     key = load_dataset(session["data"]).select(split="test")[0].key
     found = runner.invoke(
@@ -56,7 +56,7 @@ def test_detect_json_is_judged_by_novelty_at_the_calibrated_eta(session: dict[st
     )
     assert found.exit_code == 0, found.output
     body = json.loads(found.output)
-    assert body["score"] == "novelty" and body["threshold"] == eta and body["thresholds"]["eta"] == eta
+    assert body["score"] == "novelty" and body["threshold"] == eta and body["thresholds"]["novelty"] == eta
     view = next(iter(body["views"]))
     novelty, success = body["views"][view]["novelty"], body["views"][view]["success_similarity"]
     assert novelty == pytest.approx([1 - s for s in success], abs=2e-6)
@@ -160,7 +160,9 @@ def test_the_replay_shows_n_against_eta_and_the_nearest_success_frame(session: d
     assert "Fired by the novelty rule" in reports[-1][1][0] and "Novelty: N = 1 − S⁺ = " in reports[-1][1][0]
 
     info = runner.invoke(app, ["memory-info", str(session["memory"])])
-    assert info.exit_code == 0 and "η = " in info.output and "entries     0 × " in info.output
+    assert (
+        info.exit_code == 0 and "calibrated: novelty 0." in info.output and "entries     0 × " in info.output
+    )
 
 
 def test_live_streams_n_against_eta_and_says_there_is_no_failure_neighbour(

@@ -2,7 +2,8 @@
 
 0 done; 1 an error of the environment (no permission, disk full, output busy); 2 bad usage or
 input (a file, folder or value named in the message); 3 done, but some inputs were skipped (the
-summary of what was skipped is printed before exiting).
+summary of what was skipped is printed before exiting); 130 interrupted (Ctrl-C, SIGINT: 128 + 2,
+as a shell reports it), whether the verb was running or the command was still loading.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ DONE: Final[int] = 0
 ERROR: Final[int] = 1
 BAD_INPUT: Final[int] = 2
 SKIPPED: Final[int] = 3
+INTERRUPTED: Final[int] = 130
 
 
 def exit_code_for(error: BaseException) -> int:
@@ -36,6 +38,12 @@ def fail(error: BaseException) -> NoReturn:
     raise typer.Exit(code=exit_code_for(error))
 
 
+def interrupted() -> int:
+    """Say `error: interrupted` on stderr (Ctrl-C); the exit status to end with, for the caller to raise."""
+    typer.secho("error: interrupted (Ctrl-C)", fg=typer.colors.RED, err=True)
+    return INTERRUPTED
+
+
 def finish(*, skipped: int = 0, failure: RoboFailRingError | None = None) -> None:
     """End a command once its summary is printed: `failure` (a job's result says its work failed) is
     raised for `ErrorMappingGroup` to print and map; else status 3 when some inputs were skipped."""
@@ -50,7 +58,8 @@ class ErrorMappingGroup(TyperGroup):
 
     Errors the library raises on purpose (`RoboFailRingError`: a bad setting is a `SettingError`)
     and operating-system errors (permission, disk full, a file where a folder belongs) are caught
-    here, for every verb; no verb catches errors of its own.
+    here, for every verb; no verb catches errors of its own. A Ctrl-C is one line and status 130
+    (`rfr_viz.cli.app` says the same for one while the verbs load).
     """
 
     def invoke(self, ctx: _click.Context) -> Any:
@@ -58,3 +67,5 @@ class ErrorMappingGroup(TyperGroup):
             return super().invoke(ctx)
         except (RoboFailRingError, OSError) as error:
             fail(error)
+        except KeyboardInterrupt:
+            raise typer.Exit(code=interrupted()) from None

@@ -79,7 +79,9 @@ def generate_cmd(
         ),
     ] = "in",
     ood: Annotated[bool, typer.Option("--ood", help="The same as --look ood.")] = False,
-    image_size: Annotated[int, typer.Option("--image-size", help="Square image size in pixels.")] = 128,
+    image_size: Annotated[
+        int, typer.Option("--image-size", help="Square image size in pixels (16 to 1024).")
+    ] = 128,
     frames: Annotated[int, typer.Option(help="Frames per episode.")] = 40,
     workers: WorkersOption = 2,
 ) -> None:
@@ -175,7 +177,8 @@ def build_memory_cmd(
     if memory.successes is not None:
         typer.echo(
             f"success memory: {len(memory.successes)} frames kept of {memory.successes.offered} offered "
-            f"(thinning step {success_step:g}), {len(memory.successes.runs)} views over "
+            f"(thinning step {success_step:g}), {memory.successes.success_runs} success views and "
+            f"{len(memory.successes.runs) - memory.successes.success_runs} failure starts over "
             f"{len(memory.successes.tasks)} tasks"
         )
     if stats.skipped_views or stats.skipped_inputs:
@@ -246,11 +249,12 @@ def detect_cmd(
             vlm=vlm_config(vlm_url, vlm_model),
         )
     )
-    report_skipped(result.trace.skipped_inputs)
+    skipped = [*result.trace.skipped_inputs, *result.trace.short_views]
+    report_skipped(skipped)
     warn_missing_references(memory, result.references)
     print_notes(result.notes)
     typer.echo(result.to_json() if as_json else result.to_text())
-    finish(skipped=len(result.trace.skipped_inputs))  # listed above
+    finish(skipped=len(skipped))  # listed above
 
 
 @app.command("calibrate")
@@ -329,6 +333,7 @@ def train_encoder_cmd(
     threads: Annotated[int | None, typer.Option(help="torch CPU threads (default: half the cores).")] = None,
     views: ViewsOption = None,
     labels: LabelsOption = None,
+    task: TaskOption = None,
     device: DeviceOption = None,
     randomize: RandomizeOption = 0,
     workers: WorkersOption = 2,
@@ -349,6 +354,7 @@ def train_encoder_cmd(
         views=views,
         device=device,
         labels=labels,
+        task=task,
     )
     folder = run_train_encoder(TrainEncoderJob(config, randomize=randomize, workers=workers), say=typer.echo)
     typer.echo(f"use it with: --encoder trained:{folder}")

@@ -7,7 +7,10 @@ nothing else is read. How a dataset's rows are read (`RowFormat`) is decided fro
 (`row_format`), by the layouts and by a memory's references alike: encoded rows are ALOHA's, JPEGs
 of the camera's RGB array given to `cv2.imencode` as it was (decoded without a channel swap), and a
 file whose `data` group says `macros_image_convention` = `opengl` (LIBERO) stores its images bottom
-row first (flipped back when read).
+row first (flipped back when read). A row is read only when its declared frame size is within
+`images.max_frame_pixels()` (an encoded row: its bytes within three bytes a pixel of it), and what
+h5py raises for a damaged file (a corrupt object header is a KeyError) is a DataError naming the file
+(`hdf5_faults`).
 """
 
 from __future__ import annotations
@@ -15,14 +18,22 @@ from __future__ import annotations
 import os
 import threading
 from collections import OrderedDict
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
 import numpy as np
 
-from robofailring.data.images import as_rgb, content_digest, decode_image
+from robofailring.data.images import (
+    MAX_FRAME_PIXELS_SETTING,
+    as_rgb,
+    check_frame_size,
+    content_digest,
+    decode_image,
+    max_frame_pixels,
+)
 from robofailring.data.model import Frame, LazyFrames
 from robofailring.errors import DataError
 from robofailring.extras import needs_extra
@@ -64,6 +75,17 @@ def open_hdf5(path: Path) -> Any:
             _, (oldest, _) = _OPEN.popitem(last=False)
             oldest.close()
         return handle
+
+
+@contextmanager
+def hdf5_faults(path: Path | str) -> Iterator[None]:
+    """What h5py raises for a damaged file (a corrupt object header is a KeyError, a failed visit a
+    RuntimeError, an unreadable chunk an OSError) as one DataError naming the file."""
+    try:
+        yield
+    except (KeyError, RuntimeError, OSError) as error:
+        why = error.args[0] if isinstance(error, KeyError) and error.args else error
+        raise DataError(f"cannot read HDF5 file {path}: {why} (a damaged or unfinished file?)") from error
 
 
 def describe(handle: Any, *, limit: int = 12) -> str:
@@ -128,10 +150,22 @@ class HDF5Frame:
         with _LOCK:
             handle = open_hdf5(self.file)
             try:
-                row = np.asarray(handle[self.dataset][self.index])
-            except (KeyError, IndexError, OSError) as error:
+                item = handle[self.dataset]
+                self._check_size(tuple(item.shape))
+                row = np.asarray(item[self.index])
+            except (KeyError, IndexError, OSError, RuntimeError) as error:
                 raise DataError(f"cannot read {self.reference}: {error}") from error
         return row if self.length is None else row[: self.length]
+
+    def _check_size(self, shape: tuple[int, ...]) -> None:
+        """Refuse a row larger than a frame may be, from the dataset's declared shape (nothing read)."""
+        if not self.form.encoded and len(shape) >= 3:
+            check_frame_size(shape[2], shape[1], source=self.reference)
+        elif self.form.encoded and len(shape) == 2 and shape[1] > 3 * max_frame_pixels():
+            raise DataError(
+                f"{self.reference}: an encoded row of {shape[1]:,} bytes is larger than a raw frame of the "
+                f"{max_frame_pixels():,} pixels a frame may have; set {MAX_FRAME_PIXELS_SETTING} to raise it"
+            )
 
     def load(self) -> np.ndarray:
         row = self._row()
@@ -183,6 +217,8 @@ def read_hdf5_reference(reference: str) -> np.ndarray | None:
     if not marker or not hash_ or not index.isdecimal() or not Path(file).is_file():
         return None
     handle = open_hdf5(Path(file))
-    if handle.get(dataset) is None:
-        return None
-    return HDF5Frame(Path(file), dataset, int(index), form=row_format(handle, dataset)).load()
+    with hdf5_faults(file):
+        if handle.get(dataset) is None:
+            return None
+        form = row_format(handle, dataset)
+    return HDF5Frame(Path(file), dataset, int(index), form=form).load()

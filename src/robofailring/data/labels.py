@@ -10,12 +10,18 @@ an optional `onset_frame` a failure's first frame of the fault (an integer from 
 episode's length; it wins over the data's own, e.g. the simulator's manifest), and an optional
 `split` column the episode's split (`train`, `test`, `ood`, …; it wins over the data's own: once
 one episode has a split, the dataset is not hash-split, and an episode without one is in none).
-Other columns (e.g. those `review --write-labels` adds) are ignored.
+Other columns (e.g. those `review --write-labels` adds) are ignored. A CSV saved by Excel as
+"CSV UTF-8" (a byte-order mark before the header) reads like any other.
+
+A tool that writes a labels file where one already is (`review --write-labels`) merges into it
+(`merge_label_rows`): what a person filled in is never blanked, and a file that is not a labels
+file is never written over.
 """
 
 from __future__ import annotations
 
 import csv
+import io
 import json
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
@@ -23,7 +29,12 @@ from pathlib import Path
 
 from robofailring.data.grounding import UNTYPED, Vocabulary, parse_symbol
 from robofailring.data.model import Outcome, Skipped, Trajectory, parse_onset_frame
-from robofailring.errors import DataError, SymbolError
+from robofailring.errors import DataError, OutputError, SymbolError
+
+#: The columns a person fills in: kept from an existing labels file whenever they are not empty.
+FILLED_COLUMNS: tuple[str, ...] = ("outcome", "symbol", "description", "task", "onset_frame", "split")
+#: Every column this module reads (a header names them in any case, with spaces around).
+LABEL_COLUMNS: tuple[str, ...] = ("episode_index", "episode", *FILLED_COLUMNS)
 
 
 @dataclass(frozen=True)
@@ -76,7 +87,7 @@ def _rows(path: Path) -> list[dict[str, object]]:
     """The rows of a labels file (JSON list of objects, else CSV with a header)."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")  # Excel's "CSV UTF-8" starts with a byte-order mark
     except (OSError, UnicodeDecodeError) as error:
         raise DataError(f"cannot read labels file {path}: {error}") from error
     rows: list[dict[str, object]]
@@ -91,8 +102,86 @@ def _rows(path: Path) -> list[dict[str, object]]:
             )
         rows = loaded
     else:
-        rows = [dict(row) for row in csv.DictReader(text.splitlines())]
-    return rows
+        reader = csv.DictReader(io.StringIO(text, newline=""), strict=True)
+        try:
+            rows = [dict(row) for row in reader]
+        except csv.Error as error:  # e.g. a quote never closed: the rest of the file would be one cell
+            raise DataError(
+                f"labels file {path} line {reader.line_num}: not a readable CSV ({error})"
+            ) from error
+        _column_names(reader.fieldnames or [], path)  # a column named twice, even where no row follows
+    return [{_column_names(row, path).get(name, name): value for name, value in row.items()} for row in rows]
+
+
+def _column_names(names: Iterable[object], path: Path) -> dict[str, str]:
+    """The labels columns among `names`, as this module reads them (`Outcome`, ` outcome ` -> `outcome`);
+    a column named twice that way is an error, never one of the two picked silently."""
+    found: dict[str, str] = {}
+    for name in names:
+        known = str(name).strip().lower()
+        if known not in LABEL_COLUMNS:
+            continue
+        if known in found.values():
+            first = next(given for given, column in found.items() if column == known)
+            raise DataError(
+                f"labels file {path}: columns {first!r} and {name!r} both name {known!r}; keep one"
+            )
+        found[str(name)] = known
+    return found
+
+
+def _row_key(row: dict[str, object]) -> str | None:
+    """The episode a labels row names (`episode_<index>` or the episode's name), None when none."""
+    index, name = str(row.get("episode_index") or "").strip(), str(row.get("episode") or "").strip()
+    return f"episode_{index}" if index else (name or None)
+
+
+def merge_label_rows(
+    path: Path, rows: list[dict[str, str]], columns: Iterable[str]
+) -> tuple[list[str], list[dict[str, str]]]:
+    """The columns and rows to write to the labels CSV at `path`: `rows` merged into what is there.
+
+    No file at `path`: `rows` as they are. A labels CSV there (a header with `episode` or
+    `episode_index` and `outcome`): its rows are all kept, in their order and with their own extra
+    columns; a row for the same episode takes the new values of the tool's columns, but a column
+    the tool does not write keeps its value, and one a person fills in (`FILLED_COLUMNS`) keeps it
+    when it is not empty; new episodes follow. Anything else at `path` (another CSV, a JSON
+    labels file, a file that is not text) is refused with OutputError before anything is written.
+    """
+    path = Path(path)
+    columns = list(columns)
+    if not path.exists():
+        return columns, rows
+    refused = f"{path} exists and is not a labels CSV"
+    if path.suffix.lower() == ".json":
+        raise OutputError(f"{refused} (a JSON labels file is not rewritten): name a .csv file")
+    try:
+        reader = csv.DictReader(io.StringIO(path.read_text(encoding="utf-8-sig"), newline=""), strict=True)
+        known = _column_names(
+            reader.fieldnames or [], path
+        )  # `Outcome` is `outcome`, as read_labels reads it
+        header = [known.get(name, name) for name in (reader.fieldnames or [])]
+        existing = [{known.get(k, k): v or "" for k, v in row.items() if k is not None} for row in reader]
+    except (OSError, UnicodeDecodeError, csv.Error, DataError) as error:
+        raise OutputError(f"{refused} ({error}); refusing to write over it") from error
+    if "outcome" not in header or not {"episode", "episode_index"} & set(header):
+        raise OutputError(
+            f"{refused} (its header has no episode/episode_index and outcome columns); "
+            "refusing to write over it: name a new file"
+        )
+    fresh = {_row_key(dict(row)): row for row in rows}
+    merged: list[dict[str, str]] = []
+    for kept in existing:
+        new = fresh.pop(_row_key(dict(kept)), None)
+        if new is not None:
+            kept = new | {  # the tool's own columns refreshed; a person's never blanked
+                name: value
+                for name, value in kept.items()
+                if name not in columns or (name in FILLED_COLUMNS and value.strip())
+            }
+        merged.append(kept)
+    merged.extend(fresh.values())
+    return columns + [name for name in header if name not in columns], merged
 
 
 def _label(row: dict[str, object], *, where: str, vocabulary: Vocabulary | None) -> Label:

@@ -19,6 +19,7 @@ from robofailring.data.folders import visible
 from robofailring.data.hdf5 import (
     HDF5Frames,
     describe,
+    hdf5_faults,
     is_hdf5,
     is_image_array,
     is_jpeg_rows,
@@ -60,12 +61,14 @@ def aloha_episode(path: Path, *, task: str) -> Trajectory:
 def aloha_trajectories(root: Path, *, task: str | None = None) -> Found:
     """The episode files of a folder (or one episode file); other files are listed as skipped."""
     if root.is_file():
-        return [aloha_episode(root, task=task or root.parent.name)], []
+        with hdf5_faults(root):
+            return [aloha_episode(root, task=task or root.parent.name)], []
     found: list[Trajectory] = []
     skipped: list[Skipped] = []
     for path in visible(root):
         if is_hdf5(path) and _EPISODE.match(path.stem):
-            found.append(aloha_episode(path, task=task or root.name))
+            with hdf5_faults(path):
+                found.append(aloha_episode(path, task=task or root.name))
         else:
             skipped.append(Skipped(path, f"not an ALOHA episode file ({SHAPE})"))
     return found, skipped
@@ -73,7 +76,8 @@ def aloha_trajectories(root: Path, *, task: str | None = None) -> Found:
 
 def _detect(root: Path) -> bool:
     if root.is_file():
-        return is_hdf5(root) and "observations" in open_hdf5(root)
+        with hdf5_faults(root):
+            return is_hdf5(root) and "observations" in open_hdf5(root)
     return any(is_hdf5(p) and _EPISODE.match(p.stem) for p in root.iterdir())
 
 
@@ -85,6 +89,5 @@ LAYOUT: Final = register(
         help=f"ALOHA/ACT episodes <root>/{SHAPE}",
         listed=9,
         reads_files=True,
-        outcomes_in_data=False,
     )
 )

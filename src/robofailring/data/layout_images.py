@@ -97,6 +97,5 @@ LAYOUT: Final = register(
         read=image_trajectories,
         help=SHAPE,
         listed=7,
-        outcomes_in_data=False,
     )
 )

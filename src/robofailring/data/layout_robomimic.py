@@ -23,7 +23,15 @@ from typing import Any, Final
 
 from robofailring.data.folders import natural_key, visible
 from robofailring.data.grounding import UNTYPED
-from robofailring.data.hdf5 import HDF5Frames, describe, is_hdf5, is_image_array, open_hdf5, row_format
+from robofailring.data.hdf5 import (
+    HDF5Frames,
+    describe,
+    hdf5_faults,
+    is_hdf5,
+    is_image_array,
+    open_hdf5,
+    row_format,
+)
 from robofailring.data.model import Frame, Outcome, Skipped, Trajectory
 from robofailring.data.registry import Found, Layout, register
 from robofailring.errors import DataError
@@ -82,16 +90,18 @@ def is_robomimic_file(path: Path) -> bool:
     if not is_hdf5(path):
         return False
     try:
-        data = open_hdf5(path).get("data")
+        with hdf5_faults(path):
+            data = open_hdf5(path).get("data")
+            return data is not None and hasattr(data, "keys") and any(key.startswith("demo") for key in data)
     except DataError:
         return False
-    return data is not None and hasattr(data, "keys") and any(key.startswith("demo") for key in data)
 
 
 def robomimic_trajectories(root: Path, *, task: str | None = None) -> Found:
     """Every demo of a robomimic-style file, or of each such file of a folder; what is not read is listed."""
     if root.is_file():
-        return _file_trajectories(root, task=task, prefix="")
+        with hdf5_faults(root):
+            return _file_trajectories(root, task=task, prefix="")
     entries = visible(root)
     files = [path for path in entries if is_robomimic_file(path)]
     skipped = [
@@ -100,9 +110,10 @@ def robomimic_trajectories(root: Path, *, task: str | None = None) -> Found:
     found: list[Trajectory] = []
     for path in files:
         try:
-            demos, inside = _file_trajectories(
-                path, task=task, prefix=f"{path.stem}/" if len(files) > 1 else ""
-            )
+            with hdf5_faults(path):
+                demos, inside = _file_trajectories(
+                    path, task=task, prefix=f"{path.stem}/" if len(files) > 1 else ""
+                )
         except DataError as error:  # a file of the structure without image observations (low_dim.hdf5)
             skipped.append(Skipped(path, f"not read: {error}"))
             continue
@@ -195,6 +206,5 @@ LAYOUT: Final = register(
         help=f"a robomimic/LIBERO HDF5 file ({SHAPE}, mask/<split>), or a folder of them",
         listed=8,
         reads_files=True,
-        outcomes_in_data=False,
     )
 )

@@ -3,15 +3,18 @@
 Read with `rosbags` (pure Python, both ROS 2 storage formats; a `.mcap` file without its
 `metadata.yaml` opens alone). Each `sensor_msgs/msg/Image` or `sensor_msgs/msg/CompressedImage`
 topic is a view named by its topic (`/cam_front/image_raw`). Views are put on one timeline: the
-slowest topic's (the one with the fewest messages) message log times are the frames, and frame i of
-every other topic is its latest message at or before frame i's time (its first message when none
-is), so no frame of the slowest topic repeats and a faster topic's frames are the ones seen then.
+slowest topic's (the one with the fewest messages, two or more) message log times are the frames, and
+frame i of every other topic is its latest message at or before frame i's time (its first message
+when none is), so no frame of the slowest topic repeats and a faster topic's frames are the ones seen
+then; a topic of one message is a view of one frame, skipped as every view of < 2 frames is.
 Opening a bag lists every image message's log time once (nothing kept but the times); a frame reads
 its one message on demand, by time, so a long bag is never held whole, and at most `_OPEN_LIMIT`
 bags are open at once. Encodings rgb8, bgr8, 8UC3 (OpenCV's BGR), rgba8, bgra8 (alpha dropped),
 mono8 and JPEG/PNG compressed images are read; a topic of another (16UC1 or mono16 depth,
-compressedDepth, Bayer, …) is listed as not read, naming the topic and its encoding, and a bag
-with no readable image topic is an error naming what it holds. The trajectory key is the bag's name
+compressedDepth, Bayer, …) is listed as not read, naming the topic and its encoding; topics that are
+not images (/tf, /joint_states) are not camera data and not listed. A bag with no readable image
+topic is an error naming what it holds (in a folder of bags: listed as not read, the others read).
+The trajectory key is the bag's name
 (its folder, or the file's stem); outcome and symbol come from `--labels` (`episode` column = the
 bag's name), the task from `--task`, else it is the name of the folder holding the bag.
 """
@@ -27,11 +30,11 @@ from typing import Any, Final
 import numpy as np
 
 from robofailring.data.folders import visible
-from robofailring.data.images import content_digest, decode_image
+from robofailring.data.images import check_frame_size, content_digest, decode_image
 from robofailring.data.model import Frame, LazyFrames, Skipped, Trajectory
 from robofailring.data.open_files import OpenLimit
 from robofailring.data.registry import Found, Layout, register
-from robofailring.errors import DataError
+from robofailring.errors import DataError, read_error
 from robofailring.extras import needs_extra
 
 ROS2_METADATA: Final[str] = "metadata.yaml"
@@ -103,7 +106,7 @@ class BagFile:
             try:
                 reader.open()
             except (AnyReaderError, OSError, ValueError, KeyError) as error:
-                raise DataError(f"cannot read ROS bag {self.path}: {error}") from error
+                raise read_error(f"cannot read ROS bag {self.path}: {error}", error) from error
             self._reader = reader
             _OPEN.remember(self)
         return self._reader
@@ -206,6 +209,7 @@ def to_rgb(message: Any, msgtype: str, *, where: str) -> np.ndarray:
     if msgtype == COMPRESSED:
         return decode_image(bytes(message.data), source=where)
     height, width, step = int(message.height), int(message.width), int(message.step)
+    check_frame_size(width, height, source=where)
     channels, bgr = RAW_ENCODINGS[str(message.encoding)]
     data = np.asarray(message.data, dtype=np.uint8)
     if step < width * channels or data.size < height * step:
@@ -291,9 +295,10 @@ def read_bag_reference(reference: str) -> np.ndarray | None:
 def bag_trajectory(path: Path, *, task: str | None) -> Trajectory:
     """One bag as one trajectory: a view per readable image topic, on the slowest topic's timeline.
 
-    Unreadable image topics and other topics are listed as not read; a bag with no readable image
-    topic is an error naming what it holds. The task is `task`, else the name of the folder holding
-    the bag (bags carry no task).
+    Unreadable image topics (depth, Bayer) are listed as not read; topics that are not images are
+    not data of this library and are not listed. A bag with no readable image topic is an error naming
+    what it holds. A topic of one message is a view of that one frame (skipped, as every view of < 2
+    frames is). The task is `task`, else the name of the folder holding the bag (bags carry no task).
     """
     bag = open_bag(path)
     topics = bag.topics
@@ -305,7 +310,10 @@ def bag_trajectory(path: Path, *, task: str | None) -> Trajectory:
             f"ROS bag {path} has no readable image topic ({IMAGE} or {COMPRESSED} with messages; "
             f"{READABLE}); it holds: {', '.join(held) or 'no topics with messages'}"
         )
-    slowest = min(readable, key=lambda name: len(topics[name].times))
+    # the timeline is the slowest topic of 2+ messages: a topic of one is a view of that one frame,
+    # skipped as every view of fewer than 2 frames is (it would cut every view to one frame)
+    timed = [name for name in readable if len(topics[name].times) >= 2] or readable
+    slowest = min(timed, key=lambda name: len(topics[name].times))
     times = topics[slowest].times
     span = (int(times[-1]) - int(times[0])) / 1e9
     unread = [
@@ -316,30 +324,38 @@ def bag_trajectory(path: Path, *, task: str | None) -> Trajectory:
     return Trajectory(
         task=task or path.resolve().parent.name,
         episode=bag_name(path),
-        views={name: BagFrames(bag, name, timeline=slowest) for name in readable},
+        views={name: BagFrames(bag, name, timeline=slowest if name in timed else name) for name in readable},
         source=path,
         fps=(len(times) - 1) / span if span > 0 else None,
-        skipped=(
-            *unread,
-            *(Skipped(path, f"topic {other}: not an image topic, not read") for other in bag.other_topics),
-        ),
+        skipped=tuple(unread),  # a bag's other topics (/tf, /joint_states) are not camera data left unread
     )
 
 
 def bag_trajectories(root: Path, *, task: str | None = None) -> Found:
-    """A ROS 2 bag folder (one episode), or a folder of bags (one episode each); other entries reported."""
+    """A ROS 2 bag folder (one episode), or a folder of bags (one episode each); other entries reported.
+
+    In a folder, a bag that cannot be read (no readable image topic, a broken file) is listed as not
+    read, so the others are (`--trajectory` of one of them); a folder where no bag can be is that error.
+    """
     root = Path(root)
     if is_bag(root):
         return [bag_trajectory(root, task=task)], []
     found: list[Trajectory] = []
     skipped: list[Skipped] = []
+    unreadable: list[DataError] = []
     for entry in visible(root):
-        if is_bag(entry):
-            found.append(bag_trajectory(entry, task=task))
-        else:
+        if not is_bag(entry):
             skipped.append(
                 Skipped(entry, "not a ROS bag (a folder with metadata.yaml, a .mcap or a .bag file)")
             )
+            continue
+        try:
+            found.append(bag_trajectory(entry, task=task))
+        except DataError as error:  # one bag of no camera (depth only) or a broken one: the others are read
+            unreadable.append(error)
+            skipped.append(Skipped(entry, f"not read: {error}"))
+    if unreadable and not found:
+        raise unreadable[0]
     names = [t.episode for t in found]
     twice = sorted({name for name in names if names.count(name) > 1})
     if twice:
@@ -361,6 +377,5 @@ LAYOUT: Final = register(
         help="ROS bags: a ROS 2 bag folder (metadata.yaml + .mcap/.db3), or a folder of them, of .mcap files or of "
         "ROS 1 .bag files",
         listed=10,
-        outcomes_in_data=False,
     )
 )

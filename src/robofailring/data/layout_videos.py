@@ -1,4 +1,8 @@
-"""Video episodes: `<root>/<episode>/<view>.mp4|.webm|.mkv`, one trajectory per folder of videos."""
+"""Video episodes: `<root>/<episode>/<view>.mp4|.webm|.mkv`, one trajectory per folder of videos.
+
+The task: `--task`, else the `task` column of the labels file, else an AHA-style episode name
+(`load_dataset` names the episodes none of them tells); outcome and symbol from that name or `--labels`.
+"""
 
 from __future__ import annotations
 
@@ -24,8 +28,8 @@ def video_trajectories(root: Path, *, task: str | None = None) -> Found:
         if not has_videos(directory):
             skipped.append(Skipped(directory, "no video file (.mp4, .webm, .mkv) in this episode folder"))
             continue
-        try:
-            found.append(episode_trajectory(directory, task=task))
+        try:  # task "": from the labels' task column, else an error of load_dataset naming the episodes
+            found.append(episode_trajectory(directory, task=task if task is not None else ""))
         except DataError as error:
             skipped.append(Skipped(directory, str(error)))
     return found, skipped

@@ -33,7 +33,7 @@ from robofailring.data.layout_project import (
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.data.registry import Layout, layouts_help
 from robofailring.data.views import select_views
-from robofailring.errors import DataError
+from robofailring.errors import DataError, reading
 
 __all__ = [
     "AHA_FAILURES",
@@ -82,7 +82,7 @@ class Dataset:
     episodes: tuple[Trajectory, ...] = ()
     unread: tuple[Skipped, ...] = field(default=(), repr=False)
     manifest: dict[str, Any] | None = None
-    labelled: bool = False  # outcomes come from the data itself or from a labels file
+    labelled: bool = False  # some outcomes come from the data itself (its names) or from a labels file
 
     @property
     def views(self) -> list[str]:
@@ -108,6 +108,27 @@ class Dataset:
                 "say: pass --labels FILE (a JSON list or CSV of episode_index, outcome, symbol)"
             )
 
+    def judged(self, what: str) -> tuple[list[Trajectory], list[Skipped]]:
+        """For `what`, a verb that needs outcomes: the trajectories that have one, and what was not used.
+
+        One rule for every layout: a run is a success or a failure only when its name or a labels
+        file says so; a dataset that says it of none is an error (`require_labels`), and runs left
+        without an outcome beside labelled ones are never taken for successes: they are listed with
+        `skipped` as not used.
+        """
+        self.require_labels(what)
+        judged = [t for t in self.episodes if t.outcome is not None]
+        unlabelled = [t.key for t in self.episodes if t.outcome is None]
+        if not unlabelled:
+            return judged, self.skipped
+        shown = ", ".join(unlabelled[:3]) + (" …" if len(unlabelled) > 3 else "")
+        note = Skipped(
+            self.root,
+            f"{len(unlabelled)} episode(s) without an outcome (neither their name nor the labels file says "
+            f"success or failure: {shown}): not used by {what}",
+        )
+        return judged, [*self.skipped, note]
+
     def select(self, *, split: str | None = None, keys: Sequence[str] | None = None) -> list[Trajectory]:
         """Trajectories of a split and/or with given keys (`<task>/<episode>` or the episode alone)."""
         chosen = [t for t in self.trajectories() if split is None or t.split == split]
@@ -115,16 +136,26 @@ class Dataset:
 
 
 def _with_keys(
-    trajectories: Sequence[Trajectory], keys: Sequence[str] | None, *, where: str
+    trajectories: Sequence[Trajectory],
+    keys: Sequence[str] | None,
+    *,
+    where: str,
+    unread: Sequence[Skipped] = (),
 ) -> list[Trajectory]:
-    """The trajectories with given keys (`<task>/<episode>` or the episode alone); all when `keys` is empty."""
+    """The trajectories with given keys (`<task>/<episode>` or the episode alone); all when `keys` is empty.
+
+    A key naming an entry the layout did not read (`unread`: a bag with no camera topic) says why."""
     if not keys:
         return list(trajectories)
     chosen = [t for t in trajectories if t.key in keys or t.episode in keys]
     found = {t.key for t in chosen} | {t.episode for t in chosen}
     missing = [k for k in keys if k not in found]
     if missing:
-        raise DataError(f"no trajectory {missing[0]!r} in {where}")
+        why = next((s for s in unread if missing[0] in (s.path.name, s.path.stem)), None)
+        raise DataError(
+            f"no trajectory {missing[0]!r} in {where}"
+            + (f"; {why.path}: {why.reason}" if why is not None else "")
+        )
     return chosen
 
 
@@ -165,6 +196,7 @@ def detect_layout(root: Path) -> str:
     return _layout(root).name
 
 
+@reading()  # a folder or file this user may not read: status 1, naming it
 def load_dataset(
     root: Path,
     *,
@@ -190,8 +222,8 @@ def load_dataset(
         found = apply_labels(found, read_labels(labels, vocabulary=vocabulary), source=Path(labels))
         blank = unlabelled_rows(Path(labels))
         skipped = [*skipped, *([blank] if blank is not None else [])]
-    labelled = labels is not None or layout.outcomes_in_data or any(t.outcome is not None for t in found)
-    found = _with_keys(found, keys, where=f"{root} ({layout.name} layout)")
+    labelled = labels is not None or any(t.outcome is not None for t in found)
+    found = _with_keys(found, keys, where=f"{root} ({layout.name} layout)", unread=skipped)
     return Dataset(
         root=root,
         layout=layout.name,
@@ -202,6 +234,7 @@ def load_dataset(
     )
 
 
+@reading()
 def load_trajectory(
     path: Path,
     *,

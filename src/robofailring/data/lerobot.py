@@ -294,6 +294,5 @@ LAYOUT: Final = register(
         read=_read,
         help="a LeRobot dataset (v2.1 or v3.0: meta/info.json, parquet, one mp4 per camera)",
         listed=4,
-        outcomes_in_data=False,
     )
 )

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import math
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
@@ -13,7 +13,7 @@ from typing import Protocol, overload
 import numpy as np
 
 from robofailring.data.images import as_rgb, content_digest, read_image
-from robofailring.errors import DataError
+from robofailring.errors import DataError, read_error
 
 
 class Outcome(StrEnum):
@@ -78,7 +78,7 @@ class Frame:
         try:
             return self.path.read_bytes()
         except OSError as error:
-            raise DataError(f"cannot read image {self.path}: {error.strerror or error}") from error
+            raise read_error(f"cannot read image {self.path}: {error.strerror or error}", error) from error
 
     def content_key(self) -> str:
         """A digest of the image content (file bytes, array shape and bytes, or the video frame's key)."""
@@ -104,6 +104,11 @@ class LazyFrames(Sequence[Frame]):
 
     def frame(self, index: int) -> Frame:
         raise NotImplementedError
+
+    @property
+    def fps(self) -> float | None:
+        """The frames' own rate where their source keeps one (a whole video file's container), else None."""
+        return None
 
     @overload
     def __getitem__(self, item: int) -> Frame: ...
@@ -154,6 +159,17 @@ class Trajectory:
         counts = [len(frames) for frames in self.views.values()]
         return min(counts) if counts else 0
 
+    @cached_property
+    def frame_rate(self) -> float | None:
+        """Frames per second: the layout's `fps`, else the first view's own (a video file's container), else
+        None. Asked for, not read at load: a video's packets are listed only when its rate is wanted."""
+        if self.fps is not None:
+            return self.fps
+        for frames in self.views.values():
+            if isinstance(frames, LazyFrames) and (rate := frames.fps) is not None:
+                return rate
+        return None
+
     @property
     def view_names(self) -> list[str]:
         return list(self.views)
@@ -176,15 +192,12 @@ def parse_onset_frame(value: object, *, length: int | None, where: str) -> int |
     and the value."""
     if value is None or (isinstance(value, str) and not value.strip()):
         return None
-    number: float | None = None
-    if isinstance(value, int | float) and not isinstance(value, bool):
-        number = float(value)
-    elif isinstance(value, str):
-        try:
-            number = float(value.strip())
-        except ValueError:
-            number = None
-    if number is None or not math.isfinite(number) or not number.is_integer():
+    number: int | None = None
+    if isinstance(value, int) and not isinstance(value, bool):
+        number = value
+    elif isinstance(value, str) and re.fullmatch(r"\s*[-+]?[0-9]+\s*", value):
+        number = int(value)  # digits only: `3.0`, `1e2` and `0x10` are not frame numbers
+    if number is None:
         raise DataError(f"{where}: onset_frame {value!r} is not an integer frame number")
     if number < 0:
         raise DataError(f"{where}: onset_frame {value!r} is negative; frames count from 0")
@@ -193,7 +206,7 @@ def parse_onset_frame(value: object, *, length: int | None, where: str) -> int |
             f"{where}: onset_frame {value!r} is not a frame of the trajectory (its {length} frames are 0 to "
             f"{length - 1})"
         )
-    return int(number)
+    return number
 
 
 def frames_from_files(paths: Sequence[Path]) -> tuple[Frame, ...]:

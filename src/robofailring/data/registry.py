@@ -28,7 +28,6 @@ class Layout:
     listed: int  # its number in that error's list
     manifest: Callable[[Path], dict[str, Any]] | None = None  # the layout's own manifest, if it has one
     reads_files: bool = False  # True: a root may be one file of this layout (an HDF5 file), not a folder
-    outcomes_in_data: bool = True  # False: which episodes failed comes from a labels file (LeRobot, HDF5)
 
 
 _REGISTERED: list[Layout] = []

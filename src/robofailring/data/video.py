@@ -3,7 +3,8 @@
 Frames are decoded lazily and by timestamp: the stream's packets are listed once (no decoding)
 to get every frame's presentation time, so the frame count comes from the container; a request
 seeks to the keyframe before the wanted frame and decodes forward, and a run of requests in
-order keeps decoding without seeking again. A long episode is never decoded whole.
+order keeps decoding without seeking again. A long episode is never decoded whole, and a frame larger
+than `images.max_frame_pixels()` is refused from the stream's declared size before any is decoded.
 """
 
 from __future__ import annotations
@@ -12,12 +13,13 @@ import hashlib
 import threading
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from fractions import Fraction
 from pathlib import Path
 from typing import Any, Final
 
 import numpy as np
 
-from robofailring.data.images import content_digest
+from robofailring.data.images import check_frame_size, content_digest
 from robofailring.data.model import Frame, LazyFrames
 from robofailring.data.open_files import OpenLimit
 from robofailring.errors import DataError
@@ -39,6 +41,7 @@ class VideoFile:
         self.stream = stream
         self._times: np.ndarray | None = None
         self._pts: np.ndarray | None = None
+        self._time_base: Fraction = Fraction(0)  # seconds per pts tick, set with the times
         self._keyframes: np.ndarray = np.zeros(0, dtype=np.int64)  # frame indices of keyframes
         self._digest: str | None = None
         self._container: Any = None
@@ -68,6 +71,10 @@ class VideoFile:
                 ) from error
             stream.thread_type = "AUTO"
             _OPEN.remember(self)
+        stream = self._container.streams.video[self.stream]
+        check_frame_size(
+            int(stream.codec_context.width), int(stream.codec_context.height), source=f"video {self.path}"
+        )
         return self._container
 
     @property
@@ -91,7 +98,8 @@ class VideoFile:
                 raise DataError(f"video {self.path} holds no frames in video stream {self.stream}")
             self._pts = np.asarray([pts for pts, _ in packets], dtype=np.int64)
             self._keyframes = np.flatnonzero([key for _, key in packets])
-            self._times = self._pts.astype(np.float64) * float(stream.time_base)
+            self._time_base = Fraction(stream.time_base)
+            self._times = self._pts.astype(np.float64) * float(self._time_base)
             self._frames = None  # demuxing moved the read position
         return self._times
 
@@ -99,6 +107,18 @@ class VideoFile:
     def count(self) -> int:
         """Frames in the stream, counted from the container's packets."""
         return len(self.times)
+
+    @property
+    def fps(self) -> float | None:
+        """Frames per second of the stream as its frame times show: (frames - 1) / their span.
+
+        None for a single frame or frames that all share one time. Measured from the packets rather
+        than taken from the stream's declared rate, which may be a timebase (120/1) and not the rate.
+        """
+        count = len(self.times)  # lists the packets' pts and the time base
+        pts = self._pts if self._pts is not None else np.zeros(1, dtype=np.int64)
+        span = int(pts[-1] - pts[0]) * self._time_base  # exact: 6 fps gives 6.0, not 6.000000000000001
+        return float((count - 1) / span) if count > 1 and span > 0 else None
 
     def index_at(self, seconds: float) -> int:
         """The frame shown at `seconds` (the nearest frame time; an error beyond half a frame)."""
@@ -155,6 +175,7 @@ class VideoFile:
                 for frame in self._frames:
                     if frame.pts is None or frame.pts < target:
                         continue
+                    check_frame_size(frame.width, frame.height, source=f"frame {index} of video {self.path}")
                     image = frame.to_ndarray(format="rgb24")
                     self._last = (index, image)
                     return np.ascontiguousarray(image)
@@ -229,6 +250,11 @@ class VideoFrames(LazyFrames):
     def whole_file(self) -> bool:
         """Every frame of the file in order (a video-episode folder), not frames picked by time."""
         return self._times is None
+
+    @property
+    def fps(self) -> float | None:
+        """The container's rate for a whole file (a video-episode folder's view); frames picked by time: None."""
+        return self.video.fps if self.whole_file else None
 
     def frame(self, index: int) -> Frame:
         if self._times is None:

@@ -10,13 +10,16 @@ JSON or YAML (by suffix: `.json`, else YAML), one object::
 
 A symbol is lower-case words joined by `_`; it may not repeat (also differing only in case) nor
 redefine a Table 5 symbol; a sentence may not be empty. Each fault is a VocabularyError naming the
-file and the key. A memory keeps its vocabulary as `vocabulary.json` in its folder.
+file and the key. YAML aliases (`*name`) are refused, as are keys that are not text or a number: an
+alias repeats a node, so a few lines of them can stand for billions of words. A memory keeps its
+vocabulary as `vocabulary.json` in its folder.
 """
 
 from __future__ import annotations
 
 import json
 import re
+import reprlib
 from pathlib import Path
 from typing import Any, Final
 
@@ -86,7 +89,8 @@ def _section(value: Any, *, where: str, name: str) -> list[tuple[Any, Any]]:
 
 def _sentence(words: Any, *, where: str, key: Any) -> str:
     if not isinstance(words, str) or not words.strip():
-        raise VocabularyError(f"vocabulary {where}: {key!r} has an empty sentence (or not text: {words!r})")
+        shown = reprlib.repr(words)
+        raise VocabularyError(f"vocabulary {where}: {key!r} has an empty sentence (or not text: {shown})")
     return " ".join(words.split()).rstrip(".")
 
 
@@ -103,19 +107,39 @@ def _load_json(text: str, path: Path) -> Any:
         return json.loads(text, object_pairs_hook=_Pairs)
     except json.JSONDecodeError as error:
         raise VocabularyError(f"vocabulary file {path} is not valid JSON: {error}") from error
+    except RecursionError as error:
+        raise VocabularyError(f"vocabulary file {path} nests lists or objects too deeply") from error
 
 
 def _load_yaml(text: str, path: Path) -> Any:
     import yaml
 
     class PairsLoader(yaml.SafeLoader):
-        pass
+        def compose_node(self, parent: yaml.Node | None, index: int) -> yaml.Node | None:
+            if self.check_event(yaml.AliasEvent):
+                alias = self.peek_event()
+                raise VocabularyError(
+                    f"vocabulary file {path}, line {alias.start_mark.line + 1}: the YAML alias *{alias.anchor} "
+                    "is not allowed (write each sentence out)"
+                )
+            return super().compose_node(parent, index)
 
     def pairs(loader: yaml.SafeLoader, node: yaml.MappingNode) -> _Pairs:
-        return _Pairs([(loader.construct_object(k), loader.construct_object(v)) for k, v in node.value])
+        found = []
+        for key_node, value_node in node.value:
+            key = loader.construct_object(key_node, deep=True)
+            if not isinstance(key, str | int | float | bool | None):
+                raise VocabularyError(
+                    f"vocabulary file {path}, line {key_node.start_mark.line + 1}: a key is "
+                    f"{reprlib.repr(key)}, not a symbol or a stage number"
+                )
+            found.append((key, loader.construct_object(value_node)))
+        return _Pairs(found)
 
     PairsLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, pairs)
     try:
         return yaml.load(text, Loader=PairsLoader)
     except yaml.YAMLError as error:
         raise VocabularyError(f"vocabulary file {path} is not valid YAML: {error}") from error
+    except RecursionError as error:
+        raise VocabularyError(f"vocabulary file {path} nests lists or objects too deeply") from error

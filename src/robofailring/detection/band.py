@@ -18,7 +18,7 @@ fewer than `MIN_BAND_RUNS` calibration runs no band is fitted (calibration says 
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Final
 
@@ -84,21 +84,26 @@ class Band:
         return f"{symbol}_t = μ_t + {threshold:.3f}{spread} ({self.kind} band)"
 
     def to_dict(self) -> dict[str, Any]:
+        """The band as a rule's stored calibration keeps it (`calibration.rules[<rule>].band`)."""
         return {
+            "kind": self.kind,
             "runs": self.runs,
             "mean": [round(float(v), 6) for v in self.mean],
             "scale": [round(float(v), 6) for v in self.scale],
         }
 
     @classmethod
-    def from_dict(cls, kind: str, section: Any, *, where: str) -> Band:
+    def from_dict(cls, section: Any, *, where: str) -> Band:
         """A band as `to_dict` stored it; MemoryFormatError naming `where` when it is not one."""
         try:
+            kind = section["kind"]
             mean = np.asarray(section["mean"], dtype=np.float32)
             scale = np.asarray(section["scale"], dtype=np.float32)
             runs = section["runs"]
         except (KeyError, TypeError, ValueError) as error:
-            raise MemoryFormatError(f"{where}: a band needs 'mean', 'scale' and 'runs' ({error})") from None
+            raise MemoryFormatError(
+                f"{where}: a band needs 'kind', 'mean', 'scale' and 'runs' ({error})"
+            ) from None
         if (
             kind not in (SHIFT, NORM)
             or mean.ndim != 1
@@ -182,21 +187,3 @@ def _fit(kind: str, runs: Sequence[np.ndarray], *, leave_one_out: bool) -> list[
         mean, scale = _statistic(others, total - values[row], squares - values[row] ** 2, kind)
         bands.append(Band(kind, mean.astype(np.float32), scale.astype(np.float32), len(runs) - 1))
     return bands
-
-
-def bands_to_dict(kind: str, bands: Mapping[str, Band]) -> dict[str, Any]:
-    """The stored calibration's `band` section: its kind and one band per rule name."""
-    return {"kind": kind, "rules": {name: band.to_dict() for name, band in bands.items()}}
-
-
-def bands_from_dict(section: Any, *, where: str) -> dict[str, Band]:
-    """The bands by rule name of a stored `band` section (`none`: no band)."""
-    if not isinstance(section, dict) or not isinstance(section.get("rules", {}), dict):
-        raise MemoryFormatError(f"{where}: 'band' must be an object with 'kind' and 'rules', not {section!r}")
-    kind = section.get("kind")
-    if kind == NONE:
-        return {}
-    return {
-        name: Band.from_dict(str(kind), stored, where=f"{where} band of rule {name!r}")
-        for name, stored in section.get("rules", {}).items()
-    }

@@ -1,4 +1,5 @@
-"""Split-conformal calibration of a rule's threshold, how far its test FPR strays, and the peak-score AUC.
+"""Split-conformal calibration of a rule's threshold, how far its test FPR strays, and the peak-score AUC
+with its bootstrap interval.
 
 With n success runs' peak scores, the threshold sits just above the k = ⌈(n+1)(1−α)⌉-th smallest, so a
 new exchangeable success run fires with probability ≤ α — on average over calibration sets. The FPR
@@ -35,6 +36,17 @@ def successes_needed(alpha: float) -> int:
 def smallest_target_fpr(successes: int) -> float:
     """The smallest α that `successes` calibration runs allow: 1/(n+1) (n ≥ 1/α − 1)."""
     return 1.0 / (successes + 1)
+
+
+def attainable_target_fpr(successes: int, alpha: float) -> float:
+    """α when `successes` runs allow a threshold at it, else the smallest α they allow (1/(n+1), n ≥ 1):
+    the level an evaluation on too few runs falls back to, where no guarantee at α holds."""
+    check_target_fpr(alpha)
+    if successes < 1:
+        raise DataError(
+            f"no calibration run: no threshold at any α (α = {alpha:g} needs {successes_needed(alpha)})"
+        )
+    return alpha if conformal_rank(successes, alpha) <= successes else smallest_target_fpr(successes)
 
 
 def conformal_rank(successes: int, alpha: float) -> int:
@@ -199,7 +211,7 @@ class FprSpread:
             else f"no number of runs up to {_MAX_RUNS} keeps it ≤ {100 * self.bound:.1f} %"
         )
         return (
-            f"with {self.successes} calibration runs the test FPR at α = {100 * self.alpha:g} % lies in "
+            f"with {self.successes} calibration runs the test FPR at α = {100 * self.alpha:.3g} % lies in "
             f"{100 * self.low:.1f}–{100 * self.high:.1f} % ({low}–{high} % of calibration sets; mean "
             f"{100 * self.mean:.1f} %); {more}"
         )
@@ -237,3 +249,33 @@ def auc(failure_peaks: Sequence[float], success_peaks: Sequence[float]) -> float
     greater = (positives[:, None] > negatives[None, :]).sum()
     ties = (positives[:, None] == negatives[None, :]).sum()
     return float((greater + 0.5 * ties) / (positives.size * negatives.size))
+
+
+#: Bootstrap resamples behind `auc_interval`, and the interval's coverage.
+AUC_DRAWS: Final[int] = 2000
+AUC_LEVEL: Final[float] = 0.95
+
+
+def auc_interval(
+    failure_peaks: Sequence[float],
+    success_peaks: Sequence[float],
+    *,
+    draws: int = AUC_DRAWS,
+    level: float = AUC_LEVEL,
+    seed: int = 0,
+) -> tuple[float, float] | None:
+    """The `level` percentile bootstrap interval of `auc`: failure and success runs resampled separately
+    (`draws` times, from a fixed seed: the same peaks give the same interval); None without both kinds."""
+    positives = np.nan_to_num(np.asarray(failure_peaks, dtype=np.float64), nan=-np.inf)
+    negatives = np.nan_to_num(np.asarray(success_peaks, dtype=np.float64), nan=-np.inf)
+    if positives.size == 0 or negatives.size == 0:
+        return None
+    wins = (positives[:, None] > negatives[None, :]) + 0.5 * (positives[:, None] == negatives[None, :])
+    rng = np.random.default_rng(seed)
+    # a resample is a count per run; its AUC is the count-weighted mean of the pairwise wins
+    picked_positives = rng.multinomial(positives.size, np.full(positives.size, 1.0 / positives.size), draws)
+    picked_negatives = rng.multinomial(negatives.size, np.full(negatives.size, 1.0 / negatives.size), draws)
+    resampled = ((picked_positives @ wins) * picked_negatives).sum(axis=1) / (positives.size * negatives.size)
+    tail = 100 * (1.0 - level) / 2
+    low, high = np.percentile(resampled, [tail, 100 - tail])
+    return float(low), float(high)

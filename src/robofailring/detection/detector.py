@@ -15,13 +15,17 @@ from robofailring.detection.retrieved import Retrieved
 from robofailring.detection.rules import (
     CONTRAST,
     NOVELTY,
-    RULES,
     RuleThresholds,
     ScoringRule,
     default_rule,
     rule_named,
 )
-from robofailring.detection.stored import stored_bands, stored_thresholds
+from robofailring.detection.stored import (
+    given_thresholds,
+    stored_bands,
+    stored_thresholds,
+    uncalibrated_notes,
+)
 from robofailring.detection.trace import DetectionTrace, StepResult
 from robofailring.detection.view_scores import ViewScores
 from robofailring.encoders.base import Encoder, l2_normalize
@@ -32,6 +36,10 @@ from robofailring.memory.pairs import pair_vectors
 from robofailring.memory.references import absolute_reference
 
 DEFAULT_K: Final[int] = 5
+MAX_STRIDE: Final[int] = 2**63 - 1  # frame numbers are int64: a larger stride scores frame 0 alone anyway
+MAX_K: Final[int] = (
+    1024  # neighbours per query: each query row holds K similarities, allocated before the search
+)
 CHUNK_FRAMES: Final[int] = 256  # scored frames per view encoded and searched at once in `run`
 
 Place = Callable[[str, np.ndarray], np.ndarray]  # (view, (n, 2d) queries) -> (n, m) rows, e.g. map points
@@ -43,17 +51,17 @@ def _whole_number(value: object) -> bool:
 
 
 def check_k(k: int) -> int:
-    """K, the neighbours retrieved per query: a whole number, at least 1 (SettingError otherwise)."""
-    if not _whole_number(k) or k < 1:
-        raise SettingError(f"k (neighbours per query) must be a whole number of at least 1, got {k}")
+    """K, the neighbours retrieved per query: a whole number from 1 to `MAX_K` (SettingError otherwise)."""
+    if not _whole_number(k) or not 1 <= k <= MAX_K:
+        raise SettingError(f"k (neighbours per query) must be a whole number from 1 to {MAX_K}, got {k}")
     return k
 
 
 def check_stride(stride: int) -> int:
-    """The scoring stride: a whole number, at least 1 (SettingError otherwise)."""
-    if not _whole_number(stride) or stride < 1:
+    """The scoring stride: a whole number from 1 to `MAX_STRIDE` (SettingError otherwise)."""
+    if not _whole_number(stride) or not 1 <= stride <= MAX_STRIDE:
         raise SettingError(
-            f"stride must be a whole number of at least 1 (1 scores every frame), got {stride}"
+            f"stride must be a whole number from 1 (every frame scored) to {MAX_STRIDE}, got {stride}"
         )
     return stride
 
@@ -71,8 +79,9 @@ class FailureDetector(RuleThresholds):
 
     It judges by one scoring rule (`robofailring.detection.rules`) at that rule's threshold: the
     one given for every task, else each task's default (`rule_for`: contrast with success and
-    failure runs, novelty with success runs only, paper with failures only). The thresholds of
-    every rule come from `delta`/`gamma`/`eta` when given, else the memory's stored calibration,
+    failure runs, novelty with success runs only, paper with failures only). The threshold of
+    every registered rule comes from `thresholds` (by rule name; `delta`/`gamma`/`eta` are the
+    paper, contrast and novelty rules' there) when given, else the memory's stored calibration,
     else the rule's default. A stored threshold comes with its time-indexed band when it was calibrated
     with one (`robofailring.detection.band`); `bands` replaces those (e.g. thresholds calibrated in
     process by the evaluation). A threshold given here is one number, without a band.
@@ -83,6 +92,7 @@ class FailureDetector(RuleThresholds):
         memory: FailureMemory,
         encoder: Encoder | CachedEncoder,
         *,
+        thresholds: Mapping[str, float] | None = None,
         delta: float | None = None,
         k: int = DEFAULT_K,
         rule: ScoringRule | str | None = None,
@@ -92,16 +102,12 @@ class FailureDetector(RuleThresholds):
     ) -> None:
         memory.check_encoder(encoder.identity)
         check_k(k)
-        given = {"delta": delta, "gamma": gamma, "eta": eta}
+        given = given_thresholds(thresholds, delta=delta, gamma=gamma, eta=eta)
         self.thresholds = stored_thresholds(memory, given)
         self.bands: dict[str, Band] = (  # per rule name: the band its threshold applies to
             dict(bands)
             if bands is not None
-            else {
-                name: band
-                for name, band in stored_bands(memory).items()
-                if name in RULES and given[RULES[name].threshold_key] is None
-            }
+            else {name: band for name, band in stored_bands(memory).items() if name not in given}
         )
         self.chosen_rule = rule_named(rule) if rule is not None else None  # None: each task's default
         self.memory = memory
@@ -119,6 +125,10 @@ class FailureDetector(RuleThresholds):
             encoder if isinstance(encoder, CachedEncoder) else CachedEncoder(encoder, enabled=False)
         )
         self.k = k
+        used = (
+            [self.chosen_rule] if self.chosen_rule is not None else [self.rule_for(t) for t in memory.tasks]
+        )
+        self.uncalibrated = uncalibrated_notes(memory, given, used)  # said by the jobs that detect
 
     @property
     def rule(self) -> ScoringRule:
@@ -203,13 +213,17 @@ class FailureDetector(RuleThresholds):
             success_sims, success_rows = successes.search(stacked, task, exclude_episode=exclude_episode)
             success_similarity = {view: success_sims[rows[view]] for view in views}
             success_ids = {view: success_rows[rows[view]] for view in views}
+        blank = {  # a zero embedding (first or current frame) is no image to the encoder: it matches nothing
+            view: (np.linalg.norm(current[view], axis=-1) < 0.5) | (np.linalg.norm(first[view]) < 0.5)
+            for view in views
+        }
         return Retrieved(
             queries=queries,
             neighbor_similarity={view: sims[rows[view]] for view in views},
             neighbor_ids={view: ids[rows[view]] for view in views},
             success_similarity=success_similarity,
             success_ids=success_ids,
-        )
+        ).without_blank(blank)
 
     def session(
         self, task: str, *, exclude_episode: str | None = None, sink: StepSink | None = None
@@ -305,6 +319,7 @@ class FailureDetector(RuleThresholds):
             success_ids={v: on_frames(i, -1) for v, i in found.success_ids.items()},
             in_memory=own is not None,
             bands=dict(self.bands),
+            source=trajectory.source,
         )
 
     def threshold_at(self, rule: ScoringRule, t: int) -> float:

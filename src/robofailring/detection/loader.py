@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 
 from robofailring.detection.detector import DEFAULT_K, FailureDetector
@@ -15,6 +16,7 @@ def open_detector(
     *,
     device: str | None = None,
     rule: ScoringRule | str | None = None,
+    thresholds: Mapping[str, float] | None = None,
     delta: float | None = None,
     gamma: float | None = None,
     eta: float | None = None,
@@ -25,8 +27,9 @@ def open_detector(
 ) -> FailureDetector:
     """Load the memory at `memory_dir` and its encoder, and return its detector.
 
-    Thresholds default to the memory's calibrated δ, γ and η (else the paper's δ = 0.92, γ = 0
-    and η = 0.1); the rule defaults per task (`FailureDetector.rule_for`). `encoder`
+    Thresholds are `thresholds` by rule name (`delta`, `gamma`, `eta`: the paper, contrast and novelty
+    rules'), else the memory's calibrated ones (else each rule's default: the paper's δ = 0.92, γ = 0,
+    η = 0.1); the rule defaults per task (`FailureDetector.rule_for`). `encoder`
     overrides the spec the memory was built with (it must give the same identity); `data_root` is
     where the memory's images are now, when its data moved; `device` is the torch device for CLIP.
     """
@@ -38,4 +41,6 @@ def open_detector(
         device=device,
         cache_dir=Path(cache_dir) if cache_dir is not None else None,
     )
-    return FailureDetector(memory, opened, delta=delta, k=k, rule=rule, gamma=gamma, eta=eta)
+    return FailureDetector(
+        memory, opened, thresholds=thresholds, delta=delta, k=k, rule=rule, gamma=gamma, eta=eta
+    )

@@ -22,6 +22,29 @@ class Retrieved:
         """S⁻_t of `view`: the nearest failure end's similarity per frame."""
         return self.neighbor_similarity[view][:, 0].copy()
 
+    def without_blank(self, blank: dict[str, np.ndarray]) -> Retrieved:
+        """This answer with the frames of `blank` ((T,) bool per view) matching nothing: NaN similarities
+        and id -1, so a frame the encoder sees as nothing (a zero embedding, e.g. an all-black image)
+        never reaches a threshold (a zero query's cosine of 0 would reach γ = 0)."""
+        if not any(mask.any() for mask in blank.values()):
+            return self
+
+        def masked(field: dict[str, np.ndarray], empty: float) -> dict[str, np.ndarray]:
+            out = {}
+            for view, values in field.items():
+                values = values.copy()
+                values[blank[view]] = empty
+                out[view] = values
+            return out
+
+        return replace(
+            self,
+            neighbor_similarity=masked(self.neighbor_similarity, np.nan),
+            neighbor_ids=masked(self.neighbor_ids, -1),
+            success_similarity=masked(self.success_similarity, np.nan),
+            success_ids=masked(self.success_ids, -1),
+        )
+
     def without_queries(self) -> Retrieved:
         """The same answer without its (T, 2d) queries, the one part as large as the frames' embeddings."""
         return replace(self, queries={})

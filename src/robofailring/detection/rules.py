@@ -8,7 +8,8 @@ the current pair is from anything seen in the task's success runs, N_t = 1 − S
 threshold is set by split-conformal calibration (`robofailring.detection.conformal`).
 
 A new rule is one `ScoringRule` subclass added to `RULES`: the detector, its trace, the live step,
-the evaluation, the CLI's `--score` and the recordings all ask the rule object.
+the evaluation, the CLI's `--score` and the recordings all ask the rule object, and `calibrate` stores its
+threshold under its `name` (`calibration.rules.<name>` in a memory's manifest).
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ class ScoringRule(ABC):
     symbol: ClassVar[str]  # the threshold's symbol, e.g. δ
     score_name: ClassVar[str]  # the score's symbol, e.g. S_t
     formula: ClassVar[str]  # what the score is, for help texts
-    threshold_key: ClassVar[str]  # the threshold's name in a memory's stored calibration and the options
+    threshold_key: ClassVar[str]  # the threshold's option name (`--delta`); thresholds are stored by `name`
     bounds: ClassVar[tuple[float, float]]  # the valid threshold range
     default_threshold: ClassVar[float]  # used until a memory is calibrated
     needs_successes: ClassVar[bool]  # the score needs S⁺, so a memory with success runs

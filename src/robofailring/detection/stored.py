@@ -1,36 +1,76 @@
-"""A memory's stored calibration as the detector uses it: thresholds by rule, and their time-indexed bands."""
+"""A memory's stored calibration as the detector uses it: thresholds by rule name, and their time-indexed bands."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 
-from robofailring.detection.band import Band, bands_from_dict
-from robofailring.detection.rules import RULES, ScoringRule
+from robofailring.detection.band import Band
+from robofailring.detection.rules import CONTRAST, NOVELTY, PAPER, RULES, ScoringRule, rule_named
+from robofailring.errors import SettingError
 from robofailring.memory.failure import FailureMemory
 
 
 def stored_bands(memory: FailureMemory) -> dict[str, Band]:
-    """The time-indexed bands of the memory's stored calibration (for its encoder), by rule name."""
+    """The time-indexed bands of the memory's stored calibration (for its encoder), by registered rule name."""
     calibration = memory.manifest.calibration
-    if calibration is None or calibration.encoder != memory.encoder or calibration.band is None:
+    if calibration is None or calibration.encoder != memory.encoder:
         return {}
-    return bands_from_dict(calibration.band, where="the memory's calibration")
+    return {
+        name: Band.from_dict(stored.band, where=f"the memory's calibration of rule {name!r}")
+        for name, stored in calibration.rules.items()
+        if name in RULES and stored.band is not None
+    }
 
 
 def stored_threshold(memory: FailureMemory, rule: ScoringRule) -> float | None:
     """`rule`'s threshold as the memory's calibration stored it for the memory's encoder, or None."""
-    calibration = memory.manifest.calibration
-    return calibration.threshold_for(memory.encoder, rule.threshold_key) if calibration is not None else None
+    return memory.calibrated_threshold(rule.name)
 
 
-def stored_thresholds(memory: FailureMemory, given: Mapping[str, float | None]) -> dict[str, float]:
-    """Every registered rule's threshold by name: `given` (by its threshold key), else stored, else default."""
+def given_thresholds(
+    thresholds: Mapping[str, float] | None,
+    *,
+    delta: float | None = None,
+    gamma: float | None = None,
+    eta: float | None = None,
+) -> dict[str, float]:
+    """Thresholds given by rule name, with `delta`, `gamma` and `eta` (the command line's options) as the
+    paper, contrast and novelty rules'; an unknown rule name is a SettingError naming the choices."""
+    named = {rule_named(name).name: value for name, value in (thresholds or {}).items()}
+    for rule, value in ((PAPER, delta), (CONTRAST, gamma), (NOVELTY, eta)):
+        if value is not None and rule.name in named:
+            raise SettingError(
+                f"the {rule.name} rule's {rule.symbol} is given twice (by name and as a keyword)"
+            )
+        if value is not None:
+            named[rule.name] = value
+    return named
+
+
+def stored_thresholds(memory: FailureMemory, given: Mapping[str, float]) -> dict[str, float]:
+    """Every registered rule's threshold by rule name: `given` (by rule name), else stored, else default."""
     thresholds = {}
     for rule in RULES.values():
-        value = given.get(rule.threshold_key)
+        value = given.get(rule.name)
         if value is not None:
             rule.check_threshold(value)
         else:
             value = stored_threshold(memory, rule)
         thresholds[rule.name] = float(value if value is not None else rule.default_threshold)
     return thresholds
+
+
+def uncalibrated_notes(
+    memory: FailureMemory, given: Mapping[str, float], used: Iterable[ScoringRule]
+) -> list[str]:
+    """One sentence per rule in `used` judged at its default threshold: neither given (by rule name) nor
+    calibrated for the memory's encoder, so no false-alarm rate is promised for it."""
+    notes = []
+    for rule in dict.fromkeys(used):
+        if rule.name not in given and stored_threshold(memory, rule) is None:
+            notes.append(
+                f"the {rule.name} rule judges at its default {rule.symbol} = {rule.default_threshold:g}: the "
+                "memory is not calibrated for it, so no false-alarm rate is promised (run `robofailring "
+                f"calibrate SUCCESS_DATA --memory MEMORY`, or give --{rule.threshold_key})"
+            )
+    return notes

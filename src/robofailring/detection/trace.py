@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -78,6 +79,21 @@ class DetectionTrace(RuleThresholds):
     )  # run(place=…) rows per scored frame
     # per rule name: the time-indexed band its calibrated threshold applies to (robofailring.detection.band)
     bands: dict[str, Band] = field(default_factory=dict, repr=False)
+    source: Path | None = None  # the trajectory's folder or file, naming what was skipped
+
+    @property
+    def short_views(self) -> list[Skipped]:
+        """The views not scored for having fewer than 2 frames, as inputs skipped: every verb lists them
+        and ends with status 3, as build-memory does (README, "What happens when things go wrong")."""
+        where = self.source if self.source is not None else Path(self.task, self.episode)
+        return [
+            Skipped(
+                where,
+                f"view {view}: {self.view_frames.get(view, 0)} frame(s), fewer than 2: not scored",
+                view,
+            )
+            for view in self.skipped_views
+        ]
 
     @property
     def threshold(self) -> float:
@@ -239,7 +255,7 @@ class DetectionTrace(RuleThresholds):
             "delta": self.delta,
             "score": self.rule.name,
             "threshold": self.threshold,
-            "thresholds": {rule.threshold_key: self.threshold_of(rule) for rule in RULES.values()},
+            "thresholds": {rule.name: self.threshold_of(rule) for rule in RULES.values()},  # by rule name
             "failure_entries": self.memory.task_size(self.task),
             "k": self.k,
             "encoder": self.encoder,

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from robofailring.encoders.base import l2_normalize
-from robofailring.errors import EncoderError
+from robofailring.errors import EncoderError, WeightsUnavailableError
 from robofailring.extras import needs_extra
 
 _HOW_TO_PROVIDE = (
@@ -158,7 +158,7 @@ class OpenClipEncoder:
                     f"cannot load checkpoint {weights_path} into open_clip model {model_name}: "
                     + _checkpoint_problem(error)
                 ) from error
-            raise EncoderError(
+            raise WeightsUnavailableError(
                 f"weights for open_clip:{model_name}:{weights} are not available here ({type(error).__name__}). "
                 + _HOW_TO_PROVIDE.format(model=model_name, tag=weights)
             ) from error

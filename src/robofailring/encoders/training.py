@@ -83,7 +83,10 @@ class TrainEncoderConfig:
         None  # torch CPU threads (default: half the cores, at least 1: the machine is shared)
     )
     extra_data: tuple[Path, ...] = ()  # more training datasets, every split of each (never test data)
-    labels: Path | None = None  # labels file of `data` (outcome, symbol, split per episode; data.labels)
+    labels: Path | None = (
+        None  # labels file (outcome, symbol, task per episode) for data whose names do not say
+    )
+    task: str | None = None  # task of episodes whose names (and labels) do not say it
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is read
         object.__setattr__(self, "extra_data", tuple(Path(root) for root in self.extra_data))
@@ -109,15 +112,15 @@ class TrainEncoderConfig:
     def recipe(self) -> dict[str, Any]:
         """The settings that decide the weights (not where they go or how fast)."""
         settings = asdict(self)
-        for key in ("out", "device", "threads", "extra_data"):
+        for key in ("out", "device", "threads", "extra_data", "labels", "task"):
             settings.pop(key)
         settings["data"] = str(Path(self.data).resolve())
-        if self.labels is not None:  # absent when none: encoders trained before `labels` keep their recipe
-            settings["labels"] = str(Path(self.labels).resolve())
-        else:
-            settings.pop("labels")
         if self.extra_data:  # absent when none: encoders trained before `extra_data` keep their recipe
             settings["extra_data"] = [str(root.resolve()) for root in self.extra_data]
+        if self.labels is not None:  # likewise (the labels' content is in the frames' digest)
+            settings["labels"] = str(Path(self.labels).resolve())
+        if self.task is not None:
+            settings["task"] = self.task
         return settings
 
 
@@ -139,7 +142,9 @@ def _kind(trajectory: Trajectory) -> str | None:
 
 def training_trajectories(config: TrainEncoderConfig) -> list[Trajectory]:
     """The trajectories of the chosen split of `config.data` (the extra datasets not included)."""
-    trajectories = list(load_dataset(config.data, views=config.views, labels=config.labels).trajectories())
+    trajectories = list(
+        load_dataset(config.data, task=config.task, labels=config.labels, views=config.views).trajectories()
+    )
     has_splits = any(t.split for t in trajectories)
     return [
         t

@@ -11,10 +11,9 @@ the band of the other runs, and its peak is the conformal score; the band of all
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -25,13 +24,13 @@ from robofailring.detection.band import (
     MIN_BAND_RUNS,
     NONE,
     Band,
-    bands_to_dict,
     check_band,
     fit_band,
     leave_one_out,
 )
 from robofailring.detection.conformal import (
     FprSpread,
+    attainable_target_fpr,
     check_target_fpr,
     conformal_threshold,
     empirical_fpr,
@@ -39,9 +38,17 @@ from robofailring.detection.conformal import (
 )
 from robofailring.detection.detector import FailureDetector, check_k, check_stride
 from robofailring.detection.loader import open_detector
-from robofailring.detection.rules import CONTRAST, NOVELTY, PAPER, PAPER_DELTA, ScoringRule, rules_for
+from robofailring.detection.rules import (
+    CONTRAST,
+    NOVELTY,
+    PAPER,
+    PAPER_DELTA,
+    ScoringRule,
+    rule_named,
+    rules_for,
+)
 from robofailring.errors import DataError
-from robofailring.memory.manifest import StoredCalibration
+from robofailring.memory.manifest import StoredCalibration, StoredRule
 from robofailring.progress import progress_bar
 
 
@@ -76,12 +83,14 @@ def success_scores(
     progress: Callable[[int], None] | None = None,
     stride: int = 1,
     too_short: list[str] | None = None,
+    short_views: list[Skipped] | None = None,
 ) -> dict[ScoringRule, list[np.ndarray]]:
     """Per rule, each success run's per-frame score (max over views, uncorrected; NaN where unscored),
     its episode left out of both memories.
 
     `stride` scores every N-th frame, as the runs the threshold will judge are scored; the keys of
-    runs with no view of 2+ frames (nothing to score) are appended to `too_short`."""
+    runs with no view of 2+ frames (nothing to score) are appended to `too_short`, the views of fewer
+    than 2 frames of the runs scored to `short_views`."""
     scores: dict[ScoringRule, list[np.ndarray]] = {rule: [] for rule in rules}
     for trajectory in successes:
         try:
@@ -92,6 +101,8 @@ def success_scores(
         else:
             for rule in rules:
                 scores[rule].append(trace.raw_max_score(rule))
+            if short_views is not None:
+                short_views += trace.short_views
         if progress is not None:
             progress(1)
     return scores
@@ -124,15 +135,27 @@ def calibrate_rules(
     progress: Callable[[int], None] | None = None,
     stride: int = 1,
     too_short: list[str] | None = None,
+    short_views: list[Skipped] | None = None,
     band: str = DEFAULT_BAND,
+    at_best: bool = False,
 ) -> dict[ScoringRule, RuleCalibration]:
     """The conformal threshold of every rule (default: all the memory supports) at level `target_fpr`,
     on the `band` (`none`, `shift`, `norm`) fitted on the same runs; the paper rule keeps one δ, as in
-    the paper (§3.3)."""
+    the paper (§3.3).
+
+    Too few runs for `target_fpr` are a DataError; with `at_best` (an evaluation on small data) a rule
+    is calibrated at the smallest level its runs allow instead (its `target_fpr` says which: no
+    guarantee at the asked one), and a rule none of whose runs could be scored is left out."""
     check_band(band)
     chosen = list(rules) if rules is not None else available_rules(detector)
     scores = success_scores(
-        detector, successes, chosen, progress=progress, stride=stride, too_short=too_short
+        detector,
+        successes,
+        chosen,
+        progress=progress,
+        stride=stride,
+        too_short=too_short,
+        short_views=short_views,
     )
     calibrations = {}
     for rule, runs in scores.items():
@@ -140,8 +163,11 @@ def calibrate_rules(
             raise DataError(f"none of the {len(successes)} success trajectories has a view of 2+ frames")
         values, fitted = conformal_peaks(runs, band if rule is not PAPER else NONE)  # δ stays the paper's
         scored = [v for v in values if math.isfinite(v)]
+        if at_best and not scored:
+            continue
+        level = attainable_target_fpr(len(scored), target_fpr) if at_best else target_fpr
         try:
-            threshold = conformal_threshold(scored, target_fpr)
+            threshold = conformal_threshold(scored, level)
         except DataError as error:
             if len(scored) < len(values):
                 raise DataError(
@@ -152,7 +178,7 @@ def calibrate_rules(
         calibrations[rule] = RuleCalibration(
             rule=rule,
             threshold=threshold,
-            target_fpr=target_fpr,
+            target_fpr=level,
             achieved_fpr=empirical_fpr(scored, threshold),
             successes=len(scored),
             band=fitted,
@@ -184,23 +210,36 @@ class CalibrateConfig:
 
 @dataclass(frozen=True)
 class Calibration:
-    delta: float | None  # None: the memory has no failure runs (success runs only)
+    """What `calibrate` chose and stored: a threshold per rule the memory supports, by rule name."""
+
+    thresholds: dict[str, float]  # by rule name, in the order calibrated
+    achieved_fprs: dict[str, float]  # by rule name: share of the calibration runs reaching the threshold
     target_fpr: float
-    achieved_fpr: float | None  # δ's
     successes: int
     encoder: str
     skipped_inputs: list[Skipped] = field(default_factory=list)  # folders/files of the data not read
-    gamma: float | None = None  # the contrast rule's γ, when the memory has success and failure runs
-    gamma_achieved_fpr: float | None = None
     skipped_too_short: list[str] = field(default_factory=list)  # success runs with no view of 2+ frames
-    eta: float | None = None  # the novelty rule's η, when the memory has success runs
-    eta_achieved_fpr: float | None = None
     fpr_spread: FprSpread | None = None  # the realised test FPR's range with these `successes` runs
     band: str = NONE  # the thresholds' time-indexed band (none: each threshold is one number)
     band_asked: str = NONE  # the band asked for (none is used with fewer than MIN_BAND_RUNS runs)
 
+    @property
+    def delta(self) -> float | None:
+        """The paper rule's δ (None: the memory has no failure runs)."""
+        return self.thresholds.get(PAPER.name)
+
+    @property
+    def gamma(self) -> float | None:
+        """The contrast rule's γ (None: the memory lacks success or failure runs)."""
+        return self.thresholds.get(CONTRAST.name)
+
+    @property
+    def eta(self) -> float | None:
+        """The novelty rule's η (None: the memory has no success runs)."""
+        return self.thresholds.get(NOVELTY.name)
+
     def to_text(self, memory: Path) -> str:
-        """The summary `robofailring calibrate` prints: δ, γ and η, those the memory supports."""
+        """The summary `robofailring calibrate` prints: each calibrated rule's threshold."""
         head = (
             f"calibrated for encoder {self.encoder} on {self.successes} success runs (target FPR "
             f"{100 * self.target_fpr:.1f} %); stored in {memory}/manifest.json"
@@ -217,15 +256,13 @@ class Calibration:
                 + ("mean" if self.band == "shift" else "mean and spread")
                 + " of these runs' scores at the same frame (a line over time on the raw score)"
             )
-        for rule, threshold, achieved, note in (
-            (PAPER, self.delta, self.achieved_fpr, ""),
-            (CONTRAST, self.gamma, self.gamma_achieved_fpr, ", own episode left out of the success memory"),
-            (NOVELTY, self.eta, self.eta_achieved_fpr, ", own episode left out of the success memory"),
-        ):
-            if threshold is not None and achieved is not None:
-                lines.append(
-                    f"{rule.symbol} = {threshold:.6f} ({rule.name} rule): FPR {100 * achieved:.1f} % on those runs{note}"
-                )
+        for name, threshold in self.thresholds.items():
+            rule = rule_named(name)
+            note = ", own episode left out of the success memory" if rule.needs_successes else ""
+            lines.append(
+                f"{rule.symbol} = {threshold:.6f} ({rule.name} rule): FPR "
+                f"{100 * self.achieved_fprs[name]:.1f} % on those runs{note}"
+            )
         if self.fpr_spread is not None:
             lines.append(f"the promise holds on average: {self.fpr_spread.to_text()}")
         text = "\n".join(lines)
@@ -236,7 +273,8 @@ class Calibration:
 
 
 def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None = None) -> Calibration:
-    """Set δ and γ (split conformal, level = target FPR) on success runs and store them in the manifest."""
+    """Set every rule's threshold the memory supports (split conformal, level = target FPR) on success runs
+    and store each under its rule's name in the manifest."""
     detector = open_detector(
         config.memory,
         device=config.device,
@@ -248,8 +286,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
     dataset = load_dataset(
         config.data, task=config.task, labels=config.labels, views=config.views, vocabulary=memory.vocabulary
     )
-    dataset.require_labels("calibrate")
-    source = list(dataset.trajectories())
+    source, skipped_inputs = dataset.judged("calibrate")  # an unlabelled run is never taken for a success
     has_splits = any(t.split for t in source)
     successes = [
         t
@@ -261,6 +298,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
             f"no success trajectories of the memory's tasks in {config.data} (split {config.split!r})"
         )
     too_short: list[str] = []
+    short_views: list[Skipped] = []  # listed with what was not read: status 3, as in every verb
     with progress_bar(total=len(successes), desc="calibrating", unit="traj") as bar:
 
         def advance(count: int) -> None:
@@ -275,53 +313,45 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
             progress=advance,
             stride=config.stride,
             too_short=too_short,
+            short_views=short_views,
             band=config.band,
         )
-    paper, contrast, novelty = found.get(PAPER), found.get(CONTRAST), found.get(NOVELTY)
     widest = max(found.values(), key=lambda calibration: calibration.successes)
     spread = widest.spread  # computed once: it searches for the runs a tighter bound needs
     calibrated = memory.with_calibration(
         StoredCalibration(
             encoder=memory.encoder,
-            delta=paper.threshold if paper is not None else None,
-            gamma=contrast.threshold if contrast is not None else None,
-            eta=novelty.threshold if novelty is not None else None,
+            rules={rule.name: _stored_rule(calibration) for rule, calibration in found.items()},
             method="split conformal, own episode left out",
             target_fpr=config.target_fpr,
-            achieved_fpr=paper.achieved_fpr if paper is not None else None,
-            gamma_achieved_fpr=contrast.achieved_fpr if contrast is not None else None,
-            eta_achieved_fpr=novelty.achieved_fpr if novelty is not None else None,
             successes=widest.successes,
-            fpr_spread=spread.to_dict(),
             data=str(Path(config.data).resolve()),
             split=config.split,
             k=config.k,
             stride=config.stride,
-            band=_stored_band(config.band, found.values()),
         )
     )
     calibrated.write_manifest(config.memory)
-    stored = calibrated.manifest.calibration
-    assert stored is not None
     return Calibration(
-        delta=stored.delta,
+        thresholds={rule.name: calibration.threshold for rule, calibration in found.items()},
+        achieved_fprs={rule.name: calibration.achieved_fpr for rule, calibration in found.items()},
         target_fpr=config.target_fpr,
-        achieved_fpr=stored.achieved_fpr,
-        successes=stored.successes or 0,
+        successes=widest.successes,
         encoder=memory.encoder,
-        skipped_inputs=dataset.skipped,
-        gamma=stored.gamma,
-        gamma_achieved_fpr=stored.gamma_achieved_fpr,
+        skipped_inputs=[*skipped_inputs, *short_views],
         skipped_too_short=too_short,
-        eta=stored.eta,
-        eta_achieved_fpr=stored.eta_achieved_fpr,
         fpr_spread=spread,
         band=next((c.band.kind for c in found.values() if c.band is not None), NONE),
         band_asked=config.band,
     )
 
 
-def _stored_band(kind: str, calibrations: Iterable[RuleCalibration]) -> dict[str, Any] | None:
-    """The stored calibration's `band` section: each rule's fitted band, None without one."""
-    bands = {c.rule.name: c.band for c in calibrations if c.band is not None}
-    return bands_to_dict(kind, bands) if bands else None
+def _stored_rule(calibration: RuleCalibration) -> StoredRule:
+    """One rule's calibration as the manifest keeps it, under the rule's name."""
+    return StoredRule(
+        threshold=calibration.threshold,
+        achieved_fpr=calibration.achieved_fpr,
+        band=calibration.band.to_dict() if calibration.band is not None else None,
+        fpr_spread=calibration.spread.to_dict(),
+        runs=calibration.successes,
+    )

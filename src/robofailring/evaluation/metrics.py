@@ -51,11 +51,9 @@ class ScoredTrajectory:
         return self.view_scores.first_at_or_above(delta, views)
 
 
-@dataclass(frozen=True)
-class Rates:
-    """Confusion counts and rates at one δ."""
+class ConfusionRates:
+    """Recall and FPR of the confusion counts a result holds: one definition for every table."""
 
-    delta: float
     tp: int
     fn: int
     fp: int
@@ -68,6 +66,17 @@ class Rates:
     @property
     def fpr(self) -> float:
         return self.fp / (self.fp + self.tn) if self.fp + self.tn else float("nan")
+
+
+@dataclass(frozen=True)
+class Rates(ConfusionRates):
+    """Confusion counts and rates at one δ."""
+
+    delta: float
+    tp: int
+    fn: int
+    fp: int
+    tn: int
 
 
 def rates(

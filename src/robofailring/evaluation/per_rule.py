@@ -1,4 +1,5 @@
-"""Every scoring rule measured on the same replays: threshold, recall, FPR, T_s and peak-score AUC."""
+"""Every scoring rule measured on the same replays: threshold, recall, FPR, T_s and peak-score AUC (with its
+bootstrap interval)."""
 
 from __future__ import annotations
 
@@ -7,15 +8,15 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
-from robofailring.detection.conformal import FprSpread, auc
+from robofailring.detection.conformal import AUC_LEVEL, FprSpread, auc, auc_interval, successes_needed
 from robofailring.detection.detector import DetectionTrace
 from robofailring.detection.rules import ScoringRule
-from robofailring.evaluation.metrics import ScoredTrajectory, json_number, rates, timeliness
+from robofailring.evaluation.metrics import ConfusionRates, ScoredTrajectory, json_number, rates, timeliness
 from robofailring.evaluation.onset import ONSET_HEADER, OnsetDelay, onset_delay
 
 
 @dataclass(frozen=True)
-class RuleResult:
+class RuleResult(ConfusionRates):
     """One rule at one threshold over the test set."""
 
     rule: ScoringRule
@@ -33,14 +34,12 @@ class RuleResult:
     misses: tuple[str, ...] = ()  # keys of the failures that did not
     spread: FprSpread | None = None  # calibrated here: how far its test FPR can stray from α
     onset: OnsetDelay | None = None  # alarms against the failures' known onsets
-
-    @property
-    def recall(self) -> float:
-        return self.tp / (self.tp + self.fn) if self.tp + self.fn else float("nan")
-
-    @property
-    def fpr(self) -> float:
-        return self.fp / (self.fp + self.tn) if self.fp + self.tn else float("nan")
+    level: float | None = (
+        None  # calibrated here: the α its threshold was set to (above the asked one: too few runs)
+    )
+    auc_interval: tuple[float, float] | None = (
+        None  # AUC's bootstrap interval (AUC_LEVEL); None without both kinds
+    )
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -57,26 +56,44 @@ class RuleResult:
             "ts_mean": json_number(self.ts_mean),
             "ts_median": json_number(self.ts_median),
             "auc": json_number(self.auc),
+            "auc_interval": list(self.auc_interval) if self.auc_interval is not None else None,
             "frame0_success_alarms": self.frame0_success_alarms,
             "false_alarms": list(self.false_alarms),
             "misses": list(self.misses),
             "fpr_spread": self.spread.to_dict() if self.spread is not None else None,
             "onset": self.onset.to_dict() if self.onset is not None else None,
+            "target_fpr": self.level,
         }
 
     def markdown_row(self, target_fpr: float | None) -> str:
-        target = "—" if target_fpr is None or not self.calibrated else f"{100 * target_fpr:g}"
+        target_fpr = self.level if self.level is not None else target_fpr
+        target = "—" if target_fpr is None or not self.calibrated else f"{100 * target_fpr:.3g}"
         return (
-            f"| {self.rule.name} | {self.rule.symbol} = {self.threshold:.4f} | {target} | {_pct(self.recall)} | "
-            f"{_pct(self.fpr)} | {self.tp} | {self.fn} | {self.fp} | {self.tn} | {_pct(self.ts_mean)} | "
-            f"{self.auc:.3f} |"
+            f"| {self.rule.name} | {self.rule.symbol} = {self.threshold:.4f} | {target} | {pct(self.recall)} | "
+            f"{pct(self.fpr)} | {self.tp} | {self.fn} | {self.fp} | {self.tn} | {pct(self.ts_mean)} | "
+            f"{auc_cell(self.auc, self.auc_interval)} |"
         )
 
 
 MARKDOWN_HEADER = (
-    "| rule | threshold | target FPR (%) | Recall (%) | FPR (%) | TP | FN | FP | TN | mean T_s (%) | AUC |\n"
+    "| rule | threshold | target FPR (%) | Recall (%) | FPR (%) | TP | FN | FP | TN | mean T_s (%) | "
+    f"AUC [{100 * AUC_LEVEL:g} % interval] |\n"
     "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
 )
+
+
+def auc_cell(value: float, interval: tuple[float, float] | None) -> str:
+    """An AUC with its bootstrap interval, for a table: `0.875 [0.62, 1.00]` (— when undefined)."""
+    if math.isnan(value):
+        return "—"
+    return f"{value:.3f}" + (f" [{interval[0]:.2f}, {interval[1]:.2f}]" if interval is not None else "")
+
+
+def peaks(scored: Sequence[ScoredTrajectory]) -> tuple[list[float], list[float]]:
+    """The peak score (max over frames and views) of each failure run, and of each success run."""
+    failures = [float(t.scores().max()) for t in scored if t.is_failure]
+    successes = [float(t.scores().max()) for t in scored if not t.is_failure]
+    return failures, successes
 
 
 def scored_by_rule(
@@ -97,12 +114,13 @@ def evaluate_rule(
     *,
     calibrated: bool,
     spread: FprSpread | None = None,
+    level: float | None = None,
 ) -> RuleResult:
-    """Counts, T_s and AUC of one rule at `threshold` on trajectories scored by that rule."""
+    """Counts, T_s and AUC (with its bootstrap interval) of one rule at `threshold` on trajectories scored
+    by that rule; `level`: the α the threshold was calibrated to here."""
     at = rates(scored, threshold)
     time_at = timeliness(scored, threshold)
-    failures = [float(t.scores().max()) for t in scored if t.is_failure]
-    successes = [float(t.scores().max()) for t in scored if not t.is_failure]
+    failures, successes = peaks(scored)
     return RuleResult(
         rule=rule,
         threshold=threshold,
@@ -114,11 +132,13 @@ def evaluate_rule(
         ts_mean=time_at.mean_saving,
         ts_median=time_at.median_saving,
         auc=auc(failures, successes),
+        auc_interval=auc_interval(failures, successes),
         frame0_success_alarms=sum(1 for t in scored if not t.is_failure and t.t_det(threshold) == 0),
         false_alarms=tuple(t.key for t in scored if not t.is_failure and t.t_det(threshold) is not None),
         misses=tuple(t.key for t in scored if t.is_failure and t.t_det(threshold) is None),
         spread=spread,
         onset=onset_delay(scored, threshold),
+        level=level,
     )
 
 
@@ -157,5 +177,47 @@ def spread_markdown(results: Sequence[RuleResult]) -> list[str]:
     ]
 
 
-def _pct(value: float) -> str:
+def pct(value: float) -> str:
+    """A rate in percent for a table (— when undefined)."""
     return "—" if math.isnan(value) else f"{100 * value:.2f}"
+
+
+def shortfall_markdown(
+    results: Sequence[RuleResult], asked: float | None, *, left_out: Sequence[str] = (), folds: bool = False
+) -> list[str]:
+    """What holds when the training successes were too few for the asked α: the plain statement that no
+    FPR guarantee at α holds, the level each rule fell back to, the rules none of whose runs could be
+    scored; empty when every rule was calibrated at α."""
+    short = [r for r in results if asked is not None and r.level is not None and r.level > asked + 1e-12]
+    if asked is None or not (short or left_out):
+        return []
+    by_level: dict[tuple[int, float], list[str]] = {}
+    for result in short:
+        runs = result.spread.successes if result.spread is not None else 0
+        by_level.setdefault((runs, result.level or asked), []).append(result.rule.name)
+    lines = [
+        "",
+        f"**No false-positive-rate guarantee holds here.** A guaranteed FPR of α = {100 * asked:g} % needs at "
+        f"least {successes_needed(asked)} training success runs to calibrate on, and there were fewer. "
+        "Each threshold is set at the smallest α its runs allow (just above the highest calibration peak), "
+        "so the recall and FPR in the table are what these test runs showed, not a promise:",
+        "",
+        *(
+            f"- {', '.join(names)}: {runs} calibration run(s), α = {100 * level:.3g} %"
+            for (runs, level), names in sorted(by_level.items())
+        ),
+        *(
+            f"- {name}: none of the training success runs could be scored by it (their task holds nothing for "
+            "it to compare them with once their own episode is left out): not calibrated, not in the table"
+            for name in left_out
+        ),
+        "",
+        f"The AUC (failure against success runs' peak scores, with its {100 * AUC_LEVEL:g} % bootstrap "
+        "interval) needs no threshold"
+        + (
+            "; the cross-validation below pools every labelled run."
+            if folds
+            else "; for figures over every labelled run, cross-validate with `--folds loo` (or `--folds K`)."
+        ),
+    ]
+    return lines

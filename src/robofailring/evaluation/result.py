@@ -6,7 +6,7 @@ import math
 from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from robofailring.data.grounding import Vocabulary, failure_type
 from robofailring.data.model import Skipped
@@ -30,10 +30,14 @@ from robofailring.evaluation.per_rule import (
     RuleResult,
     onset_markdown,
     scored_by_rule,
+    shortfall_markdown,
     spread_markdown,
 )
 from robofailring.memory.entry import END, failure_frames_note
 from robofailring.memory.pairs import CONCAT
+
+if TYPE_CHECKING:
+    from robofailring.evaluation.folds import CrossValidation
 
 
 @dataclass
@@ -62,6 +66,8 @@ class EvaluationResult:
     growth: list[GrowthPoint] = field(default_factory=list)  # `evaluate --growth`: the learning curve
     failure_frames: str = END  # the memory's failure frames: `end` (the paper's) or `dense` (memory.entry)
     pairing: str = CONCAT  # the memory's pairing: `concat` (the paper's) or `change` (memory.pairs)
+    uncalibrated: list[str] = field(default_factory=list)  # rules too few training successes could calibrate
+    cross_validation: CrossValidation | None = None  # `evaluate --folds`: every labelled run, pooled
     paper_rates: list[Rates] = field(init=False)
     curve: list[Rates] = field(init=False)
 
@@ -76,6 +82,15 @@ class EvaluationResult:
     @property
     def successes(self) -> int:
         return sum(not t.is_failure for t in self.scored)
+
+    @property
+    def fpr_guarantee(self) -> bool:
+        """Whether every rule's threshold was calibrated at the asked α (False: too few training successes,
+        some rule fell back to a larger α or could not be calibrated)."""
+        asked = self.target_fpr
+        return not self.uncalibrated and all(
+            asked is None or r.level is None or r.level <= asked + 1e-12 for r in self.rules.values()
+        )
 
     def rule_trace(self, key: str, rule: ScoringRule) -> DetectionTrace:
         """A test trajectory's trace judged by `rule` at its evaluated threshold."""
@@ -207,6 +222,11 @@ class EvaluationResult:
             "deployment_successes": self.deployment_successes,
             "band": self.band,
             **({"growth": [point.to_dict() for point in self.growth]} if self.growth else {}),
+            "fpr_guarantee": self.fpr_guarantee,
+            "uncalibrated_rules": self.uncalibrated,
+            "cross_validation": self.cross_validation.to_dict()
+            if self.cross_validation is not None
+            else None,
             "rules": {
                 name: result.to_dict() | self.rule_charts(result.rule, rate_row)
                 for name, result in self.rules.items()
@@ -340,8 +360,15 @@ class EvaluationResult:
             "",
             MARKDOWN_HEADER,
             *(result.markdown_row(self.target_fpr) for result in self.rules.values()),
+            *shortfall_markdown(
+                list(self.rules.values()),
+                self.target_fpr,
+                left_out=self.uncalibrated,
+                folds=self.cross_validation is not None,
+            ),
             *spread_markdown(list(self.rules.values())),
             *onset_markdown(list(self.rules.values())),
+            *(self.cross_validation.to_markdown() if self.cross_validation is not None else []),
             "",
             "The tables below are the paper rule (S_t ≥ δ).",
             "",

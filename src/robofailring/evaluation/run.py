@@ -9,13 +9,13 @@ from pathlib import Path
 
 from robofailring.atomic import write_text_atomic
 from robofailring.data.model import Trajectory
-from robofailring.detection.band import Band
-from robofailring.detection.conformal import FprSpread
 from robofailring.detection.detector import DetectionTrace, FailureDetector
 from robofailring.detection.rules import PAPER, ScoringRule
 from robofailring.detection.stored import stored_threshold
 from robofailring.encoders import CachedEncoder, open_encoder
 from robofailring.errors import DataError, SettingError
+from robofailring.evaluation.calibration import RuleCalibration, available_rules, calibrate_rules
+from robofailring.evaluation.folds import cross_validate
 from robofailring.evaluation.growth import GrowthPoint, judged
 from robofailring.evaluation.latency import measure_latency
 from robofailring.evaluation.metrics import ScoredTrajectory
@@ -44,8 +44,9 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
     check_disjoint(memory, test)
     memory, test = _deploy_successes(memory, test, config.deployment_successes, encoder, config.success_step)
     detector = FailureDetector(memory, encoder, k=config.k)
-    thresholds, calibrated, spreads, bands = _thresholds(config, detector, train)
-    if bands is not None:  # calibrated here: the test runs are judged on the bands fitted with the thresholds
+    thresholds, calibrated, found = _thresholds(config, detector, train)
+    if found is not None:  # calibrated here: the test runs are judged on the bands fitted with the thresholds
+        bands = {r.name: c.band for r, c in found.items() if c.band is not None}
         detector = FailureDetector(memory, encoder, k=config.k, bands=bands)
     operating = thresholds.get(PAPER, PAPER.default_threshold)  # no failure runs: the paper tables are empty
     known = set(memory.tasks)
@@ -74,7 +75,7 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
                     length=trace.length,
                     similarity=trace.similarity,
                     onset_frame=trajectory.onset_frame,
-                    fps=trajectory.fps,
+                    fps=trajectory.frame_rate,
                 )
             )
     if not scored:
@@ -97,7 +98,8 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
             rule,
             threshold,
             calibrated=calibrated[rule],
-            spread=spreads.get(rule),
+            spread=found[rule].spread if found is not None else None,
+            level=found[rule].target_fpr if found is not None else None,
         )
         for rule, threshold in thresholds.items()
     }
@@ -118,11 +120,17 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
         skipped_unknown_task=skipped,
         latency_ms=measure_latency(detector, first),
         skipped_too_short=too_short,
-        skipped_inputs=splits.skipped,
+        skipped_inputs=[*splits.skipped, *(view for trace in traces.values() for view in trace.short_views)],
         stride=config.stride,
         vocabulary=memory.vocabulary,
         failure_frames=memory.manifest.failure_mode,
         pairing=memory.pairing,
+        uncalibrated=[r.name for r in available_rules(detector) if found is not None and r not in found],
+        cross_validation=(
+            cross_validate(config, list(splits.dataset.trajectories()), encoder)
+            if config.folds is not None
+            else None
+        ),
     )
 
 
@@ -149,6 +157,7 @@ def growth_curve(
                 out=folder,
                 memory_out=folder / "memory",
                 name=f"growth-{level}",
+                folds=None,  # the cross-validation is the full evaluation's
             )
         )
         write_evaluation(result, folder)
@@ -182,23 +191,15 @@ def _deploy_successes(
 
 def _thresholds(
     config: EvaluateConfig, detector: FailureDetector, train: Sequence[Trajectory]
-) -> tuple[
-    dict[ScoringRule, float], dict[ScoringRule, bool], dict[ScoringRule, FprSpread], dict[str, Band] | None
-]:
-    """Each rule's threshold: conformal on the training successes, or the memory's stored/default one;
-    when calibrated here, how far its test FPR can stray with the runs it was set from, and the rules'
-    bands (None: the stored thresholds, with the memory's own bands)."""
-    from robofailring.evaluation.calibration import available_rules, calibrate_rules
-
+) -> tuple[dict[ScoringRule, float], dict[ScoringRule, bool], dict[ScoringRule, RuleCalibration] | None]:
+    """Each rule's threshold: conformal on the training successes, or the memory's stored/default one,
+    and whether it was calibrated; the calibrations made here (each with its level, spread and band;
+    None: the stored thresholds, with the memory's own bands). Too few training successes for α: each
+    rule at the smallest α its runs allow, a rule none of whose runs could be scored left out."""
     rules = available_rules(detector)
     if config.target_fpr is None:
         stored = {r: stored_threshold(detector.memory, r) for r in rules}
-        return (
-            {r: detector.threshold_of(r) for r in rules},
-            {r: stored[r] is not None for r in rules},
-            {},
-            None,
-        )
+        return {r: detector.threshold_of(r) for r in rules}, {r: stored[r] is not None for r in rules}, None
     known = set(detector.memory.tasks)
     successes = [t for t in train if not t.is_failure and t.task in known]
     if not successes:
@@ -216,13 +217,15 @@ def _thresholds(
             progress=bar.update,
             stride=config.stride,
             band=config.band,
+            at_best=True,
         )
-    return (
-        {r: c.threshold for r, c in found.items()},
-        {r: True for r in found},
-        {r: c.spread for r, c in found.items()},
-        {r.name: c.band for r, c in found.items() if c.band is not None},
-    )
+    if not found:
+        raise DataError(
+            f"none of the {len(successes)} training success runs could be scored with its own episode left out "
+            "(their task holds no other run to compare them with): no threshold to evaluate; add runs to the "
+            f"training split {config.train_split!r}"
+        )
+    return {r: c.threshold for r, c in found.items()}, {r: True for r in found}, found
 
 
 def write_evaluation(result: EvaluationResult, out: Path) -> tuple[Path, Path]:

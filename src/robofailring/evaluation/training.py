@@ -7,6 +7,7 @@ import hashlib
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Final
 
 from robofailring.data.layouts import Dataset, load_dataset
 from robofailring.data.model import Skipped, Trajectory
@@ -25,6 +26,35 @@ from robofailring.memory.failure import FailureMemory
 from robofailring.memory.pairs import DEFAULT_PAIRING, check_pairing
 from robofailring.memory.references import absolute_reference
 from robofailring.memory.thinning import DEFAULT_STEP
+
+#: `--folds loo`: one fold per episode.
+LEAVE_ONE_OUT: Final[str] = "loo"
+
+
+@dataclass(frozen=True)
+class FoldPlan:
+    """How `evaluate --folds` cuts every labelled run of its data into folds."""
+
+    count: int | None  # folds (≥ 2); None: one per episode (leave-one-episode-out)
+
+    @classmethod
+    def parse(cls, text: str) -> FoldPlan:
+        """`loo` or a whole number ≥ 2; SettingError otherwise."""
+        cleaned = text.strip().lower()
+        if cleaned == LEAVE_ONE_OUT:
+            return cls(None)
+        if not cleaned.isdecimal() or int(cleaned) < 2:
+            raise SettingError(f"--folds takes {LEAVE_ONE_OUT} or a whole number ≥ 2, got {text!r}")
+        return cls(int(cleaned))
+
+    def describe(self, folds: int) -> str:
+        """In words, with the number of folds it gave."""
+        if self.count is None:
+            return f"leave-one-episode-out: {folds} folds of one run"
+        return f"{folds} folds, failures and successes dealt evenly"
+
+    def to_json(self) -> str | int:
+        return LEAVE_ONE_OUT if self.count is None else self.count
 
 
 @dataclass(frozen=True)
@@ -59,6 +89,7 @@ class EvaluateConfig:
     failure_frames: str = DENSE  # the memory built here: `dense` or `end` (the paper's; memory.entry)
     pairing: str = DEFAULT_PAIRING  # the memory built here: `change` or `concat` (the paper's; memory.pairs)
     band: str = DEFAULT_BAND  # time-indexed thresholds when calibrating here: none, shift or norm
+    folds: FoldPlan | None = None  # also cross-validate over every labelled run of `data` (evaluation.folds)
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
         check_k(self.k)
@@ -76,6 +107,11 @@ class EvaluateConfig:
             PAPER.check_threshold(delta)
         if not 0.0 < self.test_fraction < 1.0:
             raise SettingError(f"test fraction must lie in (0, 1), got {self.test_fraction}")
+        if self.folds is not None and (self.memory is not None or self.target_fpr is None):
+            raise SettingError(
+                "--folds builds a memory and calibrates thresholds per fold from the data: leave out --memory "
+                "and give a target FPR"
+            )
 
 
 @dataclass(frozen=True)
@@ -92,16 +128,13 @@ def select_splits(config: EvaluateConfig) -> Splits:
     """The training and test trajectories, disjoint by construction and checked."""
     vocabulary = read_vocabulary(config.vocabulary) if config.vocabulary is not None else None
 
-    def labelled(path: Path) -> Dataset:
+    def labelled(path: Path) -> tuple[Dataset, list[Trajectory], list[Skipped]]:
         loaded = load_dataset(
             path, task=config.task, labels=config.labels, views=config.views, vocabulary=vocabulary
         )
-        loaded.require_labels("evaluate")
-        return loaded
+        return loaded, *loaded.judged("evaluate")  # an unlabelled run is never taken for a success
 
-    dataset = labelled(config.data)
-    source = list(dataset.trajectories())
-    skipped = list(dataset.skipped)
+    dataset, source, skipped = labelled(config.data)
     has_splits = any(t.split for t in source)
 
     def of_split(split: str) -> list[Trajectory]:
@@ -115,9 +148,8 @@ def select_splits(config: EvaluateConfig) -> Splits:
     if config.test_data is None:
         test = of_split(config.test_split)
     else:
-        other_dataset = labelled(config.test_data)
-        other = list(other_dataset.trajectories())
-        skipped += other_dataset.skipped
+        _, other, other_skipped = labelled(config.test_data)
+        skipped += other_skipped
         other_has_splits = any(t.split for t in other)
         test = [t for t in other if not other_has_splits or t.split == config.test_split]
     if not test:

@@ -10,6 +10,7 @@ from robofailring.data.labels import label_key, read_labels
 from robofailring.data.layouts import Dataset, load_dataset
 from robofailring.data.model import Outcome, Trajectory
 from robofailring.data.vocabulary import read_vocabulary
+from robofailring.detection.rules import RULES
 from robofailring.encoders import open_encoder
 from robofailring.errors import DataError, MemoryFormatError, SettingError
 from robofailring.memory.builder import Provenance, add_to, build_memories
@@ -192,12 +193,11 @@ def _dropped_calibration(out: Path) -> list[str]:
         old = FailureMemory.load(out)
     except MemoryFormatError:
         return []
-    delta, eta = old.calibrated_delta, old.calibrated_eta
-    if delta is not None:
-        said = f"δ = {delta:.6f}"
-    elif eta is not None:
-        said = f"η = {eta:.6f}"
-    else:
+    calibrated = {rule: old.calibrated_threshold(rule.name) for rule in RULES.values()}
+    said = next(
+        (f"{rule.symbol} = {value:.6f}" for rule, value in calibrated.items() if value is not None), None
+    )
+    if said is None:
         return []
     return [
         f"the memory replaced at {out} had a calibrated {said}; the new one is uncalibrated "

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import logging
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -16,6 +17,8 @@ from robofailring.detection.loader import open_detector
 from robofailring.detection.trace import self_match_warning
 from robofailring.explain.report import FailureReport, report_for
 from robofailring.memory.references import ReferenceCheck, check_references
+
+_log = logging.getLogger("robofailring")
 
 if TYPE_CHECKING:
     from robofailring.explain.vlm import VLMAnswer, VLMConfig  # httpx: loaded only when a VLM is asked
@@ -63,6 +66,8 @@ def detect_trajectory(config: DetectConfig) -> tuple[DetectionTrace, Trajectory]
         encoder=config.encoder,
         cache_dir=config.cache_dir,
     )
+    for note in detector.uncalibrated:
+        _log.warning("warning: %s", note)
     trajectory = load_trajectory(
         config.trajectory,
         task=config.task,
@@ -90,7 +95,7 @@ class DetectResult:
 
     @property
     def notes(self) -> list[str]:
-        """Warnings and notes for stderr: a self-match, a failed VLM call, frames left unscored, views skipped."""
+        """Warnings and notes for stderr: a self-match, a failed VLM call, frames left unscored."""
         trace, notes = self.trace, []
         if trace.in_memory:
             notes.append(self_match_warning([f"{trace.task}/{trace.episode}"]))
@@ -101,9 +106,7 @@ class DetectResult:
                 f"note: view {view} has {trace.length + count} frames; the last {count} are not scored "
                 f"(views are scored in step up to the shortest one, L = {trace.length})"
             )
-        if trace.skipped_views:
-            notes.append(f"note: views with fewer than 2 frames skipped: {', '.join(trace.skipped_views)}")
-        return notes
+        return notes  # views skipped for fewer than 2 frames: listed with what was not read
 
     def to_dict(self) -> dict[str, Any]:
         """The full trace, the report (None without a detection) and, when a VLM was given, its answer."""

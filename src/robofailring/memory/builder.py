@@ -161,7 +161,7 @@ def add_to(
         data_root=memory.data_root,
         successes=joined,
         vocabulary=memory.vocabulary,
-    )
+    ).derived_from(memory)  # saved over `memory`'s folder only while that is still the version read
     stats.skipped_inputs = list(skipped_inputs)
     return grown, stats
 

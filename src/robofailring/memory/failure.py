@@ -34,6 +34,7 @@ from robofailring.memory.references import (
     stored_resolver,
     to_stored,
 )
+from robofailring.memory.version import ReadFrom, read_whole, refuse_stale, require_read_from
 from robofailring.outputs import check_memory_target
 
 if TYPE_CHECKING:
@@ -76,6 +77,9 @@ class FailureMemory:
         self.manifest = manifest if manifest is not None else MemoryManifest(encoder=encoder, dim=self.dim)
         self.data_root = Path(data_root).resolve() if data_root is not None else None
         self.successes = successes  # success runs for the contrast rule (robofailring.memory.success)
+        # the folder this memory (or the one it was derived from) was read from, and that folder's
+        # version then: writing back over it is refused once another process has replaced it
+        self.read_from: ReadFrom | None = None
         self.index = TaskIndexSet.build(  # exact search: a failure memory is small (docs/scale.md)
             vectors, [e.task for e in self.entries], [e.episode for e in self.entries], kind=FLAT
         )
@@ -219,6 +223,7 @@ class FailureMemory:
         if root is not None:
             manifest = replace(manifest, data_root=str(root))
         with atomic_directory(directory) as tmp:
+            refuse_stale(self.read_from, directory)
             index = faiss.IndexFlatIP(self.dim)
             if len(self.vectors):
                 index.add(self.vectors)
@@ -271,17 +276,34 @@ class FailureMemory:
     def write_manifest(self, directory: Path) -> None:
         """Rewrite only the manifest of a saved memory (e.g. after calibration), atomically.
 
-        Never while another process replaces that memory (OutputBusyError then).
+        The memory must have been read from `directory`, and the folder must still be the version it
+        read: never while another process replaces that memory, nor after another process grew,
+        rebuilt or recalibrated it (OutputBusyError then, and nothing is written).
         """
         with output_lock(directory):
+            require_read_from(self.read_from, directory)
             write_text_atomic(
                 Path(directory) / MANIFEST, json.dumps(self._full_manifest().to_dict(), indent=2)
             )
 
+    def derived_from(self, other: FailureMemory) -> FailureMemory:
+        """This memory, marked as a new version of the folder `other` was read from (see `save`)."""
+        self.read_from = other.read_from
+        return self
+
     @classmethod
     def load(cls, directory: Path, *, data_root: Path | None = None) -> FailureMemory:
-        """Read a saved memory; `data_root` re-roots its image references when the data moved."""
-        directory = Path(directory)
+        """Read a saved memory; `data_root` re-roots its image references when the data moved.
+
+        A memory replaced by another process while it is read is read again (three tries), so the
+        result is always one version of the folder, which it remembers (`read_from`).
+        """
+        memory, read_from = read_whole(Path(directory), lambda folder: cls._read(folder, data_root=data_root))
+        memory.read_from = read_from
+        return memory
+
+    @classmethod
+    def _read(cls, directory: Path, *, data_root: Path | None) -> FailureMemory:
         manifest_path = directory / MANIFEST
         if not manifest_path.is_file() and not restore_interrupted(directory):
             raise MemoryFormatError(f"{directory} is not a failure memory: {MANIFEST} is missing")
@@ -335,24 +357,10 @@ class FailureMemory:
         return check_references(ref for entry in self.entries for ref in (entry.start, entry.end))
 
     # ---------------------------------------------------------------- calibration
-    @property
-    def calibrated_delta(self) -> float | None:
-        """δ (paper rule) stored by calibration for this memory's encoder, if any."""
-        return self._calibrated("delta")
-
-    @property
-    def calibrated_gamma(self) -> float | None:
-        """γ (contrast rule) stored by calibration for this memory's encoder, if any."""
-        return self._calibrated("gamma")
-
-    @property
-    def calibrated_eta(self) -> float | None:
-        """η (novelty rule) stored by calibration for this memory's encoder, if any."""
-        return self._calibrated("eta")
-
-    def _calibrated(self, key: str) -> float | None:
+    def calibrated_threshold(self, rule: str) -> float | None:
+        """The threshold calibration stored for the rule named `rule` with this memory's encoder, if any."""
         calibration = self.manifest.calibration
-        return calibration.threshold_for(self.encoder, key) if calibration is not None else None
+        return calibration.threshold_for(self.encoder, rule) if calibration is not None else None
 
 
 def _stored_vocabulary(directory: Path, manifest: MemoryManifest) -> Vocabulary | None:

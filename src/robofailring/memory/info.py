@@ -74,9 +74,7 @@ class MemoryInfo:
             "tasks": self.counts(),
             "symbols": dict(sorted(Counter(e.symbol for e in self.memory.entries).items())),
             "calibration": manifest.calibration.to_dict() if manifest.calibration else None,
-            "calibrated_delta": self.memory.calibrated_delta,
-            "calibrated_gamma": self.memory.calibrated_gamma,
-            "calibrated_eta": self.memory.calibrated_eta,
+            "calibrated_thresholds": self._calibrated(),  # by rule name, for the memory's encoder
             "success_only_tasks": [t for t in self.memory.tasks if not self.memory.has_failures(t)],
             "successes": self._successes(),
             "source": manifest.source,
@@ -93,6 +91,12 @@ class MemoryInfo:
             "created": manifest.created,
         }
 
+    def _calibrated(self) -> dict[str, float]:
+        calibration = self.memory.manifest.calibration
+        names = calibration.rules if calibration is not None else {}
+        found = {name: self.memory.calibrated_threshold(name) for name in names}
+        return {name: value for name, value in found.items() if value is not None}
+
     def _successes(self) -> dict[str, Any] | None:
         successes = self.memory.successes
         if successes is None:
@@ -107,7 +111,7 @@ class MemoryInfo:
 
     def to_text(self) -> str:
         info = self.to_dict()
-        delta, gamma, eta = info["calibrated_delta"], info["calibrated_gamma"], info["calibrated_eta"]
+        calibrated = ", ".join(f"{name} {value:.6f}" for name, value in info["calibrated_thresholds"].items())
         lines = [
             f"memory {self.directory} (format {info['format_version']}, created {info['created'] or '?'})",
             f"  encoder     {info['encoder']}"
@@ -115,9 +119,7 @@ class MemoryInfo:
             f"  entries     {info['entries']} × {info['dim']}-d over {len(info['tasks'])} task(s)",
             f"  failures    {failure_memory_text(self.memory)}",
             "  thresholds  "
-            + (f"calibrated δ = {delta:.6f}" if delta is not None else "δ not calibrated (0.92 by default)")
-            + (f", γ = {gamma:.6f}" if gamma is not None else "")
-            + (f", η = {eta:.6f}" if eta is not None else ""),
+            + (f"calibrated: {calibrated}" if calibrated else "not calibrated (each rule's default)"),
             f"  data root   {info['data_root'] or '(not recorded: references are as given at build time)'}",
         ]
         if info["layout"]:

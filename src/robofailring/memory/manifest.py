@@ -50,6 +50,10 @@ def _number(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
+def _finite(value: Any) -> bool:
+    return _number(value) and math.isfinite(value)
+
+
 def _whole(value: Any) -> bool:
     return isinstance(value, int) and not isinstance(value, bool)
 
@@ -78,55 +82,84 @@ _KINDS: Final[dict[str, Any]] = {
     "successes": lambda v: isinstance(v, dict),
     "created": lambda v: isinstance(v, str),
     "encoder": lambda v: isinstance(v, str),
-    "delta": _number,
-    "gamma": _number,
+}
+# the calibration section's own kinds (its `successes` is a run count, the manifest's the success memory's section)
+_CALIBRATION_KINDS: Final[dict[str, Any]] = {
+    "encoder": lambda v: isinstance(v, str),
     "method": lambda v: isinstance(v, str),
     "target_fpr": _number,
-    "achieved_fpr": _number,
-    "gamma_achieved_fpr": _number,
-    "eta": _number,
-    "eta_achieved_fpr": _number,
-    "fpr_spread": lambda v: isinstance(v, dict),
+    "successes": _whole,
     "data": lambda v: isinstance(v, str),
+    "split": lambda v: isinstance(v, str),
     "k": _whole,
     "stride": _whole,
 }
-# the calibration section's own kinds: its `successes` is a run count (the manifest's is the success
-# memory's section), and its `band` the time-indexed statistic (robofailring.detection.band)
-_CALIBRATION_KINDS: Final[dict[str, Any]] = _KINDS | {
-    "successes": _whole,
+# one rule's section, `calibration.rules[<rule name>]`
+_RULE_KINDS: Final[dict[str, Any]] = {
+    "achieved_fpr": _number,
     "band": lambda v: isinstance(v, dict),
+    "fpr_spread": lambda v: isinstance(v, dict),
+    "runs": _whole,
 }
+# the calibration section before it was keyed by rule name: (rule name, threshold key, its achieved-FPR key)
+_LEGACY_RULES: Final[tuple[tuple[str, str, str], ...]] = (
+    ("paper", "delta", "achieved_fpr"),
+    ("contrast", "gamma", "gamma_achieved_fpr"),
+    ("novelty", "eta", "eta_achieved_fpr"),
+)
+_LEGACY_KEYS: Final[frozenset[str]] = frozenset(
+    {key for rule in _LEGACY_RULES for key in rule[1:]} | {"band", "fpr_spread"}
+)
+
+
+@dataclass
+class StoredRule:
+    """One rule's calibration, `calibration.rules[<rule name>]`: its threshold and how it was set."""
+
+    threshold: float  # the rule's threshold (kept as JSON gave it: an int stays an int)
+    achieved_fpr: float | None = None  # share of the calibration runs that reach it
+    # its time-indexed band {"kind", "runs", "mean", "scale"} (robofailring.detection.band); None: one number
+    band: dict[str, Any] | None = None
+    # the realised test FPR's 5–95 % range with these runs (detection.conformal.FprSpread.to_dict)
+    fpr_spread: dict[str, Any] | None = None
+    runs: int | None = None  # success runs the threshold was set from
+    extra: dict[str, Any] = field(default_factory=dict)  # keys this version does not know, kept verbatim
+
+    @classmethod
+    def parse(cls, name: str, section: Any, path: Path) -> StoredRule:
+        if not isinstance(section, dict) or not _finite(section.get("threshold")):
+            raise MemoryFormatError(
+                f"{path}: calibration of rule {name!r} needs a finite 'threshold', not {section!r}; "
+                "remove it and run `robofailring calibrate` again"
+            )
+        typed = {k: v for k, v in section.items() if k in _RULE_KINDS and v is not None and _RULE_KINDS[k](v)}
+        extra = {k: v for k, v in section.items() if k != "threshold" and k not in typed and v is not None}
+        return cls(threshold=section["threshold"], **typed, extra=extra)
+
+    def to_dict(self) -> dict[str, Any]:
+        written = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "extra"}
+        return {k: v for k, v in written.items() if v is not None} | self.extra
 
 
 @dataclass
 class StoredCalibration:
-    """The manifest's `calibration` section: thresholds chosen by `robofailring calibrate` (paper §IV-C).
+    """The manifest's `calibration` section: thresholds chosen by `robofailring calibrate` (paper §IV-C),
+    one `StoredRule` per rule name under `rules`, whatever rules are registered.
 
-    Numbers are kept as JSON gave them (an int stays an int), so a rewrite gives the same file.
+    A section written before it was keyed by rule name (`delta`, `gamma`, `eta`, their `*achieved_fpr`,
+    one `fpr_spread` and one `band` for all) is read into `rules` and written back in this form.
+    Numbers are kept as JSON gave them (an int stays an int), so a rewrite gives the same values.
     """
 
-    delta: float | None  # the paper rule's threshold δ (None: a memory without failure runs)
+    rules: dict[str, StoredRule]  # by rule name (robofailring.detection.rules)
     encoder: str | None = None  # the encoder identity the thresholds were chosen with
-    gamma: float | None = None  # the contrast rule's threshold γ (None: no success memory)
-    eta: float | None = (
-        None  # the novelty rule's threshold η (None: no success memory, or calibrated before it)
-    )
     method: str | None = None
     target_fpr: float | None = None
-    achieved_fpr: float | None = None
-    gamma_achieved_fpr: float | None = None
-    eta_achieved_fpr: float | None = None
     successes: int | None = None  # success runs calibrated on
-    # the realised test FPR's 5–95 % range with those runs (detection.conformal.FprSpread.to_dict)
-    fpr_spread: dict[str, Any] | None = None
     data: str | None = None
     split: str | None = None
     k: int | None = None
     stride: int | None = None
-    # the thresholds' time-indexed band: {"kind": "shift"|"norm", "rules": {rule: {mean, scale, runs}}}; None:
-    # one threshold per rule (calibrated with --band none, or before bands existed)
-    band: dict[str, Any] | None = None
     extra: dict[str, Any] = field(default_factory=dict)  # keys this version does not know, kept verbatim
     absent: frozenset[str] = field(default=frozenset(), repr=False)  # known keys the file did not have
 
@@ -134,42 +167,43 @@ class StoredCalibration:
     def parse(cls, section: Any, path: Path) -> StoredCalibration:
         if not isinstance(section, dict):
             raise MemoryFormatError(
-                f"{path}: 'calibration' must be an object with 'delta' and 'encoder', not {section!r}; "
+                f"{path}: 'calibration' must be an object with 'rules' and 'encoder', not {section!r}; "
                 "remove it and run `robofailring calibrate` again"
             )
-        delta = section.get("delta")
-        if delta is None and not _number(section.get("eta")):
+        if "rules" in section:
+            stored = section["rules"]
+            if not isinstance(stored, dict):
+                raise MemoryFormatError(f"{path}: calibration 'rules' must be an object, not {stored!r}")
+            rules = {name: StoredRule.parse(name, rule, path) for name, rule in stored.items()}
+            rest = {k: v for k, v in section.items() if k != "rules"}
+        else:
+            rules = _legacy_rules(section, path)
+            rest = {k: v for k, v in section.items() if k not in _LEGACY_KEYS}
+        if not rules:
             raise MemoryFormatError(
-                f"{path}: calibration has neither 'delta' nor 'eta'; remove it and run `robofailring calibrate` again"
+                f"{path}: calibration has no rule's threshold; remove it and run `robofailring calibrate` again"
             )
-        if delta is not None and (not _number(delta) or not math.isfinite(delta)):
-            raise MemoryFormatError(f"{path}: calibration 'delta' must be a finite number, not {delta!r}")
-        known = [f.name for f in fields(cls) if f.name not in ("delta", "extra", "absent")]
-        typed = {
-            k: section[k] for k in known if section.get(k) is not None and _CALIBRATION_KINDS[k](section[k])
-        }
-        extra = {
-            k: v
-            for k, v in section.items()
-            if k != "delta" and k not in typed and not (k in known and v is None)
-        }
-        return cls(delta=delta, **typed, extra=extra, absent=frozenset(k for k in known if k not in section))
+        known = [f.name for f in fields(cls) if f.name not in ("rules", "extra", "absent")]
+        typed = {k: rest[k] for k in known if rest.get(k) is not None and _CALIBRATION_KINDS[k](rest[k])}
+        extra = {k: v for k, v in rest.items() if k not in typed and not (k in known and v is None)}
+        return cls(rules=rules, **typed, extra=extra, absent=frozenset(k for k in known if k not in section))
 
     def to_dict(self) -> dict[str, Any]:
         written = {
             f.name: getattr(self, f.name)
             for f in fields(self)
-            if f.name not in ("extra", "absent") and f.name not in self.absent
+            if f.name not in ("rules", "extra", "absent") and f.name not in self.absent
         }
         ordered = {"encoder": written.pop("encoder", None)} if "encoder" in written else {}
-        return ordered | written | self.extra
+        rules = {name: rule.to_dict() for name, rule in self.rules.items()}
+        return ordered | written | {"rules": rules} | self.extra
 
-    def threshold_for(self, encoder: str, name: str) -> float | None:
-        """δ or γ (`name`, a rule's threshold key) when calibrated with `encoder` and stored as a finite float;
-        otherwise None (also for a key this section does not have)."""
-        value = getattr(self, name, None)
-        if self.encoder == encoder and isinstance(value, float):
-            return value if math.isfinite(value) else None
+    def threshold_for(self, encoder: str, rule: str) -> float | None:
+        """The threshold of the rule named `rule` when calibrated with `encoder` and stored as a finite
+        number; otherwise None (also for a rule this section does not have)."""
+        stored = self.rules.get(rule)
+        if self.encoder == encoder and stored is not None and math.isfinite(stored.threshold):
+            return float(stored.threshold)
         return None
 
     def target_for(self, encoder: str) -> float | None:
@@ -177,6 +211,34 @@ class StoredCalibration:
         return (
             float(self.target_fpr) if self.encoder == encoder and isinstance(self.target_fpr, float) else None
         )
+
+
+def _legacy_rules(section: dict[str, Any], path: Path) -> dict[str, StoredRule]:
+    """`rules` from a section written before it was keyed by rule name: δ, γ and η with their achieved
+    FPRs; its one `fpr_spread` and run count go to each rule, its `band` section to the rules it names."""
+    band = section.get("band")
+    bands = band.get("rules") if isinstance(band, dict) else None
+    spread = section.get("fpr_spread")
+    runs = section.get("successes")
+    rules = {}
+    for name, key, achieved_key in _LEGACY_RULES:
+        threshold = section.get(key)
+        if threshold is None:
+            continue
+        if not _finite(threshold):
+            raise MemoryFormatError(f"{path}: calibration {key!r} must be a finite number, not {threshold!r}")
+        achieved = section.get(achieved_key)
+        fitted = bands.get(name) if isinstance(bands, dict) else None
+        rules[name] = StoredRule(
+            threshold=threshold,
+            achieved_fpr=achieved if _number(achieved) else None,
+            band={"kind": band["kind"], **fitted}
+            if isinstance(band, dict) and isinstance(fitted, dict)
+            else None,
+            fpr_spread=spread if isinstance(spread, dict) else None,
+            runs=runs if _whole(runs) else None,
+        )
+    return rules
 
 
 @dataclass

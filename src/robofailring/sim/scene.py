@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import os
 import sys
 from collections.abc import Iterator
@@ -12,7 +13,28 @@ from robofailring.extras import needs_extra
 from robofailring.sim.appearance import RGBA, Look
 from robofailring.sim.geometry import Vec3, axis_angle
 
-with needs_extra("sim"):
+
+@contextlib.contextmanager
+def _quiet_stdout() -> Iterator[None]:
+    """Silence what the pybullet C library prints on import ("pybullet build time: …" on stderr,
+    before any `error:` line) and on connect ("argv[0]=" on stdout, which breaks progress bars)."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = {fd: os.dup(fd) for fd in (1, 2)}
+    try:
+        with open(os.devnull, "wb") as devnull:
+            for fd in saved:
+                os.dup2(devnull.fileno(), fd)
+        yield
+    finally:
+        with contextlib.suppress(OSError, AttributeError):  # C's stdio buffers go to /dev/null too
+            ctypes.CDLL(None).fflush(None)
+        for fd, kept in saved.items():
+            os.dup2(kept, fd)
+            os.close(kept)
+
+
+with needs_extra("sim"), _quiet_stdout():
     import pybullet
     import pybullet_data
     from pybullet_utils.bullet_client import BulletClient
@@ -23,20 +45,6 @@ TABLE_TOP = 0.0
 TRAY_INNER = 0.17
 TRAY_WALL = 0.045
 TRAY_THICK = 0.01
-
-
-@contextlib.contextmanager
-def _quiet_stdout() -> Iterator[None]:
-    """Silence what the pybullet C library prints on connect ("argv[0]="), which breaks progress bars."""
-    sys.stdout.flush()
-    saved = os.dup(1)
-    try:
-        with open(os.devnull, "wb") as devnull:
-            os.dup2(devnull.fileno(), 1)
-        yield
-    finally:
-        os.dup2(saved, 1)
-        os.close(saved)
 
 
 def connect() -> Any:

@@ -30,6 +30,9 @@ GENERATOR: Final[str] = "robofailring.sim"
 #: Bumped whenever the simulator's output changes for the same config (invalidates caches).
 SIM_VERSION: Final[int] = 3  # 2: the arm drawn with low-poly meshes (robot.LOW_POLY_LINKS); 3: onset_frame
 _SUCCESS_RETRIES: Final[int] = 3
+#: The largest image side generated: pybullet's CPU renderer takes ~3 s a frame of three views at
+#: 1024 px (two minutes an episode of 40 frames), and a side far beyond ends the worker with bad_alloc.
+MAX_IMAGE_SIZE: Final[int] = 1024
 
 
 @dataclass(frozen=True)
@@ -78,6 +81,11 @@ class GenerateConfig:
         ):
             if value < least:
                 raise SettingError(f"{flag} must be at least {least}, got {value}")
+        if self.image_size > MAX_IMAGE_SIZE:
+            raise SettingError(
+                f"--image-size must be at most {MAX_IMAGE_SIZE} px (the simulator renders on the CPU), "
+                f"got {self.image_size}"
+            )
 
     def episodes_of(self, kind: str) -> int:
         """How many episodes of one kind are run per task."""
@@ -229,9 +237,10 @@ def _execute(jobs: list[_Job], workers: int) -> Iterator[dict[str, Any]]:
             for future in pending:
                 future.cancel()
             raise SettingError(
-                f"a simulation worker process stopped before finishing its episode ({error}); if "
-                "generate_dataset is called from a script, put the call under "
-                '`if __name__ == "__main__":` (each worker re-imports the script), or pass workers=1'
+                f"a simulation worker process stopped before finishing its episode ({error}): it crashed "
+                "or ran out of memory, or, when generate_dataset is called from a script without "
+                '`if __name__ == "__main__":` around the call, it re-ran the script (pass workers=1 to '
+                "see the error in this process)"
             ) from error
 
 

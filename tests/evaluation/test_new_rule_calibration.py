@@ -1,0 +1,94 @@
+"""A rule defined in this file only, registered as rules are, is calibrated by `calibrate`, stored under its
+name, read back by `FailureMemory.load` and judges runs and live steps at its stored threshold: nothing
+outside the rule's class names it."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from numpy.typing import ArrayLike
+from synthetic import write_project_dataset
+
+from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
+from robofailring.detection.conformal import conformal_threshold, empirical_fpr
+from robofailring.detection.rules import RULES, ScoringRule
+from robofailring.evaluation.calibration import CalibrateConfig, calibrate
+from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
+
+ALPHA = 0.5
+
+
+class FarFromSuccessRule(ScoringRule):
+    """A rule defined only here: S⁺ alone, inverted (fires when nothing in a normal run is near)."""
+
+    name = "far-from-success"
+    symbol = "ε"
+    score_name = "F_t"
+    formula = "F_t = −S⁺_t"
+    threshold_key = "epsilon"
+    bounds = (-1.0, 1.0)
+    default_threshold = -0.5
+    needs_successes = True
+
+    def score(self, failure_similarity: ArrayLike, success_similarity: ArrayLike) -> np.ndarray:
+        return -np.asarray(success_similarity, dtype=np.float32)
+
+
+@pytest.fixture
+def rule(monkeypatch: pytest.MonkeyPatch) -> ScoringRule:
+    """The rule, registered in `RULES` for this test only."""
+    registered = FarFromSuccessRule()
+    monkeypatch.setitem(RULES, registered.name, registered)
+    return registered
+
+
+def test_a_rule_defined_in_a_test_is_calibrated_stored_reloaded_and_judges(
+    rule: ScoringRule, tmp_path: Path
+) -> None:
+    data = write_project_dataset(tmp_path / "data", episodes=6)
+    memory_dir, cache = tmp_path / "memory", tmp_path / "cache"
+    build_memory(
+        BuildMemoryConfig(data=data, encoder="pixels", out=memory_dir, split="train", cache_dir=cache)
+    )
+
+    found = calibrate(CalibrateConfig(data=data, memory=memory_dir, target_fpr=ALPHA, cache_dir=cache))
+    assert list(found.thresholds) == ["paper", "contrast", "novelty", rule.name]
+    threshold = found.thresholds[rule.name]
+    text = found.to_text(memory_dir)
+    assert (
+        f"ε = {threshold:.6f} (far-from-success rule): FPR {100 * found.achieved_fprs[rule.name]:.1f} %"
+        in text
+    )
+
+    stored = json.loads((memory_dir / "manifest.json").read_text(encoding="utf-8"))["calibration"]
+    assert stored["rules"][rule.name]["threshold"] == threshold
+    assert stored["rules"][rule.name]["achieved_fpr"] == found.achieved_fprs[rule.name]
+    assert stored["rules"][rule.name]["runs"] == 6  # three training successes per task
+    assert stored["rules"][rule.name]["fpr_spread"]["successes"] == 6
+
+    loaded = FailureMemory.load(memory_dir)
+    assert loaded.calibrated_threshold(rule.name) == threshold
+    encoder = CachedEncoder(load_encoder("pixels"), cache_dir=cache)
+    detector = FailureDetector(loaded, encoder, rule=rule.name)
+    assert detector.threshold == threshold and detector.uncalibrated == []
+    assert FailureDetector(loaded, encoder, thresholds={rule.name: 0.25}).threshold_of(rule) == 0.25
+
+    # the stored threshold is the conformal bound of the training successes' leave-one-out peaks
+    successes = [t for t in load_dataset(data).select(split="train") if not t.is_failure]
+    peaks = [float(detector.run(t, leave_one_out=True).max_score().max()) for t in successes]
+    assert threshold == pytest.approx(conformal_threshold(peaks, ALPHA))
+    assert found.achieved_fprs[rule.name] == pytest.approx(empirical_fpr(peaks, threshold))
+
+    trajectory = next(t for t in load_dataset(data).select(split="test") if t.is_failure)
+    trace = detector.run(trajectory)
+    fused = np.stack([-trace.success_similarity[view] for view in trace.views]).max(axis=0)
+    np.testing.assert_array_equal(trace.state, fused >= np.float32(threshold))
+    assert trace.to_dict()["thresholds"][rule.name] == threshold == trace.to_dict()["threshold"]
+    session = detector.session(trajectory.task)
+    for t in range(trace.length):
+        step = session.step({view: frames[t] for view, frames in trajectory.views.items()})
+        assert step.rule is rule and step.threshold == threshold and step.alarm == bool(trace.state[t])
+    assert session.fired_at == trace.t_det
