@@ -32,11 +32,11 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from bench_quality import DEPLOYED, QualityRow, Variant, print_rows
+from bench_quality import QualityRow, Variant, print_rows, run_cells
 
 from robofailring.encoders import default_cache_dir, encoder_slug, load_encoder
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
-from robofailring.evaluation.run import EvaluateConfig, run_evaluation, write_evaluation
+from robofailring.evaluation.run import EvaluateConfig
 
 HERE = Path(__file__).resolve().parent
 GENERATOR = HERE / "peer_generate.py"
@@ -253,7 +253,7 @@ def evaluate_encoder(
         name="in-distribution",
     )
     base = replace(base, **variant.settings)
-    protocols = [("ID", base)]
+    swapped = None
     if swapped_encoder is not None:
         swapped = replace(
             base,
@@ -263,23 +263,11 @@ def evaluate_encoder(
             memory_out=out / f"{slug}-swapped" / "memory",
             name="in-distribution-swapped",
         )
-        protocols.append(("ID swapped", swapped))
     ood = replace(base, memory=out / slug / "memory", memory_out=None, test_split="ood", name="ood")
-    protocols += [
-        ("OOD", ood),
-        (
-            f"OOD + {DEPLOYED} deployment successes/task",
-            replace(ood, deployment_successes=DEPLOYED, name="ood-deployed"),
-        ),
+    return [
+        PeerRow(name, label, result, seconds, _sweep(Path(config.out) / f"{config.name}.json"))
+        for label, config, result, seconds in run_cells(base, swapped=swapped, ood=ood)
     ]
-    rows = []
-    for label, config in protocols:
-        start = time.perf_counter()
-        result = run_evaluation(config)
-        write_evaluation(result, config.out)
-        sweep = _sweep(Path(config.out) / f"{config.name}.json")
-        rows.append(PeerRow(name, label, result, time.perf_counter() - start, sweep))
-    return rows
 
 
 def print_targets(rows: list[PeerRow]) -> None:

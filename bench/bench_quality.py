@@ -187,36 +187,43 @@ def evaluate_encoder(
     )
     base = replace(base, **variant.settings)
     ood = replace(base, memory=out / slug / "memory", test_data=out_dist, test_split="ood", name="ood")
-    protocols = [("ID", base)]
+    in_swapped = None
     if swapped is not None:
         data, spec = swapped
-        protocols.append(
-            (
-                "ID swapped",
-                replace(
-                    base,
-                    data=data,
-                    encoder=spec,
-                    out=out / f"{slug}-swapped",
-                    memory_out=out / f"{slug}-swapped" / "memory",
-                    name="in-distribution-swapped",
-                ),
-            )
+        in_swapped = replace(
+            base,
+            data=data,
+            encoder=spec,
+            out=out / f"{slug}-swapped",
+            memory_out=out / f"{slug}-swapped" / "memory",
+            name="in-distribution-swapped",
         )
-    protocols += [
-        ("OOD", ood),
+    return [
+        QualityRow(name, label, result, seconds)
+        for label, _, result, seconds in run_cells(base, swapped=in_swapped, ood=ood)
+    ]
+
+
+def run_cells(
+    base: EvaluateConfig, *, swapped: EvaluateConfig | None, ood: EvaluateConfig
+) -> list[tuple[str, EvaluateConfig, EvaluationResult, float]]:
+    """The cells of one encoder and variant, each evaluated and written (<name>.json and .md, e.g. for
+    `robofailring review`): ID, ID swapped (when given), OOD, and OOD with DEPLOYED deployment
+    successes per task; per cell its label, config, result and seconds."""
+    cells = [("ID", base), *([("ID swapped", swapped)] if swapped is not None else []), ("OOD", ood)]
+    cells.append(
         (
             f"OOD + {DEPLOYED} deployment successes/task",
             replace(ood, deployment_successes=DEPLOYED, name="ood-deployed"),
-        ),
-    ]
-    rows = []
-    for label, config in protocols:
+        )
+    )
+    found = []
+    for label, config in cells:
         start = time.perf_counter()
         result = run_evaluation(config)
-        write_evaluation(result, config.out)  # <name>.json and .md, e.g. for `robofailring review`
-        rows.append(QualityRow(name, label, result, time.perf_counter() - start))
-    return rows
+        write_evaluation(result, config.out)
+        found.append((label, config, result, time.perf_counter() - start))
+    return found
 
 
 def _pct(value: float) -> str:
