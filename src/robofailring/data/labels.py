@@ -90,27 +90,35 @@ def _rows(path: Path) -> list[dict[str, object]]:
         text = path.read_text(encoding="utf-8-sig")  # Excel's "CSV UTF-8" starts with a byte-order mark
     except (OSError, UnicodeDecodeError) as error:
         raise DataError(f"cannot read labels file {path}: {error}") from error
-    rows: list[dict[str, object]]
-    if path.suffix.lower() == ".json":
-        try:
-            loaded = json.loads(text)
-        except json.JSONDecodeError as error:
-            raise DataError(f"labels file {path} is not valid JSON: {error}") from error
-        if not isinstance(loaded, list) or not all(isinstance(row, dict) for row in loaded):
-            raise DataError(
-                f"labels file {path} must hold a JSON list of objects (episode_index, outcome, symbol)"
-            )
-        rows = loaded
-    else:
-        reader = csv.DictReader(io.StringIO(text, newline=""), strict=True)
-        try:
-            rows = [dict(row) for row in reader]
-        except csv.Error as error:  # e.g. a quote never closed: the rest of the file would be one cell
-            raise DataError(
-                f"labels file {path} line {reader.line_num}: not a readable CSV ({error})"
-            ) from error
-        _column_names(reader.fieldnames or [], path)  # a column named twice, even where no row follows
-    return [{_column_names(row, path).get(name, name): value for name, value in row.items()} for row in rows]
+    if path.suffix.lower() != ".json":
+        return _read_csv(text, path)[1]
+    try:
+        loaded = json.loads(text)
+    except json.JSONDecodeError as error:
+        raise DataError(f"labels file {path} is not valid JSON: {error}") from error
+    if not isinstance(loaded, list) or not all(isinstance(row, dict) for row in loaded):
+        raise DataError(
+            f"labels file {path} must hold a JSON list of objects (episode_index, outcome, symbol)"
+        )
+    return [_renamed(row, _column_names(row, path)) for row in loaded]
+
+
+def _read_csv(text: str, path: Path) -> tuple[list[str], list[dict[str, object]]]:
+    """A labels CSV's header and rows, its labels columns under the names this module reads; DataError
+    when it does not parse (a quote never closed) or names a column twice."""
+    reader = csv.DictReader(io.StringIO(text, newline=""), strict=True)  # a quoted cell may hold a line break
+    try:
+        rows = [dict(row) for row in reader]
+    except csv.Error as error:  # e.g. a quote never closed: the rest of the file would be one cell
+        raise DataError(f"labels file {path} line {reader.line_num}: not a readable CSV ({error})") from error
+    header = list(reader.fieldnames or [])
+    names = _column_names(header, path)  # a column named twice, even where no row follows
+    return [names.get(name, name) for name in header], [_renamed(row, names) for row in rows]
+
+
+def _renamed(row: dict[str, object], names: dict[str, str]) -> dict[str, object]:
+    """The row with the labels columns under the names this module reads (`names`: `_column_names`)."""
+    return {names.get(name, name): value for name, value in row.items()}
 
 
 def _column_names(names: Iterable[object], path: Path) -> dict[str, str]:
@@ -156,14 +164,13 @@ def merge_label_rows(
     if path.suffix.lower() == ".json":
         raise OutputError(f"{refused} (a JSON labels file is not rewritten): name a .csv file")
     try:
-        reader = csv.DictReader(io.StringIO(path.read_text(encoding="utf-8-sig"), newline=""), strict=True)
-        known = _column_names(
-            reader.fieldnames or [], path
-        )  # `Outcome` is `outcome`, as read_labels reads it
-        header = [known.get(name, name) for name in (reader.fieldnames or [])]
-        existing = [{known.get(k, k): v or "" for k, v in row.items() if k is not None} for row in reader]
-    except (OSError, UnicodeDecodeError, csv.Error, DataError) as error:
+        header, table = _read_csv(path.read_text(encoding="utf-8-sig"), path)  # as read_labels reads it
+    except (OSError, UnicodeDecodeError, DataError) as error:
         raise OutputError(f"{refused} ({error}); refusing to write over it") from error
+    existing = [
+        {name: value if isinstance(value, str) else "" for name, value in row.items() if name is not None}
+        for row in table
+    ]
     if "outcome" not in header or not {"episode", "episode_index"} & set(header):
         raise OutputError(
             f"{refused} (its header has no episode/episode_index and outcome columns); "
