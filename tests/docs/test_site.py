@@ -60,3 +60,29 @@ def test_the_site_builds_strictly(tmp_path: Path) -> None:
                 assert f"{option}" in cli, f"{verb} {option}"
     for page in ("index.html", "data/index.html", "recording/index.html", "rules/index.html"):
         assert (site / page).is_file()
+
+
+@pytest.mark.slow
+def test_the_sites_settings_fail_a_broken_link_an_anchor_and_a_page_out_of_nav(tmp_path: Path) -> None:
+    """mkdocs.yml's strict validation, on a two-page site with one of each fault."""
+    if importlib.util.find_spec("mkdocs") is None:
+        missing("the docs extra is not installed (mkdocs): pip install -e '.[docs]'")
+    import yaml
+
+    ours = yaml.safe_load((ROOT / "mkdocs.yml").read_text())
+    docs = tmp_path / "docs"
+    docs.mkdir()
+    (docs / "index.md").write_text("# Home\n\n[gone](gone.md), [no anchor](#nowhere)\n")
+    (docs / "orphan.md").write_text("# Not in nav\n")
+    config = {"site_name": "t", "docs_dir": str(docs), "strict": ours["strict"], "nav": ["index.md"]}
+    (tmp_path / "mkdocs.yml").write_text(yaml.safe_dump(config | {"validation": ours["validation"]}))
+    built = subprocess.run(
+        [sys.executable, "-m", "mkdocs", "build", "--config-file", str(tmp_path / "mkdocs.yml")],
+        capture_output=True,
+        text=True,
+        env=os.environ | {"NO_MKDOCS_2_WARNING": "1"},
+        cwd=tmp_path,
+        timeout=300,
+    )
+    assert built.returncode != 0
+    assert "'gone.md'" in built.stderr and "'#nowhere'" in built.stderr and "orphan.md" in built.stderr
