@@ -12,6 +12,7 @@ from robofailring.errors import MemoryFormatError, SettingError
 from robofailring.memory.index import (
     APPROXIMATE_ABOVE,
     FLAT,
+    IVF_PQFS,
     IVF_SQ8,
     IndexSpec,
     TaskIndex,
@@ -94,7 +95,7 @@ def test_ivf_sq8_agrees_with_flat_on_clustered_data(memory: tuple[np.ndarray, li
         assert np.mean(ids == exact_ids) >= 0.8
 
 
-@pytest.mark.parametrize("kind", [FLAT, IVF_SQ8])
+@pytest.mark.parametrize("kind", [FLAT, IVF_SQ8, IVF_PQFS])
 def test_search_never_crosses_tasks(memory: tuple[np.ndarray, list[str], list[str]], kind: str) -> None:
     vectors, tasks, episodes = memory
     index = TaskIndexSet.build(vectors, tasks, episodes, kind=kind)
@@ -108,14 +109,14 @@ def test_search_never_crosses_tasks(memory: tuple[np.ndarray, list[str], list[st
     assert len(index) == len(vectors)
 
 
-@pytest.mark.parametrize("kind", [FLAT, IVF_SQ8])
+@pytest.mark.parametrize("kind", [FLAT, IVF_SQ8, IVF_PQFS])
 def test_leave_one_out_hides_the_episode(memory: tuple[np.ndarray, list[str], list[str]], kind: str) -> None:
     vectors, tasks, episodes = memory
     index = TaskIndexSet.build(vectors, tasks, episodes, kind=kind)
     own = [i for i, (t, e) in enumerate(zip(tasks, episodes, strict=True)) if t == "task0" and e == "ep3"]
     queries = vectors[own]  # the episode's own frames would be their own nearest neighbours
     sims, ids = index.search(queries, "task0", 5)
-    assert np.array_equal(ids[:, 0], own) or kind == IVF_SQ8
+    assert np.array_equal(ids[:, 0], own) or kind != FLAT
     sims, ids = index.search(queries, "task0", 5, exclude_episode="ep3")
     assert not set(ids.ravel().tolist()) & set(own)
     assert {episodes[i] for i in ids.ravel()} <= {f"ep{run}" for run in range(30)} - {"ep3"}
@@ -143,7 +144,7 @@ def test_rows_are_padded_when_the_task_has_fewer_than_k() -> None:
     assert (ids == -1).all() and np.isnan(sims).all()
 
 
-@pytest.mark.parametrize("kind", [FLAT, IVF_SQ8])
+@pytest.mark.parametrize("kind", [FLAT, IVF_SQ8, IVF_PQFS])
 def test_one_batched_call_equals_one_call_per_view(
     memory: tuple[np.ndarray, list[str], list[str]], kind: str
 ) -> None:
@@ -157,7 +158,7 @@ def test_one_batched_call_equals_one_call_per_view(
         np.testing.assert_allclose(view_sims[0], sims[view], rtol=1e-6)
 
 
-@pytest.mark.parametrize("kind", [FLAT, IVF_SQ8])
+@pytest.mark.parametrize("kind", [FLAT, IVF_SQ8, IVF_PQFS])
 def test_save_and_load_keep_kind_parameters_and_results(
     memory: tuple[np.ndarray, list[str], list[str]], kind: str, tmp_path: Path
 ) -> None:
@@ -167,7 +168,7 @@ def test_save_and_load_keep_kind_parameters_and_results(
     section = json.loads(json.dumps(section))  # as the manifest stores it
     assert section["task1"]["count"] == 1200 and section["task1"]["file"] == "success.1.faiss"
     assert section["task1"]["kind"] == kind
-    if kind == IVF_SQ8:
+    if kind != FLAT:
         assert section["task1"]["nprobe"] == 3 and section["task1"]["nlist"] == 1200 // 39
     loaded = TaskIndexSet.read(tmp_path, section, tasks, episodes)
     assert loaded.by_task["task1"].spec == index.by_task["task1"].spec
@@ -199,7 +200,8 @@ def test_loading_rejects_a_manifest_that_does_not_match(
 def test_choose_spec_picks_exact_search_for_small_tasks() -> None:
     assert choose_spec(APPROXIMATE_ABOVE) == IndexSpec(FLAT)
     large = choose_spec(APPROXIMATE_ABOVE + 1)
-    assert large.kind == IVF_SQ8 and 1 <= large.nprobe <= large.nlist
+    assert large.kind == IVF_PQFS and 1 <= large.nprobe <= large.nlist
+    assert large.pq_m == 1024 // 16 and large.k_factor >= 1
     assert choose_spec(1_000_000).nlist == 2000
     assert choose_spec(100, kind=IVF_SQ8).nlist == 100 // 39
     assert choose_spec(10, kind=FLAT, approximate_above=1) == IndexSpec(FLAT)
