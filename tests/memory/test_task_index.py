@@ -19,28 +19,32 @@ from robofailring.memory.index import (
     TaskIndexSet,
     choose_spec,
 )
+from robofailring.memory.success import SuccessMemory, SuccessRun
 
 DIM = 64
+# ivf_pqfs: the exact nearest entry is among its 10 best this often here (0.84 measured); its own top-1
+# is often a near-tie (the exact top two differ by 0.0001 in median), so S⁺ error is what is bounded
+RECALL_AT_10 = 0.7
 
 
 def unit(rows: np.ndarray) -> np.ndarray:
     return (rows / np.linalg.norm(rows, axis=-1, keepdims=True)).astype(np.float32)
 
 
-def smooth_runs(task: int, runs: int, frames: int, seed: int = 0) -> np.ndarray:
-    """(runs, frames, DIM): runs of one task wander smoothly around the task's centre."""
+def smooth_runs(task: int, runs: int, frames: int, seed: int = 0, dim: int = DIM) -> np.ndarray:
+    """(runs, frames, dim): runs of one task wander smoothly around the task's centre."""
     rng = np.random.default_rng(1000 * task + seed)
-    centre = 3.0 * unit(np.random.default_rng(task).standard_normal(DIM))
-    path = np.random.default_rng(50 + task).standard_normal((4, DIM)) * 0.5
-    out = np.empty((runs, frames, DIM), np.float32)
+    centre = 3.0 * unit(np.random.default_rng(task).standard_normal(dim))
+    path = np.random.default_rng(50 + task).standard_normal((4, dim)) * 0.5
+    out = np.empty((runs, frames, dim), np.float32)
     for run in range(runs):
         t = np.linspace(0, 1, frames)[:, None] ** np.exp(rng.normal(0, 0.2))
         basis = np.concatenate([np.cos(np.pi * t * [1, 2]), np.sin(np.pi * t * [1, 2])], axis=1)
         out[run] = unit(
             centre
             + basis @ path
-            + 0.3 * unit(rng.standard_normal(DIM))
-            + 0.05 * rng.standard_normal((frames, DIM))
+            + 0.3 * unit(rng.standard_normal(dim))
+            + 0.05 * rng.standard_normal((frames, dim))
         )
     return out
 
@@ -220,3 +224,72 @@ def test_task_index_rejects_mismatched_ids() -> None:
     vectors = unit(np.random.default_rng(1).standard_normal((4, DIM)))
     with pytest.raises(MemoryFormatError, match="4 entries for 3 ids"):
         TaskIndex.build(vectors, np.arange(3), ["e"] * 3)
+
+
+LARGE_DIM = 256
+
+
+@pytest.fixture(scope="module")
+def large_task() -> tuple[np.ndarray, list[str], list[str]]:
+    """A 20,000-entry task (50 runs × 400 frames) beside a 2,000-entry one, 256-d."""
+    large = smooth_runs(0, 50, 400, dim=LARGE_DIM).reshape(-1, LARGE_DIM)
+    small = smooth_runs(1, 5, 400, dim=LARGE_DIM).reshape(-1, LARGE_DIM)
+    tasks = ["large"] * len(large) + ["small"] * len(small)
+    episodes = [f"ep{row // 400}" for row in range(len(large))] + [
+        f"s{row // 400}" for row in range(len(small))
+    ]
+    return np.concatenate([large, small]), tasks, episodes
+
+
+def test_auto_picks_ivf_pqfs_for_a_large_task_within_the_s_plus_budget(
+    large_task: tuple[np.ndarray, list[str], list[str]],
+) -> None:
+    """S⁺ (top-1 similarity) of held-out runs within 0.01 of exact search; a small task stays exact."""
+    vectors, tasks, episodes = large_task
+    index = TaskIndexSet.build(vectors, tasks, episodes, approximate_above=5_000)
+    spec = index.by_task["large"].spec
+    assert spec == choose_spec(20_000, dim=LARGE_DIM) and spec.kind == IVF_PQFS
+    assert spec.pq_m == LARGE_DIM // 16 and spec.nlist == round(2 * 20_000**0.5)
+    assert index.by_task["small"].spec == IndexSpec(FLAT)
+    exact = TaskIndexSet.build(vectors, tasks, episodes, kind=FLAT)
+    queries = smooth_runs(0, 4, 400, seed=11, dim=LARGE_DIM).reshape(-1, LARGE_DIM)[::4]
+    exact_sims, exact_ids = exact.search(queries, "large", 1)
+    sims, ids = index.search(queries, "large", 1)
+    assert np.abs(sims - exact_sims).max() <= 0.01
+    _, exact_ten = exact.search(queries, "large", 10)
+    _, ten = index.search(queries, "large", 10)
+    assert np.mean([exact_ten[row, 0] in ten[row] for row in range(len(queries))]) >= RECALL_AT_10
+    # the re-ranked similarity is the entry's own (8-bit codes), not the PQ estimate
+    np.testing.assert_allclose(sims[:, 0], np.sum(queries * vectors[ids[:, 0]], axis=1), atol=2e-3)
+    small_queries = smooth_runs(1, 1, 400, seed=12, dim=LARGE_DIM)[0]
+    np.testing.assert_array_equal(
+        index.search(small_queries, "small", 3)[1], exact.search(small_queries, "small", 3)[1]
+    )
+    assert index.by_task["large"].nbytes < exact.by_task["large"].nbytes / 3  # 8-bit refine codes
+
+
+@pytest.mark.parametrize("kind", [IVF_PQFS, IVF_SQ8])
+def test_a_success_memory_with_an_approximate_index_loads_back_identically(
+    large_task: tuple[np.ndarray, list[str], list[str]], kind: str, tmp_path: Path
+) -> None:
+    """Written and read as a memory folder: same manifest, same S⁺ and rows (ivf_sq8: older folders)."""
+    vectors, tasks, episodes = large_task
+    runs = [
+        SuccessRun(task, episode, "front", tuple(f"frame{row}" for row in range(start, start + 400)))
+        for start, task, episode in zip(
+            range(0, len(vectors), 400), tasks[::400], episodes[::400], strict=True
+        )
+    ]
+    index = TaskIndexSet.build(vectors, tasks, episodes, kind=kind)
+    memory = SuccessMemory(vectors, runs, dim=LARGE_DIM, index=index)
+    memory.write(tmp_path)
+    section = json.loads(json.dumps(memory.manifest()))
+    assert section["index"]["large"]["kind"] == kind
+    loaded = SuccessMemory.read(tmp_path, section, LARGE_DIM)
+    assert loaded.vectors is None and loaded.manifest() == memory.manifest()
+    queries = smooth_runs(0, 2, 400, seed=13, dim=LARGE_DIM).reshape(-1, LARGE_DIM)[::8]
+    for hide in (None, "ep3"):
+        expected = memory.search(queries, "large", exclude_episode=hide)
+        found = loaded.search(queries, "large", exclude_episode=hide)
+        np.testing.assert_array_equal(found[1], expected[1])
+        np.testing.assert_array_equal(found[0], expected[0])

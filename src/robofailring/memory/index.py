@@ -208,7 +208,9 @@ class TaskIndexSet:
         by_task: dict[str, TaskIndex] = {}
         for task in sorted(set(task_array.tolist())):
             rows = np.flatnonzero(task_array == task)
-            spec = choose_spec(len(rows), kind=kind, approximate_above=approximate_above, nprobe=nprobe)
+            spec = choose_spec(
+                len(rows), kind=kind, approximate_above=approximate_above, nprobe=nprobe, dim=vectors.shape[1]
+            )
             by_task[task] = TaskIndex.build(vectors[rows], rows, episode_array[rows].tolist(), spec)
             if progress is not None:
                 progress(len(rows))
