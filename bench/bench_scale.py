@@ -1,15 +1,17 @@
-"""Both memories at real-robot scale (issue 14): build time, index RAM, 3-view step latency, error.
+"""Both memories at real-robot scale (issues 14, 34): build, index RAM, 3-view step, bytes read, error.
 
-Run: .venv/bin/python bench/bench_scale.py [--sizes 10k,100k,1M] [--tasks 4] [--threads N]
+Run: .venv/bin/python bench/bench_scale.py [--sizes 10k,100k,1M] [--tasks 4] [--kinds ivf_pqfs,ivf_sq8]
 
 Synthetic success memories (bench/_synthetic_runs.py: smooth 1024-d runs on the unit sphere,
-3 views × 600 frames per run, grouped by task) are indexed per task with exact search (`flat`)
-and with the approximate `ivf_sq8` (robofailring.memory.index), side by side, beside a 150k-entry
-failure memory (80 tasks, flat). A step searches the 3 views of one frame in one Faiss call per
-memory. Exact S⁺ comes from Faiss's brute force (`faiss.knn`, what IndexFlatIP.search
-runs) on held-out runs (half of them bent away from every success, like failures). Data are
-generated one task at a time and freed once indexed. The last line reads
-`scale 1M: median <ms> ms, p95 <ms> ms, max_abs_err <x>, index_gb <x>`.
+3 views × 600 frames per run, grouped by task) are indexed per task with exact search (`flat`,
+one task) and with each approximate kind (robofailring.memory.index), side by side, beside a
+150k-entry failure memory (80 tasks, flat). A step searches the 3 views of one frame in one Faiss
+call per memory. Exact S⁺ comes from Faiss's brute force (`faiss.knn`) on held-out runs (half of
+them bent away from every success, like failures). Every setting prints the bytes a query reads
+(bench/_read_bytes.py) and the step's limit at the memory bandwidth measured in the same run,
+beside the failure memory's step timed just before. Data are generated one task at a time and
+freed once indexed. The last line reads `scale 1M: median <ms> ms, p95 <ms> ms, max_abs_err <x>,
+index_gb <x>; success step <ms> ms = <x>x its bandwidth limit, <x>x the failure step`.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from dataclasses import dataclass
 
 import faiss
 import numpy as np
+from _read_bytes import bytes_per_query, limit_line, memory_bandwidth
 from _synthetic_runs import HALF, VIEWS, describe, held_out_steps, task_memory
 
 from robofailring.memory.index import IVF_PQFS, IVF_SQ8, IndexSpec, TaskIndex, TaskIndexSet, choose_spec
@@ -165,63 +168,29 @@ def hnsw_probe(count: int = 20_000) -> None:
 
 
 def crossover(sizes: tuple[int, ...] = (1_000, 2_000, 5_000, 10_000, 20_000, 50_000)) -> None:
-    """Flat vs ivf_sq8 3-view step for one task of each size: where `auto` should switch."""
-    print("\n task entries | flat step median (CPU) | ivf_sq8 step median (CPU) | ivf_sq8 S+ max_abs_err")
+    """Flat vs the approximate kinds' 3-view step for one task of each size: where `auto` should switch."""
+    kinds = (IVF_PQFS, IVF_SQ8)
+    print(
+        "\n task entries | flat step median (CPU) | "
+        + " | ".join(f"{k} step median (CPU), S+ max_abs_err" for k in kinds)
+    )
     held = held_out_steps(0, 60, deviate=0.0)
     exact = held.reshape(-1, DIM)
     for size in sizes:
         vectors = np.concatenate([chunk for chunk, _ in task_memory(0, size)])
         episodes = [str(i // 600) for i in range(size)]
-        flat = TaskIndex.build(vectors, np.arange(size), episodes, choose_spec(size, kind="flat"))
-        approximate = TaskIndex.build(vectors, np.arange(size), episodes, choose_spec(size, kind=IVF_SQ8))
-        flat_times = latencies(lambda i, flat=flat: flat.search(held[i % 60], 1), 120)
-        approx_times = latencies(lambda i, approximate=approximate: approximate.search(held[i % 60], 1), 120)
-        error = np.abs(approximate.search(exact, 1)[0] - flat.search(exact, 1)[0]).max()
-        print(
-            f" {size:12,d} | {statistics.median(flat_times):.3f} ms ({statistics.median(flat_times.cpu):.3f}) | "
-            f"{statistics.median(approx_times):.3f} ms ({statistics.median(approx_times.cpu):.3f}) | {error:.5f}"
-        )
+        flat = TaskIndex.build(vectors, np.arange(size), episodes, IndexSpec("flat"))
+        cells = [_median_cell(latencies(lambda i, flat=flat: flat.search(held[i % 60], 1), 120))]
+        for kind in kinds:
+            index = TaskIndex.build(vectors, np.arange(size), episodes, choose_spec(size, kind=kind, dim=DIM))
+            times = latencies(lambda i, index=index: index.search(held[i % 60], 1), 120)
+            error = np.abs(index.search(exact, 1)[0] - flat.search(exact, 1)[0]).max()
+            cells.append(f"{_median_cell(times)}, {error:.5f}")
+        print(f" {size:12,d} | " + " | ".join(cells))
 
 
-def memory_bandwidth(gigabytes: float = 0.5) -> float:
-    """Bytes per second one thread reads from RAM: the best of 5 numpy sums over an uncached array."""
-    array = np.ones(int(gigabytes * 2**30) // 4, np.float32)
-    best = float("inf")
-    for _ in range(5):
-        start = time.perf_counter()
-        array.sum()
-        best = min(best, time.perf_counter() - start)
-    return array.nbytes / best
-
-
-def bytes_per_query(index: TaskIndex, queries: np.ndarray) -> float:
-    """Mean bytes one query reads: coarse centroids + codes of the probed lists + re-ranked codes.
-
-    Lists are the ones Faiss's coarse quantizer picks for each query; flat reads every vector.
-    """
-    faiss_index = index.index
-    dim, kind = faiss_index.d, index.spec.kind
-    if kind == "flat":
-        return float(index.size * dim * 4)
-    refine = 0.0
-    if kind == IVF_PQFS:
-        refine = faiss_index.k_factor * 1 * dim  # k = 1: k_factor SQ8 codes of `dim` bytes
-        faiss_index = faiss.downcast_index(faiss_index.base_index)
-    code_bytes = (index.spec.pq_m + 1) // 2 if kind == IVF_PQFS else dim
-    _, lists = faiss_index.quantizer.search(np.atleast_2d(queries), faiss_index.nprobe)  # as tuned now
-    sizes = np.array([faiss_index.invlists.list_size(int(i)) for i in range(faiss_index.nlist)])
-    if kind == IVF_PQFS:  # fast-scan stores codes in blocks of 32
-        sizes = -(-sizes // 32) * 32
-    scanned = sizes[lists].sum(axis=1).mean()
-    return float(faiss_index.nlist * dim * 4 + scanned * code_bytes + refine)
-
-
-def limit_line(name: str, step_ms: float, step_bytes: float, bandwidth: float, failure_ms: float) -> str:
-    limit = step_bytes / bandwidth * 1000
-    return (
-        f"{name}: reads {step_bytes / 2**20:.2f} MiB a 3-view step -> {limit:.3f} ms at {bandwidth / 1e9:.1f} GB/s; "
-        f"step {step_ms:.3f} ms = {step_ms / limit:.2f}x that limit, {step_ms / failure_ms:.2f}x the failure step"
-    )
+def _median_cell(times: Times) -> str:
+    return f"{statistics.median(times):.3f} ms ({statistics.median(times.cpu):.3f})"
 
 
 def sweep(kind: str, spec: IndexSpec) -> list[dict[str, int]]:
@@ -388,7 +357,9 @@ def main() -> None:
         "--kinds", default=f"{IVF_PQFS},{IVF_SQ8}", help="approximate index kinds to build side by side"
     )
     parser.add_argument("--hnsw-probe", action="store_true", help="time an HNSW build on 20k entries")
-    parser.add_argument("--crossover", action="store_true", help="flat vs ivf_sq8 per task size, 1k to 50k")
+    parser.add_argument(
+        "--crossover", action="store_true", help="flat vs approximate per task size, 1k to 50k"
+    )
     args = parser.parse_args()
     if args.threads:
         faiss.omp_set_num_threads(args.threads)
