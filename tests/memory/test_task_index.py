@@ -173,7 +173,9 @@ def test_save_and_load_keep_kind_parameters_and_results(
     assert section["task1"]["count"] == 1200 and section["task1"]["file"] == "success.1.faiss"
     assert section["task1"]["kind"] == kind
     if kind != FLAT:
-        assert section["task1"]["nprobe"] == 3 and section["task1"]["nlist"] == 1200 // 39
+        assert (
+            section["task1"]["nprobe"] == 3 and section["task1"]["nlist"] == index.by_task["task1"].spec.nlist
+        )
     loaded = TaskIndexSet.read(tmp_path, section, tasks, episodes)
     assert loaded.by_task["task1"].spec == index.by_task["task1"].spec
     queries = smooth_runs(1, 1, 40, seed=3)[0]
@@ -206,7 +208,9 @@ def test_choose_spec_picks_exact_search_for_small_tasks() -> None:
     large = choose_spec(APPROXIMATE_ABOVE + 1)
     assert large.kind == IVF_PQFS and 1 <= large.nprobe <= large.nlist
     assert large.pq_m == 1024 // 16 and large.k_factor >= 1
-    assert choose_spec(1_000_000).nlist == 2000
+    assert choose_spec(1_000_000, kind=IVF_SQ8).nlist == 2000
+    assert choose_spec(1_000_000).nlist == round((16 * 1_000_000 * 32 / 4096) ** 0.5)  # 354
+    assert choose_spec(250_000).nlist == 177 and choose_spec(250_000, dim=512).pq_m == 32
     assert choose_spec(100, kind=IVF_SQ8).nlist == 100 // 39
     assert choose_spec(10, kind=FLAT, approximate_above=1) == IndexSpec(FLAT)
     with pytest.raises(SettingError, match="hnsw"):
@@ -249,11 +253,11 @@ def test_auto_picks_ivf_pqfs_for_a_large_task_within_the_s_plus_budget(
     index = TaskIndexSet.build(vectors, tasks, episodes, approximate_above=5_000)
     spec = index.by_task["large"].spec
     assert spec == choose_spec(20_000, dim=LARGE_DIM) and spec.kind == IVF_PQFS
-    assert spec.pq_m == LARGE_DIM // 16 and spec.nlist == round(2 * 20_000**0.5)
+    assert spec.pq_m == LARGE_DIM // 16 and spec.nlist == 50  # √(16 · 20,000 · 8 B / (4 · 256))
     assert index.by_task["small"].spec == IndexSpec(FLAT)
     exact = TaskIndexSet.build(vectors, tasks, episodes, kind=FLAT)
     queries = smooth_runs(0, 4, 400, seed=11, dim=LARGE_DIM).reshape(-1, LARGE_DIM)[::4]
-    exact_sims, exact_ids = exact.search(queries, "large", 1)
+    exact_sims, _ = exact.search(queries, "large", 1)
     sims, ids = index.search(queries, "large", 1)
     assert np.abs(sims - exact_sims).max() <= 0.01
     _, exact_ten = exact.search(queries, "large", 10)

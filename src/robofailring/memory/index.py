@@ -56,8 +56,10 @@ def choose_spec(
     """The index for a task of `size` entries of `dim` dimensions: `flat` up to `approximate_above`
     under `auto`, `ivf_pqfs` above.
 
-    The inverted files use nlist ≈ 2·√size (a query's cost is the nlist centroids plus nprobe lists of
-    size/nlist codes; this balances them at nprobe 16), at most size // TRAIN_PER_LIST.
+    A query of an inverted file reads the nlist float32 centroids and nprobe lists of size/nlist
+    codes; nlist is chosen to balance the two (at most size // TRAIN_PER_LIST): ≈ 2·√size for
+    ivf_sq8's one-byte-a-dimension codes, √(nprobe·size·code bytes / (4·dim)) for ivf_pqfs's
+    half-byte PQ codes (177 at 250k entries of 1024-d, nprobe 16).
     """
     if kind == AUTO:
         kind = FLAT if size <= approximate_above else APPROXIMATE
@@ -65,11 +67,14 @@ def choose_spec(
         raise SettingError(f"index kind must be {AUTO} or one of {', '.join(KINDS)}, got {kind!r}")
     if kind == FLAT:
         return IndexSpec(FLAT)
-    nlist = max(1, min(round(2 * math.sqrt(size)), size // TRAIN_PER_LIST))
-    lists = {"nlist": nlist, "nprobe": min(nprobe or DEFAULT_NPROBE, nlist)}
+    probes = nprobe or DEFAULT_NPROBE
+    pq_m = pq_subquantizers(dim)
+    balanced = 2 * math.sqrt(size) if kind == IVF_SQ8 else math.sqrt(probes * size * (pq_m / 2) / (4 * dim))
+    nlist = max(1, min(round(balanced), size // TRAIN_PER_LIST))
+    lists = {"nlist": nlist, "nprobe": min(probes, nlist)}
     if kind == IVF_SQ8:
         return IndexSpec(IVF_SQ8, **lists)
-    return IndexSpec(kind, **lists, pq_m=pq_subquantizers(dim), k_factor=DEFAULT_K_FACTOR)
+    return IndexSpec(kind, **lists, pq_m=pq_m, k_factor=DEFAULT_K_FACTOR)
 
 
 class TaskIndex:
