@@ -108,7 +108,9 @@ class TaskIndex:
                 raise SettingError(
                     f"{spec.kind} with {spec.nlist} lists needs at least as many entries, got {len(vectors)}"
                 )
-            index.train(_training_sample(vectors, spec.nlist))
+            index.train(
+                _training_sample(vectors, max(spec.nlist * TRAIN_PER_LIST, kind_of(spec.kind).min_training))
+            )
         index.add(vectors)
         return cls(index, ids, episodes)
 
@@ -177,8 +179,8 @@ class TaskIndex:
         return cls(index, ids, episodes)
 
 
-def _training_sample(vectors: np.ndarray, nlist: int) -> np.ndarray:
-    count = min(len(vectors), nlist * TRAIN_PER_LIST)
+def _training_sample(vectors: np.ndarray, count: int) -> np.ndarray:
+    count = min(len(vectors), count)
     if count == len(vectors):
         return vectors
     rows = np.random.default_rng(0).choice(len(vectors), size=count, replace=False)

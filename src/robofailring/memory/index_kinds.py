@@ -59,6 +59,7 @@ class IndexKind:
     name: ClassVar[str]
     parameters: ClassVar[tuple[str, ...]] = ()
     trained: ClassVar[bool] = False  # needs k-means (and codebook) training before entries are added
+    min_training: ClassVar[int] = 0  # training entries besides the lists' k-means (codebooks)
 
     def check(self, spec: IndexSpec) -> None:
         """SettingError when `spec`'s parameters do not fit this kind."""
@@ -136,6 +137,7 @@ class IvfPqFastScan(IndexKind):
     name = IVF_PQFS
     parameters = ("nlist", "nprobe", "pq_m", "k_factor")
     trained = True
+    min_training = 256 * 39  # 16 codewords per sub-quantizer want 39 each; more steadies them
 
     def check(self, spec: IndexSpec) -> None:
         _check_lists(spec)
