@@ -1,15 +1,17 @@
-"""Both memories at real-robot scale (issue 14): build time, index RAM, 3-view step latency, error.
+"""Both memories at real-robot scale (issues 14, 34): build, index RAM, 3-view step, bytes read, error.
 
-Run: .venv/bin/python bench/bench_scale.py [--sizes 10k,100k,1M] [--tasks 4] [--threads N]
+Run: .venv/bin/python bench/bench_scale.py [--sizes 10k,100k,1M] [--tasks 4] [--kinds ivf_pqfs,ivf_sq8]
 
 Synthetic success memories (bench/_synthetic_runs.py: smooth 1024-d runs on the unit sphere,
-3 views × 600 frames per run, grouped by task) are indexed per task with exact search (`flat`)
-and with the approximate `ivf_sq8` (robofailring.memory.index), side by side, beside a 150k-entry
-failure memory (80 tasks, flat). A step searches the 3 views of one frame in one Faiss call per
-memory. Exact S⁺ comes from Faiss's brute force (`faiss.knn`, what IndexFlatIP.search
-runs) on held-out runs (half of them bent away from every success, like failures). Data are
-generated one task at a time and freed once indexed. The last line reads
-`scale 1M: median <ms> ms, p95 <ms> ms, max_abs_err <x>, index_gb <x>`.
+3 views × 600 frames per run, grouped by task) are indexed per task with exact search (`flat`,
+one task) and with each approximate kind (robofailring.memory.index), side by side, beside a
+150k-entry failure memory (80 tasks, flat). A step searches the 3 views of one frame in one Faiss
+call per memory. Exact S⁺ comes from Faiss's brute force (`faiss.knn`) on held-out runs (half of
+them bent away from every success, like failures). Every setting prints the bytes a query reads
+(bench/_read_bytes.py) and the step's limit at the memory bandwidth measured in the same run,
+beside the failure memory's step timed just before. Data are generated one task at a time and
+freed once indexed. The last line reads `scale 1M: median <ms> ms, p95 <ms> ms, max_abs_err <x>,
+index_gb <x>; success step <ms> ms = <x>x its bandwidth limit, <x>x the failure step`.
 """
 
 from __future__ import annotations
@@ -19,12 +21,14 @@ import gc
 import statistics
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import faiss
 import numpy as np
+from _read_bytes import bytes_per_query, limit_line, memory_bandwidth
 from _synthetic_runs import HALF, VIEWS, describe, held_out_steps, task_memory
 
-from robofailring.memory.index import IVF_SQ8, TaskIndex, TaskIndexSet, choose_spec
+from robofailring.memory.index import IVF_PQFS, IVF_SQ8, IndexSpec, TaskIndex, TaskIndexSet, choose_spec
 from robofailring.memory.pairs import pair_vectors
 
 DIM = 2 * HALF
@@ -100,6 +104,25 @@ def failure_memory(entries: int, tasks: int) -> tuple[TaskIndexSet, np.ndarray, 
     return memory, queries.reshape(300, VIEWS, DIM), [f"task_{i % tasks}" for i in range(300)]
 
 
+@dataclass
+class Failures:
+    """The failure memory, its queries and its 1-call 3-view step (median ms and bytes it reads)."""
+
+    memory: TaskIndexSet
+    steps: np.ndarray
+    tasks: list[str]
+    step_ms: float = float("nan")
+    step_bytes: float = float("nan")
+
+    def time_step(self) -> None:
+        count = len(self.steps)
+        times = latencies(lambda i: self.memory.search(self.steps[i], self.tasks[i], 5), count)
+        self.step_ms = statistics.median(times)
+        self.step_bytes = VIEWS * float(
+            np.mean([bytes_per_query(self.memory.by_task[t], self.steps[0]) for t in self.tasks])
+        )
+
+
 def bench_failure(memory: TaskIndexSet, steps: np.ndarray, tasks: list[str]) -> None:
     count = len(steps)
     separate = latencies(lambda i: [memory.search(q, tasks[i], 5) for q in steps[i]], count)
@@ -145,36 +168,59 @@ def hnsw_probe(count: int = 20_000) -> None:
 
 
 def crossover(sizes: tuple[int, ...] = (1_000, 2_000, 5_000, 10_000, 20_000, 50_000)) -> None:
-    """Flat vs ivf_sq8 3-view step for one task of each size: where `auto` should switch."""
-    print("\n task entries | flat step median (CPU) | ivf_sq8 step median (CPU) | ivf_sq8 S+ max_abs_err")
+    """Flat vs the approximate kinds' 3-view step for one task of each size: where `auto` should switch."""
+    kinds = (IVF_PQFS, IVF_SQ8)
+    print(
+        "\n task entries | flat step median (CPU) | "
+        + " | ".join(f"{k} step median (CPU), S+ max_abs_err" for k in kinds)
+    )
     held = held_out_steps(0, 60, deviate=0.0)
     exact = held.reshape(-1, DIM)
     for size in sizes:
         vectors = np.concatenate([chunk for chunk, _ in task_memory(0, size)])
         episodes = [str(i // 600) for i in range(size)]
-        flat = TaskIndex.build(vectors, np.arange(size), episodes, choose_spec(size, kind="flat"))
-        approximate = TaskIndex.build(vectors, np.arange(size), episodes, choose_spec(size, kind=IVF_SQ8))
-        flat_times = latencies(lambda i, flat=flat: flat.search(held[i % 60], 1), 120)
-        approx_times = latencies(lambda i, approximate=approximate: approximate.search(held[i % 60], 1), 120)
-        error = np.abs(approximate.search(exact, 1)[0] - flat.search(exact, 1)[0]).max()
-        print(
-            f" {size:12,d} | {statistics.median(flat_times):.3f} ms ({statistics.median(flat_times.cpu):.3f}) | "
-            f"{statistics.median(approx_times):.3f} ms ({statistics.median(approx_times.cpu):.3f}) | {error:.5f}"
-        )
+        flat = TaskIndex.build(vectors, np.arange(size), episodes, IndexSpec("flat"))
+        cells = [_median_cell(latencies(lambda i, flat=flat: flat.search(held[i % 60], 1), 120))]
+        for kind in kinds:
+            index = TaskIndex.build(vectors, np.arange(size), episodes, choose_spec(size, kind=kind, dim=DIM))
+            times = latencies(lambda i, index=index: index.search(held[i % 60], 1), 120)
+            error = np.abs(index.search(exact, 1)[0] - flat.search(exact, 1)[0]).max()
+            cells.append(f"{_median_cell(times)}, {error:.5f}")
+        print(f" {size:12,d} | " + " | ".join(cells))
+
+
+def _median_cell(times: Times) -> str:
+    return f"{statistics.median(times):.3f} ms ({statistics.median(times.cpu):.3f})"
+
+
+def sweep(kind: str, spec: IndexSpec) -> list[dict[str, int]]:
+    """Search settings to time for `kind`: nprobe, and for ivf_pqfs the candidates re-ranked."""
+    if kind == IVF_SQ8:
+        return [{"nprobe": n} for n in sorted({*NPROBES, spec.nprobe})]
+    settings = [(8, 64), (16, 32), (16, 64), (16, 128), (32, 64), (spec.nprobe, spec.k_factor)]
+    return [{"nprobe": n, "k_factor": k} for n, k in sorted(set(settings))]
+
+
+def tune(index: TaskIndex, nprobe: int, k_factor: int = 0) -> None:
+    if index.spec.kind == IVF_PQFS:
+        index.index.k_factor = k_factor
+        faiss.downcast_index(index.index.base_index).nprobe = nprobe
+    else:
+        index.index.nprobe = nprobe
 
 
 def bench_success(
-    size: int, tasks: int, steps_per_task: int, failures: tuple[TaskIndexSet, list[str]] | None
+    size: int, tasks: int, steps_per_task: int, kinds: list[str], failures: Failures | None
 ) -> dict[str, float]:
     per_task = size // tasks
-    spec = choose_spec(per_task, kind=IVF_SQ8)
-    auto = choose_spec(per_task)
+    specs = {kind: choose_spec(per_task, kind=kind, dim=DIM) for kind in kinds}
+    auto = choose_spec(per_task, dim=DIM)
     print(f"\n== success memory {size:,} entries: {tasks} tasks × {per_task:,}; auto picks {auto.to_dict()}")
     exact: list[tuple[np.ndarray, np.ndarray]] = []
     queries: list[np.ndarray] = []
-    approximate: dict[str, TaskIndex] = {}
+    approximate: dict[str, dict[str, TaskIndex]] = {kind: {} for kind in kinds}
     flat_times = Times()
-    build_flat = build_approx = 0.0
+    build_flat, build = 0.0, dict.fromkeys(kinds, 0.0)
     gc.collect()
     rss_before = rss_gb()
     for task in range(tasks):
@@ -195,28 +241,27 @@ def bench_success(
         queries.append(held)
         sims, ids = faiss.knn(held.reshape(-1, DIM), vectors, 1, metric=faiss.METRIC_INNER_PRODUCT)
         exact.append((sims[:, 0].reshape(-1, VIEWS), ids[:, 0].reshape(-1, VIEWS)))
+        episodes = runs.astype(str).tolist()
         if task == 0:  # exact 3-view step: flat over this task's entries
             start = time.perf_counter()
-            flat = TaskIndex.build(
-                vectors, np.arange(per_task), runs.astype(str).tolist(), choose_spec(per_task, kind="flat")
-            )
+            flat = TaskIndex.build(vectors, np.arange(per_task), episodes, IndexSpec("flat"))
             build_flat = time.perf_counter() - start
             repeat = int(min(len(held), max(10, 2e7 / per_task)))
             flat_times = latencies(lambda i, flat=flat, held=held: flat.search(held[i], 1), repeat)
             del flat
-        start = time.perf_counter()
-        approximate[f"task_{task}"] = TaskIndex.build(
-            vectors, np.arange(per_task), runs.astype(str).tolist(), spec
-        )
-        build_approx += time.perf_counter() - start
+        for kind, spec in specs.items():
+            start = time.perf_counter()
+            approximate[kind][f"task_{task}"] = TaskIndex.build(vectors, np.arange(per_task), episodes, spec)
+            build[kind] += time.perf_counter() - start
         del vectors, runs
         gc.collect()
-    memory = TaskIndexSet(approximate)
     rss = rss_gb() - rss_before
-    print(f"build: flat {build_flat * tasks:.1f} s (one task × {tasks}), ivf_sq8 {build_approx:.1f} s")
+    built = ", ".join(f"{kind} {seconds:.1f} s" for kind, seconds in build.items())
+    print(f"build: flat {build_flat * tasks:.1f} s (one task × {tasks}), {built}")
+    sets = {kind: TaskIndexSet(indexes) for kind, indexes in approximate.items()}
+    ram = ", ".join(f"{kind} {memory.nbytes / 2**30:.3f} GB" for kind, memory in sets.items())
     print(
-        f"index RAM: flat {size * DIM * 4 / 2**30:.2f} GB, ivf_sq8 {memory.nbytes / 2**30:.3f} GB "
-        f"(Faiss arrays; process RSS grew {rss:.3f} GB)"
+        f"index RAM: flat {size * DIM * 4 / 2**30:.2f} GB, {ram} (Faiss arrays; process RSS grew {rss:.3f} GB)"
     )
     print(f"exact 3-view step (flat, {per_task:,} entries, {len(flat_times)} steps): {summary(flat_times)}")
     steps = np.concatenate(queries)
@@ -224,43 +269,74 @@ def bench_success(
     exact_sims = np.concatenate([s for s, _ in exact])
     exact_ids = np.concatenate([i for _, i in exact])
     order = np.random.default_rng(3).permutation(len(steps))
-    print(
-        " nprobe | success step wall median  p95 | CPU median  p95 | S+ max_abs_err  p99_abs_err | top-1 agree"
-    )
-    result: dict[str, float] = {}
-    for nprobe in sorted({*NPROBES, spec.nprobe}):
-        for index in approximate.values():
-            index.index.nprobe = nprobe
-        times = latencies(lambda i: memory.search(steps[order[i]], step_task[order[i]], 1), len(steps))
-        results = [memory.search(steps[i], step_task[i], 1) for i in range(len(steps))]
-        found = np.stack([sims[:, 0] for sims, _ in results])
-        found_ids = np.stack([ids[:, 0] for _, ids in results])
-        error = np.abs(found - exact_sims)
-        marker = " <- default" if nprobe == spec.nprobe else ""
-        print(
-            f" {nprobe:6d} | {statistics.median(times):8.3f} ms {np.percentile(times, 95):8.3f} ms | "
-            f"{statistics.median(times.cpu):6.3f} {np.percentile(times.cpu, 95):6.3f} ms | "
-            f"{error.max():.5f}  {np.percentile(error, 99):.5f} | {np.mean(found_ids == exact_ids):.3f}{marker}"
-        )
-        if nprobe == spec.nprobe:
-            result = {"max_abs_err": float(error.max()), "index_gb": memory.nbytes / 2**30}
-    for index in approximate.values():
-        index.index.nprobe = spec.nprobe
-    step = latencies(lambda i: memory.search(steps[order[i]], step_task[order[i]], 1), len(steps))
-    print(f"approximate 3-view success step (ivf_sq8, nprobe {spec.nprobe}): {summary(step)}")
+    bandwidth = memory_bandwidth()
     if failures is not None:
-        failure_set, failure_tasks = failures
-        failure_steps = steps  # any unit 1024-d vectors: the failure search cost does not depend on them
+        failures.time_step()
+    failure_ms = failures.step_ms if failures is not None else float("nan")
+    result: dict[str, float] = {}
+    for kind, memory in sets.items():
+        spec = specs[kind]
+        print(
+            f" {kind}: setting | bytes/query | bandwidth limit | step wall median  p95 | CPU median | "
+            "x limit | x failure | S+ max_abs_err  p99 | top-1 agree"
+        )
+        for setting in sweep(kind, spec):
+            for index in memory.by_task.values():
+                tune(index, **setting)
+            times = latencies(
+                lambda i, memory=memory: memory.search(steps[order[i]], step_task[order[i]], 1), len(steps)
+            )
+            results = [memory.search(steps[i], step_task[i], 1) for i in range(len(steps))]
+            found = np.stack([sims[:, 0] for sims, _ in results])
+            found_ids = np.stack([ids[:, 0] for _, ids in results])
+            error = np.abs(found - exact_sims)
+            read = np.mean([bytes_per_query(memory.by_task[t], steps[i]) for i, t in enumerate(step_task)])
+            limit = VIEWS * read / bandwidth * 1000
+            median = statistics.median(times)
+            default = setting == {"nprobe": spec.nprobe, "k_factor": spec.k_factor} or setting == {
+                "nprobe": spec.nprobe
+            }
+            print(
+                f" {' '.join(f'{k} {v}' for k, v in setting.items()):>21} | {read / 2**20:7.3f} MiB | {limit:.3f} ms | "
+                f"{median:8.3f} ms {np.percentile(times, 95):8.3f} ms | {statistics.median(times.cpu):6.3f} ms | "
+                f"{median / limit:5.2f} | {median / failure_ms:5.2f} | "
+                f"{error.max():.5f}  {np.percentile(error, 99):.5f} | {np.mean(found_ids == exact_ids):.3f}"
+                + (" <- default" if default else "")
+            )
+            if default and kind == auto.kind:
+                result = {"max_abs_err": float(error.max()), "index_gb": memory.nbytes / 2**30}
+                result.update(step=median, limit=float(limit), read=float(VIEWS * read))
+        for index in memory.by_task.values():
+            tune(index, spec.nprobe, spec.k_factor)
+    memory = sets.get(auto.kind) or next(iter(sets.values()))
+    step = latencies(lambda i: memory.search(steps[order[i]], step_task[order[i]], 1), len(steps))
+    print(f"approximate 3-view success step ({auto.to_dict()}): {summary(step)}")
+    print(f"bandwidth: {bandwidth / 1e9:.1f} GB/s (numpy sum over 0.5 GiB, best of 5)")
+    if failures is not None:
+        result["step"] = statistics.median(step)
+        failures.time_step()  # again now, beside the success step (the load on this machine varies)
+        print(
+            limit_line(
+                "150k flat failure step", failures.step_ms, failures.step_bytes, bandwidth, failures.step_ms
+            )
+        )
+        if "read" in result:
+            print(
+                limit_line(
+                    f"{size:,} success step", result["step"], result["read"], bandwidth, failures.step_ms
+                )
+            )
 
         def both(i: int) -> None:
             j = order[i]
-            failure_set.search(failure_steps[j], failure_tasks[j % len(failure_tasks)], 5)
+            failures.memory.search(steps[j], failures.tasks[j % len(failures.tasks)], 5)
             memory.search(steps[j], step_task[j], 1)
 
         combined = latencies(both, len(steps)) + latencies(both, len(steps))
         result.update(median=statistics.median(combined), p95=float(np.percentile(combined, 95)))
+        result["failure"] = failures.step_ms
         print(
-            f"3-view step, both memories (failure flat {len(failure_set):,} + success ivf_sq8 {size:,}): {summary(combined)}"
+            f"3-view step, both memories (failure flat {len(failures.memory):,} + success {size:,}): {summary(combined)}"
         )
     return result
 
@@ -277,8 +353,13 @@ def main() -> None:
         default=1,
         help="Faiss OpenMP threads (1: a step is 3 queries; 0: Faiss's default)",
     )
+    parser.add_argument(
+        "--kinds", default=f"{IVF_PQFS},{IVF_SQ8}", help="approximate index kinds to build side by side"
+    )
     parser.add_argument("--hnsw-probe", action="store_true", help="time an HNSW build on 20k entries")
-    parser.add_argument("--crossover", action="store_true", help="flat vs ivf_sq8 per task size, 1k to 50k")
+    parser.add_argument(
+        "--crossover", action="store_true", help="flat vs approximate per task size, 1k to 50k"
+    )
     args = parser.parse_args()
     if args.threads:
         faiss.omp_set_num_threads(args.threads)
@@ -293,17 +374,18 @@ def main() -> None:
         bench_failure(memory, steps, tasks)
         bench_one_filtered_index(args.failures, 80, steps, tasks)
         gc.collect()
-        failures = (memory, tasks)
+        failures = Failures(memory, steps, tasks)
     results = {}
     for text in filter(None, args.sizes.split(",")):
         size = parse_size(text)
-        results[size] = bench_success(size, args.tasks, args.steps, failures)
+        results[size] = bench_success(size, args.tasks, args.steps, args.kinds.split(","), failures)
         gc.collect()
     if 1_000_000 in results and "median" in results[1_000_000]:
         r = results[1_000_000]
         print(
             f"scale 1M: median {r['median']:.3f} ms, p95 {r['p95']:.3f} ms, "
-            f"max_abs_err {r['max_abs_err']:.4f}, index_gb {r['index_gb']:.3f}"
+            f"max_abs_err {r['max_abs_err']:.4f}, index_gb {r['index_gb']:.3f}; success step {r['step']:.3f} ms "
+            f"= {r['step'] / r['limit']:.2f}x its bandwidth limit, {r['step'] / r['failure']:.2f}x the failure step"
         )
 
 

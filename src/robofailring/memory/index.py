@@ -2,107 +2,79 @@
 
 A memory is searched only within the query's task, so it keeps one Faiss index per task
 (`TaskIndex`), grouped by `TaskIndexSet`. Small tasks use exact search (`flat`, `IndexFlatIP`);
-a task above `APPROXIMATE_ABOVE` entries uses an inverted file with 8-bit scalar quantisation
-(`ivf_sq8`, `IndexIVFScalarQuantizer`): one byte per dimension instead of four, and a query
-reads only `nprobe` of `nlist` lists. Both choices and their error are measured by
-`bench/bench_scale.py` (see docs/scale.md). Every search takes a batch of queries in one Faiss
-call, so the views of one step share one pass. Leave-one-out hides one episode with a Faiss
-`IDSelector` at search time.
+a task above `APPROXIMATE_ABOVE` entries uses an inverted file of 4-bit product-quantisation
+fast-scan codes whose best candidates are re-ranked on 8-bit codes of the full vectors
+(`ivf_pqfs`); memories written with the earlier `ivf_sq8` still load. The kinds are in
+`robofailring.memory.index_kinds`; their cost and error are measured by `bench/bench_scale.py`
+(see docs/scale.md). Every search takes a batch of queries in one Faiss call, so the views of
+one step share one pass. Leave-one-out hides one episode with a Faiss `IDSelector` at search time.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Final, cast
+from typing import Any, Final
 
 import faiss
 import numpy as np
 
 from robofailring.errors import MemoryFormatError, SettingError
+from robofailring.memory.index_kinds import (
+    DEFAULT_K_FACTOR,
+    FLAT,
+    IVF_PQFS,
+    IVF_SQ8,
+    KINDS,
+    IndexSpec,
+    kind_of,
+    pq_subquantizers,
+    spec_of,
+)
 
-FLAT: Final[str] = "flat"
-IVF_SQ8: Final[str] = "ivf_sq8"
+__all__ = ["AUTO", "FLAT", "IVF_PQFS", "IVF_SQ8", "IndexSpec", "TaskIndex", "TaskIndexSet", "choose_spec"]
+
 AUTO: Final[str] = "auto"
-KINDS: Final[tuple[str, ...]] = (FLAT, IVF_SQ8)
-# Entries of one task above which `auto` picks ivf_sq8. Measured (bench/bench_scale.py --crossover,
+# Entries of one task above which `auto` picks an approximate index. Measured (bench/bench_scale.py --crossover,
 # 2-core EPYC, 32 MB L3): a flat 3-view step takes 0.38 ms at 2k entries, 2.2 ms at 5k (a task no
 # longer fits the cache: 4 KB an entry), 4.9 ms at 10k; ivf_sq8 takes 0.15-0.25 ms over that range.
 APPROXIMATE_ABOVE: Final[int] = 4_000
+APPROXIMATE: Final[str] = IVF_PQFS  # what `auto` picks above APPROXIMATE_ABOVE
 DEFAULT_NPROBE: Final[int] = 16
 TRAIN_PER_LIST: Final[int] = 39  # k-means training points per list (Faiss's own lower bound)
 
 
-@dataclass(frozen=True)
-class IndexSpec:
-    """How one task's entries are indexed: `flat`, or `ivf_sq8` with `nlist` lists, `nprobe` probed."""
-
-    kind: str = FLAT
-    nlist: int = 0  # ivf_sq8 only: k-means lists
-    nprobe: int = 0  # ivf_sq8 only: lists read per query
-
-    def __post_init__(self) -> None:
-        if self.kind not in KINDS:
-            raise SettingError(f"index kind must be one of {', '.join(KINDS)}, got {self.kind!r}")
-        if self.kind == IVF_SQ8 and not 1 <= self.nprobe <= self.nlist:
-            raise SettingError(
-                f"ivf_sq8 needs 1 <= nprobe <= nlist, got nlist {self.nlist}, nprobe {self.nprobe}"
-            )
-
-    def to_dict(self) -> dict[str, Any]:
-        """The manifest's description of this index."""
-        if self.kind == FLAT:
-            return {"kind": FLAT}
-        return {"kind": self.kind, "nlist": self.nlist, "nprobe": self.nprobe}
-
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> IndexSpec:
-        """Parse `to_dict`'s output (MemoryFormatError on anything else)."""
-        try:
-            return cls(
-                kind=str(data["kind"]), nlist=int(data.get("nlist", 0)), nprobe=int(data.get("nprobe", 0))
-            )
-        except (KeyError, TypeError, ValueError, SettingError) as error:
-            raise MemoryFormatError(f"bad index description {dict(data)!r}: {error}") from error
-
-
 def choose_spec(
-    size: int, *, kind: str = AUTO, approximate_above: int = APPROXIMATE_ABOVE, nprobe: int | None = None
+    size: int,
+    *,
+    kind: str = AUTO,
+    approximate_above: int = APPROXIMATE_ABOVE,
+    nprobe: int | None = None,
+    dim: int = 1024,
 ) -> IndexSpec:
-    """The index for a task of `size` entries: `flat` up to `approximate_above` under `auto`.
+    """The index for a task of `size` entries of `dim` dimensions: `flat` up to `approximate_above`
+    under `auto`, `ivf_pqfs` above.
 
-    ivf_sq8 uses nlist ≈ 2·√size (a query's cost is the nlist centroids plus nprobe lists of
-    size/nlist codes; this balances them at nprobe 16), at most size // TRAIN_PER_LIST.
+    A query of an inverted file reads the nlist float32 centroids and nprobe lists of size/nlist
+    codes; nlist is chosen to balance the two (at most size // TRAIN_PER_LIST): ≈ 2·√size for
+    ivf_sq8's one-byte-a-dimension codes, √(nprobe·size·code bytes / (4·dim)) for ivf_pqfs's
+    half-byte PQ codes (177 at 250k entries of 1024-d, nprobe 16).
     """
     if kind == AUTO:
-        kind = FLAT if size <= approximate_above else IVF_SQ8
+        kind = FLAT if size <= approximate_above else APPROXIMATE
     if kind not in KINDS:
         raise SettingError(f"index kind must be {AUTO} or one of {', '.join(KINDS)}, got {kind!r}")
     if kind == FLAT:
         return IndexSpec(FLAT)
-    nlist = max(1, min(round(2 * math.sqrt(size)), size // TRAIN_PER_LIST))
-    return IndexSpec(IVF_SQ8, nlist=nlist, nprobe=min(nprobe or DEFAULT_NPROBE, nlist))
-
-
-def _new_index(dim: int, spec: IndexSpec) -> faiss.Index:
-    if spec.kind == FLAT:
-        return faiss.IndexFlatIP(dim)
-    quantizer = faiss.IndexFlatIP(dim)
-    index = faiss.IndexIVFScalarQuantizer(
-        quantizer, dim, spec.nlist, faiss.ScalarQuantizer.QT_8bit, faiss.METRIC_INNER_PRODUCT
-    )
-    index.nprobe = spec.nprobe  # Faiss's Python layer keeps the quantizer alive with the index
-    return index
-
-
-def _spec_of(index: faiss.Index) -> IndexSpec:
-    if isinstance(index, faiss.IndexFlatIP):
-        return IndexSpec(FLAT)
-    if isinstance(index, faiss.IndexIVFScalarQuantizer) and index.metric_type == faiss.METRIC_INNER_PRODUCT:
-        return IndexSpec(IVF_SQ8, nlist=int(index.nlist), nprobe=int(index.nprobe))
-    raise MemoryFormatError(f"unsupported Faiss index type {type(index).__name__}")
+    probes = nprobe or DEFAULT_NPROBE
+    pq_m = pq_subquantizers(dim)
+    balanced = 2 * math.sqrt(size) if kind == IVF_SQ8 else math.sqrt(probes * size * (pq_m / 2) / (4 * dim))
+    nlist = max(1, min(round(balanced), size // TRAIN_PER_LIST))
+    lists = {"nlist": nlist, "nprobe": min(probes, nlist)}
+    if kind == IVF_SQ8:
+        return IndexSpec(IVF_SQ8, **lists)
+    return IndexSpec(kind, **lists, pq_m=pq_m, k_factor=DEFAULT_K_FACTOR)
 
 
 class TaskIndex:
@@ -115,7 +87,8 @@ class TaskIndex:
                 f"task index holds {index.ntotal} entries for {len(ids)} ids and {len(episodes)} episodes"
             )
         self.index = index
-        self.spec = _spec_of(index)
+        self.spec = spec_of(index)
+        self.kind = kind_of(self.spec.kind)
         self.ids = ids
         names, codes = np.unique(np.asarray(episodes, dtype=object).astype(str), return_inverse=True)
         self._episode_code = {str(name): code for code, name in enumerate(names)}
@@ -128,14 +101,16 @@ class TaskIndex:
     ) -> TaskIndex:
         """Index `vectors` (rows = `ids`, unit-norm float32) as `spec` says (`choose_spec` when None)."""
         vectors = np.ascontiguousarray(vectors, dtype=np.float32)
-        spec = spec or choose_spec(len(vectors))
-        index = _new_index(vectors.shape[1], spec)
-        if spec.kind == IVF_SQ8:
+        spec = spec or choose_spec(len(vectors), dim=vectors.shape[1])
+        index = kind_of(spec.kind).create(vectors.shape[1], spec)
+        if kind_of(spec.kind).trained:
             if len(vectors) < spec.nlist:
                 raise SettingError(
-                    f"ivf_sq8 with {spec.nlist} lists needs at least as many entries, got {len(vectors)}"
+                    f"{spec.kind} with {spec.nlist} lists needs at least as many entries, got {len(vectors)}"
                 )
-            index.train(_training_sample(vectors, spec.nlist))
+            index.train(
+                _training_sample(vectors, max(spec.nlist * TRAIN_PER_LIST, kind_of(spec.kind).min_training))
+            )
         index.add(vectors)
         return cls(index, ids, episodes)
 
@@ -146,9 +121,7 @@ class TaskIndex:
     @property
     def nbytes(self) -> int:
         """Bytes the index holds in RAM: codes or vectors, list ids and centroids (not the Python side)."""
-        if self.spec.kind == FLAT:
-            return self.size * self.index.d * 4
-        return self.size * (self.index.d + 8) + self.spec.nlist * self.index.d * 4  # SQ8: 1 byte a dim
+        return self.kind.nbytes(self.index, self.spec)
 
     def search(
         self, queries: np.ndarray, k: int, *, exclude_episode: str | None = None
@@ -178,12 +151,7 @@ class TaskIndex:
         if self._excluded is None or self._excluded[0] != episode:
             hidden = faiss.IDSelectorBatch(np.flatnonzero(self._codes == code).astype(np.int64))
             keep = faiss.IDSelectorNot(hidden)
-            params: Any = (
-                faiss.SearchParametersIVF() if self.spec.kind == IVF_SQ8 else faiss.SearchParameters()
-            )
-            params.sel = keep
-            if self.spec.kind == IVF_SQ8:
-                params.nprobe = int(cast(Any, self.index).nprobe)
+            params = self.kind.search_parameters(self.index, keep)
             self._excluded = (episode or "", params, (hidden, keep))  # selectors outlive the params
         return self._excluded[1]
 
@@ -199,7 +167,7 @@ class TaskIndex:
             index = faiss.read_index(str(path))
         except RuntimeError as error:
             raise MemoryFormatError(f"cannot read Faiss index {path}: {error}") from error
-        found = _spec_of(index)
+        found = spec_of(index)
         if spec is not None and found != spec:
             raise MemoryFormatError(
                 f"{path} is a {found.to_dict()} index but the manifest says {spec.to_dict()}"
@@ -211,8 +179,8 @@ class TaskIndex:
         return cls(index, ids, episodes)
 
 
-def _training_sample(vectors: np.ndarray, nlist: int) -> np.ndarray:
-    count = min(len(vectors), nlist * TRAIN_PER_LIST)
+def _training_sample(vectors: np.ndarray, count: int) -> np.ndarray:
+    count = min(len(vectors), count)
     if count == len(vectors):
         return vectors
     rows = np.random.default_rng(0).choice(len(vectors), size=count, replace=False)
@@ -247,7 +215,9 @@ class TaskIndexSet:
         by_task: dict[str, TaskIndex] = {}
         for task in sorted(set(task_array.tolist())):
             rows = np.flatnonzero(task_array == task)
-            spec = choose_spec(len(rows), kind=kind, approximate_above=approximate_above, nprobe=nprobe)
+            spec = choose_spec(
+                len(rows), kind=kind, approximate_above=approximate_above, nprobe=nprobe, dim=vectors.shape[1]
+            )
             by_task[task] = TaskIndex.build(vectors[rows], rows, episode_array[rows].tolist(), spec)
             if progress is not None:
                 progress(len(rows))
