@@ -45,14 +45,15 @@ def open_encoder(
 ) -> CachedEncoder:
     """The one way jobs open an encoder: its model is loaded once per process for a (spec, device).
 
-    The memo key is the spec's portable form (with its runtime), the device, the cache dir (where an
-    ONNX runtime keeps its export) and the modification times of the files
+    The memo key is the spec's portable form (with its runtime), the device, the cache dir of an
+    ONNX runtime (where its export is) and the modification times of the files
     the spec names, so a folder retrained or a checkpoint rewritten in place is loaded again. The
     embedding cache in `cache_dir` is opened afresh on every call (as a new process would open it).
     `runtime` (`--runtime`) overrides the spec's own `@runtime` (`EncoderSpec.with_runtime`).
     """
     portable = EncoderSpec.parse(spec).with_runtime(runtime).portable()
-    encoder = _loaded_encoder(str(portable), device, cache_dir, _files_stamp(portable))
+    exports = cache_dir if portable.runtime != "torch" else None  # where an ONNX runtime's export is
+    encoder = _loaded_encoder(str(portable), device, exports, _files_stamp(portable))
     return CachedEncoder(encoder, cache_dir=cache_dir)
 
 

@@ -22,6 +22,7 @@ import hashlib
 import json
 import logging
 import shutil
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final, Literal
@@ -165,16 +166,18 @@ def export_fp32(spec: EncoderSpec, folder: Path) -> Export:
     network, side, preprocess, identity, dim = torch_network(spec)
     example = torch.zeros(2, 3, side, side)
     try:  # not under inference_mode: torch's fused attention kernel has no ONNX form
-        torch.onnx.export(
-            network,
-            (example,),
-            str(folder / MODEL_NAME),
-            input_names=["pixels"],
-            output_names=["embedding"],
-            dynamic_axes={"pixels": {0: "batch"}, "embedding": {0: "batch"}},
-            opset_version=OPSET,
-            dynamo=False,  # the TorchScript exporter: no onnxscript needed
-        )
+        with warnings.catch_warnings():  # the tracer's notes on shape checks, for torch developers
+            warnings.simplefilter("ignore")
+            torch.onnx.export(
+                network,
+                (example,),
+                str(folder / MODEL_NAME),
+                input_names=["pixels"],
+                output_names=["embedding"],
+                dynamic_axes={"pixels": {0: "batch"}, "embedding": {0: "batch"}},
+                opset_version=OPSET,
+                dynamo=False,  # the TorchScript exporter: no onnxscript needed
+            )
     except Exception as error:  # torch's exporter raises many types for an unsupported graph
         raise EncoderError(f"cannot export {identity} to ONNX: {type(error).__name__}: {error}") from error
     return _write(folder, identity, dim, "onnx", preprocess)
