@@ -195,10 +195,11 @@ def test_runtime_option_on_build_memory_and_detect(
     assert refused.exit_code != 0 and "unknown runtime 'onnx-fp16'" in refused.output
 
 
-def test_evaluate_takes_the_runtime_option() -> None:
+@pytest.mark.parametrize("verb", ["evaluate", "replay", "watch"])
+def test_the_recording_verbs_take_the_runtime_option(verb: str) -> None:
     from rfr_viz.cli.app import app as full_app
 
-    shown = runner.invoke(full_app, ["evaluate", "--help"], terminal_width=200)
+    shown = runner.invoke(full_app, [verb, "--help"], terminal_width=200)
     assert shown.exit_code == 0 and "--runtime" in shown.output and "onnx-int8" in shown.output
 
 

@@ -133,11 +133,12 @@ def torch_network(spec: EncoderSpec) -> tuple[Any, int, dict[str, Any], str, int
         from robofailring.encoders.openclip import OpenClipEncoder
 
         clip = OpenClipEncoder(spec.model, spec.weights, device="cpu")
-        visual = clip.model.visual
+        visual, identity, dim = clip.model.visual, clip.identity, clip.dim
+        del clip  # the text tower is not exported: freed before the export copies the image tower
         preprocess = {"kind": "open_clip", **json.loads(json.dumps(visual.preprocess_cfg))}
         size = visual.image_size
         side = int(size[0] if isinstance(size, (tuple, list)) else size)
-        return visual, side, preprocess, clip.identity, clip.dim
+        return visual, side, preprocess, identity, dim
     from robofailring.encoders.trained import TrainedEncoder
 
     trained = TrainedEncoder(Path(spec.directory).expanduser(), device="cpu")
