@@ -4,8 +4,9 @@ Per model (random-initialised open_clip ViT-B/32 and ViT-L/14; speed does not de
 values), the encoder of each runtime encodes one 3-view step (three 128 px frames, preprocessing
 included) on `--threads` threads (torch: `torch.set_num_threads`, ONNX Runtime: intra-op threads). The
 runtimes take turns within every repeat, so a load that comes and goes on a shared machine touches
-each alike; each figure is the median over repeats, with the ratio to torch's and the lowest cosine of
-the step's embeddings to torch's. For ViT-B/32 the table also has static QDQ int8 (per-channel weights,
+each alike; each figure is the median over repeats, with the ratio to torch's, the CPU time the process spent
+(all its threads: less sensitive to other processes than wall time, but it counts threads spinning
+while they wait) and the lowest cosine of the step's embeddings to torch's. For ViT-B/32 the table also has static QDQ int8 (per-channel weights,
 uint8 activations calibrated on 16 random frames) beside the dynamic int8 that `@onnx-int8` uses.
 
 Then detection on a small simulated set (the embedded benchmark's simulator, as bench/bench_quality.py
@@ -15,7 +16,8 @@ every rule at α, and the torch memory queried by int8 (built on a workstation, 
 CPU). With random weights the absolute figures mean nothing; the runtimes are compared with each other
 on the same set and must agree.
 
-Run: .venv/bin/python bench/bench_runtime.py [--threads 2] [--repeats 15] [--large-repeats 3] [--no-quality]
+Run: .venv/bin/python bench/bench_runtime.py [--threads 2] [--repeats 15] [--large-repeats 3]
+     [--no-large] [--no-quality] [--no-timing]
 Checkpoints, exports and the embedding caches live under `<robofailring cache>/bench-runtime`.
 """
 
@@ -101,21 +103,24 @@ def time_runtimes(model: str, *, threads: int, repeats: int, calibration: list[n
     reference = runs["torch"](views)
     cosines = {name: float(np.min(np.sum(run(views) * reference, axis=1))) for name, run in runs.items()}
     times: dict[str, list[float]] = {name: [] for name in runs}
+    cpu: dict[str, list[float]] = {name: [] for name in runs}
     for _ in range(repeats):
         for name, run in runs.items():  # interleaved: each repeat times every runtime once
-            start = time.perf_counter()
+            start, start_cpu = time.perf_counter(), time.process_time()
             run(views)
             times[name].append((time.perf_counter() - start) * 1000)
-    torch_ms = statistics.median(times["torch"])
+            cpu[name].append((time.process_time() - start_cpu) * 1000)
+    torch_ms, torch_cpu = statistics.median(times["torch"]), statistics.median(cpu["torch"])
     print(
-        f"| {model} | runtime | 3-view step, median ms | min–max ms | speed-up vs torch fp32 | min cosine to torch |"
+        f"| {model} | runtime | 3-view step, median ms | min–max ms | speed-up vs torch fp32 | "
+        "CPU ms (all threads) | CPU ratio | min cosine to torch |"
     )
-    print("|---|---|---:|---:|---:|---:|")
+    print("|---|---|---:|---:|---:|---:|---:|---:|")
     for name, values in times.items():
-        median = statistics.median(values)
+        median, used = statistics.median(values), statistics.median(cpu[name])
         print(
             f"| {model} | {name} | {median:.1f} | {min(values):.0f}–{max(values):.0f} | "
-            f"{torch_ms / median:.2f}× | {cosines[name]:.5f} |"
+            f"{torch_ms / median:.2f}× | {used:.0f} | {torch_cpu / used:.2f}× | {cosines[name]:.5f} |"
         )
 
 
@@ -183,6 +188,7 @@ def main() -> None:
     parser.add_argument("--alpha", type=float, default=0.05, help="target FPR of every rule")
     parser.add_argument("--no-quality", action="store_true", help="timings only")
     parser.add_argument("--no-large", action="store_true", help="leave ViT-L/14 out")
+    parser.add_argument("--no-timing", action="store_true", help="detection figures only")
     args = parser.parse_args()
     import onnxruntime
     import torch
@@ -192,8 +198,9 @@ def main() -> None:
         f"torch {torch.__version__} ({args.threads} threads), onnxruntime {onnxruntime.__version__} "
         f"({args.threads} intra-op threads); one 3-view step = 3 frames of 128 px, preprocessing included"
     )
-    time_runtimes("ViT-B-32", threads=args.threads, repeats=args.repeats, calibration=step_views(16))
-    if not args.no_large:
+    if not args.no_timing:
+        time_runtimes("ViT-B-32", threads=args.threads, repeats=args.repeats, calibration=step_views(16))
+    if not args.no_large and not args.no_timing:
         time_runtimes("ViT-L-14", threads=args.threads, repeats=args.large_repeats, calibration=None)
     if not args.no_quality:
         quality(args.threads, args.alpha)
