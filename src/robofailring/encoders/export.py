@@ -30,9 +30,9 @@ from typing import Any, Final, Literal
 import numpy as np
 
 from robofailring.atomic import atomic_directory
+from robofailring.encoders.base import file_digest
 from robofailring.encoders.cache import default_cache_dir
 from robofailring.encoders.spec import EncoderSpec
-from robofailring.encoders.trained import file_digest
 from robofailring.errors import EncoderError
 from robofailring.extras import needs_extra
 

@@ -10,8 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from robofailring.encoders.base import l2_normalize
-from robofailring.encoders.trained import file_digest
+from robofailring.encoders.base import file_digest, l2_normalize
 from robofailring.errors import EncoderError, WeightsUnavailableError
 from robofailring.extras import needs_extra
 

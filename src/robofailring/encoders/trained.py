@@ -25,7 +25,7 @@ from typing import Any, Final
 import cv2
 import numpy as np
 
-from robofailring.encoders.base import l2_normalize
+from robofailring.encoders.base import file_digest, l2_normalize
 from robofailring.errors import EncoderError
 from robofailring.extras import needs_extra
 
@@ -50,15 +50,6 @@ def prepare_images(images: Sequence[np.ndarray], size: int) -> np.ndarray:
             image, (size, size), interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR
         )
     return prepared
-
-
-def file_digest(path: Path) -> str:
-    """blake2b (16 hex digits) of a file's bytes."""
-    digest = hashlib.blake2b(digest_size=8)
-    with Path(path).open("rb") as handle:
-        for block in iter(lambda: handle.read(1 << 22), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def build_network(architecture: dict[str, Any], classes: int, backbone: Any = None) -> Any:
