@@ -19,7 +19,7 @@ spread like a real encoder's. Random-initialised CLIP maps every frame to nearly
 of the size of its whole signal; the runtimes are compared with each other on the same set.
 
 Run: .venv/bin/python bench/bench_runtime.py [--threads 2] [--repeats 15] [--large-repeats 3]
-     [--no-large] [--no-quality] [--no-timing]
+     [--no-large] [--no-quality] [--no-timing] [--data DIR] [--encoder SPEC]
 Checkpoints, exports and the embedding caches live under `<robofailring cache>/bench-runtime`.
 """
 
@@ -126,7 +126,7 @@ def time_runtimes(model: str, *, threads: int, repeats: int, calibration: list[n
         )
 
 
-def quality(threads: int, alpha: float) -> None:
+def quality(threads: int, alpha: float, *, data: Path | None = None, encoder: str | None = None) -> None:
     import torch
     from bench_quality import IMAGE_SIZE
 
@@ -136,26 +136,30 @@ def quality(threads: int, alpha: float) -> None:
     from robofailring.sim import GenerateConfig
 
     torch.set_num_threads(threads)
-    data = simulate(
-        GenerateConfig(
-            out=ROOT / "sim-id-small",
-            tasks=("pick_cube",),
-            episodes=2,
-            success_episodes=6,
-            seed=0,
-            image_size=IMAGE_SIZE,
-            frames=16,
-            workers=2,
-        ),
-        label="ID (small)",
-    )
-    trained = train_encoder(
-        TrainEncoderConfig(data=data, out=ROOT / "trained-small", threads=threads), reuse=True
-    )
-    encoders = {
-        "ViT-B/32, random init": f"open_clip:ViT-B-32:{checkpoint('ViT-B-32')}",
-        "trained CNN (train half)": f"trained:{trained}",
-    }
+    if data is None:
+        data = simulate(
+            GenerateConfig(
+                out=ROOT / "sim-id-small",
+                tasks=("pick_cube",),
+                episodes=2,
+                success_episodes=6,
+                seed=0,
+                image_size=IMAGE_SIZE,
+                frames=16,
+                workers=2,
+            ),
+            label="ID (small)",
+        )
+    if encoder is not None:
+        encoders = {encoder: encoder}
+    else:
+        trained = train_encoder(
+            TrainEncoderConfig(data=data, out=ROOT / "trained-small", threads=threads), reuse=True
+        )
+        encoders = {
+            "ViT-B/32, random init": f"open_clip:ViT-B-32:{checkpoint('ViT-B-32')}",
+            "trained CNN (train half)": f"trained:{trained}",
+        }
     print(f"\ndetection on {data}, α = {alpha:g} (memory and calibration: train half; tested: test half)")
     print(
         "| encoder | memory by | queries by | rule | threshold | Recall (%) | FPR (%) | AUC | "
@@ -165,7 +169,7 @@ def quality(threads: int, alpha: float) -> None:
     for label, spec in encoders.items():
         cells = [(runtime, runtime) for runtime in RUNTIMES] + [("torch", "onnx-int8")]
         for built, queried in cells:
-            out = ROOT / "quality" / EncoderSpec.slug(str(EncoderSpec.parse(spec))) / built
+            out = ROOT / "quality" / f"{data.name}-{EncoderSpec.slug(str(EncoderSpec.parse(spec)))}" / built
             config = EvaluateConfig(
                 data=data,
                 out=out if built == queried else out.with_name(f"{built}-queried-{queried}"),
@@ -200,6 +204,8 @@ def main() -> None:
     parser.add_argument("--no-quality", action="store_true", help="timings only")
     parser.add_argument("--no-large", action="store_true", help="leave ViT-L/14 out")
     parser.add_argument("--no-timing", action="store_true", help="detection figures only")
+    parser.add_argument("--data", type=Path, help="detection on this dataset's train/test halves instead")
+    parser.add_argument("--encoder", help="detection with this encoder spec only (e.g. trained:DIR)")
     args = parser.parse_args()
     import onnxruntime
     import torch
@@ -214,7 +220,7 @@ def main() -> None:
     if not args.no_large and not args.no_timing:
         time_runtimes("ViT-L-14", threads=args.threads, repeats=args.large_repeats, calibration=None)
     if not args.no_quality:
-        quality(args.threads, args.alpha)
+        quality(args.threads, args.alpha, data=args.data, encoder=args.encoder)
 
 
 if __name__ == "__main__":
