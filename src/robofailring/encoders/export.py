@@ -11,7 +11,7 @@ or that ONNX Runtime cannot read, is reported and exported again.
 The exported graph maps normalised pixels, (N, 3, S, S) float32, to the unnormalised embedding, as
 torch computes it; the preprocessing (open_clip's own transform, or the trained encoder's square
 resize and normalisation) is recorded in `export.json` and run outside the graph (`exported.py`).
-int8 is ONNX Runtime's dynamic quantization of the MatMul/Gemm weights (per output channel): no
+int8 is ONNX Runtime's dynamic quantization of the MatMul and Conv weights (per output channel): no
 calibration images, and on a ViT it is faster and closer to fp32 than static QDQ
 (bench/bench_runtime.py measures both).
 """
