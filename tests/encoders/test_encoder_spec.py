@@ -147,3 +147,4 @@ def test_runtimes_apply_to_networks_only() -> None:
     with pytest.raises(EncoderError, match=r"'pixels@onnx'.*no network"):
         EncoderSpec.parse("pixels@onnx")
     assert EncoderSpec.parse("pixels@torch") == EncoderSpec("pixels")
+    assert EncoderSpec.slug("open_clip:ViT-B-32:file-0123@onnx-int8") == "vit-b-32-onnx-int8"

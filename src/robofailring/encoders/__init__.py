@@ -6,7 +6,7 @@ from __future__ import annotations
 import functools
 from pathlib import Path
 
-from robofailring.encoders.base import Encoder, l2_normalize
+from robofailring.encoders.base import Encoder, cache_identity, l2_normalize
 from robofailring.encoders.cache import CachedEncoder, EmbeddingCache, default_cache_dir
 from robofailring.encoders.spec import ENCODER_SPECS_HELP, EncoderSpec
 
@@ -86,6 +86,7 @@ __all__ = [
     "EmbeddingCache",
     "Encoder",
     "EncoderSpec",
+    "cache_identity",
     "default_cache_dir",
     "encoder_slug",
     "l2_normalize",

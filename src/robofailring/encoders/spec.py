@@ -108,7 +108,11 @@ class EncoderSpec:
 
     @staticmethod
     def slug(identity: str) -> str:
-        """A short path-safe name for an encoder identity, e.g. `vit-b-32` or `pixels`."""
+        """A short path-safe name for an encoder identity, e.g. `vit-b-32` or `pixels`; an identity with
+        a runtime (`base.cache_identity`, `…@onnx-int8`) keeps it, e.g. `vit-b-32-onnx-int8`."""
+        network, at, runtime = identity.rpartition("@")
+        if at and runtime in RUNTIMES:
+            return f"{EncoderSpec.slug(network)}-{runtime}"
         kind, _, rest = identity.partition(":")
         if kind == "open_clip":
             return rest.partition(":")[0].lower().replace("/", "-")
