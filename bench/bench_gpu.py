@@ -2,6 +2,11 @@
 ViT-B/32 and ViT-L/14 for 3 views (paper Table 3/4), and the project encoder against open_clip's
 `encode_image` on the same batch. Random-initialised weights: speed does not depend on their values.
 
+Then the ONNX path (`@onnx`, docs/runtime.md) on ONNX Runtime's CUDA execution provider, 3-view step and
+batch of 64 against torch's, where the installed ONNX Runtime has that provider (onnxruntime-gpu; the
+plain onnxruntime package has none, and this part then says so and is skipped). int8 is not timed on
+the GPU: its dynamically quantized MatMuls run on ONNX Runtime's CPU kernels.
+
 Run: python bench/bench_gpu.py
 """
 
@@ -44,12 +49,14 @@ def main() -> None:
     rng = np.random.default_rng(1)
     views = {v: rng.integers(0, 255, (128, 128, 3), dtype=np.uint8) for v in ("front", "overhead", "wrist")}
     batch = [rng.integers(0, 255, (128, 128, 3), dtype=np.uint8) for _ in range(64)]
+    workspace = tempfile.TemporaryDirectory()  # the checkpoints, kept for the ONNX export
     for model_name in ("ViT-B-32", "ViT-L-14"):
         torch.manual_seed(0)
-        with tempfile.TemporaryDirectory() as folder:
-            checkpoint = Path(folder) / f"{model_name}.pt"
-            torch.save(open_clip.create_model(model_name, pretrained=None).state_dict(), checkpoint)
-            encoder = load_encoder(f"open_clip:{model_name}:{checkpoint}")
+        folder = Path(workspace.name)
+        checkpoint = folder / f"{model_name}.pt"
+        torch.save(open_clip.create_model(model_name, pretrained=None).state_dict(), checkpoint)
+        checkpoint_spec = f"open_clip:{model_name}:{checkpoint}"
+        encoder = load_encoder(checkpoint_spec)
         model, preprocess = encoder.model, encoder.preprocess  # type: ignore[attr-defined]
         detector = FailureDetector(memory_for(encoder.identity, encoder.dim), encoder, delta=0.92, k=5)
         session = detector.session("task_3")
@@ -72,7 +79,37 @@ def main() -> None:
             f"{step_ms:.2f} ms (encode {encode_ms:.2f} ms); batch of 64: project {statistics.median(ours):.1f} ms vs "
             f"encode_image {statistics.median(theirs):.1f} ms, ratio {statistics.median(ours) / statistics.median(theirs):.3f}"
         )
+        onnx_on_cuda(checkpoint_spec, views, batch, step_ms=encode_ms, batch_ms=statistics.median(ours))
     sys.stdout.flush()
+
+
+def onnx_on_cuda(
+    spec: str, views: dict[str, np.ndarray], batch: list[np.ndarray], *, step_ms: float, batch_ms: float
+) -> None:
+    """The fp32 ONNX export on the CUDA execution provider, beside torch's figures; skipped without it."""
+    import onnxruntime
+
+    from robofailring.encoders.exported import CUDA, OnnxEncoder
+    from robofailring.encoders.spec import EncoderSpec
+
+    if CUDA not in onnxruntime.get_available_providers():
+        print(
+            f"  ONNX on CUDA: skipped, onnxruntime {onnxruntime.__version__} has no {CUDA} "
+            f"(it has {', '.join(onnxruntime.get_available_providers())}); install onnxruntime-gpu to time it"
+        )
+        return
+    with tempfile.TemporaryDirectory() as cache:
+        encoder = OnnxEncoder(
+            EncoderSpec.parse(spec).with_runtime("onnx"), device="cuda", cache_dir=Path(cache)
+        )
+        for _ in range(5):
+            encoder.encode(list(views.values()))
+        onnx_step = median_ms(lambda: encoder.encode(list(views.values())), 50)
+        onnx_batch = median_ms(lambda: encoder.encode(batch), 5)
+    print(
+        f"  ONNX fp32 on {encoder.providers[0]}: 3-view encode {onnx_step:.2f} ms (torch {step_ms:.2f} ms, "
+        f"{step_ms / onnx_step:.2f}×); batch of 64 {onnx_batch:.1f} ms (torch {batch_ms:.1f} ms, {batch_ms / onnx_batch:.2f}×)"
+    )
 
 
 if __name__ == "__main__":

@@ -23,6 +23,7 @@ from robofailring.cli.options import (
     LabelsOption,
     PairingOption,
     RandomizeOption,
+    RuntimeOption,
     ScoreOption,
     StrideOption,
     SuccessStepOption,
@@ -92,6 +93,7 @@ def evaluate_cmd(
     ] = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
+    runtime: RuntimeOption = None,
 ) -> None:
     """Every scoring rule side by side at one α, then the paper's tables: Recall/FPR sweep, T_s, per type and view."""
     from rfr_viz.jobs.evaluate import evaluate
@@ -112,6 +114,7 @@ def evaluate_cmd(
             name=name,
             cache_dir=cache_dir,
             device=device,
+            runtime=runtime,
             stride=stride,
             labels=labels,
             task=task,

@@ -21,6 +21,7 @@ from robofailring.cli.options import (
     KOption,
     MemoryEncoderOption,
     MemoryOption,
+    RuntimeOption,
     ScoreOption,
     TaskOption,
     ViewsOption,
@@ -86,6 +87,7 @@ def watch_cmd(
     encoder: MemoryEncoderOption = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
+    runtime: RuntimeOption = None,
     data_root: DataRootOption = None,
     camera_codec: LiveCameraCodecOption = CameraCodec.JPEG,
 ) -> None:
@@ -110,6 +112,7 @@ def watch_cmd(
             fps=fps,
             cache_dir=cache_dir,
             device=device,
+            runtime=runtime,
             data_root=data_root,
             camera_codec=camera_codec,
         )

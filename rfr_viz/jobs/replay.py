@@ -54,6 +54,7 @@ class ReplayConfig:
     camera_codec: CameraCodec = CameraCodec.AUTO  # jpeg, av1, h264, or auto (by size)
     cache_dir: Path | None = None  # embedding cache (default ~/.cache/robofailring)
     device: str | None = None  # torch device for CLIP
+    runtime: str | None = None  # torch, onnx or onnx-int8 (default: the spec's own, else torch)
     stride: int = 1  # score every stride-th frame; the recording keeps every camera frame
     labels: Path | None = None  # labels file (LeRobot): outcome and symbol shown in the recording
     data_root: Path | None = None  # where the memory's images are now, when its data moved
@@ -207,6 +208,7 @@ def load_detector(
     encoder: str | None,
     cache_dir: Path | None,
     device: str | None,
+    runtime: str | None = None,
     data_root: Path | None = None,
     score: str | None = None,
     gamma: float | None = None,
@@ -225,6 +227,7 @@ def load_detector(
         data_root=data_root,
         encoder=encoder,
         cache_dir=cache_dir,
+        runtime=runtime,
     )
     for note in detector.uncalibrated:
         _log.warning("warning: %s", note)
@@ -259,6 +262,7 @@ def _replay(config: ReplayConfig) -> ReplayResult:
         encoder=config.encoder,
         cache_dir=config.cache_dir,
         device=config.device,
+        runtime=config.runtime,
         data_root=config.data_root,
     )
     result = ReplayResult(references={Path(config.memory): found.references})

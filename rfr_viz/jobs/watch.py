@@ -33,6 +33,7 @@ class WatchConfig:
     fps: float | None = None  # default: the data's, else 10
     cache_dir: Path | None = None
     device: str | None = None
+    runtime: str | None = None  # torch, onnx or onnx-int8 (default: the spec's own, else torch)
     data_root: Path | None = None  # where the memory's images are now, when its data moved
     camera_codec: CameraCodec = CameraCodec.JPEG  # jpeg, av1 or h264 (auto: jpeg, live)
 
@@ -75,6 +76,7 @@ def watch(config: WatchConfig) -> WatchResult:
         encoder=config.encoder,
         cache_dir=config.cache_dir,
         device=config.device,
+        runtime=config.runtime,
         data_root=config.data_root,
         score=config.score,
         gamma=config.gamma,

@@ -42,6 +42,7 @@ EXTRAS: Final[dict[str, dict[str, str]]] = {
     "hdf5": {"h5py": "h5py"},
     "rosbag": {"rosbags": "rosbags"},
     "notebook": {"rerun": "rerun-sdk", "rerun_notebook": "rerun-notebook"},
+    "onnx": {"onnxruntime": "onnxruntime", "onnx": "onnx"},
 }
 
 #: What each extra is for, in the error's sentence.
@@ -54,6 +55,7 @@ PURPOSES: Final[dict[str, str]] = {
     "hdf5": "HDF5 datasets",
     "rosbag": "ROS bags",
     "notebook": "the notebook viewer",
+    "onnx": "the ONNX Runtime encoders (--runtime onnx, onnx-int8)",
 }
 
 

@@ -30,6 +30,13 @@ from robofailring.errors import EncoderError
             EncoderSpec("open_clip", model="ViT-L-14", weights="C:/models/l.pt"),
         ),
         ("trained:runs/enc", EncoderSpec("trained", directory="runs/enc")),
+        ("trained:runs/enc@onnx", EncoderSpec("trained", directory="runs/enc", runtime="onnx")),
+        (
+            "open_clip:ViT-B-32:/m/b@2.pt@onnx-int8",
+            EncoderSpec("open_clip", model="ViT-B-32", weights="/m/b@2.pt", runtime="onnx-int8"),
+        ),
+        ("trained:runs/enc@v2", EncoderSpec("trained", directory="runs/enc@v2")),  # no runtime: a path
+        ("trained:runs/enc@onnx@torch", EncoderSpec("trained", directory="runs/enc@onnx")),
     ],
 )
 def test_parse_and_str_round_trip(text: str, parsed: EncoderSpec) -> None:
@@ -128,3 +135,16 @@ def test_open_encoder_loads_each_model_once_per_spec_and_device(
     assert open_encoder(f"open_clip:{config}:{copy}", cache_dir=cache).encoder is before
     os.utime(copy, ns=(1, 1))
     assert open_encoder(f"open_clip:{config}:{copy}", cache_dir=cache).encoder is not before
+
+
+def test_runtimes_apply_to_networks_only() -> None:
+    spec = EncoderSpec.parse("open_clip:ViT-B-32:openai")
+    assert spec.runtime == "torch" and spec.with_runtime(None) is spec
+    assert str(spec.with_runtime("onnx-int8")) == "open_clip:ViT-B-32:openai@onnx-int8"
+    assert EncoderSpec.parse("open_clip:ViT-B-32:openai@onnx").with_runtime("torch") == spec  # --runtime wins
+    with pytest.raises(EncoderError, match="unknown runtime 'tensorrt'"):
+        spec.with_runtime("tensorrt")
+    with pytest.raises(EncoderError, match=r"'pixels@onnx'.*no network"):
+        EncoderSpec.parse("pixels@onnx")
+    assert EncoderSpec.parse("pixels@torch") == EncoderSpec("pixels")
+    assert EncoderSpec.slug("open_clip:ViT-B-32:file-0123@onnx-int8") == "vit-b-32-onnx-int8"

@@ -13,6 +13,12 @@ SPECS = st.one_of(
     st.lists(st.sampled_from(["pixels", "open_clip", "trained", "", " ", "ViT-B-32", "a:b"]), max_size=4).map(
         ":".join
     ),
+    st.lists(
+        st.sampled_from(
+            ["pixels", "open_clip:a:b", "trained:d", "", "@", "onnx", "torch", "onnx-int8", "@onnx"]
+        ),
+        max_size=4,
+    ).map("@".join),
 )
 
 

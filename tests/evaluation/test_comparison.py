@@ -46,9 +46,11 @@ def compared(tmp_path_factory: pytest.TempPathFactory, tiny_checkpoint: tuple[Pa
     loads: Counter[str] = Counter()
     real_load = encoders.load_encoder
 
-    def counting_load(spec: str | encoders.EncoderSpec, *, device: str | None = None) -> encoders.Encoder:
+    def counting_load(
+        spec: str | encoders.EncoderSpec, *, device: str | None = None, cache_dir: Path | None = None
+    ) -> encoders.Encoder:
         loads[str(spec)] += 1
-        return real_load(spec, device=device)
+        return real_load(spec, device=device, cache_dir=cache_dir)
 
     def keep(config: CompareEncodersConfig, *, recordings: int = 3) -> EncoderComparison:
         returned.append(job(config, recordings=recordings))

@@ -36,6 +36,15 @@ CacheOption = Annotated[
 DeviceOption = Annotated[
     str | None, typer.Option("--device", help="torch device (default: cuda if available).")
 ]
+RuntimeOption = Annotated[
+    str | None,
+    typer.Option(
+        "--runtime",
+        help="What runs the encoder's network: `torch`, or its ONNX export through ONNX Runtime, `onnx` (fp32) "
+        "or `onnx-int8` (exported once, cached by checkpoint digest; faster on a CPU). Default: the spec's "
+        "own `@runtime`, else torch.",
+    ),
+]
 StrideOption = Annotated[
     int,
     typer.Option(

@@ -30,6 +30,7 @@ from robofailring.cli.options import (
     MemoryOption,
     PairingOption,
     RandomizeOption,
+    RuntimeOption,
     ScoreOption,
     StrideOption,
     SuccessStepOption,
@@ -133,6 +134,7 @@ def build_memory_cmd(
     pairing: PairingOption = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
+    runtime: RuntimeOption = None,
 ) -> None:
     """Build a failure memory (Algorithm 1) from the failure trajectories of DATA, and a success memory."""
     from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
@@ -154,6 +156,7 @@ def build_memory_cmd(
             split=split,
             cache_dir=cache_dir,
             device=device,
+            runtime=runtime,
             labels=labels,
             successes=not no_successes,
             task=task,
@@ -220,6 +223,7 @@ def detect_cmd(
     labels: LabelsOption = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
+    runtime: RuntimeOption = None,
     data_root: DataRootOption = None,
     vlm_url: VLMUrlOption = None,
     vlm_model: VLMModelOption = None,
@@ -242,6 +246,7 @@ def detect_cmd(
             encoder=encoder,
             cache_dir=cache_dir,
             device=device,
+            runtime=runtime,
             key=key,
             stride=stride,
             labels=labels,

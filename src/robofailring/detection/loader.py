@@ -24,6 +24,7 @@ def open_detector(
     data_root: str | Path | None = None,
     encoder: str | None = None,
     cache_dir: str | Path | None = None,
+    runtime: str | None = None,
 ) -> FailureDetector:
     """Load the memory at `memory_dir` and its encoder, and return its detector.
 
@@ -31,7 +32,8 @@ def open_detector(
     rules'), else the memory's calibrated ones (else each rule's default: the paper's δ = 0.92, γ = 0,
     η = 0.1); the rule defaults per task (`FailureDetector.rule_for`). `encoder`
     overrides the spec the memory was built with (it must give the same identity); `data_root` is
-    where the memory's images are now, when its data moved; `device` is the torch device for CLIP.
+    where the memory's images are now, when its data moved; `device` is the torch device for CLIP;
+    `runtime` runs the encoder in torch or through ONNX Runtime (`onnx`, `onnx-int8`; docs/runtime.md).
     """
     memory = FailureMemory.load(
         Path(memory_dir), data_root=Path(data_root) if data_root is not None else None
@@ -40,6 +42,7 @@ def open_detector(
         encoder or encoder_spec_for(memory),
         device=device,
         cache_dir=Path(cache_dir) if cache_dir is not None else None,
+        runtime=runtime,
     )
     return FailureDetector(
         memory, opened, thresholds=thresholds, delta=delta, k=k, rule=rule, gamma=gamma, eta=eta

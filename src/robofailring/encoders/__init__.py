@@ -1,18 +1,28 @@
-"""Encoders: `load_encoder(spec)` for `pixels`, `open_clip:<model>[:<tag or checkpoint>]` and `trained:<DIR>`."""
+"""Encoders: `load_encoder(spec)` for `pixels`, `open_clip:<model>[:<tag or checkpoint>]` and `trained:<DIR>`,
+the last two in torch or, with `@onnx`/`@onnx-int8`, through ONNX Runtime (docs/runtime.md)."""
 
 from __future__ import annotations
 
 import functools
 from pathlib import Path
 
-from robofailring.encoders.base import Encoder, l2_normalize
+from robofailring.encoders.base import Encoder, cache_identity, l2_normalize
 from robofailring.encoders.cache import CachedEncoder, EmbeddingCache, default_cache_dir
 from robofailring.encoders.spec import ENCODER_SPECS_HELP, EncoderSpec
 
 
-def load_encoder(spec: str | EncoderSpec, *, device: str | None = None) -> Encoder:
-    """Build an encoder from a spec string or EncoderSpec (see ENCODER_SPECS_HELP); a new one every call."""
+def load_encoder(
+    spec: str | EncoderSpec, *, device: str | None = None, cache_dir: Path | None = None
+) -> Encoder:
+    """Build an encoder from a spec string or EncoderSpec (see ENCODER_SPECS_HELP); a new one every call.
+
+    An ONNX runtime exports the network into `cache_dir` (default `default_cache_dir()`) the first time.
+    """
     parsed = EncoderSpec.parse(spec)
+    if parsed.runtime != "torch":
+        from robofailring.encoders.exported import OnnxEncoder
+
+        return OnnxEncoder(parsed, device=device, cache_dir=cache_dir)
     if parsed.kind == "open_clip":
         from robofailring.encoders.openclip import OpenClipEncoder
 
@@ -27,16 +37,23 @@ def load_encoder(spec: str | EncoderSpec, *, device: str | None = None) -> Encod
 
 
 def open_encoder(
-    spec: str | EncoderSpec, *, device: str | None = None, cache_dir: Path | None = None
+    spec: str | EncoderSpec,
+    *,
+    device: str | None = None,
+    cache_dir: Path | None = None,
+    runtime: str | None = None,
 ) -> CachedEncoder:
     """The one way jobs open an encoder: its model is loaded once per process for a (spec, device).
 
-    The memo key is the spec's portable form, the device and the modification times of the files
+    The memo key is the spec's portable form (with its runtime), the device, the cache dir of an
+    ONNX runtime (where its export is) and the modification times of the files
     the spec names, so a folder retrained or a checkpoint rewritten in place is loaded again. The
     embedding cache in `cache_dir` is opened afresh on every call (as a new process would open it).
+    `runtime` (`--runtime`) overrides the spec's own `@runtime` (`EncoderSpec.with_runtime`).
     """
-    portable = EncoderSpec.parse(spec).portable()
-    encoder = _loaded_encoder(str(portable), device, _files_stamp(portable))
+    portable = EncoderSpec.parse(spec).with_runtime(runtime).portable()
+    exports = cache_dir if portable.runtime != "torch" else None  # where an ONNX runtime's export is
+    encoder = _loaded_encoder(str(portable), device, exports, _files_stamp(portable))
     return CachedEncoder(encoder, cache_dir=cache_dir)
 
 
@@ -48,9 +65,9 @@ def _files_stamp(spec: EncoderSpec) -> tuple[int, ...]:
 
 
 @functools.lru_cache(maxsize=8)
-def _loaded_encoder(spec: str, device: str | None, stamp: tuple[int, ...]) -> Encoder:
+def _loaded_encoder(spec: str, device: str | None, cache_dir: Path | None, stamp: tuple[int, ...]) -> Encoder:
     del stamp  # only part of the key
-    return load_encoder(spec, device=device)
+    return load_encoder(spec, device=device, cache_dir=cache_dir)
 
 
 def portable_spec(spec: str | EncoderSpec) -> str:
@@ -69,6 +86,7 @@ __all__ = [
     "EmbeddingCache",
     "Encoder",
     "EncoderSpec",
+    "cache_identity",
     "default_cache_dir",
     "encoder_slug",
     "l2_normalize",

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -32,3 +34,19 @@ def l2_normalize(vectors: np.ndarray, *, axis: int = -1) -> np.ndarray:
     vectors = np.asarray(vectors, dtype=np.float32)
     norms = np.linalg.norm(vectors, axis=axis, keepdims=True)
     return (vectors / np.maximum(norms, 1e-12)).astype(np.float32, copy=False)
+
+
+def cache_identity(encoder: Encoder) -> str:
+    """The key of an encoder's embedding cache: its identity, plus its runtime when that is not torch
+    (an ONNX export's numbers differ from torch's in the last digits, int8's by up to 1 % in cosine)."""
+    runtime = getattr(encoder, "runtime", "torch")
+    return encoder.identity if runtime == "torch" else f"{encoder.identity}@{runtime}"
+
+
+def file_digest(path: Path) -> str:
+    """blake2b (16 hex digits) of a file's bytes."""
+    digest = hashlib.blake2b(digest_size=8)
+    with Path(path).open("rb") as handle:
+        for block in iter(lambda: handle.read(1 << 22), b""):
+            digest.update(block)
+    return digest.hexdigest()

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from robofailring.data.model import Frame
-from robofailring.encoders.base import Encoder
+from robofailring.encoders.base import Encoder, cache_identity
 
 
 def default_cache_dir() -> Path:
@@ -120,7 +120,9 @@ class CachedEncoder:
 
     def __init__(self, encoder: Encoder, *, cache_dir: Path | None = None, enabled: bool = True) -> None:
         self.encoder = encoder
-        self.cache = EmbeddingCache.open(encoder.identity, encoder.dim, root=cache_dir) if enabled else None
+        self.cache = (
+            EmbeddingCache.open(cache_identity(encoder), encoder.dim, root=cache_dir) if enabled else None
+        )
         self.hits = 0
         self.misses = 0
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import json
 from collections.abc import Iterator, Sequence
 from pathlib import Path
@@ -11,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from robofailring.encoders.base import l2_normalize
+from robofailring.encoders.base import file_digest, l2_normalize
 from robofailring.errors import EncoderError, WeightsUnavailableError
 from robofailring.extras import needs_extra
 
@@ -23,14 +22,6 @@ _HOW_TO_PROVIDE = (
     "(2) pass a local checkpoint file: `open_clip:{model}:/path/to/checkpoint.pt` "
     "(a state_dict saved with torch.save, or an open_clip .bin/.safetensors file)."
 )
-
-
-def _file_digest(path: Path) -> str:
-    digest = hashlib.blake2b(digest_size=8)
-    with path.open("rb") as handle:
-        for block in iter(lambda: handle.read(1 << 22), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def _resolve_model_name(model: str) -> str:
@@ -116,6 +107,39 @@ def _checkpoint_problem(error: Exception) -> str:
     return f"{type(error).__name__}: {lines[0] if lines else 'no detail'}"
 
 
+def checked_weights(model: str, weights: str) -> tuple[str, Path | None]:
+    """The open_clip model name and the checkpoint file (None for a pretrained tag) a spec names, checked
+    without loading anything; an EncoderError says what is wrong and how to provide weights."""
+    with needs_extra("clip"):
+        import open_clip
+
+    if not weights:
+        raise EncoderError(
+            f"open_clip:{model} needs weights: a pretrained tag or a checkpoint file. "
+            + _HOW_TO_PROVIDE.format(model=model, tag="openai")
+        )
+    model_name = _resolve_model_name(model)
+    weights_path = Path(weights).expanduser()
+    is_file = weights_path.suffix in {".pt", ".pth", ".bin", ".safetensors", ".ckpt"} or weights_path.exists()
+    if is_file and not weights_path.is_file():
+        raise EncoderError(
+            f"checkpoint file {weights_path} does not exist. "
+            + _HOW_TO_PROVIDE.format(model=model_name, tag="openai")
+        )
+    if not is_file and weights not in open_clip.list_pretrained_tags_by_model(model_name):
+        tags = open_clip.list_pretrained_tags_by_model(model_name)
+        raise EncoderError(
+            f"{weights!r} is neither a checkpoint file nor a pretrained tag of {model_name}; "
+            f"its tags are {tags}"
+        )
+    return model_name, weights_path if is_file else None
+
+
+def open_clip_identity(model_name: str, weights: str, checkpoint: Path | None) -> str:
+    """`open_clip:<model>:<tag>` or `open_clip:<model>:file-<digest of the checkpoint file>`."""
+    return f"open_clip:{model_name}:" + (f"file-{file_digest(checkpoint)}" if checkpoint else weights)
+
+
 class OpenClipEncoder:
     """An open_clip image tower, batched, on CUDA when available."""
 
@@ -124,27 +148,9 @@ class OpenClipEncoder:
             import open_clip
             import torch
 
-        if not weights:
-            raise EncoderError(
-                f"open_clip:{model} needs weights: a pretrained tag or a checkpoint file. "
-                + _HOW_TO_PROVIDE.format(model=model, tag="openai")
-            )
-        model_name = _resolve_model_name(model)
-        weights_path = Path(weights).expanduser()
-        is_file = (
-            weights_path.suffix in {".pt", ".pth", ".bin", ".safetensors", ".ckpt"} or weights_path.exists()
-        )
-        if is_file and not weights_path.is_file():
-            raise EncoderError(
-                f"checkpoint file {weights_path} does not exist. "
-                + _HOW_TO_PROVIDE.format(model=model_name, tag="openai")
-            )
-        if not is_file and weights not in open_clip.list_pretrained_tags_by_model(model_name):
-            tags = open_clip.list_pretrained_tags_by_model(model_name)
-            raise EncoderError(
-                f"{weights!r} is neither a checkpoint file nor a pretrained tag of {model_name}; "
-                f"its tags are {tags}"
-            )
+        model_name, checkpoint = checked_weights(model, weights)
+        is_file = checkpoint is not None
+        weights_path = checkpoint if checkpoint is not None else Path(weights)
         self._device = pick_device(device)
         self._batch_size = batch_size
         try:
@@ -164,8 +170,7 @@ class OpenClipEncoder:
             ) from error
         self.model, _, self.preprocess = created
         self.model.eval()
-        weights_id = f"file-{_file_digest(weights_path)}" if is_file else weights
-        self._identity = f"open_clip:{model_name}:{weights_id}"
+        self._identity = open_clip_identity(model_name, weights, checkpoint)
         with torch.inference_mode():
             self._dim = int(self.model.visual.output_dim)
         self._torch = torch

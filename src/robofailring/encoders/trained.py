@@ -25,7 +25,7 @@ from typing import Any, Final
 import cv2
 import numpy as np
 
-from robofailring.encoders.base import l2_normalize
+from robofailring.encoders.base import file_digest, l2_normalize
 from robofailring.errors import EncoderError
 from robofailring.extras import needs_extra
 
@@ -50,15 +50,6 @@ def prepare_images(images: Sequence[np.ndarray], size: int) -> np.ndarray:
             image, (size, size), interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR
         )
     return prepared
-
-
-def file_digest(path: Path) -> str:
-    """blake2b (16 hex digits) of a file's bytes."""
-    digest = hashlib.blake2b(digest_size=8)
-    with Path(path).open("rb") as handle:
-        for block in iter(lambda: handle.read(1 << 22), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def build_network(architecture: dict[str, Any], classes: int, backbone: Any = None) -> Any:
@@ -148,9 +139,8 @@ def normalizer(config: dict[str, Any], device: str) -> tuple[Any, Any]:
     return mean, std
 
 
-def load_backbone(init: str, *, device: str | None) -> Any:
-    """The project's OpenClipEncoder for an `open_clip:<model>:<weights>` init spec."""
-    from robofailring.encoders.openclip import OpenClipEncoder
+def _init_spec(init: str) -> Any:
+    """The `open_clip:<model>:<weights>` EncoderSpec an `--init` string names."""
     from robofailring.encoders.spec import EncoderSpec
 
     try:
@@ -161,6 +151,14 @@ def load_backbone(init: str, *, device: str | None) -> Any:
         ) from error
     if spec.kind != "open_clip":
         raise EncoderError(f"--init must be an open_clip:<model>:<weights> spec, got {init!r}")
+    return spec
+
+
+def load_backbone(init: str, *, device: str | None) -> Any:
+    """The project's OpenClipEncoder for an `open_clip:<model>:<weights>` init spec."""
+    from robofailring.encoders.openclip import OpenClipEncoder
+
+    spec = _init_spec(init)
     return OpenClipEncoder(spec.model, spec.weights, device=device)
 
 
@@ -196,6 +194,40 @@ def read_encoder_config(directory: Path) -> dict[str, Any]:
     return config
 
 
+def trained_identity(directory: Path) -> tuple[dict[str, Any], str]:
+    """A trained-encoder folder's config and identity, checked without loading its network: the weights
+    must match the config's digest and an `open_clip_head`'s tower must still be the one it was trained on."""
+    config = read_encoder_config(directory)
+    weights = Path(directory) / WEIGHTS_NAME
+    if not weights.is_file():
+        raise EncoderError(f"trained encoder {directory} has no {WEIGHTS_NAME}")
+    digest = file_digest(weights)
+    if digest != config["weights_digest"]:
+        raise EncoderError(
+            f"{weights} does not match the weights digest in {Path(directory) / CONFIG_NAME} "
+            f"({digest} != {config['weights_digest']}): the folder was modified after training"
+        )
+    architecture = config["architecture"]
+    tower = ""
+    if architecture.get("kind") == "open_clip_head":
+        from robofailring.encoders.openclip import checked_weights, open_clip_identity
+
+        init = _init_spec(str(architecture["init"]))
+        model_name, checkpoint = checked_weights(init.model, init.weights)
+        tower = open_clip_identity(model_name, init.weights, checkpoint)
+        if tower != architecture.get("init_identity"):
+            raise EncoderError(
+                f"trained encoder {directory} was trained on {architecture.get('init_identity')}, "
+                f"but {architecture['init']} now loads {tower}"
+            )
+    weights_id = hashlib.blake2b(f"{digest}|{tower}".encode(), digest_size=8).hexdigest()
+    name = "cnn4" if architecture.get("kind") == "cnn" else "clip-head"
+    return (
+        config,
+        f"trained:{name}-{int(config['input_size'])}px-{int(config['embedding_dim'])}d:{weights_id}",
+    )
+
+
 class TrainedEncoder:
     """A trained encoder folder, batched, on CUDA when available (see the module docstring)."""
 
@@ -206,29 +238,14 @@ class TrainedEncoder:
         from robofailring.encoders.openclip import pick_device
 
         self.directory = Path(directory).expanduser()
-        self.config = read_encoder_config(self.directory)
+        self.config, self._identity = trained_identity(self.directory)
         weights = self.directory / WEIGHTS_NAME
-        if not weights.is_file():
-            raise EncoderError(f"trained encoder {self.directory} has no {WEIGHTS_NAME}")
-        digest = file_digest(weights)
-        if digest != self.config["weights_digest"]:
-            raise EncoderError(
-                f"{weights} does not match the weights digest in {self.directory / CONFIG_NAME} "
-                f"({digest} != {self.config['weights_digest']}): the folder was modified after training"
-            )
         self._device = pick_device(device)
         self._batch_size = batch_size
         architecture = self.config["architecture"]
         backbone = None
-        tower = ""
         if architecture.get("kind") == "open_clip_head":
             backbone = load_backbone(str(architecture["init"]), device=self._device)
-            if backbone.identity != architecture.get("init_identity"):
-                raise EncoderError(
-                    f"trained encoder {self.directory} was trained on {architecture.get('init_identity')}, "
-                    f"but {architecture['init']} now loads {backbone.identity}"
-                )
-            tower = backbone.identity
         self.network = build_network(
             architecture, len(self.config["classes"]), backbone.model if backbone else None
         )
@@ -243,9 +260,6 @@ class TrainedEncoder:
         self._mean, self._std = normalizer(self.config, self._device)
         self._dim = int(self.config["embedding_dim"])
         self._size = int(self.config["input_size"])
-        weights_id = hashlib.blake2b(f"{digest}|{tower}".encode(), digest_size=8).hexdigest()
-        name = "cnn4" if architecture.get("kind") == "cnn" else "clip-head"
-        self._identity = f"trained:{name}-{self._size}px-{self._dim}d:{weights_id}"
         self._torch = torch
 
     @property

@@ -7,7 +7,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from robofailring.encoders import EncoderSpec, open_encoder
+from robofailring.encoders import EncoderSpec, cache_identity, open_encoder
 from robofailring.errors import SettingError
 from robofailring.evaluation.calibration import CalibrateConfig, calibrate
 from robofailring.evaluation.run import (
@@ -47,7 +47,8 @@ def compare_encoders(config: CompareEncodersConfig) -> list[EvaluationResult]:
         )
     results = []
     for spec in config.encoders:
-        slug = EncoderSpec.slug(open_encoder(spec, device=config.device, cache_dir=config.cache_dir).identity)
+        opened = open_encoder(spec, device=config.device, cache_dir=config.cache_dir).encoder
+        slug = EncoderSpec.slug(cache_identity(opened))  # the same model in two runtimes: two slugs
         memory_dir = Path(config.out) / f"memory-{slug}"
         base = EvaluateConfig(
             data=config.data,

@@ -34,7 +34,9 @@ from robofailring.progress import progress_bar
 
 def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
     """Build (or load) the memory, replay every test trajectory once, and measure everything."""
-    encoder = open_encoder(config.encoder, device=config.device, cache_dir=config.cache_dir)
+    encoder = open_encoder(
+        config.encoder, device=config.device, cache_dir=config.cache_dir, runtime=config.runtime
+    )
     splits = select_splits(config)
     train, test = splits.train, splits.test
     memory_dir = (

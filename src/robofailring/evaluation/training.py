@@ -73,6 +73,7 @@ class EvaluateConfig:
     name: str = "evaluation"
     cache_dir: Path | None = None
     device: str | None = None
+    runtime: str | None = None  # torch, onnx or onnx-int8 (default: the spec's own, else torch)
     stride: int = 1  # score every stride-th frame of a test trajectory (t_det, T_s in original frames)
     labels: Path | None = None  # labels file for data whose names do not say the outcome (LeRobot)
     vocabulary: Path | None = None  # the data's own failure symbols (JSON/YAML), kept with the memory built
@@ -180,7 +181,9 @@ def build_training_memory(
 ) -> Path:
     """Build the memory from the training split's failures (and successes) and save it to `config.memory_out`."""
     if encoder is None:
-        encoder = open_encoder(config.encoder, device=config.device, cache_dir=config.cache_dir)
+        encoder = open_encoder(
+            config.encoder, device=config.device, cache_dir=config.cache_dir, runtime=config.runtime
+        )
     if splits is None:
         splits = select_splits(config)
     provenance = Provenance(

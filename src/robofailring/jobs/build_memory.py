@@ -30,6 +30,7 @@ class BuildMemoryConfig:
     split: str | None = None  # only trajectories of this split (project layout)
     cache_dir: Path | None = None  # embedding cache (default ~/.cache/robofailring)
     device: str | None = None  # torch device for CLIP (default: cuda when available)
+    runtime: str | None = None  # torch, onnx or onnx-int8 (default: the spec's own, else torch)
     labels: Path | None = None  # outcome and symbol per episode (needed for LeRobot datasets)
     successes: bool = True  # also build the success memory (contrast rule); False: the paper's memory alone
     success_step: float = DEFAULT_STEP  # keep a success frame only this far (cosine) from the last kept one
@@ -70,7 +71,9 @@ def build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
 
 def _build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
     vocabulary = read_vocabulary(config.vocabulary) if config.vocabulary is not None else None
-    encoder = open_encoder(config.encoder, device=config.device, cache_dir=config.cache_dir)
+    encoder = open_encoder(
+        config.encoder, device=config.device, cache_dir=config.cache_dir, runtime=config.runtime
+    )
     dataset = load_dataset(
         config.data, task=config.task, labels=config.labels, views=config.views, vocabulary=vocabulary
     )
@@ -141,7 +144,9 @@ def _add_to_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats
             f"--vocabulary {config.vocabulary} differs from the vocabulary of the memory at {config.out}: "
             "a memory keeps the vocabulary it was built with (leave out --vocabulary, or rebuild)"
         )
-    encoder = open_encoder(config.encoder, device=config.device, cache_dir=config.cache_dir)
+    encoder = open_encoder(
+        config.encoder, device=config.device, cache_dir=config.cache_dir, runtime=config.runtime
+    )
     dataset = load_dataset(config.data, task=config.task, labels=config.labels, vocabulary=memory.vocabulary)
     dataset.require_labels("build-memory --add-to")
     trajectories = _selected(config, dataset)

@@ -38,6 +38,7 @@ class DetectConfig:
     encoder: str | None = None  # default: the spec the memory was built with
     cache_dir: Path | None = None
     device: str | None = None
+    runtime: str | None = None  # torch, onnx or onnx-int8 (default: the spec's own, else torch)
     key: str | None = None  # the trajectory to run when `trajectory` is a dataset root (`episode_3`)
     stride: int = 1  # score every stride-th frame (I_0 stays frame 0; t_det in original frames)
     labels: Path | None = None  # labels file (LeRobot): outcome and symbol per episode
@@ -65,6 +66,7 @@ def detect_trajectory(config: DetectConfig) -> tuple[DetectionTrace, Trajectory]
         data_root=config.data_root,
         encoder=config.encoder,
         cache_dir=config.cache_dir,
+        runtime=config.runtime,
     )
     for note in detector.uncalibrated:
         _log.warning("warning: %s", note)

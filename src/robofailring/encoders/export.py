@@ -1,0 +1,258 @@
+"""An encoder's network exported to ONNX once, and quantized to int8, cached by what it was made from.
+
+An export is a folder `<cache dir>/onnx/<slug>-<runtime>-<key>/` (the cache dir of `default_cache_dir`,
+or `--cache-dir`) holding `model.onnx` and `export.json`. The key digests the encoder identity (which
+names the checkpoint's or trained folder's weights digest), the model-config file when the spec names
+one, the runtime and `EXPORT_VERSION`, so a new checkpoint is a new export and an unchanged one is
+never exported twice. The folder is written whole under a temporary name and renamed into place
+(`atomic_directory`); `export.json` records each file's size, and a folder whose files do not match it,
+or that ONNX Runtime cannot read, is reported and exported again.
+
+The exported graph maps normalised pixels, (N, 3, S, S) float32, to the unnormalised embedding, as
+torch computes it; the preprocessing (open_clip's own transform, or the trained encoder's square
+resize and normalisation) is recorded in `export.json` and run outside the graph (`exported.py`).
+int8 is ONNX Runtime's dynamic quantization of the MatMul and Conv weights (per output channel): no
+calibration images, and on a ViT it is faster and closer to fp32 than static QDQ
+(bench/bench_runtime.py measures both).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import shutil
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Final, Literal
+
+import numpy as np
+
+from robofailring.atomic import atomic_directory
+from robofailring.encoders.base import file_digest
+from robofailring.encoders.cache import default_cache_dir
+from robofailring.encoders.spec import EncoderSpec
+from robofailring.errors import EncoderError
+from robofailring.extras import needs_extra
+
+EXPORT_VERSION: Final[int] = 1
+MODEL_NAME: Final[str] = "model.onnx"
+MANIFEST_NAME: Final[str] = "export.json"
+OPSET: Final[int] = 17
+QuantMode = Literal["dynamic", "static"]
+
+_log = logging.getLogger("robofailring")
+
+
+@dataclass(frozen=True)
+class Export:
+    """A complete export folder: its ONNX file and what `export.json` says about it."""
+
+    folder: Path
+    identity: str  # the encoder identity, the same as the torch encoder's
+    dim: int
+    runtime: str  # onnx (fp32) or onnx-int8
+    preprocess: dict[
+        str, Any
+    ]  # {"kind": "open_clip", ...open_clip's PreprocessCfg} or {"kind": "square", ...}
+
+    @property
+    def model(self) -> Path:
+        return self.folder / MODEL_NAME
+
+
+def spec_identity(spec: EncoderSpec) -> tuple[str, str]:
+    """(the encoder identity, the export key) of a spec, found without loading its network."""
+    if spec.kind == "open_clip":
+        from robofailring.encoders.openclip import checked_weights, open_clip_identity
+
+        model_name, checkpoint = checked_weights(spec.model, spec.weights)
+        identity = open_clip_identity(model_name, spec.weights, checkpoint)
+        config = Path(spec.model)
+        material = identity + (f"|config-{file_digest(config)}" if config.suffix == ".json" else "")
+    elif spec.kind == "trained":
+        from robofailring.encoders.trained import trained_identity
+
+        _, identity = trained_identity(Path(spec.directory).expanduser())
+        material = identity
+    else:
+        raise EncoderError(f"the {spec.kind} encoder has no network to export")
+    key = hashlib.blake2b(f"{material}|{spec.runtime}|v{EXPORT_VERSION}".encode(), digest_size=8).hexdigest()
+    return identity, key
+
+
+def export_folder(spec: EncoderSpec, cache_dir: Path | None = None) -> tuple[Path, str]:
+    """Where the export of `spec` (with its runtime) lives, and the encoder identity."""
+    identity, key = spec_identity(spec)
+    root = (Path(cache_dir) if cache_dir is not None else default_cache_dir()) / "onnx"
+    return root / f"{EncoderSpec.slug(identity)}-{spec.runtime}-{key}", identity
+
+
+def read_export(folder: Path) -> Export | None:
+    """The export in `folder`, None when there is none; an EncoderError when it is incomplete or corrupt."""
+    if not folder.exists():
+        return None
+    manifest = folder / MANIFEST_NAME
+    try:
+        meta = json.loads(manifest.read_text(encoding="utf-8"))
+        files = meta["files"]
+        for name, size in files.items():
+            found = (folder / name).stat().st_size
+            if found != size:
+                raise EncoderError(f"{name} has {found} bytes, {MANIFEST_NAME} says {size}")
+        return Export(
+            folder, str(meta["identity"]), int(meta["dim"]), str(meta["runtime"]), meta["preprocess"]
+        )
+    except (OSError, ValueError, KeyError, TypeError, AttributeError, EncoderError) as error:
+        raise EncoderError(f"the cached ONNX export {folder} is incomplete or corrupt ({error})") from error
+
+
+def _write(folder: Path, identity: str, dim: int, runtime: str, preprocess: dict[str, Any]) -> Export:
+    """Record `export.json` beside the model file already written in `folder` (a temporary folder)."""
+    meta = {
+        "format": "robofailring-onnx-export",
+        "version": EXPORT_VERSION,
+        "identity": identity,
+        "dim": dim,
+        "runtime": runtime,
+        "preprocess": preprocess,
+        "files": {MODEL_NAME: (folder / MODEL_NAME).stat().st_size},
+    }
+    (folder / MANIFEST_NAME).write_text(json.dumps(meta, indent=2), encoding="utf-8")
+    return Export(folder, identity, dim, runtime, preprocess)
+
+
+def torch_network(spec: EncoderSpec) -> tuple[Any, int, dict[str, Any], str, int]:
+    """(the torch module from normalised pixels to the embedding, its input side, the preprocessing,
+    the identity, the dimension) of an open_clip or trained spec, loaded on the CPU."""
+    with needs_extra("clip"):
+        from torch import nn
+
+    if spec.kind == "open_clip":
+        from robofailring.encoders.openclip import OpenClipEncoder
+
+        clip = OpenClipEncoder(spec.model, spec.weights, device="cpu")
+        visual, identity, dim = clip.model.visual, clip.identity, clip.dim
+        del clip  # the text tower is not exported: freed before the export copies the image tower
+        preprocess = {"kind": "open_clip", **json.loads(json.dumps(visual.preprocess_cfg))}
+        size = visual.image_size
+        side = int(size[0] if isinstance(size, (tuple, list)) else size)
+        return visual, side, preprocess, identity, dim
+    from robofailring.encoders.trained import TrainedEncoder
+
+    trained = TrainedEncoder(Path(spec.directory).expanduser(), device="cpu")
+
+    class Embed(nn.Module):
+        def __init__(self, network: Any) -> None:
+            super().__init__()
+            self.network: Any = network
+
+        def forward(self, pixels: Any) -> Any:
+            return self.network.embed(pixels)
+
+    normalize = trained.config["normalize"]
+    side = int(trained.config["input_size"])
+    preprocess = {"kind": "square", "size": side, "mean": normalize["mean"], "std": normalize["std"]}
+    return Embed(trained.network).eval(), side, preprocess, trained.identity, trained.dim
+
+
+def export_fp32(spec: EncoderSpec, folder: Path) -> Export:
+    """Export the torch network of `spec` into the (temporary) `folder` as fp32 ONNX."""
+    with needs_extra("onnx"):
+        import onnx  # noqa: F401  (torch's exporter writes through it)
+    with needs_extra("clip"):
+        import torch
+
+    network, side, preprocess, identity, dim = torch_network(spec)
+    example = torch.zeros(2, 3, side, side)
+    try:  # not under inference_mode: torch's fused attention kernel has no ONNX form
+        with warnings.catch_warnings():  # the tracer's notes on shape checks, for torch developers
+            warnings.simplefilter("ignore")
+            torch.onnx.export(
+                network,
+                (example,),
+                str(folder / MODEL_NAME),
+                input_names=["pixels"],
+                output_names=["embedding"],
+                dynamic_axes={"pixels": {0: "batch"}, "embedding": {0: "batch"}},
+                opset_version=OPSET,
+                dynamo=False,  # the TorchScript exporter: no onnxscript needed
+            )
+    except Exception as error:  # torch's exporter raises many types for an unsupported graph
+        raise EncoderError(f"cannot export {identity} to ONNX: {type(error).__name__}: {error}") from error
+    return _write(folder, identity, dim, "onnx", preprocess)
+
+
+def quantize(
+    source: Path, target: Path, *, mode: QuantMode = "dynamic", calibration: np.ndarray | None = None
+) -> None:
+    """Quantize the fp32 ONNX file `source` to int8 at `target`: dynamic (weights int8 ahead, activations
+    at run time), or static QDQ with activation ranges from `calibration` pixels (N, 3, S, S)."""
+    with needs_extra("onnx"):
+        from onnxruntime.quantization import (
+            CalibrationDataReader,
+            QuantFormat,
+            QuantType,
+            quantize_dynamic,
+            quantize_static,
+        )
+
+    logging.getLogger("root").setLevel(logging.ERROR)  # ORT's advice to pre-process goes to the root logger
+    if mode == "dynamic":
+        quantize_dynamic(str(source), str(target), weight_type=QuantType.QInt8, per_channel=True)
+        return
+    if calibration is None or len(calibration) == 0:
+        raise EncoderError("static quantization needs calibration pixels")
+    batches = [{"pixels": calibration[start : start + 4]} for start in range(0, len(calibration), 4)]
+
+    class Reader(CalibrationDataReader):
+        def __init__(self) -> None:
+            self._batches = iter(batches)
+
+        def get_next(self) -> dict[str, np.ndarray] | None:
+            return next(self._batches, None)
+
+    quantize_static(
+        str(source),
+        str(target),
+        Reader(),
+        quant_format=QuantFormat.QDQ,
+        per_channel=True,
+        activation_type=QuantType.QUInt8,
+        weight_type=QuantType.QInt8,
+    )
+
+
+def ensure_export(spec: EncoderSpec, cache_dir: Path | None = None) -> Export:
+    """The cached export of `spec` for its runtime (`onnx` or `onnx-int8`), made once when absent; an
+    incomplete or corrupt one is reported and made again."""
+    folder, identity = export_folder(spec, cache_dir)
+    try:
+        found = read_export(folder)
+    except EncoderError as error:
+        _log.warning("warning: %s; exporting it again", error)
+        discard_export(folder)
+        found = None
+    if found is not None:
+        return found
+    if spec.runtime == "onnx":
+        _log.info("exporting %s to ONNX (once; cached in %s)", identity, folder)
+        with atomic_directory(folder) as tmp:
+            export_fp32(spec, tmp)
+    elif spec.runtime == "onnx-int8":
+        fp32 = ensure_export(spec.with_runtime("onnx"), cache_dir)
+        _log.info("quantizing %s to int8 (once; cached in %s)", identity, folder)
+        with atomic_directory(folder) as tmp:
+            quantize(fp32.model, tmp / MODEL_NAME)
+            _write(tmp, fp32.identity, fp32.dim, "onnx-int8", fp32.preprocess)
+    else:
+        raise EncoderError(f"runtime {spec.runtime} has no ONNX export")
+    made = read_export(folder)
+    assert made is not None
+    return made
+
+
+def discard_export(folder: Path) -> None:
+    """Remove a broken export folder, so that it is made again."""
+    shutil.rmtree(folder, ignore_errors=True)

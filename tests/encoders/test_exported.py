@@ -1,0 +1,213 @@
+"""The ONNX Runtime encoders: embeddings against torch's, the export cache and its repair, the CLI option."""
+
+from __future__ import annotations
+
+import json
+import logging
+from pathlib import Path
+
+import numpy as np
+import pytest
+from synthetic import synthetic_frame, write_project_dataset
+from typer.testing import CliRunner
+
+from robofailring import CachedEncoder, FailureMemory, load_encoder
+from robofailring.cli.verbs import app
+from robofailring.encoders import export as export_module
+from robofailring.encoders.export import MANIFEST_NAME, MODEL_NAME, export_folder
+from robofailring.encoders.exported import OnnxEncoder, providers_for
+from robofailring.encoders.spec import EncoderSpec
+from robofailring.encoders.training import TrainEncoderConfig, train_encoder
+from robofailring.errors import EncoderError
+
+pytestmark = pytest.mark.slow  # exports with torch: the fast lane never imports it (tests/conftest.py)
+
+runner = CliRunner()
+THRESHOLDS = {"onnx": 0.999, "onnx-int8": 0.99}  # issue 34: cosine to torch's embedding, every image
+
+
+def _images(count: int = 6) -> list[np.ndarray]:
+    frames = [synthetic_frame("pick_cube", "slip_wp3" if i % 2 else None, i % 3, i, 6) for i in range(count)]
+    rng = np.random.default_rng(1)
+    return [*frames, rng.integers(0, 256, (40, 56, 3), dtype=np.uint8)]  # and a non-square one
+
+
+def _clip_spec(checkpoint: tuple[Path, Path]) -> str:
+    config, weights = checkpoint
+    return f"open_clip:{config}:{weights}"
+
+
+@pytest.mark.parametrize("runtime", ["onnx", "onnx-int8"])
+def test_open_clip_through_onnx_runtime_matches_torch(
+    tiny_checkpoint: tuple[Path, Path], tmp_path: Path, runtime: str
+) -> None:
+    torch_encoder = load_encoder(_clip_spec(tiny_checkpoint))
+    onnx_encoder = load_encoder(f"{_clip_spec(tiny_checkpoint)}@{runtime}", cache_dir=tmp_path)
+    assert isinstance(onnx_encoder, OnnxEncoder) and onnx_encoder.providers == ["CPUExecutionProvider"]
+    assert onnx_encoder.identity == torch_encoder.identity and onnx_encoder.dim == torch_encoder.dim
+    images = _images()
+    cosines = np.sum(onnx_encoder.encode(images) * torch_encoder.encode(images), axis=1)
+    assert cosines.min() >= THRESHOLDS[runtime], cosines
+    np.testing.assert_allclose(np.linalg.norm(onnx_encoder.encode(images), axis=1), 1.0, atol=1e-5)
+    folder, _ = export_folder(EncoderSpec.parse(f"{_clip_spec(tiny_checkpoint)}@{runtime}"), tmp_path)
+    assert folder.parent == tmp_path / "onnx" and (folder / MODEL_NAME).is_file()
+    assert json.loads((folder / MANIFEST_NAME).read_text())["identity"] == torch_encoder.identity
+
+
+def test_the_export_is_reused_on_the_second_open(
+    tiny_checkpoint: tuple[Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    spec = f"{_clip_spec(tiny_checkpoint)}@onnx-int8"
+    first = load_encoder(spec, cache_dir=tmp_path).encode(_images())
+    folders = sorted((tmp_path / "onnx").iterdir())
+    assert [folder.name.split("-")[-2] for folder in folders] == ["onnx", "int8"]  # fp32, then quantized
+    stamps = [(folder / MODEL_NAME).stat().st_mtime_ns for folder in folders]
+
+    def refuse(*_: object, **__: object) -> None:
+        raise AssertionError("exported again")
+
+    monkeypatch.setattr(export_module, "export_fp32", refuse)
+    monkeypatch.setattr(export_module, "quantize", refuse)
+    np.testing.assert_array_equal(load_encoder(spec, cache_dir=tmp_path).encode(_images()), first)
+    assert [(folder / MODEL_NAME).stat().st_mtime_ns for folder in folders] == stamps
+
+
+def test_a_new_checkpoint_is_a_new_export(tiny_checkpoint: tuple[Path, Path], tmp_path: Path) -> None:
+    import torch
+
+    config, weights = tiny_checkpoint
+    state = torch.load(weights, weights_only=True)
+    state["state_dict"] = {key: value * 1.5 for key, value in state["state_dict"].items()}
+    other = tmp_path / "other.pt"
+    torch.save(state, other)
+    first = load_encoder(f"{_clip_spec(tiny_checkpoint)}@onnx", cache_dir=tmp_path)
+    second = load_encoder(f"open_clip:{config}:{other}@onnx", cache_dir=tmp_path)
+    assert first.identity != second.identity
+    assert len(list((tmp_path / "onnx").iterdir())) == 2
+
+
+@pytest.mark.parametrize(
+    ("damage", "said"),
+    [
+        ("truncate", "is incomplete or corrupt"),  # a partial copy: its size differs from export.json's
+        ("scramble", "ONNX Runtime cannot read the cached export"),  # same size, not a model
+        ("manifest", "is incomplete or corrupt"),  # export.json unreadable
+    ],
+)
+def test_a_broken_export_is_reported_and_made_again(
+    tiny_checkpoint: tuple[Path, Path],
+    tmp_path: Path,
+    caplog: pytest.LogCaptureFixture,
+    damage: str,
+    said: str,
+) -> None:
+    spec = f"{_clip_spec(tiny_checkpoint)}@onnx"
+    expected = load_encoder(spec, cache_dir=tmp_path).encode(_images())
+    folder, _ = export_folder(EncoderSpec.parse(spec), tmp_path)
+    model = folder / MODEL_NAME
+    size = model.stat().st_size
+    if damage == "truncate":
+        model.write_bytes(model.read_bytes()[: size // 2])
+    elif damage == "scramble":
+        model.write_bytes(np.random.default_rng(0).bytes(size))
+    else:
+        (folder / MANIFEST_NAME).write_text("{not json")
+    with caplog.at_level(logging.WARNING, logger="robofailring"):
+        again = load_encoder(spec, cache_dir=tmp_path)
+    assert said in caplog.text and str(folder) in caplog.text and "exporting it again" in caplog.text
+    np.testing.assert_allclose(again.encode(_images()), expected, atol=1e-6)
+    assert model.stat().st_size == size
+
+
+def test_each_runtime_has_its_own_embedding_cache(tiny_checkpoint: tuple[Path, Path], tmp_path: Path) -> None:
+    paths = set()
+    for runtime in ("torch", "onnx", "onnx-int8"):
+        encoder = load_encoder(f"{_clip_spec(tiny_checkpoint)}@{runtime}", cache_dir=tmp_path)
+        cached = CachedEncoder(encoder, cache_dir=tmp_path / "embeddings")
+        assert cached.cache is not None
+        paths.add(cached.cache.path)
+    assert len(paths) == 3
+
+
+def test_a_trained_encoder_through_onnx_runtime_matches_torch(tmp_path: Path) -> None:
+    data = write_project_dataset(tmp_path / "data", tasks=("pick_cube",), episodes=2, length=4)
+    config = TrainEncoderConfig(
+        data=data, out=tmp_path / "encoder", image_size=32, epochs=1, batch_size=32, threads=1
+    )
+    folder = train_encoder(config)
+    torch_encoder = load_encoder(f"trained:{folder}")
+    images = _images()
+    reference = torch_encoder.encode(images)
+    for runtime, threshold in THRESHOLDS.items():
+        encoder = load_encoder(f"trained:{folder}@{runtime}", cache_dir=tmp_path / "cache")
+        assert encoder.identity == torch_encoder.identity
+        cosines = np.sum(encoder.encode(images) * reference, axis=1)
+        assert cosines.min() >= threshold, (runtime, cosines)
+
+
+def test_runtime_option_on_build_memory_and_detect(
+    tiny_checkpoint: tuple[Path, Path], aha_dataset: Path, tmp_path: Path
+) -> None:
+    cache = ["--cache-dir", str(tmp_path / "cache")]
+    spec = _clip_spec(tiny_checkpoint)
+    built = runner.invoke(
+        app,
+        [
+            "build-memory",
+            str(aha_dataset),
+            "--out",
+            str(tmp_path / "memory"),
+            "--encoder",
+            spec,
+            "--runtime",
+            "onnx-int8",
+            *cache,
+        ],
+    )
+    assert built.exit_code == 0, built.output
+    memory = FailureMemory.load(tmp_path / "memory")
+    assert memory.encoder == load_encoder(spec).identity  # the torch identity: any runtime queries it
+    assert sorted(folder.name.rsplit("-", 1)[0] for folder in (tmp_path / "cache" / "onnx").iterdir()) == [
+        "tinyvit-test-onnx",
+        "tinyvit-test-onnx-int8",
+    ]
+    episode = next(
+        path for path in sorted(aha_dataset.rglob("*")) if path.is_dir() and "episode" in path.name
+    )
+    for runtime in ("onnx", "torch"):
+        detected = runner.invoke(
+            app,
+            [
+                "detect",
+                str(episode),
+                "--memory",
+                str(tmp_path / "memory"),
+                "--runtime",
+                runtime,
+                "--json",
+                *cache,
+            ],
+        )
+        assert detected.exit_code == 0, detected.output
+    refused = runner.invoke(
+        app, ["detect", str(episode), "--memory", str(tmp_path / "memory"), "--runtime", "onnx-fp16", *cache]
+    )
+    assert refused.exit_code != 0 and "unknown runtime 'onnx-fp16'" in refused.output
+
+
+@pytest.mark.parametrize("verb", ["evaluate", "replay", "watch"])
+def test_the_recording_verbs_take_the_runtime_option(verb: str) -> None:
+    from rfr_viz.cli.app import app as full_app
+
+    shown = runner.invoke(full_app, [verb, "--help"], terminal_width=200)
+    assert shown.exit_code == 0 and "--runtime" in shown.output and "onnx-int8" in shown.output
+
+
+def test_cuda_without_onnxruntime_gpu_says_what_to_install() -> None:
+    import onnxruntime
+
+    if "CUDAExecutionProvider" in onnxruntime.get_available_providers():
+        pytest.skip("this ONNX Runtime has CUDA")
+    with pytest.raises(EncoderError, match="install onnxruntime-gpu"):
+        providers_for("cuda")
+    assert providers_for(None) == ["CPUExecutionProvider"]
