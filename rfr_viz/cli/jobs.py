@@ -1,4 +1,4 @@
-"""The jobs people run over a whole dataset: `evaluate`, `review`, `compare-encoders` and `demo`."""
+"""The jobs people run over a whole dataset: `evaluate`, `review`, `triage`, `compare-encoders` and `demo`."""
 
 from __future__ import annotations
 
@@ -15,6 +15,7 @@ from robofailring.cli.exit_codes import finish
 from robofailring.cli.options import (
     BandOption,
     CacheOption,
+    DataArgument,
     DataRootOption,
     DeviceOption,
     EncoderOption,
@@ -28,6 +29,7 @@ from robofailring.cli.options import (
     SuccessStepOption,
     TaskOption,
     ViewsOption,
+    print_notes,
     VLMModelOption,
     VLMUrlOption,
     VocabularyOption,
@@ -204,6 +206,103 @@ def review_cmd(
     for path in result.recordings:
         typer.echo(f"  {open_at_command(path)}")
     finish(skipped=len(result.skipped_inputs))  # listed above
+
+
+@app.command("triage")
+def triage_cmd(
+    data: DataArgument,
+    out: Annotated[
+        Path, typer.Option("--out", help="Folder for triage.csv, triage.rrd, triage.html and replays/.")
+    ],
+    memory: Annotated[
+        Path | None,
+        typer.Option("--memory", help="Judge by this memory, its rules as calibrated (its encoder)."),
+    ] = None,
+    successes: Annotated[
+        Path | None,
+        typer.Option(
+            "--successes",
+            help="A dataset of known-good runs (any layout; every episode a success): a success memory of "
+            "them judges their tasks.",
+        ),
+    ] = None,
+    labels: LabelsOption = None,
+    encoder: EncoderOption = "pixels",
+    replays: Annotated[
+        int,
+        typer.Option(
+            "--replays",
+            help="Replays written for the top of the ranking, each opening at its peak (-1: all).",
+        ),
+    ] = 20,
+    reference_runs: Annotated[
+        int,
+        typer.Option(
+            "--reference-runs",
+            help="A task without known-good runs is judged against at most this many of its other episodes "
+            "(a fixed sample), so memory stays flat however many episodes there are.",
+        ),
+    ] = 100,
+    k: KOption = 5,
+    task: TaskOption = None,
+    views: ViewsOption = None,
+    camera_codec: CameraCodecOption = CameraCodec.AUTO,
+    cache_dir: CacheOption = None,
+    device: DeviceOption = None,
+    data_root: DataRootOption = None,
+) -> None:
+    """Rank every episode of a dataset nobody labelled by how unlike normal runs it looks, to label the top.
+
+    Judged by a memory (--memory), else by known-good runs (--successes, or the success rows of --labels),
+    else each episode against the other episodes of its task (this assumes most runs succeeded).
+    """
+    from rfr_viz.jobs.triage import triage
+    from robofailring.triage import TriageConfig
+
+    outcome = triage(
+        TriageConfig(
+            data=data,
+            out=out,
+            memory=memory,
+            successes=successes,
+            labels=labels,
+            encoder=encoder,
+            k=k,
+            task=task,
+            views=views,
+            reference_runs=reference_runs,
+            cache_dir=cache_dir,
+            device=device,
+            data_root=data_root,
+        ),
+        replays=replays,
+        camera_codec=camera_codec,
+    )
+    result = outcome.result
+    report_skipped(result.skipped_inputs)
+    print_notes([f"note: {note}" for note in result.notes])
+    typer.echo(f"{len(result.ranked)} episode(s) ranked, least normal first:")
+    for score in result.ranked[:10]:
+        what = (
+            f"score {score.rank_score:.3f} at frame {score.frame} ({score.view})"
+            if score.scored
+            else "not scored"
+        )
+        typer.echo(f"  #{score.rank} {score.key}: {what}")
+    typer.echo(
+        f"\nwrote {outcome.table} (fill outcome, symbol, description), {outcome.recording} "
+        f"(open with: {open_command(outcome.recording)}) and {outcome.page}"
+    )
+    if outcome.replays:
+        typer.echo(
+            f"{len(outcome.replays)} replay(s) in {out / 'replays'}; the first opens at its peak with:"
+        )
+        typer.echo(f"  {open_at_command(next(iter(outcome.replays.values())))}")
+    typer.echo(
+        f"then: robofailring build-memory {data} --labels {outcome.table} --out MEMORY (or --add-to MEMORY), "
+        f"and triage again with --memory MEMORY"
+    )
+    finish(skipped=len(result.skipped_inputs))
 
 
 @app.command("compare-encoders")
