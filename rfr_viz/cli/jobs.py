@@ -29,10 +29,10 @@ from robofailring.cli.options import (
     SuccessStepOption,
     TaskOption,
     ViewsOption,
-    print_notes,
     VLMModelOption,
     VLMUrlOption,
     VocabularyOption,
+    print_notes,
     report_skipped,
     vlm_config,
     warn_missing_references,
@@ -244,6 +244,7 @@ def triage_cmd(
         ),
     ] = 100,
     k: KOption = 5,
+    score: ScoreOption = None,
     task: TaskOption = None,
     views: ViewsOption = None,
     camera_codec: CameraCodecOption = CameraCodec.AUTO,
@@ -268,6 +269,7 @@ def triage_cmd(
             labels=labels,
             encoder=encoder,
             k=k,
+            score=score,
             task=task,
             views=views,
             reference_runs=reference_runs,
@@ -281,27 +283,7 @@ def triage_cmd(
     result = outcome.result
     report_skipped(result.skipped_inputs)
     print_notes([f"note: {note}" for note in result.notes])
-    typer.echo(f"{len(result.ranked)} episode(s) ranked, least normal first:")
-    for score in result.ranked[:10]:
-        what = (
-            f"score {score.rank_score:.3f} at frame {score.frame} ({score.view})"
-            if score.scored
-            else "not scored"
-        )
-        typer.echo(f"  #{score.rank} {score.key}: {what}")
-    typer.echo(
-        f"\nwrote {outcome.table} (fill outcome, symbol, description), {outcome.recording} "
-        f"(open with: {open_command(outcome.recording)}) and {outcome.page}"
-    )
-    if outcome.replays:
-        typer.echo(
-            f"{len(outcome.replays)} replay(s) in {out / 'replays'}; the first opens at its peak with:"
-        )
-        typer.echo(f"  {open_at_command(next(iter(outcome.replays.values())))}")
-    typer.echo(
-        f"then: robofailring build-memory {data} --labels {outcome.table} --out MEMORY (or --add-to MEMORY), "
-        f"and triage again with --memory MEMORY"
-    )
+    typer.echo(outcome.summary(data))
     finish(skipped=len(result.skipped_inputs))
 
 

@@ -16,7 +16,7 @@ from rfr_viz.panels.map import placer
 from rfr_viz.panels.umap import memory_map
 from rfr_viz.recordings.replay import record_replay
 from rfr_viz.recordings.triage import record_triage
-from rfr_viz.viewer.control import open_at_command
+from rfr_viz.viewer.control import open_at_command, open_command
 from robofailring.atomic import output_lock, remove_file_leftovers
 from robofailring.errors import SettingError
 from robofailring.outputs import check_output_folder, check_recording_file
@@ -38,6 +38,31 @@ class TriageOutcome:
     recording: Path  # triage.rrd
     page: Path  # triage.html
     replays: dict[str, Path] = field(default_factory=dict)  # by episode key: its replay, opening at its peak
+
+    def summary(self, data: Path, *, shown: int = 10) -> str:
+        """What the command prints: the top of the ranking, the files written and the next step."""
+        ranked = self.result.ranked
+        lines = [f"{len(ranked)} episode(s) ranked, least normal first:"]
+        for score in ranked[:shown]:
+            what = (
+                f"score {score.rank_score:.3f} at frame {score.frame} ({score.view})"
+                if score.scored
+                else "not scored"
+            )
+            lines.append(f"  #{score.rank} {score.key}: {what}")
+        lines.append(
+            f"\nwrote {self.table} (fill outcome, symbol, description), {self.recording} "
+            f"(open with: {open_command(self.recording)}) and {self.page}"
+        )
+        if self.replays:
+            first = next(iter(self.replays.values()))
+            lines.append(f"{len(self.replays)} replay(s) in {first.parent}; each opens at its peak, e.g.:")
+            lines.append(f"  {open_at_command(first)}")
+        lines.append(
+            f"then: robofailring build-memory {data} --labels {self.table} --out MEMORY (or --add-to MEMORY), "
+            "and triage again with --memory MEMORY"
+        )
+        return "\n".join(lines)
 
 
 def triage(

@@ -5,7 +5,9 @@ Three references, chosen per task (docs/triage.md):
 - `memory`: a memory folder, with its rules and thresholds as calibrated (novelty where it holds
   success runs only); every task of the data must be one of the memory's.
 - `successes`: the task's known-good runs (`--successes`, or the rows of `--labels` marked success)
-  form a success memory; runs labelled failure join a failure memory beside it.
+  form a success memory, judged by the novelty rule (N = 1 − S⁺); runs labelled failure join a
+  failure memory beside it, which names the nearest failure at each peak (`--score contrast` also
+  scores by it, at the cost of ranking failures of types it lacks low).
 - `others`: a task without a known-good run is scored against its own other episodes, each leaving
   itself out (at most `reference_runs` of them, a fixed sample): a minority of failures stands
   out, which assumes that most runs of the task succeeded.
@@ -22,6 +24,7 @@ from typing import Final
 from robofailring.data.model import Outcome, Trajectory
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.loader import open_detector
+from robofailring.detection.rules import NOVELTY
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import DataError
 from robofailring.memory.builder import Provenance, build_memories
@@ -51,12 +54,16 @@ def memory_reference(
     tasks: Sequence[str],
     *,
     k: int,
+    rule: str | None,
     cache_dir: Path | None,
     device: str | None,
     data_root: Path | None,
 ) -> Reference:
-    """A saved memory's detector (its rules and thresholds as stored); a task it does not know is an error."""
-    detector = open_detector(memory_dir, k=k, cache_dir=cache_dir, device=device, data_root=data_root)
+    """A saved memory's detector (its rules and thresholds as stored, or `rule`); a task it does not know is
+    an error."""
+    detector = open_detector(
+        memory_dir, k=k, rule=rule, cache_dir=cache_dir, device=device, data_root=data_root
+    )
     unknown = sorted(set(tasks) - set(detector.memory.tasks))
     if unknown:
         raise DataError(
@@ -78,12 +85,13 @@ def built_reference(
     encoder_spec: str,
     k: int,
     reference_runs: int,
+    rule: str | None = None,
 ) -> Reference:
     """A memory built here: per task, its known-good runs (else its other episodes) as success runs, and
     every run labelled failure as a failure entry.
 
     `trajectories` are the data's episodes with the outcomes `--labels` gives (None: unlabelled);
-    `known_good` the runs of `--successes`.
+    `known_good` the runs of `--successes`. `rule`: the scoring rule (default novelty).
     """
     tasks = list(dict.fromkeys(t.task for t in trajectories))
     failures = [t for t in trajectories if t.outcome is Outcome.FAILURE]
@@ -96,6 +104,11 @@ def built_reference(
             modes[task], runs[task] = SUCCESSES, good
             continue
         others = [t for t in trajectories if t.task == task and t.outcome is None]
+        if not others:
+            raise DataError(
+                f"every episode of task {task!r} is labelled failure and no known-good run of it is given: "
+                "nothing normal to compare them with; pass --successes DATA (runs that went well)"
+            )
         modes[task], runs[task] = OTHERS, _sample(others, reference_runs)
         notes.append(OTHERS_NOTE.format(task=task, count=max(len(runs[task]) - 1, 0)))
     success_runs = [replace(t, outcome=Outcome.SUCCESS, symbol=None) for task in tasks for t in runs[task]]
@@ -104,7 +117,8 @@ def built_reference(
         encoder,
         provenance=Provenance(data=data, encoder=encoder_spec),
     )
-    return Reference(detector=FailureDetector(memory, encoder, k=k), modes=modes, runs=runs, notes=notes)
+    detector = FailureDetector(memory, encoder, k=k, rule=rule or NOVELTY.name)
+    return Reference(detector=detector, modes=modes, runs=runs, notes=notes)
 
 
 def _sample(trajectories: Sequence[Trajectory], count: int) -> list[Trajectory]:

@@ -12,6 +12,7 @@ from robofailring.data.labels import apply_labels, read_labels, unlabelled_rows
 from robofailring.data.layouts import load_dataset
 from robofailring.data.model import Outcome, Skipped, Trajectory
 from robofailring.detection.detector import DEFAULT_K, FailureDetector, check_k
+from robofailring.detection.rules import rule_named
 from robofailring.encoders import open_encoder
 from robofailring.errors import SettingError
 from robofailring.progress import progress_bar
@@ -32,6 +33,7 @@ class TriageConfig:
     labels: Path | None = None  # a labels file for the data: its success rows are known-good runs
     encoder: str = "pixels"  # without --memory (a memory uses its own)
     k: int = DEFAULT_K
+    score: str | None = None  # the scoring rule; default: the memory's per task, novelty without a memory
     task: str | None = None  # task of episodes whose names do not say it
     views: str | None = None  # `--views`
     reference_runs: int = DEFAULT_REFERENCE_RUNS  # per task, at most this many other episodes as reference
@@ -41,6 +43,8 @@ class TriageConfig:
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
         check_k(self.k)
+        if self.score is not None:
+            rule_named(self.score)
         if self.memory is not None and self.successes is not None:
             raise SettingError(
                 "--memory and --successes go separately: add the known-good runs to the memory first "
@@ -116,6 +120,7 @@ def _reference(
             config.memory,
             tasks,
             k=config.k,
+            rule=config.score,
             cache_dir=config.cache_dir,
             device=config.device,
             data_root=config.data_root,
@@ -134,6 +139,7 @@ def _reference(
         encoder_spec=config.encoder,
         k=config.k,
         reference_runs=config.reference_runs,
+        rule=config.score,
     )
 
 
