@@ -95,7 +95,7 @@ def test_a_memory_judges_by_its_rules(runs, tmp_path: Path) -> None:
     result = run_triage(_config(data, tmp_path, memory=folder))
     assert result.modes == {"pick_cube": MEMORY}
     top = result.ranked[0]
-    assert top.rule == "contrast" and top.rank_score == pytest.approx(top.peak - top.threshold)
+    assert top.rule == "contrast" and top.rank_score > 3  # spreads above the median peak of its task
     assert truth[top.episode] != "success" and top.failure_symbol == "grasp_wp2"  # the one type it holds
     # contrast ranks a failure of a type the memory lacks low; the novelty rule does not
     novelty = run_triage(_config(data, tmp_path, memory=folder, score="novelty"))

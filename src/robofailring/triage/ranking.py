@@ -1,9 +1,11 @@
 """The triage ranking: each episode's peak score on its task's scale, and how good a ranking is.
 
 Tasks differ in how much their normal runs vary, so a peak is put on its task's scale before the
-tasks are ranked together: with a memory, by how far it is above the rule's (calibrated) threshold;
-otherwise by how many spreads it lies above the median peak of the task's reference runs (each
-scored leaving itself out): (peak − median) / (1.4826 · MAD), the spread never below `MIN_SPREAD`.
+tasks are ranked together: how many spreads it lies above the median peak of the task's episodes
+(those not labelled failure, and its known-good runs, each scored leaving itself out),
+(peak − median) / (1.4826 · MAD), the spread never below `MIN_SPREAD`. Median and MAD hold while
+fewer than half the runs fail; they only place tasks beside each other, the order within a task is
+that of its peaks. A task with no peak to scale by ranks by its peak's margin over the threshold.
 """
 
 from __future__ import annotations

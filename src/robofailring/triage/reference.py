@@ -44,7 +44,7 @@ class Reference:
 
     detector: FailureDetector
     modes: dict[str, str]  # per task: MEMORY, SUCCESSES or OTHERS
-    # per task: the runs whose own scores (each leaving itself out) set the task's scale; none with a memory
+    # per task: its reference runs (known-good runs, or a sample of its other episodes); none with a memory
     runs: dict[str, list[Trajectory]] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
 

@@ -17,7 +17,7 @@ from robofailring.encoders import open_encoder
 from robofailring.errors import SettingError
 from robofailring.progress import progress_bar
 from robofailring.triage.ranking import TaskScale, rank
-from robofailring.triage.reference import MEMORY, Reference, built_reference, memory_reference
+from robofailring.triage.reference import Reference, built_reference, memory_reference
 from robofailring.triage.scoring import EpisodeScore, score_episode
 from robofailring.triage.table import check_unique_episodes
 
@@ -97,7 +97,7 @@ def run_triage(config: TriageConfig, *, progress: Callable[[int], None] | None =
             bar.update(1)
             if progress is not None:
                 progress(1)
-    scales = _scales(reference, scores)
+    scales = _scales(reference, scores, trajectories)
     ranked = rank(scores, scales)
     notes = list(reference.notes)
     for score in ranked:
@@ -143,16 +143,19 @@ def _reference(
     )
 
 
-def _scales(reference: Reference, scores: list[EpisodeScore]) -> dict[str, TaskScale | None]:
-    """Per task: its reference runs' scale (their own scores, each leaving itself out); none with a memory."""
+def _scales(
+    reference: Reference, scores: list[EpisodeScore], trajectories: list[Trajectory]
+) -> dict[str, TaskScale | None]:
+    """Per task: the scale of the peaks of its episodes not labelled failure and of its known-good runs
+    from elsewhere (`--successes`, each scored leaving itself out)."""
+    failed = {t.key for t in trajectories if t.outcome is Outcome.FAILURE}
     by_key = {score.key: score for score in scores}
-    scales: dict[str, TaskScale | None] = {}
+    peaks: dict[str, list[float]] = {}
+    for score in scores:
+        if score.key not in failed:
+            peaks.setdefault(score.task, []).append(score.peak)
     for task, runs in reference.runs.items():
-        if reference.modes.get(task) == MEMORY:
-            continue
-        peaks = [
-            (by_key[t.key] if t.key in by_key else score_episode(reference.detector, t, mode="")).peak
-            for t in runs
-        ]
-        scales[task] = TaskScale.of(peaks)
-    return scales
+        for run in runs:
+            if run.key not in by_key:
+                peaks.setdefault(task, []).append(score_episode(reference.detector, run, mode="").peak)
+    return {task: TaskScale.of(found) for task, found in peaks.items()}
