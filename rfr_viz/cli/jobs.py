@@ -254,8 +254,7 @@ def triage_cmd(
 ) -> None:
     """Rank every episode of a dataset nobody labelled by how unlike normal runs it looks, to label the top.
 
-    Judged by a memory (--memory), else by known-good runs (--successes, or the success rows of --labels),
-    else each episode against the other episodes of its task (this assumes most runs succeeded).
+    Each task is judged by --memory, else by its known-good runs (--successes, the success rows of --labels), else each episode against the task's other episodes (this assumes most runs succeeded).
     """
     from rfr_viz.jobs.triage import triage
     from robofailring.triage import TriageConfig

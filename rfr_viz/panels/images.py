@@ -5,6 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Final
 
+import cv2
+
 from robofailring.data.images import encode_jpeg, read_image
 from robofailring.data.layout_rosbag import BAG_MESSAGE_MARKER, read_bag_reference
 from robofailring.data.model import Frame
@@ -49,8 +51,6 @@ def reference_jpeg(reference: str, *, quality: int = JPEG_QUALITY) -> bytes | No
 
 def thumbnail_jpeg(frame: Frame, *, side: int = 128, quality: int = JPEG_QUALITY) -> bytes:
     """The frame shrunk to at most `side` pixels a side, as JPEG bytes (a triage thumbnail)."""
-    import cv2
-
     image = frame.load()
     scale = side / max(image.shape[:2])
     if scale < 1:
