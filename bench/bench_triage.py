@@ -157,6 +157,60 @@ def quality(encoders: list[str], trained: bool) -> list[str]:
     return lines
 
 
+def peer_root() -> Path | None:
+    """The peer simulator's set (`bench/bench_peer.py`) when it was simulated here, else None."""
+    found = sorted((default_cache_dir() / "bench-peer").glob("*/labels.csv"))
+    roots = [labels.parent for labels in found if (labels.parent / "episodes").is_dir()]
+    return roots[0] if roots else None
+
+
+def peer(rate: float) -> list[str]:
+    """Triage of the peer set's in-distribution runs, drawn to `rate` failures per task; each task
+    triaged with `--task` (its episode names do not say it), the tasks ranked together by score."""
+    root = peer_root()
+    if root is None:
+        return []
+    with (root / "labels.csv").open(newline="") as handle:
+        rows = [r for r in csv.DictReader(handle) if r["split"] in ("train", "test")]
+    tag = f"peer-{round(rate * 100)}pct"
+    lines = []
+    for reference in ("nothing", f"{KNOWN} successes/task"):
+        scores, truth, known = [], {}, set()
+        for task in sorted({r["task"] for r in rows}):
+            successes = [r for r in rows if r["task"] == task and r["outcome"] == "success"]
+            failures = [r for r in rows if r["task"] == task and r["outcome"] == "failure"]
+            wanted = round(rate / (1 - rate) * len(successes))  # failures beside these successes
+            failures = [
+                failures[int(i)] for i in np.unique(np.linspace(0, len(failures) - 1, wanted).round())
+            ]
+            folder = ROOT / "sets" / tag / task
+            folder.mkdir(parents=True, exist_ok=True)
+            for r in successes + failures:
+                if not (folder / r["episode"]).exists():
+                    (folder / r["episode"]).symlink_to(
+                        root / "episodes" / r["episode"], target_is_directory=True
+                    )
+                truth[f"{task}/{r['episode']}"] = r["outcome"] == "failure"
+            labels = None
+            if reference != "nothing":
+                labels = ROOT / "sets" / f"{tag}-{task}-known.csv"
+                labels.write_text(
+                    "episode,outcome\n" + "".join(f"{r['episode']},success\n" for r in successes[:KNOWN])
+                )
+                known |= {f"{task}/{r['episode']}" for r in successes[:KNOWN]}
+            result = run_triage(TriageConfig(data=folder, out=ROOT / "out", task=task, labels=labels))
+            scores += [s for s in result.ranked if s.key not in known]
+        ranked = sorted(scores, key=lambda s: -s.rank_score if np.isfinite(s.rank_score) else np.inf)
+        q = ranking_quality([truth[s.key] for s in ranked])
+        lines.append(
+            f"| {round(rate * 100)} % (peer) | pixels | {reference} | {ranked[0].rule} | {q.auc:.3f} | "
+            f"{q.precision_at(q.failures):.2f} | {q.recall_at(q.failures):.2f} | "
+            f"{100 * q.top_share:.0f} % | {q.failures} / {q.episodes} |"
+        )
+        print(lines[-1], flush=True)
+    return lines
+
+
 SCALE_SCRIPT = """
 import json, resource, sys, time
 from pathlib import Path
@@ -205,7 +259,8 @@ def scale(sizes: list[int]) -> list[str]:
         )
         return json.loads(done.stdout.strip().splitlines()[-1])
 
-    run(min(sizes))  # warms the cache with the pool's images: every size then encodes nothing new
+    cold = run(min(sizes))  # encodes the pool's 3000 images: every run after it encodes nothing new
+    lines.append(f"| {min(sizes)}, cold cache | {cold['seconds']:.0f} | {cold['peak_rss_mb']:.0f} |")
     for size in sizes:
         found = run(size)
         lines.append(f"| {size} | {found['seconds']:.0f} | {found['peak_rss_mb']:.0f} |")
@@ -220,10 +275,13 @@ def main() -> None:
     parser.add_argument("--sizes", default="25,50,100", help="episodes per scale run")
     parser.add_argument("--skip-quality", action="store_true")
     parser.add_argument("--skip-scale", action="store_true")
+    parser.add_argument("--skip-peer", action="store_true", help="skip the peer simulator's set")
     args = parser.parse_args()
     out = []
     if not args.skip_quality:
         out += quality(args.encoder or ["pixels"], trained=not args.no_trained)
+    if not args.skip_peer:
+        out += [line for rate in (0.1, 0.3) for line in peer(rate)]
     if not args.skip_scale:
         out += ["", *scale([int(s) for s in args.sizes.split(",")])]
     print("\n".join(out))

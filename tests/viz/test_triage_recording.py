@@ -12,6 +12,7 @@ from synthetic import write_unlabelled_runs
 
 from rfr_viz.jobs.triage import triage
 from rfr_viz.paths import TRIAGE_RANKING, TRIAGE_SCORES, triage_curve, triage_episode
+from rfr_viz.viewer.control import verify_recording
 from robofailring.errors import OutputError
 from robofailring.triage import TriageConfig
 
@@ -48,6 +49,7 @@ def test_one_recording_browses_every_episode(written) -> None:
     values = bars[0].to_pydict()["BarChart:values"][0][0]["buffer"]
     assert values == pytest.approx([score.rank_score for score in ranked], rel=1e-5)
     assert "score curves (every episode)" in blueprint_names(outcome.recording)
+    verify_recording(outcome.recording)  # `rerun rrd verify`: a whole, valid recording
 
 
 def test_the_first_episodes_have_replays_opening_at_their_peak(written) -> None:
