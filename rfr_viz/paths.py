@@ -189,11 +189,12 @@ EVAL_SUMMARY: Final[str] = "/eval/summary"  # TextDocument: the markdown tables
 TRIAGE_ROOT: Final[str] = "/triage"
 TRIAGE_RANKING: Final[str] = "/triage/ranking"  # static TextDocument (markdown): the ranked table
 TRIAGE_SCORES: Final[str] = "/triage/scores"  # static BarChart: each episode's ranking score, in rank order
+TRIAGE_CURVES: Final[str] = "/triage/curves"  # every episode's score curve, one entity each (triage_curve)
 
 
 def triage_curve(rank: int) -> str:
     """Scalars on the frame timeline: the score curve of the episode ranked `rank` (1: least normal)."""
-    return f"{TRIAGE_ROOT}/curves/{rank:04d}"
+    return f"{TRIAGE_CURVES}/{rank:04d}"
 
 
 def triage_episode(rank: int) -> str:

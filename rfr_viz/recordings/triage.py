@@ -14,7 +14,8 @@ from typing import Final
 
 import numpy as np
 
-from rfr_viz.paths import FRAME, TRIAGE_RANKING, TRIAGE_SCORES, triage_curve, triage_episode
+from rfr_viz.paths import FRAME, TRIAGE_CURVES, TRIAGE_RANKING, TRIAGE_SCORES, triage_curve, triage_episode
+from rfr_viz.recordings.blueprint import NO_LEGEND
 from rfr_viz.recordings.replay import open_recording
 from rfr_viz.styles import DELTA_COLOUR, STATE_COLOUR
 from robofailring.extras import needs_extra
@@ -73,7 +74,7 @@ def triage_blueprint(ranked: Sequence[EpisodeScore]) -> rrb.Blueprint:
     )
     left = rrb.Vertical(
         rrb.TimeSeriesView(
-            origin="/triage/curves", name="score curves (every episode)", plot_legend=rrb.Corner2D.RightTop
+            origin=TRIAGE_CURVES, name="score curves (every episode)", plot_legend=NO_LEGEND
         ),
         rrb.BarChartView(origin=TRIAGE_SCORES, name="ranking score, in rank order"),
         row_shares=[2, 1],
