@@ -212,14 +212,15 @@ def peer(rate: float) -> list[str]:
 
 
 SCALE_SCRIPT = """
-import json, resource, sys, time
+import json, sys, time
 from pathlib import Path
 from robofailring.triage import TriageConfig, run_triage
 start = time.perf_counter()
 result = run_triage(TriageConfig(data=Path(sys.argv[1]), out=Path(sys.argv[2]), task="pick_cube",
                                  reference_runs=10, cache_dir=Path(sys.argv[3])))
-print(json.dumps({"episodes": len(result.ranked), "seconds": time.perf_counter() - start,
-                  "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+status = Path("/proc/self/status").read_text()  # VmHWM: this process's own peak (ru_maxrss keeps the parent's)
+peak = next(int(line.split()[1]) for line in status.splitlines() if line.startswith("VmHWM:"))
+print(json.dumps({"episodes": len(result.ranked), "seconds": time.perf_counter() - start, "peak_rss_mb": peak / 1024}))
 """
 
 
@@ -272,7 +273,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--encoder", action="append", help="encoder spec (default: pixels); repeatable")
     parser.add_argument("--no-trained", action="store_true", help="skip the trained encoder")
-    parser.add_argument("--sizes", default="25,50,100", help="episodes per scale run")
+    parser.add_argument("--sizes", default="25,50,100,200", help="episodes per scale run")
     parser.add_argument("--skip-quality", action="store_true")
     parser.add_argument("--skip-scale", action="store_true")
     parser.add_argument("--skip-peer", action="store_true", help="skip the peer simulator's set")

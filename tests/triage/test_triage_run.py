@@ -4,6 +4,7 @@ memory), what is not scored, and bad settings."""
 from __future__ import annotations
 
 import csv
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -79,14 +80,9 @@ def test_known_good_runs_from_another_dataset(runs, tmp_path: Path) -> None:
 def test_a_memory_judges_by_its_rules(runs, tmp_path: Path) -> None:
     data, truth = runs
     known, _ = write_unlabelled_runs(tmp_path / "known", successes=4, failures=("grasp_wp2",))
+    failed = {"outcome": Outcome.FAILURE, "symbol": "grasp_wp2"}
     labelled = [
-        t.__class__(
-            **{
-                **t.__dict__,
-                "outcome": Outcome.FAILURE if t.episode == "run_03" else Outcome.SUCCESS,
-                "symbol": "grasp_wp2" if t.episode == "run_03" else None,
-            }
-        )
+        replace(t, **(failed if t.episode == "run_03" else {"outcome": Outcome.SUCCESS}))
         for t in load_dataset(known, task="pick_cube")
     ]
     encoder = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "cache")
