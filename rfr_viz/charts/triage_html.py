@@ -74,9 +74,11 @@ def write_triage_page(
         f"<style>{STYLE}{_EXTRA_STYLE}</style></head><body>\n<h1>Triage: {len(ranked)} episodes, least normal first</h1>\n"
         + "".join(f"<p>{html.escape(note)}</p>" for note in notes)
         + (f"<ul>{links}</ul>" if links else "")
-        + "<p>Fill <code>outcome</code> (and <code>symbol</code>, <code>description</code>) in triage.csv, then "
-        "<code>robofailring build-memory DATA --labels triage.csv --add-to MEMORY</code> and triage again.</p>"
-        + f"<table>{head}\n{rows}</table>\n</body></html>\n"
+        + "<p>The first episodes have a replay that opens at their peak (<code>--replays N</code>, "
+        "<code>-1</code> for every episode). "
+        "Fill <code>outcome</code> (and <code>symbol</code>, <code>description</code>) in triage.csv, then "
+        "<code>robofailring build-memory DATA --labels triage.csv --out MEMORY</code> and triage again with "
+        "<code>--memory MEMORY</code>.</p>" + f"<table>{head}\n{rows}</table>\n</body></html>\n"
     )
     write_text_atomic(out, page)
     return out

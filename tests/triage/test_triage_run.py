@@ -112,6 +112,13 @@ def test_an_episode_too_short_to_score_ranks_last_and_is_listed(runs, tmp_path: 
     assert any("run_99" in str(s.path) and "not scored" in s.reason for s in result.skipped_inputs)
 
 
+def test_the_only_run_of_its_task_is_listed_as_not_scored(tmp_path: Path) -> None:
+    data, _ = write_unlabelled_runs(tmp_path / "runs", successes=1, failures=())
+    result = run_triage(_config(data, tmp_path))
+    assert [s.scored for s in result.ranked] == [False]
+    assert any("nothing of task 'pick_cube' to compare it with" in s.reason for s in result.skipped_inputs)
+
+
 def test_the_reference_is_a_fixed_sample_when_a_task_has_many_runs(runs, tmp_path: Path) -> None:
     data, truth = runs
     first = run_triage(_config(data, tmp_path, reference_runs=6))
