@@ -116,7 +116,9 @@ def test_the_only_run_of_its_task_is_listed_as_not_scored(tmp_path: Path) -> Non
     data, _ = write_unlabelled_runs(tmp_path / "runs", successes=1, failures=())
     result = run_triage(_config(data, tmp_path))
     assert [s.scored for s in result.ranked] == [False]
-    assert any("nothing of task 'pick_cube' to compare it with" in s.reason for s in result.skipped_inputs)
+    assert any(
+        "holds nothing of task 'pick_cube' the novelty rule" in s.reason for s in result.skipped_inputs
+    )
 
 
 def test_the_reference_is_a_fixed_sample_when_a_task_has_many_runs(runs, tmp_path: Path) -> None:

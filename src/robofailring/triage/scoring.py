@@ -79,15 +79,12 @@ def score_episode(detector: FailureDetector, trajectory: Trajectory, *, mode: st
         length=trace.length,
         skipped=tuple(trace.short_views),
     )
-    if not np.isfinite(curve).any():  # e.g. the only run of its task: nothing left to compare it with
-        where = trajectory.source or Path(trajectory.key)
-        return replace(
-            base,
-            skipped=(
-                *base.skipped,
-                Skipped(where, f"not scored: nothing of task {trajectory.task!r} to compare it with"),
-            ),
+    if not np.isfinite(curve).any():  # e.g. the only run of its task, or the memory's only failure of it
+        why = (
+            f"not scored: with its own episode left out, the memory holds nothing of task {trajectory.task!r} "
+            f"the {rule.name} rule compares with"
         )
+        return replace(base, skipped=(*base.skipped, Skipped(trajectory.source or Path(trajectory.key), why)))
     frame = int(np.nanargmax(curve))
     view = max(trace.views, key=lambda v: float(np.nan_to_num(judged[v][frame], nan=-np.inf)))
     nearest = trace.neighbors(view, frame)
