@@ -3,7 +3,6 @@ streaming (one at a time; only its small summary is kept), and rank them."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Final
@@ -65,10 +64,6 @@ class TriageResult:
     notes: list[str] = field(default_factory=list)
     skipped_inputs: list[Skipped] = field(default_factory=list)
 
-    @property
-    def not_scored(self) -> list[EpisodeScore]:
-        return [score for score in self.ranked if not score.scored]
-
 
 def load_episodes(config: TriageConfig) -> tuple[list[Trajectory], list[Skipped]]:
     """The data's episodes as unlabelled runs, with the outcomes of `config.labels` applied."""
@@ -83,7 +78,7 @@ def load_episodes(config: TriageConfig) -> tuple[list[Trajectory], list[Skipped]
     return found, skipped
 
 
-def run_triage(config: TriageConfig, *, progress: Callable[[int], None] | None = None) -> TriageResult:
+def run_triage(config: TriageConfig) -> TriageResult:
     """Score and rank every episode of `config.data` (docs/triage.md)."""
     trajectories, skipped = load_episodes(config)
     tasks = list(dict.fromkeys(t.task for t in trajectories))
@@ -95,8 +90,6 @@ def run_triage(config: TriageConfig, *, progress: Callable[[int], None] | None =
                 score_episode(reference.detector, trajectory, mode=reference.modes[trajectory.task])
             )
             bar.update(1)
-            if progress is not None:
-                progress(1)
     scales = _scales(reference, scores, trajectories)
     ranked = rank(scores, scales)
     notes = list(reference.notes)
