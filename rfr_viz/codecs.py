@@ -20,8 +20,8 @@ class CameraCodec(StrEnum):
 
 
 #: `auto` picks AV1 when one view's stream has at least this many pixels (frames × width × height),
-#: JPEG below: e.g. 256 px × 256 px × 31 frames. Measured by bench/bench_video.py (README "Camera
-#: codecs"): below it a view's JPEGs take ~0.1 MB or less and AV1 saves under 0.1 MB at a lower PSNR;
+#: JPEG below: e.g. 256 px × 256 px × 31 frames. Measured by bench/bench_video.py (docs/codecs.md,
+#: "Camera codecs"): below it a view's JPEGs take ~0.1 MB or less and AV1 saves under 0.1 MB at a lower PSNR;
 #: at it AV1 takes 0.42× the bytes, on the real 256 px × 69-frame episode 0.14×, at 480 px 0.17×.
 AUTO_AV1_PIXELS: Final[int] = 2_000_000
 

@@ -1,4 +1,4 @@
-"""Every Rerun entity path, timeline and property name of a recording (README, "The recording layout"), in one place."""
+"""Every Rerun entity path, timeline and property name of a recording (docs/recording.md, "The recording layout"), in one place."""
 
 from __future__ import annotations
 

@@ -16,9 +16,10 @@ fi
 .venv/bin/python -m pip install --quiet --upgrade pip
 dev=""
 if [ "${1:-}" = "--dev" ]; then dev=1; fi
-# Every extra (README, "Install"), and with --dev the test tools; torch/torchvision: the registry's
-# matching pair, pinned in constraints.txt (README, "Why this torch").
-.venv/bin/python -m pip install --quiet -c constraints.txt -e ".[all${dev:+,dev}]"
+# Every extra (docs/install.md, "Install"), and with --dev the test tools and the docs site's (the full
+# lane builds it); torch/torchvision: the registry's matching pair, pinned in constraints.txt
+# (docs/install.md, "Why this torch").
+.venv/bin/python -m pip install --quiet -c constraints.txt -e ".[all${dev:+,dev,docs}]"
 # The Rerun viewer renders headless only with Mesa's software Vulkan driver (lavapipe).
 if ! ldconfig -p 2>/dev/null | grep -q libvulkan.so.1 || [ ! -e /usr/share/vulkan/icd.d/lvp_icd.x86_64.json ]; then
   if [ "$(id -u)" = "0" ] && command -v apt-get >/dev/null; then

@@ -1,8 +1,8 @@
 """Camera streams of a recording as JPEG images or as compressed video (`rr.VideoStream`).
 
 Real cameras (256–640 px at 15–30 fps) make per-frame JPEGs the bulk of a recording; AV1 and
-H.264 store the same frames at a fraction of the bytes (measured by `bench/bench_video.py`, see the
-README). Video is encoded here with PyAV, without B-frames (Rerun's video streams do not take
+H.264 store the same frames at a fraction of the bytes (measured by `bench/bench_video.py`, see
+docs/codecs.md, "Camera codecs"). Video is encoded here with PyAV, without B-frames (Rerun's video streams do not take
 them), one keyframe every KEYFRAME_INTERVAL frames so that showing an arbitrary frame decodes at
 most that many. The native viewer decodes AV1 itself; H.264 needs ffmpeg ≥ 5.1 on the viewer's
 machine. Neighbour and success-frame images stay JPEG images whatever the codec.

@@ -1,4 +1,4 @@
-"""Replayed trajectories as `.rrd` recordings (README, "The recording layout"): one file per trajectory, blueprint inside."""
+"""Replayed trajectories as `.rrd` recordings (docs/recording.md, "The recording layout"): one file per trajectory, blueprint inside."""
 
 from __future__ import annotations
 

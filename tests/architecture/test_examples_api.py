@@ -1,16 +1,19 @@
-"""The examples (scripts and the notebook) use only the curated API: names of `robofailring.__all__` and
-`rfr_viz.__all__`, imported from the two packages themselves, never from a module inside them."""
+"""The examples (scripts, the notebook, and the Python blocks of README.md and docs/*.md) use only the
+curated API: names of `robofailring.__all__` and `rfr_viz.__all__`, imported from the two packages
+themselves, never from a module inside them."""
 
 from __future__ import annotations
 
 import ast
 import json
+import re
 from pathlib import Path
 
 import rfr_viz
 import robofailring
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+ROOT = Path(__file__).resolve().parents[2]
+EXAMPLES = ROOT / "examples"
 PUBLIC = {"robofailring": set(robofailring.__all__), "rfr_viz": set(rfr_viz.__all__)}
 
 
@@ -20,6 +23,9 @@ def _sources() -> dict[str, str]:
     for path in sorted(EXAMPLES.glob("*.ipynb")):
         cells = json.loads(path.read_text())["cells"]
         found[path.name] = "\n\n".join("".join(c["source"]) for c in cells if c["cell_type"] == "code")
+    for page in [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]:
+        blocks = re.findall(r"^```python\n(.*?)^```", page.read_text(), re.MULTILINE | re.DOTALL)
+        found |= {f"{page.name} block {i}": block for i, block in enumerate(blocks, 1)}
     return found
 
 
@@ -51,7 +57,9 @@ def _private_uses(source: str) -> list[str]:
 
 def test_examples_use_only_the_curated_api() -> None:
     sources = _sources()
-    assert {"notebook.ipynb", "closed_loop_sim.py", "build_memory_from_aha.py"} <= set(sources)
+    assert {"notebook.ipynb", "closed_loop_sim.py", "build_memory_from_aha.py", "README.md block 1"} <= set(
+        sources
+    )
     assert {name: _private_uses(source) for name, source in sources.items()} == {name: [] for name in sources}
 
 

@@ -1,5 +1,5 @@
 """`pip install robofailring` without extras: a fresh venv runs the core verbs and the step API, and
-every verb that needs an extra ends in one line naming it (README, "Install").
+every verb that needs an extra ends in one line naming it (docs/install.md, "Install").
 
 The venv gets pip from this interpreter (`pip --python`), the project as a wheel built from the
 checkout, and its core dependencies from the package index (pip's own cache, ~/.cache/pip, is reused

@@ -158,7 +158,7 @@ def test_view_folders_of_one_episode_stay_one_episode(tmp_path: Path, names: dic
 def test_folders_of_images_numbered_alone_are_one_episode_and_a_dataset_verb_says_so(
     tmp_path: Path, caplog: pytest.LogCaptureFixture
 ) -> None:
-    """`runs/run_0/000.png` looks like `ep/front/000.png`: read as README says, one episode, with a warning."""
+    """`runs/run_0/000.png` looks like `ep/front/000.png`: read as docs/data.md says, one episode, with a warning."""
     root = tmp_path / "runs"
     for run in range(3):
         write_frames(root / f"run_{run}", [f"{t:06d}.png" for t in range(3)], value=run)

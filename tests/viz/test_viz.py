@@ -1,4 +1,4 @@
-"""rfr_viz: recordings written, then read back with RrdReader and checked value by value (README, "The recording layout")."""
+"""rfr_viz: recordings written, then read back with RrdReader and checked value by value (docs/recording.md, "The recording layout")."""
 
 from __future__ import annotations
 

@@ -3,7 +3,7 @@
 The task and outcome come from the folder name where it follows the AHA or ManiSkill naming, else
 from `--task`. Read as a dataset (`load_dataset`: build-memory, evaluate, …), a folder whose views
 are sub-folders of images could also be a root of episodes of one camera each (`runs/run_0/000.png`);
-it is read as one episode, as README's layouts say, with a warning saying so and how to name the
+it is read as one episode (docs/data.md, "One camera per episode"), with a warning saying so and how to name the
 images for the other reading.
 """
 

@@ -6,7 +6,7 @@ name is neither the folder's nor a word for a frame (`frame`, `img`, `image`: `f
 and the root holds two such folders or more (`runs/run_0/front_0.png`, `runs/run_1/front_0.png`:
 episodes of one camera, view `front`). A root whose folders hold images named by a number alone (`run_0/000123.png`) or by
 a frame word (`frame_000123.png`) is ambiguous — views of one episode (`ep/front/000123.png`) look
-the same — and is left to one episode folder (README, "Folders of image episodes"). The task:
+the same — and is left to one episode folder (docs/data.md, "Folders of image episodes"). The task:
 `--task`, else the `task` column of the labels file, else an AHA-style episode name; outcome and
 symbol from that name or `--labels`. Trajectories are keyed by the episode folder's name.
 """

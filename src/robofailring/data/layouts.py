@@ -1,4 +1,4 @@
-"""Dataset layouts (README, "Data layouts read"): one module per layout, tried in the order of `LAYOUTS`."""
+"""Dataset layouts (docs/data.md, "Data layouts read"): one module per layout, tried in the order of `LAYOUTS`."""
 
 from __future__ import annotations
 

@@ -1,9 +1,9 @@
 """Scoring rules: which score the detector thresholds, each rule one class behind one interface.
 
 `paper` is the rule of paper §3.3 (eq. 6–7): S⁻_t ≥ δ. `contrast` is this project's addition
-(README, "Success contrast"): the same query is also matched against the task's success runs, and
+(docs/rules.md, "Success contrast"): the same query is also matched against the task's success runs, and
 the alarm needs the current state to be nearer a failure's end than anything seen in a normal run,
-C_t = S⁻_t − S⁺_t ≥ γ. `novelty` needs no failure at all (README, "Success runs only"): how far
+C_t = S⁻_t − S⁺_t ≥ γ. `novelty` needs no failure at all (docs/rules.md, "Success runs only"): how far
 the current pair is from anything seen in the task's success runs, N_t = 1 − S⁺_t ≥ η. Every
 threshold is set by split-conformal calibration (`robofailring.detection.conformal`).
 

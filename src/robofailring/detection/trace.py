@@ -84,7 +84,7 @@ class DetectionTrace(RuleThresholds):
     @property
     def short_views(self) -> list[Skipped]:
         """The views not scored for having fewer than 2 frames, as inputs skipped: every verb lists them
-        and ends with status 3, as build-memory does (README, "What happens when things go wrong")."""
+        and ends with status 3, as build-memory does (docs/errors.md, "When things go wrong")."""
         where = self.source if self.source is not None else Path(self.task, self.episode)
         return [
             Skipped(

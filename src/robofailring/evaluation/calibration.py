@@ -1,4 +1,4 @@
-"""Calibration with a guarantee (README, "Calibration with a guarantee"): δ, γ and η from success runs.
+"""Calibration with a guarantee (docs/rules.md, "Calibration with a guarantee"): δ, γ and η from success runs.
 
 Each success run is replayed with its own episode hidden from both memories (leave-one-out), so
 its frames never match themselves in the success memory; its peak score over frames and views is

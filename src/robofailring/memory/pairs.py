@@ -7,7 +7,7 @@ halves for every run alike and the contrast between failure and success shrinks.
 
 `change` keeps the first frame as context at half weight and holds the current frame as what
 changed since it: ``norm([½·z_0 ‖ z_t − z_0])``. A new look shifts z_0 and z_t alike, so the
-change half carries over to it (README, "Pairing: what changed since the first frame"). At t = 0 the
+change half carries over to it (docs/memory.md, "Pairing: what changed since the first frame"). At t = 0 the
 change is zero and the vector is the first frame alone.
 """
 
@@ -23,7 +23,7 @@ from robofailring.errors import SettingError
 CONCAT: Final[str] = "concat"  # the paper's pairing, eq. 2–4
 CHANGE: Final[str] = "change"  # the first frame at half weight beside what changed since it
 PAIRINGS: Final[tuple[str, ...]] = (CONCAT, CHANGE)
-DEFAULT_PAIRING: Final[str] = CHANGE  # the benchmark's best (README, "Pairing")
+DEFAULT_PAIRING: Final[str] = CHANGE  # the benchmark's best (docs/memory.md, "Pairing")
 CHANGE_START_WEIGHT: Final[float] = 0.5  # the first frame's weight beside the change
 
 

@@ -1,0 +1,169 @@
+"""The README is a front door and the pages under docs/ hold the rest: the README's example runs, every
+citation of a page names a section it has, every command line shown is the command's own, every page
+is in the site's nav. (The site itself is built strictly in tests/docs/test_site.py.)"""
+
+from __future__ import annotations
+
+import functools
+import re
+from pathlib import Path
+from typing import Any
+
+import pytest
+import typer
+import yaml
+from synthetic import write_project_dataset
+
+from rfr_viz.cli import reference
+
+ROOT = Path(__file__).resolve().parents[2]
+README = ROOT / "README.md"
+DOCS = ROOT / "docs"
+PAGES = sorted(DOCS.glob("*.md"))
+CITING = ("src", "rfr_viz", "tests", "scripts", "bench", "examples", "docs")
+CITATION = re.compile(r"""docs/([\w-]+\.md),?\s+\(?["“]([^"”]+)["”]""")
+
+
+@functools.cache
+def verbs() -> dict[str, Any]:
+    return reference.verbs()
+
+
+@functools.cache
+def _options(verb: str) -> set[str]:
+    command = verbs()[verb]
+    return {option for param in command.get_params(typer.Context(command)) for option in param.opts}
+
+
+def _blocks(path: Path, languages: tuple[str, ...]) -> list[str]:
+    """The fenced code blocks of a Markdown file in one of `languages` ("" for a bare fence)."""
+    found = re.findall(r"^```(\w*)\n(.*?)^```", path.read_text(), re.MULTILINE | re.DOTALL)
+    return [code for language, code in found if language in languages]
+
+
+def _headings(page: Path) -> list[str]:
+    text = re.sub(r"^```.*?^```", "", page.read_text(), flags=re.MULTILINE | re.DOTALL)
+    return [m.strip().strip("`") for m in re.findall(r"^#+ (.+)$", text, re.MULTILINE)]
+
+
+def test_the_readme_is_a_front_door() -> None:
+    lines = README.read_text().splitlines()
+    assert len(lines) <= 250
+    first = _blocks(README, ("bash",))[0]
+    assert [line.split("#")[0].strip() for line in first.splitlines()] == [
+        "bash scripts/demo.sh",
+        "bash scripts/test.sh",
+    ]
+    assert (
+        "docs/evaluation_summary.png" in README.read_text()
+        or "docs/contrast_detection.png" in README.read_text()
+    )
+    assert all((ROOT / link).is_file() for link in re.findall(r"\]\((docs/[^)#]+)", README.read_text()))
+
+
+def test_the_readme_example_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys) -> None:
+    """The README's Python, as written, on a small dataset in the project's layout named as it says."""
+    (example,) = _blocks(README, ("python",))
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("ROBOFAILRING_CACHE", str(tmp_path / "cache"))
+    # 20 training successes: enough for α = 5 % (19); episode 1 of each kind is in the test split
+    write_project_dataset(
+        tmp_path / "sim", tasks=("pick_cube",), symbols=("grasp_wp2",), episodes=40, length=5
+    )
+    exec(compile(example, str(README), "exec"), {"__name__": "readme_example"})
+    printed = capsys.readouterr().out.splitlines()
+    assert printed[0] == "None" or 0 <= int(printed[0]) < 5
+    assert (tmp_path / "memories" / "sim" / "manifest.json").is_file()
+
+
+def _cited() -> list[tuple[str, str, str]]:
+    """(file, page, section) of every `docs/<page>.md, "<section>"` citation in code, tests and docs."""
+    files = [
+        path
+        for folder in CITING
+        for path in (ROOT / folder).rglob("*")
+        if path.suffix in (".py", ".md", ".sh")
+    ]
+    files += [ROOT / "pyproject.toml", ROOT / "constraints.txt", README]
+    return [
+        (str(path.relative_to(ROOT)), page, " ".join(section.split()))
+        for path in files
+        for page, section in CITATION.findall(path.read_text())
+    ]
+
+
+def test_citations_name_a_section_of_their_page() -> None:
+    cited = _cited()
+    assert len(cited) > 15  # the citations were found
+    wrong = [
+        (where, page, section)
+        for where, page, section in cited
+        if not (DOCS / page).is_file()
+        or not any(h.lower().startswith(section.lower()) for h in _headings(DOCS / page))
+    ]
+    assert wrong == []
+
+
+def test_nothing_cites_the_readme_for_a_section() -> None:
+    """The README keeps no manual sections: code citing one (`README, "…"`) cites a page of docs/."""
+    files = [path for folder in CITING for path in (ROOT / folder).rglob("*.py") if path != Path(__file__)]
+    assert [str(p.relative_to(ROOT)) for p in files if re.search(r"README,? \"", p.read_text())] == []
+
+
+def _commands(text: str) -> list[list[str]]:
+    """Each `robofailring VERB …` command of a code block, as its words (comments dropped)."""
+    commands = []
+    for line in text.splitlines():
+        words = line.split("#")[0].split()
+        if words[:1] == ["robofailring"] and len(words) > 1 and re.fullmatch(r"[a-z][a-z-]*", words[1]):
+            commands.append(words[1:])
+    return commands
+
+
+@pytest.mark.parametrize("page", [README, *PAGES], ids=lambda p: p.name)
+def test_command_lines_shown_are_the_commands_own(page: Path) -> None:
+    """Every `robofailring VERB --option` in a code block names a verb and options it has."""
+    wrong = []
+    for block in _blocks(page, ("bash", "")):
+        for verb, *words in _commands(block):
+            if verb not in verbs():
+                wrong.append(verb)
+                continue
+            wrong += [
+                f"{verb} {w}" for w in words if w.startswith("--") and w.split("=")[0] not in _options(verb)
+            ]
+    assert wrong == []
+
+
+def test_the_command_line_page_has_every_verb_and_only_its_options() -> None:
+    """docs/cli.md's overview (in words) has an item per verb, whose options are the verb's own."""
+    rows = re.findall(r"^- `([a-z-]+)([^`]*)`: ", (DOCS / "cli.md").read_text(), re.MULTILINE)
+    assert sorted(verb for verb, _ in rows) == sorted(verbs())
+    wrong = [
+        f"{verb} {option}"
+        for verb, synopsis in rows
+        for option in re.findall(r"--[a-z][a-z-]*", synopsis)
+        if option not in _options(verb)
+    ]
+    assert wrong == []
+
+
+def _nav_pages(nav: list) -> list[str]:
+    pages = []
+    for item in nav:
+        for value in item.values() if isinstance(item, dict) else [item]:
+            pages += _nav_pages(value) if isinstance(value, list) else [value]
+    return pages
+
+
+def test_every_page_is_in_the_sites_nav() -> None:
+    config = yaml.safe_load((ROOT / "mkdocs.yml").read_text())
+    nav = _nav_pages(config["nav"])
+    assert sorted(nav) == sorted(page.name for page in PAGES)
+    assert config["strict"] is True
+
+
+@pytest.mark.parametrize("page", [README, *PAGES], ids=lambda p: p.name)
+def test_pages_cite_no_path_of_this_machine(page: Path) -> None:
+    text = page.read_text()
+    assert "../shared" not in text and "/work/" not in text
