@@ -183,3 +183,20 @@ CLOSED_LOOP_SUMMARY: Final[str] = "/summary"  # static TextDocument (markdown): 
 EVALUATION_APPLICATION_ID: Final[str] = "robofailring-evaluation"
 EVAL_ROOT: Final[str] = "/eval"  # /eval/<name>/<chart key>: roc, sweep_<rule>, recall_per_type, …
 EVAL_SUMMARY: Final[str] = "/eval/summary"  # TextDocument: the markdown tables
+
+
+# Triage (rfr_viz.recordings.triage): every episode of a dataset, ranked; one entity per rank.
+TRIAGE_ROOT: Final[str] = "/triage"
+TRIAGE_RANKING: Final[str] = "/triage/ranking"  # static TextDocument (markdown): the ranked table
+TRIAGE_SCORES: Final[str] = "/triage/scores"  # static BarChart: each episode's ranking score, in rank order
+TRIAGE_CURVES: Final[str] = "/triage/curves"  # every episode's score curve, one entity each (triage_curve)
+
+
+def triage_curve(rank: int) -> str:
+    """Scalars on the frame timeline: the score curve of the episode ranked `rank` (1: least normal)."""
+    return f"{TRIAGE_CURVES}/{rank:04d}"
+
+
+def triage_episode(rank: int) -> str:
+    """The episode ranked `rank`: static `peak` (EncodedImage, its frame at its peak) and `info` (TextDocument)."""
+    return f"{TRIAGE_ROOT}/episodes/{rank:04d}"

@@ -189,3 +189,36 @@ def write_labelled_runs(
         writer.writeheader()
         writer.writerows(rows)
     return root, labels
+
+
+def write_unlabelled_runs(
+    root: Path,
+    *,
+    successes: int = 13,
+    failures: tuple[str, ...] = ("grasp_wp2", "no_rotation_wp1", "rotation_x_wp1"),
+    task: str = "pick_cube",
+    length: int = 6,
+    views: tuple[str, ...] = ("front", "wrist"),
+    size: int = 32,
+) -> tuple[Path, dict[str, str]]:
+    """Image episodes `run_<i>` whose names say neither task nor outcome: `successes` normal runs (each
+    like some other one: four starting offsets, and a little noise of its own) and one run per symbol
+    of `failures` (these three move differently from each other), spread among them. Returns the root
+    and the truth (`success` or the failure's symbol) by episode name."""
+    kinds: list[str | None] = [None] * successes
+    for position, symbol in enumerate(failures):
+        kinds.insert(min(len(kinds), 3 + position * 5), symbol)
+    truth = {}
+    for run, symbol in enumerate(kinds):
+        folder = root / f"run_{run:02d}"
+        folder.mkdir(parents=True, exist_ok=True)
+        shift = run % 4 if symbol is None else 1
+        for v, view in enumerate(views):
+            for t in range(length):
+                frame = synthetic_frame(task, symbol, v, t + shift, length + shift, size=size).astype(
+                    np.int16
+                )
+                noise = np.random.default_rng([run, v, t]).integers(-3, 4, frame.shape)
+                write_png(folder / f"{view}_{t}.png", (frame + noise).clip(0, 255).astype(np.uint8))
+        truth[folder.name] = symbol or "success"
+    return root, truth

@@ -1,4 +1,4 @@
-"""The jobs people run over a whole dataset: `evaluate`, `review`, `compare-encoders` and `demo`."""
+"""The jobs people run over a whole dataset: `evaluate`, `review`, `triage`, `compare-encoders` and `demo`."""
 
 from __future__ import annotations
 
@@ -15,6 +15,7 @@ from robofailring.cli.exit_codes import finish
 from robofailring.cli.options import (
     BandOption,
     CacheOption,
+    DataArgument,
     DataRootOption,
     DeviceOption,
     EncoderOption,
@@ -32,6 +33,7 @@ from robofailring.cli.options import (
     VLMModelOption,
     VLMUrlOption,
     VocabularyOption,
+    print_notes,
     report_skipped,
     vlm_config,
     warn_missing_references,
@@ -207,6 +209,84 @@ def review_cmd(
     for path in result.recordings:
         typer.echo(f"  {open_at_command(path)}")
     finish(skipped=len(result.skipped_inputs))  # listed above
+
+
+@app.command("triage")
+def triage_cmd(
+    data: DataArgument,
+    out: Annotated[
+        Path, typer.Option("--out", help="Folder for triage.csv, triage.rrd, triage.html and replays/.")
+    ],
+    memory: Annotated[
+        Path | None,
+        typer.Option("--memory", help="Judge by this memory, its rules as calibrated (its encoder)."),
+    ] = None,
+    successes: Annotated[
+        Path | None,
+        typer.Option(
+            "--successes",
+            help="A dataset of known-good runs (any layout; every episode a success): a success memory of "
+            "them judges their tasks.",
+        ),
+    ] = None,
+    labels: LabelsOption = None,
+    encoder: EncoderOption = "pixels",
+    replays: Annotated[
+        int,
+        typer.Option(
+            "--replays",
+            help="Replays written for the top of the ranking, each opening at its peak (-1: all).",
+        ),
+    ] = 20,
+    reference_runs: Annotated[
+        int,
+        typer.Option(
+            "--reference-runs",
+            help="A task without known-good runs is judged against at most this many of its other episodes "
+            "(a fixed sample), so memory stays flat however many episodes there are.",
+        ),
+    ] = 100,
+    k: KOption = 5,
+    score: ScoreOption = None,
+    task: TaskOption = None,
+    views: ViewsOption = None,
+    camera_codec: CameraCodecOption = CameraCodec.AUTO,
+    cache_dir: CacheOption = None,
+    device: DeviceOption = None,
+    data_root: DataRootOption = None,
+) -> None:
+    """Rank every episode of a dataset nobody labelled by how unlike normal runs it looks, to label the top.
+
+    Each task is judged by --memory, else by its known-good runs (--successes, the success rows of --labels), else each episode against the task's other episodes (this assumes most runs succeeded).
+    """
+    from rfr_viz.jobs.triage import triage
+    from robofailring.triage import TriageConfig
+
+    outcome = triage(
+        TriageConfig(
+            data=data,
+            out=out,
+            memory=memory,
+            successes=successes,
+            labels=labels,
+            encoder=encoder,
+            k=k,
+            score=score,
+            task=task,
+            views=views,
+            reference_runs=reference_runs,
+            cache_dir=cache_dir,
+            device=device,
+            data_root=data_root,
+        ),
+        replays=replays,
+        camera_codec=camera_codec,
+    )
+    result = outcome.result
+    report_skipped(result.skipped_inputs)
+    print_notes([f"note: {note}" for note in result.notes])
+    typer.echo(outcome.summary(data))
+    finish(skipped=len(result.skipped_inputs))
 
 
 @app.command("compare-encoders")

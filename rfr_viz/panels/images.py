@@ -5,6 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Final
 
+import cv2
+
 from robofailring.data.images import encode_jpeg, read_image
 from robofailring.data.layout_rosbag import BAG_MESSAGE_MARKER, read_bag_reference
 from robofailring.data.model import Frame
@@ -45,3 +47,13 @@ def reference_jpeg(reference: str, *, quality: int = JPEG_QUALITY) -> bytes | No
         return data if is_jpeg(data) else encode_jpeg(read_image(path), quality=quality)
     except (OSError, DataError):
         return None  # a memory image that went missing must not sink the whole recording
+
+
+def thumbnail_jpeg(frame: Frame, *, side: int = 128, quality: int = JPEG_QUALITY) -> bytes:
+    """The frame shrunk to at most `side` pixels a side, as JPEG bytes (a triage thumbnail)."""
+    image = frame.load()
+    scale = side / max(image.shape[:2])
+    if scale < 1:
+        size = (max(1, round(image.shape[1] * scale)), max(1, round(image.shape[0] * scale)))
+        image = cv2.resize(image, size, interpolation=cv2.INTER_AREA)
+    return encode_jpeg(image, quality=quality)

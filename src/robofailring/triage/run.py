@@ -1,0 +1,154 @@
+"""The triage job's library part: load the data, choose each task's reference, score every episode
+streaming (one at a time; only its small summary is kept), and rank them."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Final
+
+from robofailring.data.labels import apply_labels, read_labels, unlabelled_rows
+from robofailring.data.layouts import load_dataset
+from robofailring.data.model import Outcome, Skipped, Trajectory
+from robofailring.detection.detector import DEFAULT_K, FailureDetector, check_k
+from robofailring.detection.rules import rule_named
+from robofailring.encoders import open_encoder
+from robofailring.errors import SettingError
+from robofailring.progress import progress_bar
+from robofailring.triage.ranking import TaskScale, rank
+from robofailring.triage.reference import Reference, built_reference, memory_reference
+from robofailring.triage.scoring import EpisodeScore, score_episode
+from robofailring.triage.table import check_unique_episodes
+
+DEFAULT_REFERENCE_RUNS: Final[int] = 100
+
+
+@dataclass(frozen=True)
+class TriageConfig:
+    data: Path  # the dataset to triage (any layout); outcomes its layout states are not used
+    out: Path  # folder for triage.csv, triage.rrd, triage.html and the replays
+    memory: Path | None = None  # judge by this memory, its rules as calibrated
+    successes: Path | None = None  # a dataset of known-good runs (every episode a success)
+    labels: Path | None = None  # a labels file for the data: its success rows are known-good runs
+    encoder: str = "pixels"  # without --memory (a memory uses its own)
+    k: int = DEFAULT_K
+    score: str | None = None  # the scoring rule; default: the memory's per task, novelty without a memory
+    task: str | None = None  # task of episodes whose names do not say it
+    views: str | None = None  # `--views`
+    reference_runs: int = DEFAULT_REFERENCE_RUNS  # per task, at most this many other episodes as reference
+    cache_dir: Path | None = None
+    device: str | None = None
+    data_root: Path | None = None  # where the memory's images are now, when its data moved
+
+    def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
+        check_k(self.k)
+        if self.score is not None:
+            rule_named(self.score)
+        if self.memory is not None and self.successes is not None:
+            raise SettingError(
+                "--memory and --successes go separately: add the known-good runs to the memory first "
+                "(build-memory SUCCESSES --add-to MEMORY), then triage with --memory"
+            )
+        if self.reference_runs < 2:
+            raise SettingError(f"--reference-runs must be at least 2, got {self.reference_runs}")
+
+
+@dataclass
+class TriageResult:
+    """The ranked episodes, the detector that scored them, and what was not read or not scored."""
+
+    ranked: list[EpisodeScore]
+    detector: FailureDetector
+    modes: dict[str, str]  # per task: the reference it was judged against
+    trajectories: dict[str, Trajectory]  # by key, frames read on demand (for replays and thumbnails)
+    notes: list[str] = field(default_factory=list)
+    skipped_inputs: list[Skipped] = field(default_factory=list)
+
+
+def load_episodes(config: TriageConfig) -> tuple[list[Trajectory], list[Skipped]]:
+    """The data's episodes as unlabelled runs, with the outcomes of `config.labels` applied."""
+    dataset = load_dataset(config.data, task=config.task, views=config.views)
+    found = [replace(t, outcome=None, symbol=None, description=None) for t in dataset.trajectories()]
+    skipped = list(dataset.skipped)
+    if config.labels is not None:
+        found = apply_labels(found, read_labels(config.labels), source=Path(config.labels))
+        blank = unlabelled_rows(Path(config.labels))
+        skipped += [blank] if blank is not None else []
+    check_unique_episodes(found)
+    return found, skipped
+
+
+def run_triage(config: TriageConfig) -> TriageResult:
+    """Score and rank every episode of `config.data` (docs/triage.md)."""
+    trajectories, skipped = load_episodes(config)
+    tasks = list(dict.fromkeys(t.task for t in trajectories))
+    reference = _reference(config, trajectories, tasks, skipped)
+    scores: list[EpisodeScore] = []
+    with progress_bar(total=len(trajectories), desc="triage", unit="episode") as bar:
+        for trajectory in trajectories:
+            scores.append(
+                score_episode(reference.detector, trajectory, mode=reference.modes[trajectory.task])
+            )
+            bar.update(1)
+    scales = _scales(reference, scores, trajectories)
+    ranked = rank(scores, scales)
+    notes = list(reference.notes)
+    for score in ranked:
+        skipped += score.skipped
+    return TriageResult(
+        ranked=ranked,
+        detector=reference.detector,
+        modes=reference.modes,
+        trajectories={t.key: t for t in trajectories},
+        notes=notes,
+        skipped_inputs=skipped,
+    )
+
+
+def _reference(
+    config: TriageConfig, trajectories: list[Trajectory], tasks: list[str], skipped: list[Skipped]
+) -> Reference:
+    if config.memory is not None:
+        return memory_reference(
+            config.memory,
+            tasks,
+            k=config.k,
+            rule=config.score,
+            cache_dir=config.cache_dir,
+            device=config.device,
+            data_root=config.data_root,
+        )
+    known_good: list[Trajectory] = []
+    if config.successes is not None:
+        good = load_dataset(config.successes, task=config.task, views=config.views)
+        skipped += good.skipped
+        known_good = [replace(t, outcome=Outcome.SUCCESS, symbol=None) for t in good if t.task in tasks]
+    encoder = open_encoder(config.encoder, device=config.device, cache_dir=config.cache_dir)
+    return built_reference(
+        trajectories,
+        known_good,
+        encoder,
+        data=config.data,
+        encoder_spec=config.encoder,
+        k=config.k,
+        reference_runs=config.reference_runs,
+        rule=config.score,
+    )
+
+
+def _scales(
+    reference: Reference, scores: list[EpisodeScore], trajectories: list[Trajectory]
+) -> dict[str, TaskScale | None]:
+    """Per task: the scale of the peaks of its episodes not labelled failure and of its known-good runs
+    from elsewhere (`--successes`, each scored leaving itself out)."""
+    failed = {t.key for t in trajectories if t.outcome is Outcome.FAILURE}
+    by_key = {score.key: score for score in scores}
+    peaks: dict[str, list[float]] = {}
+    for score in scores:
+        if score.key not in failed:
+            peaks.setdefault(score.task, []).append(score.peak)
+    for task, runs in reference.runs.items():
+        for run in runs:
+            if run.key not in by_key:
+                peaks.setdefault(task, []).append(score_episode(reference.detector, run, mode="").peak)
+    return {task: TaskScale.of(found) for task, found in peaks.items()}

@@ -1,0 +1,102 @@
+"""The triage loop end to end on the command line: triage unlabelled runs, fill the top rows, build a
+memory from the partly labelled triage.csv, triage again (the ranking improves), and evaluate with it."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import pytest
+from synthetic import write_unlabelled_runs
+from typer.testing import CliRunner
+
+from rfr_viz.cli.app import app
+from robofailring.triage import ranking_quality
+
+runner = CliRunner()
+
+
+def _rows(path: Path) -> list[dict[str, str]]:
+    with path.open(newline="", encoding="utf-8") as handle:
+        return list(csv.DictReader(handle))
+
+
+def _unlabelled_auc(rows: list[dict[str, str]], truth: dict[str, str]) -> float:
+    return ranking_quality([truth[r["episode"]] != "success" for r in rows if not r["outcome"]]).auc
+
+
+@pytest.mark.slow
+def test_fill_the_top_rows_grow_a_memory_and_the_ranking_improves(tmp_path: Path) -> None:
+    # two failures of one kind look alike: against the other runs, each hides behind the other
+    data, truth = write_unlabelled_runs(
+        tmp_path / "runs", failures=("grasp_wp2", "grasp_wp2", "rotation_x_wp1")
+    )
+    out, cache = tmp_path / "out", ["--cache-dir", str(tmp_path / "cache")]
+    common = ["--task", "pick_cube", *cache]
+    first = runner.invoke(app, ["triage", str(data), "--out", str(out), "--replays", "0", *common])
+    assert first.exit_code == 0, first.output
+    assert "assumes most runs of the task succeeded" in first.output
+    rows = _rows(out / "triage.csv")
+    before = _unlabelled_auc(rows[10:], truth)
+    for row in rows[:10]:  # a person labels the top of the ranking
+        kind = truth[row["episode"]]
+        row |= {
+            "outcome": "success" if kind == "success" else "failure",
+            "symbol": "" if kind == "success" else kind,
+        }
+    with (out / "triage.csv").open("w", newline="", encoding="utf-8") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+
+    built = runner.invoke(
+        app,
+        [
+            "build-memory",
+            str(data),
+            "--labels",
+            str(out / "triage.csv"),
+            "--out",
+            str(tmp_path / "memory"),
+            *common,
+        ],
+    )
+    assert built.exit_code == 3, built.output  # the rows not labelled yet are listed as not applied
+    assert "6 row(s) with an empty outcome" in built.output
+
+    second = runner.invoke(
+        app,
+        [
+            "triage",
+            str(data),
+            "--out",
+            str(out),
+            "--memory",
+            str(tmp_path / "memory"),
+            "--replays",
+            "0",
+            *common,
+        ],
+    )
+    # the one labelled failure is the memory's only one: left out, contrast has nothing to judge it by
+    assert second.exit_code == 3, second.output
+    assert "the contrast rule compares with" in second.output
+    again = _rows(out / "triage.csv")
+    assert sum(bool(r["outcome"]) for r in again) == 10  # nothing a person filled in was blanked
+    after = _unlabelled_auc(again, truth)
+    assert after > before and after == 1.0
+
+    evaluated = runner.invoke(
+        app,
+        [
+            "evaluate",
+            str(data),
+            "--labels",
+            str(out / "triage.csv"),
+            "--out",
+            str(tmp_path / "eval"),
+            *common,
+        ],
+    )
+    assert evaluated.exit_code == 3, evaluated.output  # evaluated; the unlabelled rows listed as not applied
+    assert (tmp_path / "eval" / "evaluation.json").is_file()

@@ -1,0 +1,139 @@
+"""`run_triage` on real image episodes: each reference (the task's other runs, known-good runs, a
+memory), what is not scored, and bad settings."""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+from synthetic import write_unlabelled_runs
+
+from robofailring import CachedEncoder, load_dataset, load_encoder
+from robofailring.data.model import Outcome
+from robofailring.errors import DataError, SettingError
+from robofailring.memory.builder import Provenance, build_memories
+from robofailring.triage import TriageConfig, ranking_quality, run_triage
+from robofailring.triage.reference import MEMORY, OTHERS, SUCCESSES
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, str]]:
+    return write_unlabelled_runs(tmp_path_factory.mktemp("runs") / "runs")
+
+
+def _config(data: Path, tmp_path: Path, **changes: object) -> TriageConfig:
+    return TriageConfig(
+        data=data, out=tmp_path / "out", task="pick_cube", cache_dir=tmp_path / "cache", **changes
+    )  # type: ignore[arg-type]
+
+
+def _failed(result_ranked: list, truth: dict[str, str]) -> list[bool]:
+    return [truth[score.episode] != "success" for score in result_ranked]
+
+
+def test_with_nothing_the_failures_stand_out_from_the_other_runs(runs, tmp_path: Path) -> None:
+    data, truth = runs
+    result = run_triage(_config(data, tmp_path))
+    assert result.modes == {"pick_cube": OTHERS}
+    assert "assumes most runs of the task succeeded" in result.notes[0]
+    assert len(result.ranked) == len(truth)
+    assert {s.episode for s in result.ranked[:3]} == {e for e, kind in truth.items() if kind != "success"}
+    top = result.ranked[0]
+    assert top.scored and 0 <= top.frame < 6 and top.view in ("front", "wrist")
+    assert top.thumbnail is not None and top.thumbnail.load().shape == (32, 32, 3)
+    assert top.normal_episode and top.normal_episode != top.episode  # its own episode left out
+    assert top.failure_symbol == ""  # no failure memory: nothing to suggest
+    assert ranking_quality(_failed(result.ranked, truth)).auc == 1.0
+
+
+def test_known_good_runs_from_labels_and_a_labelled_failure(runs, tmp_path: Path) -> None:
+    data, truth = runs
+    labels = tmp_path / "labels.csv"
+    good = [e for e, kind in truth.items() if kind == "success"][:5]
+    failure = next(e for e, kind in truth.items() if kind == "grasp_wp2")
+    with labels.open("w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(["episode", "outcome", "symbol"])
+        writer.writerows([[e, "success", ""] for e in good] + [[failure, "failure", "grasp_wp2"]])
+    result = run_triage(_config(data, tmp_path, labels=labels))
+    assert result.modes == {"pick_cube": SUCCESSES}
+    assert result.notes == []
+    assert ranking_quality(_failed(result.ranked, truth)).auc == 1.0
+    assert all(score.rule == "novelty" for score in result.ranked)  # a success memory judges by N = 1 − S⁺
+    # the labelled failure names the nearest failure at every other episode's peak
+    assert {s.failure_symbol for s in result.ranked if s.episode != failure} == {"grasp_wp2"}
+    assert "grasp" in next(s for s in result.ranked if s.episode != failure).failure_description
+    assert next(s for s in result.ranked if s.episode == failure).failure_symbol == ""  # its own, left out
+    assert result.trajectories[f"pick_cube/{failure}"].outcome is Outcome.FAILURE
+
+
+def test_known_good_runs_from_another_dataset(runs, tmp_path: Path) -> None:
+    data, truth = runs
+    good, _ = write_unlabelled_runs(tmp_path / "good", successes=4, failures=())
+    result = run_triage(_config(data, tmp_path, successes=good))
+    assert result.modes == {"pick_cube": SUCCESSES}
+    assert ranking_quality(_failed(result.ranked, truth)).auc == 1.0
+
+
+def test_a_memory_judges_by_its_rules(runs, tmp_path: Path) -> None:
+    data, truth = runs
+    known, _ = write_unlabelled_runs(tmp_path / "known", successes=4, failures=("grasp_wp2",))
+    failed = {"outcome": Outcome.FAILURE, "symbol": "grasp_wp2"}
+    labelled = [
+        replace(t, **(failed if t.episode == "run_03" else {"outcome": Outcome.SUCCESS}))
+        for t in load_dataset(known, task="pick_cube")
+    ]
+    encoder = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "cache")
+    memory, _ = build_memories(labelled, encoder, provenance=Provenance(data=known, encoder="pixels"))
+    folder = memory.save(tmp_path / "memory")
+    result = run_triage(_config(data, tmp_path, memory=folder))
+    assert result.modes == {"pick_cube": MEMORY}
+    top = result.ranked[0]
+    assert top.rule == "contrast" and top.rank_score > 3  # spreads above the median peak of its task
+    assert truth[top.episode] != "success" and top.failure_symbol == "grasp_wp2"  # the one type it holds
+    # contrast ranks a failure of a type the memory lacks low; the novelty rule does not
+    novelty = run_triage(_config(data, tmp_path, memory=folder, score="novelty"))
+    assert {s.rule for s in novelty.ranked} == {"novelty"}
+    assert ranking_quality(_failed(novelty.ranked, truth)).auc == 1.0
+    with pytest.raises(DataError, match="no run in memory"):
+        run_triage(TriageConfig(data=data, out=tmp_path / "o2", task="push_cube", memory=folder))
+
+
+def test_an_episode_too_short_to_score_ranks_last_and_is_listed(runs, tmp_path: Path) -> None:
+    data, _ = write_unlabelled_runs(tmp_path / "runs", successes=5, failures=("grasp_wp2",))
+    short = data / "run_99"
+    short.mkdir()
+    (data / "run_00" / "front_0.png").rename(short / "front_0.png")
+    result = run_triage(_config(data, tmp_path))
+    last = result.ranked[-1]
+    assert last.episode == "run_99" and not last.scored
+    assert any("run_99" in str(s.path) and "not scored" in s.reason for s in result.skipped_inputs)
+
+
+def test_the_only_run_of_its_task_is_listed_as_not_scored(tmp_path: Path) -> None:
+    data, _ = write_unlabelled_runs(tmp_path / "runs", successes=1, failures=())
+    result = run_triage(_config(data, tmp_path))
+    assert [s.scored for s in result.ranked] == [False]
+    assert any(
+        "holds nothing of task 'pick_cube' the novelty rule" in s.reason for s in result.skipped_inputs
+    )
+
+
+def test_the_reference_is_a_fixed_sample_when_a_task_has_many_runs(runs, tmp_path: Path) -> None:
+    data, truth = runs
+    first = run_triage(_config(data, tmp_path, reference_runs=6))
+    again = run_triage(_config(data, tmp_path, reference_runs=6))
+    assert "other 5 episode(s)" in first.notes[0]
+    assert [s.episode for s in first.ranked] == [s.episode for s in again.ranked]
+    assert len(first.ranked) == len(truth)
+
+
+def test_bad_settings_fail_before_any_work(tmp_path: Path) -> None:
+    with pytest.raises(SettingError, match="--memory and --successes"):
+        TriageConfig(data=tmp_path, out=tmp_path / "o", memory=tmp_path, successes=tmp_path)
+    with pytest.raises(SettingError, match="--reference-runs"):
+        TriageConfig(data=tmp_path, out=tmp_path / "o", reference_runs=1)
+    with pytest.raises(SettingError, match="k"):
+        TriageConfig(data=tmp_path, out=tmp_path / "o", k=0)
