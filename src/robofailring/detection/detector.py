@@ -323,8 +323,7 @@ class FailureDetector(RuleThresholds):
         )
 
     def threshold_at(self, rule: ScoringRule, t: int, view: str | None = None) -> float:
-        """`rule`'s threshold on `view`'s raw score at frame index `t`: θ, or μ_t + θ·σ_t with a band (the
-        view's own with a band per view; without `view`, the band of the max over views)."""
+        """`rule`'s threshold on `view`'s raw score at frame `t`: θ, or μ_t + θ·σ_t with a band (its view's)."""
         band = self.bands.get(rule.name)
         threshold = self.threshold_of(rule)
         return threshold if band is None else band.line_at(threshold, t, view)

@@ -246,6 +246,7 @@ class Calibration:
     fpr_spread: FprSpread | None = None  # the realised test FPR's range with these `successes` runs
     band: str = NONE  # the thresholds' time-indexed band (none: each threshold is one number)
     band_asked: str = NONE  # the band asked for (none is used with fewer than MIN_BAND_RUNS runs)
+    fusion: str = DEFAULT_FUSION  # per-view: each view corrected by its own band before the max
 
     @property
     def delta(self) -> float | None:
@@ -279,6 +280,7 @@ class Calibration:
                 f"time-indexed band {self.band!r}: each threshold applies to the score corrected by the "
                 + ("mean" if self.band == "shift" else "mean and spread")
                 + " of these runs' scores at the same frame (a line over time on the raw score)"
+                + ("; each view by its own runs' scores (fusion per-view)" if self.fusion != MAX else "")
             )
         for name, threshold in self.thresholds.items():
             rule = rule_named(name)
@@ -368,6 +370,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
         fpr_spread=spread,
         band=next((c.band.kind for c in found.values() if c.band is not None), NONE),
         band_asked=config.band,
+        fusion=config.fusion,
     )
 
 
