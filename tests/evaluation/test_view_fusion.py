@@ -60,6 +60,7 @@ def test_per_view_bands_are_calibrated_stored_and_judge_detect_and_the_live_step
     views = set(loaded.manifest.views or [])
     assert len(views) >= 2 and set(stored["rules"]["contrast"]["band"]["views"]) == views
     assert "band" not in stored["rules"][PAPER.name]  # δ stays one number
+    assert stored["method"] == "split conformal, own episode left out, a band per view"
     encoder = CachedEncoder(load_encoder("pixels"), cache_dir=cache)
     detector = FailureDetector(loaded, encoder)
     # γ is the conformal threshold of the runs' peaks, each view corrected by the band of the other runs

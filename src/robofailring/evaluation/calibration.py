@@ -349,7 +349,8 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
         StoredCalibration(
             encoder=memory.encoder,
             rules={rule.name: _stored_rule(calibration) for rule, calibration in found.items()},
-            method="split conformal, own episode left out",
+            method="split conformal, own episode left out"
+            + (", a band per view" if config.fusion != MAX else ""),
             target_fpr=config.target_fpr,
             successes=widest.successes,
             data=str(Path(config.data).resolve()),
