@@ -14,7 +14,8 @@ and it is cached under the robofailring cache dir by its recipe (generator sourc
 sizes, seeds). It is then one root of episode folders with three labels files naming each
 episode's task, outcome, symbol, onset and split: `labels.csv` (ID halves `train`/`test`, the OOD
 set `ood`), `labels-swapped.csv` (the halves exchanged). The cells are bench_quality.py's:
-`ID`, `ID swapped`, `OOD`, `OOD + 2 deployment successes/task`, each through `run_evaluation`.
+`ID`, `ID swapped`, `OOD`, `OOD + 2 deployment successes/task`, each through `run_evaluation`, once with the project's defaults
+and once with `fusion=per-view` (each view corrected by a band of its own before the max).
 """
 
 from __future__ import annotations
@@ -59,6 +60,9 @@ OOD_SET: dict[str, Any] = {
 # calibration or test)
 RANDOM_SET: dict[str, Any] = {"seed": 900_000, "size": 64, "frames": 28, "ood": True}
 DEFAULT = Variant("default", {})  # the project's defaults: no EvaluateConfig field changed
+PER_VIEW = Variant(
+    "per-view", {"fusion": "per-view"}
+)  # each view corrected by its own band (docs/bench_peer.md)
 LABEL_COLUMNS = ("episode", "task", "outcome", "symbol", "onset_frame", "description", "split")
 
 
@@ -331,7 +335,8 @@ def main() -> None:
         "--variant",
         action="append",
         type=Variant.parse,
-        help="LABEL:FIELD=VALUE,... of EvaluateConfig, e.g. hand:views=hand (repeatable; one more block each)",
+        help="LABEL:FIELD=VALUE,... of EvaluateConfig, e.g. hand:views=hand (repeatable; one more block each; "
+        "default: the project's defaults and per-view:fusion=per-view)",
     )
     parser.add_argument(
         "--randomize",
@@ -365,7 +370,7 @@ def main() -> None:
         )
     rows: list[PeerRow] = []
     for encoder, swapped_encoder in pairs:
-        for variant in args.variant or [DEFAULT]:
+        for variant in args.variant or [DEFAULT, PER_VIEW]:
             rows += evaluate_encoder(
                 encoder, swapped_encoder, peer, alpha=args.alpha, out=cache / "runs", variant=variant
             )

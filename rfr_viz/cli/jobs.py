@@ -20,6 +20,7 @@ from robofailring.cli.options import (
     DeviceOption,
     EncoderOption,
     FailureFramesOption,
+    FusionOption,
     KOption,
     LabelsOption,
     PairingOption,
@@ -39,6 +40,7 @@ from robofailring.cli.options import (
     warn_missing_references,
 )
 from robofailring.detection.band import DEFAULT_BAND
+from robofailring.detection.view_bands import DEFAULT_FUSION
 from robofailring.memory.entry import DENSE
 from robofailring.memory.pairs import DEFAULT_PAIRING
 from robofailring.memory.thinning import DEFAULT_STEP
@@ -79,6 +81,7 @@ def evaluate_cmd(
     failure_frames: FailureFramesOption = None,
     pairing: PairingOption = None,
     band: BandOption = DEFAULT_BAND,
+    fusion: FusionOption = DEFAULT_FUSION,
     growth: Annotated[
         str | None,
         typer.Option(
@@ -128,6 +131,7 @@ def evaluate_cmd(
             failure_frames=failure_frames or DENSE,
             pairing=pairing or DEFAULT_PAIRING,
             band=band,
+            fusion=fusion,
             folds=FoldPlan.parse(folds) if folds is not None else None,
         ),
         growth=parse_growth(growth) if growth is not None else (),

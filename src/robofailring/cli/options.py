@@ -15,6 +15,7 @@ import typer
 from robofailring.data.model import Skipped
 from robofailring.detection.band import BAND_KINDS, DEFAULT_BAND
 from robofailring.detection.rules import RULES
+from robofailring.detection.view_bands import DEFAULT_FUSION, FUSIONS
 from robofailring.errors import SettingError
 from robofailring.extras import require
 from robofailring.memory.references import ReferenceCheck
@@ -59,6 +60,15 @@ BandOption = Annotated[
         help=f"Time-indexed thresholds, one of {', '.join(BAND_KINDS)}: the contrast and novelty scores are "
         "corrected by the calibration successes' mean (shift) or mean and spread (norm) at the same frame "
         f"index before their peak is calibrated; none: one threshold (default {DEFAULT_BAND}).",
+    ),
+]
+FusionOption = Annotated[
+    str,
+    typer.Option(
+        "--fusion",
+        help=f"How the views meet the threshold, one of {', '.join(FUSIONS)}: max, the paper's, fires when any "
+        "view reaches it, every view corrected by one band (of the max over views); per-view corrects each "
+        f"view by a band of its own calibration scores first (default {DEFAULT_FUSION}).",
     ),
 ]
 LabelsOption = Annotated[

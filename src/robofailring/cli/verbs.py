@@ -22,6 +22,7 @@ from robofailring.cli.options import (
     EncoderOption,
     EtaOption,
     FailureFramesOption,
+    FusionOption,
     GammaOption,
     KOption,
     LabelsOption,
@@ -46,6 +47,7 @@ from robofailring.cli.options import (
     warn_missing_references,
 )
 from robofailring.detection.band import DEFAULT_BAND
+from robofailring.detection.view_bands import DEFAULT_FUSION
 from robofailring.errors import SettingError
 from robofailring.memory.thinning import DEFAULT_STEP
 
@@ -270,6 +272,7 @@ def calibrate_cmd(
     split: Annotated[str | None, typer.Option(help="Successes of this split (project layout).")] = "train",
     stride: StrideOption = 1,
     band: BandOption = DEFAULT_BAND,
+    fusion: FusionOption = DEFAULT_FUSION,
     labels: LabelsOption = None,
     task: TaskOption = None,
     views: ViewsOption = None,
@@ -292,6 +295,7 @@ def calibrate_cmd(
             task=task,
             views=views,
             band=band,
+            fusion=fusion,
         )
     )
     report_skipped(result.skipped_inputs)

@@ -19,7 +19,7 @@ fewer than `MIN_BAND_RUNS` calibration runs no band is fitted (calibration says 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Final
 
 import numpy as np
@@ -52,6 +52,13 @@ class Band:
     mean: np.ndarray  # (T,) μ_t
     scale: np.ndarray  # (T,) σ_t (ones for `shift`)
     runs: int  # calibration runs it was fitted on
+    # per view, its own band (fusion `per-view`, robofailring.detection.view_bands); a view not named here
+    # (none, for fusion `max`) is corrected by this band, fitted on the max over views
+    views: dict[str, Band] = field(default_factory=dict)
+
+    def of(self, view: str | None) -> Band:
+        """The band that corrects `view`'s score: its own, else this one."""
+        return self.views.get(view, self) if view is not None else self
 
     def _at(self, values: np.ndarray, frames: np.ndarray) -> np.ndarray:
         return values[np.minimum(frames, len(values) - 1)]
@@ -61,36 +68,41 @@ class Band:
         frames = np.arange(length)
         return self._at(self.mean, frames), self._at(self.scale, frames)
 
-    def correct(self, scores: np.ndarray) -> np.ndarray:
-        """The corrected score of frames 0 … L−1 (NaN stays NaN); `scores` is (L,) or (L, …)."""
+    def correct(self, scores: np.ndarray, view: str | None = None) -> np.ndarray:
+        """The corrected score of frames 0 … L−1 (NaN stays NaN); `scores` is (L,) or (L, …), of `view`."""
+        if view in self.views:
+            return self.views[view].correct(scores)
         scores = np.asarray(scores, dtype=np.float32)
         mean, scale = self.statistic(len(scores))
         shape = (len(scores),) + (1,) * (scores.ndim - 1)
         return ((scores - mean.reshape(shape)) / scale.reshape(shape)).astype(np.float32)
 
-    def line(self, threshold: float, length: int) -> np.ndarray:
-        """The threshold on the raw score at frames 0 … length−1: μ_t + θ·σ_t."""
-        mean, scale = self.statistic(length)
+    def line(self, threshold: float, length: int, view: str | None = None) -> np.ndarray:
+        """The threshold on `view`'s raw score at frames 0 … length−1: μ_t + θ·σ_t."""
+        mean, scale = self.of(view).statistic(length)
         return (mean + threshold * scale).astype(np.float32)
 
-    def line_at(self, threshold: float, t: int) -> float:
-        """μ_t + θ·σ_t at one frame index (a live step)."""
-        frame = min(t, len(self.mean) - 1)
-        return float(self.mean[frame] + threshold * self.scale[frame])
+    def line_at(self, threshold: float, t: int, view: str | None = None) -> float:
+        """μ_t + θ·σ_t of `view` at one frame index (a live step)."""
+        band = self.of(view)
+        frame = min(t, len(band.mean) - 1)
+        return float(band.mean[frame] + threshold * band.scale[frame])
 
     def label(self, symbol: str, threshold: float) -> str:
         """The threshold as the line it is on the raw score: `γ_t = μ_t + 1.230·σ_t (norm band)`."""
         spread = "·σ_t" if self.kind == NORM else ""
-        return f"{symbol}_t = μ_t + {threshold:.3f}{spread} ({self.kind} band)"
+        own = ", each view its own" if self.views else ""
+        return f"{symbol}_t = μ_t + {threshold:.3f}{spread} ({self.kind} band{own})"
 
     def to_dict(self) -> dict[str, Any]:
         """The band as a rule's stored calibration keeps it (`calibration.rules[<rule>].band`)."""
+        own = {"views": {view: band.to_dict() for view, band in self.views.items()}} if self.views else {}
         return {
             "kind": self.kind,
             "runs": self.runs,
             "mean": [round(float(v), 6) for v in self.mean],
             "scale": [round(float(v), 6) for v in self.scale],
-        }
+        } | own
 
     @classmethod
     def from_dict(cls, section: Any, *, where: str) -> Band:
@@ -117,7 +129,13 @@ class Band:
                 f"{where}: a {kind!r} band needs equal-length finite 'mean' and positive 'scale' lists and a "
                 "whole 'runs'; run `robofailring calibrate` again"
             )
-        return cls(kind=kind, mean=mean, scale=scale, runs=runs)
+        views = section.get("views") or {}
+        if not isinstance(views, dict):
+            raise MemoryFormatError(
+                f"{where}: a band's 'views' must be an object by view name, not {views!r}"
+            )
+        own = {view: cls.from_dict(band, where=f"{where}, view {view!r}") for view, band in views.items()}
+        return cls(kind=kind, mean=mean, scale=scale, runs=runs, views=own)
 
 
 def _stacked(runs: Sequence[np.ndarray]) -> np.ndarray:

@@ -322,11 +322,11 @@ class FailureDetector(RuleThresholds):
             source=trajectory.source,
         )
 
-    def threshold_at(self, rule: ScoringRule, t: int) -> float:
-        """`rule`'s threshold on its raw score at frame index `t`: θ, or μ_t + θ·σ_t with a band."""
+    def threshold_at(self, rule: ScoringRule, t: int, view: str | None = None) -> float:
+        """`rule`'s threshold on `view`'s raw score at frame `t`: θ, or μ_t + θ·σ_t with a band (its view's)."""
         band = self.bands.get(rule.name)
         threshold = self.threshold_of(rule)
-        return threshold if band is None else band.line_at(threshold, t)
+        return threshold if band is None else band.line_at(threshold, t, view)
 
 
 class DetectorSession:
@@ -365,7 +365,8 @@ class DetectorSession:
         threshold = detector.threshold_at(rule, self.t)
         scores = ViewScores({view: rule.score(failure[view], success[view]) for view in views}, 1)
         successes = detector.memory.successes
-        fired = scores.firing(threshold, 0)
+        lines = {view: detector.threshold_at(rule, self.t, view) for view in views}  # a band per view
+        fired = scores.firing(lines, 0)
         result = StepResult(
             t=self.t,
             similarity={view: float(failure[view][0]) for view in views},
@@ -380,7 +381,7 @@ class DetectorSession:
             score={view: float(scores.by_view[view][0]) for view in views},
             rule=rule,
             threshold=threshold,
-            detected_view=scores.strongest(threshold, 0),
+            detected_view=scores.strongest(lines, 0),
             success_similarity={view: float(success[view][0]) for view in views},
             nearest_success={
                 view: successes.match(

@@ -112,17 +112,20 @@ class DetectionTrace(RuleThresholds):
         """What `rule`'s threshold judges, per view: its score, corrected by its band when it has one."""
         scores = self.scores_of(rule)
         band = self.bands.get(rule.name)
-        return scores if band is None else {view: band.correct(values) for view, values in scores.items()}
+        return (
+            scores if band is None else {view: band.correct(values, view) for view, values in scores.items()}
+        )
 
-    def threshold_line(self, rule: ScoringRule | None = None) -> np.ndarray:
-        """The threshold of `rule` (default: the trace's) on its raw score, per frame: constant without
-        a band, μ_t + θ·σ_t with one (what a recording draws)."""
+    def threshold_line(self, rule: ScoringRule | None = None, view: str | None = None) -> np.ndarray:
+        """The threshold of `rule` (default: the trace's) on `view`'s raw score, per frame: constant without
+        a band, μ_t + θ·σ_t with one (what a recording draws; with a band per view, `view`'s own, and
+        without `view` the band of the max over views)."""
         rule = rule or self.rule
         threshold = self.threshold_of(rule)
         band = self.bands.get(rule.name)
         if band is None:
             return np.full(self.length, threshold, dtype=np.float32)
-        return band.line(threshold, self.length)
+        return band.line(threshold, self.length, view)
 
     @property
     def band(self) -> Band | None:

@@ -4,15 +4,24 @@ Firing, t_det and the detected view are judged here and nowhere else: the detect
 its trace (`robofailring.detection.trace.DetectionTrace`) and the evaluation's scored trajectories
 (`robofailring.evaluation.metrics.ScoredTrajectory`) all judge through `ViewScores`: the fused score is the max
 over views, a NaN (a frame not scored, or no success memory) counts as −∞ and so never fires, and
-t_det is the first frame whose fused score reaches the threshold.
+t_det is the first frame whose fused score reaches the threshold. A live step may judge each view
+against its own threshold (a band per view, `robofailring.detection.view_bands`): `firing` and
+`strongest` take one threshold or one per view.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import TypeAlias
 
 import numpy as np
+
+Thresholds: TypeAlias = float | Mapping[str, float]  # one for every view, or one per view
+
+
+def _of(threshold: Thresholds, view: str) -> float:
+    return threshold if isinstance(threshold, (int, float)) else threshold[view]
 
 
 @dataclass(frozen=True)
@@ -42,14 +51,16 @@ class ViewScores:
         fired = np.flatnonzero(self.state(threshold, views))
         return int(fired[0]) if fired.size else None
 
-    def firing(self, threshold: float, t: int, views: Sequence[str] | None = None) -> list[str]:
-        """The chosen views whose score at frame `t` reaches `threshold`, in view order (NaN never fires)."""
-        return [v for v in self.chosen(views) if self.by_view[v][t] >= threshold]
+    def firing(self, threshold: Thresholds, t: int, views: Sequence[str] | None = None) -> list[str]:
+        """The chosen views whose score at frame `t` reaches `threshold` (its own, given per view), in view
+        order (NaN never fires)."""
+        return [v for v in self.chosen(views) if self.by_view[v][t] >= _of(threshold, v)]
 
-    def strongest(self, threshold: float, t: int, views: Sequence[str] | None = None) -> str | None:
-        """The firing view with the highest score at frame `t` (the first of equals, in view order), or None."""
+    def strongest(self, threshold: Thresholds, t: int, views: Sequence[str] | None = None) -> str | None:
+        """The firing view whose score at frame `t` is highest over its threshold (with one threshold: the
+        highest score; the first of equals, in view order), or None."""
         fired = self.firing(threshold, t, views)
-        return max(fired, key=lambda v: float(self.by_view[v][t])) if fired else None
+        return max(fired, key=lambda v: float(self.by_view[v][t]) - _of(threshold, v)) if fired else None
 
     def detected_view(self, threshold: float, views: Sequence[str] | None = None) -> str | None:
         """The view with the highest score at t_det (the first of equals, in view order), or None."""

@@ -47,6 +47,14 @@ from robofailring.detection.rules import (
     rule_named,
     rules_for,
 )
+from robofailring.detection.view_bands import (
+    DEFAULT_FUSION,
+    MAX,
+    check_fusion,
+    fused_raw,
+    peak,
+    per_view_peaks,
+)
 from robofailring.errors import DataError
 from robofailring.memory.manifest import StoredCalibration, StoredRule
 from robofailring.progress import progress_bar
@@ -80,18 +88,31 @@ def success_scores(
     successes: Sequence[Trajectory],
     rules: Sequence[ScoringRule],
     *,
+    stride: int = 1,
+) -> dict[ScoringRule, list[np.ndarray]]:
+    """Per rule, each success run's per-frame score (max over views, uncorrected; NaN where unscored),
+    its episode left out of both memories (every `stride`-th frame scored)."""
+    by_view = success_view_scores(detector, successes, rules, stride=stride)
+    return {rule: [fused_raw(run) for run in runs] for rule, runs in by_view.items()}
+
+
+def success_view_scores(
+    detector: FailureDetector,
+    successes: Sequence[Trajectory],
+    rules: Sequence[ScoringRule],
+    *,
     progress: Callable[[int], None] | None = None,
     stride: int = 1,
     too_short: list[str] | None = None,
     short_views: list[Skipped] | None = None,
-) -> dict[ScoringRule, list[np.ndarray]]:
-    """Per rule, each success run's per-frame score (max over views, uncorrected; NaN where unscored),
-    its episode left out of both memories.
+) -> dict[ScoringRule, list[dict[str, np.ndarray]]]:
+    """Per rule, each success run's per-frame score per view (uncorrected; NaN where unscored), its
+    episode left out of both memories.
 
     `stride` scores every N-th frame, as the runs the threshold will judge are scored; the keys of
     runs with no view of 2+ frames (nothing to score) are appended to `too_short`, the views of fewer
     than 2 frames of the runs scored to `short_views`."""
-    scores: dict[ScoringRule, list[np.ndarray]] = {rule: [] for rule in rules}
+    scores: dict[ScoringRule, list[dict[str, np.ndarray]]] = {rule: [] for rule in rules}
     for trajectory in successes:
         try:
             trace = detector.run(trajectory, leave_one_out=True, stride=stride, keep_queries=False)
@@ -100,7 +121,7 @@ def success_scores(
                 too_short.append(trajectory.key)
         else:
             for rule in rules:
-                scores[rule].append(trace.raw_max_score(rule))
+                scores[rule].append(trace.scores_of(rule))
             if short_views is not None:
                 short_views += trace.short_views
         if progress is not None:
@@ -115,15 +136,10 @@ def conformal_peaks(runs: Sequence[np.ndarray], band: str) -> tuple[list[float],
     gives NaN."""
     finite = [run for run in runs if np.isfinite(run).any()]
     if band == NONE or len(finite) < MIN_BAND_RUNS:
-        return [_peak(run) for run in runs], None
+        return [peak(run) for run in runs], None
     others = iter(leave_one_out(band, finite))
-    peaks = [_peak(next(others).correct(run)) if np.isfinite(run).any() else float("nan") for run in runs]
+    peaks = [peak(next(others).correct(run)) if np.isfinite(run).any() else float("nan") for run in runs]
     return peaks, fit_band(band, finite)
-
-
-def _peak(values: np.ndarray) -> float:
-    finite = values[np.isfinite(values)]
-    return float(finite.max()) if finite.size else float("nan")
 
 
 def calibrate_rules(
@@ -137,18 +153,20 @@ def calibrate_rules(
     too_short: list[str] | None = None,
     short_views: list[Skipped] | None = None,
     band: str = DEFAULT_BAND,
+    fusion: str = DEFAULT_FUSION,
     at_best: bool = False,
 ) -> dict[ScoringRule, RuleCalibration]:
     """The conformal threshold of every rule (default: all the memory supports) at level `target_fpr`,
-    on the `band` (`none`, `shift`, `norm`) fitted on the same runs; the paper rule keeps one δ, as in
-    the paper (§3.3).
+    on the `band` (`none`, `shift`, `norm`) fitted on the same runs, its views fused by `fusion`
+    (`robofailring.detection.view_bands`); the paper rule keeps one δ, as in the paper (§3.3).
 
     Too few runs for `target_fpr` are a DataError; with `at_best` (an evaluation on small data) a rule
     is calibrated at the smallest level its runs allow instead (its `target_fpr` says which: no
     guarantee at the asked one), and a rule none of whose runs could be scored is left out."""
     check_band(band)
+    check_fusion(fusion)
     chosen = list(rules) if rules is not None else available_rules(detector)
-    scores = success_scores(
+    scores = success_view_scores(
         detector,
         successes,
         chosen,
@@ -161,7 +179,11 @@ def calibrate_rules(
     for rule, runs in scores.items():
         if not runs:
             raise DataError(f"none of the {len(successes)} success trajectories has a view of 2+ frames")
-        values, fitted = conformal_peaks(runs, band if rule is not PAPER else NONE)  # δ stays the paper's
+        kind = band if rule is not PAPER else NONE  # δ stays the paper's
+        if fusion == MAX:
+            values, fitted = conformal_peaks([fused_raw(run) for run in runs], kind)
+        else:
+            values, fitted = per_view_peaks(runs, kind)
         scored = [v for v in values if math.isfinite(v)]
         if at_best and not scored:
             continue
@@ -200,12 +222,14 @@ class CalibrateConfig:
     task: str | None = None  # task of episodes whose names do not say it
     views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
     band: str = DEFAULT_BAND  # time-indexed thresholds: none, shift (μ_t) or norm (μ_t, σ_t)
+    fusion: str = DEFAULT_FUSION  # max: one band for all views; per-view: each view its own band
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
         check_k(self.k)
         check_stride(self.stride)
         check_target_fpr(self.target_fpr)
         check_band(self.band)
+        check_fusion(self.fusion)
 
 
 @dataclass(frozen=True)
@@ -222,6 +246,7 @@ class Calibration:
     fpr_spread: FprSpread | None = None  # the realised test FPR's range with these `successes` runs
     band: str = NONE  # the thresholds' time-indexed band (none: each threshold is one number)
     band_asked: str = NONE  # the band asked for (none is used with fewer than MIN_BAND_RUNS runs)
+    fusion: str = DEFAULT_FUSION  # per-view: each view corrected by its own band before the max
 
     @property
     def delta(self) -> float | None:
@@ -255,6 +280,7 @@ class Calibration:
                 f"time-indexed band {self.band!r}: each threshold applies to the score corrected by the "
                 + ("mean" if self.band == "shift" else "mean and spread")
                 + " of these runs' scores at the same frame (a line over time on the raw score)"
+                + ("; each view by its own runs' scores (fusion per-view)" if self.fusion != MAX else "")
             )
         for name, threshold in self.thresholds.items():
             rule = rule_named(name)
@@ -315,6 +341,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
             too_short=too_short,
             short_views=short_views,
             band=config.band,
+            fusion=config.fusion,
         )
     widest = max(found.values(), key=lambda calibration: calibration.successes)
     spread = widest.spread  # computed once: it searches for the runs a tighter bound needs
@@ -322,7 +349,8 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
         StoredCalibration(
             encoder=memory.encoder,
             rules={rule.name: _stored_rule(calibration) for rule, calibration in found.items()},
-            method="split conformal, own episode left out",
+            method="split conformal, own episode left out"
+            + (", a band per view" if config.fusion != MAX else ""),
             target_fpr=config.target_fpr,
             successes=widest.successes,
             data=str(Path(config.data).resolve()),
@@ -343,6 +371,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
         fpr_spread=spread,
         band=next((c.band.kind for c in found.values() if c.band is not None), NONE),
         band_asked=config.band,
+        fusion=config.fusion,
     )
 
 

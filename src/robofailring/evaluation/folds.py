@@ -219,6 +219,7 @@ def cross_validate(
                     rules=rules,
                     stride=config.stride,
                     band=config.band,
+                    fusion=config.fusion,
                     at_best=True,
                 )
                 if successes

@@ -219,6 +219,7 @@ def _thresholds(
             progress=bar.update,
             stride=config.stride,
             band=config.band,
+            fusion=config.fusion,
             at_best=True,
         )
     if not found:

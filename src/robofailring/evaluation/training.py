@@ -17,6 +17,7 @@ from robofailring.detection.band import DEFAULT_BAND, check_band
 from robofailring.detection.conformal import check_target_fpr
 from robofailring.detection.detector import check_k, check_stride
 from robofailring.detection.rules import PAPER
+from robofailring.detection.view_bands import DEFAULT_FUSION, check_fusion
 from robofailring.encoders import CachedEncoder, open_encoder
 from robofailring.errors import DataError, RoboFailRingError, SettingError
 from robofailring.evaluation.metrics import PAPER_DELTAS
@@ -90,6 +91,7 @@ class EvaluateConfig:
     failure_frames: str = DENSE  # the memory built here: `dense` or `end` (the paper's; memory.entry)
     pairing: str = DEFAULT_PAIRING  # the memory built here: `change` or `concat` (the paper's; memory.pairs)
     band: str = DEFAULT_BAND  # time-indexed thresholds when calibrating here: none, shift or norm
+    fusion: str = DEFAULT_FUSION  # views when calibrating here: max (one band) or per-view (a band each)
     folds: FoldPlan | None = None  # also cross-validate over every labelled run of `data` (evaluation.folds)
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
@@ -98,6 +100,7 @@ class EvaluateConfig:
         check_failure_frames(self.failure_frames)
         check_pairing(self.pairing)
         check_band(self.band)
+        check_fusion(self.fusion)
         if self.target_fpr is not None:
             check_target_fpr(self.target_fpr)
         if self.deployment_successes < 0:

@@ -155,7 +155,7 @@ class DetectResult:
         fired_view = trace.detected_view
         found = trace.neighbors(fired_view, trace.t_det)
         fired_score = float(trace.scores[fired_view][trace.t_det])
-        line = float(trace.threshold_line()[trace.t_det])
+        line = float(trace.threshold_line(view=fired_view)[trace.t_det])
         said = (
             f"FAILURE detected at frame {trace.t_det}/{trace.length} in view {fired_view} ({rule.name} rule: "
             f"{rule.score_name} = {fired_score:.3f} ≥ {line:.3f}"

@@ -1,0 +1,39 @@
+"""Probe (issue 31): the `pixels` encoder with a larger thumbnail on the peer set, max and per-view fusion.
+
+Run: PYTHONPATH=src:.:bench .venv/bin/python bench/probe_peer_thumbnail.py [SIZE]   (default 48; the encoder's own is 24)
+
+The thumbnail side is the module constant `robofailring.encoders.pixels.THUMBNAIL`; this probe sets it
+(and the identity, so no cached embedding of the 24 px encoder is reused) before the encoder is made.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import robofailring.encoders.pixels as pixels
+
+
+def main() -> None:
+    size = int(sys.argv[1]) if len(sys.argv) > 1 else 48
+    pixels.THUMBNAIL = size  # type: ignore[misc]
+    pixels.IDENTITY = f"pixels-v2-{size}px-{pixels.DIM}d"  # type: ignore[misc]
+    from bench_peer import PER_VIEW, evaluate_encoder, peer_set, print_targets
+    from bench_quality import Variant, print_rows
+
+    peer = peer_set(None, 2)
+    rows = []
+    for label, variant in ((f"thumb{size}", Variant("default", {})), (f"thumb{size}-per-view", PER_VIEW)):
+        rows += evaluate_encoder(
+            "pixels",
+            "pixels",
+            peer,
+            alpha=0.05,
+            out=peer.root.parent / "runs",
+            variant=Variant(label, variant.settings),
+        )
+    print_rows(list(rows), 0.05)
+    print_targets(rows)
+
+
+if __name__ == "__main__":
+    main()

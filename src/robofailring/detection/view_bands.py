@@ -1,0 +1,79 @@
+"""How the views' scores meet one threshold: the fusion a rule is calibrated and judged with.
+
+- `max` (the default, the paper's eq. 7): a view fires when its score reaches the threshold; with a
+  time-indexed band (`robofailring.detection.band`) one band, fitted on the calibration runs' max over
+  views, corrects every view.
+- `per-view`: each view's score is corrected by a band fitted on that view's own calibration scores
+  before the max. A view whose normal runs score high everywhere (a fixed camera that sees a 4 cm cube
+  as a few pixels, in a scene laid out afresh every run) then no longer sets the threshold for the
+  view that carries the failure (the hand camera): each view is judged against what is normal for it.
+  It needs no failure runs, only the success runs calibration already replays. A view with fewer than
+  `MIN_BAND_RUNS` scored calibration runs is corrected by the band of the max over views.
+
+Calibration with `per-view` is split conformal as with `max` (`robofailring.evaluation.calibration`):
+each calibration run's views are corrected by bands fitted on the other runs, its peak over frames of
+the max over views is its conformal score; the band of all runs, one per view, is stored with the
+threshold (`Band.views`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import replace
+from typing import Final
+
+import numpy as np
+
+from robofailring.detection.band import MIN_BAND_RUNS, NONE, Band, fit_band, leave_one_out
+from robofailring.detection.view_scores import ViewScores
+from robofailring.errors import SettingError
+
+MAX: Final[str] = "max"
+PER_VIEW: Final[str] = "per-view"
+FUSIONS: Final[tuple[str, ...]] = (MAX, PER_VIEW)
+DEFAULT_FUSION: Final[str] = MAX
+
+
+def check_fusion(fusion: str) -> str:
+    """A view fusion (`max`, `per-view`); SettingError naming the choices otherwise."""
+    if fusion not in FUSIONS:
+        raise SettingError(f"unknown view fusion {fusion!r}; choose one of {list(FUSIONS)}")
+    return fusion
+
+
+def fused_raw(scores: Mapping[str, np.ndarray]) -> np.ndarray:
+    """max over views of one run's per-frame scores (NaN where no view was scored)."""
+    length = max((len(values) for values in scores.values()), default=0)
+    fused = ViewScores(dict(scores), length).fused_max()
+    return np.where(np.isfinite(fused), fused, np.nan)
+
+
+def peak(values: np.ndarray) -> float:
+    """The highest finite value (a run's conformal score), NaN when none is finite."""
+    finite = values[np.isfinite(values)]
+    return float(finite.max()) if finite.size else float("nan")
+
+
+def per_view_peaks(runs: Sequence[Mapping[str, np.ndarray]], kind: str) -> tuple[list[float], Band | None]:
+    """Each calibration run's conformal score under `per-view` fusion with a band of `kind`, and the band of
+    all runs (one per view). With `none`, or fewer than `MIN_BAND_RUNS` runs with a score, nothing is
+    corrected: the peaks of the max over views and no band, as with `max`. A run with nothing scored gives NaN."""
+    fused = [fused_raw(run) for run in runs]
+    scored = [i for i, values in enumerate(fused) if np.isfinite(values).any()]
+    if kind == NONE or len(scored) < MIN_BAND_RUNS:
+        return [peak(values) for values in fused], None
+    pooled_others = dict(zip(scored, leave_one_out(kind, [fused[i] for i in scored]), strict=True))
+    corrected: list[dict[str, np.ndarray]] = [{} for _ in runs]
+    own: dict[str, Band] = {}
+    for view in dict.fromkeys(view for run in runs for view in run):
+        rows = [i for i in scored if view in runs[i] and np.isfinite(runs[i][view]).any()]
+        if len(rows) < MIN_BAND_RUNS:
+            for i in rows:
+                corrected[i][view] = pooled_others[i].correct(runs[i][view])
+            continue
+        views = [runs[i][view] for i in rows]
+        for i, others in zip(rows, leave_one_out(kind, views), strict=True):
+            corrected[i][view] = others.correct(runs[i][view])
+        own[view] = fit_band(kind, views)
+    peaks = [peak(fused_raw(values)) if values else float("nan") for values in corrected]
+    return peaks, replace(fit_band(kind, [fused[i] for i in scored]), views=own)

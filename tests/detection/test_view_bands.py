@@ -1,0 +1,118 @@
+"""`per-view` fusion: each view corrected by a band of its own calibration scores before the max."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from robofailring.detection.band import MIN_BAND_RUNS, NONE, NORM, SHIFT, Band, fit_band, leave_one_out
+from robofailring.detection.conformal import auc
+from robofailring.detection.view_bands import check_fusion, fused_raw, peak, per_view_peaks
+from robofailring.detection.view_scores import ViewScores
+from robofailring.errors import MemoryFormatError, SettingError
+
+LENGTH = 12
+
+
+def _run(rng: np.random.Generator, *, failure: bool) -> dict[str, np.ndarray]:
+    """`hand` sees the failure (a late rise of 0.3); `base` never does but sits high and varies a lot
+    from run to run (a fixed camera on a scene laid out afresh)."""
+    hand = rng.normal(0.05, 0.01, LENGTH)
+    if failure:
+        hand[LENGTH // 2 :] += 0.3
+    base = rng.normal(rng.uniform(0.2, 0.6), 0.02, LENGTH)
+    return {"hand": hand.astype(np.float32), "base": base.astype(np.float32)}
+
+
+def test_each_view_is_corrected_by_the_band_of_the_other_runs_of_that_view() -> None:
+    rng = np.random.default_rng(0)
+    runs = [_run(rng, failure=False) for _ in range(MIN_BAND_RUNS + 2)]
+    runs[3]["base"][:2] = np.nan  # unscored frames stay unscored
+    peaks, band = per_view_peaks(runs, SHIFT)
+    assert band is not None and set(band.views) == {"hand", "base"}
+    assert band.runs == len(runs) and band.views["hand"].runs == len(runs)
+    np.testing.assert_allclose(band.views["hand"].mean, fit_band(SHIFT, [r["hand"] for r in runs]).mean)
+    np.testing.assert_allclose(band.mean, fit_band(SHIFT, [fused_raw(r) for r in runs]).mean)  # the fallback
+    hand_others = leave_one_out(SHIFT, [r["hand"] for r in runs])[3]
+    base_others = leave_one_out(SHIFT, [r["base"] for r in runs])[3]
+    corrected = {"hand": hand_others.correct(runs[3]["hand"]), "base": base_others.correct(runs[3]["base"])}
+    assert peaks[3] == pytest.approx(peak(fused_raw(corrected)), abs=1e-6)
+
+
+def test_a_view_that_is_high_everywhere_no_longer_hides_the_view_that_sees_the_failure() -> None:
+    rng = np.random.default_rng(1)
+    calibration = [_run(rng, failure=False) for _ in range(30)]
+    tests = [(_run(rng, failure=f), f) for f in [True] * 20 + [False] * 20]
+    _, raw_band = per_view_peaks(calibration, NONE)  # nothing corrected: the max over views
+    assert raw_band is None
+    _, band = per_view_peaks(calibration, SHIFT)
+    assert band is not None
+    by = {
+        "max": [peak(fused_raw(run)) for run, _ in tests],
+        "per-view": [peak(fused_raw({v: band.correct(s, v) for v, s in run.items()})) for run, _ in tests],
+    }
+    failed = [f for _, f in tests]
+    scores = {
+        name: auc(
+            [p for p, f in zip(peaks, failed, strict=True) if f],
+            [p for p, f in zip(peaks, failed, strict=True) if not f],
+        )
+        for name, peaks in by.items()
+    }
+    assert scores["max"] < 0.8 and scores["per-view"] == 1.0
+
+
+def test_too_few_runs_or_no_band_keep_the_max_over_views() -> None:
+    rng = np.random.default_rng(2)
+    runs = [_run(rng, failure=False) for _ in range(MIN_BAND_RUNS - 1)]
+    peaks, band = per_view_peaks(runs, NORM)
+    assert band is None and peaks == [peak(fused_raw(r)) for r in runs]
+    runs += [_run(rng, failure=False) for _ in range(3)]
+    runs[0] = {"hand": np.full(LENGTH, np.nan, np.float32), "base": np.full(LENGTH, np.nan, np.float32)}
+    peaks, band = per_view_peaks(runs, NORM)
+    assert band is not None and np.isnan(peaks[0]) and np.isfinite(peaks[1:]).all()
+
+
+def test_a_view_with_too_few_calibration_runs_is_corrected_by_the_band_of_the_max() -> None:
+    rng = np.random.default_rng(3)
+    runs = [_run(rng, failure=False) for _ in range(MIN_BAND_RUNS + 1)]
+    for run in runs[:3]:
+        run["wrist"] = run["hand"] + 0.1
+    _, band = per_view_peaks(runs, SHIFT)
+    assert band is not None and set(band.views) == {"hand", "base"}
+    values = runs[0]["wrist"]
+    np.testing.assert_array_equal(band.correct(values, "wrist"), band.correct(values))
+    assert band.of("wrist") is band and band.of("hand") is band.views["hand"]
+
+
+def test_a_band_with_views_is_stored_and_read_back() -> None:
+    rng = np.random.default_rng(4)
+    _, band = per_view_peaks([_run(rng, failure=False) for _ in range(MIN_BAND_RUNS)], NORM)
+    assert band is not None
+    stored = band.to_dict()
+    assert set(stored["views"]) == {"hand", "base"} and "views" not in stored["views"]["hand"]
+    read = Band.from_dict(stored, where="test")
+    for view in ("hand", "base", None):
+        np.testing.assert_allclose(read.line(0.5, LENGTH, view), band.line(0.5, LENGTH, view), atol=1e-5)
+        assert read.line_at(0.5, 3, view) == pytest.approx(float(band.line(0.5, LENGTH, view)[3]), abs=1e-5)
+    assert "each view its own" in band.label("γ", 0.5)
+    plain = fit_band(SHIFT, [np.zeros(LENGTH, np.float32), np.ones(LENGTH, np.float32)])
+    assert "views" not in plain.to_dict() and Band.from_dict(plain.to_dict(), where="t").views == {}
+    with pytest.raises(MemoryFormatError, match="view 'hand'"):
+        Band.from_dict({**stored, "views": {"hand": {"kind": "shift"}}}, where="test")
+
+
+def test_a_live_step_judges_each_view_against_its_own_threshold() -> None:
+    scores = ViewScores({"hand": np.array([0.3]), "base": np.array([0.5])}, 1)
+    assert scores.firing(0.4, 0) == ["base"] and scores.strongest(0.4, 0) == "base"
+    lines = {"hand": 0.2, "base": 0.45}
+    assert scores.firing(lines, 0) == ["hand", "base"]
+    assert scores.strongest(lines, 0) == "hand"  # furthest over its own line
+    assert scores.firing({"hand": 0.35, "base": 0.6}, 0) == []
+
+
+def test_an_unknown_fusion_is_a_setting_error_naming_the_choices() -> None:
+    with pytest.raises(
+        SettingError, match=r"unknown view fusion 'mean'; choose one of \['max', 'per-view'\]"
+    ):
+        check_fusion("mean")

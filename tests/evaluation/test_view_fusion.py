@@ -1,0 +1,131 @@
+"""`calibrate --fusion per-view` and `evaluate --fusion per-view`: a band per view, fitted with the
+thresholds, stored in the manifest, judging detect, the live step and the evaluation alike."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from synthetic import write_project_dataset
+from typer.testing import CliRunner
+
+from rfr_viz.cli.app import app
+from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
+from robofailring.detection.band import SHIFT
+from robofailring.detection.conformal import conformal_threshold
+from robofailring.detection.rules import CONTRAST, PAPER
+from robofailring.detection.view_bands import MAX, PER_VIEW, per_view_peaks
+from robofailring.evaluation.calibration import CalibrateConfig, calibrate, success_view_scores
+from robofailring.evaluation.run import EvaluateConfig, run_evaluation
+from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
+
+ALPHA = 0.1  # 12 calibration runs allow α ≥ 1/13
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, Path]:
+    root = tmp_path_factory.mktemp("fusion")
+    data = write_project_dataset(
+        root / "data", tasks=("pick_cube",), symbols=("grasp_wp2", "slip_wp3"), episodes=24, length=8
+    )
+    build_memory(
+        BuildMemoryConfig(
+            data=data, encoder="pixels", out=root / "memory", split="train", cache_dir=root / "c"
+        )
+    )
+    return data, root / "memory", root / "c"
+
+
+def _copy(memory: Path, folder: Path) -> Path:
+    folder.mkdir()
+    for item in memory.iterdir():
+        (folder / item.name).write_bytes(item.read_bytes())
+    return folder
+
+
+def test_per_view_bands_are_calibrated_stored_and_judge_detect_and_the_live_step(
+    dataset: tuple[Path, Path, Path], tmp_path: Path
+) -> None:
+    data, memory, cache = dataset
+    calibrated = _copy(memory, tmp_path / "memory")
+    calibrate(
+        CalibrateConfig(
+            data=data, memory=calibrated, target_fpr=ALPHA, cache_dir=cache, band=SHIFT, fusion=PER_VIEW
+        )
+    )
+    stored = json.loads((calibrated / "manifest.json").read_text(encoding="utf-8"))["calibration"]
+    loaded = FailureMemory.load(calibrated)
+    views = set(loaded.manifest.views or [])
+    assert len(views) >= 2 and set(stored["rules"]["contrast"]["band"]["views"]) == views
+    assert "band" not in stored["rules"][PAPER.name]  # δ stays one number
+    assert stored["method"] == "split conformal, own episode left out, a band per view"
+    encoder = CachedEncoder(load_encoder("pixels"), cache_dir=cache)
+    detector = FailureDetector(loaded, encoder)
+    # γ is the conformal threshold of the runs' peaks, each view corrected by the band of the other runs
+    successes = [t for t in load_dataset(data).select(split="train") if not t.is_failure]
+    bare = FailureDetector(loaded, encoder, delta=0.9, gamma=0.0, eta=0.1)
+    runs = success_view_scores(bare, successes, [CONTRAST])[CONTRAST]
+    peaks, band = per_view_peaks(runs, SHIFT)
+    assert band is not None and detector.gamma == pytest.approx(conformal_threshold(peaks, ALPHA))
+    for view in views:
+        np.testing.assert_allclose(
+            detector.bands["contrast"].views[view].mean, band.views[view].mean, atol=1e-5
+        )
+    fired = 0
+    for trajectory in load_dataset(data).select(split="test"):
+        trace = detector.run(trajectory)
+        raw = trace.scores_of(CONTRAST)
+        crossings = [
+            np.flatnonzero(raw[view] >= trace.threshold_line(view=view)) for view in trace.views
+        ]  # each view against its own line
+        first = min((int(c[0]) for c in crossings if c.size), default=None)
+        assert trace.t_det == first
+        fired += first is not None
+        session = detector.session(trajectory.task)
+        for t in range(trace.length):
+            step = session.step({view: trajectory.views[view][t] for view in trace.views})
+            assert step.alarm == bool(trace.state[t])
+            if step.alarm and t == trace.t_det:
+                assert step.detected_view == trace.detected_view
+    assert fired
+
+
+def test_the_evaluation_calibrates_and_judges_with_the_fusion_it_is_given(
+    dataset: tuple[Path, Path, Path], tmp_path: Path
+) -> None:
+    data, _, cache = dataset
+    results = {
+        fusion: run_evaluation(
+            EvaluateConfig(
+                data=data,
+                out=tmp_path / fusion,
+                encoder="pixels",
+                target_fpr=ALPHA,
+                cache_dir=cache,
+                fusion=fusion,
+            )
+        )
+        for fusion in (MAX, PER_VIEW)
+    }
+    for key, trace in results[PER_VIEW].traces.items():
+        band = results[PER_VIEW].rule_trace(key, CONTRAST).band
+        assert band is not None and set(band.views) == set(trace.views)
+        assert results[MAX].rule_trace(key, CONTRAST).band.views == {}  # type: ignore[union-attr]
+    assert results[PER_VIEW].rules[PAPER.name].threshold == results[MAX].rules[PAPER.name].threshold
+
+
+def test_fusion_on_the_command_line(dataset: tuple[Path, Path, Path], tmp_path: Path) -> None:
+    data, memory, _ = dataset
+    bad = CliRunner().invoke(app, ["calibrate", str(data), "--memory", str(memory), "--fusion", "mean"])
+    assert bad.exit_code == 2
+    assert "unknown view fusion 'mean'; choose one of ['max', 'per-view']" in bad.output
+    copy = _copy(memory, tmp_path / "memory")
+    good = CliRunner().invoke(
+        app,
+        ["calibrate", str(data), "--memory", str(copy), "--target-fpr", str(ALPHA), "--fusion", "per-view"],
+    )
+    assert good.exit_code == 0, good.output
+    stored = json.loads((copy / "manifest.json").read_text(encoding="utf-8"))["calibration"]["rules"]
+    assert "views" in stored["contrast"]["band"]
