@@ -223,7 +223,17 @@ def test_out_of_range_settings_are_refused_before_any_work(aha_dataset: Path, tm
 
 
 LIBRARY_VERBS = ["generate", "build-memory", "detect", "calibrate", "memory-info", "train-encoder"]
-RECORDING_VERBS = ["replay", "compare", "open", "share", "evaluate", "review", "triage", "compare-encoders", "demo"]
+RECORDING_VERBS = [
+    "replay",
+    "compare",
+    "open",
+    "share",
+    "evaluate",
+    "review",
+    "triage",
+    "compare-encoders",
+    "demo",
+]
 
 
 def test_one_command_composed_from_apps_that_stay_as_they_are() -> None:
