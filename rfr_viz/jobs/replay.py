@@ -19,9 +19,10 @@ from robofailring.atomic import output_lock, remove_file_leftovers
 from robofailring.data.grounding import Vocabulary
 from robofailring.data.layouts import detect_layout, load_dataset, load_trajectory
 from robofailring.data.model import Skipped, Trajectory
-from robofailring.detection.detector import DEFAULT_K, DetectionTrace, FailureDetector, check_stride
+from robofailring.detection.config import DEFAULT_K, check_stride
+from robofailring.detection.detector import FailureDetector
 from robofailring.detection.loader import open_detector
-from robofailring.detection.trace import self_match_warning
+from robofailring.detection.trace import DetectionTrace, self_match_warning
 from robofailring.encoders import EncoderSpec
 from robofailring.errors import DataError, SettingError, UnknownTaskError
 from robofailring.explain.report import report_for

@@ -11,7 +11,7 @@ from rfr_viz.jobs.replay import check_fps, load_detector
 from rfr_viz.paths import DEFAULT_FPS
 from rfr_viz.recordings.live import LiveRecording, LiveTarget
 from robofailring.data.layouts import load_trajectory
-from robofailring.detection.detector import DEFAULT_K
+from robofailring.detection.config import DEFAULT_K
 from robofailring.errors import DataError, SettingError
 from robofailring.outputs import check_not_input, check_recording_file, check_writable
 

@@ -18,7 +18,8 @@ from rfr_viz.paths import CLOSED_LOOP_SUMMARY, PROPERTIES, UNSTOPPED, WATCHED, C
 from rfr_viz.recordings.replay import open_recording
 from rfr_viz.styles import DELTA_COLOUR, STATE_COLOUR, STOP_COLOUR, VIEW_COLOURS
 from robofailring.data.images import encode_jpeg
-from robofailring.detection.detector import DEFAULT_K, FailureDetector, StepResult
+from robofailring.detection.config import DEFAULT_K
+from robofailring.detection.detector import FailureDetector, StepResult
 from robofailring.encoders.base import Encoder
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.memory.failure import FailureMemory

@@ -39,11 +39,13 @@ from rfr_viz.panels.report import log_alarm
 from rfr_viz.panels.scores import log_score_styles, set_frame_time
 from rfr_viz.paths import APPLICATION_ID, DEFAULT_FPS, PROPERTIES, REPLAY
 from rfr_viz.styles import VIEW_COLOURS
-from rfr_viz.viewer.control import DEFAULT_PORT, ViewerUnavailable
+from rfr_viz.viewer.binary import ViewerUnavailable
+from rfr_viz.viewer.control import DEFAULT_PORT
 from robofailring.atomic import atomic_path
 from robofailring.data.layouts import load_trajectory
 from robofailring.data.model import Frame
-from robofailring.detection.detector import DEFAULT_K, DetectorSession, FailureDetector, StepResult
+from robofailring.detection.config import DEFAULT_K
+from robofailring.detection.detector import DetectorSession, FailureDetector, StepResult
 from robofailring.detection.rules import CONTRAST, NOVELTY, PAPER
 from robofailring.errors import DataError, SettingError
 from robofailring.explain.report import FailureReport

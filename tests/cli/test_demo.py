@@ -10,7 +10,7 @@ import pytest
 
 from rfr_viz.jobs.demo import DemoConfig, DemoResult, _trained_encoder, run_demo, simulate_datasets
 from rfr_viz.jobs.review import ReviewConfig, review
-from rfr_viz.viewer.control import verify_recording
+from rfr_viz.viewer.rrd import verify_recording
 from robofailring.errors import DataError
 
 pytestmark = pytest.mark.slow  # simulation or end-to-end: the full lane only (scripts/test.sh)

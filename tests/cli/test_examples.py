@@ -12,7 +12,7 @@ from rrd import entity_paths, rows
 from synthetic import VIEWS, write_aha_dataset, write_episode, write_project_dataset
 
 from rfr_viz.paths import UNSTOPPED, WATCHED
-from rfr_viz.viewer.control import verify_recording
+from rfr_viz.viewer.rrd import verify_recording
 
 pytestmark = pytest.mark.slow  # simulation or end-to-end: the full lane only (scripts/test.sh)
 

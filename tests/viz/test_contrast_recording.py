@@ -12,7 +12,7 @@ from synthetic import write_project_dataset
 
 from rfr_viz.paths import REPLAY
 from rfr_viz.recordings.replay import record_replay
-from rfr_viz.viewer.control import verify_recording
+from rfr_viz.viewer.rrd import verify_recording
 from robofailring import (
     CachedEncoder,
     DetectionTrace,

@@ -14,7 +14,7 @@ from typer.testing import CliRunner, Result
 
 from rfr_viz.cli.app import app
 from rfr_viz.paths import REPLAY
-from rfr_viz.viewer.control import verify_recording
+from rfr_viz.viewer.rrd import verify_recording
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
 from robofailring.detection.rules import NOVELTY
 

@@ -13,14 +13,9 @@ from synthetic import write_episode, write_project_dataset
 from rfr_viz.recordings.blueprint import FOCUS_MARGIN
 from rfr_viz.recordings.evaluation import record_evaluation
 from rfr_viz.recordings.replay import record_replay
-from rfr_viz.viewer.control import (
-    ViewerUnavailable,
-    check_vulkan,
-    focus_frame,
-    open_at,
-    playback_positions,
-    render_screenshot,
-)
+from rfr_viz.viewer.binary import ViewerUnavailable, check_vulkan
+from rfr_viz.viewer.control import open_at, playback_positions, render_screenshot
+from rfr_viz.viewer.rrd import focus_frame
 from robofailring import (
     CachedEncoder,
     DetectionTrace,

@@ -25,7 +25,8 @@ from rfr_viz.panels.neighbors import changes
 from rfr_viz.panels.umap import CACHE_FILE, MemoryMap, fit_map, memory_map
 from rfr_viz.paths import APPLICATION_ID, REPLAY, DetectorPaths, camera
 from rfr_viz.recordings.replay import compare_recording, record_replay
-from rfr_viz.viewer.control import verify_recording, viewer_binary
+from rfr_viz.viewer.binary import viewer_binary
+from rfr_viz.viewer.rrd import verify_recording
 from robofailring import (
     CachedEncoder,
     DetectionTrace,

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import numbers
 from collections.abc import Callable, Mapping, Sequence
 from typing import Final, Protocol
 
@@ -11,6 +10,7 @@ import numpy as np
 from robofailring.data.images import as_rgb
 from robofailring.data.model import Frame, Trajectory
 from robofailring.detection.band import Band
+from robofailring.detection.config import DEFAULT_K, check_k, check_stride
 from robofailring.detection.retrieved import Retrieved
 from robofailring.detection.rules import (
     CONTRAST,
@@ -35,35 +35,9 @@ from robofailring.memory.failure import FailureMemory
 from robofailring.memory.pairs import pair_vectors
 from robofailring.memory.references import absolute_reference
 
-DEFAULT_K: Final[int] = 5
-MAX_STRIDE: Final[int] = 2**63 - 1  # frame numbers are int64: a larger stride scores frame 0 alone anyway
-MAX_K: Final[int] = (
-    1024  # neighbours per query: each query row holds K similarities, allocated before the search
-)
 CHUNK_FRAMES: Final[int] = 256  # scored frames per view encoded and searched at once in `run`
 
 Place = Callable[[str, np.ndarray], np.ndarray]  # (view, (n, 2d) queries) -> (n, m) rows, e.g. map points
-
-
-def _whole_number(value: object) -> bool:
-    """An int (or numpy integer) that is not a bool: what Faiss and slicing take as a count."""
-    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
-
-
-def check_k(k: int) -> int:
-    """K, the neighbours retrieved per query: a whole number from 1 to `MAX_K` (SettingError otherwise)."""
-    if not _whole_number(k) or not 1 <= k <= MAX_K:
-        raise SettingError(f"k (neighbours per query) must be a whole number from 1 to {MAX_K}, got {k}")
-    return k
-
-
-def check_stride(stride: int) -> int:
-    """The scoring stride: a whole number from 1 to `MAX_STRIDE` (SettingError otherwise)."""
-    if not _whole_number(stride) or not 1 <= stride <= MAX_STRIDE:
-        raise SettingError(
-            f"stride must be a whole number from 1 (every frame scored) to {MAX_STRIDE}, got {stride}"
-        )
-    return stride
 
 
 class StepSink(Protocol):

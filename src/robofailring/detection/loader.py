@@ -5,7 +5,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from pathlib import Path
 
-from robofailring.detection.detector import DEFAULT_K, FailureDetector
+from robofailring.detection.config import DEFAULT_K
+from robofailring.detection.detector import FailureDetector
 from robofailring.detection.rules import ScoringRule
 from robofailring.encoders import open_encoder
 from robofailring.memory.failure import FailureMemory, encoder_spec_for

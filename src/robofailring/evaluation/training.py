@@ -14,8 +14,8 @@ from robofailring.data.model import Skipped, Trajectory
 from robofailring.data.splits import split_of
 from robofailring.data.vocabulary import read_vocabulary
 from robofailring.detection.band import DEFAULT_BAND, check_band
+from robofailring.detection.config import check_k, check_stride
 from robofailring.detection.conformal import check_target_fpr
-from robofailring.detection.detector import check_k, check_stride
 from robofailring.detection.rules import PAPER
 from robofailring.encoders import CachedEncoder, open_encoder
 from robofailring.errors import DataError, RoboFailRingError, SettingError

@@ -12,7 +12,8 @@ import numpy as np
 
 from robofailring.data.layouts import load_trajectory
 from robofailring.data.model import Trajectory
-from robofailring.detection.detector import DEFAULT_K, DetectionTrace, check_stride
+from robofailring.detection.config import DEFAULT_K, check_stride
+from robofailring.detection.detector import DetectionTrace
 from robofailring.detection.loader import open_detector
 from robofailring.detection.trace import self_match_warning
 from robofailring.explain.report import FailureReport, report_for
