@@ -142,22 +142,22 @@ def _log_run(
             columns=rr.EncodedImage.columns(blob=blobs, media_type=[JPEG_MEDIA_TYPE] * len(blobs)),
         )
         rec.log(
-            paths.detector.score(view),
+            paths.detector.score(view, PAPER.name),
             rr.SeriesLines(colors=[VIEW_COLOURS[position % len(VIEW_COLOURS)]], widths=[2.0], names=[view]),
             static=True,
         )
         rec.send_columns(
-            paths.detector.score(view),
+            paths.detector.score(view, PAPER.name),
             indexes=time_columns(frames, fps),
             columns=rr.Scalars.columns(scalars=[step.similarity[view] for step in run.steps]),
         )
     rec.log(
-        paths.detector.delta,
+        paths.detector.threshold(PAPER.name),
         rr.SeriesLines(colors=[DELTA_COLOUR], widths=[1.0], names=[f"δ = {delta:.3f}"]),
         static=True,
     )
     rec.send_columns(
-        paths.detector.delta,
+        paths.detector.threshold(PAPER.name),
         indexes=time_columns(frames, fps),
         columns=rr.Scalars.columns(scalars=np.full(rendered, delta)),
     )

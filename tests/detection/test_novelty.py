@@ -143,7 +143,9 @@ def test_eta_is_calibrated_on_training_successes_and_judges_the_task(
     session = detector.session(trajectory.task)
     step = session.step({view: frames[0] for view, frames in trajectory.views.items()})
     assert step.rule is NOVELTY and step.threshold == found.eta and step.neighbors[trace.views[0]] == []
-    assert step.novelty[trace.views[0]] == pytest.approx(float(trace.novelty[trace.views[0]][0]), abs=1e-6)
+    assert step.rule_scores["novelty"][trace.views[0]] == pytest.approx(
+        float(trace.scores_of(NOVELTY)[trace.views[0]][0]), abs=1e-6
+    )
 
     for rule in ("paper", "contrast"):
         with pytest.raises(SettingError, match=f"the {rule} rule needs failure runs in the memory"):

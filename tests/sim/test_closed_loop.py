@@ -169,7 +169,7 @@ def test_scores_state_and_the_stop_event(
     assert state == [0.0] * stop_frame + [1.0]
     _, state = values(path, UNSTOPPED.detector.state, "Scalars:scalars")
     assert state == [float(p >= stopped.delta) for p in reference.peak]
-    _, delta = values(path, WATCHED.detector.delta, "Scalars:scalars")
+    _, delta = values(path, WATCHED.detector.threshold("paper"), "Scalars:scalars")
     np.testing.assert_allclose(delta, [stopped.delta] * (stop_frame + 1))
 
     frames, texts = values(path, WATCHED.detector.event, "TextLog:text")

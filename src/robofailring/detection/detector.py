@@ -13,8 +13,7 @@ from robofailring.detection.band import Band
 from robofailring.detection.config import DEFAULT_K, check_k, check_stride
 from robofailring.detection.retrieved import Retrieved
 from robofailring.detection.rules import (
-    CONTRAST,
-    NOVELTY,
+    RULES,
     RuleThresholds,
     ScoringRule,
     default_rule,
@@ -364,8 +363,11 @@ class DetectorSession:
             }
             if successes is not None
             else {},
-            contrast={view: float(CONTRAST.score(failure[view], success[view])[0]) for view in views},
-            novelty={view: float(NOVELTY.score(failure[view], success[view])[0]) for view in views},
+            rule_scores={
+                name: {view: float(each.score(failure[view], success[view])[0]) for view in views}
+                for name, each in RULES.items()
+            },
+            thresholds={name: detector.threshold_at(each, self.t) for name, each in RULES.items()},
             queries={view: found.queries[view][0] for view in views},
         )
         if fired and self.fired_at is None:

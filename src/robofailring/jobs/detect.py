@@ -138,15 +138,9 @@ class DetectResult:
             f"task {trace.task}, L = {trace.length} frames{scored}, rule {rule.name}: {rule.score_name} ≥ "
             f"{judged}, K = {trace.k}"
         ]
-        contrasts, novelties = trace.contrast, trace.novelty
+        shown = {rule.score_name: trace.scores_of(rule) for rule in trace.shown_rules}
         for view in trace.views:
-            parts = []
-            if trace.has_failures:
-                parts.append(f"max S⁻_t = {float(np.nanmax(trace.similarity[view])):.3f}")
-            if view in trace.success_similarity:
-                if trace.has_failures:
-                    parts.append(f"max C_t = {float(np.nanmax(contrasts[view])):.3f}")
-                parts.append(f"max N_t = {float(np.nanmax(novelties[view])):.3f}")
+            parts = [f"max {name} = {float(np.nanmax(scores[view])):.3f}" for name, scores in shown.items()]
             lines.append(f"  {view:>10}: " + ", ".join(parts))
         if trace.t_det is None or trace.detected_view is None:
             lines.append("no failure detected")
