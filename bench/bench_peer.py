@@ -37,6 +37,7 @@ from bench_quality import QualityRow, Variant, print_rows, run_cells
 from robofailring.encoders import default_cache_dir, encoder_slug, load_encoder
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
 from robofailring.evaluation.run import EvaluateConfig
+from robofailring.memory.recipe import MemoryRecipe
 
 HERE = Path(__file__).resolve().parent
 GENERATOR = HERE / "peer_generate.py"
@@ -245,9 +246,9 @@ def evaluate_encoder(
     name = encoder if variant.label == "default" else f"{encoder} ({variant.label})"
     base = EvaluateConfig(
         data=peer.root,
+        recipe=MemoryRecipe(encoder=encoder),
         labels=peer.labels,
         out=out / slug,
-        encoder=encoder,
         target_fpr=alpha,
         memory_out=out / slug / "memory",
         name="in-distribution",
@@ -263,7 +264,13 @@ def evaluate_encoder(
             memory_out=out / f"{slug}-swapped" / "memory",
             name="in-distribution-swapped",
         )
-    ood = replace(base, memory=out / slug / "memory", memory_out=None, test_split="ood", name="ood")
+    ood = replace(
+        base,
+        detector=base.detector.with_memory(out / slug / "memory"),
+        memory_out=None,
+        test_split="ood",
+        name="ood",
+    )
     return [
         PeerRow(name, label, result, seconds, _sweep(Path(config.out) / f"{config.name}.json"))
         for label, config, result, seconds in run_cells(base, swapped=swapped, ood=ood)

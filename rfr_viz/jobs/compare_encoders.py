@@ -38,12 +38,9 @@ def _run_encoder_comparison(config: CompareEncodersConfig, *, recordings: int) -
         compare(
             CompareConfig(
                 data=config.test_data or config.data,
-                memories=tuple(Path(r.memory) for r in results),
+                detectors=tuple(config.detector.with_memory(Path(r.memory)) for r in results),
                 out=Path(config.out) / "recordings",
                 trajectories=keys,
-                k=config.k,
-                cache_dir=config.cache_dir,
-                device=config.device,
             )
         ).recordings
         if keys

@@ -20,6 +20,7 @@ from robofailring.atomic import output_lock, remove_file_leftovers
 from robofailring.data.grounding import failure_type
 from robofailring.data.layouts import load_dataset
 from robofailring.data.model import Trajectory
+from robofailring.detection.config import DetectorConfig
 from robofailring.detection.detector import DetectionTrace, FailureDetector
 from robofailring.detection.rules import CONTRAST, PAPER, ScoringRule
 from robofailring.encoders import default_cache_dir, open_encoder
@@ -35,8 +36,7 @@ from robofailring.evaluation.run import (
 )
 from robofailring.jobs.simulate import simulate
 from robofailring.jobs.train_encoder import TrainEncoderJob, run_train_encoder
-from robofailring.memory.entry import DENSE, check_failure_frames
-from robofailring.memory.pairs import DEFAULT_PAIRING, check_pairing
+from robofailring.memory.recipe import DEFAULT_RECIPE, MemoryRecipe
 from robofailring.outputs import check_output_folder
 from robofailring.sim import TASKS, GenerateConfig
 
@@ -58,13 +58,9 @@ class DemoConfig:
     cache_dir: Path | None = None
     camera_codec: CameraCodec = CameraCodec.AUTO  # jpeg, av1, h264, or auto (by size)
     trained_epochs: int = 10  # train-encoder on the ID split (and random looks): the headline (0: none)
-    failure_frames: str = DENSE  # the memories built: `dense` or `end` (the paper's; memory.entry)
-    pairing: str = DEFAULT_PAIRING  # the memories built: `change` or `concat` (the paper's; memory.pairs)
+    # the memories built (failure frames, pairing, success step), each with its own encoder (the headline's)
+    recipe: MemoryRecipe = DEFAULT_RECIPE
     randomize: int = 32  # randomised-look episodes the trained encoder also trains on (0: none)
-
-    def __post_init__(self) -> None:
-        check_failure_frames(self.failure_frames)
-        check_pairing(self.pairing)
 
 
 @dataclass
@@ -168,7 +164,7 @@ def _run_demo(config: DemoConfig, data_dir: Path, say: Callable[[str], None]) ->
     say(f"datasets: {in_dist} (in-distribution), {out_dist} (out-of-distribution)")
     encoder = _headline_encoder(config, in_dist, data_dir, say)
     say(
-        f"detector: encoder {encoder}, {config.failure_frames} failure memory, {config.pairing} pairing, "
+        f"detector: encoder {encoder}, {config.recipe.failure_frames} failure memory, {config.recipe.pairing} pairing, "
         f"contrast rule on a time-indexed band, calibrated to α = {config.target_fpr:g} (the paper's rule beside "
         "it; pixels in encoders/comparison.md)"
     )
@@ -176,11 +172,9 @@ def _run_demo(config: DemoConfig, data_dir: Path, say: Callable[[str], None]) ->
     base = EvaluateConfig(
         data=in_dist,
         out=out,
-        encoder=encoder,
-        cache_dir=config.cache_dir,
+        recipe=replace(config.recipe, encoder=encoder),
+        detector=DetectorConfig(cache_dir=config.cache_dir),
         memory_out=out / "memory",
-        failure_frames=config.failure_frames,
-        pairing=config.pairing,
     )
     memory_dir = build_training_memory(base)
     calibration = calibrate(
@@ -193,7 +187,9 @@ def _run_demo(config: DemoConfig, data_dir: Path, say: Callable[[str], None]) ->
         f"{calibration.successes} training successes ({calibration.encoder}): paper δ = {calibration.delta:.4f}, "
         f"contrast γ = {calibration.gamma if calibration.gamma is not None else float('nan'):.4f}"
     )
-    stored = replace(base, memory=memory_dir, target_fpr=None)  # the thresholds calibration just stored
+    stored = replace(
+        base, detector=base.detector.with_memory(memory_dir), target_fpr=None
+    )  # the thresholds calibration just stored
     evaluations = [
         run_evaluation(replace(stored, name="in-distribution")),
         run_evaluation(replace(stored, name="out-of-distribution", test_data=out_dist, test_split="ood")),
@@ -264,9 +260,8 @@ def _compare_with_pixels(config: DemoConfig, in_dist: Path, out: Path, encoder: 
             out=out / "encoders",
             encoders=(encoder, "pixels"),
             target_fpr=config.target_fpr,  # each encoder calibrated at the demo's α
-            cache_dir=config.cache_dir,
-            failure_frames=config.failure_frames,
-            pairing=config.pairing,
+            recipe=config.recipe,
+            detector=DetectorConfig(cache_dir=config.cache_dir),
         )
     )
 

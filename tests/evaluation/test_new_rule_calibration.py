@@ -19,6 +19,7 @@ from rfr_viz.jobs.review import ReviewConfig, review
 from rfr_viz.paths import REPLAY
 from rfr_viz.recordings.replay import record_replay
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
+from robofailring.detection.config import DetectorConfig
 from robofailring.detection.conformal import conformal_threshold, empirical_fpr
 from robofailring.detection.rules import RULES, ScoringRule
 from robofailring.evaluation.calibration import CalibrateConfig, calibrate
@@ -123,7 +124,10 @@ def test_a_rule_defined_in_a_test_is_calibrated_stored_reloaded_and_judges(
     _add_mislabelled_success(data, trajectory.source)
     evaluated = run_evaluation(
         EvaluateConfig(
-            data=data, out=tmp_path / "evaluation", memory=memory_dir, target_fpr=None, cache_dir=cache
+            data=data,
+            detector=DetectorConfig(memory=memory_dir, cache_dir=cache),
+            out=tmp_path / "evaluation",
+            target_fpr=None,
         )
     )
     json_path, _ = write_evaluation(evaluated, tmp_path / "evaluation")
@@ -137,7 +141,7 @@ def test_a_rule_defined_in_a_test_is_calibrated_stored_reloaded_and_judges(
             kind=kind,
             out=tmp_path / "review",
             score=rule.name,
-            cache_dir=cache,
+            detector=DetectorConfig(cache_dir=cache),
         )
     )
     assert len(reviewed.recordings) == len(reported[kind.replace("-", "_")])

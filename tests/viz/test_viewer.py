@@ -25,6 +25,7 @@ from robofailring import (
     load_trajectory,
 )
 from robofailring.data.model import Trajectory
+from robofailring.detection.config import DetectorConfig
 from robofailring.evaluation.run import EvaluateConfig, run_evaluation
 
 pytestmark = pytest.mark.viewer
@@ -123,7 +124,12 @@ def test_a_recording_without_a_frame_timeline_renders(viewer_ready: None, tmp_pa
     """The evaluation summary is indexed by δ, not by frame: it still opens and renders."""
     data = write_project_dataset(tmp_path / "data")
     result = run_evaluation(
-        EvaluateConfig(data=data, out=tmp_path / "eval", cache_dir=tmp_path / "cache", target_fpr=0.2)
+        EvaluateConfig(
+            data=data,
+            detector=DetectorConfig(cache_dir=tmp_path / "cache"),
+            out=tmp_path / "eval",
+            target_fpr=0.2,
+        )
     )
     assert set(result.rules) == {"paper", "contrast", "novelty"}  # every rule's operating point is drawn
     recording = record_evaluation([result], out=tmp_path / "evaluation.rrd")

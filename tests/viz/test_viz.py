@@ -37,6 +37,7 @@ from robofailring import (
     load_encoder,
     load_trajectory,
 )
+from robofailring.detection.config import DetectorConfig
 from robofailring.memory.failure import MemoryEntry
 from robofailring.memory.pairs import pair_vectors
 
@@ -276,10 +277,9 @@ def test_map_is_fitted_once_and_cached_beside_the_memory(
     monkeypatch.setattr(umap_layout, "_umap_embedding", counting)
     config = ReplayConfig(
         data=aha_dataset,
-        memory=directory,
+        detector=DetectorConfig(memory=directory, cache_dir=tmp_path / "embeddings"),
         out=tmp_path / "recs",
         trajectories=("pick_cube/pick_cube_grasp_wp2_episode0",),
-        cache_dir=tmp_path / "embeddings",
     )
     first = replay(config)
     cache = directory / CACHE_FILE
@@ -317,7 +317,7 @@ def _placed(mapped: MemoryMap, view: str, task: str, queries: np.ndarray) -> np.
 
 def _tiny_memory(count: int) -> FailureMemory:
     rng = np.random.default_rng(count)
-    vectors = pair_vectors(rng.standard_normal((count, 8)), rng.standard_normal((count, 8)))
+    vectors = pair_vectors(rng.standard_normal((count, 8)), rng.standard_normal((count, 8)), pairing="concat")
     entries = [
         MemoryEntry(
             "pick_cube", ("slip_wp3", "grasp_wp2")[i % 2], f"episode{i}", "front", "<array>", "<array>"

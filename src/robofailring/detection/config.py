@@ -1,10 +1,15 @@
-"""The detector's settings: K neighbours per query and the scoring stride, checked where they are given."""
+"""The detector's settings: `DetectorConfig` (memory, encoder, device, cache, data root, K, rule and thresholds),
+K neighbours per query and the scoring stride, checked where they are given."""
 
 from __future__ import annotations
 
 import numbers
-from typing import Final
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, Final
 
+from robofailring.detection.rules import rule_named
 from robofailring.errors import SettingError
 
 DEFAULT_K: Final[int] = 5
@@ -33,3 +38,40 @@ def check_stride(stride: int) -> int:
             f"stride must be a whole number from 1 (every frame scored) to {MAX_STRIDE}, got {stride}"
         )
     return stride
+
+
+@dataclass(frozen=True)
+class DetectorConfig:
+    """What opens a detector on a memory folder (`robofailring.detection.loader.load_detector`), one value
+    nested in every job that detects; a threshold not given is the memory's calibrated one, else the rule's
+    default."""
+
+    memory: Path | None = None  # memory folder (evaluate: None builds one from the training split)
+    encoder: str | None = None  # encoder spec; None: the one that built the memory
+    device: str | None = None  # torch device for CLIP (default: cuda when available)
+    cache_dir: Path | None = None  # embedding cache (default ~/.cache/robofailring)
+    data_root: Path | None = None  # where the memory's images are now, when its data moved
+    k: int = DEFAULT_K  # neighbours retrieved per query
+    rule: str | None = None  # a scoring rule's name; None: each task's default (contrast, novelty or paper)
+    thresholds: Mapping[str, float] = field(default_factory=dict)  # by rule name (`paper`: δ, …)
+
+    def __post_init__(self) -> None:  # a bad setting fails before the memory is read
+        check_k(self.k)
+        if self.rule is not None:
+            rule_named(self.rule)
+        for name, value in self.thresholds.items():
+            rule_named(name).check_threshold(value)
+
+    @property
+    def memory_dir(self) -> Path:
+        """The memory folder; SettingError when none was given."""
+        if self.memory is None:
+            raise SettingError("no memory folder was given to open a detector on (--memory)")
+        return Path(self.memory)
+
+    def with_memory(self, memory: Path, **changes: Any) -> DetectorConfig:
+        """The same settings on another memory folder (and any other `changes`)."""
+        return replace(self, memory=memory, **changes)
+
+
+DEFAULT_DETECTOR: Final[DetectorConfig] = DetectorConfig()  # every setting at its default, no memory yet

@@ -31,7 +31,6 @@ from robofailring.encoders.base import Encoder, l2_normalize
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import DataError, SettingError
 from robofailring.memory.failure import FailureMemory
-from robofailring.memory.pairs import pair_vectors
 from robofailring.memory.references import absolute_reference
 
 CHUNK_FRAMES: Final[int] = 256  # scored frames per view encoded and searched at once in `run`
@@ -167,14 +166,7 @@ class FailureDetector(RuleThresholds):
         `first` holds f(I_0) per view, `current` the (T, d) embeddings of T frames per view.
         """
         views = list(current)
-        queries = {
-            view: pair_vectors(
-                np.repeat(np.atleast_2d(first[view]), len(current[view]), axis=0),
-                current[view],
-                pairing=self.memory.pairing,
-            )
-            for view in views
-        }
+        queries = {view: self.memory.pair(first[view], current[view]) for view in views}  # as its entries
         stacked = np.concatenate([queries[view] for view in views])
         sims, ids = self.memory.search(stacked, task, self.k, exclude_episode=exclude_episode)
         bounds = np.cumsum([0] + [len(queries[view]) for view in views])

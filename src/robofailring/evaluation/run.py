@@ -34,20 +34,26 @@ from robofailring.progress import progress_bar
 
 def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
     """Build (or load) the memory, replay every test trajectory once, and measure everything."""
-    encoder = open_encoder(config.encoder, device=config.device, cache_dir=config.cache_dir)
+    encoder = open_encoder(
+        config.recipe.encoder, device=config.detector.device, cache_dir=config.detector.cache_dir
+    )
     splits = select_splits(config)
     train, test = splits.train, splits.test
     memory_dir = (
-        config.memory if config.memory is not None else build_training_memory(config, splits, encoder)
+        config.detector.memory
+        if config.detector.memory is not None
+        else build_training_memory(config, splits, encoder)
     )
     memory = FailureMemory.load(memory_dir)
     check_disjoint(memory, test)
-    memory, test = _deploy_successes(memory, test, config.deployment_successes, encoder, config.success_step)
-    detector = FailureDetector(memory, encoder, k=config.k)
+    memory, test = _deploy_successes(
+        memory, test, config.deployment_successes, encoder, config.recipe.success_step
+    )
+    detector = FailureDetector(memory, encoder, k=config.detector.k)
     thresholds, calibrated, found = _thresholds(config, detector, train)
     if found is not None:  # calibrated here: the test runs are judged on the bands fitted with the thresholds
         bands = {r.name: c.band for r, c in found.items() if c.band is not None}
-        detector = FailureDetector(memory, encoder, k=config.k, bands=bands)
+        detector = FailureDetector(memory, encoder, k=config.detector.k, bands=bands)
     operating = thresholds.get(PAPER, PAPER.default_threshold)  # no failure runs: the paper tables are empty
     known = set(memory.tasks)
     scored: list[ScoredTrajectory] = []
@@ -107,7 +113,7 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
         name=config.name,
         encoder=memory.encoder,
         memory=str(memory_dir),
-        k=config.k,
+        k=config.detector.k,
         operating_delta=operating,
         calibrated=calibrated.get(PAPER, False),
         rules=rules,
@@ -136,7 +142,7 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
 
 def check_growth(config: EvaluateConfig) -> None:
     """A curve builds a memory per level from the training data: SettingError for a given memory."""
-    if config.memory is not None:
+    if config.detector.memory is not None:
         raise SettingError("--growth builds a memory per level from the training data: leave out --memory")
 
 
