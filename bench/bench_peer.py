@@ -28,7 +28,7 @@ import shutil
 import subprocess
 import time
 from collections import Counter
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -253,13 +253,16 @@ def evaluate_encoder(
         memory_out=out / slug / "memory",
         name="in-distribution",
     )
-    base = replace(base, **variant.settings)
+    recipe_fields = {f.name for f in fields(MemoryRecipe)}
+    in_recipe = {k: v for k, v in variant.settings.items() if k in recipe_fields}
+    others = {k: v for k, v in variant.settings.items() if k not in recipe_fields}
+    base = replace(base, recipe=replace(base.recipe, **in_recipe), **others)
     swapped = None
     if swapped_encoder is not None:
         swapped = replace(
             base,
             labels=peer.swapped_labels,
-            encoder=swapped_encoder,
+            recipe=replace(base.recipe, encoder=swapped_encoder),
             out=out / f"{slug}-swapped",
             memory_out=out / f"{slug}-swapped" / "memory",
             name="in-distribution-swapped",

@@ -203,7 +203,7 @@ def evaluate_encoder(
         in_swapped = replace(
             base,
             data=data,
-            encoder=spec,
+            recipe=replace(base.recipe, encoder=spec),
             out=out / f"{slug}-swapped",
             memory_out=out / f"{slug}-swapped" / "memory",
             name="in-distribution-swapped",
