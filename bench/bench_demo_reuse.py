@@ -8,7 +8,8 @@ a temporary folder; each demo runs in a fresh Python process with that tree (or 
 `PYTHONPATH`. Both read the same simulated datasets and trained encoder (simulated and trained once, by an
 untimed warm-up run), and each timed run starts from an empty embedding cache, so every frame either code
 encodes is encoded in the timing. Runs alternate (baseline, new, baseline, new, …); the medians are
-compared. Before: the demo built, calibrated and evaluated its headline memory once more inside the
+compared, wall-clock and CPU time (user + system of the demo's own process: less swayed by other work on
+a shared machine). Before: the demo built, calibrated and evaluated its headline memory once more inside the
 encoder comparison, and re-opened a detector and re-scored each trajectory it recorded. After: the
 comparison takes the headline's result, and the recordings reuse the evaluation's traces (their map
 points placed while they were scored).
@@ -29,7 +30,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 RUN = """
-import json, sys, time
+import json, resource, sys, time
 from pathlib import Path
 from rfr_viz.jobs.demo import DemoConfig, run_demo
 settings = json.loads(sys.argv[1])
@@ -39,10 +40,14 @@ config = DemoConfig(
     ood_episodes=1, image_size=32, frames=settings["frames"], workers=1, target_fpr=0.5, randomize=8,
     trained_epochs=2,
 )
-start = time.perf_counter()
+def cpu():
+    used = resource.getrusage(resource.RUSAGE_SELF)
+    return used.ru_utime + used.ru_stime
+start, start_cpu = time.perf_counter(), cpu()
 result = run_demo(config, say=lambda line: None)
 print(json.dumps({
     "seconds": time.perf_counter() - start,
+    "cpu": cpu() - start_cpu,
     "recordings": sorted(result.recordings),
     "comparison": result.comparison is not None,
     "recall": {e.name: {r: row.recall for r, row in e.rules.items()} for e in result.evaluations},
@@ -71,7 +76,7 @@ def run_demo(tree: Path, settings: dict[str, object]) -> dict[str, object]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--baseline", default="51010c0", help="commit of the code before (default: main's)")
-    parser.add_argument("--repeats", type=int, default=2)
+    parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--episodes", type=int, default=2, help="in-distribution episodes per kind")
     parser.add_argument("--frames", type=int, default=8, help="frames per simulated episode")
     args = parser.parse_args()
@@ -85,6 +90,7 @@ def main() -> None:
         warm = run_demo(ROOT, {**common, "out": str(work / "warm"), "cache": str(work / "cache-warm")})
         print(f"warm-up (simulation and the trained encoder, untimed): {warm['seconds']:.1f} s")
         times: dict[str, list[float]] = {"baseline": [], "new": []}
+        cpu: dict[str, list[float]] = {"baseline": [], "new": []}
         for repeat in range(args.repeats):
             for name, tree in (("baseline", baseline), ("new", ROOT)):
                 settings = {
@@ -96,14 +102,18 @@ def main() -> None:
                 found = run_demo(tree, settings)
                 wall = time.perf_counter() - start
                 times[name].append(float(found["seconds"]))  # type: ignore[arg-type]
+                cpu[name].append(float(found["cpu"]))  # type: ignore[arg-type]
                 print(
-                    f"{name:>8} #{repeat + 1}: run_demo {found['seconds']:.1f} s (process {wall:.1f} s), "
+                    f"{name:>8} #{repeat + 1}: run_demo {found['seconds']:.1f} s wall, {found['cpu']:.1f} s CPU "
+                    f"(process {wall:.1f} s), "
                     f"recordings {found['recordings']}, comparison {found['comparison']}, recall {found['recall']}"
                 )
-        before, after = statistics.median(times["baseline"]), statistics.median(times["new"])
-        print(
-            f"median run_demo: baseline {before:.1f} s, new {after:.1f} s, ratio baseline/new = {before / after:.2f}"
-        )
+        for label, found_times in (("wall", times), ("CPU", cpu)):
+            before, after = statistics.median(found_times["baseline"]), statistics.median(found_times["new"])
+            print(
+                f"median run_demo {label}: baseline {before:.1f} s, new {after:.1f} s, "
+                f"ratio baseline/new = {before / after:.2f}"
+            )
 
 
 if __name__ == "__main__":
