@@ -31,7 +31,31 @@ ROOT = Path(__file__).resolve().parents[1]
 
 RUN = """
 import json, resource, sys, time
+from collections import Counter
 from pathlib import Path
+import rfr_viz.panels.umap as umap_panel
+import robofailring.evaluation.calibration as calibration
+import robofailring.evaluation.run as evaluation
+from robofailring.detection.detector import FailureDetector
+from robofailring.memory.failure import FailureMemory
+
+work = Counter()  # what the demo did, counted where it is done (patched before the jobs import it)
+
+def counted(owner, name, key, frames=None):
+    real = getattr(owner, name)
+    def wrapper(*args, **kwargs):
+        work[key] += 1
+        if frames is not None:
+            work[key + " frames"] += frames(*args)
+        return real(*args, **kwargs)
+    setattr(owner, name, wrapper)
+
+counted(FailureDetector, "run", "detector runs", lambda self, trajectory, *a: min(len(f) for f in trajectory.views.values()))
+counted(FailureMemory, "load", "memory loads")
+counted(umap_panel, "fit_map", "map fits")
+counted(evaluation, "run_evaluation", "evaluations")
+counted(evaluation, "build_training_memory", "memory builds")
+counted(calibration, "calibrate", "calibrations")
 from rfr_viz.jobs.demo import DemoConfig, run_demo
 settings = json.loads(sys.argv[1])
 config = DemoConfig(
@@ -48,6 +72,7 @@ result = run_demo(config, say=lambda line: None)
 print(json.dumps({
     "seconds": time.perf_counter() - start,
     "cpu": cpu() - start_cpu,
+    "work": dict(sorted(work.items())),
     "recordings": sorted(result.recordings),
     "comparison": result.comparison is not None,
     "recall": {e.name: {r: row.recall for r, row in e.rules.items()} for e in result.evaluations},
@@ -108,6 +133,7 @@ def main() -> None:
                     f"(process {wall:.1f} s), "
                     f"recordings {found['recordings']}, comparison {found['comparison']}, recall {found['recall']}"
                 )
+                print(f"{'':>12}work: {found['work']}")
         for label, found_times in (("wall", times), ("CPU", cpu)):
             before, after = statistics.median(found_times["baseline"]), statistics.median(found_times["new"])
             print(
