@@ -68,7 +68,7 @@ def run_frames(
 
 def run_vectors(model: TaskModel, seed: int, view: int, **options: float) -> np.ndarray:
     frames = run_frames(model, seed, view, **options)  # type: ignore[arg-type]
-    return pair_vectors(np.repeat(frames[:1], len(frames), axis=0), frames)
+    return pair_vectors(np.repeat(frames[:1], len(frames), axis=0), frames, pairing="concat")
 
 
 def task_memory(task: int, count: int) -> Iterator[tuple[np.ndarray, int]]:

@@ -35,6 +35,7 @@ from robofailring.encoders.training import TrainEncoderConfig, train_encoder
 from robofailring.evaluation.per_rule import RuleResult, scored_by_rule
 from robofailring.evaluation.result import EvaluationResult
 from robofailring.evaluation.run import EvaluateConfig, run_evaluation
+from robofailring.memory.recipe import MemoryRecipe
 
 
 @dataclass(frozen=True)
@@ -85,14 +86,20 @@ def growth_rows(
         name = "all" if level is None else str(level)
         base = EvaluateConfig(
             data=in_dist,
+            recipe=MemoryRecipe(encoder=encoder),
             out=out / slug / f"failures-{name}",
-            encoder=encoder,
             target_fpr=alpha,
             memory_out=out / slug / f"failures-{name}" / "memory",
             name="in-distribution",
             failures_per_task=level,
         )
-        ood = replace(base, memory=base.memory_out, test_data=out_dist, test_split="ood", name="ood")
+        ood = replace(
+            base,
+            detector=base.detector.with_memory(base.memory_out),
+            test_data=out_dist,
+            test_split="ood",
+            name="ood",
+        )
         judged_by = default_rule(successes=True, failures=level != 0)
         for label, config in (("ID", base), ("OOD", ood)):
             result = run_evaluation(config)

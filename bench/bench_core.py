@@ -26,7 +26,9 @@ def synthetic_memory(
     rng = np.random.default_rng(0)
     count = trajectories * views
     vectors = pair_vectors(
-        rng.standard_normal((count, half), np.float32), rng.standard_normal((count, half), np.float32)
+        rng.standard_normal((count, half), np.float32),
+        rng.standard_normal((count, half), np.float32),
+        pairing="concat",
     )
     entries = [
         MemoryEntry(
@@ -57,7 +59,7 @@ class TableEncoder:
 
 def bench_search(memory: FailureMemory) -> None:
     rng = np.random.default_rng(1)
-    queries = pair_vectors(rng.standard_normal((200, 512)), rng.standard_normal((200, 512)))
+    queries = pair_vectors(rng.standard_normal((200, 512)), rng.standard_normal((200, 512)), pairing="concat")
     tasks = [f"task_{i % 80}" for i in range(200)]
     times = []
     for query, task in zip(queries, tasks, strict=True):

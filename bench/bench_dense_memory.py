@@ -31,6 +31,7 @@ from robofailring.detection.detector import FailureDetector
 from robofailring.encoders import open_encoder
 from robofailring.memory.builder import Provenance, build_memories
 from robofailring.memory.failure import FailureMemory
+from robofailring.memory.recipe import MemoryRecipe
 
 KINDS = ("end", "dense")
 
@@ -84,12 +85,18 @@ def main() -> None:
         "| replay s | replay .rrd MB |"
     )
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
-    build_memories(failures, encoder, provenance=provenance, successes=False, failure_frames="dense")  # warm
+    build_memories(
+        failures, encoder, provenance=provenance, successes=False, recipe=MemoryRecipe(failure_frames="dense")
+    )  # warm
     with tempfile.TemporaryDirectory() as folder:
         for kind in KINDS:
             start = time.perf_counter()
             memory, stats = build_memories(
-                failures, encoder, provenance=provenance, successes=False, failure_frames=kind
+                failures,
+                encoder,
+                provenance=provenance,
+                successes=False,
+                recipe=MemoryRecipe(failure_frames=kind),
             )
             built = time.perf_counter() - start
             saved = memory.save(Path(folder) / kind)

@@ -43,6 +43,7 @@ from robofailring.evaluation.run import (
     build_training_memory,
     run_evaluation,
 )
+from robofailring.memory.recipe import MemoryRecipe
 
 
 def demo_sets(config: DemoConfig) -> tuple[Path, Path]:
@@ -148,13 +149,23 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for spec in specs:
             slug = encoder_slug(load_encoder(spec).identity)
-            base = EvaluateConfig(data=in_dist, out=Path(tmp), encoder=spec, memory_out=Path(tmp) / slug)
+            base = EvaluateConfig(
+                data=in_dist, recipe=MemoryRecipe(encoder=spec), out=Path(tmp), memory_out=Path(tmp) / slug
+            )
             memory = build_training_memory(base)
             calibration = calibrate(CalibrateConfig(data=in_dist, memory=memory, target_fpr=args.target_fpr))
             tested = {
-                "ID": run_evaluation(replace(base, memory=memory, name=f"{slug}-id")),
+                "ID": run_evaluation(
+                    replace(base, detector=base.detector.with_memory(memory), name=f"{slug}-id")
+                ),
                 "OOD": run_evaluation(
-                    replace(base, memory=memory, name=f"{slug}-ood", test_data=out_dist, test_split="ood")
+                    replace(
+                        base,
+                        detector=base.detector.with_memory(memory),
+                        name=f"{slug}-ood",
+                        test_data=out_dist,
+                        test_split="ood",
+                    )
                 ),
             }
             for name, result in tested.items():

@@ -27,7 +27,9 @@ from robofailring.memory.pairs import pair_vectors
 
 def memory_for(identity: str, dim: int, entries: int = 15_000, tasks: int = 80) -> FailureMemory:
     rng = np.random.default_rng(0)
-    vectors = pair_vectors(rng.standard_normal((entries, dim)), rng.standard_normal((entries, dim)))
+    vectors = pair_vectors(
+        rng.standard_normal((entries, dim)), rng.standard_normal((entries, dim)), pairing="concat"
+    )
     meta = [
         MemoryEntry(
             task=f"task_{i % tasks}", symbol="slip_wp3", episode=f"e{i}", view="front", start="", end=""

@@ -48,7 +48,9 @@ def random_memory(entries: int, folder: Path, frames: list[dict[str, np.ndarray]
     rng = np.random.default_rng(0)
     half = encoder.dim
     vectors = pair_vectors(
-        rng.standard_normal((entries, half), np.float32), rng.standard_normal((entries, half), np.float32)
+        rng.standard_normal((entries, half), np.float32),
+        rng.standard_normal((entries, half), np.float32),
+        pairing="concat",
     )
     images = []
     for index in range(8):  # a few distinct reference images, shared round-robin

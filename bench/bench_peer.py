@@ -29,7 +29,7 @@ import shutil
 import subprocess
 import time
 from collections import Counter
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -38,6 +38,7 @@ from bench_quality import QualityRow, Variant, print_rows, run_cells
 from robofailring.encoders import default_cache_dir, encoder_slug, load_encoder
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
 from robofailring.evaluation.run import EvaluateConfig
+from robofailring.memory.recipe import MemoryRecipe
 
 HERE = Path(__file__).resolve().parent
 GENERATOR = HERE / "peer_generate.py"
@@ -249,25 +250,34 @@ def evaluate_encoder(
     name = encoder if variant.label == "default" else f"{encoder} ({variant.label})"
     base = EvaluateConfig(
         data=peer.root,
+        recipe=MemoryRecipe(encoder=encoder),
         labels=peer.labels,
         out=out / slug,
-        encoder=encoder,
         target_fpr=alpha,
         memory_out=out / slug / "memory",
         name="in-distribution",
     )
-    base = replace(base, **variant.settings)
+    recipe_fields = {f.name for f in fields(MemoryRecipe)}
+    in_recipe = {k: v for k, v in variant.settings.items() if k in recipe_fields}
+    others = {k: v for k, v in variant.settings.items() if k not in recipe_fields}
+    base = replace(base, recipe=replace(base.recipe, **in_recipe), **others)
     swapped = None
     if swapped_encoder is not None:
         swapped = replace(
             base,
             labels=peer.swapped_labels,
-            encoder=swapped_encoder,
+            recipe=replace(base.recipe, encoder=swapped_encoder),
             out=out / f"{slug}-swapped",
             memory_out=out / f"{slug}-swapped" / "memory",
             name="in-distribution-swapped",
         )
-    ood = replace(base, memory=out / slug / "memory", memory_out=None, test_split="ood", name="ood")
+    ood = replace(
+        base,
+        detector=base.detector.with_memory(out / slug / "memory"),
+        memory_out=None,
+        test_split="ood",
+        name="ood",
+    )
     return [
         PeerRow(name, label, result, seconds, _sweep(Path(config.out) / f"{config.name}.json"))
         for label, config, result, seconds in run_cells(base, swapped=swapped, ood=ood)

@@ -31,11 +31,13 @@ from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
+from robofailring.detection.config import DetectorConfig
 from robofailring.encoders import default_cache_dir, encoder_slug, load_encoder
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
 from robofailring.evaluation.run import EvaluateConfig, EvaluationResult, run_evaluation, write_evaluation
 from robofailring.jobs.simulate import simulate
 from robofailring.memory.failure import FailureMemory
+from robofailring.memory.recipe import MemoryRecipe
 from robofailring.memory.thinning import DEFAULT_STEP
 from robofailring.sim import TASKS, GenerateConfig
 
@@ -177,23 +179,31 @@ def evaluate_encoder(
     name = f"{encoder} (step {success_step:g}, {variant.label})"
     base = EvaluateConfig(
         data=in_dist,
+        recipe=MemoryRecipe(encoder=encoder, success_step=success_step),
+        detector=DetectorConfig(cache_dir=cache_dir),
         out=out / slug,
-        encoder=encoder,
         target_fpr=alpha,
         memory_out=out / slug / "memory",
-        cache_dir=cache_dir,
         name="in-distribution",
-        success_step=success_step,
     )
-    base = replace(base, **variant.settings)
-    ood = replace(base, memory=out / slug / "memory", test_data=out_dist, test_split="ood", name="ood")
+    recipe_fields = {f.name for f in fields(MemoryRecipe)}
+    in_recipe = {k: v for k, v in variant.settings.items() if k in recipe_fields}
+    others = {k: v for k, v in variant.settings.items() if k not in recipe_fields}
+    base = replace(base, recipe=replace(base.recipe, **in_recipe), **others)
+    ood = replace(
+        base,
+        detector=base.detector.with_memory(out / slug / "memory"),
+        test_data=out_dist,
+        test_split="ood",
+        name="ood",
+    )
     in_swapped = None
     if swapped is not None:
         data, spec = swapped
         in_swapped = replace(
             base,
             data=data,
-            encoder=spec,
+            recipe=replace(base.recipe, encoder=spec),
             out=out / f"{slug}-swapped",
             memory_out=out / f"{slug}-swapped" / "memory",
             name="in-distribution-swapped",

@@ -139,7 +139,9 @@ def clustered_memory(count: int = 15_000, *, clusters: int = 7, half: int = 512)
     centres_start = rng.standard_normal((clusters, half)).astype(np.float32)
     centres_end = rng.standard_normal((clusters, half)).astype(np.float32)
     noise = lambda: rng.standard_normal((count, half)).astype(np.float32)  # noqa: E731
-    vectors = pair_vectors(centres_start[labels] + 0.9 * noise(), centres_end[labels] + 0.9 * noise())
+    vectors = pair_vectors(
+        centres_start[labels] + 0.9 * noise(), centres_end[labels] + 0.9 * noise(), pairing="concat"
+    )
     entries = [
         MemoryEntry(
             task=f"task_{i % 40}",

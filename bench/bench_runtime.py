@@ -130,9 +130,11 @@ def quality(threads: int, alpha: float, *, data: Path | None = None, encoder: st
     import torch
     from bench_quality import IMAGE_SIZE
 
+    from robofailring.detection.config import DetectorConfig
     from robofailring.encoders.training import TrainEncoderConfig, train_encoder
     from robofailring.evaluation.run import EvaluateConfig, run_evaluation
     from robofailring.jobs.simulate import simulate
+    from robofailring.memory.recipe import MemoryRecipe
     from robofailring.sim import GenerateConfig
 
     torch.set_num_threads(threads)
@@ -173,13 +175,15 @@ def quality(threads: int, alpha: float, *, data: Path | None = None, encoder: st
             config = EvaluateConfig(
                 data=data,
                 out=out if built == queried else out.with_name(f"{built}-queried-{queried}"),
-                encoder=spec,
-                runtime=queried,
-                memory=None if built == queried else out / "memory",
+                recipe=MemoryRecipe(spec),
+                detector=DetectorConfig(
+                    memory=None if built == queried else out / "memory",
+                    runtime=queried,
+                    cache_dir=ROOT,
+                    device="cpu",
+                ),
                 target_fpr=alpha,
                 memory_out=out / "memory",
-                cache_dir=ROOT,
-                device="cpu",
                 name="in-distribution",
             )
             start = time.perf_counter()

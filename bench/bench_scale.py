@@ -91,7 +91,9 @@ def failure_memory(entries: int, tasks: int) -> tuple[TaskIndexSet, np.ndarray, 
     for offset in range(0, entries, 25_000):
         count = min(25_000, entries - offset)
         vectors[offset : offset + count] = pair_vectors(
-            rng.standard_normal((count, HALF), np.float32), rng.standard_normal((count, HALF), np.float32)
+            rng.standard_normal((count, HALF), np.float32),
+            rng.standard_normal((count, HALF), np.float32),
+            pairing="concat",
         )
     task_of = [f"task_{(i // VIEWS) % tasks}" for i in range(entries)]
     episodes = [f"ep{i // VIEWS}" for i in range(entries)]
@@ -100,7 +102,9 @@ def failure_memory(entries: int, tasks: int) -> tuple[TaskIndexSet, np.ndarray, 
     print(
         f"failure memory: {entries:,} entries, {tasks} tasks, flat, built in {time.perf_counter() - start:.1f} s"
     )
-    queries = pair_vectors(rng.standard_normal((300 * VIEWS, HALF)), rng.standard_normal((300 * VIEWS, HALF)))
+    queries = pair_vectors(
+        rng.standard_normal((300 * VIEWS, HALF)), rng.standard_normal((300 * VIEWS, HALF)), pairing="concat"
+    )
     return memory, queries.reshape(300, VIEWS, DIM), [f"task_{i % tasks}" for i in range(300)]
 
 
@@ -141,7 +145,11 @@ def bench_one_filtered_index(entries: int, tasks: int, steps: np.ndarray, task_n
     index = faiss.IndexFlatIP(DIM)
     per_task = entries // tasks
     for _ in range(tasks):  # rows of a task are contiguous, so a range selects it
-        index.add(pair_vectors(rng.standard_normal((per_task, HALF)), rng.standard_normal((per_task, HALF))))
+        index.add(
+            pair_vectors(
+                rng.standard_normal((per_task, HALF)), rng.standard_normal((per_task, HALF)), pairing="concat"
+            )
+        )
     selectors = [faiss.IDSelectorRange(t * per_task, (t + 1) * per_task) for t in range(tasks)]
     params = [faiss.SearchParameters(sel=selector) for selector in selectors]
 

@@ -54,7 +54,9 @@ def frame(view: int, t: int, size: int) -> np.ndarray:
 
 def random_unit(rng: np.random.Generator, rows: int, dim: int) -> np.ndarray:
     return pair_vectors(
-        rng.standard_normal((rows, dim), np.float32), rng.standard_normal((rows, dim), np.float32)
+        rng.standard_normal((rows, dim), np.float32),
+        rng.standard_normal((rows, dim), np.float32),
+        pairing="concat",
     )
 
 

@@ -42,7 +42,9 @@ def main() -> None:
         for frames in trajectory.views.values():
             if len(frames) >= 2:
                 embeddings = encoder.encode_frames(list(frames))
-                runs.append(pair_vectors(np.repeat(embeddings[:1], len(frames), axis=0), embeddings))
+                runs.append(
+                    pair_vectors(np.repeat(embeddings[:1], len(frames), axis=0), embeddings, pairing="concat")
+                )
                 owners.append((trajectory.task, trajectory.episode))
     if not runs:
         raise SystemExit(f"{args.data} has no success run with 2 or more frames")

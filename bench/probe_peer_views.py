@@ -29,6 +29,7 @@ from robofailring.encoders import encoder_slug, load_encoder, open_encoder
 from robofailring.evaluation.run import _deploy_successes
 from robofailring.evaluation.training import EvaluateConfig, select_splits
 from robofailring.memory.failure import FailureMemory
+from robofailring.memory.recipe import MemoryRecipe
 
 
 def _runs(
@@ -53,7 +54,7 @@ def _runs(
 def dump(spec: str, labels: Path, memory_dir: Path, out: Path) -> None:
     peer = peer_set(None, 2)
     encoder = open_encoder(spec)
-    base = EvaluateConfig(data=peer.root, labels=labels, out=out, encoder=spec, target_fpr=0.05)
+    base = EvaluateConfig(data=peer.root, labels=labels, out=out, recipe=MemoryRecipe(spec), target_fpr=0.05)
     splits = select_splits(base)
     ood = select_splits(replace(base, test_split="ood")).test
     memory = FailureMemory.load(memory_dir)
@@ -61,7 +62,7 @@ def dump(spec: str, labels: Path, memory_dir: Path, out: Path) -> None:
     runs = _runs(detector, splits.train, loo=True, cell="train")
     runs += _runs(detector, splits.test, loo=False, cell="test")
     runs += _runs(detector, ood, loo=False, cell="ood")
-    deployed, rest = _deploy_successes(memory, ood, 2, encoder, base.success_step)
+    deployed, rest = _deploy_successes(memory, ood, 2, encoder, base.recipe.success_step)
     runs += _runs(FailureDetector(deployed, encoder, k=5), rest, loo=False, cell="ood+2")
     out.parent.mkdir(parents=True, exist_ok=True)
     meta = [{k: v for k, v in run.items() if k != "scores"} for run in runs]

@@ -24,7 +24,8 @@ if TYPE_CHECKING:
     from rfr_viz.recordings.live import LiveRecording, LiveTarget
     from rfr_viz.recordings.notebook import InlineRecording, show
     from rfr_viz.recordings.replay import compare_recording, record_replay
-    from rfr_viz.viewer.control import Screenshot, ViewerUnavailable, open_command, render_screenshot
+    from rfr_viz.viewer.binary import ViewerUnavailable
+    from rfr_viz.viewer.control import Screenshot, open_command, render_screenshot
 
 _LAZY = {  # name -> the module it is imported from on first use
     "APPLICATION_ID": "rfr_viz.paths",
@@ -39,7 +40,7 @@ _LAZY = {  # name -> the module it is imported from on first use
     "ReplayResult": "rfr_viz.jobs.replay",
     "ReviewConfig": "rfr_viz.jobs.review",
     "Screenshot": "rfr_viz.viewer.control",
-    "ViewerUnavailable": "rfr_viz.viewer.control",
+    "ViewerUnavailable": "rfr_viz.viewer.binary",
     "compare": "rfr_viz.jobs.replay",
     "compare_blueprint": "rfr_viz.recordings.blueprint",
     "compare_recording": "rfr_viz.recordings.replay",

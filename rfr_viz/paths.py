@@ -39,36 +39,22 @@ class DetectorPaths:
     def score_root(self) -> str:
         return f"{self.prefix}/score"
 
-    def score(self, view: str) -> str:
-        """Scalars: S_t of one view."""
-        return f"{self.score_root}/{view}"
-
-    @property
-    def delta(self) -> str:
-        """Scalars: δ, styled as a threshold line."""
-        return f"{self.score_root}/delta"
+    def score(self, view: str, rule: str) -> str:
+        """Scalars: one scoring rule's score of one view, by the rule's name (`paper`: S⁻_t = S_t, `contrast`:
+        C_t = S⁻_t − S⁺_t, `novelty`: N_t = 1 − S⁺_t, and any rule registered beside them)."""
+        return f"{self.score_root}/{view}/{rule}"
 
     def success_score(self, view: str) -> str:
         """Scalars: S⁺_t of one view (max cosine to the task's success frames)."""
-        return f"{self.score(view)}/success"
-
-    def contrast_score(self, view: str) -> str:
-        """Scalars: C_t = S⁻_t − S⁺_t of one view."""
-        return f"{self.score(view)}/contrast"
+        return f"{self.score_root}/{view}/success"
 
     @property
-    def gamma(self) -> str:
-        """Scalars: γ, the contrast rule's threshold line."""
-        return f"{self.score_root}/gamma"
+    def threshold_root(self) -> str:
+        return f"{self.score_root}/threshold"
 
-    def novelty_score(self, view: str) -> str:
-        """Scalars: N_t = 1 − S⁺_t of one view (how far from every success frame)."""
-        return f"{self.score(view)}/novelty"
-
-    @property
-    def eta(self) -> str:
-        """Scalars: η, the novelty rule's threshold line."""
-        return f"{self.score_root}/eta"
+    def threshold(self, rule: str) -> str:
+        """Scalars: one scoring rule's threshold line (δ, γ, η, …; μ_t + θ·σ_t with a band), by rule name."""
+        return f"{self.threshold_root}/{rule}"
 
     @property
     def nearest_success_root(self) -> str:

@@ -29,3 +29,15 @@ STOP_COLOUR: Final[tuple[int, int, int]] = (235, 60, 60)  # the frame around a s
 #: Few, large chunks: every chunk carries its own schema, so many small ones would dominate the file.
 GAMMA_COLOUR: Final[tuple[int, int, int]] = (255, 120, 200)
 ETA_COLOUR: Final[tuple[int, int, int]] = (120, 230, 230)
+#: Each scoring rule's threshold line, by rule name; a rule not named here gets `OTHER_THRESHOLD_COLOUR`.
+THRESHOLD_COLOURS: Final[dict[str, tuple[int, int, int]]] = {
+    "paper": DELTA_COLOUR,
+    "contrast": GAMMA_COLOUR,
+    "novelty": ETA_COLOUR,
+}
+OTHER_THRESHOLD_COLOUR: Final[tuple[int, int, int]] = (240, 200, 90)
+
+
+def threshold_colour(rule: str) -> tuple[int, int, int]:
+    """The colour of a rule's threshold line, by rule name."""
+    return THRESHOLD_COLOURS.get(rule, OTHER_THRESHOLD_COLOUR)

@@ -42,7 +42,7 @@ def require_viewer() -> None:
 @contextmanager
 def viewer_available() -> Iterator[None]:
     """Around anything that starts the headless Rerun viewer: no Vulkan driver is `missing`."""
-    from rfr_viz.viewer.control import ViewerUnavailable, check_vulkan
+    from rfr_viz.viewer.binary import ViewerUnavailable, check_vulkan
 
     try:
         check_vulkan()

@@ -9,7 +9,7 @@ from typing import Any
 import pyarrow as pa
 from rerun.chunk import RrdReader
 
-from rfr_viz.viewer.control import NO_FOOTER
+from rfr_viz.viewer.rrd import NO_FOOTER
 
 
 def reader(path: Path) -> RrdReader:

@@ -9,6 +9,7 @@ import numpy as np
 from robofailring import CachedEncoder, FailureMemory, Trajectory, load_dataset, load_trajectory
 from robofailring.data.images import write_png
 from robofailring.memory.builder import Provenance, build_memories
+from robofailring.memory.recipe import MemoryRecipe
 
 VIEWS = ("front", "overhead", "wrist")
 TASK_COLOURS = {"pick_cube": (40, 90, 160), "push_cube": (150, 60, 40), "stack_cube": (60, 140, 60)}
@@ -145,8 +146,8 @@ def repeated_failure_memory(
         list(load_dataset(data)),
         encoder,
         provenance=Provenance(data=data, encoder="pixels"),
-        failure_frames=failure_frames,
         successes=successes,
+        recipe=MemoryRecipe(failure_frames=failure_frames),
     )
     return memory, load_trajectory(episode)
 

@@ -13,6 +13,8 @@ from rfr_viz.codecs import CameraCodec
 from rfr_viz.viewer.control import open_at_command, open_command
 from robofailring.cli.exit_codes import finish
 from robofailring.cli.options import (
+    DETECTOR_DEFAULTS,
+    RECIPE_DEFAULTS,
     BandOption,
     CacheOption,
     DataArgument,
@@ -34,6 +36,8 @@ from robofailring.cli.options import (
     VLMModelOption,
     VLMUrlOption,
     VocabularyOption,
+    detector_config,
+    memory_recipe,
     print_notes,
     report_skipped,
     vlm_config,
@@ -41,9 +45,6 @@ from robofailring.cli.options import (
 )
 from robofailring.detection.band import DEFAULT_BAND
 from robofailring.detection.view_bands import DEFAULT_FUSION
-from robofailring.memory.entry import DENSE
-from robofailring.memory.pairs import DEFAULT_PAIRING
-from robofailring.memory.thinning import DEFAULT_STEP
 
 app = typer.Typer(add_completion=False)  # composed into the one `robofailring` command by rfr_viz.cli.app
 
@@ -52,14 +53,14 @@ app = typer.Typer(add_completion=False)  # composed into the one `robofailring` 
 def evaluate_cmd(
     data: Annotated[Path, typer.Argument(help="Dataset: the training split's failures form the memory.")],
     out: Annotated[Path, typer.Option("--out", help="Folder for <name>.md, <name>.json and <name>.rrd.")],
-    encoder: EncoderOption = "pixels",
+    encoder: EncoderOption = RECIPE_DEFAULTS.encoder,
     memory: Annotated[Path | None, typer.Option(help="Use this memory instead of building one.")] = None,
     test_data: Annotated[
         Path | None, typer.Option(help="Test on this dataset (e.g. out-of-distribution).")
     ] = None,
     train_split: Annotated[str, typer.Option(help="Split whose failures build the memory.")] = "train",
     test_split: Annotated[str, typer.Option(help="Split to test on.")] = "test",
-    k: KOption = 5,
+    k: KOption = DETECTOR_DEFAULTS.k,
     name: Annotated[str, typer.Option(help="Name of this evaluation in the outputs.")] = "evaluation",
     stride: StrideOption = 1,
     labels: LabelsOption = None,
@@ -77,7 +78,7 @@ def evaluate_cmd(
     deployment_successes: Annotated[
         int, typer.Option(help="Per task, this many test success runs join the success memory (not tested).")
     ] = 0,
-    success_step: SuccessStepOption = DEFAULT_STEP,
+    success_step: SuccessStepOption = RECIPE_DEFAULTS.success_step,
     failure_frames: FailureFramesOption = None,
     pairing: PairingOption = None,
     band: BandOption = DEFAULT_BAND,
@@ -110,16 +111,14 @@ def evaluate_cmd(
         EvaluateConfig(
             data=data,
             out=out,
-            encoder=encoder,
-            memory=memory,
+            recipe=memory_recipe(
+                encoder, failure_frames=failure_frames, pairing=pairing, success_step=success_step
+            ),
+            detector=detector_config(memory, device=device, runtime=runtime, cache_dir=cache_dir, k=k),
             test_data=test_data,
             train_split=train_split,
             test_split=test_split,
-            k=k,
             name=name,
-            cache_dir=cache_dir,
-            device=device,
-            runtime=runtime,
             stride=stride,
             labels=labels,
             task=task,
@@ -127,9 +126,6 @@ def evaluate_cmd(
             vocabulary=vocabulary,
             target_fpr=target_fpr,
             deployment_successes=deployment_successes,
-            success_step=success_step,
-            failure_frames=failure_frames or DENSE,
-            pairing=pairing or DEFAULT_PAIRING,
             band=band,
             fusion=fusion,
             folds=FoldPlan.parse(folds) if folds is not None else None,
@@ -181,13 +177,10 @@ def review_cmd(
         data=data,
         kind=kind,
         out=out,
-        memory=memory,
+        detector=detector_config(memory, device=device, cache_dir=cache_dir, data_root=data_root),
         camera_codec=camera_codec,
         score=score,
         views=views,
-        cache_dir=cache_dir,
-        device=device,
-        data_root=data_root,
         vlm=vlm_config(vlm_url, vlm_model),
         write_labels=write_labels,
     )
@@ -302,7 +295,7 @@ def compare_encoders_cmd(
         float, typer.Option("--target-fpr", help="Calibrate each encoder's δ to this FPR.")
     ] = 0.05,
     recordings: Annotated[int, typer.Option(help="Per-trajectory comparison recordings to write.")] = 3,
-    k: KOption = 5,
+    k: KOption = DETECTOR_DEFAULTS.k,
     failure_frames: FailureFramesOption = None,
     pairing: PairingOption = None,
     cache_dir: CacheOption = None,
@@ -318,11 +311,8 @@ def compare_encoders_cmd(
             out=out,
             encoders=tuple(encoders),
             target_fpr=target_fpr,
-            k=k,
-            cache_dir=cache_dir,
-            device=device,
-            failure_frames=failure_frames or DENSE,
-            pairing=pairing or DEFAULT_PAIRING,
+            recipe=memory_recipe(failure_frames=failure_frames, pairing=pairing),
+            detector=detector_config(None, device=device, cache_dir=cache_dir, k=k),
         ),
         recordings=recordings,
     )
@@ -367,8 +357,7 @@ def demo_cmd(
             target_fpr=target_fpr,
             data_dir=data_dir,
             camera_codec=camera_codec,
-            failure_frames=failure_frames or DENSE,
-            pairing=pairing or DEFAULT_PAIRING,
+            recipe=memory_recipe(failure_frames=failure_frames, pairing=pairing),
             cache_dir=cache_dir,
             randomize=randomize,
         ),

@@ -11,6 +11,7 @@ from rfr_viz.cli.options import LiveCameraCodecOption
 from rfr_viz.codecs import CameraCodec
 from robofailring.cli.exit_codes import finish
 from robofailring.cli.options import (
+    DETECTOR_DEFAULTS,
     CacheOption,
     DataRootOption,
     DeltaOption,
@@ -27,6 +28,7 @@ from robofailring.cli.options import (
     ViewsOption,
     VLMModelOption,
     VLMUrlOption,
+    detector_config,
     vlm_config,
 )
 
@@ -75,7 +77,7 @@ def watch_cmd(
     task: TaskOption = None,
     views: ViewsOption = None,
     delta: DeltaOption = None,
-    k: KOption = 5,
+    k: KOption = DETECTOR_DEFAULTS.k,
     score: ScoreOption = None,
     gamma: GammaOption = None,
     eta: EtaOption = None,
@@ -98,22 +100,24 @@ def watch_cmd(
     result = watch(
         WatchConfig(
             episode=episode,
-            memory=memory,
+            detector=detector_config(
+                memory,
+                encoder=encoder,
+                device=device,
+                runtime=runtime,
+                cache_dir=cache_dir,
+                data_root=data_root,
+                k=k,
+                score=score,
+                delta=delta,
+                gamma=gamma,
+                eta=eta,
+            ),
             target=LiveTarget.chosen(connect=connect, spawn=spawn, save=save),
             task=task,
             views=views,
-            delta=delta,
-            k=k,
-            score=score,
-            gamma=gamma,
-            eta=eta,
-            encoder=encoder,
             speed=speed,
             fps=fps,
-            cache_dir=cache_dir,
-            device=device,
-            runtime=runtime,
-            data_root=data_root,
             camera_codec=camera_codec,
         )
     )

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -13,6 +14,7 @@ from rfr_viz.paths import DEFAULT_OUT
 from rfr_viz.viewer.control import DEFAULT_PORT, open_command
 from robofailring.cli.exit_codes import finish
 from robofailring.cli.options import (
+    DETECTOR_DEFAULTS,
     CacheOption,
     DataArgument,
     DataRootOption,
@@ -35,11 +37,15 @@ from robofailring.cli.options import (
     ViewsOption,
     VLMModelOption,
     VLMUrlOption,
+    detector_config,
     print_notes,
     report_skipped,
     vlm_config,
     warn_missing_references,
 )
+from robofailring.detection.config import DetectorConfig
+from robofailring.detection.rules import PAPER
+from robofailring.errors import SettingError
 
 if TYPE_CHECKING:
     from rfr_viz.jobs.replay import ReplayResult
@@ -78,7 +84,7 @@ def replay_cmd(
     out: RecordingsOutOption = DEFAULT_OUT,
     trajectory: TrajectoriesOption = None,
     delta: DeltaOption = None,
-    k: KOption = 5,
+    k: KOption = DETECTOR_DEFAULTS.k,
     score: ScoreOption = None,
     gamma: GammaOption = None,
     eta: EtaOption = None,
@@ -102,26 +108,28 @@ def replay_cmd(
 
     config = ReplayConfig(
         data=data,
-        memory=memory,
+        detector=detector_config(
+            memory,
+            encoder=encoder,
+            device=device,
+            runtime=runtime,
+            cache_dir=cache_dir,
+            data_root=data_root,
+            k=k,
+            score=score,
+            delta=delta,
+            gamma=gamma,
+            eta=eta,
+        ),
         out=out,
         trajectories=tuple(trajectory or ()),
-        delta=delta,
-        k=k,
-        score=score,
-        gamma=gamma,
-        eta=eta,
         task=task,
         views=views,
         leave_one_out=leave_one_out,
-        encoder=encoder,
         fps=fps,
         camera_codec=camera_codec,
-        cache_dir=cache_dir,
-        device=device,
-        runtime=runtime,
         stride=stride,
         labels=labels,
-        data_root=data_root,
         vlm=vlm_config(vlm_url, vlm_model),
     )
     _report(replay(config), out)
@@ -141,7 +149,7 @@ def compare_cmd(
             "--delta", help="δ per memory, in the order of --memory (default: each one's calibrated δ)."
         ),
     ] = None,
-    k: KOption = 5,
+    k: KOption = DETECTOR_DEFAULTS.k,
     score: ScoreOption = None,
     task: TaskOption = None,
     views: ViewsOption = None,
@@ -163,22 +171,43 @@ def compare_cmd(
 
     config = CompareConfig(
         data=data,
-        memories=tuple(memory),
+        detectors=compared_detectors(
+            memory,
+            deltas=delta or [],
+            data_roots=data_root or [],
+            shared=detector_config(None, device=device, cache_dir=cache_dir, k=k, score=score),
+        ),
         out=out,
         trajectories=tuple(trajectory or ()),
-        deltas=tuple(delta or ()),
-        k=k,
-        score=score,
         task=task,
         views=views,
         leave_one_out=leave_one_out,
         fps=fps,
         camera_codec=camera_codec,
-        cache_dir=cache_dir,
-        device=device,
-        data_roots=tuple(data_root or ()),
     )
     _report(compare(config), out)
+
+
+def compared_detectors(
+    memories: Sequence[Path], *, deltas: Sequence[float], data_roots: Sequence[Path], shared: DetectorConfig
+) -> tuple[DetectorConfig, ...]:
+    """One detector per --memory: `shared` settings, its own --delta (one per memory, or none) and
+    --data-root (one for all, or one per memory)."""
+    if deltas and len(deltas) != len(memories):
+        raise SettingError(f"{len(deltas)} δ values for {len(memories)} memories: give one per memory")
+    if len(data_roots) not in (0, 1, len(memories)):
+        raise SettingError(
+            f"{len(data_roots)} data roots for {len(memories)} memories: give one, or one per memory"
+        )
+    roots = list(data_roots) * len(memories) if len(data_roots) == 1 else list(data_roots)
+    return tuple(
+        shared.with_memory(
+            memory,
+            data_root=roots[position] if roots else None,
+            thresholds={PAPER.name: deltas[position]} if deltas else {},
+        )
+        for position, memory in enumerate(memories)
+    )
 
 
 @app.command("open")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -20,16 +21,24 @@ class EncoderComparison:
     recordings: list[Path] = field(default_factory=list)
 
 
-def run_encoder_comparison(config: CompareEncodersConfig, *, recordings: int = 3) -> EncoderComparison:
-    """Evaluate every encoder on the same split, write `out/comparison.md` and replay the first failures."""
+def run_encoder_comparison(
+    config: CompareEncodersConfig,
+    *,
+    recordings: int = 3,
+    existing: Mapping[str, EvaluationResult] | None = None,
+) -> EncoderComparison:
+    """Evaluate every encoder on the same split, write `out/comparison.md` and replay the first failures;
+    an encoder evaluated already on that split is given by its result in `existing` (by encoder spec)."""
     check_output_folder(config.out, inputs=[config.data])
     with output_lock(config.out):
         remove_file_leftovers(config.out)
-        return _run_encoder_comparison(config, recordings=recordings)
+        return _run_encoder_comparison(config, recordings=recordings, existing=existing)
 
 
-def _run_encoder_comparison(config: CompareEncodersConfig, *, recordings: int) -> EncoderComparison:
-    results = compare_encoders(config)
+def _run_encoder_comparison(
+    config: CompareEncodersConfig, *, recordings: int, existing: Mapping[str, EvaluationResult] | None
+) -> EncoderComparison:
+    results = compare_encoders(config, existing=existing)
     table = comparison_table(results)
     table_path = Path(config.out) / "comparison.md"
     write_text_atomic(table_path, table + "\n")
@@ -38,12 +47,9 @@ def _run_encoder_comparison(config: CompareEncodersConfig, *, recordings: int) -
         compare(
             CompareConfig(
                 data=config.test_data or config.data,
-                memories=tuple(Path(r.memory) for r in results),
+                detectors=tuple(config.detector.with_memory(Path(r.memory)) for r in results),
                 out=Path(config.out) / "recordings",
                 trajectories=keys,
-                k=config.k,
-                cache_dir=config.cache_dir,
-                device=config.device,
             )
         ).recordings
         if keys

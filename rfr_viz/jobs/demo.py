@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -13,16 +14,16 @@ from rfr_viz.codecs import CameraCodec
 from rfr_viz.jobs.compare_encoders import EncoderComparison, run_encoder_comparison
 from rfr_viz.jobs.replay import recording_name
 from rfr_viz.panels.map import placer
-from rfr_viz.panels.umap import MemoryMap, memory_map
+from rfr_viz.panels.umap import memory_map
 from rfr_viz.recordings.evaluation import record_evaluation
 from rfr_viz.recordings.replay import record_replay
 from robofailring.atomic import output_lock, remove_file_leftovers
 from robofailring.data.grounding import failure_type
 from robofailring.data.layouts import load_dataset
-from robofailring.data.model import Trajectory
-from robofailring.detection.detector import DetectionTrace, FailureDetector
+from robofailring.detection.config import DetectorConfig
+from robofailring.detection.loader import detector_from
 from robofailring.detection.rules import CONTRAST, PAPER, ScoringRule
-from robofailring.encoders import default_cache_dir, open_encoder
+from robofailring.encoders import default_cache_dir
 from robofailring.encoders.training import TrainEncoderConfig
 from robofailring.evaluation.calibration import CalibrateConfig, calibrate
 from robofailring.evaluation.comparison import CompareEncodersConfig
@@ -35,8 +36,7 @@ from robofailring.evaluation.run import (
 )
 from robofailring.jobs.simulate import simulate
 from robofailring.jobs.train_encoder import TrainEncoderJob, run_train_encoder
-from robofailring.memory.entry import DENSE, check_failure_frames
-from robofailring.memory.pairs import DEFAULT_PAIRING, check_pairing
+from robofailring.memory.recipe import DEFAULT_RECIPE, MemoryRecipe
 from robofailring.outputs import check_output_folder
 from robofailring.sim import TASKS, GenerateConfig
 
@@ -58,13 +58,9 @@ class DemoConfig:
     cache_dir: Path | None = None
     camera_codec: CameraCodec = CameraCodec.AUTO  # jpeg, av1, h264, or auto (by size)
     trained_epochs: int = 10  # train-encoder on the ID split (and random looks): the headline (0: none)
-    failure_frames: str = DENSE  # the memories built: `dense` or `end` (the paper's; memory.entry)
-    pairing: str = DEFAULT_PAIRING  # the memories built: `change` or `concat` (the paper's; memory.pairs)
+    # the memories built (failure frames, pairing, success step), each with its own encoder (the headline's)
+    recipe: MemoryRecipe = DEFAULT_RECIPE
     randomize: int = 32  # randomised-look episodes the trained encoder also trains on (0: none)
-
-    def __post_init__(self) -> None:
-        check_failure_frames(self.failure_frames)
-        check_pairing(self.pairing)
 
 
 @dataclass
@@ -134,25 +130,6 @@ def simulate_datasets(config: DemoConfig, data_dir: Path) -> tuple[Path, Path]:
     return in_dist, out_dist
 
 
-def _placed_trace(
-    evaluation: EvaluationResult,
-    key: str,
-    rule: ScoringRule,
-    trajectory: Trajectory,
-    mapped: MemoryMap,
-    config: DemoConfig,
-    encoder: str,
-) -> DetectionTrace:
-    """`key`'s evaluated trace judged by `rule`, scored again (from the encoder's cache) with its
-    queries placed on the map: an evaluation keeps scores, not every frame's query vectors."""
-    kept = evaluation.traces[key]
-    detector = FailureDetector(kept.memory, open_encoder(encoder, cache_dir=config.cache_dir), k=kept.k)
-    trace = detector.run(
-        trajectory, stride=kept.stride, keep_queries=False, place=placer(mapped, trajectory.task)
-    )
-    return trace.with_rule(rule, evaluation.rules[rule.name].threshold)
-
-
 def run_demo(config: DemoConfig, *, say: Callable[[str], None] = print) -> DemoResult:
     """Generate (cached) in- and out-of-distribution sets, then memory, calibration, evaluation, recordings."""
     data_dir = config.data_dir or default_cache_dir() / "demo-data"
@@ -168,7 +145,7 @@ def _run_demo(config: DemoConfig, data_dir: Path, say: Callable[[str], None]) ->
     say(f"datasets: {in_dist} (in-distribution), {out_dist} (out-of-distribution)")
     encoder = _headline_encoder(config, in_dist, data_dir, say)
     say(
-        f"detector: encoder {encoder}, {config.failure_frames} failure memory, {config.pairing} pairing, "
+        f"detector: encoder {encoder}, {config.recipe.failure_frames} failure memory, {config.recipe.pairing} pairing, "
         f"contrast rule on a time-indexed band, calibrated to α = {config.target_fpr:g} (the paper's rule beside "
         "it; pixels in encoders/comparison.md)"
     )
@@ -176,11 +153,9 @@ def _run_demo(config: DemoConfig, data_dir: Path, say: Callable[[str], None]) ->
     base = EvaluateConfig(
         data=in_dist,
         out=out,
-        encoder=encoder,
-        cache_dir=config.cache_dir,
+        recipe=replace(config.recipe, encoder=encoder),
+        detector=DetectorConfig(cache_dir=config.cache_dir),
         memory_out=out / "memory",
-        failure_frames=config.failure_frames,
-        pairing=config.pairing,
     )
     memory_dir = build_training_memory(base)
     calibration = calibrate(
@@ -193,10 +168,18 @@ def _run_demo(config: DemoConfig, data_dir: Path, say: Callable[[str], None]) ->
         f"{calibration.successes} training successes ({calibration.encoder}): paper δ = {calibration.delta:.4f}, "
         f"contrast γ = {calibration.gamma if calibration.gamma is not None else float('nan'):.4f}"
     )
-    stored = replace(base, memory=memory_dir, target_fpr=None)  # the thresholds calibration just stored
+    # the thresholds calibration just stored; the memory loaded once, for both evaluations and every recording
+    stored = replace(base, detector=base.detector.with_memory(memory_dir), target_fpr=None)
+    detector = detector_from(stored.detector)
+    mapped = memory_map(detector.memory, directory=memory_dir)
+    place = partial(placer, mapped)  # the recordings' map points, placed while the evaluations score
     evaluations = [
-        run_evaluation(replace(stored, name="in-distribution")),
-        run_evaluation(replace(stored, name="out-of-distribution", test_data=out_dist, test_split="ood")),
+        run_evaluation(replace(stored, name="in-distribution"), detector=detector, place=place),
+        run_evaluation(
+            replace(stored, name="out-of-distribution", test_data=out_dist, test_split="ood"),
+            detector=detector,
+            place=place,
+        ),
     ]
     for evaluation in evaluations:
         rows = sorted(evaluation.rules.values(), key=lambda row: row.rule is PAPER)  # the paper's last
@@ -212,7 +195,6 @@ def _run_demo(config: DemoConfig, data_dir: Path, say: Callable[[str], None]) ->
     summary = record_evaluation(evaluations, out=out / "evaluation.rrd")
     result = DemoResult(evaluations=evaluations, summary=summary, tables=tables, encoder=encoder)
 
-    mapped = memory_map(evaluations[0].traces[next(iter(evaluations[0].traces))].memory, directory=memory_dir)
     sources = {"in-distribution": in_dist, "out-of-distribution": out_dist}
     for kind in ("detection", "false-alarm", "miss"):
         for evaluation in evaluations:
@@ -224,7 +206,7 @@ def _run_demo(config: DemoConfig, data_dir: Path, say: Callable[[str], None]) ->
             path = out / "recordings" / f"{kind}__{evaluation.name}__{recording_name(trajectory)}"
             result.recordings[kind] = record_replay(
                 trajectory,
-                _placed_trace(evaluation, key, rule, trajectory, mapped, config, encoder),
+                evaluation.rule_trace(key, rule),  # as the evaluation scored it, its queries on the map
                 out=path,
                 memory_map=mapped,
                 focus_frame=focus,
@@ -243,7 +225,7 @@ def _run_demo(config: DemoConfig, data_dir: Path, say: Callable[[str], None]) ->
         title="RoboFailRing demo: simulated FailGen, in and out of distribution",
     )
     if encoder != "pixels":
-        result.comparison = _compare_with_pixels(config, in_dist, out, encoder)
+        result.comparison = _compare_with_pixels(config, in_dist, out, encoder, evaluations[0])
     return result
 
 
@@ -256,18 +238,21 @@ def _headline_encoder(config: DemoConfig, in_dist: Path, data_dir: Path, say: Ca
     return f"trained:{_trained_encoder(config, in_dist, data_dir, say)}"
 
 
-def _compare_with_pixels(config: DemoConfig, in_dist: Path, out: Path, encoder: str) -> EncoderComparison:
-    """The headline encoder against the weight-free pixels one, each calibrated at the demo's α."""
+def _compare_with_pixels(
+    config: DemoConfig, in_dist: Path, out: Path, encoder: str, headline: EvaluationResult
+) -> EncoderComparison:
+    """The headline encoder against the weight-free pixels one, each calibrated at the demo's α: the
+    headline's in-distribution evaluation is the comparison's own (built, calibrated and scored once)."""
     return run_encoder_comparison(
         CompareEncodersConfig(
             data=in_dist,
             out=out / "encoders",
             encoders=(encoder, "pixels"),
             target_fpr=config.target_fpr,  # each encoder calibrated at the demo's α
-            cache_dir=config.cache_dir,
-            failure_frames=config.failure_frames,
-            pairing=config.pairing,
-        )
+            recipe=config.recipe,
+            detector=DetectorConfig(cache_dir=config.cache_dir),
+        ),
+        existing={encoder: headline},
     )
 
 

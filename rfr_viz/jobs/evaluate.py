@@ -43,7 +43,7 @@ def evaluate(config: EvaluateConfig, *, growth: tuple[int, ...] = ()) -> Evaluat
     `growth` (labelled failures per task, e.g. 0, 1, 2, 4) adds the learning curve: one more
     evaluation per level, its memory under `<out>/growth-<n>/`."""
     out = Path(config.out)
-    check_output_folder(out, inputs=[config.data, config.test_data, config.memory])
+    check_output_folder(out, inputs=[config.data, config.test_data, config.detector.memory])
     if growth:
         check_growth(config)
     with output_lock(out):

@@ -6,7 +6,7 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
-from rfr_viz.viewer.control import recording_properties
+from rfr_viz.viewer.rrd import recording_properties
 from robofailring.errors import DataError, SettingError
 from robofailring.explain.report import FailureReport
 from robofailring.explain.vlm import VLMAnswer, VLMCallError, VLMConfig, ask_vlm

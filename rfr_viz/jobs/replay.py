@@ -6,7 +6,7 @@ import hashlib
 import logging
 import math
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -19,9 +19,10 @@ from robofailring.atomic import output_lock, remove_file_leftovers
 from robofailring.data.grounding import Vocabulary
 from robofailring.data.layouts import detect_layout, load_dataset, load_trajectory
 from robofailring.data.model import Skipped, Trajectory
-from robofailring.detection.detector import DEFAULT_K, DetectionTrace, FailureDetector, check_stride
-from robofailring.detection.loader import open_detector
-from robofailring.detection.trace import self_match_warning
+from robofailring.detection.config import DetectorConfig, check_stride
+from robofailring.detection.detector import FailureDetector
+from robofailring.detection.loader import detector_from
+from robofailring.detection.trace import DetectionTrace, self_match_warning
 from robofailring.encoders import EncoderSpec
 from robofailring.errors import DataError, SettingError, UnknownTaskError
 from robofailring.explain.report import report_for
@@ -39,25 +40,15 @@ _log = logging.getLogger("robofailring")
 @dataclass(frozen=True)
 class ReplayConfig:
     data: Path  # dataset root of any layout, or one episode folder
-    memory: Path  # memory directory; its map is cached there (umap.npz)
+    detector: DetectorConfig  # the memory (its map is cached there, umap.npz) and how its detector judges
     out: Path = DEFAULT_OUT  # folder of the .rrd files, one per trajectory
     trajectories: tuple[str, ...] = ()  # `<task>/<episode>` keys or episode names; empty = all
-    delta: float | None = None  # default: the memory's calibrated δ, else the paper's 0.92
-    k: int = DEFAULT_K  # neighbours retrieved (and logged) per view and frame
-    score: str | None = None  # a rule's name (default per task: contrast, novelty or paper)
-    gamma: float | None = None  # contrast threshold (default: the memory's calibrated γ, else 0)
-    eta: float | None = None  # novelty threshold (default: the memory's calibrated η, else 0.1)
     task: str | None = None  # task of an episode folder whose name does not say; on a root, a filter
     leave_one_out: bool = False  # hide each trajectory's own episode from the memory
-    encoder: str | None = None  # encoder spec; default: the one that built the memory
     fps: float | None = None  # "time" timeline rate; default: the data's, else 10
     camera_codec: CameraCodec = CameraCodec.AUTO  # jpeg, av1, h264, or auto (by size)
-    cache_dir: Path | None = None  # embedding cache (default ~/.cache/robofailring)
-    device: str | None = None  # torch device for CLIP
-    runtime: str | None = None  # torch, onnx or onnx-int8 (default: the spec's own, else torch)
     stride: int = 1  # score every stride-th frame; the recording keeps every camera frame
     labels: Path | None = None  # labels file (LeRobot): outcome and symbol shown in the recording
-    data_root: Path | None = None  # where the memory's images are now, when its data moved
     vlm: VLMConfig | None = None  # ask this VLM about each detection; its answer joins the report
     views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
 
@@ -65,18 +56,12 @@ class ReplayConfig:
 @dataclass(frozen=True)
 class CompareConfig:
     data: Path  # dataset root of any layout, or one episode folder
-    memories: tuple[Path, ...]  # two or more memories, each built with its own encoder
+    detectors: tuple[DetectorConfig, ...]  # two or more memories, each built with its own encoder
     out: Path = DEFAULT_OUT
     trajectories: tuple[str, ...] = ()
-    deltas: tuple[float, ...] = ()  # one δ per memory; default: each memory's calibrated δ
-    k: int = DEFAULT_K
-    score: str | None = None  # scoring rule of every memory (default: each one's)
     task: str | None = None
     leave_one_out: bool = False
     fps: float | None = None
-    cache_dir: Path | None = None
-    device: str | None = None
-    data_roots: tuple[Path, ...] = ()  # one per memory (or one for all): where its images are now
     camera_codec: CameraCodec = CameraCodec.AUTO
     views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
 
@@ -200,35 +185,9 @@ class LoadedDetector:
     references: ReferenceCheck
 
 
-def load_detector(
-    memory_dir: Path,
-    *,
-    delta: float | None = None,
-    k: int,
-    encoder: str | None,
-    cache_dir: Path | None,
-    device: str | None,
-    runtime: str | None = None,
-    data_root: Path | None = None,
-    score: str | None = None,
-    gamma: float | None = None,
-    eta: float | None = None,
-    thresholds: Mapping[str, float] | None = None,
-) -> LoadedDetector:
-    detector = open_detector(
-        memory_dir,
-        device=device,
-        rule=score,
-        thresholds=thresholds,
-        delta=delta,
-        gamma=gamma,
-        eta=eta,
-        k=k,
-        data_root=data_root,
-        encoder=encoder,
-        cache_dir=cache_dir,
-        runtime=runtime,
-    )
+def load_detector(config: DetectorConfig) -> LoadedDetector:
+    """The detector of `config` with its memory's cached map and reference check (its notes logged)."""
+    detector = detector_from(config)
     for note in detector.uncalibrated:
         _log.warning("warning: %s", note)
     memory = detector.memory
@@ -236,7 +195,7 @@ def load_detector(
         slug=EncoderSpec.slug(memory.encoder),
         memory=memory,
         detector=detector,
-        map=memory_map(memory, directory=memory_dir),
+        map=memory_map(memory, directory=config.memory_dir),
         references=memory.check_references(),
     )
 
@@ -245,27 +204,15 @@ def replay(config: ReplayConfig) -> ReplayResult:
     """Replay each selected trajectory through the detector into `<out>/<task>__<episode>.rrd`."""
     check_stride(config.stride)
     check_fps(config.fps)
-    check_output_folder(config.out, inputs=[config.data, config.memory])
+    check_output_folder(config.out, inputs=[config.data, config.detector.memory])
     with output_lock(config.out):
         remove_file_leftovers(config.out)
         return _replay(config)
 
 
 def _replay(config: ReplayConfig) -> ReplayResult:
-    found = load_detector(
-        config.memory,
-        delta=config.delta,
-        k=config.k,
-        score=config.score,
-        gamma=config.gamma,
-        eta=config.eta,
-        encoder=config.encoder,
-        cache_dir=config.cache_dir,
-        device=config.device,
-        runtime=config.runtime,
-        data_root=config.data_root,
-    )
-    result = ReplayResult(references={Path(config.memory): found.references})
+    found = load_detector(config.detector)
+    result = ReplayResult(references={config.detector.memory_dir: found.references})
     trajectories = select_trajectories(
         config.data,
         keys=config.trajectories,
@@ -321,45 +268,23 @@ def unique_slugs(slugs: Sequence[str]) -> list[str]:
 def compare(config: CompareConfig) -> ReplayResult:
     """Replay each trajectory under every memory's encoder into one comparison recording."""
     check_fps(config.fps)
-    check_output_folder(config.out, inputs=[config.data, *config.memories])
+    check_output_folder(config.out, inputs=[config.data, *(each.memory for each in config.detectors)])
     with output_lock(config.out):
         remove_file_leftovers(config.out)
         return _compare(config)
 
 
 def _compare(config: CompareConfig) -> ReplayResult:
-    if len(config.memories) < 2:
+    if len(config.detectors) < 2:
         raise SettingError(
-            f"compare needs at least two memories (--memory A --memory B), got {len(config.memories)}"
+            f"compare needs at least two memories (--memory A --memory B), got {len(config.detectors)}"
         )
-    if config.deltas and len(config.deltas) != len(config.memories):
-        raise SettingError(
-            f"{len(config.deltas)} δ values for {len(config.memories)} memories: give one per memory"
-        )
-    deltas: Sequence[float | None] = config.deltas or [None] * len(config.memories)
-    if len(config.data_roots) not in (0, 1, len(config.memories)):
-        raise SettingError(
-            f"{len(config.data_roots)} data roots for {len(config.memories)} memories: give one, or one per memory"
-        )
-    roots: Sequence[Path | None] = (
-        config.data_roots * len(config.memories) if len(config.data_roots) == 1 else config.data_roots
-    ) or [None] * len(config.memories)
-    detectors = [
-        load_detector(
-            memory_dir,
-            delta=delta,
-            k=config.k,
-            score=config.score,
-            encoder=None,
-            cache_dir=config.cache_dir,
-            device=config.device,
-            data_root=root,
-        )
-        for memory_dir, delta, root in zip(config.memories, deltas, roots, strict=True)
-    ]
+    detectors = [load_detector(each) for each in config.detectors]
     slugs = unique_slugs([found.slug for found in detectors])
     result = ReplayResult(
-        references={Path(m): found.references for m, found in zip(config.memories, detectors, strict=True)}
+        references={
+            each.memory_dir: found.references for each, found in zip(config.detectors, detectors, strict=True)
+        }
     )
     trajectories = select_trajectories(
         config.data,

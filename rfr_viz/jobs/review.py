@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Final
@@ -20,8 +21,9 @@ from robofailring.atomic import output_lock, remove_file_leftovers, write_text_a
 from robofailring.data.labels import merge_label_rows
 from robofailring.data.layouts import load_dataset
 from robofailring.data.model import Skipped
-from robofailring.detection.loader import open_detector
-from robofailring.detection.rules import CONTRAST, NOVELTY, PAPER, ScoringRule, rule_named
+from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
+from robofailring.detection.loader import detector_from
+from robofailring.detection.rules import PAPER, RULES, ScoringRule, default_rule, rule_named
 from robofailring.detection.trace import DetectionTrace
 from robofailring.errors import DataError, OutputError
 from robofailring.explain.vlm import VLMConfig
@@ -37,11 +39,10 @@ class ReviewConfig:
     data: Path  # the dataset that evaluation tested on
     kind: str = "false-alarms"  # "false-alarms" (successes that fired) or "misses" (failures that did not)
     out: Path = DEFAULT_OUT / "review"
-    memory: Path | None = None  # default: the memory the evaluation used
+    # its memory (default: the one the evaluation used), device, cache and data root; the rule, its
+    # threshold and K are the evaluation's
+    detector: DetectorConfig = DEFAULT_DETECTOR
     score: str | None = None  # the rule whose alarms to review (default: contrast when evaluated, else paper)
-    cache_dir: Path | None = None
-    device: str | None = None
-    data_root: Path | None = None  # where the memory's images are now, when its data moved
     vlm: VLMConfig | None = None  # ask this VLM about each alarm; its answer joins the report
     camera_codec: CameraCodec = CameraCodec.AUTO  # jpeg, av1, h264, or auto (by size)
     views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
@@ -85,8 +86,7 @@ def _read_evaluation(config: ReviewConfig) -> Reviewed:
     try:
         evaluation = json.loads(Path(config.evaluation).read_text(encoding="utf-8"))
         rules = evaluation.get("rules") or {}
-        shown = next((r.name for r in (CONTRAST, NOVELTY) if r.name in rules), PAPER.name)
-        rule = rule_named(config.score or shown)
+        rule = rule_named(config.score) if config.score else _judging(rules)
         if rule.name in rules:
             keys = {kind: list(rules[rule.name][kind.replace("-", "_")]) for kind in KINDS}
             threshold = float(rules[rule.name]["threshold"])
@@ -96,12 +96,24 @@ def _read_evaluation(config: ReviewConfig) -> Reviewed:
         else:
             raise DataError(f"{config.evaluation} has no results for the {rule.name} rule")
         k = int(evaluation["k"])
-        memory_dir = Path(config.memory or evaluation["memory"])
+        memory_dir = Path(config.detector.memory or evaluation["memory"])
     except (OSError, json.JSONDecodeError, KeyError, TypeError, ValueError) as error:
         raise DataError(
             f"{config.evaluation} is not an evaluation written by `robofailring evaluate` ({error})"
         ) from error
     return Reviewed(rule=rule, threshold=threshold, k=k, memory_dir=memory_dir, keys=keys)
+
+
+def _judging(rules: Mapping[str, object]) -> ScoringRule:
+    """The rule a detector on the evaluated memory judges by by default (`default_rule`), from the rules the
+    evaluation reports: one needing S⁺ reported means success runs, one needing S⁻ failure entries."""
+    reported = [RULES[name] for name in rules if name in RULES]
+    if not reported:
+        return PAPER  # an evaluation written before every rule was reported
+    return default_rule(
+        successes=any(rule.needs_successes for rule in reported),
+        failures=any(rule.needs_failures for rule in reported),
+    )
 
 
 def _replay_keys(
@@ -111,14 +123,7 @@ def _replay_keys(
     if not keys:
         return result
     loaded = load_detector(
-        memory_dir,
-        thresholds={rule.name: threshold},
-        score=rule.name,
-        k=k,
-        encoder=None,
-        cache_dir=config.cache_dir,
-        device=config.device,
-        data_root=config.data_root,
+        config.detector.with_memory(memory_dir, thresholds={rule.name: threshold}, rule=rule.name, k=k)
     )
     dataset = load_dataset(config.data, views=config.views, keys=keys)
     result.skipped_inputs += dataset.skipped
@@ -197,14 +202,13 @@ def write_review_labels(config: ReviewConfig) -> ReviewLabels:
     check_writable(path.absolute().parent)
     with output_lock(path):
         merge_label_rows(path, [], LABEL_COLUMNS)  # refuse a file that is not a labels CSV before any work
-        detector = open_detector(
-            reviewed.memory_dir,
-            rule=reviewed.rule,
-            thresholds={reviewed.rule.name: reviewed.threshold},
-            k=reviewed.k,
-            device=config.device,
-            cache_dir=config.cache_dir,
-            data_root=config.data_root,
+        detector = detector_from(
+            config.detector.with_memory(
+                reviewed.memory_dir,
+                thresholds={reviewed.rule.name: reviewed.threshold},
+                rule=reviewed.rule.name,
+                k=reviewed.k,
+            )
         )
         dataset = load_dataset(config.data, vocabulary=detector.memory.vocabulary)
         wanted = [key for kind in KINDS for key in reviewed.keys[kind]]

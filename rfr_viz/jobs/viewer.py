@@ -6,7 +6,8 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from rfr_viz.viewer.control import DEFAULT_PORT, OpenedRecording, ViewerUnavailable, open_at
+from rfr_viz.viewer.binary import ViewerUnavailable
+from rfr_viz.viewer.control import DEFAULT_PORT, OpenedRecording, open_at
 from rfr_viz.viewer.share import DEFAULT_GRPC_PORT, DEFAULT_HOST, DEFAULT_WEB_PORT, share_folder
 from robofailring.errors import DataError
 from robofailring.outputs import is_recording

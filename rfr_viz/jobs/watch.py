@@ -11,7 +11,7 @@ from rfr_viz.jobs.replay import check_fps, load_detector
 from rfr_viz.paths import DEFAULT_FPS
 from rfr_viz.recordings.live import LiveRecording, LiveTarget
 from robofailring.data.layouts import load_trajectory
-from robofailring.detection.detector import DEFAULT_K
+from robofailring.detection.config import DetectorConfig
 from robofailring.errors import DataError, SettingError
 from robofailring.outputs import check_not_input, check_recording_file, check_writable
 
@@ -19,22 +19,12 @@ from robofailring.outputs import check_not_input, check_recording_file, check_wr
 @dataclass(frozen=True)
 class WatchConfig:
     episode: Path  # one episode folder, fed frame by frame
-    memory: Path  # memory directory (its cached map is shown)
+    detector: DetectorConfig  # the memory (its cached map is shown) and how its detector judges
     target: LiveTarget  # viewer URL, spawn, and/or a file
     task: str | None = None  # when the folder name does not say
     views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
-    delta: float | None = None  # default: the memory's calibrated δ, else 0.92
-    k: int = DEFAULT_K
-    score: str | None = None  # scoring rule; default per task (contrast, novelty or paper)
-    gamma: float | None = None  # default: the memory's calibrated γ, else 0
-    eta: float | None = None  # default: the memory's calibrated η, else 0.1
-    encoder: str | None = None  # default: the memory's encoder spec
     speed: float = 1.0  # 1: the data's frame rate; 2: twice as fast; 0: as fast as the detector goes
     fps: float | None = None  # default: the data's, else 10
-    cache_dir: Path | None = None
-    device: str | None = None
-    runtime: str | None = None  # torch, onnx or onnx-int8 (default: the spec's own, else torch)
-    data_root: Path | None = None  # where the memory's images are now, when its data moved
     camera_codec: CameraCodec = CameraCodec.JPEG  # jpeg, av1 or h264 (auto: jpeg, live)
 
 
@@ -65,23 +55,14 @@ def watch(config: WatchConfig) -> WatchResult:
     if config.target.save is not None:  # before any work: never over an input, never over a non-recording
         save = Path(config.target.save)
         check_not_input(
-            save, [config.episode, config.memory, config.data_root], replaces=False, flag="--save"
+            save,
+            [config.episode, config.detector.memory, config.detector.data_root],
+            replaces=False,
+            flag="--save",
         )
         check_recording_file(save)
         check_writable(save.absolute().parent)
-    loaded = load_detector(
-        config.memory,
-        delta=config.delta,
-        k=config.k,
-        encoder=config.encoder,
-        cache_dir=config.cache_dir,
-        device=config.device,
-        runtime=config.runtime,
-        data_root=config.data_root,
-        score=config.score,
-        gamma=config.gamma,
-        eta=config.eta,
-    )
+    loaded = load_detector(config.detector)
     trajectory = load_trajectory(config.episode, task=config.task, views=config.views)
     used = {view: frames for view, frames in trajectory.views.items() if len(frames) >= 2}
     if not used:

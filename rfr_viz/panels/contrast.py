@@ -1,96 +1,20 @@
-"""Success contrast in a recording: S⁺_t, C_t and N_t per view, γ and η, and the nearest success frame."""
+"""Success contrast in a recording: the success frame nearest to each view's query ("what normal looked like
+here") and its text."""
 
 from __future__ import annotations
-
-from collections.abc import Mapping
 
 import numpy as np
 
 from rfr_viz.panels.images import JPEG_MEDIA_TYPE, reference_jpeg
 from rfr_viz.panels.neighbors import changes
-from rfr_viz.panels.scores import ROW_BATCH, threshold_label, time_columns
+from rfr_viz.panels.scores import ROW_BATCH, time_columns
 from rfr_viz.paths import DetectorPaths
-from rfr_viz.styles import ETA_COLOUR, GAMMA_COLOUR
-from robofailring.detection.band import Band
 from robofailring.detection.detector import DetectionTrace
-from robofailring.detection.rules import CONTRAST, NOVELTY
 from robofailring.extras import needs_extra
 from robofailring.memory.success import SuccessMatch
 
 with needs_extra("viz"):
     import rerun as rr
-
-
-def _series(
-    rec: rr.RecordingStream,
-    path: str,
-    values: np.ndarray,
-    *,
-    fps: float,
-) -> None:
-    values = np.asarray(values, dtype=np.float64)
-    present = np.flatnonzero(np.isfinite(values))
-    rec.send_columns(
-        path, indexes=time_columns(present, fps), columns=rr.Scalars.columns(scalars=values[present])
-    )
-
-
-def log_contrast_styles(
-    rec: rr.RecordingStream,
-    paths: DetectorPaths,
-    *,
-    views: list[str],
-    gamma: float,
-    eta: float,
-    colours: list[tuple[int, int, int]],
-    prefix: str = "",
-    failures: bool = True,
-    bands: Mapping[str, Band] | None = None,
-) -> None:
-    """Static line styles of S⁺_t, C_t and N_t per view and of γ and η (a replay's and a live stream's);
-    without failure entries of the task (`failures` False) C_t and γ are left out. A rule with a band
-    (`bands`, by rule name) has its threshold named as the line over time it is."""
-    bands = bands or {}
-    for position, view in enumerate(views):
-        colour = colours[position % len(colours)]
-        faded = (colour[0] // 2 + 60, colour[1] // 2 + 60, colour[2] // 2 + 60)
-        rec.log(
-            paths.success_score(view),
-            rr.SeriesLines(colors=[faded], widths=[1.0], names=[f"{prefix}{view} S⁺ (success)"]),
-            static=True,
-        )
-        if failures:
-            rec.log(
-                paths.contrast_score(view),
-                rr.SeriesLines(colors=[colour], widths=[2.0], names=[f"{prefix}{view} C = S⁻ − S⁺"]),
-                static=True,
-            )
-        rec.log(
-            paths.novelty_score(view),
-            rr.SeriesLines(
-                colors=[colour], widths=[2.0 if not failures else 1.0], names=[f"{prefix}{view} N = 1 − S⁺"]
-            ),
-            static=True,
-        )
-    if failures:
-        rec.log(
-            paths.gamma,
-            rr.SeriesLines(
-                colors=[GAMMA_COLOUR],
-                widths=[1.0],
-                names=[prefix + threshold_label(CONTRAST, gamma, bands.get(CONTRAST.name))],
-            ),
-            static=True,
-        )
-    rec.log(
-        paths.eta,
-        rr.SeriesLines(
-            colors=[ETA_COLOUR],
-            widths=[1.0],
-            names=[prefix + threshold_label(NOVELTY, eta, bands.get(NOVELTY.name))],
-        ),
-        static=True,
-    )
 
 
 def log_nearest_success(
@@ -141,44 +65,13 @@ def success_info(match: SuccessMatch, t: int) -> str:
     )
 
 
-def log_contrast(
-    rec: rr.RecordingStream,
-    trace: DetectionTrace,
-    paths: DetectorPaths,
-    *,
-    fps: float,
-    colours: list[tuple[int, int, int]],
-    prefix: str = "",
+def log_nearest_successes(
+    rec: rr.RecordingStream, trace: DetectionTrace, paths: DetectorPaths, *, fps: float
 ) -> None:
-    """`/score/<view>/{success,contrast,novelty}`, `/score/gamma`, `/score/eta` and `/nearest_success/<view>`.
-
-    Nothing is logged when the memory has no success runs (a paper-only memory); C_t and γ are
-    left out for a task without failure entries (judged by novelty alone).
-    """
-    if not trace.success_similarity:
-        return
-    failures = trace.has_failures
-    log_contrast_styles(
-        rec,
-        paths,
-        views=trace.views,
-        gamma=trace.gamma,
-        eta=trace.eta,
-        colours=colours,
-        prefix=prefix,
-        failures=failures,
-        bands=trace.bands,
-    )
-    contrasts, novelties = trace.contrast, trace.novelty
-    for view in trace.views:
-        _series(rec, paths.success_score(view), trace.success_similarity[view], fps=fps)
-        if failures:
-            _series(rec, paths.contrast_score(view), contrasts[view], fps=fps)
-        _series(rec, paths.novelty_score(view), novelties[view], fps=fps)
-    if failures:
-        _series(rec, paths.gamma, trace.threshold_line(CONTRAST), fps=fps)
-    _series(rec, paths.eta, trace.threshold_line(NOVELTY), fps=fps)
-    _log_nearest_success(rec, trace, paths, fps)
+    """`/nearest_success/<view>` (the picture) and its info text, per scored frame; nothing when the memory has
+    no success runs (a paper-only memory). S⁺_t and the rules' scores are the scores panel's."""
+    if trace.success_similarity:
+        _log_nearest_success(rec, trace, paths, fps)
 
 
 def _log_nearest_success(

@@ -1,19 +1,21 @@
-"""The scores panel: S⁻_t per view against δ and State_t, with the two timelines (frame, time).
+"""The scores panel: each shown rule's score per view against its threshold, S⁺_t, and State_t, with the two
+timelines (frame, time).
 
-A task without failure entries has no S⁻_t: only State_t is logged here (N_t and η are the contrast panel's)."""
+The rules shown are the trace's (`DetectionTrace.shown_rules`): a task without failure entries has no S⁻_t,
+a memory without success runs no S⁺_t, and a rule registered beside the built-in ones is plotted as they are."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Final
 
 import numpy as np
 
 from rfr_viz.paths import FRAME, TIME, DetectorPaths
-from rfr_viz.styles import DELTA_COLOUR, STATE_COLOUR, VIEW_COLOURS
+from rfr_viz.styles import STATE_COLOUR, VIEW_COLOURS, threshold_colour
 from robofailring.detection.band import Band
 from robofailring.detection.detector import DetectionTrace
-from robofailring.detection.rules import PAPER, ScoringRule
+from robofailring.detection.rules import RULES, RuleThresholds, ScoringRule
 from robofailring.extras import needs_extra
 
 with needs_extra("viz"):
@@ -38,9 +40,20 @@ def threshold_label(rule: ScoringRule, threshold: float, band: Band | None) -> s
     return f"{rule.symbol} = {threshold:.3f}" if band is None else band.label(rule.symbol, threshold)
 
 
+def threshold_properties(held: RuleThresholds) -> dict[str, float]:
+    """Every registered rule's threshold as a recording property, under its option's name (`delta`, `gamma`,
+    `eta`, …): what a replay, a comparison and a live recording each say they were judged at."""
+    return {rule.threshold_key: float(held.threshold_of(rule)) for rule in RULES.values()}
+
+
 def set_frame_time(rec: rr.RecordingStream, t: int, fps: float) -> None:
     rec.set_time(FRAME, sequence=t)
     rec.set_time(TIME, duration=t / fps)
+
+
+def faded(colour: tuple[int, int, int]) -> tuple[int, int, int]:
+    """A view's colour, paler: its S⁺_t line beside its scores."""
+    return (colour[0] // 2 + 60, colour[1] // 2 + 60, colour[2] // 2 + 60)
 
 
 def log_score_styles(
@@ -48,28 +61,47 @@ def log_score_styles(
     paths: DetectorPaths,
     *,
     views: Sequence[str],
-    delta: float,
-    rule: ScoringRule = PAPER,
+    rules: Sequence[ScoringRule],
+    judging: ScoringRule,
+    thresholds: Mapping[str, float],
+    bands: Mapping[str, Band] | None = None,
+    successes: bool = False,
     label: str | None = None,
-    failures: bool = True,
 ) -> None:
-    """Static line styles of S⁻_t per view, δ and State_t under `rule` (names, colours, widths);
-    S⁻_t and δ only where the task has failure entries (`failures`)."""
+    """Static line styles (names, colours, widths) of each of `rules`' scores per view and its threshold (named
+    as the line over time its band makes of it, if any), of S⁺_t per view (`successes`), and of State_t under
+    the `judging` rule; the judging rule's lines are the bold ones."""
     prefix = f"{label} · " if label else ""
-    for position, view in enumerate(views if failures else ()):
+    bands = bands or {}
+    for rule in rules:
+        width = 2.0 if rule.name == judging.name else 1.5
+        for position, view in enumerate(views):
+            rec.log(
+                paths.score(view, rule.name),
+                rr.SeriesLines(
+                    colors=[VIEW_COLOURS[position % len(VIEW_COLOURS)]],
+                    widths=[width],
+                    names=[f"{prefix}{view} {rule.formula}"],
+                ),
+                static=True,
+            )
         rec.log(
-            paths.score(view),
+            paths.threshold(rule.name),
             rr.SeriesLines(
-                colors=[VIEW_COLOURS[position % len(VIEW_COLOURS)]],
-                widths=[2.0],
-                names=[f"{prefix}{view} S⁻ (failure)"],
+                colors=[threshold_colour(rule.name)],
+                widths=[1.5 if rule.name == judging.name else 1.0],
+                names=[prefix + threshold_label(rule, thresholds[rule.name], bands.get(rule.name))],
             ),
             static=True,
         )
-    if failures:
+    for position, view in enumerate(views if successes else ()):
         rec.log(
-            paths.delta,
-            rr.SeriesLines(colors=[DELTA_COLOUR], widths=[1.5], names=[f"{prefix}δ = {delta:.3f}"]),
+            paths.success_score(view),
+            rr.SeriesLines(
+                colors=[faded(VIEW_COLOURS[position % len(VIEW_COLOURS)])],
+                widths=[1.0],
+                names=[f"{prefix}{view} S⁺ (success)"],
+            ),
             static=True,
         )
     rec.log(
@@ -77,9 +109,18 @@ def log_score_styles(
         rr.SeriesLines(
             colors=[STATE_COLOUR],
             widths=[1.5],
-            names=[f"{prefix}State_t ({rule.name}: any view {rule.score_name} ≥ {rule.symbol})"],
+            names=[f"{prefix}State_t ({judging.name}: any view {judging.score_name} ≥ {judging.symbol})"],
         ),
         static=True,
+    )
+
+
+def send_series(rec: rr.RecordingStream, path: str, values: np.ndarray, *, fps: float) -> None:
+    """One scalar series as columns, at the frames where it is finite (NaN: not scored)."""
+    values = np.asarray(values, dtype=np.float64)
+    present = np.flatnonzero(np.isfinite(values))
+    rec.send_columns(
+        path, indexes=time_columns(present, fps), columns=rr.Scalars.columns(scalars=values[present])
     )
 
 
@@ -91,31 +132,28 @@ def log_scores(
     *,
     label: str | None,
 ) -> None:
-    failures = trace.has_failures
+    """`/score/<view>/<rule>` and `/score/threshold/<rule>` for each rule the trace shows, `/score/<view>/success`
+    (S⁺_t, when the memory has success runs) and `/detection/state`."""
+    rules = trace.shown_rules
+    successes = bool(trace.success_similarity)
     log_score_styles(
         rec,
         paths,
         views=trace.views,
-        delta=trace.delta,
-        rule=trace.rule,
+        rules=rules,
+        judging=trace.rule,
+        thresholds={rule.name: trace.threshold_of(rule) for rule in rules},
+        bands=trace.bands,
+        successes=successes,
         label=label,
-        failures=failures,
     )
-    for view in trace.views if failures else ():
-        similarity = np.asarray(trace.similarity[view], dtype=np.float64)
-        present = np.flatnonzero(np.isfinite(similarity))
-        rec.send_columns(
-            paths.score(view),
-            indexes=time_columns(present, fps),
-            columns=rr.Scalars.columns(scalars=similarity[present]),
-        )
-    frames = np.arange(trace.length)
-    if failures:
-        rec.send_columns(
-            paths.delta,
-            indexes=time_columns(frames, fps),
-            columns=rr.Scalars.columns(scalars=trace.threshold_line(PAPER).astype(np.float64)),
-        )
+    for rule in rules:
+        scores = trace.scores_of(rule)
+        for view in trace.views:
+            send_series(rec, paths.score(view, rule.name), scores[view], fps=fps)
+        send_series(rec, paths.threshold(rule.name), trace.threshold_line(rule), fps=fps)
+    for view in trace.views if successes else ():
+        send_series(rec, paths.success_score(view), trace.success_similarity[view], fps=fps)
     scored = trace.scored_frames  # with a stride, State_t exists only where frames were scored
     rec.send_columns(
         paths.state,

@@ -21,7 +21,7 @@ from rfr_viz.paths import (
     camera,
 )
 from robofailring.detection.band import Band
-from robofailring.detection.rules import CONTRAST, NOVELTY
+from robofailring.detection.rules import ScoringRule, shown_rules
 from robofailring.extras import needs_extra
 
 with needs_extra("viz"):
@@ -42,33 +42,31 @@ def _cameras(views: Sequence[str]) -> rrb.Container:
 
 @dataclass(frozen=True)
 class ScorePlots:
-    """What one detector's score plots show; their titles name each threshold with its value."""
+    """What one detector's score plots show: one plot per rule shown, its scores per view against its
+    threshold, titled with the threshold's value (and its band's line, if any)."""
 
-    delta: float | None = None  # S⁻_t per view and δ (None: the task has no failure entries)
-    gamma: float | None = None  # C_t per view and γ, in a plot of their own (success contrast)
-    eta: float | None = None  # N_t per view and η (the novelty rule, or a task without failure entries)
-    successes: bool = False  # S⁺_t per view, faint, beside S⁻_t
+    rules: tuple[ScoringRule, ...] = ()  # the rules shown (`robofailring.detection.rules.shown_rules`)
+    thresholds: Mapping[str, float] = field(default_factory=dict)  # per rule name: its threshold θ
+    successes: bool = False  # S⁺_t per view, faint, in the first plot
     bands: Mapping[str, Band] = field(default_factory=dict)  # per rule name: its time-indexed band, if any
 
     @classmethod
     def of(
         cls,
         *,
-        delta: float,
-        gamma: float,
-        eta: float,
+        judging: ScoringRule,
+        thresholds: Mapping[str, float],
         failures: bool,
         successes: bool,
-        novelty: bool,
         bands: Mapping[str, Band] | None = None,
     ) -> ScorePlots:
-        """S⁻ and δ where the task has failure entries; S⁺, and C with γ, where the memory has success runs;
-        N and η under the novelty rule (`novelty`) or without failure entries; γ and η named as the lines
-        their `bands` make of them."""
+        """The plots of the rules shown beside the `judging` one (`shown_rules`: a rule needing S⁻ only
+        where the task has failure entries, one needing S⁺ only with success runs), each at its threshold
+        in `thresholds` (by rule name), named as the line its band makes of it."""
+        rules = tuple(shown_rules(judging, successes=successes, failures=failures))
         return cls(
-            delta=float(delta) if failures else None,
-            gamma=float(gamma) if successes and failures else None,
-            eta=float(eta) if successes and (novelty or not failures) else None,
+            rules=rules,
+            thresholds={rule.name: float(thresholds.get(rule.name, rule.default_threshold)) for rule in rules},
             successes=successes,
             bands=dict(bands or {}),
         )
@@ -83,23 +81,24 @@ NO_LEGEND = rrb.PlotLegend(visible=False)
 def _score_plot(
     paths: DetectorPaths, *, views: Sequence[str], plots: ScorePlots, label: str = ""
 ) -> rrb.Container:
-    """S⁻_t (and S⁺_t, faint) of every view with δ; C_t and γ in a plot of their own; State_t (0/1) in a thin
-    plot below, so each keeps its scale."""
-    contents: list[str] = []
-    titles = []
-    if plots.delta is not None:
-        contents += [paths.score(view) for view in views] + [paths.delta]
-        titles.append(f"δ = {plots.delta:.3f} · S⁻_t" + (" (bold), S⁺_t (faint)" if plots.successes else "") + " per view")
-    elif plots.successes:
-        titles.append("S⁺_t per view")
-    if plots.successes:
-        contents += [paths.success_score(view) for view in views]
-    if plots.eta is not None:
-        contents += [paths.novelty_score(view) for view in views] + [paths.eta]
-        titles.append(f"{threshold_label(NOVELTY, plots.eta, plots.bands.get(NOVELTY.name))} · N_t = 1 − S⁺_t")
-    scores = rrb.TimeSeriesView(
-        origin="/", contents=contents, name=label + " · ".join(titles), plot_legend=NO_LEGEND
-    )
+    """One plot per rule shown: its score of every view with its threshold (the first also S⁺_t, faint);
+    State_t (0/1) in a thin plot below, so each keeps its scale."""
+    rule_plots = []
+    for position, rule in enumerate(plots.rules):
+        contents = [paths.score(view, rule.name) for view in views] + [paths.threshold(rule.name)]
+        faint = ""
+        if position == 0 and plots.successes:
+            contents += [paths.success_score(view) for view in views]
+            faint = " (bold), S⁺_t (faint)"
+        threshold = threshold_label(rule, plots.thresholds[rule.name], plots.bands.get(rule.name))
+        rule_plots.append(
+            rrb.TimeSeriesView(
+                origin="/",
+                contents=contents,
+                name=f"{label}{threshold} · {rule.formula}{faint} per view",
+                plot_legend=NO_LEGEND,
+            )
+        )
     state = rrb.TimeSeriesView(
         origin="/",
         contents=[paths.state],
@@ -107,16 +106,8 @@ def _score_plot(
         plot_legend=NO_LEGEND,
         axis_y=rrb.ScalarAxis(range=(-0.1, 1.1), zoom_lock=True),
     )
-    if plots.gamma is None:
-        return rrb.Vertical(scores, state, row_shares=[3, 1.2])
-    contrast = [paths.contrast_score(view) for view in views] + [paths.gamma]
-    contrasts = rrb.TimeSeriesView(
-        origin="/",
-        contents=contrast,
-        name=f"{label}{threshold_label(CONTRAST, plots.gamma, plots.bands.get(CONTRAST.name))} · C_t = S⁻_t − S⁺_t per view",
-        plot_legend=NO_LEGEND,
-    )
-    return rrb.Vertical(scores, contrasts, state, row_shares=[2.4, 2.4, 1.0])
+    shares = [2.4 if len(rule_plots) > 1 else 3.0] * len(rule_plots)
+    return rrb.Vertical(*rule_plots, state, row_shares=[*shares, 1.0 if len(rule_plots) > 1 else 1.2])
 
 
 def _map(paths: DetectorPaths, *, name: str, grid: MapGrid) -> rrb.Spatial2DView:

@@ -18,7 +18,8 @@ from rfr_viz.paths import CLOSED_LOOP_SUMMARY, PROPERTIES, UNSTOPPED, WATCHED, C
 from rfr_viz.recordings.replay import open_recording
 from rfr_viz.styles import DELTA_COLOUR, STATE_COLOUR, STOP_COLOUR, VIEW_COLOURS
 from robofailring.data.images import encode_jpeg
-from robofailring.detection.detector import DEFAULT_K, FailureDetector, StepResult
+from robofailring.detection.config import DEFAULT_K
+from robofailring.detection.detector import FailureDetector, StepResult
 from robofailring.encoders.base import Encoder
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.memory.failure import FailureMemory
@@ -141,22 +142,22 @@ def _log_run(
             columns=rr.EncodedImage.columns(blob=blobs, media_type=[JPEG_MEDIA_TYPE] * len(blobs)),
         )
         rec.log(
-            paths.detector.score(view),
+            paths.detector.score(view, PAPER.name),
             rr.SeriesLines(colors=[VIEW_COLOURS[position % len(VIEW_COLOURS)]], widths=[2.0], names=[view]),
             static=True,
         )
         rec.send_columns(
-            paths.detector.score(view),
+            paths.detector.score(view, PAPER.name),
             indexes=time_columns(frames, fps),
             columns=rr.Scalars.columns(scalars=[step.similarity[view] for step in run.steps]),
         )
     rec.log(
-        paths.detector.delta,
+        paths.detector.threshold(PAPER.name),
         rr.SeriesLines(colors=[DELTA_COLOUR], widths=[1.0], names=[f"δ = {delta:.3f}"]),
         static=True,
     )
     rec.send_columns(
-        paths.detector.delta,
+        paths.detector.threshold(PAPER.name),
         indexes=time_columns(frames, fps),
         columns=rr.Scalars.columns(scalars=np.full(rendered, delta)),
     )

@@ -2,7 +2,7 @@
 
 `LiveRecording` is the library's `StepSink` for Rerun: pass it as `detector.session(task, sink=live)`
 and every `session.step(...)` is logged at once with the entity paths of a replay (rfr_viz.paths):
-`/camera/<view>`, `/score/<view>`, `/score/delta`, `/detection/state`, the moving map query, the
+`/camera/<view>`, `/score/<view>/<rule>`, `/score/threshold/<rule>`, `/detection/state`, the moving map query, the
 neighbours when they change, and the detection event and failure report at the first alarm.
 `watch` feeds a recorded episode through the same loop, frame by frame, as a robot would.
 """
@@ -23,7 +23,7 @@ import numpy as np
 
 from rfr_viz.recordings.blueprint import ScorePlots, replay_blueprint
 from rfr_viz.codecs import CameraCodec
-from rfr_viz.panels.contrast import log_contrast_styles, log_nearest_success
+from rfr_viz.panels.contrast import log_nearest_success
 from rfr_viz.panels.live_camera import LiveCameras
 from rfr_viz.panels.umap import MemoryMap
 from rfr_viz.panels.neighbors import (
@@ -36,15 +36,15 @@ from rfr_viz.panels.neighbors import (
 )
 from rfr_viz.panels.map import MapGrid, class_id, log_memory_map, map_grid, map_title
 from rfr_viz.panels.report import log_alarm
-from rfr_viz.panels.scores import log_score_styles, set_frame_time
+from rfr_viz.panels.scores import log_score_styles, set_frame_time, threshold_properties
 from rfr_viz.paths import APPLICATION_ID, DEFAULT_FPS, PROPERTIES, REPLAY
-from rfr_viz.styles import VIEW_COLOURS
-from rfr_viz.viewer.control import DEFAULT_PORT, ViewerUnavailable
+from rfr_viz.viewer.binary import ViewerUnavailable
+from rfr_viz.viewer.control import DEFAULT_PORT
 from robofailring.atomic import atomic_path
 from robofailring.data.layouts import load_trajectory
 from robofailring.data.model import Frame
-from robofailring.detection.detector import DEFAULT_K, DetectorSession, FailureDetector, StepResult
-from robofailring.detection.rules import CONTRAST, NOVELTY, PAPER
+from robofailring.detection.config import DEFAULT_K
+from robofailring.detection.detector import DetectorSession, FailureDetector, StepResult
 from robofailring.errors import DataError, SettingError
 from robofailring.explain.report import FailureReport
 from robofailring.outputs import check_recording_file
@@ -95,12 +95,10 @@ def check_viewer(url: str) -> None:
 def _score_plots(detector: FailureDetector, task: str) -> ScorePlots:
     """The live session's score plots, as a replay of its task would have them."""
     return ScorePlots.of(
-        delta=detector.delta,
-        gamma=detector.gamma,
-        eta=detector.eta,
+        judging=detector.rule_for(task),
+        thresholds=detector.thresholds,
         failures=detector.memory.has_failures(task),
         successes=detector.memory.successes is not None,
-        novelty=detector.rule_for(task).name == NOVELTY.name,
         bands=detector.bands,
     )
 
@@ -220,25 +218,17 @@ class LiveRecording:
             self.rec, self.views, codec=self.camera_codec, fps=self.fps, name=self.name
         )
         failures = self.detector.memory.has_failures(self.task)
+        self.plots = _score_plots(self.detector, self.task)
         log_score_styles(
             self.rec,
             paths,
             views=self.views,
-            delta=self.detector.delta,
-            rule=self.detector.rule_for(self.task),
-            failures=failures,
+            rules=self.plots.rules,
+            judging=self.detector.rule_for(self.task),
+            thresholds=self.plots.thresholds,
+            bands=self.detector.bands,
+            successes=self.plots.successes,
         )
-        if self.detector.memory.successes is not None:
-            log_contrast_styles(
-                self.rec,
-                paths,
-                views=self.views,
-                gamma=self.detector.gamma,
-                eta=self.detector.eta,
-                colours=list(VIEW_COLOURS),
-                failures=failures,
-                bands=self.detector.bands,
-            )
         if not failures:
             for view in self.views:
                 log_no_failures(self.rec, paths, view, task=self.task)
@@ -274,24 +264,18 @@ class LiveRecording:
         """Log one step at frame `result.t`: cameras, S_t, δ, State_t, map query, neighbours, alarm."""
         rec, paths, t = self.rec, REPLAY, result.t
         set_frame_time(rec, t, self.fps)
-        failures = self.detector.memory.has_failures(self.task)
         for view, frame in frames.items():
             self.cameras.log(view, frame, t)
-            if failures:
-                rec.log(paths.score(view), rr.Scalars(result.similarity[view]))
-        if failures:
-            rec.log(paths.delta, rr.Scalars(self.detector.threshold_at(PAPER, t)))
+        for rule in self.plots.rules:  # each shown rule's score where it was scored, and its threshold
+            for view, score in result.rule_scores[rule.name].items():
+                if np.isfinite(score):
+                    rec.log(paths.score(view, rule.name), rr.Scalars(score))
+            rec.log(paths.threshold(rule.name), rr.Scalars(result.thresholds[rule.name]))
         rec.log(paths.state, rr.Scalars(float(result.alarm)))
-        if self.detector.memory.successes is not None:
-            if failures:
-                rec.log(paths.gamma, rr.Scalars(self.detector.threshold_at(CONTRAST, t)))
-            rec.log(paths.eta, rr.Scalars(self.detector.threshold_at(NOVELTY, t)))
+        if self.plots.successes:
             for view, match in result.nearest_success.items():
                 if np.isfinite(result.success_similarity[view]):
                     rec.log(paths.success_score(view), rr.Scalars(result.success_similarity[view]))
-                    if failures:
-                        rec.log(paths.contrast_score(view), rr.Scalars(result.contrast[view]))
-                    rec.log(paths.novelty_score(view), rr.Scalars(result.novelty[view]))
                 changed = self._success_shown.get(view, -1) != (match.index if match else -1)
                 self._success_shown[view] = match.index if match else -1
                 log_nearest_success(rec, paths, view, match, t=t, images=self._success_images, image=changed)
@@ -358,11 +342,9 @@ class LiveRecording:
             "L": self.steps,
             "fps": float(self.fps),
             "encoder": self.detector.encoder.identity,
-            "delta": float(self.detector.delta),
             "score": rule.name,
             "threshold": float(self.detector.threshold_of(rule)),
-            "gamma": float(self.detector.gamma),
-            "eta": float(self.detector.eta),
+            **threshold_properties(self.detector),
             "k": self.detector.k,
             "t_det": self.fired_at if self.fired_at is not None else -1,  # -1: the detector never fired
             "views": ", ".join(self.views),

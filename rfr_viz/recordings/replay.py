@@ -13,18 +13,17 @@ from typing import Any, Final
 from rfr_viz.recordings.blueprint import ScorePlots, compare_blueprint, replay_blueprint
 from rfr_viz.codecs import CameraCodec
 from rfr_viz.panels.cameras import log_camera_views
-from rfr_viz.panels.contrast import log_contrast
+from rfr_viz.panels.contrast import log_nearest_successes
 from rfr_viz.panels.umap import MemoryMap, fit_map
 from rfr_viz.panels.neighbors import Cell, NeighborImages, log_neighbors
 from rfr_viz.panels.map import log_map, map_title, trace_map_grid
 from rfr_viz.panels.report import log_detection
-from rfr_viz.panels.scores import log_scores, time_columns
+from rfr_viz.panels.scores import log_scores, threshold_properties, time_columns
 from rfr_viz.paths import APPLICATION_ID, DEFAULT_FPS, IN_MEMORY, PROPERTIES, REPLAY, DetectorPaths
 from rfr_viz.styles import VIEW_COLOURS
 from robofailring.atomic import atomic_path
 from robofailring.data.model import Trajectory
 from robofailring.detection.detector import DetectionTrace
-from robofailring.detection.rules import NOVELTY
 from robofailring.explain.report import report_for
 from robofailring.explain.vlm import VLMAnswer
 from robofailring.extras import needs_extra
@@ -185,12 +184,10 @@ def compare_recording(
 def score_plots(trace: DetectionTrace) -> ScorePlots:
     """What a trace's score plots show (`ScorePlots.of`)."""
     return ScorePlots.of(
-        delta=trace.delta,
-        gamma=trace.gamma,
-        eta=trace.eta,
+        judging=trace.rule,
+        thresholds=trace.thresholds,
         failures=trace.has_failures,
         successes=bool(trace.success_similarity),
-        novelty=trace.rule.name == NOVELTY.name,
         bands=trace.bands,
     )
 
@@ -239,11 +236,9 @@ def _report_properties(
 def _detector_properties(trace: DetectionTrace, memory_map: MemoryMap) -> dict[str, Any]:
     return {
         "encoder": trace.encoder,
-        "delta": float(trace.delta),
         "score": trace.rule.name,
         "threshold": float(trace.threshold),
-        "gamma": float(trace.gamma),
-        "eta": float(trace.eta),
+        **threshold_properties(trace),
         "failure_entries": trace.memory.task_size(trace.task),
         "success_entries": len(trace.memory.successes) if trace.memory.successes is not None else 0,
         "k": trace.k,
@@ -292,7 +287,7 @@ def log_detector(
     """Everything that depends on the detector: scores, δ, state, map, neighbours, event and report."""
     images = images or NeighborImages()
     log_scores(rec, trace, paths, fps, label=label)
-    log_contrast(rec, trace, paths, fps=fps, colours=list(VIEW_COLOURS), prefix=f"{label} · " if label else "")
+    log_nearest_successes(rec, trace, paths, fps=fps)
     log_map(rec, trace, paths, memory_map, fps)
     log_neighbors(rec, trace, paths, fps=fps, images=images, cell=cell or images.cell(trace))
     log_detection(rec, trace, paths, fps, trajectory, vlm_answer)

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import contextlib
-import ctypes.util
-import glob
 import os
 import shutil
 import signal
@@ -12,33 +10,20 @@ import socket
 import subprocess
 import tempfile
 import time
-import warnings
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Final
+from typing import TYPE_CHECKING, Final
 
-from rfr_viz.paths import FRAME, PROPERTIES
-from robofailring.errors import RoboFailRingError
+from rfr_viz.paths import FRAME
+from rfr_viz.viewer.binary import ViewerUnavailable, check_vulkan, viewer_binary, viewer_environment
+from rfr_viz.viewer.rrd import focus_frame, verify_recording
 from robofailring.extras import needs_extra
 
 if TYPE_CHECKING:
     from rerun.experimental import Recording, ViewerClient, ViewerState
 
 WINDOW: Final[tuple[int, int]] = (1280, 720)
-NO_FOOTER: Final[str] = "RRD file has no footer"  # what RrdReader warns on a saved live recording
-NO_FOOTER_VERIFY: Final[str] = "Missing RRD footer"  # what `rerun rrd verify` says of one
-ICD_GLOBS: Final[tuple[str, ...]] = (
-    "/usr/share/vulkan/icd.d/*.json",
-    "/etc/vulkan/icd.d/*.json",
-    "/usr/local/share/vulkan/icd.d/*.json",
-)
-
-
-class ViewerUnavailable(RoboFailRingError, RuntimeError):
-    """The viewer cannot run here (no Vulkan driver, no viewer binary, a server that stopped): exit 1."""
-
-    exit_code = 1  # an error of the environment, not of the input
 
 
 @dataclass(frozen=True)
@@ -49,73 +34,6 @@ class Screenshot:
     errors: list[str] = field(default_factory=list)
     frame: int | None = None
     views: dict[str, bytes] = field(default_factory=dict)  # PNG of each view asked for, by origin
-
-
-def viewer_binary() -> Path:
-    """The real viewer executable inside the `rerun_cli` package (not the Python console script)."""
-    with needs_extra("viz"):
-        import rerun_cli
-    binary = Path(rerun_cli.__file__).parent / "rerun"
-    if not binary.is_file():
-        raise ViewerUnavailable(f"no viewer binary at {binary}")
-    return binary
-
-
-def check_vulkan() -> None:
-    """Raise ViewerUnavailable unless a Vulkan loader and a driver (e.g. Mesa lavapipe) are installed."""
-    if ctypes.util.find_library("vulkan") is None:
-        raise ViewerUnavailable(
-            "no Vulkan loader (libvulkan.so.1); install Mesa's software driver: "
-            "apt-get install -y --no-install-recommends mesa-vulkan-drivers libvulkan1"
-        )
-    icds = [path for pattern in ICD_GLOBS for path in glob.glob(pattern)]
-    if not icds and not os.environ.get("VK_ICD_FILENAMES") and not os.environ.get("VK_DRIVER_FILES"):
-        raise ViewerUnavailable(
-            "no Vulkan driver (ICD) found; install Mesa's software driver: "
-            "apt-get install -y --no-install-recommends mesa-vulkan-drivers libvulkan1"
-        )
-
-
-def viewer_environment(runtime_dir: str) -> dict[str, str]:
-    return {**os.environ, "CI": "1", "XDG_RUNTIME_DIR": runtime_dir, "RERUN_ANALYTICS": "0"}
-
-
-def verify_recording(recording: Path) -> None:
-    """`rerun rrd verify`: the only rrd subcommand that fails on a corrupt file (raises ValueError).
-
-    A footer (Rerun's index of the chunks) is required, except in a recording that says it is a saved
-    live session (`live` in its properties): those are written without one on purpose (recordings.live).
-    A file cut short loses its footer, so any other recording without one is refused."""
-    result = _rrd_verify(recording, check_footers=True)
-    if result.returncode != 0 and NO_FOOTER_VERIFY in (result.stderr + result.stdout):
-        try:
-            live = recording_properties(recording).get("live") is True
-        except Exception:  # unreadable properties (any reader error): the file is refused below
-            live = False
-        if live:
-            result = _rrd_verify(recording, check_footers=False)
-    if result.returncode != 0:
-        raise ValueError(f"{recording} is not a valid recording: {(result.stderr or result.stdout).strip()}")
-
-
-def _rrd_verify(recording: Path, *, check_footers: bool) -> subprocess.CompletedProcess[str]:
-    with tempfile.TemporaryDirectory(prefix="rfr-viewer-") as runtime_dir:
-        os.chmod(runtime_dir, 0o700)
-        return subprocess.run(
-            [
-                str(viewer_binary()),
-                "rrd",
-                "verify",
-                "--check-footers",
-                str(check_footers).lower(),
-                str(recording),
-            ],
-            env=viewer_environment(runtime_dir),
-            capture_output=True,
-            text=True,
-            timeout=120,
-            check=False,
-        )
 
 
 def _free_port() -> int:
@@ -302,31 +220,6 @@ def _active_recording(state: ViewerState) -> Recording | None:
     if state.active_recording is None:
         return None
     return next((r for r in state.recordings if r.store_id == state.active_recording), None)
-
-
-def recording_properties(recording: Path, group: str = PROPERTIES) -> dict[str, Any]:
-    """A recording's property group (task, label, t_det, focus_frame, …) read back from the file."""
-    with needs_extra("viz"):
-        from rerun.chunk import RrdReader
-
-    with warnings.catch_warnings():  # a saved live recording has no footer on purpose (recordings.live)
-        warnings.filterwarnings("ignore", message=NO_FOOTER)
-        reader = RrdReader(Path(recording))
-    chunks = reader.stream().filter(content=f"/__properties/{group}").to_chunks()
-    for chunk in chunks:
-        columns = chunk.to_record_batch().to_pydict()
-        return {name: values[0][0] for name, values in columns.items() if not name.startswith("rerun.")}
-    return {}
-
-
-def focus_frame(recording: Path) -> int:
-    """The frame a reviewer wants first: the recorded focus (an alarm, a miss's peak), else t_det, else 0."""
-    found = recording_properties(recording)
-    for key in ("focus_frame", "t_det"):
-        value = found.get(key)
-        if isinstance(value, int) and value >= 0:
-            return value
-    return 0
 
 
 DEFAULT_PORT: Final[int] = 9876  # the Rerun viewer's default: an already running viewer is reused

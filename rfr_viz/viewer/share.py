@@ -20,7 +20,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Final
 
-from rfr_viz.viewer.control import stop_viewer, verify_recording, viewer_binary, viewer_environment
+from rfr_viz.viewer.binary import viewer_binary, viewer_environment
+from rfr_viz.viewer.control import stop_viewer
+from rfr_viz.viewer.rrd import verify_recording
 from robofailring.errors import DataError
 
 DEFAULT_HOST: Final[str] = "127.0.0.1"

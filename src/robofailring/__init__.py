@@ -33,6 +33,7 @@ if TYPE_CHECKING:
     from robofailring.data.grounding import ground, parse_symbol
     from robofailring.data.layouts import Dataset, load_dataset, load_trajectory
     from robofailring.data.model import Frame, Outcome, Trajectory
+    from robofailring.detection.config import DetectorConfig
     from robofailring.detection.conformal import smallest_target_fpr
     from robofailring.detection.detector import DetectorSession, FailureDetector, StepSink
     from robofailring.detection.loader import open_detector
@@ -47,6 +48,7 @@ if TYPE_CHECKING:
     from robofailring.jobs.detect import DetectConfig, detect
     from robofailring.memory.entry import MemoryEntry, Neighbor
     from robofailring.memory.failure import FailureMemory
+    from robofailring.memory.recipe import MemoryRecipe
     from robofailring.memory.success import SuccessMemory
     from robofailring.sim import VIEWS as SIM_VIEWS
     from robofailring.sim import GenerateConfig, generate_dataset, run_episode
@@ -62,6 +64,7 @@ _LAZY = {  # name -> (module, attribute), imported on first use (the simulator's
     "Dataset": ("robofailring.data.layouts", "Dataset"),
     "DetectConfig": ("robofailring.jobs.detect", "DetectConfig"),
     "DetectionTrace": ("robofailring.detection.trace", "DetectionTrace"),
+    "DetectorConfig": ("robofailring.detection.config", "DetectorConfig"),
     "DetectorSession": ("robofailring.detection.detector", "DetectorSession"),
     "Encoder": ("robofailring.encoders", "Encoder"),
     "EvaluateConfig": ("robofailring.evaluation.run", "EvaluateConfig"),
@@ -70,6 +73,7 @@ _LAZY = {  # name -> (module, attribute), imported on first use (the simulator's
     "FailureReport": ("robofailring.explain.report", "FailureReport"),
     "Frame": ("robofailring.data.model", "Frame"),
     "MemoryEntry": ("robofailring.memory.entry", "MemoryEntry"),
+    "MemoryRecipe": ("robofailring.memory.recipe", "MemoryRecipe"),
     "Neighbor": ("robofailring.memory.entry", "Neighbor"),
     "Outcome": ("robofailring.data.model", "Outcome"),
     "PAPER_DELTA": ("robofailring.detection.rules", "PAPER_DELTA"),
@@ -127,6 +131,7 @@ __all__ = [
     "Dataset",
     "DetectConfig",
     "DetectionTrace",
+    "DetectorConfig",
     "DetectorSession",
     "Encoder",
     "EncoderError",
@@ -139,6 +144,7 @@ __all__ = [
     "GenerateConfig",
     "MemoryEntry",
     "MemoryFormatError",
+    "MemoryRecipe",
     "Neighbor",
     "Outcome",
     "RoboFailRingError",

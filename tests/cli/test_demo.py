@@ -10,7 +10,8 @@ import pytest
 
 from rfr_viz.jobs.demo import DemoConfig, DemoResult, _trained_encoder, run_demo, simulate_datasets
 from rfr_viz.jobs.review import ReviewConfig, review
-from rfr_viz.viewer.control import verify_recording
+from rfr_viz.viewer.rrd import verify_recording
+from robofailring.detection.config import DetectorConfig
 from robofailring.errors import DataError
 
 pytestmark = pytest.mark.slow  # simulation or end-to-end: the full lane only (scripts/test.sh)
@@ -101,7 +102,7 @@ def test_review_replays_the_listed_trajectories(demo: tuple[Path, DemoResult]) -
                 data=root / "data" / "sim-ood",
                 kind=kind,
                 out=root / "review" / str(score),
-                cache_dir=root / "cache",
+                detector=DetectorConfig(cache_dir=root / "cache"),
                 score=score,
             )
         )

@@ -115,12 +115,12 @@ _NOISY_DETECT = """
 import logging, sys
 import robofailring.jobs.detect as job
 from rfr_viz.cli.app import main
-real = job.open_detector
+real = job.detector_from
 def noisy(*args, **kwargs):
     logging.error("Failed to download weights for tag 'openai'")  # as open_clip logs, on the root logger
     logging.getLogger("rerun").warning("a library's own warning")
     return real(*args, **kwargs)
-job.open_detector = noisy
+job.detector_from = noisy
 sys.argv = ["robofailring", "detect", sys.argv[1], "--memory", sys.argv[2]]
 main()
 """

@@ -12,7 +12,7 @@ from rrd import entity_paths, rows
 from synthetic import VIEWS, write_aha_dataset, write_episode, write_project_dataset
 
 from rfr_viz.paths import UNSTOPPED, WATCHED
-from rfr_viz.viewer.control import verify_recording
+from rfr_viz.viewer.rrd import verify_recording
 
 pytestmark = pytest.mark.slow  # simulation or end-to-end: the full lane only (scripts/test.sh)
 
@@ -125,7 +125,9 @@ def test_live_robot_example_records_the_stream(tmp_path: Path) -> None:
     if "STOP at step" in out:
         steps = int(out.split("STOP at step ")[1].split()[0]) + 1  # the stop step is the last one fed
     for view in VIEWS:
-        assert [frame for frame, _ in rows(saved, f"/score/{view}", "Scalars:scalars")] == list(range(steps))
+        assert [frame for frame, _ in rows(saved, f"/score/{view}/paper", "Scalars:scalars")] == list(
+            range(steps)
+        )
         assert [frame for frame, _ in rows(saved, f"/camera/{view}", "EncodedImage:blob")] == list(
             range(steps)
         )

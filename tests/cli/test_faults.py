@@ -28,7 +28,7 @@ from fault_helpers import (
 )
 from synthetic import write_aha_dataset, write_episode, write_project_dataset
 
-from rfr_viz.viewer.control import recording_properties
+from rfr_viz.viewer.rrd import recording_properties
 
 # ---------------------------------------------------------------- data loss
 

@@ -16,8 +16,8 @@ from hypothesis import example, given
 from hypothesis import strategies as st
 
 from rfr_viz.jobs.replay import check_fps
+from robofailring.detection.config import check_k, check_stride
 from robofailring.detection.conformal import check_target_fpr
-from robofailring.detection.detector import check_k, check_stride
 from robofailring.detection.rules import RULES
 from robofailring.errors import SettingError
 from robofailring.memory.thinning import check_step

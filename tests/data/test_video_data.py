@@ -127,7 +127,7 @@ def test_labels_build_a_memory_and_replay_a_recording(v3: Path, tmp_path: Path) 
     assert replayed.exit_code == 0, replayed.output
     (recording,) = out.glob("*.rrd")
     assert [frame for frame, _ in rows(recording, "/camera/front", "EncodedImage:blob")] == list(range(15))
-    assert [frame for frame, _ in rows(recording, "/score/front", "Scalars:scalars")] == [0, 4, 8, 12]
+    assert [frame for frame, _ in rows(recording, "/score/front/paper", "Scalars:scalars")] == [0, 4, 8, 12]
     assert properties(recording)["stride"] == 4 and properties(recording)["task"] == "pick up the cube"
     neighbour = rows(recording, "/neighbors/front/0/end", "EncodedImage:blob")  # read back from the mp4
     assert neighbour and neighbour[0][0] == 0

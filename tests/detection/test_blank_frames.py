@@ -11,6 +11,7 @@ import pytest
 from synthetic import write_project_dataset
 
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
+from robofailring.detection.config import DetectorConfig
 from robofailring.detection.rules import CONTRAST
 from robofailring.evaluation.calibration import CalibrateConfig, calibrate
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
@@ -56,7 +57,9 @@ def test_detect_says_when_its_rule_judges_at_an_uncalibrated_default(
 ) -> None:
     data, memory_dir, _ = both
     key = load_dataset(data).select(split="test")[0].key
-    config = DetectConfig(trajectory=data, key=key, memory=memory_dir, cache_dir=tmp_path / "c")
+    config = DetectConfig(
+        trajectory=data, detector=DetectorConfig(memory=memory_dir, cache_dir=tmp_path / "c"), key=key
+    )
     with caplog.at_level(logging.WARNING, logger="robofailring"):
         assert run_detect(config).trace.rule is CONTRAST
     said = [r.getMessage() for r in caplog.records if "not calibrated" in r.getMessage()]
@@ -67,6 +70,12 @@ def test_detect_says_when_its_rule_judges_at_an_uncalibrated_default(
     with caplog.at_level(logging.WARNING, logger="robofailring"):
         run_detect(config)
         run_detect(
-            DetectConfig(trajectory=data, key=key, memory=memory_dir, cache_dir=tmp_path / "c", gamma=0.1)
+            DetectConfig(
+                trajectory=data,
+                detector=DetectorConfig(
+                    memory=memory_dir, cache_dir=tmp_path / "c", thresholds={"contrast": 0.1}
+                ),
+                key=key,
+            )
         )
     assert not [r for r in caplog.records if "not calibrated" in r.getMessage()]

@@ -40,7 +40,7 @@ def test_trace_equals_brute_force(
     assert trace.length == 7 and trace.views == ["front", "overhead", "wrist"]
     for view in trace.views:
         embeddings = raw.encode([f.load() for f in trajectory.views[view]])
-        queries = pair_vectors(np.repeat(embeddings[:1], 7, axis=0), embeddings)
+        queries = pair_vectors(np.repeat(embeddings[:1], 7, axis=0), embeddings, pairing="concat")
         expected = (queries @ memory.vectors[members].T).max(axis=1)
         np.testing.assert_allclose(trace.similarity[view], expected, atol=1e-5)
         assert all(n.entry.task == "pick_cube" for t in range(7) for n in trace.neighbors(view, t))
@@ -95,7 +95,7 @@ def test_detection_and_fusion(memory_and_encoder: tuple[FailureMemory, CachedEnc
     by_view = []
     for frames in failure.views.values():
         embeddings = raw.encode([f.load() for f in frames])
-        queries = pair_vectors(np.repeat(embeddings[:1], len(frames), axis=0), embeddings)
+        queries = pair_vectors(np.repeat(embeddings[:1], len(frames), axis=0), embeddings, pairing="concat")
         by_view.append((queries @ members.T).max(axis=1))
     reached = np.flatnonzero(np.stack(by_view).max(axis=0) >= 0.999)  # the fused S_t reaches δ
     assert reached.size > 0 and trace.t_det == int(reached[0])

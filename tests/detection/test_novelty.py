@@ -10,6 +10,7 @@ import pytest
 from synthetic import write_project_dataset
 
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
+from robofailring.detection.config import DetectorConfig
 from robofailring.detection.rules import (
     CONTRAST,
     NOVELTY,
@@ -143,7 +144,9 @@ def test_eta_is_calibrated_on_training_successes_and_judges_the_task(
     session = detector.session(trajectory.task)
     step = session.step({view: frames[0] for view, frames in trajectory.views.items()})
     assert step.rule is NOVELTY and step.threshold == found.eta and step.neighbors[trace.views[0]] == []
-    assert step.novelty[trace.views[0]] == pytest.approx(float(trace.novelty[trace.views[0]][0]), abs=1e-6)
+    assert step.rule_scores["novelty"][trace.views[0]] == pytest.approx(
+        float(trace.scores_of(NOVELTY)[trace.views[0]][0]), abs=1e-6
+    )
 
     for rule in ("paper", "contrast"):
         with pytest.raises(SettingError, match=f"the {rule} rule needs failure runs in the memory"):
@@ -156,7 +159,11 @@ def test_detect_says_novelty_fired_with_no_failure_to_compare(
     data, memory_dir, cache = success_only
     trajectory = load_dataset(data).select(split="test")[0]
     result = run_detect(
-        DetectConfig(trajectory=data, key=trajectory.key, memory=memory_dir, eta=0.0, cache_dir=cache)
+        DetectConfig(
+            trajectory=data,
+            detector=DetectorConfig(memory=memory_dir, cache_dir=cache, thresholds={"novelty": 0.0}),
+            key=trajectory.key,
+        )
     )
     assert result.trace.rule is NOVELTY and result.trace.eta == 0.0 and result.trace.t_det == 0
     text = result.to_text()
@@ -216,13 +223,21 @@ def test_an_evaluation_grows_from_success_runs_only_to_labelled_failures(tmp_pat
     assert len({t.symbol for t in labelled_failures(train, 2) if t.task == "pick_cube" and t.is_failure}) == 2
     cold = run_evaluation(
         EvaluateConfig(
-            data=data, out=tmp_path / "e0", cache_dir=tmp_path / "c", target_fpr=0.5, failures_per_task=0
+            data=data,
+            detector=DetectorConfig(cache_dir=tmp_path / "c"),
+            out=tmp_path / "e0",
+            target_fpr=0.5,
+            failures_per_task=0,
         )
     )
     assert list(cold.rules) == ["novelty"] and cold.failures == 12
     grown = run_evaluation(
         EvaluateConfig(
-            data=data, out=tmp_path / "e1", cache_dir=tmp_path / "c", target_fpr=0.5, failures_per_task=1
+            data=data,
+            detector=DetectorConfig(cache_dir=tmp_path / "c"),
+            out=tmp_path / "e1",
+            target_fpr=0.5,
+            failures_per_task=1,
         )
     )
     assert list(grown.rules) == ["paper", "contrast", "novelty"]

@@ -14,12 +14,14 @@ from typer.testing import CliRunner
 from rfr_viz.cli.app import app
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
 from robofailring.detection.band import NONE, NORM, SHIFT
+from robofailring.detection.config import DetectorConfig
 from robofailring.detection.conformal import conformal_threshold
 from robofailring.detection.rules import CONTRAST, NOVELTY, PAPER
 from robofailring.evaluation.calibration import CalibrateConfig, calibrate, conformal_peaks, success_scores
 from robofailring.evaluation.run import EvaluateConfig, run_evaluation
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.jobs.detect import DetectConfig, run_detect
+from robofailring.memory.recipe import MemoryRecipe
 
 ALPHA = 0.1  # 12 calibration runs allow α ≥ 1/13
 
@@ -98,7 +100,11 @@ def test_detect_and_the_live_step_fire_where_the_raw_score_crosses_the_line(
             assert step.alarm == bool(trace.state[t])
     assert fired
     shown = run_detect(
-        DetectConfig(trajectory=data, key=trajectory.episode, memory=memory_dir, cache_dir=cache)
+        DetectConfig(
+            trajectory=data,
+            detector=DetectorConfig(memory=memory_dir, cache_dir=cache),
+            key=trajectory.episode,
+        )
     )
     as_json = shown.to_dict()
     assert as_json["band"] == NORM and len(as_json["threshold_line"]) == trace.length
@@ -129,7 +135,12 @@ def test_the_evaluation_judges_on_the_band_it_calibrates(
     results = {
         band: run_evaluation(
             EvaluateConfig(
-                data=data, out=tmp_path / band, encoder="pixels", target_fpr=ALPHA, cache_dir=cache, band=band
+                data=data,
+                recipe=MemoryRecipe(encoder="pixels"),
+                detector=DetectorConfig(cache_dir=cache),
+                out=tmp_path / band,
+                target_fpr=ALPHA,
+                band=band,
             )
         )
         for band in (NONE, NORM)

@@ -19,7 +19,7 @@ import rfr_viz.jobs.compare_encoders as encoder_comparison
 import robofailring.encoders as encoders
 from rfr_viz.cli.app import app
 from rfr_viz.jobs.compare_encoders import EncoderComparison
-from rfr_viz.viewer.control import verify_recording
+from rfr_viz.viewer.rrd import verify_recording
 from robofailring.evaluation.comparison import CompareEncodersConfig, compare_encoders, comparison_table
 
 pytestmark = pytest.mark.slow  # simulation or end-to-end: the full lane only (scripts/test.sh)

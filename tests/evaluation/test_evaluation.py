@@ -16,6 +16,7 @@ from robofailring import (
     load_dataset,
     load_encoder,
 )
+from robofailring.detection.config import DetectorConfig
 from robofailring.errors import SettingError
 from robofailring.evaluation.calibration import CalibrateConfig, calibrate
 from robofailring.evaluation.run import (
@@ -26,6 +27,7 @@ from robofailring.evaluation.run import (
     write_evaluation,
 )
 from robofailring.memory.builder import Provenance, build_memories
+from robofailring.memory.recipe import MemoryRecipe
 
 
 @pytest.fixture(scope="module")
@@ -34,7 +36,7 @@ def dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_splits_keep_memory_and_test_apart(dataset: Path, tmp_path: Path) -> None:
-    config = EvaluateConfig(data=dataset, out=tmp_path, cache_dir=tmp_path / "cache")
+    config = EvaluateConfig(data=dataset, detector=DetectorConfig(cache_dir=tmp_path / "cache"), out=tmp_path)
     splits = select_splits(config)
     train, test = splits.train, splits.test
     assert {t.key for t in train}.isdisjoint({t.key for t in test})
@@ -47,7 +49,10 @@ def test_splits_keep_memory_and_test_apart(dataset: Path, tmp_path: Path) -> Non
     check_disjoint(honest, test)
     provenance = Provenance(data=dataset, encoder="pixels")
     dense, _ = build_memories(
-        list(load_dataset(dataset)), encoder, provenance=provenance, failure_frames="dense"
+        list(load_dataset(dataset)),
+        encoder,
+        provenance=provenance,
+        recipe=MemoryRecipe(failure_frames="dense"),
     )
     with pytest.raises(RoboFailRingError, match="also in the memory"):
         check_disjoint(dense, test)
@@ -55,7 +60,11 @@ def test_splits_keep_memory_and_test_apart(dataset: Path, tmp_path: Path) -> Non
 
 def test_evaluation_files_and_counts(dataset: Path, tmp_path: Path) -> None:
     config = EvaluateConfig(
-        data=dataset, out=tmp_path, cache_dir=tmp_path / "cache", name="in-distribution", target_fpr=0.2
+        data=dataset,
+        detector=DetectorConfig(cache_dir=tmp_path / "cache"),
+        out=tmp_path,
+        name="in-distribution",
+        target_fpr=0.2,
     )
     result = run_evaluation(config)
     assert result.failures == 2 * 3 * 2 and result.successes == 2 * 2
@@ -103,10 +112,14 @@ def test_evaluation_files_and_counts(dataset: Path, tmp_path: Path) -> None:
 
 def test_an_evaluation_of_the_papers_memory_says_so(dataset: Path, tmp_path: Path) -> None:
     with pytest.raises(SettingError, match="failure frames must be end or dense, got 'all'"):
-        EvaluateConfig(data=dataset, out=tmp_path, failure_frames="all")
+        EvaluateConfig(data=dataset, recipe=MemoryRecipe(failure_frames="all"), out=tmp_path)
     result = run_evaluation(
         EvaluateConfig(
-            data=dataset, out=tmp_path, cache_dir=tmp_path / "cache", target_fpr=0.2, failure_frames="end"
+            data=dataset,
+            recipe=MemoryRecipe(failure_frames="end"),
+            detector=DetectorConfig(cache_dir=tmp_path / "cache"),
+            out=tmp_path,
+            target_fpr=0.2,
         )
     )
     json_path, md_path = write_evaluation(result, tmp_path)
@@ -121,7 +134,9 @@ def test_an_evaluation_of_the_papers_memory_says_so(dataset: Path, tmp_path: Pat
 
 def test_calibration_is_stored_and_used(dataset: Path, tmp_path: Path) -> None:
     cache = tmp_path / "cache"
-    run_evaluation(EvaluateConfig(data=dataset, out=tmp_path, cache_dir=cache, target_fpr=0.5))
+    run_evaluation(
+        EvaluateConfig(data=dataset, detector=DetectorConfig(cache_dir=cache), out=tmp_path, target_fpr=0.5)
+    )
     calibration = calibrate(
         CalibrateConfig(data=dataset, memory=tmp_path / "memory", target_fpr=0.5, cache_dir=cache)
     )
@@ -154,7 +169,12 @@ def test_too_short_test_trajectories_are_skipped_and_reported(tmp_path: Path) ->
         if not image.stem.endswith("_0"):
             image.unlink()
     result = run_evaluation(
-        EvaluateConfig(data=data, out=tmp_path / "out", cache_dir=tmp_path / "cache", target_fpr=None)
+        EvaluateConfig(
+            data=data,
+            detector=DetectorConfig(cache_dir=tmp_path / "cache"),
+            out=tmp_path / "out",
+            target_fpr=None,
+        )
     )
     assert result.skipped_too_short == ["pick_cube/pick_cube_slip_wp3_episode1"]
     assert result.failures == 2  # the other two test failures

@@ -1,21 +1,30 @@
 """A rule defined in this file only, registered as rules are, is calibrated by `calibrate`, stored under its
-name, read back by `FailureMemory.load` and judges runs and live steps at its stored threshold: nothing
-outside the rule's class names it."""
+name, read back by `FailureMemory.load`, judges runs and live steps at its stored threshold, is recorded (its
+score per view and its threshold line, read back from the `.rrd`) and reviewed: nothing outside the rule's
+class names it."""
 
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
 from numpy.typing import ArrayLike
+from rrd import rows, static_value
 from synthetic import write_project_dataset
 
+from rfr_viz.jobs.review import ReviewConfig, review
+from rfr_viz.paths import REPLAY
+from rfr_viz.recordings.replay import record_replay
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
+from robofailring.detection.config import DetectorConfig
 from robofailring.detection.conformal import conformal_threshold, empirical_fpr
 from robofailring.detection.rules import RULES, ScoringRule
 from robofailring.evaluation.calibration import CalibrateConfig, calibrate
+from robofailring.evaluation.run import run_evaluation, write_evaluation
+from robofailring.evaluation.training import EvaluateConfig
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 
 ALPHA = 0.5
@@ -91,4 +100,61 @@ def test_a_rule_defined_in_a_test_is_calibrated_stored_reloaded_and_judges(
     for t in range(trace.length):
         step = session.step({view: frames[t] for view, frames in trajectory.views.items()})
         assert step.rule is rule and step.threshold == threshold and step.alarm == bool(trace.state[t])
+        assert step.thresholds[rule.name] == threshold
+        assert step.rule_scores[rule.name] == pytest.approx(
+            {v: float(-trace.success_similarity[v][t]) for v in trace.views}
+        )
     assert session.fired_at == trace.t_det
+
+    # recorded: the rule's score of every view and its threshold line, at the paths of its name
+    recording = record_replay(trajectory, trace, out=tmp_path / "replay.rrd")
+    for view in trace.views:
+        logged = rows(recording, REPLAY.score(view, rule.name), "Scalars:scalars")
+        np.testing.assert_allclose(
+            [value[0] for _, value in logged], -trace.success_similarity[view], atol=1e-6
+        )
+    line = rows(recording, REPLAY.threshold(rule.name), "Scalars:scalars")
+    assert len(line) == trace.length and all(value[0] == pytest.approx(threshold) for _, value in line)
+    assert static_value(recording, REPLAY.threshold(rule.name), "SeriesLines:names") == [
+        f"ε = {threshold:.3f}"
+    ]
+
+    # reviewed: an evaluation reports the rule, and `review --score` replays its false alarms: a failure
+    # run added to the test split labelled a success is one
+    _add_mislabelled_success(data, trajectory.source)
+    evaluated = run_evaluation(
+        EvaluateConfig(
+            data=data,
+            detector=DetectorConfig(memory=memory_dir, cache_dir=cache),
+            out=tmp_path / "evaluation",
+            target_fpr=None,
+        )
+    )
+    json_path, _ = write_evaluation(evaluated, tmp_path / "evaluation")
+    reported = json.loads(json_path.read_text(encoding="utf-8"))["rules"][rule.name]
+    assert reported["threshold"] == threshold and reported["fp"] == 1
+    kind = "false-alarms"
+    reviewed = review(
+        ReviewConfig(
+            evaluation=json_path,
+            data=data,
+            kind=kind,
+            out=tmp_path / "review",
+            score=rule.name,
+            detector=DetectorConfig(cache_dir=cache),
+        )
+    )
+    assert len(reviewed.recordings) == len(reported[kind.replace("-", "_")])
+    for path in reviewed.recordings:
+        assert rows(path, REPLAY.threshold(rule.name), "Scalars:scalars")[0][1][0] == pytest.approx(threshold)
+
+
+def _add_mislabelled_success(data: Path, failure: Path | None) -> None:
+    """A copy of the failure run at `failure`, added to the dataset's test split as a success."""
+    assert failure is not None
+    name = "pick_cube_success_episode99"
+    shutil.copytree(failure, data / name)
+    manifest = json.loads((data / "manifest.json").read_text(encoding="utf-8"))
+    record = next(r for r in manifest["episodes"] if r["dir"] == failure.name)
+    manifest["episodes"].append(record | {"dir": name, "episode": name, "label": None, "outcome": "success"})
+    (data / "manifest.json").write_text(json.dumps(manifest), encoding="utf-8")

@@ -10,8 +10,10 @@ import pytest
 from synthetic import write_project_dataset
 from test_metrics import scored
 
+from robofailring.detection.config import DetectorConfig
 from robofailring.evaluation.onset import onset_delay
 from robofailring.evaluation.run import EvaluateConfig, run_evaluation, write_evaluation
+from robofailring.memory.recipe import MemoryRecipe
 
 
 def test_delay_after_onset_and_premature_alarms_by_hand() -> None:
@@ -51,12 +53,12 @@ def test_evaluation_reports_delay_and_premature_alarms_per_rule(tmp_path: Path) 
             )
     (data / "manifest.json").write_text(json.dumps(manifest))
     result = run_evaluation(
-        EvaluateConfig(  # the paper's memory: its failure entries are their runs' ends, after any onset
+        EvaluateConfig(
             data=data,
+            recipe=MemoryRecipe(failure_frames="end"),
+            detector=DetectorConfig(cache_dir=tmp_path / "cache"),
             out=tmp_path / "out",
-            cache_dir=tmp_path / "cache",
             target_fpr=0.5,
-            failure_frames="end",
         )
     )
     json_path, md_path = write_evaluation(result, tmp_path / "out")
@@ -90,7 +92,12 @@ def test_evaluation_reports_delay_and_premature_alarms_per_rule(tmp_path: Path) 
 def test_evaluation_without_onsets_says_so(tmp_path: Path) -> None:
     data = write_project_dataset(tmp_path / "data", tasks=("pick_cube",), episodes=2, length=4)
     result = run_evaluation(
-        EvaluateConfig(data=data, out=tmp_path / "out", cache_dir=tmp_path / "cache", target_fpr=None)
+        EvaluateConfig(
+            data=data,
+            detector=DetectorConfig(cache_dir=tmp_path / "cache"),
+            out=tmp_path / "out",
+            target_fpr=None,
+        )
     )
     assert all(rule.onset is not None and rule.onset.known == 0 for rule in result.rules.values())
     assert "No failure run has a known onset (`onset_frame`)" in result.to_markdown()

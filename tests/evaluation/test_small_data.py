@@ -15,6 +15,7 @@ from typer.testing import CliRunner
 
 from rfr_viz.cli.app import app
 from robofailring import CachedEncoder, FailureDetector, load_dataset, load_encoder
+from robofailring.detection.config import DetectorConfig
 from robofailring.detection.conformal import auc
 from robofailring.detection.rules import PAPER
 from robofailring.errors import DataError, SettingError
@@ -41,7 +42,9 @@ def test_too_few_successes_give_every_figure_and_say_no_guarantee_holds(
     runs: tuple[Path, Path], cache: Path, tmp_path: Path
 ) -> None:
     data, labels = runs
-    config = EvaluateConfig(data=data, out=tmp_path, labels=labels, cache_dir=cache, target_fpr=0.05)
+    config = EvaluateConfig(
+        data=data, detector=DetectorConfig(cache_dir=cache), out=tmp_path, labels=labels, target_fpr=0.05
+    )
     splits = select_splits(config)
     n = sum(not t.is_failure for t in splits.train)
     assert 1 <= n < 19  # too few for α = 5 %: today's error, "needs at least 19 success runs"
@@ -64,7 +67,11 @@ def test_too_few_successes_give_every_figure_and_say_no_guarantee_holds(
     # enough runs for the asked α: calibrated at it, and nothing said about a shortfall
     enough = run_evaluation(
         EvaluateConfig(
-            data=data, out=tmp_path / "enough", labels=labels, cache_dir=cache, target_fpr=1 / (n + 1)
+            data=data,
+            detector=DetectorConfig(cache_dir=cache),
+            out=tmp_path / "enough",
+            labels=labels,
+            target_fpr=1 / (n + 1),
         )
     )
     assert enough.fpr_guarantee and "guarantee holds here" not in enough.to_markdown()
@@ -84,7 +91,12 @@ def test_a_rule_no_training_success_could_calibrate_is_left_out(
         )
     )
     result = run_evaluation(
-        EvaluateConfig(data=data, labels=apart, out=tmp_path / "out", cache_dir=tmp_path / "cache")
+        EvaluateConfig(
+            data=data,
+            detector=DetectorConfig(cache_dir=tmp_path / "cache"),
+            labels=apart,
+            out=tmp_path / "out",
+        )
     )
     assert list(result.rules) == ["novelty"] and result.uncalibrated == ["paper", "contrast"]
     assert result.to_dict()["uncalibrated_rules"] == ["paper", "contrast"] and not result.fpr_guarantee
@@ -92,7 +104,11 @@ def test_a_rule_no_training_success_could_calibrate_is_left_out(
     # one training success per task and no failure: nothing scores them at all
     lone = write_project_dataset(tmp_path / "lone", tasks=("pick_cube", "push_cube"), symbols=(), episodes=2)
     with pytest.raises(DataError, match="none of the 2 training success runs could be scored"):
-        run_evaluation(EvaluateConfig(data=lone, out=tmp_path / "lone-out", cache_dir=tmp_path / "cache"))
+        run_evaluation(
+            EvaluateConfig(
+                data=lone, detector=DetectorConfig(cache_dir=tmp_path / "cache"), out=tmp_path / "lone-out"
+            )
+        )
 
 
 def test_leave_one_episode_out_pools_every_labelled_run(
@@ -100,7 +116,11 @@ def test_leave_one_episode_out_pools_every_labelled_run(
 ) -> None:
     data, labels = runs
     config = EvaluateConfig(
-        data=data, out=tmp_path, labels=labels, cache_dir=cache, folds=FoldPlan.parse("loo")
+        data=data,
+        detector=DetectorConfig(cache_dir=cache),
+        out=tmp_path,
+        labels=labels,
+        folds=FoldPlan.parse("loo"),
     )
     crossed = run_evaluation(config).cross_validation
     assert crossed is not None and crossed.folds == RUNS and not crossed.guaranteed
@@ -164,7 +184,12 @@ def test_fold_plans_parse_or_say_what_they_take(text: str) -> None:
 def test_folds_refuse_a_given_memory(tmp_path: Path) -> None:
     assert FoldPlan.parse(" LOO ") == FoldPlan(None) and FoldPlan.parse("5") == FoldPlan(5)
     with pytest.raises(SettingError, match="--folds builds a memory"):
-        EvaluateConfig(data=tmp_path, out=tmp_path / "out", memory=tmp_path / "m", folds=FoldPlan(5))
+        EvaluateConfig(
+            data=tmp_path,
+            detector=DetectorConfig(memory=tmp_path / "m"),
+            out=tmp_path / "out",
+            folds=FoldPlan(5),
+        )
 
 
 def test_evaluate_folds_on_the_command_line(runs: tuple[Path, Path], cache: Path, tmp_path: Path) -> None:

@@ -12,7 +12,15 @@ from synthetic import write_project_dataset
 from typer.testing import CliRunner
 
 from rfr_viz.cli.app import app
-from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
+from robofailring import (
+    CachedEncoder,
+    DetectorConfig,
+    FailureDetector,
+    FailureMemory,
+    MemoryRecipe,
+    load_dataset,
+    load_encoder,
+)
 from robofailring.detection.band import SHIFT
 from robofailring.detection.conformal import conformal_threshold
 from robofailring.detection.rules import CONTRAST, PAPER
@@ -101,9 +109,9 @@ def test_the_evaluation_calibrates_and_judges_with_the_fusion_it_is_given(
             EvaluateConfig(
                 data=data,
                 out=tmp_path / fusion,
-                encoder="pixels",
+                recipe=MemoryRecipe("pixels"),
+                detector=DetectorConfig(cache_dir=cache),
                 target_fpr=ALPHA,
-                cache_dir=cache,
                 fusion=fusion,
             )
         )

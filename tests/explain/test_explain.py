@@ -13,6 +13,7 @@ from vlm_server import ANSWER, chat_server
 
 from rfr_viz.cli.app import app
 from rfr_viz.paths import REPLAY
+from robofailring.detection.config import DetectorConfig
 
 runner = CliRunner()
 
@@ -144,7 +145,12 @@ def test_review_puts_the_answer_into_each_false_alarm(tmp_path: Path) -> None:
 
     data = write_project_dataset(tmp_path / "data")
     result = run_evaluation(
-        EvaluateConfig(data=data, out=tmp_path / "eval", cache_dir=tmp_path / "cache", target_fpr=0.5)
+        EvaluateConfig(
+            data=data,
+            detector=DetectorConfig(cache_dir=tmp_path / "cache"),
+            out=tmp_path / "eval",
+            target_fpr=0.5,
+        )
     )
     json_path, _ = write_evaluation(result, tmp_path / "eval")
     # at δ = -1 every success run is a false alarm: review two of them

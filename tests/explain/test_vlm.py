@@ -23,6 +23,7 @@ from robofailring import (
 )
 from robofailring.cli.verbs import app
 from robofailring.data.images import read_image
+from robofailring.detection.config import DetectorConfig
 from robofailring.explain.report import SYSTEM_PROMPT, TASKS, FailureReport, report_for
 from robofailring.explain.vlm import API_KEY_ENV, ChatCompletionsClient, VLMConfig, VLMError, ask_vlm
 from robofailring.jobs.detect import DetectConfig, DetectResult, run_detect
@@ -228,7 +229,11 @@ def test_a_server_that_never_answers_is_abandoned_and_the_detection_kept(
     done: list[DetectResult] = []
     with silent_server() as server:
         vlm = VLMConfig(url=server.url, model="m", timeout_s=0.5, retries=1, backoff_s=0.0)
-        config = DetectConfig(trajectory=episode, memory=pixels_memory_dir, delta=-1.0, k=3, vlm=vlm)
+        config = DetectConfig(
+            trajectory=episode,
+            detector=DetectorConfig(memory=pixels_memory_dir, k=3, thresholds={"paper": -1.0}),
+            vlm=vlm,
+        )
         worker = threading.Thread(target=lambda: done.append(run_detect(config)), daemon=True)
         started = time.monotonic()
         worker.start()

@@ -12,6 +12,7 @@ import pytest
 from synthetic import write_aha_dataset, write_project_dataset
 
 from robofailring import CachedEncoder, FailureMemory, load_dataset, load_encoder
+from robofailring.detection.config import DetectorConfig
 from robofailring.encoders import portable_spec
 from robofailring.errors import MemoryFormatError
 from robofailring.evaluation.run import EvaluateConfig, build_training_memory
@@ -19,6 +20,7 @@ from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.memory.builder import Provenance, build_memories
 from robofailring.memory.failure import ENTRIES, MANIFEST
 from robofailring.memory.format import read_jsonl
+from robofailring.memory.recipe import MemoryRecipe
 from robofailring.memory.success import RUNS
 
 PROVENANCE_KEYS = ("source", "layout", "encoder_spec", "split", "data_root", "skipped_inputs")
@@ -75,7 +77,9 @@ def test_one_call_builds_the_complete_memory(dataset: Path, encoder: CachedEncod
 def test_no_success_run_or_none_asked_gives_the_paper_memory(tmp_path: Path, encoder: CachedEncoder) -> None:
     aha = write_aha_dataset(tmp_path / "aha", tasks=("pick_cube",), episodes=1)  # failures only
     provenance = Provenance(data=aha, encoder="pixels", layout="aha")
-    memory, _ = build_memories(list(load_dataset(aha)), encoder, provenance=provenance, failure_frames="end")
+    memory, _ = build_memories(
+        list(load_dataset(aha)), encoder, provenance=provenance, recipe=MemoryRecipe(failure_frames="end")
+    )
     assert memory.successes is None and len(memory) == 9 and memory.manifest.failure_frames == "end"
 
     project = write_project_dataset(tmp_path / "project", tasks=("pick_cube",), episodes=2)
@@ -91,7 +95,9 @@ def test_no_success_run_or_none_asked_gives_the_paper_memory(tmp_path: Path, enc
 def test_evaluate_and_build_memory_record_the_same_provenance(dataset: Path, tmp_path: Path) -> None:
     """evaluate's memory now carries the data root, layout and skipped inputs, as build-memory's does."""
     cache = tmp_path / "cache"
-    evaluated = build_training_memory(EvaluateConfig(data=dataset, out=tmp_path / "eval", cache_dir=cache))
+    evaluated = build_training_memory(
+        EvaluateConfig(data=dataset, detector=DetectorConfig(cache_dir=cache), out=tmp_path / "eval")
+    )
     build_memory(
         BuildMemoryConfig(
             data=dataset, encoder="pixels", out=tmp_path / "built", split="train", cache_dir=cache

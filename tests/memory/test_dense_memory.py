@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import shutil
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -20,6 +21,7 @@ from robofailring.memory.failure import ENTRIES, MANIFEST
 from robofailring.memory.format import ENTRY_FIELDS
 from robofailring.memory.info import MemoryInfo
 from robofailring.memory.pairs import CONCAT, pair_vectors
+from robofailring.memory.recipe import MemoryRecipe
 
 LENGTH = 9
 ONSET = 3
@@ -43,12 +45,11 @@ def encoder(tmp_path: Path) -> CachedEncoder:
     return CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "cache")
 
 
-def _build(data: Path, encoder: CachedEncoder, failure_frames: str, **options: float | str) -> FailureMemory:
+def _build(data: Path, encoder: CachedEncoder, failure_frames: str, **options: Any) -> FailureMemory:
     trajectories = list(load_dataset(data))
     provenance = Provenance(data=data, encoder="pixels")
-    memory, _ = build_memories(
-        trajectories, encoder, provenance=provenance, failure_frames=failure_frames, **options
-    )
+    recipe = MemoryRecipe(failure_frames=failure_frames, **options)
+    memory, _ = build_memories(trajectories, encoder, provenance=provenance, recipe=recipe)
     return memory
 
 
@@ -118,7 +119,7 @@ def test_end_is_the_papers_memory_one_pair_of_first_and_last_frame(
     failures = _failures(data)
     firsts = [frames[0] for t in failures for frames in t.views.values()]
     lasts = [frames[-1] for t in failures for frames in t.views.values()]
-    expected = pair_vectors(encoder.encode_frames(firsts), encoder.encode_frames(lasts))
+    expected = pair_vectors(encoder.encode_frames(firsts), encoder.encode_frames(lasts), pairing="concat")
     assert np.array_equal(memory.vectors, expected)  # bit for bit: the vectors every memory had before
     assert [(e.start, e.end, e.frame, e.length) for e in memory.entries] == [
         (first.reference, last.reference, None, None) for first, last in zip(firsts, lasts, strict=True)

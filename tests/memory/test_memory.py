@@ -49,7 +49,7 @@ def test_search_equals_brute_force_within_the_task(
 ) -> None:
     memory, _, _ = built
     rng = np.random.default_rng(0)
-    queries = pair_vectors(rng.standard_normal((7, 512)), rng.standard_normal((7, 512)))
+    queries = pair_vectors(rng.standard_normal((7, 512)), rng.standard_normal((7, 512)), pairing="concat")
     for task in memory.tasks:
         sims, ids = memory.search(queries, task, 4)
         members = np.array([i for i, e in enumerate(memory.entries) if e.task == task])

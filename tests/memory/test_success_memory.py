@@ -88,7 +88,7 @@ def test_success_and_contrast_equal_brute_force(
         for view in trace.views:
             np.testing.assert_allclose(trace.success_similarity[view], expected[view], atol=1e-5)
             np.testing.assert_allclose(
-                trace.contrast[view], trace.similarity[view] - expected[view], atol=1e-5
+                trace.scores_of(CONTRAST)[view], trace.similarity[view] - expected[view], atol=1e-5
             )
             match = trace.nearest_success(view, 0)
             assert match is not None and match.run.task == trajectory.task
@@ -97,7 +97,7 @@ def test_success_and_contrast_equal_brute_force(
     itself = detector.run(own_success)
     np.testing.assert_allclose(itself.success_similarity["front"], 1.0, atol=1e-5)
     # the rule decides State_t: contrast against γ, fused over views
-    stacked = np.stack([trace.contrast[v] for v in trace.views]).max(axis=0)
+    stacked = np.stack([trace.scores_of(CONTRAST)[v] for v in trace.views]).max(axis=0)
     np.testing.assert_array_equal(trace.state, stacked >= trace.gamma)
 
 
@@ -114,7 +114,9 @@ def test_step_api_equals_the_trace(built: tuple[FailureMemory, CachedEncoder, Pa
             assert step.success_similarity[view] == pytest.approx(
                 float(trace.success_similarity[view][t]), abs=1e-5
             )
-            assert step.contrast[view] == pytest.approx(float(trace.contrast[view][t]), abs=1e-5)
+            assert step.rule_scores["contrast"][view] == pytest.approx(
+                float(trace.scores_of(CONTRAST)[view][t]), abs=1e-5
+            )
     assert session.fired_at == trace.t_det
 
 
@@ -241,6 +243,6 @@ def test_detect_json_has_both_rules_fields(
     for view, fields in report["views"].items():
         assert fields["failure_similarity"] == fields["similarity"]
         np.testing.assert_allclose(fields["success_similarity"], trace.success_similarity[view], atol=1e-6)
-        np.testing.assert_allclose(fields["contrast"], trace.contrast[view], atol=1e-6)
+        np.testing.assert_allclose(fields["contrast"], trace.scores_of(CONTRAST)[view], atol=1e-6)
     paper = CliRunner().invoke(app, [*args[:-2], "--score", "paper", "--delta", "0.9"])
     assert paper.exit_code == 0 and json.loads(paper.stdout)["threshold"] == 0.9

@@ -161,7 +161,7 @@ def test_scores_state_and_the_stop_event(
     path = stopped.path
     for view in VIEWS:
         for paths, steps in ((WATCHED, stopped.watched_steps), (UNSTOPPED, stopped.unstopped_steps)):
-            frames, scores = values(path, paths.detector.score(view), "Scalars:scalars")
+            frames, scores = values(path, paths.detector.score(view, "paper"), "Scalars:scalars")
             assert frames == list(range(len(steps)))
             np.testing.assert_allclose(scores, [step.similarity[view] for step in steps], atol=1e-6)
             np.testing.assert_allclose(scores, reference.similarity[view][: len(steps)], atol=1e-6)
@@ -169,7 +169,7 @@ def test_scores_state_and_the_stop_event(
     assert state == [0.0] * stop_frame + [1.0]
     _, state = values(path, UNSTOPPED.detector.state, "Scalars:scalars")
     assert state == [float(p >= stopped.delta) for p in reference.peak]
-    _, delta = values(path, WATCHED.detector.delta, "Scalars:scalars")
+    _, delta = values(path, WATCHED.detector.threshold("paper"), "Scalars:scalars")
     np.testing.assert_allclose(delta, [stopped.delta] * (stop_frame + 1))
 
     frames, texts = values(path, WATCHED.detector.event, "TextLog:text")

@@ -11,6 +11,7 @@ from rfr_viz.panels.map import MapGrid
 from rfr_viz.panels.neighbors import DEFAULT_CELL
 from rfr_viz.paths import REPLAY, DetectorPaths
 from rfr_viz.recordings.blueprint import ScorePlots, compare_blueprint, replay_blueprint
+from robofailring.detection.rules import CONTRAST, NOVELTY
 
 VIEWS = ["front", "overhead", "wrist"]
 GRID = MapGrid(views=3, legend_entries=7)
@@ -41,35 +42,61 @@ def _contents(view: rrb.TimeSeriesView) -> list[str]:
 
 
 def test_a_replay_names_its_thresholds_and_keeps_every_plot_free_of_legends() -> None:
-    plots = ScorePlots.of(delta=0.984, gamma=0.082, eta=0.1, failures=True, successes=True, novelty=False)
+    plots = ScorePlots.of(
+        judging=CONTRAST,
+        thresholds={"paper": 0.984, "contrast": 0.082, "novelty": 0.1},
+        failures=True,
+        successes=True,
+    )
     blueprint = replay_blueprint(
         views=VIEWS, map_title="map", map_grid=GRID, cell=DEFAULT_CELL, k=3, plots=plots
     )
     scores, contrast, state = _time_series(blueprint)
-    assert str(scores.name).startswith("δ = 0.984 · S⁻_t")
+    assert str(scores.name).startswith("δ = 0.984 · S_t (bold), S⁺_t (faint)")
     assert str(contrast.name).startswith("γ = 0.082 · C_t")
     assert not any(_legend_visible(view) for view in (scores, contrast, state))
     # the contrast rule's plot: S⁻, S⁺ and δ, not the novelty rule's N and η
-    assert REPLAY.delta in _contents(scores) and REPLAY.success_score("wrist") in _contents(scores)
-    assert REPLAY.eta not in _contents(scores) and REPLAY.novelty_score("front") not in _contents(scores)
-    assert _contents(contrast) == [REPLAY.contrast_score(view) for view in VIEWS] + [REPLAY.gamma]
+    assert REPLAY.threshold("paper") in _contents(scores) and REPLAY.success_score("wrist") in _contents(
+        scores
+    )
+    assert REPLAY.threshold("novelty") not in _contents(scores) and REPLAY.score(
+        "front", "novelty"
+    ) not in _contents(scores)
+    assert _contents(contrast) == [REPLAY.score(view, "contrast") for view in VIEWS] + [
+        REPLAY.threshold("contrast")
+    ]
 
 
 def test_a_task_without_failures_shows_novelty_and_eta() -> None:
-    plots = ScorePlots.of(delta=0.9, gamma=0.1, eta=0.25, failures=False, successes=True, novelty=False)
-    assert plots.delta is None and plots.gamma is None and plots.eta == 0.25
+    plots = ScorePlots.of(
+        judging=NOVELTY,
+        thresholds={"paper": 0.9, "contrast": 0.1, "novelty": 0.25},
+        failures=False,
+        successes=True,
+    )
+    assert plots.rules == (NOVELTY,) and plots.thresholds == {"novelty": 0.25}
     blueprint = replay_blueprint(
         views=VIEWS, map_title="map", map_grid=GRID, cell=DEFAULT_CELL, k=3, plots=plots
     )
     scores, _ = _time_series(blueprint)
-    assert "η = 0.250" in str(scores.name) and REPLAY.eta in _contents(scores)
-    assert REPLAY.delta not in _contents(scores)
+    assert "η = 0.250" in str(scores.name) and REPLAY.threshold("novelty") in _contents(scores)
+    assert REPLAY.threshold("paper") not in _contents(scores)
 
 
 def test_a_comparison_has_score_plots_of_its_own_per_encoder() -> None:
     plots = [
-        ScorePlots.of(delta=0.984, gamma=0.082, eta=0.1, failures=True, successes=True, novelty=False),
-        ScorePlots.of(delta=0.990, gamma=0.022, eta=0.1, failures=True, successes=True, novelty=False),
+        ScorePlots.of(
+            judging=CONTRAST,
+            thresholds={"paper": 0.984, "contrast": 0.082, "novelty": 0.1},
+            failures=True,
+            successes=True,
+        ),
+        ScorePlots.of(
+            judging=CONTRAST,
+            thresholds={"paper": 0.990, "contrast": 0.022, "novelty": 0.1},
+            failures=True,
+            successes=True,
+        ),
     ]
     blueprint = compare_blueprint(
         views=VIEWS,

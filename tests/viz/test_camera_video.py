@@ -13,7 +13,7 @@ from synthetic import synthetic_frame, write_episode
 from rfr_viz.codecs import AUTO_AV1_PIXELS, CameraCodec, resolve_codec
 from rfr_viz.panels.camera_video import KEYFRAME_INTERVAL, EncodedVideo, decode_video, encode_video
 from rfr_viz.recordings.replay import record_replay
-from rfr_viz.viewer.control import recording_properties
+from rfr_viz.viewer.rrd import recording_properties
 from robofailring import (
     CachedEncoder,
     FailureDetector,

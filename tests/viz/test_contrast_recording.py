@@ -12,7 +12,7 @@ from synthetic import write_project_dataset
 
 from rfr_viz.paths import REPLAY
 from rfr_viz.recordings.replay import record_replay
-from rfr_viz.viewer.control import verify_recording
+from rfr_viz.viewer.rrd import verify_recording
 from robofailring import (
     CachedEncoder,
     DetectionTrace,
@@ -50,18 +50,18 @@ def test_contrast_entities_equal_the_trace(replayed: tuple[Trajectory, Detection
     for view in trace.views:
         assert {
             REPLAY.success_score(view),
-            REPLAY.contrast_score(view),
+            REPLAY.score(view, "contrast"),
             REPLAY.nearest_success(view),
         } <= paths
         for entity, expected in (
-            (REPLAY.score(view), trace.similarity[view]),
+            (REPLAY.score(view, "paper"), trace.similarity[view]),
             (REPLAY.success_score(view), trace.success_similarity[view]),
-            (REPLAY.contrast_score(view), trace.contrast[view]),
+            (REPLAY.score(view, "contrast"), trace.scores_of(CONTRAST)[view]),
         ):
             logged = rows(recording, entity, "Scalars:scalars")
             assert [frame for frame, _ in logged] == list(range(trace.length))
             np.testing.assert_allclose([value[0] for _, value in logged], expected, atol=1e-6)
-        gamma = rows(recording, REPLAY.gamma, "Scalars:scalars")
+        gamma = rows(recording, REPLAY.threshold("contrast"), "Scalars:scalars")
         assert len(gamma) == trace.length
         np.testing.assert_allclose([value[0] for _, value in gamma], trace.gamma, atol=1e-9)
         # the nearest success frame: an image where it changes, its text (episode, frame) every frame
@@ -77,8 +77,8 @@ def test_contrast_entities_equal_the_trace(replayed: tuple[Trajectory, Detection
             assert (
                 match is not None and match.run.episode in text[0] and f"frame **{match.frame}**" in text[0]
             )
-    assert static_value(recording, REPLAY.contrast_score(trace.views[0]), "SeriesLines:names") == [
-        f"{trace.views[0]} C = S⁻ − S⁺"
+    assert static_value(recording, REPLAY.score(trace.views[0], "contrast"), "SeriesLines:names") == [
+        f"{trace.views[0]} {CONTRAST.formula}"
     ]
 
 
@@ -109,10 +109,10 @@ def test_a_banded_threshold_is_drawn_as_the_line_it_is(
     line = banded.threshold_line(CONTRAST)
     assert not np.allclose(line, line[0])
     recording = record_replay(trajectory, banded, out=tmp_path / "banded.rrd")
-    gamma = rows(recording, REPLAY.gamma, "Scalars:scalars")
+    gamma = rows(recording, REPLAY.threshold("contrast"), "Scalars:scalars")
     assert [frame for frame, _ in gamma] == list(range(trace.length))
     np.testing.assert_allclose([value[0] for _, value in gamma], line, atol=1e-6)
-    assert static_value(recording, REPLAY.gamma, "SeriesLines:names") == [
+    assert static_value(recording, REPLAY.threshold("contrast"), "SeriesLines:names") == [
         f"γ_t = μ_t + {trace.gamma:.3f}·σ_t (norm band)"
     ]
     # the plot's title names the line too (its legend is hidden: titles carry the thresholds)

@@ -84,7 +84,7 @@ def test_watch_save_equals_detect_json(episode: Path, pixels_memory_dir: Path, t
     out = _watch(episode, pixels_memory_dir, "--save", str(saved))
     assert f"FAILURE at frame {detected['t_det']} in view {detected['detected_view']}" in out
     for view, scored in detected["views"].items():
-        found = rows(saved, REPLAY.score(view), "Scalars:scalars")
+        found = rows(saved, REPLAY.score(view, "paper"), "Scalars:scalars")
         assert [frame for frame, _ in found] == list(range(detected["length"]))
         np.testing.assert_allclose([value[0] for _, value in found], scored["similarity"], atol=1e-6)
         assert [frame for frame, _ in rows(saved, camera(view), "EncodedImage:blob")] == list(
@@ -219,7 +219,7 @@ def test_a_robot_loop_with_its_own_sink_and_the_rerun_sink(
         session = detector.session("pick_cube", sink=live)
         similarity = [session.step(images).similarity["wrist"] for images in frames]  # live RGB arrays
     assert live.fired_at == plain.fired_at == states.index(True)
-    found = rows(saved, REPLAY.score("wrist"), "Scalars:scalars")
+    found = rows(saved, REPLAY.score("wrist", "paper"), "Scalars:scalars")
     np.testing.assert_allclose([value[0] for _, value in found], similarity, atol=1e-6)
     assert len(rows(saved, camera("front"), "EncodedImage:blob")) == 8
     assert live.report is not None and live.report.current_image is None  # an array has no file to show a VLM
@@ -261,7 +261,13 @@ def test_watch_connect_streams_into_a_running_viewer(episode: Path, pixels_memor
         schema = client.get_recording_schema(recording.store_id, paths_only=True)
         paths = {entity.entity_path for entity in schema.entities}
         expected = {camera(view) for view in ("front", "overhead", "wrist")}
-        expected |= {REPLAY.score("front"), REPLAY.delta, REPLAY.state, REPLAY.event, REPLAY.report}
+        expected |= {
+            REPLAY.score("front", "paper"),
+            REPLAY.threshold("paper"),
+            REPLAY.state,
+            REPLAY.event,
+            REPLAY.report,
+        }
         assert expected <= paths, sorted(paths)
         frame = next(t for t in recording.timelines if t.name == "frame")
         assert (frame.start, frame.end) == (0, 7)

@@ -42,7 +42,9 @@ def _sim_like_memory(episodes: int = 6, dim: int = 48) -> FailureMemory:
                     ends.append(end)
                     name = f"{task}_{symbol}_episode{episode}"
                     entries.append(MemoryEntry(task, symbol, name, view, "<array>", "<array>"))
-    return FailureMemory(pair_vectors(np.array(starts), np.array(ends)), entries, encoder="sim-like")
+    return FailureMemory(
+        pair_vectors(np.array(starts), np.array(ends), pairing="concat"), entries, encoder="sim-like"
+    )
 
 
 def test_failure_types_not_cameras_form_the_clusters() -> None:

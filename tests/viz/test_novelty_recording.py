@@ -14,7 +14,7 @@ from typer.testing import CliRunner, Result
 
 from rfr_viz.cli.app import app
 from rfr_viz.paths import REPLAY
-from rfr_viz.viewer.control import verify_recording
+from rfr_viz.viewer.rrd import verify_recording
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
 from robofailring.detection.rules import NOVELTY
 
@@ -134,10 +134,14 @@ def test_the_replay_shows_n_against_eta_and_the_nearest_success_frame(session: d
     assert props["failure_entries"] == 0 and props["memory_entries"] == 0 and props["t_det"] == trace.t_det
     paths = entity_paths(recording)
     for view in trace.views:
-        assert REPLAY.score(view) not in paths and REPLAY.contrast_score(view) not in paths  # no S⁻, no C
-        logged = rows(recording, REPLAY.novelty_score(view), "Scalars:scalars")
+        assert (
+            REPLAY.score(view, "paper") not in paths and REPLAY.score(view, "contrast") not in paths
+        )  # no S⁻, no C
+        logged = rows(recording, REPLAY.score(view, "novelty"), "Scalars:scalars")
         assert [frame for frame, _ in logged] == list(range(trace.length))
-        np.testing.assert_allclose([value[0] for _, value in logged], trace.novelty[view], atol=1e-6)
+        np.testing.assert_allclose(
+            [value[0] for _, value in logged], trace.scores_of(NOVELTY)[view], atol=1e-6
+        )
         texts = rows(recording, REPLAY.nearest_success_info(view), "TextDocument:text")
         assert len(texts) == trace.length
         for t, text in texts:
@@ -147,11 +151,11 @@ def test_the_replay_shows_n_against_eta_and_the_nearest_success_frame(session: d
             )
         said = static_value(recording, REPLAY.neighbor(view, 0, "info"), "TextDocument:text")
         assert "No failure neighbours" in said[0] and "pick_cube" in said[0]
-    eta = rows(recording, REPLAY.eta, "Scalars:scalars")
+    eta = rows(recording, REPLAY.threshold("novelty"), "Scalars:scalars")
     assert len(eta) == trace.length and all(value[0] == pytest.approx(0.0005) for _, value in eta)
-    assert REPLAY.gamma not in paths and REPLAY.delta not in paths
-    assert static_value(recording, REPLAY.novelty_score(trace.views[0]), "SeriesLines:names") == [
-        f"{trace.views[0]} N = 1 − S⁺"
+    assert REPLAY.threshold("contrast") not in paths and REPLAY.threshold("paper") not in paths
+    assert static_value(recording, REPLAY.score(trace.views[0], "novelty"), "SeriesLines:names") == [
+        f"{trace.views[0]} {NOVELTY.formula}"
     ]
     event = rows(recording, REPLAY.event, "TextLog:text")
     assert event[0][0] == trace.t_det and "(novelty rule): N_t = " in event[0][1][0]
@@ -182,11 +186,13 @@ def test_live_streams_n_against_eta_and_says_there_is_no_failure_neighbour(
         steps = [stream.step(images) for images in frames]
     assert all(step.rule is NOVELTY for step in steps) and live.fired_at == stream.fired_at is not None
     view = trajectory.views and next(iter(trajectory.views))
-    found = rows(saved, REPLAY.novelty_score(view), "Scalars:scalars")
-    np.testing.assert_allclose([value[0] for _, value in found], [s.novelty[view] for s in steps], atol=1e-6)
-    assert len(rows(saved, REPLAY.eta, "Scalars:scalars")) == 6 and REPLAY.score(view) not in entity_paths(
-        saved
+    found = rows(saved, REPLAY.score(view, "novelty"), "Scalars:scalars")
+    np.testing.assert_allclose(
+        [value[0] for _, value in found], [s.rule_scores["novelty"][view] for s in steps], atol=1e-6
     )
+    assert len(rows(saved, REPLAY.threshold("novelty"), "Scalars:scalars")) == 6 and REPLAY.score(
+        view, "paper"
+    ) not in entity_paths(saved)
     said = static_value(saved, REPLAY.neighbor(view, 0, "info"), "TextDocument:text")
     assert "No failure neighbours" in said[0]
     event = rows(saved, REPLAY.event, "TextLog:text")
@@ -231,9 +237,9 @@ def test_watch_takes_eta_and_streams_what_detect_finds(session: dict[str, Path],
     assert (props["score"], props["eta"], props["t_det"]) == ("novelty", 0.0005, detected["t_det"])
     assert props["threshold"] == 0.0005
     for view, scored in detected["views"].items():
-        logged = rows(saved, REPLAY.novelty_score(view), "Scalars:scalars")
+        logged = rows(saved, REPLAY.score(view, "novelty"), "Scalars:scalars")
         np.testing.assert_allclose([value[0] for _, value in logged], scored["novelty"], atol=1e-6)
-    assert {value[0] for _, value in rows(saved, REPLAY.eta, "Scalars:scalars")} == {0.0005}
+    assert {value[0] for _, value in rows(saved, REPLAY.threshold("novelty"), "Scalars:scalars")} == {0.0005}
 
     quiet = watch("--eta", "2")  # N_t ≤ 1 never reaches η = 2
     assert quiet.exit_code == 0 and "steps watched: no failure detected" in quiet.output, quiet.output

@@ -13,14 +13,9 @@ from synthetic import write_episode, write_project_dataset
 from rfr_viz.recordings.blueprint import FOCUS_MARGIN
 from rfr_viz.recordings.evaluation import record_evaluation
 from rfr_viz.recordings.replay import record_replay
-from rfr_viz.viewer.control import (
-    ViewerUnavailable,
-    check_vulkan,
-    focus_frame,
-    open_at,
-    playback_positions,
-    render_screenshot,
-)
+from rfr_viz.viewer.binary import ViewerUnavailable, check_vulkan
+from rfr_viz.viewer.control import open_at, playback_positions, render_screenshot
+from rfr_viz.viewer.rrd import focus_frame
 from robofailring import (
     CachedEncoder,
     DetectionTrace,
@@ -30,6 +25,7 @@ from robofailring import (
     load_trajectory,
 )
 from robofailring.data.model import Trajectory
+from robofailring.detection.config import DetectorConfig
 from robofailring.evaluation.run import EvaluateConfig, run_evaluation
 
 pytestmark = pytest.mark.viewer
@@ -128,7 +124,12 @@ def test_a_recording_without_a_frame_timeline_renders(viewer_ready: None, tmp_pa
     """The evaluation summary is indexed by δ, not by frame: it still opens and renders."""
     data = write_project_dataset(tmp_path / "data")
     result = run_evaluation(
-        EvaluateConfig(data=data, out=tmp_path / "eval", cache_dir=tmp_path / "cache", target_fpr=0.2)
+        EvaluateConfig(
+            data=data,
+            detector=DetectorConfig(cache_dir=tmp_path / "cache"),
+            out=tmp_path / "eval",
+            target_fpr=0.2,
+        )
     )
     assert set(result.rules) == {"paper", "contrast", "novelty"}  # every rule's operating point is drawn
     recording = record_evaluation([result], out=tmp_path / "evaluation.rrd")

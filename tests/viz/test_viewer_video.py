@@ -13,7 +13,8 @@ from synthetic import synthetic_frame, write_episode
 
 from rfr_viz.codecs import CameraCodec
 from rfr_viz.recordings.replay import record_replay
-from rfr_viz.viewer.control import recording_properties, render_screenshot
+from rfr_viz.viewer.control import render_screenshot
+from rfr_viz.viewer.rrd import recording_properties
 from robofailring import (
     CachedEncoder,
     FailureDetector,

@@ -25,7 +25,8 @@ from rfr_viz.panels.neighbors import changes
 from rfr_viz.panels.umap import CACHE_FILE, MemoryMap, fit_map, memory_map
 from rfr_viz.paths import APPLICATION_ID, REPLAY, DetectorPaths, camera
 from rfr_viz.recordings.replay import compare_recording, record_replay
-from rfr_viz.viewer.control import verify_recording, viewer_binary
+from rfr_viz.viewer.binary import viewer_binary
+from rfr_viz.viewer.rrd import verify_recording
 from robofailring import (
     CachedEncoder,
     DetectionTrace,
@@ -36,6 +37,7 @@ from robofailring import (
     load_encoder,
     load_trajectory,
 )
+from robofailring.detection.config import DetectorConfig
 from robofailring.memory.failure import MemoryEntry
 from robofailring.memory.pairs import pair_vectors
 
@@ -83,8 +85,15 @@ def recording(
 # ------------------------------------------------------------------ the contract
 def test_every_entity_of_the_contract_is_there(recording: Path, trace: DetectionTrace) -> None:
     paths = entity_paths(recording)
-    expected = {camera(v) for v in VIEWS} | {REPLAY.score(v) for v in VIEWS}
-    expected |= {REPLAY.delta, REPLAY.state, REPLAY.event, REPLAY.map_root, REPLAY.map_legend, REPLAY.report}
+    expected = {camera(v) for v in VIEWS} | {REPLAY.score(v, "paper") for v in VIEWS}
+    expected |= {
+        REPLAY.threshold("paper"),
+        REPLAY.state,
+        REPLAY.event,
+        REPLAY.map_root,
+        REPLAY.map_legend,
+        REPLAY.report,
+    }
     expected |= {path for v in VIEWS for path in (REPLAY.umap(v), REPLAY.umap_query(v), REPLAY.umap_frame(v))}
     expected |= {REPLAY.umap_title(v) for v in VIEWS}
     expected |= {
@@ -118,10 +127,10 @@ def test_one_jpeg_camera_row_per_frame_per_view(recording: Path, trajectory: Tra
 def test_scores_delta_state_and_timelines_equal_the_trace(recording: Path, trace: DetectionTrace) -> None:
     frames = list(range(trace.length))
     for view in VIEWS:
-        scores = rows(recording, REPLAY.score(view), "Scalars:scalars")
+        scores = rows(recording, REPLAY.score(view, "paper"), "Scalars:scalars")
         assert [frame for frame, _ in scores] == frames
         np.testing.assert_allclose([value[0] for _, value in scores], trace.similarity[view], atol=1e-6)
-    delta = rows(recording, REPLAY.delta, "Scalars:scalars")
+    delta = rows(recording, REPLAY.threshold("paper"), "Scalars:scalars")
     assert [frame for frame, _ in delta] == frames
     np.testing.assert_allclose([value[0] for _, value in delta], trace.delta)
     state = [value[0] for _, value in rows(recording, REPLAY.state, "Scalars:scalars")]
@@ -130,7 +139,7 @@ def test_scores_delta_state_and_timelines_equal_the_trace(recording: Path, trace
     assert state.index(1.0) == trace.t_det and state[trace.t_det - 1] == 0.0
     # the "time" timeline is frame / fps (10 fps when the data does not say)
     times = {}
-    for batch in batches(recording, REPLAY.score("front")):
+    for batch in batches(recording, REPLAY.score("front", "paper")):
         if "time" in batch.schema.names:
             times.update(
                 zip(batch.column("frame").to_pylist(), batch.column("time").to_pylist(), strict=True)
@@ -268,10 +277,9 @@ def test_map_is_fitted_once_and_cached_beside_the_memory(
     monkeypatch.setattr(umap_layout, "_umap_embedding", counting)
     config = ReplayConfig(
         data=aha_dataset,
-        memory=directory,
+        detector=DetectorConfig(memory=directory, cache_dir=tmp_path / "embeddings"),
         out=tmp_path / "recs",
         trajectories=("pick_cube/pick_cube_grasp_wp2_episode0",),
-        cache_dir=tmp_path / "embeddings",
     )
     first = replay(config)
     cache = directory / CACHE_FILE
@@ -309,7 +317,7 @@ def _placed(mapped: MemoryMap, view: str, task: str, queries: np.ndarray) -> np.
 
 def _tiny_memory(count: int) -> FailureMemory:
     rng = np.random.default_rng(count)
-    vectors = pair_vectors(rng.standard_normal((count, 8)), rng.standard_normal((count, 8)))
+    vectors = pair_vectors(rng.standard_normal((count, 8)), rng.standard_normal((count, 8)), pairing="concat")
     entries = [
         MemoryEntry(
             "pick_cube", ("slip_wp3", "grasp_wp2")[i % 2], f"episode{i}", "front", "<array>", "<array>"
@@ -408,10 +416,10 @@ def test_comparison_recording_has_every_encoder_under_its_slug(
     for slug, each in (("pixels", trace), ("means", other)):
         encoder_paths = DetectorPaths.for_encoder(slug)
         for view in VIEWS:
-            scores = rows(out, encoder_paths.score(view), "Scalars:scalars")
+            scores = rows(out, encoder_paths.score(view, "paper"), "Scalars:scalars")
             np.testing.assert_allclose([v[0] for _, v in scores], each.similarity[view], atol=1e-6)
         assert {
-            encoder_paths.delta,
+            encoder_paths.threshold("paper"),
             encoder_paths.state,
             encoder_paths.umap("front"),
             encoder_paths.report,
@@ -510,7 +518,7 @@ def test_cli_replay_and_compare(aha_dataset: Path, pixels_memory_dir: Path, tmp_
         properties(comparison, "pixels")["delta"] == 0.9
         and properties(comparison, "pixels-2")["delta"] == 0.95
     )
-    assert {"/pixels/score/front", "/pixels-2/score/side"} <= entity_paths(comparison)
+    assert {"/pixels/score/front/paper", "/pixels-2/score/side/paper"} <= entity_paths(comparison)
 
 
 def test_recording_names_are_flat_and_safe(trajectory: Trajectory) -> None:
@@ -544,5 +552,9 @@ def test_a_view_too_short_to_detect_is_left_out_and_said_so(
     trace = FailureDetector(memory, encoder, k=2).run(trajectory)
     out = record_replay(trajectory, trace, out=tmp_path / "short.rrd", memory_map=mapped)
     paths = entity_paths(out)
-    assert camera("front") in paths and camera("wrist") not in paths and REPLAY.score("wrist") not in paths
+    assert (
+        camera("front") in paths
+        and camera("wrist") not in paths
+        and REPLAY.score("wrist", "paper") not in paths
+    )
     assert properties(out)["skipped_views"] == "wrist" and properties(out)["views"] == "front, overhead"

@@ -8,16 +8,19 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING, Annotated, Final
 
 import typer
 
 from robofailring.data.model import Skipped
 from robofailring.detection.band import BAND_KINDS, DEFAULT_BAND
+from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
 from robofailring.detection.rules import RULES
+from robofailring.detection.stored import given_thresholds
 from robofailring.detection.view_bands import DEFAULT_FUSION, FUSIONS
 from robofailring.errors import SettingError
 from robofailring.extras import require
+from robofailring.memory.recipe import DEFAULT_RECIPE, MemoryRecipe
 from robofailring.memory.references import ReferenceCheck
 
 if TYPE_CHECKING:
@@ -169,6 +172,53 @@ DataRootOption = Annotated[
         "(its images are looked up there).",
     ),
 ]
+
+
+DETECTOR_DEFAULTS: Final[DetectorConfig] = DEFAULT_DETECTOR  # the detector options' defaults (e.g. --k)
+RECIPE_DEFAULTS: Final[MemoryRecipe] = DEFAULT_RECIPE  # the memory options' defaults (e.g. --success-step)
+
+
+def detector_config(
+    memory: Path | None,
+    *,
+    encoder: str | None = None,
+    device: str | None = None,
+    runtime: str | None = None,
+    cache_dir: Path | None = None,
+    data_root: Path | None = None,
+    k: int = DETECTOR_DEFAULTS.k,
+    score: str | None = None,
+    delta: float | None = None,
+    gamma: float | None = None,
+    eta: float | None = None,
+) -> DetectorConfig:
+    """The `DetectorConfig` of a verb's detector options: --memory, --encoder, --device, --runtime, --cache-dir,
+    --data-root, --k, --score, and each rule's threshold by its option (--delta, --gamma, --eta)."""
+    return DetectorConfig(
+        memory=memory,
+        encoder=encoder,
+        device=device,
+        runtime=runtime,
+        cache_dir=cache_dir,
+        data_root=data_root,
+        k=k,
+        rule=score,
+        thresholds=given_thresholds(None, delta=delta, gamma=gamma, eta=eta),
+    )
+
+
+def memory_recipe(
+    encoder: str = RECIPE_DEFAULTS.encoder,
+    *,
+    failure_frames: str | None = None,
+    pairing: str | None = None,
+    success_step: float | None = None,
+) -> MemoryRecipe:
+    """The `MemoryRecipe` of a verb's memory options (--encoder, --failure-frames, --pairing,
+    --success-step); the recipe's defaults for those left out."""
+    return MemoryRecipe.chosen(
+        encoder, failure_frames=failure_frames, pairing=pairing, success_step=success_step
+    )
 
 
 def print_notes(notes: Sequence[str]) -> None:

@@ -14,6 +14,8 @@ import typer
 
 from robofailring.cli.exit_codes import ErrorMappingGroup, finish
 from robofailring.cli.options import (
+    DETECTOR_DEFAULTS,
+    RECIPE_DEFAULTS,
     BandOption,
     CacheOption,
     DataRootOption,
@@ -41,6 +43,7 @@ from robofailring.cli.options import (
     VLMUrlOption,
     VocabularyOption,
     WorkersOption,
+    detector_config,
     print_notes,
     report_skipped,
     vlm_config,
@@ -49,7 +52,6 @@ from robofailring.cli.options import (
 from robofailring.detection.band import DEFAULT_BAND
 from robofailring.detection.view_bands import DEFAULT_FUSION
 from robofailring.errors import SettingError
-from robofailring.memory.thinning import DEFAULT_STEP
 
 app = typer.Typer(  # unnamed, so rfr_viz.cli.app merges its verbs into the one `robofailring` command
     cls=ErrorMappingGroup,  # every verb: a one-line error and its exit status (robofailring.cli.exit_codes)
@@ -131,7 +133,7 @@ def build_memory_cmd(
             "--no-successes", help="The paper's failure memory alone (no success memory, no contrast)."
         ),
     ] = False,
-    success_step: SuccessStepOption = DEFAULT_STEP,
+    success_step: SuccessStepOption = RECIPE_DEFAULTS.success_step,
     failure_frames: FailureFramesOption = None,
     pairing: PairingOption = None,
     cache_dir: CacheOption = None,
@@ -206,7 +208,7 @@ def detect_cmd(
     ],
     memory: MemoryOption,
     delta: DeltaOption = None,
-    k: KOption = 5,
+    k: KOption = DETECTOR_DEFAULTS.k,
     score: ScoreOption = None,
     gamma: GammaOption = None,
     eta: EtaOption = None,
@@ -236,23 +238,25 @@ def detect_cmd(
     result = run_detect(
         DetectConfig(
             trajectory=trajectory,
-            memory=memory,
-            delta=delta,
-            k=k,
-            score=score,
-            gamma=gamma,
-            eta=eta,
+            detector=detector_config(
+                memory,
+                encoder=encoder,
+                device=device,
+                runtime=runtime,
+                cache_dir=cache_dir,
+                data_root=data_root,
+                k=k,
+                score=score,
+                delta=delta,
+                gamma=gamma,
+                eta=eta,
+            ),
             task=task,
             views=views,
             leave_one_out=leave_one_out,
-            encoder=encoder,
-            cache_dir=cache_dir,
-            device=device,
-            runtime=runtime,
             key=key,
             stride=stride,
             labels=labels,
-            data_root=data_root,
             vlm=vlm_config(vlm_url, vlm_model),
         )
     )

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import numbers
 from collections.abc import Callable, Mapping, Sequence
 from typing import Final, Protocol
 
@@ -11,10 +10,10 @@ import numpy as np
 from robofailring.data.images import as_rgb
 from robofailring.data.model import Frame, Trajectory
 from robofailring.detection.band import Band
+from robofailring.detection.config import DEFAULT_K, check_k, check_stride
 from robofailring.detection.retrieved import Retrieved
 from robofailring.detection.rules import (
-    CONTRAST,
-    NOVELTY,
+    RULES,
     RuleThresholds,
     ScoringRule,
     default_rule,
@@ -32,38 +31,11 @@ from robofailring.encoders.base import Encoder, l2_normalize
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import DataError, SettingError
 from robofailring.memory.failure import FailureMemory
-from robofailring.memory.pairs import pair_vectors
 from robofailring.memory.references import absolute_reference
 
-DEFAULT_K: Final[int] = 5
-MAX_STRIDE: Final[int] = 2**63 - 1  # frame numbers are int64: a larger stride scores frame 0 alone anyway
-MAX_K: Final[int] = (
-    1024  # neighbours per query: each query row holds K similarities, allocated before the search
-)
 CHUNK_FRAMES: Final[int] = 256  # scored frames per view encoded and searched at once in `run`
 
 Place = Callable[[str, np.ndarray], np.ndarray]  # (view, (n, 2d) queries) -> (n, m) rows, e.g. map points
-
-
-def _whole_number(value: object) -> bool:
-    """An int (or numpy integer) that is not a bool: what Faiss and slicing take as a count."""
-    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
-
-
-def check_k(k: int) -> int:
-    """K, the neighbours retrieved per query: a whole number from 1 to `MAX_K` (SettingError otherwise)."""
-    if not _whole_number(k) or not 1 <= k <= MAX_K:
-        raise SettingError(f"k (neighbours per query) must be a whole number from 1 to {MAX_K}, got {k}")
-    return k
-
-
-def check_stride(stride: int) -> int:
-    """The scoring stride: a whole number from 1 to `MAX_STRIDE` (SettingError otherwise)."""
-    if not _whole_number(stride) or not 1 <= stride <= MAX_STRIDE:
-        raise SettingError(
-            f"stride must be a whole number from 1 (every frame scored) to {MAX_STRIDE}, got {stride}"
-        )
-    return stride
 
 
 class StepSink(Protocol):
@@ -194,14 +166,7 @@ class FailureDetector(RuleThresholds):
         `first` holds f(I_0) per view, `current` the (T, d) embeddings of T frames per view.
         """
         views = list(current)
-        queries = {
-            view: pair_vectors(
-                np.repeat(np.atleast_2d(first[view]), len(current[view]), axis=0),
-                current[view],
-                pairing=self.memory.pairing,
-            )
-            for view in views
-        }
+        queries = {view: self.memory.pair(first[view], current[view]) for view in views}  # as its entries
         stacked = np.concatenate([queries[view] for view in views])
         sims, ids = self.memory.search(stacked, task, self.k, exclude_episode=exclude_episode)
         bounds = np.cumsum([0] + [len(queries[view]) for view in views])
@@ -391,8 +356,11 @@ class DetectorSession:
             }
             if successes is not None
             else {},
-            contrast={view: float(CONTRAST.score(failure[view], success[view])[0]) for view in views},
-            novelty={view: float(NOVELTY.score(failure[view], success[view])[0]) for view in views},
+            rule_scores={
+                name: {view: float(each.score(failure[view], success[view])[0]) for view in views}
+                for name, each in RULES.items()
+            },
+            thresholds={name: detector.threshold_at(each, self.t) for name, each in RULES.items()},
             queries={view: found.queries[view][0] for view in views},
         )
         if fired and self.fired_at is None:

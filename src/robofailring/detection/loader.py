@@ -1,14 +1,32 @@
-"""`open_detector`: a memory folder to a ready detector in one call, with the memory's stored calibration."""
+"""`open_detector`: a memory folder to a ready detector in one call, with the memory's stored calibration;
+`detector_from`, the same from a `DetectorConfig` (what the jobs hold)."""
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 from pathlib import Path
 
-from robofailring.detection.detector import DEFAULT_K, FailureDetector
+from robofailring.detection.config import DEFAULT_K, DetectorConfig
+from robofailring.detection.detector import FailureDetector
 from robofailring.detection.rules import ScoringRule
+from robofailring.detection.stored import given_thresholds
 from robofailring.encoders import open_encoder
 from robofailring.memory.failure import FailureMemory, encoder_spec_for
+
+
+def detector_from(config: DetectorConfig) -> FailureDetector:
+    """Load `config.memory` and its encoder (or `config.encoder`, which must give the same identity), and
+    return its detector at `config.thresholds` (by rule name; the memory's calibrated ones for the rest)."""
+    memory = FailureMemory.load(
+        config.memory_dir, data_root=Path(config.data_root) if config.data_root is not None else None
+    )
+    opened = open_encoder(
+        config.encoder or encoder_spec_for(memory),
+        device=config.device,
+        cache_dir=Path(config.cache_dir) if config.cache_dir is not None else None,
+        runtime=config.runtime,
+    )
+    return FailureDetector(memory, opened, thresholds=config.thresholds, k=config.k, rule=config.rule)
 
 
 def open_detector(
@@ -35,15 +53,16 @@ def open_detector(
     where the memory's images are now, when its data moved; `device` is the torch device for CLIP;
     `runtime` runs the encoder in torch or through ONNX Runtime (`onnx`, `onnx-int8`; docs/runtime.md).
     """
-    memory = FailureMemory.load(
-        Path(memory_dir), data_root=Path(data_root) if data_root is not None else None
-    )
-    opened = open_encoder(
-        encoder or encoder_spec_for(memory),
-        device=device,
-        cache_dir=Path(cache_dir) if cache_dir is not None else None,
-        runtime=runtime,
-    )
-    return FailureDetector(
-        memory, opened, thresholds=thresholds, delta=delta, k=k, rule=rule, gamma=gamma, eta=eta
+    return detector_from(
+        DetectorConfig(
+            memory=Path(memory_dir),
+            encoder=encoder,
+            device=device,
+            runtime=runtime,
+            cache_dir=Path(cache_dir) if cache_dir is not None else None,
+            data_root=Path(data_root) if data_root is not None else None,
+            k=k,
+            rule=rule.name if isinstance(rule, ScoringRule) else rule,
+            thresholds=given_thresholds(thresholds, delta=delta, gamma=gamma, eta=eta),
+        )
     )

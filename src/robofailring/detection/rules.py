@@ -35,6 +35,7 @@ class ScoringRule(ABC):
     default_threshold: ClassVar[float]  # used until a memory is calibrated
     needs_successes: ClassVar[bool]  # the score needs S⁺, so a memory with success runs
     needs_failures: ClassVar[bool] = True  # the score needs S⁻, so failure entries of the task
+    shown_beside: ClassVar[bool] = True  # plotted in recordings beside the rule that judges, not only as it
 
     @abstractmethod
     def score(self, failure_similarity: ArrayLike, success_similarity: ArrayLike) -> np.ndarray:
@@ -109,6 +110,7 @@ class NoveltyRule(ScoringRule):
     default_threshold = 0.1
     needs_successes = True
     needs_failures = False
+    shown_beside = False  # the judge of tasks without failures: plotted only where it judges
 
     def score(self, failure_similarity: ArrayLike, success_similarity: ArrayLike) -> np.ndarray:
         return np.asarray(1.0 - np.asarray(success_similarity, dtype=np.float32), dtype=np.float32)
@@ -138,6 +140,16 @@ def rules_for(*, successes: bool, failures: bool = True) -> list[ScoringRule]:
         rule
         for rule in RULES.values()
         if (successes or not rule.needs_successes) and (failures or not rule.needs_failures)
+    ]
+
+
+def shown_rules(judging: ScoringRule, *, successes: bool, failures: bool = True) -> list[ScoringRule]:
+    """The rules whose scores and thresholds recordings and reports show, in registry order: every rule a
+    task supports (`rules_for`) that is shown beside the judging rule, and the judging rule itself."""
+    return [
+        rule
+        for rule in rules_for(successes=successes, failures=failures)
+        if rule.shown_beside or rule.name == judging.name
     ]
 
 

@@ -12,7 +12,7 @@ import numpy as np
 
 from robofailring.data.model import Skipped
 from robofailring.detection.band import Band
-from robofailring.detection.rules import CONTRAST, NOVELTY, PAPER, RULES, RuleThresholds, ScoringRule
+from robofailring.detection.rules import PAPER, RULES, RuleThresholds, ScoringRule, shown_rules
 from robofailring.detection.view_scores import ViewScores
 from robofailring.memory.failure import FailureMemory, Neighbor
 from robofailring.memory.success import SuccessMatch
@@ -33,8 +33,10 @@ class StepResult:
     detected_view: str | None  # the firing view with the highest score, None without an alarm
     success_similarity: dict[str, float] = field(default_factory=dict)  # S⁺_t per view (NaN: none)
     nearest_success: dict[str, SuccessMatch | None] = field(default_factory=dict)  # its success frame
-    contrast: dict[str, float] = field(default_factory=dict)  # C_t = S⁻_t − S⁺_t per view
-    novelty: dict[str, float] = field(default_factory=dict)  # N_t = 1 − S⁺_t per view
+    # every registered rule's score per view, by rule name (paper: S⁻_t, contrast: C_t, novelty: N_t, …)
+    rule_scores: dict[str, dict[str, float]] = field(default_factory=dict)
+    # every registered rule's threshold on its raw score at this step, by rule name (θ, or μ_t + θ·σ_t)
+    thresholds: dict[str, float] = field(default_factory=dict)
     queries: dict[str, np.ndarray] = field(default_factory=dict, repr=False)  # (f(I_0) ‖ f(I_t)) per view
 
     @property
@@ -133,14 +135,9 @@ class DetectionTrace(RuleThresholds):
         return self.bands.get(self.rule.name)
 
     @property
-    def contrast(self) -> dict[str, np.ndarray]:
-        """C_t = S⁻_t − S⁺_t per view (NaN throughout when the memory has no success runs)."""
-        return self.scores_of(CONTRAST)
-
-    @property
-    def novelty(self) -> dict[str, np.ndarray]:
-        """N_t = 1 − S⁺_t per view (NaN throughout when the memory has no success runs)."""
-        return self.scores_of(NOVELTY)
+    def shown_rules(self) -> list[ScoringRule]:
+        """The rules a recording or report of this trace shows (`robofailring.detection.rules.shown_rules`)."""
+        return shown_rules(self.rule, successes=bool(self.success_similarity), failures=self.has_failures)
 
     @property
     def has_failures(self) -> bool:
@@ -221,7 +218,7 @@ class DetectionTrace(RuleThresholds):
     def to_dict(self) -> dict[str, Any]:
         """The JSON shape of `robofailring detect --json`."""
         views: dict[str, Any] = {}
-        contrasts, novelties = self.contrast, self.novelty
+        by_rule = {rule.name: self.scores_of(rule) for rule in RULES.values()}
         for view in self.views:
             top: list[dict[str, Any] | None] = []
             for t in range(self.length):
@@ -248,8 +245,7 @@ class DetectionTrace(RuleThresholds):
                 "success_similarity": _rounded(
                     self.success_similarity.get(view, np.full(self.length, np.nan))
                 ),
-                "contrast": _rounded(contrasts[view]),
-                "novelty": _rounded(novelties[view]),
+                **{name: _rounded(scores[view]) for name, scores in by_rule.items()},  # every rule's score
             }
         return {
             "task": self.task,

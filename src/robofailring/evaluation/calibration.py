@@ -28,6 +28,7 @@ from robofailring.detection.band import (
     fit_band,
     leave_one_out,
 )
+from robofailring.detection.config import check_k, check_stride
 from robofailring.detection.conformal import (
     FprSpread,
     attainable_target_fpr,
@@ -36,7 +37,7 @@ from robofailring.detection.conformal import (
     empirical_fpr,
     fpr_spread,
 )
-from robofailring.detection.detector import FailureDetector, check_k, check_stride
+from robofailring.detection.detector import FailureDetector
 from robofailring.detection.loader import open_detector
 from robofailring.detection.rules import (
     CONTRAST,

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
 from robofailring.encoders import EncoderSpec, cache_identity, open_encoder
 from robofailring.errors import SettingError
 from robofailring.evaluation.calibration import CalibrateConfig, calibrate
@@ -16,8 +17,7 @@ from robofailring.evaluation.run import (
     build_training_memory,
     run_evaluation,
 )
-from robofailring.memory.entry import DENSE, check_failure_frames
-from robofailring.memory.pairs import DEFAULT_PAIRING, check_pairing
+from robofailring.memory.recipe import DEFAULT_RECIPE, MemoryRecipe
 
 
 @dataclass(frozen=True)
@@ -28,40 +28,37 @@ class CompareEncodersConfig:
     target_fpr: float | None = 0.05  # calibrate each encoder's δ on training successes; None: paper δ
     test_data: Path | None = None
     test_split: str = "test"
-    k: int = 5
-    cache_dir: Path | None = None
-    device: str | None = None
-    failure_frames: str = DENSE  # each encoder's memory: `dense` or `end` (the paper's; memory.entry)
-    pairing: str = DEFAULT_PAIRING  # each encoder's memory: `change` or `concat` (the paper's; memory.pairs)
-
-    def __post_init__(self) -> None:
-        check_failure_frames(self.failure_frames)
-        check_pairing(self.pairing)
+    recipe: MemoryRecipe = DEFAULT_RECIPE  # each encoder's memory: this recipe with its own encoder
+    detector: DetectorConfig = DEFAULT_DETECTOR  # K, device and embedding cache of every evaluation
 
 
-def compare_encoders(config: CompareEncodersConfig) -> list[EvaluationResult]:
-    """Build, calibrate and evaluate one memory per encoder on the same split."""
+def compare_encoders(
+    config: CompareEncodersConfig, *, existing: Mapping[str, EvaluationResult] | None = None
+) -> list[EvaluationResult]:
+    """Build, calibrate and evaluate one memory per encoder on the same split; an encoder whose result is
+    in `existing` (by encoder spec, e.g. the demo's headline evaluation of the same split) is taken as it is."""
     if len(config.encoders) < 2:
         raise SettingError(
             f"an encoder comparison needs at least two encoders (--encoder A --encoder B), got {len(config.encoders)}"
         )
+    existing = existing or {}
     results = []
     for spec in config.encoders:
-        opened = open_encoder(spec, device=config.device, cache_dir=config.cache_dir).encoder
+        if spec in existing:
+            results.append(existing[spec])
+            continue
+        detector = config.detector
+        opened = open_encoder(spec, device=detector.device, cache_dir=detector.cache_dir).encoder
         slug = EncoderSpec.slug(cache_identity(opened))  # the same model in two runtimes: two slugs
         memory_dir = Path(config.out) / f"memory-{slug}"
         base = EvaluateConfig(
             data=config.data,
             out=Path(config.out),
-            encoder=spec,
+            recipe=replace(config.recipe, encoder=spec),
+            detector=detector,
             test_data=config.test_data,
             test_split=config.test_split,
-            k=config.k,
             name=slug,
-            cache_dir=config.cache_dir,
-            device=config.device,
-            failure_frames=config.failure_frames,
-            pairing=config.pairing,
         )
         build_training_memory(replace(base, memory_out=memory_dir))
         if config.target_fpr is not None:
@@ -70,13 +67,14 @@ def compare_encoders(config: CompareEncodersConfig) -> list[EvaluationResult]:
                     data=config.data,
                     memory=memory_dir,
                     target_fpr=config.target_fpr,
-                    k=config.k,
-                    cache_dir=config.cache_dir,
-                    device=config.device,
+                    k=detector.k,
+                    cache_dir=detector.cache_dir,
+                    device=detector.device,
                 )
             )
         # thresholds: the ones calibration just stored (target_fpr None reads them from the manifest)
-        results.append(run_evaluation(replace(base, memory=memory_dir, target_fpr=None)))
+        evaluated = replace(base, detector=detector.with_memory(memory_dir), target_fpr=None)
+        results.append(run_evaluation(evaluated))
     return results
 
 

@@ -200,14 +200,12 @@ def cross_validate(
             memory, _ = build_memories(
                 others,
                 encoder,
-                provenance=Provenance(data=Path(config.data), encoder=config.encoder),
+                provenance=Provenance(data=Path(config.data), encoder=config.recipe.encoder),
                 successes=config.successes,
-                success_step=config.success_step,
-                failure_frames=config.failure_frames,
-                pairing=config.pairing,
+                recipe=config.recipe,
                 vocabulary=vocabulary,
             )
-            detector = FailureDetector(memory, encoder, k=config.k)
+            detector = FailureDetector(memory, encoder, k=config.detector.k)
             rules = available_rules(detector)
             known = set(memory.tasks)
             successes = [t for t in others if not t.is_failure and t.task in known]
@@ -226,7 +224,7 @@ def cross_validate(
                 else {}
             )
             bands = {rule.name: c.band for rule, c in found.items() if c.band is not None}
-            detector = FailureDetector(memory, encoder, k=config.k, bands=bands)
+            detector = FailureDetector(memory, encoder, k=config.detector.k, bands=bands)
             traces = _judge(detector, held_out, known, config.stride, not_judged)
             for rule in rules:
                 into = pooled.setdefault(rule.name, PooledRule(rule))

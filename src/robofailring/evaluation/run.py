@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
 
 from robofailring.atomic import write_text_atomic
 from robofailring.data.model import Trajectory
-from robofailring.detection.detector import DetectionTrace, FailureDetector
+from robofailring.detection.detector import DetectionTrace, FailureDetector, Place
 from robofailring.detection.rules import PAPER, ScoringRule
 from robofailring.detection.stored import stored_threshold
 from robofailring.encoders import CachedEncoder, open_encoder
@@ -31,25 +31,48 @@ from robofailring.memory.failure import FailureMemory
 from robofailring.memory.success import SuccessMemory
 from robofailring.progress import progress_bar
 
+PlaceFor = Callable[[str], Place]  # task -> the `place` hook of its runs (e.g. their points in a memory map)
 
-def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
-    """Build (or load) the memory, replay every test trajectory once, and measure everything."""
-    encoder = open_encoder(
-        config.encoder, device=config.device, cache_dir=config.cache_dir, runtime=config.runtime
-    )
+
+def run_evaluation(
+    config: EvaluateConfig, *, detector: FailureDetector | None = None, place: PlaceFor | None = None
+) -> EvaluationResult:
+    """Build (or load) the memory, replay every test trajectory once, and measure everything.
+
+    `detector`: a detector on a memory built and loaded already (its memory and encoder are used, not
+    `config`'s; its thresholds are the evaluation's own), so a job that holds one does not load it again.
+    The result keeps every test trajectory's trace (`EvaluationResult.traces`), for recordings to reuse;
+    `place(task)` is the `place` hook its runs are scored with (`FailureDetector.run`), so a recording of
+    one needs no second scoring to draw its queries on a map."""
     splits = select_splits(config)
     train, test = splits.train, splits.test
-    memory_dir = (
-        config.memory if config.memory is not None else build_training_memory(config, splits, encoder)
-    )
-    memory = FailureMemory.load(memory_dir)
+    if detector is None:
+        encoder = open_encoder(
+            config.recipe.encoder,
+            device=config.detector.device,
+            cache_dir=config.detector.cache_dir,
+            runtime=config.detector.runtime,
+        )
+        memory_dir = (
+            config.detector.memory
+            if config.detector.memory is not None
+            else build_training_memory(config, splits, encoder)
+        )
+        detector = FailureDetector(FailureMemory.load(memory_dir), encoder, k=config.detector.k)
+    else:
+        read_from = detector.memory.read_from
+        memory_dir = read_from[0] if read_from is not None else config.detector.memory_dir
+    memory, encoder = detector.memory, detector.encoder
     check_disjoint(memory, test)
-    memory, test = _deploy_successes(memory, test, config.deployment_successes, encoder, config.success_step)
-    detector = FailureDetector(memory, encoder, k=config.k)
+    deployed, test = _deploy_successes(
+        memory, test, config.deployment_successes, encoder, config.recipe.success_step
+    )
+    if deployed is not memory:
+        memory, detector = deployed, FailureDetector(deployed, encoder, k=detector.k)
     thresholds, calibrated, found = _thresholds(config, detector, train)
     if found is not None:  # calibrated here: the test runs are judged on the bands fitted with the thresholds
         bands = {r.name: c.band for r, c in found.items() if c.band is not None}
-        detector = FailureDetector(memory, encoder, k=config.k, bands=bands)
+        detector = FailureDetector(memory, encoder, k=detector.k, bands=bands)
     operating = thresholds.get(PAPER, PAPER.default_threshold)  # no failure runs: the paper tables are empty
     known = set(memory.tasks)
     scored: list[ScoredTrajectory] = []
@@ -63,7 +86,12 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
                 skipped.append(trajectory.key)
                 continue
             try:
-                trace = detector.run(trajectory, stride=config.stride, keep_queries=False)
+                trace = detector.run(
+                    trajectory,
+                    stride=config.stride,
+                    keep_queries=False,
+                    place=place(trajectory.task) if place is not None else None,
+                )
             except DataError:
                 too_short.append(trajectory.key)
                 continue
@@ -109,7 +137,7 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
         name=config.name,
         encoder=memory.encoder,
         memory=str(memory_dir),
-        k=config.k,
+        k=detector.k,
         operating_delta=operating,
         calibrated=calibrated.get(PAPER, False),
         rules=rules,
@@ -138,7 +166,7 @@ def run_evaluation(config: EvaluateConfig) -> EvaluationResult:
 
 def check_growth(config: EvaluateConfig) -> None:
     """A curve builds a memory per level from the training data: SettingError for a given memory."""
-    if config.memory is not None:
+    if config.detector.memory is not None:
         raise SettingError("--growth builds a memory per level from the training data: leave out --memory")
 
 

@@ -14,19 +14,17 @@ from robofailring.data.model import Skipped, Trajectory
 from robofailring.data.splits import split_of
 from robofailring.data.vocabulary import read_vocabulary
 from robofailring.detection.band import DEFAULT_BAND, check_band
+from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig, check_stride
 from robofailring.detection.conformal import check_target_fpr
-from robofailring.detection.detector import check_k, check_stride
 from robofailring.detection.rules import PAPER
 from robofailring.detection.view_bands import DEFAULT_FUSION, check_fusion
 from robofailring.encoders import CachedEncoder, open_encoder
 from robofailring.errors import DataError, RoboFailRingError, SettingError
 from robofailring.evaluation.metrics import PAPER_DELTAS
 from robofailring.memory.builder import Provenance, build_memories
-from robofailring.memory.entry import DENSE, check_failure_frames
 from robofailring.memory.failure import FailureMemory
-from robofailring.memory.pairs import DEFAULT_PAIRING, check_pairing
+from robofailring.memory.recipe import DEFAULT_RECIPE, MemoryRecipe
 from robofailring.memory.references import absolute_reference
-from robofailring.memory.thinning import DEFAULT_STEP
 
 #: `--folds loo`: one fold per episode.
 LEAVE_ONE_OUT: Final[str] = "loo"
@@ -62,43 +60,39 @@ class FoldPlan:
 class EvaluateConfig:
     data: Path  # dataset whose training split's failures form the memory
     out: Path  # folder for evaluation.json and evaluation.md (and memory/ when built here)
-    encoder: str = "pixels"  # encoder spec; must match --memory when one is given
-    memory: Path | None = None  # an existing memory (its failures must not be in the test set)
+    # the memory built here (encoder, failure frames, pairing, success step); its encoder also opens `detector.memory`
+    recipe: MemoryRecipe = DEFAULT_RECIPE
+    # `memory`: an existing memory (its failures must not be in the test set), None: built here; its K,
+    # device and cache (rule and thresholds: every rule is evaluated, at thresholds calibrated here or stored)
+    detector: DetectorConfig = DEFAULT_DETECTOR
     memory_out: Path | None = None  # where a memory built here is saved (default out/memory)
     test_data: Path | None = None  # a second dataset to test on (e.g. out-of-distribution)
     train_split: str = "train"
     test_split: str = "test"
     test_fraction: float = 0.5  # for datasets without splits: a deterministic hash split
     deltas: tuple[float, ...] = PAPER_DELTAS
-    k: int = 5
     name: str = "evaluation"
-    cache_dir: Path | None = None
-    device: str | None = None
-    runtime: str | None = None  # torch, onnx or onnx-int8 (default: the spec's own, else torch)
     stride: int = 1  # score every stride-th frame of a test trajectory (t_det, T_s in original frames)
     labels: Path | None = None  # labels file for data whose names do not say the outcome (LeRobot)
     vocabulary: Path | None = None  # the data's own failure symbols (JSON/YAML), kept with the memory built
     target_fpr: float | None = 0.05  # calibrate both rules on training successes; None: stored thresholds
     successes: bool = True  # build the success memory beside the failure memory (contrast rule)
-    success_step: float = (
-        DEFAULT_STEP  # thinning of success runs (robofailring.memory.thinning); 0 keeps every frame
-    )
     deployment_successes: int = 0  # per task: test success runs moved into the success memory
     task: str | None = None  # task of episodes whose names do not say it
     views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
     failures_per_task: int | None = None  # the memory built here holds N training failures per task
     # (`labelled_failures`; 0: success runs only, judged by the novelty rule); None: all of them
-    failure_frames: str = DENSE  # the memory built here: `dense` or `end` (the paper's; memory.entry)
-    pairing: str = DEFAULT_PAIRING  # the memory built here: `change` or `concat` (the paper's; memory.pairs)
     band: str = DEFAULT_BAND  # time-indexed thresholds when calibrating here: none, shift or norm
     fusion: str = DEFAULT_FUSION  # views when calibrating here: max (one band) or per-view (a band each)
     folds: FoldPlan | None = None  # also cross-validate over every labelled run of `data` (evaluation.folds)
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
-        check_k(self.k)
         check_stride(self.stride)
-        check_failure_frames(self.failure_frames)
-        check_pairing(self.pairing)
+        if self.detector.rule is not None or self.detector.thresholds or self.detector.encoder is not None:
+            raise SettingError(
+                "an evaluation judges every rule at thresholds it calibrates (or the memory's stored ones), "
+                "with its recipe's encoder: give no rule, threshold or encoder to its detector"
+            )
         check_band(self.band)
         check_fusion(self.fusion)
         if self.target_fpr is not None:
@@ -111,7 +105,7 @@ class EvaluateConfig:
             PAPER.check_threshold(delta)
         if not 0.0 < self.test_fraction < 1.0:
             raise SettingError(f"test fraction must lie in (0, 1), got {self.test_fraction}")
-        if self.folds is not None and (self.memory is not None or self.target_fpr is None):
+        if self.folds is not None and (self.detector.memory is not None or self.target_fpr is None):
             raise SettingError(
                 "--folds builds a memory and calibrates thresholds per fold from the data: leave out --memory "
                 "and give a target FPR"
@@ -185,13 +179,16 @@ def build_training_memory(
     """Build the memory from the training split's failures (and successes) and save it to `config.memory_out`."""
     if encoder is None:
         encoder = open_encoder(
-            config.encoder, device=config.device, cache_dir=config.cache_dir, runtime=config.runtime
+            config.recipe.encoder,
+            device=config.detector.device,
+            cache_dir=config.detector.cache_dir,
+            runtime=config.detector.runtime,
         )
     if splits is None:
         splits = select_splits(config)
     provenance = Provenance(
         data=Path(config.data),
-        encoder=config.encoder,
+        encoder=config.recipe.encoder,
         layout=splits.dataset.layout,
         views=splits.dataset.views,
         split=config.train_split,
@@ -201,10 +198,8 @@ def build_training_memory(
         labelled_failures(splits.train, config.failures_per_task),
         encoder,
         provenance=provenance,
+        recipe=config.recipe,
         successes=config.successes,
-        success_step=config.success_step,
-        failure_frames=config.failure_frames,
-        pairing=config.pairing,
         vocabulary=read_vocabulary(config.vocabulary) if config.vocabulary is not None else None,
     )
     memory_dir = config.memory_out or Path(config.out) / "memory"

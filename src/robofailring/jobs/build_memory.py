@@ -15,10 +15,8 @@ from robofailring.encoders import open_encoder
 from robofailring.errors import DataError, MemoryFormatError, SettingError
 from robofailring.memory.builder import Provenance, add_to, build_memories
 from robofailring.memory.encoding import BuildStats, is_failure
-from robofailring.memory.entry import DENSE, check_failure_frames
 from robofailring.memory.failure import FailureMemory
-from robofailring.memory.pairs import DEFAULT_PAIRING, check_pairing
-from robofailring.memory.thinning import DEFAULT_STEP
+from robofailring.memory.recipe import MemoryRecipe
 from robofailring.outputs import check_memory_target, is_memory_dir
 
 
@@ -33,7 +31,7 @@ class BuildMemoryConfig:
     runtime: str | None = None  # torch, onnx or onnx-int8 (default: the spec's own, else torch)
     labels: Path | None = None  # outcome and symbol per episode (needed for LeRobot datasets)
     successes: bool = True  # also build the success memory (contrast rule); False: the paper's memory alone
-    success_step: float = DEFAULT_STEP  # keep a success frame only this far (cosine) from the last kept one
+    success_step: float | None = None  # keep a success frame only this far (cosine) from the last kept one
     task: str | None = None  # task of episodes whose names do not say it (one episode folder, video episodes)
     views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
     vocabulary: Path | None = (
@@ -46,10 +44,18 @@ class BuildMemoryConfig:
     pairing: str | None = None
 
     def __post_init__(self) -> None:  # a bad setting fails before anything is read
-        if self.failure_frames is not None:
-            check_failure_frames(self.failure_frames)
-        if self.pairing is not None:
-            check_pairing(self.pairing)
+        self.recipe  # noqa: B018 (the recipe checks every setting)
+
+    @property
+    def recipe(self) -> MemoryRecipe:
+        """The recipe of a new memory: the settings chosen, the recipe's defaults for the others (with
+        `add_to` the grown memory keeps its own failure frames and pairing)."""
+        return MemoryRecipe.chosen(
+            self.encoder,
+            failure_frames=self.failure_frames,
+            pairing=self.pairing,
+            success_step=self.success_step,
+        )
 
 
 def build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
@@ -104,10 +110,8 @@ def _build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]
         trajectories,
         encoder,
         provenance=provenance,
+        recipe=config.recipe,
         successes=config.successes,
-        success_step=config.success_step,
-        failure_frames=config.failure_frames or DENSE,
-        pairing=config.pairing or DEFAULT_PAIRING,
         vocabulary=vocabulary,
     )
     if not len(memory) and memory.successes is None:

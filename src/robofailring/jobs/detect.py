@@ -12,8 +12,9 @@ import numpy as np
 
 from robofailring.data.layouts import load_trajectory
 from robofailring.data.model import Trajectory
-from robofailring.detection.detector import DEFAULT_K, DetectionTrace, check_stride
-from robofailring.detection.loader import open_detector
+from robofailring.detection.config import DetectorConfig, check_stride
+from robofailring.detection.detector import DetectionTrace
+from robofailring.detection.loader import detector_from
 from robofailring.detection.trace import self_match_warning
 from robofailring.explain.report import FailureReport, report_for
 from robofailring.memory.references import ReferenceCheck, check_references
@@ -27,22 +28,12 @@ if TYPE_CHECKING:
 @dataclass(frozen=True)
 class DetectConfig:
     trajectory: Path  # one episode folder
-    memory: Path  # memory directory
-    delta: float | None = None  # default: the memory's calibrated δ, else the paper's 0.92
-    k: int = DEFAULT_K
-    score: str | None = None  # a rule's name (default per task: contrast, novelty or paper)
-    gamma: float | None = None  # contrast threshold (default: the memory's calibrated γ, else 0)
-    eta: float | None = None  # novelty threshold (default: the memory's calibrated η, else 0.1)
+    detector: DetectorConfig  # the memory and how its detector judges
     task: str | None = None  # needed when the folder name does not encode the task
     leave_one_out: bool = False  # hide the trajectory's own episode from the memory
-    encoder: str | None = None  # default: the spec the memory was built with
-    cache_dir: Path | None = None
-    device: str | None = None
-    runtime: str | None = None  # torch, onnx or onnx-int8 (default: the spec's own, else torch)
     key: str | None = None  # the trajectory to run when `trajectory` is a dataset root (`episode_3`)
     stride: int = 1  # score every stride-th frame (I_0 stays frame 0; t_det in original frames)
     labels: Path | None = None  # labels file (LeRobot): outcome and symbol per episode
-    data_root: Path | None = None  # where the memory's images are now, when its data moved
     vlm: VLMConfig | None = None  # ask this VLM about the report, when the detector fires
     views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
 
@@ -55,19 +46,7 @@ def detect(config: DetectConfig) -> DetectionTrace:
 def detect_trajectory(config: DetectConfig) -> tuple[DetectionTrace, Trajectory]:
     """`detect`, also returning the trajectory it loaded (for the report's current frame)."""
     check_stride(config.stride)
-    detector = open_detector(
-        config.memory,
-        device=config.device,
-        rule=config.score,
-        delta=config.delta,
-        gamma=config.gamma,
-        eta=config.eta,
-        k=config.k,
-        data_root=config.data_root,
-        encoder=config.encoder,
-        cache_dir=config.cache_dir,
-        runtime=config.runtime,
-    )
+    detector = detector_from(config.detector)
     for note in detector.uncalibrated:
         _log.warning("warning: %s", note)
     trajectory = load_trajectory(
@@ -139,15 +118,9 @@ class DetectResult:
             f"task {trace.task}, L = {trace.length} frames{scored}, rule {rule.name}: {rule.score_name} ≥ "
             f"{judged}, K = {trace.k}"
         ]
-        contrasts, novelties = trace.contrast, trace.novelty
+        shown = {rule.score_name: trace.scores_of(rule) for rule in trace.shown_rules}
         for view in trace.views:
-            parts = []
-            if trace.has_failures:
-                parts.append(f"max S⁻_t = {float(np.nanmax(trace.similarity[view])):.3f}")
-            if view in trace.success_similarity:
-                if trace.has_failures:
-                    parts.append(f"max C_t = {float(np.nanmax(contrasts[view])):.3f}")
-                parts.append(f"max N_t = {float(np.nanmax(novelties[view])):.3f}")
+            parts = [f"max {name} = {float(np.nanmax(scores[view])):.3f}" for name, scores in shown.items()]
             lines.append(f"  {view:>10}: " + ", ".join(parts))
         if trace.t_det is None or trace.detected_view is None:
             lines.append("no failure detected")

@@ -21,11 +21,9 @@ from robofailring.encoders import portable_spec
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import DataError, EncoderMismatchError
 from robofailring.memory.encoding import BuildStats, EncodedFailures, encode_failures, failure_views
-from robofailring.memory.entry import DENSE
 from robofailring.memory.failure import FailureMemory
-from robofailring.memory.pairs import DEFAULT_PAIRING
+from robofailring.memory.recipe import DEFAULT_RECIPE, MemoryRecipe
 from robofailring.memory.success import SuccessMemory
-from robofailring.memory.thinning import DEFAULT_STEP
 from robofailring.progress import progress_bar
 
 
@@ -46,17 +44,15 @@ def build_memories(
     encoder: CachedEncoder,
     *,
     provenance: Provenance,
+    recipe: MemoryRecipe = DEFAULT_RECIPE,
     successes: bool = True,
-    success_step: float = DEFAULT_STEP,
-    failure_frames: str = DENSE,
-    pairing: str = DEFAULT_PAIRING,
     vocabulary: Vocabulary | None = None,
 ) -> tuple[FailureMemory, BuildStats]:
     """The failure memory of the failure `trajectories` with, when `successes`, the success memory of all of them.
 
-    `failure_frames`: `dense` (each failure view's frames from its onset on, thinned at `success_step`)
-    or `end` (the paper's one entry per view); `pairing`: `change` or `concat` (the paper's;
-    `robofailring.memory.pairs`), for both memories. A dataset without a success run gives no success memory.
+    `recipe` (`robofailring.memory.recipe`): its failure frames, `dense` (each failure view's frames from
+    its onset on, thinned at its step) or `end` (the paper's one entry per view), and its pairing, for both
+    memories. A dataset without a success run gives no success memory.
     Image references are kept relative to the dataset root. `stats.skipped_inputs` is the provenance's.
     `vocabulary` (the dataset's own symbols beyond Table 5) is kept with the memory.
     """
@@ -65,10 +61,8 @@ def build_memories(
         trajectories,
         encoder,
         successes=successes,
-        success_step=success_step,
-        failure_frames=failure_frames,
-        failure_step=success_step,
-        pairing=pairing,
+        recipe=recipe,
+        failure_step=recipe.success_step,
         vocabulary=vocabulary,
     )
     success_memory = built if built is not None and built.success_runs else None  # none: the paper's memory
@@ -101,7 +95,7 @@ def add_to(
     encoder: CachedEncoder,
     *,
     successes: bool = True,
-    success_step: float = DEFAULT_STEP,
+    success_step: float | None = None,
     skipped_inputs: Sequence[Skipped] = (),
 ) -> tuple[FailureMemory, BuildStats]:
     """A new complete memory: `memory` with the failure (and, when `successes`, success) runs of `trajectories` added.
@@ -127,14 +121,13 @@ def add_to(
             + "; add only new episodes (or rebuild the memory)"
         )
     old = memory.manifest
+    recipe = memory.recipe if success_step is None else replace(memory.recipe, success_step=success_step)
     encoded, new_successes = _encode(
         trajectories,
         encoder,
         successes=successes,
-        success_step=success_step,
-        failure_frames=old.failure_mode,
-        failure_step=old.failure_step if old.failure_step is not None else success_step,
-        pairing=old.pairing_mode,
+        recipe=recipe,
+        failure_step=old.failure_step if old.failure_step is not None else recipe.success_step,
         vocabulary=memory.vocabulary,
     )
     joined = memory.successes
@@ -171,20 +164,20 @@ def _encode(
     encoder: CachedEncoder,
     *,
     successes: bool,
-    success_step: float,
-    failure_frames: str,
+    recipe: MemoryRecipe,
     failure_step: float,
-    pairing: str,
     vocabulary: Vocabulary | None,
 ) -> tuple[EncodedFailures, SuccessMemory | None]:
     """The failure memory's entries and, when `successes`, the success memory of all `trajectories`."""
-    planned = failure_views(trajectories, failure_frames=failure_frames, vocabulary=vocabulary)
+    planned = failure_views(trajectories, failure_frames=recipe.failure_frames, vocabulary=vocabulary)
     with progress_bar(total=planned.frames, desc="encoding memory", unit="frame") as bar:
-        encoded = encode_failures(planned, encoder, step=failure_step, progress=bar.update, pairing=pairing)
+        encoded = encode_failures(
+            planned, encoder, step=failure_step, pairing=recipe.pairing, progress=bar.update
+        )
     if not successes:
         return encoded, None
     with progress_bar(total=len(trajectories), desc="encoding success memory", unit="traj") as bar:
         built = SuccessMemory.build(
-            trajectories, encoder, progress=bar.update, step=success_step, pairing=pairing
+            trajectories, encoder, step=recipe.success_step, pairing=recipe.pairing, progress=bar.update
         )
     return encoded, built

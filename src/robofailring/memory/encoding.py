@@ -23,9 +23,9 @@ from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import SymbolError
 from robofailring.memory.entry import DENSE, END, MemoryEntry, check_failure_frames
 from robofailring.memory.manifest import MemoryManifest
-from robofailring.memory.pairs import CONCAT, check_pairing, pair_vectors
+from robofailring.memory.pairs import check_pairing, pair_vectors
 from robofailring.memory.references import absolute_reference
-from robofailring.memory.thinning import DEFAULT_STEP, check_step, thin_run
+from robofailring.memory.thinning import check_step, thin_run
 
 CHUNK_FRAMES: Final[int] = 256  # frames decoded and encoded per call, across the views
 
@@ -54,9 +54,9 @@ class EncodedFailures:
     vectors: np.ndarray
     entries: list[MemoryEntry]
     stats: BuildStats
-    failure_frames: str = END
-    step: float | None = None  # the dense memory's thinning step
-    pairing: str = CONCAT  # how first and current frames were paired (robofailring.memory.pairs)
+    failure_frames: str  # `end` or `dense` (robofailring.memory.entry)
+    step: float | None  # the dense memory's thinning step
+    pairing: str  # how first and current frames were paired (robofailring.memory.pairs)
 
     def manifest(self, encoder: str, **provenance: Any) -> MemoryManifest:
         """The manifest of a memory of these entries; `provenance`: its other fields (source, split, …)."""
@@ -113,7 +113,7 @@ def candidate_frames(length: int, onset: int | None, failure_frames: str) -> ran
 
 
 def failure_views(
-    trajectories: Iterable[Trajectory], *, failure_frames: str = END, vocabulary: Vocabulary | None = None
+    trajectories: Iterable[Trajectory], *, failure_frames: str, vocabulary: Vocabulary | None = None
 ) -> FailureViews:
     """The views of the failure trajectories to encode; views with < 2 frames are skipped and counted.
 
@@ -163,9 +163,9 @@ def encode_failures(
     planned: FailureViews,
     encoder: CachedEncoder,
     *,
-    step: float = DEFAULT_STEP,
+    step: float,
+    pairing: str,
     progress: Callable[[int], None] | None = None,
-    pairing: str = CONCAT,
 ) -> EncodedFailures:
     """The entries of the planned views: per view, its candidates paired with its first frame and thinned
     (`thinning.thin_run` at `step`, starting from the first frame paired with itself, so a candidate

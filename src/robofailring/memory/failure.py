@@ -27,6 +27,8 @@ from robofailring.memory.entry import MemoryEntry, Neighbor
 from robofailring.memory.format import parse_entry, read_jsonl
 from robofailring.memory.index import FLAT, TaskIndexSet
 from robofailring.memory.manifest import MemoryManifest, StoredCalibration
+from robofailring.memory.pairs import pair_vectors
+from robofailring.memory.recipe import MemoryRecipe
 from robofailring.memory.references import (
     ReferenceCheck,
     check_references,
@@ -102,8 +104,10 @@ class FailureMemory:
         Image references are kept relative to `data_root` when saved (default: the folder that
         holds all of them), so the memory resolves from any working directory.
         """
+        paper = MemoryRecipe.paper(encoder.identity)
+        planned = failure_views(trajectories, failure_frames=paper.failure_frames, vocabulary=vocabulary)
         encoded = encode_failures(
-            failure_views(trajectories, vocabulary=vocabulary), encoder, progress=progress
+            planned, encoder, step=paper.success_step, pairing=paper.pairing, progress=progress
         )
         memory = cls(
             encoded.vectors,
@@ -117,10 +121,23 @@ class FailureMemory:
 
     # ---------------------------------------------------------------- queries
     @property
+    def recipe(self) -> MemoryRecipe:
+        """How the memory was made (`robofailring.memory.recipe`), read from its manifest."""
+        return MemoryRecipe.of(self.manifest)
+
+    @property
     def pairing(self) -> str:
         """How the memory pairs a first and a current frame, queries alike: `concat` (the paper's) or
         `change` (`robofailring.memory.pairs`)."""
         return self.manifest.pairing_mode
+
+    def pair(self, first: np.ndarray, current: np.ndarray) -> np.ndarray:
+        """Queries of this memory, paired as its entries are: a first frame's embedding (d,) with each of
+        (N, d) current ones -> (N, 2d) unit rows."""
+        current = np.atleast_2d(current)
+        return pair_vectors(
+            np.repeat(np.atleast_2d(first), len(current), axis=0), current, pairing=self.pairing
+        )
 
     @property
     def tasks(self) -> list[str]:

@@ -23,7 +23,6 @@ from robofailring.errors import SettingError
 CONCAT: Final[str] = "concat"  # the paper's pairing, eq. 2–4
 CHANGE: Final[str] = "change"  # the first frame at half weight beside what changed since it
 PAIRINGS: Final[tuple[str, ...]] = (CONCAT, CHANGE)
-DEFAULT_PAIRING: Final[str] = CHANGE  # the benchmark's best (docs/memory.md, "Pairing")
 CHANGE_START_WEIGHT: Final[float] = 0.5  # the first frame's weight beside the change
 
 
@@ -34,7 +33,7 @@ def check_pairing(value: str) -> str:
     return value
 
 
-def pair_vectors(start: np.ndarray, end: np.ndarray, *, pairing: str = CONCAT) -> np.ndarray:
+def pair_vectors(start: np.ndarray, end: np.ndarray, *, pairing: str) -> np.ndarray:
     """Row-wise pair vectors of (N, d) first-frame and current-frame embeddings -> (N, 2d), unit norm:
     eq. 2–4 ``norm([norm f(I_s) ‖ norm f(I_e)])`` for `concat`, ``norm([½ z_s ‖ z_e − z_s])`` for `change`."""
     start = l2_normalize(np.atleast_2d(start))
@@ -45,7 +44,7 @@ def pair_vectors(start: np.ndarray, end: np.ndarray, *, pairing: str = CONCAT) -
     return l2_normalize(np.concatenate([CHANGE_START_WEIGHT * start, end - start], axis=1))
 
 
-def change_of(vectors: np.ndarray, *, pairing: str = CONCAT) -> np.ndarray:
+def change_of(vectors: np.ndarray, *, pairing: str) -> np.ndarray:
     """(N, 2d) pair vectors -> (N, d) unit `z_t − z_0`: what changed since the first frame (the memory map's
     feature); the zero change of a first frame stays zero."""
     vectors = np.atleast_2d(np.asarray(vectors, dtype=np.float32))

@@ -26,9 +26,9 @@ from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import MemoryFormatError
 from robofailring.memory.format import read_jsonl
 from robofailring.memory.index import TaskIndexSet
-from robofailring.memory.pairs import CONCAT, check_pairing, pair_vectors
+from robofailring.memory.pairs import check_pairing, pair_vectors
 from robofailring.memory.references import absolute_reference, to_stored
-from robofailring.memory.thinning import DEFAULT_STEP, check_step, thin_run
+from robofailring.memory.thinning import check_step, thin_run
 
 INDEX: Final[str] = "success.faiss"  # memories written before per-task index files
 INDEX_STEM: Final[str] = "success"  # success.<n>.faiss, one per task (robofailring.memory.index)
@@ -133,10 +133,10 @@ class SuccessMemory:
         trajectories: Iterable[Trajectory],
         encoder: CachedEncoder,
         *,
+        step: float,
+        pairing: str,
         progress: Callable[[int], None] | None = None,
-        step: float = DEFAULT_STEP,
         cap: int | None = None,
-        pairing: str = CONCAT,
     ) -> SuccessMemory:
         """The frames of every view (≥ 2 frames) of the success trajectories that add something
         (`thinning.thin_run`: cosine `step`, at most `cap` per run; step 0 keeps every frame), and

@@ -1,0 +1,78 @@
+"""The detector's settings: `DetectorConfig` (memory, encoder, device, runtime, cache, data root, K, rule and thresholds),
+K neighbours per query and the scoring stride, checked where they are given."""
+
+from __future__ import annotations
+
+import numbers
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, Final
+
+from robofailring.detection.rules import rule_named
+from robofailring.errors import SettingError
+
+DEFAULT_K: Final[int] = 5
+MAX_STRIDE: Final[int] = 2**63 - 1  # frame numbers are int64: a larger stride scores frame 0 alone anyway
+MAX_K: Final[int] = (
+    1024  # neighbours per query: each query row holds K similarities, allocated before the search
+)
+
+
+def _whole_number(value: object) -> bool:
+    """An int (or numpy integer) that is not a bool: what Faiss and slicing take as a count."""
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
+def check_k(k: int) -> int:
+    """K, the neighbours retrieved per query: a whole number from 1 to `MAX_K` (SettingError otherwise)."""
+    if not _whole_number(k) or not 1 <= k <= MAX_K:
+        raise SettingError(f"k (neighbours per query) must be a whole number from 1 to {MAX_K}, got {k}")
+    return k
+
+
+def check_stride(stride: int) -> int:
+    """The scoring stride: a whole number from 1 to `MAX_STRIDE` (SettingError otherwise)."""
+    if not _whole_number(stride) or not 1 <= stride <= MAX_STRIDE:
+        raise SettingError(
+            f"stride must be a whole number from 1 (every frame scored) to {MAX_STRIDE}, got {stride}"
+        )
+    return stride
+
+
+@dataclass(frozen=True)
+class DetectorConfig:
+    """What opens a detector on a memory folder (`robofailring.detection.loader.load_detector`), one value
+    nested in every job that detects; a threshold not given is the memory's calibrated one, else the rule's
+    default."""
+
+    memory: Path | None = None  # memory folder (evaluate: None builds one from the training split)
+    encoder: str | None = None  # encoder spec; None: the one that built the memory
+    device: str | None = None  # torch device for CLIP (default: cuda when available)
+    runtime: str | None = None  # torch, onnx or onnx-int8 (default: the spec's own, else torch)
+    cache_dir: Path | None = None  # embedding cache (default ~/.cache/robofailring)
+    data_root: Path | None = None  # where the memory's images are now, when its data moved
+    k: int = DEFAULT_K  # neighbours retrieved per query
+    rule: str | None = None  # a scoring rule's name; None: each task's default (contrast, novelty or paper)
+    thresholds: Mapping[str, float] = field(default_factory=dict)  # by rule name (`paper`: δ, …)
+
+    def __post_init__(self) -> None:  # a bad setting fails before the memory is read
+        check_k(self.k)
+        if self.rule is not None:
+            rule_named(self.rule)
+        for name, value in self.thresholds.items():
+            rule_named(name).check_threshold(value)
+
+    @property
+    def memory_dir(self) -> Path:
+        """The memory folder; SettingError when none was given."""
+        if self.memory is None:
+            raise SettingError("no memory folder was given to open a detector on (--memory)")
+        return Path(self.memory)
+
+    def with_memory(self, memory: Path, **changes: Any) -> DetectorConfig:
+        """The same settings on another memory folder (and any other `changes`)."""
+        return replace(self, memory=memory, **changes)
+
+
+DEFAULT_DETECTOR: Final[DetectorConfig] = DetectorConfig()  # every setting at its default, no memory yet

@@ -1,0 +1,76 @@
+"""`MemoryRecipe`: how a memory is made, as one value, with its defaults in this one place.
+
+A recipe names the encoder, which failure frames become entries (`dense` or the paper's `end`), how a
+first and a current frame are paired (`change` or the paper's `concat`) and how finely success runs
+(and a dense memory's failure runs) are thinned. A built memory carries its own (`FailureMemory.recipe`,
+read from its manifest) and pairs its queries by it; jobs that build memories take one recipe.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Final
+
+from robofailring.errors import SettingError
+from robofailring.memory.entry import DENSE, END, check_failure_frames
+from robofailring.memory.manifest import MemoryManifest
+from robofailring.memory.pairs import CHANGE, CONCAT, check_pairing
+from robofailring.memory.thinning import DEFAULT_STEP, check_step
+
+DEFAULT_ENCODER: Final[str] = "pixels"  # weight-free: what a memory is built with when no encoder is named
+
+
+@dataclass(frozen=True)
+class MemoryRecipe:
+    """How a memory is made; the defaults are the benchmark's best (docs/memory.md, "Pairing")."""
+
+    encoder: str = DEFAULT_ENCODER  # encoder spec: `pixels`, `open_clip:…` or `trained:DIR`
+    failure_frames: str = DENSE  # `dense`: a failure run's frames from its onset on; `end`: the paper's
+    pairing: str = CHANGE  # `change`: norm([½ z_0 ‖ z_t − z_0]); `concat`: the paper's norm([z_0 ‖ z_t])
+    success_step: float = (
+        DEFAULT_STEP  # thinning (cosine) of success runs and dense failure runs; 0 keeps all
+    )
+
+    def __post_init__(self) -> None:  # a bad setting fails before any frame is read
+        if not isinstance(self.encoder, str) or not self.encoder:
+            raise SettingError(f"a memory's encoder must be an encoder spec, got {self.encoder!r}")
+        check_failure_frames(self.failure_frames)
+        check_pairing(self.pairing)
+        check_step(self.success_step)
+
+    @classmethod
+    def paper(cls, encoder: str = DEFAULT_ENCODER) -> MemoryRecipe:
+        """The paper's memory (Algorithm 1): one end entry per failure view, frames paired by `concat`."""
+        return cls(encoder=encoder, failure_frames=END, pairing=CONCAT)
+
+    @classmethod
+    def chosen(
+        cls,
+        encoder: str = DEFAULT_ENCODER,
+        *,
+        failure_frames: str | None = None,
+        pairing: str | None = None,
+        success_step: float | None = None,
+    ) -> MemoryRecipe:
+        """The recipe of the settings given, the defaults for those left out (None): what options build."""
+        default = cls(encoder=encoder)
+        return replace(
+            default,
+            failure_frames=failure_frames if failure_frames is not None else default.failure_frames,
+            pairing=pairing if pairing is not None else default.pairing,
+            success_step=success_step if success_step is not None else default.success_step,
+        )
+
+    @classmethod
+    def of(cls, manifest: MemoryManifest) -> MemoryRecipe:
+        """The recipe a memory was built with, from its manifest (one built before a setting existed: the
+        paper's `end` frames and `concat` pairing)."""
+        return cls(
+            encoder=manifest.encoder_spec or manifest.encoder,
+            failure_frames=manifest.failure_mode,
+            pairing=manifest.pairing_mode,
+            success_step=manifest.failure_step if manifest.failure_step is not None else DEFAULT_STEP,
+        )
+
+
+DEFAULT_RECIPE: Final[MemoryRecipe] = MemoryRecipe()  # what a memory is built with when nothing is chosen
