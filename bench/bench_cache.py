@@ -14,7 +14,7 @@ from __future__ import annotations
 import tempfile
 from pathlib import Path
 
-import numpy as np
+from _scenes import scene
 from _timing import median_ms
 
 from robofailring.data.images import content_digest, read_image
@@ -23,18 +23,6 @@ from robofailring.encoders import CachedEncoder, load_encoder
 
 FRAMES = 50
 SIZES = ((128, 128), (256, 256), (480, 640))
-
-
-def scene(height: int, width: int, seed: int) -> np.ndarray:
-    """A camera-like frame: smooth shading, a few objects, sensor noise (compresses like real data)."""
-    rng = np.random.default_rng(seed)
-    rows = np.linspace(0.5, 1.0, height, dtype=np.float32)[:, None, None]
-    image = np.broadcast_to(rows * np.array([170, 160, 150], np.float32), (height, width, 3)).copy()
-    for _ in range(4):
-        top, left = rng.integers(0, height - height // 5), rng.integers(0, width - width // 5)
-        image[top : top + height // 5, left : left + width // 5] = rng.integers(0, 255, 3)
-    image += rng.normal(0, 4, image.shape)
-    return image.clip(0, 255).astype(np.uint8)
 
 
 def measure(paths: list[Path], frames: list[Frame], cached: CachedEncoder) -> tuple[float, ...]:

@@ -27,6 +27,7 @@ from robofailring.cli.options import (
     LabelsOption,
     PairingOption,
     RandomizeOption,
+    RayOption,
     RuntimeOption,
     ScoreOption,
     StrideOption,
@@ -100,6 +101,7 @@ def evaluate_cmd(
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
     runtime: RuntimeOption = None,
+    ray: RayOption = None,
 ) -> None:
     """Every scoring rule side by side at one α, then the paper's tables: Recall/FPR sweep, T_s, per type and view."""
     from rfr_viz.jobs.evaluate import evaluate
@@ -129,6 +131,7 @@ def evaluate_cmd(
             band=band,
             fusion=fusion,
             folds=FoldPlan.parse(folds) if folds is not None else None,
+            ray=ray,
         ),
         growth=parse_growth(growth) if growth is not None else (),
     )

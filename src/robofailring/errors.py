@@ -83,6 +83,15 @@ class ReadError(RoboFailRingError):
     exit_code = 1
 
 
+class ClusterError(RoboFailRingError):
+    """A compute cluster (Ray, `--ray ADDRESS`) could not be reached or failed; the message names its address.
+
+    An error of the environment (exit status 1): the same command runs against a cluster that is up.
+    """
+
+    exit_code = 1
+
+
 class MissingExtraError(RoboFailRingError, ModuleNotFoundError):
     """A module of an optional part of the install is not installed; the message names the extra.
 

@@ -43,6 +43,7 @@ EXTRAS: Final[dict[str, dict[str, str]]] = {
     "rosbag": {"rosbags": "rosbags"},
     "notebook": {"rerun": "rerun-sdk", "rerun_notebook": "rerun-notebook"},
     "onnx": {"onnxruntime": "onnxruntime", "onnx": "onnx"},
+    "ray": {"ray": "ray"},
 }
 
 #: What each extra is for, in the error's sentence.
@@ -56,6 +57,7 @@ PURPOSES: Final[dict[str, str]] = {
     "rosbag": "ROS bags",
     "notebook": "the notebook viewer",
     "onnx": "the ONNX Runtime encoders (--runtime onnx, onnx-int8)",
+    "ray": "encoding on a Ray cluster (--ray)",
 }
 
 

@@ -37,6 +37,15 @@ EncoderOption = Annotated[
 CacheOption = Annotated[
     Path | None, typer.Option("--cache-dir", help="Embedding cache folder (default ~/.cache/robofailring).")
 ]
+RayOption = Annotated[
+    str | None,
+    typer.Option(
+        "--ray",
+        metavar="ADDRESS",
+        help="Decode and encode the frames on a Ray cluster (Ray Data): `auto` (the running one), `local` (a "
+        "new one on this machine) or `ray://host:port`; same embeddings, same cache (docs/ray.md).",
+    ),
+]
 DeviceOption = Annotated[
     str | None, typer.Option("--device", help="torch device (default: cuda if available).")
 ]

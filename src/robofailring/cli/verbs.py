@@ -33,6 +33,7 @@ from robofailring.cli.options import (
     MemoryOption,
     PairingOption,
     RandomizeOption,
+    RayOption,
     RuntimeOption,
     ScoreOption,
     StrideOption,
@@ -139,6 +140,7 @@ def build_memory_cmd(
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
     runtime: RuntimeOption = None,
+    ray: RayOption = None,
 ) -> None:
     """Build a failure memory (Algorithm 1) from the failure trajectories of DATA, and a success memory."""
     from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
@@ -168,6 +170,7 @@ def build_memory_cmd(
             success_step=success_step,
             failure_frames=failure_frames,
             pairing=pairing,
+            ray=ray,
         )
     )
     typer.echo(

@@ -96,6 +96,11 @@ class BagFile:
     def __repr__(self) -> str:
         return f"BagFile({str(self.path)!r})"
 
+    def __reduce__(self) -> tuple[Any, tuple[Path]]:
+        """Pickled as its path: a frame sent to another process (a Ray worker) is read through that
+        process's shared reader of the bag (`open_bag`)."""
+        return open_bag, (self.path,)
+
     def _open(self) -> Any:
         with needs_extra("rosbag"):
             from rosbags.highlevel import AnyReader, AnyReaderError

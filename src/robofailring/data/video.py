@@ -52,6 +52,11 @@ class VideoFile:
     def __repr__(self) -> str:
         return f"VideoFile({str(self.path)!r}, stream={self.stream})"
 
+    def __reduce__(self) -> tuple[Any, tuple[str, int]]:
+        """Pickled as its path: a frame sent to another process (a Ray worker) is read through that
+        process's shared reader of the file (`open_video`), so its frames decode in sequence there."""
+        return _reopen, (str(self.path), self.stream)
+
     # ------------------------------------------------------------ container facts
     def _open(self) -> Any:
         with needs_extra("video"):
@@ -210,6 +215,10 @@ def open_video(path: Path, *, stream: int = 0) -> VideoFile:
     if found is None:
         found = _FILES[key] = VideoFile(Path(path), stream=stream)
     return found
+
+
+def _reopen(path: str, stream: int) -> VideoFile:
+    return open_video(Path(path), stream=stream)
 
 
 @dataclass(frozen=True)

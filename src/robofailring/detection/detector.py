@@ -19,6 +19,7 @@ from robofailring.detection.rules import (
     default_rule,
     rule_named,
 )
+from robofailring.detection.scored import scored_frames
 from robofailring.detection.stored import (
     given_thresholds,
     stored_bands,
@@ -29,7 +30,7 @@ from robofailring.detection.trace import DetectionTrace, StepResult
 from robofailring.detection.view_scores import ViewScores
 from robofailring.encoders.base import Encoder, l2_normalize
 from robofailring.encoders.cache import CachedEncoder
-from robofailring.errors import DataError, SettingError
+from robofailring.errors import SettingError
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.references import absolute_reference
 
@@ -219,15 +220,9 @@ class FailureDetector(RuleThresholds):
         """
         check_stride(stride)
         rule = self._check_task(trajectory.task)
-        used = {view: frames for view, frames in trajectory.views.items() if len(frames) >= 2}
-        skipped = [view for view in trajectory.views if view not in used]
-        if not used:
-            raise DataError(
-                f"trajectory {trajectory.key} ({trajectory.source}) has no view with at least 2 frames"
-            )
-        length = min(len(frames) for frames in used.values())
-        views = list(used)
-        steps = np.arange(0, length, stride)
+        scored = scored_frames(trajectory, stride=stride)
+        used, steps, skipped = scored.views, scored.steps, scored.short_views
+        views, length = list(used), min(len(frames) for frames in used.values())
         exclude = trajectory.episode if leave_one_out else None
         first: dict[str, np.ndarray] = {}
         parts: list[Retrieved] = []

@@ -42,6 +42,7 @@ def open_encoder(
     device: str | None = None,
     cache_dir: Path | None = None,
     runtime: str | None = None,
+    ray: str | None = None,
 ) -> CachedEncoder:
     """The one way jobs open an encoder: its model is loaded once per process for a (spec, device).
 
@@ -50,11 +51,17 @@ def open_encoder(
     the spec names, so a folder retrained or a checkpoint rewritten in place is loaded again. The
     embedding cache in `cache_dir` is opened afresh on every call (as a new process would open it).
     `runtime` (`--runtime`) overrides the spec's own `@runtime` (`EncoderSpec.with_runtime`).
+    `ray`: the address of a Ray cluster that encodes what the jobs prefetch (docs/ray.md).
     """
     portable = EncoderSpec.parse(spec).with_runtime(runtime).portable()
     exports = cache_dir if portable.runtime != "torch" else None  # where an ONNX runtime's export is
     encoder = _loaded_encoder(str(portable), device, exports, _files_stamp(portable))
-    return CachedEncoder(encoder, cache_dir=cache_dir)
+    backend = None
+    if ray is not None:
+        from robofailring.encoders.ray_backend import RayBackend
+
+        backend = RayBackend(ray, spec=str(portable), identity=encoder.identity, device=device)
+    return CachedEncoder(encoder, cache_dir=cache_dir, backend=backend)
 
 
 def _files_stamp(spec: EncoderSpec) -> tuple[int, ...]:

@@ -13,7 +13,9 @@ from pathlib import Path
 import numpy as np
 
 from robofailring.data.model import Frame
+from robofailring.encoders.backend import EncodingBackend, LocalBackend
 from robofailring.encoders.base import Encoder, cache_identity
+from robofailring.progress import progress_bar
 
 
 def default_cache_dir() -> Path:
@@ -115,14 +117,45 @@ class EmbeddingCache:
         self._db.close()
 
 
-class CachedEncoder:
-    """Encodes frames through an encoder, reusing cached embeddings by image content."""
+class HeldEmbeddings:
+    """Embeddings held in memory by content digest: where a backend encoding ahead puts its results
+    when there is no embedding cache to write them to (`CachedEncoder.prefetch`)."""
 
-    def __init__(self, encoder: Encoder, *, cache_dir: Path | None = None, enabled: bool = True) -> None:
+    def __init__(self, dim: int) -> None:
+        self.dim = dim
+        self.path = Path("<memory>")
+        self._held: dict[str, np.ndarray] = {}
+
+    def digests(self, frames: Sequence[Frame]) -> list[str]:
+        return [frame.content_key() for frame in frames]
+
+    def get_many(self, digests: Sequence[str]) -> dict[str, np.ndarray]:
+        return {digest: self._held[digest] for digest in digests if digest in self._held}
+
+    def put_many(self, items: dict[str, np.ndarray]) -> None:
+        self._held.update({digest: np.asarray(vec, dtype=np.float32) for digest, vec in items.items()})
+
+
+class CachedEncoder:
+    """Encodes frames through an encoder, reusing cached embeddings by image content.
+
+    Cache misses are encoded here, on demand; `backend` (robofailring.encoders.backend) is where
+    `prefetch` encodes, ahead of the job, the frames a job will need (a Ray cluster), or nothing.
+    """
+
+    def __init__(
+        self,
+        encoder: Encoder,
+        *,
+        cache_dir: Path | None = None,
+        enabled: bool = True,
+        backend: EncodingBackend | None = None,
+    ) -> None:
         self.encoder = encoder
-        self.cache = (
+        self.cache: EmbeddingCache | HeldEmbeddings | None = (
             EmbeddingCache.open(cache_identity(encoder), encoder.dim, root=cache_dir) if enabled else None
         )
+        self.backend: EncodingBackend = backend if backend is not None else LocalBackend(encoder)
         self.hits = 0
         self.misses = 0
 
@@ -145,30 +178,50 @@ class CachedEncoder:
                 _warn_once(f"the embedding cache {self.cache.path} failed ({error}); running without it")
                 self.cache = None
         self.misses += len(frames)
-        chunks = [
-            self.encoder.encode([frame.load() for frame in frames[start : start + batch_size]])
-            for start in range(0, len(frames), batch_size)
-        ]
-        return np.concatenate(chunks).astype(np.float32, copy=False)
+        local = LocalBackend(self.encoder, batch_size=batch_size)
+        return np.concatenate([vectors for _, vectors in local.encode_all(frames)])
+
+    def prefetch(self, frames: Sequence[Frame]) -> None:
+        """Encode, through the backend and ahead of the job, every frame of `frames` the cache lacks
+        (each distinct image once), into the cache; a no-op for a backend that encodes on demand.
+
+        Without a usable cache the embeddings are held in memory for this encoder's later calls.
+        """
+        if not self.backend.ahead or not frames:
+            return
+        if self.cache is None:
+            self.cache = HeldEmbeddings(self.dim)
+        digests = self.cache.digests(frames)
+        found = self.cache.get_many(digests)
+        todo = {digest: frame for digest, frame in zip(digests, frames, strict=True) if digest not in found}
+        keys, missing = list(todo), list(todo.values())
+        if not missing:
+            return
+        with progress_bar(
+            total=len(missing), desc=f"encoding on {self.backend.describe()}", unit="frame"
+        ) as bar:
+            for positions, vectors in self.backend.encode_all(missing):
+                self.cache.put_many(
+                    {keys[int(p)]: vector for p, vector in zip(positions, vectors, strict=True)}
+                )
+                bar.update(len(positions))
+        self.misses += len(missing)
 
     def _encode_cached(
-        self, frames: Sequence[Frame], cache: EmbeddingCache, *, batch_size: int
+        self, frames: Sequence[Frame], cache: EmbeddingCache | HeldEmbeddings, *, batch_size: int
     ) -> np.ndarray:
         digests = cache.digests(frames)
         found = cache.get_many(digests)
-        missing = [i for i, digest in enumerate(digests) if digest not in found]
-        fresh: dict[str, np.ndarray] = {}
-        for start in range(0, len(missing), batch_size):
-            chunk = [i for i in missing[start : start + batch_size] if digests[i] not in fresh]
-            if not chunk:
-                continue
-            vectors = self.encoder.encode([frames[i].load() for i in chunk])
-            for i, vector in zip(chunk, vectors, strict=True):
-                fresh[digests[i]] = vector
-            cache.put_many({digests[i]: fresh[digests[i]] for i in chunk})
-        found.update(fresh)
-        self.hits += len(frames) - len(missing)
-        self.misses += len(missing)
+        todo = {digest: i for i, digest in enumerate(digests) if digest not in found}
+        keys = list(todo)
+        local = LocalBackend(self.encoder, batch_size=batch_size)
+        for positions, vectors in local.encode_all([frames[i] for i in todo.values()]):
+            fresh = {keys[int(p)]: vector for p, vector in zip(positions, vectors, strict=True)}
+            cache.put_many(fresh)
+            found.update(fresh)
+        missing = sum(1 for digest in digests if digest in todo)
+        self.hits += len(frames) - missing
+        self.misses += missing
         return np.stack([found[digest] for digest in digests]).astype(np.float32, copy=False)
 
     def encode_images(self, images: Sequence[np.ndarray]) -> np.ndarray:

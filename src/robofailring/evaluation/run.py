@@ -2,15 +2,17 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
 
 from robofailring.atomic import write_text_atomic
-from robofailring.data.model import Trajectory
+from robofailring.data.model import Frame, Trajectory
 from robofailring.detection.detector import DetectionTrace, FailureDetector, Place
 from robofailring.detection.rules import PAPER, ScoringRule
+from robofailring.detection.scored import scored_frames
 from robofailring.detection.stored import stored_threshold
 from robofailring.encoders import CachedEncoder, open_encoder
 from robofailring.errors import DataError, SettingError
@@ -52,6 +54,7 @@ def run_evaluation(
             device=config.detector.device,
             cache_dir=config.detector.cache_dir,
             runtime=config.detector.runtime,
+            ray=config.ray,
         )
         memory_dir = (
             config.detector.memory
@@ -64,6 +67,13 @@ def run_evaluation(
         memory_dir = read_from[0] if read_from is not None else config.detector.memory_dir
     memory, encoder = detector.memory, detector.encoder
     check_disjoint(memory, test)
+    _prefetch(
+        encoder,
+        test,
+        train if config.target_fpr is not None else [],
+        known=set(memory.tasks),
+        stride=config.stride,
+    )
     deployed, test = _deploy_successes(
         memory, test, config.deployment_successes, encoder, config.recipe.success_step
     )
@@ -194,6 +204,24 @@ def growth_curve(
         points.append(GrowthPoint(level, judged(result.rules, failures=level > 0)))
     points.append(GrowthPoint(None, judged(full.rules, failures=True)))
     return points
+
+
+def _prefetch(
+    encoder: CachedEncoder,
+    test: Sequence[Trajectory],
+    train: Sequence[Trajectory],
+    *,
+    known: set[str],
+    stride: int,
+) -> None:
+    """Hand the encoder every frame the replay and the calibration will score (the test runs, the
+    training successes), so an encoder working ahead (Ray) encodes them in one pass."""
+    frames: list[Frame] = []
+    for trajectory in [*test, *(t for t in train if not t.is_failure)]:
+        if trajectory.task in known:
+            with contextlib.suppress(DataError):  # no view of 2 frames: the replay reports it
+                frames += scored_frames(trajectory, stride=stride).frames()
+    encoder.prefetch(frames)
 
 
 def _stored_target(memory: FailureMemory) -> float | None:

@@ -85,6 +85,7 @@ class EvaluateConfig:
     band: str = DEFAULT_BAND  # time-indexed thresholds when calibrating here: none, shift or norm
     fusion: str = DEFAULT_FUSION  # views when calibrating here: max (one band) or per-view (a band each)
     folds: FoldPlan | None = None  # also cross-validate over every labelled run of `data` (evaluation.folds)
+    ray: str | None = None  # a Ray cluster's address: frames decoded and encoded there (docs/ray.md)
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
         check_stride(self.stride)
@@ -183,6 +184,7 @@ def build_training_memory(
             device=config.detector.device,
             cache_dir=config.detector.cache_dir,
             runtime=config.detector.runtime,
+            ray=config.ray,
         )
     if splits is None:
         splits = select_splits(config)

@@ -42,6 +42,7 @@ class BuildMemoryConfig:
     failure_frames: str | None = None
     # `change` or `concat` (the paper's pairing); None: change for a new memory, the memory's own with `add_to`
     pairing: str | None = None
+    ray: str | None = None  # a Ray cluster's address: frames decoded and encoded there (docs/ray.md)
 
     def __post_init__(self) -> None:  # a bad setting fails before anything is read
         self.recipe  # noqa: B018 (the recipe checks every setting)
@@ -78,7 +79,11 @@ def build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
 def _build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
     vocabulary = read_vocabulary(config.vocabulary) if config.vocabulary is not None else None
     encoder = open_encoder(
-        config.encoder, device=config.device, cache_dir=config.cache_dir, runtime=config.runtime
+        config.encoder,
+        device=config.device,
+        cache_dir=config.cache_dir,
+        runtime=config.runtime,
+        ray=config.ray,
     )
     dataset = load_dataset(
         config.data, task=config.task, labels=config.labels, views=config.views, vocabulary=vocabulary
@@ -149,7 +154,11 @@ def _add_to_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats
             "a memory keeps the vocabulary it was built with (leave out --vocabulary, or rebuild)"
         )
     encoder = open_encoder(
-        config.encoder, device=config.device, cache_dir=config.cache_dir, runtime=config.runtime
+        config.encoder,
+        device=config.device,
+        cache_dir=config.cache_dir,
+        runtime=config.runtime,
+        ray=config.ray,
     )
     dataset = load_dataset(config.data, task=config.task, labels=config.labels, vocabulary=memory.vocabulary)
     dataset.require_labels("build-memory --add-to")

@@ -174,11 +174,13 @@ def encode_failures(
 
     Frames are decoded CHUNK_FRAMES at a time, and a view's embeddings are let go once it is paired.
     `progress` is told how many frames each chunk encoded. The paper's memory (`end`) has one entry
-    per view, without a frame number.
+    per view, without a frame number. An encoder whose backend works ahead (Ray, docs/ray.md) is
+    first handed every frame to encode, in one pass, and the chunks then read them from its cache.
     """
     check_step(step)
     check_pairing(pairing)
     dense = planned.failure_frames == DENSE
+    encoder.prefetch([frame for view in planned.views for frame in view.to_encode()])  # ahead: one pass
     stats = replace(planned.stats)  # the plan's counts, with what encoding adds
     entries: list[MemoryEntry] = []
     vectors: list[np.ndarray] = []

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import json
 from collections import Counter
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Final
@@ -21,7 +21,7 @@ from typing import Any, Final
 import faiss
 import numpy as np
 
-from robofailring.data.model import Outcome, Trajectory
+from robofailring.data.model import Frame, Outcome, Trajectory
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import MemoryFormatError
 from robofailring.memory.format import read_jsonl
@@ -49,6 +49,17 @@ def _run_fields(fields: Any) -> dict[str, Any]:
     if not isinstance(numbers, list) or not all(type(n) is int for n in numbers):
         raise TypeError(f"'frame_numbers' must be a list of whole numbers, not {numbers!r}")
     return fields
+
+
+def run_frames(trajectory: Trajectory) -> Iterator[tuple[str, list[Frame]]]:
+    """The frames `SuccessMemory.build` encodes of a labelled trajectory, per view of ≥ 2 frames: all of a
+    success run's, the first of a failure run's (its start, before anything went wrong); none of an
+    unlabelled one's."""
+    if trajectory.outcome is None:
+        return
+    for view, frames in trajectory.views.items():
+        if len(frames) >= 2:
+            yield view, list(frames) if trajectory.outcome is Outcome.SUCCESS else [frames[0]]
 
 
 @dataclass(frozen=True)
@@ -144,6 +155,8 @@ class SuccessMemory:
         failure memory's (`robofailring.memory.pairs`)."""
         check_step(step)
         check_pairing(pairing)
+        trajectories = list(trajectories)
+        encoder.prefetch([frame for t in trajectories for _, frames in run_frames(t) for frame in frames])
         runs: list[SuccessRun] = []
         vectors: list[np.ndarray] = []
         offered = 0
@@ -151,10 +164,7 @@ class SuccessMemory:
             if trajectory.outcome is None:
                 continue
             success = trajectory.outcome is Outcome.SUCCESS
-            for view, all_frames in trajectory.views.items():
-                if len(all_frames) < 2:
-                    continue
-                frames = list(all_frames) if success else [all_frames[0]]
+            for view, frames in run_frames(trajectory):
                 embeddings = encoder.encode_frames(frames)
                 paired = pair_vectors(
                     np.repeat(embeddings[:1], len(frames), axis=0), embeddings, pairing=pairing

@@ -1,0 +1,37 @@
+"""The frames a detector run decodes and scores of a trajectory: shared by `FailureDetector.run` and the
+jobs that encode those frames ahead of it (`CachedEncoder.prefetch`, docs/ray.md)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from robofailring.data.model import Frame, Trajectory
+from robofailring.errors import DataError
+
+
+@dataclass(frozen=True)
+class ScoredFrames:
+    """The views scored (those of ≥ 2 frames, in the trajectory's order), the frame numbers scored in each
+    (0, stride, 2·stride, … below the shortest view's length) and the views left out (too short)."""
+
+    views: dict[str, Sequence[Frame]]
+    steps: np.ndarray
+    short_views: list[str]
+
+    def frames(self) -> list[Frame]:
+        """Every frame scored, view by view."""
+        return [frames[int(t)] for frames in self.views.values() for t in self.steps]
+
+
+def scored_frames(trajectory: Trajectory, *, stride: int = 1) -> ScoredFrames:
+    """What a run over `trajectory` at `stride` scores; DataError when no view has 2 frames."""
+    used = {view: frames for view, frames in trajectory.views.items() if len(frames) >= 2}
+    if not used:
+        raise DataError(
+            f"trajectory {trajectory.key} ({trajectory.source}) has no view with at least 2 frames"
+        )
+    length = min(len(frames) for frames in used.values())
+    return ScoredFrames(used, np.arange(0, length, stride), [v for v in trajectory.views if v not in used])
