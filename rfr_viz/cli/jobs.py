@@ -253,6 +253,8 @@ def triage_cmd(
     camera_codec: CameraCodecOption = CameraCodec.AUTO,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
+    runtime: RuntimeOption = None,
+    ray: RayOption = None,
     data_root: DataRootOption = None,
 ) -> None:
     """Rank every episode of a dataset nobody labelled by how unlike normal runs it looks, to label the top.
@@ -277,6 +279,8 @@ def triage_cmd(
             reference_runs=reference_runs,
             cache_dir=cache_dir,
             device=device,
+            runtime=runtime,
+            ray=ray,
             data_root=data_root,
         ),
         replays=replays,

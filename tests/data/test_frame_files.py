@@ -11,7 +11,7 @@ import pytest
 
 from robofailring import load_dataset, load_trajectory
 from robofailring.data.images import decode_image, write_png
-from robofailring.data.model import Frame
+from robofailring.data.model import Frame, FrameFiles
 from robofailring.errors import DataError
 
 
@@ -73,3 +73,31 @@ def test_a_16_bit_png_view_is_listed_as_not_read(tmp_path: Path) -> None:
     depth = (tmp_path / "rgbd" / "run_0" / "depth" / "2.png").read_bytes()
     with pytest.raises(DataError, match=r"image 2\.png has 16-bit samples \(a depth map\?\)"):
         decode_image(depth, source="2.png")  # a frame decoded on its own is not scaled to 8 bits either
+
+
+@pytest.mark.parametrize(
+    "names",
+    [
+        [f"front_{i}.png" for i in range(12)],  # numbered in one run, not padded
+        [f"frame_{i:04d}.png" for i in range(3, 15)],  # padded, starting past 0
+        ["0.png", "2.png", "5.png", "11.png"],  # gaps: kept as names
+        ["1700000000.800000.png", "1700000001.100000.png", "1700000001.400000.png"],  # timestamps
+    ],
+)
+def test_a_folder_of_frames_is_held_compactly_and_reads_as_its_files(
+    tmp_path: Path, names: list[str]
+) -> None:
+    """A large dataset lists 600,000 frames: the loader keeps a folder's names, not a `Frame` each, and
+    indexing, slicing, iterating and comparing give exactly the files in time order."""
+    write_frames(tmp_path / "run" / "front", names)
+    frames = load_trajectory(tmp_path / "run", task="pick").views["front"]
+    assert isinstance(frames, FrameFiles)
+    expected = tuple(Frame(path=tmp_path / "run" / "front" / name) for name in names)
+    assert len(frames) == len(names)
+    assert list(frames) == list(expected)
+    assert frames == expected and expected == frames
+    assert frames[-1] == expected[-1] and frames[1:3] == list(expected[1:3])
+    assert places(frames) == list(range(len(names)))
+    with pytest.raises(IndexError):
+        frames[len(names)]
+    assert frames != expected[:-1]

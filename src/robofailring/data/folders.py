@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Final
 
 from robofailring.data.images import IMAGE_SUFFIXES, png_bit_depth
-from robofailring.data.model import Frame, Skipped
+from robofailring.data.model import Frame, FrameFiles, Skipped
 from robofailring.data.video import VIDEO_SUFFIXES, VideoFrames, open_video
 from robofailring.errors import DataError
 
@@ -57,8 +57,9 @@ def frame_number(stem: str) -> Decimal | None:
     return Decimal(match.group(1)) if match else None
 
 
-def _numbered(paths: Sequence[tuple[Path, Decimal]], where: Path, *, view: str) -> tuple[Frame, ...]:
-    """Frames ordered by number; two files with one number are an error naming both."""
+def _numbered(paths: Sequence[tuple[Path, Decimal]], where: Path, *, view: str) -> Sequence[Frame]:
+    """Frames ordered by number, held compactly (`FrameFiles`); two files with one number are an error
+    naming both."""
     seen: dict[Decimal, Path] = {}
     for path, number in paths:
         if number in seen:
@@ -68,7 +69,7 @@ def _numbered(paths: Sequence[tuple[Path, Decimal]], where: Path, *, view: str) 
                 f"{number} cannot be decided)"
             )
         seen[number] = path
-    return tuple(Frame(path=seen[number]) for number in sorted(seen))
+    return FrameFiles.of([seen[number] for number in sorted(seen)])
 
 
 def _unnumbered(where: Path, names: list[str], pattern: str) -> Skipped:

@@ -125,6 +125,74 @@ class LazyFrames(Sequence[Frame]):
         return self.frame(item)
 
 
+class FrameFiles(LazyFrames):
+    """The image files of one folder, in order, held compactly: a large dataset lists hundreds of
+    thousands of them (1,000 episodes × 3 views × 200 frames), and a `Frame` with its `Path` each is
+    about 500 bytes. Names numbered in one run (`front_0.png` … `front_199.png`, zero-padded or not)
+    are kept as their pattern; any others as one string. `Frame`s are made when indexed."""
+
+    def __init__(self, folder: Path, names: Sequence[str]) -> None:
+        self.folder = Path(folder)
+        self._count = len(names)
+        self._pattern = _numbered_run(names)
+        self._names = "" if self._pattern is not None else "".join(names)
+        self._ends = (
+            np.zeros(0, np.int64)
+            if self._pattern is not None
+            else np.cumsum([len(name) for name in names], dtype=np.int64)
+        )
+
+    @classmethod
+    def of(cls, paths: Sequence[Path]) -> Sequence[Frame]:
+        """The frames of `paths`: compact when they share one folder, else a tuple of `Frame`s."""
+        folders = {Path(path).parent for path in paths}
+        if len(folders) != 1:
+            return frames_from_files(paths)
+        return cls(folders.pop(), [Path(path).name for path in paths])
+
+    def __len__(self) -> int:
+        return self._count
+
+    def name(self, index: int) -> str:
+        if self._pattern is not None:
+            prefix, start, width, suffix = self._pattern
+            return f"{prefix}{start + index:0{width}d}{suffix}"
+        begin = int(self._ends[index - 1]) if index else 0
+        return self._names[begin : int(self._ends[index])]
+
+    def frame(self, index: int) -> Frame:
+        return Frame(path=self.folder / self.name(index))
+
+    def __eq__(self, other: object) -> bool:
+        if isinstance(other, FrameFiles):
+            return self.folder == other.folder and list(map(self.name, range(len(self)))) == list(
+                map(other.name, range(len(other)))
+            )
+        return isinstance(other, Sequence) and list(self) == list(other)
+
+    __hash__ = None  # type: ignore[assignment]  # a sequence compared by value, like a list
+
+    def __repr__(self) -> str:
+        return f"FrameFiles({str(self.folder)!r}, {len(self)} files)"
+
+
+_LAST_DIGITS = re.compile(r"(\d+)(?!.*\d)")
+
+
+def _numbered_run(names: Sequence[str]) -> tuple[str, int, int, str] | None:
+    """(prefix, first number, zero-padded width, suffix) when `names` are `prefix<n>suffix` for
+    n = first, first + 1, …; else None."""
+    match = _LAST_DIGITS.search(names[0]) if names else None
+    if match is None:
+        return None
+    digits = match.group(1)
+    prefix, suffix, start = names[0][: match.start()], names[0][match.end() :], int(digits)
+    width = len(digits) if digits.startswith("0") else 0
+    if any(name != f"{prefix}{start + i:0{width}d}{suffix}" for i, name in enumerate(names)):
+        return None
+    return prefix, start, width, suffix
+
+
 @dataclass(frozen=True)
 class Trajectory:
     """A replayable episode: task, label and per-view ordered frames.
@@ -220,6 +288,7 @@ def load_frames(frames: Sequence[Frame]) -> list[np.ndarray]:
 
 __all__ = [
     "Frame",
+    "FrameFiles",
     "FrameSource",
     "Outcome",
     "Skipped",

@@ -14,9 +14,10 @@ from robofailring.encoders import open_encoder
 from robofailring.memory.failure import FailureMemory, encoder_spec_for
 
 
-def detector_from(config: DetectorConfig) -> FailureDetector:
+def detector_from(config: DetectorConfig, *, ray: str | None = None) -> FailureDetector:
     """Load `config.memory` and its encoder (or `config.encoder`, which must give the same identity), and
-    return its detector at `config.thresholds` (by rule name; the memory's calibrated ones for the rest)."""
+    return its detector at `config.thresholds` (by rule name; the memory's calibrated ones for the rest).
+    `ray`: a Ray cluster that encodes what the job prefetches (docs/ray.md)."""
     memory = FailureMemory.load(
         config.memory_dir, data_root=Path(config.data_root) if config.data_root is not None else None
     )
@@ -25,6 +26,7 @@ def detector_from(config: DetectorConfig) -> FailureDetector:
         device=config.device,
         cache_dir=Path(config.cache_dir) if config.cache_dir is not None else None,
         runtime=config.runtime,
+        ray=ray,
     )
     return FailureDetector(memory, opened, thresholds=config.thresholds, k=config.k, rule=config.rule)
 

@@ -3,12 +3,14 @@ jobs that encode those frames ahead of it (`CachedEncoder.prefetch`, docs/ray.md
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import contextlib
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from robofailring.data.model import Frame, Trajectory
+from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import DataError
 
 
@@ -35,3 +37,16 @@ def scored_frames(trajectory: Trajectory, *, stride: int = 1) -> ScoredFrames:
         )
     length = min(len(frames) for frames in used.values())
     return ScoredFrames(used, np.arange(0, length, stride), [v for v in trajectory.views if v not in used])
+
+
+def prefetch_scored(encoder: CachedEncoder, trajectories: Iterable[Trajectory], *, stride: int = 1) -> None:
+    """Hand an encoder that works ahead (`--ray`) every frame runs over `trajectories` at `stride` will
+    score, to encode in one pass; nothing for one that encodes on demand. A run with no view of 2 frames
+    is left for its own run to report."""
+    if not encoder.backend.ahead:
+        return
+    frames: list[Frame] = []
+    for trajectory in trajectories:
+        with contextlib.suppress(DataError):
+            frames += scored_frames(trajectory, stride=stride).frames()
+    encoder.prefetch(frames)

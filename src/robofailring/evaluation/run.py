@@ -2,17 +2,16 @@
 
 from __future__ import annotations
 
-import contextlib
 import json
 from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
 
 from robofailring.atomic import write_text_atomic
-from robofailring.data.model import Frame, Trajectory
+from robofailring.data.model import Trajectory
 from robofailring.detection.detector import DetectionTrace, FailureDetector, Place
 from robofailring.detection.rules import PAPER, ScoringRule
-from robofailring.detection.scored import scored_frames
+from robofailring.detection.scored import prefetch_scored
 from robofailring.detection.stored import stored_threshold
 from robofailring.encoders import CachedEncoder, open_encoder
 from robofailring.errors import DataError, SettingError
@@ -216,12 +215,8 @@ def _prefetch(
 ) -> None:
     """Hand the encoder every frame the replay and the calibration will score (the test runs, the
     training successes), so an encoder working ahead (Ray) encodes them in one pass."""
-    frames: list[Frame] = []
-    for trajectory in [*test, *(t for t in train if not t.is_failure)]:
-        if trajectory.task in known:
-            with contextlib.suppress(DataError):  # no view of 2 frames: the replay reports it
-                frames += scored_frames(trajectory, stride=stride).frames()
-    encoder.prefetch(frames)
+    runs = [*test, *(t for t in train if not t.is_failure)]
+    prefetch_scored(encoder, (t for t in runs if t.task in known), stride=stride)
 
 
 def _stored_target(memory: FailureMemory) -> float | None:

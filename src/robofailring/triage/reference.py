@@ -22,8 +22,9 @@ from pathlib import Path
 from typing import Final
 
 from robofailring.data.model import Outcome, Trajectory
+from robofailring.detection.config import DetectorConfig
 from robofailring.detection.detector import FailureDetector
-from robofailring.detection.loader import open_detector
+from robofailring.detection.loader import detector_from
 from robofailring.detection.rules import NOVELTY
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import DataError
@@ -49,21 +50,11 @@ class Reference:
     notes: list[str] = field(default_factory=list)
 
 
-def memory_reference(
-    memory_dir: Path,
-    tasks: Sequence[str],
-    *,
-    k: int,
-    rule: str | None,
-    cache_dir: Path | None,
-    device: str | None,
-    data_root: Path | None,
-) -> Reference:
-    """A saved memory's detector (its rules and thresholds as stored, or `rule`); a task it does not know is
-    an error."""
-    detector = open_detector(
-        memory_dir, k=k, rule=rule, cache_dir=cache_dir, device=device, data_root=data_root
-    )
+def memory_reference(config: DetectorConfig, tasks: Sequence[str], *, ray: str | None = None) -> Reference:
+    """The detector on `config.memory` (its rules and thresholds as stored, or `config.rule`); a task it
+    does not know is an error. `ray`: where the frames are encoded ahead (docs/ray.md)."""
+    memory_dir = config.memory_dir
+    detector = detector_from(config, ray=ray)
     unknown = sorted(set(tasks) - set(detector.memory.tasks))
     if unknown:
         raise DataError(

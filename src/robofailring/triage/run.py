@@ -10,8 +10,10 @@ from typing import Final
 from robofailring.data.labels import apply_labels, read_labels, unlabelled_rows
 from robofailring.data.layouts import load_dataset
 from robofailring.data.model import Outcome, Skipped, Trajectory
+from robofailring.detection.config import DetectorConfig
 from robofailring.detection.detector import DEFAULT_K, FailureDetector, check_k
 from robofailring.detection.rules import rule_named
+from robofailring.detection.scored import prefetch_scored
 from robofailring.encoders import open_encoder
 from robofailring.errors import SettingError
 from robofailring.progress import progress_bar
@@ -21,6 +23,9 @@ from robofailring.triage.scoring import EpisodeScore, score_episode
 from robofailring.triage.table import check_unique_episodes
 
 DEFAULT_REFERENCE_RUNS: Final[int] = 100
+# episodes whose frames an encoder working ahead (`--ray`) is handed at once: one Ray pass each, and only
+# their frame references held, so memory stays flat in the number of episodes
+PREFETCH_EPISODES: Final[int] = 64
 
 
 @dataclass(frozen=True)
@@ -38,6 +43,8 @@ class TriageConfig:
     reference_runs: int = DEFAULT_REFERENCE_RUNS  # per task, at most this many other episodes as reference
     cache_dir: Path | None = None
     device: str | None = None
+    runtime: str | None = None  # torch, onnx or onnx-int8 (docs/runtime.md)
+    ray: str | None = None  # a Ray cluster's address: frames decoded and encoded there (docs/ray.md)
     data_root: Path | None = None  # where the memory's images are now, when its data moved
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
@@ -85,11 +92,14 @@ def run_triage(config: TriageConfig) -> TriageResult:
     reference = _reference(config, trajectories, tasks, skipped)
     scores: list[EpisodeScore] = []
     with progress_bar(total=len(trajectories), desc="triage", unit="episode") as bar:
-        for trajectory in trajectories:
-            scores.append(
-                score_episode(reference.detector, trajectory, mode=reference.modes[trajectory.task])
-            )
-            bar.update(1)
+        for start in range(0, len(trajectories), PREFETCH_EPISODES):
+            chunk = trajectories[start : start + PREFETCH_EPISODES]
+            prefetch_scored(reference.detector.encoder, chunk)
+            for trajectory in chunk:
+                scores.append(
+                    score_episode(reference.detector, trajectory, mode=reference.modes[trajectory.task])
+                )
+                bar.update(1)
     scales = _scales(reference, scores, trajectories)
     ranked = rank(scores, scales)
     notes = list(reference.notes)
@@ -109,21 +119,28 @@ def _reference(
     config: TriageConfig, trajectories: list[Trajectory], tasks: list[str], skipped: list[Skipped]
 ) -> Reference:
     if config.memory is not None:
-        return memory_reference(
-            config.memory,
-            tasks,
+        settings = DetectorConfig(
+            memory=config.memory,
+            device=config.device,
+            runtime=config.runtime,
+            cache_dir=config.cache_dir,
+            data_root=config.data_root,
             k=config.k,
             rule=config.score,
-            cache_dir=config.cache_dir,
-            device=config.device,
-            data_root=config.data_root,
         )
+        return memory_reference(settings, tasks, ray=config.ray)
     known_good: list[Trajectory] = []
     if config.successes is not None:
         good = load_dataset(config.successes, task=config.task, views=config.views)
         skipped += good.skipped
         known_good = [replace(t, outcome=Outcome.SUCCESS, symbol=None) for t in good if t.task in tasks]
-    encoder = open_encoder(config.encoder, device=config.device, cache_dir=config.cache_dir)
+    encoder = open_encoder(
+        config.encoder,
+        device=config.device,
+        cache_dir=config.cache_dir,
+        runtime=config.runtime,
+        ray=config.ray,
+    )
     return built_reference(
         trajectories,
         known_good,
