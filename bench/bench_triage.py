@@ -13,8 +13,9 @@ trained on the memory's runs (never on the set's unknown episodes) unless --no-t
 
 Scale: image episodes of 3 views x 200 frames of 16 px, their frames linked from a pool of 3000
 distinct images (so that encoding, cached by content, stays cheap), triaged in a fresh process at
-a few sizes with a reference of at most 10 runs per task; the peak RSS of each, and the time of a
-second run of the largest (resumed from the embedding cache).
+a few sizes with a reference of at most 10 runs per task; the peak RSS and time of each. Resuming:
+10 episodes whose frames are all distinct 120x160 images, triaged from an empty embedding cache and then again
+(what a run stopped half-way and started again does not encode twice), in one run, as a ratio.
 
     PYTHONPATH=src:.:bench .venv/bin/python bench/bench_triage.py            # both parts
 """
@@ -23,14 +24,17 @@ from __future__ import annotations
 
 import argparse
 import csv
+import itertools
 import json
 import os
+import shutil
 import subprocess
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
+from _scenes import scene
 
 from robofailring.data.images import write_png
 from robofailring.data.layouts import load_dataset
@@ -225,6 +229,18 @@ print(json.dumps({"episodes": len(result.ranked), "seconds": time.perf_counter()
 
 
 def scale_data(episodes: int, *, views: int = 3, frames: int = 200, distinct: int = 3000) -> Path:
+    """Episodes of 16 px frames linked from a pool of `distinct` images; `distinct` 0: every frame a
+    camera-like 120x160 image of its own."""
+    if distinct == 0:
+        root = ROOT / "scale" / f"distinct-{episodes}"
+        for episode in range(episodes):
+            folder = root / f"run_{episode:05d}"
+            if not folder.is_dir():
+                folder.mkdir(parents=True)
+                for view, t in itertools.product(range(views), range(frames)):
+                    seed = (episode * views + view) * frames + t
+                    write_png(folder / f"view{view}_{t}.png", scene(120, 160, seed))
+        return root
     images = ROOT / "scale" / "pool"
     if not (images / f"{distinct - 1}.png").is_file():
         images.mkdir(parents=True, exist_ok=True)
@@ -249,8 +265,8 @@ def scale(sizes: list[int]) -> list[str]:
     cache = ROOT / "scale" / "cache"
     env = {**os.environ, "ROBOFAILRING_PROGRESS": "0"}
 
-    def run(size: int) -> dict[str, float]:
-        data = scale_data(size)
+    def run(size: int, *, distinct: int = 3000, cache: Path = cache) -> dict[str, float]:
+        data = scale_data(size, distinct=distinct)
         done = subprocess.run(
             [sys.executable, "-c", SCALE_SCRIPT, str(data), str(ROOT / "scale" / "out"), str(cache)],
             check=True,
@@ -266,6 +282,18 @@ def scale(sizes: list[int]) -> list[str]:
         found = run(size)
         lines.append(f"| {size} | {found['seconds']:.0f} | {found['peak_rss_mb']:.0f} |")
         print(lines[-1], flush=True)
+    # resuming: 10 episodes whose 6,000 frames are all distinct (120x160), from an empty cache, then again
+    fresh = ROOT / "scale" / f"cache-resume-{os.getpid()}"
+    first, again = run(10, distinct=0, cache=fresh), run(10, distinct=0, cache=fresh)
+    shutil.rmtree(fresh, ignore_errors=True)
+    lines += [
+        "",
+        "| 10 episodes, every frame a distinct 120x160 image | seconds |",
+        "|---|---:|",
+        f"| empty cache (every frame encoded) | {first['seconds']:.1f} |",
+        f"| run again (every frame from the cache) | {again['seconds']:.1f} |",
+        f"| ratio | {again['seconds'] / first['seconds']:.2f} |",
+    ]
     return lines
 
 

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 pytest.register_assert_rewrite("fault_helpers")  # the fault tests' shared checks
@@ -14,6 +15,7 @@ from hypothesis import settings  # noqa: E402
 from synthetic import write_aha_dataset  # noqa: E402
 
 from robofailring import CachedEncoder, FailureMemory, load_dataset, load_encoder  # noqa: E402
+from robofailring.data.model import Frame  # noqa: E402
 
 # Property tests (tests/**/test_*_properties.py): fast, and no example database written into the repo.
 settings.register_profile("robofailring", max_examples=25, deadline=None, database=None)
@@ -64,6 +66,22 @@ def ray_cluster() -> Iterator[None]:
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
     yield
     ray.shutdown()
+
+
+@pytest.fixture
+def ray_passes(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """The frames sent to the Ray cluster, one count per Ray Data pass (`RayBackend.encode_all`)."""
+    from robofailring.encoders.ray_backend import RayBackend
+
+    passes: list[int] = []
+    encode_all = RayBackend.encode_all
+
+    def counted(self: RayBackend, frames: Sequence[Frame]) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+        passes.append(len(frames))
+        return encode_all(self, frames)
+
+    monkeypatch.setattr(RayBackend, "encode_all", counted)
+    return passes
 
 
 TINY_CLIP = {

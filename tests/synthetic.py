@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-from robofailring import CachedEncoder, FailureMemory, Trajectory, load_dataset, load_trajectory
+from robofailring import CachedEncoder, FailureMemory, Trajectory, load_dataset, load_encoder, load_trajectory
 from robofailring.data.images import write_png
+from robofailring.data.model import Outcome
 from robofailring.memory.builder import Provenance, build_memories
 from robofailring.memory.recipe import MemoryRecipe
 
@@ -223,3 +225,17 @@ def write_unlabelled_runs(
                 write_png(folder / f"{view}_{t}.png", (frame + noise).clip(0, 255).astype(np.uint8))
         truth[folder.name] = symbol or "success"
     return root, truth
+
+
+def write_triage_memory(root: Path) -> Path:
+    """A pixels memory of task pick_cube saved in `root / "memory"`: 4 known-good runs and one failure
+    (`grasp_wp2`) written as unlabelled image runs in `root / "known"`, labelled here."""
+    known, _ = write_unlabelled_runs(root / "known", successes=4, failures=("grasp_wp2",))
+    failed = {"outcome": Outcome.FAILURE, "symbol": "grasp_wp2"}
+    labelled = [
+        replace(t, **(failed if t.episode == "run_03" else {"outcome": Outcome.SUCCESS}))
+        for t in load_dataset(known, task="pick_cube")
+    ]
+    encoder = CachedEncoder(load_encoder("pixels"), cache_dir=root / "cache")
+    memory, _ = build_memories(labelled, encoder, provenance=Provenance(data=known, encoder="pixels"))
+    return memory.save(root / "memory")

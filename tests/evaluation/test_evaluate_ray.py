@@ -3,32 +3,21 @@ encoded on a local Ray cluster are those of the evaluation run here (docs/ray.md
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
 import pytest
 from synthetic import write_project_dataset
 
-from robofailring.data.model import Frame
 from robofailring.detection.config import DetectorConfig
-from robofailring.encoders.ray_backend import RayBackend
 from robofailring.evaluation.run import EvaluateConfig, run_evaluation
 
 
 @pytest.mark.slow  # a Ray cluster (session fixture) and three Ray Data passes
 def test_evaluation_on_ray_is_the_local_evaluation(
-    ray_cluster: None, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    ray_cluster: None, ray_passes: list[int], tmp_path: Path
 ) -> None:
     dataset = write_project_dataset(tmp_path / "data")
-    passes: list[int] = []  # frames sent to the cluster, per Ray Data pass
-    encode_all = RayBackend.encode_all
-
-    def counted(self: RayBackend, frames: Sequence[Frame]) -> Iterator[tuple[np.ndarray, np.ndarray]]:
-        passes.append(len(frames))
-        return encode_all(self, frames)
-
-    monkeypatch.setattr(RayBackend, "encode_all", counted)
     results = {
         where: run_evaluation(
             EvaluateConfig(
@@ -42,7 +31,7 @@ def test_evaluation_on_ray_is_the_local_evaluation(
         for where, ray in (("local", None), ("ray", "auto"))
     }
     local, on_ray = results["local"], results["ray"]
-    assert len(passes) == 3 and min(passes) > 0  # the failure memory, the success memory, the replays
+    assert len(ray_passes) == 3 and min(ray_passes) > 0  # the failure memory, the success memory, the replays
     assert [s.key for s in on_ray.scored] == [s.key for s in local.scored] and local.scored
     for mine, theirs in zip(on_ray.scored, local.scored, strict=True):
         assert mine.similarity.keys() == theirs.similarity.keys()

@@ -4,18 +4,19 @@ memory), what is not scored, and bad settings."""
 from __future__ import annotations
 
 import csv
-from dataclasses import replace
 from pathlib import Path
 
 import pytest
-from synthetic import write_unlabelled_runs
+from synthetic import write_triage_memory, write_unlabelled_runs
 
-from robofailring import CachedEncoder, load_dataset, load_encoder
-from robofailring.data.model import Outcome
+from robofailring.data.model import Outcome, Trajectory
+from robofailring.detection.detector import FailureDetector
+from robofailring.encoders import CachedEncoder
 from robofailring.errors import DataError, SettingError
-from robofailring.memory.builder import Provenance, build_memories
 from robofailring.triage import TriageConfig, ranking_quality, run_triage
+from robofailring.triage import run as triage_run
 from robofailring.triage.reference import MEMORY, OTHERS, SUCCESSES
+from robofailring.triage.scoring import EpisodeScore
 
 
 @pytest.fixture(scope="module")
@@ -79,15 +80,7 @@ def test_known_good_runs_from_another_dataset(runs, tmp_path: Path) -> None:
 
 def test_a_memory_judges_by_its_rules(runs, tmp_path: Path) -> None:
     data, truth = runs
-    known, _ = write_unlabelled_runs(tmp_path / "known", successes=4, failures=("grasp_wp2",))
-    failed = {"outcome": Outcome.FAILURE, "symbol": "grasp_wp2"}
-    labelled = [
-        replace(t, **(failed if t.episode == "run_03" else {"outcome": Outcome.SUCCESS}))
-        for t in load_dataset(known, task="pick_cube")
-    ]
-    encoder = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "cache")
-    memory, _ = build_memories(labelled, encoder, provenance=Provenance(data=known, encoder="pixels"))
-    folder = memory.save(tmp_path / "memory")
+    folder = write_triage_memory(tmp_path)
     result = run_triage(_config(data, tmp_path, memory=folder))
     assert result.modes == {"pick_cube": MEMORY}
     top = result.ranked[0]
@@ -137,3 +130,32 @@ def test_bad_settings_fail_before_any_work(tmp_path: Path) -> None:
         TriageConfig(data=tmp_path, out=tmp_path / "o", reference_runs=1)
     with pytest.raises(SettingError, match="k"):
         TriageConfig(data=tmp_path, out=tmp_path / "o", k=0)
+
+
+def test_a_triage_stopped_half_way_resumes_from_the_embedding_cache(
+    runs, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Stopped after 4 episodes (Ctrl-C), triage run again encodes only what the first run had not: over
+    both runs every frame is encoded as often as in one uninterrupted run."""
+    data, truth = runs
+    folder = write_triage_memory(tmp_path / "built")
+    whole = run_triage(_config(data, tmp_path / "whole", memory=folder)).detector.encoder
+    score = triage_run.score_episode
+    stopped: list[CachedEncoder] = []
+
+    def stop_after_four(detector: FailureDetector, trajectory: Trajectory, *, mode: str) -> EpisodeScore:
+        if detector.encoder.hits + detector.encoder.misses >= 4 * 2 * 6:  # 4 episodes of 2 views x 6 frames
+            stopped.append(detector.encoder)
+            raise KeyboardInterrupt
+        return score(detector, trajectory, mode=mode)
+
+    monkeypatch.setattr(triage_run, "score_episode", stop_after_four)
+    with pytest.raises(KeyboardInterrupt):
+        run_triage(_config(data, tmp_path / "split", memory=folder))
+    monkeypatch.setattr(triage_run, "score_episode", score)
+    resumed = run_triage(_config(data, tmp_path / "split", memory=folder))
+    first = stopped[0]
+    assert first.misses > 0 and resumed.detector.encoder.misses > 0
+    assert first.misses + resumed.detector.encoder.misses == whole.misses
+    assert resumed.detector.encoder.hits >= first.misses  # the first run's frames read from the cache
+    assert len(resumed.ranked) == len(truth)

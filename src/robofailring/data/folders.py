@@ -10,6 +10,7 @@ not read as colour: it is listed as not read.
 
 from __future__ import annotations
 
+import os
 import re
 from collections.abc import Sequence
 from decimal import Decimal
@@ -44,11 +45,15 @@ def natural_key(path: Path) -> list[tuple[int, int | str]]:
 
 
 def subdirs(directory: Path) -> list[Path]:
-    return [p for p in visible(directory) if p.is_dir()]
+    """The sub-folders of a folder in natural order, hidden ones left out (one listing: a folder of
+    600 frames is not stat-ed file by file)."""
+    with os.scandir(directory) as entries:
+        found = [Path(e.path) for e in entries if not e.name.startswith(".") and e.is_dir()]
+    return sorted(found, key=natural_key)
 
 
 def _is_image(path: Path) -> bool:
-    return path.is_file() and path.suffix.lower() in IMAGE_SUFFIXES
+    return path.suffix.lower() in IMAGE_SUFFIXES and path.is_file()
 
 
 def frame_number(stem: str) -> Decimal | None:
@@ -58,8 +63,8 @@ def frame_number(stem: str) -> Decimal | None:
 
 
 def _numbered(paths: Sequence[tuple[Path, Decimal]], where: Path, *, view: str) -> Sequence[Frame]:
-    """Frames ordered by number, held compactly (`FrameFiles`); two files with one number are an error
-    naming both."""
+    """The frames of files in folder `where`, ordered by number, held compactly (`FrameFiles`); two files
+    with one number are an error naming both."""
     seen: dict[Decimal, Path] = {}
     for path, number in paths:
         if number in seen:
@@ -69,7 +74,7 @@ def _numbered(paths: Sequence[tuple[Path, Decimal]], where: Path, *, view: str) 
                 f"{number} cannot be decided)"
             )
         seen[number] = path
-    return FrameFiles.of([seen[number] for number in sorted(seen)])
+    return FrameFiles(where, [seen[number].name for number in sorted(seen)])
 
 
 def _unnumbered(where: Path, names: list[str], pattern: str) -> Skipped:
@@ -185,8 +190,8 @@ def episode_views(directory: Path) -> tuple[Views, list[Skipped]]:
 
 
 def has_videos(directory: Path) -> bool:
-    return any(p.is_file() and p.suffix.lower() in VIDEO_SUFFIXES for p in directory.iterdir())
+    return any(p.suffix.lower() in VIDEO_SUFFIXES and p.is_file() for p in directory.iterdir())
 
 
 def has_images(directory: Path) -> bool:
-    return any(p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES for p in directory.iterdir())
+    return any(p.suffix.lower() in IMAGE_SUFFIXES and p.is_file() for p in directory.iterdir())

@@ -16,11 +16,12 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Final
 
-from robofailring.data.folders import Views, aha_files, camera_named, subdirs, view_folders, visible
+from robofailring.data.folders import FRAME_WORDS, Views, aha_files, subdirs, view_folders, visible
 from robofailring.data.images import IMAGE_SUFFIXES
 from robofailring.data.layout_aha import parse_aha_name
 from robofailring.data.model import Outcome, Skipped, Trajectory
 from robofailring.data.registry import Found, Layout, register
+from robofailring.progress import progress_bar
 
 SHAPE: Final[str] = (
     "image episodes <root>/<episode>/<view>/<n>.png or <root>/<episode>/<view>_<n>.png (one view: two such "
@@ -33,11 +34,19 @@ def flat_episode(directory: Path) -> bool:
     return len(aha_files(directory)[0]) >= 2
 
 
+def _one_camera(views: Views, directory: Path) -> bool:
+    """`views` (a folder's `<view>_<n>` images) are one camera's: one view, named neither by a frame word
+    nor by the folder's own name (a view folder `front/front_0.png`)."""
+    camera = next(iter(views)) if len(views) == 1 else None
+    return (
+        camera is not None and camera.lower() not in FRAME_WORDS and camera.lower() != directory.name.lower()
+    )
+
+
 def one_view_episode(directory: Path) -> bool:
     """A folder of one camera's `<view>_<n>` images, `<view>` naming a camera: neither the folder's own
     name (a view folder `front/front_0.png`) nor a frame word (`front/frame_0.png`)."""
-    camera = camera_named(directory)
-    return camera is not None and camera.lower() != directory.name.lower()
+    return _one_camera(aha_files(directory)[0], directory)
 
 
 def nested_episode(directory: Path) -> bool:
@@ -45,13 +54,18 @@ def nested_episode(directory: Path) -> bool:
     return bool(subdirs(directory)) and bool(view_folders(directory)[0])
 
 
-def _episode_views(directory: Path) -> tuple[Views, list[Skipped]]:
-    if flat_episode(directory) or one_view_episode(directory):
-        views, skipped = aha_files(directory)
+def _episode_views(directory: Path) -> tuple[Views, list[Skipped]] | None:
+    """The views of an episode folder and what in it is not read, listing it once; None: no episode."""
+    views, skipped = aha_files(directory)
+    if len(views) >= 2 or _one_camera(views, directory):
         kind = "an episode of images named <view>_<n>"
-        others = [p for p in visible(directory) if not (p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)]
+        others = [p for p in visible(directory) if not (p.suffix.lower() in IMAGE_SUFFIXES and p.is_file())]
     else:
+        if not subdirs(directory):
+            return None
         views, skipped = view_folders(directory)
+        if not views:
+            return None
         kind, others = "an episode of view folders", [p for p in visible(directory) if p.is_file()]
     return views, skipped + [Skipped(p, f"not part of {kind}") for p in others]
 
@@ -62,24 +76,28 @@ def image_trajectories(root: Path, *, task: str | None = None) -> Found:
     skipped: list[Skipped] = [
         Skipped(p, "a file beside the episode folders") for p in visible(root) if p.is_file()
     ]
-    for directory in subdirs(root):
-        if not (flat_episode(directory) or nested_episode(directory) or one_view_episode(directory)):
-            skipped.append(Skipped(directory, f"not an episode folder ({SHAPE})"))
-            continue
-        views, inside = _episode_views(directory)
-        parsed = parse_aha_name(directory.name)
-        symbol = parsed[1] if parsed is not None else None
-        found.append(
-            Trajectory(
-                task=task or (parsed[0] if parsed is not None else ""),  # "": from the labels' task column
-                episode=directory.name,
-                views=views,
-                symbol=symbol,
-                outcome=(Outcome.FAILURE if symbol else Outcome.SUCCESS) if parsed is not None else None,
-                source=directory,
-                skipped=tuple(inside),
+    folders = subdirs(root)
+    with progress_bar(total=len(folders), desc=f"listing {root.name or root}", unit="episode") as bar:
+        for directory in folders:
+            bar.update(1)
+            read = _episode_views(directory)
+            if read is None:
+                skipped.append(Skipped(directory, f"not an episode folder ({SHAPE})"))
+                continue
+            views, inside = read
+            parsed = parse_aha_name(directory.name)
+            symbol = parsed[1] if parsed is not None else None
+            found.append(
+                Trajectory(  # task "": from the labels' task column
+                    task=task or (parsed[0] if parsed is not None else ""),
+                    episode=directory.name,
+                    views=views,
+                    symbol=symbol,
+                    outcome=(Outcome.FAILURE if symbol else Outcome.SUCCESS) if parsed is not None else None,
+                    source=directory,
+                    skipped=tuple(inside),
+                )
             )
-        )
     return found, skipped
 
 

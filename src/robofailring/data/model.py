@@ -142,14 +142,6 @@ class FrameFiles(LazyFrames):
             else np.cumsum([len(name) for name in names], dtype=np.int64)
         )
 
-    @classmethod
-    def of(cls, paths: Sequence[Path]) -> Sequence[Frame]:
-        """The frames of `paths`: compact when they share one folder, else a tuple of `Frame`s."""
-        folders = {Path(path).parent for path in paths}
-        if len(folders) != 1:
-            return frames_from_files(paths)
-        return cls(folders.pop(), [Path(path).name for path in paths])
-
     def __len__(self) -> int:
         return self._count
 
