@@ -3,14 +3,21 @@
 from __future__ import annotations
 
 import json
+import os
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
-import numpy as np
 import pytest
+
+# One OpenMP/BLAS thread per test process, set before numpy or faiss loads (xdist workers and the
+# subprocesses tests start inherit it): the fast lane runs one worker per core, and faiss's OpenMP
+# threads spin-waiting against the other worker's made the small searches several times slower.
+for _threads in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
+    os.environ.setdefault(_threads, "1")
 
 pytest.register_assert_rewrite("fault_helpers")  # the fault tests' shared checks
 
+import numpy as np  # noqa: E402
 from hypothesis import settings  # noqa: E402
 from synthetic import write_aha_dataset  # noqa: E402
 

@@ -8,7 +8,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from synthetic import write_project_dataset
 from typer.testing import CliRunner
 
 from rfr_viz.cli.app import app
@@ -19,29 +18,14 @@ from robofailring.detection.conformal import conformal_threshold
 from robofailring.detection.rules import CONTRAST, NOVELTY, PAPER
 from robofailring.evaluation.calibration import CalibrateConfig, calibrate, conformal_peaks, success_scores
 from robofailring.evaluation.run import EvaluateConfig, run_evaluation
-from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.jobs.detect import DetectConfig, run_detect
 from robofailring.memory.recipe import MemoryRecipe
 
 ALPHA = 0.1  # 12 calibration runs allow α ≥ 1/13
 
 
-@pytest.fixture(scope="module")
-def dataset(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, Path]:
-    root = tmp_path_factory.mktemp("band")
-    data = write_project_dataset(
-        root / "data", tasks=("pick_cube",), symbols=("grasp_wp2", "slip_wp3"), episodes=24, length=8
-    )
-    build_memory(
-        BuildMemoryConfig(
-            data=data, encoder="pixels", out=root / "memory", split="train", cache_dir=root / "c"
-        )
-    )
-    return data, root / "memory", root / "c"
-
-
-def _calibrated(dataset: tuple[Path, Path, Path], band: str, folder: Path) -> Path:
-    data, memory, cache = dataset
+def _calibrated(calibration_set: tuple[Path, Path, Path], band: str, folder: Path) -> Path:
+    data, memory, cache = calibration_set
     copy = folder / f"memory-{band}"
     copy.mkdir()
     for item in memory.iterdir():
@@ -51,10 +35,10 @@ def _calibrated(dataset: tuple[Path, Path, Path], band: str, folder: Path) -> Pa
 
 
 def test_the_band_is_fitted_with_the_thresholds_and_stored(
-    dataset: tuple[Path, Path, Path], tmp_path: Path
+    calibration_set: tuple[Path, Path, Path], tmp_path: Path
 ) -> None:
-    data, _, cache = dataset
-    memory_dir = _calibrated(dataset, NORM, tmp_path)
+    data, _, cache = calibration_set
+    memory_dir = _calibrated(calibration_set, NORM, tmp_path)
     stored = json.loads((memory_dir / "manifest.json").read_text(encoding="utf-8"))["calibration"]
     banded = {name: rule["band"]["kind"] for name, rule in stored["rules"].items() if "band" in rule}
     assert banded == {"contrast": NORM, "novelty": NORM}  # δ stays one number, as in the paper
@@ -77,10 +61,10 @@ def test_the_band_is_fitted_with_the_thresholds_and_stored(
 
 
 def test_detect_and_the_live_step_fire_where_the_raw_score_crosses_the_line(
-    dataset: tuple[Path, Path, Path], tmp_path: Path
+    calibration_set: tuple[Path, Path, Path], tmp_path: Path
 ) -> None:
-    data, _, cache = dataset
-    memory_dir = _calibrated(dataset, NORM, tmp_path)
+    data, _, cache = calibration_set
+    memory_dir = _calibrated(calibration_set, NORM, tmp_path)
     detector = FailureDetector(
         FailureMemory.load(memory_dir), CachedEncoder(load_encoder("pixels"), cache_dir=cache)
     )
@@ -112,15 +96,15 @@ def test_detect_and_the_live_step_fire_where_the_raw_score_crosses_the_line(
 
 
 def test_without_a_band_one_threshold_judges_as_before(
-    dataset: tuple[Path, Path, Path], tmp_path: Path
+    calibration_set: tuple[Path, Path, Path], tmp_path: Path
 ) -> None:
-    data, _, cache = dataset
+    data, _, cache = calibration_set
     encoder = CachedEncoder(load_encoder("pixels"), cache_dir=cache)
-    flat = FailureDetector(FailureMemory.load(_calibrated(dataset, NONE, tmp_path)), encoder)
+    flat = FailureDetector(FailureMemory.load(_calibrated(calibration_set, NONE, tmp_path)), encoder)
     assert flat.bands == {}
     manifest = json.loads((tmp_path / "memory-none" / "manifest.json").read_text(encoding="utf-8"))
     assert not any("band" in rule for rule in manifest["calibration"]["rules"].values())
-    shifted = FailureDetector(FailureMemory.load(_calibrated(dataset, SHIFT, tmp_path)), encoder)
+    shifted = FailureDetector(FailureMemory.load(_calibrated(calibration_set, SHIFT, tmp_path)), encoder)
     assert shifted.bands["contrast"].kind == SHIFT and np.all(shifted.bands["contrast"].scale == 1.0)
     for trajectory in list(load_dataset(data).select(split="test"))[:4]:
         trace = flat.run(trajectory)
@@ -129,9 +113,9 @@ def test_without_a_band_one_threshold_judges_as_before(
 
 
 def test_the_evaluation_judges_on_the_band_it_calibrates(
-    dataset: tuple[Path, Path, Path], tmp_path: Path
+    calibration_set: tuple[Path, Path, Path], tmp_path: Path
 ) -> None:
-    data, _, cache = dataset
+    data, _, cache = calibration_set
     results = {
         band: run_evaluation(
             EvaluateConfig(
@@ -155,8 +139,8 @@ def test_the_evaluation_judges_on_the_band_it_calibrates(
     assert results[NORM].paper_rates == results[NONE].paper_rates
 
 
-def test_a_bad_band_is_a_usage_error_naming_the_choices(dataset: tuple[Path, Path, Path]) -> None:
-    data, memory, _ = dataset
+def test_a_bad_band_is_a_usage_error_naming_the_choices(calibration_set: tuple[Path, Path, Path]) -> None:
+    data, memory, _ = calibration_set
     result = CliRunner().invoke(app, ["calibrate", str(data), "--memory", str(memory), "--band", "wide"])
     assert result.exit_code == 2
     assert "unknown band 'wide'; choose one of ['none', 'shift', 'norm']" in result.output

@@ -8,7 +8,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from synthetic import write_project_dataset
 from typer.testing import CliRunner
 
 from rfr_viz.cli.app import app
@@ -27,23 +26,8 @@ from robofailring.detection.rules import CONTRAST, PAPER
 from robofailring.detection.view_bands import MAX, PER_VIEW, per_view_peaks
 from robofailring.evaluation.calibration import CalibrateConfig, calibrate, success_view_scores
 from robofailring.evaluation.run import EvaluateConfig, run_evaluation
-from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 
 ALPHA = 0.1  # 12 calibration runs allow α ≥ 1/13
-
-
-@pytest.fixture(scope="module")
-def dataset(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, Path]:
-    root = tmp_path_factory.mktemp("fusion")
-    data = write_project_dataset(
-        root / "data", tasks=("pick_cube",), symbols=("grasp_wp2", "slip_wp3"), episodes=24, length=8
-    )
-    build_memory(
-        BuildMemoryConfig(
-            data=data, encoder="pixels", out=root / "memory", split="train", cache_dir=root / "c"
-        )
-    )
-    return data, root / "memory", root / "c"
 
 
 def _copy(memory: Path, folder: Path) -> Path:
@@ -54,9 +38,9 @@ def _copy(memory: Path, folder: Path) -> Path:
 
 
 def test_per_view_bands_are_calibrated_stored_and_judge_detect_and_the_live_step(
-    dataset: tuple[Path, Path, Path], tmp_path: Path
+    calibration_set: tuple[Path, Path, Path], tmp_path: Path
 ) -> None:
-    data, memory, cache = dataset
+    data, memory, cache = calibration_set
     calibrated = _copy(memory, tmp_path / "memory")
     calibrate(
         CalibrateConfig(
@@ -101,9 +85,9 @@ def test_per_view_bands_are_calibrated_stored_and_judge_detect_and_the_live_step
 
 
 def test_the_evaluation_calibrates_and_judges_with_the_fusion_it_is_given(
-    dataset: tuple[Path, Path, Path], tmp_path: Path
+    calibration_set: tuple[Path, Path, Path], tmp_path: Path
 ) -> None:
-    data, _, cache = dataset
+    data, _, cache = calibration_set
     results = {
         fusion: run_evaluation(
             EvaluateConfig(
@@ -124,8 +108,8 @@ def test_the_evaluation_calibrates_and_judges_with_the_fusion_it_is_given(
     assert results[PER_VIEW].rules[PAPER.name].threshold == results[MAX].rules[PAPER.name].threshold
 
 
-def test_fusion_on_the_command_line(dataset: tuple[Path, Path, Path], tmp_path: Path) -> None:
-    data, memory, _ = dataset
+def test_fusion_on_the_command_line(calibration_set: tuple[Path, Path, Path], tmp_path: Path) -> None:
+    data, memory, _ = calibration_set
     bad = CliRunner().invoke(app, ["calibrate", str(data), "--memory", str(memory), "--fusion", "mean"])
     assert bad.exit_code == 2
     assert "unknown view fusion 'mean'; choose one of ['max', 'per-view']" in bad.output

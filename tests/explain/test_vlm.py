@@ -191,7 +191,12 @@ def test_detect_asks_the_vlm_at_the_detection(episode: Path, pixels_memory_dir: 
     assert server.received[0].body["model"] == "llava"
 
 
-def test_detect_keeps_the_detection_when_the_vlm_fails(episode: Path, pixels_memory_dir: Path) -> None:
+def test_detect_keeps_the_detection_when_the_vlm_fails(
+    episode: Path, pixels_memory_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    waits: list[float] = []  # the CLI's default backoff, recorded rather than slept (1 s + 2 s)
+    defaults = ChatCompletionsClient.__init__.__kwdefaults__ or {}
+    monkeypatch.setattr(ChatCompletionsClient.__init__, "__kwdefaults__", defaults | {"sleep": waits.append})
     with chat_server(("status", 502)) as server:
         code, found, stderr = _detect(
             episode, pixels_memory_dir, "--vlm-url", server.url, "--vlm-model", "llava"
@@ -204,7 +209,7 @@ def test_detect_keeps_the_detection_when_the_vlm_fails(episode: Path, pixels_mem
     )
     warnings = [line for line in stderr.splitlines() if line.startswith("warning:")]
     assert len(warnings) == 1 and "HTTP 502" in warnings[0]
-    assert len(server.received) == 3
+    assert len(server.received) == 3 and waits == [1.0, 2.0]
 
 
 def test_detect_vlm_options_go_together(episode: Path, pixels_memory_dir: Path) -> None:

@@ -1,0 +1,29 @@
+"""The one-task dataset and memory that the band and the per-view fusion tests calibrate, built once."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from synthetic import write_project_dataset
+
+from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
+
+
+@pytest.fixture(scope="session")
+def calibration_set(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, Path]:
+    """(data, memory, encoder cache): 24 episodes of one task, 12 training successes (α ≥ 1/13).
+
+    Shared: a test that calibrates copies the memory first; the encoder cache only gains the same
+    frames' entries.
+    """
+    root = tmp_path_factory.mktemp("calibration-set")
+    data = write_project_dataset(
+        root / "data", tasks=("pick_cube",), symbols=("grasp_wp2", "slip_wp3"), episodes=24, length=8
+    )
+    build_memory(
+        BuildMemoryConfig(
+            data=data, encoder="pixels", out=root / "memory", split="train", cache_dir=root / "c"
+        )
+    )
+    return data, root / "memory", root / "c"
