@@ -229,8 +229,10 @@ def _execute(jobs: list[_Job], workers: int) -> Iterator[dict[str, Any]]:
     # breaks it with an error here, where a Pool would start new workers forever.
     context = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=context) as pool:
-        pending = [pool.submit(_run_job, job) for job in jobs]
-        try:
+        pending: list[Any] = []
+        try:  # a worker that dies at once breaks the pool while jobs are still being submitted
+            for job in jobs:
+                pending.append(pool.submit(_run_job, job))
             for done in as_completed(pending):
                 yield done.result()
         except BrokenProcessPool as error:
