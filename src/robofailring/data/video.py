@@ -171,24 +171,41 @@ class VideoFile:
                 position = np.searchsorted(self._keyframes, index, side="right") - 1
                 keyframe = int(self._keyframes[position]) if position >= 0 else -1
                 ahead = index - self._last[0] <= index - keyframe + 1 + _SEEK_COST
-            try:
-                if self._frames is None or not ahead:
-                    container = self._open()
-                    stream = container.streams.video[self.stream]
-                    container.seek(target, stream=stream, backward=True, any_frame=False)
-                    self._frames = container.decode(stream)
-                for frame in self._frames:
-                    if frame.pts is None or frame.pts < target:
-                        continue
-                    check_frame_size(frame.width, frame.height, source=f"frame {index} of video {self.path}")
-                    image = frame.to_ndarray(format="rgb24")
+            for fresh in (not ahead, True):  # decoding on from the last frame, else (and on a miss) a seek
+                try:
+                    image = self._decode_at(target, index, seek=fresh or self._frames is None)
+                except av.FFmpegError as error:
+                    self._frames = None
+                    raise DataError(
+                        f"cannot decode frame {index} of video {self.path}: {_why(error)}"
+                    ) from error
+                if image is not None:
                     self._last = (index, image)
                     return np.ascontiguousarray(image)
-            except av.FFmpegError as error:
-                self._frames = None
-                raise DataError(f"cannot decode frame {index} of video {self.path}: {_why(error)}") from error
-            self._frames = None
-        raise DataError(f"cannot decode frame {index} of video {self.path}: the stream ended before it")
+                if fresh:
+                    break
+        raise DataError(
+            f"cannot decode frame {index} of video {self.path}: the stream ended before a frame with its "
+            "timestamp (the file's timestamps may be out of order; re-encode it, e.g. with ffmpeg)"
+        )
+
+    def _decode_at(self, target: int, index: int, *, seek: bool) -> np.ndarray | None:
+        """The decoded frame whose timestamp is exactly `target`, decoding on from the last one or from the
+        keyframe before it; None when the stream ends first. Exact: where a file's timestamps are out of
+        decoding order, the first frame past `target` is another frame, never to be given as this one."""
+        if seek:
+            container = self._open()
+            stream = container.streams.video[self.stream]
+            container.seek(target, stream=stream, backward=True, any_frame=False)
+            self._frames = container.decode(stream)
+        assert self._frames is not None
+        for frame in self._frames:
+            if frame.pts != target:
+                continue
+            check_frame_size(frame.width, frame.height, source=f"frame {index} of video {self.path}")
+            return frame.to_ndarray(format="rgb24")
+        self._frames = None
+        return None
 
     def close(self) -> None:
         if self._container is not None:
