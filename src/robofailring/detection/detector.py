@@ -221,8 +221,8 @@ class FailureDetector(RuleThresholds):
         check_stride(stride)
         rule = self._check_task(trajectory.task)
         scored = scored_frames(trajectory, stride=stride)
-        used, steps, skipped = scored.views, scored.steps, scored.short_views
-        views, length = list(used), min(len(frames) for frames in used.values())
+        used, steps, skipped, length = scored.views, scored.steps, scored.short_views, scored.length
+        views = list(used)
         exclude = trajectory.episode if leave_one_out else None
         first: dict[str, np.ndarray] = {}
         parts: list[Retrieved] = []

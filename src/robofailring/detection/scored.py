@@ -3,8 +3,7 @@ jobs that encode those frames ahead of it (`CachedEncoder.prefetch`, docs/ray.md
 
 from __future__ import annotations
 
-import contextlib
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -16,10 +15,12 @@ from robofailring.errors import DataError
 
 @dataclass(frozen=True)
 class ScoredFrames:
-    """The views scored (those of ≥ 2 frames, in the trajectory's order), the frame numbers scored in each
-    (0, stride, 2·stride, … below the shortest view's length) and the views left out (too short)."""
+    """The views scored (those of ≥ 2 frames, in the trajectory's order), the shortest one's length, the
+    frame numbers scored in each (0, stride, 2·stride, … below that length) and the views left out (too
+    short)."""
 
     views: dict[str, Sequence[Frame]]
+    length: int
     steps: np.ndarray
     short_views: list[str]
 
@@ -36,17 +37,21 @@ def scored_frames(trajectory: Trajectory, *, stride: int = 1) -> ScoredFrames:
             f"trajectory {trajectory.key} ({trajectory.source}) has no view with at least 2 frames"
         )
     length = min(len(frames) for frames in used.values())
-    return ScoredFrames(used, np.arange(0, length, stride), [v for v in trajectory.views if v not in used])
+    short = [v for v in trajectory.views if v not in used]
+    return ScoredFrames(used, length, np.arange(0, length, stride), short)
 
 
 def prefetch_scored(encoder: CachedEncoder, trajectories: Iterable[Trajectory], *, stride: int = 1) -> None:
     """Hand an encoder that works ahead (`--ray`) every frame runs over `trajectories` at `stride` will
-    score, to encode in one pass; nothing for one that encodes on demand. A run with no view of 2 frames
-    is left for its own run to report."""
-    if not encoder.backend.ahead:
-        return
-    frames: list[Frame] = []
+    score, to encode in one pass (`CachedEncoder.prefetch`: nothing is listed for one that encodes on
+    demand). A run with no view of 2 frames is left for its own run to report."""
+    encoder.prefetch(_frames_scored(trajectories, stride=stride))
+
+
+def _frames_scored(trajectories: Iterable[Trajectory], *, stride: int) -> Iterator[Frame]:
     for trajectory in trajectories:
-        with contextlib.suppress(DataError):
-            frames += scored_frames(trajectory, stride=stride).frames()
-    encoder.prefetch(frames)
+        try:
+            scored = scored_frames(trajectory, stride=stride)
+        except DataError:
+            continue
+        yield from scored.frames()

@@ -7,7 +7,7 @@ import hashlib
 import logging
 import os
 import sqlite3
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -181,13 +181,17 @@ class CachedEncoder:
         local = LocalBackend(self.encoder, batch_size=batch_size)
         return np.concatenate([vectors for _, vectors in local.encode_all(frames)])
 
-    def prefetch(self, frames: Sequence[Frame]) -> None:
+    def prefetch(self, frames: Iterable[Frame]) -> None:
         """Encode, through the backend and ahead of the job, every frame of `frames` the cache lacks
-        (each distinct image once), into the cache; a no-op for a backend that encodes on demand.
+        (each distinct image once), into the cache; a no-op for a backend that encodes on demand, which
+        leaves `frames` (a generator, say) unread.
 
         Without a usable cache the embeddings are held in memory for this encoder's later calls.
         """
-        if not self.backend.ahead or not frames:
+        if not self.backend.ahead:
+            return
+        frames = list(frames)
+        if not frames:
             return
         if self.cache is None:
             self.cache = HeldEmbeddings(self.dim)

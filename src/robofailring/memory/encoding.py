@@ -180,7 +180,7 @@ def encode_failures(
     check_step(step)
     check_pairing(pairing)
     dense = planned.failure_frames == DENSE
-    encoder.prefetch([frame for view in planned.views for frame in view.to_encode()])  # ahead: one pass
+    encoder.prefetch(frame for view in planned.views for frame in view.to_encode())  # ahead: one pass
     stats = replace(planned.stats)  # the plan's counts, with what encoding adds
     entries: list[MemoryEntry] = []
     vectors: list[np.ndarray] = []

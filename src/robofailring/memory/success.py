@@ -156,7 +156,7 @@ class SuccessMemory:
         check_step(step)
         check_pairing(pairing)
         trajectories = list(trajectories)
-        encoder.prefetch([frame for t in trajectories for _, frames in run_frames(t) for frame in frames])
+        encoder.prefetch(frame for t in trajectories for _, frames in run_frames(t) for frame in frames)
         runs: list[SuccessRun] = []
         vectors: list[np.ndarray] = []
         offered = 0
