@@ -17,7 +17,10 @@ for _threads in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
 
 pytest.register_assert_rewrite("fault_helpers")  # the fault tests' shared checks
 
+import functools  # noqa: E402
+
 import numpy as np  # noqa: E402
+import typer.testing  # noqa: E402
 from hypothesis import settings  # noqa: E402
 from synthetic import write_aha_dataset  # noqa: E402
 
@@ -27,6 +30,10 @@ from robofailring.data.model import Frame  # noqa: E402
 # Property tests (tests/**/test_*_properties.py): fast, and no example database written into the repo.
 settings.register_profile("robofailring", max_examples=25, deadline=None, database=None)
 settings.load_profile("robofailring")
+
+# typer's CliRunner rebuilds the click command from every verb's signature on each invoke (~50 ms, some
+# 400 times a run); an app does not change during the tests, so each is built once and invoked as built.
+typer.testing._get_command = functools.cache(typer.testing._get_command)  # type: ignore[attr-defined]
 
 TORCH_FIXTURES = frozenset({"tiny_checkpoint"})  # fixtures that import torch and open_clip
 

@@ -49,6 +49,34 @@ def test_rates_by_hand() -> None:
     assert at_097.recall == 0.0 and at_097.fpr == 0.0
 
 
+def test_the_sweep_counts_what_t_det_says_at_every_threshold() -> None:
+    """The sweep judges each run by its peak once: the same counts as asking every run for its t_det at each
+    δ, with NaN frames, views missing from some runs, a run of no frames, and δs equal to float32 scores."""
+    rng = np.random.default_rng(7)
+    runs = []
+    for i in range(40):
+        length = int(rng.integers(0, 12))
+        front = rng.random(length).astype(np.float32)
+        front[rng.random(length) < 0.2] = np.nan
+        wrist = rng.random(length).astype(np.float32) if i % 3 else None
+        runs.append(scored(f"r{i}", bool(i % 2), list(front), None if wrist is None else list(wrist)))
+    deltas = [
+        *(float(v) for run in runs for v in run.similarity["front"][:2] if np.isfinite(v)),
+        0.0,
+        0.5,
+        1.0,
+    ]
+    for views in (None, ["front"], ["wrist"]):
+        for delta, counted in zip(deltas, sweep(runs, deltas, views), strict=True):
+            fired = {run.key: run.t_det(delta, views) is not None for run in runs}
+            tp = sum(fired[run.key] for run in runs if run.is_failure)
+            fp = sum(fired[run.key] for run in runs if not run.is_failure)
+            assert (counted.tp, counted.fn, counted.fp, counted.tn) == (tp, 20 - tp, fp, 20 - fp), (
+                delta,
+                views,
+            )
+
+
 def test_view_ablation_by_hand() -> None:
     front_only = rates(CASES, 0.92, ["front"])
     assert (front_only.tp, front_only.fn) == (1, 2)

@@ -46,6 +46,11 @@ class ScoredTrajectory:
         """max over the chosen views of S_t, per frame (NaN counts as never firing)."""
         return self.view_scores.fused_max(views)
 
+    def peak(self, views: Sequence[str] | None = None) -> np.floating:
+        """The highest fused score (−∞ when nothing was scored), in the scores' own precision: the
+        trajectory fires at δ (has a t_det) exactly when peak ≥ δ."""
+        return self.scores(views).max(initial=-np.inf)
+
     def t_det(self, delta: float, views: Sequence[str] | None = None) -> int | None:
         """First frame whose fused score reaches δ, or None."""
         return self.view_scores.first_at_or_above(delta, views)
@@ -83,21 +88,27 @@ def rates(
     trajectories: Sequence[ScoredTrajectory], delta: float, views: Sequence[str] | None = None
 ) -> Rates:
     """Recall = TP/(TP+FN) over failures, FPR = FP/(FP+TN) over successes."""
-    tp = fn = fp = tn = 0
-    for trajectory in trajectories:
-        fired = trajectory.t_det(delta, views) is not None
-        if trajectory.is_failure:
-            tp, fn = tp + fired, fn + (not fired)
-        else:
-            fp, tn = fp + fired, tn + (not fired)
-    return Rates(delta=delta, tp=tp, fn=fn, fp=fp, tn=tn)
+    return sweep(trajectories, [delta], views)[0]
 
 
 def sweep(
     trajectories: Sequence[ScoredTrajectory], deltas: Sequence[float], views: Sequence[str] | None = None
 ) -> list[Rates]:
-    """Rates over a sequence of thresholds (the Recall/FPR curve)."""
-    return [rates(trajectories, float(delta), views) for delta in deltas]
+    """Rates over a sequence of thresholds (the Recall/FPR curve).
+
+    A trajectory fires at δ when its fused peak reaches δ (its t_det exists), so each trajectory's
+    peak is found once and every δ is a comparison of the peaks.
+    """
+    peaks = [trajectory.peak(views) for trajectory in trajectories]
+    failure = np.array([trajectory.is_failure for trajectory in trajectories], dtype=bool)
+    curve = []
+    for delta in deltas:
+        fired = np.fromiter((peak >= float(delta) for peak in peaks), dtype=bool, count=len(peaks))
+        tp, fp = int(np.sum(fired & failure)), int(np.sum(fired & ~failure))
+        curve.append(
+            Rates(delta=float(delta), tp=tp, fn=int(failure.sum()) - tp, fp=fp, tn=int((~failure).sum()) - fp)
+        )
+    return curve
 
 
 def fine_grid(trajectories: Sequence[ScoredTrajectory], *, steps: int = 101) -> list[float]:

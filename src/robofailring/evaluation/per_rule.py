@@ -91,8 +91,8 @@ def auc_cell(value: float, interval: tuple[float, float] | None) -> str:
 
 def peaks(scored: Sequence[ScoredTrajectory]) -> tuple[list[float], list[float]]:
     """The peak score (max over frames and views) of each failure run, and of each success run."""
-    failures = [float(t.scores().max()) for t in scored if t.is_failure]
-    successes = [float(t.scores().max()) for t in scored if not t.is_failure]
+    failures = [float(t.peak()) for t in scored if t.is_failure]
+    successes = [float(t.peak()) for t in scored if not t.is_failure]
     return failures, successes
 
 
