@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import pytest
@@ -24,9 +25,17 @@ def cache(tmp_path_factory: pytest.TempPathFactory) -> list[str]:
     return ["--cache-dir", str(tmp_path_factory.mktemp("cache"))]
 
 
-@pytest.fixture()
-def memory(data: Path, cache: list[str], tmp_path: Path) -> Path:
-    out = tmp_path / "memory"
+@pytest.fixture(scope="module")
+def built_memory(data: Path, cache: list[str], tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The memory `build-memory` makes of `data`, built once per module; tests get copies (`memory`)."""
+    out = tmp_path_factory.mktemp("built") / "memory"
     result = cli("build-memory", data, "--out", out, *cache)
     assert result.exit_code == 0, result.output
     return out
+
+
+@pytest.fixture()
+def memory(built_memory: Path, tmp_path: Path) -> Path:
+    """A test's own copy of the module's memory, free to damage, replace or grow (a copied memory folder
+    is a whole memory: nothing in it names where it lives)."""
+    return Path(shutil.copytree(built_memory, tmp_path / "memory"))

@@ -153,6 +153,7 @@ def test_report_html_is_self_contained_with_charts_tables_and_links(
     assert "Recall and FPR against γ (contrast rule)" in report.read_text(encoding="utf-8")
 
 
+@pytest.mark.slow  # a headless browser's start and render: the full lane, with the headless viewer's tests
 def test_report_html_renders_in_headless_chromium(
     evaluated: tuple[Path, dict[str, Any]], tmp_path: Path
 ) -> None:
