@@ -9,7 +9,9 @@ cd "$(dirname "$0")/.."
 lane=()
 if [ "${1:-}" = "--fast" ]; then
   shift
-  lane=(-m "not slow and not viewer" -n 2)  # two workers (pytest-xdist): the machine's two cores
+  # two workers (pytest-xdist), the machine's two cores; the tests that fit a memory map on one of them
+  # (tests/conftest.py, MAP_FILES)
+  lane=(-m "not slow and not viewer" -n 2 --dist loadgroup)
 fi
 bash scripts/setup.sh --dev
 export ROBOFAILRING_PROGRESS=0

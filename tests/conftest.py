@@ -38,11 +38,37 @@ typer.testing._get_command = functools.cache(typer.testing._get_command)  # type
 TORCH_FIXTURES = frozenset({"tiny_checkpoint"})  # fixtures that import torch and open_clip
 
 
+# Files with tests that fit a memory map: importing umap-learn and compiling its layout costs ~4-5 s once
+# per process, so the fast lane (`--dist loadgroup`) runs these files on one of its two workers.
+MAP_FILES = frozenset(
+    {
+        "cli/test_faults.py",
+        "cli/test_self_match.py",
+        "cli/test_short_views.py",
+        "data/test_video_data.py",
+        "data/test_vocabulary.py",
+        "evaluation/test_new_rule_calibration.py",
+        "explain/test_explain.py",
+        "memory/test_references.py",
+        "viz/test_camera_video.py",
+        "viz/test_contrast_recording.py",
+        "viz/test_dense_neighbors.py",
+        "viz/test_live.py",
+        "viz/test_memory_map.py",
+        "viz/test_viz.py",
+    }
+)
+
+
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """The fast lane never imports torch (~8 s per worker): a test that asks for a torch fixture is slow."""
+    """The fast lane never imports torch (~8 s per worker): a test that asks for a torch fixture is slow.
+    Tests of the MAP_FILES form one xdist group."""
+    tests = Path(__file__).parent
     for item in items:
         if TORCH_FIXTURES & set(getattr(item, "fixturenames", ())):
             item.add_marker(pytest.mark.slow)
+        if item.path.is_relative_to(tests) and item.path.relative_to(tests).as_posix() in MAP_FILES:
+            item.add_marker(pytest.mark.xdist_group("map"))
 
 
 @pytest.fixture(scope="session")

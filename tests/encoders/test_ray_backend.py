@@ -109,6 +109,7 @@ def _closed_port() -> int:
         return int(probe.getsockname()[1])
 
 
+@pytest.mark.slow  # a fresh process that imports Ray and tries to connect (~2.5 s)
 def test_unreachable_cluster_is_one_error_naming_its_address(aha_dataset: Path, tmp_path: Path) -> None:
     address = f"ray://127.0.0.1:{_closed_port()}"
     target, cache = str(tmp_path / "m"), str(tmp_path / "cache")
