@@ -65,6 +65,9 @@ def test_too_few_successes_fall_back_to_the_smallest_alpha_they_allow() -> None:
 def test_auc_interval_resamples_each_kind_of_run() -> None:
     assert auc_interval([0.9, 0.8, 0.7], [0.1, 0.2]) == (1.0, 1.0)  # every resample separates them
     assert auc_interval([], [0.1]) is None and auc_interval([0.1], []) is None
+    # one run of a kind: every resample draws it, and [0.00, 0.00] would claim a certainty it cannot give
+    assert auc_interval([0.1, 0.2, 0.3], [0.9]) is None and auc_interval([0.9], [0.1, 0.2]) is None
+    assert auc_interval([0.1, 0.2], [0.9, 0.8]) == (0.0, 0.0)  # two of each: an interval
     rng = np.random.default_rng(3)
     failures, successes = rng.normal(1.0, 1.0, 30), rng.normal(0.0, 1.0, 40)
     low, high = auc_interval(failures.tolist(), successes.tolist()) or (0.0, 0.0)

@@ -254,6 +254,9 @@ def auc(failure_peaks: Sequence[float], success_peaks: Sequence[float]) -> float
 #: Bootstrap resamples behind `auc_interval`, and the interval's coverage.
 AUC_DRAWS: Final[int] = 2000
 AUC_LEVEL: Final[float] = 0.95
+#: Runs of each kind a bootstrap interval needs: resampling one run always draws that run, and the
+#: interval would claim a certainty (e.g. [0.00, 0.00]) that one run cannot give.
+AUC_MIN_RUNS: Final[int] = 2
 
 
 def auc_interval(
@@ -265,10 +268,11 @@ def auc_interval(
     seed: int = 0,
 ) -> tuple[float, float] | None:
     """The `level` percentile bootstrap interval of `auc`: failure and success runs resampled separately
-    (`draws` times, from a fixed seed: the same peaks give the same interval); None without both kinds."""
+    (`draws` times, from a fixed seed: the same peaks give the same interval); None with fewer than
+    AUC_MIN_RUNS runs of either kind (it cannot be estimated)."""
     positives = np.nan_to_num(np.asarray(failure_peaks, dtype=np.float64), nan=-np.inf)
     negatives = np.nan_to_num(np.asarray(success_peaks, dtype=np.float64), nan=-np.inf)
-    if positives.size == 0 or negatives.size == 0:
+    if positives.size < AUC_MIN_RUNS or negatives.size < AUC_MIN_RUNS:
         return None
     wins = (positives[:, None] > negatives[None, :]) + 0.5 * (positives[:, None] == negatives[None, :])
     rng = np.random.default_rng(seed)

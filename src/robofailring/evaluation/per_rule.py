@@ -8,7 +8,14 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
-from robofailring.detection.conformal import AUC_LEVEL, FprSpread, auc, auc_interval, successes_needed
+from robofailring.detection.conformal import (
+    AUC_LEVEL,
+    AUC_MIN_RUNS,
+    FprSpread,
+    auc,
+    auc_interval,
+    successes_needed,
+)
 from robofailring.detection.detector import DetectionTrace
 from robofailring.detection.rules import ScoringRule
 from robofailring.evaluation.metrics import ConfusionRates, ScoredTrajectory, json_number, rates, timeliness
@@ -83,10 +90,11 @@ MARKDOWN_HEADER = (
 
 
 def auc_cell(value: float, interval: tuple[float, float] | None) -> str:
-    """An AUC with its bootstrap interval, for a table: `0.875 [0.62, 1.00]` (— when undefined)."""
+    """An AUC with its bootstrap interval, for a table: `0.875 [0.62, 1.00]` (— when undefined; `[n/a]`
+    when one kind has a single run and no interval can be estimated)."""
     if math.isnan(value):
         return "—"
-    return f"{value:.3f}" + (f" [{interval[0]:.2f}, {interval[1]:.2f}]" if interval is not None else "")
+    return f"{value:.3f}" + (f" [{interval[0]:.2f}, {interval[1]:.2f}]" if interval is not None else " [n/a]")
 
 
 def peaks(scored: Sequence[ScoredTrajectory]) -> tuple[list[float], list[float]]:
@@ -213,7 +221,7 @@ def shortfall_markdown(
         ),
         "",
         f"The AUC (failure against success runs' peak scores, with its {100 * AUC_LEVEL:g} % bootstrap "
-        "interval) needs no threshold"
+        f"interval; n/a with fewer than {AUC_MIN_RUNS} runs of a kind) needs no threshold"
         + (
             "; the cross-validation below pools every labelled run."
             if folds
