@@ -115,7 +115,11 @@ def write_report(
     sections = [f"<h1>{html.escape(title)}</h1>", _links(recordings or {}, out.parent)]
     for index, evaluation in enumerate(evaluations):
         name = str(evaluation.get("name", f"evaluation {index + 1}"))
-        charts = "\n".join(chart_svg(chart) for chart in evaluation_charts(evaluation))
+        charts = (  # none for a cross-validation alone (`evaluate --folds` without a held-out evaluation)
+            "\n".join(chart_svg(chart) for chart in evaluation_charts(evaluation))
+            if "sweep" in evaluation
+            else ""
+        )
         text = markdown[index] if index < len(markdown) else ""
         if text.startswith("## "):  # its heading is the section's
             text = text.partition("\n")[2]
@@ -127,7 +131,7 @@ def write_report(
         sections += [
             f"<h2>{html.escape(name)} — encoder <code>{html.escape(str(evaluation.get('encoder', '?')))}</code>"
             f"{memory}</h2>",
-            f'<div class="charts">{charts}</div>',
+            f'<div class="charts">{charts}</div>' if charts else "",
             _review(evaluation, f"{name}.json"),
             f"<details open><summary>Tables</summary>{tables}</details>" if tables else "",
         ]

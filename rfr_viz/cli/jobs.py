@@ -104,7 +104,7 @@ def evaluate_cmd(
     ray: RayOption = None,
 ) -> None:
     """Every scoring rule side by side at one α, then the paper's tables: Recall/FPR sweep, T_s, per type and view."""
-    from rfr_viz.jobs.evaluate import evaluate
+    from rfr_viz.jobs.evaluate import FoldsOutcome, evaluate
     from robofailring.evaluation.growth import parse_growth
     from robofailring.evaluation.run import EvaluateConfig
     from robofailring.evaluation.training import FoldPlan
@@ -137,6 +137,16 @@ def evaluate_cmd(
     )
     report_skipped(outcome.result.skipped_inputs)
     typer.echo(outcome.result.to_markdown())
+    if isinstance(outcome, FoldsOutcome):  # the split gave no held-out evaluation: said, status 3
+        typer.echo(f"\nwrote {outcome.markdown_path} and {outcome.json_path}")
+        typer.echo(f"report for a browser: {outcome.report}")
+        typer.secho(
+            f"warning: no held-out evaluation ({outcome.result.held_out}); written: the cross-validation alone",
+            fg=typer.colors.YELLOW,
+            err=True,
+        )
+        finish(skipped=1)
+        return
     typer.echo(
         f"\nwrote {outcome.markdown_path}, {outcome.json_path} and {outcome.recording} "
         f"(open with: {open_command(outcome.recording)})"

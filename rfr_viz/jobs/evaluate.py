@@ -8,6 +8,8 @@ from pathlib import Path
 from rfr_viz.charts.report_html import REPORT_NAME, write_report
 from rfr_viz.recordings.evaluation import record_evaluation
 from robofailring.atomic import output_lock, remove_file_leftovers
+from robofailring.errors import SplitError
+from robofailring.evaluation.folds_alone import FoldsAlone, cross_validate_alone, write_folds_alone
 from robofailring.evaluation.run import (
     EvaluateConfig,
     EvaluationResult,
@@ -36,19 +38,33 @@ class EvaluateOutcome:
         return len(result.skipped_unknown_task) + len(result.skipped_too_short) + len(result.skipped_inputs)
 
 
-def evaluate(config: EvaluateConfig, *, growth: tuple[int, ...] = ()) -> EvaluateOutcome:
+@dataclass(frozen=True)
+class FoldsOutcome:
+    """`evaluate --folds` on data whose split gives no held-out evaluation: the cross-validation alone."""
+
+    result: FoldsAlone
+    json_path: Path
+    markdown_path: Path
+    report: Path
+
+
+def evaluate(config: EvaluateConfig, *, growth: tuple[int, ...] = ()) -> EvaluateOutcome | FoldsOutcome:
     """Check the output folder, run the evaluation, and write its tables, recording and report,
     holding the output's lock throughout (two runs into one folder never interleave).
 
     `growth` (labelled failures per task, e.g. 0, 1, 2, 4) adds the learning curve: one more
-    evaluation per level, its memory under `<out>/growth-<n>/`."""
+    evaluation per level, its memory under `<out>/growth-<n>/`. With `config.folds`, data whose split
+    gives no held-out evaluation (`SplitError`) is still cross-validated: a `FoldsOutcome`, no recording."""
     out = Path(config.out)
     check_output_folder(out, inputs=[config.data, config.test_data, config.detector.memory])
     if growth:
         check_growth(config)
     with output_lock(out):
         remove_file_leftovers(out)
-        result = run_evaluation(config)
+        try:
+            result = run_evaluation(config)
+        except SplitError as held_out:  # with --folds, the cross-validation needs no split
+            return _folds_alone(cross_validate_alone(config, held_out), out)
         if growth:
             result.growth = growth_curve(config, growth, full=result)
         json_path, markdown_path = write_evaluation(result, out)
@@ -62,3 +78,9 @@ def evaluate(config: EvaluateConfig, *, growth: tuple[int, ...] = ()) -> Evaluat
     return EvaluateOutcome(
         result=result, json_path=json_path, markdown_path=markdown_path, recording=recording, report=report
     )
+
+
+def _folds_alone(result: FoldsAlone, out: Path) -> FoldsOutcome:
+    json_path, markdown_path = write_folds_alone(result, out)
+    report = write_report([result.to_dict()], out / REPORT_NAME, markdown=[result.to_markdown()])
+    return FoldsOutcome(result=result, json_path=json_path, markdown_path=markdown_path, report=report)

@@ -23,6 +23,12 @@ class DataError(RoboFailRingError):
     """A dataset, trajectory or image could not be read or does not match a known layout."""
 
 
+class SplitError(DataError):
+    """The data's train/test split cannot give a held-out evaluation (no test run, no training success to
+    calibrate on, no test run of the memory's tasks); `evaluate --folds` still cross-validates over every
+    labelled run, whatever its split."""
+
+
 class SymbolError(RoboFailRingError):
     """A failure symbol has a token outside the grounding vocabulary (paper Table 5)."""
 

@@ -4,6 +4,7 @@ over every labelled run."""
 
 from __future__ import annotations
 
+import csv
 import json
 from pathlib import Path
 
@@ -204,3 +205,34 @@ def test_evaluate_folds_on_the_command_line(runs: tuple[Path, Path], cache: Path
     assert crossed["fold_count"] == 4 and all(row["judged"] == RUNS for row in crossed["rules"].values())
     refused = CliRunner().invoke(app, [*args[:-1], "1", "--cache-dir", str(cache)])
     assert refused.exit_code != 0 and "--folds takes loo or a whole number ≥ 2, got '1'" in refused.output
+
+
+def test_folds_still_cross_validate_when_the_split_gives_no_held_out_evaluation(
+    runs: tuple[Path, Path], cache: Path, tmp_path: Path
+) -> None:
+    """A handful of runs whose successes all sit in the test split: nothing to calibrate the held-out
+    evaluation on. `--folds` needs no split, so the cross-validation is written, said, status 3."""
+    data, labels = runs
+    rows = list(csv.DictReader(labels.open(encoding="utf-8")))
+    split_labels = tmp_path / "split-labels.csv"
+    with split_labels.open("w", newline="", encoding="utf-8") as file:
+        writer = csv.DictWriter(file, fieldnames=[*rows[0], "split"])
+        writer.writeheader()
+        writer.writerows({**row, "split": "train" if row["outcome"] == "failure" else "test"} for row in rows)
+    args = ["evaluate", str(data), "--labels", str(split_labels), "--cache-dir", str(cache)]
+    alone = CliRunner().invoke(app, [*args, "--out", str(tmp_path / "eval"), "--folds", "loo"])
+    assert alone.exit_code == 3, alone.output
+    assert "warning: no held-out evaluation (no success trajectory of the memory's tasks" in alone.stderr
+    written = json.loads((tmp_path / "eval" / "evaluation.json").read_text())
+    assert written["held_out_evaluation"] is None and "split 'train'" in written["held_out_not_made"]
+    crossed = written["cross_validation"]
+    assert crossed["fold_count"] == RUNS and (crossed["failures"], crossed["successes"]) == (7, 7)
+    assert all(row["judged"] == RUNS for row in crossed["rules"].values())
+    markdown = (tmp_path / "eval" / "evaluation.md").read_text()
+    assert "cross-validation only" in markdown and "| paper | 14 |" in markdown
+    page = (tmp_path / "eval" / "report.html").read_text()
+    assert "<svg" not in page and "No held-out evaluation" in page
+    assert not (tmp_path / "eval" / "evaluation.rrd").exists()
+    # without --folds the split's error is the command's, as before
+    refused = CliRunner().invoke(app, [*args, "--out", str(tmp_path / "plain")])
+    assert refused.exit_code == 2 and "error: no success trajectory of the memory's tasks" in refused.stderr

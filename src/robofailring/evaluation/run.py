@@ -13,8 +13,8 @@ from robofailring.detection.detector import DetectionTrace, FailureDetector, Pla
 from robofailring.detection.rules import PAPER, ScoringRule
 from robofailring.detection.scored import prefetch_scored
 from robofailring.detection.stored import stored_threshold
-from robofailring.encoders import CachedEncoder, open_encoder
-from robofailring.errors import DataError, SettingError
+from robofailring.encoders import CachedEncoder
+from robofailring.errors import DataError, SettingError, SplitError
 from robofailring.evaluation.calibration import RuleCalibration, available_rules, calibrate_rules
 from robofailring.evaluation.folds import cross_validate
 from robofailring.evaluation.growth import GrowthPoint, judged
@@ -26,6 +26,7 @@ from robofailring.evaluation.training import (
     EvaluateConfig,
     build_training_memory,
     check_disjoint,
+    evaluation_encoder,
     select_splits,
 )
 from robofailring.memory.failure import FailureMemory
@@ -48,13 +49,7 @@ def run_evaluation(
     splits = select_splits(config)
     train, test = splits.train, splits.test
     if detector is None:
-        encoder = open_encoder(
-            config.recipe.encoder,
-            device=config.detector.device,
-            cache_dir=config.detector.cache_dir,
-            runtime=config.detector.runtime,
-            ray=config.ray,
-        )
+        encoder = evaluation_encoder(config)
         memory_dir = (
             config.detector.memory
             if config.detector.memory is not None
@@ -118,7 +113,7 @@ def run_evaluation(
                 )
             )
     if not scored:
-        raise DataError(
+        raise SplitError(
             f"none of the {len(test)} test trajectories has a task in the memory ({sorted(known)})"
         )
     views = sorted({v for s in scored for v in s.similarity})
@@ -256,7 +251,7 @@ def _thresholds(
     known = set(detector.memory.tasks)
     successes = [t for t in train if not t.is_failure and t.task in known]
     if not successes:
-        raise DataError(
+        raise SplitError(
             f"no success trajectory of the memory's tasks in {config.data} (split {config.train_split!r}): "
             "the evaluation calibrates its thresholds on success runs; add success episodes of those tasks "
             "to that split, or name another with --train-split"
@@ -274,7 +269,7 @@ def _thresholds(
             at_best=True,
         )
     if not found:
-        raise DataError(
+        raise SplitError(
             f"none of the {len(successes)} training success runs could be scored with its own episode left out "
             "(their task holds no other run to compare them with): no threshold to evaluate; add runs to the "
             f"training split {config.train_split!r}"

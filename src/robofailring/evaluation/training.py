@@ -19,7 +19,7 @@ from robofailring.detection.conformal import check_target_fpr
 from robofailring.detection.rules import PAPER
 from robofailring.detection.view_bands import DEFAULT_FUSION, check_fusion
 from robofailring.encoders import CachedEncoder, open_encoder
-from robofailring.errors import DataError, RoboFailRingError, SettingError
+from robofailring.errors import RoboFailRingError, SettingError, SplitError
 from robofailring.evaluation.metrics import PAPER_DELTAS
 from robofailring.memory.builder import Provenance, build_memories
 from robofailring.memory.failure import FailureMemory
@@ -123,17 +123,19 @@ class Splits:
     skipped: list[Skipped]  # what the loaders of the training and test datasets did not read
 
 
+def load_labelled(config: EvaluateConfig, path: Path) -> tuple[Dataset, list[Trajectory], list[Skipped]]:
+    """A dataset of the evaluation as its settings read it (task, labels, views, vocabulary), its runs with an
+    outcome, and what was not used (an unlabelled run is never taken for a success)."""
+    vocabulary = read_vocabulary(config.vocabulary) if config.vocabulary is not None else None
+    loaded = load_dataset(
+        path, task=config.task, labels=config.labels, views=config.views, vocabulary=vocabulary
+    )
+    return loaded, *loaded.judged("evaluate")
+
+
 def select_splits(config: EvaluateConfig) -> Splits:
     """The training and test trajectories, disjoint by construction and checked."""
-    vocabulary = read_vocabulary(config.vocabulary) if config.vocabulary is not None else None
-
-    def labelled(path: Path) -> tuple[Dataset, list[Trajectory], list[Skipped]]:
-        loaded = load_dataset(
-            path, task=config.task, labels=config.labels, views=config.views, vocabulary=vocabulary
-        )
-        return loaded, *loaded.judged("evaluate")  # an unlabelled run is never taken for a success
-
-    dataset, source, skipped = labelled(config.data)
+    dataset, source, skipped = load_labelled(config, Path(config.data))
     has_splits = any(t.split for t in source)
 
     def of_split(split: str) -> list[Trajectory]:
@@ -147,12 +149,12 @@ def select_splits(config: EvaluateConfig) -> Splits:
     if config.test_data is None:
         test = of_split(config.test_split)
     else:
-        _, other, other_skipped = labelled(config.test_data)
+        _, other, other_skipped = load_labelled(config, Path(config.test_data))
         skipped += other_skipped
         other_has_splits = any(t.split for t in other)
         test = [t for t in other if not other_has_splits or t.split == config.test_split]
     if not test:
-        raise DataError(
+        raise SplitError(
             f"no test trajectories (split {config.test_split!r}) in {config.test_data or config.data}"
         )
     return Splits(train=train, test=test, dataset=dataset, skipped=skipped)
@@ -174,18 +176,24 @@ def check_disjoint(memory: FailureMemory, test: Sequence[Trajectory]) -> None:
                 )
 
 
+def evaluation_encoder(config: EvaluateConfig) -> CachedEncoder:
+    """The encoder an evaluation builds its memories with: its recipe's, on its detector's device, cache and
+    runtime (and its Ray cluster)."""
+    return open_encoder(
+        config.recipe.encoder,
+        device=config.detector.device,
+        cache_dir=config.detector.cache_dir,
+        runtime=config.detector.runtime,
+        ray=config.ray,
+    )
+
+
 def build_training_memory(
     config: EvaluateConfig, splits: Splits | None = None, encoder: CachedEncoder | None = None
 ) -> Path:
     """Build the memory from the training split's failures (and successes) and save it to `config.memory_out`."""
     if encoder is None:
-        encoder = open_encoder(
-            config.recipe.encoder,
-            device=config.detector.device,
-            cache_dir=config.detector.cache_dir,
-            runtime=config.detector.runtime,
-            ray=config.ray,
-        )
+        encoder = evaluation_encoder(config)
     if splits is None:
         splits = select_splits(config)
     provenance = Provenance(
