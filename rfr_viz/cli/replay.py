@@ -73,7 +73,8 @@ def _report(result: ReplayResult, out: Path) -> None:
         + (f", {len(result.skipped)} trajectories skipped" if result.skipped else "")
     )
     for path in result.recordings:
-        typer.echo(f"  {open_command(path)}")
+        verdict = result.verdicts.get(path)
+        typer.echo(f"  {open_command(path)}" + (f"\n    {verdict}" if verdict else ""))
     finish(skipped=len(result.skipped) + len(result.skipped_inputs))  # listed above
 
 

@@ -76,6 +76,7 @@ class ReplayResult:
     references: dict[Path, ReferenceCheck] = field(default_factory=dict)  # per memory directory
     vlm_errors: list[tuple[str, str]] = field(default_factory=list)  # (trajectory, why the VLM call failed)
     in_memory: list[str] = field(default_factory=list)  # trajectories that are the memory's own episodes
+    verdicts: dict[Path, str] = field(default_factory=dict)  # recording -> what its detector did, one line
 
     def saw(self, trace: DetectionTrace, key: str) -> None:
         """Note a trajectory scored against a memory holding it (one warning for them all)."""
@@ -251,6 +252,7 @@ def _replay(config: ReplayConfig) -> ReplayResult:
                         vlm_answer=answer,
                     )
                 )
+                result.verdicts[result.recordings[-1]] = trace.verdict()
             bar.update(1)
     return result
 

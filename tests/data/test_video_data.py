@@ -135,7 +135,9 @@ def test_labels_build_a_memory_and_replay_a_recording(v3: Path, tmp_path: Path) 
         app, ["detect", str(v3), "--memory", str(memory), "--trajectory", "episode_0", "--json", *cache]
     )
     assert detected.exit_code == 0, detected.output
-    assert json.loads(detected.stdout)["length"] == 12
+    found = json.loads(detected.stdout)
+    assert found["length"] == 12 and found["fps"] == 10.0  # the dataset's rate (write_lerobot_v3's)
+    assert found["t_det_s"] == (found["t_det"] / 10.0 if found["t_det"] is not None else None)
 
 
 def test_stride_scores_every_nth_frame_in_original_frame_numbers(v3: Path, tmp_path: Path) -> None:

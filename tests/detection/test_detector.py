@@ -49,6 +49,31 @@ def test_trace_equals_brute_force(
     assert trace.t_det == (int(np.argmax(fused)) if fused.any() else None)
 
 
+def test_the_verdict_line_says_where_the_rule_fired_or_how_near_it_came(
+    memory_and_encoder: tuple[FailureMemory, CachedEncoder], tmp_path: Path
+) -> None:
+    memory, encoder = memory_and_encoder
+    trajectory = load_trajectory(
+        write_episode(tmp_path / "ep", "pick_cube", "grasp_wp2", length=7, shift=2), task="pick_cube"
+    )  # frames of no memory entry: its peak is below 1
+    trace = FailureDetector(memory, encoder, delta=0.9, k=3).run(trajectory)
+    fused = np.stack([trace.similarity[v] for v in trace.views]).max(axis=0)
+    peak, at = float(fused.max()), int(fused.argmax())
+    assert peak < 0.99
+    below = trace.with_delta(peak + 0.01)
+    assert (
+        below.verdict()
+        == f"no alarm (paper rule: peak S_t = {peak:.3f} at frame {at} < {below.threshold:.3f})"
+    )
+    fired = trace.with_delta(peak - 1e-3)
+    t, view = fired.t_det, fired.detected_view
+    assert t is not None and view is not None
+    assert fired.verdict() == (
+        f"FAILURE detected at frame {t}/7 in view {view} (paper rule: S_t = "
+        f"{float(trace.similarity[view][t]):.3f} ≥ {peak - 1e-3:.3f})"
+    )
+
+
 @pytest.mark.parametrize("stride", [1, 2])
 def test_chunks_score_as_one_batch_and_keep_only_what_is_asked(
     memory_and_encoder: tuple[FailureMemory, CachedEncoder],

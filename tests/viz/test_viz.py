@@ -26,6 +26,7 @@ from rfr_viz.panels.umap import CACHE_FILE, MemoryMap, fit_map, memory_map
 from rfr_viz.paths import APPLICATION_ID, REPLAY, DetectorPaths, camera
 from rfr_viz.recordings.replay import compare_recording, record_replay
 from rfr_viz.viewer.binary import viewer_binary
+from rfr_viz.viewer.control import open_command
 from rfr_viz.viewer.rrd import verify_recording
 from robofailring import (
     CachedEncoder,
@@ -468,6 +469,17 @@ def test_cli_replay_and_compare(aha_dataset: Path, pixels_memory_dir: Path, tmp_
     assert recorded.is_file() and f"rerun {recorded}" in result.output
     found = properties(recorded)
     assert found["k"] == 2 and found["delta"] == 0.99 and found["label"] == "rotation_x_wp1"
+    # under the recording's path, one line says what its detector did, as the recording has it
+    said = result.output.splitlines()[
+        result.output.splitlines().index(f"  {open_command(recorded)}") + 1
+    ].strip()
+    if found["t_det"] is None:
+        assert said.startswith("no alarm (paper rule: peak S_t = ") and said.endswith("< 0.990)"), said
+    else:
+        assert (
+            said.startswith(f"FAILURE detected at frame {found['t_det']}/")
+            and f"view {found['detected_view']}" in said
+        )
     neighbours = rows(recorded, REPLAY.neighbor("front", 0, "info"), "TextDocument:text")
     assert neighbours and all("push_cube_rotation_x_wp1_episode1" not in text[0] for _, text in neighbours)
     # one episode folder, task given on the command line

@@ -203,6 +203,25 @@ class DetectionTrace(RuleThresholds):
         fused = self._over_views(self.scores_of(rule)).fused_max()
         return np.where(np.isfinite(fused), fused, np.nan)
 
+    def verdict(self) -> str:
+        """One line: where the rule fired (frame, view, score against its line), or that it did not and how
+        near it came (the judged score's peak, which a band compares with the threshold itself)."""
+        rule = self.rule
+        if self.t_det is None or self.detected_view is None:
+            peak = self.max_score()
+            if not np.isfinite(peak).any():
+                return f"no alarm ({rule.name} rule: no frame scored)"
+            t = int(np.nanargmax(np.where(np.isfinite(peak), peak, np.nan)))
+            return (
+                f"no alarm ({rule.name} rule: peak {rule.score_name} = {float(peak[t]):.3f} at frame {t} "
+                f"< {self.threshold:.3f}{', band-corrected' if self.band is not None else ''})"
+            )
+        view, t = self.detected_view, self.t_det
+        return (
+            f"FAILURE detected at frame {t}/{self.length} in view {view} ({rule.name} rule: {rule.score_name} = "
+            f"{float(self.scores[view][t]):.3f} ≥ {float(self.threshold_line(view=view)[t]):.3f})"
+        )
+
     def neighbors(self, view: str, t: int) -> list[Neighbor]:
         return self.memory.neighbors(self.neighbor_similarity[view][t], self.neighbor_ids[view][t])
 

@@ -73,6 +73,7 @@ class DetectResult:
     references: ReferenceCheck | None  # the fired neighbours' reference images (None: nothing fired)
     layout: str | None = None  # the layout the trajectory was read from
     views_read: tuple[str, ...] = ()  # its views (after `--views`)
+    fps: float | None = None  # its frame rate (the layout's, a video's own; None: unknown), for t_det in seconds
 
     @property
     def notes(self) -> list[str]:
@@ -96,6 +97,8 @@ class DetectResult:
             "report": self.report.to_dict() if self.report is not None else None,
             "layout": self.layout,
             "views_read": list(self.views_read),
+            "fps": self.fps,
+            "t_det_s": self.trace.t_det / self.fps if self.fps and self.trace.t_det is not None else None,
         }
         if self.vlm is not None:
             found["vlm"] = self.answer.to_dict() if self.answer is not None else None  # None: nothing to ask
@@ -171,4 +174,5 @@ def run_detect(config: DetectConfig) -> DetectResult:
         references=references,
         layout=loaded.layout,
         views_read=tuple(loaded.views),
+        fps=loaded.frame_rate,
     )
