@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import wave
 from dataclasses import replace
+from fractions import Fraction
 from pathlib import Path
 
 import numpy as np
@@ -310,3 +311,34 @@ def test_video_episodes_take_their_frame_rate_from_the_container(tmp_path: Path)
     assert replayed.exit_code == 0, replayed.output
     rates = {properties(r)["episode"]: properties(r)["fps"] for r in out.glob("*.rrd")}
     assert rates == {"clip_0": 6.0, "clip_1": 25.0}
+
+
+def _out_of_order(path: Path, order: list[int]) -> None:
+    """An intra-only (MJPEG) video whose packets, in decoding order, carry the timestamps `order`: its
+    frames decode out of timestamp order, as some phones' HEVC clips do. Frame pts p is grey 20 + 25 p."""
+    import av
+
+    with av.open(str(path), "w") as out:
+        stream = out.add_stream("mjpeg", rate=10)
+        stream.width, stream.height, stream.pix_fmt = 48, 32, "yuvj420p"
+        stream.time_base = Fraction(1, 10)
+        for dts, pts in enumerate(order):
+            image = np.full((32, 48, 3), 20 + 25 * pts, np.uint8)
+            for packet in stream.encode(av.VideoFrame.from_ndarray(image, format="rgb24")):
+                packet.pts, packet.dts = pts, dts - 1  # dts ≤ pts, increasing
+                out.mux(packet)
+
+
+@pytest.mark.parametrize("suffix", [".mp4", ".mkv"])
+def test_frames_that_decode_out_of_timestamp_order_are_read_by_their_timestamp(
+    tmp_path: Path, suffix: str
+) -> None:
+    """Frame i is the frame with the i-th timestamp, in any order of asking: the first frame decoded past
+    the timestamp is another frame, and in an MP4 a seek (by decoding time) can land past the frame."""
+    path = tmp_path / f"clip{suffix}"
+    _out_of_order(path, [0, 2, 1, 3, 5, 4, 6, 8, 7])
+    for asked in (list(range(9)), [5, 1, 8, 0, 4, 2, 3, 7, 6], [8, 7, 6, 5, 4, 3, 2, 1, 0]):
+        video = open_video(path)  # a fresh reader for each order
+        assert video.count == 9
+        greys = {i: float(video.decode(i).mean()) for i in asked}
+        assert all(abs(greys[i] - (20 + 25 * i)) < 3 for i in asked), greys

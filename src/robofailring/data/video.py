@@ -171,9 +171,13 @@ class VideoFile:
                 position = np.searchsorted(self._keyframes, index, side="right") - 1
                 keyframe = int(self._keyframes[position]) if position >= 0 else -1
                 ahead = index - self._last[0] <= index - keyframe + 1 + _SEEK_COST
-            for fresh in (not ahead, True):  # decoding on from the last frame, else (and on a miss) a seek
+            # where to decode from: on from the last frame (when it is just behind), the keyframe before the
+            # target, and on a miss the stream's start: where frames decode out of timestamp order, a seek
+            # (by decoding time) can land past the wanted frame
+            starts = ([None] if ahead and self._frames is not None else []) + [target, int(self._pts[0])]
+            for start in dict.fromkeys(starts):
                 try:
-                    image = self._decode_at(target, index, seek=fresh or self._frames is None)
+                    image = self._decode_at(target, index, start=start)
                 except av.FFmpegError as error:
                     self._frames = None
                     raise DataError(
@@ -182,21 +186,20 @@ class VideoFile:
                 if image is not None:
                     self._last = (index, image)
                     return np.ascontiguousarray(image)
-                if fresh:
-                    break
         raise DataError(
             f"cannot decode frame {index} of video {self.path}: the stream ended before a frame with its "
             "timestamp (the file's timestamps may be out of order; re-encode it, e.g. with ffmpeg)"
         )
 
-    def _decode_at(self, target: int, index: int, *, seek: bool) -> np.ndarray | None:
-        """The decoded frame whose timestamp is exactly `target`, decoding on from the last one or from the
-        keyframe before it; None when the stream ends first. Exact: where a file's timestamps are out of
-        decoding order, the first frame past `target` is another frame, never to be given as this one."""
-        if seek:
+    def _decode_at(self, target: int, index: int, *, start: int | None) -> np.ndarray | None:
+        """The decoded frame whose timestamp is exactly `target`, decoding on from the last one (`start`
+        None) or from the keyframe at or before timestamp `start`; None when the stream ends first. Exact:
+        where a file's frames decode out of timestamp order, the first frame past `target` is another
+        frame, never to be given as this one."""
+        if start is not None:
             container = self._open()
             stream = container.streams.video[self.stream]
-            container.seek(target, stream=stream, backward=True, any_frame=False)
+            container.seek(start, stream=stream, backward=True, any_frame=False)
             self._frames = container.decode(stream)
         assert self._frames is not None
         for frame in self._frames:
