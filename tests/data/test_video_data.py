@@ -342,3 +342,38 @@ def test_frames_that_decode_out_of_timestamp_order_are_read_by_their_timestamp(
         assert video.count == 9
         greys = {i: float(video.decode(i).mean()) for i in asked}
         assert all(abs(greys[i] - (20 + 25 * i)) < 3 for i in asked), greys
+
+
+def test_a_clip_with_a_display_rotation_is_read_as_players_show_it(tmp_path: Path) -> None:
+    """A phone's portrait clip is stored landscape with a display matrix: its frames are read turned as
+    FFmpeg shows them (the reference here), not as stored, and their cache keys say so."""
+    import subprocess
+
+    from environment import require_ffmpeg
+
+    require_ffmpeg()
+    stored = tmp_path / "stored.mp4"
+    encode_video(stored, [scene(0, 0, t) for t in range(4)], 10, "h264")
+    turned = tmp_path / "turned.mp4"
+    for how in (
+        ["-display_rotation", "90", "-i", str(stored)],
+        ["-i", str(stored), "-metadata:s:v:0", "rotate=90"],
+    ):
+        subprocess.run(["ffmpeg", "-loglevel", "error", "-y", *how, "-c", "copy", str(turned)], check=False)
+        if turned.exists():
+            break
+    assert turned.exists(), "ffmpeg wrote no rotated copy"
+    shown = subprocess.run(
+        ["ffmpeg", "-loglevel", "error", "-i", str(turned), "-f", "rawvideo", "-pix_fmt", "rgb24", "-"],
+        capture_output=True,
+        check=True,
+    ).stdout
+    plain, video = open_video(stored).decode(2), open_video(turned)
+    height, width = plain.shape[1], plain.shape[0]  # turned a quarter
+    expected = np.frombuffer(shown, np.uint8).reshape(-1, height, width, 3)
+    assert video.count == 4 == len(expected)
+    for index in (0, 2, 3):
+        image = video.decode(index)
+        assert image.shape == (height, width, 3)
+        assert np.abs(image.astype(int) - expected[index].astype(int)).mean() < 2.0
+    assert np.array_equal(video.decode(2), np.rot90(plain, 1))  # the same pixels, a quarter turn

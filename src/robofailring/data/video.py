@@ -26,6 +26,8 @@ from robofailring.errors import DataError
 from robofailring.extras import needs_extra
 
 VIDEO_SUFFIXES: Final[tuple[str, ...]] = (".mp4", ".webm", ".mkv")
+#: How frames are decoded, in their cache keys (2: turned as the file's display matrix says).
+DECODED: Final[int] = 2
 #: Decode forward instead of seeking when the wanted frame is at most this many frames ahead and
 #: no keyframe lies between (seeking to a keyframe nearer the wanted frame is then cheaper).
 _FORWARD_WINDOW: Final[int] = 48
@@ -206,7 +208,9 @@ class VideoFile:
             if frame.pts != target:
                 continue
             check_frame_size(frame.width, frame.height, source=f"frame {index} of video {self.path}")
-            return frame.to_ndarray(format="rgb24")
+            image = frame.to_ndarray(format="rgb24")
+            turns = round(frame.rotation / 90) % 4  # a phone's portrait clip: shown turned, as players do
+            return np.rot90(image, turns) if turns else image
         self._frames = None
         return None
 
@@ -257,7 +261,7 @@ class VideoFrame:
 
     def content_key(self) -> str:
         """Keyed by (file content, stream, frame index): no decoding needed to find a cached embedding."""
-        key = f"video:{self.video.digest()}:{self.video.stream}:{self.frame_index()}"
+        key = f"video:{DECODED}:{self.video.digest()}:{self.video.stream}:{self.frame_index()}"
         return content_digest(key.encode())
 
     @property
