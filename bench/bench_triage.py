@@ -38,6 +38,7 @@ from _scenes import scene
 
 from robofailring.data.images import write_png
 from robofailring.data.layouts import load_dataset
+from robofailring.detection.config import DetectorConfig
 from robofailring.encoders import default_cache_dir, open_encoder
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
 from robofailring.jobs.simulate import simulate
@@ -140,14 +141,14 @@ def quality(encoders: list[str], trained: bool) -> list[str]:
         for spec in specs:
             shown = "trained" if spec.startswith("trained:") else spec
             memory = memory_of(memory_runs, spec, tag)
-            for reference, extra in (
-                ("nothing", {}),
-                (f"{KNOWN} successes/task", {"labels": labels}),
-                ("memory", {"memory": memory}),
-                ("memory", {"memory": memory, "score": "novelty"}),
+            for reference, judge, extra in (
+                ("nothing", DetectorConfig(encoder=spec), {}),
+                (f"{KNOWN} successes/task", DetectorConfig(encoder=spec), {"labels": labels}),
+                ("memory", DetectorConfig(memory=memory), {}),
+                ("memory", DetectorConfig(memory=memory, rule="novelty"), {}),
             ):
                 start = time.perf_counter()
-                config = TriageConfig(data=data, out=ROOT / "out", encoder=spec, **extra)  # type: ignore[arg-type]
+                config = TriageConfig(data=data, out=ROOT / "out", detector=judge, **extra)  # type: ignore[arg-type]
                 result = run_triage(config)
                 ranked = [s for s in result.ranked if s.key not in known]
                 q = ranking_quality([truth[s.key] for s in ranked])
@@ -220,8 +221,9 @@ import json, sys, time
 from pathlib import Path
 from robofailring.triage import TriageConfig, run_triage
 start = time.perf_counter()
+from robofailring.detection.config import DetectorConfig
 result = run_triage(TriageConfig(data=Path(sys.argv[1]), out=Path(sys.argv[2]), task="pick_cube",
-                                 reference_runs=10, cache_dir=Path(sys.argv[3])))
+                                 reference_runs=10, detector=DetectorConfig(cache_dir=Path(sys.argv[3]))))
 status = Path("/proc/self/status").read_text()  # VmHWM: this process's own peak (ru_maxrss keeps the parent's)
 peak = next(int(line.split()[1]) for line in status.splitlines() if line.startswith("VmHWM:"))
 print(json.dumps({"episodes": len(result.ranked), "seconds": time.perf_counter() - start, "peak_rss_mb": peak / 1024}))

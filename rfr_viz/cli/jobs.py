@@ -28,6 +28,7 @@ from robofailring.cli.options import (
     PairingOption,
     RandomizeOption,
     RayOption,
+    ReferenceEncoderOption,
     RuntimeOption,
     ScoreOption,
     StrideOption,
@@ -138,15 +139,12 @@ def evaluate_cmd(
     report_skipped(outcome.result.skipped_inputs)
     typer.echo(outcome.result.to_markdown())
     if isinstance(outcome, FoldsOutcome):  # the split gave no held-out evaluation: said, status 3
-        typer.echo(f"\nwrote {outcome.markdown_path} and {outcome.json_path}")
-        typer.echo(f"report for a browser: {outcome.report}")
-        typer.secho(
-            f"warning: no held-out evaluation ({outcome.result.held_out}); written: the cross-validation alone",
-            fg=typer.colors.YELLOW,
-            err=True,
+        typer.echo(
+            f"\nwrote {outcome.markdown_path} and {outcome.json_path}\nreport for a browser: {outcome.report}"
         )
-        finish(skipped=1)
-        return
+        warning = f"warning: no held-out evaluation ({outcome.result.held_out}); written: the cross-validation alone"
+        typer.secho(warning, fg=typer.colors.YELLOW, err=True)
+        return finish(skipped=1)
     typer.echo(
         f"\nwrote {outcome.markdown_path}, {outcome.json_path} and {outcome.recording} "
         f"(open with: {open_command(outcome.recording)})"
@@ -240,7 +238,7 @@ def triage_cmd(
         ),
     ] = None,
     labels: LabelsOption = None,
-    encoder: EncoderOption = "pixels",
+    encoder: ReferenceEncoderOption = None,
     replays: Annotated[
         int,
         typer.Option(
@@ -256,7 +254,7 @@ def triage_cmd(
             "(a fixed sample), so memory stays flat however many episodes there are.",
         ),
     ] = 100,
-    k: KOption = 5,
+    k: KOption = DETECTOR_DEFAULTS.k,
     score: ScoreOption = None,
     task: TaskOption = None,
     views: ViewsOption = None,
@@ -278,20 +276,22 @@ def triage_cmd(
         TriageConfig(
             data=data,
             out=out,
-            memory=memory,
+            detector=detector_config(
+                memory,
+                encoder=encoder,
+                device=device,
+                runtime=runtime,
+                cache_dir=cache_dir,
+                data_root=data_root,
+                k=k,
+                score=score,
+            ),
             successes=successes,
             labels=labels,
-            encoder=encoder,
-            k=k,
-            score=score,
             task=task,
             views=views,
             reference_runs=reference_runs,
-            cache_dir=cache_dir,
-            device=device,
-            runtime=runtime,
             ray=ray,
-            data_root=data_root,
         ),
         replays=replays,
         camera_codec=camera_codec,

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from synthetic import write_triage_memory, write_unlabelled_runs
 
+from robofailring.detection.config import DetectorConfig
 from robofailring.triage import TriageConfig, run_triage
 from robofailring.triage import run as triage_run
 from robofailring.triage.reference import MEMORY
@@ -27,8 +28,7 @@ def test_triage_on_ray_is_the_local_triage(
                 data=data,
                 out=tmp_path / where,
                 task="pick_cube",
-                memory=folder,
-                cache_dir=tmp_path / where,
+                detector=DetectorConfig(memory=folder, cache_dir=tmp_path / where),
                 ray=ray,
             )
         )

@@ -13,6 +13,7 @@ from synthetic import write_unlabelled_runs
 from rfr_viz.jobs.triage import triage
 from rfr_viz.paths import TRIAGE_RANKING, TRIAGE_SCORES, triage_curve, triage_episode
 from rfr_viz.viewer.control import verify_recording
+from robofailring.detection.config import DetectorConfig
 from robofailring.errors import OutputError
 from robofailring.triage import TriageConfig
 
@@ -21,7 +22,9 @@ from robofailring.triage import TriageConfig
 def written(tmp_path_factory: pytest.TempPathFactory):
     root = tmp_path_factory.mktemp("triage")
     data, truth = write_unlabelled_runs(root / "runs", successes=7, failures=("grasp_wp2",))
-    config = TriageConfig(data=data, out=root / "out", task="pick_cube", cache_dir=root / "cache")
+    config = TriageConfig(
+        data=data, out=root / "out", task="pick_cube", detector=DetectorConfig(cache_dir=root / "cache")
+    )
     return config, truth, triage(config, replays=2)
 
 

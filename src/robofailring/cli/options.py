@@ -285,6 +285,13 @@ KOption = Annotated[int, typer.Option("--k", help="Neighbours retrieved per quer
 MemoryEncoderOption = Annotated[
     str | None, typer.Option("--encoder", help="Encoder spec (default: the memory's).")
 ]
+ReferenceEncoderOption = Annotated[
+    str | None,
+    typer.Option(
+        "--encoder",
+        help="Encoder spec: the reference's without --memory (default pixels), else the memory's.",
+    ),
+]
 LeaveOneOutOption = Annotated[
     bool, typer.Option("--leave-one-out", help="Hide each trajectory's own episode from the memory.")
 ]

@@ -10,12 +10,12 @@ from typing import Final
 from robofailring.data.labels import apply_labels, read_labels, unlabelled_rows
 from robofailring.data.layouts import load_dataset
 from robofailring.data.model import Outcome, Skipped, Trajectory
-from robofailring.detection.config import DetectorConfig
-from robofailring.detection.detector import DEFAULT_K, FailureDetector, check_k
-from robofailring.detection.rules import rule_named
+from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
+from robofailring.detection.detector import FailureDetector
 from robofailring.detection.scored import prefetch_scored
 from robofailring.encoders import open_encoder
 from robofailring.errors import SettingError
+from robofailring.memory.recipe import DEFAULT_RECIPE
 from robofailring.progress import progress_bar
 from robofailring.triage.ranking import TaskScale, rank
 from robofailring.triage.reference import Reference, built_reference, memory_reference
@@ -30,34 +30,38 @@ PREFETCH_EPISODES: Final[int] = 64
 
 @dataclass(frozen=True)
 class TriageConfig:
+    """What `robofailring triage` ranks and how: `detector` holds the memory to judge by (its rules as
+    calibrated, its own encoder), or without one the encoder the reference is built with (default: the
+    recipe's), and the detector's k, rule, device, runtime, cache and data root."""
+
     data: Path  # the dataset to triage (any layout); outcomes its layout states are not used
     out: Path  # folder for triage.csv, triage.rrd, triage.html and the replays
-    memory: Path | None = None  # judge by this memory, its rules as calibrated
+    detector: DetectorConfig = DEFAULT_DETECTOR
     successes: Path | None = None  # a dataset of known-good runs (every episode a success)
     labels: Path | None = None  # a labels file for the data: its success rows are known-good runs
-    encoder: str = "pixels"  # without --memory (a memory uses its own)
-    k: int = DEFAULT_K
-    score: str | None = None  # the scoring rule; default: the memory's per task, novelty without a memory
     task: str | None = None  # task of episodes whose names do not say it
     views: str | None = None  # `--views`
     reference_runs: int = DEFAULT_REFERENCE_RUNS  # per task, at most this many other episodes as reference
-    cache_dir: Path | None = None
-    device: str | None = None
-    runtime: str | None = None  # torch, onnx or onnx-int8 (docs/runtime.md)
     ray: str | None = None  # a Ray cluster's address: frames decoded and encoded there (docs/ray.md)
-    data_root: Path | None = None  # where the memory's images are now, when its data moved
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
-        check_k(self.k)
-        if self.score is not None:
-            rule_named(self.score)
-        if self.memory is not None and self.successes is not None:
+        if self.detector.memory is not None and self.successes is not None:
             raise SettingError(
                 "--memory and --successes go separately: add the known-good runs to the memory first "
                 "(build-memory SUCCESSES --add-to MEMORY), then triage with --memory"
             )
         if self.reference_runs < 2:
             raise SettingError(f"--reference-runs must be at least 2, got {self.reference_runs}")
+
+    @property
+    def memory(self) -> Path | None:
+        """The memory to judge by (None: a reference built from the data)."""
+        return self.detector.memory
+
+    @property
+    def encoder(self) -> str:
+        """The encoder a reference built from the data uses (a memory uses its own)."""
+        return self.detector.encoder or DEFAULT_RECIPE.encoder
 
 
 @dataclass
@@ -119,16 +123,7 @@ def _reference(
     config: TriageConfig, trajectories: list[Trajectory], tasks: list[str], skipped: list[Skipped]
 ) -> Reference:
     if config.memory is not None:
-        settings = DetectorConfig(
-            memory=config.memory,
-            device=config.device,
-            runtime=config.runtime,
-            cache_dir=config.cache_dir,
-            data_root=config.data_root,
-            k=config.k,
-            rule=config.score,
-        )
-        return memory_reference(settings, tasks, ray=config.ray)
+        return memory_reference(config.detector, tasks, ray=config.ray)
     known_good: list[Trajectory] = []
     if config.successes is not None:
         good = load_dataset(config.successes, task=config.task, views=config.views)
@@ -136,9 +131,9 @@ def _reference(
         known_good = [replace(t, outcome=Outcome.SUCCESS, symbol=None) for t in good if t.task in tasks]
     encoder = open_encoder(
         config.encoder,
-        device=config.device,
-        cache_dir=config.cache_dir,
-        runtime=config.runtime,
+        device=config.detector.device,
+        cache_dir=config.detector.cache_dir,
+        runtime=config.detector.runtime,
         ray=config.ray,
     )
     return built_reference(
@@ -147,9 +142,9 @@ def _reference(
         encoder,
         data=config.data,
         encoder_spec=config.encoder,
-        k=config.k,
+        k=config.detector.k,
         reference_runs=config.reference_runs,
-        rule=config.score,
+        rule=config.detector.rule,
     )
 
 
