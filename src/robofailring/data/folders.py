@@ -52,8 +52,18 @@ def subdirs(directory: Path) -> list[Path]:
     return sorted(found, key=natural_key)
 
 
-def _is_image(path: Path) -> bool:
-    return path.suffix.lower() in IMAGE_SUFFIXES and path.is_file()
+def listing(directory: Path) -> list[tuple[Path, bool]]:
+    """The entries of a folder in natural order, hidden names left out, each with whether it is a file:
+    one scandir, whose entries carry their type, so a folder of 600 frames is not stat-ed file by file."""
+    with os.scandir(directory) as entries:
+        found = [(Path(e.path), e.is_file()) for e in entries if not e.name.startswith(".")]
+    return sorted(found, key=lambda entry: natural_key(entry[0]))
+
+
+def is_image(entry: tuple[Path, bool]) -> bool:
+    """A `listing` entry that is an image file (by its suffix)."""
+    path, is_file = entry
+    return is_file and path.suffix.lower() in IMAGE_SUFFIXES
 
 
 def frame_number(stem: str) -> Decimal | None:
@@ -103,13 +113,17 @@ def _colour(views: Views, skipped: list[Skipped]) -> tuple[Views, list[Skipped]]
     return colour, skipped
 
 
-def aha_files(directory: Path) -> tuple[Views, list[Skipped]]:
-    """Frames of an episode folder of `<view>_<idx>.png` files (a number alone: view `image`), by view."""
+def aha_files(
+    directory: Path, listed: Sequence[tuple[Path, bool]] | None = None
+) -> tuple[Views, list[Skipped]]:
+    """Frames of an episode folder of `<view>_<idx>.png` files (a number alone: view `image`), by view
+    (`listed`: the folder's `listing`, when the caller has it)."""
     grouped: dict[str, list[tuple[Path, Decimal]]] = {}
     unnumbered: list[str] = []
-    for path in visible(directory):
-        if not _is_image(path):
+    for entry in listing(directory) if listed is None else listed:
+        if not is_image(entry):
             continue
+        path = entry[0]
         match = _AHA_FRAME.match(path.stem) or _BARE_FRAME.match(path.stem)
         if match:
             view = match.groupdict().get("view") or BARE_VIEW
@@ -137,8 +151,9 @@ def view_folders(directory: Path) -> tuple[Views, list[Skipped]]:
         numbered: list[tuple[Path, Decimal]] = []
         unnumbered: list[str] = []
         others: list[str] = []
-        for path in visible(sub):
-            if _is_image(path):
+        for entry in listing(sub):
+            path = entry[0]
+            if is_image(entry):
                 number = frame_number(path.stem)
                 if number is not None:
                     numbered.append((path, number))
@@ -173,17 +188,17 @@ def episode_views(directory: Path) -> tuple[Views, list[Skipped]]:
 
     Whatever else the folder holds is returned as skipped, with the reason.
     """
-    entries = visible(directory)
-    views, skipped = aha_files(directory)
+    entries = listing(directory)
+    views, skipped = aha_files(directory, entries)
     if views or skipped:
-        kind, others = "images named <view>_<index>", [p for p in entries if not _is_image(p)]
+        kind, others = "images named <view>_<index>", [entry[0] for entry in entries if not is_image(entry)]
     else:
         views, skipped = view_folders(directory)
-        kind, others = "view folders", [p for p in entries if not p.is_dir()]
+        kind, others = "view folders", [p for p, _ in entries if not p.is_dir()]
         if not views:
             views, skipped = video_views(directory), []
             kind = "videos"
-            others = [p for p in entries if not (p.is_file() and p.suffix.lower() in VIDEO_SUFFIXES)]
+            others = [p for p, is_file in entries if not (is_file and p.suffix.lower() in VIDEO_SUFFIXES)]
     if views:
         skipped += [Skipped(p, f"not part of an episode stored as {kind}") for p in others]
     return views, skipped

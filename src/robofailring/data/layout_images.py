@@ -16,8 +16,16 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Final
 
-from robofailring.data.folders import FRAME_WORDS, Views, aha_files, subdirs, view_folders, visible
-from robofailring.data.images import IMAGE_SUFFIXES
+from robofailring.data.folders import (
+    FRAME_WORDS,
+    Views,
+    aha_files,
+    is_image,
+    listing,
+    subdirs,
+    view_folders,
+    visible,
+)
 from robofailring.data.layout_aha import parse_aha_name
 from robofailring.data.model import Outcome, Skipped, Trajectory
 from robofailring.data.registry import Found, Layout, register
@@ -55,18 +63,20 @@ def nested_episode(directory: Path) -> bool:
 
 
 def _episode_views(directory: Path) -> tuple[Views, list[Skipped]] | None:
-    """The views of an episode folder and what in it is not read, listing it once; None: no episode."""
-    views, skipped = aha_files(directory)
+    """The views of an episode folder and what in it is not read, listing it once (no stat per file);
+    None: no episode."""
+    listed = listing(directory)
+    views, skipped = aha_files(directory, listed)
     if len(views) >= 2 or _one_camera(views, directory):
         kind = "an episode of images named <view>_<n>"
-        others = [p for p in visible(directory) if not (p.suffix.lower() in IMAGE_SUFFIXES and p.is_file())]
+        others = [entry[0] for entry in listed if not is_image(entry)]
     else:
         if not subdirs(directory):
             return None
         views, skipped = view_folders(directory)
         if not views:
             return None
-        kind, others = "an episode of view folders", [p for p in visible(directory) if p.is_file()]
+        kind, others = "an episode of view folders", [p for p, is_file in listed if is_file]
     return views, skipped + [Skipped(p, f"not part of {kind}") for p in others]
 
 
