@@ -153,7 +153,7 @@ def test_leave_one_episode_out_pools_every_labelled_run(
         in markdown
     )
     assert "| 12.5–14.3 | 6–7 |" in markdown
-    assert "**No false-positive-rate guarantee holds here either:**" in markdown
+    assert "**No false-positive-rate guarantee holds for the cross-validation:**" in markdown
     assert "some folds had fewer (" in markdown and " judged at a larger α)" in markdown
 
 

@@ -146,7 +146,7 @@ class CrossValidation:
         if not self.guaranteed:
             lines += [
                 "",
-                f"**No false-positive-rate guarantee holds here either:** α = {100 * self.target_fpr:g} % needs "
+                f"**No false-positive-rate guarantee holds for the cross-validation:** α = {100 * self.target_fpr:g} % needs "
                 f"{successes_needed(self.target_fpr)} success runs to calibrate on and some folds had fewer "
                 f"({self._short_folds()} of {self.plan_folds} judged at a larger α), so the pooled FPR is what "
                 "these runs showed at the α used, not a promise.",
