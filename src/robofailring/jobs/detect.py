@@ -127,25 +127,19 @@ class DetectResult:
         for view in trace.views:
             parts = [f"max {name} = {float(np.nanmax(scores[view])):.3f}" for name, scores in shown.items()]
             lines.append(f"  {view:>10}: " + ", ".join(parts))
+        lines.append(trace.verdict())
         if trace.t_det is None or trace.detected_view is None:
-            lines.append("no failure detected")
             return "\n".join(lines)
         fired_view = trace.detected_view
         found = trace.neighbors(fired_view, trace.t_det)
-        fired_score = float(trace.scores[fired_view][trace.t_det])
-        line = float(trace.threshold_line(view=fired_view)[trace.t_det])
-        said = (
-            f"FAILURE detected at frame {trace.t_det}/{trace.length} in view {fired_view} ({rule.name} rule: "
-            f"{rule.score_name} = {fired_score:.3f} ≥ {line:.3f}"
-        )
         if found:
             top = found[0]
-            said += (
-                f", S⁻_t = {top.similarity:.3f}); nearest memory entry {top.entry.task}/{top.entry.episode} "
-                f"[{top.entry.view}] {top.entry.symbol}: {top.entry.description}"
+            said = (
+                f"nearest memory entry {top.entry.task}/{top.entry.episode} [{top.entry.view}] {top.entry.symbol} "
+                f"(S⁻_t = {top.similarity:.3f}): {top.entry.description}"
             )
         else:
-            said += "); no failure of this task in the memory to compare with"
+            said = "no failure of this task in the memory to compare with"
         match = trace.nearest_success(fired_view, trace.t_det)
         if match is not None:
             said += f"; nearest success frame {match.run.episode} frame {match.frame} (S⁺_t = {match.similarity:.3f})"
