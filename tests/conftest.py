@@ -57,6 +57,7 @@ MAP_FILES = frozenset(
         "viz/test_dense_neighbors.py",
         "viz/test_live.py",
         "viz/test_memory_map.py",
+        "viz/test_notebook.py",
         "viz/test_viz.py",
     )
 )
