@@ -98,7 +98,7 @@ def _pick(result: EvaluationResult, kind: str, rule: ScoringRule) -> tuple[str, 
         return (alarms[0][1], alarms[0][0]) if alarms else None
     misses = sorted(
         (s for s in scored_by_rule if s.key in result.rules[rule.name].misses),
-        key=lambda s: -float(s.scores().max()),
+        key=lambda s: -float(s.peak()),
     )
     return (misses[0].key, int(np.argmax(misses[0].scores()))) if misses else None
 

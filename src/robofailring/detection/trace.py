@@ -208,10 +208,10 @@ class DetectionTrace(RuleThresholds):
         near it came (the judged score's peak, which a band compares with the threshold itself)."""
         rule = self.rule
         if self.t_det is None or self.detected_view is None:
-            peak = self.max_score()
+            peak = self.max_score()  # NaN (a frame not scored) is −∞ here
             if not np.isfinite(peak).any():
                 return f"no alarm ({rule.name} rule: no frame scored)"
-            t = int(np.nanargmax(np.where(np.isfinite(peak), peak, np.nan)))
+            t = int(np.argmax(peak))
             return (
                 f"no alarm ({rule.name} rule: peak {rule.score_name} = {float(peak[t]):.3f} at frame {t} "
                 f"< {self.threshold:.3f}{', band-corrected' if self.band is not None else ''})"

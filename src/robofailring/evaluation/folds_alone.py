@@ -13,6 +13,7 @@ from robofailring.atomic import write_text_atomic
 from robofailring.data.model import Skipped
 from robofailring.errors import SplitError
 from robofailring.evaluation.folds import CrossValidation, cross_validate
+from robofailring.evaluation.result import skipped_inputs_markdown
 from robofailring.evaluation.training import EvaluateConfig, evaluation_encoder, load_labelled
 
 
@@ -44,10 +45,7 @@ class FoldsAlone:
             "with a memory and thresholds of the other runs, whatever the split.",
             *self.cross_validation.to_markdown(),
         ]
-        if self.skipped_inputs:
-            lines += ["", f"Not read from the data ({len(self.skipped_inputs)}):", ""]
-            lines += [f"- `{skipped.path}`: {skipped.reason}" for skipped in self.skipped_inputs]
-        return "\n".join(lines)
+        return "\n".join([*lines, *skipped_inputs_markdown(self.skipped_inputs)])
 
 
 def cross_validate_alone(config: EvaluateConfig, held_out: SplitError) -> FoldsAlone:

@@ -101,19 +101,18 @@ def sweep(
     """
     peaks = [trajectory.peak(views) for trajectory in trajectories]
     failure = np.array([trajectory.is_failure for trajectory in trajectories], dtype=bool)
+    failures, successes = int(failure.sum()), int((~failure).sum())
     curve = []
     for delta in deltas:
         fired = np.fromiter((peak >= float(delta) for peak in peaks), dtype=bool, count=len(peaks))
         tp, fp = int(np.sum(fired & failure)), int(np.sum(fired & ~failure))
-        curve.append(
-            Rates(delta=float(delta), tp=tp, fn=int(failure.sum()) - tp, fp=fp, tn=int((~failure).sum()) - fp)
-        )
+        curve.append(Rates(delta=float(delta), tp=tp, fn=failures - tp, fp=fp, tn=successes - fp))
     return curve
 
 
 def fine_grid(trajectories: Sequence[ScoredTrajectory], *, steps: int = 101) -> list[float]:
     """A δ grid spanning the observed peak scores (plus the paper's δs), for the sweep curve."""
-    peaks = [float(t.scores().max()) for t in trajectories if t.length]
+    peaks = [float(t.peak()) for t in trajectories if t.length]
     finite = [p for p in peaks if np.isfinite(p)]
     low = min([*finite, min(PAPER_DELTAS)]) - 0.01
     high = min(max([*finite, max(PAPER_DELTAS)]) + 0.01, 1.0 + 1e-6)

@@ -238,7 +238,7 @@ class EvaluationResult:
                 {
                     "key": t.key,
                     "symbol": t.symbol,
-                    "peak": json_number(float(t.scores().max())),
+                    "peak": json_number(float(t.peak())),
                     "length": t.length,
                 }
                 for t in self.misses(delta)
@@ -252,7 +252,7 @@ class EvaluationResult:
                     "failure": t.is_failure,
                     "length": t.length,
                     "t_det": t.t_det(delta),
-                    "peak": json_number(float(t.scores().max())),
+                    "peak": json_number(float(t.peak())),
                 }
                 for t in self.scored
             ],
@@ -322,11 +322,7 @@ class EvaluationResult:
                 "",
                 f"Skipped {len(self.skipped_too_short)} test trajectories with no view of 2 or more frames.",
             ]
-        if self.skipped_inputs:
-            lines += ["", f"Not read from the data ({len(self.skipped_inputs)}):", ""]
-            lines += [f"- `{skipped.path}`: {skipped.reason}" for skipped in self.skipped_inputs[:20]]
-            if len(self.skipped_inputs) > 20:
-                lines.append(f"- … and {len(self.skipped_inputs) - 20} more (all in the JSON file)")
+        lines += skipped_inputs_markdown(self.skipped_inputs)
         if self.stride > 1:
             lines += [
                 "",
@@ -377,3 +373,14 @@ class EvaluationResult:
 
 def _pct(value: float) -> str:
     return "—" if math.isnan(value) else f"{100 * value:.2f}"
+
+
+def skipped_inputs_markdown(skipped: Sequence[Skipped], *, shown: int = 20) -> list[str]:
+    """What the loaders did not read, for the tables: the first `shown` with their reason (all in the JSON)."""
+    if not skipped:
+        return []
+    lines = ["", f"Not read from the data ({len(skipped)}):", ""]
+    lines += [f"- `{item.path}`: {item.reason}" for item in skipped[:shown]]
+    if len(skipped) > shown:
+        lines.append(f"- … and {len(skipped) - shown} more (all in the JSON file)")
+    return lines

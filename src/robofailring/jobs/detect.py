@@ -73,9 +73,8 @@ class DetectResult:
     references: ReferenceCheck | None  # the fired neighbours' reference images (None: nothing fired)
     layout: str | None = None  # the layout the trajectory was read from
     views_read: tuple[str, ...] = ()  # its views (after `--views`)
-    fps: float | None = (
-        None  # its frame rate (the layout's, a video's own; None: unknown), for t_det in seconds
-    )
+    # its frame rate (the layout's, a video's own; None: unknown), for t_det in seconds
+    fps: float | None = None
 
     @property
     def notes(self) -> list[str]:
