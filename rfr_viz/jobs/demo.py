@@ -37,7 +37,7 @@ from robofailring.evaluation.run import (
 from robofailring.jobs.simulate import simulate
 from robofailring.jobs.train_encoder import TrainEncoderJob, run_train_encoder
 from robofailring.memory.recipe import DEFAULT_RECIPE, MemoryRecipe
-from robofailring.outputs import check_output_folder
+from robofailring.outputs import check_output_folder, check_own_files
 from robofailring.sim import TASKS, GenerateConfig
 
 
@@ -136,6 +136,13 @@ def run_demo(config: DemoConfig, *, say: Callable[[str], None] = print) -> DemoR
     check_output_folder(config.out, inputs=[data_dir])
     with output_lock(config.out):
         remove_file_leftovers(config.out)
+        names = (
+            "in-distribution.json",
+            "in-distribution.md",
+            "out-of-distribution.json",
+            "out-of-distribution.md",
+        )
+        check_own_files(Path(config.out) / name for name in (*names, REPORT_NAME))
         return _run_demo(config, data_dir, say)
 
 

@@ -18,7 +18,7 @@ from robofailring.evaluation.run import (
     run_evaluation,
     write_evaluation,
 )
-from robofailring.outputs import check_output_folder
+from robofailring.outputs import check_output_folder, check_own_files, check_recording_file
 
 
 @dataclass(frozen=True)
@@ -61,6 +61,8 @@ def evaluate(config: EvaluateConfig, *, growth: tuple[int, ...] = ()) -> Evaluat
         check_growth(config)
     with output_lock(out):
         remove_file_leftovers(out)
+        check_own_files(out / name for name in (f"{config.name}.json", f"{config.name}.md", REPORT_NAME))
+        check_recording_file(out / f"{config.name}.rrd")
         try:
             result = run_evaluation(config)
         except SplitError as held_out:  # with --folds, the cross-validation needs no split

@@ -19,7 +19,7 @@ from rfr_viz.recordings.triage import record_triage
 from rfr_viz.viewer.control import open_at_command, open_command
 from robofailring.atomic import output_lock, remove_file_leftovers
 from robofailring.errors import SettingError
-from robofailring.outputs import check_output_folder, check_recording_file
+from robofailring.outputs import check_output_folder, check_own_files, check_recording_file
 from robofailring.progress import progress_bar
 from robofailring.triage import TriageConfig, TriageResult, run_triage
 from robofailring.triage.table import TRIAGE_NAME, check_table, table_rows, write_table
@@ -83,6 +83,7 @@ def triage(
         remove_file_leftovers(out / REPLAYS)
         check_table(out / TRIAGE_NAME)
         check_recording_file(out / TRIAGE_RECORDING)
+        check_own_files([out / TRIAGE_HTML])
         result = run_triage(config)
         recorded = _replays(config, result, replays if replays >= 0 else len(result.ranked), camera_codec)
         commands = {key: open_at_command(path) for key, path in recorded.items()}

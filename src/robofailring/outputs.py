@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import tempfile
 from collections.abc import Iterable
 from pathlib import Path
@@ -130,3 +131,37 @@ def check_recording_file(path: Path) -> None:
     """Refuse to write a recording over anything that is not a recording (a folder, another file)."""
     if path.is_dir() or (path.exists() and not is_recording(path)):
         raise OutputError(f"{path} exists and is not a Rerun recording; refusing to write over it")
+
+
+_OWN_HTML: Final[bytes] = b"<title>RoboFailRing"  # every page the project writes (report.html, triage.html)
+_OWN_MARKDOWN: Final[re.Pattern[str]] = re.compile(r"## .+ \u2014 encoder `")  # an evaluation's first line
+_OWN_JSON_KEYS: Final[frozenset[str]] = frozenset({"name", "encoder"})  # an evaluation's own keys
+
+
+def _written_here(path: Path) -> bool:
+    """Whether `path` reads as one of the project's own tables or pages (by its suffix): an HTML page
+    titled RoboFailRing, an evaluation's Markdown (its `## <name> — encoder` heading first) or JSON."""
+    try:
+        with path.open("rb") as handle:
+            head = handle.read(4096)
+        if path.suffix == ".html":
+            return _OWN_HTML in head
+        if path.suffix == ".md":
+            return _OWN_MARKDOWN.match(head.decode("utf-8", "replace")) is not None
+        if path.suffix == ".json":
+            document = json.loads(path.read_text(encoding="utf-8"))
+            return isinstance(document, dict) and document.keys() >= _OWN_JSON_KEYS
+    except (OSError, ValueError, RecursionError):
+        return False
+    return False
+
+
+def check_own_files(paths: Iterable[Path]) -> None:
+    """Refuse to replace a file that is there but was not written by this project (a user's own
+    `report.html` or `evaluation.json` in `--out`): OutputError naming it, before any work."""
+    for path in map(Path, paths):
+        if path.is_dir() or ((path.exists() or path.is_symlink()) and not _written_here(path)):
+            raise OutputError(
+                f"{path} exists and was not written by robofailring; refusing to replace it: move it away "
+                "or choose another --out"
+            )
