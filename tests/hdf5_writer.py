@@ -13,6 +13,21 @@ import numpy as np
 Frames = Callable[[int, int, int], np.ndarray]  # (episode, camera, t) -> (H, W, 3) uint8
 
 
+def robomimic_actions(demo: int, length: int) -> np.ndarray:
+    """The `actions` the writer stores for a demo: (length, 7), a ramp per dimension."""
+    return np.arange(length)[:, None] * 0.1 + np.arange(7)[None] + demo
+
+
+def robomimic_eef(demo: int, length: int) -> np.ndarray:
+    """The `obs/robot0_eef_pos` the writer stores for a demo: (length, 3)."""
+    return np.stack([np.arange(length) * 0.01, np.full(length, demo), np.full(length, 0.5)], axis=1)
+
+
+def aloha_joints(episode: int, length: int) -> np.ndarray:
+    """The `qpos` the writer stores for an episode (its `action` is this plus one): (length, 14)."""
+    return np.arange(length)[:, None] * 0.01 + np.arange(14)[None] + 100 * episode
+
+
 def write_robomimic(
     path: Path,
     frames: Frames,
@@ -48,7 +63,7 @@ def write_robomimic(
         for demo in range(demos):
             group = data.create_group(f"demo_{demo}")
             group.attrs["num_samples"] = length
-            group.create_dataset("actions", data=np.zeros((length, 7), np.float64))
+            group.create_dataset("actions", data=robomimic_actions(demo, length))
             group.create_dataset("dones", data=np.eye(1, length, length - 1, dtype=np.int64)[0])
             group.create_dataset("rewards", data=np.zeros(length))
             group.create_dataset("states", data=np.zeros((length, 32)))
@@ -58,7 +73,7 @@ def write_robomimic(
                 if opengl:
                     stack = stack[:, ::-1]
                 obs.create_dataset(camera, data=stack, chunks=(1, *stack.shape[1:]), compression="gzip")
-            obs.create_dataset("robot0_eef_pos", data=np.zeros((length, 3)))
+            obs.create_dataset("robot0_eef_pos", data=robomimic_eef(demo, length))
         if masks:
             group = handle.create_group("mask")
             for split, members in masks.items():
@@ -104,9 +119,9 @@ def write_aloha(
                 else:
                     stack = np.stack(images[cam])
                     group.create_dataset(cam, data=stack, dtype="uint8", chunks=(1, *stack.shape[1:]))
-            obs.create_dataset("qpos", data=np.zeros((length, 14)))
+            obs.create_dataset("qpos", data=aloha_joints(episode, length))
             obs.create_dataset("qvel", data=np.zeros((length, 14)))
-            root.create_dataset("action", data=np.zeros((length, 14)))
+            root.create_dataset("action", data=aloha_joints(episode, length) + 1)
             if compress:
                 root.create_dataset("compress_len", data=lengths)
     return folder

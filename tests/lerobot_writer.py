@@ -75,7 +75,9 @@ def _features(cameras: Sequence[str], size: int, fps: int, codec: str) -> dict[s
         }
         for camera in cameras
     }
-    features["observation.state"] = {"dtype": "float32", "shape": [2], "names": None}
+    # names as lerobot 0.4 writes them (a list) and as v2.1 datasets often do (a dict of one list)
+    features["observation.state"] = {"dtype": "float32", "shape": [2], "names": ["time", "episode"]}
+    features["action"] = {"dtype": "float32", "shape": [3], "names": {"motors": ["x", "y", "gripper"]}}
     for name, dtype in (
         ("timestamp", "float32"),
         ("frame_index", "int64"),
@@ -87,15 +89,29 @@ def _features(cameras: Sequence[str], size: int, fps: int, codec: str) -> dict[s
     return features
 
 
+def signal_action(episode: int, t: int) -> tuple[float, float, float]:
+    """The `action` row the writers store for frame t of an episode (exact in float32)."""
+    return (0.5 * t, -float(t), float(episode % 2))
+
+
 def _frame_table(lengths: Sequence[int], task_of: Sequence[int], fps: int, first: int = 0) -> pa.Table:
     rows: dict[str, list[object]] = {
         k: []
-        for k in ("observation.state", "timestamp", "frame_index", "episode_index", "index", "task_index")
+        for k in (
+            "observation.state",
+            "action",
+            "timestamp",
+            "frame_index",
+            "episode_index",
+            "index",
+            "task_index",
+        )
     }
     index = first
     for episode, length in enumerate(lengths):
         for t in range(length):
             rows["observation.state"].append([float(t), float(episode)])
+            rows["action"].append(list(signal_action(episode, t)))
             rows["timestamp"].append(t / fps)
             rows["frame_index"].append(t)
             rows["episode_index"].append(episode)
@@ -105,6 +121,7 @@ def _frame_table(lengths: Sequence[int], task_of: Sequence[int], fps: int, first
     return pa.table(
         {
             "observation.state": pa.array(rows["observation.state"], pa.list_(pa.float32())),
+            "action": pa.array(rows["action"], pa.list_(pa.float32(), 3)),
             "timestamp": pa.array(rows["timestamp"], pa.float32()),
             **{
                 k: pa.array(rows[k], pa.int64())
@@ -124,8 +141,10 @@ def write_lerobot_v3(
     fps: int = 10,
     codec: str = "av1",
     frame: FrameFn | None = None,
+    shuffled: bool = False,
 ) -> Path:
-    """A LeRobot v3.0 dataset: every camera's episodes concatenated into one shared mp4."""
+    """A LeRobot v3.0 dataset: every camera's episodes concatenated into one shared mp4 (`shuffled`: the
+    data parquet's frame rows in a random order, as a dataset edited or merged by other tools may have them)."""
     make = frame or (lambda e, c, t: scene(e, c, t, size))
     unique = list(dict.fromkeys(tasks))
     task_of = [unique.index(task) for task in tasks]
@@ -152,7 +171,10 @@ def write_lerobot_v3(
         root / "meta" / "tasks.parquet",
     )
     (root / "data" / "chunk-000").mkdir(parents=True)
-    pq.write_table(_frame_table(lengths, task_of, fps), root / "data" / "chunk-000" / "file-000.parquet")
+    table = _frame_table(lengths, task_of, fps)
+    if shuffled:
+        table = table.take(np.random.default_rng(0).permutation(table.num_rows))
+    pq.write_table(table, root / "data" / "chunk-000" / "file-000.parquet")
     starts = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(int)
     episodes: dict[str, list[object]] = {
         "episode_index": list(range(len(lengths))),

@@ -92,18 +92,22 @@ def write_bag(
     count: int,
     extra_topics: Sequence[str] = (),
     timing: dict[str, tuple[int, int]] | None = None,
+    joint_states: tuple[str, int] | None = None,
 ) -> Path:
     """A bag at `path` (`kind`: ros1 → a `.bag` file; mcap / sqlite3 → a ROS 2 bag folder; mcap_file →
     a bare `.mcap` file, the storage file of a ROS 2 bag without its `metadata.yaml`).
 
-    `extra_topics` are `std_msgs/msg/String` topics with one message each (not images). A topic of
+    `extra_topics` are `std_msgs/msg/String` topics with one message each (not images). `joint_states`
+    (topic, period in ns) adds a `sensor_msgs/msg/JointState` topic from START_NS every period over the
+    same span: joints JOINTS (listed reversed in every odd message), positions `joint_position(n, j)` of
+    message n, velocities j, no efforts. A topic of
     `timing` (topic → (start offset, period) in ns) has its messages from START_NS + offset every
     period while before START_NS + count periods of 0.1 s; the others have `count` messages 0.1 s apart.
     """
     if kind == "mcap_file":
         folder = write_bag(
             path.with_suffix(".tmp"), kind="mcap", topics=topics, frames=frames, count=count,
-            extra_topics=extra_topics, timing=timing,
+            extra_topics=extra_topics, timing=timing, joint_states=joint_states,
         )  # fmt: skip
         next(folder.glob("*.mcap")).rename(path)
         shutil.rmtree(folder)
@@ -142,4 +146,33 @@ def write_bag(
         for stamp, number, t in sorted(events):
             msgtype, message = _message(store, frames(number, t), topics[number][1], stamp)
             writer.write(connections[number], stamp, serialize(message, msgtype))
+        if joint_states is not None:
+            topic, period = joint_states
+            joints = writer.add_connection(topic, JOINT_STATE, typestore=store)
+            for n, stamp in enumerate(range(START_NS, START_NS + count * PERIOD_NS, period)):
+                message = _joint_state(store, n, stamp)
+                writer.write(joints, stamp, serialize(message, JOINT_STATE))
     return path
+
+
+JOINT_STATE = "sensor_msgs/msg/JointState"
+JOINTS = ("shoulder", "elbow", "wrist")
+
+
+def joint_position(n: int, joint: int) -> float:
+    return 0.1 * n + joint
+
+
+def _joint_state(store: Any, n: int, stamp: int) -> Any:
+    types = store.types
+    order = list(range(len(JOINTS)))[:: -1 if n % 2 else 1]
+    header = types["std_msgs/msg/Header"](
+        stamp=types["builtin_interfaces/msg/Time"](sec=stamp // 10**9, nanosec=stamp % 10**9), frame_id="base"
+    )
+    return types[JOINT_STATE](
+        header=header,
+        name=[JOINTS[j] for j in order],
+        position=np.asarray([joint_position(n, j) for j in order], np.float64),
+        velocity=np.asarray(order, np.float64),
+        effort=np.zeros(0, np.float64),
+    )

@@ -70,8 +70,9 @@ def test_layout_and_manifest(dataset: Path) -> None:
     assert not [p for p in dataset.iterdir() if p.name.startswith(".")]
     for record in records:
         folder = dataset / record["dir"]
-        expected = {f"{view}_{i}.png" for view in VIEWS for i in range(FRAMES)}
+        expected = {f"{view}_{i}.png" for view in VIEWS for i in range(FRAMES)} | {"signals.npz"}
         assert {p.name for p in folder.iterdir()} == expected
+        assert record["signals"]["file"] == "signals.npz"
         assert read_image(folder / "wrist_0.png").shape == (SIZE, SIZE, 3)
         number = int(record["dir"].rsplit("episode", 1)[1])
         assert record["split"] == ("train" if number % 2 == 0 else "test")
@@ -217,3 +218,22 @@ def test_contact_sheet(tmp_path: Path, dataset: Path) -> None:
     out = contact_sheet(dataset, tmp_path / "sheet.png", tile=48)
     image = read_image(out)
     assert image.shape[1] > 3 * 48 and image.shape[0] > 8 * 48
+
+
+def test_the_robot_records_its_signals_beside_the_cameras(dataset: Path) -> None:
+    """Joint positions, gripper width, end-effector pose and the commanded action at every frame, as the
+    manifest names them; a grasp that never forms shows in the gripper: it never closes on a cube."""
+    by_label = {t.label: t for t in load_dataset(dataset).trajectories()}
+    success, grasp = by_label["success"], next(t for label, t in by_label.items() if label.startswith("grasp"))
+    signals, skipped = success.read_signals()
+    assert skipped == [] and sorted(signals) == ["action", "ee_pose", "gripper_width", "joint_positions"]
+    assert signals["joint_positions"].dims[:2] == ("panda_joint1", "panda_joint2")
+    assert signals["ee_pose"].dims == ("x", "y", "z", "qx", "qy", "qz", "qw")
+    assert signals["action"].kind.value == "action" and signals["action"].values.shape == (FRAMES, 8)
+    width = signals["gripper_width"].values[:, 0]
+    assert width[0] == pytest.approx(0.08, abs=2e-3)  # open at the start
+    assert 0.02 < width.min() < 0.06  # closed on the cube (its size) while carrying it
+    quaternion = signals["ee_pose"].values[:, 3:]
+    np.testing.assert_allclose(np.linalg.norm(quaternion, axis=1), 1.0, atol=1e-3)
+    missed, _ = grasp.read_signals(["gripper_width"])
+    assert missed["gripper_width"].values.min() > 0.07 or missed["gripper_width"].values.min() < 0.01

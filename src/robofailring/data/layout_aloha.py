@@ -1,5 +1,8 @@
 """ALOHA / ACT episodes: a folder of `episode_<i>.hdf5`, each `/observations/images/<cam>` (+ qpos, action).
 
+`/observations/qpos`, `qvel`, `effort` (state) and `/action` are the episode's signals, their 14
+dimensions named by ALOHA's joints (`left_waist` … `right_gripper`).
+
 A camera is raw (N, H, W, 3) uint8, or, when the file's `compress` attribute is true, (N, L) uint8
 rows each holding one JPEG padded with zeros; either is read a row at a time. ALOHA's
 `record_episodes.py` JPEG-encodes the camera's RGB array as it is (`cv2.imencode`) and ACT reads it
@@ -26,6 +29,7 @@ from robofailring.data.hdf5 import (
     open_hdf5,
     row_format,
 )
+from robofailring.data.hdf5_signals import aloha_signals
 from robofailring.data.model import Frame, Skipped, Trajectory
 from robofailring.data.registry import Found, Layout, register
 from robofailring.errors import DataError
@@ -55,7 +59,9 @@ def aloha_episode(path: Path, *, task: str) -> Trajectory:
         raise DataError(
             f"HDF5 file {path} has no camera under /observations/images; it holds: {describe(handle)}"
         )
-    return Trajectory(task=task, episode=path.stem, views=views, source=path)
+    return Trajectory(
+        task=task, episode=path.stem, views=views, source=path, signals=aloha_signals(path, handle)
+    )
 
 
 def aloha_trajectories(root: Path, *, task: str | None = None) -> Found:

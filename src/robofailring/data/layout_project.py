@@ -3,13 +3,17 @@
 from __future__ import annotations
 
 import json
-from dataclasses import replace
+import zipfile
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Final
+
+import numpy as np
 
 from robofailring.data.folders import aha_files
 from robofailring.data.model import Outcome, Skipped, Trajectory, parse_onset_frame
 from robofailring.data.registry import Found, Layout, register
+from robofailring.data.signals import Signal, SignalKind
 from robofailring.errors import DataError
 
 PROJECT_MANIFEST: Final[str] = "manifest.json"
@@ -42,6 +46,10 @@ def project_trajectories(root: Path, manifest: dict[str, Any]) -> Found:
             raise DataError(f"{root / PROJECT_MANIFEST} lists {record['dir']} but {directory} is missing")
         listed.add(Path(record["dir"]).parts[0])
         views, inside = aha_files(directory)
+        signals, signals_file = project_signals(
+            directory, record, where=f"{root / PROJECT_MANIFEST} episode {record['dir']}"
+        )
+        inside = [skipped for skipped in inside if skipped.path.name != signals_file]
         wanted = record.get("views")
         if wanted:
             views = {view: views.get(view, ()) for view in wanted}
@@ -55,6 +63,7 @@ def project_trajectories(root: Path, manifest: dict[str, Any]) -> Found:
             fps=record.get("fps", manifest.get("fps")),
             split=record.get("split"),
             skipped=tuple(inside),
+            signals=signals,
         )
         if outcome is Outcome.FAILURE:  # manifests from before onsets have none: unknown
             where = f"{root / PROJECT_MANIFEST} episode {record['dir']}"
@@ -67,6 +76,51 @@ def project_trajectories(root: Path, manifest: dict[str, Any]) -> Found:
         if p.name not in listed and p.name != PROJECT_MANIFEST and not p.name.startswith(".")
     ]
     return found, unlisted
+
+
+def project_signals(
+    directory: Path, record: dict[str, Any], *, where: str
+) -> tuple[dict[str, Signal], str | None]:
+    """An episode's signals as its record describes them (`signals`: the `.npz` file beside its frames,
+    each signal's kind and dimension names), and that file's name; none for records from before signals."""
+    described = record.get("signals")
+    if described is None:
+        return {}, None
+    try:
+        file = str(described["file"])
+        signals = {
+            str(name): Signal(
+                name=str(name),
+                kind=SignalKind(spec["kind"]),
+                source=NpzSignal(directory / file, str(name)),
+                dims=tuple(str(dim) for dim in spec.get("names") or ()),
+            )
+            for name, spec in described["signals"].items()
+        }
+    except (KeyError, TypeError, ValueError, AttributeError) as error:
+        raise DataError(f"{where}: bad signals record {described!r} ({error!r})") from error
+    if Path(file).name != file or file.startswith("."):
+        raise DataError(f"{where}: signals file {file!r} is not a file name inside the episode's folder")
+    return signals, file
+
+
+@dataclass(frozen=True)
+class NpzSignal:
+    """One array of an episode's `signals.npz` (read without pickles)."""
+
+    file: Path
+    key: str
+
+    def load(self) -> np.ndarray:
+        try:
+            with np.load(self.file, allow_pickle=False) as stored:
+                return np.asarray(stored[self.key])
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as error:
+            raise DataError(f"cannot read {self.reference}: {error}") from error
+
+    @property
+    def reference(self) -> str:
+        return f"{self.file}#{self.key}"
 
 
 def _detect(root: Path) -> bool:

@@ -3,7 +3,7 @@
 `data/demo_<i>/obs/<camera>_image` (LIBERO: `<camera>_rgb`) as (N, H, W, 3) uint8 is view `<camera>`;
 `data` attributes hold `env_args` (JSON) and, in LIBERO, `problem_info` (JSON with the
 `language_instruction`, the task); `mask/<split>` lists demo names, used as splits. Trajectories are
-keyed by the demo's name (`demo_3`); frames are rows sliced on demand, LIBERO's bottom-up rows
+keyed by the demo's name (`demo_3`); low-dim `obs/<key>` arrays and `actions` are its signals; frames are rows sliced on demand, LIBERO's bottom-up rows
 (`data` attribute `macros_image_convention` = `opengl`) flipped upright. The task: `--task`, else
 LIBERO's instruction, else `env_args`'s `env_name`.
 
@@ -32,6 +32,7 @@ from robofailring.data.hdf5 import (
     open_hdf5,
     row_format,
 )
+from robofailring.data.hdf5_signals import robomimic_signals
 from robofailring.data.model import Frame, Outcome, Skipped, Trajectory
 from robofailring.data.registry import Found, Layout, register
 from robofailring.errors import DataError
@@ -181,6 +182,7 @@ def _file_trajectories(root: Path, *, task: str | None, prefix: str) -> Found:
                 source=root,
                 fps=float(fps) if isinstance(fps, (int, float)) else None,
                 split=splits.get(demo),
+                signals=robomimic_signals(root, data[demo], demo),
             )
         )
     if not found:

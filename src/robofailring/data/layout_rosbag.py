@@ -11,8 +11,9 @@ Opening a bag lists every image message's log time once (nothing kept but the ti
 its one message on demand, by time, so a long bag is never held whole, and at most `_OPEN_LIMIT`
 bags are open at once. Encodings rgb8, bgr8, 8UC3 (OpenCV's BGR), rgba8, bgra8 (alpha dropped),
 mono8 and JPEG/PNG compressed images are read; a topic of another (16UC1 or mono16 depth,
-compressedDepth, Bayer, …) is listed as not read, naming the topic and its encoding; topics that are
-not images (/tf, /joint_states) are not camera data and not listed. A bag with no readable image
+compressedDepth, Bayer, …) is listed as not read, naming the topic and its encoding; each
+`sensor_msgs/msg/JointState` topic gives signals on the frames' timeline (`rosbag_signals`); other
+topics that are not images (/tf) are not camera data and not listed. A bag with no readable image
 topic is an error naming what it holds (in a folder of bags: listed as not read, the others read).
 The trajectory key is the bag's name
 (its folder, or the file's stem); outcome and symbol come from `--labels` (`episode` column = the
@@ -21,6 +22,7 @@ bag's name), the task from `--task`, else it is the name of the folder holding t
 
 from __future__ import annotations
 
+import sys
 import threading
 from contextlib import closing
 from dataclasses import dataclass
@@ -30,32 +32,18 @@ from typing import Any, Final
 import numpy as np
 
 from robofailring.data.folders import visible
-from robofailring.data.images import check_frame_size, content_digest, decode_image
+from robofailring.data.images import content_digest
 from robofailring.data.model import Frame, LazyFrames, Skipped, Trajectory
 from robofailring.data.open_files import OpenLimit
 from robofailring.data.registry import Found, Layout, register
+from robofailring.data.ros_messages import COMPRESSED, IMAGE, READABLE, encoding_problem, to_rgb
+from robofailring.data.rosbag_signals import joint_state_signals
 from robofailring.errors import DataError, read_error
 from robofailring.extras import needs_extra
 
 ROS2_METADATA: Final[str] = "metadata.yaml"
 ROS1_SUFFIX: Final[str] = ".bag"
 MCAP_SUFFIX: Final[str] = ".mcap"  # a ROS 2 bag's storage file, also read without its metadata.yaml
-IMAGE: Final[str] = "sensor_msgs/msg/Image"
-COMPRESSED: Final[str] = "sensor_msgs/msg/CompressedImage"
-#: Image encodings read, with their channels and whether those are in BGR order.
-RAW_ENCODINGS: Final[dict[str, tuple[int, bool]]] = {
-    "rgb8": (3, False),
-    "bgr8": (3, True),
-    "8UC3": (3, True),  # OpenCV's default channel order
-    "rgba8": (4, False),
-    "bgra8": (4, True),
-    "mono8": (1, False),
-}
-DEPTH_ENCODINGS: Final[tuple[str, ...]] = ("16UC1", "mono16", "32FC1")
-COMPRESSED_FORMATS: Final[tuple[str, ...]] = ("jpeg", "jpg", "png")
-READABLE: Final[str] = (
-    f"readable: Image encodings {', '.join(RAW_ENCODINGS)} and CompressedImage {'/'.join(COMPRESSED_FORMATS)}"
-)
 #: A bag frame's reference: `<bag>#topic=<topic>&message=<i>` (the bag is `reference_file`'s file).
 BAG_MESSAGE_MARKER: Final[str] = "#topic="
 _OPEN_LIMIT: Final[int] = 8  # bags kept open at once (a folder of bags is read one bag after another)
@@ -182,50 +170,32 @@ class BagFile:
             message = self._open().deserialize(data, msgtype)
         return encoding_problem(message, msgtype)
 
+    def topics_of(self, msgtype: str) -> list[str]:
+        """The names of the topics of one message type (`sensor_msgs/msg/JointState`)."""
+        with self._lock:
+            return sorted({c.topic for c in self._open().connections if c.msgtype == msgtype})
+
+    def decoded(self, topic: str, *, limit: int | None = None) -> list[tuple[int, Any]]:
+        """The messages of a topic (the first `limit`), deserialized, with their log times (ns), in time order."""
+        with self._lock:
+            reader = self._open()
+            connections = [c for c in reader.connections if c.topic == topic]
+            try:
+                with closing(reader.messages(connections=connections)) as messages:
+                    return [
+                        (int(stamp), reader.deserialize(data, connection.msgtype))
+                        for (connection, stamp, data), _ in zip(
+                            messages, range(limit or sys.maxsize), strict=False
+                        )
+                    ]
+            except Exception as error:  # rosbags raises its own reader errors per storage format
+                raise DataError(f"cannot read {topic} of ROS bag {self.path}: {error}") from error
+
     def close(self) -> None:
         with self._lock:
             if self._reader is not None:
                 self._reader.close()
             self._reader = None
-
-
-def encoding_problem(message: Any, msgtype: str) -> str | None:
-    """What makes an image message unreadable (`encoding '16UC1' (…)`), or None when it is readable."""
-    if msgtype == IMAGE:
-        encoding = str(message.encoding)
-        if encoding in RAW_ENCODINGS:
-            return None
-        if encoding in DEPTH_ENCODINGS:
-            return f"encoding {encoding!r} (a depth image, not a colour camera)"
-        return f"encoding {encoding!r}"
-    form = str(message.format).lower()
-    if "compresseddepth" in form:
-        return f"CompressedImage format {message.format!r} (a depth image, not a colour camera)"
-    if any(name in form for name in COMPRESSED_FORMATS):
-        return None
-    return f"CompressedImage format {message.format!r}"
-
-
-def to_rgb(message: Any, msgtype: str, *, where: str) -> np.ndarray:
-    """A readable Image or CompressedImage message (`RAW_ENCODINGS`, JPEG, PNG) as (H, W, 3) uint8 RGB."""
-    problem = encoding_problem(message, msgtype)
-    if problem is not None:
-        raise DataError(f"{where}: {problem} is not readable")
-    if msgtype == COMPRESSED:
-        return decode_image(bytes(message.data), source=where)
-    height, width, step = int(message.height), int(message.width), int(message.step)
-    check_frame_size(width, height, source=where)
-    channels, bgr = RAW_ENCODINGS[str(message.encoding)]
-    data = np.asarray(message.data, dtype=np.uint8)
-    if step < width * channels or data.size < height * step:
-        raise DataError(
-            f"{where}: {height}×{width} {message.encoding} needs {height * width * channels} bytes"
-        )
-    rows = data[: height * step].reshape(height, step)[:, : width * channels]
-    image = rows.reshape(height, width, channels)
-    if channels == 1:
-        return np.ascontiguousarray(np.repeat(image, 3, axis=2))
-    return np.ascontiguousarray(image[:, :, 2::-1] if bgr else image[:, :, :3])
 
 
 _OPEN: OpenLimit[BagFile] = OpenLimit(_OPEN_LIMIT)
@@ -332,7 +302,9 @@ def bag_trajectory(path: Path, *, task: str | None) -> Trajectory:
         views={name: BagFrames(bag, name, timeline=slowest if name in timed else name) for name in readable},
         source=path,
         fps=(len(times) - 1) / span if span > 0 else None,
-        skipped=tuple(unread),  # a bag's other topics (/tf, /joint_states) are not camera data left unread
+        skipped=tuple(unread),  # a bag's other topics (/tf, …) are not camera data left unread
+        signals=joint_state_signals(bag, times),
+        timestamps=(times - times[0]) / 1e9,
     )
 
 

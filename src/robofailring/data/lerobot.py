@@ -4,8 +4,10 @@
 parquet (v3.0) or JSON lines (v2.1); per-frame timestamps from the data parquet. Each
 `observation.images.<name>` video feature is a view `<name>`, decoded lazily by timestamp with
 the shared PyAV reader: frame i of an episode is at `from_timestamp + timestamp_i` of its
-(possibly shared) mp4. The episode's task string is the task; trajectories are keyed
-`episode_<index>`; outcome and symbol come from a labels file.
+(possibly shared) mp4. Every other numeric feature (`observation.state`, `action`, …) is a signal
+read on demand (`robofailring.data.lerobot_signals`), and each frame's `timestamp` is kept. The
+episode's task string is the task; trajectories are keyed `episode_<index>`; outcome and symbol come
+from a labels file.
 """
 
 from __future__ import annotations
@@ -13,11 +15,13 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
 import numpy as np
 
+from robofailring.data.lerobot_signals import episode_signals, signal_features
 from robofailring.data.model import Frame, Skipped, Trajectory
 from robofailring.data.registry import Layout, register
 from robofailring.data.video import VideoFrames, open_video
@@ -144,10 +148,11 @@ def lerobot_trajectories(root: Path) -> tuple[list[Trajectory], list[Skipped]]:
         raise DataError(
             f"LeRobot dataset {root} has no video feature named {IMAGE_PREFIX}<camera> in {root / INFO}"
         )
+    signals = signal_features(features)
     if version.startswith("v3"):
-        trajectories = _v3(root, info, cameras)
+        trajectories = _v3(root, info, cameras, signals)
     elif version.startswith("v2"):
-        trajectories = _v2(root, info, cameras)
+        trajectories = _v2(root, info, cameras, signals)
     else:
         raise DataError(
             f"LeRobot dataset {root}: codebase_version {version!r}; this reader knows v2.1 and v3.0"
@@ -181,8 +186,25 @@ def _task_of(tasks: Any, where: str) -> str:
     raise DataError(f"{where}: no task string (tasks = {tasks!r})")
 
 
+@dataclass(frozen=True)
+class _Episode:
+    """What every episode of a dataset shares: its root, fps and signal features."""
+
+    root: Path
+    fps: float
+    signals: dict[str, tuple[str, ...]]
+
+
 def _trajectory(
-    root: Path, index: int, task: str, fps: float, views: dict[str, VideoFrames], length: int, where: str
+    shared: _Episode,
+    index: int,
+    task: str,
+    views: dict[str, VideoFrames],
+    length: int,
+    where: str,
+    *,
+    stamps: np.ndarray,
+    data: Sequence[Path],
 ) -> Trajectory:
     for view, frames in views.items():
         if len(frames) != length:
@@ -190,11 +212,19 @@ def _trajectory(
                 f"{where}: episode {index} has length {length} but {len(frames)} frame rows for {view}"
             )
     return Trajectory(
-        task=task, episode=f"episode_{index}", views=dict[str, Sequence[Frame]](views), source=root, fps=fps
+        task=task,
+        episode=f"episode_{index}",
+        views=dict[str, Sequence[Frame]](views),
+        source=shared.root,
+        fps=shared.fps,
+        signals=episode_signals(shared.signals, data, index),
+        timestamps=stamps,
     )
 
 
-def _v3(root: Path, info: dict[str, Any], cameras: dict[str, str]) -> list[Trajectory]:
+def _v3(
+    root: Path, info: dict[str, Any], cameras: dict[str, str], signals: dict[str, tuple[str, ...]]
+) -> list[Trajectory]:
     episode_files = sorted((root / "meta" / "episodes").glob("chunk-*/file-*.parquet"))
     if not episode_files:
         raise DataError(f"LeRobot v3.0 dataset {root} has no meta/episodes/chunk-*/file-*.parquet")
@@ -205,7 +235,7 @@ def _v3(root: Path, info: dict[str, Any], cameras: dict[str, str]) -> list[Traje
     if not data_files:
         raise DataError(f"LeRobot v3.0 dataset {root} has no data/chunk-*/file-*.parquet")
     stamps = _timestamps(data_files)
-    fps = float(info["fps"])
+    shared = _Episode(root, float(info["fps"]), signals)
     trajectories = []
     for path in episode_files:
         columns = ["episode_index", "tasks", "length"]
@@ -213,19 +243,21 @@ def _v3(root: Path, info: dict[str, Any], cameras: dict[str, str]) -> list[Traje
             columns += [f"videos/{key}/{c}" for c in ("chunk_index", "file_index", "from_timestamp")]
         table = _read_table(path, columns)
         for row in range(len(table["episode_index"])):
-            trajectories.append(_v3_episode(root, path, table, row, cameras, video_path, stamps, fps))
+            trajectories.append(
+                _v3_episode(shared, path, table, row, cameras, video_path, stamps, data_files)
+            )
     return sorted(trajectories, key=lambda t: int(t.episode.split("_")[-1]))
 
 
 def _v3_episode(
-    root: Path,
+    shared: _Episode,
     path: Path,
     table: dict[str, list[Any]],
     row: int,
     cameras: dict[str, str],
     video_path: str,
     stamps: dict[int, np.ndarray],
-    fps: float,
+    data: Sequence[Path],
 ) -> Trajectory:
     """Row `row` of the episode table `path`; a missing or mistyped value names the file and row."""
     try:
@@ -241,6 +273,7 @@ def _v3_episode(
     except (TypeError, ValueError, OverflowError) as error:
         raise DataError(f"{path} row {row}: a missing or mistyped value ({error})") from error
     where = f"{path} (episode {index})"
+    root = shared.root
     if index not in stamps:
         raise DataError(f"{where}: no frame rows for this episode in {root / 'data'}")
     views = {}
@@ -250,15 +283,18 @@ def _v3_episode(
         if not _exists(file):
             raise DataError(f"{where}: video {file} is missing")
         views[view] = VideoFrames(open_video(file), start + stamps[index])
-    return _trajectory(root, index, _task_of(table["tasks"][row], where), fps, views, length, where)
+    task = _task_of(table["tasks"][row], where)
+    return _trajectory(shared, index, task, views, length, where, stamps=stamps[index], data=data)
 
 
-def _v2(root: Path, info: dict[str, Any], cameras: dict[str, str]) -> list[Trajectory]:
+def _v2(
+    root: Path, info: dict[str, Any], cameras: dict[str, str], signals: dict[str, tuple[str, ...]]
+) -> list[Trajectory]:
     episodes = _read_jsonl(root / "meta" / "episodes.jsonl")
     data_path: str = info.get("data_path") or ""
     video_path: str = info.get("video_path") or ""
     chunks = int(info.get("chunks_size") or 1000)
-    fps = float(info["fps"])
+    shared = _Episode(root, float(info["fps"]), signals)
     trajectories = []
     for number, record in enumerate(episodes, 1):
         where = f"{root / 'meta' / 'episodes.jsonl'}:{number}"
@@ -279,7 +315,9 @@ def _v2(root: Path, info: dict[str, Any], cameras: dict[str, str]) -> list[Traje
                 raise DataError(f"{where}: video {file} is missing")
             views[view] = VideoFrames(open_video(file), stamps)
         task = _task_of(record.get("tasks"), where)
-        trajectories.append(_trajectory(root, index, task, fps, views, length, where))
+        trajectories.append(
+            _trajectory(shared, index, task, views, length, where, stamps=stamps, data=[data])
+        )
     return trajectories
 
 

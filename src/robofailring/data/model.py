@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
 from functools import cached_property
@@ -13,6 +13,7 @@ from typing import Protocol, overload
 import numpy as np
 
 from robofailring.data.images import as_rgb, content_digest, read_image
+from robofailring.data.signals import Signal, SignalValues, read_signal
 from robofailring.errors import DataError, read_error
 
 
@@ -187,7 +188,7 @@ def _numbered_run(names: Sequence[str]) -> tuple[str, int, int, str] | None:
 
 @dataclass(frozen=True)
 class Trajectory:
-    """A replayable episode: task, label and per-view ordered frames.
+    """A replayable episode: task, label, per-view ordered frames and the robot's own signals.
 
     `symbol` is the FailGen failure symbol (e.g. ``rotation_x_wp1``) or None for a success or an
     unlabelled trajectory; `outcome` is None when the source does not say. `onset_frame` is where a
@@ -207,6 +208,12 @@ class Trajectory:
     skipped: tuple[Skipped, ...] = ()  # files of this episode that were not read, with the reason
     layout: str | None = None  # the dataset layout it was read from (set by `load_dataset`)
     onset_frame: int | None = None  # a failure's first frame of the fault (its perturbation); None: unknown
+    #: the robot's own signals by name (joint state, gripper, actions; `robofailring.data.signals`), read
+    #: on demand with `read_signals()`; empty where the layout stores none (videos, image folders)
+    signals: Mapping[str, Signal] = field(default_factory=dict, compare=False)
+    #: each frame's time in seconds from the episode's start, where the data keeps one (LeRobot's
+    #: `timestamp`, a bag's log times); None: frames are evenly spaced at `fps`
+    timestamps: np.ndarray | None = field(default=None, compare=False, repr=False)
 
     @property
     def key(self) -> str:
@@ -233,6 +240,24 @@ class Trajectory:
     @property
     def view_names(self) -> list[str]:
         return list(self.views)
+
+    def read_signals(
+        self, names: Iterable[str] | None = None
+    ) -> tuple[dict[str, SignalValues], list[Skipped]]:
+        """Its signals (those `names`, else all) read and checked (`robofailring.data.signals.read_signal`),
+        cut to its length; one that cannot be read is listed with the reason, not used."""
+        counts = [len(frames) for frames in self.views.values()]
+        found: dict[str, SignalValues] = {}
+        skipped: list[Skipped] = []
+        for name in list(self.signals) if names is None else names:
+            signal = self.signals.get(name)
+            try:
+                if signal is None:
+                    raise DataError(f"no signal {name!r} (it has: {', '.join(self.signals) or 'none'})")
+                found[name] = read_signal(signal, frames=counts, length=self.length)
+            except DataError as error:
+                skipped.append(Skipped(self.source or Path(self.key), f"{self.key}: not read: {error}"))
+        return found, skipped
 
     @property
     def is_failure(self) -> bool:

@@ -108,6 +108,11 @@ class Controller:
             self.grasped.append(body)
         self.robot.close_on(body, half_size=self.half_size)
 
+    def command(self) -> tuple[Vec3, Quat, float]:
+        """What the arm is commanded now: the end-effector target pose and the gripper's width (m)."""
+        position, orientation = self._target(self.time)
+        return position, orientation, 2 * self.robot.finger_target
+
     def step(self) -> None:
         """Advance one physics step: fire due gripper events, steer the arm, simulate."""
         if self.segments and self.step_index % CONTROL_EVERY == 0:

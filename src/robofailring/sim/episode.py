@@ -16,6 +16,7 @@ from robofailring.sim.controller import Controller
 from robofailring.sim.perturb import SUCCESS, Perturbation, apply, choose, onset_time, resolve_mode
 from robofailring.sim.robot import Panda
 from robofailring.sim.scene import PHYSICS_HZ, add_table, connect
+from robofailring.sim.signals import goal_of, signal_row, stacked
 from robofailring.sim.tasks import TASK_CLASSES, TASKS, GoalCheck
 
 #: Simulated length of every episode (s): the plan takes about 5 s, the rest lets objects settle.
@@ -130,6 +131,7 @@ class EpisodeRun:
         self._stop = False
         self._iterator: Iterator[dict[str, np.ndarray]] | None = None
         self._rendered = 0
+        self._signal_rows: list[dict[str, np.ndarray]] = []
         self.result: EpisodeResult | None = None
 
     @property
@@ -140,6 +142,14 @@ class EpisodeRun:
     @property
     def frames(self) -> int:
         return len(self._steps)
+
+    def signals(self) -> dict[str, np.ndarray]:
+        """The robot's signals at every frame rendered so far (`robofailring.sim.signals.SIGNALS`): (frames, D)."""
+        return stacked(self._signal_rows)
+
+    def last_signals(self) -> dict[str, np.ndarray]:
+        """The robot's signals at the frame just rendered (the step API's `signals=`)."""
+        return dict(self._signal_rows[-1]) if self._signal_rows else {}
 
     def __iter__(self) -> Iterator[dict[str, np.ndarray]]:
         if self._iterator is None:
@@ -152,6 +162,9 @@ class EpisodeRun:
                 while self._controller.step_index < step:
                     self._controller.step()
                 images = self._cameras.capture(self._robot)
+                self._signal_rows.append(
+                    signal_row(self._client, self._robot, self._controller.command(), goal_of(self._layout))
+                )
                 self._rendered += 1
                 yield images
                 if self._stop:

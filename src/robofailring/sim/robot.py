@@ -96,6 +96,11 @@ class Panda:
         """The grasp point between the fingertips (world frame)."""
         return self.link_pose(EE_LINK)
 
+    @property
+    def finger_target(self) -> float:
+        """Each finger's commanded opening (m): half the commanded gripper width."""
+        return self._finger_target
+
     # -- commands ------------------------------------------------------------------------------
     def drive_joints(self, targets: list[float]) -> None:
         self.client.setJointMotorControlArray(

@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Final
 
+import numpy as np
+
 from robofailring.atomic import atomic_directory
 from robofailring.data.images import write_png
 from robofailring.data.layouts import PROJECT_FORMAT, PROJECT_MANIFEST, read_project_manifest
@@ -23,12 +25,15 @@ from robofailring.sim.cameras import VIEWS
 from robofailring.sim.episode import DURATION_S, EpisodeResult, episode_fps, run_episode
 from robofailring.sim.perturb import FAILURE_MODES, KINDS, SUCCESS
 from robofailring.sim.scene import PHYSICS_HZ
+from robofailring.sim.signals import SIGNALS, SIGNALS_FILE
 from robofailring.sim.tasks import TASKS
 
 FORMAT_VERSION: Final[int] = 1
 GENERATOR: Final[str] = "robofailring.sim"
 #: Bumped whenever the simulator's output changes for the same config (invalidates caches).
-SIM_VERSION: Final[int] = 3  # 2: the arm drawn with low-poly meshes (robot.LOW_POLY_LINKS); 3: onset_frame
+SIM_VERSION: Final[int] = (
+    4  # 2: the arm drawn with low-poly meshes (robot.LOW_POLY_LINKS); 3: onset_frame; 4: signals
+)
 _SUCCESS_RETRIES: Final[int] = 3
 #: The largest image side generated: pybullet's CPU renderer takes ~3 s a frame of three views at
 #: 1024 px (two minutes an episode of 40 frames), and a side far beyond ends the worker with bad_alloc.
@@ -166,7 +171,7 @@ def episode_dir_name(task: str, label: str | None, episode: int) -> str:
 
 
 def _simulate(job: _Job, seed: int, staging: Path) -> EpisodeResult:
-    """Run one episode, streaming its frames to PNG files in `staging`."""
+    """Run one episode, streaming its frames to PNG files in `staging`, then its signals to `signals.npz`."""
     if staging.exists():
         shutil.rmtree(staging)
     staging.mkdir()
@@ -176,7 +181,9 @@ def _simulate(job: _Job, seed: int, staging: Path) -> EpisodeResult:
         for index, images in enumerate(run):
             for view in VIEWS:
                 write_png(staging / f"{view}_{index}.png", images[view])
-        return run.run_to_end()
+        result = run.run_to_end()
+        np.savez(staging / SIGNALS_FILE, **run.signals())  # type: ignore[arg-type]  # numpy's stub types **kwds as allow_pickle
+        return result
 
 
 def _run_job(job: _Job) -> dict[str, Any]:
@@ -216,6 +223,17 @@ def _run_job(job: _Job) -> dict[str, Any]:
         "perturbed_waypoint": None if perturbation is None else perturbation.waypoint,
         "attempted_label": None if perturbation is None else perturbation.symbol,
         "goal_check": result.goal.to_json(),
+        "signals": _signal_records(root / name / SIGNALS_FILE),
+    }
+
+
+def _signal_records(path: Path) -> dict[str, Any]:
+    """The manifest's description of an episode's signals file: each signal's kind and dimension names."""
+    with np.load(path, allow_pickle=False) as stored:
+        names = list(stored.files)
+    return {
+        "file": SIGNALS_FILE,
+        "signals": {name: {"kind": SIGNALS[name][0], "names": list(SIGNALS[name][1])} for name in names},
     }
 
 
