@@ -18,6 +18,18 @@ PROPERTIES: Final[str] = "robofailring"  # recording property group (task, label
 IN_MEMORY: Final[str] = "in_memory"
 
 CAMERA_ROOT: Final[str] = "/camera"
+SIGNAL_ROOT: Final[str] = "/signals"
+
+
+def escape_part(name: str) -> str:
+    """`name` as one entity path part: every character but letters, digits, `_`, `-` and `.` escaped with
+    a backslash, as Rerun's own `escape_entity_path_part` does (a ROS topic's `/` stays in the part)."""
+    return "".join(c if c.isascii() and (c.isalnum() or c in "_-.") else f"\\{c}" for c in name)
+
+
+def signal(name: str) -> str:
+    """`/signals/<name>`: Scalars, one series per dimension of one of the robot's signals (named by it)."""
+    return f"{SIGNAL_ROOT}/{escape_part(name)}"
 
 
 def camera(view: str) -> str:
@@ -158,6 +170,10 @@ class ClosedLoopPaths:
     def outcome(self) -> str:
         """TextLog at the run's last frame: the goal check of the scene as it was left."""
         return f"{self.root}/outcome"
+
+    def signal(self, name: str) -> str:
+        """Scalars: one of the robot's signals in this run (`/<run>/signals/<name>`)."""
+        return f"{self.root}{signal(name)}"
 
 
 WATCHED: Final[ClosedLoopPaths] = ClosedLoopPaths("watched")  # stopped at the first alarm

@@ -19,6 +19,7 @@ from rfr_viz.paths import (
     WATCHED,
     DetectorPaths,
     camera,
+    signal,
 )
 from robofailring.detection.band import Band
 from robofailring.detection.rules import ScoringRule, shown_rules
@@ -156,6 +157,11 @@ def _neighbor_infos(views: Sequence[str], paths: DetectorPaths, *, label: str = 
 FOCUS_MARGIN = 6  # frames shown either side of a focus frame (an alarm, a near miss)
 
 
+def signal_plots(signals: Sequence[str]) -> list[rrb.View]:
+    """One time-series plot per signal of the robot (`/signals/<name>`), a named line per dimension."""
+    return [rrb.TimeSeriesView(origin=signal(name), name=name) for name in signals]
+
+
 def side_panels(fps: float, focus: int | None = None) -> list[rrb.BlueprintPart]:
     """Side panels folded away; the time bar plays the "frame" timeline at the data's rate.
 
@@ -187,8 +193,10 @@ def replay_blueprint(
     plots: ScorePlots,
     fps: float = DEFAULT_FPS,
     focus: int | None = None,
+    signals: Sequence[str] = (),
 ) -> rrb.Blueprint:
-    """Cameras, score plots and memory map on top; neighbours (and nearest successes) and the report below."""
+    """Cameras, score plots and memory map on top; neighbours (and nearest successes), the report and the
+    robot's `signals` (a tab each) below."""
     top = rrb.Horizontal(
         _cameras(views),
         _score_plot(REPLAY, views=views, plots=plots),
@@ -210,7 +218,8 @@ def replay_blueprint(
         ),
         active_tab=0,
     )
-    bottom = rrb.Horizontal(neighbors, side, column_shares=[3, 1.6])
+    robot = [rrb.Tabs(*signal_plots(signals), name="robot signals")] if signals else []
+    bottom = rrb.Horizontal(neighbors, side, *robot, column_shares=[3, 1.6, 1.8][: 2 + len(robot)])
     return rrb.Blueprint(rrb.Vertical(top, bottom, row_shares=[1.25, 1]), *side_panels(fps, focus))
 
 
@@ -223,9 +232,10 @@ def compare_blueprint(
     cells: Sequence[Cell],
     plots: Sequence[ScorePlots],
     fps: float = DEFAULT_FPS,
+    signals: Sequence[str] = (),
 ) -> rrb.Blueprint:
     """Shared cameras and, per encoder, its own score plots (S_t and δ, C_t and γ, State_t), its map, nearest
-    entries and report."""
+    entries and report; the robot's `signals` (shared) a tab each."""
     detectors = [DetectorPaths.for_encoder(slug) for slug in encoders]
     top = rrb.Horizontal(
         _cameras(views),
@@ -257,7 +267,8 @@ def compare_blueprint(
     events = rrb.TextLogView(
         origin="/", contents=[f"{paths.detection_root}/**" for paths in detectors], name="detection events"
     )
-    bottom = rrb.Horizontal(maps, rrb.Tabs(nearest, *reports, events, active_tab=0), column_shares=[1, 1.2])
+    tabs = rrb.Tabs(nearest, *reports, events, *signal_plots(signals), active_tab=0)
+    bottom = rrb.Horizontal(maps, tabs, column_shares=[1, 1.2])
     return rrb.Blueprint(rrb.Vertical(top, bottom, row_shares=[1, 1.1]), *side_panels(fps))
 
 
@@ -289,9 +300,10 @@ def _closed_loop_score_plot(paths: DetectorPaths, *, name: str, length: int) -> 
 
 
 def closed_loop_blueprint(
-    *, views: Sequence[str], fps: float, length: int, focus: int | None = None
+    *, views: Sequence[str], fps: float, length: int, focus: int | None = None, signals: Sequence[str] = ()
 ) -> rrb.Blueprint:
-    """One row per run (cameras | S_t and State_t), the events and the outcome table below."""
+    """One row per run (cameras | S_t and State_t), the events, the outcome table and the robot's `signals`
+    (both runs in one plot each) below."""
     rows = []
     for paths, title in ((WATCHED, "watched (stopped at the alarm)"), (UNSTOPPED, "unstopped")):
         cameras = rrb.Horizontal(
@@ -313,5 +325,11 @@ def closed_loop_blueprint(
         ),
     )
     summary = rrb.TextDocumentView(origin=CLOSED_LOOP_SUMMARY, name="outcome of both runs")
-    text = rrb.Horizontal(events, summary, column_shares=[1, 1.1])
+    robot = [
+        rrb.TimeSeriesView(origin="/", contents=[WATCHED.signal(name), UNSTOPPED.signal(name)], name=name)
+        for name in signals
+    ]
+    text = rrb.Horizontal(
+        events, summary, *([rrb.Tabs(*robot, name="robot signals")] if robot else []), column_shares=[1, 1.1, 1.1][: 2 + bool(robot)]
+    )
     return rrb.Blueprint(rrb.Vertical(*rows, text, row_shares=[1, 1, 0.85]), *side_panels(fps, focus))

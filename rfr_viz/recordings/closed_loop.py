@@ -14,6 +14,7 @@ import numpy as np
 from rfr_viz.panels.images import JPEG_MEDIA_TYPE, JPEG_QUALITY
 from rfr_viz.recordings.blueprint import closed_loop_blueprint
 from rfr_viz.panels.scores import set_frame_time, time_columns
+from rfr_viz.panels.signals import log_signals
 from rfr_viz.paths import CLOSED_LOOP_SUMMARY, PROPERTIES, UNSTOPPED, WATCHED, ClosedLoopPaths
 from rfr_viz.recordings.replay import open_recording
 from rfr_viz.styles import DELTA_COLOUR, STATE_COLOUR, STOP_COLOUR, VIEW_COLOURS
@@ -80,7 +81,9 @@ def run_closed_loop(
     loop = watch_episode(detector, task, mode, seed, ood=ood, image_size=image_size, frames=frames)
     watched, unstopped, stop = loop.watched, loop.unstopped, loop.stop_frame
     fps = episode_fps(frames)
-    blueprint = closed_loop_blueprint(views=VIEWS, fps=fps, length=frames, focus=stop)
+    blueprint = closed_loop_blueprint(
+        views=VIEWS, fps=fps, length=frames, focus=stop, signals=list(unstopped.signals)
+    )
     with open_recording(Path(out), blueprint, recording_id=recording_id) as rec:
         rec.send_recording_name(f"{task}/{mode}/seed {seed} (closed loop)")
         rec.send_property(
@@ -103,6 +106,7 @@ def run_closed_loop(
         )
         for paths, run in ((WATCHED, watched), (UNSTOPPED, unstopped)):
             _log_run(rec, paths, run, delta=loop.delta, length=frames, fps=fps, stopped=paths is WATCHED)
+            log_signals(rec, run.signals, fps=fps, at=paths.signal)
         rec.log(
             CLOSED_LOOP_SUMMARY,
             rr.TextDocument(loop.summary(), media_type=rr.MediaType.MARKDOWN),

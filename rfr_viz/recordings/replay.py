@@ -19,10 +19,12 @@ from rfr_viz.panels.neighbors import Cell, NeighborImages, log_neighbors
 from rfr_viz.panels.map import log_map, map_title, trace_map_grid
 from rfr_viz.panels.report import log_detection
 from rfr_viz.panels.scores import log_scores, threshold_properties, time_columns
+from rfr_viz.panels.signals import log_signals, recorded_signals
 from rfr_viz.paths import APPLICATION_ID, DEFAULT_FPS, IN_MEMORY, PROPERTIES, REPLAY, DetectorPaths
 from rfr_viz.styles import VIEW_COLOURS
 from robofailring.atomic import atomic_path
-from robofailring.data.model import Trajectory
+from robofailring.data.model import Skipped, Trajectory
+from robofailring.data.signals import SignalValues
 from robofailring.detection.detector import DetectionTrace
 from robofailring.explain.report import report_for
 from robofailring.explain.vlm import VLMAnswer
@@ -83,6 +85,7 @@ def record_replay(
     mapped = memory_map if memory_map is not None else fit_map(trace.memory)
     images = NeighborImages()
     cell = images.cell(trace)
+    signals, unread = recorded_signals(trajectory, trace.length)
     blueprint = replay_blueprint(
         views=trace.views,
         map_title=map_title(mapped),
@@ -92,6 +95,7 @@ def record_replay(
         fps=info.fps,
         focus=focus_frame,
         plots=score_plots(trace),
+        signals=list(signals),
     )
     with open_recording(out, blueprint, recording_id=recording_id) as rec:
         rec.send_recording_name(f"{info.task}/{info.episode}")
@@ -102,9 +106,11 @@ def record_replay(
                 **_detector_properties(trace, mapped),
                 focus_frame=focus_frame if focus_frame is not None else -1,  # -1: none (see rfr_viz.viewer.control)
                 **_report_properties(trace, trajectory, vlm_answer),
+                **signal_properties(signals, unread),
             ),
         )
         log_cameras(rec, trajectory, views=trace.views, length=trace.length, fps=info.fps, codec=camera_codec)
+        log_signals(rec, signals, fps=info.fps)
         log_detector(
             rec,
             trace,
@@ -145,6 +151,7 @@ def compare_recording(
     cells = {slug: images.cell(trace) for slug, trace in traces.items()}
     views = list(dict.fromkeys(view for trace in traces.values() for view in trace.views))
     length = max(trace.length for trace in traces.values())
+    signals, unread = recorded_signals(trajectory, length)
     blueprint = compare_blueprint(
         views=views,
         encoders=slugs,
@@ -153,6 +160,7 @@ def compare_recording(
         cells=[cells[slug] for slug in slugs],
         plots=[score_plots(traces[slug]) for slug in slugs],
         fps=info.fps,
+        signals=list(signals),
     )
     with open_recording(out, blueprint, recording_id=recording_id) as rec:
         rec.send_recording_name(f"{info.task}/{info.episode} ({' vs '.join(slugs)})")
@@ -162,9 +170,11 @@ def compare_recording(
                 **_trajectory_properties(info, length),
                 encoder=", ".join(trace.encoder for trace in traces.values()),
                 encoders=", ".join(slugs),
+                **signal_properties(signals, unread),
             ),
         )
         log_cameras(rec, trajectory, views=views, length=length, fps=info.fps, codec=camera_codec)
+        log_signals(rec, signals, fps=info.fps)
         for slug, trace in traces.items():
             rec.send_property(slug, rr.AnyValues(**_detector_properties(trace, maps[slug])))
             log_detector(
@@ -205,6 +215,14 @@ def open_recording(
         with rec:  # leaving the block flushes and closes the file sink, also on error
             rec.save(tmp, default_blueprint=blueprint)
             yield rec
+
+
+def signal_properties(signals: Mapping[str, SignalValues], unread: Sequence[Skipped]) -> dict[str, Any]:
+    """The signals recorded (`name (kind, D)`) and those that could not be, with the reason."""
+    return {
+        "signals": ", ".join(f"{name} ({s.kind.value}, {len(s.dims)})" for name, s in signals.items()),
+        "signals_not_read": "; ".join(skipped.reason for skipped in unread),
+    }
 
 
 def _trajectory_properties(info: RecordingInfo, length: int) -> dict[str, Any]:

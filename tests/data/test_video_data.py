@@ -12,8 +12,8 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 from environment import shared_data
-from lerobot_writer import encode_video, scene, write_lerobot_v3, write_lerobot_v21
-from rrd import properties, rows
+from lerobot_writer import encode_video, scene, signal_action, write_lerobot_v3, write_lerobot_v21
+from rrd import columns, properties, rows
 from typer.testing import CliRunner
 
 from rfr_viz.cli.app import app
@@ -132,6 +132,15 @@ def test_labels_build_a_memory_and_replay_a_recording(v3: Path, tmp_path: Path) 
     assert properties(recording)["stride"] == 4 and properties(recording)["task"] == "pick up the cube"
     neighbour = rows(recording, "/neighbors/front/0/end", "EncodedImage:blob")  # read back from the mp4
     assert neighbour and neighbour[0][0] == 0
+    # the robot's signals on the cameras' timeline, every frame (not only the scored ones), named
+    state = rows(recording, "/signals/observation.state", "Scalars:scalars")
+    assert [frame for frame, _ in state] == list(range(15))
+    assert [list(values) for _, values in state[:3]] == [[0.0, 2.0], [1.0, 2.0], [2.0, 2.0]]
+    action = rows(recording, "/signals/action", "Scalars:scalars")
+    assert [list(values) for _, values in action][4] == list(signal_action(2, 4))
+    assert columns(recording, "/signals/action")["SeriesLines:names"][0] == ["x", "y", "gripper"]
+    assert properties(recording)["signals"] == "observation.state (state, 2), action (action, 3)"
+    assert not properties(recording).get("signals_not_read")  # every signal was read
     detected = runner.invoke(
         app, ["detect", str(v3), "--memory", str(memory), "--trajectory", "episode_0", "--json", *cache]
     )

@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 from environment import viewer_available
-from rrd import entity_paths, properties, reader, static_value, values
+from rrd import entity_paths, properties, reader, rows, static_value, values
 
 from rfr_viz.paths import APPLICATION_ID, CLOSED_LOOP_SUMMARY, UNSTOPPED, WATCHED
 from rfr_viz.recordings.closed_loop import ClosedLoopResult, run_closed_loop
@@ -153,6 +153,13 @@ def test_watched_cameras_end_at_the_stop_and_unstopped_run_on(
         frames, labels = values(path, WATCHED.stopped(view), "Points2D:labels")
         assert frames == [stop_frame] and labels == [f"STOPPED at frame {stop_frame}"]
         assert UNSTOPPED.stopped(view) not in paths
+    # the robot's signals of both runs: the watched one's end at the stop, the unstopped one's run on
+    watched_width = rows(path, WATCHED.signal("gripper_width"), "Scalars:scalars")
+    assert [frame for frame, _ in watched_width] == list(range(stop_frame + 1))
+    assert [frame for frame, _ in rows(path, UNSTOPPED.signal("action"), "Scalars:scalars")] == list(
+        range(FRAMES)
+    )
+    assert all(0.0 <= width[0] <= 0.081 for _, width in watched_width)
 
 
 def test_scores_state_and_the_stop_event(

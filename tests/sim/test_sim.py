@@ -224,7 +224,10 @@ def test_the_robot_records_its_signals_beside_the_cameras(dataset: Path) -> None
     """Joint positions, gripper width, end-effector pose and the commanded action at every frame, as the
     manifest names them; a grasp that never forms shows in the gripper: it never closes on a cube."""
     by_label = {t.label: t for t in load_dataset(dataset).trajectories()}
-    success, grasp = by_label["success"], next(t for label, t in by_label.items() if label.startswith("grasp"))
+    success, grasp = (
+        by_label["success"],
+        next(t for label, t in by_label.items() if label.startswith("grasp")),
+    )
     signals, skipped = success.read_signals()
     assert skipped == [] and sorted(signals) == ["action", "ee_pose", "gripper_width", "joint_positions"]
     assert signals["joint_positions"].dims[:2] == ("panda_joint1", "panda_joint2")

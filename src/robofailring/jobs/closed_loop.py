@@ -10,9 +10,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from robofailring.data.signals import SignalValues
 from robofailring.detection.detector import FailureDetector, StepResult
 from robofailring.memory.failure import Neighbor
 from robofailring.sim.episode import EpisodeResult, run_episode
+from robofailring.sim.signals import named
 from robofailring.sim.tasks import GoalCheck
 
 
@@ -24,6 +26,9 @@ class WatchedRun:
     frames: dict[str, list[np.ndarray]] = field(repr=False)
     size: tuple[int, int]  # width, height of the camera images
     result: EpisodeResult
+    signals: dict[str, SignalValues] = field(
+        default_factory=dict, repr=False
+    )  # the robot's, every frame rendered
 
     @property
     def fired_at(self) -> int | None:
@@ -149,7 +154,8 @@ def run_watched(
             if act and step.alarm:
                 run.stop()  # the goal is checked on the scene as the robot leaves it now
         result = run.run_to_end()
-    return WatchedRun(steps=steps, frames=kept, size=size, result=result)
+        signals = named(run.signals())
+    return WatchedRun(steps=steps, frames=kept, size=size, result=result, signals=signals)
 
 
 def alarm(step: StepResult) -> tuple[str, Neighbor]:

@@ -7,6 +7,7 @@ from typing import Any, Final
 
 import numpy as np
 
+from robofailring.data.signals import SignalKind, SignalValues
 from robofailring.sim.robot import ARM_JOINTS, FINGER_JOINTS, Panda
 from robofailring.sim.tasks import Layout
 
@@ -54,3 +55,11 @@ def stacked(rows: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
     """Rows of `signal_row` as one (frames, D) float32 array per signal."""
     names = [name for name in SIGNALS if rows and name in rows[0]]
     return {name: np.stack([row[name] for row in rows]).astype(np.float32) for name in names}
+
+
+def named(arrays: dict[str, np.ndarray]) -> dict[str, SignalValues]:
+    """`stacked` arrays with their kinds and dimension names, as a dataset's signals are read."""
+    return {
+        name: SignalValues(name, SignalKind(SIGNALS[name][0]), SIGNALS[name][1], values.astype(np.float64))
+        for name, values in arrays.items()
+    }
