@@ -87,8 +87,9 @@ def _pick(result: EvaluationResult, kind: str, rule: ScoringRule) -> tuple[str, 
             t_det = scored.t_det(threshold)
             if scored.is_failure and t_det is not None:
                 trace = result.rule_trace(scored.key, rule)
-                view = trace.detected_view
-                top = trace.neighbors(view, t_det)[0] if view is not None else None
+                view = trace.camera_at(trace.detected_view, t_det)
+                found = trace.neighbors(view, t_det) if view is not None else []
+                top = found[0] if found else None
                 same_type = top is not None and failure_type(top.entry.symbol) == failure_type(scored.symbol)
                 hits.append((not same_type, t_det == 0, t_det / max(scored.length, 1), scored.key, t_det))
         return (min(hits)[3], min(hits)[4]) if hits else None

@@ -233,7 +233,7 @@ def _label_row(trace: DetectionTrace, *, kind: str) -> dict[str, str]:
     alarm (a run that does not fire now: at its peak score)."""
     focus = trace.t_det if trace.t_det is not None else int(np.nanargmax(trace.max_score()))
     scores = trace.scores
-    view = trace.detected_view or max(
+    view = trace.camera_at(trace.detected_view, focus) or max(
         trace.views, key=lambda v: float(np.nan_to_num(scores[v][focus], nan=-np.inf))
     )
     nearest = trace.neighbors(view, focus)

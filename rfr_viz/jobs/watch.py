@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -69,6 +70,14 @@ def watch(config: WatchConfig) -> WatchResult:
         raise DataError(f"episode {config.episode} has no view with at least 2 frames")
     length = min(len(frames) for frames in used.values())  # views in step, as a replay scores them
     fps = float(config.fps or trajectory.frame_rate or DEFAULT_FPS)
+    signals, _ = trajectory.read_signals()  # one that cannot be read is not sent (replay lists why)
+    memory_signals = loaded.detector.memory.signals
+    task_signals = memory_signals.task(trajectory.task) if memory_signals is not None else None
+    lacking = [n for n in (task_signals.layout.names if task_signals else []) if n not in signals]
+    if lacking:
+        logging.getLogger("robofailring").warning(
+            "warning: %s lacks signal %r of the memory: its cameras judge alone", trajectory.key, lacking[0]
+        )
     with LiveRecording.open(
         loaded.detector,
         trajectory.task,
@@ -78,13 +87,16 @@ def watch(config: WatchConfig) -> WatchResult:
         memory_map=loaded.map,
         name=f"{trajectory.task}/{trajectory.episode}",
         camera_codec=config.camera_codec,
+        signals=list(signals),
     ) as live:
         session = loaded.detector.session(trajectory.task, sink=live)
         started = time.monotonic()
         for t in range(length):
             if config.speed > 0:
                 time.sleep(max(0.0, started + t / (fps * config.speed) - time.monotonic()))
-            session.step({view: frames[t] for view, frames in used.items()})
+            now = {name: found.values[t] for name, found in signals.items() if t < len(found.values)}
+            live.log_signals(t, now)
+            session.step({view: frames[t] for view, frames in used.items()}, signals=None if lacking else now)
     return WatchResult(
         steps=length,
         fired_at=live.fired_at,

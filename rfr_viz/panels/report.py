@@ -69,12 +69,13 @@ def log_detection(
     )
     report = report_for(trace, trajectory)
     assert report is not None  # t_det is set
-    neighbors = trace.neighbors(view, t_det)
+    camera = trace.camera_at(view, t_det)  # the firing camera, or the highest when the signals fired
+    neighbors = trace.neighbors(camera, t_det) if camera is not None else []
     set_frame_time(rec, t_det, fps)
     fired = (
         f"{rule.score_name} = {float(trace.scores[view][t_det]):.3f} ≥ {symbol} = {float(line[t_det]):.3f}"
     )
-    success = trace.nearest_success(view, t_det)
+    success = trace.nearest_success(camera, t_det) if camera is not None else None
     contrast_line = ""
     if success is not None and neighbors:
         contrast_line = (
@@ -98,6 +99,8 @@ def log_detection(
         fired=fired,
         summary=summary
         + f"**Fired by the {rule.name} rule** at frame {t_det}, view {view}: {fired}.\n\n"
+        + (f"Robot signals: {report.signals}.\n\n" if report.signals is not None else "")
+        + (f"Camera {camera}: " if camera != view and contrast_line else "")
         + contrast_line,
         vlm_answer=vlm_answer,
     )

@@ -16,6 +16,7 @@ from rfr_viz.styles import STATE_COLOUR, VIEW_COLOURS, threshold_colour
 from robofailring.detection.band import Band
 from robofailring.detection.detector import DetectionTrace
 from robofailring.detection.rules import RULES, RuleThresholds, ScoringRule
+from robofailring.detection.signal_scores import SIGNALS_VIEW
 from robofailring.extras import needs_extra
 
 with needs_extra("viz"):
@@ -139,7 +140,7 @@ def log_scores(
     log_score_styles(
         rec,
         paths,
-        views=trace.views,
+        views=trace.scored_views,
         rules=rules,
         judging=trace.rule,
         thresholds={rule.name: trace.threshold_of(rule) for rule in rules},
@@ -149,11 +150,13 @@ def log_scores(
     )
     for rule in rules:
         scores = trace.scores_of(rule)
-        for view in trace.views:
+        for view in trace.scored_views:
             send_series(rec, paths.score(view, rule.name), scores[view], fps=fps)
         send_series(rec, paths.threshold(rule.name), trace.threshold_line(rule), fps=fps)
     for view in trace.views if successes else ():
         send_series(rec, paths.success_score(view), trace.success_similarity[view], fps=fps)
+    if successes and trace.signals is not None:
+        send_series(rec, paths.success_score(SIGNALS_VIEW), trace.signals.success_similarity, fps=fps)
     scored = trace.scored_frames  # with a stride, State_t exists only where frames were scored
     rec.send_columns(
         paths.state,

@@ -23,6 +23,7 @@ from rfr_viz.paths import (
 )
 from robofailring.detection.band import Band
 from robofailring.detection.rules import ScoringRule, shown_rules
+from robofailring.detection.signal_scores import SIGNALS_VIEW
 from robofailring.extras import needs_extra
 
 with needs_extra("viz"):
@@ -50,6 +51,7 @@ class ScorePlots:
     thresholds: Mapping[str, float] = field(default_factory=dict)  # per rule name: its threshold θ
     successes: bool = False  # S⁺_t per view, faint, in the first plot
     bands: Mapping[str, Band] = field(default_factory=dict)  # per rule name: its time-indexed band, if any
+    signals: bool = False  # the robot's signals scored too: their lines (view `signals`) beside the cameras'
 
     @classmethod
     def of(
@@ -60,6 +62,7 @@ class ScorePlots:
         failures: bool,
         successes: bool,
         bands: Mapping[str, Band] | None = None,
+        signals: bool = False,
     ) -> ScorePlots:
         """The plots of the rules shown beside the `judging` one (`shown_rules`: a rule needing S⁻ only
         where the task has failure entries, one needing S⁺ only with success runs), each at its threshold
@@ -70,7 +73,12 @@ class ScorePlots:
             thresholds={rule.name: float(thresholds.get(rule.name, rule.default_threshold)) for rule in rules},
             successes=successes,
             bands=dict(bands or {}),
+            signals=signals,
         )
+
+    def scored(self, views: Sequence[str]) -> list[str]:
+        """The views whose scores are plotted: the cameras, and the signals where they were scored."""
+        return [*views, SIGNALS_VIEW] if self.signals else list(views)
 
 
 # Score plots have no legend: at 1280×720 one covered a third of the plot and still cut lines off. Their
@@ -85,6 +93,7 @@ def _score_plot(
     """One plot per rule shown: its score of every view with its threshold (the first also S⁺_t, faint);
     State_t (0/1) in a thin plot below, so each keeps its scale."""
     rule_plots = []
+    views = plots.scored(views)
     for position, rule in enumerate(plots.rules):
         contents = [paths.score(view, rule.name) for view in views] + [paths.threshold(rule.name)]
         faint = ""

@@ -37,7 +37,7 @@ from rfr_viz.panels.neighbors import (
 from rfr_viz.panels.map import MapGrid, class_id, log_memory_map, map_grid, map_title
 from rfr_viz.panels.report import log_alarm
 from rfr_viz.panels.scores import log_score_styles, set_frame_time, threshold_properties
-from rfr_viz.paths import APPLICATION_ID, DEFAULT_FPS, PROPERTIES, REPLAY
+from rfr_viz.paths import APPLICATION_ID, DEFAULT_FPS, PROPERTIES, REPLAY, signal
 from rfr_viz.viewer.binary import ViewerUnavailable
 from rfr_viz.viewer.control import DEFAULT_PORT
 from robofailring.atomic import atomic_path
@@ -100,6 +100,7 @@ def _score_plots(detector: FailureDetector, task: str) -> ScorePlots:
         failures=detector.memory.has_failures(task),
         successes=detector.memory.successes is not None,
         bands=detector.bands,
+        signals=detector.memory.signals is not None and detector.memory.signals.task(task) is not None,
     )
 
 
@@ -150,9 +151,11 @@ class LiveRecording:
         memory_map: MemoryMap | None = None,
         name: str | None = None,
         camera_codec: CameraCodec | str = CameraCodec.JPEG,
+        signals: Sequence[str] = (),
     ) -> Iterator[LiveRecording]:
         """A live recording streamed to `target`, with the replay layout as its blueprint; cameras
-        stored as `camera_codec` (rfr_viz.panels.live_camera: `auto` means JPEG live).
+        stored as `camera_codec` (rfr_viz.panels.live_camera: `auto` means JPEG live); the robot's
+        `signals` (logged with `log_signals`) a tab each.
 
         On leaving the block the recording's properties (t_det, the report, …) are sent, the stream
         is flushed, and a saved file appears at `target.save` (not on error).
@@ -173,6 +176,7 @@ class LiveRecording:
             k=detector.k,
             plots=_score_plots(detector, task),
             fps=fps,
+            signals=signals,
         )
         with ExitStack() as stack:
             rec = rr.RecordingStream(APPLICATION_ID, recording_id=str(uuid.uuid4()))
@@ -292,6 +296,12 @@ class LiveRecording:
             self._alarm(frames, result)
         self.steps = max(self.steps, t + 1)
 
+    def log_signals(self, t: int, signals: Mapping[str, np.ndarray]) -> None:
+        """The robot's signals at step `t` ({name: (D,) values}) at `/signals/<name>`, as a replay has them."""
+        set_frame_time(self.rec, t, self.fps)
+        for name, values in signals.items():
+            self.rec.log(signal(name), rr.Scalars(np.asarray(values, np.float64).reshape(-1)))
+
     def _log_neighbors(self, result: StepResult, *, every: bool) -> None:
         """Each view's K neighbours that changed since the last step (`every`: all of them)."""
         for view, found in result.neighbors.items():
@@ -311,23 +321,24 @@ class LiveRecording:
                     )
 
     def _alarm(self, frames: Mapping[str, np.ndarray | Frame], result: StepResult) -> None:
-        view = result.detected_view
-        assert view is not None  # an alarm has a firing view
-        frame = frames[view]
+        view, camera = result.detected_view, result.camera_view
+        assert view is not None and camera is not None  # an alarm has a firing view, and a camera
+        frame = frames[camera]
         self.fired_at = result.t
         self.report = FailureReport.from_neighbors(
             task=self.task,
             view=view,
             t_det=result.t,
-            neighbors=result.neighbors[view],
+            neighbors=result.neighbors[camera],
             current_image=frame.reference if isinstance(frame, Frame) and frame.path is not None else None,
+            similarity=None if camera == view else result.similarity[view],
         )
         log_alarm(
             self.rec,
             REPLAY,
             report=self.report,
-            top=result.neighbors[view][0] if result.neighbors[view] else None,
-            nearest_success=result.nearest_success.get(view),
+            top=result.neighbors[camera][0] if result.neighbors[camera] else None,
+            nearest_success=result.nearest_success.get(camera),
             rule=result.rule,
             fired=f"{result.rule.score_name} = {result.score[view]:.3f} ≥ {result.rule.symbol} = {result.threshold:.3f}",
             summary=self._summary(),

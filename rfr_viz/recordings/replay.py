@@ -199,6 +199,7 @@ def score_plots(trace: DetectionTrace) -> ScorePlots:
         failures=trace.has_failures,
         successes=bool(trace.success_similarity),
         bands=trace.bands,
+        signals=trace.signals is not None,
     )
 
 

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
 from typing import Final, Protocol
 
 import numpy as np
 
 from robofailring.data.images import as_rgb
-from robofailring.data.model import Frame, Trajectory
+from robofailring.data.model import Frame, Skipped, Trajectory
 from robofailring.detection.band import Band
 from robofailring.detection.config import DEFAULT_K, check_k, check_stride
 from robofailring.detection.retrieved import Retrieved
@@ -20,6 +21,7 @@ from robofailring.detection.rules import (
     rule_named,
 )
 from robofailring.detection.scored import scored_frames
+from robofailring.detection.signal_scores import SIGNALS_VIEW, SignalHistory, SignalScores, score_signals
 from robofailring.detection.stored import (
     given_thresholds,
     stored_bands,
@@ -30,7 +32,7 @@ from robofailring.detection.trace import DetectionTrace, StepResult
 from robofailring.detection.view_scores import ViewScores
 from robofailring.encoders.base import Encoder, l2_normalize
 from robofailring.encoders.cache import CachedEncoder
-from robofailring.errors import SettingError
+from robofailring.errors import DataError, SettingError
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.references import absolute_reference
 
@@ -251,6 +253,7 @@ class FailureDetector(RuleThresholds):
             return full
 
         neighbor_similarity = {view: on_frames(found.neighbor_similarity[view], np.nan) for view in views}
+        signals, unscored = self._signal_scores(trajectory, steps, length, exclude)
         own = self.memory.own_episode(
             trajectory.task,
             (absolute_reference(used[view][0].reference) for view in views),
@@ -274,13 +277,28 @@ class FailureDetector(RuleThresholds):
             skipped_views=skipped,
             view_frames={view: len(frames) for view, frames in trajectory.views.items()},
             stride=stride,
-            skipped_inputs=list(trajectory.skipped),
+            skipped_inputs=[*trajectory.skipped, *unscored],
             success_similarity={v: on_frames(s, np.nan) for v, s in found.success_similarity.items()},
             success_ids={v: on_frames(i, -1) for v, i in found.success_ids.items()},
             in_memory=own is not None,
             bands=dict(self.bands),
             source=trajectory.source,
+            signals=signals,
         )
+
+    def _signal_scores(
+        self, trajectory: Trajectory, steps: np.ndarray, length: int, exclude: str | None
+    ) -> tuple[SignalScores | None, list[Skipped]]:
+        """The signal modality's scores where the memory has signals of the task; a run whose signals
+        cannot be read is scored by its cameras alone and listed as such."""
+        task = self.memory.signals.task(trajectory.task) if self.memory.signals is not None else None
+        if task is None:
+            return None, []
+        try:
+            return score_signals(task, trajectory, steps=steps, length=length, exclude_episode=exclude), []
+        except DataError as error:
+            where = trajectory.source or Path(trajectory.key)
+            return None, [Skipped(where, f"signals not scored (cameras alone): {error}", SIGNALS_VIEW)]
 
     def threshold_at(self, rule: ScoringRule, t: int, view: str | None = None) -> float:
         """`rule`'s threshold on `view`'s raw score at frame `t`: θ, or μ_t + θ·σ_t with a band (its view's)."""
@@ -307,11 +325,18 @@ class DetectorSession:
         self.exclude_episode = exclude_episode
         self.sink = sink
         self._first: dict[str, np.ndarray] = {}
+        memory_signals = detector.memory.signals
+        task_signals = memory_signals.task(task) if memory_signals is not None else None
+        self._signals = SignalHistory(task_signals) if task_signals is not None else None
         self.t = 0
         self.fired_at: int | None = None
 
-    def step(self, frames: Mapping[str, np.ndarray | Frame]) -> StepResult:
-        """Feed the current frame of each view; the first call also fixes I_0 per view."""
+    def step(
+        self, frames: Mapping[str, np.ndarray | Frame], *, signals: Mapping[str, np.ndarray] | None = None
+    ) -> StepResult:
+        """Feed the current frame of each view and, where the memory has the task's signals, the robot's
+        `signals` now ({name: (D,) values}: joint state, gripper, the action commanded); the first call
+        also fixes I_0 per view and the start state. Without `signals` the cameras judge alone."""
         detector = self.detector
         views = list(frames)
         embeddings = detector.encode(list(frames.values()), views)
@@ -321,15 +346,20 @@ class DetectorSession:
         missing = np.full(1, np.nan, np.float32)
         failure = {view: found.similarity(view) for view in views}
         success = {view: found.success_similarity.get(view, missing) for view in views}
+        if self._signals is not None and signals is not None:
+            minus, plus, _, _, _ = self._signals.step(signals, exclude_episode=self.exclude_episode)
+            failure[SIGNALS_VIEW] = np.full(1, minus, np.float32)
+            success[SIGNALS_VIEW] = np.full(1, plus, np.float32)
+        scored = list(failure)  # the cameras, and the signals where given
         rule = self.rule
         threshold = detector.threshold_at(rule, self.t)
-        scores = ViewScores({view: rule.score(failure[view], success[view]) for view in views}, 1)
+        scores = ViewScores({view: rule.score(failure[view], success[view]) for view in scored}, 1)
         successes = detector.memory.successes
-        lines = {view: detector.threshold_at(rule, self.t, view) for view in views}  # a band per view
+        lines = {view: detector.threshold_at(rule, self.t, view) for view in scored}  # a band per view
         fired = scores.firing(lines, 0)
         result = StepResult(
             t=self.t,
-            similarity={view: float(failure[view][0]) for view in views},
+            similarity={view: float(failure[view][0]) for view in scored},
             neighbors={
                 view: detector.memory.neighbors(
                     found.neighbor_similarity[view][0], found.neighbor_ids[view][0]
@@ -338,11 +368,11 @@ class DetectorSession:
             },
             alarm=bool(fired),
             fired_views=fired,
-            score={view: float(scores.by_view[view][0]) for view in views},
+            score={view: float(scores.by_view[view][0]) for view in scored},
             rule=rule,
             threshold=threshold,
             detected_view=scores.strongest(lines, 0),
-            success_similarity={view: float(success[view][0]) for view in views},
+            success_similarity={view: float(success[view][0]) for view in scored},
             nearest_success={
                 view: successes.match(
                     float(found.success_similarity[view][0]), int(found.success_ids[view][0])
@@ -352,7 +382,7 @@ class DetectorSession:
             if successes is not None
             else {},
             rule_scores={
-                name: {view: float(each.score(failure[view], success[view])[0]) for view in views}
+                name: {view: float(each.score(failure[view], success[view])[0]) for view in scored}
                 for name, each in RULES.items()
             },
             thresholds={name: detector.threshold_at(each, self.t) for name, each in RULES.items()},

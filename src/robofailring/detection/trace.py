@@ -13,6 +13,7 @@ import numpy as np
 from robofailring.data.model import Skipped
 from robofailring.detection.band import Band
 from robofailring.detection.rules import PAPER, RULES, RuleThresholds, ScoringRule, shown_rules
+from robofailring.detection.signal_scores import SIGNALS_VIEW, SignalScores
 from robofailring.detection.view_scores import ViewScores
 from robofailring.memory.failure import FailureMemory, Neighbor
 from robofailring.memory.success import SuccessMatch
@@ -43,6 +44,17 @@ class StepResult:
     def state(self) -> bool:
         """`alarm`, by its name in the paper (State_t, eq. 7)."""
         return self.alarm
+
+    @property
+    def camera_view(self) -> str | None:
+        """The camera view whose neighbours explain the alarm: the firing view, or, when the robot's signals
+        fired, the camera scoring highest (None without an alarm)."""
+        if self.detected_view is None or self.detected_view in self.neighbors:
+            return self.detected_view
+        cameras = [
+            (score, view) for view, score in self.score.items() if view in self.neighbors and score == score
+        ]
+        return max(cameras)[1] if cameras else None
 
 
 @dataclass
@@ -82,6 +94,13 @@ class DetectionTrace(RuleThresholds):
     # per rule name: the time-indexed band its calibrated threshold applies to (robofailring.detection.band)
     bands: dict[str, Band] = field(default_factory=dict, repr=False)
     source: Path | None = None  # the trajectory's folder or file, naming what was skipped
+    # the robot's own signals scored against the memory's signal memory, fused as the view `signals`
+    signals: SignalScores | None = field(default=None, repr=False)
+
+    @property
+    def scored_views(self) -> list[str]:
+        """The views the rule's scores are fused over: the cameras, and `signals` where they were scored."""
+        return [*self.views, SIGNALS_VIEW] if self.signals is not None else list(self.views)
 
     @property
     def short_views(self) -> list[Skipped]:
@@ -103,12 +122,23 @@ class DetectionTrace(RuleThresholds):
         return self.threshold_of(self.rule)
 
     def scores_of(self, rule: ScoringRule) -> dict[str, np.ndarray]:
-        """`rule`'s score per view from S⁻ and S⁺ (S⁺ NaN throughout when the memory has no success runs)."""
+        """`rule`'s score per scored view from S⁻ and S⁺ (S⁺ NaN throughout when the memory has no success
+        runs), the signals' last."""
         missing = np.full(self.length, np.nan, np.float32)
         return {
             view: rule.score(self.similarity[view], self.success_similarity.get(view, missing))
             for view in self.views
-        }
+        } | (
+            {SIGNALS_VIEW: rule.score(self.signals.similarity, self.signals.success_similarity)}
+            if self.signals is not None
+            else {}
+        )
+
+    def failure_similarity(self, view: str) -> np.ndarray:
+        """S⁻_t of a view, the signals' included."""
+        if view == SIGNALS_VIEW and self.signals is not None:
+            return self.signals.similarity
+        return self.similarity[view]
 
     def judged_scores_of(self, rule: ScoringRule) -> dict[str, np.ndarray]:
         """What `rule`'s threshold judges, per view: its score, corrected by its band when it has one."""
@@ -156,8 +186,8 @@ class DetectionTrace(RuleThresholds):
         return self._over_views(self.judged_scores_of(self.rule))
 
     def _over_views(self, scores: Mapping[str, np.ndarray]) -> ViewScores:
-        """`scores` of this trace's views (in its view order), for fusing."""
-        return ViewScores({view: scores[view] for view in self.views}, self.length)
+        """`scores` of this trace's scored views (in its view order, the signals last), for fusing."""
+        return ViewScores({view: scores[view] for view in self.scored_views}, self.length)
 
     def nearest_success(self, view: str, t: int) -> SuccessMatch | None:
         """The success frame nearest to the query of `view` at `t`, if the memory has one."""
@@ -191,8 +221,10 @@ class DetectionTrace(RuleThresholds):
         return self.view_scores.detected_view(self.threshold)
 
     def max_similarity(self) -> np.ndarray:
-        """max over views of S⁻_t (the paper's S_t), per frame."""
-        return self._over_views(self.similarity).fused_max()
+        """max over views (the signals' included) of S⁻_t (the paper's S_t), per frame."""
+        return self._over_views(
+            {view: self.failure_similarity(view) for view in self.scored_views}
+        ).fused_max()
 
     def max_score(self) -> np.ndarray:
         """max over views of the rule's judged score, per frame (NaN counts as −∞)."""
@@ -222,7 +254,18 @@ class DetectionTrace(RuleThresholds):
             f"{float(self.scores[view][t]):.3f} ≥ {float(self.threshold_line(view=view)[t]):.3f})"
         )
 
+    def camera_at(self, view: str | None, t: int) -> str | None:
+        """`view` when it is a camera; for the signals (or None), the camera view scoring highest at `t`."""
+        if view in self.views:
+            return view
+        scores = self.scores
+        scored = [(float(scores[v][t]), v) for v in self.views if np.isfinite(scores[v][t])]
+        return max(scored)[1] if scored else None
+
     def neighbors(self, view: str, t: int) -> list[Neighbor]:
+        """The failure entries nearest to `view`'s query at `t` (none for the signals: `signals.nearest_failure`)."""
+        if view not in self.neighbor_ids:
+            return []
         return self.memory.neighbors(self.neighbor_similarity[view][t], self.neighbor_ids[view][t])
 
     def with_delta(self, delta: float) -> DetectionTrace:

@@ -8,6 +8,8 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
+import numpy as np
+
 from robofailring.errors import DataError
 from robofailring.memory.entry import moment_text
 from robofailring.memory.failure import Neighbor
@@ -92,6 +94,9 @@ class FailureReport:
     similarity: float
     items: tuple[ReportItem, ...]
     current_image: str | None = None
+    # the robot's own signals at t_det: their S⁻ and S⁺, nearest runs and the dimensions that deviated
+    # most from the nearest normal frame (None: the memory or the run has no signals)
+    signals: str | None = None
 
     @classmethod
     def from_neighbors(
@@ -102,10 +107,15 @@ class FailureReport:
         t_det: int,
         neighbors: Sequence[Neighbor],
         current_image: str | None = None,
+        similarity: float | None = None,
+        signals: str | None = None,
     ) -> FailureReport:
+        """The report of `neighbors` (K entries of one camera view); `similarity` the firing view's S⁻
+        when that is not the top neighbour's (the signals fired)."""
         items = tuple(ReportItem.from_neighbor(n) for n in neighbors)
-        similarity = items[0].similarity if items else float("nan")
-        return cls(task, view, t_det, similarity, items, current_image)
+        if similarity is None:
+            similarity = items[0].similarity if items else float("nan")
+        return cls(task, view, t_det, similarity, items, current_image, signals)
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], *, source: str = "report") -> FailureReport:
@@ -125,7 +135,7 @@ class FailureReport:
                 )
                 for item in data["neighbors"]
             )
-            current = data.get("current_image")
+            current, signals = data.get("current_image"), data.get("signals")
             return cls(
                 current_task=str(data["current_task"]),
                 view=str(data["view"]),
@@ -133,6 +143,7 @@ class FailureReport:
                 similarity=float(data["similarity"]),
                 items=items,
                 current_image=None if current is None else str(current),
+                signals=None if signals is None else str(signals),
             )
         except (KeyError, TypeError, ValueError) as error:
             raise DataError(f"{source} is not a failure report (missing or bad field: {error})") from error
@@ -145,7 +156,7 @@ class FailureReport:
             "similarity": round(self.similarity, 6),
             "current_image": self.current_image,
             "neighbors": [item.to_dict() for item in self.items],
-        }
+        } | ({"signals": self.signals} if self.signals is not None else {})
 
     def missing_images(self) -> list[str]:
         """The prompt's images (top neighbour's start and end, the current frame) that are not on disk."""
@@ -182,7 +193,7 @@ class FailureReport:
             "failure": top.description,
             "view": top.view,
             "similarity_score": f"{top.similarity:.2f}",
-        }
+        } | ({"robot_signals": self.signals} if self.signals is not None else {})
         messages: list[dict[str, Any]] = [
             {"role": "system", "content": SYSTEM_PROMPT},
             {"role": "user", "content": f"{INTRO}\n{json.dumps(report, indent=2)}"},
@@ -216,6 +227,7 @@ class FailureReport:
             f"# Failure report — {self.current_task}",
             "",
             f"Detected at frame **{self.t_det}** in view **{self.view}** with S_t = **{self.similarity:.3f}**.",
+            *(["", f"Robot signals: {self.signals}"] if self.signals is not None else []),
             "",
             "| rank | task | view | similarity | symbol | grounded failure | matched moment of that run |",
             "|---:|---|---|---:|---|---|---|",
@@ -255,19 +267,52 @@ def _whole_or_none(value: Any) -> int | None:
 
 
 def report_for(trace: DetectionTrace, trajectory: Trajectory | None = None) -> FailureReport | None:
-    """The report at t_det for the firing view's K neighbours (None without a detection).
+    """The report at t_det for the firing view's K neighbours (None without a detection); when the robot's
+    signals fired, the neighbours of the camera view scoring highest then, and the signals' sentence.
 
-    With the trajectory, the current frame (the firing view at t_det) is referenced for the VLM.
+    With the trajectory, the current frame (that camera at t_det) is referenced for the VLM.
     """
     t_det, view = trace.t_det, trace.detected_view
     if t_det is None or view is None:
         return None
+    camera = trace.camera_at(view, t_det)
     current = None
-    if trajectory is not None and view in trajectory.views and t_det < len(trajectory.views[view]):
-        current = trajectory.views[view][t_det].reference
+    if (
+        camera is not None
+        and trajectory is not None
+        and camera in trajectory.views
+        and t_det < len(trajectory.views[camera])
+    ):
+        current = trajectory.views[camera][t_det].reference
     return FailureReport.from_neighbors(
-        task=trace.task, view=view, t_det=t_det, neighbors=trace.neighbors(view, t_det), current_image=current
+        task=trace.task,
+        view=view,
+        t_det=t_det,
+        neighbors=trace.neighbors(camera, t_det) if camera is not None else [],
+        current_image=current,
+        similarity=None if camera == view else float(trace.failure_similarity(view)[t_det]),
+        signals=signals_sentence(trace, t_det),
     )
+
+
+def signals_sentence(trace: DetectionTrace, t: int) -> str | None:
+    """What the robot's signals say at frame `t`: their S⁻ (nearest failure run and frame) and S⁺ (nearest
+    normal frame), and the dimensions furthest from that normal frame, in σ of the success runs."""
+    signals = trace.signals
+    if signals is None or not np.isfinite(signals.similarity[t]):
+        return None
+    failure, normal = signals.nearest_failure(t), signals.nearest_success(t)
+    parts = [f"S⁻ = {float(signals.similarity[t]):.3f}"]
+    if failure is not None:
+        parts[0] += f" (nearest failure: {failure[0]}, `{failure[1]}`, frame {failure[2]})"
+    if normal is not None:
+        parts.append(
+            f"S⁺ = {float(signals.success_similarity[t]):.3f} (nearest normal: {normal[0]}, frame {normal[1]})"
+        )
+        deviated = signals.deviation_text(t)
+        if deviated:
+            parts.append(f"furthest from normal: {deviated}")
+    return "; ".join(parts)
 
 
 class VLMClient(Protocol):

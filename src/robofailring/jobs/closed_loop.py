@@ -146,7 +146,7 @@ def run_watched(
     size = (image_size, image_size)
     with run_episode(task, mode, seed, ood=ood, image_size=image_size, frames=frames) as run:
         for images in run:
-            step = session.step(images)
+            step = session.step(images, signals=run.last_signals())
             steps.append(step)
             for view, rgb in images.items():
                 kept.setdefault(view, []).append(rgb)
@@ -160,7 +160,7 @@ def run_watched(
 
 def alarm(step: StepResult) -> tuple[str, Neighbor]:
     """The view that fired with the highest score, and its nearest memory entry."""
-    view = step.detected_view
+    view = step.camera_view  # the firing camera, or the highest one when the robot's signals fired
     assert view is not None, "alarm() of a step that did not fire"
     return view, step.neighbors[view][0]
 

@@ -16,7 +16,7 @@ from robofailring.detection.config import DetectorConfig, check_stride
 from robofailring.detection.detector import DetectionTrace
 from robofailring.detection.loader import detector_from
 from robofailring.detection.trace import self_match_warning
-from robofailring.explain.report import FailureReport, report_for
+from robofailring.explain.report import FailureReport, report_for, signals_sentence
 from robofailring.memory.references import ReferenceCheck, check_references
 
 _log = logging.getLogger("robofailring")
@@ -123,13 +123,16 @@ class DetectResult:
             f"{judged}, K = {trace.k}"
         ]
         shown = {rule.score_name: trace.scores_of(rule) for rule in trace.shown_rules}
-        for view in trace.views:
+        for view in trace.scored_views:
             parts = [f"max {name} = {float(np.nanmax(scores[view])):.3f}" for name, scores in shown.items()]
             lines.append(f"  {view:>10}: " + ", ".join(parts))
         lines.append(trace.verdict())
         if trace.t_det is None or trace.detected_view is None:
             return "\n".join(lines)
-        fired_view = trace.detected_view
+        signals = signals_sentence(trace, trace.t_det)
+        if signals is not None:
+            lines.append(f"robot signals: {signals}")
+        fired_view = trace.camera_at(trace.detected_view, trace.t_det) or trace.detected_view
         found = trace.neighbors(fired_view, trace.t_det)
         if found:
             top = found[0]
@@ -152,8 +155,9 @@ def run_detect(config: DetectConfig) -> DetectResult:
     """`robofailring detect`: the trace, the failure report when it fires, and the VLM's answer about it."""
     trace, loaded = detect_trajectory(config)
     references = None
-    if trace.t_det is not None and trace.detected_view is not None:
-        neighbors = trace.neighbors(trace.detected_view, trace.t_det)
+    camera = trace.camera_at(trace.detected_view, trace.t_det) if trace.t_det is not None else None
+    if trace.t_det is not None and camera is not None:
+        neighbors = trace.neighbors(camera, trace.t_det)
         references = check_references(ref for n in neighbors for ref in (n.entry.start, n.entry.end))
     report = report_for(trace, loaded)
     answer = None  # no VLM, or nothing detected to ask about

@@ -23,6 +23,7 @@ from robofailring.errors import DataError, EncoderMismatchError
 from robofailring.memory.encoding import BuildStats, EncodedFailures, encode_failures, failure_views
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.recipe import DEFAULT_RECIPE, MemoryRecipe
+from robofailring.memory.signal_memory import NONE, SignalMemory
 from robofailring.memory.success import SuccessMemory
 from robofailring.progress import progress_bar
 
@@ -52,7 +53,8 @@ def build_memories(
 
     `recipe` (`robofailring.memory.recipe`): its failure frames, `dense` (each failure view's frames from
     its onset on, thinned at its step) or `end` (the paper's one entry per view), and its pairing, for both
-    memories. A dataset without a success run gives no success memory.
+    memories, and which of the robot's signals make the signal memory (`robofailring.memory.signal_memory`;
+    none where no run has them). A dataset without a success run gives no success memory.
     Image references are kept relative to the dataset root. `stats.skipped_inputs` is the provenance's.
     `vocabulary` (the dataset's own symbols beyond Table 5) is kept with the memory.
     """
@@ -66,6 +68,9 @@ def build_memories(
         vocabulary=vocabulary,
     )
     success_memory = built if built is not None and built.success_runs else None  # none: the paper's memory
+    signals, unused = (
+        SignalMemory.build(trajectories, choice=recipe.signals) if recipe.signals != NONE else (None, [])
+    )
     manifest = encoded.manifest(
         encoder.identity,
         skipped_inputs=[skipped.to_dict() for skipped in provenance.skipped_inputs],
@@ -84,8 +89,9 @@ def build_memories(
         data_root=root,
         successes=success_memory,
         vocabulary=vocabulary,
+        signals=signals,
     )
-    encoded.stats.skipped_inputs = list(provenance.skipped_inputs)
+    encoded.stats.skipped_inputs = [*provenance.skipped_inputs, *unused]
     return memory, encoded.stats
 
 
@@ -130,6 +136,9 @@ def add_to(
         failure_step=old.failure_step if old.failure_step is not None else recipe.success_step,
         vocabulary=memory.vocabulary,
     )
+    signals, unused = (
+        memory.signals.extended(trajectories) if memory.signals is not None else (None, list[Skipped]())
+    )
     joined = memory.successes
     if new_successes is not None and len(new_successes):
         if joined is not None:
@@ -154,8 +163,9 @@ def add_to(
         data_root=memory.data_root,
         successes=joined,
         vocabulary=memory.vocabulary,
+        signals=signals,
     ).derived_from(memory)  # saved over `memory`'s folder only while that is still the version read
-    stats.skipped_inputs = list(skipped_inputs)
+    stats.skipped_inputs = [*skipped_inputs, *unused]
     return grown, stats
 
 

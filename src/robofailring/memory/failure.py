@@ -18,13 +18,12 @@ import numpy as np
 from robofailring.atomic import atomic_directory, output_lock, restore_interrupted, write_text_atomic
 from robofailring.data.grounding import Vocabulary
 from robofailring.data.model import Trajectory
-from robofailring.data.vocabulary import read_vocabulary
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.encoders.spec import EncoderSpec
-from robofailring.errors import EncoderMismatchError, MemoryFormatError, UnknownTaskError, VocabularyError
+from robofailring.errors import EncoderMismatchError, MemoryFormatError, UnknownTaskError
 from robofailring.memory.encoding import BuildStats, encode_failures, failure_views
 from robofailring.memory.entry import MemoryEntry, Neighbor
-from robofailring.memory.format import parse_entry, read_jsonl
+from robofailring.memory.format import parse_entry, read_jsonl, stored_vocabulary
 from robofailring.memory.index import FLAT, TaskIndexSet
 from robofailring.memory.manifest import MemoryManifest, StoredCalibration
 from robofailring.memory.pairs import pair_vectors
@@ -36,6 +35,7 @@ from robofailring.memory.references import (
     stored_resolver,
     to_stored,
 )
+from robofailring.memory.signal_memory import SignalMemory
 from robofailring.memory.version import ReadFrom, read_whole, refuse_stale, require_read_from
 from robofailring.outputs import check_memory_target
 
@@ -64,6 +64,7 @@ class FailureMemory:
         data_root: Path | None = None,
         successes: SuccessMemory | None = None,
         vocabulary: Vocabulary | None = None,
+        signals: SignalMemory | None = None,
     ) -> None:
         vectors = np.ascontiguousarray(vectors, dtype=np.float32)
         if vectors.ndim != 2 or len(vectors) != len(entries):
@@ -79,6 +80,7 @@ class FailureMemory:
         self.manifest = manifest if manifest is not None else MemoryManifest(encoder=encoder, dim=self.dim)
         self.data_root = Path(data_root).resolve() if data_root is not None else None
         self.successes = successes  # success runs for the contrast rule (robofailring.memory.success)
+        self.signals = signals  # the robot's signals as a second modality (robofailring.memory.signal_memory)
         # the folder this memory (or the one it was derived from) was read from, and that folder's
         # version then: writing back over it is refused once another process has replaced it
         self.read_from: ReadFrom | None = None
@@ -254,6 +256,8 @@ class FailureMemory:
                     handle.write(json.dumps(stored) + "\n")
             if self.successes is not None:
                 self.successes.write(tmp, root=root)
+            if self.signals is not None:
+                self.signals.write(tmp)
             if self.vocabulary is not None:
                 (tmp / VOCABULARY).write_text(
                     json.dumps(self.vocabulary.to_dict(), indent=2), encoding="utf-8"
@@ -273,6 +277,7 @@ class FailureMemory:
             symbols=dict(sorted(Counter(e.symbol for e in self.entries).items())),
             vocabulary=VOCABULARY if self.vocabulary is not None else None,
             successes=self.successes.manifest() if self.successes is not None else None,
+            signals=self.signals.manifest() if self.signals is not None else None,
             created=self.manifest.created or datetime.now(UTC).isoformat(timespec="seconds"),
         )
 
@@ -335,7 +340,7 @@ class FailureMemory:
                 f"{manifest_path}: format_version {version!r}, this version of robofailring reads {readable}"
             )
         manifest = MemoryManifest.parse(manifest, manifest_path)
-        vocabulary = _stored_vocabulary(directory, manifest)
+        vocabulary = stored_vocabulary(directory, manifest.vocabulary)
         try:
             index = faiss.read_index(str(directory / INDEX))
         except RuntimeError as error:
@@ -359,6 +364,7 @@ class FailureMemory:
             from robofailring.memory.success import SuccessMemory
 
             successes = SuccessMemory.read(directory, manifest.successes, manifest.dim, resolve=resolve)
+        signals = SignalMemory.read(directory, manifest.signals) if manifest.signals else None
         return cls(
             vectors,
             entries,
@@ -367,6 +373,7 @@ class FailureMemory:
             data_root=root,
             successes=successes,
             vocabulary=vocabulary,
+            signals=signals,
         )
 
     def check_references(self) -> ReferenceCheck:
@@ -378,20 +385,6 @@ class FailureMemory:
         """The threshold calibration stored for the rule named `rule` with this memory's encoder, if any."""
         calibration = self.manifest.calibration
         return calibration.threshold_for(self.encoder, rule) if calibration is not None else None
-
-
-def _stored_vocabulary(directory: Path, manifest: MemoryManifest) -> Vocabulary | None:
-    """The vocabulary file a memory's manifest names (in the memory's own folder), or None."""
-    if manifest.vocabulary is None:
-        return None
-    if Path(manifest.vocabulary).name != manifest.vocabulary:
-        raise MemoryFormatError(
-            f"{directory / MANIFEST}: 'vocabulary' must name a file in the memory's folder"
-        )
-    try:
-        return read_vocabulary(directory / manifest.vocabulary)
-    except VocabularyError as error:
-        raise MemoryFormatError(f"{directory}: its vocabulary cannot be read: {error}") from error
 
 
 def encoder_spec_for(memory: FailureMemory) -> str:

@@ -12,7 +12,8 @@ from pathlib import Path
 from typing import Any, Final, TypeVar
 
 from robofailring.data.grounding import Vocabulary, parse_symbol
-from robofailring.errors import MemoryFormatError, SymbolError
+from robofailring.data.vocabulary import read_vocabulary
+from robofailring.errors import MemoryFormatError, SymbolError, VocabularyError
 
 ENTRY_FIELDS: Final[tuple[str, ...]] = ("task", "symbol", "episode", "view", "start", "end")
 
@@ -85,3 +86,17 @@ def _moment(record: dict[str, Any]) -> dict[str, int | None]:
     if not 0 <= frame < length:
         raise MemoryFormatError(f"'frame' must lie in 0 … length − 1 = {length - 1}, not {frame}")
     return {"frame": frame, "length": length}
+
+
+def stored_vocabulary(directory: Path, name: str | None) -> Vocabulary | None:
+    """The vocabulary file a memory's manifest names (`name`, in the memory's own folder), or None."""
+    if name is None:
+        return None
+    if Path(name).name != name:
+        raise MemoryFormatError(
+            f"{directory / 'manifest.json'}: 'vocabulary' must name a file in the memory's folder"
+        )
+    try:
+        return read_vocabulary(directory / name)
+    except VocabularyError as error:
+        raise MemoryFormatError(f"{directory}: its vocabulary cannot be read: {error}") from error

@@ -41,6 +41,7 @@ _ORDER: Final[tuple[str, ...]] = (
     "views",
     "symbols",
     "successes",
+    "signals",
     "created",
     "calibration",
 )
@@ -80,6 +81,7 @@ _KINDS: Final[dict[str, Any]] = {
     "views": lambda v: isinstance(v, list),
     "symbols": lambda v: isinstance(v, dict),
     "successes": lambda v: isinstance(v, dict),
+    "signals": lambda v: isinstance(v, dict),
     "created": lambda v: isinstance(v, str),
     "encoder": lambda v: isinstance(v, str),
 }
@@ -272,6 +274,7 @@ class MemoryManifest:
         None  # "concat" or "change" (robofailring.memory.pairs); None: built before, "concat"
     )
     successes: dict[str, Any] | None = None  # the success memory's section (robofailring.memory.success)
+    signals: dict[str, Any] | None = None  # the signal memory's section (robofailring.memory.signal_memory)
     created: str | None = None
     calibration: StoredCalibration | None = None
     extra: dict[str, Any] = field(default_factory=dict)  # keys this version does not know, kept verbatim

@@ -1,8 +1,9 @@
 """`MemoryRecipe`: how a memory is made, as one value, with its defaults in this one place.
 
 A recipe names the encoder, which failure frames become entries (`dense` or the paper's `end`), how a
-first and a current frame are paired (`change` or the paper's `concat`) and how finely success runs
-(and a dense memory's failure runs) are thinned. A built memory carries its own (`FailureMemory.recipe`,
+first and a current frame are paired (`change` or the paper's `concat`), how finely success runs
+(and a dense memory's failure runs) are thinned, and which of the robot's signals are a second modality
+(`auto`: every state and action signal the data has; `none`; or names). A built memory carries its own (`FailureMemory.recipe`,
 read from its manifest) and pairs its queries by it; jobs that build memories take one recipe.
 """
 
@@ -15,6 +16,9 @@ from robofailring.errors import SettingError
 from robofailring.memory.entry import DENSE, END, check_failure_frames
 from robofailring.memory.manifest import MemoryManifest
 from robofailring.memory.pairs import CHANGE, CONCAT, check_pairing
+from robofailring.memory.signal_memory import AUTO as SIGNALS_AUTO
+from robofailring.memory.signal_memory import NONE as SIGNALS_NONE
+from robofailring.memory.signal_memory import check_choice
 from robofailring.memory.thinning import DEFAULT_STEP, check_step
 
 DEFAULT_ENCODER: Final[str] = "pixels"  # weight-free: what a memory is built with when no encoder is named
@@ -30,10 +34,15 @@ class MemoryRecipe:
     success_step: float = (
         DEFAULT_STEP  # thinning (cosine) of success runs and dense failure runs; 0 keeps all
     )
+    signals: str = SIGNALS_AUTO  # the robot's signals used beside the cameras: `auto`, `none` or names
 
     def __post_init__(self) -> None:  # a bad setting fails before any frame is read
         if not isinstance(self.encoder, str) or not self.encoder:
             raise SettingError(f"a memory's encoder must be an encoder spec, got {self.encoder!r}")
+        try:
+            check_choice(self.signals)
+        except ValueError as error:
+            raise SettingError(str(error)) from error
         check_failure_frames(self.failure_frames)
         check_pairing(self.pairing)
         check_step(self.success_step)
@@ -51,6 +60,7 @@ class MemoryRecipe:
         failure_frames: str | None = None,
         pairing: str | None = None,
         success_step: float | None = None,
+        signals: str | None = None,
     ) -> MemoryRecipe:
         """The recipe of the settings given, the defaults for those left out (None): what options build."""
         default = cls(encoder=encoder)
@@ -59,17 +69,19 @@ class MemoryRecipe:
             failure_frames=failure_frames if failure_frames is not None else default.failure_frames,
             pairing=pairing if pairing is not None else default.pairing,
             success_step=success_step if success_step is not None else default.success_step,
+            signals=signals if signals is not None else default.signals,
         )
 
     @classmethod
     def of(cls, manifest: MemoryManifest) -> MemoryRecipe:
         """The recipe a memory was built with, from its manifest (one built before a setting existed: the
-        paper's `end` frames and `concat` pairing)."""
+        paper's `end` frames and `concat` pairing; one without a signal memory: `none`)."""
         return cls(
             encoder=manifest.encoder_spec or manifest.encoder,
             failure_frames=manifest.failure_mode,
             pairing=manifest.pairing_mode,
             success_step=manifest.failure_step if manifest.failure_step is not None else DEFAULT_STEP,
+            signals=str(manifest.signals.get("choice", SIGNALS_AUTO)) if manifest.signals else SIGNALS_NONE,
         )
 
 

@@ -1,0 +1,116 @@
+"""The signal modality's scores over a trajectory or a live session: S⁻ and S⁺ of the robot's own signals
+against the task's signal memory (`robofailring.memory.signal_memory`), fused with the camera views as the
+view named `signals`, and what deviated most from the nearest normal frame."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from robofailring.data.model import Trajectory
+from robofailring.errors import DataError
+from robofailring.memory.signal_memory import SIGNALS_VIEW, TaskSignals, read_features
+
+__all__ = ["SIGNALS_VIEW", "SignalHistory", "SignalScores", "score_signals"]
+
+
+@dataclass(frozen=True)
+class SignalScores:
+    """One run's signal scores per frame (NaN, −1: not scored) and the vectors they were found with."""
+
+    similarity: np.ndarray  # S⁻_t: the nearest failure entry's similarity
+    success_similarity: np.ndarray  # S⁺_t: the nearest success entry's
+    failure_rows: np.ndarray  # that failure entry's row in the task's signal memory, −1: none
+    success_rows: np.ndarray  # that success entry's row, −1: none
+    vectors: np.ndarray = field(repr=False)  # (L, n) the paired vectors (zeros where not scored)
+    task: TaskSignals = field(repr=False)
+
+    def nearest_failure(self, t: int) -> tuple[str, str, int] | None:
+        """(episode, symbol, frame) of the failure entry nearest at frame `t`, if any."""
+        row = int(self.failure_rows[t])
+        if row < 0:
+            return None
+        rows = self.task.rows["failure"]
+        return str(rows.episodes[row]), str(rows.symbols[row]), int(rows.frames[row])
+
+    def nearest_success(self, t: int) -> tuple[str, int] | None:
+        """(episode, frame) of the success entry nearest at frame `t`, if any."""
+        row = int(self.success_rows[t])
+        if row < 0:
+            return None
+        rows = self.task.rows["success"]
+        return str(rows.episodes[row]), int(rows.frames[row])
+
+    def deviations(self, t: int, *, top: int = 3) -> list[tuple[str, float]]:
+        """The signal dimensions furthest from the nearest normal frame at `t`, in σ of the success runs."""
+        row = int(self.success_rows[t])
+        return [] if row < 0 else self.task.deviations(self.vectors[t], row, top=top)
+
+    def deviation_text(self, t: int) -> str:
+        """`gripper_width/width (change since the start) +4.2σ, …` at frame `t`, or '' without a success."""
+        return ", ".join(f"{name} {value:+.1f}σ" for name, value in self.deviations(t))
+
+
+def score_signals(
+    task: TaskSignals, trajectory: Trajectory, *, steps: np.ndarray, length: int, exclude_episode: str | None
+) -> SignalScores:
+    """The signal scores of `trajectory` at its scored frames `steps` (DataError: its signals cannot be read)."""
+    features = read_features(trajectory, task.layout)[:length]
+    if len(features) < length:
+        raise DataError(f"{trajectory.key}: its signals have {len(features)} rows for {length} frames")
+    vectors = task.vectors_of(features)
+    failure, failure_rows = task.search(vectors[steps], "failure", exclude_episode=exclude_episode)
+    success, success_rows = task.search(vectors[steps], "success", exclude_episode=exclude_episode)
+
+    def on_frames(values: np.ndarray, fill: float) -> np.ndarray:
+        full = np.full(length, fill, dtype=values.dtype)
+        full[steps] = values
+        return full
+
+    return SignalScores(
+        similarity=on_frames(failure, np.nan),
+        success_similarity=on_frames(success, np.nan),
+        failure_rows=on_frames(failure_rows, -1),
+        success_rows=on_frames(success_rows, -1),
+        vectors=vectors,
+        task=task,
+    )
+
+
+class SignalHistory:
+    """A live session's signals so far: the raw features of every step, for the start state and the
+    action window each new step's vector needs (`robofailring.memory.signal_memory`)."""
+
+    def __init__(self, task: TaskSignals) -> None:
+        self.task = task
+        self.rows: list[np.ndarray] = []
+
+    def step(
+        self, signals: Mapping[str, np.ndarray], *, exclude_episode: str | None
+    ) -> tuple[float, float, np.ndarray, int, int]:
+        """Add this step's signals ({name: (D,) values}); (S⁻, S⁺, its vector, failure row, success row)."""
+        layout = self.task.layout
+        missing = [name for name in layout.names if name not in signals]
+        if missing:
+            raise DataError(
+                f"step {len(self.rows)}: signals= lacks {missing[0]!r}; the task's signal memory uses "
+                f"{', '.join(layout.names)}"
+            )
+        values = {}
+        for name, dims in (*layout.state, *layout.action):
+            row = np.asarray(signals[name], dtype=np.float64).reshape(-1)
+            if len(row) != len(dims) or not np.isfinite(row).all():
+                raise DataError(
+                    f"step {len(self.rows)}: signal {name!r} must be {len(dims)} finite numbers "
+                    f"({', '.join(dims)}), got {row.tolist()}"
+                )
+            values[name] = row[None]
+        features = layout.features(values, 1)[0]
+        features[-1] = len(self.rows)  # the frame number
+        self.rows.append(features)
+        vector = self.task.vectors_of(np.stack(self.rows))[-1:]
+        failure, failure_row = self.task.search(vector, "failure", exclude_episode=exclude_episode)
+        success, success_row = self.task.search(vector, "success", exclude_episode=exclude_episode)
+        return float(failure[0]), float(success[0]), vector[0], int(failure_row[0]), int(success_row[0])

@@ -1,0 +1,384 @@
+"""The signal memory: the robot's own signals (joint state, gripper, end-effector pose, commanded actions)
+as a second modality beside the cameras, retrieved as the paper retrieves frames (docs/signals.md).
+
+Per task, each frame t of a run becomes one vector from its raw features f_t = [state ‖ action ‖ t]
+(the layout's state and action signals and the frame number), z-scored by the task's own success
+runs (all its runs where it has none) to z_t, then paired as the memory's frames are paired:
+`[½ zs_0 ‖ zs_t − zs_0 ‖ za_t ‖ za_{t−2} ‖ za_{t−4} ‖ z_time_t]` (the start state, the change since
+then, a short window of commanded actions, the moment). Failure runs give one entry per frame from
+their onset on (from frame 1 when unknown), success runs one per frame, each set in its own exact
+Faiss index per task. A query's similarity to an entry is exp(−d²/n) (d its Euclidean distance, n the
+vector's length), in (0, 1]; S⁻ is the nearest failure's, S⁺ the nearest success's, scored by the
+rules and fused with the camera views as one more view named `signals`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Final
+
+import numpy as np
+
+from robofailring.data.model import Skipped, Trajectory
+from robofailring.data.signals import SignalKind
+from robofailring.errors import DataError, MemoryFormatError
+from robofailring.memory.index import FLAT, IndexSpec, TaskIndex
+
+SIGNALS_VIEW: Final[str] = "signals"  # the modality's name among the views a trace fuses
+ACTION_LAGS: Final[tuple[int, ...]] = (0, 2, 4)  # the action window: a_t, a_{t−2}, a_{t−4}
+START_WEIGHT: Final[float] = 0.5  # the start state's weight, as the `change` pairing weighs the first frame
+MIN_SCALE: Final[float] = 1e-3  # a feature's spread floor (a value constant over the successes)
+AUTO: Final[str] = "auto"  # every state and action signal every run of a task has
+NONE: Final[str] = "none"
+SIGNALS_FILE: Final[str] = "signals.npz"
+
+Columns = tuple[tuple[str, tuple[str, ...]], ...]  # (signal name, its dimension names) in order
+
+
+def check_choice(choice: str) -> str:
+    """`auto`, `none` or a comma-separated list of signal names (`--signals`)."""
+    names = [name.strip() for name in str(choice).split(",")]
+    if not choice or any(not name for name in names):
+        raise ValueError(f"--signals takes auto, none or signal names separated by commas, got {choice!r}")
+    return str(choice)
+
+
+@dataclass(frozen=True)
+class SignalLayout:
+    """Which signals a task's vectors are made of, in order: its state signals and its action signals."""
+
+    state: Columns
+    action: Columns
+
+    @property
+    def names(self) -> list[str]:
+        return [name for name, _ in (*self.state, *self.action)]
+
+    @property
+    def widths(self) -> tuple[int, int]:
+        return sum(len(d) for _, d in self.state), sum(len(d) for _, d in self.action)
+
+    def columns(self) -> list[str]:
+        """What each element of a vector is, for explanations (`gripper_width/width (change)`, …)."""
+        state = [f"{name}/{dim}" for name, dims in self.state for dim in dims]
+        action = [f"{name}/{dim}" for name, dims in self.action for dim in dims]
+        return [
+            *(f"{c} (at the start)" for c in state),
+            *(f"{c} (change since the start)" for c in state),
+            *(
+                f"{c} (commanded{f', {lag} frames before' if lag else ''})"
+                for lag in ACTION_LAGS
+                for c in action
+            ),
+            "frame (time)",
+        ]
+
+    def features(self, values: Mapping[str, np.ndarray], length: int) -> np.ndarray:
+        """Raw per-frame features f_t = [state ‖ action ‖ t] from each signal's (L, D) rows."""
+        parts = [np.asarray(values[name], np.float64).reshape(length, -1) for name in self.names]
+        return np.concatenate([*parts, np.arange(length, dtype=np.float64)[:, None]], axis=1)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {kind: [[name, list(dims)] for name, dims in columns] for kind, columns in self._kinds()}
+
+    def _kinds(self) -> tuple[tuple[str, Columns], ...]:
+        return (("state", self.state), ("action", self.action))
+
+    @classmethod
+    def parse(cls, section: Any, where: str) -> SignalLayout:
+        try:
+            return cls(
+                **{
+                    kind: tuple((str(name), tuple(str(d) for d in dims)) for name, dims in section[kind])
+                    for kind in ("state", "action")
+                }
+            )
+        except (KeyError, TypeError, ValueError) as error:
+            raise MemoryFormatError(f"{where}: bad signal layout {section!r} ({error!r})") from error
+
+
+def read_features(trajectory: Trajectory, layout: SignalLayout) -> np.ndarray:
+    """The trajectory's raw features for `layout`, or DataError naming what it lacks or cannot read."""
+    found, skipped = trajectory.read_signals(layout.names)
+    if skipped:
+        raise DataError(skipped[0].reason)
+    for name, dims in (*layout.state, *layout.action):
+        if found[name].dims != dims:
+            raise DataError(
+                f"{trajectory.key}: signal {name!r} has dimensions {', '.join(found[name].dims)}, the task's "
+                f"memory {', '.join(dims)}"
+            )
+    return layout.features({name: found[name].values for name in layout.names}, trajectory.length)
+
+
+def choose_layout(trajectories: Sequence[Trajectory], choice: str) -> SignalLayout | None:
+    """The layout of one task's runs for `choice`: `auto` takes every state and action signal the first
+    run that has signals has (a run without one of them is skipped when the memory is built); names take
+    those signals, whatever their kind (`other` counts as state). None: no signals to use."""
+    if choice == NONE:
+        return None
+    first = next((t for t in trajectories if t.signals), None)
+    if first is None:
+        return None
+    wanted = (
+        [n for n, s in first.signals.items() if s.kind in (SignalKind.STATE, SignalKind.ACTION)]
+        if choice == AUTO
+        else [name.strip() for name in choice.split(",")]
+    )
+    found, skipped = first.read_signals(wanted)
+    if choice != AUTO and skipped:
+        raise DataError(f"--signals {choice}: {skipped[0].reason}")
+    state = tuple((n, v.dims) for n, v in found.items() if v.kind is not SignalKind.ACTION)
+    action = tuple((n, v.dims) for n, v in found.items() if v.kind is SignalKind.ACTION)
+    return SignalLayout(state=state, action=action) if state or action else None
+
+
+@dataclass(frozen=True)
+class Rows:
+    """What each entry of one index is: its run's episode, failure symbol (None: a success) and frame."""
+
+    episodes: np.ndarray  # str
+    symbols: np.ndarray  # str, "" for a success
+    frames: np.ndarray  # int
+
+
+class TaskSignals:
+    """One task's signal memory: its layout, normalisation and the failure and success entries' indexes."""
+
+    def __init__(
+        self,
+        layout: SignalLayout,
+        mean: np.ndarray,
+        scale: np.ndarray,
+        vectors: Mapping[str, np.ndarray],
+        rows: Mapping[str, Rows],
+    ) -> None:
+        self.layout, self.mean, self.scale = layout, np.asarray(mean), np.asarray(scale)
+        self.vectors = {kind: np.asarray(v, np.float32) for kind, v in vectors.items()}
+        self.rows = dict(rows)
+        self.indexes = {
+            kind: TaskIndex.build(
+                _entries(v), np.arange(len(v)), list(self.rows[kind].episodes), IndexSpec(FLAT)
+            )
+            for kind, v in self.vectors.items()
+            if len(v)
+        }
+
+    def vectors_of(self, features: np.ndarray) -> np.ndarray:
+        """The paired vectors (module docstring) of one run's raw features, one per frame."""
+        z = (np.asarray(features, np.float64) - self.mean) / self.scale
+        state_width, action_width = self.layout.widths
+        state, action, time = z[:, :state_width], z[:, state_width : state_width + action_width], z[:, -1:]
+        length = len(z)
+        lagged = [action[np.maximum(np.arange(length) - lag, 0)] for lag in ACTION_LAGS]
+        start = np.broadcast_to(START_WEIGHT * state[:1], state.shape)
+        return np.concatenate([start, state - state[:1], *lagged, time], axis=1).astype(np.float32)
+
+    def search(
+        self, vectors: np.ndarray, kind: str, *, exclude_episode: str | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(similarity, entry row) of the nearest `failure` or `success` entry per vector; NaN and −1 where
+        the task has none (or only the excluded episode's)."""
+        vectors = np.ascontiguousarray(vectors, np.float32)
+        index = self.indexes.get(kind)
+        if index is None:
+            return np.full(len(vectors), np.nan, np.float32), np.full(len(vectors), -1, np.int64)
+        queries = np.concatenate([vectors, np.ones((len(vectors), 1), np.float32)], axis=1)
+        products, ids = index.search(queries, 1, exclude_episode=exclude_episode)
+        squared = np.maximum(np.einsum("ij,ij->i", vectors, vectors) - 2 * products[:, 0], 0.0)
+        similarity = np.exp(-squared / vectors.shape[1]).astype(np.float32)
+        return np.where(ids[:, 0] >= 0, similarity, np.nan).astype(np.float32), ids[:, 0]
+
+    def deviations(self, vector: np.ndarray, row: int, *, top: int = 3) -> list[tuple[str, float]]:
+        """The elements of `vector` furthest from success entry `row`, in the success runs' spreads (σ)."""
+        difference = np.asarray(vector, np.float64) - self.vectors["success"][row]
+        order = np.argsort(-np.abs(difference))[:top]
+        columns = self.layout.columns()
+        return [(columns[i], float(difference[i])) for i in order]
+
+
+def _entries(vectors: np.ndarray) -> np.ndarray:
+    """Entries for inner-product search that ranks by Euclidean distance: [y ‖ −‖y‖²/2], so a query
+    [x ‖ 1] scores x·y − ‖y‖²/2 = (‖x‖² − d²)/2."""
+    norms = np.einsum("ij,ij->i", vectors, vectors)[:, None]
+    return np.concatenate([vectors, -0.5 * norms], axis=1).astype(np.float32)
+
+
+def build_task(
+    trajectories: Sequence[Trajectory], layout: SignalLayout, onset_start: int = 1
+) -> tuple[TaskSignals | None, list[Skipped]]:
+    """One task's signal memory from its labelled runs; a run whose signals cannot be read is skipped."""
+    features: list[tuple[Trajectory, np.ndarray]] = []
+    skipped: list[Skipped] = []
+    for trajectory in trajectories:
+        if trajectory.outcome is None:
+            continue
+        try:
+            features.append((trajectory, read_features(trajectory, layout)))
+        except DataError as error:
+            skipped.append(Skipped(trajectory.source or Path(trajectory.key), f"signals not used: {error}"))
+    normal = [f for t, f in features if not t.is_failure] or [f for _, f in features]
+    if not normal:
+        return None, skipped
+    stacked = np.concatenate(normal)
+    mean, scale = stacked.mean(axis=0), np.maximum(stacked.std(axis=0), MIN_SCALE)
+    return _with_runs(TaskSignals(layout, mean, scale, {}, {}), features, onset_start), skipped
+
+
+def _with_runs(
+    task: TaskSignals, features: Sequence[tuple[Trajectory, np.ndarray]], onset_start: int = 1
+) -> TaskSignals:
+    """`task` with an entry per frame of each run added (a failure's from its onset on), its normalisation kept."""
+    vectors: dict[str, list[np.ndarray]] = {kind: [v] for kind, v in task.vectors.items()}
+    rows: dict[str, list[tuple[str, str, int]]] = {
+        kind: list(zip(r.episodes.tolist(), r.symbols.tolist(), r.frames.tolist(), strict=True))
+        for kind, r in task.rows.items()
+    }
+    for trajectory, raw in features:
+        kind = "failure" if trajectory.is_failure else "success"
+        start = (trajectory.onset_frame or onset_start) if kind == "failure" else 0
+        paired = task.vectors_of(raw)[start:]
+        vectors.setdefault(kind, []).append(paired)
+        found = rows.setdefault(kind, [])
+        found += [(trajectory.episode, trajectory.symbol or "", start + i) for i in range(len(paired))]
+    width = 2 * task.layout.widths[0] + len(ACTION_LAGS) * task.layout.widths[1] + 1
+    return TaskSignals(
+        task.layout,
+        task.mean,
+        task.scale,
+        {
+            kind: np.concatenate(vectors[kind]) if vectors.get(kind) else np.zeros((0, width), np.float32)
+            for kind in ("failure", "success")
+        },
+        {kind: _rows(rows.get(kind, [])) for kind in ("failure", "success")},
+    )
+
+
+def _rows(found: list[tuple[str, str, int]]) -> Rows:
+    return Rows(
+        episodes=np.asarray([e for e, _, _ in found], dtype=str),
+        symbols=np.asarray([s for _, s, _ in found], dtype=str),
+        frames=np.asarray([f for _, _, f in found], dtype=np.int64),
+    )
+
+
+class SignalMemory:
+    """Every task's signal memory (`TaskSignals`), the choice of signals it was built with, saved as one
+    `.npz` beside the memory's index (no pickles) and described in its manifest's `signals` section."""
+
+    def __init__(self, by_task: Mapping[str, TaskSignals], *, choice: str = AUTO) -> None:
+        self.by_task = dict(by_task)
+        self.choice = choice
+
+    @classmethod
+    def build(
+        cls, trajectories: Sequence[Trajectory], *, choice: str = AUTO
+    ) -> tuple[SignalMemory | None, list[Skipped]]:
+        """The signal memory of the labelled `trajectories` (None: no task has signals to use)."""
+        by_task: dict[str, TaskSignals] = {}
+        skipped: list[Skipped] = []
+        tasks = sorted({t.task for t in trajectories})
+        for task in tasks:
+            runs = [t for t in trajectories if t.task == task]
+            layout = choose_layout(runs, choice)
+            if layout is None:
+                continue
+            built, missed = build_task(runs, layout)
+            skipped += missed
+            if built is not None:
+                by_task[task] = built
+        return (cls(by_task, choice=choice) if by_task else None), skipped
+
+    def extended(self, trajectories: Sequence[Trajectory]) -> tuple[SignalMemory, list[Skipped]]:
+        """This memory with the labelled `trajectories` added: a task it has keeps its layout and
+        normalisation (a run without its signals is skipped), a new task is built as `build` builds one."""
+        by_task = dict(self.by_task)
+        skipped: list[Skipped] = []
+        for task in sorted({t.task for t in trajectories}):
+            runs = [t for t in trajectories if t.task == task and t.outcome is not None]
+            held = by_task.get(task)
+            if held is None:
+                layout = choose_layout(runs, self.choice)
+                built, missed = build_task(runs, layout) if layout is not None else (None, [])
+                skipped += missed
+                if built is not None:
+                    by_task[task] = built
+                continue
+            features = []
+            for run in runs:
+                try:
+                    features.append((run, read_features(run, held.layout)))
+                except DataError as error:
+                    skipped.append(Skipped(run.source or Path(run.key), f"signals not used: {error}"))
+            by_task[task] = _with_runs(held, features)
+        return SignalMemory(by_task, choice=self.choice), skipped
+
+    def task(self, task: str) -> TaskSignals | None:
+        return self.by_task.get(task)
+
+    def __len__(self) -> int:
+        return sum(len(v) for task in self.by_task.values() for v in task.vectors.values())
+
+    def manifest(self) -> dict[str, Any]:
+        """The manifest's `signals` section: the choice, and per task its key in the file, layout and sizes."""
+        tasks = {
+            task: {
+                "key": f"t{number}",
+                "layout": signals.layout.to_dict(),
+                **{f"{kind}_entries": len(v) for kind, v in signals.vectors.items()},
+            }
+            for number, (task, signals) in enumerate(sorted(self.by_task.items()))
+        }
+        return {"file": SIGNALS_FILE, "choice": self.choice, "tasks": tasks}
+
+    def write(self, directory: Path) -> None:
+        """Write `signals.npz` into `directory` (the memory's folder being written), keyed as `manifest` says."""
+        arrays: dict[str, np.ndarray] = {}
+        for task, described in self.manifest()["tasks"].items():
+            key, signals = described["key"], self.by_task[task]
+            arrays[f"{key}_mean"], arrays[f"{key}_scale"] = signals.mean, signals.scale
+            for kind in ("failure", "success"):
+                rows = signals.rows[kind]
+                arrays[f"{key}_{kind}"] = signals.vectors[kind]
+                arrays[f"{key}_{kind}_episodes"] = rows.episodes
+                arrays[f"{key}_{kind}_symbols"] = rows.symbols
+                arrays[f"{key}_{kind}_frames"] = rows.frames
+        with (Path(directory) / SIGNALS_FILE).open("wb") as handle:
+            np.savez(handle, **arrays)  # type: ignore[arg-type]  # numpy's stub types **kwds as allow_pickle
+
+    @classmethod
+    def read(cls, directory: Path, section: Mapping[str, Any]) -> SignalMemory:
+        """What `write` wrote, checked: a missing array or a size other than the manifest's names the file."""
+        path = Path(directory) / SIGNALS_FILE
+        where = f"{path}"
+        try:
+            with np.load(path, allow_pickle=False) as stored:
+                arrays = {name: stored[name] for name in stored.files}
+        except (OSError, ValueError, EOFError) as error:
+            raise MemoryFormatError(f"cannot read the signal memory {path}: {error}") from error
+        by_task = {}
+        try:
+            for task, described in section["tasks"].items():
+                key = described["key"]
+                vectors = {kind: arrays[f"{key}_{kind}"] for kind in ("failure", "success")}
+                rows = {
+                    kind: Rows(
+                        *(arrays[f"{key}_{kind}_{part}"] for part in ("episodes", "symbols", "frames"))
+                    )
+                    for kind in vectors
+                }
+                for kind, found in vectors.items():
+                    if len(found) != described[f"{kind}_entries"] or len(rows[kind].episodes) != len(found):
+                        raise MemoryFormatError(
+                            f"{where}: task {task!r} has {len(found)} {kind} vectors, the manifest says "
+                            f"{described[f'{kind}_entries']}"
+                        )
+                layout = SignalLayout.parse(described["layout"], where)
+                by_task[str(task)] = TaskSignals(
+                    layout, arrays[f"{key}_mean"], arrays[f"{key}_scale"], vectors, rows
+                )
+        except (KeyError, TypeError, AttributeError) as error:
+            raise MemoryFormatError(f"{where}: the signal memory lacks {error} (a damaged file?)") from error
+        return cls(by_task, choice=str(section.get("choice", AUTO)))
