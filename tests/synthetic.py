@@ -88,9 +88,11 @@ def write_project_dataset(
     episodes: int = 4,
     length: int = 6,
     onset: int | None = None,
+    signals: bool = False,
 ) -> Path:
     """A project-layout dataset (manifest + AHA-style folders) with successes and train/test splits;
-    `onset`: every failure's onset frame (None: not recorded, as in manifests from before onsets)."""
+    `onset`: every failure's onset frame (None: not recorded, as in manifests from before onsets);
+    `signals`: each episode's `signals.npz` as the simulator writes it (`robot_signals`)."""
     import json
 
     records = []
@@ -117,10 +119,36 @@ def write_project_dataset(
                         "views": list(VIEWS),
                     }
                     | ({"onset_frame": onset} if onset is not None and symbol is not None else {})
+                    | ({"signals": _write_signals(root / name, symbol, length, episode)} if signals else {})
                 )
     manifest = {"format": "robofailring-dataset", "format_version": 1, "fps": 10, "episodes": records}
     (root / "manifest.json").write_text(json.dumps(manifest))
     return root
+
+
+SIGNAL_RECORD = {
+    "gripper_width": {"kind": "state", "names": ["width"]},
+    "action": {"kind": "action", "names": ["x", "gripper"]},
+}
+
+
+def robot_signals(symbol: str | None, length: int, episode: int) -> dict[str, np.ndarray]:
+    """A run's gripper width and commanded action: the gripper closes half-way through, on the cube
+    (0.04 m) in a success, on nothing (0 m) in a `grasp` failure; other failures carry it normally but
+    command the arm elsewhere (x). Each episode is a little off the others."""
+    t = np.arange(length, dtype=np.float64)
+    closing = t >= length // 2
+    held = 0.0 if symbol is not None and symbol.startswith("grasp") else 0.04
+    width = np.where(closing, held, 0.08) + 0.001 * episode
+    drift = 0.0 if symbol is None or symbol.startswith("grasp") else 0.3
+    x = 0.1 * t / max(length - 1, 1) + drift * closing + 0.002 * episode
+    command = np.where(closing, 0.0, 0.08)
+    return {"gripper_width": width[:, None], "action": np.stack([x, command], axis=1)}
+
+
+def _write_signals(folder: Path, symbol: str | None, length: int, episode: int) -> dict[str, object]:
+    np.savez(folder / "signals.npz", **robot_signals(symbol, length, episode))  # type: ignore[arg-type]
+    return {"file": "signals.npz", "signals": SIGNAL_RECORD}
 
 
 def write_repeated_failure(root: Path, *, length: int, onset: int) -> tuple[Path, Path]:

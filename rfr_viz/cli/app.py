@@ -30,6 +30,7 @@ try:
     from rfr_viz.cli.jobs import app as jobs_app
     from rfr_viz.cli.live import app as live_app
     from rfr_viz.cli.replay import app as replay_app
+    from rfr_viz.cli.triage import app as triage_app
     from robofailring.cli.exit_codes import ErrorMappingGroup
     from robofailring.cli.verbs import app as library_app
 except KeyboardInterrupt:
@@ -47,7 +48,7 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
     add_completion=False,
 )
-for verbs in (library_app, replay_app, jobs_app, live_app):
+for verbs in (library_app, replay_app, jobs_app, triage_app, live_app):
     app.add_typer(verbs)
 
 

@@ -17,7 +17,6 @@ from robofailring.cli.options import (
     RECIPE_DEFAULTS,
     BandOption,
     CacheOption,
-    DataArgument,
     DataRootOption,
     DeviceOption,
     EncoderOption,
@@ -28,9 +27,9 @@ from robofailring.cli.options import (
     PairingOption,
     RandomizeOption,
     RayOption,
-    ReferenceEncoderOption,
     RuntimeOption,
     ScoreOption,
+    SignalsOption,
     StrideOption,
     SuccessStepOption,
     TaskOption,
@@ -40,7 +39,6 @@ from robofailring.cli.options import (
     VocabularyOption,
     detector_config,
     memory_recipe,
-    print_notes,
     report_skipped,
     vlm_config,
     warn_missing_references,
@@ -83,6 +81,7 @@ def evaluate_cmd(
     success_step: SuccessStepOption = RECIPE_DEFAULTS.success_step,
     failure_frames: FailureFramesOption = None,
     pairing: PairingOption = None,
+    signals: SignalsOption = None,
     band: BandOption = DEFAULT_BAND,
     fusion: FusionOption = DEFAULT_FUSION,
     growth: Annotated[
@@ -115,7 +114,11 @@ def evaluate_cmd(
             data=data,
             out=out,
             recipe=memory_recipe(
-                encoder, failure_frames=failure_frames, pairing=pairing, success_step=success_step
+                encoder,
+                failure_frames=failure_frames,
+                pairing=pairing,
+                success_step=success_step,
+                signals=signals,
             ),
             detector=detector_config(memory, device=device, runtime=runtime, cache_dir=cache_dir, k=k),
             test_data=test_data,
@@ -217,90 +220,6 @@ def review_cmd(
     for path in result.recordings:
         typer.echo(f"  {open_at_command(path)}")
     finish(skipped=len(result.skipped_inputs))  # listed above
-
-
-@app.command("triage")
-def triage_cmd(
-    data: DataArgument,
-    out: Annotated[
-        Path, typer.Option("--out", help="Folder for triage.csv, triage.rrd, triage.html and replays/.")
-    ],
-    memory: Annotated[
-        Path | None,
-        typer.Option("--memory", help="Judge by this memory, its rules as calibrated (its encoder)."),
-    ] = None,
-    successes: Annotated[
-        Path | None,
-        typer.Option(
-            "--successes",
-            help="A dataset of known-good runs (any layout; every episode a success): a success memory of "
-            "them judges their tasks.",
-        ),
-    ] = None,
-    labels: LabelsOption = None,
-    encoder: ReferenceEncoderOption = None,
-    replays: Annotated[
-        int,
-        typer.Option(
-            "--replays",
-            help="Replays written for the top of the ranking, each opening at its peak (-1: all).",
-        ),
-    ] = 20,
-    reference_runs: Annotated[
-        int,
-        typer.Option(
-            "--reference-runs",
-            help="A task without known-good runs is judged against at most this many of its other episodes "
-            "(a fixed sample), so memory stays flat however many episodes there are.",
-        ),
-    ] = 100,
-    k: KOption = DETECTOR_DEFAULTS.k,
-    score: ScoreOption = None,
-    task: TaskOption = None,
-    views: ViewsOption = None,
-    camera_codec: CameraCodecOption = CameraCodec.AUTO,
-    cache_dir: CacheOption = None,
-    device: DeviceOption = None,
-    runtime: RuntimeOption = None,
-    ray: RayOption = None,
-    data_root: DataRootOption = None,
-) -> None:
-    """Rank every episode of a dataset nobody labelled by how unlike normal runs it looks, to label the top.
-
-    Each task is judged by --memory, else by its known-good runs (--successes, the success rows of --labels), else each episode against the task's other episodes (this assumes most runs succeeded).
-    """
-    from rfr_viz.jobs.triage import triage
-    from robofailring.triage import TriageConfig
-
-    outcome = triage(
-        TriageConfig(
-            data=data,
-            out=out,
-            detector=detector_config(
-                memory,
-                encoder=encoder,
-                device=device,
-                runtime=runtime,
-                cache_dir=cache_dir,
-                data_root=data_root,
-                k=k,
-                score=score,
-            ),
-            successes=successes,
-            labels=labels,
-            task=task,
-            views=views,
-            reference_runs=reference_runs,
-            ray=ray,
-        ),
-        replays=replays,
-        camera_codec=camera_codec,
-    )
-    result = outcome.result
-    report_skipped(result.skipped_inputs)
-    print_notes([f"note: {note}" for note in result.notes])
-    typer.echo(outcome.summary(data))
-    finish(skipped=len(result.skipped_inputs))
 
 
 @app.command("compare-encoders")

@@ -230,9 +230,9 @@ RECORDING_VERBS = [
     "share",
     "evaluate",
     "review",
-    "triage",
     "compare-encoders",
     "demo",
+    "triage",
 ]
 
 

@@ -173,6 +173,16 @@ PairingOption = Annotated[
         "--add-to keeps its own).",
     ),
 ]
+SignalsOption = Annotated[
+    str | None,
+    typer.Option(
+        "--signals",
+        help="The robot's own signals (joint state, gripper, end-effector pose, commanded actions) as a second "
+        "modality beside the cameras, scored as the view `signals`: `auto`, every state and action signal the "
+        "data has (docs/data.md); `none`, the cameras alone; or signal names separated by commas. Default: "
+        "auto (growing a memory with --add-to keeps its own).",
+    ),
+]
 DataRootOption = Annotated[
     Path | None,
     typer.Option(
@@ -222,11 +232,12 @@ def memory_recipe(
     failure_frames: str | None = None,
     pairing: str | None = None,
     success_step: float | None = None,
+    signals: str | None = None,
 ) -> MemoryRecipe:
     """The `MemoryRecipe` of a verb's memory options (--encoder, --failure-frames, --pairing,
-    --success-step); the recipe's defaults for those left out."""
+    --success-step, --signals); the recipe's defaults for those left out."""
     return MemoryRecipe.chosen(
-        encoder, failure_frames=failure_frames, pairing=pairing, success_step=success_step
+        encoder, failure_frames=failure_frames, pairing=pairing, success_step=success_step, signals=signals
     )
 
 

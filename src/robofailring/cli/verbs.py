@@ -36,6 +36,7 @@ from robofailring.cli.options import (
     RayOption,
     RuntimeOption,
     ScoreOption,
+    SignalsOption,
     StrideOption,
     SuccessStepOption,
     TaskOption,
@@ -137,6 +138,7 @@ def build_memory_cmd(
     success_step: SuccessStepOption = RECIPE_DEFAULTS.success_step,
     failure_frames: FailureFramesOption = None,
     pairing: PairingOption = None,
+    signals: SignalsOption = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
     runtime: RuntimeOption = None,
@@ -170,6 +172,7 @@ def build_memory_cmd(
             success_step=success_step,
             failure_frames=failure_frames,
             pairing=pairing,
+            signals=signals,
             ray=ray,
         )
     )

@@ -42,6 +42,8 @@ class BuildMemoryConfig:
     failure_frames: str | None = None
     # `change` or `concat` (the paper's pairing); None: change for a new memory, the memory's own with `add_to`
     pairing: str | None = None
+    # the robot's signals beside the cameras: `auto`, `none` or names; None: auto (with `add_to`: the memory's)
+    signals: str | None = None
     ray: str | None = None  # a Ray cluster's address: frames decoded and encoded there (docs/ray.md)
 
     def __post_init__(self) -> None:  # a bad setting fails before anything is read
@@ -56,6 +58,7 @@ class BuildMemoryConfig:
             failure_frames=self.failure_frames,
             pairing=self.pairing,
             success_step=self.success_step,
+            signals=self.signals,
         )
 
 

@@ -85,7 +85,7 @@ def build_memories(
         encoded.vectors,
         encoded.entries,
         encoder=encoder.identity,
-        manifest=manifest,
+        manifest=replace(manifest, signals=signals.manifest() if signals is not None else None),
         data_root=root,
         successes=success_memory,
         vocabulary=vocabulary,
@@ -154,6 +154,7 @@ def add_to(
         skipped=[*(old.skipped or []), *stats.skipped_views],
         skipped_inputs=[*(old.skipped_inputs or []), *(s.to_dict() for s in skipped_inputs)],
         calibration=None,
+        signals=signals.manifest() if signals is not None else None,
     )
     grown = FailureMemory(
         np.concatenate([memory.vectors, encoded.vectors]) if len(encoded.vectors) else memory.vectors,
