@@ -130,15 +130,18 @@ class Variant:
 
     @staticmethod
     def parse(text: str) -> Variant:
-        """`LABEL:field=value,field=value` (numbers are read as numbers, true/false/null as such, the rest as text)."""
+        """`LABEL:field=value,field=value` (numbers are read as numbers, true/false/null as such, the rest as
+        text); a field of `EvaluateConfig`, of its `MemoryRecipe` (e.g. `signals=none`) or of its
+        `DetectorConfig` (e.g. `modality=signals`)."""
         label, _, body = text.partition(":")
-        known = {f.name for f in fields(EvaluateConfig)}
+        known = {f.name for kind in (EvaluateConfig, MemoryRecipe, DetectorConfig) for f in fields(kind)}
         settings: dict[str, Any] = {}
         for item in filter(None, body.split(",")):
             name, sep, value = item.partition("=")
             if not sep or name not in known:
                 raise SystemExit(
-                    f"--variant {text!r}: {item!r} is not FIELD=VALUE with a field of EvaluateConfig"
+                    f"--variant {text!r}: {item!r} is not FIELD=VALUE with a field of EvaluateConfig, MemoryRecipe "
+                    "or DetectorConfig"
                 )
             settings[name] = _value(value)
         return Variant(label or "default", settings)
@@ -187,9 +190,16 @@ def evaluate_encoder(
         name="in-distribution",
     )
     recipe_fields = {f.name for f in fields(MemoryRecipe)}
+    detector_fields = {f.name for f in fields(DetectorConfig)} - {f.name for f in fields(EvaluateConfig)}
     in_recipe = {k: v for k, v in variant.settings.items() if k in recipe_fields}
-    others = {k: v for k, v in variant.settings.items() if k not in recipe_fields}
-    base = replace(base, recipe=replace(base.recipe, **in_recipe), **others)
+    in_detector = {k: v for k, v in variant.settings.items() if k in detector_fields}
+    others = {k: v for k, v in variant.settings.items() if k not in recipe_fields | detector_fields}
+    base = replace(
+        base,
+        recipe=replace(base.recipe, **in_recipe),
+        detector=replace(base.detector, **in_detector),
+        **others,
+    )
     ood = replace(
         base,
         detector=base.detector.with_memory(out / slug / "memory"),

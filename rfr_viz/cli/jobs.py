@@ -24,6 +24,7 @@ from robofailring.cli.options import (
     FusionOption,
     KOption,
     LabelsOption,
+    ModalityOption,
     PairingOption,
     RandomizeOption,
     RayOption,
@@ -82,6 +83,7 @@ def evaluate_cmd(
     failure_frames: FailureFramesOption = None,
     pairing: PairingOption = None,
     signals: SignalsOption = None,
+    modality: ModalityOption = DETECTOR_DEFAULTS.modality,
     band: BandOption = DEFAULT_BAND,
     fusion: FusionOption = DEFAULT_FUSION,
     growth: Annotated[
@@ -120,7 +122,9 @@ def evaluate_cmd(
                 success_step=success_step,
                 signals=signals,
             ),
-            detector=detector_config(memory, device=device, runtime=runtime, cache_dir=cache_dir, k=k),
+            detector=detector_config(
+                memory, device=device, runtime=runtime, cache_dir=cache_dir, k=k, modality=modality
+            ),
             test_data=test_data,
             train_split=train_split,
             test_split=test_split,

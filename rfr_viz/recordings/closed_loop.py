@@ -20,7 +20,8 @@ from rfr_viz.recordings.replay import open_recording
 from rfr_viz.styles import DELTA_COLOUR, STATE_COLOUR, STOP_COLOUR, VIEW_COLOURS
 from robofailring.data.images import encode_jpeg
 from robofailring.detection.config import DEFAULT_K
-from robofailring.detection.detector import FailureDetector, StepResult
+from robofailring.detection.detector import FailureDetector
+from robofailring.detection.trace import StepResult
 from robofailring.encoders.base import Encoder
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.memory.failure import FailureMemory

@@ -44,7 +44,9 @@ from robofailring.atomic import atomic_path
 from robofailring.data.layouts import load_trajectory
 from robofailring.data.model import Frame
 from robofailring.detection.config import DEFAULT_K
-from robofailring.detection.detector import DetectorSession, FailureDetector, StepResult
+from robofailring.detection.detector import FailureDetector
+from robofailring.detection.session import DetectorSession
+from robofailring.detection.trace import StepResult
 from robofailring.errors import DataError, SettingError
 from robofailring.explain.report import FailureReport
 from robofailring.outputs import check_recording_file

@@ -35,9 +35,10 @@ if TYPE_CHECKING:
     from robofailring.data.model import Frame, Outcome, Trajectory
     from robofailring.detection.config import DetectorConfig
     from robofailring.detection.conformal import smallest_target_fpr
-    from robofailring.detection.detector import DetectorSession, FailureDetector, StepSink
+    from robofailring.detection.detector import FailureDetector
     from robofailring.detection.loader import open_detector
     from robofailring.detection.rules import PAPER_DELTA, RULES, ScoringRule, rule_named
+    from robofailring.detection.session import DetectorSession, StepSink
     from robofailring.detection.trace import DetectionTrace, StepResult
     from robofailring.encoders import CachedEncoder, Encoder, default_cache_dir, load_encoder, open_encoder
     from robofailring.evaluation.calibration import CalibrateConfig, Calibration, calibrate
@@ -65,7 +66,7 @@ _LAZY = {  # name -> (module, attribute), imported on first use (the simulator's
     "DetectConfig": ("robofailring.jobs.detect", "DetectConfig"),
     "DetectionTrace": ("robofailring.detection.trace", "DetectionTrace"),
     "DetectorConfig": ("robofailring.detection.config", "DetectorConfig"),
-    "DetectorSession": ("robofailring.detection.detector", "DetectorSession"),
+    "DetectorSession": ("robofailring.detection.session", "DetectorSession"),
     "Encoder": ("robofailring.encoders", "Encoder"),
     "EvaluateConfig": ("robofailring.evaluation.run", "EvaluateConfig"),
     "FailureDetector": ("robofailring.detection.detector", "FailureDetector"),
@@ -80,7 +81,7 @@ _LAZY = {  # name -> (module, attribute), imported on first use (the simulator's
     "RULES": ("robofailring.detection.rules", "RULES"),
     "ScoringRule": ("robofailring.detection.rules", "ScoringRule"),
     "StepResult": ("robofailring.detection.trace", "StepResult"),
-    "StepSink": ("robofailring.detection.detector", "StepSink"),
+    "StepSink": ("robofailring.detection.session", "StepSink"),
     "SuccessMemory": ("robofailring.memory.success", "SuccessMemory"),
     "Trajectory": ("robofailring.data.model", "Trajectory"),
     "VLMClient": ("robofailring.explain.report", "VLMClient"),

@@ -137,3 +137,28 @@ def test_robot_signals_fixture_is_what_the_dataset_holds(
     episode = int(trajectory.episode.rsplit("episode", 1)[1])
     expected = robot_signals(trajectory.symbol, LENGTH, episode)
     np.testing.assert_allclose(values["gripper_width"].values, expected["gripper_width"])
+
+
+def test_the_modality_chooses_what_is_fused(runs: tuple[FailureMemory, list[Trajectory]]) -> None:
+    memory, test = runs
+    failure = next(t for t in test if t.symbol == "grasp_wp2")
+    encoder = CachedEncoder(load_encoder("pixels"), enabled=False)
+    by = {
+        modality: FailureDetector(memory, encoder, rule=CONTRAST, gamma=0.05, modality=modality).run(failure)
+        for modality in ("both", "cameras", "signals")
+    }
+    assert by["cameras"].scored_views == list(failure.views) and by["cameras"].t_det is None  # blind cameras
+    assert by["signals"].scored_views == [SIGNALS_VIEW] and by["signals"].t_det == by["both"].t_det
+    session = FailureDetector(memory, encoder, rule=CONTRAST, gamma=0.05, modality="cameras").session(
+        "pick_cube"
+    )
+    values, _ = failure.read_signals()
+    last = None
+    for t in range(failure.length):
+        last = session.step(
+            {view: frames[t] for view, frames in failure.views.items()},
+            signals={name: found.values[t] for name, found in values.items()},
+        )
+    assert last is not None and SIGNALS_VIEW not in last.score and session.fired_at is None
+    with pytest.raises(Exception, match="--modality must be one of both, cameras, signals"):
+        FailureDetector(memory, encoder, modality="sound")

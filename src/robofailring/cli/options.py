@@ -173,6 +173,15 @@ PairingOption = Annotated[
         "--add-to keeps its own).",
     ),
 ]
+ModalityOption = Annotated[
+    str,
+    typer.Option(
+        "--modality",
+        help="What the detector judges by: `both`, the cameras and the robot's signals fused as views (where the "
+        "memory has signals); `cameras` alone; `signals` alone. Thresholds calibrated for one are not used for "
+        "another (calibrate with the same --modality).",
+    ),
+]
 SignalsOption = Annotated[
     str | None,
     typer.Option(
@@ -210,9 +219,10 @@ def detector_config(
     delta: float | None = None,
     gamma: float | None = None,
     eta: float | None = None,
+    modality: str = DETECTOR_DEFAULTS.modality,
 ) -> DetectorConfig:
     """The `DetectorConfig` of a verb's detector options: --memory, --encoder, --device, --runtime, --cache-dir,
-    --data-root, --k, --score, and each rule's threshold by its option (--delta, --gamma, --eta)."""
+    --data-root, --k, --score, each rule's threshold by its option (--delta, --gamma, --eta), --modality."""
     return DetectorConfig(
         memory=memory,
         encoder=encoder,
@@ -223,6 +233,7 @@ def detector_config(
         k=k,
         rule=score,
         thresholds=given_thresholds(None, delta=delta, gamma=gamma, eta=eta),
+        modality=modality,
     )
 
 

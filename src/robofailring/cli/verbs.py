@@ -31,6 +31,7 @@ from robofailring.cli.options import (
     LeaveOneOutOption,
     MemoryEncoderOption,
     MemoryOption,
+    ModalityOption,
     PairingOption,
     RandomizeOption,
     RayOption,
@@ -218,6 +219,7 @@ def detect_cmd(
     score: ScoreOption = None,
     gamma: GammaOption = None,
     eta: EtaOption = None,
+    modality: ModalityOption = DETECTOR_DEFAULTS.modality,
     task: TaskOption = None,
     views: ViewsOption = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the full trace as one JSON object.")] = False,
@@ -256,6 +258,7 @@ def detect_cmd(
                 delta=delta,
                 gamma=gamma,
                 eta=eta,
+                modality=modality,
             ),
             task=task,
             views=views,
@@ -283,6 +286,7 @@ def calibrate_cmd(
     stride: StrideOption = 1,
     band: BandOption = DEFAULT_BAND,
     fusion: FusionOption = DEFAULT_FUSION,
+    modality: ModalityOption = DETECTOR_DEFAULTS.modality,
     labels: LabelsOption = None,
     task: TaskOption = None,
     views: ViewsOption = None,
@@ -306,6 +310,7 @@ def calibrate_cmd(
             views=views,
             band=band,
             fusion=fusion,
+            modality=modality,
         )
     )
     report_skipped(result.skipped_inputs)

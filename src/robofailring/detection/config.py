@@ -13,6 +13,10 @@ from robofailring.detection.rules import rule_named
 from robofailring.errors import SettingError
 
 DEFAULT_K: Final[int] = 5
+BOTH, CAMERAS, SIGNALS = "both", "cameras", "signals"
+#: What the detector judges by: the cameras and the robot's signals fused (where the memory has signals),
+#: the cameras alone, or the signals alone.
+MODALITIES: Final[tuple[str, ...]] = (BOTH, CAMERAS, SIGNALS)
 MAX_STRIDE: Final[int] = 2**63 - 1  # frame numbers are int64: a larger stride scores frame 0 alone anyway
 MAX_K: Final[int] = (
     1024  # neighbours per query: each query row holds K similarities, allocated before the search
@@ -29,6 +33,13 @@ def check_k(k: int) -> int:
     if not _whole_number(k) or not 1 <= k <= MAX_K:
         raise SettingError(f"k (neighbours per query) must be a whole number from 1 to {MAX_K}, got {k}")
     return k
+
+
+def check_modality(modality: str) -> str:
+    """`both`, `cameras` or `signals` (SettingError naming them otherwise)."""
+    if modality not in MODALITIES:
+        raise SettingError(f"--modality must be one of {', '.join(MODALITIES)}, got {modality!r}")
+    return modality
 
 
 def check_stride(stride: int) -> int:
@@ -55,9 +66,11 @@ class DetectorConfig:
     k: int = DEFAULT_K  # neighbours retrieved per query
     rule: str | None = None  # a scoring rule's name; None: each task's default (contrast, novelty or paper)
     thresholds: Mapping[str, float] = field(default_factory=dict)  # by rule name (`paper`: δ, …)
+    modality: str = BOTH  # what it judges by: `both` (cameras and signals), `cameras` or `signals`
 
     def __post_init__(self) -> None:  # a bad setting fails before the memory is read
         check_k(self.k)
+        check_modality(self.modality)
         if self.rule is not None:
             rule_named(self.rule)
         for name, value in self.thresholds.items():

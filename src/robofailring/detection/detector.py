@@ -4,32 +4,31 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Final, Protocol
+from typing import Final
 
 import numpy as np
 
 from robofailring.data.images import as_rgb
 from robofailring.data.model import Frame, Skipped, Trajectory
 from robofailring.detection.band import Band
-from robofailring.detection.config import DEFAULT_K, check_k, check_stride
+from robofailring.detection.config import BOTH, DEFAULT_K, SIGNALS, check_k, check_modality, check_stride
 from robofailring.detection.retrieved import Retrieved
 from robofailring.detection.rules import (
-    RULES,
     RuleThresholds,
     ScoringRule,
     default_rule,
     rule_named,
 )
 from robofailring.detection.scored import scored_frames
-from robofailring.detection.signal_scores import SIGNALS_VIEW, SignalHistory, SignalScores, score_signals
+from robofailring.detection.session import DetectorSession, StepSink
+from robofailring.detection.signal_scores import SIGNALS_VIEW, SignalScores, score_signals
 from robofailring.detection.stored import (
     given_thresholds,
     stored_bands,
     stored_thresholds,
     uncalibrated_notes,
 )
-from robofailring.detection.trace import DetectionTrace, StepResult
-from robofailring.detection.view_scores import ViewScores
+from robofailring.detection.trace import DetectionTrace
 from robofailring.encoders.base import Encoder, l2_normalize
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import DataError, SettingError
@@ -39,14 +38,6 @@ from robofailring.memory.references import absolute_reference
 CHUNK_FRAMES: Final[int] = 256  # scored frames per view encoded and searched at once in `run`
 
 Place = Callable[[str, np.ndarray], np.ndarray]  # (view, (n, 2d) queries) -> (n, m) rows, e.g. map points
-
-
-class StepSink(Protocol):
-    """Receives every step of a live session, e.g. `rfr_viz.LiveRecording` streams it to a Rerun viewer."""
-
-    def on_step(
-        self, session: DetectorSession, frames: Mapping[str, np.ndarray | Frame], result: StepResult
-    ) -> None: ...
 
 
 class FailureDetector(RuleThresholds):
@@ -74,15 +65,24 @@ class FailureDetector(RuleThresholds):
         gamma: float | None = None,
         eta: float | None = None,
         bands: Mapping[str, Band] | None = None,
+        modality: str = BOTH,
     ) -> None:
         memory.check_encoder(encoder.identity)
         check_k(k)
+        if check_modality(modality) == SIGNALS and memory.signals is None:
+            raise SettingError(
+                "--modality signals needs a memory with the robot's signals, and this one has none (built from "
+                "data without signals, or with --signals none)"
+            )
+        self.modality = modality if memory.signals is not None else BOTH  # no signals: the cameras are all
         given = given_thresholds(thresholds, delta=delta, gamma=gamma, eta=eta)
-        self.thresholds = stored_thresholds(memory, given)
+        self.thresholds = stored_thresholds(memory, given, self.modality)
         self.bands: dict[str, Band] = (  # per rule name: the band its threshold applies to
             dict(bands)
             if bands is not None
-            else {name: band for name, band in stored_bands(memory).items() if name not in given}
+            else {
+                name: band for name, band in stored_bands(memory, self.modality).items() if name not in given
+            }
         )
         self.chosen_rule = rule_named(rule) if rule is not None else None  # None: each task's default
         self.memory = memory
@@ -103,7 +103,9 @@ class FailureDetector(RuleThresholds):
         used = (
             [self.chosen_rule] if self.chosen_rule is not None else [self.rule_for(t) for t in memory.tasks]
         )
-        self.uncalibrated = uncalibrated_notes(memory, given, used)  # said by the jobs that detect
+        self.uncalibrated = uncalibrated_notes(
+            memory, given, used, self.modality
+        )  # said by the jobs that detect
 
     @property
     def rule(self) -> ScoringRule:
@@ -284,6 +286,7 @@ class FailureDetector(RuleThresholds):
             bands=dict(self.bands),
             source=trajectory.source,
             signals=signals,
+            modality=self.modality,
         )
 
     def _signal_scores(
@@ -305,92 +308,3 @@ class FailureDetector(RuleThresholds):
         band = self.bands.get(rule.name)
         threshold = self.threshold_of(rule)
         return threshold if band is None else band.line_at(threshold, t, view)
-
-
-class DetectorSession:
-    """Per-episode state of the step API: the first frame of every view and the step counter."""
-
-    def __init__(
-        self,
-        detector: FailureDetector,
-        task: str,
-        rule: ScoringRule,
-        *,
-        exclude_episode: str | None,
-        sink: StepSink | None = None,
-    ) -> None:
-        self.detector = detector
-        self.task = task
-        self.rule = rule  # the task's rule (`FailureDetector.rule_for`)
-        self.exclude_episode = exclude_episode
-        self.sink = sink
-        self._first: dict[str, np.ndarray] = {}
-        memory_signals = detector.memory.signals
-        task_signals = memory_signals.task(task) if memory_signals is not None else None
-        self._signals = SignalHistory(task_signals) if task_signals is not None else None
-        self.t = 0
-        self.fired_at: int | None = None
-
-    def step(
-        self, frames: Mapping[str, np.ndarray | Frame], *, signals: Mapping[str, np.ndarray] | None = None
-    ) -> StepResult:
-        """Feed the current frame of each view and, where the memory has the task's signals, the robot's
-        `signals` now ({name: (D,) values}: joint state, gripper, the action commanded); the first call
-        also fixes I_0 per view and the start state. Without `signals` the cameras judge alone."""
-        detector = self.detector
-        views = list(frames)
-        embeddings = detector.encode(list(frames.values()), views)
-        current = {view: embedding[None] for view, embedding in zip(views, embeddings, strict=True)}
-        first = {view: self._first.setdefault(view, current[view][0]) for view in views}
-        found = detector.retrieve(self.task, first, current, exclude_episode=self.exclude_episode)
-        missing = np.full(1, np.nan, np.float32)
-        failure = {view: found.similarity(view) for view in views}
-        success = {view: found.success_similarity.get(view, missing) for view in views}
-        if self._signals is not None and signals is not None:
-            minus, plus, _, _, _ = self._signals.step(signals, exclude_episode=self.exclude_episode)
-            failure[SIGNALS_VIEW] = np.full(1, minus, np.float32)
-            success[SIGNALS_VIEW] = np.full(1, plus, np.float32)
-        scored = list(failure)  # the cameras, and the signals where given
-        rule = self.rule
-        threshold = detector.threshold_at(rule, self.t)
-        scores = ViewScores({view: rule.score(failure[view], success[view]) for view in scored}, 1)
-        successes = detector.memory.successes
-        lines = {view: detector.threshold_at(rule, self.t, view) for view in scored}  # a band per view
-        fired = scores.firing(lines, 0)
-        result = StepResult(
-            t=self.t,
-            similarity={view: float(failure[view][0]) for view in scored},
-            neighbors={
-                view: detector.memory.neighbors(
-                    found.neighbor_similarity[view][0], found.neighbor_ids[view][0]
-                )
-                for view in views
-            },
-            alarm=bool(fired),
-            fired_views=fired,
-            score={view: float(scores.by_view[view][0]) for view in scored},
-            rule=rule,
-            threshold=threshold,
-            detected_view=scores.strongest(lines, 0),
-            success_similarity={view: float(success[view][0]) for view in scored},
-            nearest_success={
-                view: successes.match(
-                    float(found.success_similarity[view][0]), int(found.success_ids[view][0])
-                )
-                for view in views
-            }
-            if successes is not None
-            else {},
-            rule_scores={
-                name: {view: float(each.score(failure[view], success[view])[0]) for view in scored}
-                for name, each in RULES.items()
-            },
-            thresholds={name: detector.threshold_at(each, self.t) for name, each in RULES.items()},
-            queries={view: found.queries[view][0] for view in views},
-        )
-        if fired and self.fired_at is None:
-            self.fired_at = self.t
-        if self.sink is not None:
-            self.sink.on_step(self, frames, result)
-        self.t += 1
-        return result

@@ -6,7 +6,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from pathlib import Path
 
-from robofailring.detection.config import DEFAULT_K, DetectorConfig
+from robofailring.detection.config import BOTH, DEFAULT_K, DetectorConfig
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.rules import ScoringRule
 from robofailring.detection.stored import given_thresholds
@@ -28,7 +28,9 @@ def detector_from(config: DetectorConfig, *, ray: str | None = None) -> FailureD
         runtime=config.runtime,
         ray=ray,
     )
-    return FailureDetector(memory, opened, thresholds=config.thresholds, k=config.k, rule=config.rule)
+    return FailureDetector(
+        memory, opened, thresholds=config.thresholds, k=config.k, rule=config.rule, modality=config.modality
+    )
 
 
 def open_detector(
@@ -45,8 +47,10 @@ def open_detector(
     encoder: str | None = None,
     cache_dir: str | Path | None = None,
     runtime: str | None = None,
+    modality: str = BOTH,
 ) -> FailureDetector:
-    """Load the memory at `memory_dir` and its encoder, and return its detector.
+    """Load the memory at `memory_dir` and its encoder, and return its detector (judging by `modality`:
+    `both` the cameras and the robot's signals, the `cameras` or the `signals` alone).
 
     Thresholds are `thresholds` by rule name (`delta`, `gamma`, `eta`: the paper, contrast and novelty
     rules'), else the memory's calibrated ones (else each rule's default: the paper's δ = 0.92, γ = 0,
@@ -66,5 +70,6 @@ def open_detector(
             k=k,
             rule=rule.name if isinstance(rule, ScoringRule) else rule,
             thresholds=given_thresholds(thresholds, delta=delta, gamma=gamma, eta=eta),
+            modality=modality,
         )
     )

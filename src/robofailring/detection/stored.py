@@ -8,12 +8,14 @@ from robofailring.detection.band import Band
 from robofailring.detection.rules import CONTRAST, NOVELTY, PAPER, RULES, ScoringRule, rule_named
 from robofailring.errors import SettingError
 from robofailring.memory.failure import FailureMemory
+from robofailring.memory.manifest import BOTH
 
 
-def stored_bands(memory: FailureMemory) -> dict[str, Band]:
-    """The time-indexed bands of the memory's stored calibration (for its encoder), by registered rule name."""
+def stored_bands(memory: FailureMemory, modality: str = BOTH) -> dict[str, Band]:
+    """The time-indexed bands of the memory's stored calibration (for its encoder and `modality`), by
+    registered rule name."""
     calibration = memory.manifest.calibration
-    if calibration is None or calibration.encoder != memory.encoder:
+    if calibration is None or calibration.encoder != memory.encoder or not calibration.judges(modality):
         return {}
     return {
         name: Band.from_dict(stored.band, where=f"the memory's calibration of rule {name!r}")
@@ -22,9 +24,9 @@ def stored_bands(memory: FailureMemory) -> dict[str, Band]:
     }
 
 
-def stored_threshold(memory: FailureMemory, rule: ScoringRule) -> float | None:
-    """`rule`'s threshold as the memory's calibration stored it for the memory's encoder, or None."""
-    return memory.calibrated_threshold(rule.name)
+def stored_threshold(memory: FailureMemory, rule: ScoringRule, modality: str = BOTH) -> float | None:
+    """`rule`'s threshold as the memory's calibration stored it for the memory's encoder and `modality`, or None."""
+    return memory.calibrated_threshold(rule.name, modality)
 
 
 def given_thresholds(
@@ -47,27 +49,30 @@ def given_thresholds(
     return named
 
 
-def stored_thresholds(memory: FailureMemory, given: Mapping[str, float]) -> dict[str, float]:
-    """Every registered rule's threshold by rule name: `given` (by rule name), else stored, else default."""
+def stored_thresholds(
+    memory: FailureMemory, given: Mapping[str, float], modality: str = BOTH
+) -> dict[str, float]:
+    """Every registered rule's threshold by rule name: `given` (by rule name), else stored (for `modality`),
+    else default."""
     thresholds = {}
     for rule in RULES.values():
         value = given.get(rule.name)
         if value is not None:
             rule.check_threshold(value)
         else:
-            value = stored_threshold(memory, rule)
+            value = stored_threshold(memory, rule, modality)
         thresholds[rule.name] = float(value if value is not None else rule.default_threshold)
     return thresholds
 
 
 def uncalibrated_notes(
-    memory: FailureMemory, given: Mapping[str, float], used: Iterable[ScoringRule]
+    memory: FailureMemory, given: Mapping[str, float], used: Iterable[ScoringRule], modality: str = BOTH
 ) -> list[str]:
     """One sentence per rule in `used` judged at its default threshold: neither given (by rule name) nor
     calibrated for the memory's encoder, so no false-alarm rate is promised for it."""
     notes = []
     for rule in dict.fromkeys(used):
-        if rule.name not in given and stored_threshold(memory, rule) is None:
+        if rule.name not in given and stored_threshold(memory, rule, modality) is None:
             notes.append(
                 f"the {rule.name} rule judges at its default {rule.symbol} = {rule.default_threshold:g}: the "
                 "memory is not calibrated for it, so no false-alarm rate is promised (run `robofailring "

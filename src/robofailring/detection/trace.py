@@ -96,11 +96,16 @@ class DetectionTrace(RuleThresholds):
     source: Path | None = None  # the trajectory's folder or file, naming what was skipped
     # the robot's own signals scored against the memory's signal memory, fused as the view `signals`
     signals: SignalScores | None = field(default=None, repr=False)
+    modality: str = "both"  # what the fusion judges: `both`, the `cameras` alone or the `signals` alone
 
     @property
     def scored_views(self) -> list[str]:
-        """The views the rule's scores are fused over: the cameras, and `signals` where they were scored."""
-        return [*self.views, SIGNALS_VIEW] if self.signals is not None else list(self.views)
+        """The views the rule's scores are fused over: the cameras (unless `modality` is `signals`), and
+        `signals` where they were scored (unless it is `cameras`)."""
+        cameras = list(self.views) if self.modality != "signals" else []
+        return (
+            [*cameras, SIGNALS_VIEW] if self.signals is not None and self.modality != "cameras" else cameras
+        )
 
     @property
     def short_views(self) -> list[Skipped]:
@@ -330,6 +335,28 @@ class DetectionTrace(RuleThresholds):
             "skipped_inputs": [skipped.to_dict() for skipped in self.skipped_inputs],
             "in_memory": self.in_memory,
             "views": views,
+            "modality": self.modality,
+            "signals": self._signals_dict(by_rule),
+        }
+
+    def _signals_dict(self, by_rule: Mapping[str, Mapping[str, np.ndarray]]) -> dict[str, Any] | None:
+        """The robot's signals in `to_dict`: S⁻, S⁺ and every rule's score per frame, the nearest failure
+        and normal runs at t_det and what deviated most there (None: not scored)."""
+        signals = self.signals
+        if signals is None:
+            return None
+        at = self.t_det
+        return {
+            "failure_similarity": _rounded(signals.similarity),
+            "success_similarity": _rounded(signals.success_similarity),
+            **{name: _rounded(scores[SIGNALS_VIEW]) for name, scores in by_rule.items()},
+            "at_t_det": None
+            if at is None
+            else {
+                "nearest_failure": signals.nearest_failure(at),
+                "nearest_success": signals.nearest_success(at),
+                "deviations": [{"dimension": d, "sigma": round(v, 3)} for d, v in signals.deviations(at)],
+            },
         }
 
 

@@ -28,7 +28,7 @@ from robofailring.detection.band import (
     fit_band,
     leave_one_out,
 )
-from robofailring.detection.config import check_k, check_stride
+from robofailring.detection.config import BOTH, check_k, check_modality, check_stride
 from robofailring.detection.conformal import (
     FprSpread,
     attainable_target_fpr,
@@ -224,9 +224,11 @@ class CalibrateConfig:
     views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
     band: str = DEFAULT_BAND  # time-indexed thresholds: none, shift (μ_t) or norm (μ_t, σ_t)
     fusion: str = DEFAULT_FUSION  # max: one band for all views; per-view: each view its own band
+    modality: str = BOTH  # what the thresholds judge: the cameras and signals, or one of them alone
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
         check_k(self.k)
+        check_modality(self.modality)
         check_stride(self.stride)
         check_target_fpr(self.target_fpr)
         check_band(self.band)
@@ -308,6 +310,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
         cache_dir=config.cache_dir,
         k=config.k,
         delta=PAPER_DELTA,
+        modality=config.modality,
     )
     memory = detector.memory
     dataset = load_dataset(
@@ -358,6 +361,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
             split=config.split,
             k=config.k,
             stride=config.stride,
+            modality=detector.modality,
         )
     )
     calibrated.write_manifest(config.memory)

@@ -205,7 +205,9 @@ def cross_validate(
                 recipe=config.recipe,
                 vocabulary=vocabulary,
             )
-            detector = FailureDetector(memory, encoder, k=config.detector.k)
+            detector = FailureDetector(
+                memory, encoder, k=config.detector.k, modality=config.detector.modality
+            )
             rules = available_rules(detector)
             known = set(memory.tasks)
             successes = [t for t in others if not t.is_failure and t.task in known]
@@ -224,7 +226,9 @@ def cross_validate(
                 else {}
             )
             bands = {rule.name: c.band for rule, c in found.items() if c.band is not None}
-            detector = FailureDetector(memory, encoder, k=config.detector.k, bands=bands)
+            detector = FailureDetector(
+                memory, encoder, k=config.detector.k, bands=bands, modality=config.detector.modality
+            )
             traces = _judge(detector, held_out, known, config.stride, not_judged)
             for rule in rules:
                 into = pooled.setdefault(rule.name, PooledRule(rule))

@@ -55,7 +55,9 @@ def run_evaluation(
             if config.detector.memory is not None
             else build_training_memory(config, splits, encoder)
         )
-        detector = FailureDetector(FailureMemory.load(memory_dir), encoder, k=config.detector.k)
+        detector = FailureDetector(
+            FailureMemory.load(memory_dir), encoder, k=config.detector.k, modality=config.detector.modality
+        )
     else:
         read_from = detector.memory.read_from
         memory_dir = read_from[0] if read_from is not None else config.detector.memory_dir
@@ -72,11 +74,14 @@ def run_evaluation(
         memory, test, config.deployment_successes, encoder, config.recipe.success_step
     )
     if deployed is not memory:
-        memory, detector = deployed, FailureDetector(deployed, encoder, k=detector.k)
+        memory, detector = (
+            deployed,
+            FailureDetector(deployed, encoder, k=detector.k, modality=detector.modality),
+        )
     thresholds, calibrated, found = _thresholds(config, detector, train)
     if found is not None:  # calibrated here: the test runs are judged on the bands fitted with the thresholds
         bands = {r.name: c.band for r, c in found.items() if c.band is not None}
-        detector = FailureDetector(memory, encoder, k=detector.k, bands=bands)
+        detector = FailureDetector(memory, encoder, k=detector.k, bands=bands, modality=detector.modality)
     operating = thresholds.get(PAPER, PAPER.default_threshold)  # no failure runs: the paper tables are empty
     known = set(memory.tasks)
     scored: list[ScoredTrajectory] = []

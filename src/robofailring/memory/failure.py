@@ -381,10 +381,11 @@ class FailureMemory:
         return check_references(ref for entry in self.entries for ref in (entry.start, entry.end))
 
     # ---------------------------------------------------------------- calibration
-    def calibrated_threshold(self, rule: str) -> float | None:
-        """The threshold calibration stored for the rule named `rule` with this memory's encoder, if any."""
+    def calibrated_threshold(self, rule: str, modality: str = "both") -> float | None:
+        """The threshold calibration stored for the rule named `rule` with this memory's encoder (for
+        `modality`: what the thresholds judge), if any."""
         calibration = self.manifest.calibration
-        return calibration.threshold_for(self.encoder, rule) if calibration is not None else None
+        return calibration.threshold_for(self.encoder, rule, modality) if calibration is not None else None
 
 
 def encoder_spec_for(memory: FailureMemory) -> str:

@@ -16,6 +16,8 @@ from robofailring.errors import MemoryFormatError
 from robofailring.memory.entry import END, FAILURE_FRAMES
 from robofailring.memory.pairs import CONCAT, PAIRINGS
 
+BOTH: Final[str] = "both"  # the modality of a calibration that says none: the cameras and the signals
+
 # the order keys are written in: that of a memory built by `build-memory` and then calibrated
 _ORDER: Final[tuple[str, ...]] = (
     "dim",
@@ -87,6 +89,7 @@ _KINDS: Final[dict[str, Any]] = {
 }
 # the calibration section's own kinds (its `successes` is a run count, the manifest's the success memory's section)
 _CALIBRATION_KINDS: Final[dict[str, Any]] = {
+    "modality": lambda v: isinstance(v, str),
     "encoder": lambda v: isinstance(v, str),
     "method": lambda v: isinstance(v, str),
     "target_fpr": _number,
@@ -162,6 +165,9 @@ class StoredCalibration:
     split: str | None = None
     k: int | None = None
     stride: int | None = None
+    # what the thresholds judge: `both` (the cameras and the robot's signals), `cameras` or `signals`; None:
+    # calibrated before the choice existed, `both`
+    modality: str | None = None
     extra: dict[str, Any] = field(default_factory=dict)  # keys this version does not know, kept verbatim
     absent: frozenset[str] = field(default=frozenset(), repr=False)  # known keys the file did not have
 
@@ -200,13 +206,22 @@ class StoredCalibration:
         rules = {name: rule.to_dict() for name, rule in self.rules.items()}
         return ordered | written | {"rules": rules} | self.extra
 
-    def threshold_for(self, encoder: str, rule: str) -> float | None:
-        """The threshold of the rule named `rule` when calibrated with `encoder` and stored as a finite
-        number; otherwise None (also for a rule this section does not have)."""
+    def threshold_for(self, encoder: str, rule: str, modality: str = BOTH) -> float | None:
+        """The threshold of the rule named `rule` when calibrated with `encoder` for `modality` and stored as
+        a finite number; otherwise None (also for a rule this section does not have)."""
         stored = self.rules.get(rule)
-        if self.encoder == encoder and stored is not None and math.isfinite(stored.threshold):
+        if (
+            self.encoder == encoder
+            and self.judges(modality)
+            and stored is not None
+            and math.isfinite(stored.threshold)
+        ):
             return float(stored.threshold)
         return None
+
+    def judges(self, modality: str) -> bool:
+        """Whether the thresholds were calibrated for `modality` (`both`, `cameras` or `signals`)."""
+        return (self.modality or BOTH) == modality
 
     def target_for(self, encoder: str) -> float | None:
         """The target false-positive rate α the thresholds were chosen for, if they belong to `encoder`."""

@@ -1,0 +1,140 @@
+"""The live step API: a `DetectorSession` per episode, fed each step's frames (and the robot's signals),
+and the `StepSink` that sees every step (`rfr_viz.LiveRecording` streams it to a Rerun viewer)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Protocol
+
+import numpy as np
+
+from robofailring.data.model import Frame
+from robofailring.detection.rules import RULES, ScoringRule
+from robofailring.detection.signal_scores import SIGNALS_VIEW, SignalHistory
+from robofailring.detection.trace import StepResult
+from robofailring.detection.view_scores import ViewScores
+
+if TYPE_CHECKING:
+    from robofailring.detection.retrieved import Retrieved
+    from robofailring.memory.failure import FailureMemory
+
+
+class SessionDetector(Protocol):
+    """What a session asks of its detector (`robofailring.detection.detector.FailureDetector`)."""
+
+    memory: FailureMemory
+    modality: str
+
+    def encode(self, frames: Sequence[np.ndarray | Frame], views: Sequence[str]) -> np.ndarray: ...
+
+    def retrieve(
+        self,
+        task: str,
+        first: Mapping[str, np.ndarray],
+        current: Mapping[str, np.ndarray],
+        *,
+        exclude_episode: str | None = None,
+    ) -> Retrieved: ...
+
+    def threshold_at(self, rule: ScoringRule, t: int, view: str | None = None) -> float: ...
+
+
+class StepSink(Protocol):
+    """Receives every step of a live session, e.g. `rfr_viz.LiveRecording` streams it to a Rerun viewer."""
+
+    def on_step(
+        self, session: DetectorSession, frames: Mapping[str, np.ndarray | Frame], result: StepResult
+    ) -> None: ...
+
+
+class DetectorSession:
+    """Per-episode state of the step API: the first frame of every view and the step counter."""
+
+    def __init__(
+        self,
+        detector: SessionDetector,
+        task: str,
+        rule: ScoringRule,
+        *,
+        exclude_episode: str | None,
+        sink: StepSink | None = None,
+    ) -> None:
+        self.detector = detector
+        self.task = task
+        self.rule = rule  # the task's rule (`FailureDetector.rule_for`)
+        self.exclude_episode = exclude_episode
+        self.sink = sink
+        self._first: dict[str, np.ndarray] = {}
+        memory_signals = detector.memory.signals
+        task_signals = memory_signals.task(task) if memory_signals is not None else None
+        self._signals = SignalHistory(task_signals) if task_signals is not None else None
+        self.t = 0
+        self.fired_at: int | None = None
+
+    def step(
+        self, frames: Mapping[str, np.ndarray | Frame], *, signals: Mapping[str, np.ndarray] | None = None
+    ) -> StepResult:
+        """Feed the current frame of each view and, where the memory has the task's signals, the robot's
+        `signals` now ({name: (D,) values}: joint state, gripper, the action commanded); the first call
+        also fixes I_0 per view and the start state. Without `signals` the cameras judge alone."""
+        detector = self.detector
+        views = list(frames)
+        embeddings = detector.encode(list(frames.values()), views)
+        current = {view: embedding[None] for view, embedding in zip(views, embeddings, strict=True)}
+        first = {view: self._first.setdefault(view, current[view][0]) for view in views}
+        found = detector.retrieve(self.task, first, current, exclude_episode=self.exclude_episode)
+        missing = np.full(1, np.nan, np.float32)
+        failure = {view: found.similarity(view) for view in views}
+        success = {view: found.success_similarity.get(view, missing) for view in views}
+        if self._signals is not None and signals is not None:
+            minus, plus, _, _, _ = self._signals.step(signals, exclude_episode=self.exclude_episode)
+            failure[SIGNALS_VIEW] = np.full(1, minus, np.float32)
+            success[SIGNALS_VIEW] = np.full(1, plus, np.float32)
+        scored = [  # the cameras, and the signals where given, as the detector's modality says
+            view
+            for view in failure
+            if detector.modality == "both" or (view == SIGNALS_VIEW) == (detector.modality == "signals")
+        ]
+        rule = self.rule
+        threshold = detector.threshold_at(rule, self.t)
+        scores = ViewScores({view: rule.score(failure[view], success[view]) for view in scored}, 1)
+        successes = detector.memory.successes
+        lines = {view: detector.threshold_at(rule, self.t, view) for view in scored}  # a band per view
+        fired = scores.firing(lines, 0)
+        result = StepResult(
+            t=self.t,
+            similarity={view: float(failure[view][0]) for view in scored},
+            neighbors={
+                view: detector.memory.neighbors(
+                    found.neighbor_similarity[view][0], found.neighbor_ids[view][0]
+                )
+                for view in views
+            },
+            alarm=bool(fired),
+            fired_views=fired,
+            score={view: float(scores.by_view[view][0]) for view in scored},
+            rule=rule,
+            threshold=threshold,
+            detected_view=scores.strongest(lines, 0),
+            success_similarity={view: float(success[view][0]) for view in scored},
+            nearest_success={
+                view: successes.match(
+                    float(found.success_similarity[view][0]), int(found.success_ids[view][0])
+                )
+                for view in views
+            }
+            if successes is not None
+            else {},
+            rule_scores={
+                name: {view: float(each.score(failure[view], success[view])[0]) for view in scored}
+                for name, each in RULES.items()
+            },
+            thresholds={name: detector.threshold_at(each, self.t) for name, each in RULES.items()},
+            queries={view: found.queries[view][0] for view in views},
+        )
+        if fired and self.fired_at is None:
+            self.fired_at = self.t
+        if self.sink is not None:
+            self.sink.on_step(self, frames, result)
+        self.t += 1
+        return result

@@ -1,0 +1,69 @@
+"""The robot's signals through the command line (issue 41): build-memory --signals, calibrate and detect
+--modality, detect --json's signals section, and thresholds calibrated for one modality not used by another."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from fault_helpers import cli, refused
+from synthetic import write_project_dataset
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return write_project_dataset(
+        tmp_path_factory.mktemp("signals-cli") / "data",
+        tasks=("pick_cube",),
+        symbols=("grasp_wp2",),
+        episodes=6,
+        length=8,
+        signals=True,
+    )
+
+
+def test_build_calibrate_and_detect_with_the_robots_signals(
+    data: Path, cache: list[str], tmp_path: Path
+) -> None:
+    memory = tmp_path / "memory"
+    built = cli("build-memory", data, "--out", memory, "--split", "train", *cache)
+    assert built.exit_code == 0, built.output
+    manifest = json.loads((memory / "manifest.json").read_text())
+    assert manifest["signals"]["choice"] == "auto" and (memory / "signals.npz").is_file()
+
+    calibrated = cli(
+        "calibrate", data, "--memory", memory, "--target-fpr", "0.34", "--modality", "signals", *cache
+    )
+    assert calibrated.exit_code == 0, calibrated.output
+    assert json.loads((memory / "manifest.json").read_text())["calibration"]["modality"] == "signals"
+
+    episode = "pick_cube_grasp_wp2_episode1"
+    found = cli(
+        "detect", data, "--memory", memory, "--trajectory", episode, "--json", "--modality", "signals", *cache
+    )
+    assert found.exit_code == 0, found.output
+    trace = json.loads(found.stdout)
+    assert trace["modality"] == "signals" and trace["signals"] is not None
+    assert len(trace["signals"]["failure_similarity"]) == 8 and "contrast" in trace["signals"]
+    assert trace["thresholds"]["contrast"] == manifest_threshold(memory) != 0.0
+    # the thresholds were calibrated on the signals alone: judging by both falls back to the default γ = 0
+    both = cli("detect", data, "--memory", memory, "--trajectory", episode, *cache)
+    assert both.exit_code == 0 and "rule contrast: C_t ≥ γ = 0.000" in both.output
+
+    refused(
+        cli("build-memory", data, "--out", tmp_path / "m2", "--signals", "a,,b", *cache), 2, "--signals takes"
+    )
+    none = tmp_path / "none"
+    assert cli("build-memory", data, "--out", none, "--signals", "none", *cache).exit_code == 0
+    refused(
+        cli("detect", data, "--memory", none, "--trajectory", episode, "--modality", "signals", *cache),
+        2,
+        "--modality signals needs a memory with the robot's signals",
+    )
+
+
+def manifest_threshold(memory: Path) -> float:
+    return float(
+        json.loads((memory / "manifest.json").read_text())["calibration"]["rules"]["contrast"]["threshold"]
+    )
