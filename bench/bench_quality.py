@@ -147,6 +147,20 @@ class Variant:
         return Variant(label or "default", settings)
 
 
+def with_variant(config: EvaluateConfig, variant: Variant) -> EvaluateConfig:
+    """`config` with the variant's settings, each in the value it belongs to (the recipe, the detector's
+    config, or the evaluation's own)."""
+    recipe_fields = {f.name for f in fields(MemoryRecipe)}
+    detector_fields = {f.name for f in fields(DetectorConfig)} - {f.name for f in fields(EvaluateConfig)}
+    settings = variant.settings
+    return replace(
+        config,
+        recipe=replace(config.recipe, **{k: v for k, v in settings.items() if k in recipe_fields}),
+        detector=replace(config.detector, **{k: v for k, v in settings.items() if k in detector_fields}),
+        **{k: v for k, v in settings.items() if k not in recipe_fields | detector_fields},
+    )
+
+
 def _value(text: str) -> Any:
     for kind in (int, float):
         try:
@@ -189,17 +203,7 @@ def evaluate_encoder(
         memory_out=out / slug / "memory",
         name="in-distribution",
     )
-    recipe_fields = {f.name for f in fields(MemoryRecipe)}
-    detector_fields = {f.name for f in fields(DetectorConfig)} - {f.name for f in fields(EvaluateConfig)}
-    in_recipe = {k: v for k, v in variant.settings.items() if k in recipe_fields}
-    in_detector = {k: v for k, v in variant.settings.items() if k in detector_fields}
-    others = {k: v for k, v in variant.settings.items() if k not in recipe_fields | detector_fields}
-    base = replace(
-        base,
-        recipe=replace(base.recipe, **in_recipe),
-        detector=replace(base.detector, **in_detector),
-        **others,
-    )
+    base = with_variant(base, variant)
     ood = replace(
         base,
         detector=base.detector.with_memory(out / slug / "memory"),

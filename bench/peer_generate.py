@@ -7,8 +7,13 @@ library's own loaders. Written under `--out` (atomically: a staging folder renam
 
 - `episodes/<episode>/<view>/<n>.png`: one folder per episode, one per camera (`hand`: the Panda's
   hand camera, `base`: the task's sensor camera, `render`: the task's render camera);
+- `episodes/<episode>/signals.npz`: the robot's own signals at each written frame (`SIGNALS`): joint
+  positions, gripper width, the hand's (TCP) pose, the commanded joint-position action, the task's goal
+  (PickCube's goal marker, PushCube's goal region, the cube StackCube stacks on) and the hand's offset
+  from it;
 - `labels.csv`: `episode, task, outcome, symbol, onset_frame, description` (robofailring's labels file);
-- `runs.jsonl`: per episode the injected intent, the steps simulated and the environment's verdict.
+- `runs.jsonl`: per episode the injected intent, the steps simulated and the environment's verdict;
+- `signals.json`: each signal's kind and dimension names.
 
 The Panda (`panda_wristcam`) follows a motion-planned script (mplib screw motions, as ManiSkill's
 own motion-planning solutions do); one of FailGen's failure modes is injected at one waypoint
@@ -73,6 +78,15 @@ VIEWS = ("hand", "base", "render")
 SHIFT_M = 0.07  # a translation fault's offset (z: upwards, the table is below)
 TURN_RAD = np.radians(45.0)  # a rotation fault's angle
 HOLD_STEPS = 10  # steps held still after the script, before the environment's check
+#: The signals written per frame: name -> (kind, dimension names), as bench_peer.py exports them.
+SIGNALS: dict[str, tuple[str, tuple[str, ...]]] = {
+    "joint_positions": ("state", (*(f"panda_joint{i}" for i in range(1, 8)), "finger_left", "finger_right")),
+    "gripper_width": ("state", ("width",)),
+    "ee_pose": ("state", ("x", "y", "z", "qw", "qx", "qy", "qz")),
+    "ee_to_goal": ("state", ("dx", "dy", "dz")),
+    "action": ("action", (*(f"panda_joint{i}" for i in range(1, 8)), "gripper")),
+    "goal": ("other", ("x", "y", "z")),
+}
 
 
 @dataclass(frozen=True)
@@ -260,11 +274,13 @@ class Generator:
         sim: Any = self.sim[spec.task]
         sim.reset(seed=spec.seed)
         states = [sim.unwrapped.get_state_dict()]
+        actions: list[np.ndarray] = []  # actions[i] took states[i] to states[i + 1]
         step = sim.step
 
         def recording(action: Any) -> Any:
             result = step(action)
             states.append(sim.unwrapped.get_state_dict())
+            actions.append(np.asarray(action, dtype=np.float64).reshape(-1))
             return result
 
         sim.step = recording
@@ -284,7 +300,7 @@ class Generator:
             symbol = f"{family}_{axis}" if axis else family
             symbol += "" if family == "wrong_object" else f"_wp{families[family]}"
         name = f"{spec.task.split('-')[0].lower()}-{spec.kind.replace('_', '')}-{spec.index:03d}"
-        self.write(spec, states, picked, out / "episodes" / name, rng)
+        self.write(spec, states, actions, picked, out / "episodes" / name, rng)
         if success:
             label = {"outcome": "success", "symbol": "", "onset_frame": ""}
             said = f"{symbol or 'nothing'} injected; the environment's check passed"
@@ -301,7 +317,13 @@ class Generator:
         }  # fmt: skip
 
     def write(
-        self, spec: Spec, states: list[Any], picked: list[int], folder: Path, rng: np.random.Generator
+        self,
+        spec: Spec,
+        states: list[Any],
+        actions: list[np.ndarray],
+        picked: list[int],
+        folder: Path,
+        rng: np.random.Generator,
     ) -> None:
         env = self.render_env(spec, rng)
         u: Any = env.unwrapped
@@ -310,8 +332,11 @@ class Generator:
             ood_look(u, rng)
         for view in VIEWS:
             (folder / view).mkdir(parents=True, exist_ok=True)
+        rows: dict[str, list[np.ndarray]] = {name: [] for name in SIGNALS}
         for n, index in enumerate(picked):
             u.set_state_dict(states[index])
+            for name, values in signals_now(u, spec.task, actions, index).items():
+                rows[name].append(values)
             sensors = u.get_obs()["sensor_data"]
             images = {
                 "hand": sensors["hand_camera"]["rgb"],
@@ -320,8 +345,32 @@ class Generator:
             }
             for view, image in images.items():
                 Image.fromarray(image[0].cpu().numpy().astype(np.uint8)).save(folder / view / f"{n}.png")
+        np.savez(folder / "signals.npz", **{name: np.stack(values) for name, values in rows.items()})
         if self.ood:
             env.close()
+
+
+def _vector(value: Any) -> np.ndarray:
+    """A batched tensor's first row (ManiSkill's CPU backend batches by one) as float64."""
+    return np.asarray(value.cpu().numpy() if hasattr(value, "cpu") else value, dtype=np.float64).reshape(-1)
+
+
+def signals_now(u: Any, task: str, actions: list[np.ndarray], index: int) -> dict[str, np.ndarray]:
+    """The robot's signals in state `index`: what `SIGNALS` names (the action: the one that led here)."""
+    qpos = _vector(u.agent.robot.get_qpos()[0])
+    tcp = u.agent.tcp.pose
+    position, orientation = _vector(tcp.p[0]), _vector(tcp.q[0])
+    goal_actor = {"PickCube-v1": "goal_site", "PushCube-v1": "goal_region", "StackCube-v1": "cubeB"}[task]
+    goal = _vector(getattr(u, goal_actor).pose.p[0])
+    action = actions[max(index - 1, 0)] if actions else np.zeros(8)
+    return {
+        "joint_positions": qpos[:9],
+        "gripper_width": qpos[7:9].sum(keepdims=True),
+        "ee_pose": np.concatenate([position, orientation]),
+        "ee_to_goal": position - goal,
+        "action": action[:8],
+        "goal": goal,
+    }
 
 
 def specs(args: argparse.Namespace) -> list[Spec]:
@@ -376,6 +425,8 @@ def main() -> None:
         writer.writerows(results)
     with (staging / "runs.jsonl").open("w", encoding="utf-8") as file:
         file.writelines(json.dumps(row) + "\n" for row in results)
+    signals = {name: {"kind": kind, "names": list(dims)} for name, (kind, dims) in SIGNALS.items()}
+    (staging / "signals.json").write_text(json.dumps(signals, indent=1), encoding="utf-8")
     shutil.rmtree(args.out, ignore_errors=True)
     staging.rename(args.out)
     judged = sum(row["outcome"] == "success" for row in results)

@@ -232,7 +232,7 @@ def _label_row(trace: DetectionTrace, *, kind: str) -> dict[str, str]:
     """One labels row: the evaluation's outcome for a trajectory and the detector's view of it at its
     alarm (a run that does not fire now: at its peak score)."""
     focus = trace.t_det if trace.t_det is not None else int(np.nanargmax(trace.max_score()))
-    scores = trace.scores
+    scores = trace.all_scores_of(trace.rule)
     view = trace.camera_at(trace.detected_view, focus) or max(
         trace.views, key=lambda v: float(np.nan_to_num(scores[v][focus], nan=-np.inf))
     )

@@ -149,6 +149,10 @@ def test_the_modality_chooses_what_is_fused(runs: tuple[FailureMemory, list[Traj
     }
     assert by["cameras"].scored_views == list(failure.views) and by["cameras"].t_det is None  # blind cameras
     assert by["signals"].scored_views == [SIGNALS_VIEW] and by["signals"].t_det == by["both"].t_det
+    # what the evaluation and calibration fuse is the modality's views only
+    assert list(by["signals"].scores_of(CONTRAST)) == [SIGNALS_VIEW]
+    assert list(by["cameras"].scores_of(CONTRAST)) == list(failure.views)
+    assert list(by["both"].scores_of(CONTRAST)) == [*failure.views, SIGNALS_VIEW]
     session = FailureDetector(memory, encoder, rule=CONTRAST, gamma=0.05, modality="cameras").session(
         "pick_cube"
     )

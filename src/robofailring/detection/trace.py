@@ -127,8 +127,13 @@ class DetectionTrace(RuleThresholds):
         return self.threshold_of(self.rule)
 
     def scores_of(self, rule: ScoringRule) -> dict[str, np.ndarray]:
-        """`rule`'s score per scored view from S⁻ and S⁺ (S⁺ NaN throughout when the memory has no success
-        runs), the signals' last."""
+        """`rule`'s score per view the trace judges by (`scored_views`: its modality's), from S⁻ and S⁺ (S⁺
+        NaN throughout when the memory has no success runs), the signals' last."""
+        found = self.all_scores_of(rule)
+        return {view: found[view] for view in self.scored_views}
+
+    def all_scores_of(self, rule: ScoringRule) -> dict[str, np.ndarray]:
+        """`rule`'s score of every camera view and of the signals where scored, whatever the modality."""
         missing = np.full(self.length, np.nan, np.float32)
         return {
             view: rule.score(self.similarity[view], self.success_similarity.get(view, missing))
@@ -263,7 +268,7 @@ class DetectionTrace(RuleThresholds):
         """`view` when it is a camera; for the signals (or None), the camera view scoring highest at `t`."""
         if view in self.views:
             return view
-        scores = self.scores
+        scores = self.all_scores_of(self.rule)
         scored = [(float(scores[v][t]), v) for v in self.views if np.isfinite(scores[v][t])]
         return max(scored)[1] if scored else None
 
@@ -285,7 +290,7 @@ class DetectionTrace(RuleThresholds):
     def to_dict(self) -> dict[str, Any]:
         """The JSON shape of `robofailring detect --json`."""
         views: dict[str, Any] = {}
-        by_rule = {rule.name: self.scores_of(rule) for rule in RULES.values()}
+        by_rule = {rule.name: self.all_scores_of(rule) for rule in RULES.values()}
         for view in self.views:
             top: list[dict[str, Any] | None] = []
             for t in range(self.length):

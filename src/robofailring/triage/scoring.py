@@ -86,7 +86,10 @@ def score_episode(detector: FailureDetector, trajectory: Trajectory, *, mode: st
         )
         return replace(base, skipped=(*base.skipped, Skipped(trajectory.source or Path(trajectory.key), why)))
     frame = int(np.nanargmax(curve))
-    view = max(trace.views, key=lambda v: float(np.nan_to_num(judged[v][frame], nan=-np.inf)))
+    view = max(  # a camera: the peak's thumbnail (its signals, when they fired, are not an image)
+        trace.views,
+        key=lambda v: float(np.nan_to_num(judged[v][frame], nan=-np.inf)) if v in judged else -np.inf,
+    )
     nearest = trace.neighbors(view, frame)
     normal = trace.nearest_success(view, frame)
     return replace(
