@@ -67,3 +67,25 @@ def manifest_threshold(memory: Path) -> float:
     return float(
         json.loads((memory / "manifest.json").read_text())["calibration"]["rules"]["contrast"]["threshold"]
     )
+
+
+def test_watch_streams_the_signals_and_scores_them_live(data: Path, cache: list[str], tmp_path: Path) -> None:
+    from rrd import rows
+
+    from rfr_viz.paths import REPLAY, signal
+
+    memory = tmp_path / "memory"
+    assert cli("build-memory", data, "--out", memory, "--split", "train", *cache).exit_code == 0
+    saved = tmp_path / "live.rrd"
+    episode = data / "pick_cube_grasp_wp2_episode1"
+    watched = cli(
+        "watch", episode, "--memory", memory, "--gamma", "0.05", "--speed", "0", "--save", saved, *cache
+    )
+    assert watched.exit_code == 0, watched.output
+    width = rows(saved, signal("gripper_width"), "Scalars:scalars")
+    assert [frame for frame, _ in width] == list(range(8))
+    assert [round(value[0], 3) for _, value in width][-1] == 0.001  # closed on nothing (episode 1's offset)
+    scored = rows(saved, REPLAY.score("signals", "contrast"), "Scalars:scalars")
+    assert [frame for frame, _ in scored] == list(range(8))
+    assert max(value[0] for _, value in scored[4:]) > 0.05  # after the gripper closed on nothing
+    assert "FAILURE at frame" in watched.stdout
