@@ -19,7 +19,7 @@ from robofailring.detection.rules import (
     default_rule,
     rule_named,
 )
-from robofailring.detection.scored import scored_frames
+from robofailring.detection.scored import blank_skips, scored_frames
 from robofailring.detection.session import DetectorSession, StepSink
 from robofailring.detection.signal_scores import SIGNALS_VIEW, SignalScores, score_signals
 from robofailring.detection.stored import (
@@ -29,7 +29,7 @@ from robofailring.detection.stored import (
     uncalibrated_notes,
 )
 from robofailring.detection.trace import DetectionTrace
-from robofailring.encoders.base import Encoder, l2_normalize
+from robofailring.encoders.base import Encoder, l2_normalize, unusable
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import DataError, SettingError
 from robofailring.memory.failure import FailureMemory
@@ -171,6 +171,13 @@ class FailureDetector(RuleThresholds):
         `first` holds f(I_0) per view, `current` the (T, d) embeddings of T frames per view.
         """
         views = list(current)
+        blank = {  # a frame the encoder sees as nothing (zero, or not a number) matches nothing
+            view: unusable(current[view]) | bool(unusable(first[view][None])[0]) for view in views
+        }
+        current = {
+            view: np.where(blank[view][:, None], 0.0, current[view]).astype(np.float32) for view in views
+        }
+        first = {view: np.nan_to_num(first[view], nan=0.0, posinf=0.0, neginf=0.0) for view in views}
         queries = {view: self.memory.pair(first[view], current[view]) for view in views}  # as its entries
         stacked = np.concatenate([queries[view] for view in views])
         sims, ids = self.memory.search(stacked, task, self.k, exclude_episode=exclude_episode)
@@ -183,10 +190,6 @@ class FailureDetector(RuleThresholds):
             success_sims, success_rows = successes.search(stacked, task, exclude_episode=exclude_episode)
             success_similarity = {view: success_sims[rows[view]] for view in views}
             success_ids = {view: success_rows[rows[view]] for view in views}
-        blank = {  # a zero embedding (first or current frame) is no image to the encoder: it matches nothing
-            view: (np.linalg.norm(current[view], axis=-1) < 0.5) | (np.linalg.norm(first[view]) < 0.5)
-            for view in views
-        }
         return Retrieved(
             queries=queries,
             neighbor_similarity={view: sims[rows[view]] for view in views},
@@ -231,6 +234,7 @@ class FailureDetector(RuleThresholds):
         first: dict[str, np.ndarray] = {}
         parts: list[Retrieved] = []
         placed: dict[str, list[np.ndarray]] = {view: [] for view in views}
+        blank: dict[str, list[int]] = {view: [] for view in views}  # frames the encoder saw as nothing
         for start in range(0, len(steps), CHUNK_FRAMES):
             chunk = steps[start : start + CHUNK_FRAMES]
             frames = [used[view][int(t)] for view in views for t in chunk]
@@ -239,6 +243,8 @@ class FailureDetector(RuleThresholds):
             )
             current = {view: embeddings[position] for position, view in enumerate(views)}
             first = first or {view: current[view][0] for view in views}
+            for view in views:
+                blank[view] += chunk[unusable(current[view])].tolist()
             part = self.retrieve(trajectory.task, first, current, exclude_episode=exclude)
             if place is not None:
                 for view in views:
@@ -279,7 +285,7 @@ class FailureDetector(RuleThresholds):
             skipped_views=skipped,
             view_frames={view: len(frames) for view, frames in trajectory.views.items()},
             stride=stride,
-            skipped_inputs=[*trajectory.skipped, *unscored],
+            skipped_inputs=[*trajectory.skipped, *blank_skips(trajectory, blank, len(steps)), *unscored],
             success_similarity={v: on_frames(s, np.nan) for v, s in found.success_similarity.items()},
             success_ids={v: on_frames(i, -1) for v, i in found.success_ids.items()},
             in_memory=own is not None,

@@ -3,12 +3,14 @@ jobs that encode those frames ahead of it (`CachedEncoder.prefetch`, docs/ray.md
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
-from robofailring.data.model import Frame, Trajectory
+from robofailring.data.model import Frame, Skipped, Trajectory
+from robofailring.encoders.base import BLANK_REASON, frame_ranges
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import DataError
 
@@ -55,3 +57,21 @@ def _frames_scored(trajectories: Iterable[Trajectory], *, stride: int) -> Iterat
         except DataError:
             continue
         yield from scored.frames()
+
+
+def blank_skips(trajectory: Trajectory, blank: Mapping[str, Sequence[int]], scored: int) -> list[Skipped]:
+    """Each view's frames the encoder saw as nothing (`blank`: their numbers), as inputs not scored: a
+    camera that goes dark is said, never passed as `no alarm`; a blank first frame leaves its view unscored."""
+    where = trajectory.source or Path(trajectory.key)
+    found = []
+    for view, frames in blank.items():
+        if not frames:
+            continue
+        what = (
+            f"its first frame is {BLANK_REASON}: the view is not scored"
+            if frames[0] == 0
+            else f"{len(frames)} of {scored} scored frame(s) ({frame_ranges(frames)}) are {BLANK_REASON} "
+            "(a camera gone dark?)"
+        )
+        found.append(Skipped(where, f"{trajectory.key} view {view}: {what}", view))
+    return found

@@ -29,6 +29,36 @@ class Encoder(Protocol):
         ...
 
 
+#: Why a frame embedded to nothing is not stored or scored (memories, detection).
+BLANK_REASON = (
+    "blank to the encoder (a dark or single-colour image, or one it returned no number for): not used"
+)
+
+
+def unusable(embeddings: np.ndarray) -> np.ndarray:
+    """Per row, whether an embedding is no image to match: a zero row (the encoder saw a blank frame:
+    black, one colour) or one with a value that is not a number."""
+    rows = np.asarray(embeddings, dtype=np.float32).reshape(len(embeddings), -1)
+    norms = np.linalg.norm(rows, axis=1)
+    return ~np.isfinite(norms) | (norms < 0.5)
+
+
+def frame_ranges(frames: Sequence[int]) -> str:
+    """`4–11, 15` for frames [4, 5, …, 11, 15]: the runs of consecutive frame numbers."""
+    parts: list[str] = []
+    start = previous = None
+    for frame in sorted(frames):
+        if previous is not None and frame == previous + 1:
+            previous = frame
+            continue
+        if start is not None:
+            parts.append(f"{start}" if start == previous else f"{start}–{previous}")
+        start = previous = frame
+    if start is not None:
+        parts.append(f"{start}" if start == previous else f"{start}–{previous}")
+    return ", ".join(parts)
+
+
 def l2_normalize(vectors: np.ndarray, *, axis: int = -1) -> np.ndarray:
     """Row-wise L2 normalisation in float32; zero rows stay zero."""
     vectors = np.asarray(vectors, dtype=np.float32)

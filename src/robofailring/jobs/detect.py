@@ -124,7 +124,12 @@ class DetectResult:
         ]
         shown = {rule.score_name: trace.scores_of(rule) for rule in trace.shown_rules}
         for view in trace.scored_views:
-            parts = [f"max {name} = {float(np.nanmax(scores[view])):.3f}" for name, scores in shown.items()]
+            parts = [
+                f"max {name} = {float(np.nanmax(scores[view])):.3f}"
+                if np.isfinite(scores[view]).any()
+                else f"{name} not scored"
+                for name, scores in shown.items()
+            ]
             lines.append(f"  {view:>10}: " + ", ".join(parts))
         lines.append(trace.verdict())
         if trace.t_det is None or trace.detected_view is None:

@@ -91,7 +91,7 @@ def build_memories(
         vocabulary=vocabulary,
         signals=signals,
     )
-    encoded.stats.skipped_inputs = [*provenance.skipped_inputs, *unused]
+    encoded.stats.skipped_inputs = [*provenance.skipped_inputs, *encoded.stats.skipped_inputs, *unused]
     return memory, encoded.stats
 
 
@@ -166,7 +166,7 @@ def add_to(
         vocabulary=memory.vocabulary,
         signals=signals,
     ).derived_from(memory)  # saved over `memory`'s folder only while that is still the version read
-    stats.skipped_inputs = [*skipped_inputs, *unused]
+    stats.skipped_inputs = [*skipped_inputs, *stats.skipped_inputs, *unused]
     return grown, stats
 
 
@@ -189,6 +189,11 @@ def _encode(
         return encoded, None
     with progress_bar(total=len(trajectories), desc="encoding success memory", unit="traj") as bar:
         built = SuccessMemory.build(
-            trajectories, encoder, step=recipe.success_step, pairing=recipe.pairing, progress=bar.update
+            trajectories,
+            encoder,
+            step=recipe.success_step,
+            pairing=recipe.pairing,
+            progress=bar.update,
+            skipped=encoded.stats.skipped_inputs,  # blank frames, listed with the failure memory's
         )
     return encoded, built

@@ -13,12 +13,14 @@ from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
 from itertools import islice
+from pathlib import Path
 from typing import Any, Final
 
 import numpy as np
 
 from robofailring.data.grounding import Vocabulary, parse_symbol
 from robofailring.data.model import Frame, Outcome, Skipped, Trajectory
+from robofailring.encoders.base import BLANK_REASON, frame_ranges, unusable
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import SymbolError
 from robofailring.memory.entry import DENSE, END, MemoryEntry, check_failure_frames
@@ -185,13 +187,18 @@ def encode_failures(
     entries: list[MemoryEntry] = []
     vectors: list[np.ndarray] = []
     for view, embeddings in _embedded(planned.views, encoder, progress):
+        blank = unusable(embeddings)
+        if blank.any():  # a frame the encoder sees as nothing is never stored: it would match anything
+            stats.skipped_inputs.append(_blank_skipped(view, blank))
+            if blank[0]:
+                continue
         paired = pair_vectors(
-            np.repeat(embeddings[:1], len(view.candidates) + 1, axis=0), embeddings, pairing=pairing
+            np.repeat(embeddings[:1], len(embeddings), axis=0), embeddings, pairing=pairing
         )  # row 0: the first frame paired with itself, the state before anything happened
-        kept = thin_run(paired, step=step).kept[1:] - 1  # a frame must differ from it to be kept
-        paired = paired[1:]
+        usable = np.flatnonzero(~blank)
+        kept = usable[thin_run(paired[usable], step=step).kept[1:]]  # a frame must differ from it to be kept
         vectors.append(paired[kept])
-        for row in kept.tolist():
+        for row in (kept - 1).tolist():
             frame = view.candidates[row]
             entries.append(
                 replace(
@@ -206,6 +213,18 @@ def encode_failures(
     stats.entries = len(entries)
     stacked = np.concatenate(vectors) if vectors else np.zeros((0, encoder.dim * 2), dtype=np.float32)
     return EncodedFailures(stacked, entries, stats, planned.failure_frames, step if dense else None, pairing)
+
+
+def _blank_skipped(view: FailureView, blank: np.ndarray) -> Skipped:
+    """What a failure view's blank frames (`blank`: its first frame, then its candidates) cost the memory."""
+    entry = view.entry
+    where = Path(absolute_reference(view.frames[0].reference)).parent
+    if blank[0]:
+        why = f"its first frame is {BLANK_REASON}: the view is not in the memory"
+    else:
+        frames = [view.candidates[i - 1] for i in np.flatnonzero(blank)]
+        why = f"frame(s) {frame_ranges(frames)} of {len(view.frames)} are {BLANK_REASON}"
+    return Skipped(where, f"{entry.task}/{entry.episode} view {entry.view}: {why}", entry.view)
 
 
 def _embedded(

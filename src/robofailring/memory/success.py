@@ -21,7 +21,8 @@ from typing import Any, Final
 import faiss
 import numpy as np
 
-from robofailring.data.model import Frame, Outcome, Trajectory
+from robofailring.data.model import Frame, Outcome, Skipped, Trajectory
+from robofailring.encoders.base import BLANK_REASON, frame_ranges, unusable
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import MemoryFormatError
 from robofailring.memory.format import read_jsonl
@@ -148,11 +149,13 @@ class SuccessMemory:
         pairing: str,
         progress: Callable[[int], None] | None = None,
         cap: int | None = None,
+        skipped: list[Skipped] | None = None,
     ) -> SuccessMemory:
         """The frames of every view (≥ 2 frames) of the success trajectories that add something
         (`thinning.thin_run`: cosine `step`, at most `cap` per run; step 0 keeps every frame), and
         the first frame of every failure view; unlabelled trajectories are ignored. `pairing`: the
-        failure memory's (`robofailring.memory.pairs`)."""
+        failure memory's (`robofailring.memory.pairs`). A frame blank to the encoder is never kept (a
+        view whose first frame is: none of it), and is listed in `skipped`."""
         check_step(step)
         check_pairing(pairing)
         trajectories = list(trajectories)
@@ -166,11 +169,21 @@ class SuccessMemory:
             success = trajectory.outcome is Outcome.SUCCESS
             for view, frames in run_frames(trajectory):
                 embeddings = encoder.encode_frames(frames)
+                blank = unusable(embeddings)
+                offered += len(frames)
+                if blank.any() and skipped is not None:
+                    skipped.append(_blank_frames(trajectory, view, frames, blank))
+                if blank[0]:
+                    continue
                 paired = pair_vectors(
                     np.repeat(embeddings[:1], len(frames), axis=0), embeddings, pairing=pairing
                 )
-                kept = thin_run(paired, step=step, cap=cap).kept if success else np.zeros(1, np.int64)
-                offered += len(frames)
+                usable = np.flatnonzero(~blank)
+                kept = (
+                    usable[thin_run(paired[usable], step=step, cap=cap).kept]
+                    if success
+                    else np.zeros(1, np.int64)
+                )
                 vectors.append(paired[kept])
                 runs.append(
                     SuccessRun(
@@ -322,3 +335,14 @@ class SuccessMemory:
             )
         vectors = flat.reconstruct_n(0, flat.ntotal) if flat.ntotal else np.zeros((0, flat.d), np.float32)
         return cls(vectors, runs, dim=int(flat.d))
+
+
+def _blank_frames(trajectory: Trajectory, view: str, frames: Sequence[Frame], blank: np.ndarray) -> Skipped:
+    """What a run's blank frames cost the success memory (the whole view when its first frame is blank)."""
+    where = Path(absolute_reference(frames[0].reference)).parent
+    why = (
+        f"its first frame is {BLANK_REASON}: the view is not in the success memory"
+        if blank[0]
+        else f"frame(s) {frame_ranges(np.flatnonzero(blank).tolist())} of {len(frames)} are {BLANK_REASON}"
+    )
+    return Skipped(where, f"{trajectory.key} view {view}: {why}", view)
