@@ -244,3 +244,47 @@ def test_train_encoder_verb_on_runs_named_by_nothing_but_their_labels(tmp_path: 
     record = json.loads((out / CONFIG_NAME).read_text())
     assert record["training"]["recipe"]["labels"] == str(labels.resolve())
     assert record["training"]["skipped_unlabelled"] == [] and record["training"]["trajectories"] >= 1
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "said"),
+    [
+        (
+            "normalize",
+            {"mean": [0.5, 0.5, 0.5], "std": [float("nan"), 0.25, 0.25]},
+            "normalize.std must be three positive",
+        ),
+        ("normalize", {"mean": [0.5, 0.5], "std": [0.25, 0.25, 0.25]}, "normalize.mean must be three finite"),
+        ("input_size", 10**6, "input_size must be a whole number of pixels from 16 to 1024"),
+        ("input_size", -5, "input_size must be a whole number of pixels"),
+        ("embedding_dim", 7, "embedding_dim 7 is not the network's: its last layer has 256 channels"),
+        (
+            "architecture",
+            {"kind": "cnn", "widths": [32, 10**7], "neck": "batchnorm"},
+            "architecture.widths must be",
+        ),
+    ],
+)
+def test_a_crafted_encoder_config_is_one_clear_error(
+    trained: tuple[Path, Path, Path], tmp_path: Path, field: str, value: object, said: str
+) -> None:
+    """Issue 45 items 3 and 6: an edited `encoder.json` never reaches torch (a 175 TiB allocation, NaN
+    embeddings in the shared cache): the value is named."""
+    _, first, _ = trained
+    crafted = Path(shutil.copytree(first, tmp_path / "crafted"))
+    config = json.loads((crafted / CONFIG_NAME).read_text())
+    config[field] = value
+    (crafted / CONFIG_NAME).write_text(json.dumps(config))
+    with pytest.raises(EncoderError, match=said):
+        load_encoder(f"trained:{crafted}")
+
+
+def test_the_identity_covers_the_normalisation(trained: tuple[Path, Path, Path], tmp_path: Path) -> None:
+    """Another normalisation gives other embeddings: another identity, so another cache key and a memory
+    built with one refuses the other."""
+    _, first, _ = trained
+    edited = Path(shutil.copytree(first, tmp_path / "edited"))
+    config = json.loads((edited / CONFIG_NAME).read_text())
+    config["normalize"]["std"] = [0.3, 0.3, 0.3]
+    (edited / CONFIG_NAME).write_text(json.dumps(config))
+    assert load_encoder(f"trained:{edited}").identity != load_encoder(f"trained:{first}").identity

@@ -9,8 +9,8 @@ how it was trained) and `weights.pt` (a torch state dict). Two architectures exi
   project's own open_clip loader) followed by a trained linear projection; `weights.pt` holds
   only the projection and the classifier.
 
-The identity names the architecture and the digest of the weights (and of the frozen tower's
-identity), so the embedding cache and the memory's encoder check treat a retrained encoder as a
+The identity names the architecture, the input size and the digest of the weights, of the
+normalisation and of the frozen tower's identity, so the embedding cache and the memory's encoder check treat a retrained encoder as a
 different one, exactly as for CLIP checkpoints.
 """
 
@@ -26,6 +26,7 @@ import cv2
 import numpy as np
 
 from robofailring.encoders.base import file_digest, l2_normalize
+from robofailring.encoders.trained_config import check_trained_config
 from robofailring.errors import EncoderError
 from robofailring.extras import needs_extra
 
@@ -191,6 +192,7 @@ def read_encoder_config(directory: Path) -> dict[str, Any]:
     for key in ("architecture", "input_size", "normalize", "classes", "embedding_dim", "weights_digest"):
         if key not in config:
             raise EncoderError(f"{path} lacks {key!r}")
+    check_trained_config(config, path)
     return config
 
 
@@ -220,7 +222,8 @@ def trained_identity(directory: Path) -> tuple[dict[str, Any], str]:
                 f"trained encoder {directory} was trained on {architecture.get('init_identity')}, "
                 f"but {architecture['init']} now loads {tower}"
             )
-    weights_id = hashlib.blake2b(f"{digest}|{tower}".encode(), digest_size=8).hexdigest()
+    normalize = json.dumps([config["normalize"]["mean"], config["normalize"]["std"]])  # it changes the output
+    weights_id = hashlib.blake2b(f"{digest}|{tower}|{normalize}".encode(), digest_size=8).hexdigest()
     name = "cnn4" if architecture.get("kind") == "cnn" else "clip-head"
     return (
         config,
