@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import zipfile
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -42,6 +43,11 @@ def project_trajectories(root: Path, manifest: dict[str, Any]) -> Found:
             task = record["task"]
         except (KeyError, ValueError) as error:
             raise DataError(f"{root / PROJECT_MANIFEST}: bad episode record {record!r} ({error})") from error
+        if not _within(root, str(record["dir"])):
+            raise DataError(
+                f"{root / PROJECT_MANIFEST} lists {record['dir']!r}, which is not a folder inside the dataset "
+                f"{root}: refused (an episode's `dir` is a path relative to the manifest, without `..`)"
+            )
         if not directory.is_dir():
             raise DataError(f"{root / PROJECT_MANIFEST} lists {record['dir']} but {directory} is missing")
         listed.add(Path(record["dir"]).parts[0])
@@ -76,6 +82,14 @@ def project_trajectories(root: Path, manifest: dict[str, Any]) -> Found:
         if p.name not in listed and p.name != PROJECT_MANIFEST and not p.name.startswith(".")
     ]
     return found, unlisted
+
+
+def _within(root: Path, folder: str) -> bool:
+    """A manifest's `dir`: relative, and still inside the dataset once `..` is resolved."""
+    if not folder or Path(folder).is_absolute():
+        return False
+    joined = os.path.normpath(os.path.join(str(root), folder))
+    return joined.startswith(os.path.normpath(str(root)).rstrip(os.sep) + os.sep)
 
 
 def project_signals(

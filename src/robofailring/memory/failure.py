@@ -31,7 +31,7 @@ from robofailring.memory.recipe import MemoryRecipe
 from robofailring.memory.references import (
     ReferenceCheck,
     check_references,
-    common_root,
+    storage_root,
     stored_resolver,
     to_stored,
 )
@@ -235,8 +235,13 @@ class FailureMemory:
         """
         directory = Path(directory)
         check_memory_target(directory)
-        root = self.data_root or common_root(
-            ref for entry in self.entries for ref in (entry.start, entry.end)
+        runs = self.successes.runs if self.successes is not None else []
+        root = storage_root(
+            self.data_root,
+            [
+                *(ref for entry in self.entries for ref in (entry.start, entry.end)),
+                *(frame for run in runs for frame in run.frames),
+            ],
         )
         manifest = self._full_manifest()
         if root is not None:

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 
 from robofailring.data.layout_rosbag import BAG_MESSAGE_MARKER
+from robofailring.errors import MemoryFormatError
 
 ARRAY_REFERENCE = "<array>"
 VIDEO_FRAME_MARKER = "#frame="
@@ -54,6 +55,39 @@ def resolve_stored(stored: str, root: Path | None) -> str:
     if not is_file_reference(stored) or root is None or os.path.isabs(stored):
         return stored
     return str(Path(root, *PurePosixPath(stored).parts))
+
+
+def inside(reference: str, root: Path) -> bool:
+    """Whether a reference's file lies in `root` once `..` is resolved (lexically: a dataset's own
+    symbolic links are followed when read, not here)."""
+    file = os.path.normpath(reference_file(reference))
+    base = os.path.normpath(str(root))
+    return file == base or file.startswith(base.rstrip(os.sep) + os.sep)
+
+
+def resolve_inside(stored: str, root: Path) -> str:
+    """`resolve_stored`, refused (MemoryFormatError naming it) when the reference lies outside `root`: a
+    memory shared with you is untrusted, and an entry edited to `/home/you/private.png` or `../../x`
+    must not make a recording or a VLM request carry that file."""
+    resolved = resolve_stored(stored, root)
+    if is_file_reference(resolved) and not inside(resolved, root):
+        raise MemoryFormatError(
+            f"reference {stored!r} lies outside the memory's data root {root}: refused (an edited or foreign "
+            "memory? its images must lie under its data root, or under --data-root)"
+        )
+    return resolved
+
+
+def storage_root(root: Path | None, references: Iterable[str]) -> Path | None:
+    """The root a memory's references are stored under: `root` when it holds all of them, else the
+    deepest folder that holds `root` and them (runs added from another dataset), so none is stored
+    absolute."""
+    files = [absolute_reference(ref) for ref in references if is_file_reference(ref)]
+    if root is None:
+        return common_root(files)
+    if all(inside(ref, root) for ref in files):
+        return root
+    return Path(os.path.commonpath([str(root), *(os.path.dirname(reference_file(f)) for f in files)]))
 
 
 def reroot(reference: str, old_root: Path, new_root: Path) -> str:
@@ -122,7 +156,7 @@ def stored_resolver(
     """
     if recorded is not None:
         root = Path(data_root).resolve() if data_root is not None else Path(recorded)
-        return (lambda ref: resolve_stored(ref, root)), root
+        return (lambda ref: resolve_inside(ref, root)), root
     if data_root is None or source is None:
         return None, None
     new_root = Path(data_root).resolve()
