@@ -90,7 +90,8 @@ def test_a_new_checkpoint_is_a_new_export(tiny_checkpoint: tuple[Path, Path], tm
     ("damage", "said"),
     [
         ("truncate", "is incomplete or corrupt"),  # a partial copy: its size differs from export.json's
-        ("scramble", "ONNX Runtime cannot read the cached export"),  # same size, not a model
+        ("scramble", "does not match the digest"),  # same size, not a model
+        ("flip", "does not match the digest"),  # same size, still a model: one weight byte changed (issue 45)
         ("manifest", "is incomplete or corrupt"),  # export.json unreadable
     ],
 )
@@ -110,6 +111,10 @@ def test_a_broken_export_is_reported_and_made_again(
         model.write_bytes(model.read_bytes()[: size // 2])
     elif damage == "scramble":
         model.write_bytes(np.random.default_rng(0).bytes(size))
+    elif damage == "flip":
+        content = bytearray(model.read_bytes())
+        content[-size // 3] ^= 0x01  # inside the weights, past the graph's header
+        model.write_bytes(bytes(content))
     else:
         (folder / MANIFEST_NAME).write_text("{not json")
     with caplog.at_level(logging.WARNING, logger="robofailring"):

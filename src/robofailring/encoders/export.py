@@ -5,7 +5,7 @@ or `--cache-dir`) holding `model.onnx` and `export.json`. The key digests the en
 names the checkpoint's or trained folder's weights digest), the model-config file when the spec names
 one, the runtime and `EXPORT_VERSION`, so a new checkpoint is a new export and an unchanged one is
 never exported twice. The folder is written whole under a temporary name and renamed into place
-(`atomic_directory`); `export.json` records each file's size, and a folder whose files do not match it,
+(`atomic_directory`); `export.json` records each file's size and digest, and a folder whose files do not match it,
 or that ONNX Runtime cannot read, is reported and exported again.
 
 The exported graph maps normalised pixels, (N, 3, S, S) float32, to the unnormalised embedding, as
@@ -97,10 +97,18 @@ def read_export(folder: Path) -> Export | None:
     try:
         meta = json.loads(manifest.read_text(encoding="utf-8"))
         files = meta["files"]
-        for name, size in files.items():
+        for name, recorded in files.items():
+            if not isinstance(recorded, dict):
+                raise EncoderError(
+                    f"{MANIFEST_NAME} records no digest of {name} (an earlier version's export)"
+                )
             found = (folder / name).stat().st_size
-            if found != size:
-                raise EncoderError(f"{name} has {found} bytes, {MANIFEST_NAME} says {size}")
+            if found != recorded["bytes"]:
+                raise EncoderError(f"{name} has {found} bytes, {MANIFEST_NAME} says {recorded['bytes']}")
+            if file_digest(folder / name) != recorded["blake2b"]:
+                raise EncoderError(
+                    f"{name} does not match the digest {MANIFEST_NAME} records (changed since)"
+                )
         return Export(
             folder, str(meta["identity"]), int(meta["dim"]), str(meta["runtime"]), meta["preprocess"]
         )
@@ -117,7 +125,14 @@ def _write(folder: Path, identity: str, dim: int, runtime: str, preprocess: dict
         "dim": dim,
         "runtime": runtime,
         "preprocess": preprocess,
-        "files": {MODEL_NAME: (folder / MODEL_NAME).stat().st_size},
+        "files": {
+            MODEL_NAME: {
+                "bytes": (folder / MODEL_NAME).stat().st_size,
+                "blake2b": file_digest(
+                    folder / MODEL_NAME
+                ),  # a corrupted file of the same size is made again
+            }
+        },
     }
     (folder / MANIFEST_NAME).write_text(json.dumps(meta, indent=2), encoding="utf-8")
     return Export(folder, identity, dim, runtime, preprocess)
