@@ -92,3 +92,18 @@ def blueprint_names(path: Path) -> list[str]:
                 if column.endswith("Blueprint:display_name"):
                     names += [value[0] for value in batch.column(column).to_pylist() if value]
     return sorted(names)
+
+
+def every_text(path: Path) -> str:
+    """Every value in the recording (its data and its blueprints) as text: for what a recording must not hold.
+
+    Time columns are left out (see `rows`): they hold numbers, not text."""
+    read = reader(path)
+    texts = []
+    for store in [*read.recordings(), *read.blueprints()]:
+        for chunk in read.stream(store=store).to_chunks():
+            batch = chunk.to_record_batch()
+            for name, column in zip(batch.schema.names, batch.columns, strict=True):
+                if not pa.types.is_temporal(column.type):
+                    texts.append(f"{name}: {column.to_pylist()}")
+    return "\n".join(texts)

@@ -29,7 +29,8 @@ class Exchange:
 class ChatServer:
     """Answers `POST /v1/chat/completions` following `replies`, one per request (the last repeats).
 
-    A reply is ("ok", text), ("status", code), ("sleep", seconds) or ("raw", body bytes).
+    A reply is ("ok", text), ("status", code), ("sleep", seconds), ("raw", body bytes) or ("echo", code):
+    that status with the request's headers in the body, as a careless server or proxy sends them back.
     """
 
     url: str
@@ -66,6 +67,10 @@ def chat_server(*replies: tuple[str, Any]) -> Iterator[ChatServer]:
                 kind, value = "ok", ANSWER
             if kind == "status":
                 self._send(value, b'{"error": {"message": "the model is overloaded"}}')
+            elif kind == "echo":
+                headers = "\n".join(f"{name}: {text}" for name, text in self.headers.items())
+                echoed = {"error": {"message": "bad request", "headers": dict(self.headers.items())}}
+                self._send(value, f"{headers}\n\n{json.dumps(echoed)}".encode(), "text/plain")
             elif kind == "raw":
                 self._send(200, value)
             else:

@@ -238,6 +238,7 @@ def compare_encoders_cmd(
     k: KOption = DETECTOR_DEFAULTS.k,
     failure_frames: FailureFramesOption = None,
     pairing: PairingOption = None,
+    views: ViewsOption = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
 ) -> None:
@@ -253,6 +254,7 @@ def compare_encoders_cmd(
             target_fpr=target_fpr,
             recipe=memory_recipe(failure_frames=failure_frames, pairing=pairing),
             detector=detector_config(None, device=device, cache_dir=cache_dir, k=k),
+            views=views,
         ),
         recordings=recordings,
     )

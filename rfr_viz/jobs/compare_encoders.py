@@ -50,6 +50,7 @@ def _run_encoder_comparison(
                 detectors=tuple(config.detector.with_memory(Path(r.memory)) for r in results),
                 out=Path(config.out) / "recordings",
                 trajectories=keys,
+                views=config.views,
             )
         ).recordings
         if keys

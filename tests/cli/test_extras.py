@@ -39,6 +39,14 @@ def test_pyproject_extras_install_what_the_table_says() -> None:
     assert set(extras) == {*EXTRAS, "all", "dev", "docs"}
 
 
+def test_the_install_docs_list_every_extra() -> None:
+    """README.md and docs/install.md name each extra, so none (onnx, ray) is found only in pyproject.toml."""
+    table = (ROOT / "docs" / "install.md").read_text()
+    readme = (ROOT / "README.md").read_text()
+    assert [extra for extra in EXTRAS if f"| `{extra}` |" not in table] == []
+    assert [extra for extra in EXTRAS if f"`{extra}`" not in readme] == []
+
+
 def _guarded_by(node: ast.AST, parents: dict[ast.AST, ast.AST]) -> tuple[str | None, bool]:
     """(the extra of the enclosing `with needs_extra(...)`, whether under `if TYPE_CHECKING:`)."""
     while node in parents:

@@ -59,6 +59,27 @@ def test_a_vocabulary_grounds_its_own_symbols_and_stages_and_refuses_bad_entries
             read_vocabulary(bad)
 
 
+def test_a_symbol_beginning_with_a_table_5_word_grounds_as_the_vocabulary_says(tmp_path: Path) -> None:
+    words = tmp_path / "words.yaml"
+    words.write_text(
+        "symbols:\n  slip_twice: the cup slipping twice\n  slip_episode: a slip seen on replay\n"
+    )
+    vocabulary = read_vocabulary(words)
+    stage = "at the interaction / grasping stage (Waypoint 2)"
+    assert ground("slip_twice_wp2", vocabulary) == f"The failure was caused by the cup slipping twice {stage}"
+    assert ground("slip_episode_wp2_episode4", vocabulary) == (
+        f"The failure was caused by a slip seen on replay {stage}"
+    )
+    assert failure_type("slip_twice_wp2", vocabulary) == "slip_twice"
+    assert (
+        ground("slip_wp2", vocabulary)
+        == f"The failure was caused by object slippage from the gripper {stage}"
+    )
+    assert ground("episode3_slip_wp2_episode3", vocabulary) == ground("slip_wp2")
+    with pytest.raises(SymbolError, match=r"unknown stage token 'twice'.*--vocabulary FILE"):
+        ground("slip_twice_wp2")  # without the vocabulary, Table 5's `slip` and a word it does not know
+
+
 def test_outcome_only_labels_with_descriptions_build_detect_and_replay_on_lerobot(tmp_path: Path) -> None:
     data = write_lerobot_v3(tmp_path / "so101", lengths=(8, 7, 9), tasks=("pick up the cube",) * 3)
     labels = tmp_path / "labels.csv"

@@ -6,7 +6,7 @@ import json
 from pathlib import Path
 
 import pytest
-from rrd import properties, rows
+from rrd import every_text, properties, rows
 from synthetic import write_episode
 from typer.testing import CliRunner
 from vlm_server import ANSWER, chat_server
@@ -14,6 +14,7 @@ from vlm_server import ANSWER, chat_server
 from rfr_viz.cli.app import app
 from rfr_viz.paths import REPLAY
 from robofailring.detection.config import DetectorConfig
+from robofailring.explain.vlm import API_KEY_ENV
 
 runner = CliRunner()
 
@@ -121,6 +122,28 @@ def test_a_failed_vlm_call_keeps_the_recording_and_says_so(
             app, ["explain", str(recording), "--vlm-url", server.url, "--vlm-model", "m"]
         )
     assert explained.exit_code == 1 and "HTTP 400" in explained.stderr
+
+
+def test_a_replay_never_records_the_key_a_server_echoes(
+    episode: Path, pixels_memory_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    secret = "sk-replay-secret-93d2"
+    monkeypatch.setenv(API_KEY_ENV, secret)
+    with chat_server(("echo", 400)) as server:
+        result = runner.invoke(
+            app,
+            [
+                *("replay", str(episode), "--memory", str(pixels_memory_dir), "--out", str(tmp_path / "rec")),
+                *("--delta", "-1", "--vlm-url", server.url, "--vlm-model", "llava"),
+            ],
+        )
+    assert result.exit_code == 0, result.output
+    assert server.received[0].headers["Authorization"] == f"Bearer {secret}"
+    (recording,) = (tmp_path / "rec").glob("*.rrd")
+    assert "HTTP 400" in properties(recording)["vlm_error"] and "HTTP 400" in result.stderr
+    assert "[redacted]" in properties(recording)["vlm_error"]
+    assert secret not in result.output and secret not in every_text(recording)
+    assert secret.encode() not in recording.read_bytes()
 
 
 def test_explain_without_a_detection_or_a_report(pixels_memory_dir: Path, tmp_path: Path) -> None:

@@ -25,10 +25,19 @@ from robofailring.cli.verbs import app
 from robofailring.data.images import read_image
 from robofailring.detection.config import DetectorConfig
 from robofailring.explain.report import SYSTEM_PROMPT, TASKS, FailureReport, report_for
-from robofailring.explain.vlm import API_KEY_ENV, ChatCompletionsClient, VLMConfig, VLMError, ask_vlm
+from robofailring.explain.vlm import (
+    API_KEY_ENV,
+    REDACTED,
+    ChatCompletionsClient,
+    VLMConfig,
+    VLMError,
+    ask_vlm,
+    redact,
+)
 from robofailring.jobs.detect import DetectConfig, DetectResult, run_detect
 
 runner = CliRunner()
+SECRET = "sk-test-secret-4f9c1a"
 
 
 @pytest.fixture(scope="module")
@@ -151,6 +160,51 @@ def test_a_missing_report_image_is_an_error_naming_it(report: FailureReport, tmp
     with chat_server() as server:
         answer = ask_vlm(gone, _config(server.url))
     assert answer.error is not None and "gone.png" in answer.error and not server.received
+
+
+@pytest.mark.parametrize(
+    ("echo", "shown"),
+    [
+        ("Authorization: Bearer sk-other-77", "Authorization: Bearer [redacted]"),
+        ('{"authorization": "Bearer sk-other-77"}', '{"authorization": "Bearer [redacted]"}'),
+        ("{'Authorization': 'Basic sk-other-77'}", "{'Authorization': 'Basic [redacted]'}"),
+        ("api-key: sk-other-77", "api-key: [redacted]"),
+        ('"x-api-key":"sk-other-77"', '"x-api-key":"[redacted]"'),
+        ("api_key=sk-other-77; next", "api_key=[redacted]; next"),
+    ],
+)
+def test_redact_hides_any_auth_header_value_and_the_key(echo: str, shown: str) -> None:
+    assert redact(f"bad request ({echo}) for {SECRET}", SECRET) == f"bad request ({shown}) for {REDACTED}"
+    assert redact("the gripper slipped", None) == "the gripper slipped"
+
+
+def test_a_server_echoing_the_key_never_shows_it(report: FailureReport) -> None:
+    """An error body echoing the request's headers, and an answer quoting the key: neither shows it."""
+    with chat_server(("echo", 400), ("ok", f"Your key {SECRET} works.")) as server:
+        client = ChatCompletionsClient(_config(server.url), api_key=SECRET)
+        with pytest.raises(VLMError, match="refused the request: HTTP 400") as raised:
+            client.complete(report.vlm_messages())
+        answer = client.complete(report.vlm_messages())
+    assert server.received[0].headers["Authorization"] == f"Bearer {SECRET}"  # the server did get it
+    message = str(raised.value)
+    assert SECRET not in message and "Authorization: Bearer [redacted]" in message
+    assert raised.value.__cause__ is None and raised.value.__suppress_context__  # no traceback shows it
+    assert answer == f"Your key {REDACTED} works."
+
+
+def test_detect_json_never_shows_the_key_a_server_echoes(
+    episode: Path, pixels_memory_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv(API_KEY_ENV, SECRET)
+    with chat_server(("echo", 400)) as server:
+        code, found, stderr = _detect(
+            episode, pixels_memory_dir, "--vlm-url", server.url, "--vlm-model", "llava"
+        )
+    assert code == 0, stderr
+    assert server.received[0].headers["Authorization"] == f"Bearer {SECRET}"
+    assert found["t_det"] == 0 and "HTTP 400" in found["vlm"]["error"] and REDACTED in found["vlm"]["error"]
+    assert "HTTP 400" in stderr
+    assert SECRET not in json.dumps(found) and SECRET not in stderr
 
 
 def test_bad_settings() -> None:

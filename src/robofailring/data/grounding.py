@@ -115,7 +115,8 @@ def parse_symbol(symbol: str, vocabulary: Vocabulary | None = None) -> ParsedSym
     tokens = [token for token in symbol.strip().lower().split("_") if token]
     if not tokens:
         raise SymbolError(f"empty failure symbol {symbol!r}; the vocabulary is {_vocabulary(vocabulary)}")
-    tokens = [token for token in tokens if not _EPISODE_TOKEN.match(token)]
+    while tokens and _EPISODE_TOKEN.match(tokens[0]):
+        tokens.pop(0)
     if not tokens:
         raise SymbolError(
             f"failure symbol {symbol!r} names only an episode, no failure; "
@@ -123,11 +124,13 @@ def parse_symbol(symbol: str, vocabulary: Vocabulary | None = None) -> ParsedSym
         )
     own = vocabulary.symbols if vocabulary is not None else {}
     error_type: str | None = None
-    for width in range(len(tokens), 0, -1):  # the longest known head: `no_rotation` before `rotation`
+    # The longest known head (`no_rotation` before `rotation`, a vocabulary's `slip_twice` before `slip`),
+    # matched before episode tokens are dropped: a vocabulary's symbol may hold one (`slip_episode`).
+    for width in range(len(tokens), 0, -1):
         head = "_".join(tokens[:width])
         if head in ERROR_TYPES or head in ERROR_ALIASES or head in own or head == UNTYPED:
             error_type = ERROR_ALIASES.get(head, head)
-            tokens = tokens[width:]
+            tokens = [token for token in tokens[width:] if not _EPISODE_TOKEN.match(token)]
             break
     if error_type is None:
         raise SymbolError(

@@ -30,6 +30,7 @@ class CompareEncodersConfig:
     test_split: str = "test"
     recipe: MemoryRecipe = DEFAULT_RECIPE  # each encoder's memory: this recipe with its own encoder
     detector: DetectorConfig = DEFAULT_DETECTOR  # K, device and embedding cache of every evaluation
+    views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
 
 
 def compare_encoders(
@@ -59,6 +60,7 @@ def compare_encoders(
             test_data=config.test_data,
             test_split=config.test_split,
             name=slug,
+            views=config.views,
         )
         build_training_memory(replace(base, memory_out=memory_dir))
         if config.target_fpr is not None:
@@ -70,6 +72,7 @@ def compare_encoders(
                     k=detector.k,
                     cache_dir=detector.cache_dir,
                     device=detector.device,
+                    views=config.views,
                 )
             )
         # thresholds: the ones calibration just stored (target_fpr None reads them from the manifest)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import base64
 import os
+import re
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -31,6 +32,14 @@ DEFAULT_TIMEOUT_S: Final[float] = 120.0  # a local VLM reading three images can 
 DEFAULT_RETRIES: Final[int] = 2  # extra attempts after a timeout or a 5xx answer
 DEFAULT_BACKOFF_S: Final[float] = 1.0  # wait before retry n: backoff × 2ⁿ
 _JPEG_MAGIC: Final[bytes] = b"\xff\xd8\xff"
+REDACTED: Final[str] = "[redacted]"
+_MESSAGE_LIMIT: Final[int] = 400  # characters of an error message that quotes a server's body
+# an auth header's value in any echo of it ("Authorization: Bearer …", JSON, a dict's repr, "api-key=…")
+_SECRET_VALUE: Final[re.Pattern[str]] = re.compile(
+    r"""((?:authorization|api[-_]?key)["']?\s*[:=]\s*["']?(?:(?:bearer|basic|token)\s+)?)"""
+    r"[A-Za-z0-9\-._~+/]+=*",  # a token's characters (RFC 6750's b64token)
+    re.IGNORECASE,
+)
 
 
 class VLMError(RoboFailRingError):
@@ -130,8 +139,14 @@ def openai_messages(messages: list[dict[str, Any]]) -> list[dict[str, Any]]:
     return converted
 
 
-def _one_line(text: str, limit: int = 300) -> str:
-    """A server's body in an error message: whitespace collapsed, cut to `limit` characters."""
+def redact(text: str, key: str | None) -> str:
+    """`text` with `key` and any auth header's value replaced by `[redacted]`: a server may echo them back."""
+    text = _SECRET_VALUE.sub(lambda match: match.group(1) + REDACTED, text)
+    return text.replace(key, REDACTED) if key else text
+
+
+def _one_line(text: str, limit: int = _MESSAGE_LIMIT) -> str:
+    """An error message quoting a server: whitespace collapsed, cut to `limit` characters."""
     return " ".join(text.split())[:limit]
 
 
@@ -162,15 +177,25 @@ class ChatCompletionsClient:
         sleep: Callable[[float], None] = time.sleep,
     ) -> None:
         self.config = config
-        key = api_key if api_key is not None else os.environ.get(API_KEY_ENV)
-        self._headers = {"Authorization": f"Bearer {key}"} if key else {}
+        self._key = (api_key if api_key is not None else os.environ.get(API_KEY_ENV)) or None
+        self._headers = {"Authorization": f"Bearer {self._key}"} if self._key else {}
         self._sleep = sleep
 
     def __repr__(self) -> str:  # never shows the key
         return f"ChatCompletionsClient(url={self.config.url!r}, model={self.config.model!r})"
 
     def complete(self, messages: list[dict[str, Any]]) -> str:
-        """Send the conversation (report images as data URLs) and return the model's answer."""
+        """Send the conversation (report images as data URLs) and return the model's answer.
+
+        Every text from the server, answer or error, is redacted here, the one place, before anyone sees it:
+        a server that echoes the request would otherwise put the key into outputs and recordings.
+        """
+        try:
+            return redact(self._exchange(messages), self._key)
+        except VLMError as error:  # not chained: the original message holds the unredacted text
+            raise VLMError(_one_line(redact(str(error), self._key))) from None
+
+    def _exchange(self, messages: list[dict[str, Any]]) -> str:
         with needs_extra("vlm"):
             import httpx
 
@@ -193,9 +218,7 @@ class ChatCompletionsClient:
                 else:
                     if response.status_code < 400:
                         return self._parse(response, endpoint)
-                    detail = (
-                        f"HTTP {response.status_code} {response.reason_phrase}: {_one_line(response.text)}"
-                    )
+                    detail = f"HTTP {response.status_code} {response.reason_phrase}: {response.text}"
                     if response.status_code < 500:
                         raise VLMError(f"{endpoint} refused the request: {detail}")
                     if last:
@@ -210,7 +233,7 @@ class ChatCompletionsClient:
         except ValueError as error:
             raise VLMError(
                 f"{endpoint} answered HTTP {response.status_code} with a body that is not JSON: "
-                f"{_one_line(response.text)!r}"
+                f"{response.text!r}"
             ) from error
         return _answer_text(body, endpoint)
 

@@ -3,6 +3,7 @@ on simulated episodes of the same tasks under random looks (`robofailring.sim.ap
 
 The randomised episodes match the data's image size and frames per episode, come from a seed of
 their own (`RANDOMIZE_SEED` + the training seed) and are simulated once, then found in the cache.
+The simulator (the `sim` extra) is imported only for them: training alone needs only `clip`.
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Final
+from typing import TYPE_CHECKING, Final
 
 from robofailring.encoders.training import (
     TrainEncoderConfig,
@@ -20,8 +21,9 @@ from robofailring.encoders.training import (
     training_trajectories,
 )
 from robofailring.errors import DataError, SettingError
-from robofailring.jobs.simulate import DataShape, extra_set
-from robofailring.sim import TASKS, describe_dataset
+
+if TYPE_CHECKING:
+    from robofailring.jobs.simulate import DataShape
 
 #: Added to the training seed for the randomised-look episodes: the demo and the benches simulate
 #: their in-distribution sets from seed 0 and their out-of-distribution test sets from seed 1000.
@@ -45,6 +47,9 @@ class TrainEncoderJob:
 def simulator_shape(config: TrainEncoderConfig) -> DataShape:
     """The tasks, image side and most common frames per episode of the training split of `config.data`;
     a task the simulator does not have is a SettingError naming the data's tasks and the simulator's."""
+    from robofailring.jobs.simulate import DataShape
+    from robofailring.sim import TASKS
+
     trajectories = training_trajectories(config)
     if not trajectories:
         raise DataError(f"no trajectories in split {config.split!r} of {config.data}")
@@ -71,6 +76,9 @@ def run_train_encoder(
     config = job.training
     existing_encoder(Path(config.out))
     if job.randomize:
+        from robofailring.jobs.simulate import extra_set
+        from robofailring.sim import describe_dataset
+
         randomized = extra_set(
             simulator_shape(config),
             job.randomize,
