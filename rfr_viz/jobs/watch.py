@@ -88,6 +88,7 @@ def watch(config: WatchConfig) -> WatchResult:
         name=f"{trajectory.task}/{trajectory.episode}",
         camera_codec=config.camera_codec,
         signals=list(signals),
+        source=trajectory.source,
     ) as live:
         session = loaded.detector.session(trajectory.task, sink=live)
         started = time.monotonic()

@@ -121,8 +121,10 @@ class LiveRecording:
         name: str = "live",
         cell: Cell = DEFAULT_CELL,
         camera_codec: CameraCodec | str = CameraCodec.JPEG,
+        source: Path | None = None,
     ) -> None:
         self.rec = rec
+        self.source = source  # the run's folder or file, when it is replayed from one (the report's root)
         self.camera_codec = camera_codec  # jpeg, av1 or h264 (auto: jpeg); used from the first step
         self.cell = cell
         self.detector = detector
@@ -154,6 +156,7 @@ class LiveRecording:
         name: str | None = None,
         camera_codec: CameraCodec | str = CameraCodec.JPEG,
         signals: Sequence[str] = (),
+        source: Path | None = None,
     ) -> Iterator[LiveRecording]:
         """A live recording streamed to `target`, with the replay layout as its blueprint; cameras
         stored as `camera_codec` (rfr_viz.panels.live_camera: `auto` means JPEG live); the robot's
@@ -205,6 +208,7 @@ class LiveRecording:
                 name=name or task,
                 cell=cell,
                 camera_codec=camera_codec,
+                source=source,
             )
             live._start()
             try:
@@ -334,6 +338,7 @@ class LiveRecording:
             neighbors=result.neighbors[camera],
             current_image=frame.reference if isinstance(frame, Frame) and frame.path is not None else None,
             similarity=None if camera == view else result.similarity[view],
+            roots=self._roots(frame),
         )
         log_alarm(
             self.rec,
@@ -345,6 +350,17 @@ class LiveRecording:
             fired=f"{result.rule.score_name} = {result.score[view]:.3f} ≥ {result.rule.symbol} = {result.threshold:.3f}",
             summary=self._summary(),
         )
+
+    def _roots(self, frame: np.ndarray | Frame) -> list[str]:
+        """Where the report's images come from: the memory's data root, and the run's folder (that of the
+        frame's file when the run came from no file)."""
+        roots = [str(self.detector.memory.data_root)] if self.detector.memory.data_root is not None else []
+        if self.source is not None:
+            source = Path(self.source).resolve()
+            roots.append(str(source if source.is_dir() else source.parent))
+        elif isinstance(frame, Frame) and frame.path is not None:
+            roots.append(str(frame.path.resolve().parent))
+        return roots
 
     def _finish(self) -> None:
         self.cameras.finish()  # the frames a video encoder still held, at their own frames

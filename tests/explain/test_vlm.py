@@ -307,3 +307,26 @@ def test_a_server_that_never_answers_is_abandoned_and_the_detection_kept(
     assert set(found["vlm"]) == {"model", "error"}
     assert "did not answer within 0.5 s (2 attempts)" in found["vlm"]["error"]
     assert any(note.startswith("warning: the VLM call failed") for note in done[0].notes)
+
+
+def test_an_edited_report_never_sends_a_file_outside_its_roots(report: FailureReport, tmp_path: Path) -> None:
+    """Issue 45 item 1: `explain` on a detection JSON whose images were edited to point at another file
+    of yours sends nothing; --data-root names the folder they may come from instead."""
+    private = tmp_path / "private.png"
+    private.write_bytes(Path(report.items[0].start_image).read_bytes())
+    edited = json.loads(report.to_json())
+    edited["neighbors"][0]["start_image"] = str(private)
+    source = tmp_path / "detection.json"
+    source.write_text(json.dumps({"t_det": report.t_det, "report": edited}))
+    from rfr_viz.jobs.explain import explain  # the job `robofailring explain` runs
+
+    with chat_server() as server:
+        found = explain(source, _config(server.url))
+        assert server.received == []  # nothing reached the server
+    assert found.answer.error is not None and f"report image {private} lies outside" in found.answer.error
+    assert report.roots and all(Path(root).is_absolute() for root in report.roots)
+    with chat_server() as server:
+        trusted = explain(source, _config(server.url), data_root=tmp_path)  # the user names the folder
+    assert (
+        trusted.answer.error is not None and "lies outside" in trusted.answer.error
+    )  # the others are not in it

@@ -13,7 +13,13 @@ import numpy as np
 from robofailring.errors import DataError
 from robofailring.memory.entry import moment_text
 from robofailring.memory.failure import Neighbor
-from robofailring.memory.references import absolute_reference, check_references, relocate
+from robofailring.memory.references import (
+    absolute_reference,
+    check_references,
+    inside,
+    is_file_reference,
+    relocate,
+)
 
 if TYPE_CHECKING:
     from robofailring.data.model import Trajectory
@@ -97,6 +103,10 @@ class FailureReport:
     # the robot's own signals at t_det: their S⁻ and S⁺, nearest runs and the dimensions that deviated
     # most from the nearest normal frame (None: the memory or the run has no signals)
     signals: str | None = None
+    # the folders its images may come from (the memory's data root, the run's own folder): a report read
+    # from a file is untrusted, and an image outside them is never sent (`images_outside`); empty: a report
+    # of an earlier version, whose images are sent only from under --data-root
+    roots: tuple[str, ...] = ()
 
     @classmethod
     def from_neighbors(
@@ -109,13 +119,14 @@ class FailureReport:
         current_image: str | None = None,
         similarity: float | None = None,
         signals: str | None = None,
+        roots: Sequence[str] = (),
     ) -> FailureReport:
         """The report of `neighbors` (K entries of one camera view); `similarity` the firing view's S⁻
         when that is not the top neighbour's (the signals fired)."""
         items = tuple(ReportItem.from_neighbor(n) for n in neighbors)
         if similarity is None:
             similarity = items[0].similarity if items else float("nan")
-        return cls(task, view, t_det, similarity, items, current_image, signals)
+        return cls(task, view, t_det, similarity, items, current_image, signals, tuple(roots))
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], *, source: str = "report") -> FailureReport:
@@ -135,7 +146,7 @@ class FailureReport:
                 )
                 for item in data["neighbors"]
             )
-            current, signals = data.get("current_image"), data.get("signals")
+            current, signals, roots = data.get("current_image"), data.get("signals"), data.get("roots") or []
             return cls(
                 current_task=str(data["current_task"]),
                 view=str(data["view"]),
@@ -144,19 +155,24 @@ class FailureReport:
                 items=items,
                 current_image=None if current is None else str(current),
                 signals=None if signals is None else str(signals),
+                roots=tuple(str(root) for root in roots),
             )
         except (KeyError, TypeError, ValueError) as error:
             raise DataError(f"{source} is not a failure report (missing or bad field: {error})") from error
 
     def to_dict(self) -> dict[str, Any]:
-        return {
-            "current_task": self.current_task,
-            "view": self.view,
-            "t_det": self.t_det,
-            "similarity": round(self.similarity, 6),
-            "current_image": self.current_image,
-            "neighbors": [item.to_dict() for item in self.items],
-        } | ({"signals": self.signals} if self.signals is not None else {})
+        return (
+            {
+                "current_task": self.current_task,
+                "view": self.view,
+                "t_det": self.t_det,
+                "similarity": round(self.similarity, 6),
+                "current_image": self.current_image,
+                "neighbors": [item.to_dict() for item in self.items],
+            }
+            | ({"signals": self.signals} if self.signals is not None else {})
+            | {"roots": list(self.roots)}
+        )
 
     def missing_images(self) -> list[str]:
         """The prompt's images (top neighbour's start and end, the current frame) that are not on disk."""
@@ -178,7 +194,24 @@ class FailureReport:
             for item in self.items
         )
         current = relocate(self.current_image, data_root) if self.current_image else self.current_image
-        return replace(self, items=items, current_image=current)
+        return replace(self, items=items, current_image=current, roots=(str(Path(data_root).resolve()),))
+
+    def images_outside(self) -> list[str]:
+        """The prompt's images (as `missing_images` lists them) that lie outside the report's roots: never
+        read nor sent (an edited report must not upload another file of yours)."""
+        if not self.items:
+            return []
+        images = [
+            self.items[0].start_image,
+            self.items[0].end_image,
+            *([self.current_image] if self.current_image else []),
+        ]
+        return [
+            image
+            for image in images
+            if is_file_reference(image)
+            and not any(inside(absolute_reference(image), Path(root)) for root in self.roots)
+        ]
 
     def to_json(self) -> str:
         return json.dumps(self.to_dict(), indent=2)
@@ -292,7 +325,19 @@ def report_for(trace: DetectionTrace, trajectory: Trajectory | None = None) -> F
         current_image=current,
         similarity=None if camera == view else float(trace.failure_similarity(view)[t_det]),
         signals=signals_sentence(trace, t_det),
+        roots=_roots(trace, trajectory),
     )
+
+
+def _roots(trace: DetectionTrace, trajectory: Trajectory | None) -> list[str]:
+    """Where a report's images come from: the memory's data root (its neighbours) and the run's own folder
+    or file's folder (its current frame)."""
+    roots = [str(trace.memory.data_root)] if trace.memory.data_root is not None else []
+    source = trajectory.source if trajectory is not None else trace.source
+    if source is not None:
+        folder = Path(source).resolve()
+        roots.append(str(folder if folder.is_dir() else folder.parent))
+    return roots
 
 
 def signals_sentence(trace: DetectionTrace, t: int) -> str | None:

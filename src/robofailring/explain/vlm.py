@@ -250,6 +250,13 @@ def ask_vlm(report: FailureReport, config: VLMConfig, *, client: VLMClient | Non
             error=f"not sent: {len(missing)} report image(s) not found (first: {missing[0]}); "
             "the VLM must see them; if the dataset moved, pass --data-root DIR",
         )
+    outside = report.images_outside()
+    if outside:
+        return VLMAnswer(
+            model=config.model,
+            error=f"not sent: report image {outside[0]} lies outside the report's folders "
+            f"({', '.join(report.roots) or 'none recorded'}); pass --data-root DIR, the folder its images are in",
+        )
     chat = client if client is not None else ChatCompletionsClient(config)
     started = time.perf_counter()
     try:
