@@ -21,7 +21,8 @@ if TYPE_CHECKING:
     from rfr_viz.recordings.blueprint import compare_blueprint, replay_blueprint
     from rfr_viz.recordings.closed_loop import ClosedLoopResult, run_closed_loop
     from rfr_viz.recordings.evaluation import record_evaluation
-    from rfr_viz.recordings.live import LiveRecording, LiveTarget
+    from rfr_viz.recordings.live import LiveRecording
+    from rfr_viz.recordings.live_target import LiveTarget
     from rfr_viz.recordings.notebook import InlineRecording, show
     from rfr_viz.recordings.replay import compare_recording, record_replay
     from rfr_viz.viewer.binary import ViewerUnavailable
@@ -34,7 +35,7 @@ _LAZY = {  # name -> the module it is imported from on first use
     "DetectorPaths": "rfr_viz.paths",
     "InlineRecording": "rfr_viz.recordings.notebook",
     "LiveRecording": "rfr_viz.recordings.live",
-    "LiveTarget": "rfr_viz.recordings.live",
+    "LiveTarget": "rfr_viz.recordings.live_target",
     "MemoryMap": "rfr_viz.panels.umap",
     "ReplayConfig": "rfr_viz.jobs.replay",
     "ReplayResult": "rfr_viz.jobs.replay",

@@ -101,6 +101,9 @@ sys.exit(main())
 """
 
 
+SIGTERM_WHILE_WRITING = SIGINT_WHILE_WRITING.replace("signal.SIGINT", "signal.SIGTERM")  # a scheduler's stop
+
+
 def interrupted(script: str, *args: object) -> subprocess.CompletedProcess[str]:
     command = [sys.executable, "-c", script, "-", *map(str, args)]
     env = {**os.environ, "ROBOFAILRING_PROGRESS": "0"}

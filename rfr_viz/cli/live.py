@@ -95,7 +95,7 @@ def watch_cmd(
 ) -> None:
     """Watch an episode live in the Rerun viewer: every step through the detector's step API, streamed."""
     from rfr_viz.jobs.watch import WatchConfig, watch
-    from rfr_viz.recordings.live import LiveTarget
+    from rfr_viz.recordings.live_target import LiveTarget
 
     result = watch(
         WatchConfig(

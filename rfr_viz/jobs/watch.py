@@ -10,7 +10,8 @@ from pathlib import Path
 from rfr_viz.codecs import CameraCodec
 from rfr_viz.jobs.replay import check_fps, load_detector
 from rfr_viz.paths import DEFAULT_FPS
-from rfr_viz.recordings.live import LiveRecording, LiveTarget
+from rfr_viz.recordings.live import LiveRecording
+from rfr_viz.recordings.live_target import LiveTarget
 from robofailring.data.layouts import load_trajectory
 from robofailring.detection.config import DetectorConfig
 from robofailring.errors import DataError, SettingError

@@ -10,6 +10,7 @@ neighbours when they change, and the detection event and failure report at the f
 from __future__ import annotations
 
 import contextlib
+import logging
 import socket
 import time
 import uuid
@@ -22,6 +23,7 @@ from typing import Any, Final
 import numpy as np
 
 from rfr_viz.recordings.blueprint import ScorePlots, replay_blueprint
+from rfr_viz.recordings.live_target import DEFAULT_VIEWER_URL, LiveTarget, check_viewer
 from rfr_viz.codecs import CameraCodec
 from rfr_viz.panels.contrast import log_nearest_success
 from rfr_viz.panels.live_camera import LiveCameras
@@ -41,6 +43,7 @@ from rfr_viz.paths import APPLICATION_ID, DEFAULT_FPS, PROPERTIES, REPLAY, signa
 from rfr_viz.viewer.binary import ViewerUnavailable
 from rfr_viz.viewer.control import DEFAULT_PORT
 from robofailring.atomic import atomic_path
+from robofailring.errors import Terminated
 from robofailring.data.layouts import load_trajectory
 from robofailring.data.model import Frame
 from robofailring.detection.config import DEFAULT_K
@@ -55,43 +58,8 @@ from robofailring.extras import needs_extra
 with needs_extra("viz"):
     import rerun as rr
 
-DEFAULT_VIEWER_URL: Final[str] = f"rerun+http://127.0.0.1:{DEFAULT_PORT}/proxy"
+_log = logging.getLogger("robofailring")
 FLUSH_TIMEOUT_S: Final[float] = 10.0  # at the end, wait this long at most for a viewer to take the rest
-
-
-@dataclass(frozen=True)
-class LiveTarget:
-    """Where the live stream goes: a running viewer, a spawned one, and/or a file."""
-
-    connect: str | None = None  # gRPC URL of a running viewer, e.g. rerun+http://127.0.0.1:9876/proxy
-    spawn: bool = False  # start a viewer on the default port and stream to it
-    save: Path | None = None  # also write the same stream to this .rrd (atomically, at the end)
-
-    def __post_init__(self) -> None:
-        if self.connect is None and not self.spawn and self.save is None:
-            raise SettingError("a live recording needs somewhere to go: a viewer URL, spawn, or a file")
-
-    @classmethod
-    def chosen(cls, *, connect: str | None, spawn: bool, save: Path | None) -> LiveTarget:
-        """The target a user asked for; none at all: the viewer on the default port."""
-        if connect is None and not spawn and save is None:
-            connect = DEFAULT_VIEWER_URL
-        return cls(connect=connect, spawn=spawn, save=save)
-
-
-def check_viewer(url: str) -> None:
-    """ViewerUnavailable unless something listens at the host and port of a viewer URL."""
-    from urllib.parse import urlparse
-
-    parsed = urlparse(url)
-    if not parsed.scheme.startswith("rerun") or parsed.hostname is None:
-        raise SettingError(f"viewer URL {url!r} is not like rerun+http://127.0.0.1:9876/proxy")
-    port = parsed.port or DEFAULT_PORT
-    with contextlib.suppress(OSError), socket.create_connection((parsed.hostname, port), timeout=2.0):
-        return
-    raise ViewerUnavailable(
-        f"no Rerun viewer listens at {url}: start one (`rerun`), pass --spawn, or only --save to a file"
-    )
 
 
 def _score_plots(detector: FailureDetector, task: str) -> ScorePlots:
@@ -211,8 +179,12 @@ class LiveRecording:
                 source=source,
             )
             live._start()
+            stopped: BaseException | None = None
             try:
-                yield live
+                try:
+                    yield live
+                except (KeyboardInterrupt, Terminated) as error:  # stopped: keep what was recorded, whole
+                    stopped = error
                 live._finish()
             finally:
                 try:
@@ -220,6 +192,14 @@ class LiveRecording:
                 except RuntimeError as error:  # the viewer went away; a file sink is flushed all the same
                     live.lost = f"the viewer at {url} did not take the whole stream ({error})"
                 rec.disconnect()  # closes the file before atomic_path moves it into place
+        if stopped is not None:
+            if target.save is not None:
+                _log.warning(
+                    "warning: stopped after %d step(s); what was recorded is saved, complete, in %s",
+                    live.steps,
+                    target.save,
+                )
+            raise stopped
 
     def _start(self) -> None:
         paths = REPLAY

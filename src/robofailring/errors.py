@@ -156,3 +156,9 @@ def describe(error: BaseException) -> str:
     if error.errno in (errno.EACCES, errno.EPERM):  # reading or writing: the error does not say which
         return f"no permission to use{where}; give this user access to it, or choose another path"
     return f"{error.strerror}:{where}" if where else error.strerror
+
+
+class Terminated(BaseException):
+    """SIGTERM while a verb runs (`robofailring.cli.exit_codes`): raised where the verb is, so that every
+    `with` block on the way out releases its lock and removes its temporary files (not an Exception:
+    nothing swallows it), and a live recording keeps what it recorded, as a Ctrl-C does."""

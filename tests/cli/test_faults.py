@@ -19,6 +19,7 @@ from fault_helpers import (
     DIE_WHILE_WRITING,
     SIGINT_WHILE_LOADING,
     SIGINT_WHILE_WRITING,
+    SIGTERM_WHILE_WRITING,
     cli,
     hidden,
     interrupted,
@@ -298,6 +299,19 @@ def test_evaluate_exits_3_when_test_trajectories_were_skipped(cache: list[str], 
 
 
 # ---------------------------------------------------------------- Ctrl-C (issue 35, item 6)
+
+
+def test_sigterm_ends_with_one_line_and_leaves_no_lock_behind(
+    memory: Path, data: Path, cache: list[str]
+) -> None:
+    """Issue 45 item 6: SIGTERM (a scheduler stopping the job) ended with status 143, no line and a stale
+    `.lock`; now the verb lets go of its lock and temporary files on the way out and says so."""
+    good = tree(memory)
+    result = interrupted(SIGTERM_WHILE_WRITING, "build-memory", data, "--out", memory, *cache)
+    assert (result.returncode, result.stderr, result.stdout) == (143, "error: terminated (SIGTERM)\n", "")
+    assert (
+        tree(memory) == good and hidden(memory.parent) == []
+    )  # the old memory, no lock, nothing half-written
 
 
 def test_ctrl_c_while_the_command_loads_ends_as_one_while_it_runs(

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import subprocess
+import sys
 import time
 from collections.abc import Mapping
 from pathlib import Path
@@ -23,7 +26,8 @@ from rfr_viz.panels.camera_video import KEYFRAME_INTERVAL, EncodedVideo, decode_
 from rfr_viz.panels.live_camera import LiveCameras, live_codec
 from rfr_viz.panels.scores import set_frame_time
 from rfr_viz.paths import REPLAY, camera
-from rfr_viz.recordings.live import LiveRecording, LiveTarget
+from rfr_viz.recordings.live import LiveRecording
+from rfr_viz.recordings.live_target import LiveTarget
 from rfr_viz.viewer.control import WINDOW, _viewer_process
 from robofailring import (
     DetectorSession,
@@ -337,3 +341,41 @@ def test_watch_save_refuses_any_file_that_is_not_a_recording(
     ):  # the library's live recording too
         pass
     assert labels.read_text().startswith("episode,outcome")
+
+
+STOP_AT_STEP_3 = """
+import os, signal, sys
+from rfr_viz.recordings.live import LiveRecording
+stop = getattr(signal, sys.argv[1])
+real = LiveRecording.on_step
+def on_step(self, session, frames, result):
+    real(self, session, frames, result)
+    if result.t == 3:  # a person (or a scheduler) stops the robot's watch part-way
+        os.kill(os.getpid(), stop)
+LiveRecording.on_step = on_step
+sys.argv[1:] = sys.argv[3:]
+from rfr_viz.cli.app import main
+sys.exit(main())
+"""
+
+
+@pytest.mark.parametrize(
+    ("stop", "code", "said"),
+    [("SIGINT", 130, "interrupted (Ctrl-C)"), ("SIGTERM", 143, "terminated (SIGTERM)")],
+)
+def test_a_stopped_watch_keeps_what_it_recorded_as_a_whole_file(
+    episode: Path, pixels_memory_dir: Path, tmp_path: Path, stop: str, code: int, said: str
+) -> None:
+    """Issue 45 item 6: Ctrl-C threw the live stream away and SIGTERM left its temporary file; now the
+    steps recorded are saved as a complete recording, and the command says so."""
+    saved = tmp_path / "live.rrd"
+    command = [sys.executable, "-c", STOP_AT_STEP_3, stop, "-", "watch", str(episode), "--memory",
+               str(pixels_memory_dir), "--speed", "0", "--save", str(saved)]  # fmt: skip
+    result = subprocess.run(
+        command, capture_output=True, text=True, check=False, env={**os.environ, "ROBOFAILRING_PROGRESS": "0"}
+    )
+    assert result.returncode == code, result.stderr
+    assert f"error: {said}" in result.stderr and "stopped after 4 step(s)" in result.stderr
+    assert [frame for frame, _ in rows(saved, REPLAY.state, "Scalars:scalars")] == [0, 1, 2, 3]
+    assert properties(saved)["L"] == 4  # its properties were written: a whole recording
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["live.rrd"]  # no temporary file left

@@ -172,7 +172,8 @@ def test_the_replay_shows_n_against_eta_and_the_nearest_success_frame(session: d
 def test_live_streams_n_against_eta_and_says_there_is_no_failure_neighbour(
     session: dict[str, Path], tmp_path: Path
 ) -> None:
-    from rfr_viz.recordings.live import LiveRecording, LiveTarget
+    from rfr_viz.recordings.live import LiveRecording
+    from rfr_viz.recordings.live_target import LiveTarget
 
     memory = FailureMemory.load(session["memory"])
     detector = FailureDetector(memory, load_encoder("pixels"), eta=0.0005)

@@ -3,24 +3,33 @@
 0 done; 1 an error of the environment (no permission, disk full, output busy); 2 bad usage or
 input (a file, folder or value named in the message); 3 done, but some inputs were skipped (the
 summary of what was skipped is printed before exiting); 130 interrupted (Ctrl-C, SIGINT: 128 + 2,
-as a shell reports it), whether the verb was running or the command was still loading.
+as a shell reports it), whether the verb was running or the command was still loading; 143 stopped by
+SIGTERM (128 + 15: a scheduler's or `kill`'s stop), after the verb let go of its locks and temporary files.
 """
 
 from __future__ import annotations
 
+import signal
+import threading
+from types import FrameType
 from typing import Any, Final, NoReturn
 
 import typer
 from typer import _click
 from typer.core import TyperGroup
 
-from robofailring.errors import RoboFailRingError, describe
+from robofailring.errors import RoboFailRingError, Terminated, describe
 
 DONE: Final[int] = 0
 ERROR: Final[int] = 1
 BAD_INPUT: Final[int] = 2
 SKIPPED: Final[int] = 3
 INTERRUPTED: Final[int] = 130
+TERMINATED: Final[int] = 143
+
+
+def _terminate(signum: int, frame: FrameType | None) -> None:
+    raise Terminated
 
 
 def exit_code_for(error: BaseException) -> int:
@@ -63,9 +72,17 @@ class ErrorMappingGroup(TyperGroup):
     """
 
     def invoke(self, ctx: _click.Context) -> Any:
+        main = threading.current_thread() is threading.main_thread()  # only it may handle signals
+        previous = signal.signal(signal.SIGTERM, _terminate) if main else None
         try:
             return super().invoke(ctx)
         except (RoboFailRingError, OSError) as error:
             fail(error)
         except KeyboardInterrupt:
             raise typer.Exit(code=interrupted()) from None
+        except Terminated:
+            typer.secho("error: terminated (SIGTERM)", fg=typer.colors.RED, err=True)
+            raise typer.Exit(code=TERMINATED) from None
+        finally:
+            if main:
+                signal.signal(signal.SIGTERM, previous)
