@@ -66,6 +66,11 @@ RANDOM_SET: dict[str, Any] = {"seed": 900_000, "size": 64, "frames": 28, "ood": 
 VISION = Variant("vision", {"signals": "none"})  # the cameras alone (a memory without signals)
 SIGNALS = Variant("signals", {"modality": "signals"})  # the robot's signals alone
 BOTH = Variant("both", {})  # the project's defaults: cameras and signals fused
+# the dimensions that do not move with where the objects were placed: the gripper's width and command, and the
+# hand's offset from the task's goal (docs/bench_peer.md); joints and absolute poses left out
+CHOSEN = "observation.state:gripper_width.*,observation.state:ee_to_goal.*,action:gripper"
+CHOSEN_SIGNALS = Variant("chosen-signals", {"signals": CHOSEN, "modality": "signals"})
+CHOSEN_BOTH = Variant("chosen-both", {"signals": CHOSEN})
 PER_VIEW = Variant("per-view", {"fusion": "per-view"})  # each view corrected by its own band
 LABEL_COLUMNS = ("episode", "task", "outcome", "symbol", "onset_frame", "description", "split")
 
@@ -369,7 +374,8 @@ def main() -> None:
         action="append",
         type=Variant.parse,
         help="LABEL:FIELD=VALUE,... of EvaluateConfig, its MemoryRecipe or DetectorConfig, e.g. hand:views=hand "
-        "(repeatable; one more block each; default: vision:signals=none, signals:modality=signals and both)",
+        "(repeatable; one more block each; default: vision:signals=none, signals:modality=signals, both, and "
+        "the chosen dimensions (CHOSEN) alone and fused)",
     )
     parser.add_argument(
         "--randomize",
@@ -403,7 +409,7 @@ def main() -> None:
         )
     rows: list[PeerRow] = []
     for encoder, swapped_encoder in pairs:
-        for variant in args.variant or [VISION, SIGNALS, BOTH]:
+        for variant in args.variant or [VISION, SIGNALS, BOTH, CHOSEN_SIGNALS, CHOSEN_BOTH]:
             rows += evaluate_encoder(
                 encoder, swapped_encoder, peer, alpha=args.alpha, out=cache / "runs", variant=variant
             )

@@ -15,7 +15,8 @@ from robofailring import CachedEncoder, FailureMemory, load_dataset, load_encode
 from robofailring.errors import SettingError
 from robofailring.memory.builder import Provenance, add_to, build_memories
 from robofailring.memory.recipe import MemoryRecipe
-from robofailring.memory.signal_memory import ACTION_LAGS, SIGNALS_FILE
+from robofailring.memory.signal_layout import ACTION_LAGS
+from robofailring.memory.signal_memory import SIGNALS_FILE
 
 LENGTH = 8
 
@@ -98,8 +99,31 @@ def test_signals_named_are_the_only_ones_used_and_an_unknown_name_is_refused(
     assert task is not None and task.layout.names == ["gripper_width"] and task.layout.action == ()
     with pytest.raises(Exception, match=r"--signals joint_states: .*no signal 'joint_states'"):
         _build(dataset, encoder, signals="joint_states")
-    with pytest.raises(SettingError, match="--signals takes auto, none or signal names"):
+    with pytest.raises(SettingError, match="--signals takes auto, none or signals separated by commas"):
         MemoryRecipe(signals="a,,b")
+
+
+def test_some_dimensions_of_a_signal_are_chosen_by_glob(dataset: Path, encoder: CachedEncoder) -> None:
+    """`NAME:GLOB` keeps the dimensions a glob matches (a LeRobot `observation.state` holds joints, gripper
+    and pose in one vector); the live step takes the whole signal and cuts it the same way."""
+    memory = _build(dataset, encoder, signals="gripper_width,action:grip*")
+    assert memory.signals is not None
+    task = memory.signals.task("pick_cube")
+    assert task is not None
+    assert task.layout.state == (("gripper_width", ("width",)),)
+    assert task.layout.action == (("action", ("gripper",)),)
+    assert task.layout.full == {"action": ("x", "gripper")}
+    width = 2 * 1 + len(ACTION_LAGS) * 1 + 1
+    assert task.vectors["failure"].shape[1] == width
+    from robofailring.detection.signal_scores import SignalHistory
+
+    history = SignalHistory(task)
+    minus, plus, vector, _, _ = history.step(
+        {"gripper_width": [0.08], "action": [0.0, 0.08]}, exclude_episode=None
+    )
+    assert vector.shape == (width,) and np.isfinite(minus) and np.isfinite(plus)
+    with pytest.raises(Exception, match=r"no dimension of 'action' matches z\*"):
+        _build(dataset, encoder, signals="action:z*")
 
 
 def test_a_run_without_the_tasks_signals_is_listed_and_the_memory_grows_with_new_runs(

@@ -11,7 +11,8 @@ import numpy as np
 
 from robofailring.data.model import Trajectory
 from robofailring.errors import DataError
-from robofailring.memory.signal_memory import SIGNALS_VIEW, TaskSignals, read_features
+from robofailring.memory.signal_layout import read_features
+from robofailring.memory.signal_memory import SIGNALS_VIEW, TaskSignals
 
 __all__ = ["SIGNALS_VIEW", "SignalHistory", "SignalScores", "score_signals"]
 
@@ -101,12 +102,13 @@ class SignalHistory:
         values = {}
         for name, dims in (*layout.state, *layout.action):
             row = np.asarray(signals[name], dtype=np.float64).reshape(-1)
-            if len(row) != len(dims) or not np.isfinite(row).all():
+            own = layout.full.get(name, dims)  # the whole signal, when the memory uses some of it
+            if len(row) != len(own) or not np.isfinite(row).all():
                 raise DataError(
-                    f"step {len(self.rows)}: signal {name!r} must be {len(dims)} finite numbers "
-                    f"({', '.join(dims)}), got {row.tolist()}"
+                    f"step {len(self.rows)}: signal {name!r} must be {len(own)} finite numbers "
+                    f"({', '.join(own)}), got {row.tolist()}"
                 )
-            values[name] = row[None]
+            values[name] = layout.select(name, own, row[None], f"step {len(self.rows)}")
         features = layout.features(values, 1)[0]
         features[-1] = len(self.rows)  # the frame number
         self.rows.append(features)

@@ -23,7 +23,8 @@ from robofailring.errors import DataError, EncoderMismatchError
 from robofailring.memory.encoding import BuildStats, EncodedFailures, encode_failures, failure_views
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.recipe import DEFAULT_RECIPE, MemoryRecipe
-from robofailring.memory.signal_memory import NONE, SignalMemory
+from robofailring.memory.signal_layout import NONE
+from robofailring.memory.signal_memory import SignalMemory
 from robofailring.memory.success import SuccessMemory
 from robofailring.progress import progress_bar
 

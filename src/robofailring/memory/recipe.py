@@ -16,9 +16,9 @@ from robofailring.errors import SettingError
 from robofailring.memory.entry import DENSE, END, check_failure_frames
 from robofailring.memory.manifest import MemoryManifest
 from robofailring.memory.pairs import CHANGE, CONCAT, check_pairing
-from robofailring.memory.signal_memory import AUTO as SIGNALS_AUTO
-from robofailring.memory.signal_memory import NONE as SIGNALS_NONE
-from robofailring.memory.signal_memory import check_choice
+from robofailring.memory.signal_layout import AUTO as SIGNALS_AUTO
+from robofailring.memory.signal_layout import NONE as SIGNALS_NONE
+from robofailring.memory.signal_layout import check_choice
 from robofailring.memory.thinning import DEFAULT_STEP, check_step
 
 DEFAULT_ENCODER: Final[str] = "pixels"  # weight-free: what a memory is built with when no encoder is named

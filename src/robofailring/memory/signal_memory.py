@@ -22,117 +22,20 @@ from typing import Any, Final
 import numpy as np
 
 from robofailring.data.model import Skipped, Trajectory
-from robofailring.data.signals import SignalKind
 from robofailring.errors import DataError, MemoryFormatError
 from robofailring.memory.index import FLAT, IndexSpec, TaskIndex
+from robofailring.memory.signal_layout import (
+    ACTION_LAGS,
+    AUTO,
+    SignalLayout,
+    choose_layout,
+    read_features,
+)
 
 SIGNALS_VIEW: Final[str] = "signals"  # the modality's name among the views a trace fuses
-ACTION_LAGS: Final[tuple[int, ...]] = (0, 2, 4)  # the action window: a_t, a_{t−2}, a_{t−4}
 START_WEIGHT: Final[float] = 0.5  # the start state's weight, as the `change` pairing weighs the first frame
 MIN_SCALE: Final[float] = 1e-3  # a feature's spread floor (a value constant over the successes)
-AUTO: Final[str] = "auto"  # every state and action signal every run of a task has
-NONE: Final[str] = "none"
 SIGNALS_FILE: Final[str] = "signals.npz"
-
-Columns = tuple[tuple[str, tuple[str, ...]], ...]  # (signal name, its dimension names) in order
-
-
-def check_choice(choice: str) -> str:
-    """`auto`, `none` or a comma-separated list of signal names (`--signals`)."""
-    names = [name.strip() for name in str(choice).split(",")]
-    if not choice or any(not name for name in names):
-        raise ValueError(f"--signals takes auto, none or signal names separated by commas, got {choice!r}")
-    return str(choice)
-
-
-@dataclass(frozen=True)
-class SignalLayout:
-    """Which signals a task's vectors are made of, in order: its state signals and its action signals."""
-
-    state: Columns
-    action: Columns
-
-    @property
-    def names(self) -> list[str]:
-        return [name for name, _ in (*self.state, *self.action)]
-
-    @property
-    def widths(self) -> tuple[int, int]:
-        return sum(len(d) for _, d in self.state), sum(len(d) for _, d in self.action)
-
-    def columns(self) -> list[str]:
-        """What each element of a vector is, for explanations (`gripper_width/width (change)`, …)."""
-        state = [f"{name}/{dim}" for name, dims in self.state for dim in dims]
-        action = [f"{name}/{dim}" for name, dims in self.action for dim in dims]
-        return [
-            *(f"{c} (at the start)" for c in state),
-            *(f"{c} (change since the start)" for c in state),
-            *(
-                f"{c} (commanded{f', {lag} frames before' if lag else ''})"
-                for lag in ACTION_LAGS
-                for c in action
-            ),
-            "frame (time)",
-        ]
-
-    def features(self, values: Mapping[str, np.ndarray], length: int) -> np.ndarray:
-        """Raw per-frame features f_t = [state ‖ action ‖ t] from each signal's (L, D) rows."""
-        parts = [np.asarray(values[name], np.float64).reshape(length, -1) for name in self.names]
-        return np.concatenate([*parts, np.arange(length, dtype=np.float64)[:, None]], axis=1)
-
-    def to_dict(self) -> dict[str, Any]:
-        return {kind: [[name, list(dims)] for name, dims in columns] for kind, columns in self._kinds()}
-
-    def _kinds(self) -> tuple[tuple[str, Columns], ...]:
-        return (("state", self.state), ("action", self.action))
-
-    @classmethod
-    def parse(cls, section: Any, where: str) -> SignalLayout:
-        try:
-            return cls(
-                **{
-                    kind: tuple((str(name), tuple(str(d) for d in dims)) for name, dims in section[kind])
-                    for kind in ("state", "action")
-                }
-            )
-        except (KeyError, TypeError, ValueError) as error:
-            raise MemoryFormatError(f"{where}: bad signal layout {section!r} ({error!r})") from error
-
-
-def read_features(trajectory: Trajectory, layout: SignalLayout) -> np.ndarray:
-    """The trajectory's raw features for `layout`, or DataError naming what it lacks or cannot read."""
-    found, skipped = trajectory.read_signals(layout.names)
-    if skipped:
-        raise DataError(skipped[0].reason)
-    for name, dims in (*layout.state, *layout.action):
-        if found[name].dims != dims:
-            raise DataError(
-                f"{trajectory.key}: signal {name!r} has dimensions {', '.join(found[name].dims)}, the task's "
-                f"memory {', '.join(dims)}"
-            )
-    return layout.features({name: found[name].values for name in layout.names}, trajectory.length)
-
-
-def choose_layout(trajectories: Sequence[Trajectory], choice: str) -> SignalLayout | None:
-    """The layout of one task's runs for `choice`: `auto` takes every state and action signal the first
-    run that has signals has (a run without one of them is skipped when the memory is built); names take
-    those signals, whatever their kind (`other` counts as state). None: no signals to use."""
-    if choice == NONE:
-        return None
-    first = next((t for t in trajectories if t.signals), None)
-    if first is None:
-        return None
-    wanted = (
-        [n for n, s in first.signals.items() if s.kind in (SignalKind.STATE, SignalKind.ACTION)]
-        if choice == AUTO
-        else [name.strip() for name in choice.split(",")]
-    )
-    found, skipped = first.read_signals(wanted)
-    if choice != AUTO and skipped:
-        raise DataError(f"--signals {choice}: {skipped[0].reason}")
-    state = tuple((n, v.dims) for n, v in found.items() if v.kind is not SignalKind.ACTION)
-    action = tuple((n, v.dims) for n, v in found.items() if v.kind is SignalKind.ACTION)
-    return SignalLayout(state=state, action=action) if state or action else None
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,159 @@
+"""Which of the robot's signals (and which of their dimensions) a task's signal memory is made of:
+`--signals auto|none|NAME[:GLOB],…`, the `SignalLayout` it gives, and a run's raw features read by it."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from fnmatch import fnmatch
+from typing import Any, Final
+
+import numpy as np
+
+from robofailring.data.model import Trajectory
+from robofailring.data.signals import SignalKind
+from robofailring.errors import DataError, MemoryFormatError
+
+ACTION_LAGS: Final[tuple[int, ...]] = (0, 2, 4)  # the action window: a_t, a_{t−2}, a_{t−4}
+AUTO: Final[str] = "auto"  # every state and action signal every run of a task has
+NONE: Final[str] = "none"
+
+Columns = tuple[tuple[str, tuple[str, ...]], ...]  # (signal name, its dimension names) in order
+
+
+def check_choice(choice: str) -> str:
+    """`auto`, `none` or a comma-separated list of signals (`--signals`), each `NAME` (all its
+    dimensions) or `NAME:GLOB` (those of its dimensions the glob matches, e.g. `observation.state:gripper*`)."""
+    items = [item.strip() for item in str(choice).split(",")]
+    if not choice or any(not item or item.startswith(":") or item.endswith(":") for item in items):
+        raise ValueError(
+            f"--signals takes auto, none or signals separated by commas (NAME or NAME:DIMENSION_GLOB), got {choice!r}"
+        )
+    return str(choice)
+
+
+def chosen_signals(choice: str) -> dict[str, list[str]]:
+    """`--signals` items by signal name, with their dimension globs (empty: every dimension)."""
+    chosen: dict[str, list[str]] = {}
+    for item in (item.strip() for item in choice.split(",")):
+        name, colon, glob = item.rpartition(":") if ":" in item else (item, "", "")
+        chosen.setdefault(name if colon else item, []).extend([glob] if colon else [])
+    return chosen
+
+
+@dataclass(frozen=True)
+class SignalLayout:
+    """Which signals a task's vectors are made of, in order: its state signals and its action signals."""
+
+    state: Columns
+    action: Columns
+    # each signal's own dimensions where only some of them are used (`NAME:GLOB`): a live step's vector
+    # is the whole signal, and the used ones are taken from it
+    full: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+
+    def select(self, name: str, dims: Sequence[str], values: np.ndarray, where: str) -> np.ndarray:
+        """A signal's (L, D) rows with its own dimension names `dims`, cut to the layout's dimensions."""
+        wanted = dict((*self.state, *self.action))[name]
+        if tuple(dims) == wanted:
+            return values
+        missing = [dim for dim in wanted if dim not in dims]
+        if missing:
+            raise DataError(
+                f"{where}: signal {name!r} has no dimension {missing[0]!r} (it has: {', '.join(dims)})"
+            )
+        return values[:, [list(dims).index(dim) for dim in wanted]]
+
+    @property
+    def names(self) -> list[str]:
+        return [name for name, _ in (*self.state, *self.action)]
+
+    @property
+    def widths(self) -> tuple[int, int]:
+        return sum(len(d) for _, d in self.state), sum(len(d) for _, d in self.action)
+
+    def columns(self) -> list[str]:
+        """What each element of a vector is, for explanations (`gripper_width/width (change)`, …)."""
+        state = [f"{name}/{dim}" for name, dims in self.state for dim in dims]
+        action = [f"{name}/{dim}" for name, dims in self.action for dim in dims]
+        return [
+            *(f"{c} (at the start)" for c in state),
+            *(f"{c} (change since the start)" for c in state),
+            *(
+                f"{c} (commanded{f', {lag} frames before' if lag else ''})"
+                for lag in ACTION_LAGS
+                for c in action
+            ),
+            "frame (time)",
+        ]
+
+    def features(self, values: Mapping[str, np.ndarray], length: int) -> np.ndarray:
+        """Raw per-frame features f_t = [state ‖ action ‖ t] from each signal's (L, D) rows."""
+        parts = [np.asarray(values[name], np.float64).reshape(length, -1) for name in self.names]
+        return np.concatenate([*parts, np.arange(length, dtype=np.float64)[:, None]], axis=1)
+
+    def to_dict(self) -> dict[str, Any]:
+        found: dict[str, Any] = {
+            kind: [[name, list(dims)] for name, dims in columns] for kind, columns in self._kinds()
+        }
+        return found | ({"full": {name: list(dims) for name, dims in self.full.items()}} if self.full else {})
+
+    def _kinds(self) -> tuple[tuple[str, Columns], ...]:
+        return (("state", self.state), ("action", self.action))
+
+    @classmethod
+    def parse(cls, section: Any, where: str) -> SignalLayout:
+        try:
+            return cls(
+                **{
+                    kind: tuple((str(name), tuple(str(d) for d in dims)) for name, dims in section[kind])
+                    for kind in ("state", "action")
+                },
+                full={str(n): tuple(str(d) for d in dims) for n, dims in (section.get("full") or {}).items()},
+            )
+        except (KeyError, TypeError, ValueError) as error:
+            raise MemoryFormatError(f"{where}: bad signal layout {section!r} ({error!r})") from error
+
+
+def read_features(trajectory: Trajectory, layout: SignalLayout) -> np.ndarray:
+    """The trajectory's raw features for `layout`, or DataError naming what it lacks or cannot read."""
+    found, skipped = trajectory.read_signals(layout.names)
+    if skipped:
+        raise DataError(skipped[0].reason)
+    values = {
+        name: layout.select(name, found[name].dims, found[name].values, trajectory.key)
+        for name in layout.names
+    }
+    return layout.features(values, trajectory.length)
+
+
+def choose_layout(trajectories: Sequence[Trajectory], choice: str) -> SignalLayout | None:
+    """The layout of one task's runs for `choice`: `auto` takes every state and action signal the first
+    run that has signals has (a run without one of them is skipped when the memory is built); names take
+    those signals, whatever their kind (`other` counts as state). None: no signals to use."""
+    if choice == NONE:
+        return None
+    first = next((t for t in trajectories if t.signals), None)
+    if first is None:
+        return None
+    globs = (
+        {n: [] for n, s in first.signals.items() if s.kind in (SignalKind.STATE, SignalKind.ACTION)}
+        if choice == AUTO
+        else chosen_signals(choice)
+    )
+    found, skipped = first.read_signals(list(globs))
+    if choice != AUTO and skipped:
+        raise DataError(f"--signals {choice}: {skipped[0].reason}")
+    dims: dict[str, tuple[str, ...]] = {}
+    for name, signal in found.items():
+        dims[name] = tuple(
+            d for d in signal.dims if not globs[name] or any(fnmatch(d, g) for g in globs[name])
+        )
+        if not dims[name]:
+            raise DataError(
+                f"--signals {choice}: no dimension of {name!r} matches {', '.join(globs[name])} (it has: "
+                f"{', '.join(signal.dims)})"
+            )
+    state = tuple((n, dims[n]) for n, v in found.items() if v.kind is not SignalKind.ACTION)
+    action = tuple((n, dims[n]) for n, v in found.items() if v.kind is SignalKind.ACTION)
+    full = {n: v.dims for n, v in found.items() if dims[n] != v.dims}
+    return SignalLayout(state=state, action=action, full=full) if state or action else None
