@@ -4,6 +4,7 @@ Each case is the real CLI (in-process, as `robofailring` runs it) on files of se
 bytes every run). It ends in one `error:` line naming the file and status 2, or, where the verb did its work
 around the bad input, status 3 with the file named among what was not read; never a traceback: any exception
 other than the CLI's own exit is one (tests/cli/test_cli.py runs the installed console script itself).
+Crafted files join them (issue 45, item 6): JSON nested past what Python's parser recurses.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from crafted import nested_json
 from fault_helpers import cli
 
 EPISODE = "pick_cube_grasp_wp2_episode0"  # an episode of the `data` fixture (tests/cli/conftest.py)
@@ -108,6 +110,23 @@ def a_png_header_declaring_any_size(given: Inputs) -> tuple[list[object], Path, 
     return ["build-memory", given.data, "--out", given.work / "out"], given.data / EPISODE / "front_0.png", 2
 
 
+def a_deeply_nested_manifest(given: Inputs) -> tuple[list[object], Path, int]:
+    """Valid JSON nesting 1,000–200,000 lists or objects, past what Python's parser recurses (issue 45, item 6)."""
+    manifest = given.memory / "manifest.json"
+    depth = int(given.rng.integers(1_000, 200_000))
+    manifest.write_text(nested_json(depth, opener=str(given.rng.choice(["[", "{"]))))
+    return ["detect", given.data / EPISODE, "--memory", given.memory], manifest, 2
+
+
+def deeply_nested_labels(given: Inputs) -> tuple[list[object], Path, int]:
+    labels = given.work / "labels.json"
+    labels.parent.mkdir(parents=True, exist_ok=True)
+    labels.write_text(
+        nested_json(int(given.rng.integers(1_000, 200_000)), opener=str(given.rng.choice(["[", "{"])))
+    )
+    return ["calibrate", given.data, "--memory", given.memory, "--labels", labels], labels, 2
+
+
 CASES: list[Callable[[Inputs], tuple[list[object], Path, int]]] = [
     images_in_an_episode,
     an_image_beside_the_episodes,
@@ -118,6 +137,8 @@ CASES: list[Callable[[Inputs], tuple[list[object], Path, int]]] = [
     a_vocabulary_to_build_with,
     an_hdf5_file_to_build_from,
     a_png_header_declaring_any_size,
+    a_deeply_nested_manifest,
+    deeply_nested_labels,
 ]
 
 

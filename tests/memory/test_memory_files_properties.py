@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from crafted import nested_json
 from fault_helpers import cli
 from hypothesis import assume, given
 from hypothesis import strategies as st
@@ -101,6 +102,17 @@ def test_any_manifest_value_parses_or_raises_naming_the_file(value: Any) -> None
 @given(st.one_of(st.binary(max_size=100), _objects(MANIFEST_KEYS).map(lambda v: json.dumps(v).encode())))
 def test_any_manifest_file_loads_or_raises_naming_it(scratch: Path, saved: Path, content: bytes) -> None:
     _load_with(scratch, saved, MANIFEST, content)
+
+
+@given(
+    st.integers(min_value=1, max_value=200_000),
+    st.sampled_from(["[", "{"]),
+    st.sampled_from([MANIFEST, ENTRIES]),
+)
+def test_a_memory_file_nested_to_any_depth_loads_or_raises_naming_it(
+    scratch: Path, saved: Path, depth: int, opener: str, name: str
+) -> None:
+    _load_with(scratch, saved, name, nested_json(depth, opener=opener).encode())
 
 
 @given(_lines(ENTRY_FIELDS))

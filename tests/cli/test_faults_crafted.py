@@ -1,0 +1,42 @@
+"""Crafted inputs through the CLI (issue 45, item 6): each ends in one `error:` line naming the file or
+value and status 2, never a traceback (each failed so before its fix, with real files)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from crafted import nested_json
+from fault_helpers import cli, refused
+
+EPISODE = "pick_cube_grasp_wp2_episode0"  # an episode of the `data` fixture (tests/cli/conftest.py)
+
+
+@pytest.mark.parametrize("opener", ["[", "{"])
+def test_deeply_nested_json_is_one_error_line_wherever_it_is_read(
+    memory: Path, data: Path, cache: list[str], tmp_path: Path, opener: str
+) -> None:
+    deep = tmp_path / "deep.json"
+    deep.write_text(nested_json(opener=opener))
+    too_deep = "nests lists or objects too deeply"
+    for verb in ("build-memory", "calibrate"):
+        target = ("--out", tmp_path / "out") if verb == "build-memory" else ("--memory", memory)
+        refused(cli(verb, data, *target, "--labels", deep, *cache), 2, f"labels file {deep}", too_deep)
+    assert not (tmp_path / "out").exists()
+    vlm = ("--vlm-url", "http://127.0.0.1:9/v1", "--vlm-model", "m")  # never asked: the file is refused first
+    refused(cli("explain", deep, *vlm), 2, str(deep), too_deep)
+    refused(cli("review", deep, "--data", data, "--out", tmp_path / "rev", *cache), 2, str(deep), too_deep)
+    assert not (tmp_path / "rev").exists()
+    manifest = memory / "manifest.json"
+    manifest.write_text(nested_json(opener=opener))
+    refused(cli("memory-info", memory), 2, str(manifest), too_deep)
+    refused(cli("detect", data / EPISODE, "--memory", memory, *cache), 2, str(manifest), too_deep)
+
+
+def test_a_deeply_nested_entries_line_is_named_with_its_line(
+    memory: Path, data: Path, cache: list[str]
+) -> None:
+    entries = memory / "entries.jsonl"
+    lines = entries.read_text().splitlines()
+    entries.write_text("\n".join([lines[0], nested_json(), *lines[2:]]) + "\n")
+    refused(cli("detect", data / EPISODE, "--memory", memory, *cache), 2, f"{entries}:2", "too deeply")
