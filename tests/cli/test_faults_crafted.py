@@ -5,9 +5,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 from crafted import nested_json
 from fault_helpers import cli, refused
+from hdf5_writer import write_aloha, write_robomimic
+
+from robofailring.data.images import as_rgb
+from robofailring.errors import DataError
 
 EPISODE = "pick_cube_grasp_wp2_episode0"  # an episode of the `data` fixture (tests/cli/conftest.py)
 
@@ -40,3 +45,24 @@ def test_a_deeply_nested_entries_line_is_named_with_its_line(
     lines = entries.read_text().splitlines()
     entries.write_text("\n".join([lines[0], nested_json(), *lines[2:]]) + "\n")
     refused(cli("detect", data / EPISODE, "--memory", memory, *cache), 2, f"{entries}:2", "too deeply")
+
+
+@pytest.mark.parametrize("shape", [(0, 32), (32, 0)])
+def test_hdf5_cameras_of_empty_frames_are_one_error_line_naming_file_and_dataset(
+    cache: list[str], tmp_path: Path, shape: tuple[int, int]
+) -> None:
+    """A camera of shape (6, 0, 32, 3) ended in OpenCV's `!ssize.empty()` assertion, status 1."""
+    empty = lambda episode, camera, t: np.zeros((*shape, 3), np.uint8)  # noqa: E731
+    robomimic = write_robomimic(tmp_path / "rm" / "demo_failed.hdf5", empty, demos=2, length=6)
+    aloha = write_aloha(tmp_path / "aloha", empty, episodes=2, length=6)
+    labels = tmp_path / "labels.csv"
+    labels.write_text("episode,outcome,symbol\nepisode_0,failure,grasp_wp2\nepisode_1,success,\n")
+    for data, options, camera in (
+        (robomimic, (), f"{robomimic}#/data/demo_0/obs/agentview_image"),
+        (aloha, ("--labels", labels), f"{aloha / 'episode_0.hdf5'}#/observations/images/cam_high"),
+    ):
+        out = tmp_path / "memory"
+        refused(cli("build-memory", data, "--out", out, *options, *cache), 2, camera, "empty")
+        assert not out.exists()
+    with pytest.raises(DataError, match=r"live view: an image of shape .* is empty"):
+        as_rgb(np.zeros((*shape, 3), np.uint8), source="live view")  # the step API's frames

@@ -4,7 +4,8 @@ Each case is the real CLI (in-process, as `robofailring` runs it) on files of se
 bytes every run). It ends in one `error:` line naming the file and status 2, or, where the verb did its work
 around the bad input, status 3 with the file named among what was not read; never a traceback: any exception
 other than the CLI's own exit is one (tests/cli/test_cli.py runs the installed console script itself).
-Crafted files join them (issue 45, item 6): JSON nested past what Python's parser recurses.
+Crafted files join them (issue 45, item 6): JSON nested past what Python's parser recurses, HDF5 cameras
+of empty frames.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ import numpy as np
 import pytest
 from crafted import nested_json
 from fault_helpers import cli
+from hdf5_writer import write_robomimic
 
 EPISODE = "pick_cube_grasp_wp2_episode0"  # an episode of the `data` fixture (tests/cli/conftest.py)
 
@@ -127,6 +129,15 @@ def deeply_nested_labels(given: Inputs) -> tuple[list[object], Path, int]:
     return ["calibrate", given.data, "--memory", given.memory, "--labels", labels], labels, 2
 
 
+def an_hdf5_camera_of_empty_frames(given: Inputs) -> tuple[list[object], Path, int]:
+    """A robomimic camera of (6, H, W, 3) frames, H or W (or both) zero (issue 45, item 6)."""
+    height, width = (int(n) for n in given.rng.integers(0, 5, 2))
+    height, width = (0, width) if given.rng.random() < 0.5 else (height, 0)
+    empty = lambda demo, camera, t: np.zeros((height, width, 3), np.uint8)  # noqa: E731
+    path = write_robomimic(given.work / "hdf5" / "demo_failed.hdf5", empty, demos=2, length=6)
+    return ["build-memory", path, "--out", given.work / "out"], path, 2
+
+
 CASES: list[Callable[[Inputs], tuple[list[object], Path, int]]] = [
     images_in_an_episode,
     an_image_beside_the_episodes,
@@ -139,6 +150,7 @@ CASES: list[Callable[[Inputs], tuple[list[object], Path, int]]] = [
     a_png_header_declaring_any_size,
     a_deeply_nested_manifest,
     deeply_nested_labels,
+    an_hdf5_camera_of_empty_frames,
 ]
 
 
