@@ -4,8 +4,8 @@ Each case is the real CLI (in-process, as `robofailring` runs it) on files of se
 bytes every run). It ends in one `error:` line naming the file and status 2, or, where the verb did its work
 around the bad input, status 3 with the file named among what was not read; never a traceback: any exception
 other than the CLI's own exit is one (tests/cli/test_cli.py runs the installed console script itself).
-Crafted files join them (issue 45, item 6): JSON nested past what Python's parser recurses, HDF5 cameras
-of empty frames.
+Crafted files join them (issue 45, item 6): JSON nested past what Python's parser recurses (a manifest,
+labels, a trained encoder's config), HDF5 cameras of empty frames.
 """
 
 from __future__ import annotations
@@ -129,6 +129,19 @@ def deeply_nested_labels(given: Inputs) -> tuple[list[object], Path, int]:
     return ["calibrate", given.data, "--memory", given.memory, "--labels", labels], labels, 2
 
 
+def an_encoder_config_nested_too_deeply(given: Inputs) -> tuple[list[object], Path, int]:
+    config = given.work / "encoder" / "encoder.json"
+    config.parent.mkdir(parents=True)
+    config.write_text(
+        nested_json(int(given.rng.integers(1_000, 200_000)), opener=str(given.rng.choice(["[", "{"])))
+    )
+    return (
+        ["build-memory", given.data, "--out", given.work / "out", "--encoder", f"trained:{config.parent}"],
+        config,
+        2,
+    )
+
+
 def an_hdf5_camera_of_empty_frames(given: Inputs) -> tuple[list[object], Path, int]:
     """A robomimic camera of (6, H, W, 3) frames, H or W (or both) zero (issue 45, item 6)."""
     height, width = (int(n) for n in given.rng.integers(0, 5, 2))
@@ -150,6 +163,7 @@ CASES: list[Callable[[Inputs], tuple[list[object], Path, int]]] = [
     a_png_header_declaring_any_size,
     a_deeply_nested_manifest,
     deeply_nested_labels,
+    an_encoder_config_nested_too_deeply,
     an_hdf5_camera_of_empty_frames,
 ]
 
