@@ -66,3 +66,23 @@ def test_hdf5_cameras_of_empty_frames_are_one_error_line_naming_file_and_dataset
         assert not out.exists()
     with pytest.raises(DataError, match=r"live view: an image of shape .* is empty"):
         as_rgb(np.zeros((*shape, 3), np.uint8), source="live view")  # the step API's frames
+
+
+@pytest.mark.parametrize(
+    ("verb", "option", "value"),
+    [
+        ("replay", "--fps", "1e-300"),  # frame 1 at 1e300 s: an OverflowError writing the recording
+        ("replay", "--fps", "1e-10"),
+        ("replay", "--fps", "1e300"),
+        ("watch", "--fps", "1e-300"),
+        ("watch", "--speed", "nan"),  # was accepted: played as fast as it could
+        ("watch", "--speed", "inf"),
+    ],
+)
+def test_an_fps_or_speed_out_of_range_is_one_error_line_naming_it(
+    memory: Path, data: Path, cache: list[str], tmp_path: Path, verb: str, option: str, value: str
+) -> None:
+    out = ("--out", tmp_path / "rec") if verb == "replay" else ("--save", tmp_path / "watched.rrd")
+    result = cli(verb, data / EPISODE, "--memory", memory, *out, option, value, *cache)
+    refused(result, 2, f"{option} must be", f"got {float(value)}")
+    assert list(tmp_path.iterdir()) == [memory]
