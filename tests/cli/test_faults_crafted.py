@@ -3,13 +3,16 @@ value and status 2, never a traceback (each failed so before its fix, with real 
 
 from __future__ import annotations
 
+import shutil
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pytest
-from crafted import nested_json
+from crafted import GIB_OF_FLOATS, declare_in_index, nested_json
 from fault_helpers import cli, refused
 from hdf5_writer import write_aloha, write_robomimic
+from synthetic import write_project_dataset
 
 from robofailring.data.images import as_rgb
 from robofailring.errors import DataError
@@ -86,3 +89,48 @@ def test_an_fps_or_speed_out_of_range_is_one_error_line_naming_it(
     result = cli(verb, data / EPISODE, "--memory", memory, *out, option, value, *cache)
     refused(result, 2, f"{option} must be", f"got {float(value)}")
     assert list(tmp_path.iterdir()) == [memory]
+
+
+@pytest.fixture(scope="module")
+def with_successes(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, list[str]]:
+    """A project dataset, and the memory of its training split: a failure and a success memory, one
+    flat index file each (`index.faiss`, `success.0.faiss`)."""
+    root = tmp_path_factory.mktemp("indexes")
+    data = write_project_dataset(
+        root / "data", tasks=("pick_cube",), symbols=("grasp_wp2",), episodes=2, length=3
+    )
+    cache = ["--cache-dir", str(root / "cache")]
+    result = cli("build-memory", data, "--out", root / "memory", "--split", "train", *cache)
+    assert result.exit_code == 0, result.output
+    assert (root / "memory" / "success.0.faiss").is_file()
+    return data, root / "memory", cache
+
+
+def _truncated(path: Path) -> Path:
+    path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+    return path
+
+
+@pytest.mark.parametrize("name", ["index.faiss", "success.0.faiss"])
+@pytest.mark.parametrize(
+    ("craft", "phrase"),
+    [  # each: 50 GiB allocated before reading (std::bad_alloc, a MemoryError traceback), or a Faiss error
+        (lambda path: declare_in_index(path, floats=50 * GIB_OF_FLOATS), "53,687,091,200 bytes of vectors"),
+        (lambda path: declare_in_index(path, entries=2**40), "declares 1099511627776 entries"),
+        (_truncated, "bytes hold"),
+    ],
+    ids=["50-GiB-of-vectors", "2**40-entries", "truncated"],
+)
+def test_an_index_file_declaring_more_than_it_holds_is_one_error_line(
+    with_successes: tuple[Path, Path, list[str]],
+    tmp_path: Path,
+    name: str,
+    craft: Callable[[Path], Path],
+    phrase: str,
+) -> None:
+    data, built, cache = with_successes
+    memory = Path(shutil.copytree(built, tmp_path / "memory"))
+    index = craft(memory / name)
+    episode = next(p for p in sorted(data.iterdir()) if "grasp_wp2" in p.name)
+    for args in (("memory-info", memory), ("detect", episode, "--memory", memory, *cache)):
+        refused(cli(*args), 2, str(index), phrase)

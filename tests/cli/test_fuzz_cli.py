@@ -5,7 +5,8 @@ bytes every run). It ends in one `error:` line naming the file and status 2, or,
 around the bad input, status 3 with the file named among what was not read; never a traceback: any exception
 other than the CLI's own exit is one (tests/cli/test_cli.py runs the installed console script itself).
 Crafted files join them (issue 45, item 6): JSON nested past what Python's parser recurses (a manifest,
-labels, a trained encoder's config), HDF5 cameras of empty frames.
+labels, a trained encoder's config), HDF5 cameras of empty frames, a Faiss index declaring more than it
+holds.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from crafted import nested_json
+from crafted import GIB_OF_FLOATS, declare_in_index, nested_json
 from fault_helpers import cli
 from hdf5_writer import write_robomimic
 
@@ -151,6 +152,16 @@ def an_hdf5_camera_of_empty_frames(given: Inputs) -> tuple[list[object], Path, i
     return ["build-memory", path, "--out", given.work / "out"], path, 2
 
 
+def a_faiss_index_declaring_any_size(given: Inputs) -> tuple[list[object], Path, int]:
+    """The memory's index.faiss declares 32 GiB to 1 TiB of vectors (past that Faiss refuses on its own),
+    maybe more entries than it holds too, in a file of a few KB (issue 45, item 6: Faiss allocated what the
+    header said, a std::bad_alloc)."""
+    index = given.memory / "index.faiss"
+    entries = int(given.rng.integers(2**20, 2**62)) if given.rng.random() < 0.5 else None
+    declare_in_index(index, entries=entries, floats=int(given.rng.integers(32 * GIB_OF_FLOATS, 2**38)))
+    return ["detect", given.data / EPISODE, "--memory", given.memory], index, 2
+
+
 CASES: list[Callable[[Inputs], tuple[list[object], Path, int]]] = [
     images_in_an_episode,
     an_image_beside_the_episodes,
@@ -165,6 +176,7 @@ CASES: list[Callable[[Inputs], tuple[list[object], Path, int]]] = [
     deeply_nested_labels,
     an_encoder_config_nested_too_deeply,
     an_hdf5_camera_of_empty_frames,
+    a_faiss_index_declaring_any_size,
 ]
 
 

@@ -26,6 +26,7 @@ from robofailring.memory.encoding import BuildStats, encode_failures, failure_vi
 from robofailring.memory.entry import MemoryEntry, Neighbor
 from robofailring.memory.format import parse_entry, read_jsonl, stored_vocabulary
 from robofailring.memory.index import FLAT, TaskIndexSet
+from robofailring.memory.index_file import read_index_file
 from robofailring.memory.manifest import MemoryManifest, StoredCalibration
 from robofailring.memory.pairs import pair_vectors
 from robofailring.memory.recipe import MemoryRecipe
@@ -344,10 +345,7 @@ class FailureMemory:
             )
         manifest = MemoryManifest.parse(manifest, manifest_path)
         vocabulary = stored_vocabulary(directory, manifest.vocabulary)
-        try:
-            index = faiss.read_index(str(directory / INDEX))
-        except RuntimeError as error:
-            raise MemoryFormatError(f"cannot read Faiss index {directory / INDEX}: {error}") from error
+        index = read_index_file(directory / INDEX, count=manifest.count, dim=manifest.dim)
         entries = read_jsonl(
             directory / ENTRIES, lambda record: MemoryEntry(**parse_entry(record, vocabulary)), what="entry"
         )
