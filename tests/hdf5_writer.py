@@ -72,7 +72,10 @@ def write_robomimic(
                 stack = np.stack([frames(demo, c, t) for t in range(length)])
                 if opengl:
                     stack = stack[:, ::-1]
-                obs.create_dataset(camera, data=stack, chunks=(1, *stack.shape[1:]), compression="gzip")
+                if stack.size:
+                    obs.create_dataset(camera, data=stack, chunks=(1, *stack.shape[1:]), compression="gzip")
+                else:  # frames of zero height or width: HDF5 chunks only positive sizes
+                    obs.create_dataset(camera, data=stack)
             obs.create_dataset("robot0_eef_pos", data=robomimic_eef(demo, length))
         if masks:
             group = handle.create_group("mask")
@@ -118,7 +121,8 @@ def write_aloha(
                     group.create_dataset(cam, data=rows, dtype="uint8", chunks=(1, padded))
                 else:
                     stack = np.stack(images[cam])
-                    group.create_dataset(cam, data=stack, dtype="uint8", chunks=(1, *stack.shape[1:]))
+                    chunks = (1, *stack.shape[1:]) if stack.size else None  # HDF5 chunks only positive sizes
+                    group.create_dataset(cam, data=stack, dtype="uint8", chunks=chunks)
             obs.create_dataset("qpos", data=aloha_joints(episode, length))
             obs.create_dataset("qvel", data=np.zeros((length, 14)))
             root.create_dataset("action", data=aloha_joints(episode, length) + 1)

@@ -10,6 +10,7 @@ from rfr_viz.viewer.rrd import recording_properties
 from robofailring.errors import DataError, SettingError
 from robofailring.explain.report import FailureReport
 from robofailring.explain.vlm import VLMAnswer, VLMCallError, VLMConfig, ask_vlm
+from robofailring.jsontext import parse_json
 
 
 @dataclass(frozen=True)
@@ -71,12 +72,7 @@ def read_report(source: Path) -> FailureReport:
         text = str(found["report"])
     else:
         text = source.read_text(encoding="utf-8", errors="replace")
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as error:
-        raise DataError(
-            f"{source} is neither a .rrd recording nor `detect --json` output ({error})"
-        ) from error
+    data = parse_json(text, source=f"{source} (a .rrd recording or `detect --json` output)")
     if isinstance(data, dict) and "report" in data and "t_det" in data and "current_task" not in data:
         if data["report"] is None:
             raise DataError(

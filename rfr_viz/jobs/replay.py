@@ -9,6 +9,7 @@ import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Final
 
 from rfr_viz.codecs import CameraCodec
 from rfr_viz.panels.map import placer
@@ -33,6 +34,7 @@ from robofailring.outputs import check_output_folder, check_recording_file
 from robofailring.progress import progress_bar
 
 _UNSAFE = re.compile(r"[^A-Za-z0-9._+-]+")
+FPS_RANGE: Final[tuple[float, float]] = (1e-3, 1e4)  # one frame per 1,000 s to a 10 kHz sensor
 
 _log = logging.getLogger("robofailring")
 
@@ -129,10 +131,19 @@ def recording_name(trajectory: Trajectory, suffix: str = "") -> str:
 
 
 def check_fps(fps: float | None) -> float | None:
-    """A `time` timeline rate: a positive finite number of frames per second (SettingError otherwise)."""
-    if fps is not None and not (math.isfinite(fps) and fps > 0):
-        raise SettingError(f"--fps must be a positive number of frames per second, got {fps}")
+    """A `time` timeline rate within `FPS_RANGE` (SettingError otherwise): a frame's time in nanoseconds
+    must fit Rerun's int64 (at 1e-300 fps frame 1 is at infinity, an OverflowError)."""
+    low, high = FPS_RANGE
+    if fps is not None and not (math.isfinite(fps) and low <= fps <= high):
+        raise SettingError(f"--fps must be a number of frames per second from {low:g} to {high:g}, got {fps}")
     return fps
+
+
+def check_speed(speed: float) -> float:
+    """A playback speed: finite and ≥ 0, 0 as fast as the detector goes (SettingError otherwise)."""
+    if not (math.isfinite(speed) and speed >= 0):
+        raise SettingError(f"--speed must be a finite number ≥ 0, got {speed}")
+    return speed
 
 
 def _target(out: Path, name: str, written: dict[Path, str], key: str) -> Path:

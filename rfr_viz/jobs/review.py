@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,6 +26,7 @@ from robofailring.detection.rules import PAPER, RULES, ScoringRule, default_rule
 from robofailring.detection.trace import DetectionTrace
 from robofailring.errors import DataError, OutputError
 from robofailring.explain.vlm import VLMConfig
+from robofailring.jsontext import parse_json
 from robofailring.outputs import check_not_input, check_output_folder, check_recording_file, check_writable
 from robofailring.progress import progress_bar
 
@@ -84,7 +84,9 @@ def review(config: ReviewConfig) -> ReplayResult:
 
 def _read_evaluation(config: ReviewConfig) -> Reviewed:
     try:
-        evaluation = json.loads(Path(config.evaluation).read_text(encoding="utf-8"))
+        evaluation = parse_json(
+            Path(config.evaluation).read_bytes(), source=f"evaluation {config.evaluation}"
+        )
         rules = evaluation.get("rules") or {}
         rule = rule_named(config.score) if config.score else _judging(rules)
         if rule.name in rules:
@@ -97,7 +99,7 @@ def _read_evaluation(config: ReviewConfig) -> Reviewed:
             raise DataError(f"{config.evaluation} has no results for the {rule.name} rule")
         k = int(evaluation["k"])
         memory_dir = Path(config.detector.memory or evaluation["memory"])
-    except (OSError, json.JSONDecodeError, KeyError, TypeError, ValueError) as error:
+    except (OSError, AttributeError, KeyError, TypeError, ValueError) as error:
         raise DataError(
             f"{config.evaluation} is not an evaluation written by `robofailring evaluate` ({error})"
         ) from error

@@ -8,13 +8,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from rfr_viz.codecs import CameraCodec
-from rfr_viz.jobs.replay import check_fps, load_detector
+from rfr_viz.jobs.replay import check_fps, check_speed, load_detector
 from rfr_viz.paths import DEFAULT_FPS
 from rfr_viz.recordings.live import LiveRecording
 from rfr_viz.recordings.live_target import LiveTarget
 from robofailring.data.layouts import load_trajectory
 from robofailring.detection.config import DetectorConfig
-from robofailring.errors import DataError, SettingError
+from robofailring.errors import DataError
 from robofailring.outputs import check_not_input, check_recording_file, check_writable
 
 
@@ -51,8 +51,7 @@ class WatchResult:
 
 def watch(config: WatchConfig) -> WatchResult:
     """Feed one episode through `detector.session(...).step` frame by frame, streaming every step."""
-    if config.speed < 0:
-        raise SettingError(f"--speed must be ≥ 0, got {config.speed}")
+    check_speed(config.speed)
     check_fps(config.fps)
     if config.target.save is not None:  # before any work: never over an input, never over a non-recording
         save = Path(config.target.save)

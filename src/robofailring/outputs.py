@@ -7,7 +7,6 @@ the current folder. Every refusal is an `OutputError` naming the path and what t
 
 from __future__ import annotations
 
-import json
 import os
 import re
 import tempfile
@@ -15,7 +14,8 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Final
 
-from robofailring.errors import OutputError, WriteError
+from robofailring.errors import DataError, OutputError, WriteError
+from robofailring.jsontext import parse_json
 
 MEMORY_MANIFEST: Final[str] = "manifest.json"
 RRD_MAGIC: Final[bytes] = b"RRF"  # every Rerun .rrd file starts with RRF0/RRF1/RRF2
@@ -23,9 +23,10 @@ RRD_MAGIC: Final[bytes] = b"RRF"  # every Rerun .rrd file starts with RRF0/RRF1/
 
 def is_memory_dir(path: Path) -> bool:
     """True when `path` holds a failure memory's manifest (a JSON object with an encoder and a version)."""
+    manifest_path = Path(path) / MEMORY_MANIFEST
     try:
-        manifest = json.loads((Path(path) / MEMORY_MANIFEST).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        manifest = parse_json(manifest_path.read_bytes(), source=str(manifest_path))
+    except (OSError, DataError):
         return False
     return isinstance(manifest, dict) and "format_version" in manifest and "encoder" in manifest
 
@@ -149,9 +150,9 @@ def _written_here(path: Path) -> bool:
         if path.suffix == ".md":
             return _OWN_MARKDOWN.match(head.decode("utf-8", "replace")) is not None
         if path.suffix == ".json":
-            document = json.loads(path.read_text(encoding="utf-8"))
+            document = parse_json(path.read_bytes(), source=str(path))
             return isinstance(document, dict) and document.keys() >= _OWN_JSON_KEYS
-    except (OSError, ValueError, RecursionError):
+    except (OSError, ValueError, DataError):
         return False
     return False
 

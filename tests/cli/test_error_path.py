@@ -61,7 +61,9 @@ def test_bad_settings_are_one_line_and_status_2(tmp_path: Path) -> None:
         "juggle",
     )
     refused(
-        cli("watch", episode, "--memory", nowhere, "--speed", "-1"), BAD_INPUT, "--speed must be ≥ 0, got -1"
+        cli("watch", episode, "--memory", nowhere, "--speed", "-1"),
+        BAD_INPUT,
+        "--speed must be a finite number ≥ 0, got -1",
     )
     refused(cli("watch", episode, "--memory", nowhere, "--fps", "0"), BAD_INPUT, "--fps", "got 0")
     refused(

@@ -4,6 +4,9 @@ Each case is the real CLI (in-process, as `robofailring` runs it) on files of se
 bytes every run). It ends in one `error:` line naming the file and status 2, or, where the verb did its work
 around the bad input, status 3 with the file named among what was not read; never a traceback: any exception
 other than the CLI's own exit is one (tests/cli/test_cli.py runs the installed console script itself).
+Crafted files join them (issue 45, item 6): JSON nested past what Python's parser recurses (a manifest,
+labels, a trained encoder's config), HDF5 cameras of empty frames, a Faiss index declaring more than it
+holds.
 """
 
 from __future__ import annotations
@@ -17,7 +20,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from crafted import GIB_OF_FLOATS, declare_in_index, nested_json
 from fault_helpers import cli
+from hdf5_writer import write_robomimic
 
 EPISODE = "pick_cube_grasp_wp2_episode0"  # an episode of the `data` fixture (tests/cli/conftest.py)
 
@@ -108,6 +113,55 @@ def a_png_header_declaring_any_size(given: Inputs) -> tuple[list[object], Path, 
     return ["build-memory", given.data, "--out", given.work / "out"], given.data / EPISODE / "front_0.png", 2
 
 
+def a_deeply_nested_manifest(given: Inputs) -> tuple[list[object], Path, int]:
+    """Valid JSON nesting 1,000–200,000 lists or objects, past what Python's parser recurses (issue 45, item 6)."""
+    manifest = given.memory / "manifest.json"
+    depth = int(given.rng.integers(1_000, 200_000))
+    manifest.write_text(nested_json(depth, opener=str(given.rng.choice(["[", "{"]))))
+    return ["detect", given.data / EPISODE, "--memory", given.memory], manifest, 2
+
+
+def deeply_nested_labels(given: Inputs) -> tuple[list[object], Path, int]:
+    labels = given.work / "labels.json"
+    labels.parent.mkdir(parents=True, exist_ok=True)
+    labels.write_text(
+        nested_json(int(given.rng.integers(1_000, 200_000)), opener=str(given.rng.choice(["[", "{"])))
+    )
+    return ["calibrate", given.data, "--memory", given.memory, "--labels", labels], labels, 2
+
+
+def an_encoder_config_nested_too_deeply(given: Inputs) -> tuple[list[object], Path, int]:
+    config = given.work / "encoder" / "encoder.json"
+    config.parent.mkdir(parents=True)
+    config.write_text(
+        nested_json(int(given.rng.integers(1_000, 200_000)), opener=str(given.rng.choice(["[", "{"])))
+    )
+    return (
+        ["build-memory", given.data, "--out", given.work / "out", "--encoder", f"trained:{config.parent}"],
+        config,
+        2,
+    )
+
+
+def an_hdf5_camera_of_empty_frames(given: Inputs) -> tuple[list[object], Path, int]:
+    """A robomimic camera of (6, H, W, 3) frames, H or W (or both) zero (issue 45, item 6)."""
+    height, width = (int(n) for n in given.rng.integers(0, 5, 2))
+    height, width = (0, width) if given.rng.random() < 0.5 else (height, 0)
+    empty = lambda demo, camera, t: np.zeros((height, width, 3), np.uint8)  # noqa: E731
+    path = write_robomimic(given.work / "hdf5" / "demo_failed.hdf5", empty, demos=2, length=6)
+    return ["build-memory", path, "--out", given.work / "out"], path, 2
+
+
+def a_faiss_index_declaring_any_size(given: Inputs) -> tuple[list[object], Path, int]:
+    """The memory's index.faiss declares 32 GiB to 1 TiB of vectors (past that Faiss refuses on its own),
+    maybe more entries than it holds too, in a file of a few KB (issue 45, item 6: Faiss allocated what the
+    header said, a std::bad_alloc)."""
+    index = given.memory / "index.faiss"
+    entries = int(given.rng.integers(2**20, 2**62)) if given.rng.random() < 0.5 else None
+    declare_in_index(index, entries=entries, floats=int(given.rng.integers(32 * GIB_OF_FLOATS, 2**38)))
+    return ["detect", given.data / EPISODE, "--memory", given.memory], index, 2
+
+
 CASES: list[Callable[[Inputs], tuple[list[object], Path, int]]] = [
     images_in_an_episode,
     an_image_beside_the_episodes,
@@ -118,6 +172,11 @@ CASES: list[Callable[[Inputs], tuple[list[object], Path, int]]] = [
     a_vocabulary_to_build_with,
     an_hdf5_file_to_build_from,
     a_png_header_declaring_any_size,
+    a_deeply_nested_manifest,
+    deeply_nested_labels,
+    an_encoder_config_nested_too_deeply,
+    an_hdf5_camera_of_empty_frames,
+    a_faiss_index_declaring_any_size,
 ]
 
 

@@ -1,5 +1,5 @@
-"""The CLI's numeric options are user input: any text for --delta, --gamma, --k, --stride, --target-fpr or
---fps is used or refused with exit status 2 and a message, never a traceback; the checks behind them
+"""The CLI's numeric options are user input: any text for --delta, --gamma, --k, --stride, --target-fpr,
+--fps or --speed is used or refused with exit status 2 and a message, never a traceback; the checks behind them
 return the value or raise SettingError."""
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from fault_helpers import cli
 from hypothesis import example, given
 from hypothesis import strategies as st
 
-from rfr_viz.jobs.replay import check_fps
+from rfr_viz.jobs.replay import check_fps, check_speed
 from robofailring.detection.config import check_k, check_stride
 from robofailring.detection.conformal import check_target_fpr
 from robofailring.detection.rules import RULES
@@ -35,6 +35,7 @@ OPTIONS = {
     "detect": ("--delta", "--gamma", "--k", "--stride"),
     "calibrate": ("--target-fpr", "--stride"),
     "replay": ("--fps", "--k", "--stride", "--delta"),
+    "watch": ("--fps", "--speed"),
 }
 
 
@@ -48,7 +49,7 @@ def test_any_numeric_option_text_is_refused_with_status_2_not_a_traceback(
     missing: Path, verb: str, data: st.DataObject
 ) -> None:
     option, value = data.draw(st.sampled_from(OPTIONS[verb])), data.draw(TEXT)
-    extra = ("--out", missing / "rec") if verb == "replay" else ()
+    extra = {"replay": ("--out", missing / "rec"), "watch": ("--save", missing / "w.rrd")}.get(verb, ())
     result = cli(verb, missing, "--memory", missing, *extra, option, value)
     assert result.exit_code == 2, result.output  # a bad value, or (for a good one) the missing memory
     assert isinstance(result.exception, SystemExit), repr(result.exception)
@@ -62,6 +63,7 @@ CHECKS: dict[str, Callable[[Any], Any]] = {
     "target_fpr": check_target_fpr,
     **{rule.threshold_key: rule.check_threshold for rule in RULES.values()},
     "fps": check_fps,
+    "speed": check_speed,
     "success_step": check_step,
 }
 
@@ -71,6 +73,9 @@ CHECKS: dict[str, Callable[[Any], Any]] = {
 @example("stride", 2.5)
 @example("stride", 10**20)  # issue 35: past int64, np.arange gave an object array (an IndexError later)
 @example("k", 10**20)
+@example("fps", 1e-300)  # issue 45, item 6: frame 1 at 1e300 s, an OverflowError in the recording
+@example("fps", 1e-10)
+@example("speed", math.nan)  # issue 45, item 6: watch played as fast as it could
 def test_every_setting_check_returns_the_value_or_raises_a_setting_error(name: str, value: float) -> None:
     try:
         checked = CHECKS[name](value)
@@ -78,6 +83,10 @@ def test_every_setting_check_returns_the_value_or_raises_a_setting_error(name: s
         assert str(value) in str(error)
     else:
         assert checked == value and not math.isnan(value)
+        if name == "fps":  # a million frames' times still fit Rerun's int64 nanoseconds
+            assert 10**6 / checked * 1e9 < 2**63
+        if name == "speed":
+            assert math.isfinite(checked) and checked >= 0
         if name in ("k", "stride"):
             assert isinstance(checked, int), f"{name} accepted the non-integer {value!r}"
 

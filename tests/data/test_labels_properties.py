@@ -10,7 +10,8 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from hypothesis import HealthCheck, given, settings
+from crafted import nested_json
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from robofailring.data.labels import apply_labels, merge_label_rows, read_labels
@@ -74,6 +75,12 @@ def test_any_json_labels_are_read_or_refused_naming_the_file(value: Any) -> None
 @given(st.binary(max_size=200), st.sampled_from(["labels.csv", "labels.json"]))
 def test_any_bytes_are_read_or_refused_naming_the_file(content: bytes, name: str) -> None:
     _read(name, content)
+
+
+@given(st.integers(min_value=1, max_value=200_000), st.sampled_from(["[", "{"]))
+@example(100_000, "[")  # issue 45, item 6: a RecursionError, not a DataError
+def test_json_labels_nested_to_any_depth_are_refused_naming_the_file(depth: int, opener: str) -> None:
+    _read("labels.json", nested_json(depth, opener=opener).encode())
 
 
 ONSETS = st.one_of(

@@ -171,7 +171,7 @@ def test_save_does_not_change_the_memory(
 def test_the_jsonl_reader_names_the_file_and_line(tmp_path: Path) -> None:
     path = tmp_path / "rows.jsonl"
     path.write_text('{"a": 1}\n\n{"b": 2}\n{oops\n', encoding="utf-8")
-    with pytest.raises(MemoryFormatError, match=rf"^{re.escape(str(path))}:4: not JSON"):
+    with pytest.raises(MemoryFormatError, match=rf"^{re.escape(str(path))}:4 is not valid JSON"):
         read_jsonl(path, lambda row: row, what="row")
     with pytest.raises(
         MemoryFormatError, match=rf"^{re.escape(str(path))}:3: bad row \('a'\)"

@@ -11,13 +11,14 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from crafted import GIB_OF_FLOATS, declare_in_index, nested_json
 from fault_helpers import cli
-from hypothesis import assume, given
+from hypothesis import assume, example, given
 from hypothesis import strategies as st
 from synthetic import write_project_dataset
 
 from robofailring.errors import MemoryFormatError
-from robofailring.memory.failure import ENTRIES, MANIFEST, FailureMemory
+from robofailring.memory.failure import ENTRIES, INDEX, MANIFEST, FailureMemory
 from robofailring.memory.format import ENTRY_FIELDS, parse_entry, read_jsonl
 from robofailring.memory.manifest import MemoryManifest
 from robofailring.memory.success import RUNS
@@ -103,6 +104,17 @@ def test_any_manifest_file_loads_or_raises_naming_it(scratch: Path, saved: Path,
     _load_with(scratch, saved, MANIFEST, content)
 
 
+@given(
+    st.integers(min_value=1, max_value=200_000),
+    st.sampled_from(["[", "{"]),
+    st.sampled_from([MANIFEST, ENTRIES]),
+)
+def test_a_memory_file_nested_to_any_depth_loads_or_raises_naming_it(
+    scratch: Path, saved: Path, depth: int, opener: str, name: str
+) -> None:
+    _load_with(scratch, saved, name, nested_json(depth, opener=opener).encode())
+
+
 @given(_lines(ENTRY_FIELDS))
 def test_any_entries_line_parses_or_raises_naming_the_file_and_line(line: str) -> None:
     assume(not any(character in line for character in "\n\r\x0b\x0c\x1c\x1d\x1e\x85\u2028\u2029"))
@@ -156,3 +168,18 @@ def test_any_success_runs_file_loads_or_raises_naming_it(
     lines = (saved / RUNS).read_bytes().splitlines(keepends=True)
     fuzzed = content + b"\n" + b"".join(lines[1:]) if replace_first else content
     _load_with(scratch, saved, RUNS, fuzzed)
+
+
+# Declared sizes: near the true one, or past this machine's memory (a regression then fails to allocate,
+# it never fills the RAM)
+DECLARED = st.integers(0, 2**16) | st.integers(32 * GIB_OF_FLOATS, 2**63 - 1)
+
+
+@given(st.sampled_from([INDEX, "success.0.faiss"]), st.none() | DECLARED, st.none() | DECLARED)
+@example(INDEX, None, 50 * GIB_OF_FLOATS)  # issue 45, item 6: std::bad_alloc, a MemoryError traceback
+def test_an_index_declaring_any_entries_or_vectors_loads_or_raises_naming_it(
+    scratch: Path, saved: Path, name: str, entries: int | None, floats: int | None
+) -> None:
+    with tempfile.TemporaryDirectory() as folder:
+        content = declare_in_index(Path(shutil.copy(saved / name, folder)), entries=entries, floats=floats)
+        _load_with(scratch, saved, name, content.read_bytes())

@@ -319,7 +319,9 @@ LeaveOneOutOption = Annotated[
 ]
 FpsOption = Annotated[
     float | None,
-    typer.Option("--fps", help="Frame rate of the `time` timeline (default: the data's, else 10)."),
+    typer.Option(
+        "--fps", help="Frame rate of the `time` timeline, 0.001–10000 (default: the data's, else 10)."
+    ),
 ]
 DataArgument = Annotated[
     Path, typer.Argument(help="Dataset root (any supported layout) or one episode folder.")

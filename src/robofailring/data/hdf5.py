@@ -7,10 +7,10 @@ nothing else is read. How a dataset's rows are read (`RowFormat`) is decided fro
 (`row_format`), by the layouts and by a memory's references alike: encoded rows are ALOHA's, JPEGs
 of the camera's RGB array given to `cv2.imencode` as it was (decoded without a channel swap), and a
 file whose `data` group says `macros_image_convention` = `opengl` (LIBERO) stores its images bottom
-row first (flipped back when read). A row is read only when its declared frame size is within
-`images.max_frame_pixels()` (an encoded row: its bytes within three bytes a pixel of it), and what
-h5py raises for a damaged file (a corrupt object header is a KeyError) is a DataError naming the file
-(`hdf5_faults`).
+row first (flipped back when read). A row is read only when its declared frame size is neither empty
+(no height or width) nor over `images.max_frame_pixels()` (an encoded row: its bytes within three
+bytes a pixel of it), and what h5py raises for a damaged file (a corrupt object header is a KeyError)
+is a DataError naming the file (`hdf5_faults`).
 """
 
 from __future__ import annotations
@@ -158,8 +158,13 @@ class HDF5Frame:
         return row if self.length is None else row[: self.length]
 
     def _check_size(self, shape: tuple[int, ...]) -> None:
-        """Refuse a row larger than a frame may be, from the dataset's declared shape (nothing read)."""
+        """Refuse a row larger than a frame may be, or of no pixels, from the dataset's declared shape (nothing read)."""
         if not self.form.encoded and len(shape) >= 3:
+            if shape[1] < 1 or shape[2] < 1:  # OpenCV asserts on an empty image when it is resized
+                raise DataError(
+                    f"{self.reference}: the dataset's frames are {shape[2]}×{shape[1]} pixels, empty "
+                    f"(shape {shape})"
+                )
             check_frame_size(shape[2], shape[1], source=self.reference)
         elif self.form.encoded and len(shape) == 2 and shape[1] > 3 * max_frame_pixels():
             raise DataError(

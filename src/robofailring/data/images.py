@@ -150,6 +150,8 @@ def as_rgb(image: np.ndarray, *, source: str = "image") -> np.ndarray:
         array = np.repeat(array[:, :, None], 3, axis=2)
     if array.ndim != 3 or array.shape[2] not in (3, 4):
         raise DataError(f"{source}: expected an (H, W, 3) RGB image, got shape {array.shape}")
+    if not array.shape[0] or not array.shape[1]:  # OpenCV asserts on an empty image when it is resized
+        raise DataError(f"{source}: an image of shape {array.shape} is empty (no width or no height)")
     if array.shape[2] == 4:
         array = array[:, :, :3]
     if array.dtype != np.uint8:

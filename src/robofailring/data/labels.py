@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -30,6 +29,7 @@ from pathlib import Path
 from robofailring.data.grounding import UNTYPED, Vocabulary, parse_symbol
 from robofailring.data.model import Outcome, Skipped, Trajectory, parse_onset_frame
 from robofailring.errors import DataError, OutputError, SymbolError
+from robofailring.jsontext import parse_json
 
 #: The columns a person fills in: kept from an existing labels file whenever they are not empty.
 FILLED_COLUMNS: tuple[str, ...] = ("outcome", "symbol", "description", "task", "onset_frame", "split")
@@ -92,10 +92,7 @@ def _rows(path: Path) -> list[dict[str, object]]:
         raise DataError(f"cannot read labels file {path}: {error}") from error
     if path.suffix.lower() != ".json":
         return _read_csv(text, path)[1]
-    try:
-        loaded = json.loads(text)
-    except json.JSONDecodeError as error:
-        raise DataError(f"labels file {path} is not valid JSON: {error}") from error
+    loaded = parse_json(text, source=f"labels file {path}")
     if not isinstance(loaded, list) or not all(isinstance(row, dict) for row in loaded):
         raise DataError(
             f"labels file {path} must hold a JSON list of objects (episode_index, outcome, symbol)"

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import os
 import zipfile
 from dataclasses import dataclass, replace
@@ -16,6 +15,7 @@ from robofailring.data.model import Outcome, Skipped, Trajectory, parse_onset_fr
 from robofailring.data.registry import Found, Layout, register
 from robofailring.data.signals import Signal, SignalKind
 from robofailring.errors import DataError
+from robofailring.jsontext import parse_json
 
 PROJECT_MANIFEST: Final[str] = "manifest.json"
 PROJECT_FORMAT: Final[str] = "robofailring-dataset"
@@ -25,10 +25,15 @@ def read_project_manifest(root: Path) -> dict[str, Any]:
     """The project's dataset manifest, validated enough to name what is wrong."""
     path = Path(root) / PROJECT_MANIFEST
     try:
-        manifest = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError) as error:
+        text = path.read_bytes()
+    except OSError as error:
         raise DataError(f"cannot read dataset manifest {path}: {error}") from error
-    if manifest.get("format") != PROJECT_FORMAT or not isinstance(manifest.get("episodes"), list):
+    manifest = parse_json(text, source=f"dataset manifest {path}")
+    if (
+        not isinstance(manifest, dict)
+        or manifest.get("format") != PROJECT_FORMAT
+        or not isinstance(manifest.get("episodes"), list)
+    ):
         raise DataError(f"{path} is not a robofailring dataset manifest (format {PROJECT_FORMAT!r})")
     return dict(manifest)
 

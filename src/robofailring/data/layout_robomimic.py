@@ -16,7 +16,6 @@ read. Outcome and symbol come from `--labels`, except that the demos of a file n
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Final
@@ -36,6 +35,7 @@ from robofailring.data.hdf5_signals import robomimic_signals
 from robofailring.data.model import Frame, Outcome, Skipped, Trajectory
 from robofailring.data.registry import Found, Layout, register
 from robofailring.errors import DataError
+from robofailring.jsontext import parse_json
 
 _IMAGE_SUFFIXES: Final[tuple[str, ...]] = ("_image", "_rgb")
 _SPLIT_ORDER: Final[tuple[str, ...]] = ("train", "valid", "test")
@@ -56,10 +56,7 @@ def _json_attr(group: Any, name: str, where: str) -> dict[str, Any]:
     if raw is None:
         return {}
     text = raw.decode() if isinstance(raw, bytes) else str(raw)
-    try:
-        loaded = json.loads(text)
-    except json.JSONDecodeError as error:
-        raise DataError(f"{where}: attribute {name!r} is not valid JSON ({error})") from error
+    loaded = parse_json(text, source=f"{where}: attribute {name!r}")
     return loaded if isinstance(loaded, dict) else {}
 
 

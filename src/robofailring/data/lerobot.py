@@ -12,7 +12,6 @@ from a labels file.
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -27,6 +26,7 @@ from robofailring.data.registry import Layout, register
 from robofailring.data.video import VideoFrames, open_video
 from robofailring.errors import DataError, describe
 from robofailring.extras import needs_extra
+from robofailring.jsontext import parse_json
 
 INFO: Final[str] = "meta/info.json"
 IMAGE_PREFIX: Final[str] = "observation.images."
@@ -40,9 +40,10 @@ def is_lerobot(root: Path) -> bool:
 def read_info(root: Path) -> dict[str, Any]:
     path = Path(root) / INFO
     try:
-        info = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as error:  # unreadable, not UTF-8, not JSON
+        text = path.read_bytes()
+    except OSError as error:
         raise DataError(f"cannot read LeRobot info {path}: {error}") from error
+    info = parse_json(text, source=f"LeRobot info {path}")
     required = ("codebase_version", "fps", "features")
     for key in required:
         if not isinstance(info, dict) or key not in info:
@@ -121,10 +122,7 @@ def _read_jsonl(path: Path) -> list[dict[str, Any]]:
     rows = []
     for number, line in enumerate(lines, 1):
         if line.strip():
-            try:
-                rows.append(json.loads(line))
-            except ValueError as error:  # not JSON, or a number too long to read
-                raise DataError(f"{path}:{number}: not valid JSON ({error})") from error
+            rows.append(parse_json(line, source=f"{path}:{number}"))
     return rows
 
 

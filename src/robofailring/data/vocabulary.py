@@ -17,7 +17,6 @@ vocabulary as `vocabulary.json` in its folder.
 
 from __future__ import annotations
 
-import json
 import re
 import reprlib
 from pathlib import Path
@@ -25,6 +24,7 @@ from typing import Any, Final
 
 from robofailring.data.grounding import Vocabulary, reserved_symbols
 from robofailring.errors import VocabularyError
+from robofailring.jsontext import parse_json
 
 _SYMBOL: Final = re.compile(r"^[a-z][a-z0-9]*(_[a-z0-9]+)*$")
 _KEYS: Final[frozenset[str]] = frozenset({"symbols", "stages"})
@@ -103,12 +103,7 @@ class _Pairs(dict[Any, Any]):
 
 
 def _load_json(text: str, path: Path) -> Any:
-    try:
-        return json.loads(text, object_pairs_hook=_Pairs)
-    except json.JSONDecodeError as error:
-        raise VocabularyError(f"vocabulary file {path} is not valid JSON: {error}") from error
-    except RecursionError as error:
-        raise VocabularyError(f"vocabulary file {path} nests lists or objects too deeply") from error
+    return parse_json(text, source=f"vocabulary file {path}", error=VocabularyError, object_pairs_hook=_Pairs)
 
 
 def _load_yaml(text: str, path: Path) -> Any:

@@ -35,6 +35,7 @@ from robofailring.encoders.cache import default_cache_dir
 from robofailring.encoders.spec import EncoderSpec
 from robofailring.errors import EncoderError
 from robofailring.extras import needs_extra
+from robofailring.jsontext import parse_json
 
 EXPORT_VERSION: Final[int] = 1
 MODEL_NAME: Final[str] = "model.onnx"
@@ -95,7 +96,7 @@ def read_export(folder: Path) -> Export | None:
         return None
     manifest = folder / MANIFEST_NAME
     try:
-        meta = json.loads(manifest.read_text(encoding="utf-8"))
+        meta = parse_json(manifest.read_bytes(), source=str(manifest), error=EncoderError)
         files = meta["files"]
         for name, recorded in files.items():
             if not isinstance(recorded, dict):

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import contextlib
-import json
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -13,6 +12,7 @@ import numpy as np
 from robofailring.encoders.base import file_digest, l2_normalize
 from robofailring.errors import EncoderError, WeightsUnavailableError
 from robofailring.extras import needs_extra
+from robofailring.jsontext import parse_json
 
 _HOW_TO_PROVIDE = (
     "No weights can be downloaded on this machine. Provide them in one of two ways: "
@@ -34,9 +34,10 @@ def _resolve_model_name(model: str) -> str:
         if not candidate.is_file():
             raise EncoderError(f"open_clip model config {candidate} does not exist")
         try:
-            json.loads(candidate.read_text())
-        except (OSError, json.JSONDecodeError) as error:
-            raise EncoderError(f"open_clip model config {candidate} is not valid JSON: {error}") from error
+            text = candidate.read_bytes()
+        except OSError as error:
+            raise EncoderError(f"cannot read open_clip model config {candidate}: {error}") from error
+        parse_json(text, source=f"open_clip model config {candidate}", error=EncoderError)
         open_clip.add_model_config(candidate)
         return candidate.stem
     if model not in open_clip.list_models():

@@ -29,6 +29,7 @@ from robofailring.encoders.base import file_digest, l2_normalize
 from robofailring.encoders.trained_config import check_trained_config
 from robofailring.errors import EncoderError
 from robofailring.extras import needs_extra
+from robofailring.jsontext import parse_json
 
 CONFIG_NAME: Final[str] = "encoder.json"
 WEIGHTS_NAME: Final[str] = "weights.pt"
@@ -180,9 +181,10 @@ def read_encoder_config(directory: Path) -> dict[str, Any]:
             f"trained encoder folder {directory} does not exist (write one with `robofailring train-encoder`)"
         )
     try:
-        config = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError) as error:
+        text = path.read_bytes()
+    except OSError as error:
         raise EncoderError(f"cannot read trained-encoder config {path}: {error}") from error
+    config = parse_json(text, source=f"trained-encoder config {path}", error=EncoderError)
     if not isinstance(config, dict) or config.get("format") != FORMAT:
         raise EncoderError(f"{path} is not a trained-encoder config (format {FORMAT!r})")
     if config.get("format_version") != FORMAT_VERSION:

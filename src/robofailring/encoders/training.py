@@ -49,6 +49,7 @@ from robofailring.encoders.trained import (
 )
 from robofailring.errors import DataError, SettingError
 from robofailring.extras import needs_extra
+from robofailring.jsontext import parse_json
 from robofailring.progress import progress_bar
 
 HELD_OUT_SPLITS: Final[frozenset[str]] = frozenset({"test", "ood"})
@@ -234,8 +235,8 @@ def existing_encoder(out: Path) -> dict[str, Any] | None:
     if not out.is_dir():
         raise DataError(f"cannot write a trained encoder at {out}: it is a file")
     try:
-        config = json.loads((out / CONFIG_NAME).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        config = parse_json((out / CONFIG_NAME).read_bytes(), source=str(out / CONFIG_NAME))
+    except (OSError, DataError):
         config = None
     if isinstance(config, dict) and config.get("format") == FORMAT:
         return config

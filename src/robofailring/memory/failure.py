@@ -21,10 +21,12 @@ from robofailring.data.model import Trajectory
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.encoders.spec import EncoderSpec
 from robofailring.errors import EncoderMismatchError, MemoryFormatError, UnknownTaskError
+from robofailring.jsontext import parse_json
 from robofailring.memory.encoding import BuildStats, encode_failures, failure_views
 from robofailring.memory.entry import MemoryEntry, Neighbor
 from robofailring.memory.format import parse_entry, read_jsonl, stored_vocabulary
 from robofailring.memory.index import FLAT, TaskIndexSet
+from robofailring.memory.index_file import read_index_file
 from robofailring.memory.manifest import MemoryManifest, StoredCalibration
 from robofailring.memory.pairs import pair_vectors
 from robofailring.memory.recipe import MemoryRecipe
@@ -334,10 +336,7 @@ class FailureMemory:
         manifest_path = directory / MANIFEST
         if not manifest_path.is_file() and not restore_interrupted(directory):
             raise MemoryFormatError(f"{directory} is not a failure memory: {MANIFEST} is missing")
-        try:
-            manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
-        except ValueError as error:  # not JSON, not UTF-8, or a number too long to read
-            raise MemoryFormatError(f"{manifest_path} is not valid JSON: {error}") from error
+        manifest = parse_json(manifest_path.read_bytes(), source=str(manifest_path), error=MemoryFormatError)
         version = manifest.get("format_version") if isinstance(manifest, dict) else None
         if version not in READABLE_VERSIONS:
             readable = ", ".join(map(str, READABLE_VERSIONS))
@@ -346,10 +345,7 @@ class FailureMemory:
             )
         manifest = MemoryManifest.parse(manifest, manifest_path)
         vocabulary = stored_vocabulary(directory, manifest.vocabulary)
-        try:
-            index = faiss.read_index(str(directory / INDEX))
-        except RuntimeError as error:
-            raise MemoryFormatError(f"cannot read Faiss index {directory / INDEX}: {error}") from error
+        index = read_index_file(directory / INDEX, count=manifest.count, dim=manifest.dim)
         entries = read_jsonl(
             directory / ENTRIES, lambda record: MemoryEntry(**parse_entry(record, vocabulary)), what="entry"
         )

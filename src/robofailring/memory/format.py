@@ -6,7 +6,6 @@ is a MemoryFormatError naming the file and line. The manifest's checks live in
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Final, TypeVar
@@ -14,6 +13,7 @@ from typing import Any, Final, TypeVar
 from robofailring.data.grounding import Vocabulary, parse_symbol
 from robofailring.data.vocabulary import read_vocabulary
 from robofailring.errors import MemoryFormatError, SymbolError, VocabularyError
+from robofailring.jsontext import parse_json
 
 ENTRY_FIELDS: Final[tuple[str, ...]] = ("task", "symbol", "episode", "view", "start", "end")
 
@@ -32,10 +32,7 @@ def read_jsonl(path: Path, parse: Callable[[Any], Row], *, what: str) -> list[Ro
             for number, line in enumerate(handle, 1):
                 if not line.strip():
                     continue
-                try:
-                    record = json.loads(line)
-                except ValueError as error:  # not JSON, or a number too long to read
-                    raise MemoryFormatError(f"{path}:{number}: not JSON ({error})") from error
+                record = parse_json(line, source=f"{path}:{number}", error=MemoryFormatError)
                 try:
                     rows.append(parse(record))
                 except MemoryFormatError as error:

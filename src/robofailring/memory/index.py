@@ -21,6 +21,7 @@ import faiss
 import numpy as np
 
 from robofailring.errors import MemoryFormatError, SettingError
+from robofailring.memory.index_file import read_index_file
 from robofailring.memory.index_kinds import (
     DEFAULT_K_FACTOR,
     FLAT,
@@ -160,13 +161,17 @@ class TaskIndex:
 
     @classmethod
     def read(
-        cls, path: Path, ids: np.ndarray, episodes: Sequence[str], spec: IndexSpec | None = None
+        cls,
+        path: Path,
+        ids: np.ndarray,
+        episodes: Sequence[str],
+        spec: IndexSpec | None = None,
+        *,
+        dim: int | None = None,
     ) -> TaskIndex:
-        """Read what `write` wrote; `spec` (from the manifest) must match the file when given."""
-        try:
-            index = faiss.read_index(str(path))
-        except RuntimeError as error:
-            raise MemoryFormatError(f"cannot read Faiss index {path}: {error}") from error
+        """Read what `write` wrote; `spec` (from the manifest) must match the file when given, and the
+        file must declare `len(ids)` entries (of `dim`) and no more than it holds (`read_index_file`)."""
+        index = read_index_file(path, count=len(ids), dim=dim)
         found = spec_of(index)
         if spec is not None and found != spec:
             raise MemoryFormatError(
@@ -267,9 +272,16 @@ class TaskIndexSet:
 
     @classmethod
     def read(
-        cls, directory: Path, section: Mapping[str, Any], tasks: Sequence[str], episodes: Sequence[str]
+        cls,
+        directory: Path,
+        section: Mapping[str, Any],
+        tasks: Sequence[str],
+        episodes: Sequence[str],
+        *,
+        dim: int | None = None,
     ) -> TaskIndexSet:
-        """Read what `write` wrote; `tasks` and `episodes` per global id, as given to `build`."""
+        """Read what `write` wrote; `tasks` and `episodes` per global id, as given to `build`, the
+        vectors of `dim` dimensions when given."""
         task_array = np.asarray(tasks, dtype=object)
         episode_array = np.asarray(episodes, dtype=object)
         if set(section) != set(task_array.tolist()):
@@ -285,6 +297,6 @@ class TaskIndexSet:
                 )
             path = Path(directory) / str(described["file"])
             by_task[task] = TaskIndex.read(
-                path, rows, episode_array[rows].tolist(), IndexSpec.from_dict(described)
+                path, rows, episode_array[rows].tolist(), IndexSpec.from_dict(described), dim=dim
             )
         return cls(by_task)

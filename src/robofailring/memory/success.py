@@ -18,7 +18,6 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Final
 
-import faiss
 import numpy as np
 
 from robofailring.data.model import Frame, Outcome, Skipped, Trajectory
@@ -27,6 +26,7 @@ from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import MemoryFormatError
 from robofailring.memory.format import read_jsonl
 from robofailring.memory.index import TaskIndexSet
+from robofailring.memory.index_file import read_index_file
 from robofailring.memory.pairs import check_pairing, pair_vectors
 from robofailring.memory.references import absolute_reference, to_stored
 from robofailring.memory.thinning import check_step, thin_run
@@ -316,7 +316,7 @@ class SuccessMemory:
         tasks = [run.task for run, size in zip(runs, sizes, strict=True) for _ in range(size)]
         episodes = [run.episode for run, size in zip(runs, sizes, strict=True) for _ in range(size)]
         if isinstance(section.get("index"), dict):
-            index = TaskIndexSet.read(directory, section["index"], tasks, episodes)
+            index = TaskIndexSet.read(directory, section["index"], tasks, episodes, dim=dim)
             return cls(
                 index.exact_vectors(frames, dim),
                 runs,
@@ -325,14 +325,8 @@ class SuccessMemory:
                 offered=section.get("offered"),
                 thinning=section.get("thinning"),
             )
-        try:  # written before per-task index files: one flat index of every frame, re-indexed here
-            flat = faiss.read_index(str(directory / INDEX))
-        except RuntimeError as error:
-            raise MemoryFormatError(f"cannot read Faiss index {directory / INDEX}: {error}") from error
-        if flat.ntotal != frames:
-            raise MemoryFormatError(
-                f"{directory}: {INDEX} has {flat.ntotal} success frames, {RUNS} has {frames}"
-            )
+        # written before per-task index files: one flat index of every frame, re-indexed here
+        flat = read_index_file(directory / INDEX, count=frames)
         vectors = flat.reconstruct_n(0, flat.ntotal) if flat.ntotal else np.zeros((0, flat.d), np.float32)
         return cls(vectors, runs, dim=int(flat.d))
 

@@ -20,6 +20,7 @@ from robofailring.atomic import atomic_directory
 from robofailring.data.images import write_png
 from robofailring.data.layouts import PROJECT_FORMAT, PROJECT_MANIFEST, read_project_manifest
 from robofailring.errors import DataError, SettingError
+from robofailring.jsontext import parse_json
 from robofailring.sim.appearance import look_mode
 from robofailring.sim.cameras import VIEWS
 from robofailring.sim.episode import DURATION_S, EpisodeResult, episode_fps, run_episode
@@ -267,10 +268,14 @@ def _execute(jobs: list[_Job], workers: int) -> Iterator[dict[str, Any]]:
 def _cached(config: GenerateConfig) -> bool:
     path = config.out / PROJECT_MANIFEST
     try:
-        manifest = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        manifest = parse_json(path.read_bytes(), source=str(path))
+    except (OSError, DataError):
         return False
-    if manifest.get("generator") != GENERATOR or manifest.get("config") != config.content():
+    if (
+        not isinstance(manifest, dict)
+        or manifest.get("generator") != GENERATOR
+        or manifest.get("config") != config.content()
+    ):
         return False
     return all((config.out / record["dir"]).is_dir() for record in manifest.get("episodes", []))
 
@@ -282,9 +287,9 @@ def _check_replaceable(out: Path) -> None:
     if not out.is_dir():
         raise DataError(f"cannot generate a dataset at {out}: it is a file")
     try:
-        manifest = json.loads((out / PROJECT_MANIFEST).read_text(encoding="utf-8"))
+        manifest = parse_json((out / PROJECT_MANIFEST).read_bytes(), source=str(out / PROJECT_MANIFEST))
         ours = manifest.get("generator") == GENERATOR
-    except (OSError, ValueError, AttributeError):
+    except (OSError, DataError, AttributeError):
         ours = False
     if not ours and any(out.iterdir()):
         raise DataError(
