@@ -7,7 +7,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Final
 
-from robofailring.data.labels import apply_labels, read_labels, unlabelled_rows
+from robofailring.data.labels import label_key, read_labels
 from robofailring.data.layouts import load_dataset
 from robofailring.data.model import Outcome, Skipped, Trajectory
 from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
@@ -77,16 +77,17 @@ class TriageResult:
 
 
 def load_episodes(config: TriageConfig) -> tuple[list[Trajectory], list[Skipped]]:
-    """The data's episodes as unlabelled runs, with the outcomes of `config.labels` applied."""
-    dataset = load_dataset(config.data, task=config.task, views=config.views)
-    found = [replace(t, outcome=None, symbol=None, description=None) for t in dataset.trajectories()]
-    skipped = list(dataset.skipped)
-    if config.labels is not None:
-        found = apply_labels(found, read_labels(config.labels), source=Path(config.labels))
-        blank = unlabelled_rows(Path(config.labels))
-        skipped += [blank] if blank is not None else []
+    """The data's episodes as unlabelled runs, with `config.labels` applied as every verb applies them
+    (outcome, symbol, and the task column, which a folder of several tasks needs); outcomes the data's
+    own names state are dropped."""
+    dataset = load_dataset(config.data, task=config.task, labels=config.labels, views=config.views)
+    labels = read_labels(config.labels) if config.labels is not None else {}
+    found = [
+        t if label_key(t, labels) is not None else replace(t, outcome=None, symbol=None, description=None)
+        for t in dataset.trajectories()
+    ]
     check_unique_episodes(found)
-    return found, skipped
+    return found, list(dataset.skipped)
 
 
 def run_triage(config: TriageConfig) -> TriageResult:

@@ -1,0 +1,35 @@
+"""What a user reads when things are unusual (issue 45 item 7): each message says what happened, through
+the command line where it is met."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+from fault_helpers import cli
+from synthetic import write_labelled_runs
+
+
+def _rows(path: Path) -> list[dict[str, str]]:
+    with path.open(newline="", encoding="utf-8") as handle:
+        return list(csv.DictReader(handle))
+
+
+def test_triage_takes_each_episodes_task_from_the_labels_file(tmp_path: Path) -> None:
+    data, labels = write_labelled_runs(tmp_path / "runs", runs=8, length=4)
+    rows = _rows(labels)
+    for number, row in enumerate(rows):  # a folder of two tasks, told only by the labels' task column
+        row["task"] = ("pick_cube", "push_cube")[number // 4]
+    with labels.open("w", newline="", encoding="utf-8") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    out = tmp_path / "out"
+    result = cli(
+        "triage", data, "--labels", labels, "--out", out, "--replays", "0", "--cache-dir", tmp_path / "c"
+    )
+    assert result.exit_code == 0, result.output
+    ranked = {
+        row["episode"]: (row["task"], row["reference"], row["outcome"]) for row in _rows(out / "triage.csv")
+    }
+    assert ranked == {row["episode"]: (row["task"], "successes", row["outcome"]) for row in rows}
