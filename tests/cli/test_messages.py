@@ -6,8 +6,8 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
-from fault_helpers import cli
-from synthetic import write_labelled_runs
+from fault_helpers import cli, refused
+from synthetic import write_labelled_runs, write_unlabelled_runs
 
 
 def _rows(path: Path) -> list[dict[str, str]]:
@@ -33,3 +33,12 @@ def test_triage_takes_each_episodes_task_from_the_labels_file(tmp_path: Path) ->
         row["episode"]: (row["task"], row["reference"], row["outcome"]) for row in _rows(out / "triage.csv")
     }
     assert ranked == {row["episode"]: (row["task"], "successes", row["outcome"]) for row in rows}
+
+
+def test_triage_of_one_frame_episodes_says_no_run_has_two_frames(tmp_path: Path) -> None:
+    data, _ = write_unlabelled_runs(tmp_path / "runs", successes=3, failures=("grasp_wp2",), length=1)
+    result = cli(
+        "triage", data, "--task", "pick_cube", "--out", tmp_path / "out", "--cache-dir", tmp_path / "c"
+    )
+    refused(result, 2, f"none of the 4 episode(s) of {data} has a view of at least 2 frames", "1 frame(s)")
+    assert "success" not in result.output

@@ -14,7 +14,7 @@ from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.scored import prefetch_scored
 from robofailring.encoders import open_encoder
-from robofailring.errors import SettingError
+from robofailring.errors import DataError, SettingError
 from robofailring.memory.recipe import DEFAULT_RECIPE
 from robofailring.progress import progress_bar
 from robofailring.triage.ranking import TaskScale, rank
@@ -93,6 +93,7 @@ def load_episodes(config: TriageConfig) -> tuple[list[Trajectory], list[Skipped]
 def run_triage(config: TriageConfig) -> TriageResult:
     """Score and rank every episode of `config.data` (docs/triage.md)."""
     trajectories, skipped = load_episodes(config)
+    _require_two_frames(trajectories, config.data)
     tasks = list(dict.fromkeys(t.task for t in trajectories))
     reference = _reference(config, trajectories, tasks, skipped)
     scores: list[EpisodeScore] = []
@@ -117,6 +118,19 @@ def run_triage(config: TriageConfig) -> TriageResult:
         trajectories={t.key: t for t in trajectories},
         notes=notes,
         skipped_inputs=skipped,
+    )
+
+
+def _require_two_frames(trajectories: list[Trajectory], data: Path) -> None:
+    """DataError when no episode has a view of 2 frames: each frame is scored against its run's first, so
+    such data has nothing to rank (said before a reference is built, which would blame it instead)."""
+    if not trajectories or any(len(frames) >= 2 for t in trajectories for frames in t.views.values()):
+        return
+    example = trajectories[0]
+    raise DataError(
+        f"none of the {len(trajectories)} episode(s) of {data} has a view of at least 2 frames (e.g. "
+        f"{example.key}: {example.length} frame(s)); triage scores each frame against its run's first "
+        "frame, so a run needs 2 frames at least"
     )
 
 
