@@ -4,10 +4,11 @@ the command line where it is met."""
 from __future__ import annotations
 
 import csv
+import json
 from pathlib import Path
 
 from fault_helpers import cli, refused
-from synthetic import write_labelled_runs, write_unlabelled_runs
+from synthetic import write_episode, write_labelled_runs, write_unlabelled_runs
 
 
 def _rows(path: Path) -> list[dict[str, str]]:
@@ -42,3 +43,23 @@ def test_triage_of_one_frame_episodes_says_no_run_has_two_frames(tmp_path: Path)
     )
     refused(result, 2, f"none of the 4 episode(s) of {data} has a view of at least 2 frames", "1 frame(s)")
     assert "success" not in result.output
+
+
+def test_a_symlink_loop_is_listed_as_not_read_and_the_real_views_are_scored(
+    built_memory: Path, cache: list[str], tmp_path: Path
+) -> None:
+    episode = write_episode(tmp_path / "pick_cube_grasp_wp2_episode9", "pick_cube", "grasp_wp2", length=3)
+    (episode / "front" / "again").symlink_to(".")  # a link back to its own folder
+    (episode / "wrist" / "x").symlink_to("y")  # two links that lead to each other
+    (episode / "wrist" / "y").symlink_to("x")
+    result = cli("detect", episode, "--memory", built_memory, "--json", *cache)
+    assert result.exit_code == 3, result.output  # scored, with inputs not read
+    assert set(json.loads(result.stdout)["views"]) == {"front", "overhead", "wrist"}
+    assert (
+        f"{episode / 'front' / 'again'}: a link back to {(episode / 'front').resolve()}, a folder holding it "
+        "(a symlink loop): not read"
+    ) in result.output
+    assert (
+        f"{episode / 'wrist' / 'x'}: a symlink loop ({episode / 'wrist' / 'x'} -> y never reaches"
+        in result.output
+    )
