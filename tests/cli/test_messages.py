@@ -7,8 +7,12 @@ import csv
 import json
 from pathlib import Path
 
+import numpy as np
 from fault_helpers import cli, refused
+from hdf5_writer import write_robomimic
 from synthetic import write_episode, write_labelled_runs, write_unlabelled_runs
+
+from robofailring import load_dataset
 
 
 def _rows(path: Path) -> list[dict[str, str]]:
@@ -63,3 +67,19 @@ def test_a_symlink_loop_is_listed_as_not_read_and_the_real_views_are_scored(
         f"{episode / 'wrist' / 'x'}: a symlink loop ({episode / 'wrist' / 'x'} -> y never reaches"
         in result.output
     )
+
+
+def test_a_damaged_hdf5_file_is_named_with_why_it_cannot_be_read(tmp_path: Path) -> None:
+    data = tmp_path / "demos"
+    data.mkdir()
+    (data / "lift.hdf5").write_bytes(b"not an HDF5 file: a download cut short")
+    result = cli("build-memory", data, "--out", tmp_path / "memory")
+    refused(result, 2, f"cannot read HDF5 file {data / 'lift.hdf5'}", "file signature not found")
+
+    def frame(demo: int, camera: int, t: int) -> np.ndarray:
+        return np.full((8, 8, 3), 10 * demo + camera + t, dtype=np.uint8)
+
+    for name in ("lift", "can"):  # beside two readable files, the damaged one is listed with its reason
+        write_robomimic(data / f"{name}_ph.hdf5", frame, demos=1, length=3)
+    unread = {s.path.name: s.reason for s in load_dataset(data, task="lift").skipped}
+    assert unread["lift.hdf5"].startswith(f"cannot read HDF5 file {data / 'lift.hdf5'}: ")
