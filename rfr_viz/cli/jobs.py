@@ -143,7 +143,7 @@ def evaluate_cmd(
         ),
         growth=parse_growth(growth) if growth is not None else (),
     )
-    report_skipped(outcome.result.skipped_inputs)
+    report_skipped(outcome.result.skipped_inputs, kept_in=str(outcome.json_path))
     typer.echo(outcome.result.to_markdown())
     if isinstance(outcome, FoldsOutcome):  # the split gave no held-out evaluation: said, status 3
         typer.echo(

@@ -83,3 +83,19 @@ def test_a_damaged_hdf5_file_is_named_with_why_it_cannot_be_read(tmp_path: Path)
         write_robomimic(data / f"{name}_ph.hdf5", frame, demos=1, length=3)
     unread = {s.path.name: s.reason for s in load_dataset(data, task="lift").skipped}
     assert unread["lift.hdf5"].startswith(f"cannot read HDF5 file {data / 'lift.hdf5'}: ")
+
+
+def test_replay_of_many_skipped_trajectories_lists_the_first_twenty(
+    built_memory: Path, cache: list[str], tmp_path: Path
+) -> None:
+    data = tmp_path / "data"
+    for episode in range(30):  # one frame each: nothing to score
+        write_episode(data / f"pick_cube_success_episode{episode}", "pick_cube", None, length=1, layout="aha")
+    result = cli("replay", data, "--memory", built_memory, "--out", tmp_path / "out", *cache)
+    lines = result.output.splitlines()
+    listed = [
+        line.split("skipped ", 1)[1] for line in lines if "skipped pick_cube/" in line
+    ]  # after a progress bar
+    assert len(listed) == 20 and listed[0].startswith("pick_cube/pick_cube_success_episode0: trajectory ")
+    assert "  … and 10 more" in lines
+    assert lines[-1] == "error: no recording written (30 trajectories skipped)"
