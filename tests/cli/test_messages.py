@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -99,3 +100,21 @@ def test_replay_of_many_skipped_trajectories_lists_the_first_twenty(
     assert len(listed) == 20 and listed[0].startswith("pick_cube/pick_cube_success_episode0: trajectory ")
     assert "  … and 10 more" in lines
     assert lines[-1] == "error: no recording written (30 trajectories skipped)"
+
+
+def test_calibrate_at_a_tiny_target_fpr_says_the_runs_it_needs_in_a_few_digits(
+    memory: Path, cache: list[str], tmp_path: Path
+) -> None:
+    successes = tmp_path / "successes"
+    for episode in range(3):
+        write_episode(
+            successes / f"pick_cube_success_episode{episode}", "pick_cube", None, length=3, layout="aha"
+        )
+    result = cli("calibrate", successes, "--memory", memory, "--target-fpr", "1e-300", *cache)
+    refused(
+        result, 2, "a guaranteed false-positive rate of 1e-300 needs at least 1e+300 success runs", "got 3"
+    )
+    assert re.search(r"\d{10}", result.output) is None
+    calibrated = cli("calibrate", successes, "--memory", memory, "--target-fpr", "0.25", *cache)
+    assert calibrated.exit_code == 0, calibrated.output
+    assert "on 3 success runs (target FPR 25 %)" in calibrated.output
