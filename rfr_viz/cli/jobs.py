@@ -205,9 +205,14 @@ def review_cmd(
     if write_labels is not None:
         written = write_review_labels(config)
         report_skipped(written.skipped_inputs)
+        left = (
+            f"{written.unlabelled} of its {written.total} row(s) to label (fill in outcome, symbol or description)"
+            if written.unlabelled
+            else f"all {written.total} row(s) labelled"
+        )
         typer.echo(
-            f"wrote {written.path}: {len(written.rows)} row(s) to label (fill in outcome, symbol or description), "
-            f"then: robofailring build-memory {data} --labels {written.path} --add-to MEMORY"
+            f"wrote {written.path}: {left}, then: robofailring build-memory {data} --labels {written.path} "
+            "--add-to MEMORY"
         )
         return
     result = review(config)

@@ -177,8 +177,10 @@ class ReviewLabels:
     """The labels file `review --write-labels` wrote: its path, its rows, what the data loader did not read."""
 
     path: Path
-    rows: list[dict[str, str]]
+    rows: list[dict[str, str]]  # this review's rows (its false alarms and misses)
     skipped_inputs: list[Skipped]
+    unlabelled: int = 0  # rows of the file written still without an outcome: what is left to label
+    total: int = 0  # rows of the file written, other episodes' included
 
 
 def write_review_labels(config: ReviewConfig) -> ReviewLabels:
@@ -225,7 +227,10 @@ def write_review_labels(config: ReviewConfig) -> ReviewLabels:
         writer.writeheader()
         writer.writerows(merged)
         write_text_atomic(path, buffer.getvalue())
-    return ReviewLabels(path=path, rows=rows, skipped_inputs=list(dataset.skipped))
+    unlabelled = sum(not row.get("outcome", "").strip() for row in merged)
+    return ReviewLabels(
+        path=path, rows=rows, skipped_inputs=list(dataset.skipped), unlabelled=unlabelled, total=len(merged)
+    )
 
 
 def _label_row(trace: DetectionTrace, *, kind: str) -> dict[str, str]:
