@@ -31,10 +31,19 @@ details { margin: 8px 0; } summary { cursor: pointer; font-weight: 600; }
 """
 _CODE = re.compile(r"`([^`]*)`")
 _BOLD = re.compile(r"\*\*([^*]*)\*\*")
+_ESCAPED = re.compile(r"\\([!-/:-@\[-`{-~])")  # Markdown's backslash escapes (`markdown_text` writes them)
+_HIDDEN = re.compile("[\ue000-\ue07f]")  # an escaped character, held in the private use area meanwhile
+
+
+def _hide(line: str) -> str:
+    """The line with each escaped character out of the way of markup (`|`, `*`, `` ` ``), as one private character."""
+    return _ESCAPED.sub(lambda match: chr(0xE000 + ord(match[1])), line)
 
 
 def _inline(text: str) -> str:
-    return _BOLD.sub(r"<b>\1</b>", _CODE.sub(r"<code>\1</code>", html.escape(text)))
+    """A line or cell of `_hide`-den Markdown as HTML, its escaped characters as the text they are."""
+    marked = _BOLD.sub(r"<b>\1</b>", _CODE.sub(r"<code>\1</code>", html.escape(text)))
+    return _HIDDEN.sub(lambda match: html.escape(chr(ord(match[0]) - 0xE000)), marked)
 
 
 def markdown_html(markdown: str) -> str:
@@ -56,7 +65,7 @@ def markdown_html(markdown: str) -> str:
             out.append("</table>")
             table.clear()
 
-    for line in markdown.splitlines():
+    for line in map(_hide, markdown.splitlines()):
         if line.startswith("|"):
             cells = [cell.strip() for cell in line.strip().strip("|").split("|")]
             if all(set(cell) <= set(":-") and cell for cell in cells):

@@ -4,6 +4,7 @@ the command line where it is met."""
 from __future__ import annotations
 
 import csv
+import html
 import json
 import re
 from pathlib import Path
@@ -118,3 +119,27 @@ def test_calibrate_at_a_tiny_target_fpr_says_the_runs_it_needs_in_a_few_digits(
     calibrated = cli("calibrate", successes, "--memory", memory, "--target-fpr", "0.25", *cache)
     assert calibrated.exit_code == 0, calibrated.output
     assert "on 3 success runs (target FPR 25 %)" in calibrated.output
+
+
+def test_names_with_markup_stay_text_in_evaluation_md_and_report_html(tmp_path: Path) -> None:
+    camera = "<b>wr|ist"  # a view named with HTML and a table's cell separator
+    data, labels = write_labelled_runs(tmp_path / "runs", runs=16, length=5, views=("front", camera))
+    out = tmp_path / "eval"
+    result = cli(
+        "evaluate",
+        data,
+        "--labels",
+        labels,
+        "--out",
+        out,
+        "--target-fpr",
+        "0.5",
+        "--cache-dir",
+        tmp_path / "c",
+    )
+    assert result.exit_code == 0, result.output
+    markdown = (out / "evaluation.md").read_text(encoding="utf-8")
+    row = next(line for line in markdown.splitlines() if line.startswith(r"| \<b\>wr\|ist | "))
+    assert len(re.split(r"(?<!\\)\|", row)) == 5  # the views table's three cells, the name in one
+    assert "<b>" not in markdown
+    assert f"<td>{html.escape(camera, quote=False)}</td>" in (out / "report.html").read_text(encoding="utf-8")
