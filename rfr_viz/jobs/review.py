@@ -5,7 +5,6 @@ from __future__ import annotations
 import csv
 import io
 import json
-from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Final
@@ -23,7 +22,7 @@ from robofailring.data.layouts import load_dataset
 from robofailring.data.model import Skipped
 from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
 from robofailring.detection.loader import detector_from
-from robofailring.detection.rules import PAPER, RULES, ScoringRule, default_rule, rule_named
+from robofailring.detection.rules import PAPER, ScoringRule, reported_default, rule_named
 from robofailring.detection.trace import DetectionTrace
 from robofailring.errors import DataError, OutputError
 from robofailring.explain.vlm import VLMConfig
@@ -86,7 +85,7 @@ def _read_evaluation(config: ReviewConfig) -> Reviewed:
     try:
         evaluation = json.loads(Path(config.evaluation).read_text(encoding="utf-8"))
         rules = evaluation.get("rules") or {}
-        rule = rule_named(config.score) if config.score else _judging(rules)
+        rule = rule_named(config.score) if config.score else reported_default(rules)
         if rule.name in rules:
             keys = {kind: list(rules[rule.name][kind.replace("-", "_")]) for kind in KINDS}
             threshold = float(rules[rule.name]["threshold"])
@@ -102,18 +101,6 @@ def _read_evaluation(config: ReviewConfig) -> Reviewed:
             f"{config.evaluation} is not an evaluation written by `robofailring evaluate` ({error})"
         ) from error
     return Reviewed(rule=rule, threshold=threshold, k=k, memory_dir=memory_dir, keys=keys)
-
-
-def _judging(rules: Mapping[str, object]) -> ScoringRule:
-    """The rule a detector on the evaluated memory judges by by default (`default_rule`), from the rules the
-    evaluation reports: one needing S⁺ reported means success runs, one needing S⁻ failure entries."""
-    reported = [RULES[name] for name in rules if name in RULES]
-    if not reported:
-        return PAPER  # an evaluation written before every rule was reported
-    return default_rule(
-        successes=any(rule.needs_successes for rule in reported),
-        failures=any(rule.needs_failures for rule in reported),
-    )
 
 
 def _replay_keys(

@@ -10,6 +10,7 @@ import re
 from pathlib import Path
 
 import numpy as np
+import pytest
 from fault_helpers import cli, refused
 from hdf5_writer import write_robomimic
 from synthetic import write_episode, write_labelled_runs, write_unlabelled_runs
@@ -121,25 +122,42 @@ def test_calibrate_at_a_tiny_target_fpr_says_the_runs_it_needs_in_a_few_digits(
     assert "on 3 success runs (target FPR 25 %)" in calibrated.output
 
 
-def test_names_with_markup_stay_text_in_evaluation_md_and_report_html(tmp_path: Path) -> None:
-    camera = "<b>wr|ist"  # a view named with HTML and a table's cell separator
-    data, labels = write_labelled_runs(tmp_path / "runs", runs=16, length=5, views=("front", camera))
-    out = tmp_path / "eval"
+CAMERA = "<b>wr|ist"  # a view named with HTML and a table's cell separator
+
+
+@pytest.fixture(scope="module")
+def evaluated(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """An evaluation's folder: labelled image runs of views `front` and CAMERA, evaluated at α = 0.5."""
+    root = tmp_path_factory.mktemp("evaluated")
+    data, labels = write_labelled_runs(root / "runs", runs=16, length=5, views=("front", CAMERA))
+    out = root / "eval"
     result = cli(
-        "evaluate",
-        data,
-        "--labels",
-        labels,
-        "--out",
-        out,
-        "--target-fpr",
-        "0.5",
-        "--cache-dir",
-        tmp_path / "c",
+        "evaluate", data, "--labels", labels, "--out", out, "--target-fpr", "0.5", "--cache-dir", root / "c"
     )
     assert result.exit_code == 0, result.output
-    markdown = (out / "evaluation.md").read_text(encoding="utf-8")
+    return out
+
+
+def test_names_with_markup_stay_text_in_evaluation_md_and_report_html(evaluated: Path) -> None:
+    markdown = (evaluated / "evaluation.md").read_text(encoding="utf-8")
     row = next(line for line in markdown.splitlines() if line.startswith(r"| \<b\>wr\|ist | "))
     assert len(re.split(r"(?<!\\)\|", row)) == 5  # the views table's three cells, the name in one
     assert "<b>" not in markdown
-    assert f"<td>{html.escape(camera, quote=False)}</td>" in (out / "report.html").read_text(encoding="utf-8")
+    assert f"<td>{html.escape(CAMERA, quote=False)}</td>" in (evaluated / "report.html").read_text(
+        encoding="utf-8"
+    )
+
+
+def test_report_html_names_the_rule_of_each_false_alarm_and_leads_with_the_default(evaluated: Path) -> None:
+    rules = json.loads((evaluated / "evaluation.json").read_text())["rules"]
+    assert (rules["paper"]["false_alarms"], rules["contrast"]["false_alarms"]) == (["pick_cube/run_00"], [])
+    page = (evaluated / "report.html").read_text(encoding="utf-8")
+    said = re.findall(
+        r"<p>([^<]*(?:<b>[^<]*</b>)?[^<]*) of the (\w+) rule( \(the detector's default\))?", page
+    )
+    assert [(rule, bool(default)) for _, rule, default in said] == [("contrast", True), ("paper", False)]
+    assert said[0][0] == "No false alarm and no miss"
+    assert (
+        "<b>1 false alarm</b> of the paper rule: pick_cube/run_00. Replay it, paused at the moment: "
+        "<code>robofailring review evaluation.json --data DATA --kind false-alarms --score paper</code>"
+    ) in page
