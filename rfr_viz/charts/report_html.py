@@ -16,6 +16,7 @@ from typing import Any, Final
 from rfr_viz.charts.evaluation import evaluation_charts
 from rfr_viz.charts.to_svg import chart_svg
 from robofailring.atomic import write_text_atomic
+from robofailring.detection.rules import PAPER, reported_default
 
 REPORT_NAME: Final[str] = "report.html"
 STYLE: Final[str] = """
@@ -31,10 +32,19 @@ details { margin: 8px 0; } summary { cursor: pointer; font-weight: 600; }
 """
 _CODE = re.compile(r"`([^`]*)`")
 _BOLD = re.compile(r"\*\*([^*]*)\*\*")
+_ESCAPED = re.compile(r"\\([!-/:-@\[-`{-~])")  # Markdown's backslash escapes (`markdown_text` writes them)
+_HIDDEN = re.compile("[\ue000-\ue07f]")  # an escaped character, held in the private use area meanwhile
+
+
+def _hide(line: str) -> str:
+    """The line with each escaped character out of the way of markup (`|`, `*`, `` ` ``), as one private character."""
+    return _ESCAPED.sub(lambda match: chr(0xE000 + ord(match[1])), line)
 
 
 def _inline(text: str) -> str:
-    return _BOLD.sub(r"<b>\1</b>", _CODE.sub(r"<code>\1</code>", html.escape(text)))
+    """A line or cell of `_hide`-den Markdown as HTML, its escaped characters as the text they are."""
+    marked = _BOLD.sub(r"<b>\1</b>", _CODE.sub(r"<code>\1</code>", html.escape(text)))
+    return _HIDDEN.sub(lambda match: html.escape(chr(ord(match[0]) - 0xE000)), marked)
 
 
 def markdown_html(markdown: str) -> str:
@@ -56,7 +66,7 @@ def markdown_html(markdown: str) -> str:
             out.append("</table>")
             table.clear()
 
-    for line in markdown.splitlines():
+    for line in map(_hide, markdown.splitlines()):
         if line.startswith("|"):
             cells = [cell.strip() for cell in line.strip().strip("|").split("|")]
             if all(set(cell) <= set(":-") and cell for cell in cells):
@@ -88,17 +98,32 @@ def _links(recordings: Mapping[str, Path], folder: Path) -> str:
 
 
 def _review(evaluation: Mapping[str, Any], json_name: str) -> str:
+    """Each rule's false alarms and misses, each named by its rule: first the rule a detector on the memory
+    judges by by default (what `robofailring review` replays without --score), then the others (an
+    evaluation written before every rule was reported: its paper rule's)."""
+    rules: Mapping[str, Any] = evaluation.get("rules") or {
+        PAPER.name: {kind: evaluation.get(kind) or [] for kind in ("false_alarms", "misses")}
+    }
+    default = reported_default(evaluation.get("rules") or {}).name
     lines = []
-    for kind, key, one in (("false-alarms", "false_alarms", "false alarm"), ("misses", "misses", "miss")):
-        listed = evaluation.get(key) or []
-        if listed:
+    for name in sorted(rules, key=lambda rule: rule != default):
+        said = f"the {html.escape(name)} rule" + (" (the detector's default)" if name == default else "")
+        score = "" if name == default else f" --score {html.escape(name)}"
+        for kind, key, one in (("false-alarms", "false_alarms", "false alarm"), ("misses", "misses", "miss")):
+            listed = [row if isinstance(row, str) else row["key"] for row in rules[name].get(key) or []]
+            if not listed:
+                continue
             what = one if len(listed) == 1 else kind.replace("-", " ")
-            keys = ", ".join(html.escape(str(row["key"])) for row in listed[:12])
+            keys = ", ".join(html.escape(str(row)) for row in listed[:12])
             more = f" and {len(listed) - 12} more" if len(listed) > 12 else ""
             lines.append(
-                f"<p><b>{len(listed)} {what}</b>: {keys}{more}. Replay them, each paused at "
-                f"the moment: <code>robofailring review {html.escape(json_name)} --data DATA --kind {kind}</code></p>"
+                f"<p><b>{len(listed)} {what}</b> of {said}: {keys}{more}. "
+                + ("Replay it, paused" if len(listed) == 1 else "Replay them, each paused")
+                + f" at the moment: <code>robofailring review {html.escape(json_name)} --data DATA --kind {kind}"
+                f"{score}</code></p>"
             )
+        if name == default and not lines:
+            lines.append(f"<p>No false alarm and no miss of {said}.</p>")
     return "".join(lines)
 
 

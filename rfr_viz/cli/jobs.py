@@ -143,7 +143,7 @@ def evaluate_cmd(
         ),
         growth=parse_growth(growth) if growth is not None else (),
     )
-    report_skipped(outcome.result.skipped_inputs)
+    report_skipped(outcome.result.skipped_inputs, kept_in=str(outcome.json_path))
     typer.echo(outcome.result.to_markdown())
     if isinstance(outcome, FoldsOutcome):  # the split gave no held-out evaluation: said, status 3
         typer.echo(
@@ -205,9 +205,14 @@ def review_cmd(
     if write_labels is not None:
         written = write_review_labels(config)
         report_skipped(written.skipped_inputs)
+        left = (
+            f"{written.unlabelled} of its {written.total} row(s) to label (fill in outcome, symbol or description)"
+            if written.unlabelled
+            else f"all {written.total} row(s) labelled"
+        )
         typer.echo(
-            f"wrote {written.path}: {len(written.rows)} row(s) to label (fill in outcome, symbol or description), "
-            f"then: robofailring build-memory {data} --labels {written.path} --add-to MEMORY"
+            f"wrote {written.path}: {left}, then: robofailring build-memory {data} --labels {written.path} "
+            "--add-to MEMORY"
         )
         return
     result = review(config)

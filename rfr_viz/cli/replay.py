@@ -41,6 +41,7 @@ from robofailring.cli.options import (
     detector_config,
     print_notes,
     report_skipped,
+    report_skipped_runs,
     vlm_config,
     warn_missing_references,
 )
@@ -66,8 +67,7 @@ def _report(result: ReplayResult, out: Path) -> None:
         warn_missing_references(memory_dir, check)
     warn_vlm_errors(result)
     print_notes(result.notes)
-    for key, reason in result.skipped:
-        typer.echo(f"skipped {key}: {reason}")
+    report_skipped_runs(result.skipped)
     finish(failure=result.failure)
     typer.echo(
         f"{len(result.recordings)} recording(s) in {out.resolve()}"

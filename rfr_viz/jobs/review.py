@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import csv
 import io
-from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Final
@@ -22,7 +21,7 @@ from robofailring.data.layouts import load_dataset
 from robofailring.data.model import Skipped
 from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
 from robofailring.detection.loader import detector_from
-from robofailring.detection.rules import PAPER, RULES, ScoringRule, default_rule, rule_named
+from robofailring.detection.rules import PAPER, ScoringRule, reported_default, rule_named
 from robofailring.detection.trace import DetectionTrace
 from robofailring.errors import DataError, OutputError
 from robofailring.explain.vlm import VLMConfig
@@ -88,7 +87,7 @@ def _read_evaluation(config: ReviewConfig) -> Reviewed:
             Path(config.evaluation).read_bytes(), source=f"evaluation {config.evaluation}"
         )
         rules = evaluation.get("rules") or {}
-        rule = rule_named(config.score) if config.score else _judging(rules)
+        rule = rule_named(config.score) if config.score else reported_default(rules)
         if rule.name in rules:
             keys = {kind: list(rules[rule.name][kind.replace("-", "_")]) for kind in KINDS}
             threshold = float(rules[rule.name]["threshold"])
@@ -104,18 +103,6 @@ def _read_evaluation(config: ReviewConfig) -> Reviewed:
             f"{config.evaluation} is not an evaluation written by `robofailring evaluate` ({error})"
         ) from error
     return Reviewed(rule=rule, threshold=threshold, k=k, memory_dir=memory_dir, keys=keys)
-
-
-def _judging(rules: Mapping[str, object]) -> ScoringRule:
-    """The rule a detector on the evaluated memory judges by by default (`default_rule`), from the rules the
-    evaluation reports: one needing S⁺ reported means success runs, one needing S⁻ failure entries."""
-    reported = [RULES[name] for name in rules if name in RULES]
-    if not reported:
-        return PAPER  # an evaluation written before every rule was reported
-    return default_rule(
-        successes=any(rule.needs_successes for rule in reported),
-        failures=any(rule.needs_failures for rule in reported),
-    )
 
 
 def _replay_keys(
@@ -179,8 +166,10 @@ class ReviewLabels:
     """The labels file `review --write-labels` wrote: its path, its rows, what the data loader did not read."""
 
     path: Path
-    rows: list[dict[str, str]]
+    rows: list[dict[str, str]]  # this review's rows (its false alarms and misses)
     skipped_inputs: list[Skipped]
+    unlabelled: int = 0  # rows of the file written still without an outcome: what is left to label
+    total: int = 0  # rows of the file written, other episodes' included
 
 
 def write_review_labels(config: ReviewConfig) -> ReviewLabels:
@@ -227,7 +216,10 @@ def write_review_labels(config: ReviewConfig) -> ReviewLabels:
         writer.writeheader()
         writer.writerows(merged)
         write_text_atomic(path, buffer.getvalue())
-    return ReviewLabels(path=path, rows=rows, skipped_inputs=list(dataset.skipped))
+    unlabelled = sum(not row.get("outcome", "").strip() for row in merged)
+    return ReviewLabels(
+        path=path, rows=rows, skipped_inputs=list(dataset.skipped), unlabelled=unlabelled, total=len(merged)
+    )
 
 
 def _label_row(trace: DetectionTrace, *, kind: str) -> dict[str, str]:

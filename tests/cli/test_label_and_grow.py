@@ -183,6 +183,7 @@ def test_review_merges_into_a_filled_labels_file_and_refuses_any_other_file(
 
     again = cli("review", json_path, "--data", data, "--score", "paper", "--write-labels", labels, *cache)
     assert again.exit_code == 0, again.output
+    assert f"wrote {labels}: 1 of its 3 row(s) to label" in again.output  # only the row still empty
     merged = {row["episode"]: row for row in csv.DictReader(labels.read_text().splitlines())}
     assert list(merged) == ["pick_cube_success_episode1", "pick_cube_slip_wp3_episode1", "someone_elses_run"]
     miss = merged["pick_cube_slip_wp3_episode1"]
@@ -192,6 +193,13 @@ def test_review_merges_into_a_filled_labels_file_and_refuses_any_other_file(
     )  # the detector's columns are its own, refreshed
     assert merged["someone_elses_run"]["outcome"] == "success"
     assert merged["pick_cube_success_episode1"]["outcome"] == ""
+    with labels.open("w", newline="", encoding="utf-8") as handle:  # the last row filled in too
+        writer = csv.DictWriter(handle, fieldnames=list(merged["someone_elses_run"]))
+        writer.writeheader()
+        writer.writerows(row | {"outcome": row["outcome"] or "success"} for row in merged.values())
+    done = cli("review", json_path, "--data", data, "--score", "paper", "--write-labels", labels, *cache)
+    assert done.exit_code == 0, done.output
+    assert f"wrote {labels}: all 3 row(s) labelled, then: robofailring build-memory" in done.output
 
     other = tmp_path / "results.csv"
     other.write_text("run,accuracy\n1,0.9\n")

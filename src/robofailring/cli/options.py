@@ -131,18 +131,36 @@ EtaOption = Annotated[
 ]
 
 
-def report_skipped(skipped: Sequence[Skipped], *, shown: int = 5) -> None:
-    """One summary line of what the loaders did not read, then the first few with their reason (stderr)."""
+#: Lines of one list (inputs not read, trajectories skipped) printed before one line counts the rest.
+SHOWN_LINES: Final[int] = 20
+
+
+def report_skipped(skipped: Sequence[Skipped], *, kept_in: str | None = None) -> None:
+    """One summary line of what the loaders did not read, then the first `SHOWN_LINES` with their reason
+    (stderr); `kept_in`: the output listing them all, named in the line that counts the rest."""
     if not skipped:
         return
     typer.secho(
-        f"note: {len(skipped)} folder(s)/file(s) under the data were not read"
-        + (f"; the first {shown}:" if len(skipped) > shown else ":"),
+        f"note: {len(skipped):,} folder(s)/file(s) under the data were not read:",
         fg=typer.colors.YELLOW,
         err=True,
     )
-    for item in skipped[:shown]:
-        typer.secho(f"  {item.path}: {item.reason}", err=True)
+    echo_first([f"  {item.path}: {item.reason}" for item in skipped], kept_in=kept_in, err=True)
+
+
+def report_skipped_runs(skipped: Sequence[tuple[str, str]], *, kept_in: str | None = None) -> None:
+    """The trajectories a verb skipped, `skipped <key>: <reason>`, the first `SHOWN_LINES` of them."""
+    echo_first([f"skipped {key}: {reason}" for key, reason in skipped], kept_in=kept_in)
+
+
+def echo_first(lines: Sequence[str], *, kept_in: str | None = None, err: bool = False) -> None:
+    """The first `SHOWN_LINES` of `lines`, then one line counting the rest (10,000 skipped episodes are not
+    10,000 lines), naming `kept_in`, where they are all, when there is such an output."""
+    for line in lines[:SHOWN_LINES]:
+        typer.echo(line, err=err)
+    if len(lines) > SHOWN_LINES:
+        where = f" (all in {kept_in})" if kept_in else ""
+        typer.echo(f"  … and {len(lines) - SHOWN_LINES:,} more{where}", err=err)
 
 
 SuccessStepOption = Annotated[

@@ -10,6 +10,7 @@ not read as colour: it is listed as not read.
 
 from __future__ import annotations
 
+import errno
 import os
 import re
 from collections.abc import Sequence
@@ -45,18 +46,60 @@ def natural_key(path: Path) -> list[tuple[int, int | str]]:
 
 
 def subdirs(directory: Path) -> list[Path]:
-    """The sub-folders of a folder in natural order, hidden ones left out (one listing: a folder of
-    600 frames is not stat-ed file by file)."""
+    """The sub-folders of a folder in natural order, hidden ones and symlink loops (`looped`) left out
+    (one listing: a folder of 600 frames is not stat-ed file by file)."""
     with os.scandir(directory) as entries:
-        found = [Path(e.path) for e in entries if not e.name.startswith(".") and e.is_dir()]
+        found = [
+            Path(e.path)
+            for e in entries
+            if not e.name.startswith(".") and _is(e, "dir") and not (e.is_symlink() and looped(Path(e.path)))
+        ]
     return sorted(found, key=natural_key)
+
+
+def _is(entry: os.DirEntry[str], kind: str) -> bool:
+    """Whether a folder entry is a `dir` or a `file`; False for a link that loops (ELOOP), which `looped` names."""
+    try:
+        return entry.is_dir() if kind == "dir" else entry.is_file()
+    except OSError:
+        return False
+
+
+def looped(path: Path) -> str | None:
+    """Why a symlink is not followed: it leads back to a folder holding it (`front/again -> .`), so walking
+    it never ends, or it loops without reaching anything; None for any other path."""
+    if not path.is_symlink():
+        return None
+    try:
+        target = path.resolve(strict=True)
+    except RuntimeError:  # Python 3.11 says "Symlink loop from …"
+        return f"a symlink loop ({path} -> {os.readlink(path)} never reaches a file or folder): not read"
+    except OSError as error:
+        if error.errno != errno.ELOOP:
+            return None  # a dangling link: listed by its caller as what it is not
+        return f"a symlink loop ({path} -> {os.readlink(path)} never reaches a file or folder): not read"
+    holder = path.parent.resolve()
+    if target == holder or target in holder.parents:
+        return f"a link back to {target}, a folder holding it (a symlink loop): not read"
+    return None
+
+
+def unread(path: Path, reason: str) -> Skipped:
+    """`path` listed as not read, for `reason`, or as the symlink loop it is (`looped`)."""
+    return Skipped(path, looped(path) or reason)
+
+
+def beside(directory: Path, reason: str) -> list[Skipped]:
+    """A folder of folders' files (beside its episodes or tasks), each listed as not read for `reason`, and
+    its symlink loops (`looped`), which `subdirs` leaves out, for theirs."""
+    return [unread(p, reason) for p in visible(directory) if p.is_file() or looped(p)]
 
 
 def listing(directory: Path) -> list[tuple[Path, bool]]:
     """The entries of a folder in natural order, hidden names left out, each with whether it is a file:
     one scandir, whose entries carry their type, so a folder of 600 frames is not stat-ed file by file."""
     with os.scandir(directory) as entries:
-        found = [(Path(e.path), e.is_file()) for e in entries if not e.name.startswith(".")]
+        found = [(Path(e.path), _is(e, "file")) for e in entries if not e.name.startswith(".")]
     return sorted(found, key=lambda entry: natural_key(entry[0]))
 
 
@@ -167,7 +210,7 @@ def view_folders(directory: Path) -> tuple[Views, list[Skipped]]:
             skipped.append(_unnumbered(sub, unnumbered, "<index>.<ext>"))
         if others and (numbered or unnumbered):
             skipped += [
-                Skipped(sub / name, "not an image (.png, .jpg, .jpeg, .bmp, .webp)") for name in others
+                unread(sub / name, "not an image (.png, .jpg, .jpeg, .bmp, .webp)") for name in others
             ]
         elif not numbered and not unnumbered:
             skipped.append(Skipped(sub, "no images in this view folder"))
@@ -194,13 +237,14 @@ def episode_views(directory: Path) -> tuple[Views, list[Skipped]]:
         kind, others = "images named <view>_<index>", [entry[0] for entry in entries if not is_image(entry)]
     else:
         views, skipped = view_folders(directory)
-        kind, others = "view folders", [p for p, _ in entries if not p.is_dir()]
+        folders = set(subdirs(directory))
+        kind, others = "view folders", [p for p, _ in entries if p not in folders]
         if not views:
             views, skipped = video_views(directory), []
             kind = "videos"
             others = [p for p, is_file in entries if not (is_file and p.suffix.lower() in VIDEO_SUFFIXES)]
     if views:
-        skipped += [Skipped(p, f"not part of an episode stored as {kind}") for p in others]
+        skipped += [unread(p, f"not part of an episode stored as {kind}") for p in others]
     return views, skipped
 
 

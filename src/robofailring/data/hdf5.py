@@ -88,6 +88,17 @@ def hdf5_faults(path: Path | str) -> Iterator[None]:
         raise DataError(f"cannot read HDF5 file {path}: {why} (a damaged or unfinished file?)") from error
 
 
+def unreadable(path: Path) -> str | None:
+    """Why an HDF5 file cannot be opened (an error naming it), None when it opens: what a folder whose
+    files match no layout says of a damaged one."""
+    try:
+        with hdf5_faults(path):
+            open_hdf5(path)
+    except DataError as error:
+        return str(error)
+    return None
+
+
 def describe(handle: Any, *, limit: int = 12) -> str:
     """What an HDF5 file holds, for errors: its datasets with shapes (the first `limit`)."""
     found: list[str] = []

@@ -10,7 +10,7 @@ import re
 from pathlib import Path
 from typing import Final
 
-from robofailring.data.folders import episode_views, subdirs, visible
+from robofailring.data.folders import beside, episode_views, subdirs
 from robofailring.data.model import Outcome, Skipped, Trajectory
 from robofailring.data.registry import Found, Layout, register
 
@@ -62,10 +62,7 @@ def aha_trajectories(root: Path, *, first_only: bool = False) -> Found:
     skipped: list[Skipped] = []
     found = _aha_level(root, top, skipped, first_only=first_only)
     if found:
-        for path in visible(root):
-            if path.is_file():
-                skipped.append(Skipped(path, "a file beside the episode folders"))
-        return found, skipped
+        return found, skipped + beside(root, "a file beside the episode folders")
     skipped = []
     for group in top:
         group_skipped: list[Skipped] = []
@@ -75,13 +72,11 @@ def aha_trajectories(root: Path, *, first_only: bool = False) -> Found:
         if episodes:
             found += episodes
             skipped += group_skipped
-            skipped += [
-                Skipped(p, "a file beside the episode folders") for p in visible(group) if p.is_file()
-            ]
+            skipped += beside(group, "a file beside the episode folders")
         else:
             skipped.append(Skipped(group, "holds no AHA episode folder"))
     if found:
-        skipped += [Skipped(p, "a file beside the task folders") for p in visible(root) if p.is_file()]
+        skipped += beside(root, "a file beside the task folders")
     return found, skipped
 
 

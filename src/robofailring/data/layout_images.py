@@ -20,11 +20,13 @@ from robofailring.data.folders import (
     FRAME_WORDS,
     Views,
     aha_files,
+    beside,
     is_image,
     listing,
+    looped,
     subdirs,
+    unread,
     view_folders,
-    visible,
 )
 from robofailring.data.layout_aha import parse_aha_name
 from robofailring.data.model import Outcome, Skipped, Trajectory
@@ -76,16 +78,14 @@ def _episode_views(directory: Path) -> tuple[Views, list[Skipped]] | None:
         views, skipped = view_folders(directory)
         if not views:
             return None
-        kind, others = "an episode of view folders", [p for p, is_file in listed if is_file]
-    return views, skipped + [Skipped(p, f"not part of {kind}") for p in others]
+        kind, others = "an episode of view folders", [p for p, is_file in listed if is_file or looped(p)]
+    return views, skipped + [unread(p, f"not part of {kind}") for p in others]
 
 
 def image_trajectories(root: Path, *, task: str | None = None) -> Found:
     """One trajectory per episode folder; folders that hold no episode are listed as skipped."""
     found: list[Trajectory] = []
-    skipped: list[Skipped] = [
-        Skipped(p, "a file beside the episode folders") for p in visible(root) if p.is_file()
-    ]
+    skipped = beside(root, "a file beside the episode folders")
     folders = subdirs(root)
     with progress_bar(total=len(folders), desc=f"listing {root.name or root}", unit="episode") as bar:
         for directory in folders:

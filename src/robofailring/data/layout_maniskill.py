@@ -7,7 +7,7 @@ import re
 from pathlib import Path
 from typing import Final
 
-from robofailring.data.folders import episode_views, subdirs, visible
+from robofailring.data.folders import beside, episode_views, subdirs
 from robofailring.data.model import Outcome, Skipped, Trajectory
 from robofailring.data.registry import Found, Layout, register
 
@@ -66,11 +66,7 @@ def maniskill_trajectories(root: Path, *, first_only: bool = False) -> Found:
         if found:
             for level in levels[:depth]:
                 for parent in level:
-                    skipped += [
-                        Skipped(p, "a file where episode folders are expected")
-                        for p in visible(parent)
-                        if p.is_file()
-                    ]
+                    skipped += beside(parent, "a file where episode folders are expected")
                     if not subdirs(parent):
                         skipped.append(Skipped(parent, "holds no episode folder"))
             return found, skipped

@@ -30,6 +30,7 @@ from robofailring.data.hdf5 import (
     is_image_array,
     open_hdf5,
     row_format,
+    unreadable,
 )
 from robofailring.data.hdf5_signals import robomimic_signals
 from robofailring.data.model import Frame, Outcome, Skipped, Trajectory
@@ -103,7 +104,9 @@ def robomimic_trajectories(root: Path, *, task: str | None = None) -> Found:
     entries = visible(root)
     files = [path for path in entries if is_robomimic_file(path)]
     skipped = [
-        Skipped(path, f"not a robomimic-style HDF5 file ({SHAPE})") for path in entries if path not in files
+        Skipped(path, (is_hdf5(path) and unreadable(path)) or f"not a robomimic-style HDF5 file ({SHAPE})")
+        for path in entries
+        if path not in files
     ]
     found: list[Trajectory] = []
     for path in files:

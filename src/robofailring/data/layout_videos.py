@@ -9,7 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Final
 
-from robofailring.data.folders import has_images, has_videos, subdirs
+from robofailring.data.folders import beside, has_images, has_videos, subdirs
 from robofailring.data.layout_episode import episode_trajectory
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.data.registry import Found, Layout, register
@@ -19,11 +19,7 @@ from robofailring.errors import DataError
 def video_trajectories(root: Path, *, task: str | None = None) -> Found:
     """`<root>/<episode>/<view>.mp4`: one trajectory per folder of videos; others reported."""
     found: list[Trajectory] = []
-    skipped: list[Skipped] = [
-        Skipped(p, "a file beside the episode folders")
-        for p in root.iterdir()
-        if p.is_file() and not p.name.startswith(".")
-    ]
+    skipped = beside(root, "a file beside the episode folders")
     for directory in subdirs(root):
         if not has_videos(directory):
             skipped.append(Skipped(directory, "no video file (.mp4, .webm, .mkv) in this episode folder"))

@@ -19,7 +19,9 @@ from robofailring.data import (
     layout_videos,
     lerobot,
 )
+from robofailring.data.folders import visible
 from robofailring.data.grounding import Vocabulary
+from robofailring.data.hdf5 import is_hdf5, unreadable
 from robofailring.data.labels import apply_labels, read_labels, unlabelled_rows
 from robofailring.data.layout_aha import AHA_FAILURES, parse_aha_name
 from robofailring.data.layout_episode import episode_trajectory
@@ -174,6 +176,12 @@ def _layout(root: Path) -> Layout:
     for layout in LAYOUTS:
         if layout.detect(root):
             return layout
+    damaged = [why for path in visible(root) if is_hdf5(path) and (why := unreadable(path)) is not None]
+    if damaged:  # its HDF5 files may well be a layout's: say why they were not read
+        more = (
+            f"; {len(damaged) - 1} more HDF5 file(s) in it cannot be read either" if len(damaged) > 1 else ""
+        )
+        raise DataError(f"{root} matches no known dataset layout: {damaged[0]}{more}")
     raise DataError(f"{root} matches no known dataset layout; {LAYOUTS_HELP}")
 
 

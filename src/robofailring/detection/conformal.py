@@ -33,6 +33,11 @@ def successes_needed(alpha: float) -> int:
     return max(math.ceil(1.0 / alpha - 1.0 - 1e-9), 1)
 
 
+def runs_text(count: int) -> str:
+    """A count of runs for a message: `12,345`, or `1e+300` past a billion (a tiny α needs a huge count)."""
+    return f"{count:,}" if count < 10**9 else f"{float(count):.3g}"
+
+
 def smallest_target_fpr(successes: int) -> float:
     """The smallest α that `successes` calibration runs allow: 1/(n+1) (n ≥ 1/α − 1)."""
     return 1.0 / (successes + 1)
@@ -44,7 +49,7 @@ def attainable_target_fpr(successes: int, alpha: float) -> float:
     check_target_fpr(alpha)
     if successes < 1:
         raise DataError(
-            f"no calibration run: no threshold at any α (α = {alpha:g} needs {successes_needed(alpha)})"
+            f"no calibration run: no threshold at any α (α = {alpha:g} needs {runs_text(successes_needed(alpha))})"
         )
     return alpha if conformal_rank(successes, alpha) <= successes else smallest_target_fpr(successes)
 
@@ -69,7 +74,7 @@ def conformal_threshold(peaks: Sequence[float], alpha: float) -> float:
     if n == 0 or rank > n:
         smallest = f"; the smallest α these {n} runs allow is {smallest_target_fpr(n):.4g}" if n else ""
         raise DataError(
-            f"a guaranteed false-positive rate of {alpha:g} needs at least {successes_needed(alpha)} success "
+            f"a guaranteed false-positive rate of {alpha:g} needs at least {runs_text(successes_needed(alpha))} success "
             f"runs to calibrate on, got {n}{smallest}"
         )
     return float(np.nextafter(values[rank - 1], np.float32(np.inf)))
@@ -124,7 +129,7 @@ def realised_fpr_parameters(successes: int, alpha: float) -> tuple[int, int]:
     if successes < 1 or rank > successes:
         raise DataError(
             f"{successes} calibration runs allow no threshold at α = {alpha:g} "
-            f"(at least {successes_needed(alpha)} needed)"
+            f"(at least {runs_text(successes_needed(alpha))} needed)"
         )
     return successes + 1 - rank, rank
 

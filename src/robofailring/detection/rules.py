@@ -15,6 +15,7 @@ threshold under its `name` (`calibration.rules.<name>` in a memory's manifest).
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Iterable
 from typing import ClassVar, Final
 
 import numpy as np
@@ -159,6 +160,19 @@ def default_rule(*, successes: bool, failures: bool = True) -> ScoringRule:
     if successes:
         return CONTRAST if failures else NOVELTY
     return PAPER
+
+
+def reported_default(names: Iterable[str]) -> ScoringRule:
+    """The rule a detector on an evaluated memory judges by by default (`default_rule`), from the rules the
+    evaluation reports (its JSON's `rules`): one needing S⁺ means success runs, one needing S⁻ failure
+    entries; the paper rule for an evaluation written before every rule was reported."""
+    reported = [RULES[name] for name in names if name in RULES]
+    if not reported:
+        return PAPER
+    return default_rule(
+        successes=any(rule.needs_successes for rule in reported),
+        failures=any(rule.needs_failures for rule in reported),
+    )
 
 
 class RuleThresholds:

@@ -270,7 +270,7 @@ class Calibration:
         """The summary `robofailring calibrate` prints: each calibrated rule's threshold."""
         head = (
             f"calibrated for encoder {self.encoder} on {self.successes} success runs (target FPR "
-            f"{100 * self.target_fpr:.1f} %); stored in {memory}/manifest.json"
+            f"{100 * self.target_fpr:g} %); stored in {memory}/manifest.json"
         )
         lines = [head]
         if self.band_asked != NONE and self.band == NONE:

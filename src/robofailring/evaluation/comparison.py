@@ -11,6 +11,7 @@ from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
 from robofailring.encoders import EncoderSpec, cache_identity, open_encoder
 from robofailring.errors import SettingError
 from robofailring.evaluation.calibration import CalibrateConfig, calibrate
+from robofailring.evaluation.markdown import markdown_text
 from robofailring.evaluation.run import (
     EvaluateConfig,
     EvaluationResult,
@@ -93,7 +94,7 @@ def comparison_table(results: Sequence[EvaluationResult]) -> str:
         latency = f"{result.latency_ms.get('total', float('nan')):.2f}"
         for rule in result.rules.values():
             lines.append(
-                f"| `{result.encoder}` | {result.failure_frames}, {result.pairing} | {rule.rule.name} | {rule.rule.symbol} = {rule.threshold:.4f} | "
+                f"| {markdown_text(result.encoder, code=True)} | {result.failure_frames}, {result.pairing} | {rule.rule.name} | {rule.rule.symbol} = {rule.threshold:.4f} | "
                 f"{_pct(rule.recall)} | {_pct(rule.fpr)} | {_pct(rule.ts_mean)} | {rule.auc:.3f} | {latency} |"
             )
     return "\n".join(lines)

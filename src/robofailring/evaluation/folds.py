@@ -13,7 +13,7 @@ from typing import Any
 
 from robofailring.data.model import Trajectory
 from robofailring.data.vocabulary import read_vocabulary
-from robofailring.detection.conformal import AUC_LEVEL, auc, auc_interval, successes_needed
+from robofailring.detection.conformal import AUC_LEVEL, auc, auc_interval, runs_text, successes_needed
 from robofailring.detection.detector import DetectionTrace, FailureDetector
 from robofailring.detection.rules import RULES, ScoringRule
 from robofailring.encoders import CachedEncoder
@@ -147,7 +147,7 @@ class CrossValidation:
             lines += [
                 "",
                 f"**No false-positive-rate guarantee holds for the cross-validation:** α = {100 * self.target_fpr:g} % needs "
-                f"{successes_needed(self.target_fpr)} success runs to calibrate on and some folds had fewer "
+                f"{runs_text(successes_needed(self.target_fpr))} success runs to calibrate on and some folds had fewer "
                 f"({self._short_folds()} of {self.plan_folds} judged at a larger α), so the pooled FPR is what "
                 "these runs showed at the α used, not a promise.",
             ]

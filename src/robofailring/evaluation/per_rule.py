@@ -14,6 +14,7 @@ from robofailring.detection.conformal import (
     FprSpread,
     auc,
     auc_interval,
+    runs_text,
     successes_needed,
 )
 from robofailring.detection.detector import DetectionTrace
@@ -206,7 +207,7 @@ def shortfall_markdown(
     lines = [
         "",
         f"**No false-positive-rate guarantee holds here.** A guaranteed FPR of α = {100 * asked:g} % needs at "
-        f"least {successes_needed(asked)} training success runs to calibrate on, and there were fewer. "
+        f"least {runs_text(successes_needed(asked))} training success runs to calibrate on, and there were fewer. "
         "Each threshold is set at the smallest α its runs allow (just above the highest calibration peak), "
         "so the recall and FPR in the table are what these test runs showed, not a promise:",
         "",

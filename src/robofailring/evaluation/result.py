@@ -15,6 +15,7 @@ from robofailring.detection.detector import (
 )
 from robofailring.detection.rules import ScoringRule
 from robofailring.evaluation.growth import GrowthPoint, growth_markdown
+from robofailring.evaluation.markdown import markdown_text
 from robofailring.evaluation.metrics import (
     PAPER_DELTAS,
     Rates,
@@ -261,10 +262,12 @@ class EvaluationResult:
     def to_markdown(self) -> str:
         delta = self.operating_delta
         lines = [
-            f"## {self.name} — encoder `{self.encoder}`, K = {self.k}, {self.failure_frames} failure memory, "
+            f"## {markdown_text(self.name)} — encoder {markdown_text(self.encoder, code=True)}, K = {self.k}, "
+            f"{self.failure_frames} failure memory, "
             f"{self.pairing} pairing",
             "",
-            f"{self.failures} failure and {self.successes} success test trajectories; memory `{self.memory}` "
+            f"{self.failures} failure and {self.successes} success test trajectories; memory "
+            f"{markdown_text(self.memory, code=True)} "
             f"({failure_frames_note(self.failure_frames)}); "
             f"operating δ = {delta:.4f} ({'calibrated' if self.calibrated else 'paper default'}).",
             "",
@@ -293,10 +296,10 @@ class EvaluationResult:
             "|---|---:|---:|",
         ]
         for kind, r in self.per_type_recall(delta).items():
-            lines.append(f"| {kind} | {_pct(r.recall)} | {r.tp} / {r.tp + r.fn} |")
+            lines.append(f"| {markdown_text(kind)} | {_pct(r.recall)} | {r.tp} / {r.tp + r.fn} |")
         lines += ["", "| views | Recall (%) | FPR (%) |", "|---|---:|---:|"]
         for view, r in self.view_ablation(delta).items():
-            lines.append(f"| {view} | {_pct(r.recall)} | {_pct(r.fpr)} |")
+            lines.append(f"| {markdown_text(view)} | {_pct(r.recall)} | {_pct(r.fpr)} |")
         lines += [
             "",
             f"Per-frame latency ({len(self.views)} views): encoder {self.latency_ms.get('encode', float('nan')):.2f} ms, "
@@ -314,8 +317,10 @@ class EvaluationResult:
             ]
             for row in blamed[:10]:
                 lines.append(
-                    f"| {row['index']} | {row['false_alarms']} | {row['task']} | `{row['symbol']}` | "
-                    f"{row['episode']} | {row['view']} | {row['moment']} |"
+                    f"| {row['index']} | {row['false_alarms']} | {markdown_text(row['task'])} | "
+                    f"{markdown_text(row['symbol'], code=True)} | "
+                    + " | ".join(markdown_text(row[name]) for name in ("episode", "view", "moment"))
+                    + " |"
                 )
         if self.skipped_too_short:
             lines += [
@@ -380,7 +385,9 @@ def skipped_inputs_markdown(skipped: Sequence[Skipped], *, shown: int = 20) -> l
     if not skipped:
         return []
     lines = ["", f"Not read from the data ({len(skipped)}):", ""]
-    lines += [f"- `{item.path}`: {item.reason}" for item in skipped[:shown]]
+    lines += [
+        f"- {markdown_text(item.path, code=True)}: {markdown_text(item.reason)}" for item in skipped[:shown]
+    ]
     if len(skipped) > shown:
         lines.append(f"- … and {len(skipped) - shown} more (all in the JSON file)")
     return lines

@@ -7,14 +7,14 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Final
 
-from robofailring.data.labels import apply_labels, read_labels, unlabelled_rows
+from robofailring.data.labels import label_key, read_labels
 from robofailring.data.layouts import load_dataset
 from robofailring.data.model import Outcome, Skipped, Trajectory
 from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.scored import prefetch_scored
 from robofailring.encoders import open_encoder
-from robofailring.errors import SettingError
+from robofailring.errors import DataError, SettingError
 from robofailring.memory.recipe import DEFAULT_RECIPE
 from robofailring.progress import progress_bar
 from robofailring.triage.ranking import TaskScale, rank
@@ -77,21 +77,23 @@ class TriageResult:
 
 
 def load_episodes(config: TriageConfig) -> tuple[list[Trajectory], list[Skipped]]:
-    """The data's episodes as unlabelled runs, with the outcomes of `config.labels` applied."""
-    dataset = load_dataset(config.data, task=config.task, views=config.views)
-    found = [replace(t, outcome=None, symbol=None, description=None) for t in dataset.trajectories()]
-    skipped = list(dataset.skipped)
-    if config.labels is not None:
-        found = apply_labels(found, read_labels(config.labels), source=Path(config.labels))
-        blank = unlabelled_rows(Path(config.labels))
-        skipped += [blank] if blank is not None else []
+    """The data's episodes as unlabelled runs, with `config.labels` applied as every verb applies them
+    (outcome, symbol, and the task column, which a folder of several tasks needs); outcomes the data's
+    own names state are dropped."""
+    dataset = load_dataset(config.data, task=config.task, labels=config.labels, views=config.views)
+    labels = read_labels(config.labels) if config.labels is not None else {}
+    found = [
+        t if label_key(t, labels) is not None else replace(t, outcome=None, symbol=None, description=None)
+        for t in dataset.trajectories()
+    ]
     check_unique_episodes(found)
-    return found, skipped
+    return found, list(dataset.skipped)
 
 
 def run_triage(config: TriageConfig) -> TriageResult:
     """Score and rank every episode of `config.data` (docs/triage.md)."""
     trajectories, skipped = load_episodes(config)
+    _require_two_frames(trajectories, config.data)
     tasks = list(dict.fromkeys(t.task for t in trajectories))
     reference = _reference(config, trajectories, tasks, skipped)
     scores: list[EpisodeScore] = []
@@ -116,6 +118,19 @@ def run_triage(config: TriageConfig) -> TriageResult:
         trajectories={t.key: t for t in trajectories},
         notes=notes,
         skipped_inputs=skipped,
+    )
+
+
+def _require_two_frames(trajectories: list[Trajectory], data: Path) -> None:
+    """DataError when no episode has a view of 2 frames: each frame is scored against its run's first, so
+    such data has nothing to rank (said before a reference is built, which would blame it instead)."""
+    if not trajectories or any(len(frames) >= 2 for t in trajectories for frames in t.views.values()):
+        return
+    example = trajectories[0]
+    raise DataError(
+        f"none of the {len(trajectories)} episode(s) of {data} has a view of at least 2 frames (e.g. "
+        f"{example.key}: {example.length} frame(s)); triage scores each frame against its run's first "
+        "frame, so a run needs 2 frames at least"
     )
 
 
