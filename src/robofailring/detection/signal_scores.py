@@ -86,7 +86,8 @@ class SignalHistory:
 
     def __init__(self, task: TaskSignals) -> None:
         self.task = task
-        self.rows: list[np.ndarray] = []
+        self.steps = 0
+        self._rows = np.zeros((0, 0))  # raw features of every step so far (capacity beyond `steps`)
 
     def step(
         self, signals: Mapping[str, np.ndarray], *, exclude_episode: str | None
@@ -96,7 +97,7 @@ class SignalHistory:
         missing = [name for name in layout.names if name not in signals]
         if missing:
             raise DataError(
-                f"step {len(self.rows)}: signals= lacks {missing[0]!r}; the task's signal memory uses "
+                f"step {self.steps}: signals= lacks {missing[0]!r}; the task's signal memory uses "
                 f"{', '.join(layout.names)}"
             )
         values = {}
@@ -105,14 +106,22 @@ class SignalHistory:
             own = layout.full.get(name, dims)  # the whole signal, when the memory uses some of it
             if len(row) != len(own) or not np.isfinite(row).all():
                 raise DataError(
-                    f"step {len(self.rows)}: signal {name!r} must be {len(own)} finite numbers "
+                    f"step {self.steps}: signal {name!r} must be {len(own)} finite numbers "
                     f"({', '.join(own)}), got {row.tolist()}"
                 )
-            values[name] = layout.select(name, own, row[None], f"step {len(self.rows)}")
+            values[name] = layout.select(name, own, row[None], f"step {self.steps}")
         features = layout.features(values, 1)[0]
-        features[-1] = len(self.rows)  # the frame number
-        self.rows.append(features)
-        vector = self.task.vectors_of(np.stack(self.rows))[-1:]
+        features[-1] = self.steps  # the frame number
+        t = self.steps
+        if t == len(self._rows):  # room for twice as many steps: a long session grows in amortised O(1)
+            self._rows = (
+                np.concatenate([self._rows, np.zeros_like(self._rows)])
+                if t
+                else np.zeros((64, len(features)))
+            )
+        self._rows[t] = features
+        self.steps += 1
+        vector = self.task.vectors_of(self._rows, np.asarray([t]))  # reads rows 0, t and its action window
         failure, failure_row = self.task.search(vector, "failure", exclude_episode=exclude_episode)
         success, success_row = self.task.search(vector, "success", exclude_episode=exclude_episode)
         return float(failure[0]), float(success[0]), vector[0], int(failure_row[0]), int(success_row[0])

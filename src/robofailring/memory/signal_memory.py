@@ -69,15 +69,23 @@ class TaskSignals:
             if len(v)
         }
 
-    def vectors_of(self, features: np.ndarray) -> np.ndarray:
-        """The paired vectors (module docstring) of one run's raw features, one per frame."""
-        z = (np.asarray(features, np.float64) - self.mean) / self.scale
+    def vectors_of(self, features: np.ndarray, frames: np.ndarray | None = None) -> np.ndarray:
+        """The paired vectors (module docstring) of one run's raw features, one per frame (of `frames` only,
+        when given: a live step pairs just its own frame, reading only the rows it needs)."""
+        features = np.asarray(features, np.float64)
+        at = np.arange(len(features)) if frames is None else np.asarray(frames, np.int64)
         state_width, action_width = self.layout.widths
-        state, action, time = z[:, :state_width], z[:, state_width : state_width + action_width], z[:, -1:]
-        length = len(z)
-        lagged = [action[np.maximum(np.arange(length) - lag, 0)] for lag in ACTION_LAGS]
-        start = np.broadcast_to(START_WEIGHT * state[:1], state.shape)
-        return np.concatenate([start, state - state[:1], *lagged, time], axis=1).astype(np.float32)
+
+        def z(rows: np.ndarray) -> np.ndarray:
+            return (features[rows] - self.mean) / self.scale
+
+        first, now = z(np.zeros(1, np.int64))[0], z(at)
+        lagged = [
+            z(np.maximum(at - lag, 0))[:, state_width : state_width + action_width] for lag in ACTION_LAGS
+        ]
+        start = np.broadcast_to(START_WEIGHT * first[:state_width], (len(at), state_width))
+        change = now[:, :state_width] - first[:state_width]
+        return np.concatenate([start, change, *lagged, now[:, -1:]], axis=1).astype(np.float32)
 
     def search(
         self, vectors: np.ndarray, kind: str, *, exclude_episode: str | None = None
