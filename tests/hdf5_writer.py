@@ -129,3 +129,60 @@ def write_aloha(
             if compress:
                 root.create_dataset("compress_len", data=lengths)
     return folder
+
+
+def write_maniskill3(
+    folder: Path,
+    frames: Frames,
+    *,
+    episodes: int,
+    steps: int,
+    success: Sequence[bool],
+    name: str = "trajectory",
+) -> Path:
+    """ManiSkill3's `RecordEpisode` output as version 3.0.1 writes it (checked against a real PickCube-v1
+    recording): `<name>.h5` with `traj_<i>/obs/{agent,extra,sensor_data,sensor_param}`, `actions`,
+    `env_states`, per-step `success`/`rewards`, and `<name>.json` with `env_info` and `episodes`."""
+    folder.mkdir(parents=True, exist_ok=True)
+    with h5py.File(folder / f"{name}.h5", "w") as handle:
+        for episode in range(episodes):
+            group = handle.create_group(f"traj_{episode}")
+            obs = group.create_group("obs")
+            obs.create_dataset("agent/qpos", data=maniskill3_qpos(episode, steps + 1))
+            obs.create_dataset("agent/qvel", data=np.zeros((steps + 1, 9), np.float32))
+            obs.create_dataset(
+                "extra/tcp_pose",
+                data=np.tile([0.1, 0.0, 0.2, 1.0, 0.0, 0.0, 0.0], (steps + 1, 1)).astype(np.float32),
+            )
+            obs.create_dataset(
+                "extra/goal_pos", data=np.tile([0.05, 0.05, 0.1], (steps + 1, 1)).astype(np.float32)
+            )
+            obs.create_dataset("extra/is_grasped", data=np.arange(steps + 1) > steps // 2)
+            rgb = np.stack([frames(episode, 0, t) for t in range(steps + 1)])
+            obs.create_dataset("sensor_data/base_camera/rgb", data=rgb)
+            obs.create_dataset(
+                "sensor_param/base_camera/intrinsic_cv", data=np.zeros((steps + 1, 3, 3), np.float32)
+            )
+            group.create_dataset("actions", data=maniskill3_actions(episode, steps))
+            group.create_dataset("env_states/actors/cube", data=np.zeros((steps + 1, 13), np.float32))
+            group.create_dataset("success", data=np.full(steps, success[episode]))
+            group.create_dataset("rewards", data=np.zeros(steps, np.float32))
+    meta = {
+        "env_info": {"env_id": "PickCube-v1", "env_kwargs": {"obs_mode": "rgb"}, "max_episode_steps": 50},
+        "commit_info": None,
+        "episodes": [
+            {"episode_id": e, "episode_seed": e, "control_mode": "pd_joint_pos", "elapsed_steps": steps,
+             "reset_kwargs": {"options": None, "seed": e}, "success": bool(success[e])}
+            for e in range(episodes)
+        ],
+    }  # fmt: skip
+    (folder / f"{name}.json").write_text(json.dumps(meta, indent=1))
+    return folder / f"{name}.h5"
+
+
+def maniskill3_qpos(episode: int, rows: int) -> np.ndarray:
+    return (np.arange(rows)[:, None] * 0.01 + np.arange(9)[None] + episode).astype(np.float32)
+
+
+def maniskill3_actions(episode: int, steps: int) -> np.ndarray:
+    return (np.arange(steps)[:, None] + 0.5 * np.arange(8)[None] + 10 * episode).astype(np.float32)

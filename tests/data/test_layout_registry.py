@@ -16,6 +16,7 @@ def test_layouts_are_tried_in_the_detection_order() -> None:
         "project",
         "lerobot",
         "aloha",
+        "maniskill3",
         "robomimic",
         "rosbag",
         "videos",
@@ -24,7 +25,7 @@ def test_layouts_are_tried_in_the_detection_order() -> None:
         "images",
         "episode",
     ]
-    assert sorted(layout.listed for layout in LAYOUTS) == [1, 2, 3, 4, 5, 6, 7, 8, 9, 10]
+    assert sorted(layout.listed for layout in LAYOUTS) == list(range(1, 12))
     for layout in LAYOUTS:  # the error lists every layout's help under its number
         assert f"({layout.listed}) {layout.help}" in LAYOUTS_HELP
 

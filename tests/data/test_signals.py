@@ -8,7 +8,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hdf5_writer import aloha_joints, robomimic_actions, robomimic_eef, write_aloha, write_robomimic
+from hdf5_writer import (
+    aloha_joints,
+    maniskill3_actions,
+    maniskill3_qpos,
+    robomimic_actions,
+    robomimic_eef,
+    write_aloha,
+    write_maniskill3,
+    write_robomimic,
+)
 from lerobot_writer import signal_action, write_lerobot_v3, write_lerobot_v21
 from rosbag_writer import JOINTS, joint_position, write_bag
 from synthetic import synthetic_frame
@@ -141,3 +150,33 @@ def test_a_signal_named_with_the_wrong_count_of_names_is_not_read() -> None:
     signal = Signal.from_array("state", np.zeros((5, 2)), dims=("a", "b", "c"))
     found, skipped = replace(trajectory, signals={"state": signal}).read_signals()
     assert found == {} and "2 dimensions per frame but 3 names (a, b, c)" in skipped[0].reason
+
+
+def test_maniskill3_trajectories_are_read_with_cameras_signals_and_the_envs_verdict(tmp_path: Path) -> None:
+    path = write_maniskill3(
+        tmp_path / "ms", lambda e, c, t: _image(c, t), episodes=2, steps=5, success=[True, False]
+    )
+    dataset = load_dataset(path.parent)
+    assert dataset.layout == "maniskill3" and dataset.skipped == []
+    first, second = dataset.trajectories()
+    assert (first.key, first.outcome.value, second.outcome.value) == (
+        "PickCube-v1/traj_0",
+        "success",
+        "failure",
+    )
+    assert list(first.views) == ["base_camera"] and first.length == 6
+    signals = _read(second)
+    assert sorted(signals) == [
+        "actions",
+        "agent/qpos",
+        "agent/qvel",
+        "extra/goal_pos",
+        "extra/is_grasped",
+        "extra/tcp_pose",
+    ]
+    assert signals["extra/tcp_pose"][1] == ("x", "y", "z", "qw", "qx", "qy", "qz")
+    assert signals["extra/goal_pos"][0] is SignalKind.OTHER and signals["actions"][0] is SignalKind.ACTION
+    np.testing.assert_array_equal(signals["agent/qpos"][2], maniskill3_qpos(1, 6))
+    actions = maniskill3_actions(1, 5)  # frame t takes the action that led to it, frame 0 the first
+    np.testing.assert_array_equal(signals["actions"][2], np.concatenate([actions[:1], actions]))
+    assert load_dataset(path).layout == "maniskill3"  # the file alone, too

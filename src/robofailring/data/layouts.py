@@ -13,6 +13,7 @@ from robofailring.data import (
     layout_episode,
     layout_images,
     layout_maniskill,
+    layout_maniskill3,
     layout_project,
     layout_robomimic,
     layout_rosbag,
@@ -60,6 +61,7 @@ LAYOUTS: Final[tuple[Layout, ...]] = (
     layout_project.LAYOUT,
     lerobot.LAYOUT,
     layout_aloha.LAYOUT,
+    layout_maniskill3.LAYOUT,  # before robomimic, which reads any one HDF5 file
     layout_robomimic.LAYOUT,
     layout_rosbag.LAYOUT,
     layout_videos.LAYOUT,
