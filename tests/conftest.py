@@ -36,7 +36,9 @@ settings.load_profile("robofailring")
 # 400 times a run); an app does not change during the tests, so each is built once and invoked as built.
 typer.testing._get_command = functools.cache(typer.testing._get_command)  # type: ignore[attr-defined]
 
-TORCH_FIXTURES = frozenset({"tiny_checkpoint"})  # fixtures that import torch and open_clip
+TORCH_FIXTURES = frozenset(
+    {"tiny_checkpoint", "tiny_timm_checkpoint"}
+)  # fixtures that import torch and open_clip
 
 
 # Files with tests that fit a memory map: importing umap-learn and compiling its layout costs ~4-5 s once
@@ -143,6 +145,36 @@ TINY_CLIP = {
     "vision_cfg": {"image_size": 32, "layers": 1, "width": 32, "head_width": 16, "patch_size": 8},
     "text_cfg": {"context_length": 8, "vocab_size": 64, "width": 16, "heads": 1, "layers": 1},
 }
+
+
+TINY_TIMM_CLIP = {  # an image tower of timm's, as SigLIP's and the ConvNeXt CLIPs' are (`test_vit`: timm's own tiny ViT)
+    "embed_dim": 16,
+    "vision_cfg": {
+        "timm_model_name": "test_vit",
+        "timm_model_pretrained": False,
+        "timm_pool": "avg",
+        "timm_proj": "linear",
+        "image_size": 32,
+    },
+    "text_cfg": TINY_CLIP["text_cfg"],
+}
+
+
+@pytest.fixture(scope="session")
+def tiny_timm_checkpoint(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """A tiny random-initialised open_clip model with a timm image tower, as a config JSON and a checkpoint."""
+    import open_clip
+    import torch
+
+    folder = tmp_path_factory.mktemp("timm-clip")
+    config = folder / "TinyTimm-test.json"
+    config.write_text(json.dumps(TINY_TIMM_CLIP))
+    open_clip.add_model_config(config)
+    torch.manual_seed(0)
+    model = open_clip.create_model("TinyTimm-test", pretrained=None)
+    checkpoint = folder / "tiny.pt"
+    torch.save({"state_dict": model.state_dict()}, checkpoint)
+    return config, checkpoint
 
 
 @pytest.fixture(scope="session")

@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 import pytest
-from synthetic import synthetic_frame
+from synthetic import synthetic_frame, write_project_dataset
 
-from robofailring import CachedEncoder, Frame, load_encoder
+from robofailring import CachedEncoder, FailureMemory, Frame, load_encoder
 from robofailring.encoders.pixels import PixelEncoder
 from robofailring.errors import EncoderError
 
@@ -162,3 +163,35 @@ def test_memories_record_encoder_files_as_absolute_paths(
     )
     assert portable_spec("open_clip:ViT-B-32:openai") == "open_clip:ViT-B-32:openai"
     assert portable_spec(" pixels ") == "pixels"
+
+
+def test_an_open_clip_model_with_a_timm_tower_goes_through_every_verb(
+    tiny_timm_checkpoint: tuple[Path, Path], tmp_path: Path
+) -> None:
+    """Issue 46 item 1: SigLIP and the ConvNeXt CLIPs have a timm image tower, which has no `output_dim`:
+    loading one ended in an AttributeError traceback. Its width now comes from the model's config."""
+    from typer.testing import CliRunner
+
+    from rfr_viz.cli.app import app
+
+    config, checkpoint = tiny_timm_checkpoint
+    encoder = load_encoder(f"open_clip:{config}:{checkpoint}")
+    assert encoder.dim == 16 and encoder.encode(_images(3)).shape == (3, 16)
+    data = write_project_dataset(
+        tmp_path / "data", tasks=("pick_cube",), symbols=("grasp_wp2",), episodes=4, length=4
+    )
+    spec, cache = f"open_clip:{config}:{checkpoint}", ["--cache-dir", str(tmp_path / "cache")]
+    memory, runner = tmp_path / "memory", CliRunner()
+    for arguments in (
+        ["build-memory", str(data), "--out", str(memory), "--encoder", spec, "--split", "train"],
+        ["calibrate", str(data), "--memory", str(memory), "--target-fpr", "0.5"],
+        ["detect", str(data), "--memory", str(memory), "--trajectory", "pick_cube_grasp_wp2_episode1", "--json"],
+        ["replay", str(data), "--memory", str(memory), "--trajectory", "pick_cube_grasp_wp2_episode1",
+         "--out", str(tmp_path / "recordings")],
+    ):  # fmt: skip
+        result = runner.invoke(app, [*arguments, *cache])
+        assert result.exit_code == 0, result.output
+        if arguments[0] == "detect":
+            assert json.loads(result.stdout)["encoder"] == encoder.identity
+    assert len(list((tmp_path / "recordings").glob("*.rrd"))) == 1
+    assert FailureMemory.load(memory).dim == 32  # the pair of two 16-d embeddings

@@ -172,9 +172,18 @@ class OpenClipEncoder:
         self.model, _, self.preprocess = created
         self.model.eval()
         self._identity = open_clip_identity(model_name, weights, checkpoint)
-        with torch.inference_mode():
-            self._dim = int(self.model.visual.output_dim)
         self._torch = torch
+        self._dim = self._embedding_width(open_clip.get_model_config(model_name) or {})
+
+    def _embedding_width(self, config: dict[str, Any]) -> int:
+        """The image embedding's width: the tower's `output_dim` where it has one, else the model config's
+        `embed_dim` (a timm tower, as SigLIP's and the ConvNeXt CLIPs' are, has none), else one forward pass."""
+        width = getattr(self.model.visual, "output_dim", None)
+        if isinstance(width, int):
+            return width
+        if isinstance(config.get("embed_dim"), int):
+            return int(config["embed_dim"])
+        return int(self.encode_raw([np.zeros((32, 32, 3), np.uint8)]).shape[1])
 
     @property
     def identity(self) -> str:
@@ -198,10 +207,14 @@ class OpenClipEncoder:
     def encode(self, images: Sequence[np.ndarray]) -> np.ndarray:
         if len(images) == 0:
             return np.zeros((0, self._dim), dtype=np.float32)
+        return l2_normalize(self.encode_raw(images))
+
+    def encode_raw(self, images: Sequence[np.ndarray]) -> np.ndarray:
+        """The image tower's features of `images`, not normalised."""
         outputs = []
         with self._torch.inference_mode():
             for start in range(0, len(images), self._batch_size):
                 batch = self.preprocess_batch(images[start : start + self._batch_size]).to(self._device)
                 features = self.model.encode_image(batch)
                 outputs.append(features.float().cpu().numpy())
-        return l2_normalize(np.concatenate(outputs))
+        return np.concatenate(outputs)
