@@ -27,6 +27,10 @@ def load_encoder(
         from robofailring.encoders.openclip import OpenClipEncoder
 
         return OpenClipEncoder(parsed.model, parsed.weights, device=device)
+    if parsed.kind == "timm":
+        from robofailring.encoders.timm_backbone import TimmEncoder
+
+        return TimmEncoder(parsed.model, parsed.weights, device=device)
     if parsed.kind == "trained":
         from robofailring.encoders.trained import TrainedEncoder
 

@@ -77,6 +77,10 @@ def spec_identity(spec: EncoderSpec) -> tuple[str, str]:
 
         _, identity = trained_identity(Path(spec.directory).expanduser())
         material = identity
+    elif spec.kind == "timm":
+        from robofailring.encoders.timm_backbone import timm_identity
+
+        identity = material = timm_identity(spec.model, spec.weights)
     else:
         raise EncoderError(f"the {spec.kind} encoder has no network to export")
     key = hashlib.blake2b(f"{material}|{spec.runtime}|v{EXPORT_VERSION}".encode(), digest_size=8).hexdigest()
@@ -155,6 +159,11 @@ def torch_network(spec: EncoderSpec) -> tuple[Any, int, dict[str, Any], str, int
         size = visual.image_size
         side = int(size[0] if isinstance(size, (tuple, list)) else size)
         return visual, side, preprocess, identity, dim
+    if spec.kind == "timm":
+        from robofailring.encoders.timm_backbone import TimmEncoder
+
+        backbone = TimmEncoder(spec.model, spec.weights, device="cpu")
+        return backbone.network, backbone.side, backbone.preprocessing, backbone.identity, backbone.dim
     from robofailring.encoders.trained import TrainedEncoder
 
     trained = TrainedEncoder(Path(spec.directory).expanduser(), device="cpu")

@@ -1,6 +1,7 @@
 """`EncoderSpec`: an encoder spec string parsed once, at the edge, with its canonical, portable and slug forms.
 
-The forms are `pixels`, `open_clip:<model>[:<pretrained tag or checkpoint path>]` and `trained:<DIR>`
+The forms are `pixels`, `open_clip:<model>[:<pretrained tag or checkpoint path>]`, `timm:<model>[:<checkpoint>]`
+and `trained:<DIR>`
 (docs/architecture.md, encoders/), each optionally ending in `@<runtime>`: `@onnx` or `@onnx-int8` run the
 network exported to ONNX Runtime (docs/runtime.md), `@torch` (the default) runs it in torch. Everything
 that reads a spec string goes through `EncoderSpec.parse`; `--runtime` sets the same field (`with_runtime`).
@@ -20,11 +21,12 @@ RUNTIMES: Final[tuple[Runtime, ...]] = ("torch", "onnx", "onnx-int8")
 ENCODER_SPECS_HELP = (
     "`pixels` (weight-free), `open_clip:<model>[:<pretrained tag or checkpoint path>]`, "
     "e.g. `open_clip:ViT-B-32:openai` or `open_clip:ViT-L-14:/models/vit-l-14.pt`, "
-    "or `trained:<DIR>` (a folder written by `robofailring train-encoder`); an open_clip or trained spec "
+    "`timm:<model>[:<checkpoint path>]` (a timm backbone's pooled features, e.g. `timm:efficientnet_lite0:/models/"
+    "lite0.pth`), or `trained:<DIR>` (a folder written by `robofailring train-encoder`); an open_clip, timm or trained spec "
     "may end in `@onnx` or `@onnx-int8` (run through ONNX Runtime) or `@torch` (the default)"
 )
 
-Kind = Literal["pixels", "open_clip", "trained"]
+Kind = Literal["pixels", "open_clip", "timm", "trained"]
 
 
 @dataclass(frozen=True)
@@ -32,8 +34,8 @@ class EncoderSpec:
     """One encoder spec: `kind` plus the open_clip model and weights, or the trained folder."""
 
     kind: Kind
-    model: str = ""  # open_clip: a model name or a model-config JSON path
-    weights: str = ""  # open_clip: a pretrained tag or a checkpoint path ("" for open_clip's default)
+    model: str = ""  # open_clip: a model name or a model-config JSON path; timm: a model name
+    weights: str = ""  # open_clip: a pretrained tag or a checkpoint path ("" for open_clip's default); timm: a checkpoint
     directory: str = ""  # trained: the folder written by `robofailring train-encoder`
     runtime: Runtime = "torch"  # what runs the network: torch, or its ONNX export in fp32 or int8
 
@@ -76,6 +78,11 @@ class EncoderSpec:
             if not model:
                 raise EncoderError(f"encoder spec {whole!r} names no model; expected {ENCODER_SPECS_HELP}")
             return cls("open_clip", model=model, weights=weights)
+        if sep and kind == "timm":
+            model, _, weights = rest.partition(":")
+            if not model:
+                raise EncoderError(f"encoder spec {whole!r} names no model; expected {ENCODER_SPECS_HELP}")
+            return cls("timm", model=model, weights=weights)
         if sep and kind == "trained":
             if not rest:
                 raise EncoderError(f"encoder spec {whole!r} names no folder; expected {ENCODER_SPECS_HELP}")
@@ -83,8 +90,8 @@ class EncoderSpec:
         raise EncoderError(f"unknown encoder spec {whole!r}; expected {ENCODER_SPECS_HELP}")
 
     def __str__(self) -> str:
-        if self.kind == "open_clip":
-            network = f"open_clip:{self.model}" + (f":{self.weights}" if self.weights else "")
+        if self.kind in ("open_clip", "timm"):
+            network = f"{self.kind}:{self.model}" + (f":{self.weights}" if self.weights else "")
         elif self.kind == "trained":
             network = f"trained:{self.directory}"
         else:
@@ -98,7 +105,7 @@ class EncoderSpec:
         an absolute path, so the memory finds its encoder again from any working directory."""
         if self.kind == "trained":
             return replace(self, directory=str(Path(self.directory).resolve()))
-        if self.kind == "open_clip":
+        if self.kind in ("open_clip", "timm"):
             model, weights = (
                 str(Path(part).resolve()) if Path(part).is_file() else part
                 for part in (self.model, self.weights)
@@ -116,6 +123,8 @@ class EncoderSpec:
         kind, _, rest = identity.partition(":")
         if kind == "open_clip":
             return rest.partition(":")[0].lower().replace("/", "-")
+        if kind == "timm":
+            return "timm-" + rest.partition(":")[0].lower().replace("/", "-").replace(".", "-")
         if kind == "trained":  # trained:<arch>:<weights digest>; two trained ones stay apart
             return f"trained-{identity.rsplit(':', 1)[-1][:8]}"
         return identity.split("-")[0].lower()
