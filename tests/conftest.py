@@ -160,35 +160,29 @@ TINY_TIMM_CLIP = {  # an image tower of timm's, as SigLIP's and the ConvNeXt CLI
 }
 
 
-@pytest.fixture(scope="session")
-def tiny_timm_checkpoint(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
-    """A tiny random-initialised open_clip model with a timm image tower, as a config JSON and a checkpoint."""
+def _tiny_clip(factory: pytest.TempPathFactory, name: str, settings: dict[str, object]) -> tuple[Path, Path]:
+    """A tiny random-initialised open_clip model `name` of `settings`, as a config JSON and a checkpoint."""
     import open_clip
     import torch
 
-    folder = tmp_path_factory.mktemp("timm-clip")
-    config = folder / "TinyTimm-test.json"
-    config.write_text(json.dumps(TINY_TIMM_CLIP))
+    folder = factory.mktemp(name)
+    config = folder / f"{name}.json"
+    config.write_text(json.dumps(settings))
     open_clip.add_model_config(config)
     torch.manual_seed(0)
-    model = open_clip.create_model("TinyTimm-test", pretrained=None)
+    model = open_clip.create_model(name, pretrained=None)
     checkpoint = folder / "tiny.pt"
     torch.save({"state_dict": model.state_dict()}, checkpoint)
     return config, checkpoint
+
+
+@pytest.fixture(scope="session")
+def tiny_timm_checkpoint(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """A tiny random-initialised open_clip model with a timm image tower, as a config JSON and a checkpoint."""
+    return _tiny_clip(tmp_path_factory, "TinyTimm-test", TINY_TIMM_CLIP)
 
 
 @pytest.fixture(scope="session")
 def tiny_checkpoint(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     """A tiny random-initialised open_clip model written as a config JSON plus a torch checkpoint."""
-    import open_clip
-    import torch
-
-    folder = tmp_path_factory.mktemp("clip")
-    config = folder / "TinyViT-test.json"
-    config.write_text(json.dumps(TINY_CLIP))
-    open_clip.add_model_config(config)
-    torch.manual_seed(0)
-    model = open_clip.create_model("TinyViT-test", pretrained=None)
-    checkpoint = folder / "tiny.pt"
-    torch.save({"state_dict": model.state_dict()}, checkpoint)
-    return config, checkpoint
+    return _tiny_clip(tmp_path_factory, "TinyViT-test", TINY_CLIP)

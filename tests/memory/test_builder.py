@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 from synthetic import write_aha_dataset, write_project_dataset
 
-from robofailring import CachedEncoder, FailureMemory, load_dataset, load_encoder
+from robofailring import CachedEncoder, FailureMemory, load_dataset
 from robofailring.detection.config import DetectorConfig
 from robofailring.encoders import portable_spec
 from robofailring.errors import MemoryFormatError
@@ -33,11 +33,6 @@ def dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
     (root / "notes.txt").write_text("not data", encoding="utf-8")
     (root / "stray").mkdir()
     return root
-
-
-@pytest.fixture()
-def encoder(tmp_path: Path) -> CachedEncoder:
-    return CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "cache")
 
 
 def _skipped(root: Path) -> list[dict[str, str]]:

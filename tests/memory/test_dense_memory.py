@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from synthetic import write_project_dataset
 
-from robofailring import CachedEncoder, FailureMemory, load_dataset, load_encoder
+from robofailring import CachedEncoder, FailureMemory, load_dataset
 from robofailring.data.model import Trajectory
 from robofailring.errors import DataError, MemoryFormatError, SettingError
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
@@ -38,11 +38,6 @@ def data(tmp_path_factory: pytest.TempPathFactory) -> Path:
         length=LENGTH,
         onset=ONSET,
     )
-
-
-@pytest.fixture()
-def encoder(tmp_path: Path) -> CachedEncoder:
-    return CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "cache")
 
 
 def _build(data: Path, encoder: CachedEncoder, failure_frames: str, **options: Any) -> FailureMemory:

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from synthetic import write_project_dataset
 
-from robofailring import CachedEncoder, FailureMemory, load_dataset, load_encoder
+from robofailring import CachedEncoder, FailureMemory, load_dataset
 from robofailring.errors import SettingError
 from robofailring.memory.builder import Provenance, add_to, build_memories
 from robofailring.memory.recipe import MemoryRecipe
@@ -31,11 +31,6 @@ def dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
         length=LENGTH,
         signals=True,
     )
-
-
-@pytest.fixture()
-def encoder(tmp_path: Path) -> CachedEncoder:
-    return CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "cache")
 
 
 def _build(dataset: Path, encoder: CachedEncoder, **recipe: str) -> FailureMemory:

@@ -21,7 +21,7 @@ import numpy as np
 
 from robofailring.encoders.base import file_digest, l2_normalize
 from robofailring.encoders.openclip import _offline_unless_reachable, pick_device
-from robofailring.encoders.trained import prepare_images
+from robofailring.encoders.trained import normalizer, prepare_images, to_tensor
 from robofailring.errors import EncoderError, WeightsUnavailableError
 from robofailring.extras import needs_extra
 
@@ -135,13 +135,11 @@ class TimmEncoder:
     def encode(self, images: Sequence[np.ndarray]) -> np.ndarray:
         if len(images) == 0:
             return np.zeros((0, self._dim), dtype=np.float32)
-        torch = self._torch
-        mean = torch.tensor(self.mean, device=self._device).view(1, 3, 1, 1)
-        std = torch.tensor(self.std, device=self._device).view(1, 3, 1, 1)
+        mean, std = normalizer({"normalize": {"mean": self.mean, "std": self.std}}, self._device)
         outputs = []
-        with torch.inference_mode():
+        with self._torch.inference_mode():
             for start in range(0, len(images), self._batch_size):
                 batch = prepare_images(images[start : start + self._batch_size], self.side)
-                pixels = torch.from_numpy(batch).to(self._device).permute(0, 3, 1, 2).float().div_(255.0)
-                outputs.append(self.network((pixels - mean) / std).float().cpu().numpy())
+                pixels = (to_tensor(batch, self._device) - mean) / std
+                outputs.append(self.network(pixels).float().cpu().numpy())
         return l2_normalize(np.concatenate(outputs))

@@ -174,14 +174,19 @@ class FailureReport:
             | {"roots": list(self.roots)}
         )
 
-    def missing_images(self) -> list[str]:
-        """The prompt's images (top neighbour's start and end, the current frame) that are not on disk."""
+    def prompt_images(self) -> list[str]:
+        """The images the VLM prompt shows: the top neighbour's start and end, and the current frame."""
         if not self.items:
             return []
-        images = [self.items[0].start_image, self.items[0].end_image]
-        if self.current_image:
-            images.append(self.current_image)
-        return list(check_references(absolute_reference(image) for image in images).missing)
+        return [
+            self.items[0].start_image,
+            self.items[0].end_image,
+            *([self.current_image] if self.current_image else []),
+        ]
+
+    def missing_images(self) -> list[str]:
+        """The prompt's images that are not on disk."""
+        return list(check_references(absolute_reference(image) for image in self.prompt_images()).missing)
 
     def relocated(self, data_root: Path) -> FailureReport:
         """The same report with its images found again under `data_root` (the dataset moved)."""
@@ -197,18 +202,11 @@ class FailureReport:
         return replace(self, items=items, current_image=current, roots=(str(Path(data_root).resolve()),))
 
     def images_outside(self) -> list[str]:
-        """The prompt's images (as `missing_images` lists them) that lie outside the report's roots: never
-        read nor sent (an edited report must not upload another file of yours)."""
-        if not self.items:
-            return []
-        images = [
-            self.items[0].start_image,
-            self.items[0].end_image,
-            *([self.current_image] if self.current_image else []),
-        ]
+        """The prompt's images that lie outside the report's roots: never read nor sent (an edited report
+        must not upload another file of yours)."""
         return [
             image
-            for image in images
+            for image in self.prompt_images()
             if is_file_reference(image)
             and not any(inside(absolute_reference(image), Path(root)) for root in self.roots)
         ]
