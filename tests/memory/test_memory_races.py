@@ -19,10 +19,12 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from robofailring.errors import OutputBusyError
+from robofailring.atomic import folder_state
+from robofailring.errors import MemoryFormatError, OutputBusyError
 from robofailring.memory.entry import MemoryEntry
 from robofailring.memory.failure import INDEX, MANIFEST, FailureMemory
 from robofailring.memory.manifest import MemoryManifest, StoredCalibration, StoredRule
+from robofailring.memory.version import read_whole
 
 
 def _memory(count: int, *, offset: int = 0) -> FailureMemory:
@@ -80,6 +82,43 @@ def test_a_manifest_is_only_rewritten_in_the_folder_it_was_read_from(tmp_path: P
     assert FailureMemory.load(tmp_path / "b").calibrated_threshold("paper") is None
 
 
+def test_a_memory_replaced_while_it_is_loaded_is_read_again_not_reported_missing(tmp_path: Path) -> None:
+    """The race CI met: a rebuild's swap moves the folder away between a reader's look at the
+    manifest and its read of it (FileNotFoundError escaped). The reader now reads the new version."""
+    folder = tmp_path / "mem"
+    _memory(3).save(folder)
+    reads: list[int] = []
+
+    def read_during_a_rebuild(directory: Path) -> FailureMemory:
+        reads.append(1)
+        if len(reads) == 1:  # another process replaces the folder under this first read
+            _memory(5).save(folder)
+            (tmp_path / "moved-away" / MANIFEST).read_bytes()  # the old version, gone: FileNotFoundError
+        return FailureMemory._read(directory, data_root=None)
+
+    found, (where, state) = read_whole(folder, read_during_a_rebuild)
+    assert len(found) == 5 and len(reads) == 2 and where == folder.resolve() and state == folder_state(folder)
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(MemoryFormatError, match="is not a failure memory"):  # a folder that is not one
+        read_whole(tmp_path / "empty", lambda d: FailureMemory._read(d, data_root=None))
+    with pytest.raises(MemoryFormatError, match="is not a failure memory"):  # nor one that is absent
+        read_whole(tmp_path / "absent", lambda d: FailureMemory._read(d, data_root=None))
+
+
+def test_a_file_missing_from_a_folder_nobody_changes_is_raised_at_once(tmp_path: Path) -> None:
+    folder = tmp_path / "mem"
+    _memory(3).save(folder)
+    calls: list[Path] = []
+
+    def missing(directory: Path) -> None:
+        calls.append(directory)
+        (directory / "absent.bin").read_bytes()
+
+    with pytest.raises(FileNotFoundError, match=r"absent\.bin"):
+        read_whole(folder, missing)
+    assert len(calls) == 1
+
+
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(
     steps=st.lists(
@@ -131,7 +170,8 @@ _CALIBRATE_LOOP = """
 import sys
 import time
 from pathlib import Path
-from robofailring.errors import OutputBusyError
+from robofailring.atomic import folder_state
+from robofailring.errors import MemoryFormatError, OutputBusyError
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.manifest import StoredCalibration, StoredRule
 folder, written, refused = Path(sys.argv[1]), 0, 0
@@ -151,7 +191,8 @@ import sys
 import time
 import numpy as np
 from pathlib import Path
-from robofailring.errors import OutputBusyError
+from robofailring.atomic import folder_state
+from robofailring.errors import MemoryFormatError, OutputBusyError
 from robofailring.memory.entry import MemoryEntry
 from robofailring.memory.failure import FailureMemory
 folder, written, refused = Path(sys.argv[1]), 0, 0

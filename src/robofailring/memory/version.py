@@ -10,29 +10,38 @@ folder is no longer the version read.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import TypeVar
 
 from robofailring.atomic import FolderState, folder_state
-from robofailring.errors import MemoryFormatError, OutputBusyError
+from robofailring.errors import OutputBusyError
 
 ReadFrom = tuple[Path, FolderState]  # the folder (resolved) and its version when read
 T = TypeVar("T")
 
 
-def read_whole(directory: Path, read: Callable[[Path], T], *, tries: int = 3) -> tuple[T, ReadFrom]:
+def read_whole(directory: Path, read: Callable[[Path], T], *, tries: int = 5) -> tuple[T, ReadFrom]:
     """`read(directory)` on one version of the folder, and that version; read again when another
-    process replaced the folder while it was read (`tries` times, then OutputBusyError)."""
+    process replaced the folder while it was read (`tries` times, then OutputBusyError).
+
+    Whatever a read raised while the folder changed under it (a file gone mid-swap, a header read
+    from one version and a body from the next) is about a version that no longer exists, so it is
+    read again; an error on a folder that stayed as it was is the folder's own and is raised.
+    """
     directory = Path(directory)
-    for _ in range(tries):
+    for attempt in range(tries):
         before = folder_state(directory)
         try:
             found = read(directory)
-        except MemoryFormatError:
-            if folder_state(directory) == before:
+        except Exception as error:
+            after = folder_state(directory)
+            # the same version both times (or absent both times, and not a file vanishing mid-swap)
+            if after == before and (before or not isinstance(error, OSError)):
                 raise
-            continue  # it changed while being read: read the new version
+            time.sleep(0.005 * (attempt + 1))  # let the other process finish its swap
+            continue
         if before and folder_state(directory) == before:
             return found, (directory.resolve(), before)
     raise OutputBusyError(
