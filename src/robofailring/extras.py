@@ -43,6 +43,7 @@ EXTRAS: Final[dict[str, dict[str, str]]] = {
     "rosbag": {"rosbags": "rosbags"},
     "notebook": {"rerun": "rerun-sdk", "rerun_notebook": "rerun-notebook"},
     "onnx": {"onnxruntime": "onnxruntime", "onnx": "onnx"},
+    "openvino": {"openvino": "openvino"},
     "ray": {"ray": "ray"},
 }
 
@@ -57,6 +58,7 @@ PURPOSES: Final[dict[str, str]] = {
     "rosbag": "ROS bags",
     "notebook": "the notebook viewer",
     "onnx": "the ONNX Runtime encoders (--runtime onnx, onnx-int8)",
+    "openvino": "the OpenVINO int8 encoder (--runtime openvino-int8)",
     "ray": "encoding on a Ray cluster (--ray)",
 }
 

@@ -53,9 +53,9 @@ RuntimeOption = Annotated[
     str | None,
     typer.Option(
         "--runtime",
-        help="What runs the encoder's network: `torch`, or its ONNX export through ONNX Runtime, `onnx` (fp32) "
-        "or `onnx-int8` (exported once, cached by checkpoint digest; faster on a CPU). Default: the spec's "
-        "own `@runtime`, else torch.",
+        help="What runs the encoder's network: `torch`, or its ONNX export (made once, cached by checkpoint "
+        "digest): `onnx` (fp32) or `onnx-int8` through ONNX Runtime, `openvino-int8` (static int8 on OpenVINO, "
+        "the fastest on a CPU; the openvino extra). Default: the spec's own `@runtime`, else torch.",
     ),
 ]
 StrideOption = Annotated[

@@ -60,7 +60,9 @@ class DetectorConfig:
     memory: Path | None = None  # memory folder (evaluate: None builds one from the training split)
     encoder: str | None = None  # encoder spec; None: the one that built the memory
     device: str | None = None  # torch device for CLIP (default: cuda when available)
-    runtime: str | None = None  # torch, onnx or onnx-int8 (default: the spec's own, else torch)
+    runtime: str | None = (
+        None  # torch, onnx, onnx-int8 or openvino-int8 (default: the spec's own, else torch)
+    )
     cache_dir: Path | None = None  # embedding cache (default ~/.cache/robofailring)
     data_root: Path | None = None  # where the memory's images are now, when its data moved
     k: int = DEFAULT_K  # neighbours retrieved per query

@@ -57,7 +57,7 @@ def open_detector(
     η = 0.1); the rule defaults per task (`FailureDetector.rule_for`). `encoder`
     overrides the spec the memory was built with (it must give the same identity); `data_root` is
     where the memory's images are now, when its data moved; `device` is the torch device for CLIP;
-    `runtime` runs the encoder in torch or through ONNX Runtime (`onnx`, `onnx-int8`; docs/runtime.md).
+    `runtime` runs the encoder in torch or from its export (`onnx`, `onnx-int8`, `openvino-int8`; docs/runtime.md).
     """
     return detector_from(
         DetectorConfig(

@@ -11,9 +11,8 @@ or that ONNX Runtime cannot read, is reported and exported again.
 The exported graph maps normalised pixels, (N, 3, S, S) float32, to the unnormalised embedding, as
 torch computes it; the preprocessing (open_clip's own transform, or the trained encoder's square
 resize and normalisation) is recorded in `export.json` and run outside the graph (`exported.py`).
-int8 is ONNX Runtime's dynamic quantization of the MatMul and Conv weights (per output channel): no
-calibration images, and on a ViT it is faster and closer to fp32 than static QDQ
-(bench/bench_runtime.py measures both).
+`onnx-int8` is that graph quantized dynamically for ONNX Runtime, `openvino-int8` statically (int8
+weights and activations, symmetric) for OpenVINO (`quantize.py`; bench/bench_runtime.py measures each).
 """
 
 from __future__ import annotations
@@ -25,13 +24,13 @@ import shutil
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Final, Literal
-
-import numpy as np
+from typing import Any, Final
 
 from robofailring.atomic import atomic_directory
 from robofailring.encoders.base import file_digest
 from robofailring.encoders.cache import default_cache_dir
+from robofailring.encoders.preprocess import Preprocess
+from robofailring.encoders.quantize import CALIBRATION_FRAMES, CALIBRATION_SEED, calibration_images, quantize
 from robofailring.encoders.spec import EncoderSpec
 from robofailring.errors import EncoderError
 from robofailring.extras import needs_extra
@@ -41,7 +40,6 @@ EXPORT_VERSION: Final[int] = 1
 MODEL_NAME: Final[str] = "model.onnx"
 MANIFEST_NAME: Final[str] = "export.json"
 OPSET: Final[int] = 17
-QuantMode = Literal["dynamic", "static"]
 
 _log = logging.getLogger("robofailring")
 
@@ -53,7 +51,7 @@ class Export:
     folder: Path
     identity: str  # the encoder identity, the same as the torch encoder's
     dim: int
-    runtime: str  # onnx (fp32) or onnx-int8
+    runtime: str  # onnx (fp32), onnx-int8 or openvino-int8
     preprocess: dict[
         str, Any
     ]  # {"kind": "open_clip", ...open_clip's PreprocessCfg} or {"kind": "square", ...}
@@ -83,6 +81,8 @@ def spec_identity(spec: EncoderSpec) -> tuple[str, str]:
         identity = material = timm_identity(spec.model, spec.weights)
     else:
         raise EncoderError(f"the {spec.kind} encoder has no network to export")
+    if spec.runtime == "openvino-int8":  # its calibration frames are part of what it is made from
+        material += f"|calibration-{CALIBRATION_FRAMES}-{CALIBRATION_SEED}"
     key = hashlib.blake2b(f"{material}|{spec.runtime}|v{EXPORT_VERSION}".encode(), digest_size=8).hexdigest()
     return identity, key
 
@@ -209,48 +209,8 @@ def export_fp32(spec: EncoderSpec, folder: Path) -> Export:
     return _write(folder, identity, dim, "onnx", preprocess)
 
 
-def quantize(
-    source: Path, target: Path, *, mode: QuantMode = "dynamic", calibration: np.ndarray | None = None
-) -> None:
-    """Quantize the fp32 ONNX file `source` to int8 at `target`: dynamic (weights int8 ahead, activations
-    at run time), or static QDQ with activation ranges from `calibration` pixels (N, 3, S, S)."""
-    with needs_extra("onnx"):
-        from onnxruntime.quantization import (
-            CalibrationDataReader,
-            QuantFormat,
-            QuantType,
-            quantize_dynamic,
-            quantize_static,
-        )
-
-    logging.getLogger("root").setLevel(logging.ERROR)  # ORT's advice to pre-process goes to the root logger
-    if mode == "dynamic":
-        quantize_dynamic(str(source), str(target), weight_type=QuantType.QInt8, per_channel=True)
-        return
-    if calibration is None or len(calibration) == 0:
-        raise EncoderError("static quantization needs calibration pixels")
-    batches = [{"pixels": calibration[start : start + 4]} for start in range(0, len(calibration), 4)]
-
-    class Reader(CalibrationDataReader):
-        def __init__(self) -> None:
-            self._batches = iter(batches)
-
-        def get_next(self) -> dict[str, np.ndarray] | None:
-            return next(self._batches, None)
-
-    quantize_static(
-        str(source),
-        str(target),
-        Reader(),
-        quant_format=QuantFormat.QDQ,
-        per_channel=True,
-        activation_type=QuantType.QUInt8,
-        weight_type=QuantType.QInt8,
-    )
-
-
 def ensure_export(spec: EncoderSpec, cache_dir: Path | None = None) -> Export:
-    """The cached export of `spec` for its runtime (`onnx` or `onnx-int8`), made once when absent; an
+    """The cached export of `spec` for its runtime (`onnx`, `onnx-int8`, `openvino-int8`), made once when absent; an
     incomplete or corrupt one is reported and made again."""
     folder, identity = export_folder(spec, cache_dir)
     try:
@@ -271,6 +231,13 @@ def ensure_export(spec: EncoderSpec, cache_dir: Path | None = None) -> Export:
         with atomic_directory(folder) as tmp:
             quantize(fp32.model, tmp / MODEL_NAME)
             _write(tmp, fp32.identity, fp32.dim, "onnx-int8", fp32.preprocess)
+    elif spec.runtime == "openvino-int8":
+        fp32 = ensure_export(spec.with_runtime("onnx"), cache_dir)
+        pixels = Preprocess(fp32.preprocess)(calibration_images())  # resized as any frame is
+        _log.info("quantizing %s to static int8 for OpenVINO (once; cached in %s)", identity, folder)
+        with atomic_directory(folder) as tmp:
+            quantize(fp32.model, tmp / MODEL_NAME, mode="static", calibration=pixels)
+            _write(tmp, fp32.identity, fp32.dim, "openvino-int8", fp32.preprocess)
     else:
         raise EncoderError(f"runtime {spec.runtime} has no ONNX export")
     made = read_export(folder)

@@ -1,15 +1,17 @@
-"""`OnnxEncoder`: an open_clip or trained encoder run through ONNX Runtime from its cached export.
+"""`OnnxEncoder`: an open_clip, timm or trained encoder run from its cached ONNX export.
 
-`spec@onnx` runs the fp32 export, `spec@onnx-int8` the int8 one (docs/runtime.md). The identity is the
-torch encoder's: a memory built in torch is queried through ONNX Runtime, and the other way round (the
-embeddings agree within cosine 0.999 in fp32 and 0.99 in int8, tests/encoders/test_exported.py). The
-embedding cache keeps each runtime's numbers apart (`cache_identity`).
+`spec@onnx` runs the fp32 export and `spec@onnx-int8` its dynamic int8 form on ONNX Runtime;
+`spec@openvino-int8` runs its static int8 form on OpenVINO's CPU plugin (docs/runtime.md). The identity
+is the torch encoder's: a memory built in torch is queried through an export, and the other way round
+(the embeddings agree within cosine 0.999 in fp32 and 0.98 in int8, tests/encoders/test_exported.py).
+The embedding cache keeps each runtime's numbers apart (`cache_identity`).
 """
 
 from __future__ import annotations
 
 import logging
-from collections.abc import Sequence
+import threading
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -17,8 +19,8 @@ import numpy as np
 
 from robofailring.encoders.base import l2_normalize
 from robofailring.encoders.export import Export, discard_export, ensure_export
+from robofailring.encoders.preprocess import Preprocess
 from robofailring.encoders.spec import EncoderSpec
-from robofailring.encoders.trained import prepare_images
 from robofailring.errors import EncoderError
 from robofailring.extras import needs_extra
 
@@ -58,39 +60,46 @@ def open_session(model: Path, providers: Sequence[str], *, threads: int | None =
     return onnxruntime.InferenceSession(str(model), options, providers=list(providers))
 
 
-class Preprocess:
-    """The pixels an export expects, from RGB uint8 images, exactly as the torch encoder prepares them."""
+OPENVINO_CPU = "OpenVINO CPU"
 
-    def __init__(self, description: dict[str, Any]) -> None:
-        self.kind = description.get("kind")
-        if self.kind == "open_clip":
-            with needs_extra("clip"):
-                from open_clip.transform import PreprocessCfg, image_transform_v2
 
-            fields = {key: value for key, value in description.items() if key != "kind"}
-            fields["size"] = tuple(fields["size"]) if isinstance(fields["size"], list) else fields["size"]
-            self._transform = image_transform_v2(PreprocessCfg(**fields), is_train=False)
-        elif self.kind == "square":
-            self._size = int(description["size"])
-            self._mean = np.asarray(description["mean"], dtype=np.float32).reshape(1, 3, 1, 1)
-            self._std = np.asarray(description["std"], dtype=np.float32).reshape(1, 3, 1, 1)
-        else:
-            raise EncoderError(f"unknown preprocessing {self.kind!r} in an ONNX export")
+class OpenVinoSession:
+    """An export compiled by OpenVINO for the CPU, run as an ONNX Runtime session is (`run`, `get_providers`)."""
 
-    def __call__(self, images: Sequence[np.ndarray]) -> np.ndarray:
-        if self.kind == "open_clip":
-            with needs_extra("clip"):
-                from PIL import Image
+    def __init__(self, model: Path, *, threads: int | None = None) -> None:
+        with needs_extra("openvino"):
+            import openvino
 
-            return np.stack([self._transform(Image.fromarray(image)).numpy() for image in images])
-        batch = prepare_images(images, self._size).transpose(0, 3, 1, 2).astype(np.float32) / np.float32(
-            255.0
-        )
-        return np.ascontiguousarray((batch - self._mean) / self._std, dtype=np.float32)
+        config: dict[str, Any] = {"PERFORMANCE_HINT": "LATENCY"}
+        if threads:
+            config["INFERENCE_NUM_THREADS"] = threads
+        self._request = openvino.Core().compile_model(str(model), "CPU", config).create_infer_request()
+        self._lock = threading.Lock()  # one infer request: one run at a time
+
+    def run(self, _outputs: None, feeds: dict[str, np.ndarray]) -> list[np.ndarray]:
+        with self._lock:
+            return [np.array(self._request.infer({0: feeds["pixels"]})[0], dtype=np.float32)]
+
+    def get_providers(self) -> list[str]:
+        return [OPENVINO_CPU]
+
+
+def session_opener(runtime: str, device: str | None, threads: int | None) -> Callable[[Path], Any]:
+    """What opens an export of `runtime` on `device`: an ONNX Runtime session, or OpenVINO's (CPU only)."""
+    if runtime == "openvino-int8":
+        if device is not None and not device.startswith("cpu"):
+            raise EncoderError(
+                f"--runtime openvino-int8 runs on the CPU (OpenVINO), not on --device {device}; on a GPU use "
+                "--runtime onnx or torch"
+            )
+        return lambda model: OpenVinoSession(model, threads=threads)
+    providers = providers_for(device)
+    return lambda model: open_session(model, providers, threads=threads)
 
 
 class OnnxEncoder:
-    """An exported encoder on ONNX Runtime (see the module docstring); made by `load_encoder(spec@onnx…)`."""
+    """An exported encoder on ONNX Runtime or OpenVINO (see the module docstring); made by
+    `load_encoder(spec@onnx…)`."""
 
     def __init__(
         self,
@@ -102,16 +111,16 @@ class OnnxEncoder:
         batch_size: int = 64,
     ) -> None:
         if spec.runtime == "torch":
-            raise EncoderError(f"{spec} runs in torch, not ONNX Runtime")
-        providers = providers_for(device)
+            raise EncoderError(f"{spec} runs in torch, not from an export")
+        open_model = session_opener(spec.runtime, device, threads)
         export = ensure_export(spec, cache_dir)
         try:
-            session = open_session(export.model, providers, threads=threads)
-        except Exception as error:  # ORT raises its own Fail/InvalidProtobuf types for a broken file
+            session = open_model(export.model)
+        except Exception as error:  # ORT and OpenVINO raise their own types for a broken file
             _warn_reexport(export, error)
             discard_export(export.folder)
             export = ensure_export(spec, cache_dir)
-            session = open_session(export.model, providers, threads=threads)
+            session = open_model(export.model)
         self.export: Export = export
         self.session = session
         self.runtime = spec.runtime
@@ -144,7 +153,7 @@ class OnnxEncoder:
 def _warn_reexport(export: Export, error: Exception) -> None:
     first = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
     logging.getLogger("robofailring").warning(
-        "warning: ONNX Runtime cannot read the cached export %s (%s); exporting it again",
+        "warning: the runtime cannot read the cached export %s (%s); exporting it again",
         export.folder,
         first,
     )

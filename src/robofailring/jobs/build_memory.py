@@ -28,7 +28,9 @@ class BuildMemoryConfig:
     split: str | None = None  # only trajectories of this split (project layout)
     cache_dir: Path | None = None  # embedding cache (default ~/.cache/robofailring)
     device: str | None = None  # torch device for CLIP (default: cuda when available)
-    runtime: str | None = None  # torch, onnx or onnx-int8 (default: the spec's own, else torch)
+    runtime: str | None = (
+        None  # torch, onnx, onnx-int8 or openvino-int8 (default: the spec's own, else torch)
+    )
     labels: Path | None = None  # outcome and symbol per episode (needed for LeRobot datasets)
     successes: bool = True  # also build the success memory (contrast rule); False: the paper's memory alone
     success_step: float | None = None  # keep a success frame only this far (cosine) from the last kept one
