@@ -1,5 +1,6 @@
-"""Encoders: `load_encoder(spec)` for `pixels`, `open_clip:<model>[:<tag or checkpoint>]` and `trained:<DIR>`,
-the last two in torch or, with `@onnx`/`@onnx-int8`, through ONNX Runtime (docs/runtime.md)."""
+"""Encoders: `load_encoder(spec)` for `pixels`, `open_clip:<model>[:<tag or checkpoint>]`, `timm:<model>[:<checkpoint>]`
+and `trained:<DIR>`, each kind one module (`kinds.py`); the last three in torch or, with a `@runtime`, from their
+export on ONNX Runtime or OpenVINO (docs/runtime.md)."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ from pathlib import Path
 
 from robofailring.encoders.base import Encoder, cache_identity, l2_normalize
 from robofailring.encoders.cache import CachedEncoder, EmbeddingCache, default_cache_dir
+from robofailring.encoders.kinds import kind_of
 from robofailring.encoders.spec import ENCODER_SPECS_HELP, EncoderSpec
 
 
@@ -19,25 +21,11 @@ def load_encoder(
     An ONNX runtime exports the network into `cache_dir` (default `default_cache_dir()`) the first time.
     """
     parsed = EncoderSpec.parse(spec)
-    if parsed.runtime != "torch":
+    if parsed.runtime != "torch":  # the runtime layer: the kind's network from its export
         from robofailring.encoders.exported import OnnxEncoder
 
         return OnnxEncoder(parsed, device=device, cache_dir=cache_dir)
-    if parsed.kind == "open_clip":
-        from robofailring.encoders.openclip import OpenClipEncoder
-
-        return OpenClipEncoder(parsed.model, parsed.weights, device=device)
-    if parsed.kind == "timm":
-        from robofailring.encoders.timm_backbone import TimmEncoder
-
-        return TimmEncoder(parsed.model, parsed.weights, device=device)
-    if parsed.kind == "trained":
-        from robofailring.encoders.trained import TrainedEncoder
-
-        return TrainedEncoder(Path(parsed.directory), device=device)
-    from robofailring.encoders.pixels import PixelEncoder
-
-    return PixelEncoder()
+    return kind_of(parsed).load(parsed, device)
 
 
 def open_encoder(

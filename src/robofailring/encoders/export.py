@@ -29,6 +29,7 @@ from typing import Any, Final
 from robofailring.atomic import atomic_directory
 from robofailring.encoders.base import file_digest
 from robofailring.encoders.cache import default_cache_dir
+from robofailring.encoders.kinds import kind_of
 from robofailring.encoders.preprocess import Preprocess
 from robofailring.encoders.quantize import CALIBRATION_FRAMES, CALIBRATION_SEED, calibration_images, quantize
 from robofailring.encoders.spec import EncoderSpec
@@ -63,24 +64,7 @@ class Export:
 
 def spec_identity(spec: EncoderSpec) -> tuple[str, str]:
     """(the encoder identity, the export key) of a spec, found without loading its network."""
-    if spec.kind == "open_clip":
-        from robofailring.encoders.openclip import checked_weights, open_clip_identity
-
-        model_name, checkpoint = checked_weights(spec.model, spec.weights)
-        identity = open_clip_identity(model_name, spec.weights, checkpoint)
-        config = Path(spec.model)
-        material = identity + (f"|config-{file_digest(config)}" if config.suffix == ".json" else "")
-    elif spec.kind == "trained":
-        from robofailring.encoders.trained import trained_identity
-
-        _, identity = trained_identity(Path(spec.directory).expanduser())
-        material = identity
-    elif spec.kind == "timm":
-        from robofailring.encoders.timm_backbone import timm_identity
-
-        identity = material = timm_identity(spec.model, spec.weights)
-    else:
-        raise EncoderError(f"the {spec.kind} encoder has no network to export")
+    identity, material = kind_of(spec).export_identity(spec)
     if spec.runtime == "openvino-int8":  # its calibration frames are part of what it is made from
         material += f"|calibration-{CALIBRATION_FRAMES}-{CALIBRATION_SEED}"
     key = hashlib.blake2b(f"{material}|{spec.runtime}|v{EXPORT_VERSION}".encode(), digest_size=8).hexdigest()
@@ -143,45 +127,6 @@ def _write(folder: Path, identity: str, dim: int, runtime: str, preprocess: dict
     return Export(folder, identity, dim, runtime, preprocess)
 
 
-def torch_network(spec: EncoderSpec) -> tuple[Any, int, dict[str, Any], str, int]:
-    """(the torch module from normalised pixels to the embedding, its input side, the preprocessing,
-    the identity, the dimension) of an open_clip or trained spec, loaded on the CPU."""
-    with needs_extra("clip"):
-        from torch import nn
-
-    if spec.kind == "open_clip":
-        from robofailring.encoders.openclip import OpenClipEncoder
-
-        clip = OpenClipEncoder(spec.model, spec.weights, device="cpu")
-        visual, identity, dim = clip.model.visual, clip.identity, clip.dim
-        del clip  # the text tower is not exported: freed before the export copies the image tower
-        preprocess = {"kind": "open_clip", **json.loads(json.dumps(visual.preprocess_cfg))}
-        size = visual.image_size
-        side = int(size[0] if isinstance(size, (tuple, list)) else size)
-        return visual, side, preprocess, identity, dim
-    if spec.kind == "timm":
-        from robofailring.encoders.timm_backbone import TimmEncoder
-
-        backbone = TimmEncoder(spec.model, spec.weights, device="cpu")
-        return backbone.network, backbone.side, backbone.preprocessing, backbone.identity, backbone.dim
-    from robofailring.encoders.trained import TrainedEncoder
-
-    trained = TrainedEncoder(Path(spec.directory).expanduser(), device="cpu")
-
-    class Embed(nn.Module):
-        def __init__(self, network: Any) -> None:
-            super().__init__()
-            self.network: Any = network
-
-        def forward(self, pixels: Any) -> Any:
-            return self.network.embed(pixels)
-
-    normalize = trained.config["normalize"]
-    side = int(trained.config["input_size"])
-    preprocess = {"kind": "square", "size": side, "mean": normalize["mean"], "std": normalize["std"]}
-    return Embed(trained.network).eval(), side, preprocess, trained.identity, trained.dim
-
-
 def export_fp32(spec: EncoderSpec, folder: Path) -> Export:
     """Export the torch network of `spec` into the (temporary) `folder` as fp32 ONNX."""
     with needs_extra("onnx"):
@@ -189,13 +134,13 @@ def export_fp32(spec: EncoderSpec, folder: Path) -> Export:
     with needs_extra("clip"):
         import torch
 
-    network, side, preprocess, identity, dim = torch_network(spec)
-    example = torch.zeros(2, 3, side, side)
+    network = kind_of(spec).network(spec)
+    example = torch.zeros(2, 3, network.side, network.side)
     try:  # not under inference_mode: torch's fused attention kernel has no ONNX form
         with warnings.catch_warnings():  # the tracer's notes on shape checks, for torch developers
             warnings.simplefilter("ignore")
             torch.onnx.export(
-                network,
+                network.module,
                 (example,),
                 str(folder / MODEL_NAME),
                 input_names=["pixels"],
@@ -205,8 +150,10 @@ def export_fp32(spec: EncoderSpec, folder: Path) -> Export:
                 dynamo=False,  # the TorchScript exporter: no onnxscript needed
             )
     except Exception as error:  # torch's exporter raises many types for an unsupported graph
-        raise EncoderError(f"cannot export {identity} to ONNX: {type(error).__name__}: {error}") from error
-    return _write(folder, identity, dim, "onnx", preprocess)
+        raise EncoderError(
+            f"cannot export {network.identity} to ONNX: {type(error).__name__}: {error}"
+        ) from error
+    return _write(folder, network.identity, network.dim, "onnx", network.preprocess)
 
 
 def ensure_export(spec: EncoderSpec, cache_dir: Path | None = None) -> Export:

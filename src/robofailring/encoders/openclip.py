@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import json
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -10,6 +11,8 @@ from typing import Any
 import numpy as np
 
 from robofailring.encoders.base import file_digest, l2_normalize
+from robofailring.encoders.kinds import Network
+from robofailring.encoders.spec import EncoderSpec
 from robofailring.errors import EncoderError, WeightsUnavailableError
 from robofailring.extras import needs_extra
 from robofailring.jsontext import parse_json
@@ -218,3 +221,27 @@ class OpenClipEncoder:
                 features = self.model.encode_image(batch)
                 outputs.append(features.float().cpu().numpy())
         return np.concatenate(outputs)
+
+
+def load(spec: EncoderSpec, device: str | None) -> OpenClipEncoder:
+    """The kind's encoder (`kinds.py`)."""
+    return OpenClipEncoder(spec.model, spec.weights, device=device)
+
+
+def export_identity(spec: EncoderSpec) -> tuple[str, str]:
+    """The identity, and what an export is made from: it and the model-config file a spec may name."""
+    model_name, checkpoint = checked_weights(spec.model, spec.weights)
+    identity = open_clip_identity(model_name, spec.weights, checkpoint)
+    config = Path(spec.model)
+    return identity, identity + (f"|config-{file_digest(config)}" if config.suffix == ".json" else "")
+
+
+def network(spec: EncoderSpec) -> Network:
+    """The image tower alone, on the CPU (the text tower is freed before the export copies it)."""
+    clip = OpenClipEncoder(spec.model, spec.weights, device="cpu")
+    visual, identity, dim = clip.model.visual, clip.identity, clip.dim
+    del clip
+    preprocess = {"kind": "open_clip", **json.loads(json.dumps(visual.preprocess_cfg))}
+    size = visual.image_size
+    side = int(size[0] if isinstance(size, (tuple, list)) else size)
+    return Network(visual, side, preprocess, identity, dim)

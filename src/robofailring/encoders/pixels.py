@@ -20,6 +20,9 @@ import cv2
 import numpy as np
 
 from robofailring.encoders.base import l2_normalize
+from robofailring.encoders.kinds import Network
+from robofailring.encoders.spec import EncoderSpec
+from robofailring.errors import EncoderError
 
 THUMBNAIL: Final[int] = 24
 DIM: Final[int] = 512
@@ -61,3 +64,16 @@ class PixelEncoder:
         if len(images) == 0:
             return np.zeros((0, DIM), dtype=np.float32)
         return l2_normalize(np.stack([self.features(image) for image in images]) @ self._projection)
+
+
+def load(spec: EncoderSpec, device: str | None) -> PixelEncoder:
+    """The kind's encoder (`kinds.py`): no weights, no device."""
+    return PixelEncoder()
+
+
+def export_identity(spec: EncoderSpec) -> tuple[str, str]:
+    raise EncoderError("the pixels encoder has no network to export")
+
+
+def network(spec: EncoderSpec) -> Network:
+    raise EncoderError("the pixels encoder has no network to export")

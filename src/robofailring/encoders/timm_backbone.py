@@ -20,7 +20,9 @@ from typing import Any
 import numpy as np
 
 from robofailring.encoders.base import file_digest, l2_normalize
+from robofailring.encoders.kinds import Network
 from robofailring.encoders.openclip import _offline_unless_reachable, pick_device
+from robofailring.encoders.spec import EncoderSpec
 from robofailring.encoders.trained import normalizer, prepare_images, to_tensor
 from robofailring.errors import EncoderError, WeightsUnavailableError
 from robofailring.extras import needs_extra
@@ -143,3 +145,18 @@ class TimmEncoder:
                 pixels = (to_tensor(batch, self._device) - mean) / std
                 outputs.append(self.network(pixels).float().cpu().numpy())
         return l2_normalize(np.concatenate(outputs))
+
+
+def load(spec: EncoderSpec, device: str | None) -> TimmEncoder:
+    """The kind's encoder (`kinds.py`)."""
+    return TimmEncoder(spec.model, spec.weights, device=device)
+
+
+def export_identity(spec: EncoderSpec) -> tuple[str, str]:
+    identity = timm_identity(spec.model, spec.weights)
+    return identity, identity
+
+
+def network(spec: EncoderSpec) -> Network:
+    backbone = TimmEncoder(spec.model, spec.weights, device="cpu")
+    return Network(backbone.network, backbone.side, backbone.preprocessing, backbone.identity, backbone.dim)

@@ -26,6 +26,8 @@ import cv2
 import numpy as np
 
 from robofailring.encoders.base import file_digest, l2_normalize
+from robofailring.encoders.kinds import Network
+from robofailring.encoders.spec import EncoderSpec
 from robofailring.encoders.trained_config import check_trained_config
 from robofailring.errors import EncoderError
 from robofailring.extras import needs_extra
@@ -289,3 +291,34 @@ class TrainedEncoder:
                 pixels = (to_tensor(batch, self._device) - self._mean) / self._std
                 outputs.append(self.network.embed(pixels).float().cpu().numpy())
         return l2_normalize(np.concatenate(outputs))
+
+
+def load(spec: EncoderSpec, device: str | None) -> TrainedEncoder:
+    """The kind's encoder (`kinds.py`)."""
+    return TrainedEncoder(Path(spec.directory), device=device)
+
+
+def export_identity(spec: EncoderSpec) -> tuple[str, str]:
+    _, identity = trained_identity(Path(spec.directory).expanduser())
+    return identity, identity
+
+
+def network(spec: EncoderSpec) -> Network:
+    """The whole trained network (a CLIP tower and its head included) from normalised pixels to `embed`."""
+    with needs_extra("clip"):
+        from torch import nn
+
+    trained = TrainedEncoder(Path(spec.directory).expanduser(), device="cpu")
+
+    class Embed(nn.Module):
+        def __init__(self, network: Any) -> None:
+            super().__init__()
+            self.network: Any = network
+
+        def forward(self, pixels: Any) -> Any:
+            return self.network.embed(pixels)
+
+    normalize = trained.config["normalize"]
+    side = int(trained.config["input_size"])
+    preprocess = {"kind": "square", "size": side, "mean": normalize["mean"], "std": normalize["std"]}
+    return Network(Embed(trained.network).eval(), side, preprocess, trained.identity, trained.dim)
