@@ -103,6 +103,12 @@ def pixels_memory_dir(aha_dataset: Path, tmp_path_factory: pytest.TempPathFactor
     return memory.save(tmp_path_factory.mktemp("memory") / "pixels")
 
 
+@pytest.fixture(scope="module")
+def encoder(tmp_path_factory: pytest.TempPathFactory) -> CachedEncoder:
+    """The weight-free pixels encoder, with an embedding cache of the test module's own."""
+    return CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path_factory.mktemp("embeddings"))
+
+
 @pytest.fixture()
 def pixels_memory(pixels_memory_dir: Path) -> FailureMemory:
     """The shared pixels memory, loaded afresh for each test so that no test sees another's changes."""

@@ -7,11 +7,13 @@ it; in a plain local `pytest` run the test is skipped instead.
 
 from __future__ import annotations
 
+import importlib
 import os
 import shutil
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from types import ModuleType
 from typing import Final, NoReturn
 
 import pytest
@@ -30,7 +32,16 @@ def missing(what: str) -> NoReturn:
     """Fail (full lane) or skip (a plain local run) a test whose environment lacks `what`."""
     if full_lane():
         pytest.fail(f"{what} (the full lane needs it: {FULL_ENV}=1 or CI is set)", pytrace=False)
-    pytest.skip(what)
+    pytest.skip(what, allow_module_level=True)
+
+
+def require_module(name: str, install: str) -> ModuleType:
+    """`name` imported, or `missing` saying what is not installed and how to install it (`install`): in
+    place of pytest.importorskip, which skips in the full lane too."""
+    try:
+        return importlib.import_module(name)
+    except ImportError as error:
+        missing(f"{name} cannot be imported ({error}): {install}")
 
 
 def require_viewer() -> None:

@@ -211,8 +211,10 @@ def write_lerobot_v21(
     fps: int = 15,
     codec: str = "h264",
     frame: FrameFn | None = None,
+    shuffled: bool = False,
 ) -> Path:
-    """A LeRobot v2.1 dataset: one parquet per episode, one mp4 per episode and camera."""
+    """A LeRobot v2.1 dataset: one parquet per episode, one mp4 per episode and camera (`shuffled`: each
+    episode's frame rows in a random order)."""
     make = frame or (lambda e, c, t: scene(e, c, t, size))
     unique = list(dict.fromkeys(tasks))
     (root / "meta").mkdir(parents=True)
@@ -245,6 +247,8 @@ def write_lerobot_v21(
     first = 0
     for e, length in enumerate(lengths):
         table = _frame_table([0] * e + [length], [unique.index(t) for t in tasks[: e + 1]], fps, first)
+        if shuffled:
+            table = table.take(np.random.default_rng(e).permutation(table.num_rows))
         pq.write_table(table, root / "data" / "chunk-000" / f"episode_{e:06d}.parquet")
         first += length
         for c, camera in enumerate(cameras):

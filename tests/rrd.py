@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import math
 import warnings
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pyarrow as pa
 from rerun.chunk import RrdReader
 
@@ -107,3 +109,10 @@ def every_text(path: Path) -> str:
                 if not pa.types.is_temporal(column.type):
                     texts.append(f"{name}: {column.to_pylist()}")
     return "\n".join(texts)
+
+
+def psnr(decoded: np.ndarray, source: np.ndarray) -> float:
+    """How near a camera frame read back (decoded from a recording's video) is to the frame logged, in dB
+    (inf when equal)."""
+    mse = float(np.mean((decoded.astype(np.float64) - source) ** 2))
+    return math.inf if mse == 0 else 10 * math.log10(255.0**2 / mse)

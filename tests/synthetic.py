@@ -267,3 +267,11 @@ def write_triage_memory(root: Path) -> Path:
     encoder = CachedEncoder(load_encoder("pixels"), cache_dir=root / "cache")
     memory, _ = build_memories(labelled, encoder, provenance=Provenance(data=known, encoder="pixels"))
     return memory.save(root / "memory")
+
+
+def csv_rows(path: Path) -> list[dict[str, str]]:
+    """A labels file or a triage table read back as rows, one dict per row by its header."""
+    import csv
+
+    with path.open(newline="", encoding="utf-8") as handle:
+        return list(csv.DictReader(handle))

@@ -1,10 +1,15 @@
-"""The test tree itself: pytest's default import mode needs each test module's basename once."""
+"""The test tree itself: each test module's basename once (pytest's default import mode), fixtures registered in a
+conftest.py, and a missing requirement asked for through tests/environment.py (a failure in the full lane)."""
 
 from __future__ import annotations
 
+import json
 import re
 from collections import Counter
 from pathlib import Path
+
+import pytest
+from environment import FULL_ENV, require_module
 
 TESTS = Path(__file__).resolve().parents[1]
 
@@ -23,3 +28,28 @@ def test_fixture_modules_are_not_loaded_per_test_module() -> None:
         if re.search(r"^pytest_plugins\b", path.read_text(), re.MULTILINE)
     ]
     assert loading == []
+
+
+def test_a_missing_module_is_asked_for_through_the_environment_helper() -> None:
+    """pytest.importorskip skips in the full lane too: `environment.require_module` fails there instead."""
+    skipping = [
+        str(path.relative_to(TESTS))
+        for path in TESTS.rglob("*.py")
+        if "importorskip(" in path.read_text() and path.name != "test_test_tree.py"
+    ]
+    assert skipping == []
+
+
+def test_a_missing_requirement_fails_the_full_lane_and_skips_a_plain_run(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.delenv("CI", raising=False)
+    monkeypatch.setenv(FULL_ENV, "1")
+    with pytest.raises(
+        pytest.fail.Exception, match=r"robofailring_absent cannot be imported .*: pip install it"
+    ):
+        require_module("robofailring_absent", "pip install it")
+    monkeypatch.delenv(FULL_ENV)
+    with pytest.raises(pytest.skip.Exception, match="robofailring_absent cannot be imported"):
+        require_module("robofailring_absent", "pip install it")
+    assert require_module("json", "") is json

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from environment import require_module
 
 from robofailring import RULES
 from robofailring.evaluation.metrics import PAPER_DELTAS
@@ -23,9 +24,9 @@ from robofailring.outputs import is_recording
 
 pytestmark = pytest.mark.slow  # simulation and a kernel: the full lane only (scripts/test.sh)
 
-nbformat = pytest.importorskip("nbformat")
-nbclient = pytest.importorskip("nbclient")
-pytest.importorskip("rerun_notebook")
+nbformat = require_module("nbformat", "pip install -e '.[dev]' (scripts/setup.sh --dev)")
+nbclient = require_module("nbclient", "pip install -e '.[dev]' (scripts/setup.sh --dev)")
+require_module("rerun_notebook", "pip install -e '.[notebook]'")
 
 NOTEBOOK = Path(__file__).resolve().parents[2] / "examples" / "notebook.ipynb"
 CELL_TIMEOUT = 300  # seconds, any one cell (the whole notebook takes about 30 s on 2 cores)

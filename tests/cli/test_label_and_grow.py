@@ -8,7 +8,7 @@ import shutil
 from pathlib import Path
 
 from fault_helpers import DIE_ON_REPLACE, cli, hidden, killed, refused, tree
-from synthetic import write_aha_dataset, write_project_dataset
+from synthetic import csv_rows, write_aha_dataset, write_project_dataset
 
 from robofailring import FailureMemory
 
@@ -41,7 +41,7 @@ def test_label_the_flagged_runs_grow_the_memory_and_detect_finds_the_new_failure
     labels = tmp_path / "labels.csv"
     written = cli("review", json_path, "--data", data, "--score", "paper", "--write-labels", labels, *cache)
     assert written.exit_code == 0, written.output
-    rows = list(csv.DictReader(labels.read_text().splitlines()))
+    rows = csv_rows(labels)
     assert [(r["episode"], r["review"], r["detected"]) for r in rows] == [
         ("pick_cube_success_episode1", "false alarm", "failure"),
         ("pick_cube_slip_wp3_episode1", "miss", "success"),
@@ -171,7 +171,7 @@ def test_review_merges_into_a_filled_labels_file_and_refuses_any_other_file(
         ).exit_code
         == 0
     )
-    rows = list(csv.DictReader(labels.read_text().splitlines()))
+    rows = csv_rows(labels)
     rows[1] |= {"outcome": "failure", "description": MISS_TEXT, "score": "0.5"}
     for row in rows:
         row["note"] = "seen by Ana" if row is rows[1] else ""
@@ -184,7 +184,7 @@ def test_review_merges_into_a_filled_labels_file_and_refuses_any_other_file(
     again = cli("review", json_path, "--data", data, "--score", "paper", "--write-labels", labels, *cache)
     assert again.exit_code == 0, again.output
     assert f"wrote {labels}: 1 of its 3 row(s) to label" in again.output  # only the row still empty
-    merged = {row["episode"]: row for row in csv.DictReader(labels.read_text().splitlines())}
+    merged = {row["episode"]: row for row in csv_rows(labels)}
     assert list(merged) == ["pick_cube_success_episode1", "pick_cube_slip_wp3_episode1", "someone_elses_run"]
     miss = merged["pick_cube_slip_wp3_episode1"]
     assert (miss["outcome"], miss["description"], miss["note"]) == ("failure", MISS_TEXT, "seen by Ana")

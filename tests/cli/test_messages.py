@@ -13,19 +13,14 @@ import numpy as np
 import pytest
 from fault_helpers import cli, refused
 from hdf5_writer import write_robomimic
-from synthetic import write_episode, write_labelled_runs, write_unlabelled_runs
+from synthetic import csv_rows, write_episode, write_labelled_runs, write_unlabelled_runs
 
 from robofailring import load_dataset
 
 
-def _rows(path: Path) -> list[dict[str, str]]:
-    with path.open(newline="", encoding="utf-8") as handle:
-        return list(csv.DictReader(handle))
-
-
 def test_triage_takes_each_episodes_task_from_the_labels_file(tmp_path: Path) -> None:
     data, labels = write_labelled_runs(tmp_path / "runs", runs=8, length=4)
-    rows = _rows(labels)
+    rows = csv_rows(labels)
     for number, row in enumerate(rows):  # a folder of two tasks, told only by the labels' task column
         row["task"] = ("pick_cube", "push_cube")[number // 4]
     with labels.open("w", newline="", encoding="utf-8") as handle:
@@ -38,7 +33,8 @@ def test_triage_takes_each_episodes_task_from_the_labels_file(tmp_path: Path) ->
     )
     assert result.exit_code == 0, result.output
     ranked = {
-        row["episode"]: (row["task"], row["reference"], row["outcome"]) for row in _rows(out / "triage.csv")
+        row["episode"]: (row["task"], row["reference"], row["outcome"])
+        for row in csv_rows(out / "triage.csv")
     }
     assert ranked == {row["episode"]: (row["task"], "successes", row["outcome"]) for row in rows}
 

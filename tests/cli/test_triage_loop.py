@@ -7,18 +7,13 @@ import csv
 from pathlib import Path
 
 import pytest
-from synthetic import write_unlabelled_runs
+from synthetic import csv_rows, write_unlabelled_runs
 from typer.testing import CliRunner
 
 from rfr_viz.cli.app import app
 from robofailring.triage import ranking_quality
 
 runner = CliRunner()
-
-
-def _rows(path: Path) -> list[dict[str, str]]:
-    with path.open(newline="", encoding="utf-8") as handle:
-        return list(csv.DictReader(handle))
 
 
 def _unlabelled_auc(rows: list[dict[str, str]], truth: dict[str, str]) -> float:
@@ -36,7 +31,7 @@ def test_fill_the_top_rows_grow_a_memory_and_the_ranking_improves(tmp_path: Path
     first = runner.invoke(app, ["triage", str(data), "--out", str(out), "--replays", "0", *common])
     assert first.exit_code == 0, first.output
     assert "assumes most runs of the task succeeded" in first.output
-    rows = _rows(out / "triage.csv")
+    rows = csv_rows(out / "triage.csv")
     before = _unlabelled_auc(rows[10:], truth)
     for row in rows[:10]:  # a person labels the top of the ranking
         kind = truth[row["episode"]]
@@ -81,7 +76,7 @@ def test_fill_the_top_rows_grow_a_memory_and_the_ranking_improves(tmp_path: Path
     # the one labelled failure is the memory's only one: left out, contrast has nothing to judge it by
     assert second.exit_code == 3, second.output
     assert "the contrast rule compares with" in second.output
-    again = _rows(out / "triage.csv")
+    again = csv_rows(out / "triage.csv")
     assert sum(bool(r["outcome"]) for r in again) == 10  # nothing a person filled in was blanked
     after = _unlabelled_auc(again, truth)
     assert after > before and after == 1.0

@@ -1,5 +1,6 @@
 """Folder names are user input: the AHA and ManiSkill layouts read any name as an episode whose symbol
-grounds (or is refused with SymbolError), or skip it with a reason; never another exception."""
+grounds (or is refused with SymbolError), or skip it with a reason; never another exception, and never
+a folder dropped without a word."""
 
 from __future__ import annotations
 
@@ -7,18 +8,28 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from hypothesis import given
+from hypothesis import assume, example, given
 from hypothesis import strategies as st
 
 from robofailring.data.grounding import parse_symbol
 from robofailring.data.images import write_png
 from robofailring.data.layout_aha import AHA_FAILURES, aha_name_problem, aha_trajectories, parse_aha_name
-from robofailring.data.layout_maniskill import MANISKILL_FAILURES, maniskill_trajectories
+from robofailring.data.layout_maniskill import MANISKILL_FAILURES, MANISKILL_SUCCESS, maniskill_trajectories
+from robofailring.data.model import Skipped, Trajectory
 from robofailring.errors import SymbolError
 
 PARTS = st.one_of(
     st.sampled_from(
-        [*AHA_FAILURES, *MANISKILL_FAILURES, "wrong_object", "success", "episode", "wp", "stage"]
+        [
+            *AHA_FAILURES,
+            *MANISKILL_FAILURES,
+            MANISKILL_SUCCESS,
+            "wrong_object",
+            "success",
+            "episode",
+            "wp",
+            "stage",
+        ]
     ),
     st.from_regex(r"(wp|episode|stage)?[0-9]{1,4}", fullmatch=True),
     st.text(st.characters(codec="utf-8", exclude_characters="/\0"), min_size=1, max_size=8),
@@ -53,25 +64,48 @@ def _frame(folder: Path, name: str) -> None:
     write_png(folder / name, np.zeros((4, 4, 3), np.uint8))
 
 
-@given(NAMES)
-def test_an_aha_folder_of_any_name_is_read_or_skipped(name: str) -> None:
+def _read_or_skipped(folder: Path, found: list[Trajectory], skipped: list[Skipped]) -> None:
+    """`folder` is read as exactly one episode, or listed as skipped once, with a reason; not both."""
+    read = [trajectory for trajectory in found if trajectory.source == folder]
+    passed = [item for item in skipped if item.path == folder]
+    assert len(read) + len(passed) == 1, (folder.name, read, passed)
+    assert all(item.reason for item in passed)
+    for trajectory in read:
+        _symbol_grounds_or_is_refused(trajectory.symbol)
+
+
+AHA_EPISODE = "pick_cube_success_episode0"
+
+
+@given(NAMES, st.booleans())
+@example("pick_cube_grasp_wp2_episode3", True)  # read: both branches are met whatever is drawn
+@example("pick_cube_grasp_wp2_episode3", False)
+@example("notes", True)
+@example("notes", False)
+def test_an_aha_folder_of_any_name_is_read_or_skipped(name: str, beside_an_episode: bool) -> None:
+    assume(name != AHA_EPISODE)
     with tempfile.TemporaryDirectory() as root:
         _frame(Path(root) / name, "front_0.png")
         _frame(Path(root) / name, "front_1.png")
+        if beside_an_episode:  # the layout is found by another folder: this one is judged among episodes
+            _frame(Path(root) / AHA_EPISODE, "front_0.png")
         found, skipped = aha_trajectories(Path(root))
-        for trajectory in found:
-            _symbol_grounds_or_is_refused(trajectory.symbol)
+        _read_or_skipped(Path(root) / name, found, skipped)
         assert all(item.reason for item in skipped)
 
 
 @given(NAMES)
+@example("3_grasp_wp1")
+@example(MANISKILL_SUCCESS)
+@example("notes")
 def test_a_maniskill_folder_of_any_name_is_read_or_skipped(name: str) -> None:
     with tempfile.TemporaryDirectory() as root:
-        episode = Path(root) / "PickCube-v1" / "seed0" / name / "front"
-        _frame(episode, "0.png")
-        _frame(episode, "1.png")
+        episode = Path(root) / "PickCube-v1" / "seed0" / name
+        _frame(episode / "front", "0.png")
+        _frame(episode / "front", "1.png")
+        success = Path(root) / "PickCube-v1" / "seed1" / MANISKILL_SUCCESS  # the layout is found by it
+        _frame(success / "front", "0.png")
         found, skipped = maniskill_trajectories(Path(root))
-        for trajectory in found:
-            assert trajectory.task == "PickCube-v1"
-            _symbol_grounds_or_is_refused(trajectory.symbol)
+        assert all(trajectory.task == "PickCube-v1" for trajectory in found)
+        _read_or_skipped(episode, found, skipped)
         assert all(item.reason for item in skipped)

@@ -40,10 +40,9 @@ def _read(trajectory: Trajectory) -> dict[str, tuple[SignalKind, tuple[str, ...]
 
 @pytest.mark.parametrize("version", ["v3.0", "v2.1"])
 def test_lerobot_state_and_action_are_read_by_name_in_frame_order(version: str, tmp_path: Path) -> None:
-    if version == "v3.0":  # the data rows shuffled: each episode's rows are put back in frame order
-        root = write_lerobot_v3(tmp_path / "ds", lengths=(5, 7), tasks=("a", "b"), size=16, shuffled=True)
-    else:
-        root = write_lerobot_v21(tmp_path / "ds", lengths=(5, 7), tasks=("a", "b"), size=16)
+    write = write_lerobot_v3 if version == "v3.0" else write_lerobot_v21
+    # the data rows shuffled: each episode's rows are put back in frame order
+    root = write(tmp_path / "ds", lengths=(5, 7), tasks=("a", "b"), size=16, shuffled=True)
     dataset = load_dataset(root)
     for episode, trajectory in enumerate(dataset.trajectories()):
         signals = _read(trajectory)

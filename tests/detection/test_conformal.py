@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from environment import require_module
 
 from robofailring.detection.conformal import (
     attainable_target_fpr,
@@ -139,7 +140,7 @@ def test_runs_for_bound_is_the_first_n_from_which_the_quantile_stays_within(alph
 
 
 def test_beta_quantiles_agree_with_scipy() -> None:
-    stats = pytest.importorskip("scipy.stats")
+    stats = require_module("scipy.stats", "pip install scipy (umap-learn, of the viz extra, brings it)")
     for n, alpha in [(19, 0.05), (250, 0.05), (77, 0.1), (1000, 0.01)]:
         a, b = realised_fpr_parameters(n, alpha)
         for q in (0.05, 0.5, 0.95):

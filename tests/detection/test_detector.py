@@ -23,8 +23,10 @@ from robofailring.memory.pairs import pair_vectors
 
 
 @pytest.fixture()
-def memory_and_encoder(pixels_memory: FailureMemory, cache_dir: Path) -> tuple[FailureMemory, CachedEncoder]:
-    return pixels_memory, CachedEncoder(load_encoder("pixels"), cache_dir=cache_dir)
+def memory_and_encoder(
+    pixels_memory: FailureMemory, encoder: CachedEncoder
+) -> tuple[FailureMemory, CachedEncoder]:
+    return pixels_memory, encoder
 
 
 def test_trace_equals_brute_force(

@@ -20,6 +20,7 @@ from robofailring.detection.rules import (
     rule_named,
     rules_for,
 )
+from robofailring.detection.view_scores import reaches
 from robofailring.errors import DataError, SettingError
 from robofailring.evaluation.calibration import CalibrateConfig, calibrate
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
@@ -39,7 +40,7 @@ def test_the_novelty_rule_scores_one_minus_s_plus_against_eta() -> None:
     )
     assert NOVELTY.needs_successes and not NOVELTY.needs_failures and NOVELTY.bounds == (0.0, 2.0)
     np.testing.assert_allclose(NOVELTY.score([NAN, 0.9, 0.1], [0.75, NAN, -0.5]), [0.25, NAN, 1.5])
-    np.testing.assert_array_equal(NOVELTY.fires([0.25, NAN, 1.5], 0.3), [False, False, True])
+    np.testing.assert_array_equal(reaches([0.25, NAN, 1.5], 0.3), [False, False, True])
     with pytest.raises(SettingError, match=r"η must lie in \[0, 2\] for the novelty rule"):
         NOVELTY.check_threshold(-0.1)
 

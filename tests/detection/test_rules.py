@@ -22,6 +22,7 @@ from robofailring.detection.rules import (
     rule_named,
     rules_for,
 )
+from robofailring.detection.view_scores import reaches
 from robofailring.errors import SettingError
 from robofailring.evaluation.calibration import available_rules
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
@@ -36,7 +37,7 @@ def test_the_paper_rule_scores_s_minus_against_delta() -> None:
     assert float(PAPER.score(0.7, 0.9)) == pytest.approx(0.7)  # S⁺ plays no part
     np.testing.assert_array_equal(PAPER.score([0.5, NAN], [NAN, 0.1]), np.float32([0.5, NAN]))
     np.testing.assert_array_equal(
-        PAPER.fires(PAPER.score([0.5, NAN, 0.95], [0, 0, 0]), 0.9), [False, False, True]
+        reaches(PAPER.score([0.5, NAN, 0.95], [0, 0, 0]), 0.9), [False, False, True]
     )
     assert PAPER.check_threshold(-1.0) == -1.0
     for bad in (1.01, -1.5, NAN):
@@ -51,7 +52,7 @@ def test_the_contrast_rule_scores_s_minus_minus_s_plus_against_gamma() -> None:
     assert float(CONTRAST.score(0.9, 0.6)) == pytest.approx(0.3)
     scores = CONTRAST.score(np.float32([0.9, 0.5, NAN]), np.float32([0.6, NAN, 0.2]))
     np.testing.assert_allclose(scores, [0.3, NAN, NAN], atol=1e-7)
-    np.testing.assert_array_equal(CONTRAST.fires(scores, -2.0), [True, False, False])  # NaN never fires
+    np.testing.assert_array_equal(reaches(scores, -2.0), [True, False, False])  # NaN never fires
     assert CONTRAST.check_threshold(1.5) == 1.5
     with pytest.raises(SettingError, match=r"γ must lie in \[-2, 2\] for the contrast rule"):
         CONTRAST.check_threshold(2.5)

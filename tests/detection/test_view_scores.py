@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from robofailring.detection.view_scores import ViewScores
+from robofailring.detection.conformal import empirical_fpr
+from robofailring.detection.view_scores import ViewScores, reaches
 from robofailring.evaluation.metrics import ScoredTrajectory
 
 NAN = float("nan")
@@ -56,3 +57,16 @@ def test_the_evaluation_judges_through_the_same_type() -> None:
     )
     np.testing.assert_array_equal(scored.scores(), scores.fused_max())
     assert scored.t_det(0.8) == 2 and scored.t_det(0.8, ["front"]) == 3
+
+
+def test_a_score_equal_to_the_threshold_fires_everywhere_alarms_are_decided() -> None:
+    """`reaches` (≥) is the one comparison: the fused state, a step's firing views, t_det and the calibration's
+    empirical FPR all count a score exactly at the threshold as an alarm."""
+    np.testing.assert_array_equal(
+        reaches(np.float32([0.5, 0.4999, NAN, 0.7]), 0.5), [True, False, False, True]
+    )
+    scores = ViewScores({"front": np.float32([0.25, 0.5, NAN]), "wrist": np.float32([NAN, 0.1, 0.5])}, 3)
+    np.testing.assert_array_equal(scores.state(0.5), [False, True, True])
+    assert scores.firing(0.5, 1) == ["front"] and scores.firing({"front": 0.6, "wrist": 0.5}, 2) == ["wrist"]
+    assert scores.first_at_or_above(0.5) == 1 and scores.detected_view(0.5) == "front"
+    assert empirical_fpr([0.5, 0.25, 0.5, 0.75], 0.5) == 0.75

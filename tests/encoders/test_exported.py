@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
+import sqlite3
 from pathlib import Path
 
 import numpy as np
@@ -200,12 +202,62 @@ def test_runtime_option_on_build_memory_and_detect(
     assert refused.exit_code != 0 and "unknown runtime 'onnx-fp16'" in refused.output
 
 
-@pytest.mark.parametrize("verb", ["evaluate", "replay", "watch"])
-def test_the_recording_verbs_take_the_runtime_option(verb: str) -> None:
+def _cached_identities(cache: Path) -> dict[str, int]:
+    """The embedding caches in `cache`: each one's encoder key (`cache_identity`: the identity, `@onnx` for
+    that runtime) and how many embeddings it holds."""
+    held = {}
+    for path in cache.glob("embeddings-*.sqlite"):
+        with contextlib.closing(sqlite3.connect(path)) as db:
+            (identity,) = db.execute("SELECT value FROM meta WHERE key = 'identity'").fetchone()
+            (count,) = db.execute("SELECT COUNT(*) FROM emb").fetchone()
+        held[identity] = count
+    return held
+
+
+@pytest.fixture(scope="module")
+def evaluated_onnx(
+    tiny_checkpoint: tuple[Path, Path], tmp_path_factory: pytest.TempPathFactory
+) -> tuple[str, Path, Path, Path]:
+    """(torch identity, data, memory, cache) of `evaluate --runtime onnx` with the tiny CLIP."""
     from rfr_viz.cli.app import app as full_app
 
-    shown = runner.invoke(full_app, [verb, "--help"], terminal_width=200)
-    assert shown.exit_code == 0 and "--runtime" in shown.output and "onnx-int8" in shown.output
+    root = tmp_path_factory.mktemp("runtime-verbs")
+    data = write_project_dataset(
+        root / "data", tasks=("pick_cube",), symbols=("grasp_wp2", "slip_wp3"), episodes=2, length=5
+    )
+    spec, cache = _clip_spec(tiny_checkpoint), root / "cache"
+    args = ["--encoder", spec, "--runtime", "onnx", "--target-fpr", "0.5", "--cache-dir", str(cache)]
+    evaluated = runner.invoke(full_app, ["evaluate", str(data), "--out", str(root / "eval"), *args])
+    assert evaluated.exit_code == 0, evaluated.output
+    return load_encoder(spec).identity, data, root / "eval" / "memory", cache
+
+
+def test_evaluate_encodes_through_the_runtime_it_is_given(
+    evaluated_onnx: tuple[str, Path, Path, Path],
+) -> None:
+    identity, _, memory, cache = evaluated_onnx
+    held = _cached_identities(cache)
+    assert list(held) == [f"{identity}@onnx"] and held[f"{identity}@onnx"] > 0  # no torch embedding at all
+    assert [folder.name.split("-")[-2] for folder in (cache / "onnx").iterdir()] == ["onnx"]
+    assert FailureMemory.load(memory).encoder == identity  # any runtime queries it
+
+
+@pytest.mark.parametrize("verb", ["replay", "watch"])
+def test_the_recording_verbs_encode_through_the_runtime_they_are_given(
+    evaluated_onnx: tuple[str, Path, Path, Path], tmp_path: Path, verb: str
+) -> None:
+    from rfr_viz.cli.app import app as full_app
+
+    identity, data, memory, _ = evaluated_onnx
+    episode = data / "pick_cube_slip_wp3_episode1"
+    cache = tmp_path / "cache"  # its own: whatever is cached in it, this verb encoded
+    out = ["--out", str(tmp_path / "rec")] if verb == "replay" else ["--save", str(tmp_path / "run.rrd")]
+    args = [verb, str(episode), "--memory", str(memory), *out, "--runtime", "onnx", "--cache-dir", str(cache)]
+    ran = runner.invoke(full_app, [*args, *(["--speed", "0"] if verb == "watch" else [])])
+    assert ran.exit_code == 0, ran.output
+    held = _cached_identities(cache)
+    assert list(held) == [f"{identity}@onnx"] and held[f"{identity}@onnx"] > 0
+    assert (tmp_path / "rec").is_dir() if verb == "replay" else (tmp_path / "run.rrd").is_file()
 
 
 def test_cuda_without_onnxruntime_gpu_says_what_to_install() -> None:

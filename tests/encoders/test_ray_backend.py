@@ -3,13 +3,13 @@ process, the embedding cache shared both ways, and a cluster that cannot be reac
 
 from __future__ import annotations
 
-import socket
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from ports import free_port
 from synthetic import write_project_dataset
 
 from robofailring import FailureMemory, load_dataset
@@ -103,15 +103,9 @@ def test_tiny_clip_on_ray_matches_torch_here(
     np.testing.assert_allclose(on_ray.encode_frames(frames), local, atol=1e-6)
 
 
-def _closed_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return int(probe.getsockname()[1])
-
-
 @pytest.mark.slow  # a fresh process that imports Ray and tries to connect (~2.5 s)
 def test_unreachable_cluster_is_one_error_naming_its_address(aha_dataset: Path, tmp_path: Path) -> None:
-    address = f"ray://127.0.0.1:{_closed_port()}"
+    address = f"ray://127.0.0.1:{free_port()}"
     target, cache = str(tmp_path / "m"), str(tmp_path / "cache")
     command = ["build-memory", str(aha_dataset), "--out", target, "--cache-dir", cache, "--ray", address]
     result = subprocess.run(

@@ -6,14 +6,14 @@ from __future__ import annotations
 import html
 import re
 
-import pytest
+from environment import require_module
 from hypothesis import example, given
 from hypothesis import strategies as st
 
 from rfr_viz.charts.report_html import markdown_html
 from robofailring.evaluation.markdown import markdown_text
 
-markdown_it = pytest.importorskip("markdown_it")
+markdown_it = require_module("markdown_it", "pip install markdown-it-py (typer's rich brings it)")
 RENDERER = markdown_it.MarkdownIt("commonmark").enable(["table", "strikethrough"])
 # any printable text; not the private use area, where report.html holds escaped characters meanwhile
 TEXT = st.text(st.characters(blacklist_categories=("Cs", "Cc", "Co")), max_size=40)

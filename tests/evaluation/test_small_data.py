@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-from synthetic import write_labelled_runs, write_project_dataset
+from synthetic import csv_rows, write_labelled_runs, write_project_dataset
 from typer.testing import CliRunner
 
 from rfr_viz.cli.app import app
@@ -213,7 +213,7 @@ def test_folds_still_cross_validate_when_the_split_gives_no_held_out_evaluation(
     """A handful of runs whose successes all sit in the test split: nothing to calibrate the held-out
     evaluation on. `--folds` needs no split, so the cross-validation is written, said, status 3."""
     data, labels = runs
-    rows = list(csv.DictReader(labels.open(encoding="utf-8")))
+    rows = csv_rows(labels)
     split_labels = tmp_path / "split-labels.csv"
     with split_labels.open("w", newline="", encoding="utf-8") as file:
         writer = csv.DictWriter(file, fieldnames=[*rows[0], "split"])

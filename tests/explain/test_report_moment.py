@@ -8,16 +8,11 @@ from pathlib import Path
 import pytest
 from synthetic import repeated_failure_memory
 
-from robofailring import CachedEncoder, FailureDetector, load_encoder
+from robofailring import CachedEncoder, FailureDetector
 from robofailring.explain.report import FailureReport, report_for
 
 LENGTH = 8
 ONSET = 2
-
-
-@pytest.fixture(scope="module")
-def encoder(tmp_path_factory: pytest.TempPathFactory) -> CachedEncoder:
-    return CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path_factory.mktemp("cache"))
 
 
 def _report(root: Path, encoder: CachedEncoder, failure_frames: str) -> FailureReport:

@@ -11,6 +11,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from ports import free_port
 from synthetic import write_episode
 from typer.testing import CliRunner
 from vlm_server import ANSWER, chat_server, silent_server
@@ -272,11 +273,7 @@ def test_detect_vlm_options_go_together(episode: Path, pixels_memory_dir: Path) 
 
 
 def test_no_server_is_an_error_naming_the_url(report: FailureReport) -> None:
-    import socket
-
-    with socket.socket() as probe:  # a port nobody listens on
-        probe.bind(("127.0.0.1", 0))
-        url = f"http://127.0.0.1:{probe.getsockname()[1]}/v1"
+    url = f"http://127.0.0.1:{free_port()}/v1"  # nobody listens on it
     answer = ask_vlm(report, _config(url))
     assert answer.error is not None and answer.error.startswith(f"cannot reach {url}/chat/completions")
 

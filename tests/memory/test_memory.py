@@ -16,8 +16,7 @@ from robofailring.memory.pairs import pair_vectors
 
 
 @pytest.fixture()
-def built(aha_dataset: Path, cache_dir: Path) -> tuple[FailureMemory, CachedEncoder, list[Trajectory]]:
-    encoder = CachedEncoder(load_encoder("pixels"), cache_dir=cache_dir)
+def built(aha_dataset: Path, encoder: CachedEncoder) -> tuple[FailureMemory, CachedEncoder, list[Trajectory]]:
     trajectories = list(load_dataset(aha_dataset))
     memory, _ = FailureMemory.build(trajectories, encoder)
     return memory, encoder, trajectories

@@ -14,7 +14,7 @@ from rrd import entity_paths, properties, reader, rows, static_value, values
 from rfr_viz.paths import APPLICATION_ID, CLOSED_LOOP_SUMMARY, UNSTOPPED, WATCHED
 from rfr_viz.recordings.closed_loop import ClosedLoopResult, run_closed_loop
 from rfr_viz.viewer.control import render_screenshot
-from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
+from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset
 from robofailring.jobs.closed_loop import watch_episode
 from robofailring.sim import VIEWS, EpisodeResult, GenerateConfig, generate_dataset, run_episode
 
@@ -35,11 +35,6 @@ class Reference:
     def peak(self) -> np.ndarray:
         """max over views of S_t, per frame."""
         return np.max(np.stack(list(self.similarity.values())), axis=0)
-
-
-@pytest.fixture(scope="module")
-def encoder(tmp_path_factory: pytest.TempPathFactory) -> CachedEncoder:
-    return CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path_factory.mktemp("embeddings"))
 
 
 @pytest.fixture(scope="module")

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from synthetic import csv_rows
 
 from robofailring.data.labels import read_labels, unlabelled_rows
 from robofailring.data.model import Outcome, Trajectory
@@ -36,17 +37,12 @@ def _ranked(*episodes: str) -> list[EpisodeScore]:
     ]
 
 
-def _read(path: Path) -> list[dict[str, str]]:
-    with path.open(newline="", encoding="utf-8") as handle:
-        return list(csv.DictReader(handle))
-
-
 def test_rows_in_rank_order_read_back_as_labels_once_filled(tmp_path: Path) -> None:
     path = write_table(
         tmp_path / "triage.csv",
         table_rows(_ranked("run_b", "run_a"), open_commands={"pick_cube/run_b": "robofailring open x.rrd"}),
     )
-    rows = _read(path)
+    rows = csv_rows(path)
     assert list(rows[0]) == list(COLUMNS)
     assert [(r["rank"], r["episode"], r["frame"], r["view"]) for r in rows] == [
         ("1", "run_b", "1", "front"),
@@ -69,14 +65,14 @@ def test_rows_in_rank_order_read_back_as_labels_once_filled(tmp_path: Path) -> N
 
 def test_a_second_triage_keeps_what_a_person_filled_and_re_ranks(tmp_path: Path) -> None:
     path = write_table(tmp_path / "triage.csv", table_rows(_ranked("run_a", "run_b", "run_c")))
-    rows = _read(path)
+    rows = csv_rows(path)
     rows[2] |= {"outcome": "success", "notes": "looked fine"}  # a person's own column stays too
     with path.open("w", newline="", encoding="utf-8") as handle:
         writer = csv.DictWriter(handle, fieldnames=[*COLUMNS, "notes"])
         writer.writeheader()
         writer.writerows(rows)
     write_table(path, table_rows(_ranked("run_c", "run_b")))  # run_a not in this triage
-    again = _read(path)
+    again = csv_rows(path)
     assert [(r["episode"], r["rank"], r["outcome"], r["notes"]) for r in again] == [
         ("run_c", "1", "success", "looked fine"),
         ("run_b", "2", "", ""),

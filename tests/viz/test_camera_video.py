@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
 import pytest
 from rrd import columns as rrd_columns
+from rrd import psnr
 from synthetic import synthetic_frame, write_episode
 
 from rfr_viz.codecs import AUTO_AV1_PIXELS, CameraCodec, resolve_codec
@@ -27,11 +27,6 @@ from robofailring.detection.detector import DetectionTrace
 from robofailring.errors import DataError
 
 LENGTH = 40
-
-
-def _psnr(a: np.ndarray, b: np.ndarray) -> float:
-    mse = float(np.mean((a.astype(np.float64) - b) ** 2))
-    return math.inf if mse == 0 else 10 * math.log10(255.0**2 / mse)
 
 
 @pytest.fixture(scope="module")
@@ -69,11 +64,11 @@ def test_a_replay_stores_cameras_as_video_that_decodes_to_the_frames(
     decoded = decode_video(video)
     source = [frame.load() for frame in trajectory.views["front"][: trace.length]]
     assert len(decoded) == len(source)
-    assert min(_psnr(d, s) for d, s in zip(decoded, source, strict=True)) > 30.0
+    assert min(psnr(d, s) for d, s in zip(decoded, source, strict=True)) > 30.0
     # a frame decodes from its last keyframe alone (what the viewer does when scrubbing)
     start = KEYFRAME_INTERVAL
     tail = EncodedVideo(codec, samples[start:], keyframes[start:], 96, 96)
-    assert _psnr(decode_video(tail, upto=3)[-1], source[start + 3]) > 30.0
+    assert psnr(decode_video(tail, upto=3)[-1], source[start + 3]) > 30.0
     # neighbour images stay images; the property says which codec the cameras use
     assert "EncodedImage:blob" in rrd_columns(path, "/neighbors/**")
     assert "EncodedImage:blob" not in rrd_columns(path, "/camera/**")

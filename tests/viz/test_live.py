@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
 import os
 import subprocess
 import sys
@@ -15,7 +14,8 @@ import numpy as np
 import pytest
 import rerun as rr
 from environment import require_viewer
-from rrd import batches, entity_paths, has_footer, properties, rows
+from ports import free_port
+from rrd import batches, entity_paths, has_footer, properties, psnr, rows
 from synthetic import VIEWS, synthetic_frame, write_episode
 from typer.testing import CliRunner
 
@@ -160,7 +160,7 @@ def test_watch_encodes_video_frame_by_frame(
         source = [frame.load() for frame in trajectory.views[view][:length]]
         assert len(decoded) == length
         # pixel-close to the source, as a replay's video (tests/test_camera_video.py)
-        assert min(_psnr(d, s) for d, s in zip(decoded, source, strict=True)) > 30.0
+        assert min(psnr(d, s) for d, s in zip(decoded, source, strict=True)) > 30.0
 
 
 def test_live_auto_means_jpeg_and_images_stay_images(tmp_path: Path) -> None:
@@ -183,12 +183,7 @@ def test_live_auto_means_jpeg_and_images_stay_images(tmp_path: Path) -> None:
     whole = encode_video(frames, CameraCodec.AV1, fps=10.0)  # what a replay stores for the same frames
     assert video.samples == whole.samples and video.keyframes == whole.keyframes
     decoded = decode_video(video)
-    assert min(_psnr(d, s) for d, s in zip(decoded, frames, strict=True)) > 30.0
-
-
-def _psnr(a: np.ndarray, b: np.ndarray) -> float:
-    mse = float(np.mean((a.astype(np.float64) - b) ** 2))
-    return math.inf if mse == 0 else 10 * math.log10(255.0**2 / mse)
+    assert min(psnr(d, s) for d, s in zip(decoded, frames, strict=True)) > 30.0
 
 
 class Collect:
@@ -278,11 +273,7 @@ def test_watch_connect_streams_into_a_running_viewer(episode: Path, pixels_memor
 
 
 def test_watch_without_a_viewer_is_a_clear_error(episode: Path, pixels_memory_dir: Path) -> None:
-    import socket
-
-    with socket.socket() as probe:  # a port nobody listens on
-        probe.bind(("127.0.0.1", 0))
-        port = probe.getsockname()[1]
+    port = free_port()  # nobody listens on it
     result = runner.invoke(
         app,
         [

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from environment import require_module
 from rrd import blueprint_names, properties, reader
 from synthetic import write_episode
 
@@ -32,7 +33,7 @@ from robofailring import (
 )
 from robofailring.errors import DataError, SettingError
 
-pytest.importorskip("rerun_notebook")
+require_module("rerun_notebook", "pip install -e '.[notebook]'")
 
 
 @pytest.fixture(scope="module")

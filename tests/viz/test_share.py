@@ -13,17 +13,12 @@ from pathlib import Path
 
 import pytest
 import rerun as rr
+from ports import free_port
 
 from rfr_viz.viewer.share import _lan_address, share_folder
 from robofailring.errors import DataError
 
 pytestmark = pytest.mark.slow  # simulation or end-to-end: the full lane only (scripts/test.sh)
-
-
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return int(probe.getsockname()[1])
 
 
 def _listening(port: int, host: str = "127.0.0.1") -> bool:
@@ -52,7 +47,7 @@ def folder(tmp_path: Path) -> Path:
 
 
 def test_share_serves_the_web_viewer_on_loopback_and_stops(folder: Path) -> None:
-    grpc_port, web_port = _free_port(), _free_port()
+    grpc_port, web_port = free_port(), free_port()
     shared = share_folder(folder, grpc_port=grpc_port, web_port=web_port)
     try:
         assert [p.name for p in shared.recordings] == ["a.rrd", "b.rrd"]
@@ -78,11 +73,11 @@ def test_share_refuses_an_empty_folder_and_a_corrupt_file(tmp_path: Path) -> Non
     bad.parent.mkdir()
     bad.write_bytes(b"not a recording")
     with pytest.raises(DataError, match=r"broken\.rrd"):
-        share_folder(bad.parent, grpc_port=_free_port(), web_port=_free_port())
+        share_folder(bad.parent, grpc_port=free_port(), web_port=free_port())
 
 
 def test_share_command_prints_the_urls_and_stops_on_ctrl_c(folder: Path) -> None:
-    grpc_port, web_port = _free_port(), _free_port()
+    grpc_port, web_port = free_port(), free_port()
     command = [sys.executable, "-m", "rfr_viz.cli.app", "share", str(folder), "--port", str(grpc_port)]
     process = subprocess.Popen(
         [*command, "--web-port", str(web_port)],

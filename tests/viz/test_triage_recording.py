@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 from rrd import batches, blueprint_names, columns, entity_paths, properties, static_value
-from synthetic import write_unlabelled_runs
+from synthetic import csv_rows, write_unlabelled_runs
 
 from rfr_viz.jobs.triage import triage
 from rfr_viz.paths import TRIAGE_RANKING, TRIAGE_SCORES, triage_curve, triage_episode
@@ -61,7 +61,7 @@ def test_the_first_episodes_have_replays_opening_at_their_peak(written) -> None:
     assert list(outcome.replays) == [ranked[0].key, ranked[1].key]
     for score in ranked[:2]:
         assert properties(outcome.replays[score.key])["focus_frame"] == score.frame
-    rows = list(csv.DictReader(outcome.table.open(encoding="utf-8")))
+    rows = csv_rows(outcome.table)
     assert rows[0]["open"].endswith(f"open {outcome.replays[ranked[0].key]}") and rows[2]["open"] == ""
 
 
@@ -75,7 +75,7 @@ def test_the_page_lists_every_episode_with_its_thumbnail(written) -> None:
 
 def test_a_second_triage_keeps_the_filled_rows_and_refuses_other_files(written, tmp_path: Path) -> None:
     config, _, outcome = written
-    rows = list(csv.DictReader(outcome.table.open(encoding="utf-8")))
+    rows = csv_rows(outcome.table)
     rows[0] |= {"outcome": "failure", "symbol": "grasp_wp2"}
     with outcome.table.open("w", newline="", encoding="utf-8") as handle:
         writer = csv.DictWriter(handle, fieldnames=list(rows[0]))

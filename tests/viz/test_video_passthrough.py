@@ -2,17 +2,15 @@
 
 from __future__ import annotations
 
-import math
 import re
 from fractions import Fraction
 from pathlib import Path
 
 import av
-import numpy as np
 import pytest
 import rerun as rr
 from lerobot_writer import encode_video as write_lerobot_mp4
-from rrd import properties, rows
+from rrd import properties, psnr, rows
 from synthetic import synthetic_frame
 
 from rfr_viz.codecs import CameraCodec
@@ -77,18 +75,13 @@ def _length_prefixed(packet: bytes) -> list[bytes]:
     return units
 
 
-def _psnr(a: np.ndarray, b: np.ndarray) -> float:
-    mse = float(np.mean((a.astype(np.float64) - b) ** 2))
-    return math.inf if mse == 0 else 10 * math.log10(255.0**2 / mse)
-
-
 def _renders(codec: CameraCodec, samples: list[bytes], keyframes: list[bool]) -> None:
     decoded = decode_video(EncodedVideo(codec, samples, keyframes, 96, 96))
     assert len(decoded) == LENGTH
-    assert min(_psnr(d, s) for d, s in zip(decoded, FRAMES, strict=True)) > 30.0
+    assert min(psnr(d, s) for d, s in zip(decoded, FRAMES, strict=True)) > 30.0
     start = keyframes.index(True, 1)  # a later keyframe decodes on its own, as when scrubbing
     tail = decode_video(EncodedVideo(codec, samples[start:], keyframes[start:], 96, 96), upto=1)
-    assert _psnr(tail[-1], FRAMES[start + 1]) > 30.0
+    assert psnr(tail[-1], FRAMES[start + 1]) > 30.0
 
 
 def test_an_av1_source_is_logged_as_its_own_samples(tmp_path: Path) -> None:

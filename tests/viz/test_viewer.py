@@ -8,6 +8,7 @@ import cv2
 import numpy as np
 import pytest
 from environment import require_viewer, viewer_available
+from ports import free_port
 from synthetic import write_episode, write_project_dataset
 
 from rfr_viz.recordings.blueprint import FOCUS_MARGIN
@@ -98,7 +99,7 @@ def test_open_pauses_at_the_alarm_and_reuses_a_running_viewer(
 
     from rerun.experimental import ViewerClient
 
-    port = _free_port()
+    port = free_port()
     first = open_at(alarm, port=port, headless=True)
     try:
         assert first.process is not None and first.frame == 17
@@ -110,14 +111,6 @@ def test_open_pauses_at_the_alarm_and_reuses_a_running_viewer(
     finally:
         first.close()
     assert first.process.poll() is not None  # the viewer started for it is stopped
-
-
-def _free_port() -> int:
-    import socket
-
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return int(probe.getsockname()[1])
 
 
 def test_a_recording_without_a_frame_timeline_renders(viewer_ready: None, tmp_path: Path) -> None:

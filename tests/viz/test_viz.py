@@ -35,7 +35,6 @@ from robofailring import (
     FailureMemory,
     Trajectory,
     load_dataset,
-    load_encoder,
     load_trajectory,
 )
 from robofailring.detection.config import DetectorConfig
@@ -46,11 +45,6 @@ VIEWS = ["front", "overhead", "wrist"]
 
 
 # ------------------------------------------------------------------ fixtures
-@pytest.fixture(scope="module")
-def encoder(tmp_path_factory: pytest.TempPathFactory) -> CachedEncoder:
-    return CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path_factory.mktemp("embeddings"))
-
-
 @pytest.fixture(scope="module")
 def memory(pixels_memory_dir: Path) -> FailureMemory:
     return FailureMemory.load(pixels_memory_dir)

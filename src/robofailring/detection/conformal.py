@@ -18,6 +18,7 @@ from typing import Any, Final
 
 import numpy as np
 
+from robofailring.detection.view_scores import reaches
 from robofailring.errors import DataError, SettingError
 
 
@@ -238,9 +239,9 @@ def fpr_spread(successes: int, alpha: float, *, margin: float = SPREAD_MARGIN) -
 
 
 def empirical_fpr(peaks: Sequence[float], threshold: float) -> float:
-    """The share of these peak scores that reach the threshold."""
+    """The share of these peak scores that reach the threshold (that would fire: `reaches`)."""
     values = np.asarray(peaks, dtype=np.float32)
-    return float(np.count_nonzero(values >= np.float32(threshold))) / max(values.size, 1)
+    return float(np.count_nonzero(reaches(values, np.float32(threshold)))) / max(values.size, 1)
 
 
 def auc(failure_peaks: Sequence[float], success_peaks: Sequence[float]) -> float:

@@ -51,10 +51,6 @@ class ScoringRule(ABC):
             )
         return value
 
-    def fires(self, score: ArrayLike, threshold: float) -> np.ndarray:
-        """Where `score` reaches `threshold` (NaN never fires)."""
-        return np.asarray(np.asarray(score, dtype=np.float32) >= threshold)
-
     def __repr__(self) -> str:
         return f"{type(self).__name__}()"
 

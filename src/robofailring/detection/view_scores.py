@@ -4,7 +4,8 @@ Firing, t_det and the detected view are judged here and nowhere else: the detect
 its trace (`robofailring.detection.trace.DetectionTrace`) and the evaluation's scored trajectories
 (`robofailring.evaluation.metrics.ScoredTrajectory`) all judge through `ViewScores`: the fused score is the max
 over views, a NaN (a frame not scored, or no success memory) counts as −∞ and so never fires, and
-t_det is the first frame whose fused score reaches the threshold. A live step may judge each view
+t_det is the first frame whose fused score reaches the threshold. `reaches` is that comparison, the one
+way an alarm is decided (calibration's empirical FPR counts with it too). A live step may judge each view
 against its own threshold (a band per view, `robofailring.detection.view_bands`): `firing` and
 `strongest` take one threshold or one per view.
 """
@@ -16,8 +17,14 @@ from dataclasses import dataclass
 from typing import TypeAlias
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 Thresholds: TypeAlias = float | Mapping[str, float]  # one for every view, or one per view
+
+
+def reaches(score: ArrayLike, threshold: ArrayLike) -> np.ndarray:
+    """Where `score` reaches `threshold` (≥; NaN never does): what fires an alarm, everywhere."""
+    return np.asarray(np.asarray(score) >= threshold)
 
 
 def _of(threshold: Thresholds, view: str) -> float:
@@ -44,7 +51,7 @@ class ViewScores:
 
     def state(self, threshold: float, views: Sequence[str] | None = None) -> np.ndarray:
         """State_t (eq. 7): True where any chosen view's score reaches `threshold`."""
-        return np.asarray(self.fused_max(views) >= threshold)
+        return reaches(self.fused_max(views), threshold)
 
     def first_at_or_above(self, threshold: float, views: Sequence[str] | None = None) -> int | None:
         """t_det: the first frame whose fused score reaches `threshold`, or None."""
@@ -54,7 +61,7 @@ class ViewScores:
     def firing(self, threshold: Thresholds, t: int, views: Sequence[str] | None = None) -> list[str]:
         """The chosen views whose score at frame `t` reaches `threshold` (its own, given per view), in view
         order (NaN never fires)."""
-        return [v for v in self.chosen(views) if self.by_view[v][t] >= _of(threshold, v)]
+        return [v for v in self.chosen(views) if reaches(self.by_view[v][t], _of(threshold, v))]
 
     def strongest(self, threshold: Thresholds, t: int, views: Sequence[str] | None = None) -> str | None:
         """The firing view whose score at frame `t` is highest over its threshold (with one threshold: the
