@@ -62,18 +62,24 @@ class Export:
         return self.folder / MODEL_NAME
 
 
-def spec_identity(spec: EncoderSpec) -> tuple[str, str]:
-    """(the encoder identity, the export key) of a spec, found without loading its network."""
-    identity, material = kind_of(spec).export_identity(spec)
+MadeFrom = tuple[str, str]  # a kind's `export_identity`: the identity and what an export is made from
+
+
+def spec_identity(spec: EncoderSpec, made_from: MadeFrom | None = None) -> tuple[str, str]:
+    """(the encoder identity, the export key) of a spec, found without loading its network (`made_from`:
+    the kind's answer when the caller has it already, so a checkpoint is digested once per export)."""
+    identity, material = made_from or kind_of(spec).export_identity(spec)
     if spec.runtime == "openvino-int8":  # its calibration frames are part of what it is made from
         material += f"|calibration-{CALIBRATION_FRAMES}-{CALIBRATION_SEED}"
     key = hashlib.blake2b(f"{material}|{spec.runtime}|v{EXPORT_VERSION}".encode(), digest_size=8).hexdigest()
     return identity, key
 
 
-def export_folder(spec: EncoderSpec, cache_dir: Path | None = None) -> tuple[Path, str]:
+def export_folder(
+    spec: EncoderSpec, cache_dir: Path | None = None, made_from: MadeFrom | None = None
+) -> tuple[Path, str]:
     """Where the export of `spec` (with its runtime) lives, and the encoder identity."""
-    identity, key = spec_identity(spec)
+    identity, key = spec_identity(spec, made_from)
     root = (Path(cache_dir) if cache_dir is not None else default_cache_dir()) / "onnx"
     return root / f"{EncoderSpec.slug(identity)}-{spec.runtime}-{key}", identity
 
@@ -156,10 +162,13 @@ def export_fp32(spec: EncoderSpec, folder: Path) -> Export:
     return _write(folder, network.identity, network.dim, "onnx", network.preprocess)
 
 
-def ensure_export(spec: EncoderSpec, cache_dir: Path | None = None) -> Export:
-    """The cached export of `spec` for its runtime (`onnx`, `onnx-int8`, `openvino-int8`), made once when absent; an
-    incomplete or corrupt one is reported and made again."""
-    folder, identity = export_folder(spec, cache_dir)
+def ensure_export(
+    spec: EncoderSpec, cache_dir: Path | None = None, made_from: MadeFrom | None = None
+) -> Export:
+    """The cached export of `spec` for its runtime (`onnx`, `onnx-int8`, `openvino-int8`), made once when
+    absent (an int8 one from the fp32 one, made first); an incomplete or corrupt one is reported and made again."""
+    made_from = made_from or kind_of(spec).export_identity(spec)
+    folder, identity = export_folder(spec, cache_dir, made_from)
     try:
         found = read_export(folder)
     except EncoderError as error:
@@ -172,19 +181,14 @@ def ensure_export(spec: EncoderSpec, cache_dir: Path | None = None) -> Export:
         _log.info("exporting %s to ONNX (once; cached in %s)", identity, folder)
         with atomic_directory(folder) as tmp:
             export_fp32(spec, tmp)
-    elif spec.runtime == "onnx-int8":
-        fp32 = ensure_export(spec.with_runtime("onnx"), cache_dir)
-        _log.info("quantizing %s to int8 (once; cached in %s)", identity, folder)
+    elif spec.runtime in ("onnx-int8", "openvino-int8"):
+        fp32 = ensure_export(spec.with_runtime("onnx"), cache_dir, made_from)
+        static = spec.runtime == "openvino-int8"  # static for OpenVINO, dynamic for ONNX Runtime
+        pixels = Preprocess(fp32.preprocess)(calibration_images()) if static else None
+        _log.info("quantizing %s to int8 for %s (once; cached in %s)", identity, spec.runtime, folder)
         with atomic_directory(folder) as tmp:
-            quantize(fp32.model, tmp / MODEL_NAME)
-            _write(tmp, fp32.identity, fp32.dim, "onnx-int8", fp32.preprocess)
-    elif spec.runtime == "openvino-int8":
-        fp32 = ensure_export(spec.with_runtime("onnx"), cache_dir)
-        pixels = Preprocess(fp32.preprocess)(calibration_images())  # resized as any frame is
-        _log.info("quantizing %s to static int8 for OpenVINO (once; cached in %s)", identity, folder)
-        with atomic_directory(folder) as tmp:
-            quantize(fp32.model, tmp / MODEL_NAME, mode="static", calibration=pixels)
-            _write(tmp, fp32.identity, fp32.dim, "openvino-int8", fp32.preprocess)
+            quantize(fp32.model, tmp / MODEL_NAME, mode="static" if static else "dynamic", calibration=pixels)
+            _write(tmp, fp32.identity, fp32.dim, spec.runtime, fp32.preprocess)
     else:
         raise EncoderError(f"runtime {spec.runtime} has no ONNX export")
     made = read_export(folder)
