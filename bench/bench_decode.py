@@ -17,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from bench._timing import print_machine
+
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from lerobot_writer import scene, write_lerobot_v3
 
@@ -50,6 +52,7 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=150, help="frames per camera (one episode)")
     parser.add_argument("--size", type=int, default=256, help="square image size in pixels")
     args = parser.parse_args()
+    print_machine()
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp)
         make = frame_fn(args.size)

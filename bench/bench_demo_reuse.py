@@ -27,6 +27,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from bench._timing import print_machine
+
 ROOT = Path(__file__).resolve().parents[1]
 
 RUN = """
@@ -105,6 +107,7 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=2, help="in-distribution episodes per kind")
     parser.add_argument("--frames", type=int, default=8, help="frames per simulated episode")
     args = parser.parse_args()
+    print_machine()
     with tempfile.TemporaryDirectory(prefix="rfr-bench-demo-") as tmp:
         work = Path(tmp)
         baseline = work / "baseline"

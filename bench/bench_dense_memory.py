@@ -24,8 +24,9 @@ from collections import Counter
 from pathlib import Path
 
 import numpy as np
-from _sim_memories import default_data, in_fresh_process
 
+from bench._sim_memories import default_data, in_fresh_process
+from bench._timing import print_machine
 from robofailring.data.layouts import load_dataset
 from robofailring.detection.detector import FailureDetector
 from robofailring.encoders import open_encoder
@@ -71,6 +72,7 @@ def main() -> None:
     if args.child:
         _child(args.child)
         return
+    print_machine()
     from rfr_viz.panels.umap import memory_map
     from rfr_viz.recordings.replay import record_replay
 

@@ -12,14 +12,15 @@ Run: python bench/bench_gpu.py
 
 from __future__ import annotations
 
+import argparse
 import statistics
 import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
-from _timing import median_ms
 
+from bench._timing import median_ms, print_machine
 from robofailring import FailureDetector, FailureMemory, load_encoder
 from robofailring.memory.failure import MemoryEntry
 from robofailring.memory.pairs import pair_vectors
@@ -40,6 +41,8 @@ def memory_for(identity: str, dim: int, entries: int = 15_000, tasks: int = 80) 
 
 
 def main() -> None:
+    argparse.ArgumentParser(description=__doc__.splitlines()[0]).parse_args()
+    print_machine(libraries=("torch",))
     import open_clip
     import torch
     from PIL import Image

@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import os
 
+from bench._timing import print_machine
+
 for _variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_variable, "1")
 
@@ -86,6 +88,7 @@ def main() -> None:
     )
     parser.add_argument("--connect", default=None, help="also stream to a running viewer at this URL")
     args = parser.parse_args()
+    print_machine()
 
     frames = simulated_frames(args.image_size, 40)
     with tempfile.TemporaryDirectory(prefix="bench-live-") as tmp:

@@ -21,8 +21,9 @@ from fractions import Fraction
 from pathlib import Path
 
 import av
-from bench_video import SHARED_EPISODE, camera_recording_bytes, psnr, simulated_episode
 
+from bench._timing import print_machine
+from bench.bench_video import SHARED_EPISODE, camera_recording_bytes, psnr, simulated_episode
 from rfr_viz.codecs import CameraCodec
 from rfr_viz.panels.camera_video import AV1_CRF, AV1_PRESET, EncodedVideo, decode_video, encode_video
 from rfr_viz.panels.video_passthrough import passthrough
@@ -52,6 +53,7 @@ def main() -> None:
     parser.add_argument("--real", type=Path, default=SHARED_EPISODE, help="the real ManiSkill episode folder")
     parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args()
+    print_machine()
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         if args.real.is_dir():

@@ -31,6 +31,7 @@ from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
+from bench._timing import print_machine
 from robofailring.detection.config import DetectorConfig
 from robofailring.encoders import default_cache_dir, encoder_slug, load_encoder
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
@@ -307,6 +308,7 @@ def main() -> None:
         help="LABEL:FIELD=VALUE,... of EvaluateConfig (repeatable)",
     )
     args = parser.parse_args()
+    print_machine()
     in_dist, out_dist, swapped = bench_sets(args.workers)
     out = default_cache_dir() / "bench-quality" / "runs"
     pairs: list[tuple[str, str | None]] = []  # (encoder, the swapped cell's encoder or None)

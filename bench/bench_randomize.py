@@ -29,8 +29,9 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
-from bench_quality import QualityRow, bench_sets, evaluate_encoder, print_rows
 
+from bench._timing import print_machine
+from bench.bench_quality import QualityRow, bench_sets, evaluate_encoder, print_rows
 from robofailring.detection.conformal import auc
 from robofailring.detection.rules import CONTRAST
 from robofailring.encoders import default_cache_dir
@@ -170,6 +171,7 @@ def main() -> None:
     parser.add_argument("--alpha", type=float, default=0.05, help="target FPR α of every rule")
     parser.add_argument("--workers", type=int, default=2, help="simulation processes")
     args = parser.parse_args()
+    print_machine()
     start = time.perf_counter()
     in_dist, out_dist, swapped = bench_sets(args.workers)
     cache = default_cache_dir() / "bench-quality"

@@ -25,8 +25,9 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-from _scenes import scene
 
+from bench._scenes import scene
+from bench._timing import print_machine
 from robofailring.data.images import write_png
 from robofailring.data.model import Frame
 from robofailring.encoders import open_encoder
@@ -61,6 +62,7 @@ def main() -> None:
     )
     parser.add_argument("--cpus", type=int, default=2, help="CPUs of the local Ray cluster")
     args = parser.parse_args()
+    print_machine()
     os.environ.setdefault("ROBOFAILRING_PROGRESS", "0")
     import open_clip
     import ray

@@ -91,7 +91,10 @@ def main() -> None:
     args = parser.parse_args()
     from rosbag_writer import write_bag
 
+    from bench._timing import print_machine
     from robofailring.data.images import write_png
+
+    print_machine()
 
     lengths = [int(n) for n in args.lengths.split(",")]
     topics = (("/cam_front/image_raw", "rgb8"),)

@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from bench._timing import print_machine
 from robofailring.atomic import atomic_path
 from robofailring.encoders import default_cache_dir
 from robofailring.encoders.export import ensure_export, quantize
@@ -144,8 +145,8 @@ def time_runtimes(
 
 def quality(threads: int, alpha: float, *, data: Path | None = None, encoder: str | None = None) -> None:
     import torch
-    from bench_quality import IMAGE_SIZE
 
+    from bench.bench_quality import IMAGE_SIZE
     from robofailring.detection.config import DetectorConfig
     from robofailring.encoders.training import TrainEncoderConfig, train_encoder
     from robofailring.evaluation.run import EvaluateConfig, run_evaluation
@@ -237,6 +238,7 @@ def main() -> None:
     import torch
 
     torch.set_num_threads(args.threads)
+    print_machine()
     print(
         f"torch {torch.__version__} ({args.threads} threads), onnxruntime {onnxruntime.__version__} "
         f"({args.threads} intra-op threads); one 3-view step = 3 frames of 128 px, preprocessing included"

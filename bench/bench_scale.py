@@ -25,9 +25,10 @@ from dataclasses import dataclass
 
 import faiss
 import numpy as np
-from _read_bytes import bytes_per_query, limit_line, memory_bandwidth
-from _synthetic_runs import HALF, VIEWS, describe, held_out_steps, task_memory
 
+from bench._read_bytes import bytes_per_query, limit_line, memory_bandwidth
+from bench._synthetic_runs import HALF, VIEWS, describe, held_out_steps, task_memory
+from bench._timing import print_machine
 from robofailring.memory.index import IVF_PQFS, IVF_SQ8, IndexSpec, TaskIndex, TaskIndexSet, choose_spec
 from robofailring.memory.pairs import pair_vectors
 
@@ -371,6 +372,7 @@ def main() -> None:
     args = parser.parse_args()
     if args.threads:
         faiss.omp_set_num_threads(args.threads)
+    print_machine()
     print(f"Faiss {faiss.__version__}, {faiss.omp_get_max_threads()} OpenMP threads; {describe()}")
     if args.hnsw_probe:
         hnsw_probe()

@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import os
 
+from bench._timing import print_machine
+
 for _variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_variable, "1")
 
@@ -107,6 +109,7 @@ def main() -> None:
         "--baseline", type=int, default=1_000, help="the step whose RSS growth is counted from"
     )
     args = parser.parse_args()
+    print_machine()
     if args.steps <= args.baseline:
         parser.error(f"--steps must exceed --baseline ({args.baseline})")
 

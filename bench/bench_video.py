@@ -25,6 +25,7 @@ import cv2
 import numpy as np
 import rerun.blueprint as rrb
 
+from bench._timing import print_machine
 from rfr_viz.codecs import CameraCodec
 from rfr_viz.panels.camera_video import KEYFRAME_INTERVAL, EncodedVideo, decode_video, encode_video
 from rfr_viz.panels.cameras import log_camera_views
@@ -152,6 +153,7 @@ def main() -> None:
     parser.add_argument("--size", type=int, default=480, help="simulated image size (px)")
     parser.add_argument("--frames", type=int, default=150, help="simulated frames (≥ 150 for the target)")
     args = parser.parse_args()
+    print_machine()
     cv2.setNumThreads(1)
     print(
         "| episode | W×H×frames×views | codec | camera recording | vs JPEG | encode frames/s | "
