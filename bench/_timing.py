@@ -53,7 +53,10 @@ def _library(name: str) -> str:
         "faiss": lambda: module.omp_get_max_threads(),
         "cv2": lambda: module.getNumThreads(),
     }.get(name)
-    return f"{name} {version}" + (f" ({threads()} threads)" if threads else "")
+    if threads is None:
+        return f"{name} {version}"
+    count = threads()
+    return f"{name} {version} ({count} thread{'' if count == 1 else 's'})"
 
 
 def _commit() -> str:
