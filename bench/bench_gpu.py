@@ -7,7 +7,7 @@ batch of 64 against torch's, where the installed ONNX Runtime has that provider 
 plain onnxruntime package has none, and this part then says so and is skipped). int8 is not timed on
 the GPU: its dynamically quantized MatMuls run on ONNX Runtime's CPU kernels.
 
-Run: python bench/bench_gpu.py
+Run: PYTHONPATH=src:.:bench python bench/bench_gpu.py
 """
 
 from __future__ import annotations

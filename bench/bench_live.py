@@ -1,6 +1,6 @@
 """Live view cost (issue 12): latency a step of the step API gains from the Rerun sink, 3 views.
 
-Run: .venv/bin/python bench/bench_live.py [--steps 200] [--image-size 128] [--entries 1500] [--connect URL]
+Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_live.py [--steps 200] [--image-size 128] [--entries 1500] [--connect URL]
 
 The frames are the simulated robot's own (three cameras), fed as live RGB arrays; the memory holds
 random unit vectors under the `pixels` encoder's identity whose entries point at real images (so the

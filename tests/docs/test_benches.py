@@ -103,3 +103,19 @@ def test_every_bench_path_the_docs_name_exists() -> None:
     }
     assert len(named) > 30  # the paths were found
     assert sorted((page, path) for page, path in named if not (ROOT / path).is_file()) == []
+
+
+def test_every_documented_bench_command_puts_the_checkout_on_the_path() -> None:
+    """A script imports its helpers as `bench._…`: `python bench/X.py` needs the checkout (`.`) on
+    PYTHONPATH, as the documented `PYTHONPATH=src:.:bench` gives it (or `python -m bench.X`)."""
+    files = [ROOT / "README.md", *(ROOT / "docs").glob("*.md"), *(ROOT / "docs").glob("*.txt")]
+    files += [*BENCH.rglob("*.py"), *BENCH.rglob("*.md")]
+    command = re.compile(r"(?<![\w/=.-])(?:\.venv/bin/)?python3? bench/")
+    wrong = [
+        f"{path.relative_to(ROOT)}: {line.strip()[:100]}"
+        for path in files
+        for line in path.read_text().splitlines()
+        for _ in command.findall(line)
+        if not re.search(r"PYTHONPATH=\S*(?<!\w)\.(?::|\s|;|$)", line)
+    ]
+    assert wrong == []
