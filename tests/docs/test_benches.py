@@ -21,7 +21,9 @@ SCRIPTS = sorted(
     for path in [*BENCH.glob("*.py"), *(BENCH / "experiments").glob("*.py")]
     if not path.name.startswith("_") and path.name not in PEER_ONLY
 )
-HELP_SECONDS = 10.0  # one script's --help, its imports included (the first pays for torch's)
+# One script's --help, its imports included (the first pays for torch's): generous, for a loaded machine.
+# That no work starts is shown by the output: each script prints its machine line before any work.
+HELP_SECONDS = 60.0
 
 # One interpreter runs every script as `python bench/<script>.py --help` would, so the heavy imports are
 # paid once; it prints one JSON line per script.
