@@ -8,6 +8,7 @@ and cached. Every failure episode of every split goes into the memory: the map s
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from dataclasses import dataclass
@@ -82,8 +83,14 @@ def chance_purity(labels: np.ndarray) -> float:
 def in_fresh_process(script: str, *args: str) -> dict[str, float]:
     """Run `script --child ARGS…` in a new interpreter (as the first replay of a session runs) and read
     the JSON object it prints last."""
+    root = str(Path(__file__).resolve().parents[1])  # the `bench` package's parent, however the parent ran
+    path = os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")]))
     done = subprocess.run(
-        [sys.executable, script, "--child", *args], capture_output=True, text=True, check=True
+        [sys.executable, script, "--child", *args],
+        capture_output=True,
+        text=True,
+        check=True,
+        env={**os.environ, "PYTHONPATH": path},
     )
     found: dict[str, float] = json.loads(done.stdout.strip().splitlines()[-1])
     return found

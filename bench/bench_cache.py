@@ -6,17 +6,17 @@ prints, per image size and format, the per-frame time of: a `stat` (the old size
 reading + hashing the bytes (the key now), reading + decoding the image (the least a cache miss
 costs before encoding), and a full cached lookup of a warm cache.
 
-Run: .venv/bin/python bench/bench_cache.py
+Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_cache.py
 """
 
 from __future__ import annotations
 
+import argparse
 import tempfile
 from pathlib import Path
 
-from _scenes import scene
-from _timing import median_ms
-
+from bench._scenes import scene
+from bench._timing import median_ms, print_machine
 from robofailring.data.images import content_digest, read_image
 from robofailring.data.model import Frame
 from robofailring.encoders import CachedEncoder, load_encoder
@@ -36,6 +36,8 @@ def measure(paths: list[Path], frames: list[Frame], cached: CachedEncoder) -> tu
 
 
 def main() -> None:
+    argparse.ArgumentParser(description=__doc__.splitlines()[0]).parse_args()
+    print_machine()
     import cv2
 
     encoder = load_encoder("pixels")

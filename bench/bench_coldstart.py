@@ -1,6 +1,6 @@
 """From zero failures to a full memory: recall, FPR, T_s and AUC at one α as labelled failures are added.
 
-Run: .venv/bin/python bench/bench_coldstart.py [--encoder SPEC]... [--train-encoder] [--alpha 0.05]
+Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_coldstart.py [--encoder SPEC]... [--train-encoder] [--alpha 0.05]
      [--growth 0,1,2,4] [--id-episodes N --id-successes N --ood-episodes N --ood-successes N]
 
 On the embedded benchmark (`bench/bench_quality.py`'s simulated ID and OOD sets, cached), the memory
@@ -27,8 +27,9 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
-from bench_quality import ID_EPISODES, ID_SUCCESSES, OOD_EPISODES, OOD_SUCCESSES, _pct, datasets
 
+from bench._timing import print_machine
+from bench.bench_quality import ID_EPISODES, ID_SUCCESSES, OOD_EPISODES, OOD_SUCCESSES, _pct, datasets
 from robofailring.detection.rules import default_rule
 from robofailring.encoders import default_cache_dir, encoder_slug, load_encoder
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
@@ -219,6 +220,7 @@ def main() -> None:
     )
     parser.add_argument("--ood-successes", type=int, default=OOD_SUCCESSES, help="OOD successes per task")
     args = parser.parse_args()
+    print_machine()
     start = time.perf_counter()
     in_dist, out_dist = datasets(
         args.workers,

@@ -1,10 +1,11 @@
 """Core speed figures (issue 2): search latency, detector overhead, encoder overhead, cache speed-up.
 
-Run: .venv/bin/python bench/bench_core.py   (prints one line per figure, ratios measured side by side)
+Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_core.py   (prints one line per figure, ratios measured side by side)
 """
 
 from __future__ import annotations
 
+import argparse
 import statistics
 import tempfile
 import time
@@ -12,8 +13,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
-from _timing import median_ms
 
+from bench._timing import median_ms, print_machine
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, Frame, load_encoder
 from robofailring.data.images import write_png
 from robofailring.memory.failure import MemoryEntry
@@ -130,6 +131,8 @@ def bench_cache(paths: list[Path], spec: str, encoder_factory: Callable[[], obje
 
 
 def main() -> None:
+    argparse.ArgumentParser(description=__doc__.splitlines()[0]).parse_args()
+    print_machine()
     memory = synthetic_memory()
     bench_search(memory)
     bench_detector_overhead(memory)

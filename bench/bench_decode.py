@@ -1,7 +1,7 @@
 """Decoding speed of a LeRobot episode (issue 11): frames/s from AV1 video, sequential and with
 `--stride 5`, against reading the same frames from PNG files.
 
-Run: .venv/bin/python bench/bench_decode.py [--frames 150] [--size 256]
+Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_decode.py [--frames 150] [--size 256]
 (writes a 3-camera LeRobot v3.0 dataset, AV1 via libsvtav1 with a keyframe every 2 frames as
 lerobot 0.4 writes it, and the same frames as PNG, to a temporary folder; prints one line per figure)
 """
@@ -16,6 +16,8 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+
+from bench._timing import print_machine
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from lerobot_writer import scene, write_lerobot_v3
@@ -50,6 +52,7 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=150, help="frames per camera (one episode)")
     parser.add_argument("--size", type=int, default=256, help="square image size in pixels")
     args = parser.parse_args()
+    print_machine(libraries=("av",))
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp)
         make = frame_fn(args.size)

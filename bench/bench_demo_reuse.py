@@ -1,7 +1,7 @@
 """The demo before and after jobs pass values (issue 32, item 3): the same small demo timed under a baseline
 commit's code and under this checkout's, in one run, and the ratio.
 
-Run: .venv/bin/python bench/bench_demo_reuse.py [--baseline COMMIT] [--repeats 2] [--episodes 2] [--frames 8]
+Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_demo_reuse.py [--baseline COMMIT] [--repeats 2] [--episodes 2] [--frames 8]
 
 The baseline's source is exported with `git archive` (no worktree, nothing of the repository changed) into
 a temporary folder; each demo runs in a fresh Python process with that tree (or this checkout) first on
@@ -26,6 +26,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+from bench._timing import print_machine
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -105,6 +107,7 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=2, help="in-distribution episodes per kind")
     parser.add_argument("--frames", type=int, default=8, help="frames per simulated episode")
     args = parser.parse_args()
+    print_machine()
     with tempfile.TemporaryDirectory(prefix="rfr-bench-demo-") as tmp:
         work = Path(tmp)
         baseline = work / "baseline"

@@ -1,6 +1,6 @@
 """What a dense failure memory costs beside the paper's: its entries, its build, its memory map, a replay.
 
-Run: .venv/bin/python bench/bench_dense_memory.py [--data DIR] [--encoder SPEC] [--repeat 3]
+Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_dense_memory.py [--data DIR] [--encoder SPEC] [--repeat 3]
 
 The memory holds every failure episode of the set (the demo's simulated set by default, as the other
 map benches), without success runs, built once as `end` (the paper's: one (I_0 ‖ I_end) entry per
@@ -24,8 +24,9 @@ from collections import Counter
 from pathlib import Path
 
 import numpy as np
-from _sim_memories import default_data, in_fresh_process
 
+from bench._sim_memories import default_data, in_fresh_process
+from bench._timing import print_machine
 from robofailring.data.layouts import load_dataset
 from robofailring.detection.detector import FailureDetector
 from robofailring.encoders import open_encoder
@@ -71,6 +72,7 @@ def main() -> None:
     if args.child:
         _child(args.child)
         return
+    print_machine()
     from rfr_viz.panels.umap import memory_map
     from rfr_viz.recordings.replay import record_replay
 

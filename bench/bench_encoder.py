@@ -1,6 +1,6 @@
 """Trained encoder (issue 16): training time, encoding cost, and detection quality side by side with `pixels`.
 
-Run: .venv/bin/python bench/bench_encoder.py [--epochs N] [--frame-stride S] [--threads T] [--reuse]
+Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_encoder.py [--epochs N] [--frame-stride S] [--threads T] [--reuse]
 
 Trains `train-encoder`'s CNN on the training split of the demo-sized simulated set (simulated
 once and cached, exactly as `robofailring demo` does), then, for `pixels` and the trained encoder,
@@ -25,9 +25,9 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from _timing import median_ms
 from sklearn.metrics import roc_auc_score
 
+from bench._timing import median_ms, print_machine
 from rfr_viz.jobs.demo import DemoConfig, simulate_datasets
 from rfr_viz.panels.umap import memory_map
 from robofailring import FailureMemory, load_dataset, load_encoder
@@ -106,6 +106,7 @@ def main() -> None:
     parser.add_argument("--target-fpr", type=float, default=0.05)
     parser.add_argument("--reuse", action="store_true", help="reuse an encoder of the same recipe and data")
     args = parser.parse_args()
+    print_machine(libraries=("torch",))
 
     demo = DemoConfig()
     in_dist, out_dist = demo_sets(demo)

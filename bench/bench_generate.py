@@ -11,6 +11,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from bench._timing import print_machine
 from robofailring.sim import GenerateConfig, generate_dataset
 
 TARGET_S = 180.0
@@ -22,6 +23,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=None, help="keep the dataset here (default: a temp dir)")
     parser.add_argument("--ood", action="store_true")
     args = parser.parse_args()
+    print_machine()
     keep = args.out is not None
     root = Path(tempfile.mkdtemp(prefix="bench-generate-"))
     out = args.out if keep else root / "demo"

@@ -7,19 +7,20 @@ batch of 64 against torch's, where the installed ONNX Runtime has that provider 
 plain onnxruntime package has none, and this part then says so and is skipped). int8 is not timed on
 the GPU: its dynamically quantized MatMuls run on ONNX Runtime's CPU kernels.
 
-Run: python bench/bench_gpu.py
+Run: PYTHONPATH=src:.:bench python bench/bench_gpu.py
 """
 
 from __future__ import annotations
 
+import argparse
 import statistics
 import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
-from _timing import median_ms
 
+from bench._timing import median_ms, print_machine
 from robofailring import FailureDetector, FailureMemory, load_encoder
 from robofailring.memory.failure import MemoryEntry
 from robofailring.memory.pairs import pair_vectors
@@ -40,6 +41,8 @@ def memory_for(identity: str, dim: int, entries: int = 15_000, tasks: int = 80) 
 
 
 def main() -> None:
+    argparse.ArgumentParser(description=__doc__.splitlines()[0]).parse_args()
+    print_machine(libraries=("torch",))
     import open_clip
     import torch
     from PIL import Image

@@ -26,6 +26,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from bench._timing import print_machine
+
 CAMERAS = ("agentview_image", "robot0_eye_in_hand_image", "sideview_image")
 SIZE = 84
 LENGTHS = (500, 2000, 4000)  # frames per demo: a longer demo must not need more memory
@@ -101,6 +103,7 @@ def main() -> None:
     parser.add_argument("--lengths", type=int, nargs="+", default=list(LENGTHS), help="frames per demo")
     parser.add_argument("--codec", default="auto", help="the replay's --camera-codec (jpeg, av1, h264, auto)")
     options = parser.parse_args()
+    print_machine()
     lengths: list[int] = options.lengths
     with tempfile.TemporaryDirectory() as folder:
         tmp = Path(folder)

@@ -1,6 +1,6 @@
 """Live view cost (issue 12): latency a step of the step API gains from the Rerun sink, 3 views.
 
-Run: .venv/bin/python bench/bench_live.py [--steps 200] [--image-size 128] [--entries 1500] [--connect URL]
+Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_live.py [--steps 200] [--image-size 128] [--entries 1500] [--connect URL]
 
 The frames are the simulated robot's own (three cameras), fed as live RGB arrays; the memory holds
 random unit vectors under the `pixels` encoder's identity whose entries point at real images (so the
@@ -17,6 +17,8 @@ BLAS runs single-threaded (as set below, unless the environment says otherwise):
 from __future__ import annotations
 
 import os
+
+from bench._timing import print_machine
 
 for _variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_variable, "1")
@@ -86,6 +88,7 @@ def main() -> None:
     )
     parser.add_argument("--connect", default=None, help="also stream to a running viewer at this URL")
     args = parser.parse_args()
+    print_machine()
 
     frames = simulated_frames(args.image_size, 40)
     with tempfile.TemporaryDirectory(prefix="bench-live-") as tmp:

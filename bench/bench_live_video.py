@@ -1,6 +1,6 @@
 """Live camera codecs (`watch --camera-codec`): per-step logging cost, bytes, and how late video arrives.
 
-Run: .venv/bin/python bench/bench_live_video.py [--real DIR]
+Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_live_video.py [--real DIR]
 
 Feeds the real ManiSkill-failgen episode (256 px, 69 frames, 3 views; `--real DIR`, else a simulated
 256 px × 69-frame episode) frame by frame through `rfr_viz.panels.live_camera.LiveCameras` into a file, as
@@ -18,8 +18,9 @@ import time
 from pathlib import Path
 
 import rerun as rr
-from bench_video import SHARED_EPISODE, simulated_episode
 
+from bench._timing import print_machine
+from bench.bench_video import SHARED_EPISODE, simulated_episode
 from rfr_viz.codecs import CameraCodec
 from rfr_viz.panels.camera_video import VideoEncoder
 from rfr_viz.panels.live_camera import LiveCameras
@@ -60,6 +61,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--real", type=Path, default=SHARED_EPISODE, help="the real ManiSkill episode folder")
     args = parser.parse_args()
+    print_machine(libraries=("av",))
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         if args.real.is_dir():

@@ -1,6 +1,6 @@
 """The first memory map of a fresh process: umap-learn's `UMAP.fit` against rfr_viz's fit, on the simulator's failures.
 
-Run: .venv/bin/python bench/bench_map_fit.py [--data DIR] [--encoder SPEC]... [--repeat 3]
+Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_map_fit.py [--data DIR] [--encoder SPEC]... [--repeat 3]
 
 The map before: `umap.UMAP(metric="cosine", precomputed_knn=Faiss neighbours).fit_transform`, whose
 fuzzy-graph code (numba, not cached) is compiled in every new process. The map now
@@ -22,7 +22,15 @@ import time
 from pathlib import Path
 
 import numpy as np
-from _sim_memories import chance_purity, default_data, default_encoders, failure_memory, in_fresh_process
+
+from bench._sim_memories import (
+    chance_purity,
+    default_data,
+    default_encoders,
+    failure_memory,
+    in_fresh_process,
+)
+from bench._timing import print_machine
 
 VARIANTS = {"umap-learn UMAP.fit": "umap-learn", "rfr_viz (numpy graph)": "rfr_viz"}
 
@@ -98,6 +106,7 @@ def main() -> None:
     if args.child:
         _child(args.child[0], Path(args.child[1]), Path(args.child[2]))
         return
+    print_machine()
     from rfr_viz.panels.umap_layout import knn_purity
 
     data = args.data or default_data()

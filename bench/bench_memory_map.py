@@ -1,6 +1,6 @@
 """Does the memory map answer "which failures look alike"? Failure-type purity of the map before and now.
 
-Run: .venv/bin/python bench/bench_memory_map.py [--data DIR]... [--encoder SPEC]... [--k 5]
+Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_memory_map.py [--data DIR]... [--encoder SPEC]... [--k 5]
 
 Before: one UMAP of every memory vector (the pair vectors norm([f(I_start) ‖ f(I_end)])), as rfr_viz drew
 it. Now (`rfr_viz.panels.umap`): one map per camera view of what changed, norm(f(I_end) − f(I_start)),
@@ -17,9 +17,10 @@ import argparse
 from pathlib import Path
 
 import numpy as np
-from _sim_memories import chance_purity, default_data, default_encoders, failure_memory
 from sklearn.metrics import silhouette_score
 
+from bench._sim_memories import chance_purity, default_data, default_encoders, failure_memory
+from bench._timing import print_machine
 from rfr_viz.panels.umap import fit_map
 from rfr_viz.panels.umap_layout import fit_map_2d, knn_purity
 
@@ -44,6 +45,7 @@ def main() -> None:
     parser.add_argument("--encoder", action="append", default=None, help="encoder spec (repeatable)")
     parser.add_argument("--k", type=int, default=5, help="map neighbours per entry")
     args = parser.parse_args()
+    print_machine()
     k = args.k
     print(
         f"| data | encoder | entries | layout | type purity, map (k={k}) | type purity, fitted vectors "

@@ -1,6 +1,6 @@
 """Video sources logged as their own samples (no re-encoding): the time a recording's cameras take.
 
-Run: .venv/bin/python bench/bench_passthrough.py [--real DIR] [--repeat 3]
+Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_passthrough.py [--real DIR] [--repeat 3]
 
 The real ManiSkill-failgen episode (256 px, 69 frames, 3 views; `--real DIR`, else a simulated
 256 px × 69-frame episode) is written as a video-episode folder (`<view>.mp4`) in AV1 (SVT-AV1,
@@ -21,8 +21,9 @@ from fractions import Fraction
 from pathlib import Path
 
 import av
-from bench_video import SHARED_EPISODE, camera_recording_bytes, psnr, simulated_episode
 
+from bench._timing import print_machine
+from bench.bench_video import SHARED_EPISODE, camera_recording_bytes, psnr, simulated_episode
 from rfr_viz.codecs import CameraCodec
 from rfr_viz.panels.camera_video import AV1_CRF, AV1_PRESET, EncodedVideo, decode_video, encode_video
 from rfr_viz.panels.video_passthrough import passthrough
@@ -52,6 +53,7 @@ def main() -> None:
     parser.add_argument("--real", type=Path, default=SHARED_EPISODE, help="the real ManiSkill episode folder")
     parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args()
+    print_machine(libraries=("av",))
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         if args.real.is_dir():

@@ -1,7 +1,7 @@
 """Detection quality on a peer's simulator: a FailGen-style set made with ManiSkill3, read back as a
 user's data (image-episode folders and a labels file), every encoder and scoring rule at one α.
 
-Run: .venv/bin/python bench/bench_peer.py [--train-encoder] [--randomize N] [--encoder SPEC]... [--alpha 0.05]
+Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_peer.py [--train-encoder] [--randomize N] [--encoder SPEC]... [--alpha 0.05]
      [--peer-env DIR]
 
 The set (docs/bench_peer.md): 3 ManiSkill3 tasks (PickCube, StackCube, PushCube), the Panda with its
@@ -33,9 +33,9 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from bench_quality import QualityRow, Variant, print_rows, run_cells, with_variant
-from peer_lerobot import export_lerobot
-
+from bench._peer_lerobot import export_lerobot
+from bench._timing import print_machine
+from bench.bench_quality import QualityRow, Variant, print_rows, run_cells, with_variant
 from robofailring.encoders import default_cache_dir, encoder_slug, load_encoder
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
 from robofailring.evaluation.run import EvaluateConfig
@@ -385,6 +385,7 @@ def main() -> None:
         "unperturbed per task) as extra training data",
     )
     args = parser.parse_args()
+    print_machine()
     peer = peer_set(args.peer_env, args.workers)
     describe(peer)
     cache = peer.root.parent

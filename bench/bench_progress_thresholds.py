@@ -5,15 +5,17 @@ bound keeps the run-level false-alarm rate ≤ α). Reads the in-distribution se
 memory that `bench/bench_quality.py` cached; prints recall, test FPR and mean T_s side by side.
 Offline only: a live run does not know L, so t/L would have to come from an expected length.
 
-Run: .venv/bin/python bench/bench_quality.py && .venv/bin/python bench/bench_progress_thresholds.py
+Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_quality.py && PYTHONPATH=src:.:bench .venv/bin/python bench/bench_progress_thresholds.py
 """
 
 from __future__ import annotations
 
+import argparse
 from collections.abc import Callable
 
 import numpy as np
 
+from bench._timing import print_machine
 from robofailring.data.layouts import load_dataset
 from robofailring.detection.conformal import conformal_threshold
 from robofailring.detection.detector import FailureDetector
@@ -31,6 +33,8 @@ def _bins(length: int, count: int) -> np.ndarray:
 
 
 def main() -> None:
+    argparse.ArgumentParser(description=__doc__.splitlines()[0]).parse_args()
+    print_machine()
     root = default_cache_dir() / "bench-quality"
     slug = f"{encoder_slug(load_encoder('pixels').identity)}-step{DEFAULT_STEP:g}-default"  # bench_quality's
     memory = FailureMemory.load(root / "runs" / slug / "memory")

@@ -2,7 +2,7 @@
 cache dir), on both halves of the in-distribution split and out of distribution with and without
 deployment successes, with the counts each figure rests on.
 
-Run: .venv/bin/python bench/bench_quality.py [--encoder SPEC]... [--alpha 0.05] [--success-step S]...
+Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_quality.py [--encoder SPEC]... [--alpha 0.05] [--success-step S]...
      [--train-encoder] [--variant LABEL:FIELD=VALUE,...]...
 
 Cells, per encoder and variant (the issue-21 protocol: one lucky split cannot carry a claim):
@@ -31,6 +31,7 @@ from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
+from bench._timing import print_machine
 from robofailring.detection.config import DetectorConfig
 from robofailring.encoders import default_cache_dir, encoder_slug, load_encoder
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
@@ -307,6 +308,7 @@ def main() -> None:
         help="LABEL:FIELD=VALUE,... of EvaluateConfig (repeatable)",
     )
     args = parser.parse_args()
+    print_machine()
     in_dist, out_dist, swapped = bench_sets(args.workers)
     out = default_cache_dir() / "bench-quality" / "runs"
     pairs: list[tuple[str, str | None]] = []  # (encoder, the swapped cell's encoder or None)

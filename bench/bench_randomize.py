@@ -15,7 +15,7 @@ prints the contrast rule's recall, FPR and AUC per cell and encoder, the AUC gai
 runs with a paired bootstrap interval (the test runs' sampling; `--seed` repeats everything with
 other training seeds, the encoders' own spread), then every rule's full rows.
 
-Run: .venv/bin/python bench/bench_randomize.py [--randomize N]... [--seed S]... [--no-control] [--alpha 0.05]
+Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_randomize.py [--randomize N]... [--seed S]... [--no-control] [--alpha 0.05]
      [--workers 2]
 """
 
@@ -29,8 +29,9 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
-from bench_quality import QualityRow, bench_sets, evaluate_encoder, print_rows
 
+from bench._timing import print_machine
+from bench.bench_quality import QualityRow, bench_sets, evaluate_encoder, print_rows
 from robofailring.detection.conformal import auc
 from robofailring.detection.rules import CONTRAST
 from robofailring.encoders import default_cache_dir
@@ -170,6 +171,7 @@ def main() -> None:
     parser.add_argument("--alpha", type=float, default=0.05, help="target FPR α of every rule")
     parser.add_argument("--workers", type=int, default=2, help="simulation processes")
     args = parser.parse_args()
+    print_machine()
     start = time.perf_counter()
     in_dist, out_dist, swapped = bench_sets(args.workers)
     cache = default_cache_dir() / "bench-quality"

@@ -12,7 +12,7 @@ On one machine Ray can only share the same cores (and pays for actors, serialisa
 object store), so expect a ratio at or below 1 here; a cluster of N such nodes multiplies the
 encoding throughput by about N while the driver's hashing and cache writes stay on one machine.
 
-Run: .venv/bin/python bench/bench_ray.py [--frames 256] [--cpus 2]
+Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_ray.py [--frames 256] [--cpus 2]
 """
 
 from __future__ import annotations
@@ -25,8 +25,9 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-from _scenes import scene
 
+from bench._scenes import scene
+from bench._timing import print_machine
 from robofailring.data.images import write_png
 from robofailring.data.model import Frame
 from robofailring.encoders import open_encoder
@@ -61,6 +62,7 @@ def main() -> None:
     )
     parser.add_argument("--cpus", type=int, default=2, help="CPUs of the local Ray cluster")
     args = parser.parse_args()
+    print_machine()
     os.environ.setdefault("ROBOFAILRING_PROGRESS", "0")
     import open_clip
     import ray

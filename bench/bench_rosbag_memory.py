@@ -1,6 +1,6 @@
 """Peak resident memory replaying a 200- and a 2,000-message ROS bag (issue 23): it must not grow with length.
 
-Run: .venv/bin/python bench/bench_rosbag_memory.py [--kind mcap|sqlite3|ros1] [--size 96] [--lengths 200,2000,4000]
+Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_rosbag_memory.py [--kind mcap|sqlite3|ros1] [--size 96] [--lengths 200,2000,4000]
      [--codec av1]
 
 Bags are written with rosbags' own writer (one `rgb8` topic, `--size` px). A memory of three short
@@ -91,7 +91,10 @@ def main() -> None:
     args = parser.parse_args()
     from rosbag_writer import write_bag
 
+    from bench._timing import print_machine
     from robofailring.data.images import write_png
+
+    print_machine()
 
     lengths = [int(n) for n in args.lengths.split(",")]
     topics = (("/cam_front/image_raw", "rgb8"),)

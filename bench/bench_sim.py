@@ -4,7 +4,7 @@ One run times, on the same scene and cameras, the three views rendered with pybu
 (visual meshes, ~100k triangles) and with the simulator's Panda (`robot.panda_urdf`: the arm links'
 collision meshes), and one episode's physics steps, then prints the ratios side by side:
 
-    PYTHONPATH=src .venv/bin/python bench/bench_sim.py [--size 128] [--repeat 30]
+    PYTHONPATH=src:.:bench .venv/bin/python bench/bench_sim.py [--size 128] [--repeat 30]
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ import argparse
 import time
 
 import numpy as np
-from _timing import median_ms
 
+from bench._timing import median_ms, print_machine
 from robofailring.sim.appearance import make_look
 from robofailring.sim.cameras import CameraRig
 from robofailring.sim.episode import frame_steps, run_episode
@@ -64,6 +64,7 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=30, help="captures timed per arm")
     parser.add_argument("--frames", type=int, default=40, help="frames of the timed episode")
     args = parser.parse_args()
+    print_machine()
     visual = render_ms("franka_panda/panda.urdf", size=args.size, repeat=args.repeat)
     low = render_ms(panda_urdf(), size=args.size, repeat=args.repeat)
     physics, render = episode_split(size=args.size, frames=args.frames)

@@ -1,6 +1,6 @@
 """Soak (issue 24): 10,000 live steps through the step API with the Rerun sink saving to `.rrd`.
 
-Run: .venv/bin/python bench/bench_soak.py [--steps 10000] [--image-size 32] [--entries 600] [--successes 40]
+Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_soak.py [--steps 10000] [--image-size 32] [--entries 600] [--successes 40]
 
 One session of a robot that runs for a long time: every step feeds three synthetic camera frames
 (a smooth scene whose square moves on, so every frame is new) as live RGB arrays to
@@ -17,6 +17,8 @@ and the step latency (p50, p99, max). BLAS runs single-threaded unless the envir
 from __future__ import annotations
 
 import os
+
+from bench._timing import print_machine
 
 for _variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_variable, "1")
@@ -107,6 +109,7 @@ def main() -> None:
         "--baseline", type=int, default=1_000, help="the step whose RSS growth is counted from"
     )
     args = parser.parse_args()
+    print_machine()
     if args.steps <= args.baseline:
         parser.error(f"--steps must exceed --baseline ({args.baseline})")
 

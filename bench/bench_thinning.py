@@ -1,6 +1,6 @@
 """Success-frame thinning on simulated runs (issue 14): how many frames each cosine step keeps.
 
-Run: .venv/bin/python bench/bench_thinning.py [DATA] [--encoder pixels] [--steps 0.001,0.002,...]
+Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_thinning.py [DATA] [--encoder pixels] [--steps 0.001,0.002,...]
 
 DATA is a dataset of the project's layout (default: the demo's in-distribution set,
 <cache>/demo-data/sim-id, written by `bash scripts/demo.sh`). For every success run and view, the
@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bench._timing import print_machine
 from robofailring import CachedEncoder, Outcome, load_dataset, load_encoder
 from robofailring.encoders.cache import default_cache_dir
 from robofailring.memory.pairs import pair_vectors
@@ -33,6 +34,7 @@ def main() -> None:
     parser.add_argument("--cap", type=int, default=None, help="frames kept per run and view at most")
     parser.add_argument("--synthetic", action="store_true", help="also thin bench_scale.py's synthetic runs")
     args = parser.parse_args()
+    print_machine()
     encoder = CachedEncoder(load_encoder(args.encoder))
     runs: list[np.ndarray] = []
     owners: list[tuple[str, str]] = []  # (task, episode) per run
@@ -61,7 +63,7 @@ def main() -> None:
     steps = [float(text) for text in args.steps.split(",")]
     table(runs, owners, steps, args.cap)
     if args.synthetic:
-        from _synthetic_runs import run_vectors, task_model
+        from bench._synthetic_runs import run_vectors, task_model
 
         synthetic = [
             run_vectors(task_model(task), seed=run, view=0) for task in range(2) for run in range(12)

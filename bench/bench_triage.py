@@ -34,8 +34,9 @@ import time
 from pathlib import Path
 
 import numpy as np
-from _scenes import scene
 
+from bench._scenes import scene
+from bench._timing import print_machine
 from robofailring.data.images import write_png
 from robofailring.data.layouts import load_dataset
 from robofailring.detection.config import DetectorConfig
@@ -308,6 +309,7 @@ def main() -> None:
     parser.add_argument("--skip-scale", action="store_true")
     parser.add_argument("--skip-peer", action="store_true", help="skip the peer simulator's set")
     args = parser.parse_args()
+    print_machine()
     out = []
     if not args.skip_quality:
         out += quality(args.encoder or ["pixels"], trained=not args.no_trained)

@@ -1,6 +1,6 @@
 """Camera codecs in recordings (issue 17): bytes, encode speed, PSNR and time to show any frame.
 
-Run: .venv/bin/python bench/bench_video.py [--real DIR] [--frames 150] [--size 480]
+Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_video.py [--real DIR] [--frames 150] [--size 480]
 
 Episodes: the real ManiSkill-failgen episode (`--real DIR`; default: `shared/data/maniskill-failgen-episode` beside the checkout,
 256 px, 69 frames, 3 views; skipped with a message when absent), and episodes of the project's
@@ -25,6 +25,7 @@ import cv2
 import numpy as np
 import rerun.blueprint as rrb
 
+from bench._timing import print_machine
 from rfr_viz.codecs import CameraCodec
 from rfr_viz.panels.camera_video import KEYFRAME_INTERVAL, EncodedVideo, decode_video, encode_video
 from rfr_viz.panels.cameras import log_camera_views
@@ -153,6 +154,7 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=150, help="simulated frames (≥ 150 for the target)")
     args = parser.parse_args()
     cv2.setNumThreads(1)
+    print_machine(libraries=("av",))  # its wheel bundles the FFmpeg and SVT-AV1 the sizes depend on
     print(
         "| episode | W×H×frames×views | codec | camera recording | vs JPEG | encode frames/s | "
         "PSNR dB | show any frame: median / worst ms |"

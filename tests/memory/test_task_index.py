@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import faiss
 import numpy as np
 import pytest
 
@@ -200,6 +201,22 @@ def test_loading_rejects_a_manifest_that_does_not_match(
         TaskIndexSet.read(tmp_path, {"task0": section["task0"]}, tasks, episodes)
     (tmp_path / "success.2.faiss").write_bytes(b"not an index")
     with pytest.raises(MemoryFormatError, match=r"success\.2\.faiss"):
+        TaskIndexSet.read(tmp_path, section, tasks, episodes)
+
+
+@pytest.mark.parametrize("kind", [IVF_SQ8, IVF_PQFS])
+def test_loading_refuses_an_index_file_that_probes_more_lists_than_it_has(
+    memory: tuple[np.ndarray, list[str], list[str]], kind: str, tmp_path: Path
+) -> None:
+    """nprobe above nlist is a damaged file, named as one (Faiss's fast-scan IVF returns garbage there)."""
+    vectors, tasks, episodes = memory
+    index = TaskIndexSet.build(vectors, tasks, episodes, kind=kind, nprobe=3)
+    section = index.write(tmp_path, "success")
+    stored = index.by_task["task1"].index
+    lists = faiss.downcast_index(stored.base_index) if kind == IVF_PQFS else stored
+    lists.nprobe = lists.nlist + 1
+    faiss.write_index(stored, str(tmp_path / "success.1.faiss"))
+    with pytest.raises(MemoryFormatError, match=r"success\.1\.faiss: .*nprobe <= nlist"):
         TaskIndexSet.read(tmp_path, section, tasks, episodes)
 
 

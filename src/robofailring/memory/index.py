@@ -172,7 +172,10 @@ class TaskIndex:
         """Read what `write` wrote; `spec` (from the manifest) must match the file when given, and the
         file must declare `len(ids)` entries (of `dim`) and no more than it holds (`read_index_file`)."""
         index = read_index_file(path, count=len(ids), dim=dim)
-        found = spec_of(index)
+        try:
+            found = spec_of(index)
+        except MemoryFormatError as error:
+            raise MemoryFormatError(f"{path}: {error}") from error
         if spec is not None and found != spec:
             raise MemoryFormatError(
                 f"{path} is a {found.to_dict()} index but the manifest says {spec.to_dict()}"

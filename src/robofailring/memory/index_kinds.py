@@ -96,6 +96,8 @@ class Flat(IndexKind):
 
 
 def _check_lists(spec: IndexSpec) -> None:
+    # Not only a sanity check: Faiss's IndexIVF caps nprobe at nlist, its fast-scan IVF (ivf_pqfs) does not,
+    # and returns garbage above it (distances of 2e31, Faiss 1.15.1; bench/bench_scale.py's sweep met it)
     if not 1 <= spec.nprobe <= spec.nlist:
         raise SettingError(
             f"{spec.kind} needs 1 <= nprobe <= nlist, got nlist {spec.nlist}, nprobe {spec.nprobe}"
@@ -209,9 +211,15 @@ def kind_of(name: str) -> IndexKind:
 
 
 def spec_of(index: faiss.Index) -> IndexSpec:
-    """The spec of a Faiss index read from a memory (MemoryFormatError for any other index)."""
+    """The spec of a Faiss index read from a memory (MemoryFormatError for any other index, and for one
+    whose parameters its kind refuses, e.g. nprobe above nlist)."""
     for kind in KINDS.values():
-        spec = kind.spec_of(index)
+        try:
+            spec = kind.spec_of(index)
+        except SettingError as error:
+            raise MemoryFormatError(
+                f"a {kind.name} index with parameters it cannot search with: {error}"
+            ) from error
         if spec is not None:
             return spec
     raise MemoryFormatError(f"unsupported Faiss index type {type(index).__name__}")

@@ -1,6 +1,6 @@
 """Probe (issue 31): the `pixels` encoder with a larger thumbnail on the peer set, max and per-view fusion.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/probe_peer_thumbnail.py [SIZE]   (default 48; the encoder's own is 24)
+Run: PYTHONPATH=src:.:bench .venv/bin/python bench/experiments/probe_peer_thumbnail.py [SIZE]   (default 48; the encoder's own is 24)
 
 The thumbnail side is the module constant `robofailring.encoders.pixels.THUMBNAIL`; this probe sets it
 (and the identity, so no cached embedding of the 24 px encoder is reused) before the encoder is made.
@@ -8,17 +8,23 @@ The thumbnail side is the module constant `robofailring.encoders.pixels.THUMBNAI
 
 from __future__ import annotations
 
-import sys
+import argparse
 
 import robofailring.encoders.pixels as pixels
+from bench._timing import print_machine
 
 
 def main() -> None:
-    size = int(sys.argv[1]) if len(sys.argv) > 1 else 48
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "size", type=int, nargs="?", default=48, help="thumbnail side in pixels (the encoder's own: 24)"
+    )
+    size = parser.parse_args().size
+    print_machine()
     pixels.THUMBNAIL = size  # type: ignore[misc]
     pixels.IDENTITY = f"pixels-v2-{size}px-{pixels.DIM}d"  # type: ignore[misc]
-    from bench_peer import PER_VIEW, evaluate_encoder, peer_set, print_targets
-    from bench_quality import Variant, print_rows
+    from bench.bench_peer import PER_VIEW, evaluate_encoder, peer_set, print_targets
+    from bench.bench_quality import Variant, print_rows
 
     peer = peer_set(None, 2)
     rows = []

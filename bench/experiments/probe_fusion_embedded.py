@@ -1,6 +1,6 @@
 """Probe (issue 31): the view fusions on the embedded benchmark at a small size, before/after `--fusion`.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/probe_fusion_embedded.py [--train-encoder]
+Run: PYTHONPATH=src:.:bench .venv/bin/python bench/experiments/probe_fusion_embedded.py [--train-encoder]
 
 bench_quality's cells (ID, ID swapped, OOD, OOD + 2 deployment successes/task) on a smaller set than
 its own (3 episodes per task and failure family, 20 successes per task in distribution; 1 and 4 out of
@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import argparse
 
-from bench_quality import Variant, _trained, datasets, evaluate_encoder, print_rows, swapped_halves
-
+from bench._timing import print_machine
+from bench.bench_quality import Variant, _trained, datasets, evaluate_encoder, print_rows, swapped_halves
 from robofailring.encoders import default_cache_dir
 
 SIZES = {"id_episodes": 3, "id_successes": 20, "ood_episodes": 1, "ood_successes": 4}
@@ -25,6 +25,7 @@ def main() -> None:
         "--train-encoder", action="store_true", help="a trained encoder per half instead of pixels"
     )
     args = parser.parse_args()
+    print_machine()
     in_dist, out_dist = datasets(2, **SIZES)
     swapped = swapped_halves(in_dist)
     cache = default_cache_dir() / "bench-quality"

@@ -1,20 +1,23 @@
 """Probe (issue 31): a trained encoder trained on the hand camera's frames only (one per ID half), on the
 peer set with every view fused by the max, with `per-view` fusion, and judged on the hand view alone.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/probe_peer_hand_encoder.py
+Run: PYTHONPATH=src:.:bench .venv/bin/python bench/experiments/probe_peer_hand_encoder.py
 """
 
 from __future__ import annotations
 
+import argparse
 import time
 
-from bench_peer import PER_VIEW, evaluate_encoder, peer_set, print_targets
-from bench_quality import QualityRow, Variant, print_rows
-
+from bench._timing import print_machine
+from bench.bench_peer import PER_VIEW, evaluate_encoder, peer_set, print_targets
+from bench.bench_quality import QualityRow, Variant, print_rows
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
 
 
 def main() -> None:
+    argparse.ArgumentParser(description=__doc__.splitlines()[0]).parse_args()
+    print_machine()
     peer = peer_set(None, 2)
     cache = peer.root.parent
     specs = []

@@ -1,6 +1,6 @@
 """Probe (issue 31): ways of fusing the views' contrast on the peer set, from probe_peer_views.py's dumps.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/probe_peer_fusion.py [SLUG ...]
+Run: PYTHONPATH=src:.:bench .venv/bin/python bench/experiments/probe_peer_fusion.py [SLUG ...] [--window N]
 
 Every fusion is calibrated as the library calibrates (split conformal at α on the memory half's
 success runs, each with its own episode left out and each corrected by what the other runs fitted)
@@ -18,14 +18,15 @@ Candidates:
 
 from __future__ import annotations
 
-import sys
+import argparse
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from probe_peer_views import load
 
+from bench._timing import print_machine
+from bench.experiments.probe_peer_views import load
 from robofailring.detection.band import fit_band, leave_one_out
 from robofailring.detection.conformal import auc, conformal_threshold
 from robofailring.encoders import default_cache_dir
@@ -236,12 +237,19 @@ def evaluate(runs: Runs) -> dict[str, dict[str, dict[str, float]]]:
 
 
 def main() -> None:
-    folder = default_cache_dir() / "bench-peer" / "1b2338e2d3cc" / "probe-views"
     global WINDOW
-    args = sys.argv[1:]
-    if args and args[0].startswith("--window="):
-        WINDOW = int(args.pop(0).split("=")[1])
-    slugs = args or sorted(p.stem for p in folder.glob("*.npz"))
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "slugs", nargs="*", help="dumps to read (default: every dump probe_peer_views.py wrote)"
+    )
+    parser.add_argument(
+        "--window", type=int, default=WINDOW, help="frames a fused score must hold (persistence)"
+    )
+    args = parser.parse_args()
+    print_machine()
+    WINDOW = args.window
+    folder = default_cache_dir() / "bench-peer" / "1b2338e2d3cc" / "probe-views"
+    slugs = args.slugs or sorted(p.stem for p in folder.glob("*.npz"))
     print(
         "| dump | fusion | cell | recall (%) | FPR (%) | T_s (%) | AUC | best recall at FPR ≤ 5 % | failures/successes |"
     )

@@ -2,8 +2,8 @@
 dumped once so that ways of fusing the views can be compared without replaying anything.
 
 Run (after bench_peer.py has built its memories under the peer cache's `runs/`):
-    PYTHONPATH=src:.:bench .venv/bin/python bench/probe_peer_views.py dump [--encoder SPEC --swapped SPEC]
-    PYTHONPATH=src:.:bench .venv/bin/python bench/probe_peer_views.py fuse
+    PYTHONPATH=src:.:bench .venv/bin/python bench/experiments/probe_peer_views.py dump [--encoder SPEC --swapped SPEC]
+    PYTHONPATH=src:.:bench .venv/bin/python bench/experiments/probe_peer_views.py fuse
 
 `dump` replays, per ID half, the memory half's runs (successes and failures) with their own episode
 left out of both memories, the other half's runs, and the OOD runs (with and without 2 deployment
@@ -21,8 +21,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from bench_peer import peer_set
 
+from bench._timing import print_machine
+from bench.bench_peer import peer_set
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.rules import CONTRAST
 from robofailring.encoders import encoder_slug, load_encoder, open_encoder
@@ -85,6 +86,7 @@ def main() -> None:
     parser.add_argument("--encoder", default="pixels")
     parser.add_argument("--swapped", default=None, help="the swapped half's encoder (default: --encoder)")
     args = parser.parse_args()
+    print_machine()
     peer = peer_set(None, 2)
     cache = peer.root.parent
     slug = encoder_slug(load_encoder(args.encoder).identity)

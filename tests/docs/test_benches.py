@@ -1,0 +1,123 @@
+"""The benchmarks the docs cite can run: every script answers `--help` at once and without doing any
+work, names the machine it measures on, and every `bench/` path the docs and the README name exists."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+BENCH = ROOT / "bench"
+# Runs in the bench-only ManiSkill venv (bench/setup_peer.sh): it imports ManiSkill before parsing
+PEER_ONLY = ("peer_generate.py",)
+SCRIPTS = sorted(
+    path
+    for path in [*BENCH.glob("*.py"), *(BENCH / "experiments").glob("*.py")]
+    if not path.name.startswith("_") and path.name not in PEER_ONLY
+)
+# One script's --help, its imports included (the first pays for torch's): generous, for a loaded machine.
+# That no work starts is shown by the output: each script prints its machine line before any work.
+HELP_SECONDS = 60.0
+
+# One interpreter runs every script as `python bench/<script>.py --help` would, so the heavy imports are
+# paid once; it prints one JSON line per script.
+DRIVER = """
+import contextlib, io, json, runpy, sys, time
+for path in sys.argv[1:]:
+    sys.argv = [path, "--help"]
+    out, code, start = io.StringIO(), None, time.perf_counter()
+    try:
+        with contextlib.redirect_stdout(out):
+            runpy.run_path(path, run_name="__main__")
+    except SystemExit as exit:
+        code = exit.code
+    except BaseException as error:
+        code = f"{type(error).__name__}: {error}"
+    print(json.dumps({"path": path, "code": code, "out": out.getvalue(), "s": time.perf_counter() - start}))
+"""
+
+
+def test_there_are_benches_to_check() -> None:
+    names = {path.name for path in SCRIPTS}
+    assert {"bench_scale.py", "bench_replay.py", "bench_video.py", "probe_peer_fusion.py"} <= names
+
+
+def test_every_bench_answers_help_without_doing_work() -> None:
+    """`--help` exits 0 with argparse's usage and nothing else: no machine line, no measurement."""
+    environment = os.environ | {"PYTHONPATH": os.pathsep.join([str(ROOT / "src"), str(ROOT)])}
+    done = subprocess.run(
+        [sys.executable, "-c", DRIVER, *map(str, SCRIPTS)],
+        capture_output=True,
+        text=True,
+        env=environment,
+        cwd=ROOT,
+        timeout=300,
+    )
+    assert done.returncode == 0, done.stderr[-4000:]
+    answers = [json.loads(line) for line in done.stdout.splitlines() if line.startswith("{")]
+    assert [Path(answer["path"]) for answer in answers] == SCRIPTS
+    wrong = {
+        Path(answer["path"]).name: (answer["code"], answer["out"][:200], round(answer["s"], 1))
+        for answer in answers
+        if answer["code"] not in (0, None)
+        or not answer["out"].startswith("usage:")
+        or answer["s"] > HELP_SECONDS
+    }
+    assert wrong == {}
+
+
+@pytest.mark.parametrize("script", SCRIPTS, ids=lambda path: path.name)
+def test_every_bench_prints_the_machine_it_measures_on(script: Path) -> None:
+    assert "print_machine(" in script.read_text()
+
+
+@pytest.mark.slow  # imports ManiSkill: seconds
+def test_the_peer_generator_answers_help_in_its_own_venv() -> None:
+    python = Path(
+        os.environ.get("ROBOFAILRING_PEER_ENV", Path.home() / ".cache" / "robofailring" / "peer-env")
+    )
+    python = python / "venv" / "bin" / "python"
+    if not python.is_file():
+        pytest.skip(f"no bench-only peer venv at {python.parents[2]} (bench/setup_peer.sh makes one)")
+    done = subprocess.run(
+        [str(python), str(BENCH / "peer_generate.py"), "--help"], capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 0 and done.stdout.startswith("usage:"), done.stderr[-2000:]
+
+
+def test_every_bench_path_the_docs_name_exists() -> None:
+    pages = [
+        ROOT / "README.md",
+        *sorted((ROOT / "docs").glob("*.md")),
+        *sorted((ROOT / "docs").glob("*.txt")),
+    ]
+    pages += [BENCH / "experiments" / "README.md"]
+    named = {
+        (page.name, found)
+        for page in pages
+        for found in re.findall(r"\bbench/[\w/]+\.(?:py|sh|txt)\b", page.read_text())
+    }
+    assert len(named) > 30  # the paths were found
+    assert sorted((page, path) for page, path in named if not (ROOT / path).is_file()) == []
+
+
+def test_every_documented_bench_command_puts_the_checkout_on_the_path() -> None:
+    """A script imports its helpers as `bench._…`: `python bench/X.py` needs the checkout (`.`) on
+    PYTHONPATH, as the documented `PYTHONPATH=src:.:bench` gives it (or `python -m bench.X`)."""
+    files = [ROOT / "README.md", *(ROOT / "docs").glob("*.md"), *(ROOT / "docs").glob("*.txt")]
+    files += [*BENCH.rglob("*.py"), *BENCH.rglob("*.md")]
+    command = re.compile(r"(?<![\w/=.-])(?:\.venv/bin/)?python3? bench/")
+    wrong = [
+        f"{path.relative_to(ROOT)}: {line.strip()[:100]}"
+        for path in files
+        for line in path.read_text().splitlines()
+        for _ in command.findall(line)
+        if not re.search(r"PYTHONPATH=\S*(?<!\w)\.(?::|\s|;|$)", line)
+    ]
+    assert wrong == []
