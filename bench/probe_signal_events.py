@@ -25,7 +25,7 @@ START_WEIGHT = 0.5
 DEDUPE = False
 ONSET_FLOOR = 0
 CLIP = False
-TOL_SHARE = 0.05
+TOL_SHARE = -0.05  # < 0: a share of the median in-run range (the library's rule); > 0: of the span over runs
 LAGS = (0, 2, 4)
 
 
