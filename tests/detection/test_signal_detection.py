@@ -106,8 +106,9 @@ def test_the_report_names_the_signal_dimensions_furthest_from_normal(
     report = report_for(trace, trajectory)
     assert report is not None and report.view == SIGNALS_VIEW and report.signals is not None
     assert report.items  # the camera scoring highest gives the images the VLM is shown
-    # the grasp closed on nothing: the width fell further than in any success since the start
-    assert "furthest from normal: gripper_width/width (change since the start) -" in report.signals
+    # the grasp closed on nothing: the width fell further, in one frame and since the start, than in any success
+    assert "furthest from normal: gripper_width/width (change over the last frame) -" in report.signals
+    assert "gripper_width/width (change since the start) -" in report.signals
     assert "nearest failure: pick_cube_grasp_wp2_episode" in report.signals
     assert "Robot signals:" in report.to_markdown() and report.to_dict()["signals"] == report.signals
 

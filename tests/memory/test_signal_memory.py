@@ -44,7 +44,7 @@ def _build(dataset: Path, encoder: CachedEncoder, **recipe: str) -> FailureMemor
 def test_the_signal_memory_holds_every_failure_frame_from_onset_and_every_success_frame(
     dataset: Path, encoder: CachedEncoder, tmp_path: Path
 ) -> None:
-    memory = _build(dataset, encoder)
+    memory = _build(dataset, encoder, signal_features="none")  # the raw features alone (derived: below)
     assert memory.recipe.signals == "auto" and memory.signals is not None
     task = memory.signals.task("pick_cube")
     assert task is not None
@@ -101,7 +101,7 @@ def test_signals_named_are_the_only_ones_used_and_an_unknown_name_is_refused(
 def test_some_dimensions_of_a_signal_are_chosen_by_glob(dataset: Path, encoder: CachedEncoder) -> None:
     """`NAME:GLOB` keeps the dimensions a glob matches (a LeRobot `observation.state` holds joints, gripper
     and pose in one vector); the live step takes the whole signal and cuts it the same way."""
-    memory = _build(dataset, encoder, signals="gripper_width,action:grip*")
+    memory = _build(dataset, encoder, signals="gripper_width,action:grip*", signal_features="none")
     assert memory.signals is not None
     task = memory.signals.task("pick_cube")
     assert task is not None

@@ -210,6 +210,16 @@ SignalsOption = Annotated[
         "auto (growing a memory with --add-to keeps its own).",
     ),
 ]
+SignalFeaturesOption = Annotated[
+    str | None,
+    typer.Option(
+        "--signal-features",
+        help="Features derived from the robot's signals and added to them (docs/signals.md): `change`, each "
+        "dimension's change over the last frame; `events`, for each step-like dimension (a gripper) its jumps "
+        "so far and the frames since the last; both separated by a comma, or `none`. Default: change,events "
+        "(growing a memory with --add-to keeps its own).",
+    ),
+]
 DataRootOption = Annotated[
     Path | None,
     typer.Option(
@@ -262,11 +272,17 @@ def memory_recipe(
     pairing: str | None = None,
     success_step: float | None = None,
     signals: str | None = None,
+    signal_features: str | None = None,
 ) -> MemoryRecipe:
     """The `MemoryRecipe` of a verb's memory options (--encoder, --failure-frames, --pairing,
-    --success-step, --signals); the recipe's defaults for those left out."""
+    --success-step, --signals, --signal-features); the recipe's defaults for those left out."""
     return MemoryRecipe.chosen(
-        encoder, failure_frames=failure_frames, pairing=pairing, success_step=success_step, signals=signals
+        encoder,
+        failure_frames=failure_frames,
+        pairing=pairing,
+        success_step=success_step,
+        signals=signals,
+        signal_features=signal_features,
     )
 
 

@@ -37,6 +37,7 @@ from robofailring.cli.options import (
     RayOption,
     RuntimeOption,
     ScoreOption,
+    SignalFeaturesOption,
     SignalsOption,
     StrideOption,
     SuccessStepOption,
@@ -140,6 +141,7 @@ def build_memory_cmd(
     failure_frames: FailureFramesOption = None,
     pairing: PairingOption = None,
     signals: SignalsOption = None,
+    signal_features: SignalFeaturesOption = None,
     cache_dir: CacheOption = None,
     device: DeviceOption = None,
     runtime: RuntimeOption = None,
@@ -174,6 +176,7 @@ def build_memory_cmd(
             failure_frames=failure_frames,
             pairing=pairing,
             signals=signals,
+            signal_features=signal_features,
             ray=ray,
         )
     )

@@ -228,7 +228,8 @@ def _stored_target(memory: FailureMemory) -> float | None:
 def _deploy_successes(
     memory: FailureMemory, test: list[Trajectory], per_task: int, encoder: CachedEncoder, step: float
 ) -> tuple[FailureMemory, list[Trajectory]]:
-    """Move `per_task` success runs per task from the test set into the success memory (in memory only)."""
+    """Move `per_task` success runs per task from the test set into the success memory and, where the memory
+    has one, the signal memory (in memory only)."""
     if per_task == 0 or memory.successes is None:
         return memory, test
     chosen: list[Trajectory] = []
@@ -238,6 +239,8 @@ def _deploy_successes(
     deployed = memory.with_successes(
         memory.successes.extended(SuccessMemory.build(chosen, encoder, step=step, pairing=memory.pairing))
     )
+    if memory.signals is not None:  # the robot's signals of those runs join its signal memory too
+        deployed = deployed.with_signals(memory.signals.extended(chosen)[0])
     keys = {t.key for t in chosen}
     return deployed, [t for t in test if t.key not in keys]
 

@@ -46,6 +46,8 @@ class BuildMemoryConfig:
     pairing: str | None = None
     # the robot's signals beside the cameras: `auto`, `none` or names; None: auto (with `add_to`: the memory's)
     signals: str | None = None
+    # features derived from the signals: `change`, `events`, both or `none`; None: both (with `add_to`: the memory's)
+    signal_features: str | None = None
     ray: str | None = None  # a Ray cluster's address: frames decoded and encoded there (docs/ray.md)
 
     def __post_init__(self) -> None:  # a bad setting fails before anything is read
@@ -61,6 +63,7 @@ class BuildMemoryConfig:
             pairing=self.pairing,
             success_step=self.success_step,
             signals=self.signals,
+            signal_features=self.signal_features,
         )
 
 

@@ -70,7 +70,9 @@ def build_memories(
     )
     success_memory = built if built is not None and built.success_runs else None  # none: the paper's memory
     signals, unused = (
-        SignalMemory.build(trajectories, choice=recipe.signals) if recipe.signals != NONE else (None, [])
+        SignalMemory.build(trajectories, choice=recipe.signals, features=recipe.signal_features)
+        if recipe.signals != NONE
+        else (None, [])
     )
     manifest = encoded.manifest(
         encoder.identity,

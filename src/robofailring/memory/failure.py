@@ -296,6 +296,10 @@ class FailureMemory:
         """This memory with another success memory (e.g. with runs seen in deployment added)."""
         return self._with(successes=successes)
 
+    def with_signals(self, signals: SignalMemory | None) -> FailureMemory:
+        """This memory with another signal memory (e.g. with runs seen in deployment added)."""
+        return self._with(signals=signals)
+
     def _with(self, **changed: Any) -> FailureMemory:
         other = copy.copy(self)  # entries, vectors and indexes are shared: none is changed in place
         other.__dict__.pop("_episodes_by_start", None)  # its successes may change

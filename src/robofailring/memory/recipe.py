@@ -3,7 +3,8 @@
 A recipe names the encoder, which failure frames become entries (`dense` or the paper's `end`), how a
 first and a current frame are paired (`change` or the paper's `concat`), how finely success runs
 (and a dense memory's failure runs) are thinned, and which of the robot's signals are a second modality
-(`auto`: every state and action signal the data has; `none`; or names). A built memory carries its own (`FailureMemory.recipe`,
+(`auto`: every state and action signal the data has; `none`; or names) and which features are derived
+from them (`change`, `events`; `none`). A built memory carries its own (`FailureMemory.recipe`,
 read from its manifest) and pairs its queries by it; jobs that build memories take one recipe.
 """
 
@@ -16,6 +17,8 @@ from robofailring.errors import SettingError
 from robofailring.memory.entry import DENSE, END, check_failure_frames
 from robofailring.memory.manifest import MemoryManifest
 from robofailring.memory.pairs import CHANGE, CONCAT, check_pairing
+from robofailring.memory.signal_derived import DEFAULT_FEATURES, check_features
+from robofailring.memory.signal_derived import NONE as NO_FEATURES
 from robofailring.memory.signal_layout import AUTO as SIGNALS_AUTO
 from robofailring.memory.signal_layout import NONE as SIGNALS_NONE
 from robofailring.memory.signal_layout import check_choice
@@ -35,12 +38,15 @@ class MemoryRecipe:
         DEFAULT_STEP  # thinning (cosine) of success runs and dense failure runs; 0 keeps all
     )
     signals: str = SIGNALS_AUTO  # the robot's signals used beside the cameras: `auto`, `none` or names
+    # features derived from them (robofailring.memory.signal_derived): `change`, `events`, both, or `none`
+    signal_features: str = DEFAULT_FEATURES
 
     def __post_init__(self) -> None:  # a bad setting fails before any frame is read
         if not isinstance(self.encoder, str) or not self.encoder:
             raise SettingError(f"a memory's encoder must be an encoder spec, got {self.encoder!r}")
         try:
             check_choice(self.signals)
+            check_features(self.signal_features)
         except ValueError as error:
             raise SettingError(str(error)) from error
         check_failure_frames(self.failure_frames)
@@ -61,6 +67,7 @@ class MemoryRecipe:
         pairing: str | None = None,
         success_step: float | None = None,
         signals: str | None = None,
+        signal_features: str | None = None,
     ) -> MemoryRecipe:
         """The recipe of the settings given, the defaults for those left out (None): what options build."""
         default = cls(encoder=encoder)
@@ -70,18 +77,23 @@ class MemoryRecipe:
             pairing=pairing if pairing is not None else default.pairing,
             success_step=success_step if success_step is not None else default.success_step,
             signals=signals if signals is not None else default.signals,
+            signal_features=signal_features if signal_features is not None else default.signal_features,
         )
 
     @classmethod
     def of(cls, manifest: MemoryManifest) -> MemoryRecipe:
         """The recipe a memory was built with, from its manifest (one built before a setting existed: the
-        paper's `end` frames and `concat` pairing; one without a signal memory: `none`)."""
+        paper's `end` frames and `concat` pairing; one without a signal memory, or from before derived
+        signal features: `none`)."""
         return cls(
             encoder=manifest.encoder_spec or manifest.encoder,
             failure_frames=manifest.failure_mode,
             pairing=manifest.pairing_mode,
             success_step=manifest.failure_step if manifest.failure_step is not None else DEFAULT_STEP,
             signals=str(manifest.signals.get("choice", SIGNALS_AUTO)) if manifest.signals else SIGNALS_NONE,
+            signal_features=str(manifest.signals.get("features", NO_FEATURES))
+            if manifest.signals
+            else NO_FEATURES,
         )
 
 

@@ -13,6 +13,7 @@ import numpy as np
 from robofailring.data.model import Trajectory
 from robofailring.data.signals import SignalKind
 from robofailring.errors import DataError, MemoryFormatError
+from robofailring.memory.signal_derived import parse_features
 
 ACTION_LAGS: Final[tuple[int, ...]] = (0, 2, 4)  # the action window: a_t, a_{t−2}, a_{t−4}
 AUTO: Final[str] = "auto"  # every state and action signal every run of a task has
@@ -50,6 +51,9 @@ class SignalLayout:
     # each signal's own dimensions where only some of them are used (`NAME:GLOB`): a live step's vector
     # is the whole signal, and the used ones are taken from it
     full: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+    # the features derived from them and added to the state (robofailring.memory.signal_derived); () for
+    # a memory built before they existed
+    derived: tuple[str, ...] = ()
 
     def select(self, name: str, dims: Sequence[str], values: np.ndarray, where: str) -> np.ndarray:
         """A signal's (L, D) rows with its own dimension names `dims`, cut to the layout's dimensions."""
@@ -71,13 +75,20 @@ class SignalLayout:
     def widths(self) -> tuple[int, int]:
         return sum(len(d) for _, d in self.state), sum(len(d) for _, d in self.action)
 
-    def columns(self) -> list[str]:
-        """What each element of a vector is, for explanations (`gripper_width/width (change)`, …)."""
+    def raw_columns(self) -> list[str]:
+        """The state and action dimensions' names (`gripper_width/width`, …), in the raw features' order."""
+        return [f"{name}/{dim}" for name, dims in (*self.state, *self.action) for dim in dims]
+
+    def columns(self, derived: Sequence[str] = ()) -> list[str]:
+        """What each element of a vector is, for explanations (`gripper_width/width (change)`, …); `derived`:
+        the names of the derived columns the task's vectors add to the state (they are 0 at the start, so
+        their change since then is their value)."""
         state = [f"{name}/{dim}" for name, dims in self.state for dim in dims]
         action = [f"{name}/{dim}" for name, dims in self.action for dim in dims]
         return [
-            *(f"{c} (at the start)" for c in state),
+            *(f"{c} (at the start)" for c in (*state, *derived)),
             *(f"{c} (change since the start)" for c in state),
+            *derived,
             *(
                 f"{c} (commanded{f', {lag} frames before' if lag else ''})"
                 for lag in ACTION_LAGS
@@ -95,7 +106,8 @@ class SignalLayout:
         found: dict[str, Any] = {
             kind: [[name, list(dims)] for name, dims in columns] for kind, columns in self._kinds()
         }
-        return found | ({"full": {name: list(dims) for name, dims in self.full.items()}} if self.full else {})
+        full = {"full": {name: list(dims) for name, dims in self.full.items()}} if self.full else {}
+        return found | full | ({"derived": list(self.derived)} if self.derived else {})
 
     def _kinds(self) -> tuple[tuple[str, Columns], ...]:
         return (("state", self.state), ("action", self.action))
@@ -109,8 +121,9 @@ class SignalLayout:
                     for kind in ("state", "action")
                 },
                 full={str(n): tuple(str(d) for d in dims) for n, dims in (section.get("full") or {}).items()},
+                derived=parse_features(",".join(str(kind) for kind in section.get("derived") or [NONE])),
             )
-        except (KeyError, TypeError, ValueError) as error:
+        except (KeyError, TypeError, ValueError, AttributeError) as error:
             raise MemoryFormatError(f"{where}: bad signal layout {section!r} ({error!r})") from error
 
 
@@ -126,10 +139,13 @@ def read_features(trajectory: Trajectory, layout: SignalLayout) -> np.ndarray:
     return layout.features(values, trajectory.length)
 
 
-def choose_layout(trajectories: Sequence[Trajectory], choice: str) -> SignalLayout | None:
+def choose_layout(
+    trajectories: Sequence[Trajectory], choice: str, features: str = NONE
+) -> SignalLayout | None:
     """The layout of one task's runs for `choice`: `auto` takes every state and action signal the first
     run that has signals has (a run without one of them is skipped when the memory is built); names take
-    those signals, whatever their kind (`other` counts as state). None: no signals to use."""
+    those signals, whatever their kind (`other` counts as state); `features` (`--signal-features`) are
+    derived from them. None: no signals to use."""
     if choice == NONE:
         return None
     first = next((t for t in trajectories if t.signals), None)
@@ -156,4 +172,6 @@ def choose_layout(trajectories: Sequence[Trajectory], choice: str) -> SignalLayo
     state = tuple((n, dims[n]) for n, v in found.items() if v.kind is not SignalKind.ACTION)
     action = tuple((n, dims[n]) for n, v in found.items() if v.kind is SignalKind.ACTION)
     full = {n: v.dims for n, v in found.items() if dims[n] != v.dims}
-    return SignalLayout(state=state, action=action, full=full) if state or action else None
+    if not (state or action):
+        return None
+    return SignalLayout(state=state, action=action, full=full, derived=parse_features(features))

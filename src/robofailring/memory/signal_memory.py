@@ -2,7 +2,8 @@
 as a second modality beside the cameras, retrieved as the paper retrieves frames (docs/signals.md).
 
 Per task, each frame t of a run becomes one vector from its raw features f_t = [state ‖ action ‖ t]
-(the layout's state and action signals and the frame number), z-scored by the task's own success
+(the layout's state and action signals and the frame number; with derived features,
+`robofailring.memory.signal_derived`, the state is followed by them), z-scored by the task's own success
 runs (all its runs where it has none) to z_t, then paired as the memory's frames are paired:
 `[½ zs_0 ‖ zs_t − zs_0 ‖ za_t ‖ za_{t−2} ‖ za_{t−4} ‖ z_time_t]` (the start state, the change since
 then, a short window of commanded actions, the moment). Failure runs give one entry per frame from
@@ -24,6 +25,8 @@ import numpy as np
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.errors import DataError, MemoryFormatError
 from robofailring.memory.index import FLAT, IndexSpec, TaskIndex
+from robofailring.memory.signal_derived import NONE as NO_FEATURES
+from robofailring.memory.signal_derived import Derivation
 from robofailring.memory.signal_layout import (
     ACTION_LAGS,
     AUTO,
@@ -48,7 +51,8 @@ class Rows:
 
 
 class TaskSignals:
-    """One task's signal memory: its layout, normalisation and the failure and success entries' indexes."""
+    """One task's signal memory: its layout, derived features, normalisation and the failure and success
+    entries' indexes."""
 
     def __init__(
         self,
@@ -57,8 +61,10 @@ class TaskSignals:
         scale: np.ndarray,
         vectors: Mapping[str, np.ndarray],
         rows: Mapping[str, Rows],
+        derivation: Derivation | None = None,
     ) -> None:
         self.layout, self.mean, self.scale = layout, np.asarray(mean), np.asarray(scale)
+        self.derivation = derivation
         self.vectors = {kind: np.asarray(v, np.float32) for kind, v in vectors.items()}
         self.rows = dict(rows)
         self.indexes = {
@@ -69,12 +75,29 @@ class TaskSignals:
             if len(v)
         }
 
+    @property
+    def widths(self) -> tuple[int, int]:
+        """(state, action) widths of its features: the layout's, with the derived columns in the state."""
+        state, action = self.layout.widths
+        return state + (self.derivation.width if self.derivation is not None else 0), action
+
+    def derived(self, features: np.ndarray) -> np.ndarray:
+        """One run's features with the derived columns after the state: [state ‖ derived ‖ action ‖ t]."""
+        features = np.asarray(features, np.float64)
+        if self.derivation is None:
+            return features
+        state = self.layout.widths[0]
+        return np.concatenate([features[:, :state], self.derivation.added(features), features[:, state:]], 1)
+
     def vectors_of(self, features: np.ndarray, frames: np.ndarray | None = None) -> np.ndarray:
         """The paired vectors (module docstring) of one run's raw features, one per frame (of `frames` only,
-        when given: a live step pairs just its own frame, reading only the rows it needs)."""
+        when given: a live step pairs just its own frame, reading only the rows it needs: frames up to it
+        where features are derived)."""
         features = np.asarray(features, np.float64)
         at = np.arange(len(features)) if frames is None else np.asarray(frames, np.int64)
-        state_width, action_width = self.layout.widths
+        if self.derivation is not None:
+            features = self.derived(features[: int(at.max(initial=0)) + 1])
+        state_width, action_width = self.widths
 
         def z(rows: np.ndarray) -> np.ndarray:
             return (features[rows] - self.mean) / self.scale
@@ -106,7 +129,8 @@ class TaskSignals:
         """The elements of `vector` furthest from success entry `row`, in the success runs' spreads (σ)."""
         difference = np.asarray(vector, np.float64) - self.vectors["success"][row]
         order = np.argsort(-np.abs(difference))[:top]
-        columns = self.layout.columns()
+        derived = self.derivation.names(self.layout.raw_columns()) if self.derivation is not None else []
+        columns = self.layout.columns(derived)
         return [(columns[i], float(difference[i])) for i in order]
 
 
@@ -133,9 +157,12 @@ def build_task(
     normal = [f for t, f in features if not t.is_failure] or [f for _, f in features]
     if not normal:
         return None, skipped
-    stacked = np.concatenate(normal)
+    derivation = Derivation.fit(layout.derived, sum(layout.widths), normal) if layout.derived else None
+    empty = TaskSignals(layout, np.zeros(0), np.ones(0), {}, {}, derivation)
+    stacked = np.concatenate([empty.derived(f) for f in normal])
     mean, scale = stacked.mean(axis=0), np.maximum(stacked.std(axis=0), MIN_SCALE)
-    return _with_runs(TaskSignals(layout, mean, scale, {}, {}), features, onset_start), skipped
+    task = TaskSignals(layout, mean, scale, {}, {}, derivation)
+    return _with_runs(task, features, onset_start), skipped
 
 
 def _with_runs(
@@ -154,7 +181,7 @@ def _with_runs(
         vectors.setdefault(kind, []).append(paired)
         found = rows.setdefault(kind, [])
         found += [(trajectory.episode, trajectory.symbol or "", start + i) for i in range(len(paired))]
-    width = 2 * task.layout.widths[0] + len(ACTION_LAGS) * task.layout.widths[1] + 1
+    width = 2 * task.widths[0] + len(ACTION_LAGS) * task.widths[1] + 1
     return TaskSignals(
         task.layout,
         task.mean,
@@ -164,6 +191,7 @@ def _with_runs(
             for kind in ("failure", "success")
         },
         {kind: _rows(rows.get(kind, [])) for kind in ("failure", "success")},
+        task.derivation,
     )
 
 
@@ -179,28 +207,32 @@ class SignalMemory:
     """Every task's signal memory (`TaskSignals`), the choice of signals it was built with, saved as one
     `.npz` beside the memory's index (no pickles) and described in its manifest's `signals` section."""
 
-    def __init__(self, by_task: Mapping[str, TaskSignals], *, choice: str = AUTO) -> None:
+    def __init__(
+        self, by_task: Mapping[str, TaskSignals], *, choice: str = AUTO, features: str = NO_FEATURES
+    ) -> None:
         self.by_task = dict(by_task)
         self.choice = choice
+        self.features = features  # the derived features (`--signal-features`) a new task is built with
 
     @classmethod
     def build(
-        cls, trajectories: Sequence[Trajectory], *, choice: str = AUTO
+        cls, trajectories: Sequence[Trajectory], *, choice: str = AUTO, features: str = NO_FEATURES
     ) -> tuple[SignalMemory | None, list[Skipped]]:
-        """The signal memory of the labelled `trajectories` (None: no task has signals to use)."""
+        """The signal memory of the labelled `trajectories` (None: no task has signals to use), with the
+        derived `features` (`none`, or `change` and/or `events`: `robofailring.memory.signal_derived`)."""
         by_task: dict[str, TaskSignals] = {}
         skipped: list[Skipped] = []
         tasks = sorted({t.task for t in trajectories})
         for task in tasks:
             runs = [t for t in trajectories if t.task == task]
-            layout = choose_layout(runs, choice)
+            layout = choose_layout(runs, choice, features)
             if layout is None:
                 continue
             built, missed = build_task(runs, layout)
             skipped += missed
             if built is not None:
                 by_task[task] = built
-        return (cls(by_task, choice=choice) if by_task else None), skipped
+        return (cls(by_task, choice=choice, features=features) if by_task else None), skipped
 
     def extended(self, trajectories: Sequence[Trajectory]) -> tuple[SignalMemory, list[Skipped]]:
         """This memory with the labelled `trajectories` added: a task it has keeps its layout and
@@ -211,7 +243,7 @@ class SignalMemory:
             runs = [t for t in trajectories if t.task == task and t.outcome is not None]
             held = by_task.get(task)
             if held is None:
-                layout = choose_layout(runs, self.choice)
+                layout = choose_layout(runs, self.choice, self.features)
                 built, missed = build_task(runs, layout) if layout is not None else (None, [])
                 skipped += missed
                 if built is not None:
@@ -224,7 +256,7 @@ class SignalMemory:
                 except DataError as error:
                     skipped.append(Skipped(run.source or Path(run.key), f"signals not used: {error}"))
             by_task[task] = _with_runs(held, features)
-        return SignalMemory(by_task, choice=self.choice), skipped
+        return SignalMemory(by_task, choice=self.choice, features=self.features), skipped
 
     def task(self, task: str) -> TaskSignals | None:
         return self.by_task.get(task)
@@ -242,7 +274,7 @@ class SignalMemory:
             }
             for number, (task, signals) in enumerate(sorted(self.by_task.items()))
         }
-        return {"file": SIGNALS_FILE, "choice": self.choice, "tasks": tasks}
+        return {"file": SIGNALS_FILE, "choice": self.choice, "features": self.features, "tasks": tasks}
 
     def write(self, directory: Path) -> None:
         """Write `signals.npz` into `directory` (the memory's folder being written), keyed as `manifest` says."""
@@ -250,6 +282,8 @@ class SignalMemory:
         for task, described in self.manifest()["tasks"].items():
             key, signals = described["key"], self.by_task[task]
             arrays[f"{key}_mean"], arrays[f"{key}_scale"] = signals.mean, signals.scale
+            if signals.derivation is not None:
+                arrays |= signals.derivation.arrays(key)
             for kind in ("failure", "success"):
                 rows = signals.rows[kind]
                 arrays[f"{key}_{kind}"] = signals.vectors[kind]
@@ -287,9 +321,18 @@ class SignalMemory:
                             f"{described[f'{kind}_entries']}"
                         )
                 layout = SignalLayout.parse(described["layout"], where)
+                derivation = (
+                    Derivation.read(layout.derived, sum(layout.widths), arrays, key, where)
+                    if layout.derived
+                    else None
+                )
                 by_task[str(task)] = TaskSignals(
-                    layout, arrays[f"{key}_mean"], arrays[f"{key}_scale"], vectors, rows
+                    layout, arrays[f"{key}_mean"], arrays[f"{key}_scale"], vectors, rows, derivation
                 )
         except (KeyError, TypeError, AttributeError) as error:
             raise MemoryFormatError(f"{where}: the signal memory lacks {error} (a damaged file?)") from error
-        return cls(by_task, choice=str(section.get("choice", AUTO)))
+        return cls(
+            by_task,
+            choice=str(section.get("choice", AUTO)),
+            features=str(section.get("features", NO_FEATURES)),  # a memory from before derived features: none
+        )

@@ -1,0 +1,47 @@
+"""The deployment protocol (OOD + N deployment successes per task): the runs moved out of the test set join
+the success memory and, where the memory has one, the signal memory, so both modalities see them."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from synthetic import write_project_dataset
+
+from robofailring import CachedEncoder, load_dataset, load_encoder
+from robofailring.evaluation.run import _deploy_successes
+from robofailring.memory.builder import Provenance, build_memories
+from robofailring.memory.thinning import DEFAULT_STEP
+
+LENGTH = 8
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return write_project_dataset(
+        tmp_path_factory.mktemp("deployed") / "data",
+        tasks=("pick_cube",),
+        symbols=("grasp_wp2",),
+        episodes=4,
+        length=LENGTH,
+        signals=True,
+    )
+
+
+def test_deployment_successes_join_the_signal_memory_too(dataset: Path, tmp_path: Path) -> None:
+    encoder = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "cache")
+    loaded = load_dataset(dataset)
+    train, test = loaded.select(split="train"), loaded.select(split="test")
+    memory, _ = build_memories(train, encoder, provenance=Provenance(data=dataset, encoder="pixels"))
+    assert memory.signals is not None
+    before = memory.signals.task("pick_cube")
+    assert before is not None
+    deployed, left = _deploy_successes(memory, test, 1, encoder, DEFAULT_STEP)
+    (moved,) = [t for t in test if t.key not in {r.key for r in left}]
+    assert not moved.is_failure
+    assert deployed.signals is not None
+    after = deployed.signals.task("pick_cube")
+    assert after is not None
+    assert len(after.vectors["success"]) == len(before.vectors["success"]) + moved.length
+    assert moved.episode in after.rows["success"].episodes.tolist()
+    assert moved.episode not in before.rows["success"].episodes.tolist()  # the memory given is unchanged
