@@ -28,7 +28,7 @@ CHANGE: Final[str] = "change"
 EVENTS: Final[str] = "events"
 KINDS: Final[tuple[str, ...]] = (CHANGE, EVENTS)
 NONE: Final[str] = "none"
-DEFAULT_FEATURES: Final[str] = f"{CHANGE},{EVENTS}"  # the benchmarks' best (docs/signals.md, "Events")
+DEFAULT_FEATURES: Final[str] = f"{CHANGE},{EVENTS}"  # the benchmarks' best (docs/signals.md, "In a memory")
 JUMP_SHARE: Final[float] = 0.05  # a jump: a one-frame change over this share of the usual in-run range …
 STEP_SHARE: Final[float] = 0.25  # … and a step-like dimension jumps in at most this share of the frames
 

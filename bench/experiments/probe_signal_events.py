@@ -5,7 +5,7 @@ similarity exp(−d²/n), contrast S⁻ − S⁺, shift band and split-conformal
 successes, each left out) on the peer ManiSkill3 set and the embedded set, ID on both halves and OOD
 with 2 deployment successes per task in the success memory.
 
-PYTHONPATH=src:.:bench python bench/probe_signal_events.py [--peer DIR] [--embedded DIR]
+PYTHONPATH=src:.:bench python bench/experiments/probe_signal_events.py [--peer DIR] [--embedded DIR]
 """
 
 from __future__ import annotations
@@ -19,6 +19,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from bench._timing import print_machine
 
 ALPHA = 0.05
 START_WEIGHT = 0.5
@@ -380,6 +382,7 @@ def main() -> None:
     parser.add_argument("--onset-floor", type=int, default=0)
     parser.add_argument("--start-weight", type=float, default=0.5)
     args = parser.parse_args()
+    print_machine()
     global START_WEIGHT, DEDUPE, ONSET_FLOOR, CLIP
     CLIP = args.clip
     START_WEIGHT, DEDUPE, ONSET_FLOOR = args.start_weight, args.dedupe, args.onset_floor
