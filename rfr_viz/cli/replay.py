@@ -13,38 +13,23 @@ from rfr_viz.codecs import CameraCodec
 from rfr_viz.paths import DEFAULT_OUT
 from rfr_viz.viewer.control import DEFAULT_PORT, open_command
 from robofailring.cli.exit_codes import finish
+from robofailring.cli.groups import takes
+from robofailring.cli.option_groups import DATA, DETECTOR
 from robofailring.cli.options import (
-    DETECTOR_DEFAULTS,
-    CacheOption,
-    DataArgument,
-    DataRootOption,
-    DeltaOption,
-    DeviceOption,
-    EtaOption,
     FpsOption,
-    GammaOption,
-    KOption,
-    LabelsOption,
     LeaveOneOutOption,
-    MemoryEncoderOption,
-    MemoryOption,
-    ModalityOption,
     RecordingsOutOption,
-    RuntimeOption,
-    ScoreOption,
     StrideOption,
-    TaskOption,
     TrajectoriesOption,
-    ViewsOption,
     VLMModelOption,
     VLMUrlOption,
-    detector_config,
     print_notes,
     report_skipped,
     report_skipped_runs,
     vlm_config,
     warn_missing_references,
 )
+from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.detection.rules import PAPER
 from robofailring.errors import SettingError
@@ -80,29 +65,17 @@ def _report(result: ReplayResult, out: Path) -> None:
 
 
 @app.command("replay")
+@takes(data=DATA.without("vocabulary"), detector=DETECTOR.without("ray"))
 def replay_cmd(
-    data: DataArgument,
-    memory: MemoryOption,
+    data: DataSelection,
+    *,
+    detector: DetectorConfig,
     out: RecordingsOutOption = DEFAULT_OUT,
     trajectory: TrajectoriesOption = None,
-    delta: DeltaOption = None,
-    k: KOption = DETECTOR_DEFAULTS.k,
-    score: ScoreOption = None,
-    gamma: GammaOption = None,
-    eta: EtaOption = None,
-    modality: ModalityOption = DETECTOR_DEFAULTS.modality,
-    task: TaskOption = None,
-    views: ViewsOption = None,
     leave_one_out: LeaveOneOutOption = False,
-    encoder: MemoryEncoderOption = None,
     fps: FpsOption = None,
     stride: StrideOption = 1,
-    labels: LabelsOption = None,
     camera_codec: CameraCodecOption = CameraCodec.AUTO,
-    cache_dir: CacheOption = None,
-    device: DeviceOption = None,
-    runtime: RuntimeOption = None,
-    data_root: DataRootOption = None,
     vlm_url: VLMUrlOption = None,
     vlm_model: VLMModelOption = None,
 ) -> None:
@@ -111,37 +84,23 @@ def replay_cmd(
 
     config = ReplayConfig(
         data=data,
-        detector=detector_config(
-            memory,
-            encoder=encoder,
-            device=device,
-            runtime=runtime,
-            cache_dir=cache_dir,
-            data_root=data_root,
-            k=k,
-            score=score,
-            delta=delta,
-            gamma=gamma,
-            eta=eta,
-            modality=modality,
-        ),
+        detector=detector,
         out=out,
         trajectories=tuple(trajectory or ()),
-        task=task,
-        views=views,
         leave_one_out=leave_one_out,
         fps=fps,
         camera_codec=camera_codec,
         stride=stride,
-        labels=labels,
         vlm=vlm_config(vlm_url, vlm_model),
     )
     _report(replay(config), out)
 
 
 @app.command("compare")
+@takes(data=DATA.only("data", "task", "views"), detector=DETECTOR.only("k", "score", "cache_dir", "device"))
 def compare_cmd(
-    data: DataArgument,
+    data: DataSelection,
+    *,
     memory: Annotated[
         list[Path], typer.Option("--memory", help="Memory directory, one per encoder; give two or more.")
     ],
@@ -153,15 +112,10 @@ def compare_cmd(
             "--delta", help="δ per memory, in the order of --memory (default: each one's calibrated δ)."
         ),
     ] = None,
-    k: KOption = DETECTOR_DEFAULTS.k,
-    score: ScoreOption = None,
-    task: TaskOption = None,
-    views: ViewsOption = None,
+    detector: DetectorConfig,
     leave_one_out: LeaveOneOutOption = False,
     fps: FpsOption = None,
     camera_codec: CameraCodecOption = CameraCodec.AUTO,
-    cache_dir: CacheOption = None,
-    device: DeviceOption = None,
     data_root: Annotated[
         list[Path] | None,
         typer.Option(
@@ -175,16 +129,9 @@ def compare_cmd(
 
     config = CompareConfig(
         data=data,
-        detectors=compared_detectors(
-            memory,
-            deltas=delta or [],
-            data_roots=data_root or [],
-            shared=detector_config(None, device=device, cache_dir=cache_dir, k=k, score=score),
-        ),
+        detectors=compared_detectors(memory, deltas=delta or [], data_roots=data_root or [], shared=detector),
         out=out,
         trajectories=tuple(trajectory or ()),
-        task=task,
-        views=views,
         leave_one_out=leave_one_out,
         fps=fps,
         camera_codec=camera_codec,

@@ -29,7 +29,7 @@ def run_encoder_comparison(
 ) -> EncoderComparison:
     """Evaluate every encoder on the same split, write `out/comparison.md` and replay the first failures;
     an encoder evaluated already on that split is given by its result in `existing` (by encoder spec)."""
-    check_output_folder(config.out, inputs=[config.data])
+    check_output_folder(config.out, inputs=[config.data.root])
     with output_lock(config.out):
         remove_file_leftovers(config.out)
         return _run_encoder_comparison(config, recordings=recordings, existing=existing)
@@ -50,7 +50,6 @@ def _run_encoder_comparison(
                 detectors=tuple(config.detector.with_memory(Path(r.memory)) for r in results),
                 out=Path(config.out) / "recordings",
                 trajectories=keys,
-                views=config.views,
             )
         ).recordings
         if keys

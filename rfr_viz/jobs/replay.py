@@ -7,7 +7,7 @@ import logging
 import math
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Final
 
@@ -18,8 +18,9 @@ from rfr_viz.paths import DEFAULT_OUT
 from rfr_viz.recordings.replay import compare_recording, record_replay
 from robofailring.atomic import output_lock, remove_file_leftovers
 from robofailring.data.grounding import Vocabulary
-from robofailring.data.layouts import detect_layout, load_dataset, load_trajectory
+from robofailring.data.layouts import detect_layout
 from robofailring.data.model import Skipped, Trajectory
+from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig, check_stride
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.loader import detector_from
@@ -41,31 +42,30 @@ _log = logging.getLogger("robofailring")
 
 @dataclass(frozen=True)
 class ReplayConfig:
-    data: Path  # dataset root of any layout, or one episode folder
+    # a dataset root of any layout, or one episode folder, how it is read (its task: on a root, a filter;
+    # its labels: outcome and symbol shown in the recording)
+    data: DataSelection
     detector: DetectorConfig  # the memory (its map is cached there, umap.npz) and how its detector judges
     out: Path = DEFAULT_OUT  # folder of the .rrd files, one per trajectory
     trajectories: tuple[str, ...] = ()  # `<task>/<episode>` keys or episode names; empty = all
-    task: str | None = None  # task of an episode folder whose name does not say; on a root, a filter
     leave_one_out: bool = False  # hide each trajectory's own episode from the memory
     fps: float | None = None  # "time" timeline rate; default: the data's, else 10
     camera_codec: CameraCodec = CameraCodec.AUTO  # jpeg, av1, h264, or auto (by size)
     stride: int = 1  # score every stride-th frame; the recording keeps every camera frame
-    labels: Path | None = None  # labels file (LeRobot): outcome and symbol shown in the recording
     vlm: VLMConfig | None = None  # ask this VLM about each detection; its answer joins the report
-    views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
 
 
 @dataclass(frozen=True)
 class CompareConfig:
-    data: Path  # dataset root of any layout, or one episode folder
+    data: (
+        DataSelection  # a dataset root of any layout, or one episode folder, how it is read (not its labels)
+    )
     detectors: tuple[DetectorConfig, ...]  # two or more memories, each built with its own encoder
     out: Path = DEFAULT_OUT
     trajectories: tuple[str, ...] = ()
-    task: str | None = None
     leave_one_out: bool = False
     fps: float | None = None
     camera_codec: CameraCodec = CameraCodec.AUTO
-    views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
 
 
 @dataclass
@@ -157,34 +157,31 @@ def _target(out: Path, name: str, written: dict[Path, str], key: str) -> Path:
 
 
 def select_trajectories(
-    data: Path,
+    data: DataSelection,
     *,
     keys: Sequence[str] = (),
-    task: str | None = None,
-    labels: Path | None = None,
-    views: str | None = None,
     skipped: list[Skipped] | None = None,
     vocabulary: Vocabulary | None = None,
 ) -> list[Trajectory]:
-    """The trajectories of a dataset root (optionally by key and task) or of one episode folder.
+    """The trajectories of a dataset root (optionally by key, and by task: `data.task`) or of one episode
+    folder (its labels are not applied).
 
     What the loader did not read is appended to `skipped`; labels' symbols are checked against
     Table 5 and `vocabulary` (the memory's own symbols).
     """
-    data = Path(data)
-    if detect_layout(data) == "episode":
-        trajectory = load_trajectory(data, task=task, views=views)
+    if detect_layout(data.root) == "episode":
+        trajectory = replace(data, labels=None).load_trajectory()
         if skipped is not None:
             skipped += trajectory.skipped
         return [trajectory]
-    dataset = load_dataset(data, task=task, labels=labels, views=views, vocabulary=vocabulary, keys=keys)
+    dataset = data.load(vocabulary=vocabulary, keys=keys)
     if skipped is not None:
         skipped += dataset.skipped
     chosen = list(dataset.trajectories())
-    if task is not None:
-        chosen = [trajectory for trajectory in chosen if trajectory.task == task]
+    if data.task is not None:
+        chosen = [trajectory for trajectory in chosen if trajectory.task == data.task]
         if not chosen:
-            raise DataError(f"no trajectory of task {task!r} in {data}")
+            raise DataError(f"no trajectory of task {data.task!r} in {data.root}")
     return chosen
 
 
@@ -216,7 +213,7 @@ def replay(config: ReplayConfig) -> ReplayResult:
     """Replay each selected trajectory through the detector into `<out>/<task>__<episode>.rrd`."""
     check_stride(config.stride)
     check_fps(config.fps)
-    check_output_folder(config.out, inputs=[config.data, config.detector.memory])
+    check_output_folder(config.out, inputs=[config.data.root, config.detector.memory])
     with output_lock(config.out):
         remove_file_leftovers(config.out)
         return _replay(config)
@@ -228,9 +225,6 @@ def _replay(config: ReplayConfig) -> ReplayResult:
     trajectories = select_trajectories(
         config.data,
         keys=config.trajectories,
-        task=config.task,
-        labels=config.labels,
-        views=config.views,
         skipped=result.skipped_inputs,
         vocabulary=found.detector.memory.vocabulary,
     )
@@ -281,7 +275,7 @@ def unique_slugs(slugs: Sequence[str]) -> list[str]:
 def compare(config: CompareConfig) -> ReplayResult:
     """Replay each trajectory under every memory's encoder into one comparison recording."""
     check_fps(config.fps)
-    check_output_folder(config.out, inputs=[config.data, *(each.memory for each in config.detectors)])
+    check_output_folder(config.out, inputs=[config.data.root, *(each.memory for each in config.detectors)])
     with output_lock(config.out):
         remove_file_leftovers(config.out)
         return _compare(config)
@@ -300,11 +294,7 @@ def _compare(config: CompareConfig) -> ReplayResult:
         }
     )
     trajectories = select_trajectories(
-        config.data,
-        keys=config.trajectories,
-        task=config.task,
-        views=config.views,
-        skipped=result.skipped_inputs,
+        replace(config.data, labels=None), keys=config.trajectories, skipped=result.skipped_inputs
     )
     suffix = "__" + "-vs-".join(slugs)
     written: dict[Path, str] = {}

@@ -38,6 +38,7 @@ from robofailring import (
     load_encoder,
     load_trajectory,
 )
+from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.memory.failure import MemoryEntry
 from robofailring.memory.pairs import pair_vectors
@@ -277,7 +278,7 @@ def test_map_is_fitted_once_and_cached_beside_the_memory(
 
     monkeypatch.setattr(umap_layout, "_umap_embedding", counting)
     config = ReplayConfig(
-        data=aha_dataset,
+        data=DataSelection(aha_dataset),
         detector=DetectorConfig(memory=directory, cache_dir=tmp_path / "embeddings"),
         out=tmp_path / "recs",
         trajectories=("pick_cube/pick_cube_grasp_wp2_episode0",),
