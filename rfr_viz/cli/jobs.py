@@ -13,20 +13,18 @@ from rfr_viz.codecs import CameraCodec
 from rfr_viz.viewer.control import open_at_command, open_command
 from robofailring.cli.exit_codes import finish
 from robofailring.cli.groups import Declared, takes
-from robofailring.cli.option_groups import DATA, DETECTOR, RECIPE, RULE_CHOICE, THRESHOLDS
+from robofailring.cli.option_groups import DATA, DETECTOR, RECIPE, RULE_CHOICE, THRESHOLDS, VLM
 from robofailring.cli.options import (
     RandomizeOption,
     StrideOption,
-    VLMModelOption,
-    VLMUrlOption,
     report_skipped,
     tested_on,
-    vlm_config,
     warn_missing_references,
 )
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.detection.threshold_policy import ThresholdPolicy
+from robofailring.explain.vlm import VLMConfig
 from robofailring.memory.recipe import MemoryRecipe
 
 app = typer.Typer(add_completion=False)  # composed into the one `robofailring` command by rfr_viz.cli.app
@@ -149,6 +147,7 @@ def evaluate_cmd(
             Annotated[Path | None, typer.Option(help="Default: the memory the evaluation used.")], None
         )
     ),
+    vlm=VLM,
 )
 def review_cmd(
     evaluation: Annotated[Path, typer.Argument(help="The <name>.json written by `robofailring evaluate`.")],
@@ -160,8 +159,7 @@ def review_cmd(
     ),
     camera_codec: CameraCodecOption = CameraCodec.AUTO,
     detector: DetectorConfig,
-    vlm_url: VLMUrlOption = None,
-    vlm_model: VLMModelOption = None,
+    vlm: VLMConfig | None,
     write_labels: Annotated[
         Path | None,
         typer.Option(
@@ -182,7 +180,7 @@ def review_cmd(
         out=out,
         detector=detector,
         camera_codec=camera_codec,
-        vlm=vlm_config(vlm_url, vlm_model),
+        vlm=vlm,
         write_labels=write_labels,
     )
     if write_labels is not None:

@@ -11,23 +11,23 @@ from rfr_viz.cli.options import LiveCameraCodecOption
 from rfr_viz.codecs import CameraCodec
 from robofailring.cli.exit_codes import finish
 from robofailring.cli.groups import Declared, takes
-from robofailring.cli.option_groups import DATA, DETECTOR
-from robofailring.cli.options import FpsOption, VLMModelOption, VLMUrlOption, vlm_config
+from robofailring.cli.option_groups import DATA, DETECTOR, VLM
+from robofailring.cli.options import FpsOption
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
+from robofailring.explain.vlm import VLMConfig
 
 app = typer.Typer(add_completion=False)  # composed into the one `robofailring` command by rfr_viz.cli.app
 
 
 @app.command("explain")
-@takes(detector=DETECTOR.only("data_root"))
+@takes(vlm=VLM, detector=DETECTOR.only("data_root"))
 def explain_cmd(
     source: Annotated[
         Path, typer.Argument(help="A recording written by replay/review, or the output of `detect --json`.")
     ],
     *,
-    vlm_url: VLMUrlOption = None,
-    vlm_model: VLMModelOption = None,
+    vlm: VLMConfig | None,
     as_json: Annotated[
         bool, typer.Option("--json", help="Print {model, answer, latency_s} (or {model, error}) as JSON.")
     ] = False,
@@ -36,7 +36,7 @@ def explain_cmd(
     """Ask a VLM about the failure report of a detection made earlier (paper Appendix B)."""
     from rfr_viz.jobs.explain import explain
 
-    explanation = explain(source, vlm_config(vlm_url, vlm_model), data_root=detector.data_root)
+    explanation = explain(source, vlm, data_root=detector.data_root)
     if as_json:
         typer.echo(explanation.to_json())  # printed even when the call failed: it says why
     finish(failure=explanation.failure)

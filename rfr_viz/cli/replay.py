@@ -8,31 +8,24 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from rfr_viz.cli.options import CameraCodecOption
-from rfr_viz.codecs import CameraCodec
-from rfr_viz.paths import DEFAULT_OUT
+from rfr_viz.cli.options import RECORDINGS
+from rfr_viz.jobs.recorded import Recordings
 from rfr_viz.viewer.control import DEFAULT_PORT, open_command
 from robofailring.cli.exit_codes import finish
 from robofailring.cli.groups import takes
-from robofailring.cli.option_groups import DATA, DETECTOR
+from robofailring.cli.option_groups import DATA, DETECTOR, VLM
 from robofailring.cli.options import (
-    FpsOption,
-    LeaveOneOutOption,
-    RecordingsOutOption,
     StrideOption,
-    TrajectoriesOption,
-    VLMModelOption,
-    VLMUrlOption,
     print_notes,
     report_skipped,
     report_skipped_runs,
-    vlm_config,
     warn_missing_references,
 )
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.detection.rules import PAPER
 from robofailring.errors import SettingError
+from robofailring.explain.vlm import VLMConfig
 
 if TYPE_CHECKING:
     from rfr_viz.jobs.replay import ReplayResult
@@ -65,47 +58,35 @@ def _report(result: ReplayResult, out: Path) -> None:
 
 
 @app.command("replay")
-@takes(data=DATA.without("vocabulary"), detector=DETECTOR.without("ray"))
+@takes(data=DATA.without("vocabulary"), detector=DETECTOR.without("ray"), recordings=RECORDINGS, vlm=VLM)
 def replay_cmd(
     data: DataSelection,
     *,
     detector: DetectorConfig,
-    out: RecordingsOutOption = DEFAULT_OUT,
-    trajectory: TrajectoriesOption = None,
-    leave_one_out: LeaveOneOutOption = False,
-    fps: FpsOption = None,
+    recordings: Recordings,
     stride: StrideOption = 1,
-    camera_codec: CameraCodecOption = CameraCodec.AUTO,
-    vlm_url: VLMUrlOption = None,
-    vlm_model: VLMModelOption = None,
+    vlm: VLMConfig | None,
 ) -> None:
     """Replay trajectories through the detector, one self-contained Rerun recording (.rrd) each."""
     from rfr_viz.jobs.replay import ReplayConfig, replay
 
-    config = ReplayConfig(
-        data=data,
-        detector=detector,
-        out=out,
-        trajectories=tuple(trajectory or ()),
-        leave_one_out=leave_one_out,
-        fps=fps,
-        camera_codec=camera_codec,
-        stride=stride,
-        vlm=vlm_config(vlm_url, vlm_model),
-    )
-    _report(replay(config), out)
+    config = ReplayConfig(data=data, detector=detector, recordings=recordings, stride=stride, vlm=vlm)
+    _report(replay(config), recordings.out)
 
 
 @app.command("compare")
-@takes(data=DATA.only("data", "task", "views"), detector=DETECTOR.only("k", "score", "cache_dir", "device"))
+@takes(
+    data=DATA.only("data", "task", "views"),
+    recordings=RECORDINGS,
+    detector=DETECTOR.only("k", "score", "cache_dir", "device"),
+)
 def compare_cmd(
     data: DataSelection,
     *,
     memory: Annotated[
         list[Path], typer.Option("--memory", help="Memory directory, one per encoder; give two or more.")
     ],
-    out: RecordingsOutOption = DEFAULT_OUT,
-    trajectory: TrajectoriesOption = None,
+    recordings: Recordings,
     delta: Annotated[
         list[float] | None,
         typer.Option(
@@ -113,9 +94,6 @@ def compare_cmd(
         ),
     ] = None,
     detector: DetectorConfig,
-    leave_one_out: LeaveOneOutOption = False,
-    fps: FpsOption = None,
-    camera_codec: CameraCodecOption = CameraCodec.AUTO,
     data_root: Annotated[
         list[Path] | None,
         typer.Option(
@@ -130,13 +108,9 @@ def compare_cmd(
     config = CompareConfig(
         data=data,
         detectors=compared_detectors(memory, deltas=delta or [], data_roots=data_root or [], shared=detector),
-        out=out,
-        trajectories=tuple(trajectory or ()),
-        leave_one_out=leave_one_out,
-        fps=fps,
-        camera_codec=camera_codec,
+        recordings=recordings,
     )
-    _report(compare(config), out)
+    _report(compare(config), recordings.out)
 
 
 def compared_detectors(

@@ -6,6 +6,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from rfr_viz.jobs.recorded import Recordings
 from rfr_viz.jobs.replay import CompareConfig, compare
 from robofailring.atomic import output_lock, remove_file_leftovers, write_text_atomic
 from robofailring.evaluation.comparison import CompareEncodersConfig, compare_encoders, comparison_table
@@ -48,8 +49,7 @@ def _run_encoder_comparison(
             CompareConfig(
                 data=config.test_data or config.data,
                 detectors=tuple(config.detector.with_memory(Path(r.memory)) for r in results),
-                out=Path(config.out) / "recordings",
-                trajectories=keys,
+                recordings=Recordings(out=Path(config.out) / "recordings", trajectories=keys),
             )
         ).recordings
         if keys

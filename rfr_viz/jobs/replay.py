@@ -9,12 +9,10 @@ import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Final
 
-from rfr_viz.codecs import CameraCodec
+from rfr_viz.jobs.recorded import Recordings
 from rfr_viz.panels.map import placer
 from rfr_viz.panels.umap import MemoryMap, memory_map
-from rfr_viz.paths import DEFAULT_OUT
 from rfr_viz.recordings.replay import compare_recording, record_replay
 from robofailring.atomic import output_lock, remove_file_leftovers
 from robofailring.data.grounding import Vocabulary
@@ -35,7 +33,6 @@ from robofailring.outputs import check_output_folder, check_recording_file
 from robofailring.progress import progress_bar
 
 _UNSAFE = re.compile(r"[^A-Za-z0-9._+-]+")
-FPS_RANGE: Final[tuple[float, float]] = (1e-3, 1e4)  # one frame per 1,000 s to a 10 kHz sensor
 
 _log = logging.getLogger("robofailring")
 
@@ -46,11 +43,7 @@ class ReplayConfig:
     # its labels: outcome and symbol shown in the recording)
     data: DataSelection
     detector: DetectorConfig  # the memory (its map is cached there, umap.npz) and how its detector judges
-    out: Path = DEFAULT_OUT  # folder of the .rrd files, one per trajectory
-    trajectories: tuple[str, ...] = ()  # `<task>/<episode>` keys or episode names; empty = all
-    leave_one_out: bool = False  # hide each trajectory's own episode from the memory
-    fps: float | None = None  # "time" timeline rate; default: the data's, else 10
-    camera_codec: CameraCodec = CameraCodec.AUTO  # jpeg, av1, h264, or auto (by size)
+    recordings: Recordings = field(default_factory=Recordings)  # which trajectories, into which folder, how
     stride: int = 1  # score every stride-th frame; the recording keeps every camera frame
     vlm: VLMConfig | None = None  # ask this VLM about each detection; its answer joins the report
 
@@ -61,11 +54,7 @@ class CompareConfig:
         DataSelection  # a dataset root of any layout, or one episode folder, how it is read (not its labels)
     )
     detectors: tuple[DetectorConfig, ...]  # two or more memories, each built with its own encoder
-    out: Path = DEFAULT_OUT
-    trajectories: tuple[str, ...] = ()
-    leave_one_out: bool = False
-    fps: float | None = None
-    camera_codec: CameraCodec = CameraCodec.AUTO
+    recordings: Recordings = field(default_factory=Recordings)  # which trajectories, into which folder, how
 
 
 @dataclass
@@ -128,15 +117,6 @@ def recording_name(trajectory: Trajectory, suffix: str = "") -> str:
         raw = f"{trajectory.task}\0{trajectory.episode}".encode()
         name += "~" + hashlib.blake2b(raw, digest_size=6).hexdigest()
     return f"{name}{suffix}.rrd"
-
-
-def check_fps(fps: float | None) -> float | None:
-    """A `time` timeline rate within `FPS_RANGE` (SettingError otherwise): a frame's time in nanoseconds
-    must fit Rerun's int64 (at 1e-300 fps frame 1 is at infinity, an OverflowError)."""
-    low, high = FPS_RANGE
-    if fps is not None and not (math.isfinite(fps) and low <= fps <= high):
-        raise SettingError(f"--fps must be a number of frames per second from {low:g} to {high:g}, got {fps}")
-    return fps
 
 
 def check_speed(speed: float) -> float:
@@ -212,19 +192,19 @@ def load_detector(config: DetectorConfig) -> LoadedDetector:
 def replay(config: ReplayConfig) -> ReplayResult:
     """Replay each selected trajectory through the detector into `<out>/<task>__<episode>.rrd`."""
     check_stride(config.stride)
-    check_fps(config.fps)
-    check_output_folder(config.out, inputs=[config.data.root, config.detector.memory])
-    with output_lock(config.out):
-        remove_file_leftovers(config.out)
+    out = config.recordings.out
+    check_output_folder(out, inputs=[config.data.root, config.detector.memory])
+    with output_lock(out):
+        remove_file_leftovers(out)
         return _replay(config)
 
 
 def _replay(config: ReplayConfig) -> ReplayResult:
-    found = load_detector(config.detector)
+    found, recordings = load_detector(config.detector), config.recordings
     result = ReplayResult(references={config.detector.memory_dir: found.references})
     trajectories = select_trajectories(
         config.data,
-        keys=config.trajectories,
+        keys=recordings.trajectories,
         skipped=result.skipped_inputs,
         vocabulary=found.detector.memory.vocabulary,
     )
@@ -234,7 +214,7 @@ def _replay(config: ReplayConfig) -> ReplayResult:
             try:
                 trace = found.detector.run(
                     trajectory,
-                    leave_one_out=config.leave_one_out,
+                    leave_one_out=recordings.leave_one_out,
                     stride=config.stride,
                     keep_queries=False,
                     place=placer(found.map, trajectory.task),
@@ -244,7 +224,7 @@ def _replay(config: ReplayConfig) -> ReplayResult:
             else:
                 result.saw(trace, trajectory.key)
                 result.skipped_inputs += trace.short_views
-                out = _target(config.out, recording_name(trajectory), written, trajectory.key)
+                out = _target(recordings.out, recording_name(trajectory), written, trajectory.key)
                 answer = result.ask(config.vlm, trace, trajectory)
                 result.recordings.append(
                     record_replay(
@@ -252,8 +232,8 @@ def _replay(config: ReplayConfig) -> ReplayResult:
                         trace,
                         out=out,
                         memory_map=found.map,
-                        fps=config.fps,
-                        camera_codec=config.camera_codec,
+                        fps=recordings.fps,
+                        camera_codec=recordings.camera_codec,
                         vlm_answer=answer,
                     )
                 )
@@ -274,10 +254,10 @@ def unique_slugs(slugs: Sequence[str]) -> list[str]:
 
 def compare(config: CompareConfig) -> ReplayResult:
     """Replay each trajectory under every memory's encoder into one comparison recording."""
-    check_fps(config.fps)
-    check_output_folder(config.out, inputs=[config.data.root, *(each.memory for each in config.detectors)])
-    with output_lock(config.out):
-        remove_file_leftovers(config.out)
+    out = config.recordings.out
+    check_output_folder(out, inputs=[config.data.root, *(each.memory for each in config.detectors)])
+    with output_lock(out):
+        remove_file_leftovers(out)
         return _compare(config)
 
 
@@ -286,7 +266,7 @@ def _compare(config: CompareConfig) -> ReplayResult:
         raise SettingError(
             f"compare needs at least two memories (--memory A --memory B), got {len(config.detectors)}"
         )
-    detectors = [load_detector(each) for each in config.detectors]
+    detectors, recordings = [load_detector(each) for each in config.detectors], config.recordings
     slugs = unique_slugs([found.slug for found in detectors])
     result = ReplayResult(
         references={
@@ -294,7 +274,7 @@ def _compare(config: CompareConfig) -> ReplayResult:
         }
     )
     trajectories = select_trajectories(
-        replace(config.data, labels=None), keys=config.trajectories, skipped=result.skipped_inputs
+        replace(config.data, labels=None), keys=recordings.trajectories, skipped=result.skipped_inputs
     )
     suffix = "__" + "-vs-".join(slugs)
     written: dict[Path, str] = {}
@@ -304,7 +284,7 @@ def _compare(config: CompareConfig) -> ReplayResult:
                 traces = {
                     slug: found.detector.run(
                         trajectory,
-                        leave_one_out=config.leave_one_out,
+                        leave_one_out=recordings.leave_one_out,
                         keep_queries=False,
                         place=placer(found.map, trajectory.task),
                     )
@@ -316,7 +296,7 @@ def _compare(config: CompareConfig) -> ReplayResult:
                 for trace in traces.values():
                     result.saw(trace, trajectory.key)
                 result.skipped_inputs += next(iter(traces.values())).short_views  # the same in every memory
-                out = _target(config.out, recording_name(trajectory, suffix), written, trajectory.key)
+                out = _target(recordings.out, recording_name(trajectory, suffix), written, trajectory.key)
                 maps = {slug: found.map for slug, found in zip(slugs, detectors, strict=True)}
                 result.recordings.append(
                     compare_recording(
@@ -324,8 +304,8 @@ def _compare(config: CompareConfig) -> ReplayResult:
                         traces,
                         out=out,
                         memory_maps=maps,
-                        fps=config.fps,
-                        camera_codec=config.camera_codec,
+                        fps=recordings.fps,
+                        camera_codec=recordings.camera_codec,
                     )
                 )
             bar.update(1)

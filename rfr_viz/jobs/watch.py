@@ -8,7 +8,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from rfr_viz.codecs import CameraCodec
-from rfr_viz.jobs.replay import check_fps, check_speed, load_detector
+from rfr_viz.jobs.recorded import check_fps
+from rfr_viz.jobs.replay import check_speed, load_detector
 from rfr_viz.paths import DEFAULT_FPS
 from rfr_viz.recordings.live import LiveRecording
 from rfr_viz.recordings.live_target import LiveTarget

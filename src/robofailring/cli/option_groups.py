@@ -3,7 +3,8 @@
 - `DATA` (`data_options`): the dataset and how it is read, a `DataSelection`;
 - `RECIPE` (`recipe_options`): how a memory is made, a `MemoryRecipe`;
 - `DETECTOR` (`detector_options`): how a detector judges and where its encoder runs, a `DetectorConfig`;
-- `THRESHOLDS` (`threshold_options`): how thresholds are set, a `ThresholdPolicy`.
+- `THRESHOLDS` (`threshold_options`): how thresholds are set, a `ThresholdPolicy`;
+- `VLM` (`vlm_options`): the VLM to ask about a report, a `VLMConfig` (or None).
 
 A verb takes the groups it needs (`robofailring.cli.groups.takes`), less the options that do not apply to it;
 adding a setting to one of these values is one option here, one field there, and one line in its function.
@@ -24,6 +25,9 @@ from robofailring.detection.rules import RULES
 from robofailring.detection.stored import given_thresholds
 from robofailring.detection.threshold_policy import DEFAULT_POLICY, ThresholdPolicy
 from robofailring.detection.view_bands import DEFAULT_FUSION, FUSIONS
+from robofailring.errors import SettingError
+from robofailring.explain.vlm import VLMConfig
+from robofailring.extras import require
 from robofailring.memory.recipe import DEFAULT_RECIPE, MemoryRecipe
 
 # The data: DataSelection
@@ -280,6 +284,31 @@ def threshold_options(
     return ThresholdPolicy(target_fpr=target_fpr, band=band, fusion=fusion)
 
 
+# The VLM asked about a report: VLMConfig
+
+VLMUrlOption = Annotated[
+    str | None,
+    typer.Option(
+        "--vlm-url",
+        help="Base URL of an OpenAI-compatible server (e.g. http://localhost:11434/v1) to ask about the "
+        "report; key from $ROBOFAILRING_VLM_API_KEY.",
+    ),
+]
+VLMModelOption = Annotated[
+    str | None, typer.Option("--vlm-model", help="Model the VLM server serves (with --vlm-url).")
+]
+
+
+def vlm_options(vlm_url: VLMUrlOption = None, vlm_model: VLMModelOption = None) -> VLMConfig | None:
+    """--vlm-url and --vlm-model as the VLM to ask (both or neither: a SettingError otherwise)."""
+    if vlm_url is None or vlm_model is None:
+        if vlm_url is not None or vlm_model is not None:
+            raise SettingError("--vlm-url and --vlm-model go together: give both or neither")
+        return None
+    require("vlm")  # before any work: the VLM is asked once the detections are made
+    return VLMConfig(url=vlm_url, model=vlm_model)
+
+
 DATA: Final[OptionGroup[DataSelection]] = OptionGroup(data_options)
 RECIPE: Final[OptionGroup[MemoryRecipe]] = OptionGroup(recipe_options)
 # --memory is required where the group is taken whole (the verbs that detect); left out, there is none
@@ -287,3 +316,4 @@ DETECTOR: Final[OptionGroup[DetectorConfig]] = OptionGroup(detector_options).but
     memory=Declared(MemoryOption)
 )
 THRESHOLDS: Final[OptionGroup[ThresholdPolicy]] = OptionGroup(threshold_options)
+VLM: Final[OptionGroup[VLMConfig | None]] = OptionGroup(vlm_options)

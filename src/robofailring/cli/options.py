@@ -9,19 +9,14 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Final
+from typing import Annotated, Final
 
 import typer
 
 from robofailring.data.model import Skipped
 from robofailring.data.selection import DataSelection
 from robofailring.errors import SettingError
-from robofailring.extras import require
 from robofailring.memory.references import ReferenceCheck
-
-if TYPE_CHECKING:
-    from robofailring.explain.vlm import VLMConfig
-
 
 StrideOption = Annotated[
     int,
@@ -29,17 +24,6 @@ StrideOption = Annotated[
         "--stride",
         help="Score every Nth frame of long episodes (I_0 stays frame 0; t_det and T_s in original frames).",
     ),
-]
-VLMUrlOption = Annotated[
-    str | None,
-    typer.Option(
-        "--vlm-url",
-        help="Base URL of an OpenAI-compatible server (e.g. http://localhost:11434/v1) to ask about the "
-        "report; key from $ROBOFAILRING_VLM_API_KEY.",
-    ),
-]
-VLMModelOption = Annotated[
-    str | None, typer.Option("--vlm-model", help="Model the VLM server serves (with --vlm-url).")
 ]
 
 
@@ -94,18 +78,6 @@ def warn_missing_references(memory: Path, check: ReferenceCheck | None) -> None:
         )
 
 
-def vlm_config(url: str | None, model: str | None) -> VLMConfig | None:
-    """The VLM to ask, from --vlm-url and --vlm-model (both or neither: a SettingError otherwise)."""
-    from robofailring.explain.vlm import VLMConfig
-
-    if url is None or model is None:
-        if url is not None or model is not None:
-            raise SettingError("--vlm-url and --vlm-model go together: give both or neither")
-        return None
-    require("vlm")  # before any work: the VLM is asked once the detections are made
-    return VLMConfig(url=url, model=model)
-
-
 LeaveOneOutOption = Annotated[
     bool, typer.Option("--leave-one-out", help="Hide each trajectory's own episode from the memory.")
 ]
@@ -113,15 +85,6 @@ FpsOption = Annotated[
     float | None,
     typer.Option(
         "--fps", help="Frame rate of the `time` timeline, 0.001–10000 (default: the data's, else 10)."
-    ),
-]
-RecordingsOutOption = Annotated[
-    Path, typer.Option("--out", help="Folder for the .rrd files (one per trajectory).")
-]
-TrajectoriesOption = Annotated[
-    list[str] | None,
-    typer.Option(
-        "--trajectory", help="Only this trajectory (`<task>/<episode>` or the episode); repeatable."
     ),
 ]
 WorkersOption = Annotated[int, typer.Option("--workers", help="Simulation processes.")]

@@ -15,23 +15,29 @@ import typer
 
 from robofailring.cli.exit_codes import ErrorMappingGroup, finish
 from robofailring.cli.groups import Declared, takes
-from robofailring.cli.option_groups import DATA, DETECTOR, ENCODER_PLACEMENT, RECIPE, RULE_CHOICE, THRESHOLDS
+from robofailring.cli.option_groups import (
+    DATA,
+    DETECTOR,
+    ENCODER_PLACEMENT,
+    RECIPE,
+    RULE_CHOICE,
+    THRESHOLDS,
+    VLM,
+)
 from robofailring.cli.options import (
     LeaveOneOutOption,
     RandomizeOption,
     StrideOption,
-    VLMModelOption,
-    VLMUrlOption,
     WorkersOption,
     print_notes,
     report_skipped,
-    vlm_config,
     warn_missing_references,
 )
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.errors import SettingError
+from robofailring.explain.vlm import VLMConfig
 from robofailring.memory.recipe import MemoryRecipe
 
 app = typer.Typer(  # unnamed, so rfr_viz.cli.app merges its verbs into the one `robofailring` command
@@ -183,6 +189,7 @@ def build_memory_cmd(
         )
     ).without("vocabulary"),
     detector=DETECTOR.without("ray"),
+    vlm=VLM,
 )
 def detect_cmd(
     data: DataSelection,
@@ -197,8 +204,7 @@ def detect_cmd(
         ),
     ] = None,
     stride: StrideOption = 1,
-    vlm_url: VLMUrlOption = None,
-    vlm_model: VLMModelOption = None,
+    vlm: VLMConfig | None,
 ) -> None:
     """Replay one trajectory through the detector and say if and when it fires."""
     from robofailring.jobs.detect import DetectConfig, run_detect
@@ -210,7 +216,7 @@ def detect_cmd(
             key=key,
             leave_one_out=leave_one_out,
             stride=stride,
-            vlm=vlm_config(vlm_url, vlm_model),
+            vlm=vlm,
         )
     )
     skipped = [*result.trace.skipped_inputs, *result.trace.short_views]
