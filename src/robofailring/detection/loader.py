@@ -1,5 +1,6 @@
 """`open_detector`: a memory folder to a ready detector in one call, with the memory's stored calibration;
-`detector_from`, the same from a `DetectorConfig` (what the jobs hold)."""
+`detector_from`, the same from a `DetectorConfig` (what the jobs hold); `detector_with` and `encoder_for`,
+the one place a `DetectorConfig`'s settings become a detector's and an encoder's."""
 
 from __future__ import annotations
 
