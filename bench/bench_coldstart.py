@@ -30,7 +30,9 @@ import numpy as np
 
 from bench._timing import print_machine
 from bench.bench_quality import ID_EPISODES, ID_SUCCESSES, OOD_EPISODES, OOD_SUCCESSES, _pct, datasets
+from robofailring.data.selection import DataSelection
 from robofailring.detection.rules import default_rule
+from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.encoders import default_cache_dir, encoder_slug, load_encoder
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
 from robofailring.evaluation.per_rule import RuleResult, scored_by_rule
@@ -86,10 +88,10 @@ def growth_rows(
     for level in levels:
         name = "all" if level is None else str(level)
         base = EvaluateConfig(
-            data=in_dist,
+            data=DataSelection(in_dist),
             recipe=MemoryRecipe(encoder=encoder),
             out=out / slug / f"failures-{name}",
-            target_fpr=alpha,
+            thresholds=ThresholdPolicy(alpha),
             memory_out=out / slug / f"failures-{name}" / "memory",
             name="in-distribution",
             failures_per_task=level,
@@ -97,7 +99,7 @@ def growth_rows(
         ood = replace(
             base,
             detector=base.detector.with_memory(base.memory_out),
-            test_data=out_dist,
+            test_data=base.data.other(out_dist),
             test_split="ood",
             name="ood",
         )

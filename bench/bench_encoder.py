@@ -32,6 +32,9 @@ from rfr_viz.jobs.demo import DemoConfig, simulate_datasets
 from rfr_viz.panels.umap import memory_map
 from robofailring import FailureMemory, load_dataset, load_encoder
 from robofailring.data.grounding import failure_type
+from robofailring.data.selection import DataSelection
+from robofailring.detection.config import DetectorConfig
+from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.encoders import default_cache_dir, encoder_slug
 from robofailring.encoders.trained import CONFIG_NAME, prepare_images
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
@@ -151,10 +154,19 @@ def main() -> None:
         for spec in specs:
             slug = encoder_slug(load_encoder(spec).identity)
             base = EvaluateConfig(
-                data=in_dist, recipe=MemoryRecipe(encoder=spec), out=Path(tmp), memory_out=Path(tmp) / slug
+                data=DataSelection(in_dist),
+                recipe=MemoryRecipe(encoder=spec),
+                out=Path(tmp),
+                memory_out=Path(tmp) / slug,
             )
             memory = build_training_memory(base)
-            calibration = calibrate(CalibrateConfig(data=in_dist, memory=memory, target_fpr=args.target_fpr))
+            calibration = calibrate(
+                CalibrateConfig(
+                    data=base.data,
+                    detector=DetectorConfig(memory=memory),
+                    thresholds=ThresholdPolicy(args.target_fpr),
+                )
+            )
             tested = {
                 "ID": run_evaluation(
                     replace(base, detector=base.detector.with_memory(memory), name=f"{slug}-id")
@@ -164,7 +176,7 @@ def main() -> None:
                         base,
                         detector=base.detector.with_memory(memory),
                         name=f"{slug}-ood",
-                        test_data=out_dist,
+                        test_data=base.data.other(out_dist),
                         test_split="ood",
                     )
                 ),

@@ -36,6 +36,8 @@ from typing import Any
 from bench._peer_lerobot import export_lerobot
 from bench._timing import print_machine
 from bench.bench_quality import QualityRow, Variant, print_rows, run_cells, with_variant
+from robofailring.data.selection import DataSelection
+from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.encoders import default_cache_dir, encoder_slug, load_encoder
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
 from robofailring.evaluation.run import EvaluateConfig
@@ -280,11 +282,10 @@ def evaluate_encoder(
     slug = encoder_slug(load_encoder(encoder).identity) + (f"-{variant.label}")
     name = f"{encoder} ({variant.label})"
     base = EvaluateConfig(
-        data=peer.lerobot,
+        data=DataSelection(peer.lerobot, labels=peer.lerobot_labels),
         recipe=MemoryRecipe(encoder=encoder),
-        labels=peer.lerobot_labels,
         out=out / slug,
-        target_fpr=alpha,
+        thresholds=ThresholdPolicy(alpha),
         memory_out=out / slug / "memory",
         name="in-distribution",
     )
@@ -293,7 +294,7 @@ def evaluate_encoder(
     if swapped_encoder is not None:
         swapped = replace(
             base,
-            labels=peer.lerobot_swapped,
+            data=replace(base.data, labels=peer.lerobot_swapped),
             recipe=replace(base.recipe, encoder=swapped_encoder),
             out=out / f"{slug}-swapped",
             memory_out=out / f"{slug}-swapped" / "memory",

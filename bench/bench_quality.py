@@ -32,7 +32,9 @@ from pathlib import Path
 from typing import Any
 
 from bench._timing import print_machine
+from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
+from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.encoders import default_cache_dir, encoder_slug, load_encoder
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
 from robofailring.evaluation.run import EvaluateConfig, EvaluationResult, run_evaluation, write_evaluation
@@ -135,14 +137,18 @@ class Variant:
         text); a field of `EvaluateConfig`, of its `MemoryRecipe` (e.g. `signals=none`) or of its
         `DetectorConfig` (e.g. `modality=signals`)."""
         label, _, body = text.partition(":")
-        known = {f.name for kind in (EvaluateConfig, MemoryRecipe, DetectorConfig) for f in fields(kind)}
+        known = {
+            f.name
+            for kind in (EvaluateConfig, MemoryRecipe, DetectorConfig, ThresholdPolicy)
+            for f in fields(kind)
+        }
         settings: dict[str, Any] = {}
         for item in filter(None, body.split(",")):
             name, sep, value = item.partition("=")
             if not sep or name not in known:
                 raise SystemExit(
-                    f"--variant {text!r}: {item!r} is not FIELD=VALUE with a field of EvaluateConfig, MemoryRecipe "
-                    "or DetectorConfig"
+                    f"--variant {text!r}: {item!r} is not FIELD=VALUE with a field of EvaluateConfig, MemoryRecipe, "
+                    "DetectorConfig or ThresholdPolicy"
                 )
             settings[name] = _value(value)
         return Variant(label or "default", settings)
@@ -150,15 +156,20 @@ class Variant:
 
 def with_variant(config: EvaluateConfig, variant: Variant) -> EvaluateConfig:
     """`config` with the variant's settings, each in the value it belongs to (the recipe, the detector's
-    config, or the evaluation's own)."""
+    config, the threshold policy, or the evaluation's own)."""
     recipe_fields = {f.name for f in fields(MemoryRecipe)}
+    policy_fields = {f.name for f in fields(ThresholdPolicy)}
     detector_fields = {f.name for f in fields(DetectorConfig)} - {f.name for f in fields(EvaluateConfig)}
     settings = variant.settings
+    policy = config.thresholds
+    if policy is not None:
+        policy = replace(policy, **{k: v for k, v in settings.items() if k in policy_fields})
     return replace(
         config,
         recipe=replace(config.recipe, **{k: v for k, v in settings.items() if k in recipe_fields}),
         detector=replace(config.detector, **{k: v for k, v in settings.items() if k in detector_fields}),
-        **{k: v for k, v in settings.items() if k not in recipe_fields | detector_fields},
+        thresholds=policy,
+        **{k: v for k, v in settings.items() if k not in recipe_fields | detector_fields | policy_fields},
     )
 
 
@@ -196,11 +207,11 @@ def evaluate_encoder(
     slug = f"{encoder_slug(load_encoder(encoder).identity)}-step{success_step:g}-{variant.label}"
     name = f"{encoder} (step {success_step:g}, {variant.label})"
     base = EvaluateConfig(
-        data=in_dist,
+        data=DataSelection(in_dist),
         recipe=MemoryRecipe(encoder=encoder, success_step=success_step),
         detector=DetectorConfig(cache_dir=cache_dir),
         out=out / slug,
-        target_fpr=alpha,
+        thresholds=ThresholdPolicy(alpha),
         memory_out=out / slug / "memory",
         name="in-distribution",
     )
@@ -208,7 +219,7 @@ def evaluate_encoder(
     ood = replace(
         base,
         detector=base.detector.with_memory(out / slug / "memory"),
-        test_data=out_dist,
+        test_data=base.data.other(out_dist),
         test_split="ood",
         name="ood",
     )
@@ -217,7 +228,7 @@ def evaluate_encoder(
         data, spec = swapped
         in_swapped = replace(
             base,
-            data=data,
+            data=base.data.other(data),
             recipe=replace(base.recipe, encoder=spec),
             out=out / f"{slug}-swapped",
             memory_out=out / f"{slug}-swapped" / "memory",

@@ -48,6 +48,8 @@ from typing import Any
 import numpy as np
 
 from bench._timing import load_average, print_machine
+from robofailring.data.selection import DataSelection
+from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.encoders import default_cache_dir
 from robofailring.encoders.export import ensure_export
 from robofailring.encoders.exported import OnnxEncoder, open_session
@@ -225,7 +227,7 @@ def quality(threads: int, alpha: float, *, data: Path | None = None, encoder: st
         for built, queried in cells:
             out = ROOT / "quality" / f"{data.name}-{EncoderSpec.slug(str(EncoderSpec.parse(spec)))}" / built
             config = EvaluateConfig(
-                data=data,
+                data=DataSelection(data),
                 out=out if built == queried else out.with_name(f"{built}-queried-{queried}"),
                 recipe=MemoryRecipe(spec),
                 detector=DetectorConfig(
@@ -234,7 +236,7 @@ def quality(threads: int, alpha: float, *, data: Path | None = None, encoder: st
                     cache_dir=ROOT,
                     device="cpu",
                 ),
-                target_fpr=alpha,
+                thresholds=ThresholdPolicy(alpha),
                 memory_out=out / "memory",
                 name="in-distribution",
             )

@@ -39,6 +39,7 @@ from bench._scenes import scene
 from bench._timing import print_machine
 from robofailring.data.images import write_png
 from robofailring.data.layouts import load_dataset
+from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.encoders import default_cache_dir, open_encoder
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
@@ -144,12 +145,12 @@ def quality(encoders: list[str], trained: bool) -> list[str]:
             memory = memory_of(memory_runs, spec, tag)
             for reference, judge, extra in (
                 ("nothing", DetectorConfig(encoder=spec), {}),
-                (f"{KNOWN} successes/task", DetectorConfig(encoder=spec), {"labels": labels}),
+                (f"{KNOWN} successes/task", DetectorConfig(encoder=spec), {"labels": labels}),  # of the data
                 ("memory", DetectorConfig(memory=memory), {}),
                 ("memory", DetectorConfig(memory=memory, rule="novelty"), {}),
             ):
                 start = time.perf_counter()
-                config = TriageConfig(data=data, out=ROOT / "out", detector=judge, **extra)  # type: ignore[arg-type]
+                config = TriageConfig(data=DataSelection(data, **extra), out=ROOT / "out", detector=judge)
                 result = run_triage(config)
                 ranked = [s for s in result.ranked if s.key not in known]
                 q = ranking_quality([truth[s.key] for s in ranked])
@@ -204,7 +205,9 @@ def peer(rate: float) -> list[str]:
                     "episode,outcome\n" + "".join(f"{r['episode']},success\n" for r in successes[:KNOWN])
                 )
                 known |= {f"{task}/{r['episode']}" for r in successes[:KNOWN]}
-            result = run_triage(TriageConfig(data=folder, out=ROOT / "out", task=task, labels=labels))
+            result = run_triage(
+                TriageConfig(data=DataSelection(folder, task=task, labels=labels), out=ROOT / "out")
+            )
             scores += [s for s in result.ranked if s.key not in known]
         ranked = sorted(scores, key=lambda s: -s.rank_score if np.isfinite(s.rank_score) else np.inf)
         q = ranking_quality([truth[s.key] for s in ranked])
@@ -222,8 +225,9 @@ import json, sys, time
 from pathlib import Path
 from robofailring.triage import TriageConfig, run_triage
 start = time.perf_counter()
+from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
-result = run_triage(TriageConfig(data=Path(sys.argv[1]), out=Path(sys.argv[2]), task="pick_cube",
+result = run_triage(TriageConfig(data=DataSelection(Path(sys.argv[1]), task="pick_cube"), out=Path(sys.argv[2]),
                                  reference_runs=10, detector=DetectorConfig(cache_dir=Path(sys.argv[3]))))
 status = Path("/proc/self/status").read_text()  # VmHWM: this process's own peak (ru_maxrss keeps the parent's)
 peak = next(int(line.split()[1]) for line in status.splitlines() if line.startswith("VmHWM:"))

@@ -12,7 +12,14 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from robofailring import BuildMemoryConfig, build_memory, load_trajectory, open_detector
+from robofailring import (
+    BuildMemoryConfig,
+    DataSelection,
+    MemoryRecipe,
+    build_memory,
+    load_trajectory,
+    open_detector,
+)
 
 
 def main() -> None:
@@ -32,7 +39,11 @@ def main() -> None:
     args = parser.parse_args()
 
     # embeddings are cached: a rerun encodes nothing; the manifest records the encoder spec for `detect`
-    memory, stats = build_memory(BuildMemoryConfig(data=args.dataset, encoder=args.encoder, out=args.memory))
+    memory, stats = build_memory(
+        BuildMemoryConfig(
+            data=DataSelection(args.dataset), out=args.memory, recipe=MemoryRecipe(encoder=args.encoder)
+        )
+    )
     print(f"{args.dataset}: {memory.manifest.layout} layout")
     print(
         f"memory: {len(memory)} entries over {len(memory.tasks)} tasks; {len(stats.skipped_views)} views skipped"

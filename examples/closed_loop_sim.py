@@ -18,7 +18,11 @@ from rfr_viz import run_closed_loop
 from robofailring import (
     BuildMemoryConfig,
     CalibrateConfig,
+    DataSelection,
+    DetectorConfig,
     GenerateConfig,
+    MemoryRecipe,
+    ThresholdPolicy,
     build_memory,
     calibrate,
     default_cache_dir,
@@ -62,13 +66,22 @@ def main() -> None:
     memory_dir = args.out / f"memory_{args.task}"
     # the paper's memory (no success runs): the closed loop stops at S_t ≥ δ
     memory, stats = build_memory(
-        BuildMemoryConfig(data=data, encoder="pixels", out=memory_dir, successes=False)
+        BuildMemoryConfig(
+            data=DataSelection(data), out=memory_dir, recipe=MemoryRecipe(encoder="pixels"), successes=False
+        )
     )
     print(f"memory: {len(memory)} entries from {stats.failures} failure episodes in {data}")
     if args.delta is None:
         successes = sum(not t.is_failure for t in load_dataset(data).trajectories())
         alpha = args.target_fpr or smallest_target_fpr(successes)  # split conformal needs n ≥ 1/α − 1
-        calibration = calibrate(CalibrateConfig(data=data, memory=memory_dir, split=None, target_fpr=alpha))
+        calibration = calibrate(
+            CalibrateConfig(
+                data=DataSelection(data),
+                detector=DetectorConfig(memory=memory_dir),
+                thresholds=ThresholdPolicy(target_fpr=alpha),
+                split=None,
+            )
+        )
         print(
             f"calibrated δ = {calibration.delta:.4f} on {calibration.successes} successes (α = {alpha:.3f})"
         )

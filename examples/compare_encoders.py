@@ -9,7 +9,13 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from robofailring import CompareEncodersConfig, compare_encoders, comparison_table
+from robofailring import (
+    CompareEncodersConfig,
+    DataSelection,
+    ThresholdPolicy,
+    compare_encoders,
+    comparison_table,
+)
 
 
 def main() -> None:
@@ -25,7 +31,12 @@ def main() -> None:
     args = parser.parse_args()
     encoders = tuple(args.encoder) or ("pixels", "open_clip:ViT-B-32:openai")
     results = compare_encoders(
-        CompareEncodersConfig(data=args.data, out=args.out, encoders=encoders, target_fpr=args.target_fpr)
+        CompareEncodersConfig(
+            data=DataSelection(args.data),
+            thresholds=ThresholdPolicy(target_fpr=args.target_fpr),
+            out=args.out,
+            encoders=encoders,
+        )
     )
     print(comparison_table(results))
 

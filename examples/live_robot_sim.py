@@ -22,7 +22,11 @@ from robofailring import (
     SIM_VIEWS,
     BuildMemoryConfig,
     CalibrateConfig,
+    DataSelection,
+    DetectorConfig,
     GenerateConfig,
+    MemoryRecipe,
+    ThresholdPolicy,
     build_memory,
     calibrate,
     default_cache_dir,
@@ -66,11 +70,20 @@ def main() -> None:
     memory_dir = Path(args.data) / f"memory_{args.task}_{args.image_size}px_{args.frames}f"
     # the paper's memory (no success runs): the robot is stopped at S_t ≥ δ
     memory, stats = build_memory(
-        BuildMemoryConfig(data=data, encoder="pixels", out=memory_dir, successes=False)
+        BuildMemoryConfig(
+            data=DataSelection(data), out=memory_dir, recipe=MemoryRecipe(encoder="pixels"), successes=False
+        )
     )
     if args.delta is None:  # split conformal at the smallest α its successes allow (n ≥ 1/α − 1)
         alpha = smallest_target_fpr(sum(not t.is_failure for t in trajectories))
-        calibrate(CalibrateConfig(data=data, memory=memory_dir, split=None, target_fpr=alpha))
+        calibrate(
+            CalibrateConfig(
+                data=DataSelection(data),
+                detector=DetectorConfig(memory=memory_dir),
+                thresholds=ThresholdPolicy(target_fpr=alpha),
+                split=None,
+            )
+        )
     detector = open_detector(memory_dir, delta=args.delta)  # δ: the one given, else the calibrated one
     print(f"memory: {len(memory)} entries from {stats.failures} failure episodes; δ = {detector.delta:.4f}")
 

@@ -14,6 +14,7 @@ import importlib
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from rfr_viz.jobs.recorded import Recordings
     from rfr_viz.jobs.replay import CompareConfig, ReplayConfig, ReplayResult, compare, replay
     from rfr_viz.jobs.review import ReviewConfig, review
     from rfr_viz.panels.umap import MemoryMap, fit_map, memory_map
@@ -37,6 +38,7 @@ _LAZY = {  # name -> the module it is imported from on first use
     "LiveRecording": "rfr_viz.recordings.live",
     "LiveTarget": "rfr_viz.recordings.live_target",
     "MemoryMap": "rfr_viz.panels.umap",
+    "Recordings": "rfr_viz.jobs.recorded",
     "ReplayConfig": "rfr_viz.jobs.replay",
     "ReplayResult": "rfr_viz.jobs.replay",
     "ReviewConfig": "rfr_viz.jobs.review",
@@ -78,6 +80,7 @@ __all__ = [  # every name of _LAZY
     "LiveRecording",
     "LiveTarget",
     "MemoryMap",
+    "Recordings",
     "ReplayConfig",
     "ReplayResult",
     "ReviewConfig",

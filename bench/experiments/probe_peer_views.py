@@ -24,6 +24,7 @@ import numpy as np
 
 from bench._timing import print_machine
 from bench.bench_peer import peer_set
+from robofailring.data.selection import DataSelection
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.rules import CONTRAST
 from robofailring.encoders import encoder_slug, load_encoder, open_encoder
@@ -55,7 +56,7 @@ def _runs(
 def dump(spec: str, labels: Path, memory_dir: Path, out: Path) -> None:
     peer = peer_set(None, 2)
     encoder = open_encoder(spec)
-    base = EvaluateConfig(data=peer.root, labels=labels, out=out, recipe=MemoryRecipe(spec), target_fpr=0.05)
+    base = EvaluateConfig(data=DataSelection(peer.root, labels=labels), out=out, recipe=MemoryRecipe(spec))
     splits = select_splits(base)
     ood = select_splits(replace(base, test_split="ood")).test
     memory = FailureMemory.load(memory_dir)

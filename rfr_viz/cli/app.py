@@ -2,7 +2,8 @@
 
 Each group of verbs is its own typer app (typer's "one file per command"); nobody registers verbs on
 another module's app. Options shared by several verbs are declared once, in
-`robofailring.cli.options`. Errors become one sentence and an exit status (`robofailring.cli.exit_codes`).
+`robofailring.cli.options`, and the options that make one value once, as its option group
+(`robofailring.cli.option_groups`). Errors become one sentence and an exit status (`robofailring.cli.exit_codes`).
 
 Loading the verbs (numpy, OpenCV, Faiss, typer) takes most of a second and happens here, the first
 of the command's own code to run (`import robofailring` and `import rfr_viz` load none of it): a

@@ -12,80 +12,76 @@ from rfr_viz.cli.replay import warn_vlm_errors
 from rfr_viz.codecs import CameraCodec
 from rfr_viz.viewer.control import open_at_command, open_command
 from robofailring.cli.exit_codes import finish
+from robofailring.cli.groups import Declared, takes
+from robofailring.cli.option_groups import DATA, DETECTOR, RECIPE, RULE_CHOICE, THRESHOLDS, VLM
 from robofailring.cli.options import (
-    DETECTOR_DEFAULTS,
-    RECIPE_DEFAULTS,
-    BandOption,
-    CacheOption,
-    DataRootOption,
-    DeviceOption,
-    EncoderOption,
-    FailureFramesOption,
-    FusionOption,
-    KOption,
-    LabelsOption,
-    ModalityOption,
-    PairingOption,
     RandomizeOption,
-    RayOption,
-    RuntimeOption,
-    ScoreOption,
-    SignalsOption,
     StrideOption,
-    SuccessStepOption,
-    TaskOption,
-    ViewsOption,
-    VLMModelOption,
-    VLMUrlOption,
-    VocabularyOption,
-    detector_config,
-    memory_recipe,
     report_skipped,
-    vlm_config,
+    tested_on,
     warn_missing_references,
 )
-from robofailring.detection.band import DEFAULT_BAND
-from robofailring.detection.view_bands import DEFAULT_FUSION
+from robofailring.data.selection import DataSelection
+from robofailring.detection.config import DetectorConfig
+from robofailring.detection.threshold_policy import ThresholdPolicy
+from robofailring.explain.vlm import VLMConfig
+from robofailring.memory.recipe import MemoryRecipe
 
 app = typer.Typer(add_completion=False)  # composed into the one `robofailring` command by rfr_viz.cli.app
 
 
 @app.command("evaluate")
+@takes(
+    data=DATA.but(
+        data=Declared(
+            Annotated[Path, typer.Argument(help="Dataset: the training split's failures form the memory.")]
+        )
+    ),
+    recipe=RECIPE,
+    detector=DETECTOR.without(*RULE_CHOICE, "encoder", "data_root").but(
+        memory=Declared(
+            Annotated[Path | None, typer.Option(help="Use this memory instead of building one.")], None
+        )
+    ),
+    thresholds=THRESHOLDS.but(
+        target_fpr=Declared(
+            Annotated[
+                float,
+                typer.Option(
+                    "--target-fpr",
+                    help="α: every rule is calibrated to it (split conformal) on training successes; with too "
+                    "few of them, to the smallest α they allow, and the output says no guarantee holds.",
+                ),
+            ],
+            0.05,
+        )
+    ),
+)
 def evaluate_cmd(
-    data: Annotated[Path, typer.Argument(help="Dataset: the training split's failures form the memory.")],
+    data: DataSelection,
+    *,
     out: Annotated[Path, typer.Option("--out", help="Folder for <name>.md, <name>.json and <name>.rrd.")],
-    encoder: EncoderOption = RECIPE_DEFAULTS.encoder,
-    memory: Annotated[Path | None, typer.Option(help="Use this memory instead of building one.")] = None,
+    recipe: MemoryRecipe,
     test_data: Annotated[
         Path | None, typer.Option(help="Test on this dataset (e.g. out-of-distribution).")
     ] = None,
+    test_labels: Annotated[
+        Path | None,
+        typer.Option(
+            "--test-labels",
+            help="The labels of --test-data, in the format of --labels (default: --labels): two LeRobot "
+            "datasets both number their episodes from 0, so each needs its own.",
+        ),
+    ] = None,
     train_split: Annotated[str, typer.Option(help="Split whose failures build the memory.")] = "train",
     test_split: Annotated[str, typer.Option(help="Split to test on.")] = "test",
-    k: KOption = DETECTOR_DEFAULTS.k,
+    detector: DetectorConfig,
     name: Annotated[str, typer.Option(help="Name of this evaluation in the outputs.")] = "evaluation",
     stride: StrideOption = 1,
-    labels: LabelsOption = None,
-    task: TaskOption = None,
-    views: ViewsOption = None,
-    vocabulary: VocabularyOption = None,
-    target_fpr: Annotated[
-        float,
-        typer.Option(
-            "--target-fpr",
-            help="α: every rule is calibrated to it (split conformal) on training successes; with too few of "
-            "them, to the smallest α they allow, and the output says no guarantee holds.",
-        ),
-    ] = 0.05,
+    thresholds: ThresholdPolicy,
     deployment_successes: Annotated[
         int, typer.Option(help="Per task, this many test success runs join the success memory (not tested).")
     ] = 0,
-    success_step: SuccessStepOption = RECIPE_DEFAULTS.success_step,
-    failure_frames: FailureFramesOption = None,
-    pairing: PairingOption = None,
-    signals: SignalsOption = None,
-    modality: ModalityOption = DETECTOR_DEFAULTS.modality,
-    band: BandOption = DEFAULT_BAND,
-    fusion: FusionOption = DEFAULT_FUSION,
     growth: Annotated[
         str | None,
         typer.Option(
@@ -100,10 +96,6 @@ def evaluate_cmd(
             "fold judged by a memory and thresholds of the other runs, pooled with counts (small data)."
         ),
     ] = None,
-    cache_dir: CacheOption = None,
-    device: DeviceOption = None,
-    runtime: RuntimeOption = None,
-    ray: RayOption = None,
 ) -> None:
     """Every scoring rule side by side at one α, then the paper's tables: Recall/FPR sweep, T_s, per type and view."""
     from rfr_viz.jobs.evaluate import FoldsOutcome, evaluate
@@ -115,31 +107,16 @@ def evaluate_cmd(
         EvaluateConfig(
             data=data,
             out=out,
-            recipe=memory_recipe(
-                encoder,
-                failure_frames=failure_frames,
-                pairing=pairing,
-                success_step=success_step,
-                signals=signals,
-            ),
-            detector=detector_config(
-                memory, device=device, runtime=runtime, cache_dir=cache_dir, k=k, modality=modality
-            ),
-            test_data=test_data,
+            recipe=recipe,
+            detector=detector,
+            thresholds=thresholds,
+            test_data=tested_on(data, test_data, test_labels),
             train_split=train_split,
             test_split=test_split,
             name=name,
             stride=stride,
-            labels=labels,
-            task=task,
-            views=views,
-            vocabulary=vocabulary,
-            target_fpr=target_fpr,
             deployment_successes=deployment_successes,
-            band=band,
-            fusion=fusion,
             folds=FoldPlan.parse(folds) if folds is not None else None,
-            ray=ray,
         ),
         growth=parse_growth(growth) if growth is not None else (),
     )
@@ -161,22 +138,28 @@ def evaluate_cmd(
 
 
 @app.command("review")
+@takes(
+    data=DATA.only("data", "views").but(
+        data=Declared(Annotated[Path, typer.Option("--data", help="The dataset that evaluation tested on.")])
+    ),
+    detector=DETECTOR.only("memory", "score", "cache_dir", "device", "data_root").but(
+        memory=Declared(
+            Annotated[Path | None, typer.Option(help="Default: the memory the evaluation used.")], None
+        )
+    ),
+    vlm=VLM,
+)
 def review_cmd(
     evaluation: Annotated[Path, typer.Argument(help="The <name>.json written by `robofailring evaluate`.")],
-    data: Annotated[Path, typer.Option("--data", help="The dataset that evaluation tested on.")],
+    *,
+    data: DataSelection,
     kind: Annotated[str, typer.Option(help="`false-alarms` or `misses`.")] = "false-alarms",
     out: Annotated[Path, typer.Option("--out", help="Folder for the recordings.")] = Path(
         "recordings/review"
     ),
-    memory: Annotated[Path | None, typer.Option(help="Default: the memory the evaluation used.")] = None,
     camera_codec: CameraCodecOption = CameraCodec.AUTO,
-    score: ScoreOption = None,
-    views: ViewsOption = None,
-    cache_dir: CacheOption = None,
-    device: DeviceOption = None,
-    data_root: DataRootOption = None,
-    vlm_url: VLMUrlOption = None,
-    vlm_model: VLMModelOption = None,
+    detector: DetectorConfig,
+    vlm: VLMConfig | None,
     write_labels: Annotated[
         Path | None,
         typer.Option(
@@ -195,11 +178,9 @@ def review_cmd(
         data=data,
         kind=kind,
         out=out,
-        detector=detector_config(memory, device=device, cache_dir=cache_dir, data_root=data_root),
+        detector=detector,
         camera_codec=camera_codec,
-        score=score,
-        views=views,
-        vlm=vlm_config(vlm_url, vlm_model),
+        vlm=vlm,
         write_labels=write_labels,
     )
     if write_labels is not None:
@@ -211,7 +192,7 @@ def review_cmd(
             else f"all {written.total} row(s) labelled"
         )
         typer.echo(
-            f"wrote {written.path}: {left}, then: robofailring build-memory {data} --labels {written.path} "
+            f"wrote {written.path}: {left}, then: robofailring build-memory {data.root} --labels {written.path} "
             "--add-to MEMORY"
         )
         return
@@ -232,20 +213,28 @@ def review_cmd(
 
 
 @app.command("compare-encoders")
+@takes(
+    data=DATA.only("data", "views").but(
+        data=Declared(Annotated[Path, typer.Argument(help="Dataset with train/test splits.")])
+    ),
+    thresholds=THRESHOLDS.only("target_fpr").but(
+        target_fpr=Declared(
+            Annotated[float, typer.Option("--target-fpr", help="Calibrate each encoder's δ to this FPR.")],
+            0.05,
+        )
+    ),
+    recipe=RECIPE.only("failure_frames", "pairing"),
+    detector=DETECTOR.only("k", "cache_dir", "device"),
+)
 def compare_encoders_cmd(
-    data: Annotated[Path, typer.Argument(help="Dataset with train/test splits.")],
+    data: DataSelection,
+    *,
     encoders: Annotated[list[str], typer.Option("--encoder", help="Encoder spec; give two or more.")],
     out: Annotated[Path, typer.Option("--out", help="Folder for memories, tables and recordings.")],
-    target_fpr: Annotated[
-        float, typer.Option("--target-fpr", help="Calibrate each encoder's δ to this FPR.")
-    ] = 0.05,
+    thresholds: ThresholdPolicy,
     recordings: Annotated[int, typer.Option(help="Per-trajectory comparison recordings to write.")] = 3,
-    k: KOption = DETECTOR_DEFAULTS.k,
-    failure_frames: FailureFramesOption = None,
-    pairing: PairingOption = None,
-    views: ViewsOption = None,
-    cache_dir: CacheOption = None,
-    device: DeviceOption = None,
+    recipe: MemoryRecipe,
+    detector: DetectorConfig,
 ) -> None:
     """The same split under several encoders, each calibrated: a side-by-side table and comparison recordings."""
     from rfr_viz.jobs.compare_encoders import run_encoder_comparison
@@ -256,10 +245,9 @@ def compare_encoders_cmd(
             data=data,
             out=out,
             encoders=tuple(encoders),
-            target_fpr=target_fpr,
-            recipe=memory_recipe(failure_frames=failure_frames, pairing=pairing),
-            detector=detector_config(None, device=device, cache_dir=cache_dir, k=k),
-            views=views,
+            thresholds=thresholds,
+            recipe=recipe,
+            detector=detector,
         ),
         recordings=recordings,
     )
@@ -270,6 +258,21 @@ def compare_encoders_cmd(
 
 
 @app.command("demo")
+@takes(
+    thresholds=THRESHOLDS.only("target_fpr").but(
+        target_fpr=Declared(
+            Annotated[
+                float,
+                typer.Option(
+                    "--target-fpr", help="α: guaranteed FPR bound, calibrated on the training successes."
+                ),
+            ],
+            0.05,
+        )
+    ),
+    recipe=RECIPE.only("failure_frames", "pairing"),
+    detector=DETECTOR.only("cache_dir"),
+)
 def demo_cmd(
     out: Annotated[Path, typer.Option("--out", help="Folder for everything the demo writes.")] = Path(
         "recordings/demo"
@@ -279,15 +282,12 @@ def demo_cmd(
     ood_episodes: Annotated[int, typer.Option(help="Out-of-distribution episodes per task and kind.")] = 1,
     image_size: Annotated[int, typer.Option("--image-size", help="Simulated image size in pixels.")] = 128,
     frames: Annotated[int, typer.Option(help="Frames per simulated episode.")] = 40,
-    target_fpr: Annotated[
-        float,
-        typer.Option("--target-fpr", help="α: guaranteed FPR bound, calibrated on the training successes."),
-    ] = 0.05,
+    *,
+    thresholds: ThresholdPolicy,
     data_dir: Annotated[Path | None, typer.Option(help="Where simulated datasets are cached.")] = None,
     camera_codec: CameraCodecOption = CameraCodec.AUTO,
-    failure_frames: FailureFramesOption = None,
-    pairing: PairingOption = None,
-    cache_dir: CacheOption = None,
+    recipe: MemoryRecipe,
+    detector: DetectorConfig,
     randomize: RandomizeOption = 32,
 ) -> None:
     """The main job on the embedded default: simulate, build the memory, calibrate, evaluate, record."""
@@ -301,11 +301,11 @@ def demo_cmd(
             ood_episodes=ood_episodes,
             image_size=image_size,
             frames=frames,
-            target_fpr=target_fpr,
+            thresholds=thresholds,
             data_dir=data_dir,
             camera_codec=camera_codec,
-            recipe=memory_recipe(failure_frames=failure_frames, pairing=pairing),
-            cache_dir=cache_dir,
+            recipe=recipe,
+            detector=detector,
             randomize=randomize,
         ),
         say=typer.echo,

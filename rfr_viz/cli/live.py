@@ -10,47 +10,33 @@ import typer
 from rfr_viz.cli.options import LiveCameraCodecOption
 from rfr_viz.codecs import CameraCodec
 from robofailring.cli.exit_codes import finish
-from robofailring.cli.options import (
-    DETECTOR_DEFAULTS,
-    CacheOption,
-    DataRootOption,
-    DeltaOption,
-    DeviceOption,
-    EtaOption,
-    FpsOption,
-    GammaOption,
-    KOption,
-    MemoryEncoderOption,
-    MemoryOption,
-    RuntimeOption,
-    ScoreOption,
-    TaskOption,
-    ViewsOption,
-    VLMModelOption,
-    VLMUrlOption,
-    detector_config,
-    vlm_config,
-)
+from robofailring.cli.groups import Declared, takes
+from robofailring.cli.option_groups import DATA, DETECTOR, VLM
+from robofailring.cli.options import FpsOption
+from robofailring.data.selection import DataSelection
+from robofailring.detection.config import DetectorConfig
+from robofailring.explain.vlm import VLMConfig
 
 app = typer.Typer(add_completion=False)  # composed into the one `robofailring` command by rfr_viz.cli.app
 
 
 @app.command("explain")
+@takes(vlm=VLM, detector=DETECTOR.only("data_root"))
 def explain_cmd(
     source: Annotated[
         Path, typer.Argument(help="A recording written by replay/review, or the output of `detect --json`.")
     ],
-    vlm_url: VLMUrlOption = None,
-    vlm_model: VLMModelOption = None,
+    *,
+    vlm: VLMConfig | None,
     as_json: Annotated[
         bool, typer.Option("--json", help="Print {model, answer, latency_s} (or {model, error}) as JSON.")
     ] = False,
-    data_root: DataRootOption = None,
+    detector: DetectorConfig,
 ) -> None:
     """Ask a VLM about the failure report of a detection made earlier (paper Appendix B)."""
     from rfr_viz.jobs.explain import explain
 
-    explanation = explain(source, vlm_config(vlm_url, vlm_model), data_root=data_root)
+    explanation = explain(source, vlm, data_root=detector.data_root)
     if as_json:
         typer.echo(explanation.to_json())  # printed even when the call failed: it says why
     finish(failure=explanation.failure)
@@ -59,9 +45,18 @@ def explain_cmd(
 
 
 @app.command("watch")
+@takes(
+    data=DATA.only("data", "task", "views").but(
+        data=Declared(
+            Annotated[Path, typer.Argument(help="One episode folder, fed frame by frame as a robot would.")],
+            name="episode",
+        )
+    ),
+    detector=DETECTOR.without("ray"),
+)
 def watch_cmd(
-    episode: Annotated[Path, typer.Argument(help="One episode folder, fed frame by frame as a robot would.")],
-    memory: MemoryOption,
+    data: DataSelection,
+    *,
     connect: Annotated[
         str | None,
         typer.Option(
@@ -74,23 +69,12 @@ def watch_cmd(
     save: Annotated[
         Path | None, typer.Option("--save", help="Also write the same stream to this .rrd.")
     ] = None,
-    task: TaskOption = None,
-    views: ViewsOption = None,
-    delta: DeltaOption = None,
-    k: KOption = DETECTOR_DEFAULTS.k,
-    score: ScoreOption = None,
-    gamma: GammaOption = None,
-    eta: EtaOption = None,
+    detector: DetectorConfig,
     speed: Annotated[
         float,
         typer.Option(help="1: the data's frame rate; 2: twice as fast; 0: as fast as the detector goes."),
     ] = 1.0,
     fps: FpsOption = None,
-    encoder: MemoryEncoderOption = None,
-    cache_dir: CacheOption = None,
-    device: DeviceOption = None,
-    runtime: RuntimeOption = None,
-    data_root: DataRootOption = None,
     camera_codec: LiveCameraCodecOption = CameraCodec.JPEG,
 ) -> None:
     """Watch an episode live in the Rerun viewer: every step through the detector's step API, streamed."""
@@ -99,23 +83,9 @@ def watch_cmd(
 
     result = watch(
         WatchConfig(
-            episode=episode,
-            detector=detector_config(
-                memory,
-                encoder=encoder,
-                device=device,
-                runtime=runtime,
-                cache_dir=cache_dir,
-                data_root=data_root,
-                k=k,
-                score=score,
-                delta=delta,
-                gamma=gamma,
-                eta=eta,
-            ),
+            data=data,
+            detector=detector,
             target=LiveTarget.chosen(connect=connect, spawn=spawn, save=save),
-            task=task,
-            views=views,
             speed=speed,
             fps=fps,
             camera_codec=camera_codec,

@@ -8,46 +8,24 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from rfr_viz.cli.options import CameraCodecOption
-from rfr_viz.codecs import CameraCodec
-from rfr_viz.paths import DEFAULT_OUT
+from rfr_viz.cli.options import RECORDINGS
+from rfr_viz.jobs.recorded import Recordings
 from rfr_viz.viewer.control import DEFAULT_PORT, open_command
 from robofailring.cli.exit_codes import finish
+from robofailring.cli.groups import takes
+from robofailring.cli.option_groups import DATA, DETECTOR, VLM
 from robofailring.cli.options import (
-    DETECTOR_DEFAULTS,
-    CacheOption,
-    DataArgument,
-    DataRootOption,
-    DeltaOption,
-    DeviceOption,
-    EtaOption,
-    FpsOption,
-    GammaOption,
-    KOption,
-    LabelsOption,
-    LeaveOneOutOption,
-    MemoryEncoderOption,
-    MemoryOption,
-    ModalityOption,
-    RecordingsOutOption,
-    RuntimeOption,
-    ScoreOption,
     StrideOption,
-    TaskOption,
-    TrajectoriesOption,
-    ViewsOption,
-    VLMModelOption,
-    VLMUrlOption,
-    detector_config,
     print_notes,
     report_skipped,
     report_skipped_runs,
-    vlm_config,
     warn_missing_references,
 )
+from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.detection.rules import PAPER
 from robofailring.errors import SettingError
+from robofailring.explain.vlm import VLMConfig
 
 if TYPE_CHECKING:
     from rfr_viz.jobs.replay import ReplayResult
@@ -80,88 +58,42 @@ def _report(result: ReplayResult, out: Path) -> None:
 
 
 @app.command("replay")
+@takes(data=DATA.without("vocabulary"), detector=DETECTOR.without("ray"), recordings=RECORDINGS, vlm=VLM)
 def replay_cmd(
-    data: DataArgument,
-    memory: MemoryOption,
-    out: RecordingsOutOption = DEFAULT_OUT,
-    trajectory: TrajectoriesOption = None,
-    delta: DeltaOption = None,
-    k: KOption = DETECTOR_DEFAULTS.k,
-    score: ScoreOption = None,
-    gamma: GammaOption = None,
-    eta: EtaOption = None,
-    modality: ModalityOption = DETECTOR_DEFAULTS.modality,
-    task: TaskOption = None,
-    views: ViewsOption = None,
-    leave_one_out: LeaveOneOutOption = False,
-    encoder: MemoryEncoderOption = None,
-    fps: FpsOption = None,
+    data: DataSelection,
+    *,
+    detector: DetectorConfig,
+    recordings: Recordings,
     stride: StrideOption = 1,
-    labels: LabelsOption = None,
-    camera_codec: CameraCodecOption = CameraCodec.AUTO,
-    cache_dir: CacheOption = None,
-    device: DeviceOption = None,
-    runtime: RuntimeOption = None,
-    data_root: DataRootOption = None,
-    vlm_url: VLMUrlOption = None,
-    vlm_model: VLMModelOption = None,
+    vlm: VLMConfig | None,
 ) -> None:
     """Replay trajectories through the detector, one self-contained Rerun recording (.rrd) each."""
     from rfr_viz.jobs.replay import ReplayConfig, replay
 
-    config = ReplayConfig(
-        data=data,
-        detector=detector_config(
-            memory,
-            encoder=encoder,
-            device=device,
-            runtime=runtime,
-            cache_dir=cache_dir,
-            data_root=data_root,
-            k=k,
-            score=score,
-            delta=delta,
-            gamma=gamma,
-            eta=eta,
-            modality=modality,
-        ),
-        out=out,
-        trajectories=tuple(trajectory or ()),
-        task=task,
-        views=views,
-        leave_one_out=leave_one_out,
-        fps=fps,
-        camera_codec=camera_codec,
-        stride=stride,
-        labels=labels,
-        vlm=vlm_config(vlm_url, vlm_model),
-    )
-    _report(replay(config), out)
+    config = ReplayConfig(data=data, detector=detector, recordings=recordings, stride=stride, vlm=vlm)
+    _report(replay(config), recordings.out)
 
 
 @app.command("compare")
+@takes(
+    data=DATA.only("data", "task", "views"),
+    recordings=RECORDINGS,
+    detector=DETECTOR.only("k", "score", "cache_dir", "device"),
+)
 def compare_cmd(
-    data: DataArgument,
+    data: DataSelection,
+    *,
     memory: Annotated[
         list[Path], typer.Option("--memory", help="Memory directory, one per encoder; give two or more.")
     ],
-    out: RecordingsOutOption = DEFAULT_OUT,
-    trajectory: TrajectoriesOption = None,
+    recordings: Recordings,
     delta: Annotated[
         list[float] | None,
         typer.Option(
             "--delta", help="δ per memory, in the order of --memory (default: each one's calibrated δ)."
         ),
     ] = None,
-    k: KOption = DETECTOR_DEFAULTS.k,
-    score: ScoreOption = None,
-    task: TaskOption = None,
-    views: ViewsOption = None,
-    leave_one_out: LeaveOneOutOption = False,
-    fps: FpsOption = None,
-    camera_codec: CameraCodecOption = CameraCodec.AUTO,
-    cache_dir: CacheOption = None,
-    device: DeviceOption = None,
+    detector: DetectorConfig,
     data_root: Annotated[
         list[Path] | None,
         typer.Option(
@@ -175,21 +107,10 @@ def compare_cmd(
 
     config = CompareConfig(
         data=data,
-        detectors=compared_detectors(
-            memory,
-            deltas=delta or [],
-            data_roots=data_root or [],
-            shared=detector_config(None, device=device, cache_dir=cache_dir, k=k, score=score),
-        ),
-        out=out,
-        trajectories=tuple(trajectory or ()),
-        task=task,
-        views=views,
-        leave_one_out=leave_one_out,
-        fps=fps,
-        camera_codec=camera_codec,
+        detectors=compared_detectors(memory, deltas=delta or [], data_roots=data_root or [], shared=detector),
+        recordings=recordings,
     )
-    _report(compare(config), out)
+    _report(compare(config), recordings.out)
 
 
 def compared_detectors(

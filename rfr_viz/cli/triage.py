@@ -10,38 +10,44 @@ import typer
 from rfr_viz.cli.options import CameraCodecOption
 from rfr_viz.codecs import CameraCodec
 from robofailring.cli.exit_codes import finish
-from robofailring.cli.options import (
-    DETECTOR_DEFAULTS,
-    CacheOption,
-    DataArgument,
-    DataRootOption,
-    DeviceOption,
-    KOption,
-    LabelsOption,
-    RayOption,
-    ReferenceEncoderOption,
-    RuntimeOption,
-    ScoreOption,
-    TaskOption,
-    ViewsOption,
-    detector_config,
-    print_notes,
-    report_skipped,
-)
+from robofailring.cli.groups import Declared, takes
+from robofailring.cli.option_groups import DATA, DETECTOR
+from robofailring.cli.options import print_notes, report_skipped
+from robofailring.data.selection import DataSelection
+from robofailring.detection.config import DetectorConfig
 
 app = typer.Typer(add_completion=False)  # composed into the one `robofailring` command by rfr_viz.cli.app
 
 
 @app.command("triage")
+@takes(
+    data=DATA.without("vocabulary"),
+    detector=DETECTOR.without("delta", "gamma", "eta", "modality").but(
+        memory=Declared(
+            Annotated[
+                Path | None,
+                typer.Option("--memory", help="Judge by this memory, its rules as calibrated (its encoder)."),
+            ],
+            None,
+        ),
+        encoder=Declared(
+            Annotated[
+                str | None,
+                typer.Option(
+                    "--encoder",
+                    help="Encoder spec: the reference's without --memory (default pixels), else the memory's.",
+                ),
+            ],
+            None,
+        ),
+    ),
+)
 def triage_cmd(
-    data: DataArgument,
+    data: DataSelection,
+    *,
     out: Annotated[
         Path, typer.Option("--out", help="Folder for triage.csv, triage.rrd, triage.html and replays/.")
     ],
-    memory: Annotated[
-        Path | None,
-        typer.Option("--memory", help="Judge by this memory, its rules as calibrated (its encoder)."),
-    ] = None,
     successes: Annotated[
         Path | None,
         typer.Option(
@@ -50,8 +56,6 @@ def triage_cmd(
             "them judges their tasks.",
         ),
     ] = None,
-    labels: LabelsOption = None,
-    encoder: ReferenceEncoderOption = None,
     replays: Annotated[
         int,
         typer.Option(
@@ -67,16 +71,8 @@ def triage_cmd(
             "(a fixed sample), so memory stays flat however many episodes there are.",
         ),
     ] = 100,
-    k: KOption = DETECTOR_DEFAULTS.k,
-    score: ScoreOption = None,
-    task: TaskOption = None,
-    views: ViewsOption = None,
+    detector: DetectorConfig,
     camera_codec: CameraCodecOption = CameraCodec.AUTO,
-    cache_dir: CacheOption = None,
-    device: DeviceOption = None,
-    runtime: RuntimeOption = None,
-    ray: RayOption = None,
-    data_root: DataRootOption = None,
 ) -> None:
     """Rank every episode of a dataset nobody labelled by how unlike normal runs it looks, to label the top.
 
@@ -87,24 +83,7 @@ def triage_cmd(
 
     outcome = triage(
         TriageConfig(
-            data=data,
-            out=out,
-            detector=detector_config(
-                memory,
-                encoder=encoder,
-                device=device,
-                runtime=runtime,
-                cache_dir=cache_dir,
-                data_root=data_root,
-                k=k,
-                score=score,
-            ),
-            successes=successes,
-            labels=labels,
-            task=task,
-            views=views,
-            reference_runs=reference_runs,
-            ray=ray,
+            data=data, out=out, detector=detector, successes=successes, reference_runs=reference_runs
         ),
         replays=replays,
         camera_codec=camera_codec,
@@ -112,5 +91,5 @@ def triage_cmd(
     result = outcome.result
     report_skipped(result.skipped_inputs)
     print_notes([f"note: {note}" for note in result.notes])
-    typer.echo(outcome.summary(data))
+    typer.echo(outcome.summary(data.root))
     finish(skipped=len(result.skipped_inputs))

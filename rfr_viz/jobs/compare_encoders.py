@@ -6,6 +6,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from rfr_viz.jobs.recorded import Recordings
 from rfr_viz.jobs.replay import CompareConfig, compare
 from robofailring.atomic import output_lock, remove_file_leftovers, write_text_atomic
 from robofailring.evaluation.comparison import CompareEncodersConfig, compare_encoders, comparison_table
@@ -29,7 +30,7 @@ def run_encoder_comparison(
 ) -> EncoderComparison:
     """Evaluate every encoder on the same split, write `out/comparison.md` and replay the first failures;
     an encoder evaluated already on that split is given by its result in `existing` (by encoder spec)."""
-    check_output_folder(config.out, inputs=[config.data])
+    check_output_folder(config.out, inputs=[config.data.root])
     with output_lock(config.out):
         remove_file_leftovers(config.out)
         return _run_encoder_comparison(config, recordings=recordings, existing=existing)
@@ -48,9 +49,7 @@ def _run_encoder_comparison(
             CompareConfig(
                 data=config.test_data or config.data,
                 detectors=tuple(config.detector.with_memory(Path(r.memory)) for r in results),
-                out=Path(config.out) / "recordings",
-                trajectories=keys,
-                views=config.views,
+                recordings=Recordings(out=Path(config.out) / "recordings", trajectories=keys),
             )
         ).recordings
         if keys

@@ -20,9 +20,11 @@ from rfr_viz.recordings.replay import record_replay
 from robofailring.atomic import output_lock, remove_file_leftovers
 from robofailring.data.grounding import failure_type
 from robofailring.data.layouts import load_dataset
-from robofailring.detection.config import DetectorConfig
+from robofailring.data.selection import DataSelection
+from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
 from robofailring.detection.loader import detector_from
 from robofailring.detection.rules import CONTRAST, PAPER, ScoringRule
+from robofailring.detection.threshold_policy import DEFAULT_POLICY, ThresholdPolicy
 from robofailring.encoders import default_cache_dir
 from robofailring.encoders.training import TrainEncoderConfig
 from robofailring.evaluation.calibration import CalibrateConfig, calibrate
@@ -51,14 +53,14 @@ class DemoConfig:
     ood_episodes: int = 1  # out-of-distribution episodes per task and kind (all test)
     image_size: int = 128
     frames: int = 40
-    target_fpr: float = 0.05  # α: split-conformal calibration of both rules on the training successes
-    # the headline detector's encoder; None: the trained one (pixels without training)
-    encoder: str | None = None
+    # α: split-conformal calibration of every rule on the training successes (and its band and fusion)
+    thresholds: ThresholdPolicy = DEFAULT_POLICY
     workers: int = 2
-    cache_dir: Path | None = None
+    detector: DetectorConfig = DEFAULT_DETECTOR  # the device and embedding cache of every step
     camera_codec: CameraCodec = CameraCodec.AUTO  # jpeg, av1, h264, or auto (by size)
     trained_epochs: int = 10  # train-encoder on the ID split (and random looks): the headline (0: none)
-    # the memories built (failure frames, pairing, success step), each with its own encoder (the headline's)
+    # the memories built (failure frames, pairing, success step), each with its own encoder: the trained
+    # one's (the recipe's without training)
     recipe: MemoryRecipe = DEFAULT_RECIPE
     randomize: int = 32  # randomised-look episodes the trained encoder also trains on (0: none)
 
@@ -154,37 +156,39 @@ def _run_demo(config: DemoConfig, data_dir: Path, say: Callable[[str], None]) ->
     encoder = _headline_encoder(config, in_dist, data_dir, say)
     say(
         f"detector: encoder {encoder}, {config.recipe.failure_frames} failure memory, {config.recipe.pairing} pairing, "
-        f"contrast rule on a time-indexed band, calibrated to α = {config.target_fpr:g} (the paper's rule beside "
+        f"contrast rule on a time-indexed band, calibrated to α = {config.thresholds.target_fpr:g} (the paper's rule beside "
         "it; pixels in encoders/comparison.md)"
     )
 
     base = EvaluateConfig(
-        data=in_dist,
+        data=DataSelection(in_dist),
         out=out,
         recipe=replace(config.recipe, encoder=encoder),
-        detector=DetectorConfig(cache_dir=config.cache_dir),
+        detector=config.detector,
         memory_out=out / "memory",
     )
     memory_dir = build_training_memory(base)
     calibration = calibrate(
         CalibrateConfig(
-            data=in_dist, memory=memory_dir, target_fpr=config.target_fpr, cache_dir=config.cache_dir
+            data=base.data, detector=config.detector.with_memory(memory_dir), thresholds=config.thresholds
         )
     )
     say(
-        f"memory {memory_dir}: split-conformal thresholds for FPR ≤ {100 * config.target_fpr:g} % on "
+        f"memory {memory_dir}: split-conformal thresholds for FPR ≤ {100 * config.thresholds.target_fpr:g} % on "
         f"{calibration.successes} training successes ({calibration.encoder}): paper δ = {calibration.delta:.4f}, "
         f"contrast γ = {calibration.gamma if calibration.gamma is not None else float('nan'):.4f}"
     )
     # the thresholds calibration just stored; the memory loaded once, for both evaluations and every recording
-    stored = replace(base, detector=base.detector.with_memory(memory_dir), target_fpr=None)
+    stored = replace(base, detector=base.detector.with_memory(memory_dir), thresholds=None)
     detector = detector_from(stored.detector)
     mapped = memory_map(detector.memory, directory=memory_dir)
     place = partial(placer, mapped)  # the recordings' map points, placed while the evaluations score
     evaluations = [
         run_evaluation(replace(stored, name="in-distribution"), detector=detector, place=place),
         run_evaluation(
-            replace(stored, name="out-of-distribution", test_data=out_dist, test_split="ood"),
+            replace(
+                stored, name="out-of-distribution", test_data=base.data.other(out_dist), test_split="ood"
+            ),
             detector=detector,
             place=place,
         ),
@@ -238,11 +242,9 @@ def _run_demo(config: DemoConfig, data_dir: Path, say: Callable[[str], None]) ->
 
 
 def _headline_encoder(config: DemoConfig, in_dist: Path, data_dir: Path, say: Callable[[str], None]) -> str:
-    """The encoder the demo leads with: the one given, else the trained one (trained or reused), else pixels."""
-    if config.encoder is not None:
-        return config.encoder
+    """The encoder the demo leads with: the trained one (trained or reused), else the recipe's (pixels)."""
     if not config.trained_epochs:
-        return "pixels"
+        return config.recipe.encoder
     return f"trained:{_trained_encoder(config, in_dist, data_dir, say)}"
 
 
@@ -253,12 +255,12 @@ def _compare_with_pixels(
     headline's in-distribution evaluation is the comparison's own (built, calibrated and scored once)."""
     return run_encoder_comparison(
         CompareEncodersConfig(
-            data=in_dist,
+            data=DataSelection(in_dist),
             out=out / "encoders",
             encoders=(encoder, "pixels"),
-            target_fpr=config.target_fpr,  # each encoder calibrated at the demo's α
+            thresholds=config.thresholds,  # each encoder calibrated at the demo's α
             recipe=config.recipe,
-            detector=DetectorConfig(cache_dir=config.cache_dir),
+            detector=config.detector,
         ),
         existing={encoder: headline},
     )

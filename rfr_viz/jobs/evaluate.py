@@ -56,7 +56,14 @@ def evaluate(config: EvaluateConfig, *, growth: tuple[int, ...] = ()) -> Evaluat
     evaluation per level, its memory under `<out>/growth-<n>/`. With `config.folds`, data whose split
     gives no held-out evaluation (`SplitError`) is still cross-validated: a `FoldsOutcome`, no recording."""
     out = Path(config.out)
-    check_output_folder(out, inputs=[config.data, config.test_data, config.detector.memory])
+    check_output_folder(
+        out,
+        inputs=[
+            config.data.root,
+            config.test_data.root if config.test_data else None,
+            config.detector.memory,
+        ],
+    )
     if growth:
         check_growth(config)
     with output_lock(out):

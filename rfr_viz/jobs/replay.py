@@ -7,19 +7,18 @@ import logging
 import math
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Final
 
-from rfr_viz.codecs import CameraCodec
+from rfr_viz.jobs.recorded import Recordings
 from rfr_viz.panels.map import placer
 from rfr_viz.panels.umap import MemoryMap, memory_map
-from rfr_viz.paths import DEFAULT_OUT
 from rfr_viz.recordings.replay import compare_recording, record_replay
 from robofailring.atomic import output_lock, remove_file_leftovers
 from robofailring.data.grounding import Vocabulary
-from robofailring.data.layouts import detect_layout, load_dataset, load_trajectory
+from robofailring.data.layouts import detect_layout
 from robofailring.data.model import Skipped, Trajectory
+from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig, check_stride
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.loader import detector_from
@@ -34,38 +33,28 @@ from robofailring.outputs import check_output_folder, check_recording_file
 from robofailring.progress import progress_bar
 
 _UNSAFE = re.compile(r"[^A-Za-z0-9._+-]+")
-FPS_RANGE: Final[tuple[float, float]] = (1e-3, 1e4)  # one frame per 1,000 s to a 10 kHz sensor
 
 _log = logging.getLogger("robofailring")
 
 
 @dataclass(frozen=True)
 class ReplayConfig:
-    data: Path  # dataset root of any layout, or one episode folder
+    # a dataset root of any layout, or one episode folder, how it is read (its task: on a root, a filter;
+    # its labels: outcome and symbol shown in the recording)
+    data: DataSelection
     detector: DetectorConfig  # the memory (its map is cached there, umap.npz) and how its detector judges
-    out: Path = DEFAULT_OUT  # folder of the .rrd files, one per trajectory
-    trajectories: tuple[str, ...] = ()  # `<task>/<episode>` keys or episode names; empty = all
-    task: str | None = None  # task of an episode folder whose name does not say; on a root, a filter
-    leave_one_out: bool = False  # hide each trajectory's own episode from the memory
-    fps: float | None = None  # "time" timeline rate; default: the data's, else 10
-    camera_codec: CameraCodec = CameraCodec.AUTO  # jpeg, av1, h264, or auto (by size)
+    recordings: Recordings = field(default_factory=Recordings)  # which trajectories, into which folder, how
     stride: int = 1  # score every stride-th frame; the recording keeps every camera frame
-    labels: Path | None = None  # labels file (LeRobot): outcome and symbol shown in the recording
     vlm: VLMConfig | None = None  # ask this VLM about each detection; its answer joins the report
-    views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
 
 
 @dataclass(frozen=True)
 class CompareConfig:
-    data: Path  # dataset root of any layout, or one episode folder
+    data: (
+        DataSelection  # a dataset root of any layout, or one episode folder, how it is read (not its labels)
+    )
     detectors: tuple[DetectorConfig, ...]  # two or more memories, each built with its own encoder
-    out: Path = DEFAULT_OUT
-    trajectories: tuple[str, ...] = ()
-    task: str | None = None
-    leave_one_out: bool = False
-    fps: float | None = None
-    camera_codec: CameraCodec = CameraCodec.AUTO
-    views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
+    recordings: Recordings = field(default_factory=Recordings)  # which trajectories, into which folder, how
 
 
 @dataclass
@@ -130,15 +119,6 @@ def recording_name(trajectory: Trajectory, suffix: str = "") -> str:
     return f"{name}{suffix}.rrd"
 
 
-def check_fps(fps: float | None) -> float | None:
-    """A `time` timeline rate within `FPS_RANGE` (SettingError otherwise): a frame's time in nanoseconds
-    must fit Rerun's int64 (at 1e-300 fps frame 1 is at infinity, an OverflowError)."""
-    low, high = FPS_RANGE
-    if fps is not None and not (math.isfinite(fps) and low <= fps <= high):
-        raise SettingError(f"--fps must be a number of frames per second from {low:g} to {high:g}, got {fps}")
-    return fps
-
-
 def check_speed(speed: float) -> float:
     """A playback speed: finite and ≥ 0, 0 as fast as the detector goes (SettingError otherwise)."""
     if not (math.isfinite(speed) and speed >= 0):
@@ -157,34 +137,31 @@ def _target(out: Path, name: str, written: dict[Path, str], key: str) -> Path:
 
 
 def select_trajectories(
-    data: Path,
+    data: DataSelection,
     *,
     keys: Sequence[str] = (),
-    task: str | None = None,
-    labels: Path | None = None,
-    views: str | None = None,
     skipped: list[Skipped] | None = None,
     vocabulary: Vocabulary | None = None,
 ) -> list[Trajectory]:
-    """The trajectories of a dataset root (optionally by key and task) or of one episode folder.
+    """The trajectories of a dataset root (optionally by key, and by task: `data.task`) or of one episode
+    folder (its labels are not applied).
 
     What the loader did not read is appended to `skipped`; labels' symbols are checked against
     Table 5 and `vocabulary` (the memory's own symbols).
     """
-    data = Path(data)
-    if detect_layout(data) == "episode":
-        trajectory = load_trajectory(data, task=task, views=views)
+    if detect_layout(data.root) == "episode":
+        trajectory = replace(data, labels=None).load_trajectory()
         if skipped is not None:
             skipped += trajectory.skipped
         return [trajectory]
-    dataset = load_dataset(data, task=task, labels=labels, views=views, vocabulary=vocabulary, keys=keys)
+    dataset = data.load(vocabulary=vocabulary, keys=keys)
     if skipped is not None:
         skipped += dataset.skipped
     chosen = list(dataset.trajectories())
-    if task is not None:
-        chosen = [trajectory for trajectory in chosen if trajectory.task == task]
+    if data.task is not None:
+        chosen = [trajectory for trajectory in chosen if trajectory.task == data.task]
         if not chosen:
-            raise DataError(f"no trajectory of task {task!r} in {data}")
+            raise DataError(f"no trajectory of task {data.task!r} in {data.root}")
     return chosen
 
 
@@ -215,22 +192,19 @@ def load_detector(config: DetectorConfig) -> LoadedDetector:
 def replay(config: ReplayConfig) -> ReplayResult:
     """Replay each selected trajectory through the detector into `<out>/<task>__<episode>.rrd`."""
     check_stride(config.stride)
-    check_fps(config.fps)
-    check_output_folder(config.out, inputs=[config.data, config.detector.memory])
-    with output_lock(config.out):
-        remove_file_leftovers(config.out)
+    out = config.recordings.out
+    check_output_folder(out, inputs=[config.data.root, config.detector.memory])
+    with output_lock(out):
+        remove_file_leftovers(out)
         return _replay(config)
 
 
 def _replay(config: ReplayConfig) -> ReplayResult:
-    found = load_detector(config.detector)
+    found, recordings = load_detector(config.detector), config.recordings
     result = ReplayResult(references={config.detector.memory_dir: found.references})
     trajectories = select_trajectories(
         config.data,
-        keys=config.trajectories,
-        task=config.task,
-        labels=config.labels,
-        views=config.views,
+        keys=recordings.trajectories,
         skipped=result.skipped_inputs,
         vocabulary=found.detector.memory.vocabulary,
     )
@@ -240,7 +214,7 @@ def _replay(config: ReplayConfig) -> ReplayResult:
             try:
                 trace = found.detector.run(
                     trajectory,
-                    leave_one_out=config.leave_one_out,
+                    leave_one_out=recordings.leave_one_out,
                     stride=config.stride,
                     keep_queries=False,
                     place=placer(found.map, trajectory.task),
@@ -250,7 +224,7 @@ def _replay(config: ReplayConfig) -> ReplayResult:
             else:
                 result.saw(trace, trajectory.key)
                 result.skipped_inputs += trace.short_views
-                out = _target(config.out, recording_name(trajectory), written, trajectory.key)
+                out = _target(recordings.out, recording_name(trajectory), written, trajectory.key)
                 answer = result.ask(config.vlm, trace, trajectory)
                 result.recordings.append(
                     record_replay(
@@ -258,8 +232,8 @@ def _replay(config: ReplayConfig) -> ReplayResult:
                         trace,
                         out=out,
                         memory_map=found.map,
-                        fps=config.fps,
-                        camera_codec=config.camera_codec,
+                        fps=recordings.fps,
+                        camera_codec=recordings.camera_codec,
                         vlm_answer=answer,
                     )
                 )
@@ -280,10 +254,10 @@ def unique_slugs(slugs: Sequence[str]) -> list[str]:
 
 def compare(config: CompareConfig) -> ReplayResult:
     """Replay each trajectory under every memory's encoder into one comparison recording."""
-    check_fps(config.fps)
-    check_output_folder(config.out, inputs=[config.data, *(each.memory for each in config.detectors)])
-    with output_lock(config.out):
-        remove_file_leftovers(config.out)
+    out = config.recordings.out
+    check_output_folder(out, inputs=[config.data.root, *(each.memory for each in config.detectors)])
+    with output_lock(out):
+        remove_file_leftovers(out)
         return _compare(config)
 
 
@@ -292,7 +266,7 @@ def _compare(config: CompareConfig) -> ReplayResult:
         raise SettingError(
             f"compare needs at least two memories (--memory A --memory B), got {len(config.detectors)}"
         )
-    detectors = [load_detector(each) for each in config.detectors]
+    detectors, recordings = [load_detector(each) for each in config.detectors], config.recordings
     slugs = unique_slugs([found.slug for found in detectors])
     result = ReplayResult(
         references={
@@ -300,11 +274,7 @@ def _compare(config: CompareConfig) -> ReplayResult:
         }
     )
     trajectories = select_trajectories(
-        config.data,
-        keys=config.trajectories,
-        task=config.task,
-        views=config.views,
-        skipped=result.skipped_inputs,
+        replace(config.data, labels=None), keys=recordings.trajectories, skipped=result.skipped_inputs
     )
     suffix = "__" + "-vs-".join(slugs)
     written: dict[Path, str] = {}
@@ -314,7 +284,7 @@ def _compare(config: CompareConfig) -> ReplayResult:
                 traces = {
                     slug: found.detector.run(
                         trajectory,
-                        leave_one_out=config.leave_one_out,
+                        leave_one_out=recordings.leave_one_out,
                         keep_queries=False,
                         place=placer(found.map, trajectory.task),
                     )
@@ -326,7 +296,7 @@ def _compare(config: CompareConfig) -> ReplayResult:
                 for trace in traces.values():
                     result.saw(trace, trajectory.key)
                 result.skipped_inputs += next(iter(traces.values())).short_views  # the same in every memory
-                out = _target(config.out, recording_name(trajectory, suffix), written, trajectory.key)
+                out = _target(recordings.out, recording_name(trajectory, suffix), written, trajectory.key)
                 maps = {slug: found.map for slug, found in zip(slugs, detectors, strict=True)}
                 result.recordings.append(
                     compare_recording(
@@ -334,8 +304,8 @@ def _compare(config: CompareConfig) -> ReplayResult:
                         traces,
                         out=out,
                         memory_maps=maps,
-                        fps=config.fps,
-                        camera_codec=config.camera_codec,
+                        fps=recordings.fps,
+                        camera_codec=recordings.camera_codec,
                     )
                 )
             bar.update(1)

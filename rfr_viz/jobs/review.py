@@ -17,8 +17,8 @@ from rfr_viz.paths import DEFAULT_OUT
 from rfr_viz.recordings.replay import record_replay
 from robofailring.atomic import output_lock, remove_file_leftovers, write_text_atomic
 from robofailring.data.labels import merge_label_rows
-from robofailring.data.layouts import load_dataset
 from robofailring.data.model import Skipped
+from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
 from robofailring.detection.loader import detector_from
 from robofailring.detection.rules import PAPER, ScoringRule, reported_default, rule_named
@@ -35,16 +35,15 @@ KINDS: Final[tuple[str, ...]] = ("false-alarms", "misses")
 @dataclass(frozen=True)
 class ReviewConfig:
     evaluation: Path  # the <name>.json written by `robofailring evaluate`
-    data: Path  # the dataset that evaluation tested on
+    data: DataSelection  # the dataset that evaluation tested on, how it is read
     kind: str = "false-alarms"  # "false-alarms" (successes that fired) or "misses" (failures that did not)
     out: Path = DEFAULT_OUT / "review"
-    # its memory (default: the one the evaluation used), device, cache and data root; the rule, its
-    # threshold and K are the evaluation's
+    # its memory (default: the one the evaluation used), device, cache and data root, and its rule: the one
+    # whose alarms to review (default: contrast when evaluated, else paper); the threshold and K are the
+    # evaluation's
     detector: DetectorConfig = DEFAULT_DETECTOR
-    score: str | None = None  # the rule whose alarms to review (default: contrast when evaluated, else paper)
     vlm: VLMConfig | None = None  # ask this VLM about each alarm; its answer joins the report
     camera_codec: CameraCodec = CameraCodec.AUTO  # jpeg, av1, h264, or auto (by size)
-    views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
     write_labels: Path | None = None  # `write_review_labels`: the labels CSV of every false alarm and miss
 
 
@@ -67,7 +66,7 @@ def review(config: ReviewConfig) -> ReplayResult:
     if config.kind not in KINDS:
         raise DataError(f"review kind {config.kind!r} is not one of {list(KINDS)}")
     reviewed = _read_evaluation(config)
-    check_output_folder(config.out, inputs=[config.data, reviewed.memory_dir])
+    check_output_folder(config.out, inputs=[config.data.root, reviewed.memory_dir])
     with output_lock(config.out):
         remove_file_leftovers(config.out)
         remove_file_leftovers(Path(config.out) / config.kind)
@@ -87,7 +86,7 @@ def _read_evaluation(config: ReviewConfig) -> Reviewed:
             Path(config.evaluation).read_bytes(), source=f"evaluation {config.evaluation}"
         )
         rules = evaluation.get("rules") or {}
-        rule = rule_named(config.score) if config.score else reported_default(rules)
+        rule = rule_named(config.detector.rule) if config.detector.rule else reported_default(rules)
         if rule.name in rules:
             keys = {kind: list(rules[rule.name][kind.replace("-", "_")]) for kind in KINDS}
             threshold = float(rules[rule.name]["threshold"])
@@ -114,7 +113,7 @@ def _replay_keys(
     loaded = load_detector(
         config.detector.with_memory(memory_dir, thresholds={rule.name: threshold}, rule=rule.name, k=k)
     )
-    dataset = load_dataset(config.data, views=config.views, keys=keys)
+    dataset = config.data.load(keys=keys)
     result.skipped_inputs += dataset.skipped
     trajectories = {t.key: t for t in dataset.trajectories()}
     result.references[memory_dir] = loaded.references
@@ -186,7 +185,7 @@ def write_review_labels(config: ReviewConfig) -> ReviewLabels:
         raise DataError("write_review_labels needs a labels file to write (--write-labels FILE)")
     reviewed = _read_evaluation(config)
     path = Path(config.write_labels)
-    inputs = [config.data, reviewed.memory_dir, config.evaluation]
+    inputs = [config.data.root, reviewed.memory_dir, config.evaluation]
     check_not_input(path, inputs, replaces=False, flag="--write-labels")
     if path.is_dir():
         raise OutputError(f"--write-labels {path} is a folder; name a CSV file, e.g. labels.csv")
@@ -201,7 +200,7 @@ def write_review_labels(config: ReviewConfig) -> ReviewLabels:
                 k=reviewed.k,
             )
         )
-        dataset = load_dataset(config.data, vocabulary=detector.memory.vocabulary)
+        dataset = config.data.load(vocabulary=detector.memory.vocabulary)
         wanted = [key for kind in KINDS for key in reviewed.keys[kind]]
         trajectories = {t.key: t for t in dataset.select(keys=wanted)}
         rows = []

@@ -8,11 +8,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from rfr_viz.codecs import CameraCodec
-from rfr_viz.jobs.replay import check_fps, check_speed, load_detector
+from rfr_viz.jobs.recorded import check_fps
+from rfr_viz.jobs.replay import check_speed, load_detector
 from rfr_viz.paths import DEFAULT_FPS
 from rfr_viz.recordings.live import LiveRecording
 from rfr_viz.recordings.live_target import LiveTarget
-from robofailring.data.layouts import load_trajectory
+from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.errors import DataError
 from robofailring.outputs import check_not_input, check_recording_file, check_writable
@@ -20,11 +21,9 @@ from robofailring.outputs import check_not_input, check_recording_file, check_wr
 
 @dataclass(frozen=True)
 class WatchConfig:
-    episode: Path  # one episode folder, fed frame by frame
+    data: DataSelection  # one episode folder, fed frame by frame, how it is read (its task, its views)
     detector: DetectorConfig  # the memory (its cached map is shown) and how its detector judges
     target: LiveTarget  # viewer URL, spawn, and/or a file
-    task: str | None = None  # when the folder name does not say
-    views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
     speed: float = 1.0  # 1: the data's frame rate; 2: twice as fast; 0: as fast as the detector goes
     fps: float | None = None  # default: the data's, else 10
     camera_codec: CameraCodec = CameraCodec.JPEG  # jpeg, av1 or h264 (auto: jpeg, live)
@@ -57,17 +56,17 @@ def watch(config: WatchConfig) -> WatchResult:
         save = Path(config.target.save)
         check_not_input(
             save,
-            [config.episode, config.detector.memory, config.detector.data_root],
+            [config.data.root, config.detector.memory, config.detector.data_root],
             replaces=False,
             flag="--save",
         )
         check_recording_file(save)
         check_writable(save.absolute().parent)
     loaded = load_detector(config.detector)
-    trajectory = load_trajectory(config.episode, task=config.task, views=config.views)
+    trajectory = config.data.load_trajectory()
     used = {view: frames for view, frames in trajectory.views.items() if len(frames) >= 2}
     if not used:
-        raise DataError(f"episode {config.episode} has no view with at least 2 frames")
+        raise DataError(f"episode {config.data.root} has no view with at least 2 frames")
     length = min(len(frames) for frames in used.values())  # views in step, as a replay scores them
     fps = float(config.fps or trajectory.frame_rate or DEFAULT_FPS)
     signals, _ = trajectory.read_signals()  # one that cannot be read is not sent (replay lists why)

@@ -33,12 +33,14 @@ if TYPE_CHECKING:
     from robofailring.data.grounding import ground, parse_symbol
     from robofailring.data.layouts import Dataset, load_dataset, load_trajectory
     from robofailring.data.model import Frame, Outcome, Trajectory
+    from robofailring.data.selection import DataSelection
     from robofailring.detection.config import DetectorConfig
     from robofailring.detection.conformal import smallest_target_fpr
     from robofailring.detection.detector import FailureDetector
     from robofailring.detection.loader import open_detector
     from robofailring.detection.rules import PAPER_DELTA, RULES, ScoringRule, rule_named
     from robofailring.detection.session import DetectorSession, StepSink
+    from robofailring.detection.threshold_policy import ThresholdPolicy
     from robofailring.detection.trace import DetectionTrace, StepResult
     from robofailring.encoders import CachedEncoder, Encoder, default_cache_dir, load_encoder, open_encoder
     from robofailring.evaluation.calibration import CalibrateConfig, Calibration, calibrate
@@ -62,6 +64,7 @@ _LAZY = {  # name -> (module, attribute), imported on first use (the simulator's
     "CalibrateConfig": ("robofailring.evaluation.calibration", "CalibrateConfig"),
     "Calibration": ("robofailring.evaluation.calibration", "Calibration"),
     "CompareEncodersConfig": ("robofailring.evaluation.comparison", "CompareEncodersConfig"),
+    "DataSelection": ("robofailring.data.selection", "DataSelection"),
     "Dataset": ("robofailring.data.layouts", "Dataset"),
     "DetectConfig": ("robofailring.jobs.detect", "DetectConfig"),
     "DetectionTrace": ("robofailring.detection.trace", "DetectionTrace"),
@@ -83,6 +86,7 @@ _LAZY = {  # name -> (module, attribute), imported on first use (the simulator's
     "StepResult": ("robofailring.detection.trace", "StepResult"),
     "StepSink": ("robofailring.detection.session", "StepSink"),
     "SuccessMemory": ("robofailring.memory.success", "SuccessMemory"),
+    "ThresholdPolicy": ("robofailring.detection.threshold_policy", "ThresholdPolicy"),
     "Trajectory": ("robofailring.data.model", "Trajectory"),
     "VLMClient": ("robofailring.explain.report", "VLMClient"),
     "build_memory": ("robofailring.jobs.build_memory", "build_memory"),
@@ -129,6 +133,7 @@ __all__ = [
     "Calibration",
     "CompareEncodersConfig",
     "DataError",
+    "DataSelection",
     "Dataset",
     "DetectConfig",
     "DetectionTrace",
@@ -155,6 +160,7 @@ __all__ = [
     "StepSink",
     "SuccessMemory",
     "SymbolError",
+    "ThresholdPolicy",
     "Trajectory",
     "UnknownTaskError",
     "VLMClient",

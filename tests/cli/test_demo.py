@@ -11,7 +11,9 @@ import pytest
 from rfr_viz.jobs.demo import DemoConfig, DemoResult, _trained_encoder, run_demo, simulate_datasets
 from rfr_viz.jobs.review import ReviewConfig, review
 from rfr_viz.viewer.rrd import verify_recording
+from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
+from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.errors import DataError
 
 pytestmark = pytest.mark.slow  # simulation or end-to-end: the full lane only (scripts/test.sh)
@@ -29,9 +31,9 @@ def tiny_demo(root: Path, out: str) -> DemoConfig:
         image_size=32,
         frames=8,
         workers=1,
-        target_fpr=0.5,
-        cache_dir=root / "cache",
         randomize=8,  # one randomised-look episode per kind
+        thresholds=ThresholdPolicy(target_fpr=0.5),
+        detector=DetectorConfig(cache_dir=root / "cache"),
     )
 
 
@@ -98,12 +100,11 @@ def test_review_replays_the_listed_trajectories(demo: tuple[Path, DemoResult]) -
     for kind, score, listed in cases:
         result = review(
             ReviewConfig(
+                data=DataSelection(root / "data" / "sim-ood"),
                 evaluation=evaluation,
-                data=root / "data" / "sim-ood",
                 kind=kind,
                 out=root / "review" / str(score),
-                detector=DetectorConfig(cache_dir=root / "cache"),
-                score=score,
+                detector=DetectorConfig(cache_dir=root / "cache", rule=score),
             )
         )
         assert len(result.recordings) == len(listed)
@@ -111,9 +112,9 @@ def test_review_replays_the_listed_trajectories(demo: tuple[Path, DemoResult]) -
             assert path.parent.name == kind
             verify_recording(path)
     with pytest.raises(DataError, match="not one of"):
-        review(ReviewConfig(evaluation=evaluation, data=root, kind="everything"))
+        review(ReviewConfig(data=DataSelection(root), evaluation=evaluation, kind="everything"))
     with pytest.raises(DataError, match="not an evaluation"):
-        review(ReviewConfig(evaluation=out / "memory" / "manifest.json", data=root))
+        review(ReviewConfig(data=DataSelection(root), evaluation=out / "memory" / "manifest.json"))
 
 
 def test_demo_leads_with_its_trained_encoder_and_compares_it_with_pixels(

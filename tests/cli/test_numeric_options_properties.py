@@ -15,7 +15,8 @@ from fault_helpers import cli
 from hypothesis import example, given
 from hypothesis import strategies as st
 
-from rfr_viz.jobs.replay import check_fps, check_speed
+from rfr_viz.jobs.recorded import check_fps
+from rfr_viz.jobs.replay import check_speed
 from robofailring.detection.config import check_k, check_stride
 from robofailring.detection.conformal import check_target_fpr
 from robofailring.detection.rules import RULES

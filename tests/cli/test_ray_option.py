@@ -1,4 +1,4 @@
-"""`--ray ADDRESS` is one option (robofailring.cli.options.RayOption), offered by the verbs that encode a dataset."""
+"""`--ray ADDRESS` is one option (robofailring.cli.option_groups.RayOption), offered by the verbs that encode a dataset."""
 
 from __future__ import annotations
 

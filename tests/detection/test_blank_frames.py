@@ -11,11 +11,14 @@ import pytest
 from synthetic import write_project_dataset
 
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
+from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.detection.rules import CONTRAST
+from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.evaluation.calibration import CalibrateConfig, calibrate
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.jobs.detect import DetectConfig, run_detect
+from robofailring.memory.recipe import MemoryRecipe
 
 
 @pytest.fixture()
@@ -23,7 +26,11 @@ def both(tmp_path: Path) -> tuple[Path, Path, CachedEncoder]:
     data = write_project_dataset(tmp_path / "data", tasks=("pick_cube",), episodes=4)
     build_memory(
         BuildMemoryConfig(
-            data=data, encoder="pixels", out=tmp_path / "m", split="train", cache_dir=tmp_path / "c"
+            data=DataSelection(data),
+            out=tmp_path / "m",
+            recipe=MemoryRecipe.chosen("pixels"),
+            detector=DetectorConfig(cache_dir=tmp_path / "c"),
+            split="train",
         )
     )
     return data, tmp_path / "m", CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "c")
@@ -58,7 +65,9 @@ def test_detect_says_when_its_rule_judges_at_an_uncalibrated_default(
     data, memory_dir, _ = both
     key = load_dataset(data).select(split="test")[0].key
     config = DetectConfig(
-        trajectory=data, detector=DetectorConfig(memory=memory_dir, cache_dir=tmp_path / "c"), key=key
+        data=DataSelection(data),
+        detector=DetectorConfig(memory=memory_dir, cache_dir=tmp_path / "c"),
+        key=key,
     )
     with caplog.at_level(logging.WARNING, logger="robofailring"):
         assert run_detect(config).trace.rule is CONTRAST
@@ -66,12 +75,18 @@ def test_detect_says_when_its_rule_judges_at_an_uncalibrated_default(
     assert len(said) == 1 and "the contrast rule judges at its default γ = 0" in said[0]
     assert "robofailring calibrate" in said[0] and "--gamma" in said[0]
     caplog.clear()
-    calibrate(CalibrateConfig(data=data, memory=memory_dir, target_fpr=0.5, cache_dir=tmp_path / "c"))
+    calibrate(
+        CalibrateConfig(
+            data=DataSelection(data),
+            detector=DetectorConfig(memory=memory_dir, cache_dir=tmp_path / "c"),
+            thresholds=ThresholdPolicy(target_fpr=0.5),
+        )
+    )
     with caplog.at_level(logging.WARNING, logger="robofailring"):
         run_detect(config)
         run_detect(
             DetectConfig(
-                trajectory=data,
+                data=DataSelection(data),
                 detector=DetectorConfig(
                     memory=memory_dir, cache_dir=tmp_path / "c", thresholds={"contrast": 0.1}
                 ),

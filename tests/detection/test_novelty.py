@@ -10,6 +10,7 @@ import pytest
 from synthetic import write_project_dataset
 
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
+from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.detection.rules import (
     CONTRAST,
@@ -20,12 +21,14 @@ from robofailring.detection.rules import (
     rule_named,
     rules_for,
 )
+from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.detection.view_scores import reaches
 from robofailring.errors import DataError, SettingError
 from robofailring.evaluation.calibration import CalibrateConfig, calibrate
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.jobs.detect import DetectConfig, run_detect
 from robofailring.memory.info import MemoryInfo
+from robofailring.memory.recipe import MemoryRecipe
 
 NAN = float("nan")
 
@@ -59,7 +62,11 @@ def success_only(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, 
     data = write_project_dataset(root / "data", tasks=("pick_cube",), symbols=(), episodes=6, length=6)
     build_memory(
         BuildMemoryConfig(
-            data=data, encoder="pixels", out=root / "memory", split="train", cache_dir=root / "c"
+            data=DataSelection(data),
+            out=root / "memory",
+            recipe=MemoryRecipe.chosen("pixels"),
+            detector=DetectorConfig(cache_dir=root / "c"),
+            split="train",
         )
     )
     return data, root / "memory", root / "c"
@@ -95,7 +102,14 @@ def test_no_success_and_no_failure_is_still_an_error(tmp_path: Path) -> None:
     with pytest.raises(
         DataError, match="--no-successes leaves out its success runs: a memory needs one or the other"
     ):
-        build_memory(BuildMemoryConfig(data=data, encoder="pixels", out=tmp_path / "m", successes=False))
+        build_memory(
+            BuildMemoryConfig(
+                data=DataSelection(data),
+                out=tmp_path / "m",
+                recipe=MemoryRecipe.chosen("pixels"),
+                successes=False,
+            )
+        )
     assert not (tmp_path / "m").exists()
 
 
@@ -105,7 +119,13 @@ def test_eta_is_calibrated_on_training_successes_and_judges_the_task(
     data, memory_dir, cache = success_only
     memory = tmp_path / "memory"
     FailureMemory.load(memory_dir).save(memory)
-    found = calibrate(CalibrateConfig(data=data, memory=memory, target_fpr=0.4, cache_dir=cache))
+    found = calibrate(
+        CalibrateConfig(
+            data=DataSelection(data),
+            detector=DetectorConfig(memory=memory, cache_dir=cache),
+            thresholds=ThresholdPolicy(target_fpr=0.4),
+        )
+    )
     assert found.delta is None and found.gamma is None and found.eta is not None
     assert "η = " in found.to_text(memory) and "δ = " not in found.to_text(memory)
     stored = json.loads((memory / "manifest.json").read_text(encoding="utf-8"))["calibration"]
@@ -161,7 +181,7 @@ def test_detect_says_novelty_fired_with_no_failure_to_compare(
     trajectory = load_dataset(data).select(split="test")[0]
     result = run_detect(
         DetectConfig(
-            trajectory=data,
+            data=DataSelection(data),
             detector=DetectorConfig(memory=memory_dir, cache_dir=cache, thresholds={"novelty": 0.0}),
             key=trajectory.key,
         )
@@ -185,7 +205,11 @@ def test_a_memory_with_both_kinds_of_task_judges_each_by_its_own_default(tmp_pat
     (both / "manifest.json").write_text(json.dumps(manifest), encoding="utf-8")
     memory, _ = build_memory(
         BuildMemoryConfig(
-            data=both, encoder="pixels", out=tmp_path / "m", split="train", cache_dir=tmp_path / "c"
+            data=DataSelection(both),
+            out=tmp_path / "m",
+            recipe=MemoryRecipe.chosen("pixels"),
+            detector=DetectorConfig(cache_dir=tmp_path / "c"),
+            split="train",
         )
     )
     assert memory.tasks == ["pick_cube", "push_cube"] and memory.has_failures("pick_cube")
@@ -202,7 +226,11 @@ def test_a_memory_with_both_kinds_of_task_judges_each_by_its_own_default(tmp_pat
     ):
         FailureDetector(memory, encoder, rule="contrast").run(tests["push_cube"])
     found = calibrate(
-        CalibrateConfig(data=both, memory=tmp_path / "m", target_fpr=0.5, cache_dir=tmp_path / "c")
+        CalibrateConfig(
+            data=DataSelection(both),
+            detector=DetectorConfig(memory=tmp_path / "m", cache_dir=tmp_path / "c"),
+            thresholds=ThresholdPolicy(target_fpr=0.5),
+        )
     )
     assert None not in (found.delta, found.gamma, found.eta)
 
@@ -224,20 +252,20 @@ def test_an_evaluation_grows_from_success_runs_only_to_labelled_failures(tmp_pat
     assert len({t.symbol for t in labelled_failures(train, 2) if t.task == "pick_cube" and t.is_failure}) == 2
     cold = run_evaluation(
         EvaluateConfig(
-            data=data,
+            data=DataSelection(data),
+            thresholds=ThresholdPolicy(target_fpr=0.5),
             detector=DetectorConfig(cache_dir=tmp_path / "c"),
             out=tmp_path / "e0",
-            target_fpr=0.5,
             failures_per_task=0,
         )
     )
     assert list(cold.rules) == ["novelty"] and cold.failures == 12
     grown = run_evaluation(
         EvaluateConfig(
-            data=data,
+            data=DataSelection(data),
+            thresholds=ThresholdPolicy(target_fpr=0.5),
             detector=DetectorConfig(cache_dir=tmp_path / "c"),
             out=tmp_path / "e1",
-            target_fpr=0.5,
             failures_per_task=1,
         )
     )

@@ -10,7 +10,9 @@ from numpy.typing import ArrayLike
 from synthetic import write_project_dataset
 
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
-from robofailring.cli.options import ScoreOption
+from robofailring.cli.option_groups import ScoreOption
+from robofailring.data.selection import DataSelection
+from robofailring.detection.config import DetectorConfig
 from robofailring.detection.rules import (
     CONTRAST,
     NOVELTY,
@@ -26,6 +28,7 @@ from robofailring.detection.view_scores import reaches
 from robofailring.errors import SettingError
 from robofailring.evaluation.calibration import available_rules
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
+from robofailring.memory.recipe import MemoryRecipe
 
 NAN = float("nan")
 
@@ -93,7 +96,11 @@ def built(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, FailureMemory
     data = write_project_dataset(folder / "data", episodes=6)
     memory, _ = build_memory(
         BuildMemoryConfig(
-            data=data, encoder="pixels", out=folder / "memory", split="train", cache_dir=folder / "cache"
+            data=DataSelection(data),
+            out=folder / "memory",
+            recipe=MemoryRecipe.chosen("pixels"),
+            detector=DetectorConfig(cache_dir=folder / "cache"),
+            split="train",
         )
     )
     return data, memory, CachedEncoder(load_encoder("pixels"), cache_dir=folder / "cache")

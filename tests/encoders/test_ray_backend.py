@@ -14,10 +14,13 @@ from synthetic import write_project_dataset
 
 from robofailring import FailureMemory, load_dataset
 from robofailring.data.model import Frame
+from robofailring.data.selection import DataSelection
+from robofailring.detection.config import DetectorConfig
 from robofailring.encoders import open_encoder
 from robofailring.encoders.ray_backend import RayBackend, _probe
 from robofailring.errors import ClusterError
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
+from robofailring.memory.recipe import MemoryRecipe
 
 
 def _frames(dataset: Path) -> list[Frame]:
@@ -57,11 +60,10 @@ def test_build_memory_on_ray_is_the_local_memory(ray_cluster: None, tmp_path: Pa
     built = {}
     for where, ray in (("local", None), ("ray", "auto")):
         config = BuildMemoryConfig(
-            data=dataset,
-            encoder="pixels",
+            data=DataSelection(dataset),
             out=tmp_path / where,
-            cache_dir=tmp_path / f"cache-{where}",
-            ray=ray,
+            recipe=MemoryRecipe.chosen("pixels"),
+            detector=DetectorConfig(cache_dir=tmp_path / f"cache-{where}", ray=ray),
         )
         build_memory(config)
         built[where] = FailureMemory.load(tmp_path / where)

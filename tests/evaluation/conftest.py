@@ -7,7 +7,10 @@ from pathlib import Path
 import pytest
 from synthetic import write_project_dataset
 
+from robofailring.data.selection import DataSelection
+from robofailring.detection.config import DetectorConfig
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
+from robofailring.memory.recipe import MemoryRecipe
 
 
 @pytest.fixture(scope="session")
@@ -23,7 +26,11 @@ def calibration_set(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Pat
     )
     build_memory(
         BuildMemoryConfig(
-            data=data, encoder="pixels", out=root / "memory", split="train", cache_dir=root / "c"
+            data=DataSelection(data),
+            out=root / "memory",
+            recipe=MemoryRecipe.chosen("pixels"),
+            detector=DetectorConfig(cache_dir=root / "c"),
+            split="train",
         )
     )
     return data, root / "memory", root / "c"

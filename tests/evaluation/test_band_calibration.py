@@ -12,10 +12,12 @@ from typer.testing import CliRunner
 
 from rfr_viz.cli.app import app
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
+from robofailring.data.selection import DataSelection
 from robofailring.detection.band import NONE, NORM, SHIFT
 from robofailring.detection.config import DetectorConfig
 from robofailring.detection.conformal import conformal_threshold
 from robofailring.detection.rules import CONTRAST, NOVELTY, PAPER
+from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.evaluation.calibration import CalibrateConfig, calibrate, conformal_peaks, success_scores
 from robofailring.evaluation.run import EvaluateConfig, run_evaluation
 from robofailring.jobs.detect import DetectConfig, run_detect
@@ -30,7 +32,13 @@ def _calibrated(calibration_set: tuple[Path, Path, Path], band: str, folder: Pat
     copy.mkdir()
     for item in memory.iterdir():
         (copy / item.name).write_bytes(item.read_bytes())
-    calibrate(CalibrateConfig(data=data, memory=copy, target_fpr=ALPHA, cache_dir=cache, band=band))
+    calibrate(
+        CalibrateConfig(
+            data=DataSelection(data),
+            detector=DetectorConfig(memory=copy, cache_dir=cache),
+            thresholds=ThresholdPolicy(target_fpr=ALPHA, band=band),
+        )
+    )
     return copy
 
 
@@ -85,7 +93,7 @@ def test_detect_and_the_live_step_fire_where_the_raw_score_crosses_the_line(
     assert fired
     shown = run_detect(
         DetectConfig(
-            trajectory=data,
+            data=DataSelection(data),
             detector=DetectorConfig(memory=memory_dir, cache_dir=cache),
             key=trajectory.episode,
         )
@@ -119,12 +127,11 @@ def test_the_evaluation_judges_on_the_band_it_calibrates(
     results = {
         band: run_evaluation(
             EvaluateConfig(
-                data=data,
+                data=DataSelection(data),
+                thresholds=ThresholdPolicy(target_fpr=ALPHA, band=band),
                 recipe=MemoryRecipe(encoder="pixels"),
                 detector=DetectorConfig(cache_dir=cache),
                 out=tmp_path / band,
-                target_fpr=ALPHA,
-                band=band,
             )
         )
         for band in (NONE, NORM)

@@ -20,6 +20,7 @@ import robofailring.encoders as encoders
 from rfr_viz.cli.app import app
 from rfr_viz.jobs.compare_encoders import EncoderComparison
 from rfr_viz.viewer.rrd import verify_recording
+from robofailring.data.selection import DataSelection
 from robofailring.evaluation.comparison import CompareEncodersConfig, compare_encoders, comparison_table
 
 pytestmark = pytest.mark.slow  # simulation or end-to-end: the full lane only (scripts/test.sh)
@@ -109,7 +110,9 @@ def test_two_encoders_side_by_side(compared: Compared) -> None:
 
 def test_needs_two_encoders(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="at least two"):
-        compare_encoders(CompareEncodersConfig(data=tmp_path, out=tmp_path, encoders=("pixels",)))
+        compare_encoders(
+            CompareEncodersConfig(data=DataSelection(tmp_path), out=tmp_path, encoders=("pixels",))
+        )
 
 
 def test_compare_encoders_verb_writes_table_and_recordings(compared: Compared) -> None:

@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 from synthetic import write_project_dataset
 
+from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
+from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.evaluation.run import EvaluateConfig, run_evaluation
 
 
@@ -21,11 +23,10 @@ def test_evaluation_on_ray_is_the_local_evaluation(
     results = {
         where: run_evaluation(
             EvaluateConfig(
-                data=dataset,
+                data=DataSelection(dataset),
+                thresholds=ThresholdPolicy(target_fpr=0.2),
                 out=tmp_path / where,
-                detector=DetectorConfig(cache_dir=tmp_path / f"cache-{where}"),
-                target_fpr=0.2,
-                ray=ray,
+                detector=DetectorConfig(cache_dir=tmp_path / f"cache-{where}", ray=ray),
             )
         )
         for where, ray in (("local", None), ("ray", "auto"))

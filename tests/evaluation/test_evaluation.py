@@ -16,7 +16,9 @@ from robofailring import (
     load_dataset,
     load_encoder,
 )
+from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
+from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.errors import SettingError
 from robofailring.evaluation.calibration import CalibrateConfig, calibrate
 from robofailring.evaluation.run import (
@@ -36,7 +38,9 @@ def dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_splits_keep_memory_and_test_apart(dataset: Path, tmp_path: Path) -> None:
-    config = EvaluateConfig(data=dataset, detector=DetectorConfig(cache_dir=tmp_path / "cache"), out=tmp_path)
+    config = EvaluateConfig(
+        data=DataSelection(dataset), detector=DetectorConfig(cache_dir=tmp_path / "cache"), out=tmp_path
+    )
     splits = select_splits(config)
     train, test = splits.train, splits.test
     assert {t.key for t in train}.isdisjoint({t.key for t in test})
@@ -60,11 +64,11 @@ def test_splits_keep_memory_and_test_apart(dataset: Path, tmp_path: Path) -> Non
 
 def test_evaluation_files_and_counts(dataset: Path, tmp_path: Path) -> None:
     config = EvaluateConfig(
-        data=dataset,
+        data=DataSelection(dataset),
+        thresholds=ThresholdPolicy(target_fpr=0.2),
         detector=DetectorConfig(cache_dir=tmp_path / "cache"),
         out=tmp_path,
         name="in-distribution",
-        target_fpr=0.2,
     )
     result = run_evaluation(config)
     assert result.failures == 2 * 3 * 2 and result.successes == 2 * 2
@@ -112,14 +116,14 @@ def test_evaluation_files_and_counts(dataset: Path, tmp_path: Path) -> None:
 
 def test_an_evaluation_of_the_papers_memory_says_so(dataset: Path, tmp_path: Path) -> None:
     with pytest.raises(SettingError, match="failure frames must be end or dense, got 'all'"):
-        EvaluateConfig(data=dataset, recipe=MemoryRecipe(failure_frames="all"), out=tmp_path)
+        EvaluateConfig(data=DataSelection(dataset), recipe=MemoryRecipe(failure_frames="all"), out=tmp_path)
     result = run_evaluation(
         EvaluateConfig(
-            data=dataset,
+            data=DataSelection(dataset),
+            thresholds=ThresholdPolicy(target_fpr=0.2),
             recipe=MemoryRecipe(failure_frames="end"),
             detector=DetectorConfig(cache_dir=tmp_path / "cache"),
             out=tmp_path,
-            target_fpr=0.2,
         )
     )
     json_path, md_path = write_evaluation(result, tmp_path)
@@ -135,10 +139,19 @@ def test_an_evaluation_of_the_papers_memory_says_so(dataset: Path, tmp_path: Pat
 def test_calibration_is_stored_and_used(dataset: Path, tmp_path: Path) -> None:
     cache = tmp_path / "cache"
     run_evaluation(
-        EvaluateConfig(data=dataset, detector=DetectorConfig(cache_dir=cache), out=tmp_path, target_fpr=0.5)
+        EvaluateConfig(
+            data=DataSelection(dataset),
+            thresholds=ThresholdPolicy(target_fpr=0.5),
+            detector=DetectorConfig(cache_dir=cache),
+            out=tmp_path,
+        )
     )
     calibration = calibrate(
-        CalibrateConfig(data=dataset, memory=tmp_path / "memory", target_fpr=0.5, cache_dir=cache)
+        CalibrateConfig(
+            data=DataSelection(dataset),
+            detector=DetectorConfig(memory=tmp_path / "memory", cache_dir=cache),
+            thresholds=ThresholdPolicy(target_fpr=0.5),
+        )
     )
     assert calibration.successes == 4 and calibration.achieved_fprs["paper"] <= 0.5
     assert list(calibration.thresholds) == ["paper", "contrast", "novelty"]  # every rule the memory supports
@@ -170,10 +183,10 @@ def test_too_short_test_trajectories_are_skipped_and_reported(tmp_path: Path) ->
             image.unlink()
     result = run_evaluation(
         EvaluateConfig(
-            data=data,
+            data=DataSelection(data),
+            thresholds=None,
             detector=DetectorConfig(cache_dir=tmp_path / "cache"),
             out=tmp_path / "out",
-            target_fpr=None,
         )
     )
     assert result.skipped_too_short == ["pick_cube/pick_cube_slip_wp3_episode1"]

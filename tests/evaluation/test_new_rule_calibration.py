@@ -19,13 +19,16 @@ from rfr_viz.jobs.review import ReviewConfig, review
 from rfr_viz.paths import REPLAY
 from rfr_viz.recordings.replay import record_replay
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
+from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.detection.conformal import conformal_threshold, empirical_fpr
 from robofailring.detection.rules import RULES, ScoringRule
+from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.evaluation.calibration import CalibrateConfig, calibrate
 from robofailring.evaluation.run import run_evaluation, write_evaluation
 from robofailring.evaluation.training import EvaluateConfig
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
+from robofailring.memory.recipe import MemoryRecipe
 
 ALPHA = 0.5
 
@@ -60,10 +63,22 @@ def test_a_rule_defined_in_a_test_is_calibrated_stored_reloaded_and_judges(
     data = write_project_dataset(tmp_path / "data", episodes=6)
     memory_dir, cache = tmp_path / "memory", tmp_path / "cache"
     build_memory(
-        BuildMemoryConfig(data=data, encoder="pixels", out=memory_dir, split="train", cache_dir=cache)
+        BuildMemoryConfig(
+            data=DataSelection(data),
+            out=memory_dir,
+            recipe=MemoryRecipe.chosen("pixels"),
+            detector=DetectorConfig(cache_dir=cache),
+            split="train",
+        )
     )
 
-    found = calibrate(CalibrateConfig(data=data, memory=memory_dir, target_fpr=ALPHA, cache_dir=cache))
+    found = calibrate(
+        CalibrateConfig(
+            data=DataSelection(data),
+            detector=DetectorConfig(memory=memory_dir, cache_dir=cache),
+            thresholds=ThresholdPolicy(target_fpr=ALPHA),
+        )
+    )
     assert list(found.thresholds) == ["paper", "contrast", "novelty", rule.name]
     threshold = found.thresholds[rule.name]
     text = found.to_text(memory_dir)
@@ -124,10 +139,10 @@ def test_a_rule_defined_in_a_test_is_calibrated_stored_reloaded_and_judges(
     _add_mislabelled_success(data, trajectory.source)
     evaluated = run_evaluation(
         EvaluateConfig(
-            data=data,
+            data=DataSelection(data),
+            thresholds=None,
             detector=DetectorConfig(memory=memory_dir, cache_dir=cache),
             out=tmp_path / "evaluation",
-            target_fpr=None,
         )
     )
     json_path, _ = write_evaluation(evaluated, tmp_path / "evaluation")
@@ -136,12 +151,11 @@ def test_a_rule_defined_in_a_test_is_calibrated_stored_reloaded_and_judges(
     kind = "false-alarms"
     reviewed = review(
         ReviewConfig(
+            data=DataSelection(data),
             evaluation=json_path,
-            data=data,
             kind=kind,
             out=tmp_path / "review",
-            score=rule.name,
-            detector=DetectorConfig(cache_dir=cache),
+            detector=DetectorConfig(cache_dir=cache, rule=rule.name),
         )
     )
     assert len(reviewed.recordings) == len(reported[kind.replace("-", "_")])

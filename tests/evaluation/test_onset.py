@@ -10,7 +10,9 @@ import pytest
 from synthetic import write_project_dataset
 from test_metrics import scored
 
+from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
+from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.evaluation.onset import onset_delay
 from robofailring.evaluation.run import EvaluateConfig, run_evaluation, write_evaluation
 from robofailring.memory.recipe import MemoryRecipe
@@ -54,11 +56,11 @@ def test_evaluation_reports_delay_and_premature_alarms_per_rule(tmp_path: Path) 
     (data / "manifest.json").write_text(json.dumps(manifest))
     result = run_evaluation(
         EvaluateConfig(
-            data=data,
+            data=DataSelection(data),
+            thresholds=ThresholdPolicy(target_fpr=0.5),
             recipe=MemoryRecipe(failure_frames="end"),
             detector=DetectorConfig(cache_dir=tmp_path / "cache"),
             out=tmp_path / "out",
-            target_fpr=0.5,
         )
     )
     json_path, md_path = write_evaluation(result, tmp_path / "out")
@@ -93,10 +95,10 @@ def test_evaluation_without_onsets_says_so(tmp_path: Path) -> None:
     data = write_project_dataset(tmp_path / "data", tasks=("pick_cube",), episodes=2, length=4)
     result = run_evaluation(
         EvaluateConfig(
-            data=data,
+            data=DataSelection(data),
+            thresholds=None,
             detector=DetectorConfig(cache_dir=tmp_path / "cache"),
             out=tmp_path / "out",
-            target_fpr=None,
         )
     )
     assert all(rule.onset is not None and rule.onset.known == 0 for rule in result.rules.values())

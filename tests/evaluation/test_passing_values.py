@@ -11,6 +11,7 @@ import pytest
 from synthetic import write_project_dataset
 
 from robofailring import load_dataset
+from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.detection.detector import Place
 from robofailring.detection.loader import detector_from
@@ -27,10 +28,10 @@ def _first_columns(task: str) -> Place:
 def test_an_evaluation_takes_a_loaded_detector_and_keeps_placed_traces(tmp_path: Path) -> None:
     data = write_project_dataset(tmp_path / "data", episodes=4)
     config = EvaluateConfig(
-        data=data,
+        data=DataSelection(data),
+        thresholds=None,
         out=tmp_path / "out",
         detector=DetectorConfig(cache_dir=tmp_path / "cache"),
-        target_fpr=None,
     )
     memory_dir = build_training_memory(config)
     stored = replace(config, detector=config.detector.with_memory(memory_dir))
@@ -54,10 +55,12 @@ def test_an_encoder_comparison_takes_the_results_it_is_given(tmp_path: Path) -> 
     data = write_project_dataset(tmp_path / "data", episodes=4)
     cache = DetectorConfig(cache_dir=tmp_path / "cache")
     headline = run_evaluation(
-        EvaluateConfig(data=data, out=tmp_path / "eval", detector=cache, target_fpr=None)
+        EvaluateConfig(data=DataSelection(data), thresholds=None, out=tmp_path / "eval", detector=cache)
     )
     out = tmp_path / "encoders"
-    config = CompareEncodersConfig(data=data, out=out, encoders=("pixels", "pixels"), detector=cache)
+    config = CompareEncodersConfig(
+        data=DataSelection(data), out=out, encoders=("pixels", "pixels"), detector=cache
+    )
     results = compare_encoders(config, existing={"pixels": headline})
     assert results == [headline, headline] and not out.exists()  # nothing built, calibrated or scored again
     with pytest.raises(SettingError, match="at least two encoders"):

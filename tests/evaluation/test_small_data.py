@@ -16,9 +16,11 @@ from typer.testing import CliRunner
 
 from rfr_viz.cli.app import app
 from robofailring import CachedEncoder, FailureDetector, load_dataset, load_encoder
+from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.detection.conformal import auc
 from robofailring.detection.rules import PAPER
+from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.errors import DataError, SettingError
 from robofailring.evaluation.calibration import calibrate_rules
 from robofailring.evaluation.folds import assign_folds
@@ -44,7 +46,10 @@ def test_too_few_successes_give_every_figure_and_say_no_guarantee_holds(
 ) -> None:
     data, labels = runs
     config = EvaluateConfig(
-        data=data, detector=DetectorConfig(cache_dir=cache), out=tmp_path, labels=labels, target_fpr=0.05
+        data=DataSelection(data, labels=labels),
+        thresholds=ThresholdPolicy(target_fpr=0.05),
+        detector=DetectorConfig(cache_dir=cache),
+        out=tmp_path,
     )
     splits = select_splits(config)
     n = sum(not t.is_failure for t in splits.train)
@@ -68,11 +73,10 @@ def test_too_few_successes_give_every_figure_and_say_no_guarantee_holds(
     # enough runs for the asked α: calibrated at it, and nothing said about a shortfall
     enough = run_evaluation(
         EvaluateConfig(
-            data=data,
+            data=DataSelection(data, labels=labels),
+            thresholds=ThresholdPolicy(target_fpr=1 / (n + 1)),
             detector=DetectorConfig(cache_dir=cache),
             out=tmp_path / "enough",
-            labels=labels,
-            target_fpr=1 / (n + 1),
         )
     )
     assert enough.fpr_guarantee and "guarantee holds here" not in enough.to_markdown()
@@ -93,9 +97,8 @@ def test_a_rule_no_training_success_could_calibrate_is_left_out(
     )
     result = run_evaluation(
         EvaluateConfig(
-            data=data,
+            data=DataSelection(data, labels=apart),
             detector=DetectorConfig(cache_dir=tmp_path / "cache"),
-            labels=apart,
             out=tmp_path / "out",
         )
     )
@@ -107,7 +110,9 @@ def test_a_rule_no_training_success_could_calibrate_is_left_out(
     with pytest.raises(DataError, match="none of the 2 training success runs could be scored"):
         run_evaluation(
             EvaluateConfig(
-                data=lone, detector=DetectorConfig(cache_dir=tmp_path / "cache"), out=tmp_path / "lone-out"
+                data=DataSelection(lone),
+                detector=DetectorConfig(cache_dir=tmp_path / "cache"),
+                out=tmp_path / "lone-out",
             )
         )
 
@@ -117,10 +122,9 @@ def test_leave_one_episode_out_pools_every_labelled_run(
 ) -> None:
     data, labels = runs
     config = EvaluateConfig(
-        data=data,
+        data=DataSelection(data, labels=labels),
         detector=DetectorConfig(cache_dir=cache),
         out=tmp_path,
-        labels=labels,
         folds=FoldPlan.parse("loo"),
     )
     crossed = run_evaluation(config).cross_validation
@@ -186,7 +190,7 @@ def test_folds_refuse_a_given_memory(tmp_path: Path) -> None:
     assert FoldPlan.parse(" LOO ") == FoldPlan(None) and FoldPlan.parse("5") == FoldPlan(5)
     with pytest.raises(SettingError, match="--folds builds a memory"):
         EvaluateConfig(
-            data=tmp_path,
+            data=DataSelection(tmp_path),
             detector=DetectorConfig(memory=tmp_path / "m"),
             out=tmp_path / "out",
             folds=FoldPlan(5),

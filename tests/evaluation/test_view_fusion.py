@@ -20,9 +20,11 @@ from robofailring import (
     load_dataset,
     load_encoder,
 )
+from robofailring.data.selection import DataSelection
 from robofailring.detection.band import SHIFT
 from robofailring.detection.conformal import conformal_threshold
 from robofailring.detection.rules import CONTRAST, PAPER
+from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.detection.view_bands import MAX, PER_VIEW, per_view_peaks
 from robofailring.evaluation.calibration import CalibrateConfig, calibrate, success_view_scores
 from robofailring.evaluation.run import EvaluateConfig, run_evaluation
@@ -44,7 +46,9 @@ def test_per_view_bands_are_calibrated_stored_and_judge_detect_and_the_live_step
     calibrated = _copy(memory, tmp_path / "memory")
     calibrate(
         CalibrateConfig(
-            data=data, memory=calibrated, target_fpr=ALPHA, cache_dir=cache, band=SHIFT, fusion=PER_VIEW
+            data=DataSelection(data),
+            detector=DetectorConfig(memory=calibrated, cache_dir=cache),
+            thresholds=ThresholdPolicy(target_fpr=ALPHA, band=SHIFT, fusion=PER_VIEW),
         )
     )
     stored = json.loads((calibrated / "manifest.json").read_text(encoding="utf-8"))["calibration"]
@@ -91,12 +95,11 @@ def test_the_evaluation_calibrates_and_judges_with_the_fusion_it_is_given(
     results = {
         fusion: run_evaluation(
             EvaluateConfig(
-                data=data,
+                data=DataSelection(data),
+                thresholds=ThresholdPolicy(target_fpr=ALPHA, fusion=fusion),
                 out=tmp_path / fusion,
                 recipe=MemoryRecipe("pixels"),
                 detector=DetectorConfig(cache_dir=cache),
-                target_fpr=ALPHA,
-                fusion=fusion,
             )
         )
         for fusion in (MAX, PER_VIEW)

@@ -13,7 +13,9 @@ from vlm_server import ANSWER, chat_server
 
 from rfr_viz.cli.app import app
 from rfr_viz.paths import REPLAY
+from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
+from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.explain.vlm import API_KEY_ENV
 
 runner = CliRunner()
@@ -169,10 +171,10 @@ def test_review_puts_the_answer_into_each_false_alarm(tmp_path: Path) -> None:
     data = write_project_dataset(tmp_path / "data")
     result = run_evaluation(
         EvaluateConfig(
-            data=data,
+            data=DataSelection(data),
+            thresholds=ThresholdPolicy(target_fpr=0.5),
             detector=DetectorConfig(cache_dir=tmp_path / "cache"),
             out=tmp_path / "eval",
-            target_fpr=0.5,
         )
     )
     json_path, _ = write_evaluation(result, tmp_path / "eval")

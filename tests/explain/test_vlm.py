@@ -24,6 +24,7 @@ from robofailring import (
 )
 from robofailring.cli.verbs import app
 from robofailring.data.images import read_image
+from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.explain.report import SYSTEM_PROMPT, TASKS, FailureReport, report_for
 from robofailring.explain.vlm import (
@@ -286,7 +287,7 @@ def test_a_server_that_never_answers_is_abandoned_and_the_detection_kept(
     with silent_server() as server:
         vlm = VLMConfig(url=server.url, model="m", timeout_s=0.5, retries=1, backoff_s=0.0)
         config = DetectConfig(
-            trajectory=episode,
+            data=DataSelection(episode),
             detector=DetectorConfig(memory=pixels_memory_dir, k=3, thresholds={"paper": -1.0}),
             vlm=vlm,
         )

@@ -12,6 +12,7 @@ import pytest
 from synthetic import write_aha_dataset, write_project_dataset
 
 from robofailring import CachedEncoder, FailureMemory, load_dataset
+from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.encoders import portable_spec
 from robofailring.errors import MemoryFormatError
@@ -91,11 +92,17 @@ def test_evaluate_and_build_memory_record_the_same_provenance(dataset: Path, tmp
     """evaluate's memory now carries the data root, layout and skipped inputs, as build-memory's does."""
     cache = tmp_path / "cache"
     evaluated = build_training_memory(
-        EvaluateConfig(data=dataset, detector=DetectorConfig(cache_dir=cache), out=tmp_path / "eval")
+        EvaluateConfig(
+            data=DataSelection(dataset), detector=DetectorConfig(cache_dir=cache), out=tmp_path / "eval"
+        )
     )
     build_memory(
         BuildMemoryConfig(
-            data=dataset, encoder="pixels", out=tmp_path / "built", split="train", cache_dir=cache
+            data=DataSelection(dataset),
+            out=tmp_path / "built",
+            recipe=MemoryRecipe.chosen("pixels"),
+            detector=DetectorConfig(cache_dir=cache),
+            split="train",
         )
     )
     written = {

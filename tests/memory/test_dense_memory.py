@@ -14,6 +14,8 @@ from synthetic import write_project_dataset
 
 from robofailring import CachedEncoder, FailureMemory, load_dataset
 from robofailring.data.model import Trajectory
+from robofailring.data.selection import DataSelection
+from robofailring.detection.config import DetectorConfig
 from robofailring.errors import DataError, MemoryFormatError, SettingError
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.memory.builder import Provenance, add_to, build_memories
@@ -193,23 +195,28 @@ def test_build_memory_refuses_to_grow_a_memory_into_another_kind(data: Path, tmp
     out = tmp_path / "memory"
     build_memory(
         BuildMemoryConfig(
-            data=data, encoder="pixels", out=out, split="train", cache_dir=cache, failure_frames="end"
+            data=DataSelection(data),
+            out=out,
+            recipe=MemoryRecipe.chosen("pixels", failure_frames="end"),
+            detector=DetectorConfig(cache_dir=cache),
+            split="train",
         )
     )
     with pytest.raises(SettingError, match="holds end failure frames"):
         build_memory(
             BuildMemoryConfig(
-                data=data,
-                encoder="pixels",
+                data=DataSelection(data),
                 out=out,
+                recipe=MemoryRecipe.chosen("pixels", failure_frames="dense"),
+                detector=DetectorConfig(cache_dir=cache),
                 split="test",
-                cache_dir=cache,
                 add_to=True,
-                failure_frames="dense",
             )
         )
     with pytest.raises(SettingError, match="end or dense, got 'sparse'"):
-        BuildMemoryConfig(data=data, encoder="pixels", out=out, failure_frames="sparse")
+        BuildMemoryConfig(
+            data=DataSelection(data), out=out, recipe=MemoryRecipe.chosen("pixels", failure_frames="sparse")
+        )
     assert FailureMemory.load(out).manifest.failure_mode == "end"  # nothing was written
 
 
@@ -258,4 +265,11 @@ def test_no_failure_view_gives_no_entry_in_either_kind(tmp_path: Path, encoder: 
         memory = _build(data, encoder, kind)
         assert len(memory) == 0 and memory.vectors.shape == (0, 2 * encoder.dim)
     with pytest.raises(DataError):
-        build_memory(BuildMemoryConfig(data=data, encoder="pixels", out=tmp_path / "m", successes=False))
+        build_memory(
+            BuildMemoryConfig(
+                data=DataSelection(data),
+                out=tmp_path / "m",
+                recipe=MemoryRecipe.chosen("pixels"),
+                successes=False,
+            )
+        )

@@ -10,10 +10,12 @@ import pytest
 from synthetic import write_project_dataset
 
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
+from robofailring.data.selection import DataSelection
+from robofailring.detection.config import DetectorConfig
 from robofailring.errors import MemoryFormatError, SettingError
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.memory.pairs import CHANGE, CONCAT, change_of, check_pairing, pair_vectors
-from robofailring.memory.recipe import DEFAULT_RECIPE
+from robofailring.memory.recipe import DEFAULT_RECIPE, MemoryRecipe
 
 
 def _unit(rows: np.ndarray) -> np.ndarray:
@@ -78,12 +80,11 @@ def data(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_entries_and_queries_are_paired_alike(data: Path, tmp_path: Path, pairing: str) -> None:
     build_memory(
         BuildMemoryConfig(
-            data=data,
-            encoder="pixels",
+            data=DataSelection(data),
             out=tmp_path / "m",
+            recipe=MemoryRecipe.chosen("pixels", pairing=pairing),
+            detector=DetectorConfig(cache_dir=tmp_path / "c"),
             split="train",
-            cache_dir=tmp_path / "c",
-            pairing=pairing,
         )
     )
     stored = json.loads((tmp_path / "m" / "manifest.json").read_text(encoding="utf-8"))
@@ -104,7 +105,12 @@ def test_entries_and_queries_are_paired_alike(data: Path, tmp_path: Path, pairin
 
 def test_a_memory_built_before_pairings_reads_as_the_papers(data: Path, tmp_path: Path) -> None:
     build_memory(
-        BuildMemoryConfig(data=data, encoder="pixels", out=tmp_path / "m", split="train", pairing=CONCAT)
+        BuildMemoryConfig(
+            data=DataSelection(data),
+            out=tmp_path / "m",
+            recipe=MemoryRecipe.chosen("pixels", pairing=CONCAT),
+            split="train",
+        )
     )
     manifest_path = tmp_path / "m" / "manifest.json"
     manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
@@ -119,15 +125,30 @@ def test_a_memory_built_before_pairings_reads_as_the_papers(data: Path, tmp_path
 
 def test_a_grown_memory_keeps_its_pairing(data: Path, tmp_path: Path) -> None:
     build_memory(
-        BuildMemoryConfig(data=data, encoder="pixels", out=tmp_path / "m", split="train", pairing=CONCAT)
+        BuildMemoryConfig(
+            data=DataSelection(data),
+            out=tmp_path / "m",
+            recipe=MemoryRecipe.chosen("pixels", pairing=CONCAT),
+            split="train",
+        )
     )
     with pytest.raises(SettingError, match="--pairing change differs from the memory"):
         build_memory(
             BuildMemoryConfig(
-                data=data, encoder="pixels", out=tmp_path / "m", split="test", add_to=True, pairing=CHANGE
+                data=DataSelection(data),
+                out=tmp_path / "m",
+                recipe=MemoryRecipe.chosen("pixels", pairing=CHANGE),
+                split="test",
+                add_to=True,
             )
         )
     grown, _ = build_memory(
-        BuildMemoryConfig(data=data, encoder="pixels", out=tmp_path / "m", split="test", add_to=True)
+        BuildMemoryConfig(
+            data=DataSelection(data),
+            out=tmp_path / "m",
+            recipe=MemoryRecipe.chosen("pixels"),
+            split="test",
+            add_to=True,
+        )
     )
     assert grown.pairing == CONCAT and FailureMemory.load(tmp_path / "m").pairing == CONCAT

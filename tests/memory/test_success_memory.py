@@ -14,12 +14,15 @@ from synthetic import write_project_dataset
 
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
 from robofailring.data.model import Trajectory
+from robofailring.data.selection import DataSelection
+from robofailring.detection.config import DetectorConfig
 from robofailring.detection.conformal import conformal_threshold
 from robofailring.detection.rules import CONTRAST, PAPER
 from robofailring.errors import DataError, SettingError
 from robofailring.evaluation.calibration import calibrate_rules
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.memory.pairs import pair_vectors
+from robofailring.memory.recipe import MemoryRecipe
 from robofailring.memory.success import INDEX, RUNS
 
 
@@ -35,7 +38,13 @@ def built(
     folder = tmp_path_factory.mktemp("built")
     out = folder / "memory"
     memory, _ = build_memory(
-        BuildMemoryConfig(data=dataset, encoder="pixels", out=out, split="train", cache_dir=folder / "cache")
+        BuildMemoryConfig(
+            data=DataSelection(dataset),
+            out=out,
+            recipe=MemoryRecipe.chosen("pixels"),
+            detector=DetectorConfig(cache_dir=folder / "cache"),
+            split="train",
+        )
     )
     return memory, CachedEncoder(load_encoder("pixels"), cache_dir=folder / "cache"), out
 
@@ -185,11 +194,11 @@ def test_saved_with_counts_and_old_folders_still_load(
 def test_no_successes_builds_the_paper_memory(dataset: Path, tmp_path: Path) -> None:
     memory, _ = build_memory(
         BuildMemoryConfig(
-            data=dataset,
-            encoder="pixels",
+            data=DataSelection(dataset),
             out=tmp_path / "m",
+            recipe=MemoryRecipe.chosen("pixels"),
+            detector=DetectorConfig(cache_dir=tmp_path / "c"),
             split="train",
-            cache_dir=tmp_path / "c",
             successes=False,
         )
     )

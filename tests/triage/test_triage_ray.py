@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from synthetic import write_triage_memory, write_unlabelled_runs
 
+from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.triage import TriageConfig, run_triage
 from robofailring.triage import run as triage_run
@@ -25,11 +26,9 @@ def test_triage_on_ray_is_the_local_triage(
     results = {
         where: run_triage(
             TriageConfig(
-                data=data,
+                data=DataSelection(data, task="pick_cube"),
                 out=tmp_path / where,
-                task="pick_cube",
-                detector=DetectorConfig(memory=folder, cache_dir=tmp_path / where),
-                ray=ray,
+                detector=DetectorConfig(memory=folder, cache_dir=tmp_path / where, ray=ray),
             )
         )
         for where, ray in (("local", None), ("ray", "auto"))

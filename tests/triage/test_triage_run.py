@@ -10,6 +10,7 @@ import pytest
 from synthetic import write_triage_memory, write_unlabelled_runs
 
 from robofailring.data.model import Outcome, Trajectory
+from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.detection.detector import FailureDetector
 from robofailring.encoders import CachedEncoder
@@ -26,10 +27,17 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, str]
 
 
 def _config(
-    data: Path, tmp_path: Path, *, memory: Path | None = None, score: str | None = None, **changes: object
+    data: Path,
+    tmp_path: Path,
+    *,
+    memory: Path | None = None,
+    score: str | None = None,
+    labels: Path | None = None,
+    **changes: object,
 ) -> TriageConfig:
     detector = DetectorConfig(memory=memory, rule=score, cache_dir=tmp_path / "cache")
-    return TriageConfig(data=data, out=tmp_path / "out", task="pick_cube", detector=detector, **changes)  # type: ignore[arg-type]
+    selection = DataSelection(data, labels=labels, task="pick_cube")
+    return TriageConfig(data=selection, out=tmp_path / "out", detector=detector, **changes)  # type: ignore[arg-type]
 
 
 def _failed(result_ranked: list, truth: dict[str, str]) -> list[bool]:
@@ -95,7 +103,9 @@ def test_a_memory_judges_by_its_rules(runs, tmp_path: Path) -> None:
     with pytest.raises(DataError, match="no run in memory"):
         run_triage(
             TriageConfig(
-                data=data, out=tmp_path / "o2", task="push_cube", detector=DetectorConfig(memory=folder)
+                data=DataSelection(data, task="push_cube"),
+                out=tmp_path / "o2",
+                detector=DetectorConfig(memory=folder),
             )
         )
 
@@ -132,12 +142,15 @@ def test_the_reference_is_a_fixed_sample_when_a_task_has_many_runs(runs, tmp_pat
 def test_bad_settings_fail_before_any_work(tmp_path: Path) -> None:
     with pytest.raises(SettingError, match="--memory and --successes"):
         TriageConfig(
-            data=tmp_path, out=tmp_path / "o", detector=DetectorConfig(memory=tmp_path), successes=tmp_path
+            data=DataSelection(tmp_path),
+            out=tmp_path / "o",
+            detector=DetectorConfig(memory=tmp_path),
+            successes=tmp_path,
         )
     with pytest.raises(SettingError, match="--reference-runs"):
-        TriageConfig(data=tmp_path, out=tmp_path / "o", reference_runs=1)
+        TriageConfig(data=DataSelection(tmp_path), out=tmp_path / "o", reference_runs=1)
     with pytest.raises(SettingError, match="k"):
-        TriageConfig(data=tmp_path, out=tmp_path / "o", detector=DetectorConfig(k=0))
+        TriageConfig(data=DataSelection(tmp_path), out=tmp_path / "o", detector=DetectorConfig(k=0))
 
 
 def test_a_triage_stopped_half_way_resumes_from_the_embedding_cache(

@@ -21,9 +21,12 @@ from robofailring import (
     load_dataset,
     load_encoder,
 )
+from robofailring.data.selection import DataSelection
 from robofailring.detection.band import NORM, fit_band
+from robofailring.detection.config import DetectorConfig
 from robofailring.detection.rules import CONTRAST
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
+from robofailring.memory.recipe import MemoryRecipe
 
 
 @pytest.fixture(scope="module")
@@ -32,7 +35,11 @@ def replayed(tmp_path_factory: pytest.TempPathFactory) -> tuple[Trajectory, Dete
     data = write_project_dataset(root / "data", tasks=("pick_cube",), episodes=4, length=7)
     memory, _ = build_memory(
         BuildMemoryConfig(
-            data=data, encoder="pixels", out=root / "memory", split="train", cache_dir=root / "c"
+            data=DataSelection(data),
+            out=root / "memory",
+            recipe=MemoryRecipe.chosen("pixels"),
+            detector=DetectorConfig(cache_dir=root / "c"),
+            split="train",
         )
     )
     encoder = CachedEncoder(load_encoder("pixels"), cache_dir=root / "c")

@@ -13,6 +13,7 @@ from synthetic import csv_rows, write_unlabelled_runs
 from rfr_viz.jobs.triage import triage
 from rfr_viz.paths import TRIAGE_RANKING, TRIAGE_SCORES, triage_curve, triage_episode
 from rfr_viz.viewer.control import verify_recording
+from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.errors import OutputError
 from robofailring.triage import TriageConfig
@@ -23,7 +24,9 @@ def written(tmp_path_factory: pytest.TempPathFactory):
     root = tmp_path_factory.mktemp("triage")
     data, truth = write_unlabelled_runs(root / "runs", successes=7, failures=("grasp_wp2",))
     config = TriageConfig(
-        data=data, out=root / "out", task="pick_cube", detector=DetectorConfig(cache_dir=root / "cache")
+        data=DataSelection(data, task="pick_cube"),
+        out=root / "out",
+        detector=DetectorConfig(cache_dir=root / "cache"),
     )
     return config, truth, triage(config, replays=2)
 
@@ -91,5 +94,5 @@ def test_a_second_triage_keeps_the_filled_rows_and_refuses_other_files(written, 
     other.mkdir()
     (other / "triage.csv").write_text("name,value\n")
     with pytest.raises(OutputError, match="not a labels CSV"):
-        triage(TriageConfig(data=config.data, out=other, task="pick_cube"), replays=0)
+        triage(TriageConfig(data=config.data, out=other), replays=0)
     assert sorted(p.name for p in other.iterdir()) == ["triage.csv"]

@@ -26,7 +26,9 @@ from robofailring import (
     load_trajectory,
 )
 from robofailring.data.model import Trajectory
+from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
+from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.evaluation.run import EvaluateConfig, run_evaluation
 
 pytestmark = pytest.mark.viewer
@@ -118,10 +120,10 @@ def test_a_recording_without_a_frame_timeline_renders(viewer_ready: None, tmp_pa
     data = write_project_dataset(tmp_path / "data")
     result = run_evaluation(
         EvaluateConfig(
-            data=data,
+            data=DataSelection(data),
+            thresholds=ThresholdPolicy(target_fpr=0.2),
             detector=DetectorConfig(cache_dir=tmp_path / "cache"),
             out=tmp_path / "eval",
-            target_fpr=0.2,
         )
     )
     assert set(result.rules) == {"paper", "contrast", "novelty"}  # every rule's operating point is drawn

@@ -19,6 +19,7 @@ import rfr_viz.panels.map as map_panel
 import rfr_viz.panels.umap_layout as umap_layout
 import rfr_viz.recordings.replay as record_module
 from rfr_viz.cli.app import app
+from rfr_viz.jobs.recorded import Recordings
 from rfr_viz.jobs.replay import ReplayConfig, recording_name, replay
 from rfr_viz.panels.images import reference_jpeg
 from rfr_viz.panels.neighbors import changes
@@ -37,6 +38,7 @@ from robofailring import (
     load_dataset,
     load_trajectory,
 )
+from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.memory.failure import MemoryEntry
 from robofailring.memory.pairs import pair_vectors
@@ -271,10 +273,11 @@ def test_map_is_fitted_once_and_cached_beside_the_memory(
 
     monkeypatch.setattr(umap_layout, "_umap_embedding", counting)
     config = ReplayConfig(
-        data=aha_dataset,
+        data=DataSelection(aha_dataset),
         detector=DetectorConfig(memory=directory, cache_dir=tmp_path / "embeddings"),
-        out=tmp_path / "recs",
-        trajectories=("pick_cube/pick_cube_grasp_wp2_episode0",),
+        recordings=Recordings(
+            out=tmp_path / "recs", trajectories=("pick_cube/pick_cube_grasp_wp2_episode0",)
+        ),
     )
     first = replay(config)
     cache = directory / CACHE_FILE

@@ -1,1 +1,1 @@
-"""The library's command-line verbs, their shared options and the exit statuses."""
+"""The library's command-line verbs, their shared options and option groups, and the exit statuses."""

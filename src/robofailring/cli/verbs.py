@@ -1,7 +1,8 @@
 """The library's verbs (generate, build-memory, detect, calibrate, memory-info, train-encoder) as one typer app.
 
-Thin: each parses, builds a config and calls one library function. `rfr_viz.cli.app` composes this app
-with the recording verbs into the one `robofailring` command.
+Thin: each parses, builds a config and calls one library function; the options that make one value come in
+groups (`robofailring.cli.option_groups`). `rfr_viz.cli.app` composes this app with the recording verbs into
+the one `robofailring` command.
 """
 
 from __future__ import annotations
@@ -13,49 +14,31 @@ from typing import Annotated
 import typer
 
 from robofailring.cli.exit_codes import ErrorMappingGroup, finish
+from robofailring.cli.groups import Declared, takes
+from robofailring.cli.option_groups import (
+    DATA,
+    DETECTOR,
+    ENCODER_PLACEMENT,
+    RECIPE,
+    RULE_CHOICE,
+    THRESHOLDS,
+    VLM,
+)
 from robofailring.cli.options import (
-    DETECTOR_DEFAULTS,
-    RECIPE_DEFAULTS,
-    BandOption,
-    CacheOption,
-    DataRootOption,
-    DeltaOption,
-    DeviceOption,
-    EncoderOption,
-    EtaOption,
-    FailureFramesOption,
-    FusionOption,
-    GammaOption,
-    KOption,
-    LabelsOption,
     LeaveOneOutOption,
-    MemoryEncoderOption,
-    MemoryOption,
-    ModalityOption,
-    PairingOption,
     RandomizeOption,
-    RayOption,
-    RuntimeOption,
-    ScoreOption,
-    SignalFeaturesOption,
-    SignalsOption,
     StrideOption,
-    SuccessStepOption,
-    TaskOption,
-    ViewsOption,
-    VLMModelOption,
-    VLMUrlOption,
-    VocabularyOption,
     WorkersOption,
-    detector_config,
     print_notes,
     report_skipped,
-    vlm_config,
     warn_missing_references,
 )
-from robofailring.detection.band import DEFAULT_BAND
-from robofailring.detection.view_bands import DEFAULT_FUSION
+from robofailring.data.selection import DataSelection
+from robofailring.detection.config import DetectorConfig
+from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.errors import SettingError
+from robofailring.explain.vlm import VLMConfig
+from robofailring.memory.recipe import MemoryRecipe
 
 app = typer.Typer(  # unnamed, so rfr_viz.cli.app merges its verbs into the one `robofailring` command
     cls=ErrorMappingGroup,  # every verb: a one-line error and its exit status (robofailring.cli.exit_codes)
@@ -114,8 +97,18 @@ def generate_cmd(
 
 
 @app.command("build-memory")
+@takes(
+    data=DATA.but(
+        data=Declared(
+            Annotated[Path, typer.Argument(help="Dataset root (any supported layout; an HDF5 file).")]
+        )
+    ),
+    recipe=RECIPE,
+    detector=DETECTOR.only(*ENCODER_PLACEMENT),
+)
 def build_memory_cmd(
-    data: Annotated[Path, typer.Argument(help="Dataset root (any supported layout; an HDF5 file).")],
+    data: DataSelection,
+    *,
     out: Annotated[Path | None, typer.Option("--out", help="Memory directory to write.")] = None,
     add_to: Annotated[
         Path | None,
@@ -125,27 +118,15 @@ def build_memory_cmd(
             "instead of writing a new one with --out.",
         ),
     ] = None,
-    encoder: EncoderOption = "pixels",
     split: Annotated[str | None, typer.Option(help="Only this split (project layout).")] = None,
-    labels: LabelsOption = None,
-    vocabulary: VocabularyOption = None,
-    task: TaskOption = None,
-    views: ViewsOption = None,
     no_successes: Annotated[
         bool,
         typer.Option(
             "--no-successes", help="The paper's failure memory alone (no success memory, no contrast)."
         ),
     ] = False,
-    success_step: SuccessStepOption = RECIPE_DEFAULTS.success_step,
-    failure_frames: FailureFramesOption = None,
-    pairing: PairingOption = None,
-    signals: SignalsOption = None,
-    signal_features: SignalFeaturesOption = None,
-    cache_dir: CacheOption = None,
-    device: DeviceOption = None,
-    runtime: RuntimeOption = None,
-    ray: RayOption = None,
+    recipe: MemoryRecipe,
+    detector: DetectorConfig,
 ) -> None:
     """Build a failure memory (Algorithm 1) from the failure trajectories of DATA, and a success memory."""
     from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
@@ -160,24 +141,12 @@ def build_memory_cmd(
     memory, stats = build_memory(
         BuildMemoryConfig(
             data=data,
-            encoder=encoder,
             out=target,
-            add_to=add_to is not None,
-            vocabulary=vocabulary,
+            recipe=recipe,
+            detector=detector,
             split=split,
-            cache_dir=cache_dir,
-            device=device,
-            runtime=runtime,
-            labels=labels,
             successes=not no_successes,
-            task=task,
-            views=views,
-            success_step=success_step,
-            failure_frames=failure_frames,
-            pairing=pairing,
-            signals=signals,
-            signal_features=signal_features,
-            ray=ray,
+            add_to=add_to is not None,
         )
     )
     typer.echo(
@@ -194,7 +163,7 @@ def build_memory_cmd(
     if memory.successes is not None:
         typer.echo(
             f"success memory: {len(memory.successes)} frames kept of {memory.successes.offered} offered "
-            f"(thinning step {success_step:g}), {memory.successes.success_runs} success views and "
+            f"(thinning step {recipe.success_step:g}), {memory.successes.success_runs} success views and "
             f"{len(memory.successes.runs) - memory.successes.success_runs} failure starts over "
             f"{len(memory.successes.tasks)} tasks"
         )
@@ -212,22 +181,22 @@ def build_memory_cmd(
 
 
 @app.command("detect")
+@takes(
+    data=DATA.but(
+        data=Declared(
+            Annotated[Path, typer.Argument(help="One episode folder, or a dataset root with --trajectory.")],
+            name="trajectory",
+        )
+    ).without("vocabulary"),
+    detector=DETECTOR.without("ray"),
+    vlm=VLM,
+)
 def detect_cmd(
-    trajectory: Annotated[
-        Path, typer.Argument(help="One episode folder, or a dataset root with --trajectory.")
-    ],
-    memory: MemoryOption,
-    delta: DeltaOption = None,
-    k: KOption = DETECTOR_DEFAULTS.k,
-    score: ScoreOption = None,
-    gamma: GammaOption = None,
-    eta: EtaOption = None,
-    modality: ModalityOption = DETECTOR_DEFAULTS.modality,
-    task: TaskOption = None,
-    views: ViewsOption = None,
+    data: DataSelection,
+    *,
+    detector: DetectorConfig,
     as_json: Annotated[bool, typer.Option("--json", help="Print the full trace as one JSON object.")] = False,
     leave_one_out: LeaveOneOutOption = False,
-    encoder: MemoryEncoderOption = None,
     key: Annotated[
         str | None,
         typer.Option(
@@ -235,111 +204,92 @@ def detect_cmd(
         ),
     ] = None,
     stride: StrideOption = 1,
-    labels: LabelsOption = None,
-    cache_dir: CacheOption = None,
-    device: DeviceOption = None,
-    runtime: RuntimeOption = None,
-    data_root: DataRootOption = None,
-    vlm_url: VLMUrlOption = None,
-    vlm_model: VLMModelOption = None,
+    vlm: VLMConfig | None,
 ) -> None:
     """Replay one trajectory through the detector and say if and when it fires."""
     from robofailring.jobs.detect import DetectConfig, run_detect
 
     result = run_detect(
         DetectConfig(
-            trajectory=trajectory,
-            detector=detector_config(
-                memory,
-                encoder=encoder,
-                device=device,
-                runtime=runtime,
-                cache_dir=cache_dir,
-                data_root=data_root,
-                k=k,
-                score=score,
-                delta=delta,
-                gamma=gamma,
-                eta=eta,
-                modality=modality,
-            ),
-            task=task,
-            views=views,
-            leave_one_out=leave_one_out,
+            data=data,
+            detector=detector,
             key=key,
+            leave_one_out=leave_one_out,
             stride=stride,
-            labels=labels,
-            vlm=vlm_config(vlm_url, vlm_model),
+            vlm=vlm,
         )
     )
     skipped = [*result.trace.skipped_inputs, *result.trace.short_views]
     report_skipped(skipped)
-    warn_missing_references(memory, result.references)
+    warn_missing_references(detector.memory_dir, result.references)
     print_notes(result.notes)
     typer.echo(result.to_json() if as_json else result.to_text())
     finish(skipped=len(skipped))  # listed above
 
 
 @app.command("calibrate")
+@takes(
+    data=DATA.but(
+        data=Declared(
+            Annotated[
+                Path, typer.Argument(help="Dataset holding success trajectories of the memory's tasks.")
+            ]
+        )
+    ).without("vocabulary"),
+    detector=DETECTOR.without(*RULE_CHOICE, "data_root", "ray"),  # scored as detect scores (K, modality…)
+    thresholds=THRESHOLDS,
+)
 def calibrate_cmd(
-    data: Annotated[Path, typer.Argument(help="Dataset holding success trajectories of the memory's tasks.")],
-    memory: MemoryOption,
-    target_fpr: Annotated[float, typer.Option("--target-fpr", help="False-positive rate to allow.")] = 0.05,
+    data: DataSelection,
+    *,
+    detector: DetectorConfig,
+    thresholds: ThresholdPolicy,
     split: Annotated[str | None, typer.Option(help="Successes of this split (project layout).")] = "train",
     stride: StrideOption = 1,
-    band: BandOption = DEFAULT_BAND,
-    fusion: FusionOption = DEFAULT_FUSION,
-    modality: ModalityOption = DETECTOR_DEFAULTS.modality,
-    labels: LabelsOption = None,
-    task: TaskOption = None,
-    views: ViewsOption = None,
-    cache_dir: CacheOption = None,
-    device: DeviceOption = None,
 ) -> None:
     """Set δ, γ and η (split conformal) for a target false-positive rate on success runs; detect then uses them."""
     from robofailring.evaluation.calibration import CalibrateConfig, calibrate
 
     result = calibrate(
-        CalibrateConfig(
-            data=data,
-            memory=memory,
-            target_fpr=target_fpr,
-            split=split,
-            cache_dir=cache_dir,
-            device=device,
-            stride=stride,
-            labels=labels,
-            task=task,
-            views=views,
-            band=band,
-            fusion=fusion,
-            modality=modality,
-        )
+        CalibrateConfig(data=data, detector=detector, thresholds=thresholds, split=split, stride=stride)
     )
     report_skipped(result.skipped_inputs)
-    typer.echo(result.to_text(memory))
+    typer.echo(result.to_text(detector.memory_dir))
     finish(skipped=len(result.skipped_too_short) + len(result.skipped_inputs))
 
 
 @app.command("memory-info")
+@takes(
+    detector=DETECTOR.only("memory", "data_root").but(
+        memory=Declared(Annotated[Path, typer.Argument(help="Memory directory.")])
+    )
+)
 def memory_info_cmd(
-    memory: Annotated[Path, typer.Argument(help="Memory directory.")],
-    data_root: DataRootOption = None,
+    detector: DetectorConfig,
     as_json: Annotated[bool, typer.Option("--json", help="Print the summary as one JSON object.")] = False,
 ) -> None:
     """What a memory holds: encoder, entries per task and view, threshold, data root, reference images found."""
     from robofailring.memory.info import MemoryInfo
 
-    info = MemoryInfo.read(memory, data_root=data_root)
+    info = MemoryInfo.read(detector.memory_dir, data_root=detector.data_root)
     typer.echo(json.dumps(info.to_dict()) if as_json else info.to_text())
-    warn_missing_references(memory, info.references)
+    warn_missing_references(detector.memory_dir, info.references)
 
 
 @app.command("train-encoder")
+@takes(
+    data=DATA.but(
+        data=Declared(
+            Annotated[
+                Path, typer.Argument(help="Dataset root (any layout); only the frames of --split are read.")
+            ]
+        )
+    ).without("vocabulary"),
+    detector=DETECTOR.only("device"),
+)
 def train_encoder_cmd(
-    data: Annotated[
-        Path, typer.Argument(help="Dataset root (any layout); only the frames of --split are read.")
-    ],
+    data: DataSelection,
+    *,
     out: Annotated[
         Path, typer.Option("--out", help="Encoder folder to write; use it as --encoder trained:DIR.")
     ],
@@ -358,10 +308,7 @@ def train_encoder_cmd(
         ),
     ] = None,
     threads: Annotated[int | None, typer.Option(help="torch CPU threads (default: half the cores).")] = None,
-    views: ViewsOption = None,
-    labels: LabelsOption = None,
-    task: TaskOption = None,
-    device: DeviceOption = None,
+    detector: DetectorConfig,
     randomize: RandomizeOption = 0,
     workers: WorkersOption = 2,
 ) -> None:
@@ -369,19 +316,21 @@ def train_encoder_cmd(
     from robofailring.encoders.training import TrainEncoderConfig
     from robofailring.jobs.train_encoder import TrainEncoderJob, run_train_encoder
 
-    config = TrainEncoderConfig(
-        data=data,
-        out=out,
-        split=split,
-        image_size=image_size,
-        epochs=epochs,
-        seed=seed,
-        init=init,
-        threads=threads,
-        views=views,
-        device=device,
-        labels=labels,
-        task=task,
+    config = (
+        TrainEncoderConfig(  # its data settings are its own fields (encoders/ does not read a DataSelection)
+            data=data.root,
+            out=out,
+            split=split,
+            image_size=image_size,
+            epochs=epochs,
+            seed=seed,
+            init=init,
+            threads=threads,
+            views=data.views,
+            device=detector.device,
+            labels=data.labels,
+            task=data.task,
+        )
     )
     folder = run_train_encoder(TrainEncoderJob(config, randomize=randomize, workers=workers), say=typer.echo)
     typer.echo(f"use it with: --encoder trained:{folder}")

@@ -1,5 +1,5 @@
-"""The detector's settings: `DetectorConfig` (memory, encoder, device, runtime, cache, data root, K, rule and thresholds),
-K neighbours per query and the scoring stride, checked where they are given."""
+"""The detector's settings: `DetectorConfig` (memory, encoder, device, runtime, cache, Ray cluster, data root, K, rule,
+thresholds and modality), K neighbours per query and the scoring stride, checked where they are given."""
 
 from __future__ import annotations
 
@@ -53,9 +53,9 @@ def check_stride(stride: int) -> int:
 
 @dataclass(frozen=True)
 class DetectorConfig:
-    """What opens a detector on a memory folder (`robofailring.detection.loader.load_detector`), one value
-    nested in every job that detects; a threshold not given is the memory's calibrated one, else the rule's
-    default."""
+    """What opens a detector on a memory folder (`robofailring.detection.loader.detector_from`) and the
+    encoder it runs, one value nested in every job that detects or encodes; a threshold not given is the
+    memory's calibrated one, else the rule's default."""
 
     memory: Path | None = None  # memory folder (evaluate: None builds one from the training split)
     encoder: str | None = None  # encoder spec; None: the one that built the memory
@@ -69,6 +69,7 @@ class DetectorConfig:
     rule: str | None = None  # a scoring rule's name; None: each task's default (contrast, novelty or paper)
     thresholds: Mapping[str, float] = field(default_factory=dict)  # by rule name (`paper`: δ, …)
     modality: str = BOTH  # what it judges by: `both` (cameras and signals), `cameras` or `signals`
+    ray: str | None = None  # a Ray cluster's address: frames a job prefetches decoded and encoded there
 
     def __post_init__(self) -> None:  # a bad setting fails before the memory is read
         check_k(self.k)

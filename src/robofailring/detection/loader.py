@@ -1,36 +1,60 @@
 """`open_detector`: a memory folder to a ready detector in one call, with the memory's stored calibration;
-`detector_from`, the same from a `DetectorConfig` (what the jobs hold)."""
+`detector_from`, the same from a `DetectorConfig` (what the jobs hold); `detector_with` and `encoder_for`,
+the one place a `DetectorConfig`'s settings become a detector's and an encoder's."""
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 from pathlib import Path
 
+from robofailring.detection.band import Band
 from robofailring.detection.config import BOTH, DEFAULT_K, DetectorConfig
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.rules import ScoringRule
 from robofailring.detection.stored import given_thresholds
-from robofailring.encoders import open_encoder
+from robofailring.encoders import CachedEncoder, open_encoder
 from robofailring.memory.failure import FailureMemory, encoder_spec_for
 
 
-def detector_from(config: DetectorConfig, *, ray: str | None = None) -> FailureDetector:
-    """Load `config.memory` and its encoder (or `config.encoder`, which must give the same identity), and
-    return its detector at `config.thresholds` (by rule name; the memory's calibrated ones for the rest).
-    `ray`: a Ray cluster that encodes what the job prefetches (docs/ray.md)."""
-    memory = FailureMemory.load(
-        config.memory_dir, data_root=Path(config.data_root) if config.data_root is not None else None
-    )
-    opened = open_encoder(
-        config.encoder or encoder_spec_for(memory),
+def encoder_for(config: DetectorConfig, spec: str) -> CachedEncoder:
+    """The encoder `spec` as `config` runs it: on its device, runtime and cache, and its Ray cluster (which
+    encodes what a job prefetches, docs/ray.md)."""
+    return open_encoder(
+        spec,
         device=config.device,
         cache_dir=Path(config.cache_dir) if config.cache_dir is not None else None,
         runtime=config.runtime,
-        ray=ray,
+        ray=config.ray,
     )
+
+
+def detector_with(
+    config: DetectorConfig,
+    memory: FailureMemory,
+    encoder: CachedEncoder,
+    *,
+    bands: Mapping[str, Band] | None = None,
+) -> FailureDetector:
+    """The detector of `config`'s K, rule, thresholds and modality on a memory and encoder in hand: the one
+    place a `DetectorConfig`'s settings become a detector's. `bands`: thresholds' bands calibrated in process."""
     return FailureDetector(
-        memory, opened, thresholds=config.thresholds, k=config.k, rule=config.rule, modality=config.modality
+        memory,
+        encoder,
+        thresholds=config.thresholds,
+        k=config.k,
+        rule=config.rule,
+        bands=bands,
+        modality=config.modality,
     )
+
+
+def detector_from(config: DetectorConfig) -> FailureDetector:
+    """Load `config.memory` and its encoder (or `config.encoder`, which must give the same identity), and
+    return its detector at `config.thresholds` (by rule name; the memory's calibrated ones for the rest)."""
+    memory = FailureMemory.load(
+        config.memory_dir, data_root=Path(config.data_root) if config.data_root is not None else None
+    )
+    return detector_with(config, memory, encoder_for(config, config.encoder or encoder_spec_for(memory)))
 
 
 def open_detector(

@@ -12,13 +12,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
-from robofailring.data.layouts import load_dataset
 from robofailring.data.model import Skipped, Trajectory
+from robofailring.data.selection import DataSelection
 from robofailring.detection.band import (
     DEFAULT_BAND,
     MIN_BAND_RUNS,
@@ -28,17 +28,16 @@ from robofailring.detection.band import (
     fit_band,
     leave_one_out,
 )
-from robofailring.detection.config import BOTH, check_k, check_modality, check_stride
+from robofailring.detection.config import DetectorConfig, check_stride
 from robofailring.detection.conformal import (
     FprSpread,
     attainable_target_fpr,
-    check_target_fpr,
     conformal_threshold,
     empirical_fpr,
     fpr_spread,
 )
 from robofailring.detection.detector import FailureDetector
-from robofailring.detection.loader import open_detector
+from robofailring.detection.loader import detector_from
 from robofailring.detection.rules import (
     CONTRAST,
     NOVELTY,
@@ -48,6 +47,7 @@ from robofailring.detection.rules import (
     rule_named,
     rules_for,
 )
+from robofailring.detection.threshold_policy import DEFAULT_POLICY, ThresholdPolicy
 from robofailring.detection.view_bands import (
     DEFAULT_FUSION,
     MAX,
@@ -56,7 +56,7 @@ from robofailring.detection.view_bands import (
     peak,
     per_view_peaks,
 )
-from robofailring.errors import DataError
+from robofailring.errors import DataError, SettingError
 from robofailring.memory.manifest import StoredCalibration, StoredRule
 from robofailring.progress import progress_bar
 
@@ -211,28 +211,21 @@ def calibrate_rules(
 
 @dataclass(frozen=True)
 class CalibrateConfig:
-    data: Path  # dataset holding success trajectories to calibrate on
-    memory: Path  # memory directory; the chosen δ is written into its manifest
-    target_fpr: float = 0.05
+    data: DataSelection  # the dataset holding success runs of the memory's tasks, how it is read
+    # the memory (its thresholds are written into its manifest) and how its detector scores: K, modality,
+    # device, cache…; no rule or threshold (calibration sets every rule's)
+    detector: DetectorConfig
+    thresholds: ThresholdPolicy = DEFAULT_POLICY  # the target α, band and fusion
     split: str | None = "train"  # successes of this split (None: all; ignored if the data has no splits)
-    k: int = 5
-    cache_dir: Path | None = None
-    device: str | None = None
     stride: int = 1  # score every stride-th frame of each success run
-    labels: Path | None = None  # labels file for data whose names do not say the outcome (LeRobot)
-    task: str | None = None  # task of episodes whose names do not say it
-    views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
-    band: str = DEFAULT_BAND  # time-indexed thresholds: none, shift (μ_t) or norm (μ_t, σ_t)
-    fusion: str = DEFAULT_FUSION  # max: one band for all views; per-view: each view its own band
-    modality: str = BOTH  # what the thresholds judge: the cameras and signals, or one of them alone
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
-        check_k(self.k)
-        check_modality(self.modality)
         check_stride(self.stride)
-        check_target_fpr(self.target_fpr)
-        check_band(self.band)
-        check_fusion(self.fusion)
+        self.detector.memory_dir  # noqa: B018 (SettingError without a memory)
+        if self.detector.rule is not None or self.detector.thresholds:
+            raise SettingError(
+                "calibration sets every rule's threshold: give its detector no rule or threshold"
+            )
 
 
 @dataclass(frozen=True)
@@ -304,18 +297,10 @@ class Calibration:
 def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None = None) -> Calibration:
     """Set every rule's threshold the memory supports (split conformal, level = target FPR) on success runs
     and store each under its rule's name in the manifest."""
-    detector = open_detector(
-        config.memory,
-        device=config.device,
-        cache_dir=config.cache_dir,
-        k=config.k,
-        delta=PAPER_DELTA,
-        modality=config.modality,
-    )
+    policy, memory_dir = config.thresholds, config.detector.memory_dir
+    detector = detector_from(replace(config.detector, thresholds={PAPER.name: PAPER_DELTA}))
     memory = detector.memory
-    dataset = load_dataset(
-        config.data, task=config.task, labels=config.labels, views=config.views, vocabulary=memory.vocabulary
-    )
+    dataset = config.data.load(vocabulary=memory.vocabulary)
     source, skipped_inputs = dataset.judged("calibrate")  # an unlabelled run is never taken for a success
     has_splits = any(t.split for t in source)
     successes = [
@@ -325,7 +310,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
     ]
     if not successes:
         raise DataError(
-            f"no success trajectories of the memory's tasks in {config.data} (split {config.split!r})"
+            f"no success trajectories of the memory's tasks in {config.data.root} (split {config.split!r})"
         )
     too_short: list[str] = []
     short_views: list[Skipped] = []  # listed with what was not read: status 3, as in every verb
@@ -339,13 +324,13 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
         found = calibrate_rules(
             detector,
             successes,
-            config.target_fpr,
+            policy.target_fpr,
             progress=advance,
             stride=config.stride,
             too_short=too_short,
             short_views=short_views,
-            band=config.band,
-            fusion=config.fusion,
+            band=policy.band,
+            fusion=policy.fusion,
         )
     widest = max(found.values(), key=lambda calibration: calibration.successes)
     spread = widest.spread  # computed once: it searches for the runs a tighter bound needs
@@ -354,29 +339,29 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
             encoder=memory.encoder,
             rules={rule.name: _stored_rule(calibration) for rule, calibration in found.items()},
             method="split conformal, own episode left out"
-            + (", a band per view" if config.fusion != MAX else ""),
-            target_fpr=config.target_fpr,
+            + (", a band per view" if policy.fusion != MAX else ""),
+            target_fpr=policy.target_fpr,
             successes=widest.successes,
-            data=str(Path(config.data).resolve()),
+            data=str(config.data.root.resolve()),
             split=config.split,
-            k=config.k,
+            k=detector.k,
             stride=config.stride,
             modality=detector.modality,
         )
     )
-    calibrated.write_manifest(config.memory)
+    calibrated.write_manifest(memory_dir)
     return Calibration(
         thresholds={rule.name: calibration.threshold for rule, calibration in found.items()},
         achieved_fprs={rule.name: calibration.achieved_fpr for rule, calibration in found.items()},
-        target_fpr=config.target_fpr,
+        target_fpr=policy.target_fpr,
         successes=widest.successes,
         encoder=memory.encoder,
         skipped_inputs=[*skipped_inputs, *short_views],
         skipped_too_short=too_short,
         fpr_spread=spread,
         band=next((c.band.kind for c in found.values() if c.band is not None), NONE),
-        band_asked=config.band,
-        fusion=config.fusion,
+        band_asked=policy.band,
+        fusion=policy.fusion,
     )
 
 

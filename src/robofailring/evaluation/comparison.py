@@ -7,8 +7,11 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
-from robofailring.encoders import EncoderSpec, cache_identity, open_encoder
+from robofailring.detection.loader import encoder_for
+from robofailring.detection.threshold_policy import DEFAULT_POLICY, ThresholdPolicy
+from robofailring.encoders import EncoderSpec, cache_identity
 from robofailring.errors import SettingError
 from robofailring.evaluation.calibration import CalibrateConfig, calibrate
 from robofailring.evaluation.markdown import markdown_text
@@ -23,15 +26,15 @@ from robofailring.memory.recipe import DEFAULT_RECIPE, MemoryRecipe
 
 @dataclass(frozen=True)
 class CompareEncodersConfig:
-    data: Path  # dataset with train/test splits (or a hash split)
+    data: DataSelection  # dataset with train/test splits (or a hash split), how it is read
     out: Path  # one memory per encoder is written under out/memory-<encoder>
     encoders: tuple[str, ...]  # two or more encoder specs
-    target_fpr: float | None = 0.05  # calibrate each encoder's δ on training successes; None: paper δ
-    test_data: Path | None = None
+    # each encoder's thresholds calibrated on training successes; None: each rule's default (the paper's δ)
+    thresholds: ThresholdPolicy | None = DEFAULT_POLICY
+    test_data: DataSelection | None = None  # a second dataset to test on
     test_split: str = "test"
     recipe: MemoryRecipe = DEFAULT_RECIPE  # each encoder's memory: this recipe with its own encoder
     detector: DetectorConfig = DEFAULT_DETECTOR  # K, device and embedding cache of every evaluation
-    views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
 
 
 def compare_encoders(
@@ -50,7 +53,7 @@ def compare_encoders(
             results.append(existing[spec])
             continue
         detector = config.detector
-        opened = open_encoder(spec, device=detector.device, cache_dir=detector.cache_dir).encoder
+        opened = encoder_for(detector, spec).encoder
         slug = EncoderSpec.slug(cache_identity(opened))  # the same model in two runtimes: two slugs
         memory_dir = Path(config.out) / f"memory-{slug}"
         base = EvaluateConfig(
@@ -61,23 +64,16 @@ def compare_encoders(
             test_data=config.test_data,
             test_split=config.test_split,
             name=slug,
-            views=config.views,
         )
         build_training_memory(replace(base, memory_out=memory_dir))
-        if config.target_fpr is not None:
+        if config.thresholds is not None:
             calibrate(
                 CalibrateConfig(
-                    data=config.data,
-                    memory=memory_dir,
-                    target_fpr=config.target_fpr,
-                    k=detector.k,
-                    cache_dir=detector.cache_dir,
-                    device=detector.device,
-                    views=config.views,
+                    data=config.data, detector=detector.with_memory(memory_dir), thresholds=config.thresholds
                 )
             )
-        # thresholds: the ones calibration just stored (target_fpr None reads them from the manifest)
-        evaluated = replace(base, detector=detector.with_memory(memory_dir), target_fpr=None)
+        # thresholds: the ones calibration just stored (thresholds None reads them from the manifest)
+        evaluated = replace(base, detector=detector.with_memory(memory_dir), thresholds=None)
         results.append(run_evaluation(evaluated))
     return results
 

@@ -8,13 +8,12 @@ from __future__ import annotations
 import hashlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 from robofailring.data.model import Trajectory
-from robofailring.data.vocabulary import read_vocabulary
 from robofailring.detection.conformal import AUC_LEVEL, auc, auc_interval, runs_text, successes_needed
 from robofailring.detection.detector import DetectionTrace, FailureDetector
+from robofailring.detection.loader import detector_with
 from robofailring.detection.rules import RULES, ScoringRule
 from robofailring.encoders import CachedEncoder
 from robofailring.errors import DataError
@@ -187,10 +186,11 @@ def cross_validate(
 ) -> CrossValidation:
     """Every labelled run of `trajectories` (the whole of `config.data`) judged by a memory of the other
     folds, with `config`'s memory settings, rules and band; pooled."""
-    assert config.folds is not None and config.target_fpr is not None  # EvaluateConfig checks both
+    policy = config.thresholds
+    assert config.folds is not None and policy is not None  # EvaluateConfig checks both
     runs = [t for t in trajectories if t.outcome is not None]
     folds = assign_folds(runs, config.folds)
-    vocabulary = read_vocabulary(config.vocabulary) if config.vocabulary is not None else None
+    vocabulary = config.data.read_vocabulary()
     pooled: dict[str, PooledRule] = {}
     not_judged: dict[str, str] = {}
     with progress_bar(total=len(folds), desc="cross-validating", unit="fold") as bar:
@@ -200,14 +200,12 @@ def cross_validate(
             memory, _ = build_memories(
                 others,
                 encoder,
-                provenance=Provenance(data=Path(config.data), encoder=config.recipe.encoder),
+                provenance=Provenance(data=config.data.root, encoder=config.recipe.encoder),
                 successes=config.successes,
                 recipe=config.recipe,
                 vocabulary=vocabulary,
             )
-            detector = FailureDetector(
-                memory, encoder, k=config.detector.k, modality=config.detector.modality
-            )
+            detector = detector_with(config.detector, memory, encoder)
             rules = available_rules(detector)
             known = set(memory.tasks)
             successes = [t for t in others if not t.is_failure and t.task in known]
@@ -215,20 +213,18 @@ def cross_validate(
                 calibrate_rules(
                     detector,
                     successes,
-                    config.target_fpr,
+                    policy.target_fpr,
                     rules=rules,
                     stride=config.stride,
-                    band=config.band,
-                    fusion=config.fusion,
+                    band=policy.band,
+                    fusion=policy.fusion,
                     at_best=True,
                 )
                 if successes
                 else {}
             )
             bands = {rule.name: c.band for rule, c in found.items() if c.band is not None}
-            detector = FailureDetector(
-                memory, encoder, k=config.detector.k, bands=bands, modality=config.detector.modality
-            )
+            detector = detector_with(config.detector, memory, encoder, bands=bands)
             traces = _judge(detector, held_out, known, config.stride, not_judged)
             for rule in rules:
                 into = pooled.setdefault(rule.name, PooledRule(rule))
@@ -240,7 +236,7 @@ def cross_validate(
     return CrossValidation(
         plan=config.folds,
         folds=len(folds),
-        target_fpr=config.target_fpr,
+        target_fpr=policy.target_fpr,
         failures=sum(t.is_failure for t in runs),
         successes=sum(not t.is_failure for t in runs),
         rules={name: pooled[name] for name in RULES if name in pooled},

@@ -53,7 +53,7 @@ def cross_validate_alone(config: EvaluateConfig, held_out: SplitError) -> FoldsA
     raised `held_out` before any held-out figure was made."""
     if config.folds is None:
         raise held_out
-    dataset, _, skipped = load_labelled(config, Path(config.data))
+    dataset, _, skipped = load_labelled(config.data, vocabulary=config.data.read_vocabulary())
     encoder = evaluation_encoder(config)
     return FoldsAlone(
         name=config.name,

@@ -10,6 +10,7 @@ from pathlib import Path
 from robofailring.atomic import write_text_atomic
 from robofailring.data.model import Trajectory
 from robofailring.detection.detector import DetectionTrace, FailureDetector, Place
+from robofailring.detection.loader import detector_with
 from robofailring.detection.rules import PAPER, ScoringRule
 from robofailring.detection.scored import prefetch_scored
 from robofailring.detection.stored import stored_threshold
@@ -55,9 +56,7 @@ def run_evaluation(
             if config.detector.memory is not None
             else build_training_memory(config, splits, encoder)
         )
-        detector = FailureDetector(
-            FailureMemory.load(memory_dir), encoder, k=config.detector.k, modality=config.detector.modality
-        )
+        detector = detector_with(config.detector, FailureMemory.load(memory_dir), encoder)
     else:
         read_from = detector.memory.read_from
         memory_dir = read_from[0] if read_from is not None else config.detector.memory_dir
@@ -66,7 +65,7 @@ def run_evaluation(
     _prefetch(
         encoder,
         test,
-        train if config.target_fpr is not None else [],
+        train if config.thresholds is not None else [],
         known=set(memory.tasks),
         stride=config.stride,
     )
@@ -74,14 +73,11 @@ def run_evaluation(
         memory, test, config.deployment_successes, encoder, config.recipe.success_step
     )
     if deployed is not memory:
-        memory, detector = (
-            deployed,
-            FailureDetector(deployed, encoder, k=detector.k, modality=detector.modality),
-        )
+        memory, detector = deployed, detector_with(config.detector, deployed, encoder)
     thresholds, calibrated, found = _thresholds(config, detector, train)
     if found is not None:  # calibrated here: the test runs are judged on the bands fitted with the thresholds
         bands = {r.name: c.band for r, c in found.items() if c.band is not None}
-        detector = FailureDetector(memory, encoder, k=detector.k, bands=bands, modality=detector.modality)
+        detector = detector_with(config.detector, memory, encoder, bands=bands)
     operating = thresholds.get(PAPER, PAPER.default_threshold)  # no failure runs: the paper tables are empty
     known = set(memory.tasks)
     scored: list[ScoredTrajectory] = []
@@ -150,7 +146,7 @@ def run_evaluation(
         operating_delta=operating,
         calibrated=calibrated.get(PAPER, False),
         rules=rules,
-        target_fpr=config.target_fpr if config.target_fpr is not None else _stored_target(memory),
+        target_fpr=config.thresholds.target_fpr if config.thresholds is not None else _stored_target(memory),
         deployment_successes=config.deployment_successes,
         band=next((band.kind for band in detector.bands.values()), "none"),
         views=views,
@@ -252,15 +248,15 @@ def _thresholds(
     and whether it was calibrated; the calibrations made here (each with its level, spread and band;
     None: the stored thresholds, with the memory's own bands). Too few training successes for α: each
     rule at the smallest α its runs allow, a rule none of whose runs could be scored left out."""
-    rules = available_rules(detector)
-    if config.target_fpr is None:
+    rules, policy = available_rules(detector), config.thresholds
+    if policy is None:
         stored = {r: stored_threshold(detector.memory, r) for r in rules}
         return {r: detector.threshold_of(r) for r in rules}, {r: stored[r] is not None for r in rules}, None
     known = set(detector.memory.tasks)
     successes = [t for t in train if not t.is_failure and t.task in known]
     if not successes:
         raise SplitError(
-            f"no success trajectory of the memory's tasks in {config.data} (split {config.train_split!r}): "
+            f"no success trajectory of the memory's tasks in {config.data.root} (split {config.train_split!r}): "
             "the evaluation calibrates its thresholds on success runs; add success episodes of those tasks "
             "to that split, or name another with --train-split"
         )
@@ -268,12 +264,12 @@ def _thresholds(
         found = calibrate_rules(
             detector,
             successes,
-            config.target_fpr,
+            policy.target_fpr,
             rules=rules,
             progress=bar.update,
             stride=config.stride,
-            band=config.band,
-            fusion=config.fusion,
+            band=policy.band,
+            fusion=policy.fusion,
             at_best=True,
         )
     if not found:

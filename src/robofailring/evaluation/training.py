@@ -9,16 +9,16 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Final
 
-from robofailring.data.layouts import Dataset, load_dataset
+from robofailring.data.grounding import Vocabulary
+from robofailring.data.layouts import Dataset
 from robofailring.data.model import Skipped, Trajectory
+from robofailring.data.selection import DataSelection
 from robofailring.data.splits import split_of
-from robofailring.data.vocabulary import read_vocabulary
-from robofailring.detection.band import DEFAULT_BAND, check_band
 from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig, check_stride
-from robofailring.detection.conformal import check_target_fpr
+from robofailring.detection.loader import encoder_for
 from robofailring.detection.rules import PAPER
-from robofailring.detection.view_bands import DEFAULT_FUSION, check_fusion
-from robofailring.encoders import CachedEncoder, open_encoder
+from robofailring.detection.threshold_policy import DEFAULT_POLICY, ThresholdPolicy
+from robofailring.encoders import CachedEncoder
 from robofailring.errors import RoboFailRingError, SettingError, SplitError
 from robofailring.evaluation.metrics import PAPER_DELTAS
 from robofailring.memory.builder import Provenance, build_memories
@@ -58,34 +58,30 @@ class FoldPlan:
 
 @dataclass(frozen=True)
 class EvaluateConfig:
-    data: Path  # dataset whose training split's failures form the memory
+    data: DataSelection  # the dataset whose training split's failures form the memory, how it is read
     out: Path  # folder for evaluation.json and evaluation.md (and memory/ when built here)
     # the memory built here (encoder, failure frames, pairing, success step); its encoder also opens `detector.memory`
     recipe: MemoryRecipe = DEFAULT_RECIPE
     # `memory`: an existing memory (its failures must not be in the test set), None: built here; its K,
-    # device and cache (rule and thresholds: every rule is evaluated, at thresholds calibrated here or stored)
+    # modality, device, runtime, cache and Ray cluster (rule and thresholds: every rule is evaluated, at
+    # thresholds calibrated here or stored)
     detector: DetectorConfig = DEFAULT_DETECTOR
+    # every rule calibrated here on the training successes (α, band, fusion); None: the memory's stored thresholds
+    thresholds: ThresholdPolicy | None = DEFAULT_POLICY
     memory_out: Path | None = None  # where a memory built here is saved (default out/memory)
-    test_data: Path | None = None  # a second dataset to test on (e.g. out-of-distribution)
+    # a second dataset to test on (e.g. out-of-distribution; `data.other(root, labels=…)` reads it as `data`)
+    test_data: DataSelection | None = None
     train_split: str = "train"
     test_split: str = "test"
     test_fraction: float = 0.5  # for datasets without splits: a deterministic hash split
     deltas: tuple[float, ...] = PAPER_DELTAS
     name: str = "evaluation"
     stride: int = 1  # score every stride-th frame of a test trajectory (t_det, T_s in original frames)
-    labels: Path | None = None  # labels file for data whose names do not say the outcome (LeRobot)
-    vocabulary: Path | None = None  # the data's own failure symbols (JSON/YAML), kept with the memory built
-    target_fpr: float | None = 0.05  # calibrate both rules on training successes; None: stored thresholds
     successes: bool = True  # build the success memory beside the failure memory (contrast rule)
     deployment_successes: int = 0  # per task: test success runs moved into the success memory
-    task: str | None = None  # task of episodes whose names do not say it
-    views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
     failures_per_task: int | None = None  # the memory built here holds N training failures per task
     # (`labelled_failures`; 0: success runs only, judged by the novelty rule); None: all of them
-    band: str = DEFAULT_BAND  # time-indexed thresholds when calibrating here: none, shift or norm
-    fusion: str = DEFAULT_FUSION  # views when calibrating here: max (one band) or per-view (a band each)
     folds: FoldPlan | None = None  # also cross-validate over every labelled run of `data` (evaluation.folds)
-    ray: str | None = None  # a Ray cluster's address: frames decoded and encoded there (docs/ray.md)
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
         check_stride(self.stride)
@@ -94,10 +90,6 @@ class EvaluateConfig:
                 "an evaluation judges every rule at thresholds it calibrates (or the memory's stored ones), "
                 "with its recipe's encoder: give no rule, threshold or encoder to its detector"
             )
-        check_band(self.band)
-        check_fusion(self.fusion)
-        if self.target_fpr is not None:
-            check_target_fpr(self.target_fpr)
         if self.deployment_successes < 0:
             raise SettingError(f"deployment successes must be ≥ 0, got {self.deployment_successes}")
         if self.failures_per_task is not None and self.failures_per_task < 0:
@@ -106,7 +98,7 @@ class EvaluateConfig:
             PAPER.check_threshold(delta)
         if not 0.0 < self.test_fraction < 1.0:
             raise SettingError(f"test fraction must lie in (0, 1), got {self.test_fraction}")
-        if self.folds is not None and (self.detector.memory is not None or self.target_fpr is None):
+        if self.folds is not None and (self.detector.memory is not None or self.thresholds is None):
             raise SettingError(
                 "--folds builds a memory and calibrates thresholds per fold from the data: leave out --memory "
                 "and give a target FPR"
@@ -123,19 +115,20 @@ class Splits:
     skipped: list[Skipped]  # what the loaders of the training and test datasets did not read
 
 
-def load_labelled(config: EvaluateConfig, path: Path) -> tuple[Dataset, list[Trajectory], list[Skipped]]:
-    """A dataset of the evaluation as its settings read it (task, labels, views, vocabulary), its runs with an
-    outcome, and what was not used (an unlabelled run is never taken for a success)."""
-    vocabulary = read_vocabulary(config.vocabulary) if config.vocabulary is not None else None
-    loaded = load_dataset(
-        path, task=config.task, labels=config.labels, views=config.views, vocabulary=vocabulary
-    )
+def load_labelled(
+    data: DataSelection, *, vocabulary: Vocabulary | None = None
+) -> tuple[Dataset, list[Trajectory], list[Skipped]]:
+    """A dataset of the evaluation as its selection reads it (`vocabulary`: the training data's, which its
+    labels are read by), its runs with an outcome, and what was not used (an unlabelled run is never taken
+    for a success)."""
+    loaded = data.load(vocabulary=vocabulary)
     return loaded, *loaded.judged("evaluate")
 
 
 def select_splits(config: EvaluateConfig) -> Splits:
     """The training and test trajectories, disjoint by construction and checked."""
-    dataset, source, skipped = load_labelled(config, Path(config.data))
+    vocabulary = config.data.read_vocabulary()
+    dataset, source, skipped = load_labelled(config.data, vocabulary=vocabulary)
     has_splits = any(t.split for t in source)
 
     def of_split(split: str) -> list[Trajectory]:
@@ -149,14 +142,13 @@ def select_splits(config: EvaluateConfig) -> Splits:
     if config.test_data is None:
         test = of_split(config.test_split)
     else:
-        _, other, other_skipped = load_labelled(config, Path(config.test_data))
+        _, other, other_skipped = load_labelled(config.test_data, vocabulary=vocabulary)
         skipped += other_skipped
         other_has_splits = any(t.split for t in other)
         test = [t for t in other if not other_has_splits or t.split == config.test_split]
     if not test:
-        raise SplitError(
-            f"no test trajectories (split {config.test_split!r}) in {config.test_data or config.data}"
-        )
+        tested = config.test_data.root if config.test_data is not None else config.data.root
+        raise SplitError(f"no test trajectories (split {config.test_split!r}) in {tested}")
     return Splits(train=train, test=test, dataset=dataset, skipped=skipped)
 
 
@@ -179,13 +171,7 @@ def check_disjoint(memory: FailureMemory, test: Sequence[Trajectory]) -> None:
 def evaluation_encoder(config: EvaluateConfig) -> CachedEncoder:
     """The encoder an evaluation builds its memories with: its recipe's, on its detector's device, cache and
     runtime (and its Ray cluster)."""
-    return open_encoder(
-        config.recipe.encoder,
-        device=config.detector.device,
-        cache_dir=config.detector.cache_dir,
-        runtime=config.detector.runtime,
-        ray=config.ray,
-    )
+    return encoder_for(config.detector, config.recipe.encoder)
 
 
 def build_training_memory(
@@ -197,7 +183,7 @@ def build_training_memory(
     if splits is None:
         splits = select_splits(config)
     provenance = Provenance(
-        data=Path(config.data),
+        data=config.data.root,
         encoder=config.recipe.encoder,
         layout=splits.dataset.layout,
         views=splits.dataset.views,
@@ -210,7 +196,7 @@ def build_training_memory(
         provenance=provenance,
         recipe=config.recipe,
         successes=config.successes,
-        vocabulary=read_vocabulary(config.vocabulary) if config.vocabulary is not None else None,
+        vocabulary=config.data.read_vocabulary(),
     )
     memory_dir = config.memory_out or Path(config.out) / "memory"
     memory.save(memory_dir)

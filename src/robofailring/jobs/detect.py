@@ -5,13 +5,12 @@ from __future__ import annotations
 import json
 import logging
 from dataclasses import dataclass
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from robofailring.data.layouts import load_trajectory
 from robofailring.data.model import Trajectory
+from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig, check_stride
 from robofailring.detection.detector import DetectionTrace
 from robofailring.detection.loader import detector_from
@@ -27,15 +26,15 @@ if TYPE_CHECKING:
 
 @dataclass(frozen=True)
 class DetectConfig:
-    trajectory: Path  # one episode folder
+    data: DataSelection  # one episode folder (or a dataset root and `key`), how it is read
     detector: DetectorConfig  # the memory and how its detector judges
-    task: str | None = None  # needed when the folder name does not encode the task
+    key: str | None = None  # the trajectory to run when `data.root` is a dataset root (`episode_3`)
     leave_one_out: bool = False  # hide the trajectory's own episode from the memory
-    key: str | None = None  # the trajectory to run when `trajectory` is a dataset root (`episode_3`)
     stride: int = 1  # score every stride-th frame (I_0 stays frame 0; t_det in original frames)
-    labels: Path | None = None  # labels file (LeRobot): outcome and symbol per episode
     vlm: VLMConfig | None = None  # ask this VLM about the report, when the detector fires
-    views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
+
+    def __post_init__(self) -> None:  # a bad setting fails before the memory is read
+        check_stride(self.stride)
 
 
 def detect(config: DetectConfig) -> DetectionTrace:
@@ -45,18 +44,10 @@ def detect(config: DetectConfig) -> DetectionTrace:
 
 def detect_trajectory(config: DetectConfig) -> tuple[DetectionTrace, Trajectory]:
     """`detect`, also returning the trajectory it loaded (for the report's current frame)."""
-    check_stride(config.stride)
     detector = detector_from(config.detector)
     for note in detector.uncalibrated:
         _log.warning("warning: %s", note)
-    trajectory = load_trajectory(
-        config.trajectory,
-        task=config.task,
-        key=config.key,
-        labels=config.labels,
-        vocabulary=detector.memory.vocabulary,
-        views=config.views,
-    )
+    trajectory = config.data.load_trajectory(key=config.key, vocabulary=detector.memory.vocabulary)
     return detector.run(
         trajectory, leave_one_out=config.leave_one_out, stride=config.stride, keep_queries=False
     ), trajectory

@@ -5,12 +5,14 @@ first and a current frame are paired (`change` or the paper's `concat`), how fin
 (and a dense memory's failure runs) are thinned, and which of the robot's signals are a second modality
 (`auto`: every state and action signal the data has; `none`; or names) and which features are derived
 from them (`change`, `events`; `none`). A built memory carries its own (`FailureMemory.recipe`,
-read from its manifest) and pairs its queries by it; jobs that build memories take one recipe.
+read from its manifest) and pairs its queries by it; jobs that build memories take one recipe. A recipe made by
+`MemoryRecipe.chosen` also knows which settings were chosen: a memory grown (`build-memory --add-to`) keeps
+its own for the others.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field
 from typing import Final
 
 from robofailring.errors import SettingError
@@ -40,6 +42,8 @@ class MemoryRecipe:
     signals: str = SIGNALS_AUTO  # the robot's signals used beside the cameras: `auto`, `none` or names
     # features derived from them (robofailring.memory.signal_derived): `change`, `events`, both, or `none`
     signal_features: str = DEFAULT_FEATURES
+    # the settings chosen, by field name (`MemoryRecipe.chosen`); None: all of them (a recipe written out)
+    given: frozenset[str] | None = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:  # a bad setting fails before any frame is read
         if not isinstance(self.encoder, str) or not self.encoder:
@@ -69,16 +73,29 @@ class MemoryRecipe:
         signals: str | None = None,
         signal_features: str | None = None,
     ) -> MemoryRecipe:
-        """The recipe of the settings given, the defaults for those left out (None): what options build."""
+        """The recipe of the settings given, the defaults for those left out (None): what options build. It
+        remembers which were given (`was_given`); the encoder always is."""
         default = cls(encoder=encoder)
-        return replace(
-            default,
+        settings = {
+            "failure_frames": failure_frames,
+            "pairing": pairing,
+            "success_step": success_step,
+            "signals": signals,
+            "signal_features": signal_features,
+        }
+        return cls(
+            encoder=encoder,
             failure_frames=failure_frames if failure_frames is not None else default.failure_frames,
             pairing=pairing if pairing is not None else default.pairing,
             success_step=success_step if success_step is not None else default.success_step,
             signals=signals if signals is not None else default.signals,
             signal_features=signal_features if signal_features is not None else default.signal_features,
+            given=frozenset({"encoder", *(name for name, value in settings.items() if value is not None)}),
         )
+
+    def was_given(self, name: str) -> bool:
+        """Whether the setting `name` (a field) was chosen, not left at its default."""
+        return self.given is None or name in self.given
 
     @classmethod
     def of(cls, manifest: MemoryManifest) -> MemoryRecipe:

@@ -24,7 +24,7 @@ from typing import Final
 from robofailring.data.model import Outcome, Trajectory
 from robofailring.detection.config import DetectorConfig
 from robofailring.detection.detector import FailureDetector
-from robofailring.detection.loader import detector_from
+from robofailring.detection.loader import detector_from, detector_with
 from robofailring.detection.rules import NOVELTY
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import DataError
@@ -50,11 +50,11 @@ class Reference:
     notes: list[str] = field(default_factory=list)
 
 
-def memory_reference(config: DetectorConfig, tasks: Sequence[str], *, ray: str | None = None) -> Reference:
+def memory_reference(config: DetectorConfig, tasks: Sequence[str]) -> Reference:
     """The detector on `config.memory` (its rules and thresholds as stored, or `config.rule`); a task it
-    does not know is an error. `ray`: where the frames are encoded ahead (docs/ray.md)."""
+    does not know is an error. `config.ray`: where the frames are encoded ahead (docs/ray.md)."""
     memory_dir = config.memory_dir
-    detector = detector_from(config, ray=ray)
+    detector = detector_from(config)
     unknown = sorted(set(tasks) - set(detector.memory.tasks))
     if unknown:
         raise DataError(
@@ -74,15 +74,14 @@ def built_reference(
     *,
     data: Path,
     encoder_spec: str,
-    k: int,
+    detector: DetectorConfig,
     reference_runs: int,
-    rule: str | None = None,
 ) -> Reference:
     """A memory built here: per task, its known-good runs (else its other episodes) as success runs, and
     every run labelled failure as a failure entry.
 
     `trajectories` are the data's episodes with the outcomes `--labels` gives (None: unlabelled);
-    `known_good` the runs of `--successes`. `rule`: the scoring rule (default novelty).
+    `known_good` the runs of `--successes`. `detector`: its K and rule (default novelty).
     """
     tasks = list(dict.fromkeys(t.task for t in trajectories))
     failures = [t for t in trajectories if t.outcome is Outcome.FAILURE]
@@ -108,8 +107,8 @@ def built_reference(
         encoder,
         provenance=Provenance(data=data, encoder=encoder_spec),
     )
-    detector = FailureDetector(memory, encoder, k=k, rule=rule or NOVELTY.name)
-    return Reference(detector=detector, modes=modes, runs=runs, notes=notes)
+    judged = detector_with(replace(detector, rule=detector.rule or NOVELTY.name), memory, encoder)
+    return Reference(detector=judged, modes=modes, runs=runs, notes=notes)
 
 
 def _sample(trajectories: Sequence[Trajectory], count: int) -> list[Trajectory]:

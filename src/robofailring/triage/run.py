@@ -8,12 +8,12 @@ from pathlib import Path
 from typing import Final
 
 from robofailring.data.labels import label_key, read_labels
-from robofailring.data.layouts import load_dataset
 from robofailring.data.model import Outcome, Skipped, Trajectory
+from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
 from robofailring.detection.detector import FailureDetector
+from robofailring.detection.loader import encoder_for
 from robofailring.detection.scored import prefetch_scored
-from robofailring.encoders import open_encoder
 from robofailring.errors import DataError, SettingError
 from robofailring.memory.recipe import DEFAULT_RECIPE
 from robofailring.progress import progress_bar
@@ -32,17 +32,15 @@ PREFETCH_EPISODES: Final[int] = 64
 class TriageConfig:
     """What `robofailring triage` ranks and how: `detector` holds the memory to judge by (its rules as
     calibrated, its own encoder), or without one the encoder the reference is built with (default: the
-    recipe's), and the detector's k, rule, device, runtime, cache and data root."""
+    recipe's), and the detector's k, rule, device, runtime, cache, Ray cluster and data root."""
 
-    data: Path  # the dataset to triage (any layout); outcomes its layout states are not used
+    # the dataset to triage (any layout; outcomes its layout states are not used), how it is read: the
+    # success rows of its labels are known-good runs
+    data: DataSelection
     out: Path  # folder for triage.csv, triage.rrd, triage.html and the replays
     detector: DetectorConfig = DEFAULT_DETECTOR
-    successes: Path | None = None  # a dataset of known-good runs (every episode a success)
-    labels: Path | None = None  # a labels file for the data: its success rows are known-good runs
-    task: str | None = None  # task of episodes whose names do not say it
-    views: str | None = None  # `--views`
+    successes: Path | None = None  # a dataset of known-good runs (every episode a success), read as `data`
     reference_runs: int = DEFAULT_REFERENCE_RUNS  # per task, at most this many other episodes as reference
-    ray: str | None = None  # a Ray cluster's address: frames decoded and encoded there (docs/ray.md)
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
         if self.detector.memory is not None and self.successes is not None:
@@ -77,11 +75,15 @@ class TriageResult:
 
 
 def load_episodes(config: TriageConfig) -> tuple[list[Trajectory], list[Skipped]]:
-    """The data's episodes as unlabelled runs, with `config.labels` applied as every verb applies them
+    """The data's episodes as unlabelled runs, with `config.data.labels` applied as every verb applies them
     (outcome, symbol, and the task column, which a folder of several tasks needs); outcomes the data's
     own names state are dropped."""
-    dataset = load_dataset(config.data, task=config.task, labels=config.labels, views=config.views)
-    labels = read_labels(config.labels) if config.labels is not None else {}
+    dataset = config.data.load()
+    labels = (
+        read_labels(config.data.labels, vocabulary=config.data.read_vocabulary())
+        if config.data.labels is not None
+        else {}
+    )
     found = [
         t if label_key(t, labels) is not None else replace(t, outcome=None, symbol=None, description=None)
         for t in dataset.trajectories()
@@ -93,7 +95,7 @@ def load_episodes(config: TriageConfig) -> tuple[list[Trajectory], list[Skipped]
 def run_triage(config: TriageConfig) -> TriageResult:
     """Score and rank every episode of `config.data` (docs/triage.md)."""
     trajectories, skipped = load_episodes(config)
-    _require_two_frames(trajectories, config.data)
+    _require_two_frames(trajectories, config.data.root)
     tasks = list(dict.fromkeys(t.task for t in trajectories))
     reference = _reference(config, trajectories, tasks, skipped)
     scores: list[EpisodeScore] = []
@@ -138,28 +140,20 @@ def _reference(
     config: TriageConfig, trajectories: list[Trajectory], tasks: list[str], skipped: list[Skipped]
 ) -> Reference:
     if config.memory is not None:
-        return memory_reference(config.detector, tasks, ray=config.ray)
+        return memory_reference(config.detector, tasks)
     known_good: list[Trajectory] = []
     if config.successes is not None:
-        good = load_dataset(config.successes, task=config.task, views=config.views)
+        good = replace(config.data, root=config.successes, labels=None).load()
         skipped += good.skipped
         known_good = [replace(t, outcome=Outcome.SUCCESS, symbol=None) for t in good if t.task in tasks]
-    encoder = open_encoder(
-        config.encoder,
-        device=config.detector.device,
-        cache_dir=config.detector.cache_dir,
-        runtime=config.detector.runtime,
-        ray=config.ray,
-    )
     return built_reference(
         trajectories,
         known_good,
-        encoder,
-        data=config.data,
+        encoder_for(config.detector, config.encoder),
+        data=config.data.root,
         encoder_spec=config.encoder,
-        k=config.detector.k,
+        detector=config.detector,
         reference_runs=config.reference_runs,
-        rule=config.detector.rule,
     )
 
 

@@ -1,0 +1,127 @@
+"""Option groups: options declared once, as the parameters of the one function that turns them into a value.
+
+A group is a function such as `detector_options(memory: MemoryOption, k: KOption = 5, …) -> DetectorConfig`.
+A verb lists the groups it takes, each under the name of the parameter that receives its value::
+
+    @app.command("detect")
+    @takes(detector=DETECTOR, data=DATA.without("vocabulary"))
+    def detect_cmd(data: DataSelection, detector: DetectorConfig, as_json: …) -> None: …
+
+and its command line gets the group's options in that parameter's place (typer reads the signature
+`takes` writes). A verb may leave some of a group's options out (`without`, `only`: the function's
+defaults stand for them) or declare one for itself (`but`: its own help, default or name), never list
+them again; so a new setting of a group is one option, one field and one line, in every verb that
+takes it.
+"""
+
+from __future__ import annotations
+
+import functools
+import inspect
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any, Generic, TypeVar
+
+Value = TypeVar("Value")
+Verb = TypeVar("Verb", bound=Callable[..., Any])
+REQUIRED = inspect.Parameter.empty  # a `Declared` default: the option (or argument) must be given
+
+
+@dataclass(frozen=True)
+class Declared:
+    """One of a group's parameters as one verb declares it: its typer annotation (`Annotated[…, typer.Option(…)]`),
+    its default (`REQUIRED`: none), and the name the verb's command line knows it by (an argument's)."""
+
+    annotation: Any
+    default: Any = REQUIRED
+    name: str | None = None
+
+
+@dataclass(frozen=True)
+class OptionGroup(Generic[Value]):
+    """Options declared once, as the parameters of `build`, turned into one value by it."""
+
+    build: Callable[..., Value]
+    left_out: frozenset[str] = frozenset()  # parameters this verb does not offer: `build`'s defaults stand
+    declared: Mapping[str, Declared] = field(
+        default_factory=dict
+    )  # parameters this verb declares its own way
+
+    def without(self, *names: str) -> OptionGroup[Value]:
+        """The group less the options `names` (parameter names of `build`)."""
+        self._check(names)
+        return OptionGroup(self.build, self.left_out | set(names), self.declared)
+
+    def only(self, *names: str) -> OptionGroup[Value]:
+        """The group with only the options `names`."""
+        self._check(names)
+        return self.without(*(name for name in self._signature().parameters if name not in names))
+
+    def but(self, **declarations: Declared) -> OptionGroup[Value]:
+        """The group with some of its parameters declared for one verb (their help, default, name)."""
+        self._check(declarations)
+        return OptionGroup(self.build, self.left_out, {**self.declared, **declarations})
+
+    def parameters(self) -> list[inspect.Parameter]:
+        """The parameters a verb's command line gets: `build`'s, less those left out, as declared."""
+        offered = []
+        for name, parameter in self._signature().parameters.items():
+            if name in self.left_out:
+                continue
+            own = self.declared.get(name)
+            if own is not None:
+                parameter = parameter.replace(
+                    name=own.name or name, annotation=own.annotation, default=own.default
+                )
+            offered.append(parameter.replace(kind=inspect.Parameter.KEYWORD_ONLY))
+        return offered
+
+    def value(self, given: Mapping[str, Any]) -> Value:
+        """`build` of the options given (by the names `parameters` gave them)."""
+        names = {own.name: name for name, own in self.declared.items() if own.name is not None}
+        return self.build(**{names.get(name, name): option for name, option in given.items()})
+
+    def _signature(self) -> inspect.Signature:
+        return inspect.signature(self.build, eval_str=True)
+
+    def _check(self, names: Any) -> None:
+        unknown = sorted(set(names) - set(self._signature().parameters))
+        if unknown:
+            raise TypeError(f"{self.build.__name__} has no option {', '.join(unknown)}")
+
+
+def takes(**groups: OptionGroup[Any]) -> Callable[[Verb], Verb]:
+    """The verb's parameter `name` receives the value of `groups[name]`, whose options its command line
+    gets in that parameter's place."""
+
+    def decorate(verb: Verb) -> Verb:
+        own = inspect.signature(verb, eval_str=True).parameters
+        missing = sorted(set(groups) - set(own))
+        if missing:
+            raise TypeError(f"{verb.__name__} has no parameter {', '.join(missing)} for its option groups")
+        offered: list[inspect.Parameter] = []
+        of_group: dict[str, list[str]] = {}
+        for name, parameter in own.items():
+            if name in groups:
+                group_parameters = groups[name].parameters()
+                of_group[name] = [p.name for p in group_parameters]
+                offered += group_parameters
+            else:
+                offered.append(parameter.replace(kind=inspect.Parameter.KEYWORD_ONLY))
+        names = [parameter.name for parameter in offered]
+        twice = sorted({name for name in names if names.count(name) > 1})
+        if twice:
+            raise TypeError(f"{verb.__name__}: parameter {', '.join(twice)} is declared twice")
+
+        @functools.wraps(verb)
+        def command(**given: Any) -> Any:
+            for name, group in groups.items():
+                given[name] = group.value({option: given.pop(option) for option in of_group[name]})
+            return verb(**given)
+
+        command.__signature__ = inspect.Signature(offered)  # type: ignore[attr-defined]
+        command.__annotations__ = {parameter.name: parameter.annotation for parameter in offered}
+        command.option_groups = dict(groups)  # type: ignore[attr-defined]
+        return command  # type: ignore[return-value]
+
+    return decorate

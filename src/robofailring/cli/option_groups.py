@@ -1,0 +1,335 @@
+"""The command line's option groups, each declared once and turned into its value in one function.
+
+- `DATA` (`data_options`): the dataset and how it is read, a `DataSelection`;
+- `RECIPE` (`recipe_options`): how a memory is made, a `MemoryRecipe`;
+- `DETECTOR` (`detector_options`): how a detector judges and where its encoder runs, a `DetectorConfig`;
+- `THRESHOLDS` (`threshold_options`): how thresholds are set, a `ThresholdPolicy`;
+- `VLM` (`vlm_options`): the VLM to ask about a report, a `VLMConfig` (or None).
+
+A verb takes the groups it needs (`robofailring.cli.groups.takes`), less the options that do not apply to it;
+adding a setting to one of these values is one option here, one field there, and one line in its function.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Final
+
+import typer
+
+from robofailring.cli.groups import Declared, OptionGroup
+from robofailring.data.selection import DataSelection
+from robofailring.detection.band import BAND_KINDS, DEFAULT_BAND
+from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
+from robofailring.detection.rules import RULES
+from robofailring.detection.stored import given_thresholds
+from robofailring.detection.threshold_policy import DEFAULT_POLICY, ThresholdPolicy
+from robofailring.detection.view_bands import DEFAULT_FUSION, FUSIONS
+from robofailring.errors import SettingError
+from robofailring.explain.vlm import VLMConfig
+from robofailring.extras import require
+from robofailring.memory.recipe import DEFAULT_RECIPE, MemoryRecipe
+
+# The data: DataSelection
+
+DataArgument = Annotated[
+    Path, typer.Argument(help="Dataset root (any supported layout) or one episode folder.")
+]
+LabelsOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--labels",
+        help="Outcome and failure symbol per episode: a JSON list or CSV of episode_index, outcome, symbol "
+        "and optionally task and description (`episode` names an episode folder, an HDF5 demo or episode "
+        "file; a failure without a symbol is 'a failure (type not labelled)').",
+    ),
+]
+TaskOption = Annotated[
+    str | None,
+    typer.Option(
+        help="Task of episodes whose names do not say it (an episode folder, video episodes); "
+        "replay and compare on a dataset root keep only this task."
+    ),
+]
+ViewsOption = Annotated[
+    str | None,
+    typer.Option(
+        "--views",
+        help="Views to use, in order: `a,b` picks views; `src=name` renames one (a camera, an HDF5 image key); "
+        "default: every view the data has.",
+    ),
+]
+VocabularyOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--vocabulary",
+        help="Your own failure symbols beyond Table 5: a JSON or YAML file of `symbols` (symbol: the words "
+        "for its cause) and optional `stages` (number: words); kept in the memory's folder.",
+    ),
+]
+
+
+def data_options(
+    data: DataArgument,
+    labels: LabelsOption = None,
+    task: TaskOption = None,
+    views: ViewsOption = None,
+    vocabulary: VocabularyOption = None,
+) -> DataSelection:
+    """DATA, --labels, --task, --views and --vocabulary as one `DataSelection`."""
+    return DataSelection(data, labels=labels, task=task, views=views, vocabulary=vocabulary)
+
+
+# How a memory is made: MemoryRecipe
+
+EncoderOption = Annotated[
+    str,
+    typer.Option(
+        "--encoder",
+        help="`pixels` (weight-free), `open_clip:<model>[:<pretrained tag or checkpoint path>]` or `trained:<DIR>`.",
+    ),
+]
+FailureFramesOption = Annotated[
+    str | None,
+    typer.Option(
+        "--failure-frames",
+        help="`dense`: each failure run's frames from its onset on (all when it is not known), thinned like "
+        "the success memory (--success-step), so a neighbour shows the moment of the past failure that "
+        "matches; `end`: the paper's memory, one (I_0 ‖ I_end) entry per failure view. Default: dense "
+        "(growing a memory with --add-to keeps its own).",
+    ),
+]
+PairingOption = Annotated[
+    str | None,
+    typer.Option(
+        "--pairing",
+        help="How a first and a current frame become one memory vector: `change`, the first frame at half "
+        "weight beside what changed since it, norm([½ z_0 ‖ z_t − z_0]) (holds up under new lighting, colours "
+        "and cameras); `concat`, the paper's norm([z_0 ‖ z_t]). Default: change (growing a memory with "
+        "--add-to keeps its own).",
+    ),
+]
+SuccessStepOption = Annotated[
+    float,
+    typer.Option(
+        "--success-step",
+        help="Keep a success frame only when its cosine to the last kept frame of its run is below "
+        "1 - STEP (0 keeps every frame).",
+    ),
+]
+SignalsOption = Annotated[
+    str | None,
+    typer.Option(
+        "--signals",
+        help="The robot's own signals (joint state, gripper, end-effector pose, commanded actions) as a second "
+        "modality beside the cameras, scored as the view `signals`: `auto`, every state and action signal the "
+        "data has (docs/data.md); `none`, the cameras alone; or signal names separated by commas. Default: "
+        "auto (growing a memory with --add-to keeps its own).",
+    ),
+]
+SignalFeaturesOption = Annotated[
+    str | None,
+    typer.Option(
+        "--signal-features",
+        help="Features derived from the robot's signals and added to them (docs/signals.md): `change`, each "
+        "dimension's change over the last frame; `events`, for each step-like dimension (a gripper) its jumps "
+        "so far and the frames since the last; both separated by a comma, or `none`. Default: change,events "
+        "(growing a memory with --add-to keeps its own).",
+    ),
+]
+
+
+def recipe_options(
+    encoder: EncoderOption = DEFAULT_RECIPE.encoder,
+    failure_frames: FailureFramesOption = None,
+    pairing: PairingOption = None,
+    success_step: SuccessStepOption = DEFAULT_RECIPE.success_step,
+    signals: SignalsOption = None,
+    signal_features: SignalFeaturesOption = None,
+) -> MemoryRecipe:
+    """--encoder, --failure-frames, --pairing, --success-step, --signals and --signal-features as one
+    `MemoryRecipe`, which knows which were given (a memory grown keeps its own for the others)."""
+    return MemoryRecipe.chosen(
+        encoder,
+        failure_frames=failure_frames,
+        pairing=pairing,
+        success_step=success_step,
+        signals=signals,
+        signal_features=signal_features,
+    )
+
+
+# How a detector judges, and where its encoder runs: DetectorConfig
+
+MemoryOption = Annotated[Path | None, typer.Option("--memory", help="Memory directory.")]
+DeltaOption = Annotated[
+    float | None,
+    typer.Option("--delta", help="Threshold δ (default: the memory's calibrated δ, else 0.92)."),
+]
+KOption = Annotated[int, typer.Option("--k", help="Neighbours retrieved per query.")]
+ScoreOption = Annotated[
+    str | None,
+    typer.Option(
+        "--score",
+        help="Scoring rule: "
+        + " or ".join(f"`{rule.name}` ({rule.formula} ≥ {rule.symbol})" for rule in RULES.values())
+        + "; default per task: contrast with success and failure runs, novelty with success runs only, "
+        "paper with failure runs only.",
+    ),
+]
+GammaOption = Annotated[
+    float | None,
+    typer.Option(help="Contrast threshold γ (default: the memory's calibrated γ, else 0)."),
+]
+EtaOption = Annotated[
+    float | None,
+    typer.Option(help="Novelty threshold η (default: the memory's calibrated η, else 0.1)."),
+]
+ModalityOption = Annotated[
+    str,
+    typer.Option(
+        "--modality",
+        help="What the detector judges by: `both`, the cameras and the robot's signals fused as views (where the "
+        "memory has signals); `cameras` alone; `signals` alone. Thresholds calibrated for one are not used for "
+        "another (calibrate with the same --modality).",
+    ),
+]
+MemoryEncoderOption = Annotated[
+    str | None, typer.Option("--encoder", help="Encoder spec (default: the memory's).")
+]
+CacheOption = Annotated[
+    Path | None, typer.Option("--cache-dir", help="Embedding cache folder (default ~/.cache/robofailring).")
+]
+DeviceOption = Annotated[
+    str | None, typer.Option("--device", help="torch device (default: cuda if available).")
+]
+RuntimeOption = Annotated[
+    str | None,
+    typer.Option(
+        "--runtime",
+        help="What runs the encoder's network: `torch`, or its ONNX export (made once, cached by checkpoint "
+        "digest): `onnx` (fp32) or `onnx-int8` through ONNX Runtime, `openvino-int8` (static int8 on OpenVINO, "
+        "the fastest on a CPU; the openvino extra). Default: the spec's own `@runtime`, else torch.",
+    ),
+]
+DataRootOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--data-root",
+        help="Where the memory's dataset is now, when it moved since the memory was built "
+        "(its images are looked up there).",
+    ),
+]
+RayOption = Annotated[
+    str | None,
+    typer.Option(
+        "--ray",
+        metavar="ADDRESS",
+        help="Decode and encode the frames on a Ray cluster (Ray Data): `auto` (the running one), `local` (a "
+        "new one on this machine) or `ray://host:port`; same embeddings, same cache (docs/ray.md).",
+    ),
+]
+
+
+def detector_options(
+    memory: MemoryOption = None,
+    delta: DeltaOption = None,
+    k: KOption = DEFAULT_DETECTOR.k,
+    score: ScoreOption = None,
+    gamma: GammaOption = None,
+    eta: EtaOption = None,
+    modality: ModalityOption = DEFAULT_DETECTOR.modality,
+    encoder: MemoryEncoderOption = None,
+    cache_dir: CacheOption = None,
+    device: DeviceOption = None,
+    runtime: RuntimeOption = None,
+    data_root: DataRootOption = None,
+    ray: RayOption = None,
+) -> DetectorConfig:
+    """--memory, --delta, --k, --score, --gamma, --eta, --modality, --encoder, --cache-dir, --device, --runtime,
+    --data-root and --ray as one `DetectorConfig` (each rule's threshold by its option)."""
+    return DetectorConfig(
+        memory=memory,
+        encoder=encoder,
+        device=device,
+        runtime=runtime,
+        cache_dir=cache_dir,
+        data_root=data_root,
+        k=k,
+        rule=score,
+        thresholds=given_thresholds(None, delta=delta, gamma=gamma, eta=eta),
+        modality=modality,
+        ray=ray,
+    )
+
+
+#: The detector's options that say where its encoder runs, for the verbs that encode but judge nothing.
+ENCODER_PLACEMENT: Final[tuple[str, ...]] = ("cache_dir", "device", "runtime", "ray")
+#: The options that choose a rule and its thresholds, for the verbs that set or read them elsewhere.
+RULE_CHOICE: Final[tuple[str, ...]] = ("score", "delta", "gamma", "eta")
+
+# How thresholds are set: ThresholdPolicy
+
+TargetFprOption = Annotated[float, typer.Option("--target-fpr", help="False-positive rate to allow.")]
+BandOption = Annotated[
+    str,
+    typer.Option(
+        "--band",
+        help=f"Time-indexed thresholds, one of {', '.join(BAND_KINDS)}: the contrast and novelty scores are "
+        "corrected by the calibration successes' mean (shift) or mean and spread (norm) at the same frame "
+        f"index before their peak is calibrated; none: one threshold (default {DEFAULT_BAND}).",
+    ),
+]
+FusionOption = Annotated[
+    str,
+    typer.Option(
+        "--fusion",
+        help=f"How the views meet the threshold, one of {', '.join(FUSIONS)}: max, the paper's, fires when any "
+        "view reaches it, every view corrected by one band (of the max over views); per-view corrects each "
+        f"view by a band of its own calibration scores first (default {DEFAULT_FUSION}).",
+    ),
+]
+
+
+def threshold_options(
+    target_fpr: TargetFprOption = DEFAULT_POLICY.target_fpr,
+    band: BandOption = DEFAULT_BAND,
+    fusion: FusionOption = DEFAULT_FUSION,
+) -> ThresholdPolicy:
+    """--target-fpr, --band and --fusion as one `ThresholdPolicy`."""
+    return ThresholdPolicy(target_fpr=target_fpr, band=band, fusion=fusion)
+
+
+# The VLM asked about a report: VLMConfig
+
+VLMUrlOption = Annotated[
+    str | None,
+    typer.Option(
+        "--vlm-url",
+        help="Base URL of an OpenAI-compatible server (e.g. http://localhost:11434/v1) to ask about the "
+        "report; key from $ROBOFAILRING_VLM_API_KEY.",
+    ),
+]
+VLMModelOption = Annotated[
+    str | None, typer.Option("--vlm-model", help="Model the VLM server serves (with --vlm-url).")
+]
+
+
+def vlm_options(vlm_url: VLMUrlOption = None, vlm_model: VLMModelOption = None) -> VLMConfig | None:
+    """--vlm-url and --vlm-model as the VLM to ask (both or neither: a SettingError otherwise)."""
+    if vlm_url is None or vlm_model is None:
+        if vlm_url is not None or vlm_model is not None:
+            raise SettingError("--vlm-url and --vlm-model go together: give both or neither")
+        return None
+    require("vlm")  # before any work: the VLM is asked once the detections are made
+    return VLMConfig(url=vlm_url, model=vlm_model)
+
+
+DATA: Final[OptionGroup[DataSelection]] = OptionGroup(data_options)
+RECIPE: Final[OptionGroup[MemoryRecipe]] = OptionGroup(recipe_options)
+# --memory is required where the group is taken whole (the verbs that detect); left out, there is none
+DETECTOR: Final[OptionGroup[DetectorConfig]] = OptionGroup(detector_options).but(
+    memory=Declared(MemoryOption)
+)
+THRESHOLDS: Final[OptionGroup[ThresholdPolicy]] = OptionGroup(threshold_options)
+VLM: Final[OptionGroup[VLMConfig | None]] = OptionGroup(vlm_options)

@@ -1,0 +1,118 @@
+"""Every job config is a composition of the values, never a copy of their fields (issue 47 item 1).
+
+What to read is a `DataSelection`, how a memory is made a `MemoryRecipe`, how a detector judges (and where
+its encoder runs) a `DetectorConfig`, how thresholds are set a `ThresholdPolicy` (and, for replay and
+compare, which trajectories they record, `Recordings`): each is checked once, where it is made, and a job
+holds it whole.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import typing
+from pathlib import Path
+
+import pytest
+
+from rfr_viz.jobs.demo import DemoConfig
+from rfr_viz.jobs.recorded import Recordings
+from rfr_viz.jobs.replay import CompareConfig, ReplayConfig
+from rfr_viz.jobs.review import ReviewConfig
+from rfr_viz.jobs.watch import WatchConfig
+from robofailring.data.selection import DataSelection
+from robofailring.detection.config import DetectorConfig
+from robofailring.detection.threshold_policy import ThresholdPolicy
+from robofailring.errors import SettingError
+from robofailring.evaluation.calibration import CalibrateConfig
+from robofailring.evaluation.comparison import CompareEncodersConfig
+from robofailring.evaluation.training import EvaluateConfig
+from robofailring.explain.vlm import VLMConfig
+from robofailring.jobs.build_memory import BuildMemoryConfig
+from robofailring.jobs.detect import DetectConfig
+from robofailring.memory.recipe import MemoryRecipe
+from robofailring.triage import TriageConfig
+
+VALUES = (DataSelection, MemoryRecipe, DetectorConfig, ThresholdPolicy)
+HELD = (*VALUES, Recordings)  # Recordings: replay's and compare's (a watch, a review record otherwise)
+JOBS = (
+    BuildMemoryConfig,
+    DetectConfig,
+    CalibrateConfig,
+    EvaluateConfig,
+    CompareEncodersConfig,
+    TriageConfig,
+    ReplayConfig,
+    CompareConfig,
+    ReviewConfig,
+    WatchConfig,
+    DemoConfig,
+)
+
+
+def _holds_a_value(annotation: object) -> bool:
+    return any(value in (annotation, *typing.get_args(annotation)) for value in HELD) or any(
+        _holds_a_value(arg) for arg in typing.get_args(annotation)
+    )
+
+
+@pytest.mark.parametrize("job", JOBS, ids=lambda job: job.__name__)
+def test_no_job_config_repeats_a_field_of_a_value(job: type) -> None:
+    """Not one field of a value in a job config beside the value."""
+    value_fields = {field.name for value in VALUES for field in dataclasses.fields(value)}
+    hints = typing.get_type_hints(job, localns={"VLMConfig": VLMConfig})
+    own = {field.name for field in dataclasses.fields(job) if not _holds_a_value(hints[field.name])}
+    assert own & value_fields == set()
+    assert any(_holds_a_value(hints[field.name]) for field in dataclasses.fields(job))
+
+
+def test_each_value_is_checked_where_it_is_made(tmp_path: Path) -> None:
+    """A bad setting is one SettingError at the value, before any job reads a file."""
+    for make, message in (
+        (lambda: DataSelection(tmp_path, views="a,,b"), "an empty view name"),
+        (lambda: ThresholdPolicy(target_fpr=1.5), "target FPR must be in"),
+        (lambda: ThresholdPolicy(band="wide"), "band"),
+        (lambda: ThresholdPolicy(fusion="mean"), "fusion"),
+        (lambda: DetectorConfig(k=0), "k \\(neighbours per query\\)"),
+        (lambda: MemoryRecipe(pairing="sum"), "pairing"),
+        (lambda: Recordings(fps=0.0), "--fps must be"),
+    ):
+        with pytest.raises(SettingError, match=message):
+            make()
+
+
+def test_another_dataset_is_read_as_this_one_with_its_own_labels(tmp_path: Path) -> None:
+    data = DataSelection(tmp_path / "a", labels=tmp_path / "a.csv", task="pick", views="front")
+    other = data.other(tmp_path / "b", labels=tmp_path / "b.csv")
+    assert (other.root, other.labels, other.task, other.views) == (
+        tmp_path / "b",
+        tmp_path / "b.csv",
+        "pick",
+        "front",
+    )
+    assert data.other(tmp_path / "b").labels == tmp_path / "a.csv"  # none of its own: these
+
+
+def test_a_recipe_knows_the_settings_chosen() -> None:
+    """`build-memory --add-to` keeps the memory's own recipe but for the settings given."""
+    chosen = MemoryRecipe.chosen("pixels", pairing="concat")
+    assert chosen == MemoryRecipe(pairing="concat")  # the defaults for the rest
+    assert chosen.was_given("pairing") and not chosen.was_given("failure_frames")
+    assert MemoryRecipe().was_given("failure_frames")  # a recipe written out is chosen in full
+
+
+def test_jobs_refuse_settings_their_values_cannot_take(tmp_path: Path) -> None:
+    data = DataSelection(tmp_path)
+    with pytest.raises(SettingError, match="no memory folder"):
+        CalibrateConfig(data=data, detector=DetectorConfig())
+    with pytest.raises(SettingError, match="calibration sets every rule's threshold"):
+        CalibrateConfig(data=data, detector=DetectorConfig(memory=tmp_path, rule="paper"))
+    with pytest.raises(SettingError, match="a memory is built, not judged"):
+        BuildMemoryConfig(data=data, out=tmp_path / "m", detector=DetectorConfig(memory=tmp_path))
+    with pytest.raises(SettingError, match="leave out --memory and give a target FPR"):
+        EvaluateConfig(data=data, out=tmp_path, thresholds=None, folds=_folds())
+
+
+def _folds() -> typing.Any:
+    from robofailring.evaluation.training import FoldPlan
+
+    return FoldPlan.parse("loo")
