@@ -289,6 +289,14 @@ def demo_cmd(
     recipe: MemoryRecipe,
     detector: DetectorConfig,
     randomize: RandomizeOption = 32,
+    compare_encoder: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--compare-encoder",
+            help="Also measure this encoder in the encoder comparison, beside the headline and pixels (repeat "
+            "for more), e.g. a pretrained backbone: `timm:efficientnet_lite0:/models/lite0.pth`.",
+        ),
+    ] = None,
 ) -> None:
     """The main job on the embedded default: simulate, build the memory, calibrate, evaluate, record."""
     from rfr_viz.jobs.demo import DemoConfig, run_demo
@@ -307,6 +315,7 @@ def demo_cmd(
             recipe=recipe,
             detector=detector,
             randomize=randomize,
+            compare_with=tuple(compare_encoder or ()),
         ),
         say=typer.echo,
     )

@@ -63,6 +63,8 @@ class DemoConfig:
     # one's (the recipe's without training)
     recipe: MemoryRecipe = DEFAULT_RECIPE
     randomize: int = 32  # randomised-look episodes the trained encoder also trains on (0: none)
+    # encoders the comparison measures beside the headline and pixels (a pretrained backbone, a CLIP)
+    compare_with: tuple[str, ...] = ()
 
 
 @dataclass
@@ -73,7 +75,8 @@ class DemoResult:
     recordings: dict[str, Path] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     report: Path | None = None  # report.html: charts, tables and links to the recordings
-    comparison: EncoderComparison | None = None  # the headline encoder against pixels, each calibrated
+    # the headline encoder against pixels (and `compare_with`), each calibrated
+    comparison: EncoderComparison | None = None
     encoder: str = "pixels"  # the headline detector's encoder spec
 
 
@@ -236,8 +239,8 @@ def _run_demo(config: DemoConfig, data_dir: Path, say: Callable[[str], None]) ->
         recordings={"evaluation summary": summary} | result.recordings,
         title="RoboFailRing demo: simulated FailGen, in and out of distribution",
     )
-    if encoder != "pixels":
-        result.comparison = _compare_with_pixels(config, in_dist, out, encoder, evaluations[0])
+    if encoder != "pixels" or config.compare_with:
+        result.comparison = _compare_encoders(config, in_dist, out, encoder, evaluations[0])
     return result
 
 
@@ -248,16 +251,17 @@ def _headline_encoder(config: DemoConfig, in_dist: Path, data_dir: Path, say: Ca
     return f"trained:{_trained_encoder(config, in_dist, data_dir, say)}"
 
 
-def _compare_with_pixels(
+def _compare_encoders(
     config: DemoConfig, in_dist: Path, out: Path, encoder: str, headline: EvaluationResult
 ) -> EncoderComparison:
-    """The headline encoder against the weight-free pixels one, each calibrated at the demo's α: the
-    headline's in-distribution evaluation is the comparison's own (built, calibrated and scored once)."""
+    """The headline encoder against the weight-free pixels one and `config.compare_with`, each calibrated
+    at the demo's α: the headline's in-distribution evaluation is the comparison's own (built, calibrated
+    and scored once)."""
     return run_encoder_comparison(
         CompareEncodersConfig(
             data=DataSelection(in_dist),
             out=out / "encoders",
-            encoders=(encoder, "pixels"),
+            encoders=tuple(dict.fromkeys((encoder, "pixels", *config.compare_with))),
             thresholds=config.thresholds,  # each encoder calibrated at the demo's α
             recipe=config.recipe,
             detector=config.detector,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -38,9 +39,14 @@ def tiny_demo(root: Path, out: str) -> DemoConfig:
 
 
 @pytest.fixture(scope="module")
-def demo(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, DemoResult]:
+def demo(
+    tmp_path_factory: pytest.TempPathFactory, tiny_checkpoint: tuple[Path, Path]
+) -> tuple[Path, DemoResult]:
     root = tmp_path_factory.mktemp("demo")
-    return root, run_demo(tiny_demo(root, "out"), say=lambda _: None)
+    clip = "open_clip:{}:{}".format(
+        *tiny_checkpoint
+    )  # another encoder for the comparison (a pretrained one's place)
+    return root, run_demo(replace(tiny_demo(root, "out"), compare_with=(clip, "pixels")), say=lambda _: None)
 
 
 def test_demo_writes_everything_it_names(demo: tuple[Path, DemoResult]) -> None:
@@ -117,7 +123,7 @@ def test_review_replays_the_listed_trajectories(demo: tuple[Path, DemoResult]) -
         review(ReviewConfig(data=DataSelection(root), evaluation=out / "memory" / "manifest.json"))
 
 
-def test_demo_leads_with_its_trained_encoder_and_compares_it_with_pixels(
+def test_demo_leads_with_its_trained_encoder_and_compares_it_with_pixels_and_more(
     demo: tuple[Path, DemoResult],
 ) -> None:
     root, result = demo
@@ -125,6 +131,7 @@ def test_demo_leads_with_its_trained_encoder_and_compares_it_with_pixels(
     assert comparison is not None and comparison.table_path == root / "out" / "encoders" / "comparison.md"
     encoders = [r.encoder for r in comparison.results]
     assert encoders[0].startswith("trained:cnn4-64px-256d:") and encoders[1].startswith("pixels")
+    assert len(encoders) == 3 and encoders[2].startswith("open_clip:TinyViT-test:file-")  # pixels once
     # the headline: the demo's memory, tables and recordings are the trained encoder's
     assert result.encoder == f"trained:{root / 'data' / 'trained-encoder'}"
     assert all(e.encoder == encoders[0] for e in result.evaluations)
@@ -135,7 +142,7 @@ def test_demo_leads_with_its_trained_encoder_and_compares_it_with_pixels(
         band is None if manifest["calibration"]["successes"] < 10 else band["kind"] == "shift"
     )  # 10+ fit one
     assert (manifest["failure_frames"], manifest["pairing"]) == ("dense", "change")
-    assert comparison.table_path.read_text().count("| `") == 6  # two encoders × three scoring rules
+    assert comparison.table_path.read_text().count("| `") == 9  # three encoders × three scoring rules
     trained = json.loads((root / "data" / "trained-encoder" / "encoder.json").read_text())
     assert trained["training"]["recipe"]["split"] == "train"
     assert trained["training"]["recipe"]["data"] == str((root / "data" / "sim-id").resolve())
