@@ -112,7 +112,7 @@ def test_fusion_on_the_command_line(calibration_set: tuple[Path, Path, Path], tm
     data, memory, _ = calibration_set
     bad = CliRunner().invoke(app, ["calibrate", str(data), "--memory", str(memory), "--fusion", "mean"])
     assert bad.exit_code == 2
-    assert "unknown view fusion 'mean'; choose one of ['max', 'per-view']" in bad.output
+    assert "unknown view fusion 'mean'; choose one of ['max', 'per-view', 'per-modality']" in bad.output
     copy = _copy(memory, tmp_path / "memory")
     good = CliRunner().invoke(
         app,

@@ -80,7 +80,8 @@ FusionOption = Annotated[
         "--fusion",
         help=f"How the views meet the threshold, one of {', '.join(FUSIONS)}: max, the paper's, fires when any "
         "view reaches it, every view corrected by one band (of the max over views); per-view corrects each "
-        f"view by a band of its own calibration scores first (default {DEFAULT_FUSION}).",
+        f"view by a band of its own calibration scores first; per-modality one band for the cameras and one for the "
+        f"robot's signals (default {DEFAULT_FUSION}).",
     ),
 ]
 LabelsOption = Annotated[

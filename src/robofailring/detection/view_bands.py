@@ -9,11 +9,17 @@
   view that carries the failure (the hand camera): each view is judged against what is normal for it.
   It needs no failure runs, only the success runs calibration already replays. A view with fewer than
   `MIN_BAND_RUNS` scored calibration runs is corrected by the band of the max over views.
+- `per-modality`: the camera views share one band, fitted on their max, and the robot's signals (the view
+  `signals`) have their own. Signals whose normal runs score higher than the cameras' (their contrast is
+  larger on the calibration successes) then no longer raise the band the cameras are corrected by, which
+  under `max` hid failures only the cameras saw; the camera views keep judging each other as under `max`.
+  A modality with fewer than `MIN_BAND_RUNS` scored calibration runs is corrected by the band of the max
+  over views.
 
-Calibration with `per-view` is split conformal as with `max` (`robofailring.evaluation.calibration`):
+Calibration with `per-view` or `per-modality` is split conformal as with `max` (`robofailring.evaluation.calibration`):
 each calibration run's views are corrected by bands fitted on the other runs, its peak over frames of
 the max over views is its conformal score; the band of all runs, one per view, is stored with the
-threshold (`Band.views`).
+threshold (`Band.views`; under `per-modality` the cameras' band is the band itself and `signals` its one view).
 """
 
 from __future__ import annotations
@@ -27,15 +33,23 @@ import numpy as np
 from robofailring.detection.band import MIN_BAND_RUNS, NONE, Band, fit_band, leave_one_out
 from robofailring.detection.view_scores import ViewScores
 from robofailring.errors import SettingError
+from robofailring.memory.signal_memory import SIGNALS_VIEW
 
 MAX: Final[str] = "max"
 PER_VIEW: Final[str] = "per-view"
-FUSIONS: Final[tuple[str, ...]] = (MAX, PER_VIEW)
+PER_MODALITY: Final[str] = "per-modality"
+FUSIONS: Final[tuple[str, ...]] = (MAX, PER_VIEW, PER_MODALITY)
 DEFAULT_FUSION: Final[str] = MAX
+# what each fusion's bands are, as the calibration's summary and stored method say it (max: one band)
+BANDS_OF: Final[dict[str, str]] = {
+    MAX: "one band",
+    PER_VIEW: "a band per view",
+    PER_MODALITY: "a band per modality (the cameras' and the signals')",
+}
 
 
 def check_fusion(fusion: str) -> str:
-    """A view fusion (`max`, `per-view`); SettingError naming the choices otherwise."""
+    """A view fusion (`max`, `per-view`, `per-modality`); SettingError naming the choices otherwise."""
     if fusion not in FUSIONS:
         raise SettingError(f"unknown view fusion {fusion!r}; choose one of {list(FUSIONS)}")
     return fusion
@@ -77,3 +91,50 @@ def per_view_peaks(runs: Sequence[Mapping[str, np.ndarray]], kind: str) -> tuple
         own[view] = fit_band(kind, views)
     peaks = [peak(fused_raw(values)) if values else float("nan") for values in corrected]
     return peaks, replace(fit_band(kind, [fused[i] for i in scored]), views=own)
+
+
+def per_modality_peaks(
+    runs: Sequence[Mapping[str, np.ndarray]], kind: str
+) -> tuple[list[float], Band | None]:
+    """Each calibration run's conformal score under `per-modality` fusion with a band of `kind`, and the band
+    of all runs: the cameras' (fitted on the max over camera views), with the signals' as its view `signals`.
+    With `none`, or fewer than `MIN_BAND_RUNS` runs with a score, nothing is corrected, as with `max`."""
+    fused = [fused_raw(run) for run in runs]
+    scored = [i for i, values in enumerate(fused) if np.isfinite(values).any()]
+    if kind == NONE or len(scored) < MIN_BAND_RUNS:
+        return [peak(values) for values in fused], None
+    pooled = fit_band(kind, [fused[i] for i in scored])
+    pooled_others = dict(zip(scored, leave_one_out(kind, [fused[i] for i in scored]), strict=True))
+    modalities = [
+        {
+            name: values
+            for name, values in (("cameras", _cameras(run)), ("signals", run.get(SIGNALS_VIEW)))
+            if values is not None
+        }
+        for run in runs
+    ]
+    corrected: list[dict[str, np.ndarray]] = [{} for _ in runs]
+    own: dict[str, Band] = {}
+    for name in ("cameras", "signals"):
+        rows = [i for i in scored if name in modalities[i] and np.isfinite(modalities[i][name]).any()]
+        if not rows:
+            continue
+        series = [modalities[i][name] for i in rows]
+        if len(rows) < MIN_BAND_RUNS:
+            others = [pooled_others[i] for i in rows]
+            own[name] = pooled
+        else:
+            others = leave_one_out(kind, series)
+            own[name] = fit_band(kind, series)
+        for i, values, band in zip(rows, series, others, strict=True):
+            corrected[i][name] = band.correct(values)
+    peaks = [peak(fused_raw(values)) if values else float("nan") for values in corrected]
+    cameras = own.get("cameras", pooled)
+    views = {SIGNALS_VIEW: own["signals"]} if "signals" in own else {}
+    return peaks, replace(cameras, views=views)
+
+
+def _cameras(run: Mapping[str, np.ndarray]) -> np.ndarray | None:
+    """The max over a run's camera views (None: it has none)."""
+    cameras = {view: values for view, values in run.items() if view != SIGNALS_VIEW}
+    return fused_raw(cameras) if cameras else None

@@ -49,11 +49,14 @@ from robofailring.detection.rules import (
     rules_for,
 )
 from robofailring.detection.view_bands import (
+    BANDS_OF,
     DEFAULT_FUSION,
     MAX,
+    PER_VIEW,
     check_fusion,
     fused_raw,
     peak,
+    per_modality_peaks,
     per_view_peaks,
 )
 from robofailring.errors import DataError
@@ -183,8 +186,10 @@ def calibrate_rules(
         kind = band if rule is not PAPER else NONE  # δ stays the paper's
         if fusion == MAX:
             values, fitted = conformal_peaks([fused_raw(run) for run in runs], kind)
-        else:
+        elif fusion == PER_VIEW:
             values, fitted = per_view_peaks(runs, kind)
+        else:
+            values, fitted = per_modality_peaks(runs, kind)
         scored = [v for v in values if math.isfinite(v)]
         if at_best and not scored:
             continue
@@ -223,7 +228,7 @@ class CalibrateConfig:
     task: str | None = None  # task of episodes whose names do not say it
     views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
     band: str = DEFAULT_BAND  # time-indexed thresholds: none, shift (μ_t) or norm (μ_t, σ_t)
-    fusion: str = DEFAULT_FUSION  # max: one band for all views; per-view: each view its own band
+    fusion: str = DEFAULT_FUSION  # max: one band for all views; per-view: each view its own; per-modality: cameras, signals
     modality: str = BOTH  # what the thresholds judge: the cameras and signals, or one of them alone
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
@@ -249,7 +254,7 @@ class Calibration:
     fpr_spread: FprSpread | None = None  # the realised test FPR's range with these `successes` runs
     band: str = NONE  # the thresholds' time-indexed band (none: each threshold is one number)
     band_asked: str = NONE  # the band asked for (none is used with fewer than MIN_BAND_RUNS runs)
-    fusion: str = DEFAULT_FUSION  # per-view: each view corrected by its own band before the max
+    fusion: str = DEFAULT_FUSION  # per-view / per-modality: each view / modality corrected by its own band
 
     @property
     def delta(self) -> float | None:
@@ -283,7 +288,7 @@ class Calibration:
                 f"time-indexed band {self.band!r}: each threshold applies to the score corrected by the "
                 + ("mean" if self.band == "shift" else "mean and spread")
                 + " of these runs' scores at the same frame (a line over time on the raw score)"
-                + ("; each view by its own runs' scores (fusion per-view)" if self.fusion != MAX else "")
+                + (f"; {BANDS_OF[self.fusion]} (fusion {self.fusion})" if self.fusion != MAX else "")
             )
         for name, threshold in self.thresholds.items():
             rule = rule_named(name)
@@ -354,7 +359,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
             encoder=memory.encoder,
             rules={rule.name: _stored_rule(calibration) for rule, calibration in found.items()},
             method="split conformal, own episode left out"
-            + (", a band per view" if config.fusion != MAX else ""),
+            + (f", {BANDS_OF[config.fusion]}" if config.fusion != MAX else ""),
             target_fpr=config.target_fpr,
             successes=widest.successes,
             data=str(Path(config.data).resolve()),
