@@ -22,6 +22,7 @@ from robofailring.memory.signal_derived import NONE as NO_FEATURES
 from robofailring.memory.signal_layout import AUTO as SIGNALS_AUTO
 from robofailring.memory.signal_layout import NONE as SIGNALS_NONE
 from robofailring.memory.signal_layout import check_choice
+from robofailring.memory.signal_memory import DEFAULT_START_WEIGHT, START_WEIGHT
 from robofailring.memory.thinning import DEFAULT_STEP, check_step
 
 DEFAULT_ENCODER: Final[str] = "pixels"  # weight-free: what a memory is built with when no encoder is named
@@ -40,6 +41,8 @@ class MemoryRecipe:
     signals: str = SIGNALS_AUTO  # the robot's signals used beside the cameras: `auto`, `none` or names
     # features derived from them (robofailring.memory.signal_derived): `change`, `events`, both, or `none`
     signal_features: str = DEFAULT_FEATURES
+    # the start state's weight in the signal vectors (robofailring.memory.signal_memory): ½, or 0 to leave it out
+    signal_start_weight: float = DEFAULT_START_WEIGHT
 
     def __post_init__(self) -> None:  # a bad setting fails before any frame is read
         if not isinstance(self.encoder, str) or not self.encoder:
@@ -49,6 +52,10 @@ class MemoryRecipe:
             check_features(self.signal_features)
         except ValueError as error:
             raise SettingError(str(error)) from error
+        if not 0 <= self.signal_start_weight < float("inf"):
+            raise SettingError(
+                f"a signal start weight must be a number ≥ 0, got {self.signal_start_weight!r}"
+            )
         check_failure_frames(self.failure_frames)
         check_pairing(self.pairing)
         check_step(self.success_step)
@@ -94,6 +101,9 @@ class MemoryRecipe:
             signal_features=str(manifest.signals.get("features", NO_FEATURES))
             if manifest.signals
             else NO_FEATURES,
+            signal_start_weight=float(manifest.signals.get("start_weight", START_WEIGHT))
+            if manifest.signals
+            else DEFAULT_START_WEIGHT,
         )
 
 
