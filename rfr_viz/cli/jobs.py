@@ -16,6 +16,7 @@ from robofailring.cli.options import (
     DETECTOR_DEFAULTS,
     RECIPE_DEFAULTS,
     BandOption,
+    BandScopeOption,
     CacheOption,
     DataRootOption,
     DeviceOption,
@@ -44,7 +45,7 @@ from robofailring.cli.options import (
     vlm_config,
     warn_missing_references,
 )
-from robofailring.detection.band import DEFAULT_BAND
+from robofailring.detection.band import DEFAULT_BAND, DEFAULT_BAND_SCOPE
 from robofailring.detection.view_bands import DEFAULT_FUSION
 
 app = typer.Typer(add_completion=False)  # composed into the one `robofailring` command by rfr_viz.cli.app
@@ -86,6 +87,7 @@ def evaluate_cmd(
     modality: ModalityOption = DETECTOR_DEFAULTS.modality,
     band: BandOption = DEFAULT_BAND,
     fusion: FusionOption = DEFAULT_FUSION,
+    band_scope: BandScopeOption = DEFAULT_BAND_SCOPE,
     growth: Annotated[
         str | None,
         typer.Option(
@@ -138,6 +140,7 @@ def evaluate_cmd(
             deployment_successes=deployment_successes,
             band=band,
             fusion=fusion,
+            band_scope=band_scope,
             folds=FoldPlan.parse(folds) if folds is not None else None,
             ray=ray,
         ),

@@ -6,13 +6,23 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from robofailring.detection.band import MIN_BAND_RUNS, NONE, NORM, SHIFT, Band, fit_band, leave_one_out
+from robofailring.detection.band import (
+    MIN_BAND_RUNS,
+    NONE,
+    NORM,
+    SHIFT,
+    Band,
+    check_band_scope,
+    fit_band,
+    leave_one_out,
+)
 from robofailring.detection.conformal import auc
 from robofailring.detection.view_bands import (
     check_fusion,
     fused_raw,
     peak,
     per_modality_peaks,
+    per_task_peaks,
     per_view_peaks,
 )
 from robofailring.detection.view_scores import ViewScores
@@ -202,3 +212,37 @@ def test_per_modality_without_signals_is_the_max_and_too_few_runs_correct_nothin
     few = [_with_signals(rng, failure=False) for _ in range(MIN_BAND_RUNS - 1)]
     peaks, band = per_modality_peaks(few, SHIFT)
     assert band is None and peaks == [peak(fused_raw(r)) for r in few]
+
+
+def test_band_scope_task_fits_a_band_per_task_with_enough_runs_and_the_pooled_one_for_the_rest() -> None:
+    rng = np.random.default_rng(8)
+    runs = [_run(rng, failure=False) for _ in range(2 * MIN_BAND_RUNS + 3)]
+    for run in runs[:MIN_BAND_RUNS]:  # the first task's early frames score high on its successes
+        run["hand"][:3] += 0.2
+    tasks = ["early"] * MIN_BAND_RUNS + ["plain"] * MIN_BAND_RUNS + ["few"] * 3
+    pooled_peaks, pooled = per_view_peaks(runs, SHIFT)
+    peaks, band = per_task_peaks(per_view_peaks, runs, tasks, SHIFT)
+    assert band is not None and pooled is not None and set(band.tasks) == {"early", "plain"}
+    early_peaks, early = per_view_peaks(runs[:MIN_BAND_RUNS], SHIFT)
+    assert early is not None
+    np.testing.assert_allclose(peaks[:MIN_BAND_RUNS], early_peaks)  # corrected by their own task's others
+    np.testing.assert_allclose(peaks[-3:], pooled_peaks[-3:])  # too few runs: corrected as over all tasks
+    np.testing.assert_allclose(band.for_task("early").views["hand"].mean, early.views["hand"].mean)
+    assert band.for_task("early").views["hand"].mean[0] > band.views["hand"].mean[0] + 0.05
+    judged = band.for_task("few")  # a task without its own band, or none named: the pooled band
+    assert judged.tasks == {} and band.for_task(None).tasks == {}
+    np.testing.assert_allclose(judged.line(0.1, LENGTH, "hand"), pooled.line(0.1, LENGTH, "hand"))
+    read = Band.from_dict(band.to_dict(), where="test")
+    assert set(read.tasks) == {"early", "plain"} and "each view its own, 2 tasks their own" in band.label(
+        "γ", 0.1
+    )
+    np.testing.assert_allclose(
+        read.for_task("early").line(0.1, LENGTH, "hand"),
+        band.for_task("early").line(0.1, LENGTH, "hand"),
+        atol=1e-5,
+    )
+    with pytest.raises(MemoryFormatError, match="task 'early'"):
+        Band.from_dict({**band.to_dict(), "tasks": {"early": {"kind": "shift"}}}, where="test")
+    assert per_task_peaks(per_view_peaks, runs[:5], tasks[:5], SHIFT)[1] is None  # too few runs: no band
+    with pytest.raises(SettingError, match=r"unknown band scope 'run'; choose one of \['pooled', 'task'\]"):
+        check_band_scope("run")

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Annotated, Final
 import typer
 
 from robofailring.data.model import Skipped
-from robofailring.detection.band import BAND_KINDS, DEFAULT_BAND
+from robofailring.detection.band import BAND_KINDS, BAND_SCOPES, DEFAULT_BAND, DEFAULT_BAND_SCOPE
 from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
 from robofailring.detection.rules import RULES
 from robofailring.detection.stored import given_thresholds
@@ -72,6 +72,15 @@ BandOption = Annotated[
         help=f"Time-indexed thresholds, one of {', '.join(BAND_KINDS)}: the contrast and novelty scores are "
         "corrected by the calibration successes' mean (shift) or mean and spread (norm) at the same frame "
         f"index before their peak is calibrated; none: one threshold (default {DEFAULT_BAND}).",
+    ),
+]
+BandScopeOption = Annotated[
+    str,
+    typer.Option(
+        "--band-scope",
+        help=f"Which runs a band is fitted on, one of {', '.join(BAND_SCOPES)}: pooled, every task's calibration "
+        "runs together; task, each task with enough runs its own (the others the pooled band) "
+        f"(default {DEFAULT_BAND_SCOPE}).",
     ),
 ]
 FusionOption = Annotated[

@@ -17,6 +17,7 @@ from robofailring.cli.options import (
     DETECTOR_DEFAULTS,
     RECIPE_DEFAULTS,
     BandOption,
+    BandScopeOption,
     CacheOption,
     DataRootOption,
     DeltaOption,
@@ -53,7 +54,7 @@ from robofailring.cli.options import (
     vlm_config,
     warn_missing_references,
 )
-from robofailring.detection.band import DEFAULT_BAND
+from robofailring.detection.band import DEFAULT_BAND, DEFAULT_BAND_SCOPE
 from robofailring.detection.view_bands import DEFAULT_FUSION
 from robofailring.errors import SettingError
 
@@ -289,6 +290,7 @@ def calibrate_cmd(
     stride: StrideOption = 1,
     band: BandOption = DEFAULT_BAND,
     fusion: FusionOption = DEFAULT_FUSION,
+    band_scope: BandScopeOption = DEFAULT_BAND_SCOPE,
     modality: ModalityOption = DETECTOR_DEFAULTS.modality,
     labels: LabelsOption = None,
     task: TaskOption = None,
@@ -313,6 +315,7 @@ def calibrate_cmd(
             views=views,
             band=band,
             fusion=fusion,
+            band_scope=band_scope,
             modality=modality,
         )
     )

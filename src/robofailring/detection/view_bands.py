@@ -24,7 +24,7 @@ threshold (`Band.views`; under `per-modality` the cameras' band is the band itse
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
 from typing import Final
 
@@ -34,6 +34,10 @@ from robofailring.detection.band import MIN_BAND_RUNS, NONE, Band, fit_band, lea
 from robofailring.detection.view_scores import ViewScores
 from robofailring.errors import SettingError
 from robofailring.memory.signal_memory import SIGNALS_VIEW
+
+# a fusion's calibration: each run's conformal score and the band of all runs (None: no band), from the runs'
+# per-view scores and the band kind
+PeaksOf = Callable[[Sequence[Mapping[str, np.ndarray]], str], tuple[list[float], Band | None]]
 
 MAX: Final[str] = "max"
 PER_VIEW: Final[str] = "per-view"
@@ -138,3 +142,25 @@ def _cameras(run: Mapping[str, np.ndarray]) -> np.ndarray | None:
     """The max over a run's camera views (None: it has none)."""
     cameras = {view: values for view, values in run.items() if view != SIGNALS_VIEW}
     return fused_raw(cameras) if cameras else None
+
+
+def per_task_peaks(
+    fusion_peaks: PeaksOf, runs: Sequence[Mapping[str, np.ndarray]], tasks: Sequence[str], kind: str
+) -> tuple[list[float], Band | None]:
+    """`fusion_peaks` with band scope `task`: the runs of a task that has `MIN_BAND_RUNS` scored calibration
+    runs are corrected by bands fitted on that task's other runs alone and its band is kept in `Band.tasks`;
+    the other runs are corrected as over all tasks (the pooled band, which judges their tasks)."""
+    peaks, pooled = fusion_peaks(runs, kind)
+    if pooled is None:
+        return peaks, None
+    peaks = list(peaks)
+    own: dict[str, Band] = {}
+    for task in dict.fromkeys(tasks):
+        rows = [i for i, of in enumerate(tasks) if of == task]
+        task_peaks, band = fusion_peaks([runs[i] for i in rows], kind)
+        if band is None:  # too few of its runs: the pooled band
+            continue
+        for i, value in zip(rows, task_peaks, strict=True):
+            peaks[i] = value
+        own[task] = band
+    return peaks, replace(pooled, tasks=own)

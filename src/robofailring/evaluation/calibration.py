@@ -11,7 +11,7 @@ the band of the other runs, and its peak is the conformal score; the band of all
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -21,10 +21,14 @@ from robofailring.data.layouts import load_dataset
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.detection.band import (
     DEFAULT_BAND,
+    DEFAULT_BAND_SCOPE,
     MIN_BAND_RUNS,
     NONE,
+    POOLED,
+    TASK,
     Band,
     check_band,
+    check_band_scope,
     fit_band,
     leave_one_out,
 )
@@ -52,11 +56,14 @@ from robofailring.detection.view_bands import (
     BANDS_OF,
     DEFAULT_FUSION,
     MAX,
+    PER_MODALITY,
     PER_VIEW,
+    PeaksOf,
     check_fusion,
     fused_raw,
     peak,
     per_modality_peaks,
+    per_task_peaks,
     per_view_peaks,
 )
 from robofailring.errors import DataError
@@ -109,13 +116,14 @@ def success_view_scores(
     stride: int = 1,
     too_short: list[str] | None = None,
     short_views: list[Skipped] | None = None,
+    tasks: list[str] | None = None,
 ) -> dict[ScoringRule, list[dict[str, np.ndarray]]]:
     """Per rule, each success run's per-frame score per view (uncorrected; NaN where unscored), its
     episode left out of both memories.
 
     `stride` scores every N-th frame, as the runs the threshold will judge are scored; the keys of
     runs with no view of 2+ frames (nothing to score) are appended to `too_short`, the views of fewer
-    than 2 frames of the runs scored to `short_views`."""
+    than 2 frames of the runs scored to `short_views`, and the task of each run scored to `tasks`."""
     scores: dict[ScoringRule, list[dict[str, np.ndarray]]] = {rule: [] for rule in rules}
     for trajectory in successes:
         try:
@@ -126,6 +134,8 @@ def success_view_scores(
         else:
             for rule in rules:
                 scores[rule].append(trace.scores_of(rule))
+            if tasks is not None:
+                tasks.append(trajectory.task)
             if short_views is not None:
                 short_views += trace.short_views
         if progress is not None:
@@ -158,18 +168,22 @@ def calibrate_rules(
     short_views: list[Skipped] | None = None,
     band: str = DEFAULT_BAND,
     fusion: str = DEFAULT_FUSION,
+    band_scope: str = DEFAULT_BAND_SCOPE,
     at_best: bool = False,
 ) -> dict[ScoringRule, RuleCalibration]:
     """The conformal threshold of every rule (default: all the memory supports) at level `target_fpr`,
     on the `band` (`none`, `shift`, `norm`) fitted on the same runs, its views fused by `fusion`
-    (`robofailring.detection.view_bands`); the paper rule keeps one δ, as in the paper (§3.3).
+    (`robofailring.detection.view_bands`), one band over all tasks or, with `band_scope` `task`, one per task
+    that has enough runs (`robofailring.detection.band`); the paper rule keeps one δ, as in the paper (§3.3).
 
     Too few runs for `target_fpr` are a DataError; with `at_best` (an evaluation on small data) a rule
     is calibrated at the smallest level its runs allow instead (its `target_fpr` says which: no
     guarantee at the asked one), and a rule none of whose runs could be scored is left out."""
     check_band(band)
     check_fusion(fusion)
+    check_band_scope(band_scope)
     chosen = list(rules) if rules is not None else available_rules(detector)
+    tasks: list[str] = []
     scores = success_view_scores(
         detector,
         successes,
@@ -178,18 +192,18 @@ def calibrate_rules(
         stride=stride,
         too_short=too_short,
         short_views=short_views,
+        tasks=tasks,
     )
+    fusion_peaks = _FUSION_PEAKS[fusion]
     calibrations = {}
     for rule, runs in scores.items():
         if not runs:
             raise DataError(f"none of the {len(successes)} success trajectories has a view of 2+ frames")
         kind = band if rule is not PAPER else NONE  # δ stays the paper's
-        if fusion == MAX:
-            values, fitted = conformal_peaks([fused_raw(run) for run in runs], kind)
-        elif fusion == PER_VIEW:
-            values, fitted = per_view_peaks(runs, kind)
+        if band_scope == TASK:
+            values, fitted = per_task_peaks(fusion_peaks, runs, tasks, kind)
         else:
-            values, fitted = per_modality_peaks(runs, kind)
+            values, fitted = fusion_peaks(runs, kind)
         scored = [v for v in values if math.isfinite(v)]
         if at_best and not scored:
             continue
@@ -214,6 +228,17 @@ def calibrate_rules(
     return calibrations
 
 
+def _max_peaks(runs: Sequence[Mapping[str, np.ndarray]], kind: str) -> tuple[list[float], Band | None]:
+    return conformal_peaks([fused_raw(run) for run in runs], kind)
+
+
+_FUSION_PEAKS: dict[str, PeaksOf] = {
+    MAX: _max_peaks,
+    PER_VIEW: per_view_peaks,
+    PER_MODALITY: per_modality_peaks,
+}
+
+
 @dataclass(frozen=True)
 class CalibrateConfig:
     data: Path  # dataset holding success trajectories to calibrate on
@@ -229,6 +254,9 @@ class CalibrateConfig:
     views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
     band: str = DEFAULT_BAND  # time-indexed thresholds: none, shift (μ_t) or norm (μ_t, σ_t)
     fusion: str = DEFAULT_FUSION  # max: one band for all views; per-view: each view its own; per-modality: cameras, signals
+    band_scope: str = (
+        DEFAULT_BAND_SCOPE  # pooled: one band over all tasks; task: a band per task with enough runs
+    )
     modality: str = BOTH  # what the thresholds judge: the cameras and signals, or one of them alone
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
@@ -238,6 +266,7 @@ class CalibrateConfig:
         check_target_fpr(self.target_fpr)
         check_band(self.band)
         check_fusion(self.fusion)
+        check_band_scope(self.band_scope)
 
 
 @dataclass(frozen=True)
@@ -351,6 +380,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
             short_views=short_views,
             band=config.band,
             fusion=config.fusion,
+            band_scope=config.band_scope,
         )
     widest = max(found.values(), key=lambda calibration: calibration.successes)
     spread = widest.spread  # computed once: it searches for the runs a tighter bound needs
@@ -359,7 +389,8 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
             encoder=memory.encoder,
             rules={rule.name: _stored_rule(calibration) for rule, calibration in found.items()},
             method="split conformal, own episode left out"
-            + (f", {BANDS_OF[config.fusion]}" if config.fusion != MAX else ""),
+            + (f", {BANDS_OF[config.fusion]}" if config.fusion != MAX else "")
+            + (", a band per task with enough runs" if config.band_scope != POOLED else ""),
             target_fpr=config.target_fpr,
             successes=widest.successes,
             data=str(Path(config.data).resolve()),

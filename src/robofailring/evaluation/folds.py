@@ -220,6 +220,7 @@ def cross_validate(
                     stride=config.stride,
                     band=config.band,
                     fusion=config.fusion,
+                    band_scope=config.band_scope,
                     at_best=True,
                 )
                 if successes

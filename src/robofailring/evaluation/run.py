@@ -274,6 +274,7 @@ def _thresholds(
             stride=config.stride,
             band=config.band,
             fusion=config.fusion,
+            band_scope=config.band_scope,
             at_best=True,
         )
     if not found:

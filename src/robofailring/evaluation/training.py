@@ -13,7 +13,7 @@ from robofailring.data.layouts import Dataset, load_dataset
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.data.splits import split_of
 from robofailring.data.vocabulary import read_vocabulary
-from robofailring.detection.band import DEFAULT_BAND, check_band
+from robofailring.detection.band import DEFAULT_BAND, DEFAULT_BAND_SCOPE, check_band, check_band_scope
 from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig, check_stride
 from robofailring.detection.conformal import check_target_fpr
 from robofailring.detection.rules import PAPER
@@ -83,7 +83,10 @@ class EvaluateConfig:
     failures_per_task: int | None = None  # the memory built here holds N training failures per task
     # (`labelled_failures`; 0: success runs only, judged by the novelty rule); None: all of them
     band: str = DEFAULT_BAND  # time-indexed thresholds when calibrating here: none, shift or norm
-    fusion: str = DEFAULT_FUSION  # views when calibrating here: max (one band) or per-view (a band each)
+    fusion: str = DEFAULT_FUSION  # views when calibrating here: max (one band), per-view or per-modality
+    band_scope: str = (
+        DEFAULT_BAND_SCOPE  # pooled: one band over all tasks; task: a band per task with enough runs
+    )
     folds: FoldPlan | None = None  # also cross-validate over every labelled run of `data` (evaluation.folds)
     ray: str | None = None  # a Ray cluster's address: frames decoded and encoded there (docs/ray.md)
 
@@ -96,6 +99,7 @@ class EvaluateConfig:
             )
         check_band(self.band)
         check_fusion(self.fusion)
+        check_band_scope(self.band_scope)
         if self.target_fpr is not None:
             check_target_fpr(self.target_fpr)
         if self.deployment_successes < 0:
