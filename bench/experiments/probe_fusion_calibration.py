@@ -10,7 +10,7 @@ A strategy is channels × band scope × band kind × normalisation:
   views' max and `signals`, each its own band), `view` (each view its own band: the library's `per-view`),
   `cameras` / `signals` (one modality alone);
 - scope: `pooled` (one band over all tasks), `task` (a band per task where it has ≥ MIN_TASK runs, else the
-  pooled one);
+  pooled one), `task-signals` (per task for the signals only);
 - kind: `shift` (μ_t) or `norm` (μ_t, σ_t);
 - normalisation of each channel's corrected score before the max: `none`, or `gamma` (divided by that
   channel's own conformal threshold among the other calibration runs: each channel is then as loud at its own
@@ -102,7 +102,7 @@ def corrected(strategy: Strategy, cal: list[dict[str, Any]], test: list[dict[str
         for i, band in zip(rows, pooled_loo, strict=True):
             cal_out[i][name] = band.correct(cal_ch[i][name]).astype(np.float64)
         own = {}
-        if strategy.scope == "task":
+        if strategy.scope == "task" or (strategy.scope == "task-signals" and name == "signals"):
             for task in sorted({cal[i]["task"] for i in rows}):
                 mine = [i for i in rows if cal[i]["task"] == task]
                 if len(mine) < MIN_TASK:
@@ -187,6 +187,7 @@ STRATEGIES = [
     Strategy("view", "pooled", "shift", "offset"),
     Strategy("view", "task", "shift", "offset"),
     Strategy("modality", "task", "norm"),
+    Strategy("modality", "task-signals"),
     Strategy("cameras", "task"),
     Strategy("signals", "task"),
 ]

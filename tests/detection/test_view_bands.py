@@ -246,3 +246,38 @@ def test_band_scope_task_fits_a_band_per_task_with_enough_runs_and_the_pooled_on
     assert per_task_peaks(per_view_peaks, runs[:5], tasks[:5], SHIFT)[1] is None  # too few runs: no band
     with pytest.raises(SettingError, match=r"unknown band scope 'run'; choose one of \['pooled', 'task'\]"):
         check_band_scope("run")
+
+
+def test_per_modality_fits_the_signals_a_band_per_task_with_enough_runs() -> None:
+    rng = np.random.default_rng(9)
+    runs = [_with_signals(rng, failure=False) for _ in range(2 * MIN_BAND_RUNS + 2)]
+    for run in runs[:MIN_BAND_RUNS]:  # the first task's signals score high early on its successes
+        run[SIGNALS_VIEW][:3] += 0.3
+    tasks = ["early"] * MIN_BAND_RUNS + ["plain"] * MIN_BAND_RUNS + ["few"] * 2
+    peaks, band = per_modality_peaks(runs, SHIFT, tasks)
+    assert band is not None and band.tasks == {}  # the cameras' band is one over all tasks
+    signals = band.views[SIGNALS_VIEW]
+    assert set(signals.tasks) == {"early", "plain"}
+    early = [r[SIGNALS_VIEW] for r in runs[:MIN_BAND_RUNS]]
+    np.testing.assert_allclose(signals.tasks["early"].mean, fit_band(SHIFT, early).mean)
+    cameras = [fused_raw({v: r[v] for v in ("hand", "base")}) for r in runs]
+    camera_others = leave_one_out(SHIFT, cameras)[2]
+    expected = max(
+        peak(camera_others.correct(cameras[2])), peak(leave_one_out(SHIFT, early)[2].correct(early[2]))
+    )
+    assert peaks[2] == pytest.approx(expected, abs=1e-6)  # its signals corrected by its task's other runs
+    judged = band.for_task("early")  # a run is judged by its task's signal band and the cameras' band
+    assert judged.views[SIGNALS_VIEW].tasks == {} and judged.mean is band.mean
+    np.testing.assert_allclose(
+        judged.line(0.1, LENGTH, SIGNALS_VIEW), signals.tasks["early"].line(0.1, LENGTH)
+    )
+    np.testing.assert_allclose(
+        band.for_task("few").line(0.1, LENGTH, SIGNALS_VIEW), signals.line(0.1, LENGTH)
+    )
+    assert band.for_task("few").views[SIGNALS_VIEW].tasks == {}
+    read = Band.from_dict(band.to_dict(), where="test")
+    np.testing.assert_allclose(
+        read.for_task("early").line(0.1, LENGTH, SIGNALS_VIEW),
+        judged.line(0.1, LENGTH, SIGNALS_VIEW),
+        atol=1e-5,
+    )

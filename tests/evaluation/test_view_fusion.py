@@ -141,7 +141,7 @@ def test_a_band_per_task_and_modality_is_stored_and_judges_the_trace_and_the_liv
     )
     stored = json.loads((calibrated / "manifest.json").read_text(encoding="utf-8"))["calibration"]
     assert stored["method"] == (
-        "split conformal, own episode left out, a band per modality (the cameras' and the signals'), "
+        "split conformal, own episode left out, a band per modality (the cameras', and the signals' per task), "
         "a band per task with enough runs"
     )
     assert set(stored["rules"]["contrast"]["band"]["tasks"]) == {"pick_cube"}  # its 12 runs are enough

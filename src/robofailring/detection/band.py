@@ -17,8 +17,9 @@ fewer than `MIN_BAND_RUNS` calibration runs no band is fitted (calibration says 
 
 Scope: by default (`pooled`) one band is fitted over every task's calibration runs. With `task`, a task with
 at least `MIN_BAND_RUNS` calibration runs has a band of its own (`Band.tasks`), fitted on its runs alone, so
-one task's early contrast does not shift another's; the other tasks keep the pooled band. A run is judged by
-its task's band (`Band.for_task`).
+one task's early contrast does not shift another's; the other tasks keep the pooled band. A view's band may
+have tasks of its own too (the robot's signals under `per-modality` fusion,
+`robofailring.detection.view_bands`). A run is judged by its task's bands (`Band.for_task`).
 """
 
 from __future__ import annotations
@@ -75,9 +76,14 @@ class Band:
     tasks: dict[str, Band] = field(default_factory=dict)
 
     def for_task(self, task: str | None) -> Band:
-        """The band that judges a run of `task`: its own, else this one (without the per-task bands)."""
+        """The band that judges a run of `task`: its own, else this one, each of its views' likewise (no
+        per-task bands left in it)."""
         own = self.tasks.get(task) if task is not None else None
-        return own if own is not None else (replace(self, tasks={}) if self.tasks else self)
+        base = own if own is not None else self
+        views = {view: band.for_task(task) for view, band in base.views.items()}
+        if not base.tasks and all(views[view] is band for view, band in base.views.items()):
+            return base
+        return replace(base, tasks={}, views=views)
 
     def of(self, view: str | None) -> Band:
         """The band that corrects `view`'s score: its own, else this one."""

@@ -13,6 +13,9 @@
   `signals`) have their own. Signals whose normal runs score higher than the cameras' (their contrast is
   larger on the calibration successes) then no longer raise the band the cameras are corrected by, which
   under `max` hid failures only the cameras saw; the camera views keep judging each other as under `max`.
+  The signals' band is fitted per task where the task has `MIN_BAND_RUNS` calibration runs (the signal memory
+  is built per task: its normalisation, layout and derived features are the task's own, and so is when its
+  normal runs score high), the cameras' over all tasks (one encoder sees every task).
   A modality with fewer than `MIN_BAND_RUNS` scored calibration runs is corrected by the band of the max
   over views.
 
@@ -36,8 +39,8 @@ from robofailring.errors import SettingError
 from robofailring.memory.signal_memory import SIGNALS_VIEW
 
 # a fusion's calibration: each run's conformal score and the band of all runs (None: no band), from the runs'
-# per-view scores and the band kind
-PeaksOf = Callable[[Sequence[Mapping[str, np.ndarray]], str], tuple[list[float], Band | None]]
+# per-view scores, the band kind and each run's task
+PeaksOf = Callable[[Sequence[Mapping[str, np.ndarray]], str, Sequence[str]], tuple[list[float], Band | None]]
 
 MAX: Final[str] = "max"
 PER_VIEW: Final[str] = "per-view"
@@ -48,7 +51,7 @@ DEFAULT_FUSION: Final[str] = MAX
 BANDS_OF: Final[dict[str, str]] = {
     MAX: "one band",
     PER_VIEW: "a band per view",
-    PER_MODALITY: "a band per modality (the cameras' and the signals')",
+    PER_MODALITY: "a band per modality (the cameras', and the signals' per task)",
 }
 
 
@@ -72,10 +75,13 @@ def peak(values: np.ndarray) -> float:
     return float(finite.max()) if finite.size else float("nan")
 
 
-def per_view_peaks(runs: Sequence[Mapping[str, np.ndarray]], kind: str) -> tuple[list[float], Band | None]:
+def per_view_peaks(
+    runs: Sequence[Mapping[str, np.ndarray]], kind: str, tasks: Sequence[str] = ()
+) -> tuple[list[float], Band | None]:
     """Each calibration run's conformal score under `per-view` fusion with a band of `kind`, and the band of
-    all runs (one per view). With `none`, or fewer than `MIN_BAND_RUNS` runs with a score, nothing is
-    corrected: the peaks of the max over views and no band, as with `max`. A run with nothing scored gives NaN."""
+    all runs (one per view; `tasks` is not used). With `none`, or fewer than `MIN_BAND_RUNS` runs with a score,
+    nothing is corrected: the peaks of the max over views and no band, as with `max`. A run with nothing scored
+    gives NaN."""
     fused = [fused_raw(run) for run in runs]
     scored = [i for i, values in enumerate(fused) if np.isfinite(values).any()]
     if kind == NONE or len(scored) < MIN_BAND_RUNS:
@@ -98,11 +104,12 @@ def per_view_peaks(runs: Sequence[Mapping[str, np.ndarray]], kind: str) -> tuple
 
 
 def per_modality_peaks(
-    runs: Sequence[Mapping[str, np.ndarray]], kind: str
+    runs: Sequence[Mapping[str, np.ndarray]], kind: str, tasks: Sequence[str] = ()
 ) -> tuple[list[float], Band | None]:
     """Each calibration run's conformal score under `per-modality` fusion with a band of `kind`, and the band
-    of all runs: the cameras' (fitted on the max over camera views), with the signals' as its view `signals`.
-    With `none`, or fewer than `MIN_BAND_RUNS` runs with a score, nothing is corrected, as with `max`."""
+    of all runs: the cameras' (fitted on the max over camera views), with the signals' as its view `signals`,
+    which has a band per task (`tasks`: each run's) where the task has `MIN_BAND_RUNS` scored runs. With
+    `none`, or fewer than `MIN_BAND_RUNS` runs with a score, nothing is corrected, as with `max`."""
     fused = [fused_raw(run) for run in runs]
     scored = [i for i, values in enumerate(fused) if np.isfinite(values).any()]
     if kind == NONE or len(scored) < MIN_BAND_RUNS:
@@ -130,12 +137,31 @@ def per_modality_peaks(
         else:
             others = leave_one_out(kind, series)
             own[name] = fit_band(kind, series)
+        if name == "signals" and tasks:  # the signal memory is per task (its normalisation, its layout)
+            others, own[name] = _by_task(kind, rows, series, [tasks[i] for i in rows], others, own[name])
         for i, values, band in zip(rows, series, others, strict=True):
             corrected[i][name] = band.correct(values)
     peaks = [peak(fused_raw(values)) if values else float("nan") for values in corrected]
     cameras = own.get("cameras", pooled)
     views = {SIGNALS_VIEW: own["signals"]} if "signals" in own else {}
     return peaks, replace(cameras, views=views)
+
+
+def _by_task(
+    kind: str, rows: list[int], series: list[np.ndarray], tasks: list[str], others: list[Band], pooled: Band
+) -> tuple[list[Band], Band]:
+    """`others` (each run's band fitted without it) and `pooled` with a band per task that has `MIN_BAND_RUNS`
+    runs among `series`: those runs' bands fitted on their task's other runs, the task's kept in `tasks`."""
+    others = list(others)
+    own: dict[str, Band] = {}
+    for task in dict.fromkeys(tasks):
+        mine = [k for k, of in enumerate(tasks) if of == task]
+        if len(mine) < MIN_BAND_RUNS:
+            continue
+        for k, band in zip(mine, leave_one_out(kind, [series[k] for k in mine]), strict=True):
+            others[k] = band
+        own[task] = fit_band(kind, [series[k] for k in mine])
+    return others, replace(pooled, tasks=own) if own else pooled
 
 
 def _cameras(run: Mapping[str, np.ndarray]) -> np.ndarray | None:
@@ -150,14 +176,14 @@ def per_task_peaks(
     """`fusion_peaks` with band scope `task`: the runs of a task that has `MIN_BAND_RUNS` scored calibration
     runs are corrected by bands fitted on that task's other runs alone and its band is kept in `Band.tasks`;
     the other runs are corrected as over all tasks (the pooled band, which judges their tasks)."""
-    peaks, pooled = fusion_peaks(runs, kind)
+    peaks, pooled = fusion_peaks(runs, kind, tasks)
     if pooled is None:
         return peaks, None
     peaks = list(peaks)
     own: dict[str, Band] = {}
     for task in dict.fromkeys(tasks):
         rows = [i for i, of in enumerate(tasks) if of == task]
-        task_peaks, band = fusion_peaks([runs[i] for i in rows], kind)
+        task_peaks, band = fusion_peaks([runs[i] for i in rows], kind, ())
         if band is None:  # too few of its runs: the pooled band
             continue
         for i, value in zip(rows, task_peaks, strict=True):

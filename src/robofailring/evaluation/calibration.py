@@ -203,7 +203,7 @@ def calibrate_rules(
         if band_scope == TASK:
             values, fitted = per_task_peaks(fusion_peaks, runs, tasks, kind)
         else:
-            values, fitted = fusion_peaks(runs, kind)
+            values, fitted = fusion_peaks(runs, kind, tasks)
         scored = [v for v in values if math.isfinite(v)]
         if at_best and not scored:
             continue
@@ -228,7 +228,9 @@ def calibrate_rules(
     return calibrations
 
 
-def _max_peaks(runs: Sequence[Mapping[str, np.ndarray]], kind: str) -> tuple[list[float], Band | None]:
+def _max_peaks(
+    runs: Sequence[Mapping[str, np.ndarray]], kind: str, tasks: Sequence[str] = ()
+) -> tuple[list[float], Band | None]:
     return conformal_peaks([fused_raw(run) for run in runs], kind)
 
 
