@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from bench._timing import print_machine
 from robofailring.detection.band import fit_band, leave_one_out
 from robofailring.detection.conformal import conformal_threshold
 
@@ -198,6 +199,7 @@ def main() -> None:
     parser.add_argument("dump", type=Path)
     parser.add_argument("--only", nargs="*", default=None)
     args = parser.parse_args()
+    print_machine()
     runs = load(args.dump)
     cells = []
     for half in ("id", "swapped"):

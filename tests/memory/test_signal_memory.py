@@ -152,8 +152,8 @@ def test_a_run_without_the_tasks_signals_is_listed_and_the_memory_grows_with_new
 def test_the_start_state_weight_is_a_recipe_setting_kept_with_the_memory(
     dataset: Path, encoder: CachedEncoder, tmp_path: Path
 ) -> None:
-    half = _build(dataset, encoder, signal_features="none")
-    none = _build(dataset, encoder, signal_features="none", signal_start_weight=0.0)
+    half = _build(dataset, encoder, signal_features="none", signal_start_weight=0.5)
+    none = _build(dataset, encoder, signal_features="none")  # the default: the start state left out
     assert half.signals is not None and none.signals is not None
     state = 1  # the gripper's width: [w·z_0 ‖ z_t − z_0 ‖ …]
     kept, dropped = half.signals.task("pick_cube"), none.signals.task("pick_cube")

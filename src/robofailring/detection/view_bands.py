@@ -1,6 +1,6 @@
 """How the views' scores meet one threshold: the fusion a rule is calibrated and judged with.
 
-- `max` (the default, the paper's eq. 7): a view fires when its score reaches the threshold; with a
+- `max` (the paper's eq. 7): a view fires when its score reaches the threshold; with a
   time-indexed band (`robofailring.detection.band`) one band, fitted on the calibration runs' max over
   views, corrects every view.
 - `per-view`: each view's score is corrected by a band fitted on that view's own calibration scores
@@ -9,7 +9,7 @@
   view that carries the failure (the hand camera): each view is judged against what is normal for it.
   It needs no failure runs, only the success runs calibration already replays. A view with fewer than
   `MIN_BAND_RUNS` scored calibration runs is corrected by the band of the max over views.
-- `per-modality`: the camera views share one band, fitted on their max, and the robot's signals (the view
+- `per-modality` (the default): the camera views share one band, fitted on their max, and the robot's signals (the view
   `signals`) have their own. Signals whose normal runs score higher than the cameras' (their contrast is
   larger on the calibration successes) then no longer raise the band the cameras are corrected by, which
   under `max` hid failures only the cameras saw; the camera views keep judging each other as under `max`.
@@ -17,7 +17,7 @@
   is built per task: its normalisation, layout and derived features are the task's own, and so is when its
   normal runs score high), the cameras' over all tasks (one encoder sees every task).
   A modality with fewer than `MIN_BAND_RUNS` scored calibration runs is corrected by the band of the max
-  over views.
+  over views; without signals it is `max`.
 
 Calibration with `per-view` or `per-modality` is split conformal as with `max` (`robofailring.evaluation.calibration`):
 each calibration run's views are corrected by bands fitted on the other runs, its peak over frames of
@@ -46,7 +46,7 @@ MAX: Final[str] = "max"
 PER_VIEW: Final[str] = "per-view"
 PER_MODALITY: Final[str] = "per-modality"
 FUSIONS: Final[tuple[str, ...]] = (MAX, PER_VIEW, PER_MODALITY)
-DEFAULT_FUSION: Final[str] = MAX
+DEFAULT_FUSION: Final[str] = PER_MODALITY  # the benchmarks' best (docs/signals.md, "Measured")
 # what each fusion's bands are, as the calibration's summary and stored method say it (max: one band)
 BANDS_OF: Final[dict[str, str]] = {
     MAX: "one band",
@@ -190,3 +190,30 @@ def per_task_peaks(
             peaks[i] = value
         own[task] = band
     return peaks, replace(pooled, tasks=own)
+
+
+def conformal_peaks(runs: Sequence[np.ndarray], band: str) -> tuple[list[float], Band | None]:
+    """Each run's conformal score (its peak; with a band, the peak of its score corrected by the band of
+    the other runs) and the band of all of them (None for `none`, and with fewer than `MIN_BAND_RUNS`
+    runs). A run with nothing scored (the only success run of its task: nothing to contrast it with)
+    gives NaN."""
+    finite = [run for run in runs if np.isfinite(run).any()]
+    if band == NONE or len(finite) < MIN_BAND_RUNS:
+        return [peak(run) for run in runs], None
+    others = iter(leave_one_out(band, finite))
+    peaks = [peak(next(others).correct(run)) if np.isfinite(run).any() else float("nan") for run in runs]
+    return peaks, fit_band(band, finite)
+
+
+def max_peaks(
+    runs: Sequence[Mapping[str, np.ndarray]], kind: str, tasks: Sequence[str] = ()
+) -> tuple[list[float], Band | None]:
+    """`conformal_peaks` of the max over views of each run (`max` fusion; `tasks` is not used)."""
+    return conformal_peaks([fused_raw(run) for run in runs], kind)
+
+
+FUSION_PEAKS: Final[dict[str, PeaksOf]] = {
+    MAX: max_peaks,
+    PER_VIEW: per_view_peaks,
+    PER_MODALITY: per_modality_peaks,
+}

@@ -11,7 +11,7 @@ the band of the other runs, and its peak is the conformal score; the band of all
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -29,8 +29,6 @@ from robofailring.detection.band import (
     Band,
     check_band,
     check_band_scope,
-    fit_band,
-    leave_one_out,
 )
 from robofailring.detection.config import BOTH, check_k, check_modality, check_stride
 from robofailring.detection.conformal import (
@@ -55,16 +53,11 @@ from robofailring.detection.rules import (
 from robofailring.detection.view_bands import (
     BANDS_OF,
     DEFAULT_FUSION,
+    FUSION_PEAKS,
     MAX,
-    PER_MODALITY,
-    PER_VIEW,
-    PeaksOf,
     check_fusion,
     fused_raw,
-    peak,
-    per_modality_peaks,
     per_task_peaks,
-    per_view_peaks,
 )
 from robofailring.errors import DataError
 from robofailring.memory.manifest import StoredCalibration, StoredRule
@@ -143,19 +136,6 @@ def success_view_scores(
     return scores
 
 
-def conformal_peaks(runs: Sequence[np.ndarray], band: str) -> tuple[list[float], Band | None]:
-    """Each run's conformal score (its peak; with a band, the peak of its score corrected by the band of
-    the other runs) and the band of all of them (None for `none`, and with fewer than `MIN_BAND_RUNS`
-    runs). A run with nothing scored (the only success run of its task: nothing to contrast it with)
-    gives NaN."""
-    finite = [run for run in runs if np.isfinite(run).any()]
-    if band == NONE or len(finite) < MIN_BAND_RUNS:
-        return [peak(run) for run in runs], None
-    others = iter(leave_one_out(band, finite))
-    peaks = [peak(next(others).correct(run)) if np.isfinite(run).any() else float("nan") for run in runs]
-    return peaks, fit_band(band, finite)
-
-
 def calibrate_rules(
     detector: FailureDetector,
     successes: Sequence[Trajectory],
@@ -194,7 +174,7 @@ def calibrate_rules(
         short_views=short_views,
         tasks=tasks,
     )
-    fusion_peaks = _FUSION_PEAKS[fusion]
+    fusion_peaks = FUSION_PEAKS[fusion]
     calibrations = {}
     for rule, runs in scores.items():
         if not runs:
@@ -226,19 +206,6 @@ def calibrate_rules(
             band=fitted,
         )
     return calibrations
-
-
-def _max_peaks(
-    runs: Sequence[Mapping[str, np.ndarray]], kind: str, tasks: Sequence[str] = ()
-) -> tuple[list[float], Band | None]:
-    return conformal_peaks([fused_raw(run) for run in runs], kind)
-
-
-_FUSION_PEAKS: dict[str, PeaksOf] = {
-    MAX: _max_peaks,
-    PER_VIEW: per_view_peaks,
-    PER_MODALITY: per_modality_peaks,
-}
 
 
 @dataclass(frozen=True)

@@ -6,8 +6,9 @@ Per task, each frame t of a run becomes one vector from its raw features f_t = [
 `robofailring.memory.signal_derived`, the state is followed by them), z-scored by the task's own success
 runs (all its runs where it has none) to z_t, then paired as the memory's frames are paired:
 `[w·zs_0 ‖ zs_t − zs_0 ‖ za_t ‖ za_{t−2} ‖ za_{t−4} ‖ z_time_t]` (the start state weighted by w, the
-change since then, a short window of commanded actions, the moment; w is the memory's `start_weight`,
-½ as the `change` pairing weighs the first frame, or 0 where where a run starts says nothing). Failure runs give one entry per frame from
+change since then, a short window of commanded actions, the moment; w is the memory's `start_weight`: 0 by
+default, since where a run starts varies with where things were placed and says nothing of how it goes; ½,
+as the `change` pairing weighs the first frame, in memories from before it was a setting). Failure runs give one entry per frame from
 their onset on (from frame 1 when unknown), success runs one per frame, each set in its own exact
 Faiss index per task. A query's similarity to an entry is exp(−d²/n) (d its Euclidean distance, n the
 vector's length), in (0, 1]; S⁻ is the nearest failure's, S⁺ the nearest success's, scored by the
@@ -37,10 +38,8 @@ from robofailring.memory.signal_layout import (
 )
 
 SIGNALS_VIEW: Final[str] = "signals"  # the modality's name among the views a trace fuses
-START_WEIGHT: Final[float] = 0.5  # the start state's weight, as the `change` pairing weighs the first frame …
-DEFAULT_START_WEIGHT: Final[float] = (
-    START_WEIGHT  # … what a new memory is built with (a memory from before: ½)
-)
+START_WEIGHT: Final[float] = 0.5  # the start state's weight in a memory from before it was a setting …
+DEFAULT_START_WEIGHT: Final[float] = 0.0  # … and in a new one (docs/signals.md, "Measured")
 MIN_SCALE: Final[float] = 1e-3  # a feature's spread floor (a value constant over the successes)
 SIGNALS_FILE: Final[str] = "signals.npz"
 
