@@ -20,8 +20,8 @@ from robofailring.detection.band import (
     leave_one_out,
 )
 from robofailring.detection.conformal import conformal_threshold
+from robofailring.detection.view_bands import conformal_peaks
 from robofailring.errors import MemoryFormatError, SettingError
-from robofailring.evaluation.calibration import conformal_peaks
 
 LENGTH = 30
 # success runs score high and noisily over the first frames (every run starts alike), then low and calm

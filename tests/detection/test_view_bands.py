@@ -1,15 +1,33 @@
-"""`per-view` fusion: each view corrected by a band of its own calibration scores before the max."""
+"""`per-view` fusion: each view corrected by a band of its own calibration scores before the max;
+`per-modality`: the camera views by one band of their max, the robot's signals by their own."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from robofailring.detection.band import MIN_BAND_RUNS, NONE, NORM, SHIFT, Band, fit_band, leave_one_out
+from robofailring.detection.band import (
+    MIN_BAND_RUNS,
+    NONE,
+    NORM,
+    SHIFT,
+    Band,
+    check_band_scope,
+    fit_band,
+    leave_one_out,
+)
 from robofailring.detection.conformal import auc
-from robofailring.detection.view_bands import check_fusion, fused_raw, peak, per_view_peaks
+from robofailring.detection.view_bands import (
+    check_fusion,
+    fused_raw,
+    peak,
+    per_modality_peaks,
+    per_task_peaks,
+    per_view_peaks,
+)
 from robofailring.detection.view_scores import ViewScores
 from robofailring.errors import MemoryFormatError, SettingError
+from robofailring.memory.signal_memory import SIGNALS_VIEW
 
 LENGTH = 12
 
@@ -113,6 +131,153 @@ def test_a_live_step_judges_each_view_against_its_own_threshold() -> None:
 
 def test_an_unknown_fusion_is_a_setting_error_naming_the_choices() -> None:
     with pytest.raises(
-        SettingError, match=r"unknown view fusion 'mean'; choose one of \['max', 'per-view'\]"
+        SettingError, match=r"unknown view fusion 'mean'; choose one of \['max', 'per-view', 'per-modality'\]"
     ):
         check_fusion("mean")
+
+
+def _with_signals(rng: np.random.Generator, *, failure: bool) -> dict[str, np.ndarray]:
+    """`hand` and `base` as in `_run`, and `signals` whose normal runs score well above the hand camera's
+    (a larger contrast on successes) and do not see this failure."""
+    signals = rng.normal(rng.uniform(0.35, 0.55), 0.01, LENGTH)
+    return _run(rng, failure=failure) | {SIGNALS_VIEW: signals.astype(np.float32)}
+
+
+def test_per_modality_the_cameras_share_one_band_and_the_signals_have_their_own() -> None:
+    rng = np.random.default_rng(5)
+    runs = [_with_signals(rng, failure=False) for _ in range(MIN_BAND_RUNS + 2)]
+    peaks, band = per_modality_peaks(runs, SHIFT)
+    assert band is not None and set(band.views) == {SIGNALS_VIEW} and band.runs == len(runs)
+    cameras = [fused_raw({v: r[v] for v in ("hand", "base")}) for r in runs]
+    np.testing.assert_allclose(band.mean, fit_band(SHIFT, cameras).mean)
+    np.testing.assert_allclose(
+        band.views[SIGNALS_VIEW].mean, fit_band(SHIFT, [r[SIGNALS_VIEW] for r in runs]).mean
+    )
+    assert band.of("hand") is band and band.of("base") is band  # every camera view: the cameras' band
+    camera_others = leave_one_out(SHIFT, cameras)[4]
+    signal_others = leave_one_out(SHIFT, [r[SIGNALS_VIEW] for r in runs])[4]
+    expected = max(
+        peak(camera_others.correct(cameras[4])), peak(signal_others.correct(runs[4][SIGNALS_VIEW]))
+    )
+    assert peaks[4] == pytest.approx(expected, abs=1e-6)
+    stored = Band.from_dict(band.to_dict(), where="test")
+    np.testing.assert_allclose(
+        stored.line(0.1, LENGTH, SIGNALS_VIEW), band.line(0.1, LENGTH, SIGNALS_VIEW), atol=1e-5
+    )
+    np.testing.assert_allclose(stored.line(0.1, LENGTH, "hand"), band.line(0.1, LENGTH), atol=1e-5)
+
+
+def test_per_modality_signals_loud_on_successes_no_longer_hide_what_the_cameras_see() -> None:
+    rng = np.random.default_rng(6)
+
+    def hand_and_signals(failure: bool) -> dict[str, np.ndarray]:
+        return {v: s for v, s in _with_signals(rng, failure=failure).items() if v != "base"}
+
+    calibration = [hand_and_signals(False) for _ in range(30)]
+    tests = [(hand_and_signals(f), f) for f in [True] * 20 + [False] * 20]
+    _, one = per_modality_peaks(calibration, NONE)
+    assert one is None
+    fused = [fused_raw(r) for r in calibration]
+    max_band = fit_band(SHIFT, fused)
+    _, band = per_modality_peaks(calibration, SHIFT)
+    assert band is not None
+    # the max's band is the signals' (they score highest on the successes): it buries the hand camera's rise
+    by = {
+        "max": [peak(max_band.correct(fused_raw(run))) for run, _ in tests],
+        "per-modality": [
+            peak(fused_raw({v: band.correct(s, v) for v, s in run.items()})) for run, _ in tests
+        ],
+    }
+    failed = [f for _, f in tests]
+    scores = {
+        name: auc(
+            [p for p, f in zip(peaks, failed, strict=True) if f],
+            [p for p, f in zip(peaks, failed, strict=True) if not f],
+        )
+        for name, peaks in by.items()
+    }
+    assert scores["per-modality"] == 1.0 and scores["max"] < 0.8, scores
+
+
+def test_per_modality_without_signals_is_the_max_and_too_few_runs_correct_nothing() -> None:
+    rng = np.random.default_rng(7)
+    runs = [_run(rng, failure=False) for _ in range(MIN_BAND_RUNS + 1)]
+    peaks, band = per_modality_peaks(runs, SHIFT)
+    max_peaks = [
+        peak(b.correct(fused_raw(r)))
+        for b, r in zip(leave_one_out(SHIFT, [fused_raw(r) for r in runs]), runs, strict=True)
+    ]
+    assert band is not None and band.views == {}
+    np.testing.assert_allclose(peaks, max_peaks, atol=1e-6)
+    few = [_with_signals(rng, failure=False) for _ in range(MIN_BAND_RUNS - 1)]
+    peaks, band = per_modality_peaks(few, SHIFT)
+    assert band is None and peaks == [peak(fused_raw(r)) for r in few]
+
+
+def test_band_scope_task_fits_a_band_per_task_with_enough_runs_and_the_pooled_one_for_the_rest() -> None:
+    rng = np.random.default_rng(8)
+    runs = [_run(rng, failure=False) for _ in range(2 * MIN_BAND_RUNS + 3)]
+    for run in runs[:MIN_BAND_RUNS]:  # the first task's early frames score high on its successes
+        run["hand"][:3] += 0.2
+    tasks = ["early"] * MIN_BAND_RUNS + ["plain"] * MIN_BAND_RUNS + ["few"] * 3
+    pooled_peaks, pooled = per_view_peaks(runs, SHIFT)
+    peaks, band = per_task_peaks(per_view_peaks, runs, tasks, SHIFT)
+    assert band is not None and pooled is not None and set(band.tasks) == {"early", "plain"}
+    early_peaks, early = per_view_peaks(runs[:MIN_BAND_RUNS], SHIFT)
+    assert early is not None
+    np.testing.assert_allclose(peaks[:MIN_BAND_RUNS], early_peaks)  # corrected by their own task's others
+    np.testing.assert_allclose(peaks[-3:], pooled_peaks[-3:])  # too few runs: corrected as over all tasks
+    np.testing.assert_allclose(band.for_task("early").views["hand"].mean, early.views["hand"].mean)
+    assert band.for_task("early").views["hand"].mean[0] > band.views["hand"].mean[0] + 0.05
+    judged = band.for_task("few")  # a task without its own band, or none named: the pooled band
+    assert judged.tasks == {} and band.for_task(None).tasks == {}
+    np.testing.assert_allclose(judged.line(0.1, LENGTH, "hand"), pooled.line(0.1, LENGTH, "hand"))
+    read = Band.from_dict(band.to_dict(), where="test")
+    assert set(read.tasks) == {"early", "plain"} and "each view its own, 2 tasks their own" in band.label(
+        "γ", 0.1
+    )
+    np.testing.assert_allclose(
+        read.for_task("early").line(0.1, LENGTH, "hand"),
+        band.for_task("early").line(0.1, LENGTH, "hand"),
+        atol=1e-5,
+    )
+    with pytest.raises(MemoryFormatError, match="task 'early'"):
+        Band.from_dict({**band.to_dict(), "tasks": {"early": {"kind": "shift"}}}, where="test")
+    assert per_task_peaks(per_view_peaks, runs[:5], tasks[:5], SHIFT)[1] is None  # too few runs: no band
+    with pytest.raises(SettingError, match=r"unknown band scope 'run'; choose one of \['pooled', 'task'\]"):
+        check_band_scope("run")
+
+
+def test_per_modality_fits_the_signals_a_band_per_task_with_enough_runs() -> None:
+    rng = np.random.default_rng(9)
+    runs = [_with_signals(rng, failure=False) for _ in range(2 * MIN_BAND_RUNS + 2)]
+    for run in runs[:MIN_BAND_RUNS]:  # the first task's signals score high early on its successes
+        run[SIGNALS_VIEW][:3] += 0.3
+    tasks = ["early"] * MIN_BAND_RUNS + ["plain"] * MIN_BAND_RUNS + ["few"] * 2
+    peaks, band = per_modality_peaks(runs, SHIFT, tasks)
+    assert band is not None and band.tasks == {}  # the cameras' band is one over all tasks
+    signals = band.views[SIGNALS_VIEW]
+    assert set(signals.tasks) == {"early", "plain"}
+    early = [r[SIGNALS_VIEW] for r in runs[:MIN_BAND_RUNS]]
+    np.testing.assert_allclose(signals.tasks["early"].mean, fit_band(SHIFT, early).mean)
+    cameras = [fused_raw({v: r[v] for v in ("hand", "base")}) for r in runs]
+    camera_others = leave_one_out(SHIFT, cameras)[2]
+    expected = max(
+        peak(camera_others.correct(cameras[2])), peak(leave_one_out(SHIFT, early)[2].correct(early[2]))
+    )
+    assert peaks[2] == pytest.approx(expected, abs=1e-6)  # its signals corrected by its task's other runs
+    judged = band.for_task("early")  # a run is judged by its task's signal band and the cameras' band
+    assert judged.views[SIGNALS_VIEW].tasks == {} and judged.mean is band.mean
+    np.testing.assert_allclose(
+        judged.line(0.1, LENGTH, SIGNALS_VIEW), signals.tasks["early"].line(0.1, LENGTH)
+    )
+    np.testing.assert_allclose(
+        band.for_task("few").line(0.1, LENGTH, SIGNALS_VIEW), signals.line(0.1, LENGTH)
+    )
+    assert band.for_task("few").views[SIGNALS_VIEW].tasks == {}
+    read = Band.from_dict(band.to_dict(), where="test")
+    np.testing.assert_allclose(
+        read.for_task("early").line(0.1, LENGTH, SIGNALS_VIEW),
+        judged.line(0.1, LENGTH, SIGNALS_VIEW),
+        atol=1e-5,
+    )

@@ -18,7 +18,8 @@ from robofailring.detection.config import DetectorConfig
 from robofailring.detection.conformal import conformal_threshold
 from robofailring.detection.rules import CONTRAST, NOVELTY, PAPER
 from robofailring.detection.threshold_policy import ThresholdPolicy
-from robofailring.evaluation.calibration import CalibrateConfig, calibrate, conformal_peaks, success_scores
+from robofailring.detection.view_bands import conformal_peaks
+from robofailring.evaluation.calibration import CalibrateConfig, calibrate, success_scores
 from robofailring.evaluation.run import EvaluateConfig, run_evaluation
 from robofailring.jobs.detect import DetectConfig, run_detect
 from robofailring.memory.recipe import MemoryRecipe

@@ -21,11 +21,11 @@ from robofailring import (
     load_encoder,
 )
 from robofailring.data.selection import DataSelection
-from robofailring.detection.band import SHIFT
+from robofailring.detection.band import SHIFT, TASK
 from robofailring.detection.conformal import conformal_threshold
 from robofailring.detection.rules import CONTRAST, PAPER
 from robofailring.detection.threshold_policy import ThresholdPolicy
-from robofailring.detection.view_bands import MAX, PER_VIEW, per_view_peaks
+from robofailring.detection.view_bands import MAX, PER_MODALITY, PER_VIEW, per_modality_peaks, per_view_peaks
 from robofailring.evaluation.calibration import CalibrateConfig, calibrate, success_view_scores
 from robofailring.evaluation.run import EvaluateConfig, run_evaluation
 
@@ -115,7 +115,7 @@ def test_fusion_on_the_command_line(calibration_set: tuple[Path, Path, Path], tm
     data, memory, _ = calibration_set
     bad = CliRunner().invoke(app, ["calibrate", str(data), "--memory", str(memory), "--fusion", "mean"])
     assert bad.exit_code == 2
-    assert "unknown view fusion 'mean'; choose one of ['max', 'per-view']" in bad.output
+    assert "unknown view fusion 'mean'; choose one of ['max', 'per-view', 'per-modality']" in bad.output
     copy = _copy(memory, tmp_path / "memory")
     good = CliRunner().invoke(
         app,
@@ -124,3 +124,44 @@ def test_fusion_on_the_command_line(calibration_set: tuple[Path, Path, Path], tm
     assert good.exit_code == 0, good.output
     stored = json.loads((copy / "manifest.json").read_text(encoding="utf-8"))["calibration"]["rules"]
     assert "views" in stored["contrast"]["band"]
+
+
+def test_a_band_per_task_and_modality_is_stored_and_judges_the_trace_and_the_live_step(
+    calibration_set: tuple[Path, Path, Path], tmp_path: Path
+) -> None:
+    data, memory, cache = calibration_set
+    calibrated = _copy(memory, tmp_path / "memory")
+    calibrate(
+        CalibrateConfig(
+            data=DataSelection(data),
+            detector=DetectorConfig(memory=calibrated, cache_dir=cache),
+            thresholds=ThresholdPolicy(target_fpr=ALPHA, band=SHIFT, fusion=PER_MODALITY, band_scope=TASK),
+        )
+    )
+    stored = json.loads((calibrated / "manifest.json").read_text(encoding="utf-8"))["calibration"]
+    assert stored["method"] == (
+        "split conformal, own episode left out, a band per modality (the cameras', and the signals' per task), "
+        "a band per task with enough runs"
+    )
+    assert set(stored["rules"]["contrast"]["band"]["tasks"]) == {"pick_cube"}  # its 12 runs are enough
+    loaded = FailureMemory.load(calibrated)
+    encoder = CachedEncoder(load_encoder("pixels"), cache_dir=cache)
+    detector = FailureDetector(loaded, encoder)
+    own = detector.bands["contrast"].for_task("pick_cube")
+    successes = [t for t in load_dataset(data).select(split="train") if not t.is_failure]
+    bare = FailureDetector(loaded, encoder, delta=0.9, gamma=0.0, eta=0.1)
+    runs = success_view_scores(bare, successes, [CONTRAST])[CONTRAST]
+    peaks, band = per_modality_peaks(runs, SHIFT)  # one task: its own band is the one over all its runs
+    assert band is not None and detector.gamma == pytest.approx(conformal_threshold(peaks, ALPHA))
+    np.testing.assert_allclose(own.mean, band.mean, atol=1e-5)
+    trajectory = next(t for t in load_dataset(data).select(split="test") if t.is_failure)
+    trace = detector.run(trajectory)
+    assert trace.band is not None and trace.band.tasks == {}
+    np.testing.assert_allclose(trace.band.mean, own.mean)
+    session = detector.session(trajectory.task)
+    for t in range(trace.length):
+        session.step({view: trajectory.views[view][t] for view in trace.views})
+        for view in trace.views:
+            assert detector.threshold_at(CONTRAST, t, view, task=trajectory.task) == pytest.approx(
+                float(trace.threshold_line(view=view)[t]), abs=1e-6
+            )

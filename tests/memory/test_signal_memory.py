@@ -33,7 +33,7 @@ def dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
     )
 
 
-def _build(dataset: Path, encoder: CachedEncoder, **recipe: str) -> FailureMemory:
+def _build(dataset: Path, encoder: CachedEncoder, **recipe: str | float) -> FailureMemory:
     train = load_dataset(dataset).select(split="train")
     memory, _ = build_memories(
         train, encoder, provenance=Provenance(data=dataset, encoder="pixels"), recipe=MemoryRecipe(**recipe)
@@ -147,3 +147,30 @@ def test_a_run_without_the_tasks_signals_is_listed_and_the_memory_grows_with_new
     assert len(after.vectors["failure"]) == before["failure"] + failures
     assert len(after.vectors["success"]) == before["success"] + successes
     np.testing.assert_array_equal(after.mean, task.mean)  # the normalisation stays the memory's own
+
+
+def test_the_start_state_weight_is_a_recipe_setting_kept_with_the_memory(
+    dataset: Path, encoder: CachedEncoder, tmp_path: Path
+) -> None:
+    half = _build(dataset, encoder, signal_features="none", signal_start_weight=0.5)
+    none = _build(dataset, encoder, signal_features="none")  # the default: the start state left out
+    assert half.signals is not None and none.signals is not None
+    state = 1  # the gripper's width: [w·z_0 ‖ z_t − z_0 ‖ …]
+    kept, dropped = half.signals.task("pick_cube"), none.signals.task("pick_cube")
+    assert kept is not None and dropped is not None
+    np.testing.assert_array_equal(dropped.vectors["success"][:, :state], 0.0)
+    np.testing.assert_allclose(kept.vectors["success"][:, state:], dropped.vectors["success"][:, state:])
+    assert np.abs(kept.vectors["success"][:, :state]).max() > 0
+    saved = none.save(tmp_path / "memory")
+    manifest = json.loads((saved / "manifest.json").read_text())
+    assert manifest["signals"]["start_weight"] == 0.0
+    loaded = FailureMemory.load(saved)
+    assert loaded.recipe.signal_start_weight == 0.0 and loaded.signals is not None
+    assert loaded.signals.start_weight == 0.0 and loaded.signals.task("pick_cube").start_weight == 0.0  # type: ignore[union-attr]
+    # a memory from before the setting read as it was built: the start state at ½
+    del manifest["signals"]["start_weight"]
+    (saved / "manifest.json").write_text(json.dumps(manifest))
+    old = FailureMemory.load(saved)
+    assert old.recipe.signal_start_weight == 0.5 and old.signals.task("pick_cube").start_weight == 0.5  # type: ignore[union-attr]
+    with pytest.raises(SettingError, match="start weight"):
+        MemoryRecipe(signal_start_weight=-1.0)

@@ -19,7 +19,7 @@ import typer
 
 from robofailring.cli.groups import Declared, OptionGroup
 from robofailring.data.selection import DataSelection
-from robofailring.detection.band import BAND_KINDS, DEFAULT_BAND
+from robofailring.detection.band import BAND_KINDS, BAND_SCOPES, DEFAULT_BAND, DEFAULT_BAND_SCOPE
 from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
 from robofailring.detection.rules import RULES
 from robofailring.detection.stored import given_thresholds
@@ -137,6 +137,15 @@ SignalFeaturesOption = Annotated[
         "(growing a memory with --add-to keeps its own).",
     ),
 ]
+SignalStartWeightOption = Annotated[
+    float | None,
+    typer.Option(
+        "--signal-start-weight",
+        help="The start state's weight in each signal vector beside what changed since (docs/signals.md): 0 leaves "
+        "it out (the default: where things were placed varies from run to run), 0.5 the weight memories built "
+        "before it was a setting have.",
+    ),
+]
 
 
 def recipe_options(
@@ -146,9 +155,11 @@ def recipe_options(
     success_step: SuccessStepOption = DEFAULT_RECIPE.success_step,
     signals: SignalsOption = None,
     signal_features: SignalFeaturesOption = None,
+    signal_start_weight: SignalStartWeightOption = None,
 ) -> MemoryRecipe:
-    """--encoder, --failure-frames, --pairing, --success-step, --signals and --signal-features as one
-    `MemoryRecipe`, which knows which were given (a memory grown keeps its own for the others)."""
+    """--encoder, --failure-frames, --pairing, --success-step, --signals, --signal-features and
+    --signal-start-weight as one `MemoryRecipe`, which knows which were given (a memory grown keeps its own
+    for the others)."""
     return MemoryRecipe.chosen(
         encoder,
         failure_frames=failure_frames,
@@ -156,6 +167,7 @@ def recipe_options(
         success_step=success_step,
         signals=signals,
         signal_features=signal_features,
+        signal_start_weight=signal_start_weight,
     )
 
 
@@ -286,7 +298,17 @@ FusionOption = Annotated[
         "--fusion",
         help=f"How the views meet the threshold, one of {', '.join(FUSIONS)}: max, the paper's, fires when any "
         "view reaches it, every view corrected by one band (of the max over views); per-view corrects each "
-        f"view by a band of its own calibration scores first (default {DEFAULT_FUSION}).",
+        "view by a band of its own calibration scores first; per-modality, one band for the cameras and one for "
+        f"the robot's signals (per task where a task has enough runs) (default {DEFAULT_FUSION}).",
+    ),
+]
+BandScopeOption = Annotated[
+    str,
+    typer.Option(
+        "--band-scope",
+        help=f"Which runs a band is fitted on, one of {', '.join(BAND_SCOPES)}: pooled, every task's calibration "
+        "runs together; task, each task with enough runs its own (the others the pooled band) "
+        f"(default {DEFAULT_BAND_SCOPE}).",
     ),
 ]
 
@@ -295,9 +317,10 @@ def threshold_options(
     target_fpr: TargetFprOption = DEFAULT_POLICY.target_fpr,
     band: BandOption = DEFAULT_BAND,
     fusion: FusionOption = DEFAULT_FUSION,
+    band_scope: BandScopeOption = DEFAULT_BAND_SCOPE,
 ) -> ThresholdPolicy:
-    """--target-fpr, --band and --fusion as one `ThresholdPolicy`."""
-    return ThresholdPolicy(target_fpr=target_fpr, band=band, fusion=fusion)
+    """--target-fpr, --band, --fusion and --band-scope as one `ThresholdPolicy`."""
+    return ThresholdPolicy(target_fpr=target_fpr, band=band, fusion=fusion, band_scope=band_scope)
 
 
 # The VLM asked about a report: VLMConfig

@@ -14,12 +14,18 @@ Beyond the longest calibration run, or where fewer than `MIN_RUNS` runs reach a 
 statistic of the last well-covered frame is held. σ_t is floored at `SCALE_FLOOR` × its median
 (and `MIN_SCALE`), so a frame where every run scores alike does not turn noise into alarms. With
 fewer than `MIN_BAND_RUNS` calibration runs no band is fitted (calibration says so).
+
+Scope: by default (`pooled`) one band is fitted over every task's calibration runs. With `task`, a task with
+at least `MIN_BAND_RUNS` calibration runs has a band of its own (`Band.tasks`), fitted on its runs alone, so
+one task's early contrast does not shift another's; the other tasks keep the pooled band. A view's band may
+have tasks of its own too (the robot's signals under `per-modality` fusion,
+`robofailring.detection.view_bands`). A run is judged by its task's bands (`Band.for_task`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Final
 
 import numpy as np
@@ -30,6 +36,10 @@ NONE: Final[str] = "none"
 SHIFT: Final[str] = "shift"
 NORM: Final[str] = "norm"
 BAND_KINDS: Final[tuple[str, ...]] = (NONE, SHIFT, NORM)
+POOLED: Final[str] = "pooled"  # one band over every task's calibration runs
+TASK: Final[str] = "task"  # a band per task where it has MIN_BAND_RUNS calibration runs, else the pooled one
+BAND_SCOPES: Final[tuple[str, ...]] = (POOLED, TASK)
+DEFAULT_BAND_SCOPE: Final[str] = POOLED
 DEFAULT_BAND: Final[str] = SHIFT  # the benchmark's best (docs/rules.md, "Time-indexed thresholds")
 MIN_RUNS: Final[int] = 5  # calibration runs a frame index needs for its own statistic
 MIN_BAND_RUNS: Final[int] = 10  # fewer calibration runs fit no band: the threshold stays one number
@@ -44,6 +54,13 @@ def check_band(kind: str) -> str:
     return kind
 
 
+def check_band_scope(scope: str) -> str:
+    """A band scope (`pooled`, `task`); SettingError naming the choices otherwise."""
+    if scope not in BAND_SCOPES:
+        raise SettingError(f"unknown band scope {scope!r}; choose one of {list(BAND_SCOPES)}")
+    return scope
+
+
 @dataclass(frozen=True)
 class Band:
     """One rule's per-frame-index statistic: corrected = (score − mean_t) / scale_t."""
@@ -55,6 +72,18 @@ class Band:
     # per view, its own band (fusion `per-view`, robofailring.detection.view_bands); a view not named here
     # (none, for fusion `max`) is corrected by this band, fitted on the max over views
     views: dict[str, Band] = field(default_factory=dict)
+    # per task, its own band (scope `task`), itself with its views; a task not named here is judged by this one
+    tasks: dict[str, Band] = field(default_factory=dict)
+
+    def for_task(self, task: str | None) -> Band:
+        """The band that judges a run of `task`: its own, else this one, each of its views' likewise (no
+        per-task bands left in it)."""
+        own = self.tasks.get(task) if task is not None else None
+        base = own if own is not None else self
+        views = {view: band.for_task(task) for view, band in base.views.items()}
+        if not base.tasks and all(views[view] is band for view, band in base.views.items()):
+            return base
+        return replace(base, tasks={}, views=views)
 
     def of(self, view: str | None) -> Band:
         """The band that corrects `view`'s score: its own, else this one."""
@@ -92,11 +121,14 @@ class Band:
         """The threshold as the line it is on the raw score: `γ_t = μ_t + 1.230·σ_t (norm band)`."""
         spread = "·σ_t" if self.kind == NORM else ""
         own = ", each view its own" if self.views else ""
+        own += f", {len(self.tasks)} tasks their own" if self.tasks else ""
         return f"{symbol}_t = μ_t + {threshold:.3f}{spread} ({self.kind} band{own})"
 
     def to_dict(self) -> dict[str, Any]:
         """The band as a rule's stored calibration keeps it (`calibration.rules[<rule>].band`)."""
         own = {"views": {view: band.to_dict() for view, band in self.views.items()}} if self.views else {}
+        if self.tasks:
+            own["tasks"] = {task: band.to_dict() for task, band in self.tasks.items()}
         return {
             "kind": self.kind,
             "runs": self.runs,
@@ -135,7 +167,13 @@ class Band:
                 f"{where}: a band's 'views' must be an object by view name, not {views!r}"
             )
         own = {view: cls.from_dict(band, where=f"{where}, view {view!r}") for view, band in views.items()}
-        return cls(kind=kind, mean=mean, scale=scale, runs=runs, views=own)
+        tasks = section.get("tasks") or {}
+        if not isinstance(tasks, dict):
+            raise MemoryFormatError(
+                f"{where}: a band's 'tasks' must be an object by task name, not {tasks!r}"
+            )
+        by_task = {task: cls.from_dict(band, where=f"{where}, task {task!r}") for task, band in tasks.items()}
+        return cls(kind=kind, mean=mean, scale=scale, runs=runs, views=own, tasks=by_task)
 
 
 def _stacked(runs: Sequence[np.ndarray]) -> np.ndarray:

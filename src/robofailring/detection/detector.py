@@ -289,7 +289,7 @@ class FailureDetector(RuleThresholds):
             success_similarity={v: on_frames(s, np.nan) for v, s in found.success_similarity.items()},
             success_ids={v: on_frames(i, -1) for v, i in found.success_ids.items()},
             in_memory=own is not None,
-            bands=dict(self.bands),
+            bands={name: band.for_task(trajectory.task) for name, band in self.bands.items()},
             source=trajectory.source,
             signals=signals,
             modality=self.modality,
@@ -309,8 +309,11 @@ class FailureDetector(RuleThresholds):
             where = trajectory.source or Path(trajectory.key)
             return None, [Skipped(where, f"signals not scored (cameras alone): {error}", SIGNALS_VIEW)]
 
-    def threshold_at(self, rule: ScoringRule, t: int, view: str | None = None) -> float:
-        """`rule`'s threshold on `view`'s raw score at frame `t`: θ, or μ_t + θ·σ_t with a band (its view's)."""
+    def threshold_at(
+        self, rule: ScoringRule, t: int, view: str | None = None, *, task: str | None = None
+    ) -> float:
+        """`rule`'s threshold on `view`'s raw score at frame `t` of a run of `task`: θ, or μ_t + θ·σ_t with a
+        band (its task's and view's)."""
         band = self.bands.get(rule.name)
         threshold = self.threshold_of(rule)
-        return threshold if band is None else band.line_at(threshold, t, view)
+        return threshold if band is None else band.for_task(task).line_at(threshold, t, view)

@@ -36,7 +36,9 @@ class SessionDetector(Protocol):
         exclude_episode: str | None = None,
     ) -> Retrieved: ...
 
-    def threshold_at(self, rule: ScoringRule, t: int, view: str | None = None) -> float: ...
+    def threshold_at(
+        self, rule: ScoringRule, t: int, view: str | None = None, *, task: str | None = None
+    ) -> float: ...
 
 
 class StepSink(Protocol):
@@ -96,10 +98,12 @@ class DetectorSession:
             if detector.modality == "both" or (view == SIGNALS_VIEW) == (detector.modality == "signals")
         ]
         rule = self.rule
-        threshold = detector.threshold_at(rule, self.t)
+        threshold = detector.threshold_at(rule, self.t, task=self.task)
         scores = ViewScores({view: rule.score(failure[view], success[view]) for view in scored}, 1)
         successes = detector.memory.successes
-        lines = {view: detector.threshold_at(rule, self.t, view) for view in scored}  # a band per view
+        lines = {
+            view: detector.threshold_at(rule, self.t, view, task=self.task) for view in scored
+        }  # a band per view
         fired = scores.firing(lines, 0)
         result = StepResult(
             t=self.t,
@@ -129,7 +133,9 @@ class DetectorSession:
                 name: {view: float(each.score(failure[view], success[view])[0]) for view in scored}
                 for name, each in RULES.items()
             },
-            thresholds={name: detector.threshold_at(each, self.t) for name, each in RULES.items()},
+            thresholds={
+                name: detector.threshold_at(each, self.t, task=self.task) for name, each in RULES.items()
+            },
             queries={view: found.queries[view][0] for view in views},
         )
         if fired and self.fired_at is None:

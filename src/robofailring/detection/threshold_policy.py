@@ -1,4 +1,5 @@
-"""`ThresholdPolicy`: how a job sets thresholds (target α, band, fusion) as one value, checked where it is made.
+"""`ThresholdPolicy`: how a job sets thresholds (target α, band, fusion, band scope) as one value, checked
+where it is made.
 
 Calibration (`robofailring calibrate`), the evaluation, the encoder comparison and the demo each take
 one (docs/rules.md, "Calibration with a guarantee").
@@ -9,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Final
 
-from robofailring.detection.band import DEFAULT_BAND, check_band
+from robofailring.detection.band import DEFAULT_BAND, DEFAULT_BAND_SCOPE, check_band, check_band_scope
 from robofailring.detection.conformal import check_target_fpr
 from robofailring.detection.view_bands import DEFAULT_FUSION, check_fusion
 
@@ -22,12 +23,17 @@ class ThresholdPolicy:
 
     target_fpr: float = DEFAULT_TARGET_FPR  # α: the false-positive rate allowed
     band: str = DEFAULT_BAND  # γ and η on a time-indexed band: none, shift (μ_t) or norm (μ_t, σ_t)
-    fusion: str = DEFAULT_FUSION  # the views: max (one band for all) or per-view (each its own band)
+    # the views: max (one band for all), per-view (each its own band) or per-modality (the cameras', the signals')
+    fusion: str = DEFAULT_FUSION
+    band_scope: str = (
+        DEFAULT_BAND_SCOPE  # pooled: one band over all tasks; task: a band per task with enough runs
+    )
 
     def __post_init__(self) -> None:  # a bad setting fails before any frame is encoded
         check_target_fpr(self.target_fpr)
         check_band(self.band)
         check_fusion(self.fusion)
+        check_band_scope(self.band_scope)
 
 
 DEFAULT_POLICY: Final[ThresholdPolicy] = ThresholdPolicy()

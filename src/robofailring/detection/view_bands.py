@@ -1,6 +1,6 @@
 """How the views' scores meet one threshold: the fusion a rule is calibrated and judged with.
 
-- `max` (the default, the paper's eq. 7): a view fires when its score reaches the threshold; with a
+- `max` (the paper's eq. 7): a view fires when its score reaches the threshold; with a
   time-indexed band (`robofailring.detection.band`) one band, fitted on the calibration runs' max over
   views, corrects every view.
 - `per-view`: each view's score is corrected by a band fitted on that view's own calibration scores
@@ -9,16 +9,25 @@
   view that carries the failure (the hand camera): each view is judged against what is normal for it.
   It needs no failure runs, only the success runs calibration already replays. A view with fewer than
   `MIN_BAND_RUNS` scored calibration runs is corrected by the band of the max over views.
+- `per-modality` (the default): the camera views share one band, fitted on their max, and the robot's signals (the view
+  `signals`) have their own. Signals whose normal runs score higher than the cameras' (their contrast is
+  larger on the calibration successes) then no longer raise the band the cameras are corrected by, which
+  under `max` hid failures only the cameras saw; the camera views keep judging each other as under `max`.
+  The signals' band is fitted per task where the task has `MIN_BAND_RUNS` calibration runs (the signal memory
+  is built per task: its normalisation, layout and derived features are the task's own, and so is when its
+  normal runs score high), the cameras' over all tasks (one encoder sees every task).
+  A modality with fewer than `MIN_BAND_RUNS` scored calibration runs is corrected by the band of the max
+  over views; without signals it is `max`.
 
-Calibration with `per-view` is split conformal as with `max` (`robofailring.evaluation.calibration`):
+Calibration with `per-view` or `per-modality` is split conformal as with `max` (`robofailring.evaluation.calibration`):
 each calibration run's views are corrected by bands fitted on the other runs, its peak over frames of
 the max over views is its conformal score; the band of all runs, one per view, is stored with the
-threshold (`Band.views`).
+threshold (`Band.views`; under `per-modality` the cameras' band is the band itself and `signals` its one view).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
 from typing import Final
 
@@ -27,15 +36,27 @@ import numpy as np
 from robofailring.detection.band import MIN_BAND_RUNS, NONE, Band, fit_band, leave_one_out
 from robofailring.detection.view_scores import ViewScores
 from robofailring.errors import SettingError
+from robofailring.memory.signal_memory import SIGNALS_VIEW
+
+# a fusion's calibration: each run's conformal score and the band of all runs (None: no band), from the runs'
+# per-view scores, the band kind and each run's task
+PeaksOf = Callable[[Sequence[Mapping[str, np.ndarray]], str, Sequence[str]], tuple[list[float], Band | None]]
 
 MAX: Final[str] = "max"
 PER_VIEW: Final[str] = "per-view"
-FUSIONS: Final[tuple[str, ...]] = (MAX, PER_VIEW)
-DEFAULT_FUSION: Final[str] = MAX
+PER_MODALITY: Final[str] = "per-modality"
+FUSIONS: Final[tuple[str, ...]] = (MAX, PER_VIEW, PER_MODALITY)
+DEFAULT_FUSION: Final[str] = PER_MODALITY  # the benchmarks' best (docs/signals.md, "Measured")
+# what each fusion's bands are, as the calibration's summary and stored method say it (max: one band)
+BANDS_OF: Final[dict[str, str]] = {
+    MAX: "one band",
+    PER_VIEW: "a band per view",
+    PER_MODALITY: "a band per modality (the cameras', and the signals' per task)",
+}
 
 
 def check_fusion(fusion: str) -> str:
-    """A view fusion (`max`, `per-view`); SettingError naming the choices otherwise."""
+    """A view fusion (`max`, `per-view`, `per-modality`); SettingError naming the choices otherwise."""
     if fusion not in FUSIONS:
         raise SettingError(f"unknown view fusion {fusion!r}; choose one of {list(FUSIONS)}")
     return fusion
@@ -54,10 +75,13 @@ def peak(values: np.ndarray) -> float:
     return float(finite.max()) if finite.size else float("nan")
 
 
-def per_view_peaks(runs: Sequence[Mapping[str, np.ndarray]], kind: str) -> tuple[list[float], Band | None]:
+def per_view_peaks(
+    runs: Sequence[Mapping[str, np.ndarray]], kind: str, tasks: Sequence[str] = ()
+) -> tuple[list[float], Band | None]:
     """Each calibration run's conformal score under `per-view` fusion with a band of `kind`, and the band of
-    all runs (one per view). With `none`, or fewer than `MIN_BAND_RUNS` runs with a score, nothing is
-    corrected: the peaks of the max over views and no band, as with `max`. A run with nothing scored gives NaN."""
+    all runs (one per view; `tasks` is not used). With `none`, or fewer than `MIN_BAND_RUNS` runs with a score,
+    nothing is corrected: the peaks of the max over views and no band, as with `max`. A run with nothing scored
+    gives NaN."""
     fused = [fused_raw(run) for run in runs]
     scored = [i for i, values in enumerate(fused) if np.isfinite(values).any()]
     if kind == NONE or len(scored) < MIN_BAND_RUNS:
@@ -77,3 +101,119 @@ def per_view_peaks(runs: Sequence[Mapping[str, np.ndarray]], kind: str) -> tuple
         own[view] = fit_band(kind, views)
     peaks = [peak(fused_raw(values)) if values else float("nan") for values in corrected]
     return peaks, replace(fit_band(kind, [fused[i] for i in scored]), views=own)
+
+
+def per_modality_peaks(
+    runs: Sequence[Mapping[str, np.ndarray]], kind: str, tasks: Sequence[str] = ()
+) -> tuple[list[float], Band | None]:
+    """Each calibration run's conformal score under `per-modality` fusion with a band of `kind`, and the band
+    of all runs: the cameras' (fitted on the max over camera views), with the signals' as its view `signals`,
+    which has a band per task (`tasks`: each run's) where the task has `MIN_BAND_RUNS` scored runs. With
+    `none`, or fewer than `MIN_BAND_RUNS` runs with a score, nothing is corrected, as with `max`."""
+    fused = [fused_raw(run) for run in runs]
+    scored = [i for i, values in enumerate(fused) if np.isfinite(values).any()]
+    if kind == NONE or len(scored) < MIN_BAND_RUNS:
+        return [peak(values) for values in fused], None
+    pooled = fit_band(kind, [fused[i] for i in scored])
+    pooled_others = dict(zip(scored, leave_one_out(kind, [fused[i] for i in scored]), strict=True))
+    modalities = [
+        {
+            name: values
+            for name, values in (("cameras", _cameras(run)), ("signals", run.get(SIGNALS_VIEW)))
+            if values is not None
+        }
+        for run in runs
+    ]
+    corrected: list[dict[str, np.ndarray]] = [{} for _ in runs]
+    own: dict[str, Band] = {}
+    for name in ("cameras", "signals"):
+        rows = [i for i in scored if name in modalities[i] and np.isfinite(modalities[i][name]).any()]
+        if not rows:
+            continue
+        series = [modalities[i][name] for i in rows]
+        if len(rows) < MIN_BAND_RUNS:
+            others = [pooled_others[i] for i in rows]
+            own[name] = pooled
+        else:
+            others = leave_one_out(kind, series)
+            own[name] = fit_band(kind, series)
+        if name == "signals" and tasks:  # the signal memory is per task (its normalisation, its layout)
+            others, own[name] = _by_task(kind, rows, series, [tasks[i] for i in rows], others, own[name])
+        for i, values, band in zip(rows, series, others, strict=True):
+            corrected[i][name] = band.correct(values)
+    peaks = [peak(fused_raw(values)) if values else float("nan") for values in corrected]
+    cameras = own.get("cameras", pooled)
+    views = {SIGNALS_VIEW: own["signals"]} if "signals" in own else {}
+    return peaks, replace(cameras, views=views)
+
+
+def _by_task(
+    kind: str, rows: list[int], series: list[np.ndarray], tasks: list[str], others: list[Band], pooled: Band
+) -> tuple[list[Band], Band]:
+    """`others` (each run's band fitted without it) and `pooled` with a band per task that has `MIN_BAND_RUNS`
+    runs among `series`: those runs' bands fitted on their task's other runs, the task's kept in `tasks`."""
+    others = list(others)
+    own: dict[str, Band] = {}
+    for task in dict.fromkeys(tasks):
+        mine = [k for k, of in enumerate(tasks) if of == task]
+        if len(mine) < MIN_BAND_RUNS:
+            continue
+        for k, band in zip(mine, leave_one_out(kind, [series[k] for k in mine]), strict=True):
+            others[k] = band
+        own[task] = fit_band(kind, [series[k] for k in mine])
+    return others, replace(pooled, tasks=own) if own else pooled
+
+
+def _cameras(run: Mapping[str, np.ndarray]) -> np.ndarray | None:
+    """The max over a run's camera views (None: it has none)."""
+    cameras = {view: values for view, values in run.items() if view != SIGNALS_VIEW}
+    return fused_raw(cameras) if cameras else None
+
+
+def per_task_peaks(
+    fusion_peaks: PeaksOf, runs: Sequence[Mapping[str, np.ndarray]], tasks: Sequence[str], kind: str
+) -> tuple[list[float], Band | None]:
+    """`fusion_peaks` with band scope `task`: the runs of a task that has `MIN_BAND_RUNS` scored calibration
+    runs are corrected by bands fitted on that task's other runs alone and its band is kept in `Band.tasks`;
+    the other runs are corrected as over all tasks (the pooled band, which judges their tasks)."""
+    peaks, pooled = fusion_peaks(runs, kind, tasks)
+    if pooled is None:
+        return peaks, None
+    peaks = list(peaks)
+    own: dict[str, Band] = {}
+    for task in dict.fromkeys(tasks):
+        rows = [i for i, of in enumerate(tasks) if of == task]
+        task_peaks, band = fusion_peaks([runs[i] for i in rows], kind, ())
+        if band is None:  # too few of its runs: the pooled band
+            continue
+        for i, value in zip(rows, task_peaks, strict=True):
+            peaks[i] = value
+        own[task] = band
+    return peaks, replace(pooled, tasks=own)
+
+
+def conformal_peaks(runs: Sequence[np.ndarray], band: str) -> tuple[list[float], Band | None]:
+    """Each run's conformal score (its peak; with a band, the peak of its score corrected by the band of
+    the other runs) and the band of all of them (None for `none`, and with fewer than `MIN_BAND_RUNS`
+    runs). A run with nothing scored (the only success run of its task: nothing to contrast it with)
+    gives NaN."""
+    finite = [run for run in runs if np.isfinite(run).any()]
+    if band == NONE or len(finite) < MIN_BAND_RUNS:
+        return [peak(run) for run in runs], None
+    others = iter(leave_one_out(band, finite))
+    peaks = [peak(next(others).correct(run)) if np.isfinite(run).any() else float("nan") for run in runs]
+    return peaks, fit_band(band, finite)
+
+
+def max_peaks(
+    runs: Sequence[Mapping[str, np.ndarray]], kind: str, tasks: Sequence[str] = ()
+) -> tuple[list[float], Band | None]:
+    """`conformal_peaks` of the max over views of each run (`max` fusion; `tasks` is not used)."""
+    return conformal_peaks([fused_raw(run) for run in runs], kind)
+
+
+FUSION_PEAKS: Final[dict[str, PeaksOf]] = {
+    MAX: max_peaks,
+    PER_VIEW: per_view_peaks,
+    PER_MODALITY: per_modality_peaks,
+}

@@ -21,12 +21,14 @@ from robofailring.data.model import Skipped, Trajectory
 from robofailring.data.selection import DataSelection
 from robofailring.detection.band import (
     DEFAULT_BAND,
+    DEFAULT_BAND_SCOPE,
     MIN_BAND_RUNS,
     NONE,
+    POOLED,
+    TASK,
     Band,
     check_band,
-    fit_band,
-    leave_one_out,
+    check_band_scope,
 )
 from robofailring.detection.config import DetectorConfig, check_stride
 from robofailring.detection.conformal import (
@@ -49,12 +51,13 @@ from robofailring.detection.rules import (
 )
 from robofailring.detection.threshold_policy import DEFAULT_POLICY, ThresholdPolicy
 from robofailring.detection.view_bands import (
+    BANDS_OF,
     DEFAULT_FUSION,
+    FUSION_PEAKS,
     MAX,
     check_fusion,
     fused_raw,
-    peak,
-    per_view_peaks,
+    per_task_peaks,
 )
 from robofailring.errors import DataError, SettingError
 from robofailring.memory.manifest import StoredCalibration, StoredRule
@@ -106,13 +109,14 @@ def success_view_scores(
     stride: int = 1,
     too_short: list[str] | None = None,
     short_views: list[Skipped] | None = None,
+    tasks: list[str] | None = None,
 ) -> dict[ScoringRule, list[dict[str, np.ndarray]]]:
     """Per rule, each success run's per-frame score per view (uncorrected; NaN where unscored), its
     episode left out of both memories.
 
     `stride` scores every N-th frame, as the runs the threshold will judge are scored; the keys of
     runs with no view of 2+ frames (nothing to score) are appended to `too_short`, the views of fewer
-    than 2 frames of the runs scored to `short_views`."""
+    than 2 frames of the runs scored to `short_views`, and the task of each run scored to `tasks`."""
     scores: dict[ScoringRule, list[dict[str, np.ndarray]]] = {rule: [] for rule in rules}
     for trajectory in successes:
         try:
@@ -123,24 +127,13 @@ def success_view_scores(
         else:
             for rule in rules:
                 scores[rule].append(trace.scores_of(rule))
+            if tasks is not None:
+                tasks.append(trajectory.task)
             if short_views is not None:
                 short_views += trace.short_views
         if progress is not None:
             progress(1)
     return scores
-
-
-def conformal_peaks(runs: Sequence[np.ndarray], band: str) -> tuple[list[float], Band | None]:
-    """Each run's conformal score (its peak; with a band, the peak of its score corrected by the band of
-    the other runs) and the band of all of them (None for `none`, and with fewer than `MIN_BAND_RUNS`
-    runs). A run with nothing scored (the only success run of its task: nothing to contrast it with)
-    gives NaN."""
-    finite = [run for run in runs if np.isfinite(run).any()]
-    if band == NONE or len(finite) < MIN_BAND_RUNS:
-        return [peak(run) for run in runs], None
-    others = iter(leave_one_out(band, finite))
-    peaks = [peak(next(others).correct(run)) if np.isfinite(run).any() else float("nan") for run in runs]
-    return peaks, fit_band(band, finite)
 
 
 def calibrate_rules(
@@ -155,18 +148,22 @@ def calibrate_rules(
     short_views: list[Skipped] | None = None,
     band: str = DEFAULT_BAND,
     fusion: str = DEFAULT_FUSION,
+    band_scope: str = DEFAULT_BAND_SCOPE,
     at_best: bool = False,
 ) -> dict[ScoringRule, RuleCalibration]:
     """The conformal threshold of every rule (default: all the memory supports) at level `target_fpr`,
     on the `band` (`none`, `shift`, `norm`) fitted on the same runs, its views fused by `fusion`
-    (`robofailring.detection.view_bands`); the paper rule keeps one δ, as in the paper (§3.3).
+    (`robofailring.detection.view_bands`), one band over all tasks or, with `band_scope` `task`, one per task
+    that has enough runs (`robofailring.detection.band`); the paper rule keeps one δ, as in the paper (§3.3).
 
     Too few runs for `target_fpr` are a DataError; with `at_best` (an evaluation on small data) a rule
     is calibrated at the smallest level its runs allow instead (its `target_fpr` says which: no
     guarantee at the asked one), and a rule none of whose runs could be scored is left out."""
     check_band(band)
     check_fusion(fusion)
+    check_band_scope(band_scope)
     chosen = list(rules) if rules is not None else available_rules(detector)
+    tasks: list[str] = []
     scores = success_view_scores(
         detector,
         successes,
@@ -175,16 +172,18 @@ def calibrate_rules(
         stride=stride,
         too_short=too_short,
         short_views=short_views,
+        tasks=tasks,
     )
+    fusion_peaks = FUSION_PEAKS[fusion]
     calibrations = {}
     for rule, runs in scores.items():
         if not runs:
             raise DataError(f"none of the {len(successes)} success trajectories has a view of 2+ frames")
         kind = band if rule is not PAPER else NONE  # δ stays the paper's
-        if fusion == MAX:
-            values, fitted = conformal_peaks([fused_raw(run) for run in runs], kind)
+        if band_scope == TASK:
+            values, fitted = per_task_peaks(fusion_peaks, runs, tasks, kind)
         else:
-            values, fitted = per_view_peaks(runs, kind)
+            values, fitted = fusion_peaks(runs, kind, tasks)
         scored = [v for v in values if math.isfinite(v)]
         if at_best and not scored:
             continue
@@ -242,7 +241,7 @@ class Calibration:
     fpr_spread: FprSpread | None = None  # the realised test FPR's range with these `successes` runs
     band: str = NONE  # the thresholds' time-indexed band (none: each threshold is one number)
     band_asked: str = NONE  # the band asked for (none is used with fewer than MIN_BAND_RUNS runs)
-    fusion: str = DEFAULT_FUSION  # per-view: each view corrected by its own band before the max
+    fusion: str = DEFAULT_FUSION  # per-view / per-modality: each view / modality corrected by its own band
 
     @property
     def delta(self) -> float | None:
@@ -276,7 +275,7 @@ class Calibration:
                 f"time-indexed band {self.band!r}: each threshold applies to the score corrected by the "
                 + ("mean" if self.band == "shift" else "mean and spread")
                 + " of these runs' scores at the same frame (a line over time on the raw score)"
-                + ("; each view by its own runs' scores (fusion per-view)" if self.fusion != MAX else "")
+                + (f"; {BANDS_OF[self.fusion]} (fusion {self.fusion})" if self.fusion != MAX else "")
             )
         for name, threshold in self.thresholds.items():
             rule = rule_named(name)
@@ -331,6 +330,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
             short_views=short_views,
             band=policy.band,
             fusion=policy.fusion,
+            band_scope=policy.band_scope,
         )
     widest = max(found.values(), key=lambda calibration: calibration.successes)
     spread = widest.spread  # computed once: it searches for the runs a tighter bound needs
@@ -339,7 +339,8 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
             encoder=memory.encoder,
             rules={rule.name: _stored_rule(calibration) for rule, calibration in found.items()},
             method="split conformal, own episode left out"
-            + (", a band per view" if policy.fusion != MAX else ""),
+            + (f", {BANDS_OF[policy.fusion]}" if policy.fusion != MAX else "")
+            + (", a band per task with enough runs" if policy.band_scope != POOLED else ""),
             target_fpr=policy.target_fpr,
             successes=widest.successes,
             data=str(config.data.root.resolve()),

@@ -218,6 +218,7 @@ def cross_validate(
                     stride=config.stride,
                     band=policy.band,
                     fusion=policy.fusion,
+                    band_scope=policy.band_scope,
                     at_best=True,
                 )
                 if successes

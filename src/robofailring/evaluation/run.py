@@ -270,6 +270,7 @@ def _thresholds(
             stride=config.stride,
             band=policy.band,
             fusion=policy.fusion,
+            band_scope=policy.band_scope,
             at_best=True,
         )
     if not found:

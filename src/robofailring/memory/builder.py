@@ -70,7 +70,12 @@ def build_memories(
     )
     success_memory = built if built is not None and built.success_runs else None  # none: the paper's memory
     signals, unused = (
-        SignalMemory.build(trajectories, choice=recipe.signals, features=recipe.signal_features)
+        SignalMemory.build(
+            trajectories,
+            choice=recipe.signals,
+            features=recipe.signal_features,
+            start_weight=recipe.signal_start_weight,
+        )
         if recipe.signals != NONE
         else (None, [])
     )

@@ -24,6 +24,7 @@ from robofailring.memory.signal_derived import NONE as NO_FEATURES
 from robofailring.memory.signal_layout import AUTO as SIGNALS_AUTO
 from robofailring.memory.signal_layout import NONE as SIGNALS_NONE
 from robofailring.memory.signal_layout import check_choice
+from robofailring.memory.signal_memory import DEFAULT_START_WEIGHT, START_WEIGHT
 from robofailring.memory.thinning import DEFAULT_STEP, check_step
 
 DEFAULT_ENCODER: Final[str] = "pixels"  # weight-free: what a memory is built with when no encoder is named
@@ -42,6 +43,8 @@ class MemoryRecipe:
     signals: str = SIGNALS_AUTO  # the robot's signals used beside the cameras: `auto`, `none` or names
     # features derived from them (robofailring.memory.signal_derived): `change`, `events`, both, or `none`
     signal_features: str = DEFAULT_FEATURES
+    # the start state's weight in the signal vectors (robofailring.memory.signal_memory): ½, or 0 to leave it out
+    signal_start_weight: float = DEFAULT_START_WEIGHT
     # the settings chosen, by field name (`MemoryRecipe.chosen`); None: all of them (a recipe written out)
     given: frozenset[str] | None = field(default=None, compare=False, repr=False)
 
@@ -53,6 +56,10 @@ class MemoryRecipe:
             check_features(self.signal_features)
         except ValueError as error:
             raise SettingError(str(error)) from error
+        if not 0 <= self.signal_start_weight < float("inf"):
+            raise SettingError(
+                f"a signal start weight must be a number ≥ 0, got {self.signal_start_weight!r}"
+            )
         check_failure_frames(self.failure_frames)
         check_pairing(self.pairing)
         check_step(self.success_step)
@@ -72,6 +79,7 @@ class MemoryRecipe:
         success_step: float | None = None,
         signals: str | None = None,
         signal_features: str | None = None,
+        signal_start_weight: float | None = None,
     ) -> MemoryRecipe:
         """The recipe of the settings given, the defaults for those left out (None): what options build. It
         remembers which were given (`was_given`); the encoder always is."""
@@ -82,6 +90,7 @@ class MemoryRecipe:
             "success_step": success_step,
             "signals": signals,
             "signal_features": signal_features,
+            "signal_start_weight": signal_start_weight,
         }
         return cls(
             encoder=encoder,
@@ -90,6 +99,9 @@ class MemoryRecipe:
             success_step=success_step if success_step is not None else default.success_step,
             signals=signals if signals is not None else default.signals,
             signal_features=signal_features if signal_features is not None else default.signal_features,
+            signal_start_weight=(
+                signal_start_weight if signal_start_weight is not None else default.signal_start_weight
+            ),
             given=frozenset({"encoder", *(name for name, value in settings.items() if value is not None)}),
         )
 
@@ -111,6 +123,9 @@ class MemoryRecipe:
             signal_features=str(manifest.signals.get("features", NO_FEATURES))
             if manifest.signals
             else NO_FEATURES,
+            signal_start_weight=float(manifest.signals.get("start_weight", START_WEIGHT))
+            if manifest.signals
+            else DEFAULT_START_WEIGHT,
         )
 
 

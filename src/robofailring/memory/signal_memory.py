@@ -5,8 +5,10 @@ Per task, each frame t of a run becomes one vector from its raw features f_t = [
 (the layout's state and action signals and the frame number; with derived features,
 `robofailring.memory.signal_derived`, the state is followed by them), z-scored by the task's own success
 runs (all its runs where it has none) to z_t, then paired as the memory's frames are paired:
-`[½ zs_0 ‖ zs_t − zs_0 ‖ za_t ‖ za_{t−2} ‖ za_{t−4} ‖ z_time_t]` (the start state, the change since
-then, a short window of commanded actions, the moment). Failure runs give one entry per frame from
+`[w·zs_0 ‖ zs_t − zs_0 ‖ za_t ‖ za_{t−2} ‖ za_{t−4} ‖ z_time_t]` (the start state weighted by w, the
+change since then, a short window of commanded actions, the moment; w is the memory's `start_weight`: 0 by
+default, since where a run starts varies with where things were placed and says nothing of how it goes; ½,
+as the `change` pairing weighs the first frame, in memories from before it was a setting). Failure runs give one entry per frame from
 their onset on (from frame 1 when unknown), success runs one per frame, each set in its own exact
 Faiss index per task. A query's similarity to an entry is exp(−d²/n) (d its Euclidean distance, n the
 vector's length), in (0, 1]; S⁻ is the nearest failure's, S⁺ the nearest success's, scored by the
@@ -36,7 +38,8 @@ from robofailring.memory.signal_layout import (
 )
 
 SIGNALS_VIEW: Final[str] = "signals"  # the modality's name among the views a trace fuses
-START_WEIGHT: Final[float] = 0.5  # the start state's weight, as the `change` pairing weighs the first frame
+START_WEIGHT: Final[float] = 0.5  # the start state's weight in a memory from before it was a setting …
+DEFAULT_START_WEIGHT: Final[float] = 0.0  # … and in a new one (docs/signals.md, "Measured")
 MIN_SCALE: Final[float] = 1e-3  # a feature's spread floor (a value constant over the successes)
 SIGNALS_FILE: Final[str] = "signals.npz"
 
@@ -62,9 +65,11 @@ class TaskSignals:
         vectors: Mapping[str, np.ndarray],
         rows: Mapping[str, Rows],
         derivation: Derivation | None = None,
+        start_weight: float = START_WEIGHT,
     ) -> None:
         self.layout, self.mean, self.scale = layout, np.asarray(mean), np.asarray(scale)
         self.derivation = derivation
+        self.start_weight = float(start_weight)
         self.vectors = {kind: np.asarray(v, np.float32) for kind, v in vectors.items()}
         self.rows = dict(rows)
         self.indexes = {
@@ -106,7 +111,7 @@ class TaskSignals:
         lagged = [
             z(np.maximum(at - lag, 0))[:, state_width : state_width + action_width] for lag in ACTION_LAGS
         ]
-        start = np.broadcast_to(START_WEIGHT * first[:state_width], (len(at), state_width))
+        start = np.broadcast_to(self.start_weight * first[:state_width], (len(at), state_width))
         change = now[:, :state_width] - first[:state_width]
         return np.concatenate([start, change, *lagged, now[:, -1:]], axis=1).astype(np.float32)
 
@@ -142,7 +147,11 @@ def _entries(vectors: np.ndarray) -> np.ndarray:
 
 
 def build_task(
-    trajectories: Sequence[Trajectory], layout: SignalLayout, onset_start: int = 1
+    trajectories: Sequence[Trajectory],
+    layout: SignalLayout,
+    onset_start: int = 1,
+    *,
+    start_weight: float = DEFAULT_START_WEIGHT,
 ) -> tuple[TaskSignals | None, list[Skipped]]:
     """One task's signal memory from its labelled runs; a run whose signals cannot be read is skipped."""
     features: list[tuple[Trajectory, np.ndarray]] = []
@@ -161,7 +170,7 @@ def build_task(
     empty = TaskSignals(layout, np.zeros(0), np.ones(0), {}, {}, derivation)
     stacked = np.concatenate([empty.derived(f) for f in normal])
     mean, scale = stacked.mean(axis=0), np.maximum(stacked.std(axis=0), MIN_SCALE)
-    task = TaskSignals(layout, mean, scale, {}, {}, derivation)
+    task = TaskSignals(layout, mean, scale, {}, {}, derivation, start_weight)
     return _with_runs(task, features, onset_start), skipped
 
 
@@ -192,6 +201,7 @@ def _with_runs(
         },
         {kind: _rows(rows.get(kind, [])) for kind in ("failure", "success")},
         task.derivation,
+        task.start_weight,
     )
 
 
@@ -208,18 +218,30 @@ class SignalMemory:
     `.npz` beside the memory's index (no pickles) and described in its manifest's `signals` section."""
 
     def __init__(
-        self, by_task: Mapping[str, TaskSignals], *, choice: str = AUTO, features: str = NO_FEATURES
+        self,
+        by_task: Mapping[str, TaskSignals],
+        *,
+        choice: str = AUTO,
+        features: str = NO_FEATURES,
+        start_weight: float = START_WEIGHT,
     ) -> None:
         self.by_task = dict(by_task)
         self.choice = choice
         self.features = features  # the derived features (`--signal-features`) a new task is built with
+        self.start_weight = float(start_weight)  # the start state's weight w in every task's vectors
 
     @classmethod
     def build(
-        cls, trajectories: Sequence[Trajectory], *, choice: str = AUTO, features: str = NO_FEATURES
+        cls,
+        trajectories: Sequence[Trajectory],
+        *,
+        choice: str = AUTO,
+        features: str = NO_FEATURES,
+        start_weight: float = DEFAULT_START_WEIGHT,
     ) -> tuple[SignalMemory | None, list[Skipped]]:
         """The signal memory of the labelled `trajectories` (None: no task has signals to use), with the
-        derived `features` (`none`, or `change` and/or `events`: `robofailring.memory.signal_derived`)."""
+        derived `features` (`none`, or `change` and/or `events`: `robofailring.memory.signal_derived`) and the
+        start state weighted by `start_weight` (module docstring)."""
         by_task: dict[str, TaskSignals] = {}
         skipped: list[Skipped] = []
         tasks = sorted({t.task for t in trajectories})
@@ -228,11 +250,12 @@ class SignalMemory:
             layout = choose_layout(runs, choice, features)
             if layout is None:
                 continue
-            built, missed = build_task(runs, layout)
+            built, missed = build_task(runs, layout, start_weight=start_weight)
             skipped += missed
             if built is not None:
                 by_task[task] = built
-        return (cls(by_task, choice=choice, features=features) if by_task else None), skipped
+        built_memory = cls(by_task, choice=choice, features=features, start_weight=start_weight)
+        return (built_memory if by_task else None), skipped
 
     def extended(self, trajectories: Sequence[Trajectory]) -> tuple[SignalMemory, list[Skipped]]:
         """This memory with the labelled `trajectories` added: a task it has keeps its layout and
@@ -244,7 +267,11 @@ class SignalMemory:
             held = by_task.get(task)
             if held is None:
                 layout = choose_layout(runs, self.choice, self.features)
-                built, missed = build_task(runs, layout) if layout is not None else (None, [])
+                built, missed = (
+                    build_task(runs, layout, start_weight=self.start_weight)
+                    if layout is not None
+                    else (None, [])
+                )
                 skipped += missed
                 if built is not None:
                     by_task[task] = built
@@ -256,7 +283,10 @@ class SignalMemory:
                 except DataError as error:
                     skipped.append(Skipped(run.source or Path(run.key), f"signals not used: {error}"))
             by_task[task] = _with_runs(held, features)
-        return SignalMemory(by_task, choice=self.choice, features=self.features), skipped
+        return (
+            SignalMemory(by_task, choice=self.choice, features=self.features, start_weight=self.start_weight),
+            skipped,
+        )
 
     def task(self, task: str) -> TaskSignals | None:
         return self.by_task.get(task)
@@ -274,7 +304,13 @@ class SignalMemory:
             }
             for number, (task, signals) in enumerate(sorted(self.by_task.items()))
         }
-        return {"file": SIGNALS_FILE, "choice": self.choice, "features": self.features, "tasks": tasks}
+        return {
+            "file": SIGNALS_FILE,
+            "choice": self.choice,
+            "features": self.features,
+            "start_weight": self.start_weight,
+            "tasks": tasks,
+        }
 
     def write(self, directory: Path) -> None:
         """Write `signals.npz` into `directory` (the memory's folder being written), keyed as `manifest` says."""
@@ -304,6 +340,7 @@ class SignalMemory:
         except (OSError, ValueError, EOFError) as error:
             raise MemoryFormatError(f"cannot read the signal memory {path}: {error}") from error
         by_task = {}
+        start_weight = _start_weight(section, where)
         try:
             for task, described in section["tasks"].items():
                 key = described["key"]
@@ -327,7 +364,13 @@ class SignalMemory:
                     else None
                 )
                 by_task[str(task)] = TaskSignals(
-                    layout, arrays[f"{key}_mean"], arrays[f"{key}_scale"], vectors, rows, derivation
+                    layout,
+                    arrays[f"{key}_mean"],
+                    arrays[f"{key}_scale"],
+                    vectors,
+                    rows,
+                    derivation,
+                    start_weight,
                 )
         except (KeyError, TypeError, AttributeError) as error:
             raise MemoryFormatError(f"{where}: the signal memory lacks {error} (a damaged file?)") from error
@@ -335,4 +378,15 @@ class SignalMemory:
             by_task,
             choice=str(section.get("choice", AUTO)),
             features=str(section.get("features", NO_FEATURES)),  # a memory from before derived features: none
+            start_weight=start_weight,
         )
+
+
+def _start_weight(section: Mapping[str, Any], where: str) -> float:
+    """The stored start-state weight (a memory from before it was a setting: ½); MemoryFormatError if not a number ≥ 0."""
+    value = section.get("start_weight", START_WEIGHT)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 <= value < float("inf"):
+        raise MemoryFormatError(
+            f"{where}: the signal memory's start_weight must be a number ≥ 0, got {value!r}"
+        )
+    return float(value)
