@@ -345,7 +345,7 @@ def print_targets(rows: list[PeerRow]) -> None:
 
 def _trained(peer: PeerSet, labels: Path, out: Path, extra: tuple[Path, ...] = ()) -> str:
     started = time.perf_counter()
-    config = TrainEncoderConfig(data=peer.root, out=out, labels=labels, extra_data=extra)
+    config = TrainEncoderConfig(data=DataSelection(peer.root, labels=labels), out=out, extra_data=extra)
     trained = train_encoder(config, reuse=True)
     print(
         f"trained encoder {trained} on the train half of {labels.name}"

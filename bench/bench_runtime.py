@@ -5,7 +5,8 @@ Per model (random-initialised open_clip ViT-B/32 and ViT-L/14; speed does not de
 values), the encoder of each runtime encodes one 3-view step (three 128 px frames, preprocessing
 included) on `--threads` threads (torch: `torch.set_num_threads`, ONNX Runtime: intra-op threads). The
 runtimes take turns within every repeat, so a load that comes and goes on a shared machine touches
-each alike; each figure is the median over repeats, with the ratio to torch's, the CPU time the process spent
+each alike, each timed on its second step of the turn (ONNX Runtime's, OpenVINO's and torch's worker
+threads spin for a while after a run: a runtime timed right after another one ran measured 30 % slower); each figure is the median over repeats, with the ratio to torch's, the CPU time the process spent
 (all its threads: less sensitive to other processes than wall time, but it counts threads spinning
 while they wait) and the lowest cosine of the step's embeddings to torch's. The table also runs `@openvino-int8`'s static int8 export
 (symmetric int8 weights and activations, calibrated on the fixed procedural frames) on ONNX Runtime, to
@@ -156,6 +157,7 @@ def time_runtimes(
     cpu: dict[str, list[float]] = {name: [] for name in runs}
     for _ in range(repeats):
         for name, run in runs.items():  # interleaved: each repeat times every runtime once
+            run(views)  # untimed: the previous runtime's threads stop spinning before this one is timed
             start, start_cpu = time.perf_counter(), time.process_time()
             run(views)
             times[name].append((time.perf_counter() - start) * 1000)

@@ -12,6 +12,7 @@ import time
 from bench._timing import print_machine
 from bench.bench_peer import PER_VIEW, evaluate_encoder, peer_set, print_targets
 from bench.bench_quality import QualityRow, Variant, print_rows
+from robofailring.data.selection import DataSelection
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
 
 
@@ -26,7 +27,9 @@ def main() -> None:
         (peer.swapped_labels, "trained-encoder-hand-swapped"),
     ):
         started = time.perf_counter()
-        config = TrainEncoderConfig(data=peer.root, out=cache / name, labels=labels, views="hand")
+        config = TrainEncoderConfig(
+            data=DataSelection(peer.root, labels=labels, views="hand"), out=cache / name
+        )
         trained = train_encoder(config, reuse=True)
         print(
             f"trained {trained} on the hand view of {labels.name}'s train half: {time.perf_counter() - started:.0f} s"

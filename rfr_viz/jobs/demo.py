@@ -274,7 +274,7 @@ def _trained_encoder(config: DemoConfig, in_dist: Path, data_dir: Path, say: Cal
     """The encoder trained on the ID training split and `config.randomize` randomised-look episodes
     (simulated beside the demo's sets), trained once and reused while its recipe and frames hold."""
     training = TrainEncoderConfig(
-        data=in_dist, out=data_dir / "trained-encoder", epochs=config.trained_epochs
+        data=DataSelection(in_dist), out=data_dir / "trained-encoder", epochs=config.trained_epochs
     )
     job = TrainEncoderJob(
         training, randomize=config.randomize, workers=config.workers, sim_cache=data_dir / "randomized"

@@ -20,6 +20,7 @@ from robofailring import (
     load_encoder,
 )
 from robofailring.cli.verbs import app
+from robofailring.data.selection import DataSelection
 from robofailring.encoders import encoder_slug
 from robofailring.encoders.trained import CONFIG_NAME, WEIGHTS_NAME
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder, training_samples
@@ -30,7 +31,7 @@ pytestmark = pytest.mark.slow  # trains with torch: the fast lane never imports 
 runner = CliRunner()
 
 
-def _config(data: Path, out: Path, **changes: object) -> TrainEncoderConfig:
+def _config(data: Path, out: Path, *, labels: Path | None = None, **changes: object) -> TrainEncoderConfig:
     settings: dict[str, object] = {
         "image_size": 32,
         "epochs": 2,
@@ -39,7 +40,7 @@ def _config(data: Path, out: Path, **changes: object) -> TrainEncoderConfig:
         "threads": 1,
     }
     settings.update(changes)
-    return TrainEncoderConfig(data=data, out=out, **settings)  # type: ignore[arg-type]
+    return TrainEncoderConfig(data=DataSelection(data, labels=labels), out=out, **settings)  # type: ignore[arg-type]
 
 
 def _images() -> list[np.ndarray]:

@@ -316,21 +316,16 @@ def train_encoder_cmd(
     from robofailring.encoders.training import TrainEncoderConfig
     from robofailring.jobs.train_encoder import TrainEncoderJob, run_train_encoder
 
-    config = (
-        TrainEncoderConfig(  # its data settings are its own fields (encoders/ does not read a DataSelection)
-            data=data.root,
-            out=out,
-            split=split,
-            image_size=image_size,
-            epochs=epochs,
-            seed=seed,
-            init=init,
-            threads=threads,
-            views=data.views,
-            device=detector.device,
-            labels=data.labels,
-            task=data.task,
-        )
+    config = TrainEncoderConfig(
+        data=data,
+        out=out,
+        split=split,
+        image_size=image_size,
+        epochs=epochs,
+        seed=seed,
+        init=init,
+        threads=threads,
+        device=detector.device,
     )
     folder = run_train_encoder(TrainEncoderJob(config, randomize=randomize, workers=workers), say=typer.echo)
     typer.echo(f"use it with: --encoder trained:{folder}")

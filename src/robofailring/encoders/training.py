@@ -18,7 +18,7 @@ import math
 import os
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any, Final
 
@@ -29,6 +29,7 @@ from robofailring.data.grounding import failure_type
 from robofailring.data.images import decode_image
 from robofailring.data.layouts import load_dataset
 from robofailring.data.model import Frame, Outcome, Trajectory
+from robofailring.data.selection import DataSelection
 from robofailring.data.splits import split_of
 from robofailring.encoders.augment import AUGMENTATION, augment
 from robofailring.encoders.trained import (
@@ -57,7 +58,9 @@ HELD_OUT_SPLITS: Final[frozenset[str]] = frozenset({"test", "ood"})
 
 @dataclass(frozen=True)
 class TrainEncoderConfig:
-    data: Path  # dataset root of any layout; only the frames of `split` are read
+    # the dataset (any layout) and how it is read (labels, task, views); only the frames of `split` are
+    # read. A path is taken as `DataSelection(path)`
+    data: DataSelection
     out: Path  # encoder folder to write (atomically): encoder.json + weights.pt
     split: str = "train"  # never a held-out split (test, ood)
     image_size: int = 64  # CNN input side in pixels (with `init`: the CLIP tower's own size)
@@ -70,22 +73,20 @@ class TrainEncoderConfig:
     embedding_dim: int = 256  # with `init`: the projection's output size
     init: str | None = None  # open_clip:<model>:<weights>: train a projection head on that frozen tower
     test_fraction: float = 0.5  # layouts without splits use the evaluation's hash split
-    device: str | None = None  # default: cuda when available
-    views: str | None = None  # `--views`: `a,b` picks views, `src=name` renames (default: all)
+    device: str | None = None  # where the training runs (default: cuda when available)
     threads: int | None = (
         None  # torch CPU threads (default: half the cores, at least 1: the machine is shared)
     )
-    extra_data: tuple[Path, ...] = ()  # more training datasets, every split of each (never test data)
-    labels: Path | None = (
-        None  # labels file (outcome, symbol, task per episode) for data whose names do not say
-    )
-    task: str | None = None  # task of episodes whose names (and labels) do not say it
+    # more training datasets, every split of each (never test data), read with the data's views
+    extra_data: tuple[Path, ...] = ()
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is read
+        if not isinstance(self.data, DataSelection):
+            object.__setattr__(self, "data", DataSelection(Path(self.data)))
         object.__setattr__(self, "extra_data", tuple(Path(root) for root in self.extra_data))
-        if Path(self.data).resolve() in {root.resolve() for root in self.extra_data}:
+        if self.data.root.resolve() in {root.resolve() for root in self.extra_data}:
             raise SettingError(
-                f"{self.data} is both the training data and an extra dataset: every split of an extra "
+                f"{self.data.root} is both the training data and an extra dataset: every split of an extra "
                 "dataset is trained on, so its held-out frames would be seen"
             )
         if self.split in HELD_OUT_SPLITS:
@@ -103,17 +104,19 @@ class TrainEncoderConfig:
             raise SettingError(f"learning rate must be positive, got {self.learning_rate}")
 
     def recipe(self) -> dict[str, Any]:
-        """The settings that decide the weights (not where they go or how fast)."""
-        settings = asdict(self)
-        for key in ("out", "device", "threads", "extra_data", "labels", "task"):
-            settings.pop(key)
-        settings["data"] = str(Path(self.data).resolve())
+        """The settings that decide the weights (not where they go or how fast), as encoders trained before
+        the data was one value recorded them (the same recipe reuses them)."""
+        settings: dict[str, Any] = {"data": str(self.data.root.resolve())}
+        for field in fields(self):
+            if field.name not in ("data", "out", "device", "threads", "extra_data"):
+                settings[field.name] = getattr(self, field.name)
+        settings["views"] = self.data.views
         if self.extra_data:  # absent when none: encoders trained before `extra_data` keep their recipe
             settings["extra_data"] = [str(root.resolve()) for root in self.extra_data]
-        if self.labels is not None:  # likewise (the labels' content is in the frames' digest)
-            settings["labels"] = str(Path(self.labels).resolve())
-        if self.task is not None:
-            settings["task"] = self.task
+        if self.data.labels is not None:  # likewise (the labels' content is in the frames' digest)
+            settings["labels"] = str(self.data.labels.resolve())
+        if self.data.task is not None:
+            settings["task"] = self.data.task
         return settings
 
 
@@ -135,9 +138,7 @@ def _kind(trajectory: Trajectory) -> str | None:
 
 def training_trajectories(config: TrainEncoderConfig) -> list[Trajectory]:
     """The trajectories of the chosen split of `config.data` (the extra datasets not included)."""
-    trajectories = list(
-        load_dataset(config.data, task=config.task, labels=config.labels, views=config.views).trajectories()
-    )
+    trajectories = list(config.data.load().trajectories())
     has_splits = any(t.split for t in trajectories)
     return [
         t
@@ -160,11 +161,11 @@ def training_samples(config: TrainEncoderConfig) -> TrainingSet:
     """The labelled samples of the chosen split of `config.data` and of every split of each extra dataset."""
     samples, used, skipped = _labelled(training_trajectories(config), config)
     if not samples:
-        raise DataError(f"no labelled frames in split {config.split!r} of {config.data}")
+        raise DataError(f"no labelled frames in split {config.split!r} of {config.data.root}")
     extra = []
     for root in config.extra_data:
         more, count, unlabelled = _labelled(
-            list(load_dataset(root, views=config.views).trajectories()), config
+            list(load_dataset(root, views=config.data.views).trajectories()), config
         )
         if not more:
             raise DataError(f"no labelled frames in the extra training dataset {root}")

@@ -52,12 +52,12 @@ def simulator_shape(config: TrainEncoderConfig) -> DataShape:
 
     trajectories = training_trajectories(config)
     if not trajectories:
-        raise DataError(f"no trajectories in split {config.split!r} of {config.data}")
+        raise DataError(f"no trajectories in split {config.split!r} of {config.data.root}")
     tasks = tuple(sorted({t.task for t in trajectories}))
     foreign = [task for task in tasks if task not in TASKS]
     if foreign:
         raise SettingError(
-            f"--randomize simulates the data's tasks, but {config.data} has tasks {list(tasks)} and the "
+            f"--randomize simulates the data's tasks, but {config.data.root} has tasks {list(tasks)} and the "
             f"simulator only {list(TASKS)} (it cannot simulate {foreign})"
         )
     lengths = Counter(len(frames) for t in trajectories for frames in t.views.values())
