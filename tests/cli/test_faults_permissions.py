@@ -2,8 +2,8 @@
 cannot be read — not a bad input (2) and never "cannot write".
 
 Root reads every file whatever its mode, so each case runs twice: in-process with the file system's
-`PermissionError` raised where the file is opened, and for real, `chmod 000`, in a subprocess run as an
-unprivileged user (`nobody` when the tests run as root).
+`PermissionError` raised where the file is opened, and for real, `chmod 000`, in a subprocess that may not
+read it (when the tests run as root: root with every capability dropped, for whom mode bits hold).
 """
 
 from __future__ import annotations
@@ -30,7 +30,6 @@ from robofailring.data.model import Frame
 from robofailring.errors import ReadError
 
 EPISODE = "pick_cube_grasp_wp2_episode0"  # an episode of the `data` fixture (tests/cli/conftest.py)
-NOBODY = 65534
 
 
 def denied_for(monkeypatch: pytest.MonkeyPatch, locked: Path) -> None:
@@ -72,7 +71,9 @@ def shared() -> Iterator[Path]:
 
 
 def as_unprivileged(work: Path, *args: object) -> subprocess.CompletedProcess[str]:
-    """The `robofailring` command as `nobody` (when run as root), else as this user."""
+    """The `robofailring` command without the power to read what it may not (as root: still root, so the
+    checkout stays readable wherever it lies, e.g. under a 0700 temporary folder, but with every capability
+    dropped, so a file's mode bits hold for it as for any user); as another user, as that user."""
     source = {str(Path(module.__file__).parents[1]) for module in (robofailring, rfr_viz)}  # type: ignore[arg-type]
     env = {
         **os.environ,
@@ -81,8 +82,8 @@ def as_unprivileged(work: Path, *args: object) -> subprocess.CompletedProcess[st
         "ROBOFAILRING_PROGRESS": "0",
     }
     command = [sys.executable, "-c", "from rfr_viz.cli.app import app; app()", *map(str, args)]
-    if os.geteuid() == 0:  # setpriv, not os.setuid: it finds an interpreter under /root before it drops
-        command = ["setpriv", f"--reuid={NOBODY}", f"--regid={NOBODY}", "--clear-groups", *command]
+    if os.geteuid() == 0:  # no capability survives the exec: CAP_DAC_OVERRIDE and CAP_DAC_READ_SEARCH gone
+        command = ["setpriv", "--bounding-set=-all", "--inh-caps=-all", "--ambient-caps=-all", *command]
     return subprocess.run(command, capture_output=True, text=True, env=env, check=False)
 
 
@@ -92,7 +93,7 @@ def unprivileged(shared: Path) -> Path:
     failure in the full lane, where these are the only tests that see a real EACCES)."""
     if os.geteuid() == 0 and shutil.which("setpriv") is None:
         missing(
-            "running as root, and no setpriv to run the command as another user: "
+            "running as root, and no setpriv to run the command without root's capabilities: "
             "apt-get install -y --no-install-recommends util-linux"
         )
     probe = as_unprivileged(shared, "--help")
