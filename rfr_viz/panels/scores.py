@@ -168,9 +168,9 @@ def log_scores(
         for view in trace.scored_views:
             send_series(rec, paths.score(view, rule.name), scores[view], fps=fps)
         send_series(rec, paths.threshold(rule.name), trace.threshold_line(rule), fps=fps)
-        band = trace.bands.get(rule.name)
-        for view in trace.scored_views if band is not None else ():
-            if view in band.views:  # e.g. the signals under per-modality: not the cameras' line
+        own = trace.bands[rule.name].views if rule.name in trace.bands else {}
+        for view in trace.scored_views:
+            if view in own:  # e.g. the signals under per-modality: not the cameras' line
                 send_series(
                     rec, paths.view_threshold(rule.name, view), trace.threshold_line(rule, view), fps=fps
                 )
