@@ -1,6 +1,8 @@
-"""Live view cost (issue 12): latency a step of the step API gains from the Rerun sink, 3 views.
+"""Live view cost (issue 12): latency a step of the step API gains from the Rerun sink, 3 views; and
+(issue 50) what a step of the robot's signals costs at step 10 and at step 40,000 of one session.
 
 Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_live.py [--steps 200] [--image-size 128] [--entries 1500] [--connect URL]
+     [--signal-steps 40000] [--signals-only]
 
 The frames are the simulated robot's own (three cameras), fed as live RGB arrays; the memory holds
 random unit vectors under the `pixels` encoder's identity whose entries point at real images (so the
@@ -24,6 +26,7 @@ for _variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_variable, "1")
 
 import argparse
+import resource
 import statistics
 import tempfile
 import time
@@ -34,8 +37,12 @@ import numpy as np
 from rfr_viz import LiveRecording, LiveTarget, fit_map
 from robofailring import FailureDetector, FailureMemory, load_encoder
 from robofailring.data.images import write_png
+from robofailring.detection.signal_scores import SignalHistory
 from robofailring.memory.failure import MemoryEntry
 from robofailring.memory.pairs import pair_vectors
+from robofailring.memory.signal_derived import Derivation
+from robofailring.memory.signal_layout import SignalLayout
+from robofailring.memory.signal_memory import Rows, TaskSignals
 from robofailring.sim import VIEWS, run_episode
 
 
@@ -73,6 +80,68 @@ def random_memory(entries: int, folder: Path, frames: list[dict[str, np.ndarray]
     return FailureMemory(vectors, listed, encoder=encoder.identity)
 
 
+def signal_task(entries: int) -> TaskSignals:
+    """A task's signal memory of the simulator's shape (7 joints and a gripper; a 7-d action and a gripper
+    command), derived features `change,events`, with `entries` random failure and success entries."""
+    rng = np.random.default_rng(0)
+    layout = SignalLayout(
+        state=(("joints", tuple(f"j{i}" for i in range(7))), ("gripper", ("width",))),
+        action=(("action", (*(f"a{i}" for i in range(7)), "grip")),),
+        derived=("change", "events"),
+    )
+    columns = sum(layout.widths)
+    runs = []
+    for _ in range(10):  # success runs whose gripper and command jump once, half-way
+        run = np.cumsum(rng.normal(0, 0.01, (60, columns + 1)), axis=0)
+        run[30:, [7, 15]] += 0.04
+        run[:, -1] = np.arange(60)
+        runs.append(run)
+    derivation = Derivation.fit(layout.derived, columns, runs)
+    empty = TaskSignals(layout, np.zeros(0), np.ones(0), {}, {}, derivation)
+    stacked = np.concatenate([empty.derived(run) for run in runs])
+    mean, scale = stacked.mean(axis=0), np.maximum(stacked.std(axis=0), 1e-3)
+    width = TaskSignals(layout, mean, scale, {}, {}, derivation).vectors_of(runs[0]).shape[1]
+    rows = Rows(np.asarray(["ep"] * entries), np.asarray([""] * entries), np.arange(entries))
+    vectors = {
+        kind: rng.standard_normal((entries, width)).astype(np.float32) for kind in ("failure", "success")
+    }
+    return TaskSignals(layout, mean, scale, vectors, {"failure": rows, "success": rows}, derivation, 0.0)
+
+
+def signal_steps(steps: int, entries: int) -> None:
+    """ms per live signal step (`SignalHistory.step`: derived features, pairing, both searches) at step 10
+    and at step `steps` (the medians of steps 10 to 59 and of the last 50), and the process's peak RSS then."""
+    task = signal_task(entries)
+    history = SignalHistory(task)
+    rng = np.random.default_rng(1)
+    signals = [
+        {
+            "joints": rng.normal(0, 0.1, 7),
+            "gripper": rng.normal(0.04, 0.01, 1),
+            "action": rng.normal(0, 0.1, 8),
+        }
+        for _ in range(64)
+    ]
+    timed: dict[int, list[float]] = {10: [], steps: []}
+    rss_at: dict[int, float] = {}
+    for step in range(1, steps + 1):
+        started = time.perf_counter()
+        history.step(signals[step % len(signals)], exclude_episode=None)
+        elapsed = (time.perf_counter() - started) * 1000
+        if 10 <= step < 60:  # the 50 steps from step 10 …
+            timed[10].append(elapsed)
+        if steps - 50 < step:  # … and the 50 up to the last
+            timed[steps].append(elapsed)
+        if step in (60, steps):
+            rss_at[10 if step == 60 else steps] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(f"live signal step, {entries} failure and {entries} success entries, {steps:,} steps")
+    print(f"{'':>22} {'at step 10':>11} {f'at step {steps:,}':>16}")
+    print(
+        f"{'median ms/step':>22} {statistics.median(timed[10]):>11.3f} {statistics.median(timed[steps]):>16.3f}"
+    )
+    print(f"{'peak RSS MiB':>22} {rss_at[10]:>11.0f} {rss_at[steps]:>16.0f}")
+
+
 def percentile(values: list[float], q: float) -> float:
     return float(np.percentile(np.asarray(values), q))
 
@@ -87,8 +156,13 @@ def main() -> None:
         "--entries", type=int, default=1500, help="memory entries (the map is fitted on them)"
     )
     parser.add_argument("--connect", default=None, help="also stream to a running viewer at this URL")
+    parser.add_argument("--signal-steps", type=int, default=40_000, help="the live signal session's length")
+    parser.add_argument("--signals-only", action="store_true", help="only the signal steps (no cameras)")
     args = parser.parse_args()
     print_machine()
+    signal_steps(args.signal_steps, args.entries)
+    if args.signals_only:
+        return
 
     frames = simulated_frames(args.image_size, 40)
     with tempfile.TemporaryDirectory(prefix="bench-live-") as tmp:

@@ -68,6 +68,11 @@ class DetectorPaths:
         """Scalars: one scoring rule's threshold line (δ, γ, η, …; μ_t + θ·σ_t with a band), by rule name."""
         return f"{self.threshold_root}/{rule}"
 
+    def view_threshold(self, rule: str, view: str) -> str:
+        """Scalars: one rule's threshold line on one view's score where that view is judged by a band of its
+        own (the signals' under fusion `per-modality`, each view's under `per-view`), beside the line above."""
+        return f"{self.threshold(rule)}/{view}"
+
     @property
     def nearest_success_root(self) -> str:
         return f"{self.prefix}/nearest_success"

@@ -80,7 +80,11 @@ def evaluate_cmd(
     stride: StrideOption = 1,
     thresholds: ThresholdPolicy,
     deployment_successes: Annotated[
-        int, typer.Option(help="Per task, this many test success runs join the success memory (not tested).")
+        int,
+        typer.Option(
+            help="Per task, this many test success runs join the success memory (not tested); refused where a "
+            "task would keep no test success run to measure its false positive rate on."
+        ),
     ] = 0,
     growth: Annotated[
         str | None,

@@ -86,15 +86,29 @@ def log_score_styles(
                 ),
                 static=True,
             )
+        band = bands.get(rule.name)
         rec.log(
             paths.threshold(rule.name),
             rr.SeriesLines(
                 colors=[threshold_colour(rule.name)],
                 widths=[1.5 if rule.name == judging.name else 1.0],
-                names=[prefix + threshold_label(rule, thresholds[rule.name], bands.get(rule.name))],
+                names=[prefix + threshold_label(rule, thresholds[rule.name], band)],
             ),
             static=True,
         )
+        for position, view in enumerate(views):
+            if band is not None and view in band.views:  # judged by its own band: its own line, its colour
+                rec.log(
+                    paths.view_threshold(rule.name, view),
+                    rr.SeriesLines(
+                        colors=[faded(VIEW_COLOURS[position % len(VIEW_COLOURS)])],
+                        widths=[1.5 if rule.name == judging.name else 1.0],
+                        names=[
+                            f"{prefix}{view} {threshold_label(rule, thresholds[rule.name], band.of(view))}"
+                        ],
+                    ),
+                    static=True,
+                )
     for position, view in enumerate(views if successes else ()):
         rec.log(
             paths.success_score(view),
@@ -133,8 +147,9 @@ def log_scores(
     *,
     label: str | None,
 ) -> None:
-    """`/score/<view>/<rule>` and `/score/threshold/<rule>` for each rule the trace shows, `/score/<view>/success`
-    (S⁺_t, when the memory has success runs) and `/detection/state`."""
+    """`/score/<view>/<rule>` and `/score/threshold/<rule>` for each rule the trace shows (and
+    `/score/threshold/<rule>/<view>` for a view judged by a band of its own), `/score/<view>/success` (S⁺_t,
+    when the memory has success runs) and `/detection/state`."""
     rules = trace.shown_rules
     successes = bool(trace.success_similarity)
     log_score_styles(
@@ -153,6 +168,12 @@ def log_scores(
         for view in trace.scored_views:
             send_series(rec, paths.score(view, rule.name), scores[view], fps=fps)
         send_series(rec, paths.threshold(rule.name), trace.threshold_line(rule), fps=fps)
+        own = trace.bands[rule.name].views if rule.name in trace.bands else {}
+        for view in trace.scored_views:
+            if view in own:  # e.g. the signals under per-modality: not the cameras' line
+                send_series(
+                    rec, paths.view_threshold(rule.name, view), trace.threshold_line(rule, view), fps=fps
+                )
     for view in trace.views if successes else ():
         send_series(rec, paths.success_score(view), trace.success_similarity[view], fps=fps)
     if successes and trace.signals is not None:

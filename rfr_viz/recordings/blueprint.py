@@ -95,7 +95,12 @@ def _score_plot(
     rule_plots = []
     views = plots.scored(views)
     for position, rule in enumerate(plots.rules):
-        contents = [paths.score(view, rule.name) for view in views] + [paths.threshold(rule.name)]
+        own = plots.bands[rule.name].views if rule.name in plots.bands else {}  # views with a band of their own
+        contents = [
+            *(paths.score(view, rule.name) for view in views),
+            paths.threshold(rule.name),
+            *(paths.view_threshold(rule.name, view) for view in views if view in own),
+        ]
         faint = ""
         if position == 0 and plots.successes:
             contents += [paths.success_score(view) for view in views]

@@ -237,3 +237,41 @@ def _failure_views_to_their_end(memory: Path) -> int:
         kept == sorted(kept) and kept[0] >= 1 and kept[-1] == LENGTH - 1 for kept in frames.values()
     ), frames
     return len(frames)
+
+
+def test_a_first_demo_of_no_frames_or_a_wider_state_leaves_the_other_demos_their_signals(
+    tmp_path: Path, robomimic: tuple[Path, Path]
+) -> None:
+    """Issue 50: the task's signal layout is decided by all its demos; demo_0 with no rows, and demo_6 with a
+    5-d `obs/robot0_eef_pos` among 3-d ones (unnamed dimensions: `0`, `1`, …), are each listed as skipped for
+    signals with the reason, never cut to fit, while every other demo keeps the signal."""
+    path, labels = robomimic
+    with h5py.File(path, "a") as handle:
+        empty = handle["data/demo_0"]
+        for name in ("actions", "obs"):
+            del empty[name]
+        empty.attrs["num_samples"] = 0
+        empty.create_dataset("actions", data=np.zeros((0, 7)))
+        obs = empty.create_group("obs")
+        for camera in ("agentview_image", "robot0_eye_in_hand_image"):
+            obs.create_dataset(camera, data=np.zeros((0, 32, 32, 3), np.uint8))
+        obs.create_dataset("robot0_eef_pos", data=np.zeros((0, 3)))
+        wider = handle["data/demo_6/obs"]
+        held = wider["robot0_eef_pos"][()]
+        del wider["robot0_eef_pos"]
+        wider.create_dataset("robot0_eef_pos", data=np.concatenate([held, np.ones((LENGTH, 2))], axis=1))
+    memory = tmp_path / "memory"
+    built = invoke(["build-memory", path, "--out", memory, "--labels", labels], code=3)
+    listed = [line for line in built.output.splitlines() if "signals not used" in line]
+    assert len(listed) == 2, built.output
+    assert "demo_0" in listed[0] and "no rows" in listed[0]
+    assert (
+        "demo_6" in listed[1]
+        and "has 5 dimension(s) (0, 1, 2, 3, 4), but the task's runs have 3" in listed[1]
+    )
+    signals = FailureMemory.load(memory).signals
+    assert signals is not None
+    task = signals.task("Lift")
+    assert task is not None and task.layout.state == (("obs/robot0_eef_pos", ("0", "1", "2")),)
+    kept = {*task.rows["failure"].episodes.tolist(), *task.rows["success"].episodes.tolist()}
+    assert kept == {f"demo_{d}" for d in range(1, 8)} - {"demo_6"}

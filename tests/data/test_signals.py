@@ -137,7 +137,7 @@ def test_bad_signals_are_listed_with_the_reason_and_good_ones_read() -> None:
     np.testing.assert_array_equal(found["good"].values, good[:4])  # cut to the trajectory's 4 frames
     assert found["good"].columns == ["good/0", "good/1"]
     reasons = {s.reason.split("'")[1]: s.reason for s in skipped}
-    assert "NaN or infinite (the first at frame 3, dimension 1" in reasons["nan"]
+    assert "NaN, infinite or beyond ±3.4e+38 (the first at frame 3, dimension 1" in reasons["nan"]
     assert "3 rows, but the trajectory's views have 4 or 5 frames" in reasons["short"]
     assert "are not numbers" in reasons["text"]
     assert "600 dimensions per frame" in reasons["wide"]

@@ -281,3 +281,20 @@ def test_per_modality_fits_the_signals_a_band_per_task_with_enough_runs() -> Non
         judged.line(0.1, LENGTH, SIGNALS_VIEW),
         atol=1e-5,
     )
+
+
+@pytest.mark.parametrize("fusion", ["per-view", "per-modality"])
+def test_a_task_with_6_calibration_runs_has_no_band_of_its_own_and_one_with_10_has(fusion: str) -> None:
+    """The bound is 10 runs, written out (not `MIN_BAND_RUNS`, which a defect could lower with it): a task
+    with 6 is judged by the pooled band, one with 10 by its own, under `--band-scope task` and the signals'
+    per-task band of `per-modality`."""
+    rng = np.random.default_rng(11)
+    runs = [_with_signals(rng, failure=False) for _ in range(6 + 10 + 9)]
+    tasks = ["six"] * 6 + ["ten"] * 10 + ["nine"] * 9
+    if fusion == "per-view":
+        _, band = per_task_peaks(per_view_peaks, runs, tasks, SHIFT)
+        assert band is not None and set(band.tasks) == {"ten"}
+    else:
+        _, band = per_modality_peaks(runs, SHIFT, tasks)
+        assert band is not None and set(band.views[SIGNALS_VIEW].tasks) == {"ten"}
+    assert MIN_BAND_RUNS == 10

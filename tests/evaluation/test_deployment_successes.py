@@ -9,6 +9,7 @@ import pytest
 from synthetic import write_project_dataset
 
 from robofailring import CachedEncoder, load_dataset, load_encoder
+from robofailring.errors import SettingError
 from robofailring.evaluation.run import _deploy_successes
 from robofailring.memory.builder import Provenance, build_memories
 from robofailring.memory.thinning import DEFAULT_STEP
@@ -45,3 +46,61 @@ def test_deployment_successes_join_the_signal_memory_too(dataset: Path, tmp_path
     assert len(after.vectors["success"]) == len(before.vectors["success"]) + moved.length
     assert moved.episode in after.rows["success"].episodes.tolist()
     assert moved.episode not in before.rows["success"].episodes.tolist()  # the memory given is unchanged
+
+
+def test_deployment_successes_join_the_camera_success_memory(dataset: Path, tmp_path: Path) -> None:
+    """The runs moved join the cameras' success memory: their frames are among its runs and their own
+    frames are then found at similarity 1 (the runs given are not changed)."""
+    encoder = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "cache")
+    loaded = load_dataset(dataset)
+    train, test = loaded.select(split="train"), loaded.select(split="test")
+    memory, _ = build_memories(train, encoder, provenance=Provenance(data=dataset, encoder="pixels"))
+    assert memory.successes is not None
+    held = {run.episode for run in memory.successes.runs}
+    deployed, left = _deploy_successes(memory, test, 1, encoder, DEFAULT_STEP)
+    (moved,) = [t for t in test if t.key not in {r.key for r in left}]
+    assert deployed.successes is not None
+    episodes = {run.episode for run in deployed.successes.runs}
+    assert episodes - held == {moved.episode} and moved.episode not in held
+    assert {run.episode for run in memory.successes.runs} == held  # the memory given is unchanged
+
+
+@pytest.mark.parametrize("per_task", ["2", "1000000000"])
+def test_deployment_successes_that_leave_a_task_no_test_success_are_refused(
+    dataset: Path, tmp_path: Path, per_task: str
+) -> None:
+    """Issue 50: `--deployment-successes` as large as a task's test successes (2 here) or larger left none to
+    test, and the evaluation reported its FPR as "—" without a word; it is refused, naming the task."""
+    from fault_helpers import cli, refused
+
+    out = tmp_path / "evaluation"
+    found = cli(
+        "evaluate",
+        dataset,
+        "--out",
+        out,
+        "--deployment-successes",
+        per_task,
+        "--cache-dir",
+        tmp_path / "cache",
+    )
+    refused(
+        found,
+        2,
+        f"--deployment-successes {per_task}",
+        "task 'pick_cube'",
+        "(its test data has 2)",
+        "at most 1",
+    )
+    assert not out.exists()
+
+
+def test_deployment_successes_without_a_success_memory_are_refused(dataset: Path, tmp_path: Path) -> None:
+    encoder = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "cache")
+    loaded = load_dataset(dataset)
+    train, test = loaded.select(split="train"), loaded.select(split="test")
+    memory, _ = build_memories(
+        train, encoder, provenance=Provenance(data=dataset, encoder="pixels"), successes=False
+    )
+    with pytest.raises(SettingError, match="no success memory for them to join"):
+        _deploy_successes(memory, test, 1, encoder, DEFAULT_STEP)

@@ -5,7 +5,9 @@ computed causally, kept with the memory and read back; a memory from before them
 from __future__ import annotations
 
 import json
+from collections import deque
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -16,9 +18,9 @@ from robofailring.detection.signal_scores import SignalHistory
 from robofailring.errors import SettingError
 from robofailring.memory.builder import Provenance, build_memories
 from robofailring.memory.recipe import MemoryRecipe
-from robofailring.memory.signal_derived import Derivation, parse_features
+from robofailring.memory.signal_derived import Derivation, RunningDerivation, parse_features
 from robofailring.memory.signal_layout import ACTION_LAGS
-from robofailring.memory.signal_memory import SignalMemory
+from robofailring.memory.signal_memory import SignalMemory, TaskSignals
 
 LENGTH = 8
 
@@ -130,3 +132,73 @@ def test_a_memory_from_before_derived_features_reads_as_none(
     task = loaded.signals.task("pick_cube")
     assert task is not None and task.derivation is None and task.widths == (1, 2)
     assert SignalMemory.read(saved, manifest["signals"]).features == "none"
+
+
+def test_the_running_derivation_gives_each_frame_what_the_whole_run_does() -> None:
+    """A live session derives frame by frame (`RunningDerivation`) what a whole run derives at once."""
+    successes = [_raw(None, 0), _raw(None, 1)]
+    derivation = Derivation.fit(("change", "events"), 3, successes)
+    generator = np.random.default_rng(0)
+    long = np.concatenate([_raw("grasp_wp2", e % 3) for e in range(40)])  # the gripper jumps again and again
+    long[:, :3] += generator.normal(0, 1e-4, (len(long), 3))
+    long[:, 3] = np.arange(len(long))
+    whole = derivation.added(long)
+    running = RunningDerivation(derivation)
+    for t, row in enumerate(long):
+        added, after = running.add(row)
+        assert running.frames == t and after.frames == t + 1  # the one before is left as it was
+        np.testing.assert_array_equal(added, whole[t])
+        running = after
+
+
+def _held(value: object, seen: set[int] | None = None) -> int:
+    """Bytes of the numpy arrays `value` holds (its attributes, containers and dataclasses, recursively)."""
+    seen = set() if seen is None else seen
+    if id(value) in seen or isinstance(value, (str, bytes, int, float)) or value is None:
+        return 0
+    seen.add(id(value))
+    if isinstance(value, np.ndarray):
+        return value.nbytes
+    if isinstance(value, (list, tuple, deque)):
+        return sum(_held(item, seen) for item in value)
+    if isinstance(value, dict):
+        return sum(_held(item, seen) for item in value.values())
+    return sum(_held(item, seen) for item in getattr(value, "__dict__", {}).values())
+
+
+def test_a_live_step_touches_as_many_rows_and_holds_as_much_at_step_5000_as_at_step_10(
+    dataset: Path, encoder: CachedEncoder, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Issue 50: a live session's derived features are kept incrementally, so neither the rows a step
+    derives and pairs nor what the session holds grows with its length (counted, not timed)."""
+    train = load_dataset(dataset).select(split="train")
+    memory, _ = build_memories(train, encoder, provenance=Provenance(data=dataset, encoder="pixels"))
+    assert memory.signals is not None
+    task = memory.signals.task("pick_cube")
+    assert task is not None and task.derivation is not None
+    touched: list[int] = []  # rows of the features each derivation or pairing of this step reads
+
+    def counted(method: Any) -> Any:
+        def wrapper(self: object, features: np.ndarray, *args: Any, **kwargs: Any) -> Any:
+            touched.append(len(np.atleast_2d(features)))
+            return method(self, features, *args, **kwargs)
+
+        return wrapper
+
+    for owner, name in ((Derivation, "added"), (TaskSignals, "vectors_of"), (TaskSignals, "derived")):
+        monkeypatch.setattr(owner, name, counted(getattr(owner, name)))
+    monkeypatch.setattr(TaskSignals, "paired", counted(TaskSignals.paired))
+    run = next(t for t in load_dataset(dataset).select(split="test") if t.symbol == "grasp_wp2")
+    values, _ = run.read_signals()
+    history = SignalHistory(task)
+    work, held = {}, {}
+    for step in range(5001):
+        touched.clear()
+        history.step(
+            {name: values[name].values[step % LENGTH] for name in ("gripper_width", "action")},
+            exclude_episode=None,
+        )
+        if step in (10, 5000):
+            work[step], held[step] = sum(touched), _held(history)
+    assert work[5000] == work[10] > 0
+    assert held[5000] == held[10]

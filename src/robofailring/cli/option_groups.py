@@ -141,9 +141,9 @@ SignalStartWeightOption = Annotated[
     float | None,
     typer.Option(
         "--signal-start-weight",
-        help="The start state's weight in each signal vector beside what changed since (docs/signals.md): 0 leaves "
-        "it out (the default: where things were placed varies from run to run), 0.5 the weight memories built "
-        "before it was a setting have.",
+        help="The start state's weight in each signal vector beside what changed since (docs/signals.md), from 0 "
+        "to 100: 0 leaves it out (the default: where things were placed varies from run to run), 0.5 the weight "
+        "memories built before it was a setting have.",
     ),
 ]
 

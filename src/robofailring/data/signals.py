@@ -5,7 +5,7 @@ A `Signal` is one named per-frame series of a trajectory (LeRobot's `observation
 frames: a layout gives its name, its kind (`state`, `action` or `other`), the name of each dimension
 where the data names them, and a `SignalSource` that reads the values when they are wanted.
 `Trajectory.read_signals()` reads every signal of a trajectory as (L, D) float64 rows, one per frame,
-checked (`read_signal`): a signal that is not numeric, holds NaN or infinity, or whose rows match none of the views'
+checked (`read_signal`): a signal that is not numeric, holds NaN, infinity or a value beyond float32's range, or whose rows match none of the views'
 frame counts is not used and is listed as `Skipped` with the reason, never silently dropped.
 """
 
@@ -23,6 +23,9 @@ from robofailring.errors import DataError
 #: The most dimensions one signal may have: a flattened (T, 3, 3) rotation is 9, a simulator's whole
 #: state vector a few hundred; more is not a robot signal a person reads or a detector should weigh.
 MAX_SIGNAL_DIMS: Final[int] = 512
+#: The largest magnitude a value may have: a signal memory keeps float32 vectors, and a value beyond it
+#: would become infinite there (and its square overflows the normalisation).
+FLOAT32_MAX: Final[float] = float(np.finfo(np.float32).max)
 
 
 class SignalKind(StrEnum):
@@ -91,7 +94,8 @@ class SignalValues:
 
 def checked_values(raw: object, *, where: str) -> np.ndarray:
     """`raw` as (T, D) float64 rows: a 1-D series is one column, trailing axes are flattened; a value
-    that is not numeric, NaN or infinite is a DataError naming `where`, the frame and the column."""
+    that is not numeric, NaN, infinite or beyond float32's range is a DataError naming `where`, the frame
+    and the column."""
     try:
         array = np.asarray(raw)
     except (ValueError, TypeError) as error:  # ragged rows
@@ -105,12 +109,12 @@ def checked_values(raw: object, *, where: str) -> np.ndarray:
         raise DataError(
             f"{where}: {values.shape[1]} dimensions per frame (a signal has 1 to {MAX_SIGNAL_DIMS})"
         )
-    bad = ~np.isfinite(values)
+    bad = ~(np.abs(values) <= FLOAT32_MAX)  # NaN too
     if bad.any():
         row, column = (int(i) for i in np.argwhere(bad)[0])
         raise DataError(
-            f"{where}: {int(bad.sum())} value(s) are NaN or infinite (the first at frame {row}, "
-            f"dimension {column}: {values[row, column]})"
+            f"{where}: {int(bad.sum())} value(s) are NaN, infinite or beyond ±{FLOAT32_MAX:.3g} (the first at "
+            f"frame {row}, dimension {column}: {values[row, column]})"
         )
     return values
 

@@ -4,14 +4,17 @@ view named `signals`, and what deviated most from the nearest normal frame."""
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from robofailring.data.model import Trajectory
+from robofailring.data.signals import FLOAT32_MAX
 from robofailring.errors import DataError
-from robofailring.memory.signal_layout import read_features
+from robofailring.memory.signal_derived import RunningDerivation
+from robofailring.memory.signal_layout import ACTION_LAGS, read_features
 from robofailring.memory.signal_memory import SIGNALS_VIEW, TaskSignals
 
 __all__ = ["SIGNALS_VIEW", "SignalHistory", "SignalScores", "score_signals"]
@@ -81,13 +84,16 @@ def score_signals(
 
 
 class SignalHistory:
-    """A live session's signals so far: the raw features of every step, for the start state and the
-    action window each new step's vector needs (`robofailring.memory.signal_memory`)."""
+    """A live session's signals so far, kept in constant space: the first step's features (the start state),
+    the last few (the action window, `ACTION_LAGS`) and the derived features' running state, so a step costs
+    the same at step 40,000 as at step 10 (`robofailring.memory.signal_memory`)."""
 
     def __init__(self, task: TaskSignals) -> None:
         self.task = task
         self.steps = 0
-        self._rows = np.zeros((0, 0))  # raw features of every step so far (capacity beyond `steps`)
+        self._running = RunningDerivation(task.derivation) if task.derivation is not None else None
+        self._first: np.ndarray | None = None  # the first step's features, derived columns included
+        self._recent: deque[np.ndarray] = deque(maxlen=max(ACTION_LAGS) + 1)  # the last steps' features
 
     def step(
         self, signals: Mapping[str, np.ndarray], *, exclude_episode: str | None
@@ -104,24 +110,29 @@ class SignalHistory:
         for name, dims in (*layout.state, *layout.action):
             row = np.asarray(signals[name], dtype=np.float64).reshape(-1)
             own = layout.full.get(name, dims)  # the whole signal, when the memory uses some of it
-            if len(row) != len(own) or not np.isfinite(row).all():
+            if len(row) != len(own) or not (np.abs(row) <= FLOAT32_MAX).all():
                 raise DataError(
-                    f"step {self.steps}: signal {name!r} must be {len(own)} finite numbers "
-                    f"({', '.join(own)}), got {row.tolist()}"
+                    f"step {self.steps}: signal {name!r} must be {len(own)} finite numbers within float32's "
+                    f"range ({', '.join(own)}), got {row.tolist()}"
                 )
             values[name] = layout.select(name, own, row[None], f"step {self.steps}")
         features = layout.features(values, 1)[0]
         features[-1] = self.steps  # the frame number
-        t = self.steps
-        if t == len(self._rows):  # room for twice as many steps: a long session grows in amortised O(1)
-            self._rows = (
-                np.concatenate([self._rows, np.zeros_like(self._rows)])
-                if t
-                else np.zeros((64, len(features)))
-            )
-        self._rows[t] = features
+        running = self._running
+        if running is not None:  # [state ‖ derived ‖ action ‖ t], as `TaskSignals.derived` lays a run out
+            state = layout.widths[0]
+            added, running = running.add(features)
+            features = np.concatenate([features[:state], added, features[state:]])
+        first = features if self._first is None else self._first
+        recent = [*self._recent, features]
+        lagged = [recent[max(len(recent) - 1 - lag, 0)][None] for lag in ACTION_LAGS]
+        try:
+            vector = self.task.paired(first, features[None], lagged)
+        except DataError as error:
+            raise DataError(f"step {self.steps}: {error}") from error
+        self._first, self._running = first, running  # kept only once the step is whole
+        self._recent.append(features)
         self.steps += 1
-        vector = self.task.vectors_of(self._rows, np.asarray([t]))  # reads rows 0, t and its action window
         failure, failure_row = self.task.search(vector, "failure", exclude_episode=exclude_episode)
         success, success_row = self.task.search(vector, "success", exclude_episode=exclude_episode)
         return float(failure[0]), float(success[0]), vector[0], int(failure_row[0]), int(success_row[0])

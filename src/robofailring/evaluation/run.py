@@ -50,6 +50,10 @@ def run_evaluation(
     splits = select_splits(config)
     train, test = splits.train, splits.test
     if detector is None:
+        if config.detector.memory is None:  # the memory built here: checked before it is built
+            _deployed(
+                test, config.deployment_successes, tasks={t.task for t in train}, successes=config.successes
+            )
         encoder = evaluation_encoder(config)
         memory_dir = (
             config.detector.memory
@@ -221,19 +225,42 @@ def _stored_target(memory: FailureMemory) -> float | None:
     return calibration.target_for(memory.encoder) if calibration is not None else None
 
 
+def _deployed(
+    test: Sequence[Trajectory], per_task: int, *, tasks: set[str], successes: bool
+) -> list[Trajectory]:
+    """The `per_task` test success runs per task of `tasks` that `--deployment-successes` moves; SettingError
+    where there is no success memory for them to join, or a task would keep no test success run to measure
+    its false positive rate on (its FPR would read "—")."""
+    if per_task and not successes:
+        raise SettingError(
+            f"--deployment-successes {per_task}: the memory has no success memory for them to join (built with "
+            "--no-successes); build it with its success runs, or leave out --deployment-successes"
+        )
+    chosen: list[Trajectory] = []
+    for task in sorted({t.task for t in test} & tasks) if per_task else ():
+        runs = sorted((t for t in test if t.task == task and not t.is_failure), key=lambda t: t.key)
+        if runs and per_task >= len(runs):
+            raise SettingError(
+                f"--deployment-successes {per_task} would leave task {task!r} no test success run to measure its "
+                f"false positive rate on (its test data has {len(runs)}): give at most {len(runs) - 1}"
+            )
+        chosen += runs[:per_task]
+    return chosen
+
+
 def _deploy_successes(
     memory: FailureMemory, test: list[Trajectory], per_task: int, encoder: CachedEncoder, step: float
 ) -> tuple[FailureMemory, list[Trajectory]]:
     """Move `per_task` success runs per task from the test set into the success memory and, where the memory
-    has one, the signal memory (in memory only)."""
-    if per_task == 0 or memory.successes is None:
+    has one, the signal memory (in memory only); SettingError before anything is encoded (`_deployed`)."""
+    if per_task == 0:
         return memory, test
-    chosen: list[Trajectory] = []
-    for task in sorted({t.task for t in test}):
-        runs = sorted((t for t in test if t.task == task and not t.is_failure), key=lambda t: t.key)
-        chosen += runs[:per_task]
+    successes = memory.successes
+    chosen = _deployed(test, per_task, tasks=set(memory.tasks), successes=successes is not None)
+    if successes is None or not chosen:  # (`_deployed` refuses a memory without successes)
+        return memory, test
     deployed = memory.with_successes(
-        memory.successes.extended(SuccessMemory.build(chosen, encoder, step=step, pairing=memory.pairing))
+        successes.extended(SuccessMemory.build(chosen, encoder, step=step, pairing=memory.pairing))
     )
     if memory.signals is not None:  # the robot's signals of those runs join its signal memory too
         deployed = deployed.with_signals(memory.signals.extended(chosen)[0])

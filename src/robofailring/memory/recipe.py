@@ -24,7 +24,7 @@ from robofailring.memory.signal_derived import NONE as NO_FEATURES
 from robofailring.memory.signal_layout import AUTO as SIGNALS_AUTO
 from robofailring.memory.signal_layout import NONE as SIGNALS_NONE
 from robofailring.memory.signal_layout import check_choice
-from robofailring.memory.signal_memory import DEFAULT_START_WEIGHT, START_WEIGHT
+from robofailring.memory.signal_memory import DEFAULT_START_WEIGHT, START_WEIGHT, check_start_weight
 from robofailring.memory.thinning import DEFAULT_STEP, check_step
 
 DEFAULT_ENCODER: Final[str] = "pixels"  # weight-free: what a memory is built with when no encoder is named
@@ -56,10 +56,10 @@ class MemoryRecipe:
             check_features(self.signal_features)
         except ValueError as error:
             raise SettingError(str(error)) from error
-        if not 0 <= self.signal_start_weight < float("inf"):
-            raise SettingError(
-                f"a signal start weight must be a number ≥ 0, got {self.signal_start_weight!r}"
-            )
+        try:
+            check_start_weight(self.signal_start_weight)
+        except ValueError as error:
+            raise SettingError(str(error)) from error
         check_failure_frames(self.failure_frames)
         check_pairing(self.pairing)
         check_step(self.success_step)

@@ -132,3 +132,32 @@ class Derivation:
                 f"{where}: task key {key!r} has step-like columns {steps.tolist()} for {columns} columns"
             )
         return cls(tuple(kinds), columns, steps, tolerance)
+
+
+@dataclass(frozen=True)
+class RunningDerivation:
+    """A derivation fed one frame at a time, as a live session sees them: each frame's derived columns, equal
+    to `Derivation.added`'s row for it, from constant state (the last frame's values and, per step-like
+    column, its jumps so far and its last jump), so the thousandth step costs what the tenth does."""
+
+    derivation: Derivation
+    frames: int = 0  # how many frames it has seen
+    previous: np.ndarray | None = None  # the last frame's raw state and action columns
+    jumps: np.ndarray | None = None  # per step-like column: its jumps so far …
+    last: np.ndarray | None = None  # … and the frame of its last jump (0 while none)
+
+    def add(self, features: np.ndarray) -> tuple[np.ndarray, RunningDerivation]:
+        """The (width,) derived columns of the next frame's raw features (columns + 1,), and the running
+        derivation that has seen it (this one is left as it was)."""
+        derivation = self.derivation
+        raw = np.array(features, np.float64)[: derivation.columns]
+        change = raw - self.previous if self.previous is not None else np.zeros_like(raw)
+        jumps = self.jumps if self.jumps is not None else np.zeros(len(derivation.steps))
+        last = self.last if self.last is not None else np.zeros(len(derivation.steps))
+        parts = [change] if CHANGE in derivation.kinds else []
+        if EVENTS in derivation.kinds:
+            moved = np.abs(change[derivation.steps]) > derivation.tolerance
+            jumps, last = jumps + moved, np.where(moved, self.frames, last)
+            parts += [jumps, self.frames - last]
+        added = np.concatenate(parts) if parts else np.zeros(0)
+        return added, RunningDerivation(derivation, self.frames + 1, raw, jumps, last)

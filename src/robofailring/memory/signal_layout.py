@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from fnmatch import fnmatch
@@ -10,8 +11,8 @@ from typing import Any, Final
 
 import numpy as np
 
-from robofailring.data.model import Trajectory
-from robofailring.data.signals import SignalKind
+from robofailring.data.model import Skipped, Trajectory
+from robofailring.data.signals import SignalKind, SignalValues
 from robofailring.errors import DataError, MemoryFormatError
 from robofailring.memory.signal_derived import parse_features
 
@@ -56,15 +57,18 @@ class SignalLayout:
     derived: tuple[str, ...] = ()
 
     def select(self, name: str, dims: Sequence[str], values: np.ndarray, where: str) -> np.ndarray:
-        """A signal's (L, D) rows with its own dimension names `dims`, cut to the layout's dimensions."""
+        """A signal's (L, D) rows with its own dimension names `dims`, cut to the layout's dimensions; a
+        signal of other dimensions than the task's runs have (wider, narrower, renamed) is a DataError naming
+        them, never cut to fit."""
         wanted = dict((*self.state, *self.action))[name]
+        own = self.full.get(name, wanted)  # the whole signal the task's runs have
+        if set(dims) != set(own):
+            raise DataError(
+                f"{where}: signal {name!r} has {len(dims)} dimension(s) ({_shown(dims)}), but the task's runs "
+                f"have {len(own)} ({_shown(own)})"
+            )
         if tuple(dims) == wanted:
             return values
-        missing = [dim for dim in wanted if dim not in dims]
-        if missing:
-            raise DataError(
-                f"{where}: signal {name!r} has no dimension {missing[0]!r} (it has: {', '.join(dims)})"
-            )
         return values[:, [list(dims).index(dim) for dim in wanted]]
 
     @property
@@ -141,26 +145,28 @@ def read_features(trajectory: Trajectory, layout: SignalLayout) -> np.ndarray:
 
 def choose_layout(
     trajectories: Sequence[Trajectory], choice: str, features: str = NONE
-) -> SignalLayout | None:
-    """The layout of one task's runs for `choice`: `auto` takes every state and action signal the first
-    run that has signals has (a run without one of them is skipped when the memory is built); names take
-    those signals, whatever their kind (`other` counts as state); `features` (`--signal-features`) are
-    derived from them. None: no signals to use."""
+) -> tuple[SignalLayout | None, list[Skipped]]:
+    """The layout of one task's runs for `choice`, decided by all of them, not by whichever comes first:
+    `auto` takes every state and action signal at least half of the runs with signals have, names take those
+    signals, whatever their kind (`other` counts as state); each signal has the dimensions most of the runs
+    that read it well have. A run whose signal is missing, unreadable (NaN, infinite, no rows, not numbers) or
+    of other dimensions is skipped when the memory is built, with the reason, and the others keep the signal;
+    a signal `auto` found that no run reads well is left out, each run's reason listed (the second value).
+    `features` (`--signal-features`) are derived from them. None: no signals to use."""
     if choice == NONE:
-        return None
-    first = next((t for t in trajectories if t.signals), None)
-    if first is None:
-        return None
-    globs = (
-        {n: [] for n, s in first.signals.items() if s.kind in (SignalKind.STATE, SignalKind.ACTION)}
-        if choice == AUTO
-        else chosen_signals(choice)
-    )
-    found, skipped = first.read_signals(list(globs))
-    if choice != AUTO and skipped:
-        raise DataError(f"--signals {choice}: {skipped[0].reason}")
+        return None, []
+    runs = [t for t in trajectories if t.signals]
+    if not runs:
+        return None, []
+    globs = _candidates(runs) if choice == AUTO else chosen_signals(choice)
+    voted, unread = _vote(runs, list(globs))
+    if choice != AUTO:
+        absent = next((name for name in globs if name not in voted), None)
+        if absent is not None:
+            first = (unread.get(absent) or runs[0].read_signals([absent])[1])[0]
+            raise DataError(f"--signals {choice}: {first.reason}")
     dims: dict[str, tuple[str, ...]] = {}
-    for name, signal in found.items():
+    for name, signal in voted.items():
         dims[name] = tuple(
             d for d in signal.dims if not globs[name] or any(fnmatch(d, g) for g in globs[name])
         )
@@ -169,9 +175,51 @@ def choose_layout(
                 f"--signals {choice}: no dimension of {name!r} matches {', '.join(globs[name])} (it has: "
                 f"{', '.join(signal.dims)})"
             )
-    state = tuple((n, dims[n]) for n, v in found.items() if v.kind is not SignalKind.ACTION)
-    action = tuple((n, dims[n]) for n, v in found.items() if v.kind is SignalKind.ACTION)
-    full = {n: v.dims for n, v in found.items() if dims[n] != v.dims}
+    state = tuple((n, dims[n]) for n, v in voted.items() if v.kind is not SignalKind.ACTION)
+    action = tuple((n, dims[n]) for n, v in voted.items() if v.kind is SignalKind.ACTION)
+    full = {n: v.dims for n, v in voted.items() if dims[n] != v.dims}
+    dropped = [  # those that were read well elsewhere are listed when the memory is built
+        Skipped(each.path, f"signal not used: {each.reason} (no run of the task reads it well: left out)")
+        for name, skipped in unread.items()
+        if name not in voted
+        for each in skipped
+    ]
     if not (state or action):
-        return None
-    return SignalLayout(state=state, action=action, full=full, derived=parse_features(features))
+        return None, dropped
+    return SignalLayout(state=state, action=action, full=full, derived=parse_features(features)), dropped
+
+
+def _candidates(runs: Sequence[Trajectory]) -> dict[str, list[str]]:
+    """`auto`'s signals: the state and action signals at least half of `runs` have, in the order they come."""
+    counts = Counter(
+        name
+        for run in runs
+        for name, signal in run.signals.items()
+        if signal.kind in (SignalKind.STATE, SignalKind.ACTION)
+    )
+    return {name: [] for name, count in counts.items() if 2 * count >= len(runs)}
+
+
+def _vote(
+    runs: Sequence[Trajectory], names: Sequence[str]
+) -> tuple[dict[str, SignalValues], dict[str, list[Skipped]]]:
+    """Each of `names` as most of the `runs` that read it well have it (its dimensions; a tie: the first
+    run's), left out where no run reads it well, and what could not be read: one run's bad value does not
+    decide for the others."""
+    read: dict[str, list[SignalValues]] = {name: [] for name in names}
+    unread: dict[str, list[Skipped]] = {name: [] for name in names}
+    for run in runs:
+        for name in (name for name in names if name in run.signals):
+            found, skipped = run.read_signals([name])
+            read[name] += found.values()
+            unread[name] += skipped
+    voted = {}
+    for name, good in read.items():
+        if good:
+            common = Counter(values.dims for values in good).most_common(1)[0][0]
+            voted[name] = next(values for values in good if values.dims == common)
+    return voted, unread
+
+
+def _shown(dims: Sequence[str]) -> str:
+    return ", ".join(dims) if len(dims) <= 8 else f"{', '.join(dims[:8])}, …"

@@ -18,7 +18,6 @@ rules and fused with the camera views as one more view named `signals`.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
@@ -26,7 +25,6 @@ import numpy as np
 
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.errors import DataError, MemoryFormatError
-from robofailring.memory.index import FLAT, IndexSpec, TaskIndex
 from robofailring.memory.signal_derived import NONE as NO_FEATURES
 from robofailring.memory.signal_derived import Derivation
 from robofailring.memory.signal_layout import (
@@ -36,114 +34,16 @@ from robofailring.memory.signal_layout import (
     choose_layout,
     read_features,
 )
+from robofailring.memory.signal_task import START_WEIGHT, Rows, TaskSignals
 
 SIGNALS_VIEW: Final[str] = "signals"  # the modality's name among the views a trace fuses
-START_WEIGHT: Final[float] = 0.5  # the start state's weight in a memory from before it was a setting …
-DEFAULT_START_WEIGHT: Final[float] = 0.0  # … and in a new one (docs/signals.md, "Measured")
+# the start state's weight in a new memory (docs/signals.md, "Measured"; ½ in one from before the setting)
+DEFAULT_START_WEIGHT: Final[float] = 0.0
+# the largest start weight: the start state, a few σ once normalised, then outweighs every other element a
+# hundredfold; a larger one only overflows the float32 vectors (1e308 would make them infinite)
+MAX_START_WEIGHT: Final[float] = 100.0
 MIN_SCALE: Final[float] = 1e-3  # a feature's spread floor (a value constant over the successes)
 SIGNALS_FILE: Final[str] = "signals.npz"
-
-
-@dataclass(frozen=True)
-class Rows:
-    """What each entry of one index is: its run's episode, failure symbol (None: a success) and frame."""
-
-    episodes: np.ndarray  # str
-    symbols: np.ndarray  # str, "" for a success
-    frames: np.ndarray  # int
-
-
-class TaskSignals:
-    """One task's signal memory: its layout, derived features, normalisation and the failure and success
-    entries' indexes."""
-
-    def __init__(
-        self,
-        layout: SignalLayout,
-        mean: np.ndarray,
-        scale: np.ndarray,
-        vectors: Mapping[str, np.ndarray],
-        rows: Mapping[str, Rows],
-        derivation: Derivation | None = None,
-        start_weight: float = START_WEIGHT,
-    ) -> None:
-        self.layout, self.mean, self.scale = layout, np.asarray(mean), np.asarray(scale)
-        self.derivation = derivation
-        self.start_weight = float(start_weight)
-        self.vectors = {kind: np.asarray(v, np.float32) for kind, v in vectors.items()}
-        self.rows = dict(rows)
-        self.indexes = {
-            kind: TaskIndex.build(
-                _entries(v), np.arange(len(v)), list(self.rows[kind].episodes), IndexSpec(FLAT)
-            )
-            for kind, v in self.vectors.items()
-            if len(v)
-        }
-
-    @property
-    def widths(self) -> tuple[int, int]:
-        """(state, action) widths of its features: the layout's, with the derived columns in the state."""
-        state, action = self.layout.widths
-        return state + (self.derivation.width if self.derivation is not None else 0), action
-
-    def derived(self, features: np.ndarray) -> np.ndarray:
-        """One run's features with the derived columns after the state: [state ‖ derived ‖ action ‖ t]."""
-        features = np.asarray(features, np.float64)
-        if self.derivation is None:
-            return features
-        state = self.layout.widths[0]
-        return np.concatenate([features[:, :state], self.derivation.added(features), features[:, state:]], 1)
-
-    def vectors_of(self, features: np.ndarray, frames: np.ndarray | None = None) -> np.ndarray:
-        """The paired vectors (module docstring) of one run's raw features, one per frame (of `frames` only,
-        when given: a live step pairs just its own frame, reading only the rows it needs: frames up to it
-        where features are derived)."""
-        features = np.asarray(features, np.float64)
-        at = np.arange(len(features)) if frames is None else np.asarray(frames, np.int64)
-        if self.derivation is not None:
-            features = self.derived(features[: int(at.max(initial=0)) + 1])
-        state_width, action_width = self.widths
-
-        def z(rows: np.ndarray) -> np.ndarray:
-            return (features[rows] - self.mean) / self.scale
-
-        first, now = z(np.zeros(1, np.int64))[0], z(at)
-        lagged = [
-            z(np.maximum(at - lag, 0))[:, state_width : state_width + action_width] for lag in ACTION_LAGS
-        ]
-        start = np.broadcast_to(self.start_weight * first[:state_width], (len(at), state_width))
-        change = now[:, :state_width] - first[:state_width]
-        return np.concatenate([start, change, *lagged, now[:, -1:]], axis=1).astype(np.float32)
-
-    def search(
-        self, vectors: np.ndarray, kind: str, *, exclude_episode: str | None = None
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """(similarity, entry row) of the nearest `failure` or `success` entry per vector; NaN and −1 where
-        the task has none (or only the excluded episode's)."""
-        vectors = np.ascontiguousarray(vectors, np.float32)
-        index = self.indexes.get(kind)
-        if index is None:
-            return np.full(len(vectors), np.nan, np.float32), np.full(len(vectors), -1, np.int64)
-        queries = np.concatenate([vectors, np.ones((len(vectors), 1), np.float32)], axis=1)
-        products, ids = index.search(queries, 1, exclude_episode=exclude_episode)
-        squared = np.maximum(np.einsum("ij,ij->i", vectors, vectors) - 2 * products[:, 0], 0.0)
-        similarity = np.exp(-squared / vectors.shape[1]).astype(np.float32)
-        return np.where(ids[:, 0] >= 0, similarity, np.nan).astype(np.float32), ids[:, 0]
-
-    def deviations(self, vector: np.ndarray, row: int, *, top: int = 3) -> list[tuple[str, float]]:
-        """The elements of `vector` furthest from success entry `row`, in the success runs' spreads (σ)."""
-        difference = np.asarray(vector, np.float64) - self.vectors["success"][row]
-        order = np.argsort(-np.abs(difference))[:top]
-        derived = self.derivation.names(self.layout.raw_columns()) if self.derivation is not None else []
-        columns = self.layout.columns(derived)
-        return [(columns[i], float(difference[i])) for i in order]
-
-
-def _entries(vectors: np.ndarray) -> np.ndarray:
-    """Entries for inner-product search that ranks by Euclidean distance: [y ‖ −‖y‖²/2], so a query
-    [x ‖ 1] scores x·y − ‖y‖²/2 = (‖x‖² − d²)/2."""
-    norms = np.einsum("ij,ij->i", vectors, vectors)[:, None]
-    return np.concatenate([vectors, -0.5 * norms], axis=1).astype(np.float32)
 
 
 def build_task(
@@ -162,7 +62,7 @@ def build_task(
         try:
             features.append((trajectory, read_features(trajectory, layout)))
         except DataError as error:
-            skipped.append(Skipped(trajectory.source or Path(trajectory.key), f"signals not used: {error}"))
+            skipped.append(_not_used(trajectory, str(error)))
     normal = [f for t, f in features if not t.is_failure] or [f for _, f in features]
     if not normal:
         return None, skipped
@@ -171,13 +71,21 @@ def build_task(
     stacked = np.concatenate([empty.derived(f) for f in normal])
     mean, scale = stacked.mean(axis=0), np.maximum(stacked.std(axis=0), MIN_SCALE)
     task = TaskSignals(layout, mean, scale, {}, {}, derivation, start_weight)
-    return _with_runs(task, features, onset_start), skipped
+    grown, unused = _with_runs(task, features, onset_start)
+    return grown, [*skipped, *unused]
+
+
+def _not_used(run: Trajectory, reason: str) -> Skipped:
+    """A run left out of the signal memory, and why (its frames are still used)."""
+    return Skipped(run.source or Path(run.key), f"signals not used: {reason}")
 
 
 def _with_runs(
     task: TaskSignals, features: Sequence[tuple[Trajectory, np.ndarray]], onset_start: int = 1
-) -> TaskSignals:
-    """`task` with an entry per frame of each run added (a failure's from its onset on), its normalisation kept."""
+) -> tuple[TaskSignals, list[Skipped]]:
+    """`task` with an entry per frame of each run added (a failure's from its onset on), its normalisation
+    kept, and the runs whose vectors it cannot keep."""
+    skipped: list[Skipped] = []
     vectors: dict[str, list[np.ndarray]] = {kind: [v] for kind, v in task.vectors.items()}
     rows: dict[str, list[tuple[str, str, int]]] = {
         kind: list(zip(r.episodes.tolist(), r.symbols.tolist(), r.frames.tolist(), strict=True))
@@ -186,12 +94,16 @@ def _with_runs(
     for trajectory, raw in features:
         kind = "failure" if trajectory.is_failure else "success"
         start = (trajectory.onset_frame or onset_start) if kind == "failure" else 0
-        paired = task.vectors_of(raw)[start:]
+        try:
+            paired = task.vectors_of(raw)[start:]
+        except DataError as error:
+            skipped.append(_not_used(trajectory, f"{trajectory.key}: {error}"))
+            continue
         vectors.setdefault(kind, []).append(paired)
         found = rows.setdefault(kind, [])
         found += [(trajectory.episode, trajectory.symbol or "", start + i) for i in range(len(paired))]
     width = 2 * task.widths[0] + len(ACTION_LAGS) * task.widths[1] + 1
-    return TaskSignals(
+    grown = TaskSignals(
         task.layout,
         task.mean,
         task.scale,
@@ -203,6 +115,7 @@ def _with_runs(
         task.derivation,
         task.start_weight,
     )
+    return grown, skipped
 
 
 def _rows(found: list[tuple[str, str, int]]) -> Rows:
@@ -247,7 +160,8 @@ class SignalMemory:
         tasks = sorted({t.task for t in trajectories})
         for task in tasks:
             runs = [t for t in trajectories if t.task == task]
-            layout = choose_layout(runs, choice, features)
+            layout, unused = choose_layout(runs, choice, features)
+            skipped += unused
             if layout is None:
                 continue
             built, missed = build_task(runs, layout, start_weight=start_weight)
@@ -266,7 +180,8 @@ class SignalMemory:
             runs = [t for t in trajectories if t.task == task and t.outcome is not None]
             held = by_task.get(task)
             if held is None:
-                layout = choose_layout(runs, self.choice, self.features)
+                layout, unused = choose_layout(runs, self.choice, self.features)
+                skipped += unused
                 built, missed = (
                     build_task(runs, layout, start_weight=self.start_weight)
                     if layout is not None
@@ -281,8 +196,9 @@ class SignalMemory:
                 try:
                     features.append((run, read_features(run, held.layout)))
                 except DataError as error:
-                    skipped.append(Skipped(run.source or Path(run.key), f"signals not used: {error}"))
-            by_task[task] = _with_runs(held, features)
+                    skipped.append(_not_used(run, str(error)))
+            by_task[task], unused = _with_runs(held, features)
+            skipped += unused
         return (
             SignalMemory(by_task, choice=self.choice, features=self.features, start_weight=self.start_weight),
             skipped,
@@ -382,11 +298,24 @@ class SignalMemory:
         )
 
 
-def _start_weight(section: Mapping[str, Any], where: str) -> float:
-    """The stored start-state weight (a memory from before it was a setting: ½); MemoryFormatError if not a number ≥ 0."""
-    value = section.get("start_weight", START_WEIGHT)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 <= value < float("inf"):
-        raise MemoryFormatError(
-            f"{where}: the signal memory's start_weight must be a number ≥ 0, got {value!r}"
+def check_start_weight(weight: object) -> float:
+    """A start weight (`--signal-start-weight`) as a float; ValueError unless a number from 0 to `MAX_START_WEIGHT`."""
+    if (
+        isinstance(weight, bool)
+        or not isinstance(weight, (int, float))
+        or not 0 <= weight <= MAX_START_WEIGHT  # NaN too
+    ):
+        raise ValueError(
+            f"a signal start weight (--signal-start-weight) must be a number from 0 to {MAX_START_WEIGHT:g} "
+            f"(0 leaves the start state out, 0.5 weighs it as memories from before the setting do), got {weight!r}"
         )
-    return float(value)
+    return float(weight)
+
+
+def _start_weight(section: Mapping[str, Any], where: str) -> float:
+    """The stored start-state weight (a memory from before it was a setting: ½); MemoryFormatError if not one
+    `check_start_weight` takes."""
+    try:
+        return check_start_weight(section.get("start_weight", START_WEIGHT))
+    except ValueError as error:
+        raise MemoryFormatError(f"{where}: the signal memory's start_weight: {error}") from error
