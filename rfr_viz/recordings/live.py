@@ -49,6 +49,7 @@ from robofailring.data.model import Frame
 from robofailring.detection.config import DEFAULT_K
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.session import DetectorSession
+from robofailring.detection.signal_scores import SIGNALS_VIEW
 from robofailring.detection.trace import StepResult
 from robofailring.errors import DataError, SettingError
 from robofailring.explain.report import FailureReport
@@ -269,6 +270,9 @@ class LiveRecording:
                 changed = self._success_shown.get(view, -1) != (match.index if match else -1)
                 self._success_shown[view] = match.index if match else -1
                 log_nearest_success(rec, paths, view, match, t=t, images=self._success_images, image=changed)
+            signals = result.success_similarity.get(SIGNALS_VIEW, float("nan"))  # the robot's signals' S⁺_t
+            if np.isfinite(signals):
+                rec.log(paths.success_score(SIGNALS_VIEW), rr.Scalars(signals))
         if self.memory_map is not None:
             for view, query in result.queries.items():
                 placed = self.memory_map.project(view, self.task, query)
