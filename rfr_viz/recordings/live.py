@@ -49,7 +49,6 @@ from robofailring.data.model import Frame
 from robofailring.detection.config import DEFAULT_K
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.session import DetectorSession
-from robofailring.detection.signal_scores import SIGNALS_VIEW
 from robofailring.detection.trace import StepResult
 from robofailring.errors import DataError, SettingError
 from robofailring.explain.report import FailureReport
@@ -264,15 +263,13 @@ class LiveRecording:
             rec.log(paths.threshold(rule.name), rr.Scalars(result.thresholds[rule.name]))
         rec.log(paths.state, rr.Scalars(float(result.alarm)))
         if self.plots.successes:
+            for view, similarity in result.success_similarity.items():  # each view judged, the signals too
+                if np.isfinite(similarity):
+                    rec.log(paths.success_score(view), rr.Scalars(similarity))
             for view, match in result.nearest_success.items():
-                if np.isfinite(result.success_similarity[view]):
-                    rec.log(paths.success_score(view), rr.Scalars(result.success_similarity[view]))
                 changed = self._success_shown.get(view, -1) != (match.index if match else -1)
                 self._success_shown[view] = match.index if match else -1
                 log_nearest_success(rec, paths, view, match, t=t, images=self._success_images, image=changed)
-            signals = result.success_similarity.get(SIGNALS_VIEW, float("nan"))  # the robot's signals' S⁺_t
-            if np.isfinite(signals):
-                rec.log(paths.success_score(SIGNALS_VIEW), rr.Scalars(signals))
         if self.memory_map is not None:
             for view, query in result.queries.items():
                 placed = self.memory_map.project(view, self.task, query)
