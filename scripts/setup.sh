@@ -40,3 +40,10 @@ if [ -n "$dev" ] && ! command -v chromium >/dev/null && ! command -v chromium-br
   (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends chromium >/dev/null) \
     || echo "warning: could not install chromium; the report.html rendering test will fail" >&2
 fi
+# The bench-only ManiSkill venv bench/bench_peer.py runs the peer simulator in (bench/setup_peer.sh: outside .venv,
+# never the project's install), made where bench_peer.py looks for it, once: the full lane checks that its
+# generator answers --help (tests/docs/test_benches.py).
+if [ -n "$dev" ]; then
+  PYTHONPATH=src:. .venv/bin/python -c 'from bench.bench_peer import default_peer_env, ready_peer_env; ready_peer_env(default_peer_env())' \
+    || echo "warning: could not make the bench-only peer venv (bench/setup_peer.sh); the peer generator's test will fail" >&2
+fi

@@ -263,9 +263,10 @@ class LiveRecording:
             rec.log(paths.threshold(rule.name), rr.Scalars(result.thresholds[rule.name]))
         rec.log(paths.state, rr.Scalars(float(result.alarm)))
         if self.plots.successes:
+            for view, similarity in result.success_similarity.items():  # each view judged, the signals too
+                if np.isfinite(similarity):
+                    rec.log(paths.success_score(view), rr.Scalars(similarity))
             for view, match in result.nearest_success.items():
-                if np.isfinite(result.success_similarity[view]):
-                    rec.log(paths.success_score(view), rr.Scalars(result.success_similarity[view]))
                 changed = self._success_shown.get(view, -1) != (match.index if match else -1)
                 self._success_shown[view] = match.index if match else -1
                 log_nearest_success(rec, paths, view, match, t=t, images=self._success_images, image=changed)

@@ -40,6 +40,22 @@ def test_a_missing_module_is_asked_for_through_the_environment_helper() -> None:
     assert skipping == []
 
 
+#: Tests that skip where they do not apply, which no install changes (not a missing piece of the full lane).
+SKIPS_WITHOUT_A_MISSING_PIECE = {"encoders/test_exported.py": 1}  # ONNX Runtime with CUDA: nothing to say
+
+
+def test_a_missing_piece_is_asked_for_through_the_environment_helper_not_skipped() -> None:
+    """A test that lacks a venv, a file or a tool calls `environment.missing` (a failure in the full lane);
+    a bare pytest.skip skipped there too (tests/docs/test_benches.py's peer venv did, issue 50)."""
+    skipping = {
+        str(path.relative_to(TESTS)): count
+        for path in TESTS.rglob("*.py")
+        if path.name not in ("environment.py", "test_test_tree.py")
+        and (count := len(re.findall(r"\bpytest\.skip\(", path.read_text())))
+    }
+    assert skipping == SKIPS_WITHOUT_A_MISSING_PIECE
+
+
 def test_a_missing_requirement_fails_the_full_lane_and_skips_a_plain_run(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:

@@ -185,3 +185,61 @@ def test_calibrate_scores_as_detect_does() -> None:
     assert {"memory", "k", "modality", "encoder", "runtime"} <= offered
     assert not offered & {"score", "delta", "gamma", "eta"}
     assert DETECTOR.parameters()[0].default is inspect.Parameter.empty  # --memory: required where it detects
+
+
+#: For a group, a value other than the default for every one of its options, as given on the command line,
+#: and the value the group must make of them.
+GIVEN: dict[Callable[..., Any], tuple[list[str], Any]] = {
+    recipe_options: (
+        [
+            "--encoder=timm:efficientnet_lite0",
+            "--failure-frames=end",
+            "--pairing=concat",
+            "--success-step=0.1",
+            "--signals=gripper_width",
+            "--signal-features=change",
+            "--signal-start-weight=0.25",
+        ],
+        MemoryRecipe(
+            encoder="timm:efficientnet_lite0",
+            failure_frames="end",
+            pairing="concat",
+            success_step=0.1,
+            signals="gripper_width",
+            signal_features="change",
+            signal_start_weight=0.25,
+        ),
+    ),
+    threshold_options: (
+        ["--target-fpr=0.2", "--band=norm", "--fusion=per-view", "--band-scope=task"],
+        ThresholdPolicy(target_fpr=0.2, band="norm", fusion="per-view", band_scope="task"),
+    ),
+}
+
+
+@pytest.mark.parametrize("build", list(GIVEN), ids=lambda build: build.__name__)
+def test_every_option_given_reaches_its_value(build: Callable[..., Any]) -> None:
+    """Each option of a group, given a value other than its default on the command line, ends up in the
+    value the verb receives (the test above compares defaults only: an option dropped between the command
+    line and the value passes it)."""
+    arguments, expected = GIVEN[build]
+    flags = {
+        flag
+        for parameter in inspect.signature(build, eval_str=True).parameters.values()
+        for flag in _flags(parameter)
+    }
+    assert {argument.split("=")[0] for argument in arguments} == flags  # every option is given
+    default = build()
+    changed = [field.name for field in dataclasses.fields(expected) if field.compare]
+    assert all(getattr(expected, name) != getattr(default, name) for name in changed)
+    seen: list[Any] = []
+
+    @takes(value=OptionGroup(build))
+    def verb(*, value: Any) -> None:
+        seen.append(value)
+
+    result = CliRunner().invoke(_verb_app(verb), ["verb", *arguments])
+    assert result.exit_code == 0, result.output
+    assert {name: getattr(seen[0], name) for name in changed} == {
+        name: getattr(expected, name) for name in changed
+    }

@@ -55,3 +55,25 @@ def test_triage_refuses_to_replace_a_users_page(project: Path, cache: list[str],
     (out / "triage.html").write_text("<html><title>my ranking</title></html>")
     refused(cli("triage", project, "--out", out, "--replays", "0", *cache), 2, str(out / "triage.html"))
     assert tree(out) == {"triage.html": b"<html><title>my ranking</title></html>"}
+
+
+DEMO_OUTPUTS = (
+    "report.html",
+    "in-distribution.json",
+    "in-distribution.md",
+    "out-of-distribution.json",
+    "out-of-distribution.md",
+)
+
+
+@pytest.mark.parametrize("name", DEMO_OUTPUTS)
+def test_demo_refuses_to_replace_a_users_file(tmp_path: Path, name: str) -> None:
+    """Before any simulation: the data folder given is a file, so a demo that went on would stop at its first
+    step with another error instead of simulating for minutes."""
+    out = tmp_path / "demo"
+    out.mkdir()
+    (out / name).write_text("my own notes")
+    not_a_folder = tmp_path / "data"
+    not_a_folder.write_text("")
+    refused(cli("demo", "--out", out, "--data-dir", not_a_folder), 2, str(out / name))
+    assert tree(out) == {name: b"my own notes"}

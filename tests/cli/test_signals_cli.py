@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 from fault_helpers import cli, refused
 from synthetic import write_project_dataset
@@ -89,6 +90,15 @@ def test_watch_streams_the_signals_and_scores_them_live(data: Path, cache: list[
     assert [frame for frame, _ in scored] == list(range(8))
     assert max(value[0] for _, value in scored[4:]) > 0.05  # after the gripper closed on nothing
     assert "FAILURE at frame" in watched.stdout
+    # the signals' S⁺_t at their own /score/signals/success, as a replay has it (detect --json's values)
+    plus = rows(saved, REPLAY.success_score("signals"), "Scalars:scalars")
+    found = cli("detect", data, "--memory", memory, "--trajectory", episode.name, "--json", *cache)
+    assert found.exit_code == 0, found.output
+    expected = json.loads(found.stdout)["signals"]["success_similarity"]
+    assert [frame for frame, _ in plus] == [t for t, value in enumerate(expected) if value is not None]
+    np.testing.assert_allclose(
+        [value[0] for _, value in plus], [v for v in expected if v is not None], atol=1e-4
+    )
 
 
 def test_the_start_weight_and_band_scope_reach_the_memory_and_a_new_task_grown_keeps_the_weight(

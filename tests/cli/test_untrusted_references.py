@@ -25,17 +25,26 @@ def data(tmp_path_factory: pytest.TempPathFactory) -> Path:
     )
 
 
-@pytest.mark.parametrize("where", ["absolute", "parent"])
+@pytest.mark.parametrize("where", ["absolute", "parent", "sibling"])
 def test_an_entry_pointing_outside_the_data_root_is_refused(
     data: Path, cache: list[str], tmp_path: Path, where: str
 ) -> None:
+    """`sibling`: a folder beside the data root whose name starts with the root's (`/x/data-private` beside
+    `/x/data`) is outside it, though its path starts with the root's as a string."""
     memory = tmp_path / "memory"
     assert cli("build-memory", data, "--out", memory, *cache).exit_code == 0
     private = tmp_path / "private.png"
+    if where == "sibling":
+        private = data.parent / f"{data.name}-private" / "private.png"
+        private.parent.mkdir(exist_ok=True)
     shutil.copy(next(data.glob("*/front_0.png")), private)
     lines = (memory / "entries.jsonl").read_text().splitlines()
     entry = json.loads(lines[0])
-    entry["start"] = str(private) if where == "absolute" else "../../private.png"
+    entry["start"] = {
+        "absolute": str(private),
+        "parent": "../../private.png",
+        "sibling": f"../{data.name}-private/private.png",
+    }[where]
     (memory / "entries.jsonl").write_text("\n".join([json.dumps(entry), *lines[1:]]) + "\n")
     out = tmp_path / "recordings"
     result = cli("replay", data, "--memory", memory, "--out", out, *cache)
@@ -47,7 +56,9 @@ def test_a_manifest_dir_outside_the_dataset_is_refused(data: Path, tmp_path: Pat
     copy = Path(shutil.copytree(data, tmp_path / "data"))
     manifest = json.loads((copy / "manifest.json").read_text())
     elsewhere = Path(shutil.copytree(copy / manifest["episodes"][0]["dir"], tmp_path / "elsewhere"))
-    for bad in ("../elsewhere", str(elsewhere)):
+    # beside the dataset, named as it is and more: its path starts with the dataset's as a string
+    shutil.copytree(elsewhere, tmp_path / "data-private")
+    for bad in ("../elsewhere", str(elsewhere), "../data-private", str(tmp_path / "data-private")):
         manifest["episodes"][0]["dir"] = bad
         (copy / "manifest.json").write_text(json.dumps(manifest))
         with pytest.raises(Exception, match="which is not a folder inside the dataset"):

@@ -63,6 +63,19 @@ def test_too_few_successes_fall_back_to_the_smallest_alpha_they_allow() -> None:
         attainable_target_fpr(0, 0.05)
 
 
+@pytest.mark.parametrize("alpha", [0.05, 0.1, 0.2, 0.25, 0.5])
+def test_every_count_of_runs_from_the_needed_one_on_keeps_alpha_itself(alpha: float) -> None:
+    """From ⌈1/α − 1⌉ runs on the level is α, at every count (20 runs at α = 0.05 too, not 1/21); below it,
+    the smallest level the runs allow, 1/(n+1), at which a threshold exists."""
+    needed = successes_needed(alpha)
+    assert [n for n in range(needed, 400) if attainable_target_fpr(n, alpha) != alpha] == []
+    assert attainable_target_fpr(20, 0.05) == 0.05
+    for n in range(1, needed):
+        level = attainable_target_fpr(n, alpha)
+        assert level == pytest.approx(1 / (n + 1)) and level > alpha
+        conformal_threshold([0.1 * i for i in range(n)], level)  # a threshold exists at that level
+
+
 def test_auc_interval_resamples_each_kind_of_run() -> None:
     assert auc_interval([0.9, 0.8, 0.7], [0.1, 0.2]) == (1.0, 1.0)  # every resample separates them
     assert auc_interval([], [0.1]) is None and auc_interval([0.1], []) is None

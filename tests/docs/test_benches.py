@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from environment import missing
 
 ROOT = Path(__file__).resolve().parents[2]
 BENCH = ROOT / "bench"
@@ -79,12 +80,14 @@ def test_every_bench_prints_the_machine_it_measures_on(script: Path) -> None:
 
 @pytest.mark.slow  # imports ManiSkill: seconds
 def test_the_peer_generator_answers_help_in_its_own_venv() -> None:
-    python = Path(
-        os.environ.get("ROBOFAILRING_PEER_ENV", Path.home() / ".cache" / "robofailring" / "peer-env")
-    )
-    python = python / "venv" / "bin" / "python"
-    if not python.is_file():
-        pytest.skip(f"no bench-only peer venv at {python.parents[2]} (bench/setup_peer.sh makes one)")
+    """In the venv bench_peer.py runs it in (scripts/setup.sh --dev makes it): one bench/setup_peer.sh did not
+    finish (no `ready` in it) is missing too, and the full lane fails without it (tests/environment.py)."""
+    from bench.bench_peer import default_peer_env
+
+    env_dir = default_peer_env()
+    if not (env_dir / "ready").is_file():
+        missing(f"no bench-only peer venv ready at {env_dir}: bash bench/setup_peer.sh {env_dir} makes one")
+    python = env_dir / "venv" / "bin" / "python"
     done = subprocess.run(
         [str(python), str(BENCH / "peer_generate.py"), "--help"], capture_output=True, text=True, timeout=120
     )

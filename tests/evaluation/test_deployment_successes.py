@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from synthetic import write_project_dataset
 
-from robofailring import CachedEncoder, load_dataset, load_encoder
+from robofailring import CachedEncoder, FailureDetector, load_dataset, load_encoder
 from robofailring.errors import SettingError
 from robofailring.evaluation.run import _deploy_successes
 from robofailring.memory.builder import Provenance, build_memories
@@ -49,20 +49,27 @@ def test_deployment_successes_join_the_signal_memory_too(dataset: Path, tmp_path
 
 
 def test_deployment_successes_join_the_camera_success_memory(dataset: Path, tmp_path: Path) -> None:
-    """The runs moved join the cameras' success memory: their frames are among its runs and their own
-    frames are then found at similarity 1 (the runs given are not changed)."""
+    """Each view of a moved run is a success run of the cameras' success memory, which the evaluation's
+    detector then searches: the run's own frames match at S⁺ = 1 there, and not in the memory given."""
     encoder = CachedEncoder(load_encoder("pixels"), cache_dir=tmp_path / "cache")
     loaded = load_dataset(dataset)
     train, test = loaded.select(split="train"), loaded.select(split="test")
     memory, _ = build_memories(train, encoder, provenance=Provenance(data=dataset, encoder="pixels"))
     assert memory.successes is not None
-    held = {run.episode for run in memory.successes.runs}
     deployed, left = _deploy_successes(memory, test, 1, encoder, DEFAULT_STEP)
     (moved,) = [t for t in test if t.key not in {r.key for r in left}]
-    assert deployed.successes is not None
-    episodes = {run.episode for run in deployed.successes.runs}
-    assert episodes - held == {moved.episode} and moved.episode not in held
-    assert {run.episode for run in memory.successes.runs} == held  # the memory given is unchanged
+    views = {(moved.episode, view) for view in moved.views}
+    assert deployed.successes is not None and len(views) == 3
+    assert views <= {(run.episode, run.view) for run in deployed.successes.runs if run.kind == "success"}
+    assert deployed.successes.success_runs == memory.successes.success_runs + len(views)
+    assert not views & {
+        (run.episode, run.view) for run in memory.successes.runs
+    }  # the memory given unchanged
+    judged = FailureDetector(deployed, encoder).run(moved)
+    before = FailureDetector(memory, encoder).run(moved)
+    for view in moved.views:
+        assert judged.success_similarity[view][0] == pytest.approx(1.0, abs=1e-5)
+        assert before.success_similarity[view][-1] < judged.success_similarity[view][-1]
 
 
 @pytest.mark.parametrize("per_task", ["2", "1000000000"])

@@ -5,16 +5,19 @@ from __future__ import annotations
 
 import json
 import re
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from synthetic import write_aha_dataset, write_project_dataset
 
-from robofailring import CachedEncoder, FailureMemory, load_dataset
+from robofailring import CachedEncoder, FailureMemory, load_dataset, load_encoder
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.encoders import portable_spec
+from robofailring.encoders.base import BLANK_REASON
 from robofailring.errors import MemoryFormatError
 from robofailring.evaluation.run import EvaluateConfig, build_training_memory
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
@@ -210,3 +213,49 @@ def test_both_memories_name_the_file_and_line_of_a_bad_row(
             FailureMemory.load(folder)
         (folder / name).write_text(original, encoding="utf-8")
     assert FailureMemory.load(folder).entries == memory.entries
+
+
+class _NoNumberFor:
+    """The pixels encoder, but an embedding of NaN for the images given (a network that overflowed on them)."""
+
+    def __init__(self, images: list[np.ndarray]) -> None:
+        self._pixels = load_encoder("pixels")
+        self._poisoned = {np.asarray(image).tobytes() for image in images}
+
+    @property
+    def identity(self) -> str:
+        return "pixels-with-nan"
+
+    @property
+    def dim(self) -> int:
+        return self._pixels.dim
+
+    def encode(self, images: Sequence[np.ndarray]) -> np.ndarray:
+        rows = self._pixels.encode(images).copy()
+        rows[[np.asarray(image).tobytes() in self._poisoned for image in images]] = np.nan
+        return rows
+
+
+def test_frames_the_encoder_gives_no_number_for_are_never_stored(tmp_path: Path) -> None:
+    """An embedding that is not a number is no image to match (`encoders.base.unusable`), as a blank frame is:
+    neither memory stores it, and the build lists the frames it left out."""
+    data = write_project_dataset(
+        tmp_path / "data", tasks=("pick_cube",), symbols=("grasp_wp2",), episodes=2, length=8
+    )
+    train = load_dataset(data).select(split="train")
+    failure = next(t for t in train if t.is_failure)
+    success = next(t for t in train if not t.is_failure)
+    poisoned = [failure.views["front"][t].load() for t in (4, 5)] + [success.views["wrist"][3].load()]
+    encoder = CachedEncoder(_NoNumberFor(poisoned), cache_dir=tmp_path / "cache")
+    memory, stats = build_memories(train, encoder, provenance=Provenance(data=data, encoder="pixels"))
+    reasons = [skipped.reason for skipped in stats.skipped_inputs]
+    assert f"pick_cube/{failure.episode} view front: frame(s) 4–5 of 8 are {BLANK_REASON}" in reasons
+    assert any(reason.startswith(f"pick_cube/{success.episode} view wrist") for reason in reasons), reasons
+    assert np.isfinite(memory.vectors).all()
+    stored = {(entry.episode, entry.view, entry.frame) for entry in memory.entries}
+    assert (failure.episode, "front", 6) in stored  # the view is in, without the two frames
+    assert not stored & {(failure.episode, "front", 4), (failure.episode, "front", 5)}
+    assert memory.successes is not None and memory.successes.vectors is not None
+    assert np.isfinite(memory.successes.vectors).all()
+    (wrist,) = [run for run in memory.successes.runs if (run.episode, run.view) == (success.episode, "wrist")]
+    assert 3 not in wrist.frame_numbers and wrist.frame_numbers

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from fault_helpers import cli
 from rrd import blueprint_names, entity_paths, properties, rows, static_value
 from synthetic import write_project_dataset
 
@@ -17,6 +18,7 @@ from robofailring import (
     CachedEncoder,
     DetectionTrace,
     FailureDetector,
+    FailureMemory,
     Trajectory,
     load_dataset,
     load_encoder,
@@ -27,6 +29,7 @@ from robofailring.detection.config import DetectorConfig
 from robofailring.detection.rules import CONTRAST
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.memory.recipe import MemoryRecipe
+from robofailring.memory.signal_memory import SIGNALS_VIEW
 
 
 @pytest.fixture(scope="module")
@@ -129,3 +132,35 @@ def test_a_banded_threshold_is_drawn_as_the_line_it_is(
     assert properties(recording)["t_det"] == (-1 if banded.t_det is None else banded.t_det)
     crossing = np.flatnonzero(banded.raw_max_score(CONTRAST) >= line)
     assert banded.t_det == (int(crossing[0]) if crossing.size else None)
+
+
+def test_the_signals_s_plus_is_recorded_under_the_signals_view(tmp_path: Path) -> None:
+    """`replay` of a memory with the robot's signals: their S⁺_t at `/score/signals/success`, equal to the
+    trace's, beside their contrast at `/score/signals/contrast` (docs/recording.md)."""
+    data = write_project_dataset(
+        tmp_path / "data", tasks=("pick_cube",), symbols=("grasp_wp2",), episodes=4, length=6, signals=True
+    )
+    cache = tmp_path / "c"
+    memory = tmp_path / "memory"
+    built = cli("build-memory", data, "--out", memory, "--split", "train", "--cache-dir", cache)
+    assert built.exit_code == 0, built.output
+    episode = "pick_cube_grasp_wp2_episode1"
+    out = tmp_path / "replays"
+    replayed = cli(
+        "replay", data, "--memory", memory, "--trajectory", episode, "--out", out, "--cache-dir", cache
+    )
+    assert replayed.exit_code == 0, replayed.output
+    (recording,) = out.glob(f"*{episode}*.rrd")
+    trajectory = next(t for t in load_dataset(data) if t.episode == episode)
+    trace = FailureDetector(
+        FailureMemory.load(memory), CachedEncoder(load_encoder("pixels"), cache_dir=cache)
+    ).run(trajectory)
+    assert trace.signals is not None
+    logged = rows(recording, REPLAY.success_score(SIGNALS_VIEW), "Scalars:scalars")
+    assert [frame for frame, _ in logged] == list(range(trajectory.length))
+    np.testing.assert_allclose([value[0] for _, value in logged], trace.signals.success_similarity, atol=1e-6)
+    for view in trace.views:  # each camera's S⁺ its own, not the signals'
+        camera = rows(recording, REPLAY.success_score(view), "Scalars:scalars")
+        np.testing.assert_allclose(
+            [value[0] for _, value in camera], trace.success_similarity[view], atol=1e-6
+        )
