@@ -45,7 +45,9 @@ class WatchResult:
         """What `robofailring watch` says at the end: the steps, the alarm (or none), the saved file. A
         run whose cameras were blind for some frames is not said to have had no failure."""
         if self.fired_at is None and self.blind:
-            text = f"{self.steps} steps watched: no alarm, but {len(self.blind)} view(s) blind for some frames"
+            text = (
+                f"{self.steps} steps watched: no alarm, but {len(self.blind)} view(s) blind for some frames"
+            )
         elif self.fired_at is None:
             text = f"{self.steps} steps watched: no failure detected"
         else:

@@ -4,11 +4,15 @@
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 from fault_helpers import cli, refused
 from synthetic import write_project_dataset
+
+from robofailring.data.layout_project import PROJECT_SIGNALS, SIGNALS_FILE
 
 
 @pytest.fixture(scope="module")
@@ -89,3 +93,47 @@ def test_watch_streams_the_signals_and_scores_them_live(data: Path, cache: list[
     assert [frame for frame, _ in scored] == list(range(8))
     assert max(value[0] for _, value in scored[4:]) > 0.05  # after the gripper closed on nothing
     assert "FAILURE at frame" in watched.stdout
+
+
+def _as_generate_writes(root: Path) -> Path:
+    """`root`'s episodes given a `signals.npz` of every signal `robofailring generate` writes, at its widths,
+    described in the manifest as `generate` describes them (each run a little off the others)."""
+    manifest = json.loads((root / "manifest.json").read_text())
+    for number, record in enumerate(manifest["episodes"]):
+        folder = root / record["dir"]
+        length = len(list(folder.glob("front_*.png")))
+        ramp = np.linspace(0.0, 1.0, length)[:, None] + 0.01 * number
+        arrays = {
+            name: ramp * (1 + np.arange(len(dims))) + (0.5 if record["label"] else 0.0) * (ramp > 0.5)
+            for name, (_, dims) in PROJECT_SIGNALS.items()
+        }
+        np.savez(folder / SIGNALS_FILE, **arrays)  # type: ignore[arg-type]
+        record["signals"] = {
+            "file": SIGNALS_FILE,
+            "signals": {
+                name: {"kind": kind, "names": list(dims)} for name, (kind, dims) in PROJECT_SIGNALS.items()
+            },
+        }
+    (root / "manifest.json").write_text(json.dumps(manifest))
+    return root
+
+
+def test_a_project_episode_copied_elsewhere_keeps_its_signals(cache: list[str], tmp_path: Path) -> None:
+    """Issue 50: an episode folder of `generate`'s copied out of its dataset (no manifest beside it) is read
+    with its `signals.npz` (not listed as "not part of an episode"), and scores as it does in place."""
+    data = _as_generate_writes(
+        write_project_dataset(tmp_path / "data", tasks=("pick_cube",), symbols=("grasp_wp2",), episodes=4)
+    )
+    memory = tmp_path / "memory"
+    assert cli("build-memory", data, "--out", memory, "--split", "train", *cache).exit_code == 0
+    episode = "pick_cube_grasp_wp2_episode1"
+    copied = Path(shutil.copytree(data / episode, tmp_path / "elsewhere" / episode))
+    found = {}
+    for where in (data / episode, copied):
+        detected = cli("detect", where, "--memory", memory, "--json", *cache)
+        assert detected.exit_code == 0, detected.output  # nothing skipped: the signals file is read
+        assert "not part of an episode" not in detected.output
+        found[where] = json.loads(detected.stdout)
+    assert found[copied]["signals"] is not None
+    assert found[copied]["signals"] == found[data / episode]["signals"]
+    assert found[copied]["t_det"] == found[data / episode]["t_det"]
