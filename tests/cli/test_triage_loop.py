@@ -111,10 +111,9 @@ def test_labels_of_only_episode_and_task_triage_unlabelled_runs_of_several_tasks
     labels = tmp_path / "tasks.csv"
     labels.write_text("episode,task\n" + "".join(f"{episode},{task}\n" for episode, task in tasks.items()))
     out = tmp_path / "out"
+    cache = ["--cache-dir", str(tmp_path / "cache")]
     found = runner.invoke(
-        app,
-        ["triage", str(data), "--labels", str(labels), "--out", str(out), "--replays", "0"]
-        + ["--cache-dir", str(tmp_path / "cache")],
+        app, ["triage", str(data), "--labels", str(labels), "--out", str(out), "--replays", "0", *cache]
     )
     assert found.exit_code == 0, found.output  # nothing listed as not applied: every row was
     rows = csv_rows(out / "triage.csv")
