@@ -137,3 +137,35 @@ def test_a_project_episode_copied_elsewhere_keeps_its_signals(cache: list[str], 
     assert found[copied]["signals"] is not None
     assert found[copied]["signals"] == found[data / episode]["signals"]
     assert found[copied]["t_det"] == found[data / episode]["t_det"]
+
+
+def test_detect_and_replay_agree_on_runs_without_signals_and_runs_whose_signals_break(
+    data: Path, cache: list[str], tmp_path: Path
+) -> None:
+    """Issue 50: a camera-only dataset scored by a memory that has signals is not a fault (detect ended with
+    status 3, "not read"; replay said nothing): both say, in one note, that its cameras judge alone, and
+    end with 0. A run whose signals file cannot be read is listed by both, with status 3."""
+    memory = tmp_path / "memory"
+    assert cli("build-memory", data, "--out", memory, "--split", "train", *cache).exit_code == 0
+    cameras = write_project_dataset(
+        tmp_path / "cameras", tasks=("pick_cube",), symbols=("grasp_wp2",), episodes=2, length=8
+    )
+    episode = "pick_cube_grasp_wp2_episode1"
+    note = f"trajectory pick_cube/{episode} records no robot signals; the memory has its task's"
+    detected = cli("detect", cameras, "--memory", memory, "--trajectory", episode, *cache)
+    replayed = cli(
+        "replay", cameras, "--memory", memory, "--trajectory", episode, "--out", tmp_path / "r", *cache
+    )
+    for result in (detected, replayed):
+        assert result.exit_code == 0, result.output
+        assert note in result.output and "not read" not in result.output
+    broken = Path(shutil.copytree(data, tmp_path / "broken"))
+    (broken / episode / SIGNALS_FILE).write_bytes(b"not an npz")
+    detected = cli("detect", broken, "--memory", memory, "--trajectory", episode, *cache)
+    replayed = cli(
+        "replay", broken, "--memory", memory, "--trajectory", episode, "--out", tmp_path / "b", *cache
+    )
+    for result in (detected, replayed):
+        assert result.exit_code == 3, result.output
+        assert f"{episode}: signals not scored (cameras alone)" in result.output
+        assert f"cannot read {broken / episode / SIGNALS_FILE}" in result.output

@@ -106,6 +106,7 @@ class DetectionTrace(RuleThresholds):
     # the robot's own signals scored against the memory's signal memory, fused as the view `signals`
     signals: SignalScores | None = field(default=None, repr=False)
     modality: str = "both"  # what the fusion judges: `both`, the `cameras` alone or the `signals` alone
+    cameras_alone: bool = False  # the memory has the task's signals, the run records none (camera-only data)
 
     @property
     def scored_views(self) -> list[str]:
