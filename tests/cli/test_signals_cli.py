@@ -169,3 +169,25 @@ def test_detect_and_replay_agree_on_runs_without_signals_and_runs_whose_signals_
         assert result.exit_code == 3, result.output
         assert f"{episode}: signals not scored (cameras alone)" in result.output
         assert f"cannot read {broken / episode / SIGNALS_FILE}" in result.output
+
+
+def test_memory_info_shows_the_signal_memory(data: Path, cache: list[str], tmp_path: Path) -> None:
+    """Issue 50: memory-info never mentioned the signal memory; it says which signals each task's judges,
+    their dimensions, the derived features and the entries, in its text and its JSON."""
+    memory, none = tmp_path / "memory", tmp_path / "none"
+    assert cli("build-memory", data, "--out", memory, "--split", "train", *cache).exit_code == 0
+    assert cli("build-memory", data, "--out", none, "--signals", "none", *cache).exit_code == 0
+    described = json.loads((memory / "manifest.json").read_text())["signals"]
+    info = cli("memory-info", memory, "--json")
+    assert info.exit_code == 0, info.output
+    (held,) = json.loads(info.stdout)["signals"]["tasks"].values()
+    assert held["state"] == {"gripper_width": ["width"]} and held["action"] == {"action": ["x", "gripper"]}
+    assert (
+        held["dimensions"] == 3
+        and held["failure_entries"] == described["tasks"]["pick_cube"]["failure_entries"]
+    )
+    text = cli("memory-info", memory).stdout
+    assert f"signals     the robot's own, chosen auto; derived features {described['features']}" in text
+    assert "pick_cube  state gripper_width (1); action action (2): 3 dimensions" in text
+    assert "signals     none: the cameras alone" in cli("memory-info", none).stdout
+    assert json.loads(cli("memory-info", none, "--json").stdout)["signals"] is None
