@@ -191,3 +191,34 @@ def test_memory_info_shows_the_signal_memory(data: Path, cache: list[str], tmp_p
     assert "pick_cube  state gripper_width (1); action action (2): 3 dimensions" in text
     assert "signals     none: the cameras alone" in cli("memory-info", none).stdout
     assert json.loads(cli("memory-info", none, "--json").stdout)["signals"] is None
+
+
+def test_one_modality_judges_at_the_thresholds_calibrated_for_both(
+    data: Path, cache: list[str], tmp_path: Path
+) -> None:
+    """Issue 50: `--modality cameras` on a memory calibrated for both said it "is not calibrated" and judged
+    at γ = 0. Either modality alone is a subset of the views whose max was calibrated, so its fused score
+    is never higher: the thresholds (and each modality's band) of both keep their false-alarm promise."""
+    memory = tmp_path / "memory"
+    assert cli("build-memory", data, "--out", memory, "--split", "train", *cache).exit_code == 0
+    calibrated = cli("calibrate", data, "--memory", memory, "--target-fpr", "0.34", *cache)
+    assert calibrated.exit_code == 0, calibrated.output
+    stored = manifest_threshold(memory)
+    episode = "pick_cube_grasp_wp2_episode1"
+    for modality in ("cameras", "signals"):
+        found = cli(
+            "detect",
+            data,
+            "--memory",
+            memory,
+            "--trajectory",
+            episode,
+            "--json",
+            "--modality",
+            modality,
+            *cache,
+        )
+        assert found.exit_code == 0, found.output
+        assert "not calibrated" not in found.output
+        trace = json.loads(found.stdout)
+        assert trace["modality"] == modality and trace["thresholds"]["contrast"] == stored != 0.0

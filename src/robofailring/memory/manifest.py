@@ -221,8 +221,13 @@ class StoredCalibration:
         return None
 
     def judges(self, modality: str) -> bool:
-        """Whether the thresholds were calibrated for `modality` (`both`, `cameras` or `signals`)."""
-        return (self.modality or BOTH) == modality
+        """Whether the thresholds hold for `modality` (`both`, `cameras` or `signals`): calibrated for it, or
+        for `both`, of which either alone is a subset of the views. Every fusion judges the max over views of
+        scores each corrected on its own (`robofailring.detection.view_bands`), so leaving views out can only
+        lower a run's fused score: the false-alarm rate promised for both still holds for one alone (the
+        alarms may come later than thresholds calibrated for it would give: `calibrate --modality`)."""
+        calibrated = self.modality or BOTH
+        return calibrated in (modality, BOTH)
 
     def target_for(self, encoder: str) -> float | None:
         """The target false-positive rate α the thresholds were chosen for, if they belong to `encoder`."""
