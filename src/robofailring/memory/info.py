@@ -136,7 +136,9 @@ class MemoryInfo:
 
     def _signals_lines(self, found: dict[str, Any] | None) -> list[str]:
         if found is None:
-            return ["  signals     none: the cameras alone (built with --signals none, or data without signals)"]
+            return [
+                "  signals     none: the cameras alone (built with --signals none, or data without signals)"
+            ]
         lines = [
             f"  signals     the robot's own, chosen {found['choice']}; derived features {found['features']}, "
             f"start weight {found['start_weight']:g}"
