@@ -12,7 +12,7 @@ from rfr_viz.codecs import CameraCodec
 from robofailring.cli.exit_codes import finish
 from robofailring.cli.groups import Declared, takes
 from robofailring.cli.option_groups import DATA, DETECTOR, VLM
-from robofailring.cli.options import FpsOption
+from robofailring.cli.options import FpsOption, report_skipped
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.explain.vlm import VLMConfig
@@ -93,4 +93,6 @@ def watch_cmd(
     )
     if result.lost is not None:
         typer.secho(f"warning: {result.lost}", fg=typer.colors.YELLOW, err=True)
+    report_skipped(result.blind)
     typer.echo(result.to_text())
+    finish(skipped=len(result.blind))  # listed above: a blind camera's "no alarm" is not a clean run

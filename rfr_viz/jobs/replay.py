@@ -22,6 +22,7 @@ from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig, check_stride
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.loader import detector_from
+from robofailring.detection.signal_scores import cameras_alone_note
 from robofailring.detection.trace import DetectionTrace, self_match_warning
 from robofailring.encoders import EncoderSpec
 from robofailring.errors import DataError, SettingError, UnknownTaskError
@@ -68,16 +69,28 @@ class ReplayResult:
     vlm_errors: list[tuple[str, str]] = field(default_factory=list)  # (trajectory, why the VLM call failed)
     in_memory: list[str] = field(default_factory=list)  # trajectories that are the memory's own episodes
     verdicts: dict[Path, str] = field(default_factory=dict)  # recording -> what its detector did, one line
+    cameras_alone: list[str] = field(default_factory=list)  # trajectories that record no robot signals
 
-    def saw(self, trace: DetectionTrace, key: str) -> None:
-        """Note a trajectory scored against a memory holding it (one warning for them all)."""
+    def saw(self, trace: DetectionTrace, trajectory: Trajectory) -> None:
+        """Note what a trajectory's trace says beyond its scores, as `detect` says it: a memory holding it,
+        no signals of its own (one note for them all), and what it did not score (its blind frames, its
+        signals that could not be read), listed with the inputs skipped."""
+        key = trajectory.key
         if trace.in_memory and key not in self.in_memory:
             self.in_memory.append(key)
+        if trace.cameras_alone and key not in self.cameras_alone:
+            self.cameras_alone.append(key)
+        listed = set(self.skipped_inputs)
+        self.skipped_inputs += [
+            s for s in trace.skipped_inputs if s not in trajectory.skipped and s not in listed
+        ]
 
     @property
     def notes(self) -> list[str]:
-        """Warnings for stderr: the trajectories that met themselves in the memory (no --leave-one-out)."""
-        return [self_match_warning(self.in_memory)] if self.in_memory else []
+        """Warnings for stderr: the trajectories that met themselves in the memory (no --leave-one-out),
+        and those whose cameras judged alone."""
+        notes = [self_match_warning(self.in_memory)] if self.in_memory else []
+        return notes + ([cameras_alone_note(self.cameras_alone)] if self.cameras_alone else [])
 
     def ask(self, vlm: VLMConfig | None, trace: DetectionTrace, trajectory: Trajectory) -> VLMAnswer | None:
         """The VLM's answer about the trace's detection (None: no VLM, or nothing detected); failures are kept."""
@@ -222,7 +235,7 @@ def _replay(config: ReplayConfig) -> ReplayResult:
             except (UnknownTaskError, DataError) as error:
                 result.skipped.append((trajectory.key, str(error)))
             else:
-                result.saw(trace, trajectory.key)
+                result.saw(trace, trajectory)
                 result.skipped_inputs += trace.short_views
                 out = _target(recordings.out, recording_name(trajectory), written, trajectory.key)
                 answer = result.ask(config.vlm, trace, trajectory)
@@ -294,7 +307,7 @@ def _compare(config: CompareConfig) -> ReplayResult:
                 result.skipped.append((trajectory.key, str(error)))
             else:
                 for trace in traces.values():
-                    result.saw(trace, trajectory.key)
+                    result.saw(trace, trajectory)
                 result.skipped_inputs += next(iter(traces.values())).short_views  # the same in every memory
                 out = _target(recordings.out, recording_name(trajectory, suffix), written, trajectory.key)
                 maps = {slug: found.map for slug, found in zip(slugs, detectors, strict=True)}

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass
+import warnings
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from rfr_viz.codecs import CameraCodec
@@ -13,9 +14,11 @@ from rfr_viz.jobs.replay import check_speed, load_detector
 from rfr_viz.paths import DEFAULT_FPS
 from rfr_viz.recordings.live import LiveRecording
 from rfr_viz.recordings.live_target import LiveTarget
+from robofailring.data.model import Skipped
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
-from robofailring.errors import DataError
+from robofailring.detection.scored import blank_skips
+from robofailring.errors import BlindCameraWarning, DataError
 from robofailring.outputs import check_not_input, check_recording_file, check_writable
 
 
@@ -36,10 +39,16 @@ class WatchResult:
     detected_view: str | None
     saved: Path | None
     lost: str | None = None  # why the viewer did not get the whole stream, if it did not
+    blind: list[Skipped] = field(default_factory=list)  # views blank to the encoder, with their frames
 
     def to_text(self) -> str:
-        """What `robofailring watch` says at the end: the steps, the alarm (or none), the saved file."""
-        if self.fired_at is None:
+        """What `robofailring watch` says at the end: the steps, the alarm (or none), the saved file. A
+        run whose cameras were blind for some frames is not said to have had no failure."""
+        if self.fired_at is None and self.blind:
+            text = (
+                f"{self.steps} steps watched: no alarm, but {len(self.blind)} view(s) blind for some frames"
+            )
+        elif self.fired_at is None:
             text = f"{self.steps} steps watched: no failure detected"
         else:
             text = (
@@ -91,16 +100,21 @@ def watch(config: WatchConfig) -> WatchResult:
     ) as live:
         session = loaded.detector.session(trajectory.task, sink=live)
         started = time.monotonic()
-        for t in range(length):
-            if config.speed > 0:
-                time.sleep(max(0.0, started + t / (fps * config.speed) - time.monotonic()))
-            now = {name: found.values[t] for name, found in signals.items() if t < len(found.values)}
-            live.log_signals(t, now)
-            session.step({view: frames[t] for view, frames in used.items()}, signals=None if lacking else now)
+        with warnings.catch_warnings():  # the result lists the blind frames, once
+            warnings.simplefilter("ignore", BlindCameraWarning)
+            for t in range(length):
+                if config.speed > 0:
+                    time.sleep(max(0.0, started + t / (fps * config.speed) - time.monotonic()))
+                now = {name: found.values[t] for name, found in signals.items() if t < len(found.values)}
+                live.log_signals(t, now)
+                session.step(
+                    {view: frames[t] for view, frames in used.items()}, signals=None if lacking else now
+                )
     return WatchResult(
         steps=length,
         fired_at=live.fired_at,
         detected_view=live.report.view if live.report is not None else None,
         saved=Path(config.target.save) if config.target.save is not None else None,
         lost=live.lost,
+        blind=blank_skips(trajectory, session.blind_steps, length),
     )

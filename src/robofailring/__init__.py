@@ -19,6 +19,7 @@ import importlib
 from typing import TYPE_CHECKING
 
 from robofailring.errors import (
+    BlindCameraWarning,
     DataError,
     EncoderError,
     EncoderMismatchError,
@@ -127,6 +128,7 @@ __all__ = [
     "PAPER_DELTA",
     "RULES",
     "SIM_VIEWS",
+    "BlindCameraWarning",
     "BuildMemoryConfig",
     "CachedEncoder",
     "CalibrateConfig",

@@ -158,6 +158,13 @@ def describe(error: BaseException) -> str:
     return f"{error.strerror}:{where}" if where else error.strerror
 
 
+class BlindCameraWarning(UserWarning):
+    """A live session's camera view sees nothing (a black, single-colour or not-a-number frame): it is not
+    scored, so its `alarm=False` says nothing about the robot. Warned once per view and session; every
+    step lists such views in `StepResult.blind_views` (`warnings.simplefilter("error", BlindCameraWarning)`
+    turns it into an exception)."""
+
+
 class Terminated(BaseException):
     """SIGTERM while a verb runs (`robofailring.cli.exit_codes`): raised where the verb is, so that every
     `with` block on the way out releases its lock and removes its temporary files (not an Exception:

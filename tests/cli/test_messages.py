@@ -13,7 +13,14 @@ import numpy as np
 import pytest
 from fault_helpers import cli, refused
 from hdf5_writer import write_robomimic
-from synthetic import csv_rows, write_episode, write_labelled_runs, write_unlabelled_runs
+from synthetic import (
+    csv_rows,
+    write_aha_dataset,
+    write_episode,
+    write_labelled_runs,
+    write_project_dataset,
+    write_unlabelled_runs,
+)
 
 from robofailring import load_dataset
 
@@ -157,3 +164,21 @@ def test_report_html_names_the_rule_of_each_false_alarm_and_leads_with_the_defau
         "<b>1 false alarm</b> of the paper rule: pick_cube/run_00. Replay it, paused at the moment: "
         "<code>robofailring review evaluation.json --data DATA --kind false-alarms --score paper</code>"
     ) in page
+
+
+def test_memory_pointed_at_a_dataset_says_it_is_a_dataset_and_how_to_build_a_memory(tmp_path: Path) -> None:
+    """Issue 50: `--memory` given the data (a newcomer's first slip) said "manifest.json lacks 'encoder'"
+    of the project's layout; every verb now names it a dataset and says how to build a memory from it."""
+    data = write_project_dataset(tmp_path / "sim", tasks=("pick_cube",), symbols=("grasp_wp2",), episodes=2)
+    aha = write_aha_dataset(tmp_path / "aha", tasks=("pick_cube",), symbols=("grasp_wp2",), episodes=2)
+    episode = data / "pick_cube_grasp_wp2_episode1"
+    for given, layout in ((data, "project"), (aha, "aha")):
+        said = (
+            f"{given} is a dataset ({layout} layout), not a memory; build one with `robofailring build-memory"
+        )
+        for verb in (("detect", episode), ("calibrate", data), ("memory-info",)):
+            result = cli(*verb, "--memory", given) if verb[0] != "memory-info" else cli("memory-info", given)
+            refused(result, 2, said)
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    refused(cli("memory-info", empty), 2, f"{empty} is not a failure memory: manifest.json is missing")

@@ -4,12 +4,15 @@
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
 from fault_helpers import cli, refused
 from synthetic import write_project_dataset
+
+from robofailring.data.layout_project import PROJECT_SIGNALS, SIGNALS_FILE
 
 
 @pytest.fixture(scope="module")
@@ -139,3 +142,132 @@ def test_the_start_weight_and_band_scope_reach_the_memory_and_a_new_task_grown_k
     assert calibrated.exit_code == 0, calibrated.output
     method = json.loads((memory / "manifest.json").read_text())["calibration"]["method"]
     assert "a band per task with enough runs" in method
+
+
+def _as_generate_writes(root: Path) -> Path:
+    """`root`'s episodes given a `signals.npz` of every signal `robofailring generate` writes, at its widths,
+    described in the manifest as `generate` describes them (each run a little off the others)."""
+    manifest = json.loads((root / "manifest.json").read_text())
+    for number, record in enumerate(manifest["episodes"]):
+        folder = root / record["dir"]
+        length = len(list(folder.glob("front_*.png")))
+        ramp = np.linspace(0.0, 1.0, length)[:, None] + 0.01 * number
+        arrays = {
+            name: ramp * (1 + np.arange(len(dims))) + (0.5 if record["label"] else 0.0) * (ramp > 0.5)
+            for name, (_, dims) in PROJECT_SIGNALS.items()
+        }
+        np.savez(folder / SIGNALS_FILE, **arrays)  # type: ignore[arg-type]
+        record["signals"] = {
+            "file": SIGNALS_FILE,
+            "signals": {
+                name: {"kind": kind, "names": list(dims)} for name, (kind, dims) in PROJECT_SIGNALS.items()
+            },
+        }
+    (root / "manifest.json").write_text(json.dumps(manifest))
+    return root
+
+
+def test_a_project_episode_copied_elsewhere_keeps_its_signals(cache: list[str], tmp_path: Path) -> None:
+    """Issue 50: an episode folder of `generate`'s copied out of its dataset (no manifest beside it) is read
+    with its `signals.npz` (not listed as "not part of an episode"), and scores as it does in place."""
+    data = _as_generate_writes(
+        write_project_dataset(tmp_path / "data", tasks=("pick_cube",), symbols=("grasp_wp2",), episodes=4)
+    )
+    memory = tmp_path / "memory"
+    assert cli("build-memory", data, "--out", memory, "--split", "train", *cache).exit_code == 0
+    episode = "pick_cube_grasp_wp2_episode1"
+    copied = Path(shutil.copytree(data / episode, tmp_path / "elsewhere" / episode))
+    found = {}
+    for where in (data / episode, copied):
+        detected = cli("detect", where, "--memory", memory, "--json", *cache)
+        assert detected.exit_code == 0, detected.output  # nothing skipped: the signals file is read
+        assert "not part of an episode" not in detected.output
+        found[where] = json.loads(detected.stdout)
+    assert found[copied]["signals"] is not None
+    assert found[copied]["signals"] == found[data / episode]["signals"]
+    assert found[copied]["t_det"] == found[data / episode]["t_det"]
+
+
+def test_detect_and_replay_agree_on_runs_without_signals_and_runs_whose_signals_break(
+    data: Path, cache: list[str], tmp_path: Path
+) -> None:
+    """Issue 50: a camera-only dataset scored by a memory that has signals is not a fault (detect ended with
+    status 3, "not read"; replay said nothing): both say, in one note, that its cameras judge alone, and
+    end with 0. A run whose signals file cannot be read is listed by both, with status 3."""
+    memory = tmp_path / "memory"
+    assert cli("build-memory", data, "--out", memory, "--split", "train", *cache).exit_code == 0
+    cameras = write_project_dataset(
+        tmp_path / "cameras", tasks=("pick_cube",), symbols=("grasp_wp2",), episodes=2, length=8
+    )
+    episode = "pick_cube_grasp_wp2_episode1"
+    note = f"trajectory pick_cube/{episode} records no robot signals; the memory has its task's"
+    detected = cli("detect", cameras, "--memory", memory, "--trajectory", episode, *cache)
+    replayed = cli(
+        "replay", cameras, "--memory", memory, "--trajectory", episode, "--out", tmp_path / "r", *cache
+    )
+    for result in (detected, replayed):
+        assert result.exit_code == 0, result.output
+        assert note in result.output and "not read" not in result.output
+    broken = Path(shutil.copytree(data, tmp_path / "broken"))
+    (broken / episode / SIGNALS_FILE).write_bytes(b"not an npz")
+    detected = cli("detect", broken, "--memory", memory, "--trajectory", episode, *cache)
+    replayed = cli(
+        "replay", broken, "--memory", memory, "--trajectory", episode, "--out", tmp_path / "b", *cache
+    )
+    for result in (detected, replayed):
+        assert result.exit_code == 3, result.output
+        assert f"{episode}: signals not scored (cameras alone)" in result.output
+        assert f"cannot read {broken / episode / SIGNALS_FILE}" in result.output
+
+
+def test_memory_info_shows_the_signal_memory(data: Path, cache: list[str], tmp_path: Path) -> None:
+    """Issue 50: memory-info never mentioned the signal memory; it says which signals each task's judges,
+    their dimensions, the derived features and the entries, in its text and its JSON."""
+    memory, none = tmp_path / "memory", tmp_path / "none"
+    assert cli("build-memory", data, "--out", memory, "--split", "train", *cache).exit_code == 0
+    assert cli("build-memory", data, "--out", none, "--signals", "none", *cache).exit_code == 0
+    described = json.loads((memory / "manifest.json").read_text())["signals"]
+    info = cli("memory-info", memory, "--json")
+    assert info.exit_code == 0, info.output
+    (held,) = json.loads(info.stdout)["signals"]["tasks"].values()
+    assert held["state"] == {"gripper_width": ["width"]} and held["action"] == {"action": ["x", "gripper"]}
+    assert (
+        held["dimensions"] == 3
+        and held["failure_entries"] == described["tasks"]["pick_cube"]["failure_entries"]
+    )
+    text = cli("memory-info", memory).stdout
+    assert f"signals     the robot's own, chosen auto; derived features {described['features']}" in text
+    assert "pick_cube  state gripper_width (1); action action (2): 3 dimensions" in text
+    assert "signals     none: the cameras alone" in cli("memory-info", none).stdout
+    assert json.loads(cli("memory-info", none, "--json").stdout)["signals"] is None
+
+
+def test_one_modality_judges_at_the_thresholds_calibrated_for_both(
+    data: Path, cache: list[str], tmp_path: Path
+) -> None:
+    """Issue 50: `--modality cameras` on a memory calibrated for both said it "is not calibrated" and judged
+    at γ = 0. Either modality alone is a subset of the views whose max was calibrated, so its fused score
+    is never higher: the thresholds (and each modality's band) of both keep their false-alarm promise."""
+    memory = tmp_path / "memory"
+    assert cli("build-memory", data, "--out", memory, "--split", "train", *cache).exit_code == 0
+    calibrated = cli("calibrate", data, "--memory", memory, "--target-fpr", "0.34", *cache)
+    assert calibrated.exit_code == 0, calibrated.output
+    stored = manifest_threshold(memory)
+    episode = "pick_cube_grasp_wp2_episode1"
+    for modality in ("cameras", "signals"):
+        found = cli(
+            "detect",
+            data,
+            "--memory",
+            memory,
+            "--trajectory",
+            episode,
+            "--json",
+            "--modality",
+            modality,
+            *cache,
+        )
+        assert found.exit_code == 0, found.output
+        assert "not calibrated" not in found.output
+        trace = json.loads(found.stdout)
+        assert trace["modality"] == modality and trace["thresholds"]["contrast"] == stored != 0.0

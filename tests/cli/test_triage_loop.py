@@ -95,3 +95,30 @@ def test_fill_the_top_rows_grow_a_memory_and_the_ranking_improves(tmp_path: Path
     )
     assert evaluated.exit_code == 3, evaluated.output  # evaluated; the unlabelled rows listed as not applied
     assert (tmp_path / "eval" / "evaluation.json").is_file()
+
+
+def test_labels_of_only_episode_and_task_triage_unlabelled_runs_of_several_tasks(tmp_path: Path) -> None:
+    """Issue 50: a labels file of `episode,task` columns alone (rollouts of several tasks nobody labelled)
+    gives each run its task and leaves it unlabelled: triage ranks each task's runs on its own scale,
+    instead of refusing the file for holding "no labelled row"."""
+    data, truth = write_unlabelled_runs(tmp_path / "runs", successes=5, length=4, task="pick_cube")
+    pushes, push_truth = write_unlabelled_runs(tmp_path / "push", successes=5, length=4, task="push_cube")
+    tasks = dict.fromkeys(truth, "pick_cube")
+    for folder in sorted(pushes.iterdir()):
+        folder.rename(data / f"push_{folder.name}")
+        tasks[f"push_{folder.name}"] = "push_cube"
+        truth[f"push_{folder.name}"] = push_truth[folder.name]
+    labels = tmp_path / "tasks.csv"
+    labels.write_text("episode,task\n" + "".join(f"{episode},{task}\n" for episode, task in tasks.items()))
+    out = tmp_path / "out"
+    cache = ["--cache-dir", str(tmp_path / "cache")]
+    found = runner.invoke(
+        app, ["triage", str(data), "--labels", str(labels), "--out", str(out), "--replays", "0", *cache]
+    )
+    assert found.exit_code == 0, found.output  # nothing listed as not applied: every row was
+    rows = csv_rows(out / "triage.csv")
+    assert {row["episode"]: row["task"] for row in rows} == tasks
+    assert all(row["outcome"] == "" for row in rows)  # still unlabelled: the file said their task alone
+    for task in ("pick_cube", "push_cube"):
+        ranked = [truth[row["episode"]] != "success" for row in rows if row["task"] == task]
+        assert ranking_quality(ranked).auc == 1.0

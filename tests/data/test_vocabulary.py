@@ -180,3 +180,36 @@ def test_a_memory_keeps_its_vocabulary_and_grounds_the_same_when_copied(tmp_path
     assert (
         grown.vocabulary == FailureMemory.load(memory).vocabulary and (copied / "vocabulary.json").is_file()
     )
+
+
+def test_episode_folders_named_with_a_vocabulary_symbol_starting_with_a_table_5_word(tmp_path: Path) -> None:
+    """Issue 50: `pick_cube_slip_twice_wp3_episode0` is the vocabulary's `slip_twice` (not Table 5's `slip`
+    and an unknown `twice`), in a dataset's folder names as in its labels, for build-memory and detect."""
+    data = write_aha_dataset(
+        tmp_path / "data",
+        tasks=("pick_cube",),
+        symbols=("grasp_wp2", "slip_twice_wp3", "knocked_cup_wp2"),
+        episodes=2,
+        length=4,
+    )
+    words = tmp_path / "words.yaml"
+    words.write_text(f"symbols:\n  slip_twice: the cup slipping twice\n  knocked_cup: {KNOCKED}\n")
+    memory, cache = tmp_path / "memory", ["--cache-dir", tmp_path / "cache"]
+    built = runner.invoke(
+        app, [str(a) for a in ("build-memory", data, "--out", memory, "--vocabulary", words)]
+    )
+    assert built.exit_code == 0, built.output  # every folder read: none skipped for an unknown 'twice'
+    entries = FailureMemory.load(memory).entries
+    assert {entry.symbol for entry in entries} == {"grasp_wp2", "slip_twice_wp3", "knocked_cup_wp2"}
+    (sentence,) = {entry.description for entry in entries if entry.symbol == "slip_twice_wp3"}
+    assert (
+        sentence
+        == "The failure was caused by the cup slipping twice at the manipulation / movement stage (Waypoint 3)"
+    )
+    episode = data / "pick_cube_slip_twice_wp3_episode1"
+    found = runner.invoke(app, [str(a) for a in ("detect", episode, "--memory", memory, "--json", *cache)])
+    assert found.exit_code == 0, found.output  # the memory's vocabulary reads the folder's name
+    assert json.loads(found.stdout)["task"] == "pick_cube"
+    unknown = runner.invoke(app, [str(a) for a in ("build-memory", data, "--out", tmp_path / "m2", *cache)])
+    assert unknown.exit_code == 3  # without the vocabulary: listed, with the way to name them
+    assert "unknown failure type 'twice'" in unknown.output and "pass --vocabulary FILE" in unknown.output

@@ -117,9 +117,13 @@ def test_a_run_without_the_signals_is_judged_by_its_cameras_and_says_so(
     runs: tuple[FailureMemory, list[Trajectory]],
 ) -> None:
     memory, test = runs
-    bare = replace(test[0], signals={})
+    bare = replace(test[0], signals={})  # camera-only data: nothing of it is missing (issue 50), it is noted
     trace = _detector(memory).run(bare)
     assert trace.signals is None and trace.scored_views == list(bare.views)
+    assert trace.cameras_alone and not [s for s in trace.skipped_inputs if s.view == SIGNALS_VIEW]
+    partial = replace(test[0], signals={n: s for n, s in test[0].signals.items() if n != "gripper_width"})
+    trace = _detector(memory).run(partial)  # a run lacking one of the memory's signals: listed as not scored
+    assert trace.signals is None and not trace.cameras_alone
     (skipped,) = [s for s in trace.skipped_inputs if s.view == SIGNALS_VIEW]
     assert (
         "signals not scored (cameras alone)" in skipped.reason

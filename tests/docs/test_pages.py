@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import functools
 import re
+import shutil
 from pathlib import Path
 from typing import Any
 
@@ -61,19 +62,70 @@ def test_the_readme_is_a_front_door() -> None:
     assert all((ROOT / link).is_file() for link in re.findall(r"\]\((docs/[^)#]+)", README.read_text()))
 
 
+def _generated_by_the_comment(example: str) -> list[str]:
+    """The `robofailring generate …` command the README's example names as where its data comes from."""
+    (command,) = re.findall(r"`robofailring (generate [^`]+)`", example)
+    return command.split()
+
+
+def _live_matches_offline(printed: list[str]) -> None:
+    """The example's offline t_det, and the live loop stopping the robot at that very frame."""
+    offline = None if printed[0] == "None" else int(printed[0])
+    assert printed[1:] == ([] if offline is None else [f"stop the robot at frame {offline}"])
+
+
 def test_the_readme_example_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys) -> None:
-    """The README's Python, as written, on a small dataset in the project's layout named as it says."""
+    """The README's Python, as written, on a small dataset in the project's layout with the robot's signals,
+    as many successes and split as its comment's `generate` makes (issue 50: it made 2, calibrate needs 19),
+    and its live loop stops the robot at the frame the offline run fires at (it passed no signals)."""
+    (example,) = _blocks(README, ("python",))
+    generate = _generated_by_the_comment(example)
+    successes = int(generate[generate.index("--success-episodes") + 1])
+    assert generate[generate.index("--tasks") + 1] == "pick_cube"
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("ROBOFAILRING_CACHE", str(tmp_path / "cache"))
+    # generate's split: even episodes train, odd test (episode 1 of each kind is a test run)
+    data = write_project_dataset(
+        tmp_path / "sim",
+        tasks=("pick_cube",),
+        symbols=("grasp_wp2",),
+        episodes=successes,
+        length=6,
+        signals=True,
+    )
+    for failure in data.glob(
+        "pick_cube_grasp_wp2_episode*"
+    ):  # a grasp the cameras miss, the gripper does not
+        success = data / failure.name.replace("grasp_wp2", "success")
+        for image in success.glob("*.png"):
+            shutil.copyfile(image, failure / image.name)
+    exec(compile(example, str(README), "exec"), {"__name__": "readme_example"})
+    printed = capsys.readouterr().out.splitlines()
+    assert printed[0] != "None" and 0 <= int(printed[0]) < 6
+    _live_matches_offline(printed)
+    assert (tmp_path / "memories" / "sim" / "signals.npz").is_file()  # the memory judges the signals too
+
+
+@pytest.mark.slow
+def test_the_readme_example_runs_on_what_its_comment_generates(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    """The README's comment's own `generate` command, smaller frames (the same episodes and split), then
+    its Python: calibrate succeeds and the live loop stops the robot where the offline run fires."""
+    from typer.testing import CliRunner
+
+    from rfr_viz.cli.app import app
+
     (example,) = _blocks(README, ("python",))
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("ROBOFAILRING_CACHE", str(tmp_path / "cache"))
-    # 20 training successes: enough for α = 5 % (19); episode 1 of each kind is in the test split
-    write_project_dataset(
-        tmp_path / "sim", tasks=("pick_cube",), symbols=("grasp_wp2",), episodes=40, length=5
+    generated = CliRunner().invoke(
+        app, [*_generated_by_the_comment(example), "--image-size", "32", "--frames", "16"]
     )
+    assert generated.exit_code == 0, generated.output
+    capsys.readouterr()
     exec(compile(example, str(README), "exec"), {"__name__": "readme_example"})
-    printed = capsys.readouterr().out.splitlines()
-    assert printed[0] == "None" or 0 <= int(printed[0]) < 5
-    assert (tmp_path / "memories" / "sim" / "manifest.json").is_file()
+    _live_matches_offline(capsys.readouterr().out.splitlines())
 
 
 def _cited() -> list[tuple[str, str, str]]:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -122,6 +123,28 @@ def test_watch_save_equals_detect_json(episode: Path, pixels_memory_dir: Path, t
     assert replayed.exit_code == 0, replayed.output
     (replay,) = (tmp_path / "replay").glob("*.rrd")
     assert entity_paths(saved) == entity_paths(replay)  # the same entity paths as a replay
+
+
+def test_watch_says_a_camera_gone_dark_and_ends_with_status_3(
+    episode: Path, pixels_memory_dir: Path, tmp_path: Path
+) -> None:
+    """Issue 50: frames blank to the encoder are not a run without failure: `watch` names the view and its
+    frames, never says "no failure detected", and ends with the "some inputs skipped" status (3)."""
+    folder = Path(shutil.copytree(episode, tmp_path / episode.name))
+    for t in range(3, 8):
+        write_png(folder / "front" / f"{t}.png", np.zeros((32, 32, 3), np.uint8))
+        write_png(folder / "overhead" / f"{t}.png", np.full((32, 32, 3), 255, np.uint8))
+    for t in range(8):
+        write_png(folder / "wrist" / f"{t}.png", np.zeros((32, 32, 3), np.uint8))
+    args = ["watch", str(folder), "--memory", str(pixels_memory_dir), "--delta", "1", "--speed", "0"]
+    result = runner.invoke(app, [*args, "--save", str(tmp_path / "live.rrd")])
+    assert result.exit_code == 3, result.output
+    assert "view front: 5 of 8 scored frame(s) (3–7) are blank to the encoder" in result.stderr
+    assert "view overhead: 5 of 8 scored frame(s) (3–7) are blank to the encoder" in result.stderr
+    assert "view wrist: its first frame is blank to the encoder" in result.stderr
+    assert "no failure detected" not in result.stdout
+    assert "8 steps watched: no alarm, but 3 view(s) blind for some frames" in result.stdout
+    assert "BlindCameraWarning" not in result.output  # said once, in the summary
 
 
 @pytest.mark.parametrize("codec", ["av1", "h264"])

@@ -155,8 +155,10 @@ def as_rgb(image: np.ndarray, *, source: str = "image") -> np.ndarray:
     if array.shape[2] == 4:
         array = array[:, :, :3]
     if array.dtype != np.uint8:
-        if np.issubdtype(array.dtype, np.floating) and array.size and float(array.max()) <= 1.0:
-            array = array * 255.0
+        if np.issubdtype(array.dtype, np.floating):  # a NaN pixel is no light: black, as a dead sensor's
+            array = np.nan_to_num(array, nan=0.0, posinf=255.0, neginf=0.0)
+            if array.size and float(array.max()) <= 1.0:
+                array = array * 255.0
         array = np.clip(array, 0, 255).astype(np.uint8)
     return np.ascontiguousarray(array)
 

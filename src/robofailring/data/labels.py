@@ -10,7 +10,11 @@ an optional `onset_frame` a failure's first frame of the fault (an integer from 
 episode's length; it wins over the data's own, e.g. the simulator's manifest), and an optional
 `split` column the episode's split (`train`, `test`, `ood`, …; it wins over the data's own: once
 one episode has a split, the dataset is not hash-split, and an episode without one is in none).
-Other columns (e.g. those `review --write-labels` adds) are ignored. A CSV saved by Excel as
+A row whose outcome is empty but whose task is given gives that episode its task and nothing else:
+the run stays unlabelled (or as its data labels it); a file of only `episode,task` columns (unlabelled
+rollouts of several tasks, for `triage`) is such rows alone, but a file whose `outcome` column is empty
+throughout labels nothing and is refused. Other columns (e.g. those `review --write-labels` adds) are
+ignored. A CSV saved by Excel as
 "CSV UTF-8" (a byte-order mark before the header) reads like any other.
 
 A tool that writes a labels file where one already is (`review --write-labels`) merges into it
@@ -40,7 +44,7 @@ LABEL_COLUMNS: tuple[str, ...] = ("episode_index", "episode", *FILLED_COLUMNS)
 @dataclass(frozen=True)
 class Label:
     episode: str  # `episode_<index>` for LeRobot, else the episode folder's name
-    outcome: Outcome
+    outcome: Outcome | None  # None: the row says the episode's task alone (an unlabelled run)
     symbol: str | None
     task: str | None = None  # the episode's task, when the labels file says it
     description: str | None = None  # the failure in the labeller's own words
@@ -59,27 +63,32 @@ def read_labels(path: Path, *, vocabulary: Vocabulary | None = None) -> dict[str
     rows = _rows(path)
     labels: dict[str, Label] = {}
     for number, row in enumerate(rows, 1):
-        if not str(row.get("outcome") or "").strip():
+        if not str(row.get("outcome") or "").strip() and not str(row.get("task") or "").strip():
             continue  # a row not labelled yet (`review --write-labels` leaves outcome empty): counted by `unlabelled_rows`
         label = replace(_label(row, where=f"{path} row {number}", vocabulary=vocabulary), row=number)
         if label.episode in labels:
             raise DataError(f"{path} row {number}: episode {label.episode!r} is labelled twice")
         labels[label.episode] = label
-    if not labels:
+    outcomes = any(label.outcome is not None for label in labels.values())
+    if not outcomes and (not labels or any("outcome" in row for row in rows)):  # an outcome column, all empty
         raise DataError(
             f"labels file {path} holds no labelled row (columns: episode_index or episode, outcome, symbol, "
-            "description; fill in `outcome`)"
+            "description, task; fill in `outcome`, or `task` alone for unlabelled runs of several tasks)"
         )
     return labels
 
 
 def unlabelled_rows(path: Path) -> Skipped | None:
-    """What a labels file left unlabelled (rows with an empty outcome), as a Skipped to report, or None."""
-    blank = sum(not str(row.get("outcome") or "").strip() for row in _rows(Path(path)))
+    """What a labels file left unlabelled (rows of its `outcome` column left empty), as a Skipped to report,
+    or None; a file without an outcome column (`episode,task`: tasks of unlabelled runs) leaves nothing."""
+    blank = [row for row in _rows(Path(path)) if "outcome" in row and not str(row["outcome"] or "").strip()]
     if not blank:
         return None
+    tasks = sum(bool(str(row.get("task") or "").strip()) for row in blank)
+    told = f" (the task of {tasks} of them was)" if tasks else ""
     return Skipped(
-        path=Path(path), reason=f"{blank} row(s) with an empty outcome (not labelled yet) were not applied"
+        path=Path(path),
+        reason=f"{len(blank)} row(s) with an empty outcome (not labelled yet) were not applied{told}",
     )
 
 
@@ -199,6 +208,9 @@ def _label(row: dict[str, object], *, where: str, vocabulary: Vocabulary | None)
         episode = str(name)
     else:
         raise DataError(f"{where}: no episode_index (or episode) column")
+    task = str(row.get("task") or "").strip() or None
+    if not str(row.get("outcome") or "").strip():  # the task alone (read_labels passes no row without one)
+        return Label(episode=episode, outcome=None, symbol=None, task=task, split=_split(row))
     try:
         outcome = Outcome(str(row.get("outcome", "")).strip().lower())
     except ValueError as error:
@@ -210,8 +222,7 @@ def _label(row: dict[str, object], *, where: str, vocabulary: Vocabulary | None)
         except SymbolError as error:
             raise DataError(f"{where}: {error}") from error
     description = " ".join(str(row.get("description") or "").split()) or None
-    task = str(row.get("task") or "").strip() or None
-    split = str(row.get("split") or "").strip() or None
+    split = _split(row)
     onset = parse_onset_frame(row.get("onset_frame"), length=None, where=where)
     if outcome is not Outcome.FAILURE:
         if onset is not None:
@@ -228,6 +239,10 @@ def _label(row: dict[str, object], *, where: str, vocabulary: Vocabulary | None)
         onset_frame=onset,
         split=split,
     )
+
+
+def _split(row: dict[str, object]) -> str | None:
+    return str(row.get("split") or "").strip() or None
 
 
 def label_key(trajectory: Trajectory, labels: dict[str, Label]) -> str | None:
@@ -265,13 +280,17 @@ def apply_labels(
                 by_last_part.setdefault(key, []).append(trajectory.episode)
             trajectory = replace(
                 trajectory,
-                outcome=label.outcome,
-                symbol=label.symbol,
-                description=label.description,
                 task=label.task or trajectory.task,
-                onset_frame=_onset(trajectory, label, source),
                 split=label.split or trajectory.split,
             )
+            if label.outcome is not None:  # else the row told the task alone: the run stays as its data says
+                trajectory = replace(
+                    trajectory,
+                    outcome=label.outcome,
+                    symbol=label.symbol,
+                    description=label.description,
+                    onset_frame=_onset(trajectory, label, source),
+                )
         labelled.append(trajectory)
     for key, episodes in by_last_part.items():
         if len(episodes) > 1:

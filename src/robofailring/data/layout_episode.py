@@ -14,8 +14,10 @@ from pathlib import Path
 from typing import Final
 
 from robofailring.data.folders import camera_named, episode_views
+from robofailring.data.grounding import Vocabulary
 from robofailring.data.layout_aha import aha_name_problem, parse_aha_name
 from robofailring.data.layout_maniskill import MANISKILL_FAILURE, MANISKILL_SUCCESS
+from robofailring.data.layout_project import folder_signals
 from robofailring.data.model import Outcome, Trajectory
 from robofailring.data.registry import Found, Layout, layouts_help, register
 from robofailring.errors import DataError
@@ -23,11 +25,15 @@ from robofailring.errors import DataError
 _log = logging.getLogger("robofailring")
 
 
-def episode_trajectory(path: Path, *, task: str | None) -> Trajectory:
-    parsed = parse_aha_name(path.name)
+def episode_trajectory(path: Path, *, task: str | None, vocabulary: Vocabulary | None = None) -> Trajectory:
+    """The episode folder `path`: its task and failure from its name (`vocabulary`: the dataset's own
+    symbols, which name failures too), else `task`."""
+    parsed = parse_aha_name(path.name, vocabulary)
     views, skipped = episode_views(path)
     if not views:
         raise DataError(f"{path} holds no images; {layouts_help()}")
+    signals, signals_file = folder_signals(path)  # a project episode copied without its dataset's manifest
+    skipped = [item for item in skipped if signals_file is None or item.path.name != signals_file]
     symbol: str | None = None
     outcome: Outcome | None = None
     episode = path.name
@@ -46,7 +52,7 @@ def episode_trajectory(path: Path, *, task: str | None) -> Trajectory:
             task = path.parent.parent.name
             episode = f"{path.parent.name}/{path.name}"
     if task is None:
-        problem = aha_name_problem(path.name)
+        problem = aha_name_problem(path.name, vocabulary)
         if problem.startswith("unknown failure type"):
             raise DataError(f"cannot read trajectory {path}: {problem}")
         raise DataError(f"cannot tell the task of trajectory {path} from its name; pass it with --task")
@@ -58,6 +64,7 @@ def episode_trajectory(path: Path, *, task: str | None) -> Trajectory:
         outcome=outcome,
         source=path,
         skipped=tuple(skipped),
+        signals=signals,
     )
 
 
@@ -65,8 +72,8 @@ def _detect(root: Path) -> bool:
     return bool(episode_views(root)[0])
 
 
-def _read(root: Path, *, task: str | None = None) -> Found:
-    trajectory = episode_trajectory(root, task=task)
+def _read(root: Path, *, task: str | None = None, vocabulary: Vocabulary | None = None) -> Found:
+    trajectory = episode_trajectory(root, task=task, vocabulary=vocabulary)
     folders = [view for view in trajectory.views if (root / view).is_dir()]
     plain = all(camera_named(root / view) is None for view in folders)  # no file name says a camera
     if len(folders) >= 2 and plain and trajectory.outcome is None:  # an AHA or ManiSkill name says "episode"
@@ -88,5 +95,6 @@ LAYOUT: Final = register(
         read=_read,
         help="one episode: <dir>/{<view>}/<n>.png, <dir>/<view>_<n>.png, <dir>/<n>.png or <dir>/<view>.mp4",
         listed=6,
+        names_symbols=True,
     )
 )

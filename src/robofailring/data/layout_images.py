@@ -28,6 +28,7 @@ from robofailring.data.folders import (
     unread,
     view_folders,
 )
+from robofailring.data.grounding import Vocabulary
 from robofailring.data.layout_aha import parse_aha_name
 from robofailring.data.model import Outcome, Skipped, Trajectory
 from robofailring.data.registry import Found, Layout, register
@@ -82,7 +83,7 @@ def _episode_views(directory: Path) -> tuple[Views, list[Skipped]] | None:
     return views, skipped + [unread(p, f"not part of {kind}") for p in others]
 
 
-def image_trajectories(root: Path, *, task: str | None = None) -> Found:
+def image_trajectories(root: Path, *, task: str | None = None, vocabulary: Vocabulary | None = None) -> Found:
     """One trajectory per episode folder; folders that hold no episode are listed as skipped."""
     found: list[Trajectory] = []
     skipped = beside(root, "a file beside the episode folders")
@@ -95,7 +96,7 @@ def image_trajectories(root: Path, *, task: str | None = None) -> Found:
                 skipped.append(Skipped(directory, f"not an episode folder ({SHAPE})"))
                 continue
             views, inside = read
-            parsed = parse_aha_name(directory.name)
+            parsed = parse_aha_name(directory.name, vocabulary)
             symbol = parsed[1] if parsed is not None else None
             found.append(
                 Trajectory(  # task "": from the labels' task column
@@ -125,5 +126,6 @@ LAYOUT: Final = register(
         read=image_trajectories,
         help=SHAPE,
         listed=7,
+        names_symbols=True,
     )
 )

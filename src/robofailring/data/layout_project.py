@@ -19,6 +19,21 @@ from robofailring.jsontext import parse_json
 
 PROJECT_MANIFEST: Final[str] = "manifest.json"
 PROJECT_FORMAT: Final[str] = "robofailring-dataset"
+#: The file of an episode's signals, beside its frames, as `robofailring generate` writes it.
+SIGNALS_FILE: Final[str] = "signals.npz"
+_POSE: Final[tuple[str, ...]] = ("x", "y", "z", "qx", "qy", "qz", "qw")
+#: The signals `generate` writes there (`robofailring.sim.signals` records them), in order: name ->
+#: (kind, dimension names); what a copy of an episode folder without its manifest is read by.
+PROJECT_SIGNALS: Final[dict[str, tuple[str, tuple[str, ...]]]] = {
+    "joint_positions": (
+        "state",
+        (*(f"panda_joint{joint}" for joint in range(1, 8)), "panda_finger_joint1", "panda_finger_joint2"),
+    ),
+    "gripper_width": ("state", ("width",)),
+    "ee_pose": ("state", _POSE),
+    "action": ("action", (*(f"target_{name}" for name in _POSE), "gripper_width")),
+    "goal": ("other", ("x", "y")),
+}
 
 
 def read_project_manifest(root: Path) -> dict[str, Any]:
@@ -121,6 +136,32 @@ def project_signals(
     if Path(file).name != file or file.startswith("."):
         raise DataError(f"{where}: signals file {file!r} is not a file name inside the episode's folder")
     return signals, file
+
+
+def folder_signals(directory: Path) -> tuple[dict[str, Signal], str | None]:
+    """A project episode's `signals.npz` read without the dataset's manifest (the episode folder copied
+    elsewhere), described as `generate` writes it, and that file's name; none where the folder has no such
+    file, or one holding arrays `generate` does not write (then it is another program's, listed unread)."""
+    path = directory / SIGNALS_FILE
+    if not path.is_file():
+        return {}, None
+    try:
+        with np.load(path, allow_pickle=False) as stored:
+            names = list(stored.files)
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile):
+        return {}, None  # listed as a file not read, as before
+    if not names or any(name not in PROJECT_SIGNALS for name in names):
+        return {}, None
+    signals = {
+        name: Signal(
+            name=name,
+            kind=SignalKind(PROJECT_SIGNALS[name][0]),
+            source=NpzSignal(path, name),
+            dims=PROJECT_SIGNALS[name][1],
+        )
+        for name in names
+    }
+    return signals, SIGNALS_FILE
 
 
 @dataclass(frozen=True)

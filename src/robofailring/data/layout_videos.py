@@ -10,13 +10,14 @@ from pathlib import Path
 from typing import Final
 
 from robofailring.data.folders import beside, has_images, has_videos, subdirs
+from robofailring.data.grounding import Vocabulary
 from robofailring.data.layout_episode import episode_trajectory
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.data.registry import Found, Layout, register
 from robofailring.errors import DataError
 
 
-def video_trajectories(root: Path, *, task: str | None = None) -> Found:
+def video_trajectories(root: Path, *, task: str | None = None, vocabulary: Vocabulary | None = None) -> Found:
     """`<root>/<episode>/<view>.mp4`: one trajectory per folder of videos; others reported."""
     found: list[Trajectory] = []
     skipped = beside(root, "a file beside the episode folders")
@@ -25,7 +26,9 @@ def video_trajectories(root: Path, *, task: str | None = None) -> Found:
             skipped.append(Skipped(directory, "no video file (.mp4, .webm, .mkv) in this episode folder"))
             continue
         try:  # task "": from the labels' task column, else an error of load_dataset naming the episodes
-            found.append(episode_trajectory(directory, task=task if task is not None else ""))
+            found.append(
+                episode_trajectory(directory, task=task if task is not None else "", vocabulary=vocabulary)
+            )
         except DataError as error:
             skipped.append(Skipped(directory, str(error)))
     return found, skipped
@@ -43,6 +46,7 @@ LAYOUT: Final = register(
         detect=_detect,
         read=video_trajectories,
         help="video episodes <root>/<episode>/<view>.mp4|.webm|.mkv",
+        names_symbols=True,
         listed=5,
     )
 )

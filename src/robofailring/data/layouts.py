@@ -227,7 +227,8 @@ def load_dataset(
     root = Path(root)
     layout = _layout(root)
     manifest = layout.manifest(root) if layout.manifest is not None else None
-    found, skipped = layout.read(root, task=task)
+    named = {"vocabulary": vocabulary} if layout.names_symbols else {}  # its names may use the dataset's own
+    found, skipped = layout.read(root, task=task, **named)
     if labels is not None:
         found = apply_labels(found, read_labels(labels, vocabulary=vocabulary), source=Path(labels))
         blank = unlabelled_rows(Path(labels))
@@ -289,4 +290,5 @@ def load_trajectory(
         for trajectory in project_trajectories(path.parent, read_project_manifest(path.parent))[0]:
             if trajectory.source is not None and trajectory.source.resolve() == path.resolve():
                 return _finish([trajectory], layout="project", root=path, views=views)[0]
-    return _finish([episode_trajectory(path, task=task)], layout="episode", root=path, views=views)[0]
+    trajectory = episode_trajectory(path, task=task, vocabulary=vocabulary)
+    return _finish([trajectory], layout="episode", root=path, views=views)[0]

@@ -28,6 +28,8 @@ class Layout:
     listed: int  # its number in that error's list
     manifest: Callable[[Path], dict[str, Any]] | None = None  # the layout's own manifest, if it has one
     reads_files: bool = False  # True: a root may be one file of this layout (an HDF5 file), not a folder
+    # True: its folder names say the failure, so `read` also takes `vocabulary=` (a dataset's own symbols)
+    names_symbols: bool = False
 
 
 _REGISTERED: list[Layout] = []

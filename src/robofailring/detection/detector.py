@@ -293,6 +293,9 @@ class FailureDetector(RuleThresholds):
             source=trajectory.source,
             signals=signals,
             modality=self.modality,
+            cameras_alone=self.memory.signals is not None
+            and self.memory.signals.task(trajectory.task) is not None
+            and not trajectory.signals,
         )
 
     def _signal_scores(
@@ -301,7 +304,7 @@ class FailureDetector(RuleThresholds):
         """The signal modality's scores where the memory has signals of the task; a run whose signals
         cannot be read is scored by its cameras alone and listed as such."""
         task = self.memory.signals.task(trajectory.task) if self.memory.signals is not None else None
-        if task is None:
+        if task is None or not trajectory.signals:  # a run that records no signals: the trace notes it
             return None, []
         try:
             return score_signals(task, trajectory, steps=steps, length=length, exclude_episode=exclude), []

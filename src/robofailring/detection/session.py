@@ -3,6 +3,7 @@ and the `StepSink` that sees every step (`rfr_viz.LiveRecording` streams it to a
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Protocol
 
@@ -13,6 +14,8 @@ from robofailring.detection.rules import RULES, ScoringRule
 from robofailring.detection.signal_scores import SIGNALS_VIEW, SignalHistory
 from robofailring.detection.trace import StepResult
 from robofailring.detection.view_scores import ViewScores
+from robofailring.encoders.base import unusable
+from robofailring.errors import BlindCameraWarning
 
 if TYPE_CHECKING:
     from robofailring.detection.retrieved import Retrieved
@@ -72,6 +75,7 @@ class DetectorSession:
         self._signals = SignalHistory(task_signals) if task_signals is not None else None
         self.t = 0
         self.fired_at: int | None = None
+        self.blind_steps: dict[str, list[int]] = {}  # per camera view, the steps it saw nothing at
 
     def step(
         self, frames: Mapping[str, np.ndarray | Frame], *, signals: Mapping[str, np.ndarray] | None = None
@@ -84,6 +88,8 @@ class DetectorSession:
         embeddings = detector.encode(list(frames.values()), views)
         current = {view: embedding[None] for view, embedding in zip(views, embeddings, strict=True)}
         first = {view: self._first.setdefault(view, current[view][0]) for view in views}
+        blind = [view for view in views if unusable(np.stack([first[view], current[view][0]])).any()]
+        self._say_blind(blind)
         found = detector.retrieve(self.task, first, current, exclude_episode=self.exclude_episode)
         missing = np.full(1, np.nan, np.float32)
         failure = {view: found.similarity(view) for view in views}
@@ -137,6 +143,7 @@ class DetectorSession:
                 name: detector.threshold_at(each, self.t, task=self.task) for name, each in RULES.items()
             },
             queries={view: found.queries[view][0] for view in views},
+            blind_views=blind,
         )
         if fired and self.fired_at is None:
             self.fired_at = self.t
@@ -144,3 +151,18 @@ class DetectorSession:
             self.sink.on_step(self, frames, result)
         self.t += 1
         return result
+
+    def _say_blind(self, blind: Sequence[str]) -> None:
+        """Keep the steps each view was blind at; warn the first time a view is (never once per step)."""
+        for view in blind:
+            steps = self.blind_steps.setdefault(view, [])
+            if not steps:
+                first = "its first frame" if unusable(self._first[view][None])[0] else f"frame {self.t}"
+                warnings.warn(
+                    f"{self.task} view {view}: {first} is blank to the encoder (black, one colour or not a "
+                    "number): the view is not scored while it sees nothing, its alarm=False means nothing "
+                    "(StepResult.blind_views names it at each such step; a camera gone dark?)",
+                    BlindCameraWarning,
+                    stacklevel=3,
+                )
+            steps.append(self.t)

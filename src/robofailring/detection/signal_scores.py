@@ -5,7 +5,7 @@ view named `signals`, and what deviated most from the nearest normal frame."""
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -17,7 +17,7 @@ from robofailring.memory.signal_derived import RunningDerivation
 from robofailring.memory.signal_layout import ACTION_LAGS, read_features
 from robofailring.memory.signal_memory import SIGNALS_VIEW, TaskSignals
 
-__all__ = ["SIGNALS_VIEW", "SignalHistory", "SignalScores", "score_signals"]
+__all__ = ["SIGNALS_VIEW", "SignalHistory", "SignalScores", "cameras_alone_note", "score_signals"]
 
 
 @dataclass(frozen=True)
@@ -55,6 +55,18 @@ class SignalScores:
     def deviation_text(self, t: int) -> str:
         """`gripper_width/width (change since the start) +4.2σ, …` at frame `t`, or '' without a success."""
         return ", ".join(f"{name} {value:+.1f}σ" for name, value in self.deviations(t))
+
+
+def cameras_alone_note(keys: Sequence[str], *, shown: int = 5) -> str:
+    """The one note for runs that record no robot signals at all, scored against a memory that has their
+    task's: their cameras judge alone. Not an input skipped (a camera-only dataset lacks nothing it has)."""
+    named = ", ".join(keys[:shown]) + (f" and {len(keys) - shown} more" if len(keys) > shown else "")
+    if len(keys) == 1:
+        return f"note: trajectory {named} records no robot signals; the memory has its task's, so its cameras judge alone"
+    return (
+        f"note: {len(keys)} trajectories ({named}) record no robot signals; the memory has their tasks', so "
+        "their cameras judge alone"
+    )
 
 
 def score_signals(

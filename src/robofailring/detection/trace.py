@@ -39,6 +39,15 @@ class StepResult:
     # every registered rule's threshold on its raw score at this step, by rule name (θ, or μ_t + θ·σ_t)
     thresholds: dict[str, float] = field(default_factory=dict)
     queries: dict[str, np.ndarray] = field(default_factory=dict, repr=False)  # (f(I_0) ‖ f(I_t)) per view
+    # camera views that saw nothing at this step (a black, single-colour or NaN frame now, or as I_0): not
+    # scored, so `alarm` is False for them whatever the robot does (a BlindCameraWarning says it once)
+    blind_views: list[str] = field(default_factory=list)
+
+    @property
+    def usable(self) -> bool:
+        """Whether some view was judged at this step: False when every camera was blind and no signal was
+        scored, and then `alarm=False` means nothing (a camera died, not a run gone well)."""
+        return any(value == value for value in self.score.values())
 
     @property
     def state(self) -> bool:
@@ -97,6 +106,7 @@ class DetectionTrace(RuleThresholds):
     # the robot's own signals scored against the memory's signal memory, fused as the view `signals`
     signals: SignalScores | None = field(default=None, repr=False)
     modality: str = "both"  # what the fusion judges: `both`, the `cameras` alone or the `signals` alone
+    cameras_alone: bool = False  # the memory has the task's signals, the run records none (camera-only data)
 
     @property
     def scored_views(self) -> list[str]:

@@ -143,7 +143,11 @@ def _add_to_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats
     labels = config.data.labels
     if labels is not None:  # the runs a person labelled (`review --write-labels`), not the whole dataset
         labelled = read_labels(labels, vocabulary=memory.vocabulary)
-        trajectories = [t for t in trajectories if label_key(t, labelled) is not None]
+        trajectories = [
+            t
+            for t in trajectories
+            if (key := label_key(t, labelled)) is not None and labelled[key].outcome is not None
+        ]
     if not any(t.outcome is not None for t in trajectories):
         raise DataError(f"{config.data.root} holds no labelled run to add; nothing was written")
     grown, stats = add_to(

@@ -14,6 +14,7 @@ from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig, check_stride
 from robofailring.detection.detector import DetectionTrace
 from robofailring.detection.loader import detector_from
+from robofailring.detection.signal_scores import cameras_alone_note
 from robofailring.detection.trace import self_match_warning
 from robofailring.explain.report import FailureReport, report_for, signals_sentence
 from robofailring.memory.references import ReferenceCheck, check_references
@@ -73,6 +74,8 @@ class DetectResult:
         trace, notes = self.trace, []
         if trace.in_memory:
             notes.append(self_match_warning([f"{trace.task}/{trace.episode}"]))
+        if trace.cameras_alone:
+            notes.append(cameras_alone_note([f"{trace.task}/{trace.episode}"]))
         if self.answer is not None and self.answer.error is not None:
             notes.append(f"warning: the VLM call failed: {self.answer.error}")
         for view, count in trace.truncated_views.items():

@@ -27,7 +27,7 @@ from robofailring.memory.entry import MemoryEntry, Neighbor
 from robofailring.memory.format import parse_entry, read_jsonl, stored_vocabulary
 from robofailring.memory.index import FLAT, TaskIndexSet
 from robofailring.memory.index_file import read_index_file
-from robofailring.memory.manifest import MemoryManifest, StoredCalibration
+from robofailring.memory.manifest import MemoryManifest, StoredCalibration, not_a_memory
 from robofailring.memory.pairs import pair_vectors
 from robofailring.memory.recipe import MemoryRecipe
 from robofailring.memory.references import (
@@ -339,7 +339,7 @@ class FailureMemory:
     def _read(cls, directory: Path, *, data_root: Path | None) -> FailureMemory:
         manifest_path = directory / MANIFEST
         if not manifest_path.is_file() and not restore_interrupted(directory):
-            raise MemoryFormatError(f"{directory} is not a failure memory: {MANIFEST} is missing")
+            raise not_a_memory(directory)
         manifest = parse_json(manifest_path.read_bytes(), source=str(manifest_path), error=MemoryFormatError)
         version = manifest.get("format_version") if isinstance(manifest, dict) else None
         if version not in READABLE_VERSIONS:

@@ -77,6 +77,7 @@ class MemoryInfo:
             "calibrated_thresholds": self._calibrated(),  # by rule name, for the memory's encoder
             "success_only_tasks": [t for t in self.memory.tasks if not self.memory.has_failures(t)],
             "successes": self._successes(),
+            "signals": self._signals(),
             "source": manifest.source,
             "layout": manifest.layout,
             "views_read": manifest.data_views,
@@ -109,6 +110,52 @@ class MemoryInfo:
             "index": {task: index.spec.to_dict() for task, index in sorted(successes.index.by_task.items())},
         }
 
+    def _signals(self) -> dict[str, Any] | None:
+        """The signal memory: how its signals were chosen, and per task the signals and dimensions it judges
+        (state, then action), its derived features and its entries (None: the cameras alone)."""
+        signals = self.memory.signals
+        if signals is None:
+            return None
+        tasks = {}
+        for task, held in sorted(signals.by_task.items()):
+            vectors = next(iter(held.vectors.values()), None)
+            tasks[task] = {
+                "state": {name: list(dims) for name, dims in held.layout.state},
+                "action": {name: list(dims) for name, dims in held.layout.action},
+                "dimensions": sum(held.layout.widths),
+                "derived": held.derivation.width if held.derivation is not None else 0,
+                "vector_dim": int(vectors.shape[1]) if vectors is not None else 0,
+                **{f"{kind}_entries": len(values) for kind, values in held.vectors.items()},
+            }
+        return {
+            "choice": signals.choice,
+            "features": signals.features,
+            "start_weight": signals.start_weight,
+            "tasks": tasks,
+        }
+
+    def _signals_lines(self, found: dict[str, Any] | None) -> list[str]:
+        if found is None:
+            return [
+                "  signals     none: the cameras alone (built with --signals none, or data without signals)"
+            ]
+        lines = [
+            f"  signals     the robot's own, chosen {found['choice']}; derived features {found['features']}, "
+            f"start weight {found['start_weight']:g}"
+        ]
+        for task, held in found["tasks"].items():
+            named = [
+                f"{kind} " + ", ".join(f"{name} ({len(dims)})" for name, dims in held[kind].items())
+                for kind in ("state", "action")
+                if held[kind]
+            ]
+            lines.append(
+                f"    {task}  {'; '.join(named)}: {held['dimensions']} dimensions (+{held['derived']} derived), "
+                f"{held.get('failure_entries', 0)} failure and {held.get('success_entries', 0)} success "
+                f"entries of {held['vector_dim']}-d"
+            )
+        return lines
+
     def to_text(self) -> str:
         info = self.to_dict()
         calibrated = ", ".join(f"{name} {value:.6f}" for name, value in info["calibrated_thresholds"].items())
@@ -138,6 +185,7 @@ class MemoryInfo:
                 f"  successes   {found['frames']} frames kept of {found['offered']} offered, {found['runs']} success "
                 f"views; index {', '.join(kinds)}"
             )
+        lines += self._signals_lines(info["signals"])
         refs = info["references"]
         lines.append(f"  images      {refs['found']} of {refs['total']} reference images found")
         if refs["first_missing"]:

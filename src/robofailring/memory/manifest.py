@@ -12,7 +12,8 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, Final
 
-from robofailring.errors import MemoryFormatError
+from robofailring.data.layouts import PROJECT_FORMAT, detect_layout
+from robofailring.errors import DataError, MemoryFormatError
 from robofailring.memory.entry import END, FAILURE_FRAMES
 from robofailring.memory.pairs import CONCAT, PAIRINGS
 
@@ -220,8 +221,13 @@ class StoredCalibration:
         return None
 
     def judges(self, modality: str) -> bool:
-        """Whether the thresholds were calibrated for `modality` (`both`, `cameras` or `signals`)."""
-        return (self.modality or BOTH) == modality
+        """Whether the thresholds hold for `modality` (`both`, `cameras` or `signals`): calibrated for it, or
+        for `both`, of which either alone is a subset of the views. Every fusion judges the max over views of
+        scores each corrected on its own (`robofailring.detection.view_bands`), so leaving views out can only
+        lower a run's fused score: the false-alarm rate promised for both still holds for one alone (the
+        alarms may come later than thresholds calibrated for it would give: `calibrate --modality`)."""
+        calibrated = self.modality or BOTH
+        return calibrated in (modality, BOTH)
 
     def target_for(self, encoder: str) -> float | None:
         """The target false-positive rate α the thresholds were chosen for, if they belong to `encoder`."""
@@ -297,6 +303,8 @@ class MemoryManifest:
     @classmethod
     def parse(cls, manifest: Any, path: Path) -> MemoryManifest:
         """The manifest read from `path`, or MemoryFormatError naming the field that is wrong."""
+        if isinstance(manifest, dict) and manifest.get("format") == PROJECT_FORMAT:
+            raise not_a_memory(path.parent)
         if not isinstance(manifest, dict):
             raise MemoryFormatError(
                 f"{path} holds a JSON {type(manifest).__name__}, not a memory manifest object"
@@ -365,3 +373,16 @@ class MemoryManifest:
         return {k: values[k] for k in _ORDER if k in values} | {
             k: v for k, v in values.items() if k not in _ORDER
         }
+
+
+def not_a_memory(directory: Path) -> MemoryFormatError:
+    """The error for a folder given as a memory that is none: a dataset of any layout is named as one,
+    with how to build a memory from it (`--memory` pointed at the data is a newcomer's first slip)."""
+    try:
+        layout = detect_layout(directory)
+    except (DataError, OSError):
+        return MemoryFormatError(f"{directory} is not a failure memory: manifest.json is missing")
+    return MemoryFormatError(
+        f"{directory} is a dataset ({layout} layout), not a memory; build one with "
+        f"`robofailring build-memory {directory} --out MEMORY` and pass that folder as --memory"
+    )

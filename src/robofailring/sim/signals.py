@@ -7,23 +7,13 @@ from typing import Any, Final
 
 import numpy as np
 
+from robofailring.data.layout_project import PROJECT_SIGNALS
 from robofailring.data.signals import SignalKind, SignalValues
 from robofailring.sim.robot import ARM_JOINTS, FINGER_JOINTS, Panda
 from robofailring.sim.tasks import Layout
 
-_POSE: Final[tuple[str, ...]] = ("x", "y", "z", "qx", "qy", "qz", "qw")
-#: name -> (kind, dimension names), in the order they are written.
-SIGNALS: Final[dict[str, tuple[str, tuple[str, ...]]]] = {
-    "joint_positions": (
-        "state",
-        (*(f"panda_joint{j + 1}" for j in ARM_JOINTS), "panda_finger_joint1", "panda_finger_joint2"),
-    ),
-    "gripper_width": ("state", ("width",)),
-    "ee_pose": ("state", _POSE),
-    "action": ("action", (*(f"target_{name}" for name in _POSE), "gripper_width")),
-    "goal": ("other", ("x", "y")),
-}
-SIGNALS_FILE: Final[str] = "signals.npz"
+#: name -> (kind, dimension names), in the order they are written: the project layout's own record of them.
+SIGNALS: Final[dict[str, tuple[str, tuple[str, ...]]]] = PROJECT_SIGNALS
 
 
 def goal_of(layout: Layout) -> tuple[float, float] | None:

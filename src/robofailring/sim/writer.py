@@ -18,6 +18,7 @@ import numpy as np
 
 from robofailring.atomic import atomic_directory
 from robofailring.data.images import write_png
+from robofailring.data.layout_project import SIGNALS_FILE
 from robofailring.data.layouts import PROJECT_FORMAT, PROJECT_MANIFEST, read_project_manifest
 from robofailring.errors import DataError, SettingError
 from robofailring.jsontext import parse_json
@@ -26,7 +27,7 @@ from robofailring.sim.cameras import VIEWS
 from robofailring.sim.episode import DURATION_S, EpisodeResult, episode_fps, run_episode
 from robofailring.sim.perturb import FAILURE_MODES, KINDS, SUCCESS
 from robofailring.sim.scene import PHYSICS_HZ
-from robofailring.sim.signals import SIGNALS, SIGNALS_FILE
+from robofailring.sim.signals import SIGNALS
 from robofailring.sim.tasks import TASKS
 
 FORMAT_VERSION: Final[int] = 1

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Final
 
-from robofailring.data.labels import label_key, read_labels
+from robofailring.data.labels import Label, label_key, read_labels
 from robofailring.data.model import Outcome, Skipped, Trajectory
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
@@ -85,11 +85,17 @@ def load_episodes(config: TriageConfig) -> tuple[list[Trajectory], list[Skipped]
         else {}
     )
     found = [
-        t if label_key(t, labels) is not None else replace(t, outcome=None, symbol=None, description=None)
+        t if _labelled(t, labels) else replace(t, outcome=None, symbol=None, description=None)
         for t in dataset.trajectories()
     ]
     check_unique_episodes(found)
     return found, list(dataset.skipped)
+
+
+def _labelled(trajectory: Trajectory, labels: dict[str, Label]) -> bool:
+    """Whether a labels row gives `trajectory` an outcome (a row of its task alone leaves it unlabelled)."""
+    key = label_key(trajectory, labels)
+    return key is not None and labels[key].outcome is not None
 
 
 def run_triage(config: TriageConfig) -> TriageResult:
