@@ -13,10 +13,11 @@ from rfr_viz.jobs.replay import check_speed, load_detector
 from rfr_viz.paths import DEFAULT_FPS
 from rfr_viz.recordings.live import LiveRecording
 from rfr_viz.recordings.live_target import LiveTarget
+from rfr_viz.viewer.rrd import check_recording_file
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.errors import DataError
-from robofailring.outputs import check_not_input, check_recording_file, check_writable
+from robofailring.outputs import check_not_input, check_writable
 
 
 @dataclass(frozen=True)

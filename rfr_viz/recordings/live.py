@@ -42,6 +42,7 @@ from rfr_viz.panels.scores import log_score_styles, set_frame_time, threshold_pr
 from rfr_viz.paths import APPLICATION_ID, DEFAULT_FPS, PROPERTIES, REPLAY, signal
 from rfr_viz.viewer.binary import ViewerUnavailable
 from rfr_viz.viewer.control import DEFAULT_PORT
+from rfr_viz.viewer.rrd import check_recording_file
 from robofailring.atomic import atomic_path
 from robofailring.errors import Terminated
 from robofailring.data.layouts import load_trajectory
@@ -52,7 +53,7 @@ from robofailring.detection.session import DetectorSession
 from robofailring.detection.trace import StepResult
 from robofailring.errors import DataError, SettingError
 from robofailring.explain.report import FailureReport
-from robofailring.outputs import check_recording_file
+
 from robofailring.extras import needs_extra
 
 with needs_extra("viz"):
