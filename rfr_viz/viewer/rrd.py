@@ -108,6 +108,6 @@ def check_recording_file(path: Path) -> None:
     path = Path(path)
     if path.is_dir() or (path.exists() and not written_here(path)):
         raise OutputError(
-            f"{path} exists and is not a recording written by robofailring; refusing to write over it: "
+            f"{path} exists and is not a Rerun recording written by robofailring; refusing to write over it: "
             "move it away or choose another output"
         )

@@ -65,42 +65,28 @@ def test_triage_refuses_to_replace_a_users_page(project: Path, cache: list[str],
     assert tree(out) == {"triage.html": b"<html><title>my ranking</title></html>"}
 
 
-def test_evaluate_refuses_to_replace_a_users_json_with_name_and_encoder_keys(
-    project: Path, cache: list[str], tmp_path: Path
-) -> None:
-    out = tmp_path / "eval"
-    out.mkdir()
-    (out / "evaluation.json").write_text(USERS_EVALUATION_LIKE)
-    refused(
-        cli("evaluate", project, "--out", out, "--target-fpr", "0.5", *cache), 2, str(out / "evaluation.json")
-    )
-    assert tree(out) == {"evaluation.json": USERS_EVALUATION_LIKE.encode()}
-
-
 @pytest.fixture(scope="module")
-def users_recording(tmp_path_factory: pytest.TempPathFactory) -> bytes:
-    """A real Rerun recording of the user's own (another application id), as their tools save one."""
+def lookalikes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, bytes]:
+    """A user's files that share something with the evaluation's own (issue 50, data loss): a JSON with
+    `name` and `encoder` keys, and a real Rerun recording of their own tools (another application id)."""
     import rerun as rr
 
     path = tmp_path_factory.mktemp("users") / "mine.rrd"
-    rec = rr.RecordingStream("my_robot_lab", recording_id="lab-session")
-    rec.save(path)
-    rec.log("arm/torque", rr.Scalars(1.5))
-    rec.flush()
-    rec.disconnect()
-    return path.read_bytes()
+    with rr.RecordingStream("my_robot_lab", recording_id="lab-session") as rec:
+        rec.save(path)
+        rec.log("arm/torque", rr.Scalars(1.5))
+    return {"evaluation.json": USERS_EVALUATION_LIKE.encode(), "evaluation.rrd": path.read_bytes()}
 
 
-def test_evaluate_refuses_to_replace_a_users_own_rerun_recording(
-    project: Path, cache: list[str], tmp_path: Path, users_recording: bytes
+@pytest.mark.parametrize("name", ["evaluation.json", "evaluation.rrd"])
+def test_evaluate_refuses_to_replace_a_users_file_that_looks_like_its_own(
+    project: Path, cache: list[str], tmp_path: Path, lookalikes: dict[str, bytes], name: str
 ) -> None:
     out = tmp_path / "eval"
     out.mkdir()
-    (out / "evaluation.rrd").write_bytes(users_recording)
-    refused(
-        cli("evaluate", project, "--out", out, "--target-fpr", "0.5", *cache), 2, str(out / "evaluation.rrd")
-    )
-    assert tree(out) == {"evaluation.rrd": users_recording}
+    (out / name).write_bytes(lookalikes[name])
+    refused(cli("evaluate", project, "--out", out, "--target-fpr", "0.5", *cache), 2, str(out / name))
+    assert tree(out) == {name: lookalikes[name]}
 
 
 def test_evaluate_replaces_its_json_from_before_the_format_was_written(
