@@ -8,7 +8,7 @@ arrived. The `rfr-` mark keeps that cleaning to this module's own names: a user'
 `.<name>.<anything>.tmp` beside an output is never touched. A temporary file is held under an
 exclusive `flock` by the process writing it, for as long as it writes (a `watch --save` for hours):
 cleaning removes only a file no live process holds, whatever lock that writer took on its output
-(docs/errors.md, "What each verb refuses").
+(docs/errors.md, "When things go wrong").
 
 A final path that is a symbolic link is written where it points: the link stays a link to the new
 version (replacing the link itself would leave the old version at its target, still in use).
