@@ -76,7 +76,12 @@ def evaluate_cmd(
     train_split: Annotated[str, typer.Option(help="Split whose failures build the memory.")] = "train",
     test_split: Annotated[str, typer.Option(help="Split to test on.")] = "test",
     detector: DetectorConfig,
-    name: Annotated[str, typer.Option(help="Name of this evaluation in the outputs.")] = "evaluation",
+    name: Annotated[
+        str,
+        typer.Option(
+            help="Name of this evaluation: <name>.md, .json and .rrd in --out (a plain file name, no / or leading dot)."
+        ),
+    ] = "evaluation",
     stride: StrideOption = 1,
     thresholds: ThresholdPolicy,
     deployment_successes: Annotated[

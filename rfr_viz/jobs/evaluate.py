@@ -7,6 +7,7 @@ from pathlib import Path
 
 from rfr_viz.charts.report_html import REPORT_NAME, write_report
 from rfr_viz.recordings.evaluation import record_evaluation
+from rfr_viz.viewer.rrd import check_recording_file
 from robofailring.atomic import output_lock, remove_file_leftovers
 from robofailring.errors import SplitError
 from robofailring.evaluation.folds_alone import FoldsAlone, cross_validate_alone, write_folds_alone
@@ -18,7 +19,7 @@ from robofailring.evaluation.run import (
     run_evaluation,
     write_evaluation,
 )
-from robofailring.outputs import check_output_folder, check_own_files, check_recording_file
+from robofailring.outputs import check_output_folder, check_own_files
 
 
 @dataclass(frozen=True)

@@ -14,6 +14,7 @@ from rfr_viz.jobs.recorded import Recordings
 from rfr_viz.panels.map import placer
 from rfr_viz.panels.umap import MemoryMap, memory_map
 from rfr_viz.recordings.replay import compare_recording, record_replay
+from rfr_viz.viewer.rrd import check_recording_file
 from robofailring.atomic import output_lock, remove_file_leftovers
 from robofailring.data.grounding import Vocabulary
 from robofailring.data.layouts import detect_layout
@@ -30,7 +31,7 @@ from robofailring.explain.report import report_for
 from robofailring.explain.vlm import VLMAnswer, VLMConfig, ask_vlm
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.references import ReferenceCheck
-from robofailring.outputs import check_output_folder, check_recording_file
+from robofailring.outputs import check_output_folder
 from robofailring.progress import progress_bar
 
 _UNSAFE = re.compile(r"[^A-Za-z0-9._+-]+")

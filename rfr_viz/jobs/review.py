@@ -15,6 +15,7 @@ from rfr_viz.jobs.replay import ReplayResult, load_detector, recording_name
 from rfr_viz.panels.map import placer
 from rfr_viz.paths import DEFAULT_OUT
 from rfr_viz.recordings.replay import record_replay
+from rfr_viz.viewer.rrd import check_recording_file
 from robofailring.atomic import output_lock, remove_file_leftovers, write_text_atomic
 from robofailring.data.labels import merge_label_rows
 from robofailring.data.model import Skipped
@@ -26,7 +27,7 @@ from robofailring.detection.trace import DetectionTrace
 from robofailring.errors import DataError, OutputError
 from robofailring.explain.vlm import VLMConfig
 from robofailring.jsontext import parse_json
-from robofailring.outputs import check_not_input, check_output_folder, check_recording_file, check_writable
+from robofailring.outputs import check_not_input, check_output_folder, check_writable
 from robofailring.progress import progress_bar
 
 KINDS: Final[tuple[str, ...]] = ("false-alarms", "misses")

@@ -17,9 +17,10 @@ from rfr_viz.panels.umap import memory_map
 from rfr_viz.recordings.replay import record_replay
 from rfr_viz.recordings.triage import record_triage
 from rfr_viz.viewer.control import open_at_command, open_command
+from rfr_viz.viewer.rrd import check_recording_file
 from robofailring.atomic import output_lock, remove_file_leftovers
 from robofailring.errors import SettingError
-from robofailring.outputs import check_output_folder, check_own_files, check_recording_file
+from robofailring.outputs import check_output_folder, check_own_files
 from robofailring.progress import progress_bar
 from robofailring.triage import TriageConfig, TriageResult, run_triage
 from robofailring.triage.table import TRIAGE_NAME, check_table, table_rows, write_table

@@ -14,12 +14,14 @@ from rfr_viz.jobs.replay import check_speed, load_detector
 from rfr_viz.paths import DEFAULT_FPS
 from rfr_viz.recordings.live import LiveRecording
 from rfr_viz.recordings.live_target import LiveTarget
+from rfr_viz.viewer.rrd import check_recording_file
+from robofailring.atomic import output_lock
 from robofailring.data.model import Skipped
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.detection.scored import blank_skips
 from robofailring.errors import BlindCameraWarning, DataError
-from robofailring.outputs import check_not_input, check_recording_file, check_writable
+from robofailring.outputs import check_not_input, check_writable
 
 
 @dataclass(frozen=True)
@@ -58,19 +60,26 @@ class WatchResult:
 
 
 def watch(config: WatchConfig) -> WatchResult:
-    """Feed one episode through `detector.session(...).step` frame by frame, streaming every step."""
+    """Feed one episode through `detector.session(...).step` frame by frame, streaming every step; a
+    saved file's lock is held from its checks to its last step (a second writer of it stops before work)."""
     check_speed(config.speed)
     check_fps(config.fps)
-    if config.target.save is not None:  # before any work: never over an input, never over a non-recording
-        save = Path(config.target.save)
-        check_not_input(
-            save,
-            [config.data.root, config.detector.memory, config.detector.data_root],
-            replaces=False,
-            flag="--save",
-        )
+    if config.target.save is None:
+        return _watch(config)
+    save = Path(config.target.save)  # before any work: never over an input, never over a non-recording
+    check_not_input(
+        save,
+        [config.data.root, config.detector.memory, config.detector.data_root],
+        replaces=False,
+        flag="--save",
+    )
+    check_writable(save.absolute().parent)
+    with output_lock(save):
         check_recording_file(save)
-        check_writable(save.absolute().parent)
+        return _watch(config)
+
+
+def _watch(config: WatchConfig) -> WatchResult:
     loaded = load_detector(config.detector)
     trajectory = config.data.load_trajectory()
     used = {view: frames for view, frames in trajectory.views.items() if len(frames) >= 2}

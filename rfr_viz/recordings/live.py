@@ -42,7 +42,8 @@ from rfr_viz.panels.scores import log_score_styles, set_frame_time, threshold_pr
 from rfr_viz.paths import APPLICATION_ID, DEFAULT_FPS, PROPERTIES, REPLAY, signal
 from rfr_viz.viewer.binary import ViewerUnavailable
 from rfr_viz.viewer.control import DEFAULT_PORT
-from robofailring.atomic import atomic_path
+from rfr_viz.viewer.rrd import check_recording_file
+from robofailring.atomic import atomic_path, output_lock
 from robofailring.errors import Terminated
 from robofailring.data.layouts import load_trajectory
 from robofailring.data.model import Frame
@@ -52,7 +53,7 @@ from robofailring.detection.session import DetectorSession
 from robofailring.detection.trace import StepResult
 from robofailring.errors import DataError, SettingError
 from robofailring.explain.report import FailureReport
-from robofailring.outputs import check_recording_file
+
 from robofailring.extras import needs_extra
 
 with needs_extra("viz"):
@@ -131,7 +132,8 @@ class LiveRecording:
         `signals` (logged with `log_signals`) a tab each.
 
         On leaving the block the recording's properties (t_det, the report, …) are sent, the stream
-        is flushed, and a saved file appears at `target.save` (not on error).
+        is flushed, and a saved file appears at `target.save` (not on error); while it is written, the
+        file's `output_lock` is held and its temporary file is left alone by any other job's cleaning.
         """
         if target.save is not None:
             check_recording_file(Path(target.save))  # a memory's manifest, a labels file, a frame: never
@@ -155,6 +157,7 @@ class LiveRecording:
             rec = rr.RecordingStream(APPLICATION_ID, recording_id=str(uuid.uuid4()))
             sinks: list[Any] = []
             if target.save is not None:  # no footer: its chunk manifest would grow with every step held in RAM
+                stack.enter_context(output_lock(Path(target.save)))  # a second writer of it stops at once
                 saved = stack.enter_context(atomic_path(Path(target.save), suffix=".rrd"))
                 sinks.append(rr.FileSink(saved, write_footer=False))
             url = target.connect

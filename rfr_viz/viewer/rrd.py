@@ -1,4 +1,5 @@
-"""A recording file read back: verified by the viewer's `rrd verify`, its properties and its focus frame."""
+"""A recording file read back: verified by the viewer's `rrd verify`, its properties and its focus frame, and
+whether this project wrote it (the one check before a recording is written over a file)."""
 
 from __future__ import annotations
 
@@ -9,12 +10,16 @@ import warnings
 from pathlib import Path
 from typing import Any, Final
 
-from rfr_viz.paths import PROPERTIES
+from rfr_viz.paths import APPLICATION_ID, EVALUATION_APPLICATION_ID, PROPERTIES
 from rfr_viz.viewer.binary import viewer_binary, viewer_environment
+from robofailring.errors import OutputError
 from robofailring.extras import needs_extra
+from robofailring.outputs import is_recording
 
 NO_FOOTER: Final[str] = "RRD file has no footer"  # what RrdReader warns on a saved live recording
 NO_FOOTER_VERIFY: Final[str] = "Missing RRD footer"  # what `rerun rrd verify` says of one
+# the application ids every recording of this project is made under, since its first version
+OWN_APPLICATION_IDS: Final[frozenset[str]] = frozenset({APPLICATION_ID, EVALUATION_APPLICATION_ID})
 
 
 def verify_recording(recording: Path) -> None:
@@ -78,3 +83,31 @@ def focus_frame(recording: Path) -> int:
         if isinstance(value, int) and value >= 0:
             return value
     return 0
+
+
+def written_here(recording: Path) -> bool:
+    """Whether `recording` is a Rerun recording this project wrote: each of its recordings made under one
+    of the project's application ids (a user's own `.rrd`, whatever its name, is not)."""
+    if not is_recording(recording):
+        return False
+    with needs_extra("viz"):
+        from rerun.chunk import RrdReader
+
+    try:
+        with warnings.catch_warnings():  # a saved live recording has no footer on purpose (recordings.live)
+            warnings.filterwarnings("ignore", message=NO_FOOTER)
+            stores = RrdReader(Path(recording)).recordings()
+    except Exception:  # any reader error: a file that cannot be read whole is not taken for ours
+        return False
+    return bool(stores) and all(store.application_id in OWN_APPLICATION_IDS for store in stores)
+
+
+def check_recording_file(path: Path) -> None:
+    """Refuse, before any work, to write a recording over anything but a recording this project wrote (a
+    folder, a file of another kind, a user's own Rerun recording): OutputError naming it."""
+    path = Path(path)
+    if path.is_dir() or (path.exists() and not written_here(path)):
+        raise OutputError(
+            f"{path} exists and is not a Rerun recording written by robofailring; refusing to write over it: "
+            "move it away or choose another output"
+        )

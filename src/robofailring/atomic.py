@@ -5,7 +5,10 @@ replaced folder is moved aside as `.<final name>.rfr-<8 characters>.old` until i
 place. A process killed half-way leaves only such names; `output_lock` finds them on the next
 write to the same path and removes them, or restores an `.old` folder whose successor never
 arrived. The `rfr-` mark keeps that cleaning to this module's own names: a user's
-`.<name>.<anything>.tmp` beside an output is never touched.
+`.<name>.<anything>.tmp` beside an output is never touched. A temporary file is held under an
+exclusive `flock` by the process writing it, for as long as it writes (a `watch --save` for hours):
+cleaning removes only a file no live process holds, whatever lock that writer took on its output
+(docs/errors.md, "When things go wrong").
 
 A final path that is a symbolic link is written where it points: the link stays a link to the new
 version (replacing the link itself would leave the old version at its target, still in use).
@@ -47,16 +50,49 @@ def atomic_path(final: Path, *, suffix: str = "") -> Iterator[Path]:
     """Yield a temporary file path beside `final`; rename it onto `final` only if the block succeeds."""
     final = _target(final)
     final.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{final.name}.{_MARK}", suffix=f".tmp{suffix}", dir=final.parent)
-    os.close(fd)
-    tmp = Path(tmp_name)
+    fd, tmp = _held_temporary(final, suffix)
     try:
         yield tmp
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; the result is shared like any file
         os.replace(tmp, final)
     finally:
-        if tmp.exists():
-            tmp.unlink()
+        try:
+            if tmp.exists():
+                tmp.unlink()
+        finally:
+            os.close(fd)  # releases the flock: from here the name is gone or is `final`
+
+
+def _held_temporary(final: Path, suffix: str) -> tuple[int, Path]:
+    """A new temporary file beside `final` and an open descriptor holding its exclusive flock.
+
+    Another process's cleaning may take a file in the moment between its creation and the lock (it
+    then unlinks it): the lock is only kept on a file still under its name, else a new one is made."""
+    while True:
+        fd, name = tempfile.mkstemp(prefix=f".{final.name}.{_MARK}", suffix=f".tmp{suffix}", dir=final.parent)
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        with contextlib.suppress(FileNotFoundError):
+            if os.stat(name).st_ino == os.fstat(fd).st_ino:
+                return fd, Path(name)
+        os.close(fd)
+
+
+def _remove_unheld(path: Path) -> None:
+    """Remove a temporary file unless a live process holds it (`atomic_path`'s flock): a writer still
+    at work, not a leftover."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW)
+    except OSError:  # gone already, or not a plain file of ours
+        return
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        os.close(fd)
+        return
+    try:
+        path.unlink(missing_ok=True)  # under the lock: a writer that locks it next sees it unlinked
+    finally:
+        os.close(fd)
 
 
 def write_text_atomic(final: Path, text: str) -> None:
@@ -73,7 +109,9 @@ def _leftover(final: Path, name: str) -> str | None:
 
 def _remove(path: Path) -> None:
     if path.is_dir() and not path.is_symlink():
-        shutil.rmtree(path, ignore_errors=True)
+        shutil.rmtree(path, ignore_errors=True)  # a folder's writer holds `output_lock`, as its cleaner does
+    elif path.is_file() and not path.is_symlink():
+        _remove_unheld(path)
     else:
         path.unlink(missing_ok=True)
 
@@ -101,11 +139,12 @@ def recover_leftovers(final: Path) -> None:
 
 
 def remove_file_leftovers(folder: Path) -> None:
-    """Remove the temporary files killed writes left inside `folder` (hold `output_lock(folder)`)."""
+    """Remove the temporary files killed writes left inside `folder` (hold `output_lock(folder)`); one
+    that a live process is still writing (a `watch --save` into the folder) is left to it."""
     if Path(folder).is_dir():
         for entry in Path(folder).iterdir():
             if entry.is_file() and re.fullmatch(rf"\..+\.{_MARK}[A-Za-z0-9_]{{8}}\.tmp(\..+)?", entry.name):
-                entry.unlink(missing_ok=True)
+                _remove_unheld(entry)
 
 
 @contextlib.contextmanager

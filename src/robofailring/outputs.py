@@ -68,6 +68,17 @@ def check_not_input(
     return resolved
 
 
+def check_file_stem(name: str, *, flag: str = "--name") -> str:
+    """`name` unchanged when it can only name a file inside the output folder (`<name>.json`, …): not
+    blank, no path separator, no leading dot (no `..`, no hidden files); else OutputError naming it."""
+    if not name.strip() or name.startswith(".") or any(character in name for character in "/\\\0"):
+        raise OutputError(
+            f"{flag} {name!r} is not a plain file name: give a name without /, \\ or a leading dot "
+            f"(it names the files written into --out, e.g. {flag} evaluation)"
+        )
+    return name
+
+
 def check_writable(folder: Path) -> None:
     """Prove a file can be written in `folder`, or in the folder that would hold it, before any long work.
 
@@ -128,20 +139,21 @@ def check_output_folder(out: Path, *, inputs: Iterable[Path | None] = ()) -> Non
     check_writable(out)
 
 
-def check_recording_file(path: Path) -> None:
-    """Refuse to write a recording over anything that is not a recording (a folder, another file)."""
-    if path.is_dir() or (path.exists() and not is_recording(path)):
-        raise OutputError(f"{path} exists and is not a Rerun recording; refusing to write over it")
-
-
 _OWN_HTML: Final[bytes] = b"<title>RoboFailRing"  # every page the project writes (report.html, triage.html)
 _OWN_MARKDOWN: Final[re.Pattern[str]] = re.compile(r"## .+ \u2014 encoder `")  # an evaluation's first line
-_OWN_JSON_KEYS: Final[frozenset[str]] = frozenset({"name", "encoder"})  # an evaluation's own keys
+EVALUATION_FORMAT: Final[str] = "robofailring-evaluation"  # `format` of every evaluation's JSON
+# what an evaluation's JSON held before it said its format: every version's keys (a held-out evaluation,
+# the cross-validation alone), so a re-run replaces them and a user's `{"name", "encoder"}` is not taken
+_EARLIER_JSON_KEYS: Final[tuple[frozenset[str], ...]] = (
+    frozenset({"name", "encoder", "memory", "k", "operating_delta", "calibrated", "failures", "successes"}),
+    frozenset({"name", "encoder", "held_out_evaluation", "held_out_not_made", "cross_validation"}),
+)
 
 
 def _written_here(path: Path) -> bool:
     """Whether `path` reads as one of the project's own tables or pages (by its suffix): an HTML page
-    titled RoboFailRing, an evaluation's Markdown (its `## <name> — encoder` heading first) or JSON."""
+    titled RoboFailRing, an evaluation's Markdown (its `## <name> — encoder` heading first) or JSON (its
+    `format`, or all the keys of an evaluation written before it had one)."""
     try:
         with path.open("rb") as handle:
             head = handle.read(4096)
@@ -151,7 +163,10 @@ def _written_here(path: Path) -> bool:
             return _OWN_MARKDOWN.match(head.decode("utf-8", "replace")) is not None
         if path.suffix == ".json":
             document = parse_json(path.read_bytes(), source=str(path))
-            return isinstance(document, dict) and document.keys() >= _OWN_JSON_KEYS
+            return isinstance(document, dict) and (
+                document.get("format") == EVALUATION_FORMAT
+                or ("format" not in document and any(document.keys() >= keys for keys in _EARLIER_JSON_KEYS))
+            )
     except (OSError, ValueError, DataError):
         return False
     return False
@@ -160,9 +175,11 @@ def _written_here(path: Path) -> bool:
 def check_own_files(paths: Iterable[Path]) -> None:
     """Refuse to replace a file that is there but was not written by this project (a user's own
     `report.html` or `evaluation.json` in `--out`): OutputError naming it, before any work."""
-    for path in map(Path, paths):
+    for given in map(Path, paths):
+        # where the write lands once the folders are made: a `..` after a folder not made yet counts
+        path = Path(os.path.realpath(given.parent)) / given.name
         if path.is_dir() or ((path.exists() or path.is_symlink()) and not _written_here(path)):
             raise OutputError(
-                f"{path} exists and was not written by robofailring; refusing to replace it: move it away "
+                f"{given} exists and was not written by robofailring; refusing to replace it: move it away "
                 "or choose another --out"
             )

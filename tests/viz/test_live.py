@@ -317,16 +317,22 @@ def test_watch_without_a_viewer_is_a_clear_error(episode: Path, pixels_memory_di
 def test_watch_save_refuses_any_file_that_is_not_a_recording(
     episode: Path, pixels_memory_dir: Path, tmp_path: Path
 ) -> None:
-    """`watch --save` never writes over a memory's manifest, a labels file or a frame of the episode it
-    watches (issue 35, item 2): one error line, before any work, each file as it was."""
+    """`watch --save` never writes over a memory's manifest, a labels file, a frame of the episode it
+    watches (issue 35, item 2) or a recording of another application: one error line, before any work,
+    each file as it was."""
     labels = tmp_path / "labels.csv"
     labels.write_text("episode,outcome\npick_cube_grasp_wp2_episode9,failure\n")
     frame = next(path for path in sorted(episode.rglob("*.png")))
+    theirs = tmp_path / "lab.rrd"  # a Rerun recording of the user's own tools (issue 50, data loss)
+    with rr.RecordingStream("my_robot_lab", recording_id="lab-session") as rec:
+        rec.save(theirs)
+        rec.log("arm/torque", rr.Scalars(1.5))
     targets = {
         pixels_memory_dir / "manifest.json": "lies inside the input",
         labels: "is not a Rerun recording",
         frame: "lies inside the input",
         tmp_path: "is not a Rerun recording",  # a folder
+        theirs: "is not a Rerun recording written by robofailring",
     }
     for target, why in targets.items():
         before = target.read_bytes() if target.is_file() else sorted(p.name for p in target.iterdir())
@@ -393,3 +399,91 @@ def test_a_stopped_watch_keeps_what_it_recorded_as_a_whole_file(
     assert [frame for frame, _ in rows(saved, REPLAY.state, "Scalars:scalars")] == [0, 1, 2, 3]
     assert properties(saved)["L"] == 4  # its properties were written: a whole recording
     assert sorted(p.name for p in tmp_path.iterdir()) == ["live.rrd"]  # no temporary file left
+
+
+HOLD_AT_STEP_3 = """
+import sys, time
+from pathlib import Path
+from rfr_viz.recordings.live import LiveRecording
+ready, go = Path(sys.argv[1]), Path(sys.argv[2])
+real = LiveRecording.on_step
+def on_step(self, session, frames, result):
+    real(self, session, frames, result)
+    if result.t == 3:  # the robot is still being watched while another job runs
+        ready.touch()
+        for _ in range(6000):  # at most 10 minutes: a test that never says go fails, it does not hang
+            if go.exists():
+                break
+            time.sleep(0.1)
+LiveRecording.on_step = on_step
+sys.argv[1:] = sys.argv[4:]
+from rfr_viz.cli.app import main
+sys.exit(main())
+"""
+
+
+def _watch_held_at_step_3(episode: Path, memory: Path, save: Path, signals: Path) -> subprocess.Popen[str]:
+    """`watch --save` in its own process, held at its fourth step until `signals/go` appears."""
+    command = [sys.executable, "-c", HOLD_AT_STEP_3, str(signals / "ready"), str(signals / "go"), "-", "watch",
+               str(episode), "--memory", str(memory), "--speed", "0", "--save", str(save)]  # fmt: skip
+    watcher = subprocess.Popen(
+        command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env={**os.environ, "ROBOFAILRING_PROGRESS": "0"},
+    )  # fmt: skip
+    while not (signals / "ready").exists():
+        assert watcher.poll() is None, watcher.communicate()
+        time.sleep(0.05)
+    return watcher
+
+
+def test_a_replay_into_the_folder_of_a_running_watch_keeps_its_recording(
+    episode: Path, pixels_memory_dir: Path, tmp_path: Path
+) -> None:
+    """Issue 50, data loss: a replay into `rec/` deleted the temporary file of a running
+    `watch --save rec/mylive.rrd` as a leftover, and the whole live recording was lost. The watch's
+    temporary file is held (flock) while it writes, so the replay's cleaning leaves it alone."""
+    rec = tmp_path / "rec"
+    save = rec / "mylive.rrd"
+    watcher = _watch_held_at_step_3(episode, pixels_memory_dir, save, tmp_path)
+    try:
+        held = [p.name for p in rec.iterdir() if p.name.startswith(".mylive.rrd.rfr-")]
+        assert len(held) == 1  # the watch is writing its temporary file now
+        replayed = runner.invoke(
+            app,
+            ["replay", str(episode), "--memory", str(pixels_memory_dir), "--out", str(rec), "--delta", DELTA],
+        )
+        assert replayed.exit_code == 0, replayed.output
+        assert (rec / held[0]).exists()  # not taken for a leftover of a killed write
+    finally:
+        (tmp_path / "go").touch()
+        _, stderr = watcher.communicate(timeout=300)
+    assert watcher.returncode == 0, stderr
+    assert [frame for frame, _ in rows(save, REPLAY.state, "Scalars:scalars")] == list(range(8))
+    assert properties(save)["L"] == 8
+    assert sorted(p.name for p in rec.iterdir() if p.suffix == ".rrd") == [
+        "mylive.rrd",
+        f"pick_cube__{episode.name}.rrd",
+    ]
+    assert not [p.name for p in rec.iterdir() if p.name.startswith(".")]  # nothing left behind
+
+
+def test_a_second_watch_saving_to_the_same_file_stops_before_any_work(
+    episode: Path, pixels_memory_dir: Path, tmp_path: Path
+) -> None:
+    """`watch --save` holds its file's output lock: a second one into the same file is refused at once
+    (status 1, the file named) and the first one's recording is whole."""
+    save = tmp_path / "mylive.rrd"
+    watcher = _watch_held_at_step_3(episode, pixels_memory_dir, save, tmp_path)
+    try:
+        second = runner.invoke(
+            app,
+            ["watch", str(episode), "--memory", str(pixels_memory_dir), "--speed", "0", "--save", str(save)],
+        )
+    finally:
+        (tmp_path / "go").touch()
+        _, stderr = watcher.communicate(timeout=300)
+    errors = [line for line in second.output.splitlines() if line.startswith("error:")]
+    assert second.exit_code == 1 and len(errors) == 1 and str(save) in errors[0], second.output
+    assert "another robofailring process is writing" in errors[0]
+    assert watcher.returncode == 0, stderr
+    assert properties(save)["L"] == 8

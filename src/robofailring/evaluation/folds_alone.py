@@ -15,6 +15,7 @@ from robofailring.errors import SplitError
 from robofailring.evaluation.folds import CrossValidation, cross_validate
 from robofailring.evaluation.result import skipped_inputs_markdown
 from robofailring.evaluation.training import EvaluateConfig, evaluation_encoder, load_labelled
+from robofailring.outputs import EVALUATION_FORMAT
 
 
 @dataclass(frozen=True)
@@ -29,6 +30,7 @@ class FoldsAlone:
 
     def to_dict(self) -> dict[str, Any]:
         return {
+            "format": EVALUATION_FORMAT,  # what tells a re-run this file is its own (outputs.check_own_files)
             "name": self.name,
             "encoder": self.encoder,
             "held_out_evaluation": None,

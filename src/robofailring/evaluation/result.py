@@ -36,6 +36,7 @@ from robofailring.evaluation.per_rule import (
 )
 from robofailring.memory.entry import END, failure_frames_note
 from robofailring.memory.pairs import CONCAT
+from robofailring.outputs import EVALUATION_FORMAT
 
 if TYPE_CHECKING:
     from robofailring.evaluation.folds import CrossValidation
@@ -184,6 +185,7 @@ class EvaluationResult:
             }
 
         return {
+            "format": EVALUATION_FORMAT,  # what tells a re-run this file is its own (outputs.check_own_files)
             "name": self.name,
             "encoder": self.encoder,
             "memory": self.memory,

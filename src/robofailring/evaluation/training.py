@@ -25,6 +25,7 @@ from robofailring.memory.builder import Provenance, build_memories
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.recipe import DEFAULT_RECIPE, MemoryRecipe
 from robofailring.memory.references import absolute_reference
+from robofailring.outputs import check_file_stem
 
 #: `--folds loo`: one fold per episode.
 LEAVE_ONE_OUT: Final[str] = "loo"
@@ -75,7 +76,7 @@ class EvaluateConfig:
     test_split: str = "test"
     test_fraction: float = 0.5  # for datasets without splits: a deterministic hash split
     deltas: tuple[float, ...] = PAPER_DELTAS
-    name: str = "evaluation"
+    name: str = "evaluation"  # a file name stem: `<name>.json`, `<name>.md`, `<name>.rrd` in `out`
     stride: int = 1  # score every stride-th frame of a test trajectory (t_det, T_s in original frames)
     successes: bool = True  # build the success memory beside the failure memory (contrast rule)
     deployment_successes: int = 0  # per task: test success runs moved into the success memory
@@ -85,6 +86,7 @@ class EvaluateConfig:
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
         check_stride(self.stride)
+        check_file_stem(self.name)  # `<name>.json` and the rest stay inside `out`
         if self.detector.rule is not None or self.detector.thresholds or self.detector.encoder is not None:
             raise SettingError(
                 "an evaluation judges every rule at thresholds it calibrates (or the memory's stored ones), "
