@@ -62,7 +62,7 @@ def watch(config: WatchConfig) -> WatchResult:
         )
         check_recording_file(save)
         check_writable(save.absolute().parent)
-    loaded = load_detector(config.detector)
+    loaded = load_detector(config.detector, config.data.root)
     trajectory = config.data.load_trajectory()
     used = {view: frames for view, frames in trajectory.views.items() if len(frames) >= 2}
     if not used:

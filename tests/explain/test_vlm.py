@@ -12,7 +12,7 @@ import cv2
 import numpy as np
 import pytest
 from ports import free_port
-from synthetic import write_episode
+from synthetic import data_root_of, write_episode
 from typer.testing import CliRunner
 from vlm_server import ANSWER, chat_server, silent_server
 
@@ -49,8 +49,8 @@ def episode(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 @pytest.fixture(scope="module")
-def report(pixels_memory_dir: Path, episode: Path) -> FailureReport:
-    memory = FailureMemory.load(pixels_memory_dir)
+def report(pixels_memory_dir: Path, aha_dataset: Path, episode: Path) -> FailureReport:
+    memory = FailureMemory.load(pixels_memory_dir, trusted=[aha_dataset])
     trajectory = load_trajectory(episode)
     trace = FailureDetector(memory, load_encoder("pixels"), delta=-1.0, k=3).run(trajectory)
     found = report_for(trace, trajectory)
@@ -217,6 +217,7 @@ def test_bad_settings() -> None:
 
 
 def _detect(episode: Path, pixels_memory_dir: Path, *extra: str) -> tuple[int, dict, str]:
+    """`detect --json`, naming the folder of the memory's images (--data-root: they are not the episode's)."""
     result = runner.invoke(
         app,
         [
@@ -224,6 +225,8 @@ def _detect(episode: Path, pixels_memory_dir: Path, *extra: str) -> tuple[int, d
             str(episode),
             "--memory",
             str(pixels_memory_dir),
+            "--data-root",
+            data_root_of(pixels_memory_dir),
             "--delta",
             "-1",
             "--k",
@@ -288,7 +291,12 @@ def test_a_server_that_never_answers_is_abandoned_and_the_detection_kept(
         vlm = VLMConfig(url=server.url, model="m", timeout_s=0.5, retries=1, backoff_s=0.0)
         config = DetectConfig(
             data=DataSelection(episode),
-            detector=DetectorConfig(memory=pixels_memory_dir, k=3, thresholds={"paper": -1.0}),
+            detector=DetectorConfig(
+                memory=pixels_memory_dir,
+                data_root=Path(data_root_of(pixels_memory_dir)),
+                k=3,
+                thresholds={"paper": -1.0},
+            ),
             vlm=vlm,
         )
         worker = threading.Thread(target=lambda: done.append(run_detect(config)), daemon=True)

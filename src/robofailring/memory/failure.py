@@ -25,6 +25,7 @@ from robofailring.jsontext import parse_json
 from robofailring.memory.encoding import BuildStats, encode_failures, failure_views
 from robofailring.memory.entry import MemoryEntry, Neighbor
 from robofailring.memory.format import parse_entry, read_jsonl, stored_vocabulary
+from robofailring.memory.image_roots import ImageRoots
 from robofailring.memory.index import FLAT, TaskIndexSet
 from robofailring.memory.index_file import read_index_file
 from robofailring.memory.manifest import MemoryManifest, StoredCalibration
@@ -67,6 +68,7 @@ class FailureMemory:
         successes: SuccessMemory | None = None,
         vocabulary: Vocabulary | None = None,
         signals: SignalMemory | None = None,
+        image_roots: ImageRoots | None = None,
     ) -> None:
         vectors = np.ascontiguousarray(vectors, dtype=np.float32)
         if vectors.ndim != 2 or len(vectors) != len(entries):
@@ -81,6 +83,9 @@ class FailureMemory:
         self.dim = int(vectors.shape[1]) if vectors.size else (manifest.dim if manifest is not None else 0)
         self.manifest = manifest if manifest is not None else MemoryManifest(encoder=encoder, dim=self.dim)
         self.data_root = Path(data_root).resolve() if data_root is not None else None
+        # where its images may be read from (`memory.image_roots`): a memory built here, its data's root;
+        # one loaded, the folders named where it was opened (`load`), never the root its manifest records
+        self.image_roots = image_roots if image_roots is not None else ImageRoots.of(self.data_root)
         self.successes = successes  # success runs for the contrast rule (robofailring.memory.success)
         self.signals = signals  # the robot's signals as a second modality (robofailring.memory.signal_memory)
         # the folder this memory (or the one it was derived from) was read from, and that folder's
@@ -325,18 +330,22 @@ class FailureMemory:
         return self
 
     @classmethod
-    def load(cls, directory: Path, *, data_root: Path | None = None) -> FailureMemory:
-        """Read a saved memory; `data_root` re-roots its image references when the data moved.
+    def load(
+        cls, directory: Path, *, data_root: Path | None = None, trusted: Iterable[Path] = ()
+    ) -> FailureMemory:
+        """Read a saved memory; `data_root` re-roots its image references when the data moved. Its images
+        are read only from under `data_root`, its own folder and the `trusted` folders (the data a job reads).
 
         A memory replaced by another process while it is read is read again (three tries), so the
         result is always one version of the folder, which it remembers (`read_from`).
         """
-        memory, read_from = read_whole(Path(directory), lambda folder: cls._read(folder, data_root=data_root))
+        roots = ImageRoots.of(directory, data_root, *trusted)
+        memory, read_from = read_whole(Path(directory), lambda folder: cls._read(folder, data_root, roots))
         memory.read_from = read_from
         return memory
 
     @classmethod
-    def _read(cls, directory: Path, *, data_root: Path | None) -> FailureMemory:
+    def _read(cls, directory: Path, data_root: Path | None, image_roots: ImageRoots) -> FailureMemory:
         manifest_path = directory / MANIFEST
         if not manifest_path.is_file() and not restore_interrupted(directory):
             raise MemoryFormatError(f"{directory} is not a failure memory: {MANIFEST} is missing")
@@ -379,11 +388,15 @@ class FailureMemory:
             successes=successes,
             vocabulary=vocabulary,
             signals=signals,
+            image_roots=image_roots,
         )
 
-    def check_references(self) -> ReferenceCheck:
-        """Which of the entries' start/end images exist where the memory says they are."""
-        return check_references(ref for entry in self.entries for ref in (entry.start, entry.end))
+    def check_references(self, *, read: bool = False) -> ReferenceCheck:
+        """Which of the entries' start/end images exist where the memory says they are (`read`: and which
+        lie outside its `image_roots`, for a verb that would read them)."""
+        references = [ref for entry in self.entries for ref in (entry.start, entry.end)]
+        found = check_references(references)
+        return replace(found, outside=tuple(self.image_roots.outside(references))) if read else found
 
     # ---------------------------------------------------------------- calibration
     def calibrated_threshold(self, rule: str, modality: str = "both") -> float | None:
