@@ -400,6 +400,7 @@ def test_an_echo_of_the_key_upper_cased_or_cut_is_hidden(
     with chat_server(("ok", echoed)) as server:
         code, found, stderr = _ask(episode, pixels_memory_dir, server.url)
     assert code == 0 and found["vlm"]["answer"] == f"A {REDACTED} B {REDACTED} C {REDACTED} D"
+    assert SECRET[2:-2].lower() not in (json.dumps(found) + stderr).lower()
     assert server.received[0].headers["Authorization"] == f"Bearer {SECRET}"
 
 

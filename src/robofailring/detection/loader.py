@@ -13,7 +13,8 @@ from robofailring.detection.detector import FailureDetector
 from robofailring.detection.rules import ScoringRule
 from robofailring.detection.stored import given_thresholds
 from robofailring.encoders import CachedEncoder, open_encoder
-from robofailring.memory.failure import FailureMemory, encoder_spec_for
+from robofailring.encoders.spec import EncoderSpec
+from robofailring.memory.failure import FailureMemory
 
 
 def encoder_for(config: DetectorConfig, spec: str) -> CachedEncoder:
@@ -60,6 +61,11 @@ def detector_from(config: DetectorConfig, *, trusted: Iterable[Path] = ()) -> Fa
         trusted=trusted,
     )
     return detector_with(config, memory, encoder_for(config, config.encoder or encoder_spec_for(memory)))
+
+
+def encoder_spec_for(memory: FailureMemory) -> str:
+    """The encoder spec that reproduces a memory's encoder identity (pixels or open_clip)."""
+    return EncoderSpec.for_memory(memory.encoder, memory.manifest.encoder_spec)
 
 
 def open_detector(
