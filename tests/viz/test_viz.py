@@ -41,6 +41,7 @@ from robofailring import (
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.memory.failure import MemoryEntry
+from robofailring.memory.image_roots import ImageRoots
 from robofailring.memory.pairs import pair_vectors
 
 VIEWS = ["front", "overhead", "wrist"]
@@ -175,7 +176,8 @@ def test_neighbour_images_are_logged_only_when_they_change(recording: Path, trac
                 assert [frame for frame, _ in logged] == [t for t, _ in want]
                 for (_, blob), (_, index) in zip(logged, want, strict=True):
                     entry = trace.memory.entries[index]
-                    assert bytes(blob[0]) == reference_jpeg(entry.start if part == "start" else entry.end)
+                    reference = entry.start if part == "start" else entry.end
+                    assert bytes(blob[0]) == reference_jpeg(reference, ImageRoots.of("/"))  # the file's JPEG
             info = rows(recording, REPLAY.neighbor(view, rank, "info"), "TextDocument:text")
             assert (
                 {t for t, _ in want} <= {frame for frame, _ in info} <= {t for t, _ in want} | {trace.t_det}
