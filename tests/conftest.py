@@ -110,9 +110,10 @@ def encoder(tmp_path_factory: pytest.TempPathFactory) -> CachedEncoder:
 
 
 @pytest.fixture()
-def pixels_memory(pixels_memory_dir: Path) -> FailureMemory:
-    """The shared pixels memory, loaded afresh for each test so that no test sees another's changes."""
-    return FailureMemory.load(pixels_memory_dir)
+def pixels_memory(pixels_memory_dir: Path, aha_dataset: Path) -> FailureMemory:
+    """The shared pixels memory, loaded afresh for each test so that no test sees another's changes; its
+    images read from the AHA fixture, named as a verb's data names them (`FailureMemory.image_roots`)."""
+    return FailureMemory.load(pixels_memory_dir, trusted=[aha_dataset])
 
 
 @pytest.fixture()

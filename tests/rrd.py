@@ -111,6 +111,18 @@ def every_text(path: Path) -> str:
     return "\n".join(texts)
 
 
+def blobs(path: Path) -> list[bytes]:
+    """Every image's encoded bytes in the recording (`EncodedImage:blob` of any entity, any row)."""
+    read = reader(path)
+    found = []
+    for chunk in read.stream(store=read.recordings()[0]).to_chunks():
+        batch = chunk.to_record_batch()
+        for name, column in zip(batch.schema.names, batch.columns, strict=True):
+            if name.endswith("EncodedImage:blob"):
+                found += [bytes(cell[0]) for cell in column.to_pylist() if cell]
+    return found
+
+
 def psnr(decoded: np.ndarray, source: np.ndarray) -> float:
     """How near a camera frame read back (decoded from a recording's video) is to the frame logged, in dB
     (inf when equal)."""

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from dataclasses import replace
 from pathlib import Path
 
@@ -275,3 +276,8 @@ def csv_rows(path: Path) -> list[dict[str, str]]:
 
     with path.open(newline="", encoding="utf-8") as handle:
         return list(csv.DictReader(handle))
+
+
+def data_root_of(memory: Path) -> str:
+    """The data root a memory records: the folder a user names (--data-root) for its images."""
+    return str(json.loads((memory / "manifest.json").read_text())["data_root"])

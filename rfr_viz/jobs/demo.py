@@ -183,7 +183,7 @@ def _run_demo(config: DemoConfig, data_dir: Path, say: Callable[[str], None]) ->
     )
     # the thresholds calibration just stored; the memory loaded once, for both evaluations and every recording
     stored = replace(base, detector=base.detector.with_memory(memory_dir), thresholds=None)
-    detector = detector_from(stored.detector)
+    detector = detector_from(stored.detector, trusted=[stored.data.root])
     mapped = memory_map(detector.memory, directory=memory_dir)
     place = partial(placer, mapped)  # the recordings' map points, placed while the evaluations score
     evaluations = [

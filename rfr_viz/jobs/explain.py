@@ -41,7 +41,11 @@ class Explanation:
 
 
 def explain(source: Path, vlm: VLMConfig | None, *, data_root: Path | None = None) -> Explanation:
-    """Ask `vlm` about the report in `source` (its images looked up under `data_root` when the data moved)."""
+    """Ask `vlm` about the report in `source` (its images looked up under `data_root` when the data moved).
+
+    Its images are sent only from under the folder the user named, `data_root` (without it, none is sent):
+    the folders the file itself lists are never trusted, nor the one it lies in (a report may be shared or
+    edited, and saved beside your own files)."""
     if vlm is None:
         raise SettingError("explain needs --vlm-url and --vlm-model")
     report = read_report(source)
@@ -51,7 +55,8 @@ def explain(source: Path, vlm: VLMConfig | None, *, data_root: Path | None = Non
 
 
 def read_report(source: Path) -> FailureReport:
-    """The report of a replay recording (`.rrd`, its `report` property) or of `detect --json` output.
+    """The report of a replay recording (`.rrd`, its `report` property) or of `detect --json` output, with
+    no folder named for its images yet (`FailureReport.roots`: `explain` names `--data-root`).
 
     A file that holds no detection, or is neither, is a DataError naming it.
     """

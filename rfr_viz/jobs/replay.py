@@ -188,9 +188,10 @@ class LoadedDetector:
     references: ReferenceCheck
 
 
-def load_detector(config: DetectorConfig) -> LoadedDetector:
-    """The detector of `config` with its memory's cached map and reference check (its notes logged)."""
-    detector = detector_from(config)
+def load_detector(config: DetectorConfig, data: Path) -> LoadedDetector:
+    """The detector of `config` with its memory's cached map and reference check (its notes logged); its
+    images are read from under `data` (the data the job reads), its own folder or --data-root only."""
+    detector = detector_from(config, trusted=[data])
     for note in detector.uncalibrated:
         _log.warning("warning: %s", note)
     memory = detector.memory
@@ -199,7 +200,7 @@ def load_detector(config: DetectorConfig) -> LoadedDetector:
         memory=memory,
         detector=detector,
         map=memory_map(memory, directory=config.memory_dir),
-        references=memory.check_references(),
+        references=memory.check_references(read=True),
     )
 
 
@@ -214,7 +215,7 @@ def replay(config: ReplayConfig) -> ReplayResult:
 
 
 def _replay(config: ReplayConfig) -> ReplayResult:
-    found, recordings = load_detector(config.detector), config.recordings
+    found, recordings = load_detector(config.detector, config.data.root), config.recordings
     result = ReplayResult(references={config.detector.memory_dir: found.references})
     trajectories = select_trajectories(
         config.data,
@@ -280,7 +281,10 @@ def _compare(config: CompareConfig) -> ReplayResult:
         raise SettingError(
             f"compare needs at least two memories (--memory A --memory B), got {len(config.detectors)}"
         )
-    detectors, recordings = [load_detector(each) for each in config.detectors], config.recordings
+    detectors, recordings = (
+        [load_detector(each, config.data.root) for each in config.detectors],
+        config.recordings,
+    )
     slugs = unique_slugs([found.slug for found in detectors])
     result = ReplayResult(
         references={

@@ -112,7 +112,8 @@ def _replay_keys(
     if not keys:
         return result
     loaded = load_detector(
-        config.detector.with_memory(memory_dir, thresholds={rule.name: threshold}, rule=rule.name, k=k)
+        config.detector.with_memory(memory_dir, thresholds={rule.name: threshold}, rule=rule.name, k=k),
+        config.data.root,
     )
     dataset = config.data.load(keys=keys)
     result.skipped_inputs += dataset.skipped
@@ -199,7 +200,8 @@ def write_review_labels(config: ReviewConfig) -> ReviewLabels:
                 thresholds={reviewed.rule.name: reviewed.threshold},
                 rule=reviewed.rule.name,
                 k=reviewed.k,
-            )
+            ),
+            trusted=[config.data.root],
         )
         dataset = config.data.load(vocabulary=detector.memory.vocabulary)
         wanted = [key for kind in KINDS for key in reviewed.keys[kind]]

@@ -80,7 +80,7 @@ def watch(config: WatchConfig) -> WatchResult:
 
 
 def _watch(config: WatchConfig) -> WatchResult:
-    loaded = load_detector(config.detector)
+    loaded = load_detector(config.detector, config.data.root)
     trajectory = config.data.load_trajectory()
     used = {view: frames for view, frames in trajectory.views.items() if len(frames) >= 2}
     if not used:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rfr_viz.panels.images import JPEG_MEDIA_TYPE, reference_jpeg
+from rfr_viz.panels.images import JPEG_MEDIA_TYPE, ReferenceJpegs
 from rfr_viz.panels.neighbors import changes
 from rfr_viz.panels.scores import ROW_BATCH, time_columns
 from rfr_viz.paths import DetectorPaths
@@ -24,7 +24,7 @@ def log_nearest_success(
     match: SuccessMatch | None,
     *,
     t: int,
-    images: dict[str, bytes | None],
+    images: ReferenceJpegs,
     image: bool = True,
 ) -> None:
     """At the current time: the nearest success frame of `view` (`image`: its picture too) and its text."""
@@ -41,18 +41,16 @@ def log_nearest_success(
     rec.log(paths.nearest_success_info(view), rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN))
 
 
-def _success_jpeg(match: SuccessMatch, images: dict[str, bytes | None]) -> bytes | None:
-    """The match's picture as JPEG, read and encoded once per recording (None: the file is missing)."""
-    if match.image not in images:
-        images[match.image] = reference_jpeg(match.image)
-    return images[match.image]
+def _success_jpeg(match: SuccessMatch, images: ReferenceJpegs) -> bytes | None:
+    """The match's picture as JPEG, read and encoded once per recording (None: missing or not to be read)."""
+    return images.get(match.image)
 
 
-def _success_text(match: SuccessMatch, t: int, images: dict[str, bytes | None]) -> str:
+def _success_text(match: SuccessMatch, t: int, images: ReferenceJpegs) -> str:
     """The info text, naming the picture when it was looked for and is missing."""
     text = success_info(match, t)
-    if images.get(match.image, b"") is None:
-        text += f"  \n**image not found:** `{match.image}`"
+    if images.looked_for_in_vain(match.image):
+        text += f"  \n{images.absence(match.image)}"
     return text
 
 
@@ -81,7 +79,7 @@ def _log_nearest_success(
     scored frame; with a stride, unscored frames have none): the rows `log_nearest_success` logs one
     frame at a time, sent as columns ROW_BATCH frames at a time and flushed, so a long episode holds
     no more pending rows than a short one."""
-    cache: dict[str, bytes | None] = {}
+    cache = ReferenceJpegs(trace.memory.image_roots)
     scored = trace.scored_frames
     for view in trace.views:
         ids = trace.success_ids[view][scored]
@@ -100,7 +98,7 @@ def _send_nearest_success(
     matches: list[tuple[int, SuccessMatch | None]],
     *,
     changed: set[int],
-    images: dict[str, bytes | None],
+    images: ReferenceJpegs,
     fps: float,
 ) -> None:
     """One batch of `log_nearest_success`'s rows as columns: a Clear where there is no match (or its

@@ -12,6 +12,7 @@ from robofailring.data.layout_rosbag import BAG_MESSAGE_MARKER, read_bag_referen
 from robofailring.data.model import Frame
 from robofailring.data.video import read_video_reference
 from robofailring.errors import DataError
+from robofailring.memory.image_roots import ImageRoots
 
 JPEG_QUALITY: Final[int] = 80
 JPEG_MEDIA_TYPE: Final[str] = "image/jpeg"
@@ -30,8 +31,11 @@ def frame_jpeg(frame: Frame, *, quality: int = JPEG_QUALITY) -> bytes:
     return encode_jpeg(frame.load(), quality=quality)
 
 
-def reference_jpeg(reference: str, *, quality: int = JPEG_QUALITY) -> bytes | None:
-    """JPEG bytes of a memory entry's start/end image, or None when the file is not there."""
+def reference_jpeg(reference: str, roots: ImageRoots, *, quality: int = JPEG_QUALITY) -> bytes | None:
+    """JPEG bytes of a memory entry's start/end image, or None when the file is not there or lies outside
+    `roots` (the folders named for the memory's images: an edited memory must not record your files)."""
+    if not roots.holds(reference):
+        return None
     path = Path(reference)
     if BAG_MESSAGE_MARKER in reference or "#frame=" in reference:  # a bag message, a video frame
         read = read_bag_reference if BAG_MESSAGE_MARKER in reference else read_video_reference
@@ -47,6 +51,30 @@ def reference_jpeg(reference: str, *, quality: int = JPEG_QUALITY) -> bytes | No
         return data if is_jpeg(data) else encode_jpeg(read_image(path), quality=quality)
     except (OSError, DataError):
         return None  # a memory image that went missing must not sink the whole recording
+
+
+class ReferenceJpegs:
+    """A recording's memory images as JPEG bytes, each read once, and only from under `roots`."""
+
+    def __init__(self, roots: ImageRoots) -> None:
+        self.roots = roots
+        self._jpegs: dict[str, bytes | None] = {}
+
+    def get(self, reference: str) -> bytes | None:
+        """The image's JPEG bytes; None when it is missing or outside the roots (`absence` says which)."""
+        if reference not in self._jpegs:
+            self._jpegs[reference] = reference_jpeg(reference, self.roots)
+        return self._jpegs[reference]
+
+    def looked_for_in_vain(self, reference: str) -> bool:
+        """Whether the image was asked for and is not shown."""
+        return reference in self._jpegs and self._jpegs[reference] is None
+
+    def absence(self, reference: str) -> str:
+        """Markdown naming an image that is not shown, and why."""
+        if not self.roots.holds(reference):
+            return f"**image not read** (outside the folders named for it: {self.roots}): `{reference}`"
+        return f"**image not found:** `{reference}`"
 
 
 def thumbnail_jpeg(frame: Frame, *, side: int = 128, quality: int = JPEG_QUALITY) -> bytes:

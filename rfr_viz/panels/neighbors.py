@@ -8,12 +8,13 @@ from typing import Final
 import cv2
 import numpy as np
 
-from rfr_viz.panels.images import JPEG_MEDIA_TYPE, JPEG_QUALITY, reference_jpeg
+from rfr_viz.panels.images import JPEG_MEDIA_TYPE, JPEG_QUALITY, ReferenceJpegs
 from rfr_viz.paths import FRAME, TIME, DetectorPaths, NeighborPart
 from robofailring.data.images import encode_jpeg
 from robofailring.detection.detector import DetectionTrace
 from robofailring.extras import needs_extra
 from robofailring.memory.failure import MemoryEntry
+from robofailring.memory.image_roots import ImageRoots
 
 with needs_extra("viz"):
     import rerun as rr
@@ -59,14 +60,20 @@ change at every frame, and rows left pending cost Rerun ~3.5 KB each (bench/benc
 
 
 class NeighborImages:
-    """Reads and JPEG-encodes each referenced memory image once; missing files are None."""
+    """Reads and JPEG-encodes each referenced memory image once, only from under `roots` (the folders
+    named for the memory's images, `FailureMemory.image_roots`); missing files and others are None."""
 
-    def __init__(self) -> None:
+    def __init__(self, roots: ImageRoots) -> None:
+        self._jpegs = ReferenceJpegs(roots)
         self._images: dict[str, NeighborImage | None] = {}
+
+    def absence(self, reference: str) -> str:
+        """Markdown naming an image not shown, and why (not found, or outside the roots)."""
+        return self._jpegs.absence(reference)
 
     def get(self, reference: str) -> NeighborImage | None:
         if reference not in self._images:
-            data = reference_jpeg(reference)
+            data = self._jpegs.get(reference)
             image = None
             if data is not None:
                 decoded = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_GRAYSCALE)
@@ -205,7 +212,7 @@ def log_neighbors(
 
 
 def _missing(entry: MemoryEntry, images: NeighborImages) -> list[str]:
-    return [reference for _, reference in _parts(entry) if images.get(reference) is None]
+    return [images.absence(reference) for _, reference in _parts(entry) if images.get(reference) is None]
 
 
 def log_neighbor_layout(
@@ -265,7 +272,7 @@ def _log_info(
 ) -> None:
     text = neighbor_info(entry, rank, similarity, t)
     if missing:
-        text += "".join(f"  \n**image not found:** `{reference}`" for reference in missing)
+        text += "".join(f"  \n{absence}" for absence in missing)
     rec.log(
         paths.neighbor(view, rank, "info"),
         rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN),

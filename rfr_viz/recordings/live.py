@@ -26,6 +26,7 @@ from rfr_viz.recordings.blueprint import ScorePlots, replay_blueprint
 from rfr_viz.recordings.live_target import DEFAULT_VIEWER_URL, LiveTarget, check_viewer
 from rfr_viz.codecs import CameraCodec
 from rfr_viz.panels.contrast import log_nearest_success
+from rfr_viz.panels.images import ReferenceJpegs
 from rfr_viz.panels.live_camera import LiveCameras
 from rfr_viz.panels.umap import MemoryMap
 from rfr_viz.panels.neighbors import (
@@ -102,14 +103,14 @@ class LiveRecording:
         self.fps = fps
         self.memory_map = memory_map
         self.name = name
-        self.images = NeighborImages()
+        self.images = NeighborImages(detector.memory.image_roots)
         self.steps = 0
         self.fired_at: int | None = None
         self.report: FailureReport | None = None
         self.lost: str | None = None  # why the viewer did not get everything, if it did not
         self._shown: dict[tuple[str, int], int] = {}  # (view, rank) -> memory entry index on screen
         self._success_shown: dict[str, int] = {}  # view -> success-memory row on screen (-1: none)
-        self._success_images: dict[str, bytes | None] = {}
+        self._success_images = ReferenceJpegs(detector.memory.image_roots)
 
     @classmethod
     @contextmanager
@@ -138,7 +139,7 @@ class LiveRecording:
         if target.save is not None:
             check_recording_file(Path(target.save))  # a memory's manifest, a labels file, a frame: never
         entries = detector.memory.entries
-        cell = _cell(entries[0].start if entries else "", NeighborImages())
+        cell = _cell(entries[0].start if entries else "", NeighborImages(detector.memory.image_roots))
         blueprint = replay_blueprint(
             views=views,
             map_title=map_title(memory_map) if memory_map is not None else "memory map (not given)",
@@ -336,9 +337,10 @@ class LiveRecording:
         )
 
     def _roots(self, frame: np.ndarray | Frame) -> list[str]:
-        """Where the report's images come from: the memory's data root, and the run's folder (that of the
-        frame's file when the run came from no file)."""
-        roots = [str(self.detector.memory.data_root)] if self.detector.memory.data_root is not None else []
+        """Where the report's images may come from: the folders named for the memory's images
+        (`FailureMemory.image_roots`), and the run's folder (that of the frame's file when the run came from
+        no file)."""
+        roots = list(map(str, self.detector.memory.image_roots.folders))
         if self.source is not None:
             source = Path(self.source).resolve()
             roots.append(str(source if source.is_dir() else source.parent))

@@ -29,6 +29,7 @@ from robofailring.detection.detector import DetectionTrace
 from robofailring.explain.report import report_for
 from robofailring.explain.vlm import VLMAnswer
 from robofailring.extras import needs_extra
+from robofailring.memory.image_roots import ImageRoots
 
 with needs_extra("viz"):
     import rerun as rr
@@ -83,7 +84,7 @@ def record_replay(
     """
     info = RecordingInfo.of(trajectory, fps=fps)
     mapped = memory_map if memory_map is not None else fit_map(trace.memory)
-    images = NeighborImages()
+    images = NeighborImages(trace.memory.image_roots)
     cell = images.cell(trace)
     signals, unread = recorded_signals(trajectory, trace.length)
     blueprint = replay_blueprint(
@@ -147,7 +148,7 @@ def compare_recording(
     maps = {
         slug: (memory_maps or {}).get(slug) or fit_map(trace.memory) for slug, trace in traces.items()
     }
-    images = NeighborImages()
+    images = NeighborImages(ImageRoots().joined(*(trace.memory.image_roots for trace in traces.values())))
     cells = {slug: images.cell(trace) for slug, trace in traces.items()}
     views = list(dict.fromkeys(view for trace in traces.values() for view in trace.views))
     length = max(trace.length for trace in traces.values())
@@ -304,7 +305,7 @@ def log_detector(
     vlm_answer: VLMAnswer | None = None,
 ) -> None:
     """Everything that depends on the detector: scores, δ, state, map, neighbours, event and report."""
-    images = images or NeighborImages()
+    images = images or NeighborImages(trace.memory.image_roots)
     log_scores(rec, trace, paths, fps, label=label)
     log_nearest_successes(rec, trace, paths, fps=fps)
     log_map(rec, trace, paths, memory_map, fps)

@@ -108,7 +108,8 @@ def test_environment_errors_are_one_line_and_status_1(
     trace.write_text(detected.stdout)
     assert json.loads(detected.stdout)["report"] is not None
     with chat_server(("status", 400), ("status", 400), ("status", 400)) as server:
-        explained = cli("explain", trace, "--vlm-url", server.url, "--vlm-model", "m", "--json")
+        named = ("--data-root", data)  # the folder of the report's images (the memory's and the run's)
+        explained = cli("explain", trace, "--vlm-url", server.url, "--vlm-model", "m", "--json", *named)
     refused(explained, ERROR, "the VLM call failed", "HTTP 400")
     assert "HTTP 400" in json.loads(explained.stdout)["error"]  # the JSON still says why, before the error
 

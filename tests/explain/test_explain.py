@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 from rrd import every_text, properties, rows
-from synthetic import write_episode
+from synthetic import data_root_of, write_episode
 from typer.testing import CliRunner
 from vlm_server import ANSWER, chat_server
 
@@ -35,6 +35,8 @@ def _replay(episode: Path, pixels_memory_dir: Path, out: Path, delta: str, *vlm:
             str(episode),
             "--memory",
             str(pixels_memory_dir),
+            "--data-root",
+            data_root_of(pixels_memory_dir),
             "--out",
             str(out),
             "--delta",
@@ -71,7 +73,11 @@ def test_replay_puts_the_answer_into_the_report_and_explain_asks_again(
         assert "VLM answer (llava" in text and ANSWER in text and "Failure report" in text
 
         explained = runner.invoke(
-            app, ["explain", str(recording), "--vlm-url", server.url, "--vlm-model", "llava", "--json"]
+            app,
+            [
+                *("explain", str(recording), "--vlm-url", server.url, "--vlm-model", "llava", "--json"),
+                *("--data-root", str(episode.parent.parent)),  # the folder holding the memory's and the run's
+            ],
         )
         assert explained.exit_code == 0, explained.output
         assert json.loads(explained.stdout)["answer"] == "asked again"
@@ -82,15 +88,28 @@ def test_replay_puts_the_answer_into_the_report_and_explain_asks_again(
 
 def test_explain_reads_detect_json(episode: Path, pixels_memory_dir: Path, tmp_path: Path) -> None:
     detected = runner.invoke(
-        app, ["detect", str(episode), "--memory", str(pixels_memory_dir), "--delta", "-1", "--json"]
+        app,
+        [
+            *("detect", str(episode), "--memory", str(pixels_memory_dir), "--delta", "-1", "--json"),
+            *("--data-root", data_root_of(pixels_memory_dir)),
+        ],
     )
     assert detected.exit_code == 0, detected.output
     saved = tmp_path / "detect.json"
     saved.write_text(detected.stdout)
+    vlm = ["--vlm-url", "http://127.0.0.1:9/v1", "--vlm-model", "m"]
     with chat_server() as server:
-        explained = runner.invoke(app, ["explain", str(saved), "--vlm-url", server.url, "--vlm-model", "m"])
+        vlm[1] = server.url
+        # the images are neither beside the report nor named: nothing is sent, and it says where to look
+        refused = runner.invoke(app, ["explain", str(saved), *vlm])
+        explained = runner.invoke(
+            app, ["explain", str(saved), *vlm, "--data-root", str(episode.parent.parent)]
+        )
+    assert refused.exit_code == 1 and "lies outside the report's folders" in refused.stderr, refused.output
+    assert "(none named)" in refused.stderr  # not even the report's own folder: it may be a download
     assert explained.exit_code == 0, explained.output
     assert ANSWER in explained.stdout and "push_cube: failure at frame 0" in explained.stdout
+    assert len(server.received) == 1  # the refused one sent nothing
     sent = server.received[0].body["messages"]
     assert json.loads(sent[1]["content"].split("\n", 1)[1])["current_task"] == "push_cube"
 
@@ -106,6 +125,8 @@ def test_a_failed_vlm_call_keeps_the_recording_and_says_so(
                 str(episode),
                 "--memory",
                 str(pixels_memory_dir),
+                "--data-root",
+                data_root_of(pixels_memory_dir),
                 "--out",
                 str(tmp_path / "rec"),
                 "--delta",
@@ -121,7 +142,11 @@ def test_a_failed_vlm_call_keeps_the_recording_and_says_so(
         (recording,) = (tmp_path / "rec").glob("*.rrd")
         assert "HTTP 400" in properties(recording)["vlm_error"]
         explained = runner.invoke(
-            app, ["explain", str(recording), "--vlm-url", server.url, "--vlm-model", "m"]
+            app,
+            [
+                *("explain", str(recording), "--vlm-url", server.url, "--vlm-model", "m"),
+                *("--data-root", str(episode.parent.parent)),
+            ],
         )
     assert explained.exit_code == 1 and "HTTP 400" in explained.stderr
 
@@ -136,6 +161,7 @@ def test_a_replay_never_records_the_key_a_server_echoes(
             app,
             [
                 *("replay", str(episode), "--memory", str(pixels_memory_dir), "--out", str(tmp_path / "rec")),
+                *("--data-root", data_root_of(pixels_memory_dir)),
                 *("--delta", "-1", "--vlm-url", server.url, "--vlm-model", "llava"),
             ],
         )

@@ -41,7 +41,8 @@ def test_a_dense_report_names_the_frame_beside_its_image(tmp_path: Path, encoder
     assert "| matched moment of that run |" in markdown
     for item in report.items:
         assert f"| {item.description} | {item.moment} |" in markdown
-    read_back = FailureReport.from_dict(report.to_dict())  # saved and read back (detect --json, a .rrd)
+    # saved and read back (detect --json, a .rrd), opened where its images are named
+    read_back = FailureReport.from_dict(report.to_dict(), roots=report.roots)
     assert [(i.frame, i.length) for i in read_back.items] == [(i.frame, i.length) for i in report.items]
     assert read_back.to_dict() == report.to_dict()
     prompt = report.vlm_messages()[2]["content"]
@@ -63,4 +64,4 @@ def test_the_papers_report_says_end_of_the_run_and_old_reports_read_back(
     assert "| end of the run |" in report.to_markdown()
     prompt = report.vlm_messages()[2]["content"]
     assert {"type": "text", "text": "Reference End Frame (Failure State):"} in prompt
-    assert FailureReport.from_dict(saved).to_dict() == saved
+    assert FailureReport.from_dict(saved, roots=saved["roots"]).to_dict() == saved

@@ -12,7 +12,7 @@ import cv2
 import numpy as np
 import pytest
 from ports import free_port
-from synthetic import write_episode
+from synthetic import data_root_of, write_episode
 from typer.testing import CliRunner
 from vlm_server import ANSWER, chat_server, silent_server
 
@@ -49,8 +49,8 @@ def episode(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 @pytest.fixture(scope="module")
-def report(pixels_memory_dir: Path, episode: Path) -> FailureReport:
-    memory = FailureMemory.load(pixels_memory_dir)
+def report(pixels_memory_dir: Path, aha_dataset: Path, episode: Path) -> FailureReport:
+    memory = FailureMemory.load(pixels_memory_dir, trusted=[aha_dataset])
     trajectory = load_trajectory(episode)
     trace = FailureDetector(memory, load_encoder("pixels"), delta=-1.0, k=3).run(trajectory)
     found = report_for(trace, trajectory)
@@ -217,6 +217,7 @@ def test_bad_settings() -> None:
 
 
 def _detect(episode: Path, pixels_memory_dir: Path, *extra: str) -> tuple[int, dict, str]:
+    """`detect --json`, naming the folder of the memory's images (--data-root: they are not the episode's)."""
     result = runner.invoke(
         app,
         [
@@ -224,6 +225,8 @@ def _detect(episode: Path, pixels_memory_dir: Path, *extra: str) -> tuple[int, d
             str(episode),
             "--memory",
             str(pixels_memory_dir),
+            "--data-root",
+            data_root_of(pixels_memory_dir),
             "--delta",
             "-1",
             "--k",
@@ -288,7 +291,12 @@ def test_a_server_that_never_answers_is_abandoned_and_the_detection_kept(
         vlm = VLMConfig(url=server.url, model="m", timeout_s=0.5, retries=1, backoff_s=0.0)
         config = DetectConfig(
             data=DataSelection(episode),
-            detector=DetectorConfig(memory=pixels_memory_dir, k=3, thresholds={"paper": -1.0}),
+            detector=DetectorConfig(
+                memory=pixels_memory_dir,
+                data_root=Path(data_root_of(pixels_memory_dir)),
+                k=3,
+                thresholds={"paper": -1.0},
+            ),
             vlm=vlm,
         )
         worker = threading.Thread(target=lambda: done.append(run_detect(config)), daemon=True)
@@ -328,3 +336,78 @@ def test_an_edited_report_never_sends_a_file_outside_its_roots(report: FailureRe
     assert (
         trusted.answer.error is not None and "lies outside" in trusted.answer.error
     )  # the others are not in it
+
+
+# Issue 50 (security): a key as a Windows `.env` or a paste leaves it, credentials in --vlm-url, and a
+# server echoing any of them in another case or cut short
+
+
+def _ask(episode: Path, memory: Path, url: str) -> tuple[int, dict, str]:
+    return _detect(episode, memory, "--vlm-url", url, "--vlm-model", "llava")
+
+
+def test_a_key_ending_in_cr_lf_is_sent_stripped(
+    episode: Path, pixels_memory_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv(API_KEY_ENV, f"  {SECRET}\r\n")  # before: "Illegal header value b'Bearer sk-…\r'"
+    with chat_server() as server:
+        code, found, stderr = _ask(episode, pixels_memory_dir, server.url)
+    assert code == 0 and found["vlm"] == {
+        "model": "llava",
+        "answer": ANSWER,
+        "latency_s": found["vlm"]["latency_s"],
+    }
+    assert server.received[0].headers["Authorization"] == f"Bearer {SECRET}"
+    assert SECRET not in stderr and SECRET not in json.dumps(found)
+
+
+def test_a_non_ascii_key_is_refused_without_showing_it(
+    episode: Path, pixels_memory_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv(API_KEY_ENV, f"{SECRET}–é")  # a dash and a letter no HTTP header carries
+    with chat_server() as server:
+        code, found, stderr = _ask(episode, pixels_memory_dir, server.url)
+    assert code == 2 and not found and not server.received  # refused before any work
+    assert stderr.startswith("error: the VLM API key ($ROBOFAILRING_VLM_API_KEY) has a character")
+    assert f"position {len(SECRET) + 1} of {len(SECRET) + 2}" in stderr
+    assert "Traceback" not in stderr and SECRET not in stderr
+
+
+def test_credentials_in_the_url_and_their_basic_token_are_never_shown(
+    episode: Path, pixels_memory_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.delenv(API_KEY_ENV, raising=False)
+    password = "hunter2-pass"
+    token = base64.b64encode(f"robot:{password}".encode()).decode()
+    with chat_server(("echo", 400)) as server:
+        url = server.url.replace("http://", f"http://robot:{password}@")
+        code, found, stderr = _ask(episode, pixels_memory_dir, url)
+    assert code == 0 and server.received[0].headers["Authorization"] == f"Basic {token}"
+    said = json.dumps(found) + stderr
+    assert "HTTP 400" in found["vlm"]["error"] and "Authorization: Basic [redacted]" in found["vlm"]["error"]
+    assert password not in said and token not in said and "robot:" not in said
+    unreachable = f"http://robot:{password}@127.0.0.1:{free_port()}/v1"
+    code, found, stderr = _ask(episode, pixels_memory_dir, unreachable)
+    assert code == 0 and found["vlm"]["error"].startswith("cannot reach http://[redacted]@127.0.0.1:")
+    assert password not in json.dumps(found) + stderr
+
+
+def test_an_echo_of_the_key_upper_cased_or_cut_is_hidden(
+    episode: Path, pixels_memory_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv(API_KEY_ENV, SECRET)
+    echoed = f"A {SECRET.upper()} B {SECRET[:-2]} C {SECRET[2:].upper()} D"
+    with chat_server(("ok", echoed)) as server:
+        code, found, stderr = _ask(episode, pixels_memory_dir, server.url)
+    assert code == 0 and found["vlm"]["answer"] == f"A {REDACTED} B {REDACTED} C {REDACTED} D"
+    assert SECRET[2:-2].lower() not in (json.dumps(found) + stderr).lower()
+    assert server.received[0].headers["Authorization"] == f"Bearer {SECRET}"
+
+
+def test_redact_leaves_words_after_basic_or_bearer_alone() -> None:
+    text = "a basic grasp; the bearer of the cube"
+    assert redact(text, SECRET) == text
+    assert (
+        redact("token: Basic dTpQVw== and bearer sk-abc123")
+        == f"token: Basic {REDACTED} and bearer {REDACTED}"
+    )

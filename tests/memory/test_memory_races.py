@@ -23,6 +23,7 @@ from robofailring.atomic import folder_state
 from robofailring.errors import MemoryFormatError, OutputBusyError
 from robofailring.memory.entry import MemoryEntry
 from robofailring.memory.failure import INDEX, MANIFEST, FailureMemory
+from robofailring.memory.image_roots import ImageRoots
 from robofailring.memory.manifest import MemoryManifest, StoredCalibration, StoredRule
 from robofailring.memory.version import read_whole
 
@@ -94,15 +95,15 @@ def test_a_memory_replaced_while_it_is_loaded_is_read_again_not_reported_missing
         if len(reads) == 1:  # another process replaces the folder under this first read
             _memory(5).save(folder)
             (tmp_path / "moved-away" / MANIFEST).read_bytes()  # the old version, gone: FileNotFoundError
-        return FailureMemory._read(directory, data_root=None)
+        return FailureMemory._read(directory, None, ImageRoots())
 
     found, (where, state) = read_whole(folder, read_during_a_rebuild)
     assert len(found) == 5 and len(reads) == 2 and where == folder.resolve() and state == folder_state(folder)
     (tmp_path / "empty").mkdir()
     with pytest.raises(MemoryFormatError, match="is not a failure memory"):  # a folder that is not one
-        read_whole(tmp_path / "empty", lambda d: FailureMemory._read(d, data_root=None))
+        read_whole(tmp_path / "empty", lambda d: FailureMemory._read(d, None, ImageRoots()))
     with pytest.raises(MemoryFormatError, match="is not a failure memory"):  # nor one that is absent
-        read_whole(tmp_path / "absent", lambda d: FailureMemory._read(d, data_root=None))
+        read_whole(tmp_path / "absent", lambda d: FailureMemory._read(d, None, ImageRoots()))
 
 
 def test_a_file_missing_from_a_folder_nobody_changes_is_raised_at_once(tmp_path: Path) -> None:

@@ -12,6 +12,7 @@ from rfr_viz.panels.images import reference_jpeg
 from rfr_viz.paths import REPLAY
 from rfr_viz.recordings.replay import record_replay
 from robofailring import CachedEncoder, FailureDetector, load_encoder
+from robofailring.memory.image_roots import ImageRoots
 
 LENGTH = 8
 ONSET = 2
@@ -40,7 +41,9 @@ def test_the_dense_panel_names_the_frame_it_matched(tmp_path: Path) -> None:
         assert f"matched: frame {t} of {LENGTH} ({moment})" in text
         shown = ends[max(frame for frame in ends if frame <= t)]  # logged when the neighbour changed
         image = tmp_path / "data" / "pick_cube_grasp_wp2_episode0" / f"front_{t}.png"
-        assert bytes(shown[0]) == reference_jpeg(str(image))  # beside it, that frame's image
+        assert bytes(shown[0]) == reference_jpeg(
+            str(image), ImageRoots.of(tmp_path)
+        )  # beside it, that frame's
     log = rows(recording, REPLAY.neighbor("front", 0, "info"), "TextLog:text")
     assert any(f"frame {ONSET} of {LENGTH}" in text[0] for _, text in log)
     assert properties(recording)["failure_frames"] == "dense"

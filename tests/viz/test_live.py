@@ -103,7 +103,8 @@ def test_watch_save_equals_detect_json(episode: Path, pixels_memory_dir: Path, t
     assert found["L"] == detected["length"] and found["delta"] == float(DELTA)
     events = rows(saved, REPLAY.event, "TextLog:text")
     assert [frame for frame, _ in events] == [detected["t_det"]]
-    assert read_report(saved).to_dict() == detected["report"]  # `explain` works on a live recording too
+    # `explain` works on a live recording too (the folders its images may come from: named when explained)
+    assert read_report(saved).to_dict() == detected["report"] | {"roots": []}
 
     replayed = runner.invoke(
         app,

@@ -11,9 +11,11 @@ import rerun as rr
 from rrd import batches
 
 from rfr_viz.panels.contrast import _send_nearest_success, log_nearest_success
+from rfr_viz.panels.images import ReferenceJpegs
 from rfr_viz.panels.scores import set_frame_time
 from rfr_viz.paths import REPLAY
 from robofailring.data.images import encode_jpeg
+from robofailring.memory.image_roots import ImageRoots
 from robofailring.memory.success import SuccessMatch, SuccessRun
 
 VIEW = "agentview"
@@ -58,7 +60,7 @@ def test_column_batches_hold_the_rows_logged_frame_by_frame(tmp_path: Path) -> N
 
     rec = rr.RecordingStream("test", recording_id="rows")
     rec.save(paths["rows"])
-    images: dict[str, bytes | None] = {}
+    images = ReferenceJpegs(ImageRoots.of(tmp_path))
     for t, match in matches:
         set_frame_time(rec, t, FPS)
         log_nearest_success(rec, REPLAY, VIEW, match, t=t, images=images, image=t in changed)
@@ -66,7 +68,9 @@ def test_column_batches_hold_the_rows_logged_frame_by_frame(tmp_path: Path) -> N
 
     rec = rr.RecordingStream("test", recording_id="columns")
     rec.save(paths["columns"])
-    _send_nearest_success(rec, REPLAY, VIEW, matches, changed=changed, images={}, fps=FPS)
+    _send_nearest_success(
+        rec, REPLAY, VIEW, matches, changed=changed, images=ReferenceJpegs(ImageRoots.of(tmp_path)), fps=FPS
+    )
     rec.disconnect()
 
     logged = content(paths["rows"])

@@ -48,8 +48,8 @@ VIEWS = ["front", "overhead", "wrist"]
 
 # ------------------------------------------------------------------ fixtures
 @pytest.fixture(scope="module")
-def memory(pixels_memory_dir: Path) -> FailureMemory:
-    return FailureMemory.load(pixels_memory_dir)
+def memory(pixels_memory_dir: Path, aha_dataset: Path) -> FailureMemory:
+    return FailureMemory.load(pixels_memory_dir, trusted=[aha_dataset])  # its images: the AHA data, named
 
 
 @pytest.fixture(scope="module")
@@ -175,7 +175,8 @@ def test_neighbour_images_are_logged_only_when_they_change(recording: Path, trac
                 assert [frame for frame, _ in logged] == [t for t, _ in want]
                 for (_, blob), (_, index) in zip(logged, want, strict=True):
                     entry = trace.memory.entries[index]
-                    assert bytes(blob[0]) == reference_jpeg(entry.start if part == "start" else entry.end)
+                    reference = entry.start if part == "start" else entry.end
+                    assert bytes(blob[0]) == reference_jpeg(reference, trace.memory.image_roots)
             info = rows(recording, REPLAY.neighbor(view, rank, "info"), "TextDocument:text")
             assert (
                 {t for t, _ in want} <= {frame for frame, _ in info} <= {t for t, _ in want} | {trace.t_det}

@@ -26,7 +26,7 @@ from robofailring.detection.stored import given_thresholds
 from robofailring.detection.threshold_policy import DEFAULT_POLICY, ThresholdPolicy
 from robofailring.detection.view_bands import DEFAULT_FUSION, FUSIONS
 from robofailring.errors import SettingError
-from robofailring.explain.vlm import VLMConfig
+from robofailring.explain.vlm import VLMConfig, read_api_key
 from robofailring.extras import require
 from robofailring.memory.recipe import DEFAULT_RECIPE, MemoryRecipe
 
@@ -345,6 +345,7 @@ def vlm_options(vlm_url: VLMUrlOption = None, vlm_model: VLMModelOption = None) 
             raise SettingError("--vlm-url and --vlm-model go together: give both or neither")
         return None
     require("vlm")  # before any work: the VLM is asked once the detections are made
+    read_api_key()  # a key no HTTP header can carry is refused now, not after the detections
     return VLMConfig(url=vlm_url, model=vlm_model)
 
 

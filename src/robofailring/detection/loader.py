@@ -4,7 +4,7 @@ the one place a `DetectorConfig`'s settings become a detector's and an encoder's
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 from robofailring.detection.band import Band
@@ -13,7 +13,8 @@ from robofailring.detection.detector import FailureDetector
 from robofailring.detection.rules import ScoringRule
 from robofailring.detection.stored import given_thresholds
 from robofailring.encoders import CachedEncoder, open_encoder
-from robofailring.memory.failure import FailureMemory, encoder_spec_for
+from robofailring.encoders.spec import EncoderSpec
+from robofailring.memory.failure import FailureMemory
 
 
 def encoder_for(config: DetectorConfig, spec: str) -> CachedEncoder:
@@ -48,13 +49,23 @@ def detector_with(
     )
 
 
-def detector_from(config: DetectorConfig) -> FailureDetector:
+def detector_from(config: DetectorConfig, *, trusted: Iterable[Path] = ()) -> FailureDetector:
     """Load `config.memory` and its encoder (or `config.encoder`, which must give the same identity), and
-    return its detector at `config.thresholds` (by rule name; the memory's calibrated ones for the rest)."""
+    return its detector at `config.thresholds` (by rule name; the memory's calibrated ones for the rest).
+
+    `trusted`: the folders of the data a job reads, where the memory's images may also be read from
+    (besides `config.data_root` and the memory's own folder; `FailureMemory.image_roots`)."""
     memory = FailureMemory.load(
-        config.memory_dir, data_root=Path(config.data_root) if config.data_root is not None else None
+        config.memory_dir,
+        data_root=Path(config.data_root) if config.data_root is not None else None,
+        trusted=trusted,
     )
     return detector_with(config, memory, encoder_for(config, config.encoder or encoder_spec_for(memory)))
+
+
+def encoder_spec_for(memory: FailureMemory) -> str:
+    """The encoder spec that reproduces a memory's encoder identity (pixels or open_clip)."""
+    return EncoderSpec.for_memory(memory.encoder, memory.manifest.encoder_spec)
 
 
 def open_detector(

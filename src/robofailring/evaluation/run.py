@@ -60,7 +60,8 @@ def run_evaluation(
             if config.detector.memory is not None
             else build_training_memory(config, splits, encoder)
         )
-        detector = detector_with(config.detector, FailureMemory.load(memory_dir), encoder)
+        tested = [selection.root for selection in (config.data, config.test_data) if selection is not None]
+        detector = detector_with(config.detector, FailureMemory.load(memory_dir, trusted=tested), encoder)
     else:
         read_from = detector.memory.read_from
         memory_dir = read_from[0] if read_from is not None else config.detector.memory_dir

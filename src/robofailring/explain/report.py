@@ -13,13 +13,8 @@ import numpy as np
 from robofailring.errors import DataError
 from robofailring.memory.entry import moment_text
 from robofailring.memory.failure import Neighbor
-from robofailring.memory.references import (
-    absolute_reference,
-    check_references,
-    inside,
-    is_file_reference,
-    relocate,
-)
+from robofailring.memory.image_roots import ImageRoots
+from robofailring.memory.references import absolute_reference, check_references, relocate
 
 if TYPE_CHECKING:
     from robofailring.data.model import Trajectory
@@ -103,9 +98,9 @@ class FailureReport:
     # the robot's own signals at t_det: their S⁻ and S⁺, nearest runs and the dimensions that deviated
     # most from the nearest normal frame (None: the memory or the run has no signals)
     signals: str | None = None
-    # the folders its images may come from (the memory's data root, the run's own folder): a report read
-    # from a file is untrusted, and an image outside them is never sent (`images_outside`); empty: a report
-    # of an earlier version, whose images are sent only from under --data-root
+    # the folders its images may be read from, named where it was made (the memory's `image_roots`, the
+    # run's own folder) or opened (`explain`: --data-root): an image outside
+    # them is never sent (`images_outside`); a report file's own `roots` are written but never trusted
     roots: tuple[str, ...] = ()
 
     @classmethod
@@ -129,8 +124,11 @@ class FailureReport:
         return cls(task, view, t_det, similarity, items, current_image, signals, tuple(roots))
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any], *, source: str = "report") -> FailureReport:
-        """The inverse of `to_dict` (a `detect --json` report, a recording's `report` property)."""
+    def from_dict(
+        cls, data: Mapping[str, Any], *, source: str = "report", roots: Sequence[str | Path] = ()
+    ) -> FailureReport:
+        """The inverse of `to_dict` (a `detect --json` report, a recording's `report` property), its images
+        read only from under `roots` (the folders named where it is opened; the file's own are ignored)."""
         try:
             items = tuple(
                 ReportItem(
@@ -146,7 +144,7 @@ class FailureReport:
                 )
                 for item in data["neighbors"]
             )
-            current, signals, roots = data.get("current_image"), data.get("signals"), data.get("roots") or []
+            current, signals = data.get("current_image"), data.get("signals")
             return cls(
                 current_task=str(data["current_task"]),
                 view=str(data["view"]),
@@ -155,7 +153,7 @@ class FailureReport:
                 items=items,
                 current_image=None if current is None else str(current),
                 signals=None if signals is None else str(signals),
-                roots=tuple(str(root) for root in roots),
+                roots=tuple(map(str, ImageRoots.of(*roots).folders)),
             )
         except (KeyError, TypeError, ValueError) as error:
             raise DataError(f"{source} is not a failure report (missing or bad field: {error})") from error
@@ -199,17 +197,14 @@ class FailureReport:
             for item in self.items
         )
         current = relocate(self.current_image, data_root) if self.current_image else self.current_image
-        return replace(self, items=items, current_image=current, roots=(str(Path(data_root).resolve()),))
+        return replace(
+            self, items=items, current_image=current, roots=tuple(map(str, ImageRoots.of(data_root).folders))
+        )
 
     def images_outside(self) -> list[str]:
-        """The prompt's images that lie outside the report's roots: never read nor sent (an edited report
-        must not upload another file of yours)."""
-        return [
-            image
-            for image in self.prompt_images()
-            if is_file_reference(image)
-            and not any(inside(absolute_reference(image), Path(root)) for root in self.roots)
-        ]
+        """The prompt's images whose files (links followed) lie outside the report's roots: never read nor
+        sent (an edited report must not upload another file of yours)."""
+        return ImageRoots.of(*self.roots).outside(self.prompt_images())
 
     def to_json(self) -> str:
         return json.dumps(self.to_dict(), indent=2)
@@ -328,14 +323,12 @@ def report_for(trace: DetectionTrace, trajectory: Trajectory | None = None) -> F
 
 
 def _roots(trace: DetectionTrace, trajectory: Trajectory | None) -> list[str]:
-    """Where a report's images come from: the memory's data root (its neighbours) and the run's own folder
-    or file's folder (its current frame)."""
-    roots = [str(trace.memory.data_root)] if trace.memory.data_root is not None else []
+    """Where a report's images may come from: the folders named for the memory's images (its neighbours;
+    `FailureMemory.image_roots`) and the run's own folder or file's folder (its current frame)."""
     source = trajectory.source if trajectory is not None else trace.source
-    if source is not None:
-        folder = Path(source).resolve()
-        roots.append(str(folder if folder.is_dir() else folder.parent))
-    return roots
+    folder = Path(source).resolve() if source is not None else None
+    run = (folder if folder.is_dir() else folder.parent) if folder is not None else None
+    return list(map(str, trace.memory.image_roots.joined(ImageRoots.of(run)).folders))
 
 
 def signals_sentence(trace: DetectionTrace, t: int) -> str | None:

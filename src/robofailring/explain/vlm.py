@@ -2,7 +2,8 @@
 
 Any server that speaks `POST {base_url}/chat/completions` works: vLLM, Ollama, LM Studio or a hosted
 API. The report's images travel as base64 JPEG data URLs; the API key, when the server needs one,
-comes from `ROBOFAILRING_VLM_API_KEY` and is sent only as a Bearer header (never printed or recorded).
+comes from `ROBOFAILRING_VLM_API_KEY` and is sent only as a Bearer header (never printed or recorded, nor
+the user and password of a URL `http://user:password@host/v1`).
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
+from urllib.parse import unquote, urlsplit
 
 from robofailring.data.images import encode_jpeg, read_image
 from robofailring.data.layout_rosbag import BAG_MESSAGE_MARKER, read_bag_reference
@@ -40,6 +42,13 @@ _SECRET_VALUE: Final[re.Pattern[str]] = re.compile(
     r"[A-Za-z0-9\-._~+/]+=*",  # a token's characters (RFC 6750's b64token)
     re.IGNORECASE,
 )
+# a credential a server echoes without its header's name: a scheme, then a token (with a digit or `+/=_-`,
+# so that "a basic grasp" stays as it is)
+_AUTH_TOKEN: Final[re.Pattern[str]] = re.compile(
+    r"\b((?:bearer|basic)\s+)(?=[A-Za-z0-9\-._~+/]*[0-9+/=_-])[A-Za-z0-9\-._~+/]{6,}=*", re.IGNORECASE
+)
+_USERINFO: Final[re.Pattern[str]] = re.compile(r"(?<=://)[^/\s@\"'<>]+@")  # `user:password@` of a URL
+PARTIAL_ECHO: Final[int] = 8  # a secret's characters that, echoed in a row (any case), are hidden
 
 
 class VLMError(RoboFailRingError):
@@ -64,7 +73,7 @@ class VLMConfig:
 
     def __post_init__(self) -> None:
         if not self.url.startswith(("http://", "https://")):
-            raise VLMError(f"VLM URL {self.url!r} must start with http:// or https://")
+            raise VLMError(f"VLM URL {redact(self.url)!r} must start with http:// or https://")
         if not self.model:
             raise VLMError("a VLM model name is needed (--vlm-model)")
         if self.retries < 0 or self.timeout_s <= 0:
@@ -75,6 +84,33 @@ class VLMConfig:
     @property
     def endpoint(self) -> str:
         return f"{self.url.rstrip('/')}/chat/completions"
+
+    @property
+    def secrets(self) -> tuple[str, ...]:
+        """The URL's password and the Basic token a client makes of its user and password (to hide)."""
+        parts = urlsplit(self.url)
+        if parts.username is None and parts.password is None:
+            return ()
+        user, password = unquote(parts.username or ""), unquote(parts.password or "")
+        token = base64.b64encode(f"{user}:{password}".encode()).decode("ascii")
+        return tuple(secret for secret in (password, token) if secret)
+
+    def __repr__(self) -> str:  # never shows a password in the URL
+        return f"VLMConfig(url={redact(self.url)!r}, model={self.model!r})"
+
+
+def read_api_key(value: str | None = None) -> str | None:
+    """The API key: `value`, else `$ROBOFAILRING_VLM_API_KEY`, its surrounding whitespace stripped (a line
+    of a Windows `.env` ends in CR); None when empty. A key an HTTP header cannot carry (a non-ASCII or
+    control character) is a VLMError that names the variable and the position, never the key."""
+    key = (value if value is not None else os.environ.get(API_KEY_ENV, "")).strip()
+    bad = next((at for at, char in enumerate(key) if not " " <= char <= "~"), None)
+    if bad is not None:
+        raise VLMError(
+            f"the VLM API key (${API_KEY_ENV}) has a character an HTTP header cannot carry (non-ASCII or a "
+            f"control character) at position {bad + 1} of {len(key)}: refused (the key is not shown)"
+        )
+    return key or None
 
 
 @dataclass(frozen=True)
@@ -139,10 +175,38 @@ def openai_messages(messages: list[dict[str, Any]]) -> list[dict[str, Any]]:
     return converted
 
 
-def redact(text: str, key: str | None) -> str:
-    """`text` with `key` and any auth header's value replaced by `[redacted]`: a server may echo them back."""
+def redact(text: str, *secrets: str | None) -> str:
+    """`text` with every secret, any auth header's value or Bearer/Basic token and any URL's `user:password@`
+    replaced by `[redacted]`: a server may echo them back, upper-cased or cut (any PARTIAL_ECHO characters
+    of a secret in a row are hidden, in any case)."""
     text = _SECRET_VALUE.sub(lambda match: match.group(1) + REDACTED, text)
-    return text.replace(key, REDACTED) if key else text
+    text = _AUTH_TOKEN.sub(lambda match: match.group(1) + REDACTED, text)
+    text = _USERINFO.sub(REDACTED + "@", text)
+    for secret in secrets:
+        if secret:
+            text = _hide(text, secret)
+    return text
+
+
+def _hide(text: str, secret: str) -> str:
+    """`text` with `secret` hidden: every run of characters covered by a PARTIAL_ECHO-long piece of it (any
+    case); a shorter secret where it stands alone (any case), not inside a word."""
+    if len(secret) < PARTIAL_ECHO:
+        alone = rf"(?<![A-Za-z0-9]){re.escape(secret)}(?![A-Za-z0-9])"
+        return re.sub(alone, REDACTED, text, flags=re.IGNORECASE)
+    pieces = {secret[at : at + PARTIAL_ECHO] for at in range(len(secret) - PARTIAL_ECHO + 1)}
+    starts = re.compile(f"(?=({'|'.join(map(re.escape, sorted(pieces)))}))", re.IGNORECASE)
+    covered = [False] * len(text)
+    for match in starts.finditer(text):
+        covered[match.start() : match.end(1)] = [True] * (match.end(1) - match.start())
+    out, at = [], 0
+    while at < len(text):
+        end = at
+        while end < len(text) and covered[end] == covered[at]:
+            end += 1
+        out.append(REDACTED if covered[at] else text[at:end])
+        at = end
+    return "".join(out)
 
 
 def _one_line(text: str, limit: int = _MESSAGE_LIMIT) -> str:
@@ -177,7 +241,8 @@ class ChatCompletionsClient:
         sleep: Callable[[float], None] = time.sleep,
     ) -> None:
         self.config = config
-        self._key = (api_key if api_key is not None else os.environ.get(API_KEY_ENV)) or None
+        self._key = read_api_key(api_key)  # stripped, and checked before anything is sent
+        self._secrets = (self._key, *config.secrets)
         self._headers = {"Authorization": f"Bearer {self._key}"} if self._key else {}
         self._sleep = sleep
 
@@ -191,9 +256,9 @@ class ChatCompletionsClient:
         a server that echoes the request would otherwise put the key into outputs and recordings.
         """
         try:
-            return redact(self._exchange(messages), self._key)
+            return redact(self._exchange(messages), *self._secrets)
         except VLMError as error:  # not chained: the original message holds the unredacted text
-            raise VLMError(_one_line(redact(str(error), self._key))) from None
+            raise VLMError(_one_line(redact(str(error), *self._secrets))) from None
 
     def _exchange(self, messages: list[dict[str, Any]]) -> str:
         with needs_extra("vlm"):
@@ -254,8 +319,9 @@ def ask_vlm(report: FailureReport, config: VLMConfig, *, client: VLMClient | Non
     if outside:
         return VLMAnswer(
             model=config.model,
-            error=f"not sent: report image {outside[0]} lies outside the report's folders "
-            f"({', '.join(report.roots) or 'none recorded'}); pass --data-root DIR, the folder its images are in",
+            error=f"not sent: report image {outside[0]} lies outside the report's folders, those named for its "
+            f"images ({', '.join(report.roots) or 'none named'}), once links are followed; pass --data-root DIR, "
+            "the folder its images are in, if you trust it",
         )
     chat = client if client is not None else ChatCompletionsClient(config)
     started = time.perf_counter()

@@ -45,7 +45,7 @@ def detect(config: DetectConfig) -> DetectionTrace:
 
 def detect_trajectory(config: DetectConfig) -> tuple[DetectionTrace, Trajectory]:
     """`detect`, also returning the trajectory it loaded (for the report's current frame)."""
-    detector = detector_from(config.detector)
+    detector = detector_from(config.detector, trusted=[config.data.root])
     for note in detector.uncalibrated:
         _log.warning("warning: %s", note)
     trajectory = config.data.load_trajectory(key=config.key, vocabulary=detector.memory.vocabulary)

@@ -19,12 +19,12 @@ from robofailring.atomic import atomic_directory, output_lock, restore_interrupt
 from robofailring.data.grounding import Vocabulary
 from robofailring.data.model import Trajectory
 from robofailring.encoders.cache import CachedEncoder
-from robofailring.encoders.spec import EncoderSpec
 from robofailring.errors import EncoderMismatchError, MemoryFormatError, UnknownTaskError
 from robofailring.jsontext import parse_json
 from robofailring.memory.encoding import BuildStats, encode_failures, failure_views
 from robofailring.memory.entry import MemoryEntry, Neighbor
 from robofailring.memory.format import parse_entry, read_jsonl, stored_vocabulary
+from robofailring.memory.image_roots import ImageRoots
 from robofailring.memory.index import FLAT, TaskIndexSet
 from robofailring.memory.index_file import read_index_file
 from robofailring.memory.manifest import MemoryManifest, StoredCalibration, not_a_memory
@@ -67,6 +67,7 @@ class FailureMemory:
         successes: SuccessMemory | None = None,
         vocabulary: Vocabulary | None = None,
         signals: SignalMemory | None = None,
+        image_roots: ImageRoots | None = None,
     ) -> None:
         vectors = np.ascontiguousarray(vectors, dtype=np.float32)
         if vectors.ndim != 2 or len(vectors) != len(entries):
@@ -81,6 +82,8 @@ class FailureMemory:
         self.dim = int(vectors.shape[1]) if vectors.size else (manifest.dim if manifest is not None else 0)
         self.manifest = manifest if manifest is not None else MemoryManifest(encoder=encoder, dim=self.dim)
         self.data_root = Path(data_root).resolve() if data_root is not None else None
+        # where its images may be read from: a memory built here, its data; one loaded, the folders named (`load`)
+        self.image_roots = image_roots if image_roots is not None else ImageRoots.of(self.data_root)
         self.successes = successes  # success runs for the contrast rule (robofailring.memory.success)
         self.signals = signals  # the robot's signals as a second modality (robofailring.memory.signal_memory)
         # the folder this memory (or the one it was derived from) was read from, and that folder's
@@ -307,9 +310,7 @@ class FailureMemory:
         return other
 
     def write_manifest(self, directory: Path) -> None:
-        """Rewrite only the manifest of a saved memory (e.g. after calibration), atomically.
-
-        The memory must have been read from `directory`, and the folder must still be the version it
+        """Rewrite only the manifest of a saved memory (e.g. after calibration), atomically. The memory must have been read from `directory`, and the folder must still be the version it
         read: never while another process replaces that memory, nor after another process grew,
         rebuilt or recalibrated it (OutputBusyError then, and nothing is written).
         """
@@ -325,18 +326,20 @@ class FailureMemory:
         return self
 
     @classmethod
-    def load(cls, directory: Path, *, data_root: Path | None = None) -> FailureMemory:
-        """Read a saved memory; `data_root` re-roots its image references when the data moved.
-
+    def load(
+        cls, directory: Path, *, data_root: Path | None = None, trusted: Iterable[Path] = ()
+    ) -> FailureMemory:
+        """Read a saved memory; `data_root` re-roots its image references when the data moved. Its images
+        are read only from under `data_root`, its own folder and the `trusted` folders (the data a job reads).
         A memory replaced by another process while it is read is read again (three tries), so the
-        result is always one version of the folder, which it remembers (`read_from`).
-        """
-        memory, read_from = read_whole(Path(directory), lambda folder: cls._read(folder, data_root=data_root))
+        result is always one version of the folder, which it remembers (`read_from`)."""
+        roots = ImageRoots.of(directory, data_root, *trusted)
+        memory, read_from = read_whole(Path(directory), lambda folder: cls._read(folder, data_root, roots))
         memory.read_from = read_from
         return memory
 
     @classmethod
-    def _read(cls, directory: Path, *, data_root: Path | None) -> FailureMemory:
+    def _read(cls, directory: Path, data_root: Path | None, image_roots: ImageRoots) -> FailureMemory:
         manifest_path = directory / MANIFEST
         if not manifest_path.is_file() and not restore_interrupted(directory):
             raise not_a_memory(directory)
@@ -379,11 +382,14 @@ class FailureMemory:
             successes=successes,
             vocabulary=vocabulary,
             signals=signals,
+            image_roots=image_roots,
         )
 
-    def check_references(self) -> ReferenceCheck:
-        """Which of the entries' start/end images exist where the memory says they are."""
-        return check_references(ref for entry in self.entries for ref in (entry.start, entry.end))
+    def check_references(self, *, read: bool = False) -> ReferenceCheck:
+        """Which entry images exist (`read`: and which lie outside `image_roots`, for a verb reading them)."""
+        references = [ref for entry in self.entries for ref in (entry.start, entry.end)]
+        found = check_references(references)
+        return replace(found, outside=tuple(self.image_roots.outside(references))) if read else found
 
     # ---------------------------------------------------------------- calibration
     def calibrated_threshold(self, rule: str, modality: str = "both") -> float | None:
@@ -391,8 +397,3 @@ class FailureMemory:
         `modality`: what the thresholds judge), if any."""
         calibration = self.manifest.calibration
         return calibration.threshold_for(self.encoder, rule, modality) if calibration is not None else None
-
-
-def encoder_spec_for(memory: FailureMemory) -> str:
-    """The encoder spec that reproduces a memory's encoder identity (pixels or open_clip)."""
-    return EncoderSpec.for_memory(memory.encoder, memory.manifest.encoder_spec)

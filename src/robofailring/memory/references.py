@@ -102,6 +102,8 @@ class ReferenceCheck:
 
     total: int
     missing: tuple[str, ...] = field(default=())
+    # those outside the folders named for the memory's images (`memory.image_roots`): never read
+    outside: tuple[str, ...] = field(default=())
 
     @property
     def found(self) -> int:
@@ -109,16 +111,23 @@ class ReferenceCheck:
 
     @property
     def ok(self) -> bool:
-        return not self.missing
+        return not self.missing and not self.outside
 
     def summary(self, *, hint: str = "") -> str:
-        """One line: how many are missing and the first path (empty when all are found)."""
-        if self.ok:
-            return ""
-        return (
-            f"{len(self.missing)} of {self.total} reference image(s) of the memory not found "
-            f"(first: {self.missing[0]}){hint}"
-        )
+        """One line: how many are missing or outside and the first path of each (empty when all are fine)."""
+        parts = []
+        if self.missing:
+            parts.append(
+                f"{len(self.missing)} of {self.total} reference image(s) of the memory not found "
+                f"(first: {self.missing[0]}){hint}"
+            )
+        if self.outside:
+            parts.append(
+                f"{len(self.outside)} of {self.total} reference image(s) lie outside the folders named for them "
+                f"(the data read, the memory's folder, --data-root), so they are not read nor recorded "
+                f"(first: {self.outside[0]}); pass --data-root DIR, the folder they are in, if you trust it"
+            )
+        return "; ".join(parts)
 
 
 def reference_file(reference: str) -> str:

@@ -146,7 +146,7 @@ def _reference(
     config: TriageConfig, trajectories: list[Trajectory], tasks: list[str], skipped: list[Skipped]
 ) -> Reference:
     if config.memory is not None:
-        return memory_reference(config.detector, tasks)
+        return memory_reference(config.detector, tasks, data=config.data.root)
     known_good: list[Trajectory] = []
     if config.successes is not None:
         good = replace(config.data, root=config.successes, labels=None).load()
