@@ -201,9 +201,19 @@ def test_detect_and_replay_agree_on_runs_without_signals_and_runs_whose_signals_
     )
     episode = "pick_cube_grasp_wp2_episode1"
     note = f"trajectory pick_cube/{episode} records no robot signals; the memory has its task's"
-    detected = cli("detect", cameras, "--memory", memory, "--trajectory", episode, *cache)
+    trusted = ("--data-root", data)  # the memory's images, in another dataset than the one replayed
+    detected = cli("detect", cameras, "--memory", memory, "--trajectory", episode, *trusted, *cache)
     replayed = cli(
-        "replay", cameras, "--memory", memory, "--trajectory", episode, "--out", tmp_path / "r", *cache
+        "replay",
+        cameras,
+        "--memory",
+        memory,
+        "--trajectory",
+        episode,
+        "--out",
+        tmp_path / "r",
+        *trusted,
+        *cache,
     )
     for result in (detected, replayed):
         assert result.exit_code == 0, result.output
