@@ -48,8 +48,6 @@ class ReplayEnv(gym.Env):  # type: ignore[misc]
     observation (`observation.images.<view>`, `observation.state` the gripper width); `expert_action()` is the
     run's commanded action now. The step after the last frame ends it, with `is_success` in its info."""
 
-    metadata: dict[str, Any] = {"render_modes": []}
-
     def __init__(self, runs: list[tuple[str | None, int]], *, length: int = LENGTH, size: int = 48) -> None:
         self.runs, self.length, self.size = runs, length, size
         self.episode = -1
@@ -88,7 +86,9 @@ class ReplayEnv(gym.Env):  # type: ignore[misc]
         symbol, shift = self.run
         return robot_signals(symbol, self.length, shift)["action"][min(self.t, self.length - 1)]
 
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[Any, dict[str, Any]]:
         super().reset(seed=seed)
         self.episode += 1
         self.t = 0

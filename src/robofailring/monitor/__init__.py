@@ -20,8 +20,8 @@ from robofailring.monitor.adapters import (
 from robofailring.monitor.episodes import RolloutStore, read_rollouts
 from robofailring.monitor.summary import RolloutSummary, summarize, write_summary
 from robofailring.monitor.tracker import EpisodeRecorder
-from robofailring.monitor.verdict import INFO_KEY, NearestFailure, Verdict
 from robofailring.monitor.vector import VectorRolloutMonitor
+from robofailring.monitor.verdict import INFO_KEY, NearestFailure, Verdict
 from robofailring.monitor.wrapper import LegacyEnv, RolloutMonitor
 
 __all__ = [
@@ -38,8 +38,8 @@ __all__ = [
     "RolloutMonitor",
     "RolloutStore",
     "RolloutSummary",
-    "Verdict",
     "VectorRolloutMonitor",
+    "Verdict",
     "read_rollouts",
     "summarize",
     "write_summary",

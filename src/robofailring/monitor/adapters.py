@@ -110,7 +110,8 @@ class Observed:
 class Adapter(Protocol):
     """Reads one env's observations (and the action passed to `step`) as views and signals."""
 
-    name: str
+    @property
+    def name(self) -> str: ...
 
     def observe(self, observation: Any, *, step: int) -> Observed: ...
 
@@ -239,7 +240,9 @@ class RobosuiteAdapter(KeyAdapter):
         return {
             f"obs/{key}": key
             for key in keys
-            if key.startswith("robot0_") and not key.endswith("_image") and as_array(observation[key]).ndim <= 1
+            if key.startswith("robot0_")
+            and not key.endswith("_image")
+            and as_array(observation[key]).ndim <= 1
         }
 
 
@@ -251,13 +254,16 @@ class MappingAdapter(KeyAdapter):
     views: Mapping[str, str] = field(default_factory=dict)
     signals: Mapping[str, str] = field(default_factory=dict)
 
-    def cameras(self, observation: Any) -> dict[str, str]:
+    def observe(self, observation: Any, *, step: int) -> Observed:
         missing = [key for key in self.views.values() if lookup(observation, key) is None]
         if missing:
             raise RolloutError(
-                f"the observation has no {missing[0]!r} (a mapped view); its keys: "
+                f"step {step}: the observation has no {missing[0]!r} (a mapped view); its keys: "
                 f"{', '.join(keys_of(observation)[:12])}"
             )
+        return super().observe(observation, step=step)
+
+    def cameras(self, observation: Any) -> dict[str, str]:
         return dict(self.views)
 
     def states(self, observation: Any) -> dict[str, str]:
@@ -288,6 +294,8 @@ def named_adapter(adapter: str | Adapter | None) -> Adapter | None:
         return None
     if isinstance(adapter, str):
         if adapter not in ADAPTERS:
-            raise SettingError(f"unknown adapter {adapter!r}; expected auto, {', '.join(ADAPTERS)} or an Adapter")
+            raise SettingError(
+                f"unknown adapter {adapter!r}; expected auto, {', '.join(ADAPTERS)} or an Adapter"
+            )
         return ADAPTERS[adapter]()
     return adapter

@@ -51,6 +51,9 @@ class EpisodeDraft:
     frames: int = 0
     signals: dict[str, list[np.ndarray | None]] = field(default_factory=dict)
     kinds: dict[str, SignalKind] = field(default_factory=dict)
+    dims: dict[str, tuple[str, ...]] = field(
+        default_factory=dict
+    )  # the memory's dimension names, where it has them
     scores: dict[str, list[float]] = field(default_factory=dict)
     thresholds: list[float] = field(default_factory=list)
     alarms: list[bool] = field(default_factory=list)
@@ -69,16 +72,16 @@ class EpisodeDraft:
             self.views = list(images)
         for view in self.views:
             write_png(self.folder / f"{view}_{t}.png", images[view])
-        for name, values in signals.items():
+        for name in signals:
             self.signals.setdefault(name, [None] * t)
             self.kinds.setdefault(name, kinds[name])
         for name, rows in self.signals.items():
             rows.append(signals.get(name))
         for view, score in verdict.scores.items():
             self.scores.setdefault(view, [float("nan")] * t).append(score)
-        for view, rows in self.scores.items():
-            if len(rows) == t:  # a view scored before and not now
-                rows.append(float("nan"))
+        for scored in self.scores.values():
+            if len(scored) == t:  # a view scored before and not now
+                scored.append(float("nan"))
         self.thresholds.append(verdict.threshold)
         self.alarms.append(verdict.alarm)
         if verdict.alarm and self.first_alarm is None:
@@ -88,16 +91,28 @@ class EpisodeDraft:
     def write_arrays(self) -> tuple[dict[str, Any] | None, list[str]]:
         """`signals.npz` and `monitor.npz` into the folder: the manifest's signals record and the notes on
         signals with frames missing or not finite (written as NaN, kept: the loader names them)."""
-        notes, arrays, described = [], {}, {}
+        notes: list[str] = []
+        arrays: dict[str, np.ndarray] = {}
+        described: dict[str, dict[str, Any]] = {}
         for name, rows in self.signals.items():
             width = next(len(row) for row in rows if row is not None)
-            bad = [t for t, row in enumerate(rows) if row is None or len(row) != width or not np.isfinite(row).all()]
+            bad = [
+                t
+                for t, row in enumerate(rows)
+                if row is None or len(row) != width or not np.isfinite(row).all()
+            ]
             if bad:
-                notes.append(f"signal {name!r}: {len(bad)} frame(s) missing or not finite (the first {bad[0]})")
+                notes.append(
+                    f"signal {name!r}: {len(bad)} frame(s) missing or not finite (the first {bad[0]})"
+                )
             arrays[name] = np.stack(
                 [row if row is not None and len(row) == width else np.full(width, np.nan) for row in rows]
             ).astype(np.float32)
-            described[name] = {"kind": self.kinds[name].value, "names": []}
+            names = self.dims.get(name, ())
+            described[name] = {
+                "kind": self.kinds[name].value,
+                "names": list(names) if len(names) == width else [],
+            }
         if arrays:
             np.savez(self.folder / SIGNALS_FILE, **arrays)  # type: ignore[arg-type]  # numpy's stub types **kwds as allow_pickle
         np.savez(

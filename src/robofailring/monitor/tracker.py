@@ -118,18 +118,32 @@ class Tracker:
         if self.open:
             self.end(EpisodeEnd(outcome=None, reason="reset"))
         core = self.core
-        if core.adapter is None:
-            core.adapter = adapter_for(observation)
-        observed = core.adapter.observe(observation, step=0)
+        adapter = core.adapter if core.adapter is not None else adapter_for(observation)
+        core.adapter = adapter
+        observed = adapter.observe(observation, step=0)
         self.draft = core.store.draft(task) if core.store is not None else None
+        if self.draft is not None:
+            self.draft.dims = self._dims(task)
         self.episode = self.draft.name if self.draft is not None else task
         sink = None
         if core.recorder is not None:
-            recording = core.recorder.episode(core.detector, task=task, views=list(observed.views), name=self.episode)
+            recording = core.recorder.episode(
+                core.detector, task=task, views=list(observed.views), name=self.episode
+            )
             sink = self._sink.enter_context(recording)
         self.session = core.detector.session(task, sink=sink)
         self.sizes = {view: image.shape for view, image in observed.views.items()}
         self.pending, self.first_alarm, self.signals_off = observed, None, None
+
+    def _dims(self, task: str) -> dict[str, tuple[str, ...]]:
+        """The dimension names of the task's signals in the memory, for the saved episode (so that `detect` on it
+        selects what the session did)."""
+        memory = self.core.detector.memory.signals
+        found = memory.task(task) if memory is not None else None
+        if found is None:
+            return {}
+        layout = found.layout
+        return {name: tuple(layout.full.get(name, dims)) for name, dims in (*layout.state, *layout.action)}
 
     def observe(self, observation: Any) -> None:
         """The observation the env returned: judged with the next action."""
@@ -172,7 +186,9 @@ class Tracker:
             on_alarm(verdict)
         return verdict
 
-    def _fed(self, signals: dict[str, np.ndarray], t: int) -> tuple[dict[str, np.ndarray] | None, tuple[str, ...]]:
+    def _fed(
+        self, signals: dict[str, np.ndarray], t: int
+    ) -> tuple[dict[str, np.ndarray] | None, tuple[str, ...]]:
         """The signals the session is given (None: cameras alone) and what was skipped, by name: a signal the
         task's signal memory uses that is missing or not finite turns them off for the rest of the episode."""
         assert self.session is not None
@@ -189,7 +205,9 @@ class Tracker:
                     )
                     break
                 if not np.isfinite(signals[name]).all():
-                    self.signals_off = f"signals: {name!r} is NaN or infinite at step {t}; cameras alone from then"
+                    self.signals_off = (
+                        f"signals: {name!r} is NaN or infinite at step {t}; cameras alone from then"
+                    )
                     break
         if self.signals_off is not None:
             return None, (self.signals_off,)
@@ -214,7 +232,6 @@ class Tracker:
 
 def _size(shape: tuple[int, ...]) -> str:
     return f"{shape[1]}×{shape[0]}"
-
 
 
 #: Where an env names its task: a key of its reset `info`, else an attribute (LeRobot's `task`, LIBERO's language).

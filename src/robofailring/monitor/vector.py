@@ -82,7 +82,13 @@ class VectorRolloutMonitor(VectorWrapper):
                 f"{self.mode.value}): only then does the loop reset a sub-env the monitor cut"
             )
         self.core = monitor_core(
-            memory, out=out, adapter=named_adapter(adapter), task=task, on_alarm=on_alarm, recorder=recorder, fps=fps
+            memory,
+            out=out,
+            adapter=named_adapter(adapter),
+            task=task,
+            on_alarm=on_alarm,
+            recorder=recorder,
+            fps=fps,
         )
         self.trackers = [Tracker(self.core, where=f"sub-env {index}: ") for index in range(self.num_envs)]
         self._resetting = np.zeros(self.num_envs, bool)  # next-step mode: this step resets these
@@ -92,12 +98,12 @@ class VectorRolloutMonitor(VectorWrapper):
             return self.core.task
 
         def attribute(name: str) -> Any:
-            return self.env.get_attr(name)[index]
+            return self.env.get_attr(name)[index]  # type: ignore[attr-defined]  # SyncVectorEnv's, AsyncVectorEnv's
 
         return task_of(sub_info(info, index), attribute, self.core.detector.memory.tasks)
 
     def reset(
-        self, *, seed: int | list[int | None] | None = None, options: dict[str, Any] | None = None
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[Any, dict[str, Any]]:
         mask = None if options is None else options.get("reset_mask")  # the env pops it from its options
         observations, info = self.env.reset(seed=seed, options=None if options is None else dict(options))

@@ -41,7 +41,9 @@ class LegacyEnv(gym.Env[Any, Any]):
             raise AttributeError(name)
         return getattr(self.legacy, name)
 
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[Any, dict[str, Any]]:
         if seed is not None and hasattr(self.legacy, "seed"):
             self.legacy.seed(seed)
         return self.legacy.reset(), {}
@@ -49,11 +51,13 @@ class LegacyEnv(gym.Env[Any, Any]):
     def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         result = self.legacy.step(action)
         if len(result) == 5:
-            return tuple(result)  # type: ignore[return-value]
+            return tuple(result)
         observation, reward, done, info = result
         info = dict(info or {})
         if done and not any(key in info for key in ("is_success", "success")):
-            check = getattr(self.legacy, "check_success", None) or getattr(self.legacy, "_check_success", None)
+            check = getattr(self.legacy, "check_success", None) or getattr(
+                self.legacy, "_check_success", None
+            )
             if check is not None:
                 info["is_success"] = bool(check())
         return observation, reward, bool(done), False, info
@@ -91,7 +95,13 @@ class RolloutMonitor(gym.Wrapper[Any, Any, Any, Any]):
     ) -> None:
         super().__init__(env if isinstance(env, gym.Env) else LegacyEnv(env))
         self.core = monitor_core(
-            memory, out=out, adapter=named_adapter(adapter), task=task, on_alarm=on_alarm, recorder=recorder, fps=fps
+            memory,
+            out=out,
+            adapter=named_adapter(adapter),
+            task=task,
+            on_alarm=on_alarm,
+            recorder=recorder,
+            fps=fps,
         )
         self.tracker = Tracker(self.core)
         self._observation: Any = None
@@ -100,7 +110,9 @@ class RolloutMonitor(gym.Wrapper[Any, Any, Any, Any]):
     def detector(self) -> FailureDetector:
         return self.core.detector
 
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[Any, dict[str, Any]]:
         observation, info = self.env.reset(seed=seed, options=options)
         task = self.core.task or task_of(info, self.env.get_wrapper_attr, self.detector.memory.tasks)
         self.tracker.begin(observation, task)
