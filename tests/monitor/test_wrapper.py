@@ -139,7 +139,7 @@ def test_bad_settings_and_a_step_before_reset_are_named(detector: FailureDetecto
     (tmp_path / "mine").mkdir()
     (tmp_path / "mine" / "episodes").mkdir()
     (tmp_path / "mine" / "episodes" / "notes.txt").write_text("mine")
-    with pytest.raises(OutputError, match="holds notes.txt"):
+    with pytest.raises(OutputError, match=r"holds notes\.txt"):
         RolloutMonitor(ReplayEnv(TEST_RUNS), detector, out=tmp_path / "mine")
     untasked = ReplayEnv(TEST_RUNS)
     del untasked.task

@@ -147,6 +147,7 @@ class RolloutStore:
         self._lock.enter_context(output_lock(self.root))
         try:
             self.records = self._existing()
+            self._next = len(self.records)  # the next episode's number (drafts of a vector env's sub-envs overlap)
             self.root.mkdir(parents=True, exist_ok=True)
             for leftover in sorted(self.root.glob(f"{_STAGING}*")):
                 _log.warning("warning: %s is an episode a killed process never finished: removed", leftover)
@@ -178,9 +179,10 @@ class RolloutStore:
 
     def draft(self, task: str) -> EpisodeDraft:
         """A new episode's staging folder (hidden: no reader sees it until it is kept)."""
-        name = f"episode_{len(self.records):05d}"
+        name = f"episode_{self._next:05d}"
         while (self.root / name).exists():
             name = f"{name}_"
+        self._next += 1
         folder = self.root / f"{_STAGING}{name}"
         shutil.rmtree(folder, ignore_errors=True)
         folder.mkdir()

@@ -78,7 +78,7 @@ class VectorRolloutMonitor(VectorWrapper):
         self.mode = AutoresetMode(env.metadata.get("autoreset_mode", AutoresetMode.NEXT_STEP))
         if on_alarm == TRUNCATE and self.mode is not AutoresetMode.DISABLED:
             raise SettingError(
-                f"on_alarm='truncate' on a vector env needs autoreset_mode=disabled (this one's is "
+                f"on_alarm='truncate' on a vector env needs autoreset_mode=Disabled (this one's is "
                 f"{self.mode.value}): only then does the loop reset a sub-env the monitor cut"
             )
         self.core = monitor_core(
