@@ -9,14 +9,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import ADAPTER_SIGNALS, TEST_RUNS, ReplayEnv
+from environment import require_module
+from rollout_env import ADAPTER_SIGNALS, TEST_RUNS, ReplayEnv
 from synthetic import VIEWS
 
 from robofailring import FailureDetector, MappingAdapter, RolloutMonitor, VectorRolloutMonitor, load_dataset
 from robofailring.errors import SettingError
 
-gym = pytest.importorskip("gymnasium")
-ADAPTER = MappingAdapter(views={view: f"observation.images.{view}" for view in VIEWS}, signals=ADAPTER_SIGNALS)
+gym = require_module("gymnasium", 'pip install "robofailring[gym]"')
+ADAPTER = MappingAdapter(
+    views={view: f"observation.images.{view}" for view in VIEWS}, signals=ADAPTER_SIGNALS
+)
 LENGTHS = (6, 8, 9, 7)  # each sub-env's episodes: so they end at different steps
 
 
@@ -72,7 +75,9 @@ def test_each_sub_env_s_episodes_are_kept_as_a_single_env_keeps_them(
     assert len(list(load_dataset(tmp_path / "vector" / "episodes").trajectories())) == len(records)
 
 
-def test_truncate_on_a_vector_env_needs_the_disabled_autoreset(detector: FailureDetector, tmp_path: Path) -> None:
+def test_truncate_on_a_vector_env_needs_the_disabled_autoreset(
+    detector: FailureDetector, tmp_path: Path
+) -> None:
     envs = gym.vector.SyncVectorEnv([partial(_sub_env, i) for i in range(2)])
     with pytest.raises(SettingError, match="needs autoreset_mode=Disabled \\(this one's is NextStep\\)"):
         VectorRolloutMonitor(envs, detector, adapter=ADAPTER, on_alarm="truncate")

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from conftest import ADAPTER_SIGNALS, LENGTH, TASK, TEST_RUNS, ReplayEnv
+from rollout_env import ADAPTER_SIGNALS, LENGTH, TASK, TEST_RUNS, ReplayEnv
 from synthetic import VIEWS
 
 from robofailring import (
@@ -229,3 +229,16 @@ def test_an_interrupted_run_keeps_every_episode_readable(detector: FailureDetect
         "episode_00001",
         "episode_00002",
     ]
+
+
+def test_the_monitor_installs_beside_lerobot_s_rerun_it_loads_none() -> None:
+    """LeRobot pins an older rerun-sdk: the monitor (the gym extra) imports no Rerun, torch or simulator."""
+    import subprocess
+    import sys
+
+    probe = (
+        "import json, sys; import robofailring.monitor; "
+        "print(json.dumps(sorted({m.split('.')[0] for m in sys.modules} & {'rerun', 'torch', 'pybullet', 'rfr_viz'})))"
+    )
+    loaded = subprocess.run([sys.executable, "-c", probe], check=True, capture_output=True, text=True).stdout
+    assert json.loads(loaded) == []

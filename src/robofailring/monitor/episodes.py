@@ -147,7 +147,9 @@ class RolloutStore:
         self._lock.enter_context(output_lock(self.root))
         try:
             self.records = self._existing()
-            self._next = len(self.records)  # the next episode's number (drafts of a vector env's sub-envs overlap)
+            self._next = len(
+                self.records
+            )  # the next episode's number (drafts of a vector env's sub-envs overlap)
             self.root.mkdir(parents=True, exist_ok=True)
             for leftover in sorted(self.root.glob(f"{_STAGING}*")):
                 _log.warning("warning: %s is an episode a killed process never finished: removed", leftover)
