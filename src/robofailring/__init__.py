@@ -60,7 +60,7 @@ if TYPE_CHECKING:
         MappingAdapter,
         RobosuiteAdapter,
     )
-    from robofailring.monitor.sim_env import SimEnv
+    from robofailring.monitor.sim_env import SIM_ADAPTER, SimEnv
     from robofailring.monitor.summary import RolloutSummary
     from robofailring.monitor.vector import VectorRolloutMonitor
     from robofailring.monitor.verdict import Verdict
@@ -130,6 +130,7 @@ _LAZY = {  # name -> (module, attribute), imported on first use (the simulator's
     "RolloutMonitor": ("robofailring.monitor.wrapper", "RolloutMonitor"),
     "RolloutSummary": ("robofailring.monitor.summary", "RolloutSummary"),
     "SimEnv": ("robofailring.monitor.sim_env", "SimEnv"),
+    "SIM_ADAPTER": ("robofailring.monitor.sim_env", "SIM_ADAPTER"),
     "VectorRolloutMonitor": ("robofailring.monitor.vector", "VectorRolloutMonitor"),
     "Verdict": ("robofailring.monitor.verdict", "Verdict"),
 }
@@ -149,6 +150,7 @@ def __dir__() -> list[str]:
 __all__ = [
     "PAPER_DELTA",
     "RULES",
+    "SIM_ADAPTER",
     "SIM_VIEWS",
     "BuildMemoryConfig",
     "CachedEncoder",

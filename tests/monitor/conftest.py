@@ -11,6 +11,7 @@ from synthetic import write_project_dataset
 from robofailring import CachedEncoder, FailureDetector, load_dataset, load_encoder, open_detector
 from robofailring.memory.builder import Provenance, build_memories
 
+
 @pytest.fixture(scope="session")
 def monitor_memory_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The train half of a signals dataset (grasp and slip failures, successes) as a saved pixels memory."""

@@ -15,6 +15,7 @@ from typer.testing import CliRunner
 from rfr_viz import monitor_recorder
 from rfr_viz.cli.app import app
 from robofailring import (
+    SIM_ADAPTER,
     CachedEncoder,
     FailureMemory,
     GenerateConfig,
@@ -24,7 +25,6 @@ from robofailring import (
     load_dataset,
     open_detector,
 )
-from robofailring.monitor.sim_env import SIM_ADAPTER
 
 pytestmark = pytest.mark.slow  # simulation: the full lane
 
