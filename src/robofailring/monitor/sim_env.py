@@ -11,6 +11,7 @@ is what the monitor records). The step after the last frame ends the episode wit
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
+from functools import cache
 from typing import Any, Final, SupportsFloat
 
 import numpy as np
@@ -33,6 +34,14 @@ SIM_ADAPTER: Final[MappingAdapter] = MappingAdapter(
     signals={name: name for name in SIGNALS if name != _ACTION},
     action=_ACTION,
 )
+
+
+@cache
+def _signal_names(task: str) -> tuple[str, ...]:
+    """The signals `task`'s episodes record (a task without a place to reach has no `goal`): one tiny episode."""
+    with run_episode(task, SUCCESS, 0, image_size=16, frames=2) as run:
+        next(iter(run))
+        return tuple(run.last_signals())
 
 
 class SimEnv(gym.Env[dict[str, Any], np.ndarray]):
@@ -58,7 +67,7 @@ class SimEnv(gym.Env[dict[str, Any], np.ndarray]):
                 **{
                     name: gym.spaces.Box(-np.inf, np.inf, (len(dims),), np.float64)
                     for name, (_, dims) in SIGNALS.items()
-                    if name != _ACTION
+                    if name != _ACTION and name in _signal_names(task)
                 },
                 "policy_action": gym.spaces.Box(-np.inf, np.inf, (len(SIGNALS[_ACTION][1]),), np.float64),
             }
