@@ -24,6 +24,7 @@ if TYPE_CHECKING:
     from rfr_viz.recordings.evaluation import record_evaluation
     from rfr_viz.recordings.live import LiveRecording
     from rfr_viz.recordings.live_target import LiveTarget
+    from rfr_viz.recordings.monitor import MonitorRecorder, monitor_recorder
     from rfr_viz.recordings.notebook import InlineRecording, show
     from rfr_viz.recordings.replay import compare_recording, record_replay
     from rfr_viz.viewer.binary import ViewerUnavailable
@@ -38,6 +39,7 @@ _LAZY = {  # name -> the module it is imported from on first use
     "LiveRecording": "rfr_viz.recordings.live",
     "LiveTarget": "rfr_viz.recordings.live_target",
     "MemoryMap": "rfr_viz.panels.umap",
+    "MonitorRecorder": "rfr_viz.recordings.monitor",
     "Recordings": "rfr_viz.jobs.recorded",
     "ReplayConfig": "rfr_viz.jobs.replay",
     "ReplayResult": "rfr_viz.jobs.replay",
@@ -49,6 +51,7 @@ _LAZY = {  # name -> the module it is imported from on first use
     "compare_recording": "rfr_viz.recordings.replay",
     "fit_map": "rfr_viz.panels.umap",
     "memory_map": "rfr_viz.panels.umap",
+    "monitor_recorder": "rfr_viz.recordings.monitor",
     "open_command": "rfr_viz.viewer.control",
     "record_evaluation": "rfr_viz.recordings.evaluation",
     "record_replay": "rfr_viz.recordings.replay",
@@ -80,6 +83,7 @@ __all__ = [  # every name of _LAZY
     "LiveRecording",
     "LiveTarget",
     "MemoryMap",
+    "MonitorRecorder",
     "Recordings",
     "ReplayConfig",
     "ReplayResult",
@@ -91,6 +95,7 @@ __all__ = [  # every name of _LAZY
     "compare_recording",
     "fit_map",
     "memory_map",
+    "monitor_recorder",
     "open_command",
     "record_evaluation",
     "record_replay",

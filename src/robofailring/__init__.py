@@ -25,6 +25,7 @@ from robofailring.errors import (
     EncoderMismatchError,
     MemoryFormatError,
     RoboFailRingError,
+    RolloutError,
     SettingError,
     SymbolError,
     UnknownTaskError,
@@ -54,6 +55,17 @@ if TYPE_CHECKING:
     from robofailring.memory.failure import FailureMemory
     from robofailring.memory.recipe import MemoryRecipe
     from robofailring.memory.success import SuccessMemory
+    from robofailring.monitor.adapters import (
+        LeRobotAdapter,
+        ManiSkillAdapter,
+        MappingAdapter,
+        RobosuiteAdapter,
+    )
+    from robofailring.monitor.sim_env import SIM_ADAPTER, SimEnv
+    from robofailring.monitor.summary import RolloutSummary
+    from robofailring.monitor.vector import VectorRolloutMonitor
+    from robofailring.monitor.verdict import Verdict
+    from robofailring.monitor.wrapper import LegacyEnv, RolloutMonitor
     from robofailring.sim import VIEWS as SIM_VIEWS
     from robofailring.sim import GenerateConfig, generate_dataset, run_episode
 
@@ -110,6 +122,18 @@ _LAZY = {  # name -> (module, attribute), imported on first use (the simulator's
     "generate_dataset": ("robofailring.sim", "generate_dataset"),
     "run_episode": ("robofailring.sim", "run_episode"),
     "SIM_VIEWS": ("robofailring.sim", "VIEWS"),
+    # the rollout monitor: the wrappers load gymnasium (the gym extra), SimEnv also pybullet
+    "LeRobotAdapter": ("robofailring.monitor.adapters", "LeRobotAdapter"),
+    "LegacyEnv": ("robofailring.monitor.wrapper", "LegacyEnv"),
+    "ManiSkillAdapter": ("robofailring.monitor.adapters", "ManiSkillAdapter"),
+    "MappingAdapter": ("robofailring.monitor.adapters", "MappingAdapter"),
+    "RobosuiteAdapter": ("robofailring.monitor.adapters", "RobosuiteAdapter"),
+    "RolloutMonitor": ("robofailring.monitor.wrapper", "RolloutMonitor"),
+    "RolloutSummary": ("robofailring.monitor.summary", "RolloutSummary"),
+    "SimEnv": ("robofailring.monitor.sim_env", "SimEnv"),
+    "SIM_ADAPTER": ("robofailring.monitor.sim_env", "SIM_ADAPTER"),
+    "VectorRolloutMonitor": ("robofailring.monitor.vector", "VectorRolloutMonitor"),
+    "Verdict": ("robofailring.monitor.verdict", "Verdict"),
 }
 
 
@@ -127,6 +151,7 @@ def __dir__() -> list[str]:
 __all__ = [
     "PAPER_DELTA",
     "RULES",
+    "SIM_ADAPTER",
     "SIM_VIEWS",
     "BlindCameraWarning",
     "BuildMemoryConfig",
@@ -150,14 +175,23 @@ __all__ = [
     "FailureReport",
     "Frame",
     "GenerateConfig",
+    "LeRobotAdapter",
+    "LegacyEnv",
+    "ManiSkillAdapter",
+    "MappingAdapter",
     "MemoryEntry",
     "MemoryFormatError",
     "MemoryRecipe",
     "Neighbor",
     "Outcome",
     "RoboFailRingError",
+    "RobosuiteAdapter",
+    "RolloutError",
+    "RolloutMonitor",
+    "RolloutSummary",
     "ScoringRule",
     "SettingError",
+    "SimEnv",
     "StepResult",
     "StepSink",
     "SuccessMemory",
@@ -166,6 +200,8 @@ __all__ = [
     "Trajectory",
     "UnknownTaskError",
     "VLMClient",
+    "VectorRolloutMonitor",
+    "Verdict",
     "build_memory",
     "calibrate",
     "compare_encoders",

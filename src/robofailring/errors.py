@@ -29,6 +29,11 @@ class SplitError(DataError):
     labelled run, whatever its split."""
 
 
+class RolloutError(RoboFailRingError):
+    """A rollout under the monitor (`robofailring.monitor`) cannot be judged: a step before reset, an observation
+    without a mapped camera, an image whose size changed mid-episode; the message names the step and the key."""
+
+
 class SymbolError(RoboFailRingError):
     """A failure symbol has a token outside the grounding vocabulary (paper Table 5)."""
 

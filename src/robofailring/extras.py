@@ -45,6 +45,7 @@ EXTRAS: Final[dict[str, dict[str, str]]] = {
     "onnx": {"onnxruntime": "onnxruntime", "onnx": "onnx"},
     "openvino": {"openvino": "openvino"},
     "ray": {"ray": "ray"},
+    "gym": {"gymnasium": "gymnasium"},
 }
 
 #: What each extra is for, in the error's sentence.
@@ -60,6 +61,7 @@ PURPOSES: Final[dict[str, str]] = {
     "onnx": "the ONNX Runtime encoders (--runtime onnx, onnx-int8)",
     "openvino": "the OpenVINO int8 encoder (--runtime openvino-int8)",
     "ray": "encoding on a Ray cluster (--ray)",
+    "gym": "the rollout monitor (robofailring.monitor)",
 }
 
 

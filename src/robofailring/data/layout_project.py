@@ -34,6 +34,8 @@ PROJECT_SIGNALS: Final[dict[str, tuple[str, tuple[str, ...]]]] = {
     "action": ("action", (*(f"target_{name}" for name in _POSE), "gripper_width")),
     "goal": ("other", ("x", "y")),
 }
+#: A monitored rollout's per-step scores beside its frames (`robofailring.monitor.episodes`), not a view.
+MONITOR_FILE: Final[str] = "monitor.npz"
 
 
 def read_project_manifest(root: Path) -> dict[str, Any]:
@@ -59,7 +61,7 @@ def project_trajectories(root: Path, manifest: dict[str, Any]) -> Found:
     for record in manifest["episodes"]:
         try:
             directory = root / record["dir"]
-            outcome = Outcome(record["outcome"])
+            outcome = None if record["outcome"] is None else Outcome(record["outcome"])  # null: not known
             task = record["task"]
         except (KeyError, ValueError) as error:
             raise DataError(f"{root / PROJECT_MANIFEST}: bad episode record {record!r} ({error})") from error
@@ -75,7 +77,8 @@ def project_trajectories(root: Path, manifest: dict[str, Any]) -> Found:
         signals, signals_file = project_signals(
             directory, record, where=f"{root / PROJECT_MANIFEST} episode {record['dir']}"
         )
-        inside = [skipped for skipped in inside if skipped.path.name != signals_file]
+        monitor_file = MONITOR_FILE if isinstance(record.get("monitor"), dict) else None
+        inside = [skipped for skipped in inside if skipped.path.name not in (signals_file, monitor_file)]
         wanted = record.get("views")
         if wanted:
             views = {view: views.get(view, ()) for view in wanted}
