@@ -22,7 +22,7 @@ from robofailring import (
     ground,
     load_dataset,
 )
-from robofailring.errors import OutputError, SettingError
+from robofailring.errors import BlindCameraWarning, OutputError, SettingError
 
 ADAPTER = MappingAdapter(
     views={view: f"observation.images.{view}" for view in VIEWS}, signals=ADAPTER_SIGNALS
@@ -163,6 +163,10 @@ class FaultyEnv(ReplayEnv):
                 observation["observation.images.front"] = observation["observation.images.front"][:40]
             elif self.fault == "nan":
                 observation["observation.state"] = np.full(1, np.nan)
+            elif self.fault == "dark":
+                observation["observation.images.front"] = np.zeros_like(
+                    observation["observation.images.front"]
+                )
         return observation
 
 
@@ -198,6 +202,16 @@ def test_nan_state_turns_the_signals_off_by_name_for_the_rest_of_the_episode(
     ]
     (trajectory,) = load_dataset(tmp_path / "out" / "episodes").trajectories()
     assert trajectory.length == LENGTH  # kept whole: NaN rows saved, the loader says so when scoring
+
+
+def test_a_camera_gone_dark_is_named_in_every_verdict_from_then_on(detector: FailureDetector) -> None:
+    """A black camera is never a silent `alarm=False`: the verdict names it (StepResult.blind_views), and a
+    step whose every view is still judged stays usable."""
+    with pytest.warns(BlindCameraWarning, match="front"):
+        verdicts = _episode(RolloutMonitor(FaultyEnv("dark"), detector, adapter=ADAPTER))
+    assert all(v.blind_views == () for v in verdicts[:3])
+    assert all(v.blind_views == ("front",) and np.isnan(v.scores["front"]) for v in verdicts[3:])
+    assert all(v.usable for v in verdicts)  # the other camera and the signals still judge
 
 
 class InterruptedEnv(ReplayEnv):

@@ -43,6 +43,8 @@ class Verdict:
     nearest: NearestFailure | None = None  # at an alarm: the nearest failure and its cause
     skipped: tuple[str, ...] = ()
     stopped: str | None = None  # on_alarm="truncate": why the episode was cut (its action was not executed)
+    blind_views: tuple[str, ...] = ()  # cameras that saw nothing at this step (black, one colour or NaN)
+    usable: bool = True  # False: no view was judged, so `alarm=False` says nothing (docs/live.md)
 
     def to_dict(self) -> dict[str, Any]:
         """The verdict as plain JSON values."""
@@ -82,4 +84,6 @@ def verdict_of(
         first_alarm=first_alarm,
         nearest=nearest,
         skipped=skipped,
+        blind_views=tuple(result.blind_views),
+        usable=result.usable,
     )
