@@ -15,7 +15,8 @@ from robofailring import FailureMemory, load_encoder
 from robofailring.cli.verbs import app
 from robofailring.encoders import export as export_module
 from robofailring.encoders.export import export_folder
-from robofailring.encoders.exported import OPENVINO_CPU, OnnxEncoder
+from robofailring.encoders.exported import OPENVINO_CPU, OnnxEncoder, OpenVinoSession
+from robofailring.encoders.preprocess import Preprocess
 from robofailring.encoders.quantize import calibration_images
 from robofailring.encoders.spec import EncoderSpec
 from robofailring.errors import EncoderError, MissingExtraError
@@ -107,6 +108,45 @@ def test_real_imagenet_weights_in_int8_stay_close_and_retrieve_their_run(tmp_pat
         noisy = np.clip(image.astype(int) + rng.integers(-4, 5, image.shape), 0, 255).astype(np.uint8)
         nearest = int(np.argmax(static @ encoder.encode([noisy])[0]))
         assert nearest // 4 == index // 4, (index, nearest)  # _frames: three runs of four frames
+
+
+def _core_defaulting_to(precision: str) -> type:
+    """OpenVINO's `Core` whose CPU plugin picks `precision` for float layers unless told otherwise: what
+    the plugin picks by itself is bf16 on a CPU with AMX or AVX-512 BF16 (Intel Xeon), f32 elsewhere."""
+    import openvino
+
+    class Core(openvino.Core):  # type: ignore[misc]
+        def __init__(self) -> None:
+            super().__init__()
+            self.set_property("CPU", {"INFERENCE_PRECISION_HINT": precision})
+
+    return Core
+
+
+def test_openvino_runs_in_f32_whatever_the_cpu_would_pick(
+    tiny_checkpoint: tuple[Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Issue 50: on an Intel Xeon with AMX OpenVINO's own choice is bf16 for the layers outside the int8
+    ones, and the pretrained int8 export found another run's frame (`AssertionError: (2, 6)`); the project
+    asks for f32, so a CPU defaulting to bf16 and one defaulting to f32 give the same numbers."""
+    import openvino
+
+    config, weights = tiny_checkpoint
+    encoder = load_encoder(f"open_clip:{config}:{weights}@openvino-int8", cache_dir=tmp_path)
+    assert isinstance(encoder, OnnxEncoder)
+    model = encoder.export.model
+    pixels = Preprocess(encoder.export.preprocess)(_frames())
+    embeddings, precisions = {}, {}
+    for default in ("f32", "bf16"):
+        monkeypatch.setattr(openvino, "Core", _core_defaulting_to(default))
+        if default == "bf16":  # the CPU's own choice where it has bf16 units (emulated or ignored elsewhere)
+            own = openvino.Core().compile_model(str(model), "CPU")
+            assert own.get_property("INFERENCE_PRECISION_HINT").to_string() in ("bf16", "f32")
+        session = OpenVinoSession(model)
+        precisions[default] = session.precision
+        embeddings[default] = session.run(None, {"pixels": pixels})[0]
+    assert precisions == {"f32": "f32", "bf16": "f32"}
+    np.testing.assert_array_equal(embeddings["bf16"], embeddings["f32"])
 
 
 def test_runtime_openvino_int8_on_build_memory_and_detect(

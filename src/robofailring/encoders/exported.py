@@ -13,7 +13,7 @@ import logging
 import threading
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, Final
 
 import numpy as np
 
@@ -61,20 +61,31 @@ def open_session(model: Path, providers: Sequence[str], *, threads: int | None =
 
 
 OPENVINO_CPU = "OpenVINO CPU"
+#: The precision OpenVINO runs the layers outside the int8 ones in. Its CPU plugin picks bf16 by itself
+#: where the CPU has AMX or AVX-512 BF16 and f32 elsewhere, so the same export gave other embeddings (and
+#: other neighbours) on an Intel Xeon than on an AMD one; asked for explicitly, every CPU agrees.
+OPENVINO_PRECISION: Final[str] = "f32"
 
 
 class OpenVinoSession:
-    """An export compiled by OpenVINO for the CPU, run as an ONNX Runtime session is (`run`, `get_providers`)."""
+    """An export compiled by OpenVINO for the CPU, run as an ONNX Runtime session is (`run`, `get_providers`);
+    its float layers in `OPENVINO_PRECISION` whatever the CPU would choose."""
 
     def __init__(self, model: Path, *, threads: int | None = None) -> None:
         with needs_extra("openvino"):
             import openvino
 
-        config: dict[str, Any] = {"PERFORMANCE_HINT": "LATENCY"}
+        config: dict[str, Any] = {"PERFORMANCE_HINT": "LATENCY", "INFERENCE_PRECISION_HINT": OPENVINO_PRECISION}
         if threads:
             config["INFERENCE_NUM_THREADS"] = threads
-        self._request = openvino.Core().compile_model(str(model), "CPU", config).create_infer_request()
+        self._compiled = openvino.Core().compile_model(str(model), "CPU", config)
+        self._request = self._compiled.create_infer_request()
         self._lock = threading.Lock()  # one infer request: one run at a time
+
+    @property
+    def precision(self) -> str:
+        """The precision the compiled model runs its float layers in, as OpenVINO reports it (`f32`)."""
+        return str(self._compiled.get_property("INFERENCE_PRECISION_HINT").to_string())
 
     def run(self, _outputs: None, feeds: dict[str, np.ndarray]) -> list[np.ndarray]:
         with self._lock:
