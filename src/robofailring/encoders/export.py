@@ -31,7 +31,13 @@ from robofailring.encoders.base import file_digest
 from robofailring.encoders.cache import default_cache_dir
 from robofailring.encoders.kinds import kind_of
 from robofailring.encoders.preprocess import Preprocess
-from robofailring.encoders.quantize import CALIBRATION_FRAMES, CALIBRATION_SEED, calibration_images, quantize
+from robofailring.encoders.quantize import (
+    CALIBRATION_FRAMES,
+    CALIBRATION_SEED,
+    STATIC_SCHEME,
+    calibration_images,
+    quantize,
+)
 from robofailring.encoders.spec import EncoderSpec
 from robofailring.errors import EncoderError
 from robofailring.extras import needs_extra
@@ -69,8 +75,8 @@ def spec_identity(spec: EncoderSpec, made_from: MadeFrom | None = None) -> tuple
     """(the encoder identity, the export key) of a spec, found without loading its network (`made_from`:
     the kind's answer when the caller has it already, so a checkpoint is digested once per export)."""
     identity, material = made_from or kind_of(spec).export_identity(spec)
-    if spec.runtime == "openvino-int8":  # its calibration frames are part of what it is made from
-        material += f"|calibration-{CALIBRATION_FRAMES}-{CALIBRATION_SEED}"
+    if spec.runtime == "openvino-int8":  # its calibration frames and static form are part of what it is made from
+        material += f"|calibration-{CALIBRATION_FRAMES}-{CALIBRATION_SEED}|{STATIC_SCHEME}"
     key = hashlib.blake2b(f"{material}|{spec.runtime}|v{EXPORT_VERSION}".encode(), digest_size=8).hexdigest()
     return identity, key
 
