@@ -268,3 +268,27 @@ def test_cuda_without_onnxruntime_gpu_says_what_to_install() -> None:
     with pytest.raises(EncoderError, match="install onnxruntime-gpu"):
         providers_for("cuda")
     assert providers_for(None) == ["CPUExecutionProvider"]
+
+
+def test_the_export_key_follows_the_model_config_and_the_calibration_frames(
+    tiny_checkpoint: tuple[Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """An export is made from the checkpoint, the open_clip model-config file a spec names and, for the
+    static int8 one, its calibration frames: another config file (same model name, other bytes) or other
+    frames is another export, never the cached one of something else."""
+    config, weights = tiny_checkpoint
+    spec = EncoderSpec.parse(f"open_clip:{config}:{weights}@openvino-int8")
+    folder, identity = export_folder(spec, tmp_path)
+    (tmp_path / "other").mkdir()
+    other = tmp_path / "other" / config.name
+    other.write_text(json.dumps(json.loads(config.read_text()), indent=1))  # the same model, written again
+    moved, same_identity = export_folder(
+        EncoderSpec.parse(f"open_clip:{other}:{weights}@openvino-int8"), tmp_path
+    )
+    assert same_identity == identity and moved != folder
+    fp32 = export_folder(spec.with_runtime("onnx"), tmp_path)[0]
+    for constant, value in (("CALIBRATION_FRAMES", 16), ("CALIBRATION_SEED", 1)):
+        with monkeypatch.context() as patched:
+            patched.setattr(export_module, constant, value)
+            assert export_folder(spec, tmp_path)[0] != folder, constant
+            assert export_folder(spec.with_runtime("onnx"), tmp_path)[0] == fp32  # fp32 has no calibration

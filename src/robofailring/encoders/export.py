@@ -75,7 +75,9 @@ def spec_identity(spec: EncoderSpec, made_from: MadeFrom | None = None) -> tuple
     """(the encoder identity, the export key) of a spec, found without loading its network (`made_from`:
     the kind's answer when the caller has it already, so a checkpoint is digested once per export)."""
     identity, material = made_from or kind_of(spec).export_identity(spec)
-    if spec.runtime == "openvino-int8":  # its calibration frames and static form are part of what it is made from
+    if (
+        spec.runtime == "openvino-int8"
+    ):  # its calibration frames and static form are part of what it is made from
         material += f"|calibration-{CALIBRATION_FRAMES}-{CALIBRATION_SEED}|{STATIC_SCHEME}"
     key = hashlib.blake2b(f"{material}|{spec.runtime}|v{EXPORT_VERSION}".encode(), digest_size=8).hexdigest()
     return identity, key
