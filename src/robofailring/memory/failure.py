@@ -21,10 +21,9 @@ from robofailring.data.model import Trajectory
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.encoders.spec import EncoderSpec
 from robofailring.errors import EncoderMismatchError, MemoryFormatError, UnknownTaskError
-from robofailring.jsontext import parse_json
 from robofailring.memory.encoding import BuildStats, encode_failures, failure_views
 from robofailring.memory.entry import MemoryEntry, Neighbor
-from robofailring.memory.format import parse_entry, read_jsonl, stored_vocabulary
+from robofailring.memory.format import parse_entry, read_json, read_jsonl, stored_vocabulary
 from robofailring.memory.index import FLAT, TaskIndexSet
 from robofailring.memory.index_file import read_index_file
 from robofailring.memory.manifest import MemoryManifest, StoredCalibration
@@ -338,9 +337,9 @@ class FailureMemory:
     @classmethod
     def _read(cls, directory: Path, *, data_root: Path | None) -> FailureMemory:
         manifest_path = directory / MANIFEST
-        if not manifest_path.is_file() and not restore_interrupted(directory):
+        if not manifest_path.exists() and not restore_interrupted(directory):
             raise MemoryFormatError(f"{directory} is not a failure memory: {MANIFEST} is missing")
-        manifest = parse_json(manifest_path.read_bytes(), source=str(manifest_path), error=MemoryFormatError)
+        manifest = read_json(manifest_path)
         version = manifest.get("format_version") if isinstance(manifest, dict) else None
         if version not in READABLE_VERSIONS:
             readable = ", ".join(map(str, READABLE_VERSIONS))
