@@ -11,7 +11,10 @@ inline with its own blueprint (`rfr_viz.recordings.notebook`, the `notebook` ext
 from __future__ import annotations
 
 import importlib
-from typing import TYPE_CHECKING
+
+TYPE_CHECKING = (
+    False  # not typing's: `typing` takes milliseconds to load, before the command can catch a Ctrl-C
+)
 
 if TYPE_CHECKING:
     from rfr_viz.jobs.recorded import Recordings

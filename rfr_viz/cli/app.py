@@ -7,7 +7,9 @@ another module's app. Options shared by several verbs are declared once, in
 
 Loading the verbs (numpy, OpenCV, Faiss, typer) takes most of a second and happens here, the first
 of the command's own code to run (`import robofailring` and `import rfr_viz` load none of it): a
-Ctrl-C meanwhile ends as one while a verb runs does, one `error:` line and status 130.
+Ctrl-C at any point after the console script's first line (the imports, the app built, typer building
+the command, the arguments parsed, the verb run) ends as one while a verb runs does, one `error:` line
+and status 130 (tests/cli/test_interrupts.py sends one at many moments of the first 0.4 s).
 
 The command speaks for itself: its own warnings (the `robofailring` logger, `warning: …`) and one
 `error:` line. What the libraries beneath it log on their own (open_clip's `ERROR:root:` before the
@@ -17,40 +19,41 @@ error that explains it, Rerun's and OpenCV's `WARN` lines) is not printed unless
 
 from __future__ import annotations
 
-import logging
-import os
-import sys
+import sys  # loaded with the interpreter: nothing before the `try` takes time
 
-if os.environ.get("ROBOFAILRING_LOG") != "all":  # before Rerun and OpenCV load and read them
-    os.environ.setdefault("RUST_LOG", "error")
-    os.environ.setdefault("OPENCV_LOG_LEVEL", "ERROR")
+try:  # everything the command loads, so that a Ctrl-C meanwhile ends as one while a verb runs does
+    import logging
+    import os
 
-try:
+    if os.environ.get("ROBOFAILRING_LOG") != "all":  # before Rerun and OpenCV load and read them
+        os.environ.setdefault("RUST_LOG", "error")
+        os.environ.setdefault("OPENCV_LOG_LEVEL", "ERROR")
+
     import typer
 
     from rfr_viz.cli.jobs import app as jobs_app
     from rfr_viz.cli.live import app as live_app
     from rfr_viz.cli.replay import app as replay_app
     from rfr_viz.cli.triage import app as triage_app
-    from robofailring.cli.exit_codes import ErrorMappingGroup
+    from robofailring.cli.exit_codes import ErrorMappingGroup, interrupted
     from robofailring.cli.verbs import app as library_app
+
+    app = typer.Typer(
+        name="robofailring",
+        help="Retrieval-based robot failure detection (RoboFailRing) and its Rerun recordings.",
+        cls=ErrorMappingGroup,
+        no_args_is_help=True,
+        pretty_exceptions_enable=False,
+        add_completion=False,
+    )
+    for verbs in (library_app, replay_app, jobs_app, triage_app, live_app):
+        app.add_typer(verbs)
 except KeyboardInterrupt:
     from robofailring.cli.exit_codes import interrupted
 
     raise SystemExit(interrupted()) from None
 
 __all__ = ["app", "main"]
-
-app = typer.Typer(
-    name="robofailring",
-    help="Retrieval-based robot failure detection (RoboFailRing) and its Rerun recordings.",
-    cls=ErrorMappingGroup,
-    no_args_is_help=True,
-    pretty_exceptions_enable=False,
-    add_completion=False,
-)
-for verbs in (library_app, replay_app, jobs_app, triage_app, live_app):
-    app.add_typer(verbs)
 
 
 class _OwnRecords(logging.Filter):
@@ -73,9 +76,13 @@ def _log_to_stderr() -> None:
 
 
 def main() -> None:
-    """Console entry point (`robofailring`)."""
-    _log_to_stderr()
-    app()
+    """Console entry point (`robofailring`): a Ctrl-C while typer builds the command from its verb apps is
+    one line and 130 too (while it parses or runs a verb, `ErrorMappingGroup` says it)."""
+    try:
+        _log_to_stderr()
+        app()
+    except KeyboardInterrupt:
+        raise SystemExit(interrupted()) from None
 
 
 if __name__ == "__main__":

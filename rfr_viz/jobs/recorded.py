@@ -3,23 +3,21 @@ command line builds it before any recording is made)."""
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Final
 
 from rfr_viz.codecs import CameraCodec
 from rfr_viz.paths import DEFAULT_OUT
+from robofailring.data.model import FPS_RANGE, in_fps_range
 from robofailring.errors import SettingError
-
-FPS_RANGE: Final[tuple[float, float]] = (1e-3, 1e4)  # one frame per 1,000 s to a 10 kHz sensor
 
 
 def check_fps(fps: float | None) -> float | None:
-    """A `time` timeline rate within `FPS_RANGE` (SettingError otherwise): a frame's time in nanoseconds
-    must fit Rerun's int64 (at 1e-300 fps frame 1 is at infinity, an OverflowError)."""
+    """`--fps`, a `time` timeline rate within `FPS_RANGE` (SettingError otherwise): a frame's time in
+    nanoseconds must fit Rerun's int64 (at 1e-300 fps frame 1 is at infinity, an OverflowError). The data's
+    own rate is checked where it is read (`Trajectory.frame_rate`)."""
     low, high = FPS_RANGE
-    if fps is not None and not (math.isfinite(fps) and low <= fps <= high):
+    if fps is not None and not in_fps_range(fps):
         raise SettingError(f"--fps must be a number of frames per second from {low:g} to {high:g}, got {fps}")
     return fps
 

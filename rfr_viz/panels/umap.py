@@ -22,7 +22,9 @@ import numpy as np
 
 from rfr_viz.panels.umap_layout import Map2D, fit_map_2d
 from robofailring.atomic import atomic_path
+from robofailring.bounded import read_npz
 from robofailring.encoders.base import l2_normalize
+from robofailring.errors import MemoryFormatError
 from robofailring.memory.entry import MemoryEntry
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.pairs import CONCAT, change_of
@@ -165,15 +167,15 @@ def _read_cache(path: Path, memory: FailureMemory) -> MemoryMap | None:
         return None
     digest = memory_digest(memory)
     try:
-        with np.load(path, allow_pickle=False) as data:
-            if int(data["version"]) != CACHE_VERSION or str(data["digest"]) != digest:
-                return None
-            rows, centres, features = _view_features(memory.vectors, memory.entries, memory.pairing)
-            if [str(view) for view in data["views"]] != list(rows):
-                return None
-            maps = {view: _cached_map(data, position, features[view]) for position, view in enumerate(rows)}
-    except (OSError, ValueError, KeyError):
-        return None  # unreadable or older cache: refit and overwrite
+        data = read_npz(path, error=MemoryFormatError)  # each array's declared size checked first
+        if int(data["version"]) != CACHE_VERSION or str(data["digest"]) != digest:
+            return None
+        rows, centres, features = _view_features(memory.vectors, memory.entries, memory.pairing)
+        if [str(view) for view in data["views"]] != list(rows):
+            return None
+        maps = {view: _cached_map(data, position, features[view]) for position, view in enumerate(rows)}
+    except (OSError, ValueError, KeyError, TypeError, MemoryFormatError):
+        return None  # unreadable, crafted or older cache: refit and overwrite
     if any(view_map is None for view_map in maps.values()):
         return None
     return MemoryMap(

@@ -148,8 +148,9 @@ def remove_file_leftovers(folder: Path) -> None:
 
 
 @contextlib.contextmanager
-def output_lock(final: Path) -> Iterator[None]:
-    """Hold `.<name>.lock` beside `final` while writing it; a second writer gets OutputBusyError.
+def output_lock(final: Path, *, wait: bool = False) -> Iterator[None]:
+    """Hold `.<name>.lock` beside `final` while writing it; a second writer gets OutputBusyError, or with
+    `wait` waits for the first to finish (a cache entry both would make alike: the second then finds it).
 
     On entry, the leftovers of killed writes to `final` are cleaned (see `recover_leftovers`).
     Re-entrant within one process. Folders made to hold the lock are removed again if nothing was
@@ -168,13 +169,7 @@ def output_lock(final: Path) -> Iterator[None]:
     final.parent.mkdir(parents=True, exist_ok=True)
     with contextlib.ExitStack() as stack:
         stack.callback(_remove_if_empty, made)
-        handle = stack.enter_context(lock.open("a"))
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            raise OutputBusyError(
-                f"another robofailring process is writing {final} right now; wait for it or choose another output"
-            ) from None
+        stack.enter_context(_locked(lock, final, wait=wait))
         _HELD[lock] = 1
         try:
             recover_leftovers(final)
@@ -182,6 +177,26 @@ def output_lock(final: Path) -> Iterator[None]:
         finally:
             del _HELD[lock]
             lock.unlink(missing_ok=True)
+
+
+@contextlib.contextmanager
+def _locked(lock: Path, final: Path, *, wait: bool) -> Iterator[None]:
+    """`lock` opened and locked; the lock of a file its last holder removed meanwhile is taken anew."""
+    while True:
+        with lock.open("a") as handle:
+            try:
+                fcntl.flock(handle, fcntl.LOCK_EX if wait else fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                raise OutputBusyError(
+                    f"another robofailring process is writing {final} right now; wait for it or choose another output"
+                ) from None
+            try:
+                current = os.stat(lock).st_ino
+            except FileNotFoundError:
+                current = None
+            if current == os.fstat(handle.fileno()).st_ino:  # still the file others open: ours
+                yield
+                return
 
 
 def _remove_if_empty(folders: list[Path]) -> None:

@@ -95,6 +95,8 @@ def test_a_new_checkpoint_is_a_new_export(tiny_checkpoint: tuple[Path, Path], tm
         ("scramble", "does not match the digest"),  # same size, not a model
         ("flip", "does not match the digest"),  # same size, still a model: one weight byte changed (issue 45)
         ("manifest", "is incomplete or corrupt"),  # export.json unreadable
+        ("size", "preprocessing size must be 1 to 4096 px, got 100000"),  # issue 50: 1.17 TiB allocated
+        ("dim", "embedding width of 10000000000"),
     ],
 )
 def test_a_broken_export_is_reported_and_made_again(
@@ -117,6 +119,13 @@ def test_a_broken_export_is_reported_and_made_again(
         content = bytearray(model.read_bytes())
         content[-size // 3] ^= 0x01  # inside the weights, past the graph's header
         model.write_bytes(bytes(content))
+    elif damage in ("size", "dim"):  # export.json is outside the model's digest
+        meta = json.loads((folder / MANIFEST_NAME).read_text())
+        if damage == "size":
+            meta["preprocess"]["size"] = 100000
+        else:
+            meta["dim"] = 10**10
+        (folder / MANIFEST_NAME).write_text(json.dumps(meta))
     else:
         (folder / MANIFEST_NAME).write_text("{not json")
     with caplog.at_level(logging.WARNING, logger="robofailring"):
@@ -268,3 +277,73 @@ def test_cuda_without_onnxruntime_gpu_says_what_to_install() -> None:
     with pytest.raises(EncoderError, match="install onnxruntime-gpu"):
         providers_for("cuda")
     assert providers_for(None) == ["CPUExecutionProvider"]
+
+
+def test_the_export_key_follows_the_model_config_and_the_calibration_frames(
+    tiny_checkpoint: tuple[Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """An export is made from the checkpoint, the open_clip model-config file a spec names and, for the
+    static int8 one, its calibration frames: another config file (same model name, other bytes) or other
+    frames is another export, never the cached one of something else."""
+    config, weights = tiny_checkpoint
+    spec = EncoderSpec.parse(f"open_clip:{config}:{weights}@openvino-int8")
+    folder, identity = export_folder(spec, tmp_path)
+    (tmp_path / "other").mkdir()
+    other = tmp_path / "other" / config.name
+    other.write_text(json.dumps(json.loads(config.read_text()), indent=1))  # the same model, written again
+    moved, same_identity = export_folder(
+        EncoderSpec.parse(f"open_clip:{other}:{weights}@openvino-int8"), tmp_path
+    )
+    assert same_identity == identity and moved != folder
+    fp32 = export_folder(spec.with_runtime("onnx"), tmp_path)[0]
+    for constant, value in (("CALIBRATION_FRAMES", 16), ("CALIBRATION_SEED", 1)):
+        with monkeypatch.context() as patched:
+            patched.setattr(export_module, constant, value)
+            assert export_folder(spec, tmp_path)[0] != folder, constant
+            assert export_folder(spec.with_runtime("onnx"), tmp_path)[0] == fp32  # fp32 has no calibration
+
+
+FIRST_LOAD = """
+import sys, time
+from pathlib import Path
+from robofailring.encoders import export, load_encoder
+spec, cache, me, other = sys.argv[1:]
+real = export.quantize
+def quantize(*args, **kwargs):
+    print("quantized", flush=True)
+    real(*args, **kwargs)
+export.quantize = quantize
+Path(cache, me).touch()
+while not Path(cache, other).exists():  # both ready: the two first loads start together
+    time.sleep(0.01)
+load_encoder(spec, cache_dir=cache)
+print("loaded", flush=True)
+"""
+
+
+def test_two_first_loads_at_once_make_the_export_once(
+    tiny_checkpoint: tuple[Path, Path], tmp_path: Path
+) -> None:
+    """Issue 50: two processes loading one `onnx-int8` encoder for the first time: the second ended in
+    status 1 (the export's folder busy); now it waits for the first's export and reads it."""
+    import os
+    import subprocess
+    import sys
+
+    spec = f"{_clip_spec(tiny_checkpoint)}@onnx-int8"
+    started = [
+        subprocess.Popen(
+            [sys.executable, "-c", FIRST_LOAD, spec, str(tmp_path), me, other],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env={**os.environ, "ROBOFAILRING_PROGRESS": "0"},
+        )
+        for me, other in (("a", "b"), ("b", "a"))
+    ]
+    outputs = [process.communicate(timeout=600) for process in started]
+    assert [process.returncode for process in started] == [0, 0], outputs
+    said = [stdout.split() for stdout, _ in outputs]
+    assert sorted(word for words in said for word in words) == ["loaded", "loaded", "quantized"]
+    assert sorted(folder.name.split("-")[-2] for folder in (tmp_path / "onnx").iterdir()) == ["int8", "onnx"]
+    assert not [path.name for path in (tmp_path / "onnx").iterdir() if path.name.startswith(".")]

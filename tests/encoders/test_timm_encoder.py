@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from fault_helpers import cli, refused
 from synthetic import synthetic_frame, write_project_dataset
 from typer.testing import CliRunner
 
@@ -131,3 +132,20 @@ def test_real_imagenet_weights_retrieve_a_frame_of_its_own_run(tmp_path: Path) -
 
     norms = [m for m in encoder.network.modules() if isinstance(m, torch.nn.BatchNorm2d)]  # type: ignore[attr-defined]
     assert norms and all(not torch.allclose(m.running_var, torch.ones_like(m.running_var)) for m in norms)
+
+
+def test_a_gpu_torch_cannot_find_is_one_line(
+    checkpoints: dict[str, Path], aha_dataset: Path, tmp_path: Path
+) -> None:
+    """Issue 50: `--device cuda` without a GPU ended a `timm:` build in torch's driver traceback; now it is
+    one line naming the device (and GPU 99, on any machine, likewise)."""
+    import torch
+
+    spec = f"timm:{MODEL}:{checkpoints['timm']}"
+    devices = ["cuda:99"] + ([] if torch.cuda.is_available() else ["cuda"])
+    for device in devices:
+        result = cli(
+            "build-memory", aha_dataset, "--out", tmp_path / device, "--encoder", spec, "--device", device
+        )
+        refused(result, 2, f"--device {device}: torch finds")
+        assert not (tmp_path / device).exists()

@@ -67,22 +67,42 @@ class ErrorMappingGroup(TyperGroup):
 
     Errors the library raises on purpose (`RoboFailRingError`: a bad setting is a `SettingError`)
     and operating-system errors (permission, disk full, a file where a folder belongs) are caught
-    here, for every verb; no verb catches errors of its own. A Ctrl-C is one line and status 130
-    (`rfr_viz.cli.app` says the same for one while the verbs load).
+    here, for every verb; no verb catches errors of its own. A Ctrl-C is one line and status 130,
+    whenever it comes (`main`; `rfr_viz.cli.app` says the same for one while the verbs load).
     """
+
+    _said_interrupted = False  # this run's Ctrl-C said already
+
+    def main(self, *args: Any, **kwargs: Any) -> Any:
+        """The command run whole: a Ctrl-C at any moment of it is one line and 130 (typer ends one that
+        comes while it parses the arguments in a bare 130, and one outside its own `try` in a traceback)."""
+        self._said_interrupted = False
+        try:
+            return super().main(*args, **kwargs)
+        except KeyboardInterrupt:
+            raise SystemExit(self._interrupted()) from None
+        except SystemExit as end:
+            if end.code == INTERRUPTED and not self._said_interrupted:
+                self._interrupted()
+            raise
+
+    def _interrupted(self) -> int:
+        self._said_interrupted = True
+        return interrupted()
 
     def invoke(self, ctx: _click.Context) -> Any:
         main = threading.current_thread() is threading.main_thread()  # only it may handle signals
-        previous = signal.signal(signal.SIGTERM, _terminate) if main else None
+        previous = None
         try:
+            previous = signal.signal(signal.SIGTERM, _terminate) if main else None
             return super().invoke(ctx)
         except (RoboFailRingError, OSError) as error:
             fail(error)
         except KeyboardInterrupt:
-            raise typer.Exit(code=interrupted()) from None
+            raise typer.Exit(code=self._interrupted()) from None
         except Terminated:
             typer.secho("error: terminated (SIGTERM)", fg=typer.colors.RED, err=True)
             raise typer.Exit(code=TERMINATED) from None
         finally:
-            if main:
+            if main and previous is not None:
                 signal.signal(signal.SIGTERM, previous)

@@ -213,7 +213,10 @@ CacheOption = Annotated[
     Path | None, typer.Option("--cache-dir", help="Embedding cache folder (default ~/.cache/robofailring).")
 ]
 DeviceOption = Annotated[
-    str | None, typer.Option("--device", help="torch device (default: cuda if available).")
+    str | None,
+    typer.Option(
+        "--device", help="Where the encoder runs: cpu, cuda, cuda:N or mps (default: cuda if available)."
+    ),
 ]
 RuntimeOption = Annotated[
     str | None,

@@ -10,8 +10,9 @@ from typing import Any, Final
 
 import numpy as np
 
+from robofailring.bounded import read_npz
 from robofailring.data.folders import aha_files
-from robofailring.data.model import Outcome, Skipped, Trajectory, parse_onset_frame
+from robofailring.data.model import Outcome, Skipped, Trajectory, check_frame_rate, parse_onset_frame
 from robofailring.data.registry import Found, Layout, register
 from robofailring.data.signals import Signal, SignalKind
 from robofailring.errors import DataError
@@ -89,7 +90,10 @@ def project_trajectories(root: Path, manifest: dict[str, Any]) -> Found:
             symbol=record.get("label"),
             outcome=outcome,
             source=directory,
-            fps=record.get("fps", manifest.get("fps")),
+            fps=check_frame_rate(
+                record.get("fps", manifest.get("fps")),
+                where=f"{root / PROJECT_MANIFEST} episode {record['dir']}",
+            ),
             split=record.get("split"),
             skipped=tuple(inside),
             signals=signals,
@@ -175,11 +179,7 @@ class NpzSignal:
     key: str
 
     def load(self) -> np.ndarray:
-        try:
-            with np.load(self.file, allow_pickle=False) as stored:
-                return np.asarray(stored[self.key])
-        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as error:
-            raise DataError(f"cannot read {self.reference}: {error}") from error
+        return read_npz(self.file, error=DataError, names=[self.key])[self.key]
 
     @property
     def reference(self) -> str:

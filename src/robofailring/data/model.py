@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
 from functools import cached_property
 from pathlib import Path
-from typing import Protocol, overload
+from typing import Final, Protocol, overload
 
 import numpy as np
 
@@ -230,11 +231,12 @@ class Trajectory:
     def frame_rate(self) -> float | None:
         """Frames per second: the layout's `fps`, else the first view's own (a video file's container), else
         None. Asked for, not read at load: a video's packets are listed only when its rate is wanted."""
+        where = f"{self.source or self.key}"
         if self.fps is not None:
-            return self.fps
+            return check_frame_rate(self.fps, where=where)
         for frames in self.views.values():
             if isinstance(frames, LazyFrames) and (rate := frames.fps) is not None:
-                return rate
+                return check_frame_rate(rate, where=where)
         return None
 
     @property
@@ -269,6 +271,35 @@ class Trajectory:
         if self.symbol:
             return self.symbol
         return self.outcome.value if self.outcome is not None else "unlabelled"
+
+
+#: The frame rates a recording's `time` timeline takes: one frame per 1,000 s to a 10 kHz sensor (a frame's time
+#: in nanoseconds must fit an int64: at 1e-12 fps frame 1 is 1e21 ns, an OverflowError in Rerun)
+FPS_RANGE: Final[tuple[float, float]] = (1e-3, 1e4)
+
+
+def in_fps_range(fps: float) -> bool:
+    """Whether `fps` is a finite rate within `FPS_RANGE` (a bool or a string is not a rate)."""
+    low, high = FPS_RANGE
+    return (
+        isinstance(fps, (int, float))
+        and not isinstance(fps, bool)
+        and math.isfinite(fps)
+        and low <= fps <= high
+    )
+
+
+def check_frame_rate(value: object, *, where: str) -> float | None:
+    """A dataset's own frame rate (`fps` of a manifest, a video's container, LeRobot's info), None when it
+    keeps none; DataError naming `where` when it is not a number within `FPS_RANGE`."""
+    if value is None:
+        return None
+    if not in_fps_range(value):  # type: ignore[arg-type]
+        low, high = FPS_RANGE
+        raise DataError(
+            f"{where}: fps must be a number of frames per second from {low:g} to {high:g}, got {value!r}"
+        )
+    return float(value)  # type: ignore[arg-type]
 
 
 def parse_onset_frame(value: object, *, length: int | None, where: str) -> int | None:

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any, Final
 
 from robofailring.detection.rules import rule_named
+from robofailring.encoders.device import check_device_name
 from robofailring.errors import SettingError
 
 DEFAULT_K: Final[int] = 5
@@ -59,7 +60,7 @@ class DetectorConfig:
 
     memory: Path | None = None  # memory folder (evaluate: None builds one from the training split)
     encoder: str | None = None  # encoder spec; None: the one that built the memory
-    device: str | None = None  # torch device for CLIP (default: cuda when available)
+    device: str | None = None  # cpu, cuda[:N] or mps (encoders/device.py; default: cuda when available)
     runtime: str | None = (
         None  # torch, onnx, onnx-int8 or openvino-int8 (default: the spec's own, else torch)
     )
@@ -74,6 +75,7 @@ class DetectorConfig:
     def __post_init__(self) -> None:  # a bad setting fails before the memory is read
         check_k(self.k)
         check_modality(self.modality)
+        check_device_name(self.device)
         if self.rule is not None:
             rule_named(self.rule)
         for name, value in self.thresholds.items():

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from robofailring.encoders.base import Encoder, cache_identity, l2_normalize
 from robofailring.encoders.cache import CachedEncoder, EmbeddingCache, default_cache_dir
+from robofailring.encoders.device import check_device_name
 from robofailring.encoders.kinds import kind_of
 from robofailring.encoders.spec import ENCODER_SPECS_HELP, EncoderSpec
 
@@ -21,6 +22,7 @@ def load_encoder(
     An ONNX runtime exports the network into `cache_dir` (default `default_cache_dir()`) the first time.
     """
     parsed = EncoderSpec.parse(spec)
+    check_device_name(device)
     if parsed.runtime != "torch":  # the runtime layer: the kind's network from its export
         from robofailring.encoders.exported import OnnxEncoder
 

@@ -26,12 +26,19 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
-from robofailring.atomic import atomic_directory
+from robofailring.atomic import atomic_directory, output_lock
+from robofailring.bounded import read_regular
 from robofailring.encoders.base import file_digest
 from robofailring.encoders.cache import default_cache_dir
 from robofailring.encoders.kinds import kind_of
-from robofailring.encoders.preprocess import Preprocess
-from robofailring.encoders.quantize import CALIBRATION_FRAMES, CALIBRATION_SEED, calibration_images, quantize
+from robofailring.encoders.preprocess import Preprocess, check_preprocess
+from robofailring.encoders.quantize import (
+    CALIBRATION_FRAMES,
+    CALIBRATION_SEED,
+    STATIC_SCHEME,
+    calibration_images,
+    quantize,
+)
 from robofailring.encoders.spec import EncoderSpec
 from robofailring.errors import EncoderError
 from robofailring.extras import needs_extra
@@ -41,6 +48,8 @@ EXPORT_VERSION: Final[int] = 1
 MODEL_NAME: Final[str] = "model.onnx"
 MANIFEST_NAME: Final[str] = "export.json"
 OPSET: Final[int] = 17
+MANIFEST_LIMIT: Final[int] = 1 << 20  # export.json: a few hundred bytes
+MAX_DIM: Final[int] = 1 << 16  # an embedding's width (ViT-bigG: 1,280)
 
 _log = logging.getLogger("robofailring")
 
@@ -69,8 +78,10 @@ def spec_identity(spec: EncoderSpec, made_from: MadeFrom | None = None) -> tuple
     """(the encoder identity, the export key) of a spec, found without loading its network (`made_from`:
     the kind's answer when the caller has it already, so a checkpoint is digested once per export)."""
     identity, material = made_from or kind_of(spec).export_identity(spec)
-    if spec.runtime == "openvino-int8":  # its calibration frames are part of what it is made from
-        material += f"|calibration-{CALIBRATION_FRAMES}-{CALIBRATION_SEED}"
+    if (
+        spec.runtime == "openvino-int8"
+    ):  # its calibration frames and static form are part of what it is made from
+        material += f"|calibration-{CALIBRATION_FRAMES}-{CALIBRATION_SEED}|{STATIC_SCHEME}"
     key = hashlib.blake2b(f"{material}|{spec.runtime}|v{EXPORT_VERSION}".encode(), digest_size=8).hexdigest()
     return identity, key
 
@@ -90,7 +101,8 @@ def read_export(folder: Path) -> Export | None:
         return None
     manifest = folder / MANIFEST_NAME
     try:
-        meta = parse_json(manifest.read_bytes(), source=str(manifest), error=EncoderError)
+        text = read_regular(manifest, limit=MANIFEST_LIMIT, error=EncoderError)
+        meta = parse_json(text, source=str(manifest), error=EncoderError)
         files = meta["files"]
         for name, recorded in files.items():
             if not isinstance(recorded, dict):
@@ -104,8 +116,11 @@ def read_export(folder: Path) -> Export | None:
                 raise EncoderError(
                     f"{name} does not match the digest {MANIFEST_NAME} records (changed since)"
                 )
+        dim = meta["dim"]
+        if type(dim) is not int or not 1 <= dim <= MAX_DIM:
+            raise EncoderError(f"{MANIFEST_NAME} gives an embedding width of {dim!r}, not 1 to {MAX_DIM}")
         return Export(
-            folder, str(meta["identity"]), int(meta["dim"]), str(meta["runtime"]), meta["preprocess"]
+            folder, str(meta["identity"]), dim, str(meta["runtime"]), check_preprocess(meta["preprocess"])
         )
     except (OSError, ValueError, KeyError, TypeError, AttributeError, EncoderError) as error:
         raise EncoderError(f"the cached ONNX export {folder} is incomplete or corrupt ({error})") from error
@@ -166,17 +181,37 @@ def ensure_export(
     spec: EncoderSpec, cache_dir: Path | None = None, made_from: MadeFrom | None = None
 ) -> Export:
     """The cached export of `spec` for its runtime (`onnx`, `onnx-int8`, `openvino-int8`), made once when
-    absent (an int8 one from the fp32 one, made first); an incomplete or corrupt one is reported and made again."""
+    absent (an int8 one from the fp32 one, made first); an incomplete or corrupt one is reported and made again.
+    A second process asking for an export the first is making waits for it, then reads it."""
     made_from = made_from or kind_of(spec).export_identity(spec)
     folder, identity = export_folder(spec, cache_dir, made_from)
+    found = _cached(folder)
+    if found is not None:
+        return found
+    with output_lock(folder, wait=True):
+        found = _cached(folder)  # made by another process while this one waited
+        if found is not None:
+            return found
+        _make(spec, folder, identity, cache_dir, made_from)
+    made = read_export(folder)
+    assert made is not None
+    return made
+
+
+def _cached(folder: Path) -> Export | None:
+    """The complete export in `folder`, or None (a broken one reported and removed)."""
     try:
-        found = read_export(folder)
+        return read_export(folder)
     except EncoderError as error:
         _log.warning("warning: %s; exporting it again", error)
         discard_export(folder)
-        found = None
-    if found is not None:
-        return found
+        return None
+
+
+def _make(
+    spec: EncoderSpec, folder: Path, identity: str, cache_dir: Path | None, made_from: MadeFrom
+) -> None:
+    """Export (or quantize) `spec` into `folder`, holding its lock."""
     if spec.runtime == "onnx":
         _log.info("exporting %s to ONNX (once; cached in %s)", identity, folder)
         with atomic_directory(folder) as tmp:
@@ -191,11 +226,9 @@ def ensure_export(
             _write(tmp, fp32.identity, fp32.dim, spec.runtime, fp32.preprocess)
     else:
         raise EncoderError(f"runtime {spec.runtime} has no ONNX export")
-    made = read_export(folder)
-    assert made is not None
-    return made
 
 
 def discard_export(folder: Path) -> None:
-    """Remove a broken export folder, so that it is made again."""
-    shutil.rmtree(folder, ignore_errors=True)
+    """Remove a broken export folder, so that it is made again (under its lock: never one being made)."""
+    with output_lock(folder, wait=True):
+        shutil.rmtree(folder, ignore_errors=True)

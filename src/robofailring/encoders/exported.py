@@ -13,11 +13,12 @@ import logging
 import threading
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, Final
 
 import numpy as np
 
 from robofailring.encoders.base import l2_normalize
+from robofailring.encoders.device import check_device_name, cuda_index
 from robofailring.encoders.export import Export, discard_export, ensure_export
 from robofailring.encoders.preprocess import Preprocess
 from robofailring.encoders.spec import EncoderSpec
@@ -28,11 +29,16 @@ CPU = "CPUExecutionProvider"
 CUDA = "CUDAExecutionProvider"
 
 
-def providers_for(device: str | None) -> list[str]:
-    """ONNX Runtime execution providers for a `--device`: CUDA first where it is asked for or available."""
+Provider = str | tuple[str, dict[str, Any]]  # a provider, or one with its options (ONNX Runtime's form)
+
+
+def providers_for(device: str | None) -> list[Provider]:
+    """ONNX Runtime execution providers for a `--device` (`device.py`): CUDA first where it is asked for
+    (on GPU N for `cuda:N`) or available; EncoderError where this ONNX Runtime cannot run on it."""
     with needs_extra("onnx"):
         import onnxruntime
 
+    check_device_name(device)
     available = onnxruntime.get_available_providers()
     if device is not None and device.startswith("cuda"):
         if CUDA not in available:
@@ -40,13 +46,15 @@ def providers_for(device: str | None) -> list[str]:
                 f"--device {device} asks for CUDA, but this ONNX Runtime has no CUDAExecutionProvider "
                 f"(it has {', '.join(available)}); install onnxruntime-gpu in place of onnxruntime"
             )
-        return [CUDA, CPU]
+        return [(CUDA, {"device_id": cuda_index(device)}), CPU]
+    if device is not None and device != "cpu":
+        raise EncoderError(f"--device {device}: ONNX Runtime runs on cpu or cuda[:N], not {device}")
     if device is None and CUDA in available:
         return [CUDA, CPU]
     return [CPU]
 
 
-def open_session(model: Path, providers: Sequence[str], *, threads: int | None = None) -> Any:
+def open_session(model: Path, providers: Sequence[Provider], *, threads: int | None = None) -> Any:
     """An ONNX Runtime session on `model` (intra-op threads: `threads`, else ORT's own choice)."""
     with needs_extra("onnx"):
         import onnxruntime
@@ -61,20 +69,34 @@ def open_session(model: Path, providers: Sequence[str], *, threads: int | None =
 
 
 OPENVINO_CPU = "OpenVINO CPU"
+#: The precision OpenVINO runs the layers outside the int8 ones in. Its CPU plugin picks bf16 by itself
+#: where the CPU has AMX or AVX-512 BF16 and f32 elsewhere, so the same export gave other embeddings (and
+#: other neighbours) on an Intel Xeon than on an AMD one; asked for explicitly, every CPU agrees.
+OPENVINO_PRECISION: Final[str] = "f32"
 
 
 class OpenVinoSession:
-    """An export compiled by OpenVINO for the CPU, run as an ONNX Runtime session is (`run`, `get_providers`)."""
+    """An export compiled by OpenVINO for the CPU, run as an ONNX Runtime session is (`run`, `get_providers`);
+    its float layers in `OPENVINO_PRECISION` whatever the CPU would choose."""
 
     def __init__(self, model: Path, *, threads: int | None = None) -> None:
         with needs_extra("openvino"):
             import openvino
 
-        config: dict[str, Any] = {"PERFORMANCE_HINT": "LATENCY"}
+        config: dict[str, Any] = {
+            "PERFORMANCE_HINT": "LATENCY",
+            "INFERENCE_PRECISION_HINT": OPENVINO_PRECISION,
+        }
         if threads:
             config["INFERENCE_NUM_THREADS"] = threads
-        self._request = openvino.Core().compile_model(str(model), "CPU", config).create_infer_request()
+        self._compiled = openvino.Core().compile_model(str(model), "CPU", config)
+        self._request = self._compiled.create_infer_request()
         self._lock = threading.Lock()  # one infer request: one run at a time
+
+    @property
+    def precision(self) -> str:
+        """The precision the compiled model runs its float layers in, as OpenVINO reports it (`f32`)."""
+        return str(self._compiled.get_property("INFERENCE_PRECISION_HINT").to_string())
 
     def run(self, _outputs: None, feeds: dict[str, np.ndarray]) -> list[np.ndarray]:
         with self._lock:
@@ -87,7 +109,7 @@ class OpenVinoSession:
 def session_opener(runtime: str, device: str | None, threads: int | None) -> Callable[[Path], Any]:
     """What opens an export of `runtime` on `device`: an ONNX Runtime session, or OpenVINO's (CPU only)."""
     if runtime == "openvino-int8":
-        if device is not None and not device.startswith("cpu"):
+        if check_device_name(device) not in (None, "cpu"):
             raise EncoderError(
                 f"--runtime openvino-int8 runs on the CPU (OpenVINO), not on --device {device}; on a GPU use "
                 "--runtime onnx or torch"

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from robofailring.encoders.base import file_digest, l2_normalize
+from robofailring.encoders.device import pick_device
 from robofailring.encoders.kinds import Network
 from robofailring.encoders.spec import EncoderSpec
 from robofailring.errors import EncoderError, WeightsUnavailableError
@@ -81,16 +82,6 @@ def _offline_unless_reachable() -> Iterator[None]:
         yield
     finally:
         hub_constants.HF_HUB_OFFLINE = previous
-
-
-def pick_device(device: str | None = None) -> str:
-    """`cuda` when available (or as asked), else `cpu`."""
-    with needs_extra("clip"):
-        import torch
-
-    if device:
-        return device
-    return "cuda" if torch.cuda.is_available() else "cpu"
 
 
 def _checkpoint_problem(error: Exception) -> str:

@@ -7,8 +7,9 @@ for ONNX Runtime and OpenVINO alike, and for the frames that calibrate a static 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, Final
 
 import numpy as np
 
@@ -16,12 +17,44 @@ from robofailring.encoders.trained import prepare_images
 from robofailring.errors import EncoderError
 from robofailring.extras import needs_extra
 
+MAX_SIDE: Final[int] = 4096  # an input side no network here takes more of (224 to 448 px in practice)
+
+
+def _side(value: object) -> bool:
+    return type(value) is int and 1 <= value <= MAX_SIDE
+
+
+def _channels(value: object) -> bool:
+    return (
+        isinstance(value, list)
+        and len(value) == 3
+        and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)
+    )
+
+
+def check_preprocess(description: object) -> dict[str, Any]:
+    """An export's recorded preprocessing, checked before anything is sized by it: its kind, an input side
+    (or two) from 1 to `MAX_SIDE`, three finite means and three positive spreads. `export.json` is outside
+    the export's digest, so a size of 100,000 (a 1.17 TiB frame batch) is an EncoderError, never allocated."""
+    if not isinstance(description, dict) or description.get("kind") not in ("open_clip", "square"):
+        raise EncoderError(f"unknown preprocessing {description!r} in an ONNX export")
+    size = description.get("size")
+    sides = size if isinstance(size, list) and len(size) == 2 else [size]
+    mean, std = description.get("mean"), description.get("std")
+    if not all(_side(side) for side in sides):
+        raise EncoderError(f"an ONNX export's preprocessing size must be 1 to {MAX_SIDE} px, got {size!r}")
+    if not (_channels(mean) and isinstance(std, list) and _channels(std) and min(std) > 0):
+        raise EncoderError(
+            f"an ONNX export's preprocessing needs three means and three positive spreads, got {mean!r}, {std!r}"
+        )
+    return description
+
 
 class Preprocess:
     """The pixels an export expects, from RGB uint8 images, exactly as the torch encoder prepares them."""
 
     def __init__(self, description: dict[str, Any]) -> None:
-        self.kind = description.get("kind")
+        self.kind = check_preprocess(description)["kind"]
         if self.kind == "open_clip":
             with needs_extra("clip"):
                 from open_clip.transform import PreprocessCfg, image_transform_v2
@@ -33,8 +66,6 @@ class Preprocess:
             self._size = int(description["size"])
             self._mean = np.asarray(description["mean"], dtype=np.float32).reshape(1, 3, 1, 1)
             self._std = np.asarray(description["std"], dtype=np.float32).reshape(1, 3, 1, 1)
-        else:
-            raise EncoderError(f"unknown preprocessing {self.kind!r} in an ONNX export")
 
     def __call__(self, images: Sequence[np.ndarray]) -> np.ndarray:
         if self.kind == "open_clip":

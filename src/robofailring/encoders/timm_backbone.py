@@ -20,8 +20,9 @@ from typing import Any
 import numpy as np
 
 from robofailring.encoders.base import file_digest, l2_normalize
+from robofailring.encoders.device import pick_device
 from robofailring.encoders.kinds import Network
-from robofailring.encoders.openclip import _offline_unless_reachable, pick_device
+from robofailring.encoders.openclip import _offline_unless_reachable
 from robofailring.encoders.spec import EncoderSpec
 from robofailring.encoders.trained import normalizer, prepare_images, to_tensor
 from robofailring.errors import EncoderError, WeightsUnavailableError

@@ -242,7 +242,7 @@ class TrainedEncoder:
         with needs_extra("clip"):
             import torch
 
-        from robofailring.encoders.openclip import pick_device
+        from robofailring.encoders.device import pick_device
 
         self.directory = Path(directory).expanduser()
         self.config, self._identity = trained_identity(self.directory)

@@ -32,6 +32,7 @@ from robofailring.data.model import Frame, Outcome, Trajectory
 from robofailring.data.selection import DataSelection
 from robofailring.data.splits import split_of
 from robofailring.encoders.augment import AUGMENTATION, augment
+from robofailring.encoders.device import check_device_name
 from robofailring.encoders.trained import (
     CNN_MEAN,
     CNN_STD,
@@ -102,6 +103,7 @@ class TrainEncoderConfig:
             raise SettingError(f"image size must be at least 16 px, got {self.image_size}")
         if not self.learning_rate > 0:
             raise SettingError(f"learning rate must be positive, got {self.learning_rate}")
+        check_device_name(self.device)
 
     def recipe(self) -> dict[str, Any]:
         """The settings that decide the weights (not where they go or how fast), as encoders trained before
@@ -260,7 +262,7 @@ def train_encoder(
     with needs_extra("clip"):
         import torch
 
-    from robofailring.encoders.openclip import pick_device
+    from robofailring.encoders.device import pick_device
 
     out = Path(config.out)
     previous = existing_encoder(out)

@@ -20,10 +20,9 @@ from robofailring.data.grounding import Vocabulary
 from robofailring.data.model import Trajectory
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import EncoderMismatchError, MemoryFormatError, UnknownTaskError
-from robofailring.jsontext import parse_json
 from robofailring.memory.encoding import BuildStats, encode_failures, failure_views
 from robofailring.memory.entry import MemoryEntry, Neighbor
-from robofailring.memory.format import parse_entry, read_jsonl, stored_vocabulary
+from robofailring.memory.format import parse_entry, read_json, read_jsonl, stored_vocabulary
 from robofailring.memory.image_roots import ImageRoots
 from robofailring.memory.index import FLAT, TaskIndexSet
 from robofailring.memory.index_file import read_index_file
@@ -343,7 +342,7 @@ class FailureMemory:
         manifest_path = directory / MANIFEST
         if not manifest_path.is_file() and not restore_interrupted(directory):
             raise not_a_memory(directory)
-        manifest = parse_json(manifest_path.read_bytes(), source=str(manifest_path), error=MemoryFormatError)
+        manifest = read_json(manifest_path)
         version = manifest.get("format_version") if isinstance(manifest, dict) else None
         if version not in READABLE_VERSIONS:
             readable = ", ".join(map(str, READABLE_VERSIONS))

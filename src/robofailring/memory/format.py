@@ -10,29 +10,43 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Final, TypeVar
 
+from robofailring.bounded import GIB, open_regular, read_regular
 from robofailring.data.grounding import Vocabulary, parse_symbol
 from robofailring.data.vocabulary import read_vocabulary
 from robofailring.errors import MemoryFormatError, SymbolError, VocabularyError
 from robofailring.jsontext import parse_json
 
 ENTRY_FIELDS: Final[tuple[str, ...]] = ("task", "symbol", "episode", "view", "start", "end")
+JSONL_LIMIT: Final[int] = 16 * GIB  # entries.jsonl, success_runs.jsonl: tens of millions of rows
+LINE_LIMIT: Final[int] = 1 << 24  # one row (an entry, a success run's frame list): 16 MiB
+MANIFEST_LIMIT: Final[int] = 1 << 28  # manifest.json: 256 MiB
 
 Row = TypeVar("Row")
+
+
+def read_json(path: Path) -> Any:
+    """A memory's JSON file (`manifest.json`), a regular file of at most `MANIFEST_LIMIT` bytes, parsed."""
+    text = read_regular(path, limit=MANIFEST_LIMIT, error=MemoryFormatError)
+    return parse_json(text, source=str(path), error=MemoryFormatError)
 
 
 def read_jsonl(path: Path, parse: Callable[[Any], Row], *, what: str) -> list[Row]:
     """Every non-blank line of `path` as JSON, turned into a row by `parse`.
 
+    `path` is read only when it is a regular file of at most `JSONL_LIMIT` bytes, and a line only up to
+    `LINE_LIMIT` bytes (`robofailring.bounded`: a link to `/dev/zero` was read until memory ran out).
     `parse` raises MemoryFormatError, TypeError, KeyError or ValueError for a row it cannot use;
     the error names `path:<line>` and `what` a row is (e.g. "entry").
     """
     rows: list[Row] = []
     try:
-        with Path(path).open(encoding="utf-8") as handle:
-            for number, line in enumerate(handle, 1):
+        with open_regular(path, limit=JSONL_LIMIT, error=MemoryFormatError) as handle:
+            for number, line in enumerate(iter(lambda: handle.readline(LINE_LIMIT + 1), b""), 1):
+                if len(line) > LINE_LIMIT:
+                    raise MemoryFormatError(f"{path}:{number} is longer than {LINE_LIMIT:,} bytes")
                 if not line.strip():
                     continue
-                record = parse_json(line, source=f"{path}:{number}", error=MemoryFormatError)
+                record = parse_json(line.decode("utf-8"), source=f"{path}:{number}", error=MemoryFormatError)
                 try:
                     rows.append(parse(record))
                 except MemoryFormatError as error:

@@ -17,6 +17,7 @@ from typing import Final
 
 import faiss
 
+from robofailring.bounded import GIB, open_regular
 from robofailring.errors import MemoryFormatError
 
 # fourcc, d (int32), ntotal (int64), two unused int64, is_trained (bool), metric_type (int32): Faiss's
@@ -24,6 +25,7 @@ from robofailring.errors import MemoryFormatError
 _HEADER: Final[struct.Struct] = struct.Struct("<4siqqq?i")
 _FLAT: Final[frozenset[bytes]] = frozenset({b"IxFI", b"IxF2", b"IxFl"})
 _FLOATS: Final[struct.Struct] = struct.Struct("<Q")  # a flat index's vector data: its length in floats
+INDEX_LIMIT: Final[int] = 256 * GIB  # a regular file (never a link to a device) of at most this
 
 
 def read_index_file(path: Path, *, count: int, dim: int | None = None) -> faiss.Index:
@@ -41,7 +43,7 @@ def check_index_file(path: Path, *, count: int, dim: int | None = None) -> None:
     more vector bytes than the file holds (see the module's docstring); a file too short for a header is
     left to Faiss, which refuses it without allocating."""
     try:
-        with Path(path).open("rb") as handle:
+        with open_regular(path, limit=INDEX_LIMIT, error=MemoryFormatError) as handle:
             head = handle.read(_HEADER.size + 4 + _FLOATS.size)
             size = handle.seek(0, 2)
     except OSError as error:

@@ -23,6 +23,7 @@ from typing import Any, Final
 
 import numpy as np
 
+from robofailring.bounded import read_npz
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.errors import DataError, MemoryFormatError
 from robofailring.memory.signal_derived import NONE as NO_FEATURES
@@ -250,11 +251,7 @@ class SignalMemory:
         """What `write` wrote, checked: a missing array or a size other than the manifest's names the file."""
         path = Path(directory) / SIGNALS_FILE
         where = f"{path}"
-        try:
-            with np.load(path, allow_pickle=False) as stored:
-                arrays = {name: stored[name] for name in stored.files}
-        except (OSError, ValueError, EOFError) as error:
-            raise MemoryFormatError(f"cannot read the signal memory {path}: {error}") from error
+        arrays = read_npz(path, error=MemoryFormatError)  # each array's declared size checked first
         by_task = {}
         start_weight = _start_weight(section, where)
         try:

@@ -1,0 +1,54 @@
+"""`--device`, checked once for every encoder kind and runtime: its form here, its presence where it runs.
+
+A device is `cpu`, `cuda`, `cuda:N` or `mps` (`check_device_name`, asked where a detector's settings
+are made and by `load_encoder`, so `npu` or `bogus:7` is one error before anything is read). Whether it
+is there is asked by what runs on it: torch (`pick_device`: no CUDA GPU, no GPU N, no Apple GPU), ONNX
+Runtime (`exported.providers_for`: no CUDA provider) and OpenVINO (the CPU only). A kind without a
+network (`pixels`) runs in numpy on the CPU whatever the device.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Final
+
+from robofailring.errors import EncoderError, SettingError
+from robofailring.extras import needs_extra
+
+DEVICE_FORMS: Final[str] = "cpu, cuda, cuda:N (a GPU's index) or mps"
+_DEVICE: Final[re.Pattern[str]] = re.compile(r"cpu|cuda(:[0-9]+)?|mps")
+
+
+def check_device_name(device: str | None) -> str | None:
+    """`device` when it has a device's form (`DEVICE_FORMS`) or is None (the default); SettingError otherwise."""
+    if device is not None and not _DEVICE.fullmatch(device):
+        raise SettingError(f"--device {device!r} is not a device robofailring runs on: use {DEVICE_FORMS}")
+    return device
+
+
+def cuda_index(device: str) -> int:
+    """The GPU index of `cuda` (0) or `cuda:N`."""
+    return int(device.partition(":")[2] or 0)
+
+
+def pick_device(device: str | None = None) -> str:
+    """The torch device to run on: `device` when torch has it here, else (None) `cuda` when available, else
+    `cpu`; EncoderError naming the device when torch has no such GPU."""
+    check_device_name(device)
+    with needs_extra("clip"):
+        import torch
+
+    if device is None:
+        return "cuda" if torch.cuda.is_available() else "cpu"
+    if device.startswith("cuda"):
+        count = torch.cuda.device_count() if torch.cuda.is_available() else 0
+        if count == 0:
+            raise EncoderError(
+                f"--device {device}: torch finds no CUDA GPU here (no GPU, no driver, or a CPU-only torch); "
+                "use --device cpu"
+            )
+        if cuda_index(device) >= count:
+            raise EncoderError(f"--device {device}: torch finds {count} CUDA GPU(s) here, numbered from 0")
+    if device == "mps" and not torch.backends.mps.is_available():
+        raise EncoderError("--device mps: torch finds no Apple GPU (MPS) here; use --device cpu")
+    return device

@@ -1,0 +1,87 @@
+"""Ctrl-C at any moment of the command's start (issue 50): one `error: interrupted (Ctrl-C)` line and status
+130, never a traceback, a bare 130 or typer's "Aborted!". Each moment typer and the command pass through is
+hit on purpose (a SIGINT sent from inside), then real SIGINTs at many moments of the console script's start."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+INTERRUPTED = (130, "error: interrupted (Ctrl-C)\n", "")
+
+CTRL_C_AT = """
+import os, signal, sys
+where = sys.argv[1]
+def ctrl_c(*args, **kwargs):
+    os.kill(os.getpid(), signal.SIGINT)
+    raise AssertionError("the SIGINT was not delivered")
+if where == "logging":  # the command's first import
+    import importlib.abc
+    class CtrlC(importlib.abc.MetaPathFinder):
+        def find_spec(self, name, path=None, target=None):
+            if name == "logging":
+                ctrl_c()
+    sys.meta_path.insert(0, CtrlC())
+else:
+    import typer.core, typer.main
+    if where == "building":  # typer turning the verb apps into click commands
+        typer.main.get_command = ctrl_c
+    elif where == "parsing":  # click parsing the command line, before the verb is invoked
+        typer.core.TyperGroup.make_context = ctrl_c
+sys.argv[1:] = sys.argv[2:]
+from rfr_viz.cli.app import main  # what the console script runs
+sys.exit(main())
+"""
+
+
+def _env() -> dict[str, str]:
+    return {**os.environ, "ROBOFAILRING_PROGRESS": "0"}
+
+
+@pytest.mark.parametrize("where", ["logging", "building", "parsing"])
+def test_a_ctrl_c_at_each_moment_of_the_start_is_one_line_and_130(where: str, tmp_path: Path) -> None:
+    """Before: `logging` loading, a traceback; typer building the command, a traceback; click parsing the
+    arguments, status 130 without a word."""
+    command = [sys.executable, "-c", CTRL_C_AT, where, "memory-info", str(tmp_path)]
+    done = subprocess.run(command, capture_output=True, text=True, env=_env(), check=False)
+    assert (done.returncode, done.stderr, done.stdout) == INTERRUPTED
+
+
+def _before_the_script(returncode: int, stderr: str, launcher: Path) -> bool:
+    """A SIGINT the interpreter got before the console script's first line: killed by it with no word, or
+    a traceback from Python's own start (`site`) that never passes through the script."""
+    return (returncode == -signal.SIGINT and not stderr) or (
+        "Traceback" in stderr and str(launcher) not in stderr
+    )
+
+
+def test_real_ctrl_c_at_many_moments_of_the_first_moments(pixels_memory_dir: Path) -> None:
+    """SIGINT sent to the console script at moments spread over its start (0.05 s on, up to the time it
+    takes to load and run `memory-info`): each is one line and 130."""
+    launcher = Path(sys.executable).with_name("robofailring")
+    command = [sys.executable, str(launcher), "memory-info", str(pixels_memory_dir)]
+    began = time.monotonic()
+    whole = subprocess.run(command, capture_output=True, text=True, env=_env(), check=False)
+    took = time.monotonic() - began  # where the signals go, never asserted on
+    assert whole.returncode == 0, whole.stderr
+    moments = [0.05 + (took - 0.05) * step / 11 for step in range(12)]
+    counted = []
+    for moment in moments:
+        process = subprocess.Popen(
+            command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env()
+        )
+        time.sleep(moment)
+        if process.poll() is None:
+            process.send_signal(signal.SIGINT)
+        stdout, stderr = process.communicate(timeout=120)
+        if process.returncode == 0 or _before_the_script(process.returncode, stderr, launcher):
+            continue  # done before the signal, or signalled before the script ran: not the command's
+        counted.append((moment, (process.returncode, stderr, stdout)))
+    assert len(counted) >= 6, counted
+    assert [outcome for _, outcome in counted] == [INTERRUPTED] * len(counted), counted
