@@ -340,7 +340,7 @@ class FailureMemory:
     @classmethod
     def _read(cls, directory: Path, data_root: Path | None, image_roots: ImageRoots) -> FailureMemory:
         manifest_path = directory / MANIFEST
-        if not manifest_path.is_file() and not restore_interrupted(directory):
+        if not manifest_path.exists() and not restore_interrupted(directory):
             raise not_a_memory(directory)
         manifest = read_json(manifest_path)
         version = manifest.get("format_version") if isinstance(manifest, dict) else None
