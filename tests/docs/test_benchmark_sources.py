@@ -16,7 +16,10 @@ TIMING = re.compile(
     r"|seconds a frame"
 )
 # durations that are settings, not measurements
-SETTINGS = {"vlm.md": "a request's timeout and the waits between retries"}
+SETTINGS = {
+    "vlm.md": "a request's timeout and the waits between retries",
+    "environment.md": "how often a progress line is printed",
+}
 FIGURES = re.compile(r"(?<![\d.])(\d+\.\d) / (\d+\.\d)(?: / (\d+\.\d) %)?(?![\d.])")
 
 

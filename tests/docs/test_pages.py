@@ -217,6 +217,14 @@ def test_every_page_is_in_the_sites_nav() -> None:
     assert config["strict"] is True
 
 
+def test_the_home_page_lists_every_page() -> None:
+    """index.md's table of pages has a row per page of docs/ (the site's nav has them too, above)."""
+    listed = set(
+        re.findall(r"^\| \[[^\]]+\]\(([\w-]+\.md)\) \|", (DOCS / "index.md").read_text(), re.MULTILINE)
+    )
+    assert sorted(page.name for page in PAGES if page.name not in listed | {"index.md"}) == []
+
+
 @pytest.mark.parametrize("page", [README, *PAGES], ids=lambda p: p.name)
 def test_pages_cite_no_path_of_this_machine(page: Path) -> None:
     text = page.read_text()
