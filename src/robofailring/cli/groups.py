@@ -48,7 +48,9 @@ class OptionGroup(Generic[Value]):
     `panel` in `--help`."""
 
     build: Callable[..., Value]
-    panel: str = ""  # the heading its options are listed under in --help, as docs/cli.md names it; "": "Options"
+    panel: str = (
+        ""  # the heading its options are listed under in --help, as docs/cli.md names it; "": "Options"
+    )
     left_out: frozenset[str] = frozenset()  # parameters this verb does not offer: `build`'s defaults stand
     declared: Mapping[str, Declared] = field(
         default_factory=dict
