@@ -3,6 +3,7 @@ each figure, its script, its command and the machine it was measured on), the he
 `_*.py` modules, and in `experiments/` the one-off probes behind a written conclusion.
 
 Every script answers `--help` without doing any work and prints the machine it measures on first
-(`bench._timing.print_machine`). Run a script from the checkout's root with the package importable:
-`PYTHONPATH=src:.:bench .venv/bin/python bench/bench_scale.py --help` (or `python -m bench.bench_scale`).
+(`bench._timing.print_machine`). Run a script as a module from the checkout's root, in the venv
+`scripts/setup.sh` makes (the project installed in it): `.venv/bin/python -m bench.bench_scale --help`;
+`-m` puts the checkout on the path, so no PYTHONPATH is needed.
 """

@@ -6,7 +6,7 @@ prints, per image size and format, the per-frame time of: a `stat` (the old size
 reading + hashing the bytes (the key now), reading + decoding the image (the least a cache miss
 costs before encoding), and a full cached lookup of a warm cache.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_cache.py
+Run: .venv/bin/python -m bench.bench_cache
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """From zero failures to a full memory: recall, FPR, T_s and AUC at one α as labelled failures are added.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_coldstart.py [--encoder SPEC]... [--train-encoder] [--alpha 0.05]
+Run: .venv/bin/python -m bench.bench_coldstart [--encoder SPEC]... [--train-encoder] [--alpha 0.05]
      [--growth 0,1,2,4] [--id-episodes N --id-successes N --ood-episodes N --ood-successes N]
 
 On the embedded benchmark (`bench/bench_quality.py`'s simulated ID and OOD sets, cached), the memory

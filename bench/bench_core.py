@@ -1,6 +1,6 @@
 """Core speed figures (issue 2): search latency, detector overhead, encoder overhead, cache speed-up.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_core.py   (prints one line per figure, ratios measured side by side)
+Run: .venv/bin/python -m bench.bench_core   (prints one line per figure, ratios measured side by side)
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Decoding speed of a LeRobot episode (issue 11): frames/s from AV1 video, sequential and with
 `--stride 5`, against reading the same frames from PNG files.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_decode.py [--frames 150] [--size 256]
+Run: .venv/bin/python -m bench.bench_decode [--frames 150] [--size 256]
 (writes a 3-camera LeRobot v3.0 dataset, AV1 via libsvtav1 with a keyframe every 2 frames as
 lerobot 0.4 writes it, and the same frames as PNG, to a temporary folder; prints one line per figure)
 """

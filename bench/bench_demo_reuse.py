@@ -1,7 +1,7 @@
 """The demo before and after jobs pass values (issue 32, item 3): the same small demo timed under a baseline
 commit's code and under this checkout's, in one run, and the ratio.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_demo_reuse.py [--baseline COMMIT] [--repeats 2] [--episodes 2] [--frames 8]
+Run: .venv/bin/python -m bench.bench_demo_reuse [--baseline COMMIT] [--repeats 2] [--episodes 2] [--frames 8]
 
 The baseline's source is exported with `git archive` (no worktree, nothing of the repository changed) into
 a temporary folder; each demo runs in a fresh Python process with that tree (or this checkout) first on

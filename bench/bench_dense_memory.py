@@ -1,6 +1,6 @@
 """What a dense failure memory costs beside the paper's: its entries, its build, its memory map, a replay.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_dense_memory.py [--data DIR] [--encoder SPEC] [--repeat 3]
+Run: .venv/bin/python -m bench.bench_dense_memory [--data DIR] [--encoder SPEC] [--repeat 3]
 
 The memory holds every failure episode of the set (the demo's simulated set by default, as the other
 map benches), without success runs, built once as `end` (the paper's: one (I_0 ‖ I_end) entry per

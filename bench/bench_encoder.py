@@ -1,6 +1,6 @@
 """Trained encoder (issue 16): training time, encoding cost, and detection quality side by side with `pixels`.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_encoder.py [--epochs N] [--frame-stride S] [--threads T] [--reuse]
+Run: .venv/bin/python -m bench.bench_encoder [--epochs N] [--frame-stride S] [--threads T] [--reuse]
 
 Trains `train-encoder`'s CNN on the training split of the demo-sized simulated set (simulated
 once and cached, exactly as `robofailring demo` does), then, for `pixels` and the trained encoder,

@@ -7,7 +7,7 @@ batch of 64 against torch's, where the installed ONNX Runtime has that provider 
 plain onnxruntime package has none, and this part then says so and is skipped). int8 is not timed on
 the GPU: its dynamically quantized MatMuls run on ONNX Runtime's CPU kernels.
 
-Run: PYTHONPATH=src:.:bench python bench/bench_gpu.py
+Run: python -m bench.bench_gpu
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ per-frame scores. Control: `h5py` reads the same rows in a bare h5py loop, so wh
 per chunk read (its chunk index, ~0.3 KB per one-frame chunk) is told apart from the project's reader. `--codec` is the replay's `--camera-codec` (default auto: AV1 at these sizes), `--lengths`
 the demo lengths. Run:
 
-    PYTHONPATH=src:. python bench/bench_hdf5_memory.py [--codec jpeg] [--lengths 500 2000 4000]
+    .venv/bin/python -m bench.bench_hdf5_memory [--codec jpeg] [--lengths 500 2000 4000]
 """
 
 from __future__ import annotations

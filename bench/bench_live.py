@@ -1,7 +1,7 @@
 """Live view cost (issue 12): latency a step of the step API gains from the Rerun sink, 3 views; and
 (issue 50) what a step of the robot's signals costs at step 10 and at step 40,000 of one session.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_live.py [--steps 200] [--image-size 128] [--entries 1500] [--connect URL]
+Run: .venv/bin/python -m bench.bench_live [--steps 200] [--image-size 128] [--entries 1500] [--connect URL]
      [--signal-steps 40000] [--signals-only]
 
 The frames are the simulated robot's own (three cameras), fed as live RGB arrays; the memory holds

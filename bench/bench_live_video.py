@@ -1,6 +1,6 @@
 """Live camera codecs (`watch --camera-codec`): per-step logging cost, bytes, and how late video arrives.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_live_video.py [--real DIR]
+Run: .venv/bin/python -m bench.bench_live_video [--real DIR]
 
 Feeds the real ManiSkill-failgen episode (256 px, 69 frames, 3 views; `--real DIR`, else a simulated
 256 px × 69-frame episode) frame by frame through `rfr_viz.panels.live_camera.LiveCameras` into a file, as

@@ -1,6 +1,6 @@
 """The first memory map of a fresh process: umap-learn's `UMAP.fit` against rfr_viz's fit, on the simulator's failures.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_map_fit.py [--data DIR] [--encoder SPEC]... [--repeat 3]
+Run: .venv/bin/python -m bench.bench_map_fit [--data DIR] [--encoder SPEC]... [--repeat 3]
 
 The map before: `umap.UMAP(metric="cosine", precomputed_knn=Faiss neighbours).fit_transform`, whose
 fuzzy-graph code (numba, not cached) is compiled in every new process. The map now

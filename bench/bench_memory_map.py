@@ -1,6 +1,6 @@
 """Does the memory map answer "which failures look alike"? Failure-type purity of the map before and now.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_memory_map.py [--data DIR]... [--encoder SPEC]... [--k 5]
+Run: .venv/bin/python -m bench.bench_memory_map [--data DIR]... [--encoder SPEC]... [--k 5]
 
 Before: one UMAP of every memory vector (the pair vectors norm([f(I_start) ‖ f(I_end)])), as rfr_viz drew
 it. Now (`rfr_viz.panels.umap`): one map per camera view of what changed, norm(f(I_end) − f(I_start)),

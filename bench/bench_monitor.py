@@ -1,7 +1,7 @@
 """The rollout monitor's cost (issue 52): the wrapper's step against the env's own and a bare `session.step`,
 parity of its alarms with `detect` on the saved episodes, memory over 10,000 steps, a vector env of 4.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_monitor.py [--episodes 4] [--frames 40] [--long 10000]
+Run: .venv/bin/python -m bench.bench_monitor [--episodes 4] [--frames 40] [--long 10000]
 
 The env is the embedded simulator (`SimEnv`, three cameras at --image-size, its scripted policy, faults
 injected); the memory is built once from a small simulated set of the same task (pixels encoder, contrast rule

@@ -1,6 +1,6 @@
 """Video sources logged as their own samples (no re-encoding): the time a recording's cameras take.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_passthrough.py [--real DIR] [--repeat 3]
+Run: .venv/bin/python -m bench.bench_passthrough [--real DIR] [--repeat 3]
 
 The real ManiSkill-failgen episode (256 px, 69 frames, 3 views; `--real DIR`, else a simulated
 256 px × 69-frame episode) is written as a video-episode folder (`<view>.mp4`) in AV1 (SVT-AV1,

@@ -1,7 +1,7 @@
 """Detection quality on a peer's simulator: a FailGen-style set made with ManiSkill3, read back as a
 user's data (image-episode folders and a labels file), every encoder and scoring rule at one α.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_peer.py [--train-encoder] [--randomize N] [--encoder SPEC]... [--alpha 0.05]
+Run: .venv/bin/python -m bench.bench_peer [--train-encoder] [--randomize N] [--encoder SPEC]... [--alpha 0.05]
      [--peer-env DIR]
 
 The set (docs/bench_peer.md): 3 ManiSkill3 tasks (PickCube, StackCube, PushCube), the Panda with its

@@ -5,7 +5,7 @@ bound keeps the run-level false-alarm rate ≤ α). Reads the in-distribution se
 memory that `bench/bench_quality.py` cached; prints recall, test FPR and mean T_s side by side.
 Offline only: a live run does not know L, so t/L would have to come from an expected length.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_quality.py && PYTHONPATH=src:.:bench .venv/bin/python bench/bench_progress_thresholds.py
+Run: .venv/bin/python -m bench.bench_quality && .venv/bin/python -m bench.bench_progress_thresholds
 """
 
 from __future__ import annotations

@@ -15,7 +15,7 @@ prints the contrast rule's recall, FPR and AUC per cell and encoder, the AUC gai
 runs with a paired bootstrap interval (the test runs' sampling; `--seed` repeats everything with
 other training seeds, the encoders' own spread), then every rule's full rows.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_randomize.py [--randomize N]... [--seed S]... [--no-control] [--alpha 0.05]
+Run: .venv/bin/python -m bench.bench_randomize [--randomize N]... [--seed S]... [--no-control] [--alpha 0.05]
      [--workers 2]
 """
 

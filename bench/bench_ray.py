@@ -12,7 +12,7 @@ On one machine Ray can only share the same cores (and pays for actors, serialisa
 object store), so expect a ratio at or below 1 here; a cluster of N such nodes multiplies the
 encoding throughput by about N while the driver's hashing and cache writes stay on one machine.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_ray.py [--frames 256] [--cpus 2]
+Run: .venv/bin/python -m bench.bench_ray [--frames 256] [--cpus 2]
 """
 
 from __future__ import annotations

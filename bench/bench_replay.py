@@ -1,6 +1,6 @@
 """Replay figures (issue 4): recording speed, recording size against its JPEGs, UMAP fit and cache.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_replay.py   (one line per figure, measured side by side in one run)
+Run: .venv/bin/python -m bench.bench_replay   (one line per figure, measured side by side in one run)
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Peak resident memory replaying a 200- and a 2,000-message ROS bag (issue 23): it must not grow with length.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_rosbag_memory.py [--kind mcap|sqlite3|ros1] [--size 96] [--lengths 200,2000,4000]
+Run: .venv/bin/python -m bench.bench_rosbag_memory [--kind mcap|sqlite3|ros1] [--size 96] [--lengths 200,2000,4000]
      [--codec av1]
 
 Bags are written with rosbags' own writer (one `rgb8` topic, `--size` px). A memory of three short

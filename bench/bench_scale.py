@@ -1,6 +1,6 @@
 """Both memories at real-robot scale (issues 14, 34): build, index RAM, 3-view step, bytes read, error.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_scale.py [--sizes 10k,100k,1M] [--tasks 4] [--kinds ivf_pqfs,ivf_sq8]
+Run: .venv/bin/python -m bench.bench_scale [--sizes 10k,100k,1M] [--tasks 4] [--kinds ivf_pqfs,ivf_sq8]
 
 Synthetic success memories (bench/_synthetic_runs.py: smooth 1024-d runs on the unit sphere,
 3 views × 600 frames per run, grouped by task) are indexed per task with exact search (`flat`,

@@ -4,7 +4,7 @@ One run times, on the same scene and cameras, the three views rendered with pybu
 (visual meshes, ~100k triangles) and with the simulator's Panda (`robot.panda_urdf`: the arm links'
 collision meshes), and one episode's physics steps, then prints the ratios side by side:
 
-    PYTHONPATH=src:.:bench .venv/bin/python bench/bench_sim.py [--size 128] [--repeat 30]
+    .venv/bin/python -m bench.bench_sim [--size 128] [--repeat 30]
 """
 
 from __future__ import annotations

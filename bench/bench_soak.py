@@ -1,6 +1,6 @@
 """Soak (issue 24): 10,000 live steps through the step API with the Rerun sink saving to `.rrd`.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_soak.py [--steps 10000] [--image-size 32] [--entries 600] [--successes 40]
+Run: .venv/bin/python -m bench.bench_soak [--steps 10000] [--image-size 32] [--entries 600] [--successes 40]
 
 One session of a robot that runs for a long time: every step feeds three synthetic camera frames
 (a smooth scene whose square moves on, so every frame is new) as live RGB arrays to

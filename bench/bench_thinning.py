@@ -1,6 +1,6 @@
 """Success-frame thinning on simulated runs (issue 14): how many frames each cosine step keeps.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_thinning.py [DATA] [--encoder pixels] [--steps 0.001,0.002,...]
+Run: .venv/bin/python -m bench.bench_thinning [DATA] [--encoder pixels] [--steps 0.001,0.002,...]
 
 DATA is a dataset of the project's layout (default: the demo's in-distribution set,
 <cache>/demo-data/sim-id, written by `bash scripts/demo.sh`). For every success run and view, the

@@ -17,7 +17,7 @@ a few sizes with a reference of at most 10 runs per task; the peak RSS and time 
 10 episodes whose frames are all distinct 120x160 images, triaged from an empty embedding cache and then again
 (what a run stopped half-way and started again does not encode twice), in one run, as a ratio.
 
-    PYTHONPATH=src:.:bench .venv/bin/python bench/bench_triage.py            # both parts
+    .venv/bin/python -m bench.bench_triage            # both parts
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Camera codecs in recordings (issue 17): bytes, encode speed, PSNR and time to show any frame.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/bench_video.py [--real DIR] [--frames 150] [--size 480]
+Run: .venv/bin/python -m bench.bench_video [--real DIR] [--frames 150] [--size 480]
 
 Episodes: the real ManiSkill-failgen episode (`--real DIR`; default: `shared/data/maniskill-failgen-episode` beside the checkout,
 256 px, 69 frames, 3 views; skipped with a message when absent), and episodes of the project's

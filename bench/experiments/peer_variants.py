@@ -1,7 +1,7 @@
 """bench_peer's cells (pixels, α = 0.05) for named settings of the robot's signals and their calibration (issue 41),
 where `bench_peer.py --variant` cannot say them (the chosen dimensions hold commas).
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/experiments/peer_variants.py [LABEL]...
+Run: .venv/bin/python -m bench.experiments.peer_variants [LABEL]...
 
 Each LABEL is one block of bench_peer's four cells, its rows and the targets printed as bench_peer prints them;
 its settings are in VARIANTS (CHOSEN: bench_peer's chosen dimensions). Without labels: every variant.

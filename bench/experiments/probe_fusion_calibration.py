@@ -3,7 +3,7 @@ on the per-view contrast `probe_fusion_dump.py` dumped, judged as the library ju
 α = 0.05 on the calibration runs' peaks, each corrected by a band fitted without it; recall, FPR, T_s and
 the AUC of the peak on the test runs). The `max` row reproduces the benches' contrast rows.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/experiments/probe_fusion_calibration.py DUMP.npz [--only NAME]...
+Run: .venv/bin/python -m bench.experiments.probe_fusion_calibration DUMP.npz [--only NAME]...
 
 A strategy is channels × band scope × band kind × normalisation:
 - channels: `fused` (the max over every view, then one band: the library's `max`), `modality` (the camera

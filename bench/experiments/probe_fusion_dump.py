@@ -2,7 +2,7 @@
 embedded and the peer benchmarks, dumped once, so that ways of fusing and calibrating the views can be
 compared offline (`probe_fusion_calibration.py`) exactly as the library calibrates and judges them.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/experiments/probe_fusion_dump.py {embedded,peer}
+Run: .venv/bin/python -m bench.experiments.probe_fusion_dump {embedded,peer}
      [--start-weight W] [--out FILE]
 
 Per ID half (ID, swapped): the memory half's success runs with their own episode left out of both memories

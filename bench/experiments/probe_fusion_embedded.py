@@ -1,6 +1,6 @@
 """Probe (issue 31): the view fusions on the embedded benchmark at a small size, before/after `--fusion`.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/experiments/probe_fusion_embedded.py [--train-encoder]
+Run: .venv/bin/python -m bench.experiments.probe_fusion_embedded [--train-encoder]
 
 bench_quality's cells (ID, ID swapped, OOD, OOD + 2 deployment successes/task) on a smaller set than
 its own (3 episodes per task and failure family, 20 successes per task in distribution; 1 and 4 out of

@@ -1,6 +1,6 @@
 """Probe (issue 31): ways of fusing the views' contrast on the peer set, from probe_peer_views.py's dumps.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/experiments/probe_peer_fusion.py [SLUG ...] [--window N]
+Run: .venv/bin/python -m bench.experiments.probe_peer_fusion [SLUG ...] [--window N]
 
 Every fusion is calibrated as the library calibrates (split conformal at α on the memory half's
 success runs, each with its own episode left out and each corrected by what the other runs fitted)

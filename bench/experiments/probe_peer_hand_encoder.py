@@ -1,7 +1,7 @@
 """Probe (issue 31): a trained encoder trained on the hand camera's frames only (one per ID half), on the
 peer set with every view fused by the max, with `per-view` fusion, and judged on the hand view alone.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/experiments/probe_peer_hand_encoder.py
+Run: .venv/bin/python -m bench.experiments.probe_peer_hand_encoder
 """
 
 from __future__ import annotations

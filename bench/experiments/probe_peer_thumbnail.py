@@ -1,6 +1,6 @@
 """Probe (issue 31): the `pixels` encoder with a larger thumbnail on the peer set, max and per-view fusion.
 
-Run: PYTHONPATH=src:.:bench .venv/bin/python bench/experiments/probe_peer_thumbnail.py [SIZE]   (default 48; the encoder's own is 24)
+Run: .venv/bin/python -m bench.experiments.probe_peer_thumbnail [SIZE]   (default 48; the encoder's own is 24)
 
 The thumbnail side is the module constant `robofailring.encoders.pixels.THUMBNAIL`; this probe sets it
 (and the identity, so no cached embedding of the 24 px encoder is reused) before the encoder is made.

@@ -2,8 +2,8 @@
 dumped once so that ways of fusing the views can be compared without replaying anything.
 
 Run (after bench_peer.py has built its memories under the peer cache's `runs/`):
-    PYTHONPATH=src:.:bench .venv/bin/python bench/experiments/probe_peer_views.py dump [--encoder SPEC --swapped SPEC]
-    PYTHONPATH=src:.:bench .venv/bin/python bench/experiments/probe_peer_views.py fuse
+    .venv/bin/python -m bench.experiments.probe_peer_views dump [--encoder SPEC --swapped SPEC]
+    .venv/bin/python -m bench.experiments.probe_peer_views fuse
 
 `dump` replays, per ID half, the memory half's runs (successes and failures) with their own episode
 left out of both memories, the other half's runs, and the OOD runs (with and without 2 deployment

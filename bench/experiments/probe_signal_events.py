@@ -5,7 +5,7 @@ similarity exp(−d²/n), contrast S⁻ − S⁺, shift band and split-conformal
 successes, each left out) on the peer ManiSkill3 set and the embedded set, ID on both halves and OOD
 with 2 deployment successes per task in the success memory.
 
-PYTHONPATH=src:.:bench python bench/experiments/probe_signal_events.py [--peer DIR] [--embedded DIR]
+python -m bench.experiments.probe_signal_events [--peer DIR] [--embedded DIR]
 """
 
 from __future__ import annotations

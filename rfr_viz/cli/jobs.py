@@ -69,8 +69,9 @@ def evaluate_cmd(
         Path | None,
         typer.Option(
             "--test-labels",
-            help="The labels of --test-data, in the format of --labels (default: --labels): two LeRobot "
-            "datasets both number their episodes from 0, so each needs its own.",
+            help="The labels of --test-data, in the format of --labels: two LeRobot datasets both number their "
+            "episodes from 0, so each needs its own.",
+            show_default="--labels",
         ),
     ] = None,
     train_split: Annotated[str, typer.Option(help="Split whose failures build the memory.")] = "train",
@@ -153,7 +154,11 @@ def evaluate_cmd(
     ),
     detector=DETECTOR.only("memory", "score", "cache_dir", "device", "data_root").but(
         memory=Declared(
-            Annotated[Path | None, typer.Option(help="Default: the memory the evaluation used.")], None
+            Annotated[
+                Path | None,
+                typer.Option(help="Memory directory.", show_default="the memory the evaluation used"),
+            ],
+            None,
         )
     ),
     vlm=VLM,

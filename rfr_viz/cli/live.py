@@ -61,8 +61,8 @@ def watch_cmd(
         str | None,
         typer.Option(
             "--connect",
-            help="gRPC URL of a running Rerun viewer (default rerun+http://127.0.0.1:9876/proxy, "
-            "unless only --save is given).",
+            help="gRPC URL of a running Rerun viewer.",
+            show_default="rerun+http://127.0.0.1:9876/proxy, unless only --save is given",
         ),
     ] = None,
     spawn: Annotated[bool, typer.Option("--spawn", help="Start a Rerun viewer and stream to it.")] = False,

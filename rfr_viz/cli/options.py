@@ -66,4 +66,4 @@ def recordings_options(
     )
 
 
-RECORDINGS: Final[OptionGroup[Recordings]] = OptionGroup(recordings_options)
+RECORDINGS: Final[OptionGroup[Recordings]] = OptionGroup(recordings_options, panel="Recordings")

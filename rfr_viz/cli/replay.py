@@ -90,7 +90,7 @@ def compare_cmd(
     delta: Annotated[
         list[float] | None,
         typer.Option(
-            "--delta", help="δ per memory, in the order of --memory (default: each one's calibrated δ)."
+            "--delta", help="δ per memory, in the order of --memory.", show_default="each one's calibrated δ"
         ),
     ] = None,
     detector: DetectorConfig,
@@ -139,7 +139,7 @@ def compared_detectors(
 def open_cmd(
     recording: Annotated[Path, typer.Argument(help="A .rrd written by replay, review, compare or the demo.")],
     frame: Annotated[
-        int | None, typer.Option(help="Frame to pause at (default: the recording's alarm or focus).")
+        int | None, typer.Option(help="Frame to pause at.", show_default="the recording's alarm or focus")
     ] = None,
     port: Annotated[int, typer.Option(help="Viewer port; a viewer already listening there is reused.")] = (
         DEFAULT_PORT

@@ -15,6 +15,7 @@ from robofailring.cli.option_groups import DATA, DETECTOR
 from robofailring.cli.options import print_notes, report_skipped
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
+from robofailring.memory.recipe import DEFAULT_ENCODER
 
 app = typer.Typer(add_completion=False)  # composed into the one `robofailring` command by rfr_viz.cli.app
 
@@ -35,7 +36,8 @@ app = typer.Typer(add_completion=False)  # composed into the one `robofailring` 
                 str | None,
                 typer.Option(
                     "--encoder",
-                    help="Encoder spec: the reference's without --memory (default pixels), else the memory's.",
+                    help="Encoder spec: the reference's without --memory, else the memory's.",
+                    show_default=f"{DEFAULT_ENCODER} without --memory, else the memory's",
                 ),
             ],
             None,

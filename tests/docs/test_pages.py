@@ -188,8 +188,10 @@ def test_command_lines_shown_are_the_commands_own(page: Path) -> None:
 
 
 def test_the_command_line_page_has_every_verb_and_only_its_options() -> None:
-    """docs/cli.md's overview (in words) has an item per verb, whose options are the verb's own."""
-    rows = re.findall(r"^- `([a-z-]+)([^`]*)`: ", (DOCS / "cli.md").read_text(), re.MULTILINE)
+    """docs/cli.md's overview (in words, above the generated reference) has an item per verb, whose options
+    are the verb's own."""
+    overview = (DOCS / "cli.md").read_text().partition(reference.BEGIN)[0]
+    rows = re.findall(r"^- `([a-z][a-z-]*)([^`]*)`: ", overview, re.MULTILINE)
     assert sorted(verb for verb, _ in rows) == sorted(verbs())
     wrong = [
         f"{verb} {option}"
@@ -213,6 +215,14 @@ def test_every_page_is_in_the_sites_nav() -> None:
     nav = _nav_pages(config["nav"])
     assert sorted(nav) == sorted(page.name for page in PAGES)
     assert config["strict"] is True
+
+
+def test_the_home_page_lists_every_page() -> None:
+    """index.md's table of pages has a row per page of docs/ (the site's nav has them too, above)."""
+    listed = set(
+        re.findall(r"^\| \[[^\]]+\]\(([\w-]+\.md)\) \|", (DOCS / "index.md").read_text(), re.MULTILINE)
+    )
+    assert sorted(page.name for page in PAGES if page.name not in listed | {"index.md"}) == []
 
 
 @pytest.mark.parametrize("page", [README, *PAGES], ids=lambda p: p.name)

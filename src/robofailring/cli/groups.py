@@ -11,16 +11,21 @@ and its command line gets the group's options in that parameter's place (typer r
 `takes` writes). A verb may leave some of a group's options out (`without`, `only`: the function's
 defaults stand for them) or declare one for itself (`but`: its own help, default or name), never list
 them again; so a new setting of a group is one option, one field and one line, in every verb that
-takes it.
+takes it. A group's options are listed under its `panel` in `--help` (and in docs/cli.md's reference), the
+verb's own under "Options".
 """
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 import functools
 import inspect
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Generic, TypeVar
+from typing import Annotated, Any, Generic, TypeVar, get_origin
+
+from typer.models import OptionInfo
 
 Value = TypeVar("Value")
 Verb = TypeVar("Verb", bound=Callable[..., Any])
@@ -39,9 +44,13 @@ class Declared:
 
 @dataclass(frozen=True)
 class OptionGroup(Generic[Value]):
-    """Options declared once, as the parameters of `build`, turned into one value by it."""
+    """Options declared once, as the parameters of `build`, turned into one value by it, and listed under
+    `panel` in `--help`."""
 
     build: Callable[..., Value]
+    panel: str = (
+        ""  # the heading its options are listed under in --help, as docs/cli.md names it; "": "Options"
+    )
     left_out: frozenset[str] = frozenset()  # parameters this verb does not offer: `build`'s defaults stand
     declared: Mapping[str, Declared] = field(
         default_factory=dict
@@ -50,7 +59,7 @@ class OptionGroup(Generic[Value]):
     def without(self, *names: str) -> OptionGroup[Value]:
         """The group less the options `names` (parameter names of `build`)."""
         self._check(names)
-        return OptionGroup(self.build, self.left_out | set(names), self.declared)
+        return dataclasses.replace(self, left_out=self.left_out | set(names))
 
     def only(self, *names: str) -> OptionGroup[Value]:
         """The group with only the options `names`."""
@@ -60,7 +69,7 @@ class OptionGroup(Generic[Value]):
     def but(self, **declarations: Declared) -> OptionGroup[Value]:
         """The group with some of its parameters declared for one verb (their help, default, name)."""
         self._check(declarations)
-        return OptionGroup(self.build, self.left_out, {**self.declared, **declarations})
+        return dataclasses.replace(self, declared={**self.declared, **declarations})
 
     def parameters(self) -> list[inspect.Parameter]:
         """The parameters a verb's command line gets: `build`'s, less those left out, as declared."""
@@ -73,7 +82,12 @@ class OptionGroup(Generic[Value]):
                 parameter = parameter.replace(
                     name=own.name or name, annotation=own.annotation, default=own.default
                 )
-            offered.append(parameter.replace(kind=inspect.Parameter.KEYWORD_ONLY))
+            offered.append(
+                parameter.replace(
+                    kind=inspect.Parameter.KEYWORD_ONLY,
+                    annotation=_in_panel(parameter.annotation, self.panel),
+                )
+            )
         return offered
 
     def value(self, given: Mapping[str, Any]) -> Value:
@@ -88,6 +102,20 @@ class OptionGroup(Generic[Value]):
         unknown = sorted(set(names) - set(self._signature().parameters))
         if unknown:
             raise TypeError(f"{self.build.__name__} has no option {', '.join(unknown)}")
+
+
+def _in_panel(annotation: Any, panel: str) -> Any:
+    """An option's `Annotated[…, typer.Option(…)]` with `rich_help_panel=panel` (arguments stay under
+    "Arguments"; an option that names its own panel keeps it)."""
+    if not panel or get_origin(annotation) is not Annotated:
+        return annotation
+    metadata = []
+    for info in annotation.__metadata__:
+        if isinstance(info, OptionInfo) and info.rich_help_panel is None:
+            info = copy.copy(info)
+            info.rich_help_panel = panel
+        metadata.append(info)
+    return Annotated[(annotation.__origin__, *metadata)]
 
 
 def takes(**groups: OptionGroup[Any]) -> Callable[[Verb], Verb]:

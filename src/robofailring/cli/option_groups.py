@@ -25,6 +25,7 @@ from robofailring.detection.rules import RULES
 from robofailring.detection.stored import given_thresholds
 from robofailring.detection.threshold_policy import DEFAULT_POLICY, ThresholdPolicy
 from robofailring.detection.view_bands import DEFAULT_FUSION, FUSIONS
+from robofailring.encoders.spec import ENCODER_SPECS_HELP
 from robofailring.errors import SettingError
 from robofailring.explain.vlm import VLMConfig, read_api_key
 from robofailring.extras import require
@@ -55,8 +56,8 @@ ViewsOption = Annotated[
     str | None,
     typer.Option(
         "--views",
-        help="Views to use, in order: `a,b` picks views; `src=name` renames one (a camera, an HDF5 image key); "
-        "default: every view the data has.",
+        help="Views to use, in order: `a,b` picks views; `src=name` renames one (a camera, an HDF5 image key).",
+        show_default="every view the data has",
     ),
 ]
 VocabularyOption = Annotated[
@@ -86,7 +87,7 @@ EncoderOption = Annotated[
     str,
     typer.Option(
         "--encoder",
-        help="`pixels` (weight-free), `open_clip:<model>[:<pretrained tag or checkpoint path>]` or `trained:<DIR>`.",
+        help=f"{ENCODER_SPECS_HELP}.",
     ),
 ]
 FailureFramesOption = Annotated[
@@ -95,8 +96,8 @@ FailureFramesOption = Annotated[
         "--failure-frames",
         help="`dense`: each failure run's frames from its onset on (all when it is not known), thinned like "
         "the success memory (--success-step), so a neighbour shows the moment of the past failure that "
-        "matches; `end`: the paper's memory, one (I_0 ‖ I_end) entry per failure view. Default: dense "
-        "(growing a memory with --add-to keeps its own).",
+        "matches; `end`: the paper's memory, one (I_0 ‖ I_end) entry per failure view.",
+        show_default=f"{DEFAULT_RECIPE.failure_frames}; growing a memory with --add-to keeps its own",
     ),
 ]
 PairingOption = Annotated[
@@ -105,8 +106,8 @@ PairingOption = Annotated[
         "--pairing",
         help="How a first and a current frame become one memory vector: `change`, the first frame at half "
         "weight beside what changed since it, norm([½ z_0 ‖ z_t − z_0]) (holds up under new lighting, colours "
-        "and cameras); `concat`, the paper's norm([z_0 ‖ z_t]). Default: change (growing a memory with "
-        "--add-to keeps its own).",
+        "and cameras); `concat`, the paper's norm(\\[z_0 ‖ z_t]).",
+        show_default=f"{DEFAULT_RECIPE.pairing}; growing a memory with --add-to keeps its own",
     ),
 ]
 SuccessStepOption = Annotated[
@@ -123,8 +124,9 @@ SignalsOption = Annotated[
         "--signals",
         help="The robot's own signals (joint state, gripper, end-effector pose, commanded actions) as a second "
         "modality beside the cameras, scored as the view `signals`: `auto`, every state and action signal the "
-        "data has (docs/data.md); `none`, the cameras alone; or signal names separated by commas. Default: "
-        "auto (growing a memory with --add-to keeps its own).",
+        "data has (docs/data.md); `none`, the cameras alone; or signals separated by commas, each `NAME` (all its "
+        "dimensions) or `NAME:GLOB` (the dimensions the glob matches, e.g. `observation.state:gripper*`).",
+        show_default=f"{DEFAULT_RECIPE.signals}; growing a memory with --add-to keeps its own",
     ),
 ]
 SignalFeaturesOption = Annotated[
@@ -133,8 +135,8 @@ SignalFeaturesOption = Annotated[
         "--signal-features",
         help="Features derived from the robot's signals and added to them (docs/signals.md): `change`, each "
         "dimension's change over the last frame; `events`, for each step-like dimension (a gripper) its jumps "
-        "so far and the frames since the last; both separated by a comma, or `none`. Default: change,events "
-        "(growing a memory with --add-to keeps its own).",
+        "so far and the frames since the last; both separated by a comma, or `none`.",
+        show_default=f"{DEFAULT_RECIPE.signal_features}; growing a memory with --add-to keeps its own",
     ),
 ]
 SignalStartWeightOption = Annotated[
@@ -142,8 +144,9 @@ SignalStartWeightOption = Annotated[
     typer.Option(
         "--signal-start-weight",
         help="The start state's weight in each signal vector beside what changed since (docs/signals.md), from 0 "
-        "to 100: 0 leaves it out (the default: where things were placed varies from run to run), 0.5 the weight "
-        "memories built before it was a setting have.",
+        "to 100: 0 leaves it out (where things were placed varies from run to run), 0.5 the weight memories built "
+        "before it was a setting have.",
+        show_default=f"{DEFAULT_RECIPE.signal_start_weight:g}; growing a memory with --add-to keeps its own",
     ),
 ]
 
@@ -176,7 +179,7 @@ def recipe_options(
 MemoryOption = Annotated[Path | None, typer.Option("--memory", help="Memory directory.")]
 DeltaOption = Annotated[
     float | None,
-    typer.Option("--delta", help="Threshold δ (default: the memory's calibrated δ, else 0.92)."),
+    typer.Option("--delta", help="Threshold δ.", show_default="the memory's calibrated δ, else 0.92"),
 ]
 KOption = Annotated[int, typer.Option("--k", help="Neighbours retrieved per query.")]
 ScoreOption = Annotated[
@@ -185,17 +188,18 @@ ScoreOption = Annotated[
         "--score",
         help="Scoring rule: "
         + " or ".join(f"`{rule.name}` ({rule.formula} ≥ {rule.symbol})" for rule in RULES.values())
-        + "; default per task: contrast with success and failure runs, novelty with success runs only, "
-        "paper with failure runs only.",
+        + ".",
+        show_default="per task: contrast with success and failure runs, novelty with success runs only, paper "
+        "with failure runs only",
     ),
 ]
 GammaOption = Annotated[
     float | None,
-    typer.Option(help="Contrast threshold γ (default: the memory's calibrated γ, else 0)."),
+    typer.Option(help="Contrast threshold γ.", show_default="the memory's calibrated γ, else 0"),
 ]
 EtaOption = Annotated[
     float | None,
-    typer.Option(help="Novelty threshold η (default: the memory's calibrated η, else 0.1)."),
+    typer.Option(help="Novelty threshold η.", show_default="the memory's calibrated η, else 0.1"),
 ]
 ModalityOption = Annotated[
     str,
@@ -207,15 +211,20 @@ ModalityOption = Annotated[
     ),
 ]
 MemoryEncoderOption = Annotated[
-    str | None, typer.Option("--encoder", help="Encoder spec (default: the memory's).")
+    str | None, typer.Option("--encoder", help="Encoder spec.", show_default="the memory's")
 ]
 CacheOption = Annotated[
-    Path | None, typer.Option("--cache-dir", help="Embedding cache folder (default ~/.cache/robofailring).")
+    Path | None,
+    typer.Option(
+        "--cache-dir",
+        help="Embedding cache folder.",
+        show_default="$ROBOFAILRING_CACHE, else ~/.cache/robofailring",
+    ),
 ]
 DeviceOption = Annotated[
     str | None,
     typer.Option(
-        "--device", help="Where the encoder runs: cpu, cuda, cuda:N or mps (default: cuda if available)."
+        "--device", help="Where the encoder runs: cpu, cuda, cuda:N or mps.", show_default="cuda if available"
     ),
 ]
 RuntimeOption = Annotated[
@@ -224,7 +233,8 @@ RuntimeOption = Annotated[
         "--runtime",
         help="What runs the encoder's network: `torch`, or its ONNX export (made once, cached by checkpoint "
         "digest): `onnx` (fp32) or `onnx-int8` through ONNX Runtime, `openvino-int8` (static int8 on OpenVINO, "
-        "the fastest on a CPU; the openvino extra). Default: the spec's own `@runtime`, else torch.",
+        "the fastest on a CPU; the openvino extra).",
+        show_default="the spec's own `@runtime`, else torch",
     ),
 ]
 DataRootOption = Annotated[
@@ -292,7 +302,7 @@ BandOption = Annotated[
         "--band",
         help=f"Time-indexed thresholds, one of {', '.join(BAND_KINDS)}: the contrast and novelty scores are "
         "corrected by the calibration successes' mean (shift) or mean and spread (norm) at the same frame "
-        f"index before their peak is calibrated; none: one threshold (default {DEFAULT_BAND}).",
+        "index before their peak is calibrated; none: one threshold.",
     ),
 ]
 FusionOption = Annotated[
@@ -302,7 +312,7 @@ FusionOption = Annotated[
         help=f"How the views meet the threshold, one of {', '.join(FUSIONS)}: max, the paper's, fires when any "
         "view reaches it, every view corrected by one band (of the max over views); per-view corrects each "
         "view by a band of its own calibration scores first; per-modality, one band for the cameras and one for "
-        f"the robot's signals (per task where a task has enough runs) (default {DEFAULT_FUSION}).",
+        f"the robot's signals (per task where a task has enough runs).",
     ),
 ]
 BandScopeOption = Annotated[
@@ -310,8 +320,7 @@ BandScopeOption = Annotated[
     typer.Option(
         "--band-scope",
         help=f"Which runs a band is fitted on, one of {', '.join(BAND_SCOPES)}: pooled, every task's calibration "
-        "runs together; task, each task with enough runs its own (the others the pooled band) "
-        f"(default {DEFAULT_BAND_SCOPE}).",
+        "runs together; task, each task with enough runs its own (the others the pooled band).",
     ),
 ]
 
@@ -352,11 +361,11 @@ def vlm_options(vlm_url: VLMUrlOption = None, vlm_model: VLMModelOption = None) 
     return VLMConfig(url=vlm_url, model=vlm_model)
 
 
-DATA: Final[OptionGroup[DataSelection]] = OptionGroup(data_options)
-RECIPE: Final[OptionGroup[MemoryRecipe]] = OptionGroup(recipe_options)
+DATA: Final[OptionGroup[DataSelection]] = OptionGroup(data_options, panel="Data")
+RECIPE: Final[OptionGroup[MemoryRecipe]] = OptionGroup(recipe_options, panel="Memory recipe")
 # --memory is required where the group is taken whole (the verbs that detect); left out, there is none
-DETECTOR: Final[OptionGroup[DetectorConfig]] = OptionGroup(detector_options).but(
+DETECTOR: Final[OptionGroup[DetectorConfig]] = OptionGroup(detector_options, panel="Detector").but(
     memory=Declared(MemoryOption)
 )
-THRESHOLDS: Final[OptionGroup[ThresholdPolicy]] = OptionGroup(threshold_options)
-VLM: Final[OptionGroup[VLMConfig | None]] = OptionGroup(vlm_options)
+THRESHOLDS: Final[OptionGroup[ThresholdPolicy]] = OptionGroup(threshold_options, panel="Thresholds")
+VLM: Final[OptionGroup[VLMConfig | None]] = OptionGroup(vlm_options, panel="VLM")

@@ -84,7 +84,7 @@ LeaveOneOutOption = Annotated[
 FpsOption = Annotated[
     float | None,
     typer.Option(
-        "--fps", help="Frame rate of the `time` timeline, 0.001–10000 (default: the data's, else 10)."
+        "--fps", help="Frame rate of the `time` timeline, 0.001–10000.", show_default="the data's, else 10"
     ),
 ]
 WorkersOption = Annotated[int, typer.Option("--workers", help="Simulation processes.")]

@@ -53,13 +53,13 @@ app = typer.Typer(  # unnamed, so rfr_viz.cli.app merges its verbs into the one 
 def generate_cmd(
     out: Annotated[Path, typer.Option("--out", help="Dataset folder to write (the project's layout).")],
     tasks: Annotated[
-        list[str] | None, typer.Option("--tasks", help="Tasks to run (repeatable); default all.")
+        list[str] | None, typer.Option("--tasks", help="Tasks to run (repeatable).", show_default="all")
     ] = None,
     episodes: Annotated[
         int, typer.Option(help="Episodes per task and kind (failure family or success).")
     ] = 2,
     success_episodes: Annotated[
-        int | None, typer.Option(help="Success episodes per task (default: --episodes).")
+        int | None, typer.Option(help="Success episodes per task.", show_default="--episodes")
     ] = None,
     seed: Annotated[int, typer.Option(help="Base seed: the same seed gives identical images.")] = 0,
     look: Annotated[
@@ -307,7 +307,9 @@ def train_encoder_cmd(
             help="open_clip:<model>:<weights>: train a projection head on this frozen CLIP instead."
         ),
     ] = None,
-    threads: Annotated[int | None, typer.Option(help="torch CPU threads (default: half the cores).")] = None,
+    threads: Annotated[
+        int | None, typer.Option(help="torch CPU threads.", show_default="half the cores")
+    ] = None,
     detector: DetectorConfig,
     randomize: RandomizeOption = 0,
     workers: WorkersOption = 2,
