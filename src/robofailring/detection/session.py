@@ -10,7 +10,7 @@ import numpy as np
 
 from robofailring.data.model import Frame
 from robofailring.detection.rules import RULES, ScoringRule
-from robofailring.detection.signal_scores import SIGNALS_VIEW, SignalHistory
+from robofailring.detection.signal_scores import SIGNALS_VIEW, SignalHistory, SignalScores
 from robofailring.detection.trace import StepResult
 from robofailring.detection.view_scores import ViewScores
 
@@ -72,6 +72,8 @@ class DetectorSession:
         self._signals = SignalHistory(task_signals) if task_signals is not None else None
         self.t = 0
         self.fired_at: int | None = None
+        # the robot's signals at the last step, scored (one row: S⁻, S⁺, their nearest runs); None: not given
+        self.signal_scores: SignalScores | None = None
 
     def step(
         self, frames: Mapping[str, np.ndarray | Frame], *, signals: Mapping[str, np.ndarray] | None = None
@@ -88,10 +90,11 @@ class DetectorSession:
         missing = np.full(1, np.nan, np.float32)
         failure = {view: found.similarity(view) for view in views}
         success = {view: found.success_similarity.get(view, missing) for view in views}
+        self.signal_scores = None
         if self._signals is not None and signals is not None:
-            minus, plus, _, _, _ = self._signals.step(signals, exclude_episode=self.exclude_episode)
-            failure[SIGNALS_VIEW] = np.full(1, minus, np.float32)
-            success[SIGNALS_VIEW] = np.full(1, plus, np.float32)
+            self.signal_scores = self._signals.scores(signals, exclude_episode=self.exclude_episode)
+            failure[SIGNALS_VIEW] = self.signal_scores.similarity
+            success[SIGNALS_VIEW] = self.signal_scores.success_similarity
         scored = [  # the cameras, and the signals where given, as the detector's modality says
             view
             for view in failure
@@ -101,9 +104,11 @@ class DetectorSession:
         threshold = detector.threshold_at(rule, self.t, task=self.task)
         scores = ViewScores({view: rule.score(failure[view], success[view]) for view in scored}, 1)
         successes = detector.memory.successes
-        lines = {
-            view: detector.threshold_at(rule, self.t, view, task=self.task) for view in scored
-        }  # a band per view
+        view_thresholds = {  # every rule's line on each view's raw score: that view's band's, where it has one
+            name: {view: detector.threshold_at(each, self.t, view, task=self.task) for view in scored}
+            for name, each in {**RULES, rule.name: rule}.items()
+        }
+        lines = view_thresholds[rule.name]
         fired = scores.firing(lines, 0)
         result = StepResult(
             t=self.t,
@@ -137,6 +142,7 @@ class DetectorSession:
                 name: detector.threshold_at(each, self.t, task=self.task) for name, each in RULES.items()
             },
             queries={view: found.queries[view][0] for view in views},
+            view_thresholds=view_thresholds,
         )
         if fired and self.fired_at is None:
             self.fired_at = self.t
