@@ -170,7 +170,7 @@ def _run_demo(config: DemoConfig, data_dir: Path, say: Callable[[str], None]) ->
         detector=config.detector,
         memory_out=out / "memory",
     )
-    memory_dir = build_training_memory(base)
+    memory_dir, _ = build_training_memory(base)  # its skips: in its manifest (simulated runs have none)
     calibration = calibrate(
         CalibrateConfig(
             data=base.data, detector=config.detector.with_memory(memory_dir), thresholds=config.thresholds
