@@ -159,7 +159,7 @@ def main() -> None:
                 out=Path(tmp),
                 memory_out=Path(tmp) / slug,
             )
-            memory = build_training_memory(base)
+            memory, _ = build_training_memory(base)
             calibration = calibrate(
                 CalibrateConfig(
                     data=base.data,

@@ -68,7 +68,7 @@ def dump_half(config: EvaluateConfig, ood_config: EvaluateConfig, half: str) -> 
     encoder = evaluation_encoder(config)
     with tempfile.TemporaryDirectory() as scratch:
         config = replace(config, memory_out=Path(scratch) / "memory")
-        memory = FailureMemory.load(build_training_memory(config, splits, encoder))
+        memory = FailureMemory.load(build_training_memory(config, splits, encoder)[0])
     detector = FailureDetector(memory, encoder, k=config.detector.k)
     calibration = [t for t in splits.train if not t.is_failure]
     runs = _runs(detector, calibration, loo=True, cell=f"{half}/cal")

@@ -39,7 +39,7 @@ from robofailring.evaluation.run import (
 from robofailring.jobs.simulate import simulate
 from robofailring.jobs.train_encoder import TrainEncoderJob, run_train_encoder
 from robofailring.memory.recipe import DEFAULT_RECIPE, MemoryRecipe
-from robofailring.outputs import check_output_folder, check_own_files
+from robofailring.outputs import check_folder, check_output_folder, check_own_files
 from robofailring.sim import TASKS, GenerateConfig
 
 
@@ -149,6 +149,7 @@ def run_demo(config: DemoConfig, *, say: Callable[[str], None] = print) -> DemoR
             "out-of-distribution.md",
         )
         check_own_files(Path(config.out) / name for name in (*names, REPORT_NAME))
+        check_folder(data_dir, holds="the demo's cache of simulated datasets", flag="--data-dir")
         return _run_demo(config, data_dir, say)
 
 
@@ -170,7 +171,7 @@ def _run_demo(config: DemoConfig, data_dir: Path, say: Callable[[str], None]) ->
         detector=config.detector,
         memory_out=out / "memory",
     )
-    memory_dir = build_training_memory(base)
+    memory_dir, _ = build_training_memory(base)  # its skips: in its manifest (simulated runs have none)
     calibration = calibrate(
         CalibrateConfig(
             data=base.data, detector=config.detector.with_memory(memory_dir), thresholds=config.thresholds

@@ -121,12 +121,15 @@ def log_alarm(
     """At the detection instant (the current time): the event line and the failure report document.
 
     `fired` says on what score `rule` fired (e.g. "S⁻_t = 0.970 ≥ δ = 0.950"); without a failure
-    neighbour (`top` None: a task of success runs only) the event names the nearest success frame."""
+    neighbour the event names the robot's signals' nearest runs (they fired with no camera beside them), else
+    the nearest success frame (`top` None: a task of success runs only)."""
     if top is not None:
         nearest = (
             f"nearest memory entry {top.entry.task}/{top.entry.episode} [{top.entry.view}] "
             f"{top.entry.symbol}: {top.entry.description}"
         )
+    elif report.signals is not None and not report.items:  # the signals judged alone: their nearest runs
+        nearest = f"robot signals: {report.signals}"
     else:
         nearest = "no failure of this task in the memory" + (
             f"; nearest success frame {nearest_success.run.episode} frame {nearest_success.frame} "

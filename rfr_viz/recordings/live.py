@@ -2,8 +2,9 @@
 
 `LiveRecording` is the library's `StepSink` for Rerun: pass it as `detector.session(task, sink=live)`
 and every `session.step(...)` is logged at once with the entity paths of a replay (rfr_viz.paths):
-`/camera/<view>`, `/score/<view>/<rule>`, `/score/threshold/<rule>`, `/detection/state`, the moving map query, the
-neighbours when they change, and the detection event and failure report at the first alarm.
+`/camera/<view>`, `/score/<view>/<rule>`, `/score/threshold/<rule>` (and `/score/threshold/<rule>/<view>` for a
+view judged by a band of its own), `/detection/state`, the moving map query, the neighbours when they change,
+and the detection event and failure report at the first alarm.
 `watch` feeds a recorded episode through the same loop, frame by frame, as a robot would.
 """
 
@@ -53,8 +54,7 @@ from robofailring.detection.detector import FailureDetector
 from robofailring.detection.session import DetectorSession
 from robofailring.detection.trace import StepResult
 from robofailring.errors import DataError, SettingError
-from robofailring.explain.report import FailureReport
-
+from robofailring.explain.report import FailureReport, signals_sentence
 from robofailring.extras import needs_extra
 
 with needs_extra("viz"):
@@ -71,7 +71,7 @@ def _score_plots(detector: FailureDetector, task: str) -> ScorePlots:
         thresholds=detector.thresholds,
         failures=detector.memory.has_failures(task),
         successes=detector.memory.successes is not None,
-        bands=detector.bands,
+        bands={name: band.for_task(task) for name, band in detector.bands.items()},  # the task's, as it judges
         signals=detector.memory.signals is not None and detector.memory.signals.task(task) is not None,
     )
 
@@ -216,11 +216,11 @@ class LiveRecording:
         log_score_styles(
             self.rec,
             paths,
-            views=self.views,
+            views=self.plots.scored(self.views),
             rules=self.plots.rules,
             judging=self.detector.rule_for(self.task),
             thresholds=self.plots.thresholds,
-            bands=self.detector.bands,
+            bands=self.plots.bands,
             successes=self.plots.successes,
         )
         if not failures:
@@ -265,6 +265,10 @@ class LiveRecording:
                 if np.isfinite(score):
                     rec.log(paths.score(view, rule.name), rr.Scalars(score))
             rec.log(paths.threshold(rule.name), rr.Scalars(result.thresholds[rule.name]))
+            band = self.plots.bands.get(rule.name)
+            for view, line in result.view_thresholds.get(rule.name, {}).items():
+                if band is not None and view in band.views:  # judged by a band of its own: its own line
+                    rec.log(paths.view_threshold(rule.name, view), rr.Scalars(line))
         rec.log(paths.state, rr.Scalars(float(result.alarm)))
         if self.plots.successes:
             for view, similarity in result.success_similarity.items():  # each view judged, the signals too
@@ -284,7 +288,7 @@ class LiveRecording:
             result, every=first_alarm
         )  # at the alarm, as a replay: the similarities that fired
         if first_alarm:
-            self._alarm(frames, result)
+            self._alarm(session, frames, result)
         self.steps = max(self.steps, t + 1)
 
     def log_signals(self, t: int, signals: Mapping[str, np.ndarray]) -> None:
@@ -311,32 +315,41 @@ class LiveRecording:
                         cell=self.cell,
                     )
 
-    def _alarm(self, frames: Mapping[str, np.ndarray | Frame], result: StepResult) -> None:
+    def _alarm(
+        self, session: DetectorSession, frames: Mapping[str, np.ndarray | Frame], result: StepResult
+    ) -> None:
+        """The event and the report at the first alarm: the camera's neighbours where one explains it, the
+        robot's signals' nearest runs where they were scored (all there is when they were judged alone)."""
         view, camera = result.detected_view, result.camera_view
-        assert view is not None and camera is not None  # an alarm has a firing view, and a camera
-        frame = frames[camera]
+        assert view is not None  # an alarm has a firing view
+        frame = frames[camera] if camera is not None else None
+        neighbors = result.neighbors[camera] if camera is not None else []
         self.fired_at = result.t
         self.report = FailureReport.from_neighbors(
             task=self.task,
             view=view,
             t_det=result.t,
-            neighbors=result.neighbors[camera],
+            neighbors=neighbors,
             current_image=frame.reference if isinstance(frame, Frame) and frame.path is not None else None,
             similarity=None if camera == view else result.similarity[view],
+            signals=signals_sentence(session.signal_scores, 0),
             roots=self._roots(frame),
         )
+        line = result.view_thresholds.get(result.rule.name, {}).get(view, result.threshold)
+        fired = f"{result.rule.score_name} = {result.score[view]:.3f} ≥ {result.rule.symbol} = {line:.3f}"
         log_alarm(
             self.rec,
             REPLAY,
             report=self.report,
-            top=result.neighbors[camera][0] if result.neighbors[camera] else None,
-            nearest_success=result.nearest_success.get(camera),
+            top=neighbors[0] if neighbors else None,
+            nearest_success=result.nearest_success.get(camera) if camera is not None else None,
             rule=result.rule,
-            fired=f"{result.rule.score_name} = {result.score[view]:.3f} ≥ {result.rule.symbol} = {result.threshold:.3f}",
-            summary=self._summary(),
+            fired=fired,
+            summary=self._summary()
+            + (f"Robot signals: {self.report.signals}.\n\n" if self.report.signals is not None else ""),
         )
 
-    def _roots(self, frame: np.ndarray | Frame) -> list[str]:
+    def _roots(self, frame: np.ndarray | Frame | None) -> list[str]:
         """Where the report's images may come from: the folders named for the memory's images
         (`FailureMemory.image_roots`), and the run's folder (that of the frame's file when the run came from
         no file)."""

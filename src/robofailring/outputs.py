@@ -113,12 +113,22 @@ def check_writable(folder: Path) -> None:
         ) from error
 
 
+def check_folder(folder: Path, *, holds: str, flag: str = "--out") -> None:
+    """Refuse a folder option that names a file or lies under one (`--data-dir notes.txt`): OutputError naming
+    the option, the path and what the folder `holds`, before any work (not `File exists` half-way through)."""
+    folder = Path(folder)
+    blocking = next((p for p in (folder, *folder.parents) if p.exists() or p.is_symlink()), None)
+    if blocking is None or blocking.is_dir():
+        return
+    where = "is a file" if blocking == folder else f"cannot be made: part of that path is a file ({blocking})"
+    raise OutputError(f"{flag} {folder} {where}; {holds} is a folder: choose another {flag}")
+
+
 def check_memory_target(out: Path, *, inputs: Iterable[Path | None] = ()) -> None:
     """A memory may be written at `out` only if it is absent, an empty folder or another memory."""
     check_not_input(out, inputs)
     out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise OutputError(f"--out {out} is a file; a memory is a folder: choose another --out")
+    check_folder(out, holds="a memory")
     if out.is_dir() and not is_memory_dir(out):
         names = sorted(entry.name for entry in out.iterdir())
         if names:
@@ -133,9 +143,7 @@ def check_memory_target(out: Path, *, inputs: Iterable[Path | None] = ()) -> Non
 def check_output_folder(out: Path, *, inputs: Iterable[Path | None] = ()) -> None:
     """Files (recordings, tables) may go into `out` if it is, or can be made, a writable folder outside the inputs."""
     check_not_input(out, inputs, replaces=False)
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise OutputError(f"--out {out} is a file; this output is a folder: choose another --out")
+    check_folder(out, holds="this output")
     check_writable(out)
 
 

@@ -67,3 +67,36 @@ def test_a_refused_replay_or_evaluate_leaves_no_empty_output_folder(
         2,
         "part of that path is a file",
     )
+
+
+def test_a_folder_option_naming_a_file_says_which_option_and_what_it_holds(
+    data: Path, cache: list[str], tmp_path: Path
+) -> None:
+    """`demo --data-dir FILE` said `error: File exists: FILE` (status 1), as `generate` and `train-encoder`
+    did for an --out under a file: each now names its option, the path and what the folder holds, before any
+    work (nothing simulated, nothing written)."""
+    a_file = tmp_path / "notes.txt"
+    a_file.write_text("mine")
+    out = tmp_path / "demo"
+    for given, where in ((a_file, "is a file"), (a_file / "sub", f"part of that path is a file ({a_file})")):
+        refused(
+            cli("demo", "--data-dir", given, "--out", out, *cache),
+            2,
+            f"--data-dir {given} {where}" if given == a_file else f"--data-dir {given} cannot be made",
+            where,
+            "the demo's cache of simulated datasets is a folder: choose another --data-dir",
+        )
+        refused(
+            cli("generate", "--out", given), 2, f"--out {given}", where, "a generated dataset is a folder"
+        )
+        refused(
+            cli("train-encoder", data, "--out", given),
+            2,
+            f"--out {given}",
+            where,
+            "a trained encoder",
+        )
+        refused(cli("evaluate", data, "--out", given, *cache), 2, f"--out {given}", where, "this output")
+        refused(cli("build-memory", data, "--out", given, *cache), 2, f"--out {given}", where, "a memory")
+    assert not out.exists() and a_file.read_text() == "mine"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt"]

@@ -94,6 +94,10 @@ def test_one_runs_bad_signal_skips_that_run_alone_and_says_why(
     assert task.layout.action == (("action", ("x", "gripper")),)
     kept = {*task.rows["failure"].episodes.tolist(), *task.rows["success"].episodes.tolist()}
     assert kept == {run.episode for run in load_dataset(root)} - {spoiled}  # every other run keeps it
+    recorded = json.loads((memory / "manifest.json").read_text())[
+        "skipped_inputs"
+    ]  # kept, as what is not read
+    assert [s["path"] for s in recorded] == [str(root / spoiled)] and REASONS[case] in recorded[0]["reason"]
 
 
 def test_a_signal_no_run_reads_well_is_left_out_and_every_run_listed(
@@ -150,3 +154,52 @@ def test_the_largest_start_weight_gives_finite_vectors_that_are_scored(
     assert found.exit_code == 0, found.output
     scored = json.loads(found.stdout)["signals"]
     assert scored is not None and np.isfinite(scored["failure_similarity"]).all()
+
+
+def test_runs_with_bad_signals_are_kept_in_the_manifest_of_a_grown_memory(
+    data: Path, cache: list[str], tmp_path: Path
+) -> None:
+    root, spoiled = _spoil(data, "nan", which=-1)
+    memory = tmp_path / "memory"
+    built = cli("build-memory", root, "--out", memory, "--split", "train", *cache)
+    assert built.exit_code == 0, built.output  # the spoiled run is a test run: not in this build
+    grown = cli("build-memory", root, "--add-to", memory, "--split", "test", *cache)
+    assert grown.exit_code == 3, grown.output
+    recorded = json.loads((memory / "manifest.json").read_text())["skipped_inputs"]
+    assert [s["path"] for s in recorded] == [str(root / spoiled)], recorded
+    assert "signals not used" in recorded[0]["reason"] and REASONS["nan"] in recorded[0]["reason"]
+
+
+def test_an_evaluation_lists_every_run_whose_signals_it_did_not_use(
+    data: Path, cache: list[str], tmp_path: Path
+) -> None:
+    """The training memory's run, the deployment success's and the test run's bad signals: each listed in the
+    evaluation's JSON and Markdown and on the terminal, with status 3 (none was, and the status was 0)."""
+    root = tmp_path / "data"
+    shutil.copytree(data, root)
+    runs = {run.episode: run for run in load_dataset(root)}
+    training, deployed, tested = (
+        "pick_cube_success_episode0",  # a training success: in the memory evaluate builds
+        "pick_cube_success_episode1",  # the first test success: moved by --deployment-successes 1
+        "pick_cube_grasp_wp2_episode3",  # a test failure: judged by its cameras alone
+    )
+    assert (runs[training].split, runs[deployed].split, runs[tested].split) == ("train", "test", "test")
+    for episode in (training, deployed, tested):
+        values = dict(np.load(root / episode / "signals.npz"))
+        values["gripper_width"][3, 0] = np.nan
+        np.savez(root / episode / "signals.npz", **values)  # type: ignore[arg-type]
+    out = tmp_path / "evaluation"
+    evaluated = cli(
+        "evaluate", root, "--out", out, "--deployment-successes", "1", "--target-fpr", "0.5", *cache
+    )
+    assert evaluated.exit_code == 3, evaluated.output
+    listed = json.loads((out / "evaluation.json").read_text())["skipped_inputs"]
+    reasons = {Path(s["path"]).name: s["reason"] for s in listed}
+    assert set(reasons) == {training, deployed, tested}, listed
+    assert reasons[training].startswith("signals not used") and reasons[deployed].startswith(
+        "signals not used"
+    )
+    assert reasons[tested].startswith("signals not scored (cameras alone)")
+    markdown = (out / "evaluation.md").read_text()
+    assert all(f"/{episode}`" in markdown for episode in reasons)
+    assert all(episode in evaluated.output for episode in reasons)

@@ -37,7 +37,7 @@ def test_deployment_successes_join_the_signal_memory_too(dataset: Path, tmp_path
     assert memory.signals is not None
     before = memory.signals.task("pick_cube")
     assert before is not None
-    deployed, left = _deploy_successes(memory, test, 1, encoder, DEFAULT_STEP)
+    deployed, left, not_joined = _deploy_successes(memory, test, 1, encoder, DEFAULT_STEP)
     (moved,) = [t for t in test if t.key not in {r.key for r in left}]
     assert not moved.is_failure
     assert deployed.signals is not None
@@ -46,6 +46,7 @@ def test_deployment_successes_join_the_signal_memory_too(dataset: Path, tmp_path
     assert len(after.vectors["success"]) == len(before.vectors["success"]) + moved.length
     assert moved.episode in after.rows["success"].episodes.tolist()
     assert moved.episode not in before.rows["success"].episodes.tolist()  # the memory given is unchanged
+    assert not_joined == []  # its signals read well
 
 
 def test_deployment_successes_join_the_camera_success_memory(dataset: Path, tmp_path: Path) -> None:
@@ -56,7 +57,7 @@ def test_deployment_successes_join_the_camera_success_memory(dataset: Path, tmp_
     train, test = loaded.select(split="train"), loaded.select(split="test")
     memory, _ = build_memories(train, encoder, provenance=Provenance(data=dataset, encoder="pixels"))
     assert memory.successes is not None
-    deployed, left = _deploy_successes(memory, test, 1, encoder, DEFAULT_STEP)
+    deployed, left, _ = _deploy_successes(memory, test, 1, encoder, DEFAULT_STEP)
     (moved,) = [t for t in test if t.key not in {r.key for r in left}]
     views = {(moved.episode, view) for view in moved.views}
     assert deployed.successes is not None and len(views) == 3

@@ -33,7 +33,7 @@ def test_an_evaluation_takes_a_loaded_detector_and_keeps_placed_traces(tmp_path:
         out=tmp_path / "out",
         detector=DetectorConfig(cache_dir=tmp_path / "cache"),
     )
-    memory_dir = build_training_memory(config)
+    memory_dir, _ = build_training_memory(config)
     stored = replace(config, detector=config.detector.with_memory(memory_dir))
     detector = detector_from(stored.detector)
 

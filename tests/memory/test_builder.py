@@ -94,7 +94,7 @@ def test_no_success_run_or_none_asked_gives_the_paper_memory(tmp_path: Path, enc
 def test_evaluate_and_build_memory_record_the_same_provenance(dataset: Path, tmp_path: Path) -> None:
     """evaluate's memory now carries the data root, layout and skipped inputs, as build-memory's does."""
     cache = tmp_path / "cache"
-    evaluated = build_training_memory(
+    evaluated, _ = build_training_memory(
         EvaluateConfig(
             data=DataSelection(dataset), detector=DetectorConfig(cache_dir=cache), out=tmp_path / "eval"
         )

@@ -11,7 +11,7 @@ import numpy as np
 
 from robofailring.data.model import Frame
 from robofailring.detection.rules import RULES, ScoringRule
-from robofailring.detection.signal_scores import SIGNALS_VIEW, SignalHistory
+from robofailring.detection.signal_scores import SIGNALS_VIEW, SignalHistory, SignalScores
 from robofailring.detection.trace import StepResult
 from robofailring.detection.view_scores import ViewScores
 from robofailring.encoders.base import unusable
@@ -76,6 +76,8 @@ class DetectorSession:
         self.t = 0
         self.fired_at: int | None = None
         self.blind_steps: dict[str, list[int]] = {}  # per camera view, the steps it saw nothing at
+        # the robot's signals at the last step, scored (one row: S⁻, S⁺, their nearest runs); None: not given
+        self.signal_scores: SignalScores | None = None
 
     def step(
         self, frames: Mapping[str, np.ndarray | Frame], *, signals: Mapping[str, np.ndarray] | None = None
@@ -94,10 +96,11 @@ class DetectorSession:
         missing = np.full(1, np.nan, np.float32)
         failure = {view: found.similarity(view) for view in views}
         success = {view: found.success_similarity.get(view, missing) for view in views}
+        self.signal_scores = None
         if self._signals is not None and signals is not None:
-            minus, plus, _, _, _ = self._signals.step(signals, exclude_episode=self.exclude_episode)
-            failure[SIGNALS_VIEW] = np.full(1, minus, np.float32)
-            success[SIGNALS_VIEW] = np.full(1, plus, np.float32)
+            self.signal_scores = self._signals.scores(signals, exclude_episode=self.exclude_episode)
+            failure[SIGNALS_VIEW] = self.signal_scores.similarity
+            success[SIGNALS_VIEW] = self.signal_scores.success_similarity
         scored = [  # the cameras, and the signals where given, as the detector's modality says
             view
             for view in failure
@@ -107,9 +110,11 @@ class DetectorSession:
         threshold = detector.threshold_at(rule, self.t, task=self.task)
         scores = ViewScores({view: rule.score(failure[view], success[view]) for view in scored}, 1)
         successes = detector.memory.successes
-        lines = {
-            view: detector.threshold_at(rule, self.t, view, task=self.task) for view in scored
-        }  # a band per view
+        view_thresholds = {  # every rule's line on each view's raw score: that view's band's, where it has one
+            name: {view: detector.threshold_at(each, self.t, view, task=self.task) for view in scored}
+            for name, each in {**RULES, rule.name: rule}.items()
+        }
+        lines = view_thresholds[rule.name]
         fired = scores.firing(lines, 0)
         result = StepResult(
             t=self.t,
@@ -144,6 +149,7 @@ class DetectorSession:
             },
             queries={view: found.queries[view][0] for view in views},
             blind_views=blind,
+            view_thresholds=view_thresholds,
         )
         if fired and self.fired_at is None:
             self.fired_at = self.t

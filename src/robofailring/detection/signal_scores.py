@@ -148,3 +148,17 @@ class SignalHistory:
         failure, failure_row = self.task.search(vector, "failure", exclude_episode=exclude_episode)
         success, success_row = self.task.search(vector, "success", exclude_episode=exclude_episode)
         return float(failure[0]), float(success[0]), vector[0], int(failure_row[0]), int(success_row[0])
+
+    def scores(self, signals: Mapping[str, np.ndarray], *, exclude_episode: str | None) -> SignalScores:
+        """`step`, as the one-row `SignalScores` of this step (its nearest runs and deviations at row 0)."""
+        failure, success, vector, failure_row, success_row = self.step(
+            signals, exclude_episode=exclude_episode
+        )
+        return SignalScores(
+            similarity=np.full(1, failure, np.float32),
+            success_similarity=np.full(1, success, np.float32),
+            failure_rows=np.full(1, failure_row, np.int64),
+            success_rows=np.full(1, success_row, np.int64),
+            vectors=vector[None],
+            task=self.task,
+        )

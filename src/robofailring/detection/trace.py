@@ -39,6 +39,9 @@ class StepResult:
     # every registered rule's threshold on its raw score at this step, by rule name (θ, or μ_t + θ·σ_t)
     thresholds: dict[str, float] = field(default_factory=dict)
     queries: dict[str, np.ndarray] = field(default_factory=dict, repr=False)  # (f(I_0) ‖ f(I_t)) per view
+    # every registered rule's threshold on each judged view's raw score at this step, by rule name and view: the
+    # view's own band's line where it has one (fusion per-view, per-modality), else `thresholds[<rule>]`
+    view_thresholds: dict[str, dict[str, float]] = field(default_factory=dict)
     # camera views that saw nothing at this step (a black, single-colour or NaN frame now, or as I_0): not
     # scored, so `alarm` is False for them whatever the robot does (a BlindCameraWarning says it once)
     blind_views: list[str] = field(default_factory=list)

@@ -52,6 +52,7 @@ from robofailring.encoders.trained import (
 from robofailring.errors import DataError, SettingError
 from robofailring.extras import needs_extra
 from robofailring.jsontext import parse_json
+from robofailring.outputs import check_folder
 from robofailring.progress import progress_bar
 
 HELD_OUT_SPLITS: Final[frozenset[str]] = frozenset({"test", "ood"})
@@ -233,10 +234,9 @@ def _architecture(config: TrainEncoderConfig) -> tuple[dict[str, Any], Any, int,
 
 def existing_encoder(out: Path) -> dict[str, Any] | None:
     """The encoder.json at `out`, None when `out` is absent or empty; refuses to replace anything else."""
+    check_folder(out, holds="a trained encoder")
     if not out.exists():
         return None
-    if not out.is_dir():
-        raise DataError(f"cannot write a trained encoder at {out}: it is a file")
     try:
         config = parse_json((out / CONFIG_NAME).read_bytes(), source=str(out / CONFIG_NAME))
     except (OSError, DataError):

@@ -65,7 +65,7 @@ def compare_encoders(
             test_split=config.test_split,
             name=slug,
         )
-        build_training_memory(replace(base, memory_out=memory_dir))
+        _, built = build_training_memory(replace(base, memory_out=memory_dir))
         if config.thresholds is not None:
             calibrate(
                 CalibrateConfig(
@@ -74,7 +74,8 @@ def compare_encoders(
             )
         # thresholds: the ones calibration just stored (thresholds None reads them from the manifest)
         evaluated = replace(base, detector=detector.with_memory(memory_dir), thresholds=None)
-        results.append(run_evaluation(evaluated))
+        result = run_evaluation(evaluated)  # what its memory's build did not use, listed with the rest
+        results.append(replace(result, skipped_inputs=list(dict.fromkeys([*result.skipped_inputs, *built]))))
     return results
 
 

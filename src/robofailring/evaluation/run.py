@@ -8,7 +8,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from robofailring.atomic import write_text_atomic
-from robofailring.data.model import Trajectory
+from robofailring.data.model import Skipped, Trajectory
 from robofailring.detection.detector import DetectionTrace, FailureDetector, Place
 from robofailring.detection.loader import detector_with
 from robofailring.detection.rules import PAPER, ScoringRule
@@ -49,17 +49,17 @@ def run_evaluation(
     one needs no second scoring to draw its queries on a map."""
     splits = select_splits(config)
     train, test = splits.train, splits.test
+    built: list[Skipped] = []  # what building the training memory did not use (blank frames, signals)
     if detector is None:
         if config.detector.memory is None:  # the memory built here: checked before it is built
             _deployed(
                 test, config.deployment_successes, tasks={t.task for t in train}, successes=config.successes
             )
         encoder = evaluation_encoder(config)
-        memory_dir = (
-            config.detector.memory
-            if config.detector.memory is not None
-            else build_training_memory(config, splits, encoder)
-        )
+        if config.detector.memory is not None:
+            memory_dir = config.detector.memory
+        else:
+            memory_dir, built = build_training_memory(config, splits, encoder)
         tested = [selection.root for selection in (config.data, config.test_data) if selection is not None]
         detector = detector_with(config.detector, FailureMemory.load(memory_dir, trusted=tested), encoder)
     else:
@@ -74,7 +74,7 @@ def run_evaluation(
         known=set(memory.tasks),
         stride=config.stride,
     )
-    deployed, test = _deploy_successes(
+    deployed, test, not_deployed = _deploy_successes(
         memory, test, config.deployment_successes, encoder, config.recipe.success_step
     )
     if deployed is not memory:
@@ -160,7 +160,16 @@ def run_evaluation(
         skipped_unknown_task=skipped,
         latency_ms=measure_latency(detector, first),
         skipped_too_short=too_short,
-        skipped_inputs=[*splits.skipped, *(view for trace in traces.values() for view in trace.short_views)],
+        skipped_inputs=list(
+            dict.fromkeys(  # each listed once: a run's own skips (its trace's) are among the dataset's too
+                [
+                    *splits.skipped,
+                    *built,
+                    *not_deployed,
+                    *(s for trace in traces.values() for s in [*trace.skipped_inputs, *trace.short_views]),
+                ]
+            )
+        ),
         stride=config.stride,
         vocabulary=memory.vocabulary,
         failure_frames=memory.manifest.failure_mode,
@@ -251,22 +260,25 @@ def _deployed(
 
 def _deploy_successes(
     memory: FailureMemory, test: list[Trajectory], per_task: int, encoder: CachedEncoder, step: float
-) -> tuple[FailureMemory, list[Trajectory]]:
+) -> tuple[FailureMemory, list[Trajectory], list[Skipped]]:
     """Move `per_task` success runs per task from the test set into the success memory and, where the memory
-    has one, the signal memory (in memory only); SettingError before anything is encoded (`_deployed`)."""
+    has one, the signal memory (in memory only); SettingError before anything is encoded (`_deployed`). The
+    runs whose signals did not join (listed as skipped, as a build lists them) come third."""
     if per_task == 0:
-        return memory, test
+        return memory, test, []
     successes = memory.successes
     chosen = _deployed(test, per_task, tasks=set(memory.tasks), successes=successes is not None)
     if successes is None or not chosen:  # (`_deployed` refuses a memory without successes)
-        return memory, test
+        return memory, test, []
     deployed = memory.with_successes(
         successes.extended(SuccessMemory.build(chosen, encoder, step=step, pairing=memory.pairing))
     )
+    unused: list[Skipped] = []
     if memory.signals is not None:  # the robot's signals of those runs join its signal memory too
-        deployed = deployed.with_signals(memory.signals.extended(chosen)[0])
+        signals, unused = memory.signals.extended(chosen)
+        deployed = deployed.with_signals(signals)
     keys = {t.key for t in chosen}
-    return deployed, [t for t in test if t.key not in keys]
+    return deployed, [t for t in test if t.key not in keys], unused
 
 
 def _thresholds(

@@ -178,8 +178,9 @@ def evaluation_encoder(config: EvaluateConfig) -> CachedEncoder:
 
 def build_training_memory(
     config: EvaluateConfig, splits: Splits | None = None, encoder: CachedEncoder | None = None
-) -> Path:
-    """Build the memory from the training split's failures (and successes) and save it to `config.memory_out`."""
+) -> tuple[Path, list[Skipped]]:
+    """Build the memory from the training split's failures (and successes) and save it to `config.memory_out`;
+    its folder and what the build did not use (`BuildStats.skipped_inputs`, kept in its manifest too)."""
     if encoder is None:
         encoder = evaluation_encoder(config)
     if splits is None:
@@ -192,7 +193,7 @@ def build_training_memory(
         split=config.train_split,
         skipped_inputs=splits.dataset.skipped,
     )
-    memory, _ = build_memories(
+    memory, stats = build_memories(
         labelled_failures(splits.train, config.failures_per_task),
         encoder,
         provenance=provenance,
@@ -202,7 +203,7 @@ def build_training_memory(
     )
     memory_dir = config.memory_out or Path(config.out) / "memory"
     memory.save(memory_dir)
-    return memory_dir
+    return memory_dir, stats.skipped_inputs
 
 
 def labelled_failures(trajectories: Sequence[Trajectory], per_task: int | None) -> list[Trajectory]:

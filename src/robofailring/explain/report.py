@@ -14,11 +14,17 @@ from robofailring.errors import DataError
 from robofailring.memory.entry import moment_text
 from robofailring.memory.failure import Neighbor
 from robofailring.memory.image_roots import ImageRoots
-from robofailring.memory.references import absolute_reference, check_references, relocate
+from robofailring.memory.references import (
+    absolute_reference,
+    check_references,
+    relocate,
+)
+from robofailring.memory.signal_memory import SIGNALS_VIEW
 
 if TYPE_CHECKING:
     from robofailring.data.model import Trajectory
     from robofailring.detection.detector import DetectionTrace
+    from robofailring.detection.signal_scores import SignalScores
 
 SYSTEM_PROMPT = (
     "You are an expert robotic failure analyst. Use the provided Failure Report and Reference Images "
@@ -39,6 +45,10 @@ ASSISTANT_PRIMER = "Got it. Here's the analysis of the current situation:"
 NO_FAILURES = (
     "No failure of this task in the memory (success runs only): the run is far from every success run, "
     "but there is no past failure to compare it with."
+)
+SIGNALS_ALONE = (
+    "The robot's signals fired (their nearest runs are above); no camera view's failure neighbours are shown "
+    "(no camera was judged beside them, or the memory has no failure of this task)."
 )
 
 
@@ -264,7 +274,10 @@ class FailureReport:
                 f"{item.moment} |"
             )
         if not self.items:
-            lines += ["", NO_FAILURES]
+            lines += [
+                "",
+                SIGNALS_ALONE if self.view == SIGNALS_VIEW and self.signals is not None else NO_FAILURES,
+            ]
         missing = self.missing_images()
         if missing:
             lines += ["", *(f"**image not found:** `{reference}`  " for reference in missing)]
@@ -317,7 +330,7 @@ def report_for(trace: DetectionTrace, trajectory: Trajectory | None = None) -> F
         neighbors=trace.neighbors(camera, t_det) if camera is not None else [],
         current_image=current,
         similarity=None if camera == view else float(trace.failure_similarity(view)[t_det]),
-        signals=signals_sentence(trace, t_det),
+        signals=signals_sentence(trace.signals, t_det),
         roots=_roots(trace, trajectory),
     )
 
@@ -331,10 +344,10 @@ def _roots(trace: DetectionTrace, trajectory: Trajectory | None) -> list[str]:
     return list(map(str, trace.memory.image_roots.joined(ImageRoots.of(run)).folders))
 
 
-def signals_sentence(trace: DetectionTrace, t: int) -> str | None:
-    """What the robot's signals say at frame `t`: their S⁻ (nearest failure run and frame) and S⁺ (nearest
-    normal frame), and the dimensions furthest from that normal frame, in σ of the success runs."""
-    signals = trace.signals
+def signals_sentence(signals: SignalScores | None, t: int) -> str | None:
+    """What the robot's signals say at frame `t` of their scores (a trace's `signals`, a live session's
+    `signal_scores` at row 0): their S⁻ (nearest failure run and frame) and S⁺ (nearest normal frame), and
+    the dimensions furthest from that normal frame, in σ of the success runs."""
     if signals is None or not np.isfinite(signals.similarity[t]):
         return None
     failure, normal = signals.nearest_failure(t), signals.nearest_success(t)

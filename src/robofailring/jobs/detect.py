@@ -128,7 +128,7 @@ class DetectResult:
         lines.append(trace.verdict())
         if trace.t_det is None or trace.detected_view is None:
             return "\n".join(lines)
-        signals = signals_sentence(trace, trace.t_det)
+        signals = signals_sentence(trace.signals, trace.t_det)
         if signals is not None:
             lines.append(f"robot signals: {signals}")
         fired_view = trace.camera_at(trace.detected_view, trace.t_det) or trace.detected_view

@@ -56,7 +56,8 @@ def build_memories(
     its onset on, thinned at its step) or `end` (the paper's one entry per view), and its pairing, for both
     memories, and which of the robot's signals make the signal memory (`robofailring.memory.signal_memory`;
     none where no run has them). A dataset without a success run gives no success memory.
-    Image references are kept relative to the dataset root. `stats.skipped_inputs` is the provenance's.
+    Image references are kept relative to the dataset root. `stats.skipped_inputs` (the provenance's, the blank
+    frames not stored, the runs whose signals were not used) is kept in the manifest's `skipped_inputs`.
     `vocabulary` (the dataset's own symbols beyond Table 5) is kept with the memory.
     """
     root = Path(provenance.data).resolve()
@@ -79,9 +80,10 @@ def build_memories(
         if recipe.signals != NONE
         else (None, [])
     )
+    encoded.stats.skipped_inputs = [*provenance.skipped_inputs, *encoded.stats.skipped_inputs, *unused]
     manifest = encoded.manifest(
         encoder.identity,
-        skipped_inputs=[skipped.to_dict() for skipped in provenance.skipped_inputs],
+        skipped_inputs=[skipped.to_dict() for skipped in encoded.stats.skipped_inputs],  # all it listed
         source=str(root),
         layout=provenance.layout,
         data_views=list(provenance.views) if provenance.views is not None else None,
@@ -99,7 +101,6 @@ def build_memories(
         vocabulary=vocabulary,
         signals=signals,
     )
-    encoded.stats.skipped_inputs = [*provenance.skipped_inputs, *encoded.stats.skipped_inputs, *unused]
     return memory, encoded.stats
 
 
@@ -154,13 +155,14 @@ def add_to(
         elif new_successes.success_runs:
             joined = new_successes
     stats = encoded.stats
+    stats.skipped_inputs = [*skipped_inputs, *stats.skipped_inputs, *unused]
     manifest = replace(
         old,
         failures=(old.failures or 0) + stats.failures,
         ignored_non_failures=(old.ignored_non_failures or 0) + stats.ignored_non_failures,
         skipped_views=(old.skipped_views or 0) + len(stats.skipped_views),
         skipped=[*(old.skipped or []), *stats.skipped_views],
-        skipped_inputs=[*(old.skipped_inputs or []), *(s.to_dict() for s in skipped_inputs)],
+        skipped_inputs=[*(old.skipped_inputs or []), *(s.to_dict() for s in stats.skipped_inputs)],
         calibration=None,
         signals=signals.manifest() if signals is not None else None,
     )
@@ -174,7 +176,6 @@ def add_to(
         vocabulary=memory.vocabulary,
         signals=signals,
     ).derived_from(memory)  # saved over `memory`'s folder only while that is still the version read
-    stats.skipped_inputs = [*skipped_inputs, *stats.skipped_inputs, *unused]
     return grown, stats
 
 

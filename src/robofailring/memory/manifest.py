@@ -282,7 +282,9 @@ class MemoryManifest:
     data_views: list[str] | None = None  # the views read from it (after `--views`)
     split: str | None = None  # the split the memory was built from
     encoder_spec: str | None = None  # the spec that opens the encoder again (`--encoder`)
-    skipped_inputs: list[dict[str, Any]] | None = None  # dataset folders/files not read
+    skipped_inputs: list[dict[str, Any]] | None = (
+        None  # listed by its builds: not read, blank, signals not used
+    )
     skipped_views: int | None = None  # failure views with too few frames
     skipped: list[dict[str, Any]] | None = None  # those views
     failures: int | None = None

@@ -22,6 +22,7 @@ from robofailring.data.layout_project import SIGNALS_FILE
 from robofailring.data.layouts import PROJECT_FORMAT, PROJECT_MANIFEST, read_project_manifest
 from robofailring.errors import DataError, SettingError
 from robofailring.jsontext import parse_json
+from robofailring.outputs import check_folder
 from robofailring.sim.appearance import look_mode
 from robofailring.sim.cameras import VIEWS
 from robofailring.sim.episode import DURATION_S, EpisodeResult, episode_fps, run_episode
@@ -282,11 +283,10 @@ def _cached(config: GenerateConfig) -> bool:
 
 
 def _check_replaceable(out: Path) -> None:
-    """Refuse to replace a non-empty folder that is not a dataset this generator wrote."""
+    """Refuse to replace a non-empty folder that is not a dataset this generator wrote (or a file)."""
+    check_folder(out, holds="a generated dataset")
     if not out.exists():
         return
-    if not out.is_dir():
-        raise DataError(f"cannot generate a dataset at {out}: it is a file")
     try:
         manifest = parse_json((out / PROJECT_MANIFEST).read_bytes(), source=str(out / PROJECT_MANIFEST))
         ours = manifest.get("generator") == GENERATOR
