@@ -5,10 +5,8 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
-import numpy as np
-
-from rfr_viz.panels.neighbors import Cell
 from rfr_viz.panels.map import MapGrid
+from rfr_viz.panels.neighbors import Cell
 from rfr_viz.panels.scores import threshold_label
 from rfr_viz.paths import (
     CLOSED_LOOP_SUMMARY,
@@ -70,7 +68,9 @@ class ScorePlots:
         rules = tuple(shown_rules(judging, successes=successes, failures=failures))
         return cls(
             rules=rules,
-            thresholds={rule.name: float(thresholds.get(rule.name, rule.default_threshold)) for rule in rules},
+            thresholds={
+                rule.name: float(thresholds.get(rule.name, rule.default_threshold)) for rule in rules
+            },
             successes=successes,
             bands=dict(bands or {}),
             signals=signals,
@@ -95,7 +95,9 @@ def _score_plot(
     rule_plots = []
     views = plots.scored(views)
     for position, rule in enumerate(plots.rules):
-        own = plots.bands[rule.name].views if rule.name in plots.bands else {}  # views with a band of their own
+        own = (
+            plots.bands[rule.name].views if rule.name in plots.bands else {}
+        )  # views with a band of their own
         contents = [
             *(paths.score(view, rule.name) for view in views),
             paths.threshold(rule.name),
@@ -344,6 +346,9 @@ def closed_loop_blueprint(
         for name in signals
     ]
     text = rrb.Horizontal(
-        events, summary, *([rrb.Tabs(*robot, name="robot signals")] if robot else []), column_shares=[1, 1.1, 1.1][: 2 + bool(robot)]
+        events,
+        summary,
+        *([rrb.Tabs(*robot, name="robot signals")] if robot else []),
+        column_shares=[1, 1.1, 1.1][: 2 + bool(robot)],
     )
     return rrb.Blueprint(rrb.Vertical(*rows, text, row_shares=[1, 1, 0.85]), *side_panels(fps, focus))

@@ -12,24 +12,24 @@ from pathlib import Path
 import numpy as np
 
 from rfr_viz.panels.images import JPEG_MEDIA_TYPE, JPEG_QUALITY
-from rfr_viz.recordings.blueprint import closed_loop_blueprint
 from rfr_viz.panels.scores import set_frame_time, time_columns
 from rfr_viz.panels.signals import log_signals
 from rfr_viz.paths import CLOSED_LOOP_SUMMARY, PROPERTIES, UNSTOPPED, WATCHED, ClosedLoopPaths
+from rfr_viz.recordings.blueprint import closed_loop_blueprint
 from rfr_viz.recordings.replay import open_recording
 from rfr_viz.styles import DELTA_COLOUR, STATE_COLOUR, STOP_COLOUR, VIEW_COLOURS
 from robofailring.data.images import encode_jpeg
 from robofailring.detection.config import DEFAULT_K
 from robofailring.detection.detector import FailureDetector
+from robofailring.detection.rules import PAPER
 from robofailring.detection.trace import StepResult
 from robofailring.encoders.base import Encoder
 from robofailring.encoders.cache import CachedEncoder
-from robofailring.memory.failure import FailureMemory
-from robofailring.detection.rules import PAPER
-from robofailring.sim import VIEWS, EpisodeResult
-from robofailring.jobs.closed_loop import WatchedRun, alarm, outcome_line, watch_episode
-from robofailring.sim.episode import episode_fps
 from robofailring.extras import needs_extra
+from robofailring.jobs.closed_loop import WatchedRun, alarm, outcome_line, watch_episode
+from robofailring.memory.failure import FailureMemory
+from robofailring.sim import VIEWS, EpisodeResult
+from robofailring.sim.episode import episode_fps
 
 with needs_extra("viz"):
     import rerun as rr

@@ -7,9 +7,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, Final
 
-
-from rfr_viz.charts.to_rerun import chart_view, log_chart
 from rfr_viz.charts.evaluation import Chart, evaluation_charts
+from rfr_viz.charts.to_rerun import chart_view, log_chart
 from rfr_viz.paths import EVAL_ROOT, EVAL_SUMMARY, EVALUATION_APPLICATION_ID
 from robofailring.atomic import atomic_path
 from robofailring.evaluation.run import EvaluationResult
@@ -39,7 +38,9 @@ def chart_pages(shown: Sequence[Chart]) -> dict[str, list[Chart]]:
     """The charts by page, pages in the order their first chart comes."""
     pages: dict[str, list[Chart]] = {}
     for chart in shown:
-        pages.setdefault(PAGES.get(chart.key.split("_")[0], PAGES.get(chart.key, OTHER_PAGE)), []).append(chart)
+        pages.setdefault(PAGES.get(chart.key.split("_")[0], PAGES.get(chart.key, OTHER_PAGE)), []).append(
+            chart
+        )
     return pages
 
 

@@ -10,26 +10,20 @@ and the detection event and failure report at the first alarm.
 
 from __future__ import annotations
 
-import contextlib
 import logging
-import socket
-import time
 import uuid
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import ExitStack, contextmanager
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
 import numpy as np
 
-from rfr_viz.recordings.blueprint import ScorePlots, replay_blueprint
-from rfr_viz.recordings.live_target import DEFAULT_VIEWER_URL, LiveTarget, check_viewer
 from rfr_viz.codecs import CameraCodec
 from rfr_viz.panels.contrast import log_nearest_success
 from rfr_viz.panels.images import ReferenceJpegs
 from rfr_viz.panels.live_camera import LiveCameras
-from rfr_viz.panels.umap import MemoryMap
+from rfr_viz.panels.map import MapGrid, class_id, log_memory_map, map_grid, map_title
 from rfr_viz.panels.neighbors import (
     DEFAULT_CELL,
     Cell,
@@ -38,22 +32,20 @@ from rfr_viz.panels.neighbors import (
     log_neighbor_layout,
     log_no_failures,
 )
-from rfr_viz.panels.map import MapGrid, class_id, log_memory_map, map_grid, map_title
 from rfr_viz.panels.report import log_alarm
 from rfr_viz.panels.scores import log_score_styles, set_frame_time, threshold_properties
+from rfr_viz.panels.umap import MemoryMap
 from rfr_viz.paths import APPLICATION_ID, DEFAULT_FPS, PROPERTIES, REPLAY, signal
-from rfr_viz.viewer.binary import ViewerUnavailable
+from rfr_viz.recordings.blueprint import ScorePlots, replay_blueprint
+from rfr_viz.recordings.live_target import DEFAULT_VIEWER_URL, LiveTarget, check_viewer
 from rfr_viz.viewer.control import DEFAULT_PORT
 from rfr_viz.viewer.rrd import check_recording_file
 from robofailring.atomic import atomic_path, output_lock
-from robofailring.errors import Terminated
-from robofailring.data.layouts import load_trajectory
 from robofailring.data.model import Frame
-from robofailring.detection.config import DEFAULT_K
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.session import DetectorSession
 from robofailring.detection.trace import StepResult
-from robofailring.errors import DataError, SettingError
+from robofailring.errors import Terminated
 from robofailring.explain.report import FailureReport, signals_sentence
 from robofailring.extras import needs_extra
 
@@ -71,7 +63,9 @@ def _score_plots(detector: FailureDetector, task: str) -> ScorePlots:
         thresholds=detector.thresholds,
         failures=detector.memory.has_failures(task),
         successes=detector.memory.successes is not None,
-        bands={name: band.for_task(task) for name, band in detector.bands.items()},  # the task's, as it judges
+        bands={
+            name: band.for_task(task) for name, band in detector.bands.items()
+        },  # the task's, as it judges
         signals=detector.memory.signals is not None and detector.memory.signals.task(task) is not None,
     )
 
@@ -157,7 +151,9 @@ class LiveRecording:
         with ExitStack() as stack:
             rec = rr.RecordingStream(APPLICATION_ID, recording_id=str(uuid.uuid4()))
             sinks: list[Any] = []
-            if target.save is not None:  # no footer: its chunk manifest would grow with every step held in RAM
+            if (
+                target.save is not None
+            ):  # no footer: its chunk manifest would grow with every step held in RAM
                 stack.enter_context(output_lock(Path(target.save)))  # a second writer of it stops at once
                 saved = stack.enter_context(atomic_path(Path(target.save), suffix=".rrd"))
                 sinks.append(rr.FileSink(saved, write_footer=False))

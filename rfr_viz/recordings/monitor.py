@@ -35,7 +35,13 @@ class MonitorRecorder:
     ) -> Iterator[LiveRecording]:
         target = LiveTarget(connect=self.connect, spawn=self.spawn, save=Path(self.folder) / f"{name}.rrd")
         with LiveRecording.open(
-            detector, task, views=views, target=target, fps=self.fps, name=name, camera_codec=self.camera_codec
+            detector,
+            task,
+            views=views,
+            target=target,
+            fps=self.fps,
+            name=name,
+            camera_codec=self.camera_codec,
         ) as live:
             yield live
 

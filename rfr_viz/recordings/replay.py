@@ -9,19 +9,17 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
-
-from rfr_viz.recordings.blueprint import ScorePlots, compare_blueprint, replay_blueprint
 from rfr_viz.codecs import CameraCodec
 from rfr_viz.panels.cameras import log_camera_views
 from rfr_viz.panels.contrast import log_nearest_successes
-from rfr_viz.panels.umap import MemoryMap, fit_map
-from rfr_viz.panels.neighbors import Cell, NeighborImages, log_neighbors
 from rfr_viz.panels.map import log_map, map_title, trace_map_grid
+from rfr_viz.panels.neighbors import Cell, NeighborImages, log_neighbors
 from rfr_viz.panels.report import log_detection
 from rfr_viz.panels.scores import log_scores, threshold_properties, time_columns
 from rfr_viz.panels.signals import log_signals, recorded_signals
+from rfr_viz.panels.umap import MemoryMap, fit_map
 from rfr_viz.paths import APPLICATION_ID, DEFAULT_FPS, IN_MEMORY, PROPERTIES, REPLAY, DetectorPaths
-from rfr_viz.styles import VIEW_COLOURS
+from rfr_viz.recordings.blueprint import ScorePlots, compare_blueprint, replay_blueprint
 from robofailring.atomic import atomic_path
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.data.signals import SignalValues
@@ -105,7 +103,9 @@ def record_replay(
             rr.AnyValues(
                 **_trajectory_properties(info, trace.length),
                 **_detector_properties(trace, mapped),
-                focus_frame=focus_frame if focus_frame is not None else -1,  # -1: none (see rfr_viz.viewer.control)
+                focus_frame=focus_frame
+                if focus_frame is not None
+                else -1,  # -1: none (see rfr_viz.viewer.control)
                 **_report_properties(trace, trajectory, vlm_answer),
                 **signal_properties(signals, unread),
             ),
@@ -145,9 +145,7 @@ def compare_recording(
         raise ValueError("compare_recording needs at least one trace")
     info = RecordingInfo.of(trajectory, fps=fps)
     slugs = list(traces)
-    maps = {
-        slug: (memory_maps or {}).get(slug) or fit_map(trace.memory) for slug, trace in traces.items()
-    }
+    maps = {slug: (memory_maps or {}).get(slug) or fit_map(trace.memory) for slug, trace in traces.items()}
     images = NeighborImages(ImageRoots().joined(*(trace.memory.image_roots for trace in traces.values())))
     cells = {slug: images.cell(trace) for slug, trace in traces.items()}
     views = list(dict.fromkeys(view for trace in traces.values() for view in trace.views))

@@ -73,9 +73,7 @@ def triage_blueprint(ranked: Sequence[EpisodeScore]) -> rrb.Blueprint:
         name="peak frames",
     )
     left = rrb.Vertical(
-        rrb.TimeSeriesView(
-            origin=TRIAGE_CURVES, name="score curves (every episode)", plot_legend=NO_LEGEND
-        ),
+        rrb.TimeSeriesView(origin=TRIAGE_CURVES, name="score curves (every episode)", plot_legend=NO_LEGEND),
         rrb.BarChartView(origin=TRIAGE_SCORES, name="ranking score, in rank order"),
         row_shares=[2, 1],
     )
