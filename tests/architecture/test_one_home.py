@@ -42,7 +42,7 @@ def test_frame_reference_markers_live_in_their_module_only() -> None:
         if marker in text
     }
     # a signal's reference (`<bag>#topic=<topic>&field=<f>`) names a topic's field, not a frame
-    assert found <= {("src/robofailring/data/rosbag_signals.py", "#topic=")}, found
+    assert found <= {("src/robofailring/data/layouts/rosbag_signals.py", "#topic=")}, found
     assert {marker for text in _literals(FRAME_REF) for marker in MARKERS if marker in text} == set(MARKERS)
 
 

@@ -15,7 +15,7 @@ from typer.testing import CliRunner
 from rfr_viz.cli.app import app
 from robofailring import load_dataset, load_trajectory
 from robofailring.data.frame_ref import read_frame
-from robofailring.data.layout_rosbag import BagFile
+from robofailring.data.layouts.rosbag import BagFile
 from robofailring.errors import DataError
 from robofailring.memory.references import check_references, reference_file
 
@@ -319,7 +319,7 @@ def test_a_bare_mcap_file_is_a_bag(tmp_path: Path) -> None:
 
 
 def test_open_bags_are_bounded(tmp_path: Path) -> None:
-    from robofailring.data import layout_rosbag
+    from robofailring.data.layouts import rosbag as layout_rosbag
 
     for number in range(12):
         write_bag(

@@ -34,11 +34,11 @@ import numpy as np
 from robofailring.data.folders import visible
 from robofailring.data.frame_ref import Container, FrameRef, register_reader
 from robofailring.data.images import content_digest
+from robofailring.data.layouts.registry import Found, Layout, register
+from robofailring.data.layouts.ros_messages import COMPRESSED, IMAGE, READABLE, encoding_problem, to_rgb
+from robofailring.data.layouts.rosbag_signals import joint_state_signals
 from robofailring.data.model import Frame, LazyFrames, Skipped, Trajectory
 from robofailring.data.open_files import OpenLimit
-from robofailring.data.registry import Found, Layout, register
-from robofailring.data.ros_messages import COMPRESSED, IMAGE, READABLE, encoding_problem, to_rgb
-from robofailring.data.rosbag_signals import joint_state_signals
 from robofailring.errors import DataError, read_error
 from robofailring.extras import needs_extra
 
@@ -354,5 +354,6 @@ LAYOUT: Final = register(
         help="ROS bags: a ROS 2 bag folder (metadata.yaml + .mcap/.db3), or a folder of them, of .mcap files or of "
         "ROS 1 .bag files",
         listed=10,
+        detect_order=60,  # bag files and folders no other layout reads
     )
 )
