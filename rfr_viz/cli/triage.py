@@ -11,7 +11,7 @@ from rfr_viz.cli.options import CameraCodecOption
 from rfr_viz.codecs import CameraCodec
 from robofailring.cli.exit_codes import finish
 from robofailring.cli.groups import Declared, takes
-from robofailring.cli.option_groups import DATA, DETECTOR
+from robofailring.cli.option_groups import DATA, DETECTOR, RULE_THRESHOLDS
 from robofailring.cli.options import print_notes, report_skipped
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
@@ -23,7 +23,7 @@ app = typer.Typer(add_completion=False)  # composed into the one `robofailring` 
 @app.command("triage")
 @takes(
     data=DATA.without("vocabulary"),
-    detector=DETECTOR.without("delta", "gamma", "eta", "modality").but(
+    detector=DETECTOR.without(*RULE_THRESHOLDS, "modality").but(
         memory=Declared(
             Annotated[
                 Path | None,

@@ -2,25 +2,18 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Final
 
 import cv2
 
-from robofailring.data.images import encode_jpeg, read_image
-from robofailring.data.layout_rosbag import BAG_MESSAGE_MARKER, read_bag_reference
+from robofailring.data.frame_ref import reference_jpeg as frame_reference_jpeg
+from robofailring.data.images import encode_jpeg, is_jpeg
 from robofailring.data.model import Frame
-from robofailring.data.video import read_video_reference
 from robofailring.errors import DataError
 from robofailring.memory.image_roots import ImageRoots
 
 JPEG_QUALITY: Final[int] = 80
 JPEG_MEDIA_TYPE: Final[str] = "image/jpeg"
-_JPEG_MAGIC: Final[bytes] = b"\xff\xd8\xff"
-
-
-def is_jpeg(data: bytes) -> bool:
-    return data[:3] == _JPEG_MAGIC
 
 
 def frame_jpeg(frame: Frame, *, quality: int = JPEG_QUALITY) -> bytes:
@@ -36,19 +29,8 @@ def reference_jpeg(reference: str, roots: ImageRoots, *, quality: int = JPEG_QUA
     `roots` (the folders named for the memory's images: an edited memory must not record your files)."""
     if not roots.holds(reference):
         return None
-    path = Path(reference)
-    if BAG_MESSAGE_MARKER in reference or "#frame=" in reference:  # a bag message, a video frame
-        read = read_bag_reference if BAG_MESSAGE_MARKER in reference else read_video_reference
-        try:
-            image = read(reference)
-        except DataError:
-            return None
-        return None if image is None else encode_jpeg(image, quality=quality)
-    if reference.startswith("<") or not path.is_file():
-        return None
     try:
-        data = path.read_bytes()
-        return data if is_jpeg(data) else encode_jpeg(read_image(path), quality=quality)
+        return frame_reference_jpeg(reference, quality=quality)
     except (OSError, DataError):
         return None  # a memory image that went missing must not sink the whole recording
 

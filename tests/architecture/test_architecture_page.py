@@ -26,7 +26,7 @@ def _named(heading: str) -> dict[str, set[str]]:
         if not line.startswith("|") or len(cells) < 3 or cells[0] == "package" or cells[0].startswith("---"):
             continue
         package = cells[0].strip("`").rstrip("/") or package
-        named.setdefault(package or TOP, set()).update(re.findall(r"`(\w+\.py)`", cells[1]))
+        named.setdefault(package or TOP, set()).update(re.findall(r"`(?:\w+/)*(\w+\.py)`", cells[1]))
     return named
 
 

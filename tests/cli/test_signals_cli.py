@@ -12,7 +12,7 @@ import pytest
 from fault_helpers import cli, refused
 from synthetic import write_project_dataset
 
-from robofailring.data.layout_project import PROJECT_SIGNALS, SIGNALS_FILE
+from robofailring.data.layouts.project import PROJECT_SIGNALS, SIGNALS_FILE
 
 
 @pytest.fixture(scope="module")

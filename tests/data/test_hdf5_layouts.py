@@ -15,7 +15,8 @@ from pipeline import invoke, run_pipeline
 from synthetic import synthetic_frame
 
 from robofailring import FailureMemory, load_dataset, load_trajectory
-from robofailring.data.hdf5 import HDF5Frame, read_hdf5_reference
+from robofailring.data.frame_ref import read_frame
+from robofailring.data.hdf5 import HDF5Frame
 from robofailring.data.model import Trajectory
 from robofailring.data.splits import split_of
 from robofailring.errors import DataError
@@ -155,7 +156,7 @@ def test_aloha_jpeg_rows_read_as_the_camera_gave_them(tmp_path: Path) -> None:
     assert read[4:12, :, 0].mean() > 190 and read[4:12, :, 2].mean() < 35  # red stays on top
     assert read[20:28, :, 2].mean() > 200 and read[20:28, :, 0].mean() < 40
     reference = trajectory.views["cam_left_wrist"][2].reference  # a memory entry's image reads the same
-    assert np.array_equal(read_hdf5_reference(reference), read)
+    assert np.array_equal(read_frame(reference), read)
 
 
 def test_libero_opengl_frames_are_turned_upright(tmp_path: Path) -> None:
@@ -175,7 +176,7 @@ def test_libero_opengl_frames_are_turned_upright(tmp_path: Path) -> None:
         del handle["data"].attrs["macros_image_convention"]
     frames = load_dataset(path).episodes[1].views["agentview"]
     assert np.array_equal(frames[3].load(), red_over_blue(1, 0, 3))
-    assert np.array_equal(read_hdf5_reference(frames[3].reference), red_over_blue(1, 0, 3))
+    assert np.array_equal(read_frame(frames[3].reference), red_over_blue(1, 0, 3))
     unflipped = load_dataset(plain).episodes[1].views["agentview"]
     assert np.array_equal(unflipped[3].load(), red_over_blue(1, 0, 3)[::-1])
     assert unflipped[3].content_key() != frames[3].content_key()

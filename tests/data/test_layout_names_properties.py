@@ -13,8 +13,8 @@ from hypothesis import strategies as st
 
 from robofailring.data.grounding import parse_symbol
 from robofailring.data.images import write_png
-from robofailring.data.layout_aha import AHA_FAILURES, aha_name_problem, aha_trajectories, parse_aha_name
-from robofailring.data.layout_maniskill import MANISKILL_FAILURES, MANISKILL_SUCCESS, maniskill_trajectories
+from robofailring.data.layouts.aha import AHA_FAILURES, aha_name_problem, aha_trajectories, parse_aha_name
+from robofailring.data.layouts.maniskill import MANISKILL_FAILURES, MANISKILL_SUCCESS, maniskill_trajectories
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.errors import SymbolError
 

@@ -16,7 +16,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from lerobot_writer import write_lerobot_v3, write_lerobot_v21
 
-from robofailring.data.lerobot import INFO, lerobot_trajectories
+from robofailring.data.layouts.lerobot import INFO, lerobot_trajectories
 from robofailring.errors import DataError
 
 JSON = st.recursive(

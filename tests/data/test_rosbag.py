@@ -14,7 +14,8 @@ from typer.testing import CliRunner
 
 from rfr_viz.cli.app import app
 from robofailring import load_dataset, load_trajectory
-from robofailring.data.layout_rosbag import BagFile, read_bag_reference
+from robofailring.data.frame_ref import read_frame
+from robofailring.data.layouts.rosbag import BagFile
 from robofailring.errors import DataError
 from robofailring.memory.references import check_references, reference_file
 
@@ -68,7 +69,7 @@ def test_every_encoding_reads_back_what_was_written(kind: str, tmp_path: Path) -
     reference = trajectory.views["/cam_left/image_raw"][4].reference
     assert reference == f"{path}#topic=/cam_left/image_raw&message=4"
     assert reference_file(reference) == str(path) and check_references([reference]).ok
-    assert np.array_equal(read_bag_reference(reference), frame(1, 4))
+    assert np.array_equal(read_frame(reference), frame(1, 4))
 
 
 def test_a_ros2_bag_folder_is_one_trajectory_and_its_frames_are_keyed_by_content(tmp_path: Path) -> None:
@@ -314,11 +315,11 @@ def test_a_bare_mcap_file_is_a_bag(tmp_path: Path) -> None:
     assert np.array_equal(trajectory.views["/cam_left/image_raw"][3].load(), frame(1, 3))
     reference = trajectory.views["/cam_left/image_raw"][3].reference
     assert reference == f"{bags / 'run_07.mcap'}#topic=/cam_left/image_raw&message=3"
-    assert np.array_equal(read_bag_reference(reference), frame(1, 3))
+    assert np.array_equal(read_frame(reference), frame(1, 3))
 
 
 def test_open_bags_are_bounded(tmp_path: Path) -> None:
-    from robofailring.data import layout_rosbag
+    from robofailring.data.layouts import rosbag as layout_rosbag
 
     for number in range(12):
         write_bag(

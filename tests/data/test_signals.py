@@ -23,7 +23,7 @@ from rosbag_writer import JOINTS, joint_position, write_bag
 from synthetic import synthetic_frame
 
 from robofailring import load_dataset
-from robofailring.data.hdf5_signals import ALOHA_DIMS
+from robofailring.data.layouts.hdf5_signals import ALOHA_DIMS
 from robofailring.data.model import Frame, Trajectory
 from robofailring.data.signals import Signal, SignalKind
 

@@ -12,6 +12,8 @@ adding a setting to one of these values is one option here, one field there, and
 
 from __future__ import annotations
 
+import inspect
+from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Final
 
@@ -21,7 +23,7 @@ from robofailring.cli.groups import Declared, OptionGroup
 from robofailring.data.selection import DataSelection
 from robofailring.detection.band import BAND_KINDS, BAND_SCOPES, DEFAULT_BAND, DEFAULT_BAND_SCOPE
 from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
-from robofailring.detection.rules import RULES
+from robofailring.detection.rules import RULES, threshold_keys
 from robofailring.detection.stored import given_thresholds
 from robofailring.detection.threshold_policy import DEFAULT_POLICY, ThresholdPolicy
 from robofailring.detection.view_bands import DEFAULT_FUSION, FUSIONS
@@ -177,10 +179,6 @@ def recipe_options(
 # How a detector judges, and where its encoder runs: DetectorConfig
 
 MemoryOption = Annotated[Path | None, typer.Option("--memory", help="Memory directory.")]
-DeltaOption = Annotated[
-    float | None,
-    typer.Option("--delta", help="Threshold δ.", show_default="the memory's calibrated δ, else 0.92"),
-]
 KOption = Annotated[int, typer.Option("--k", help="Neighbours retrieved per query.")]
 ScoreOption = Annotated[
     str | None,
@@ -192,14 +190,6 @@ ScoreOption = Annotated[
         show_default="per task: contrast with success and failure runs, novelty with success runs only, paper "
         "with failure runs only",
     ),
-]
-GammaOption = Annotated[
-    float | None,
-    typer.Option(help="Contrast threshold γ.", show_default="the memory's calibrated γ, else 0"),
-]
-EtaOption = Annotated[
-    float | None,
-    typer.Option(help="Novelty threshold η.", show_default="the memory's calibrated η, else 0.1"),
 ]
 ModalityOption = Annotated[
     str,
@@ -258,11 +248,8 @@ RayOption = Annotated[
 
 def detector_options(
     memory: MemoryOption = None,
-    delta: DeltaOption = None,
     k: KOption = DEFAULT_DETECTOR.k,
     score: ScoreOption = None,
-    gamma: GammaOption = None,
-    eta: EtaOption = None,
     modality: ModalityOption = DEFAULT_DETECTOR.modality,
     encoder: MemoryEncoderOption = None,
     cache_dir: CacheOption = None,
@@ -270,9 +257,10 @@ def detector_options(
     runtime: RuntimeOption = None,
     data_root: DataRootOption = None,
     ray: RayOption = None,
+    **thresholds: float | None,
 ) -> DetectorConfig:
-    """--memory, --delta, --k, --score, --gamma, --eta, --modality, --encoder, --cache-dir, --device, --runtime,
-    --data-root and --ray as one `DetectorConfig` (each rule's threshold by its option)."""
+    """--memory, --k, --score, each rule's threshold option (`--delta`, `--gamma`, `--eta`), --modality, --encoder,
+    --cache-dir, --device, --runtime, --data-root and --ray as one `DetectorConfig`."""
     return DetectorConfig(
         memory=memory,
         encoder=encoder,
@@ -282,16 +270,48 @@ def detector_options(
         data_root=data_root,
         k=k,
         rule=score,
-        thresholds=given_thresholds(None, delta=delta, gamma=gamma, eta=eta),
+        thresholds=given_thresholds(None, **thresholds),
         modality=modality,
         ray=ray,
     )
 
 
+def _with_rule_thresholds(build: Callable[..., DetectorConfig]) -> inspect.Signature:
+    """`build`'s signature with its `**thresholds` as one option per registered rule, after `--score`: the rule
+    gives the option's name (`--<threshold_key>`) and help, so a new rule needs no line here."""
+    options = [
+        inspect.Parameter(
+            rule.threshold_key,
+            inspect.Parameter.KEYWORD_ONLY,
+            default=None,
+            annotation=Annotated[
+                float | None,
+                typer.Option(
+                    f"--{rule.threshold_key}", help=rule.threshold_help, show_default=rule.threshold_default
+                ),
+            ],
+        )
+        for rule in RULES.values()
+    ]
+    signature = inspect.signature(build, eval_str=True)
+    parameters = []
+    for parameter in signature.parameters.values():
+        if parameter.kind is inspect.Parameter.VAR_KEYWORD:
+            continue
+        parameters.append(parameter.replace(kind=inspect.Parameter.KEYWORD_ONLY))
+        if parameter.name == "score":
+            parameters += options
+    return signature.replace(parameters=parameters)
+
+
+detector_options.__signature__ = _with_rule_thresholds(detector_options)  # type: ignore[attr-defined]
+
 #: The detector's options that say where its encoder runs, for the verbs that encode but judge nothing.
 ENCODER_PLACEMENT: Final[tuple[str, ...]] = ("cache_dir", "device", "runtime", "ray")
+#: Each registered rule's threshold option (`delta`, `gamma`, `eta`), for the verbs that judge by a memory's own.
+RULE_THRESHOLDS: Final[tuple[str, ...]] = threshold_keys()
 #: The options that choose a rule and its thresholds, for the verbs that set or read them elsewhere.
-RULE_CHOICE: Final[tuple[str, ...]] = ("score", "delta", "gamma", "eta")
+RULE_CHOICE: Final[tuple[str, ...]] = ("score", *RULE_THRESHOLDS)
 
 # How thresholds are set: ThresholdPolicy
 

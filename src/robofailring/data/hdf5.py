@@ -1,7 +1,7 @@
 """HDF5 image datasets read lazily with h5py: a frame is one row sliced on demand, never the whole array.
 
 Files are opened per read through a small cache of open handles (`_OPEN_LIMIT`), so a dataset of
-many episode files keeps few open. A frame's reference is `<file>#<dataset path>#frame=<i>`; its
+many episode files keeps few open. A frame's reference names its file, dataset and row (`frame_ref`); its
 content key digests the row's own bytes (raw pixels or the stored JPEG) and how they are read, so
 nothing else is read. How a dataset's rows are read (`RowFormat`) is decided from the file alone
 (`row_format`), by the layouts and by a memory's references alike: encoded rows are ALOHA's, JPEGs
@@ -26,6 +26,7 @@ from typing import Any, Final
 
 import numpy as np
 
+from robofailring.data.frame_ref import Container, FrameRef, register_reader
 from robofailring.data.images import (
     MAX_FRAME_PIXELS_SETTING,
     as_rgb,
@@ -197,7 +198,7 @@ class HDF5Frame:
 
     @property
     def reference(self) -> str:
-        return f"{self.file}#{self.dataset}#frame={self.index}"
+        return str(FrameRef.hdf5(self.file, self.dataset, self.index))
 
 
 class HDF5Frames(LazyFrames):
@@ -226,15 +227,16 @@ class HDF5Frames(LazyFrames):
         return f"HDF5Frames({str(self.file)!r}, {self.dataset!r}, {self.size} frames)"
 
 
-def read_hdf5_reference(reference: str) -> np.ndarray | None:
-    """The frame a `<file>#<dataset>#frame=<i>` reference points at, or None when it is not one."""
-    head, marker, index = reference.rpartition("#frame=")
-    file, hash_, dataset = head.partition("#")
-    if not marker or not hash_ or not index.isdecimal() or not Path(file).is_file():
+def _read_hdf5_row(ref: FrameRef) -> np.ndarray | None:
+    """The row an HDF5 row's reference points at, or None when its file or dataset is not there."""
+    if ref.index is None or not Path(ref.file).is_file():
         return None
-    handle = open_hdf5(Path(file))
-    with hdf5_faults(file):
-        if handle.get(dataset) is None:
+    handle = open_hdf5(Path(ref.file))
+    with hdf5_faults(ref.file):
+        if handle.get(ref.inner) is None:
             return None
-        form = row_format(handle, dataset)
-    return HDF5Frame(Path(file), dataset, int(index), form=form).load()
+        form = row_format(handle, ref.inner)
+    return HDF5Frame(Path(ref.file), ref.inner, ref.index, form=form).load()
+
+
+register_reader(Container.HDF5, _read_hdf5_row)

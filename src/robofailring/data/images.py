@@ -23,6 +23,7 @@ MAX_FRAME_PIXELS: Final[int] = (
     50_000_000  # per frame, width × height, unless the setting below says otherwise
 )
 MAX_FRAME_PIXELS_SETTING: Final[str] = "ROBOFAILRING_MAX_FRAME_PIXELS"
+_JPEG_MAGIC: Final[bytes] = b"\xff\xd8\xff"
 _JPEG_FRAME_MARKERS: Final[frozenset[int]] = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}  # SOF0–SOF15
 
 
@@ -166,6 +167,11 @@ def as_rgb(image: np.ndarray, *, source: str = "image") -> np.ndarray:
 def content_digest(data: bytes) -> str:
     """A short, stable digest of image content, used as the embedding-cache key."""
     return hashlib.blake2b(data, digest_size=16).hexdigest()
+
+
+def is_jpeg(data: bytes) -> bool:
+    """Whether the bytes are a JPEG file (they pass through to a recording or a VLM as they are)."""
+    return data[:3] == _JPEG_MAGIC
 
 
 def encode_jpeg(image: np.ndarray, *, quality: int = 80) -> bytes:

@@ -13,6 +13,7 @@ from typing import Final, Protocol, overload
 
 import numpy as np
 
+from robofailring.data.frame_ref import ARRAY_REFERENCE
 from robofailring.data.images import as_rgb, content_digest, read_image
 from robofailring.data.signals import Signal, SignalValues, read_signal
 from robofailring.errors import DataError, read_error
@@ -94,10 +95,11 @@ class Frame:
 
     @property
     def reference(self) -> str:
-        """A printable reference to the frame (its path, `<video>#frame=<i>`, or '<array>')."""
+        """A printable reference to the frame (`robofailring.data.frame_ref`: its path, its place in a video, an
+        HDF5 dataset or a bag, or '<array>')."""
         if self.source is not None:
             return self.source.reference
-        return str(self.path) if self.path is not None else "<array>"
+        return str(self.path) if self.path is not None else ARRAY_REFERENCE
 
 
 class LazyFrames(Sequence[Frame]):

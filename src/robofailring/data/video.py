@@ -19,6 +19,7 @@ from typing import Any, Final
 
 import numpy as np
 
+from robofailring.data.frame_ref import Container, FrameRef, register_reader
 from robofailring.data.images import check_frame_size, content_digest
 from robofailring.data.model import Frame, LazyFrames
 from robofailring.data.open_files import OpenLimit
@@ -266,7 +267,7 @@ class VideoFrame:
 
     @property
     def reference(self) -> str:
-        return f"{self.video.path}#frame={self.frame_index()}"
+        return str(FrameRef.video(self.video.path, self.frame_index()))
 
 
 class VideoFrames(LazyFrames):
@@ -298,19 +299,14 @@ class VideoFrames(LazyFrames):
         return f"VideoFrames({self.video!r}, {len(self) if self._times is not None else '?'} frames)"
 
 
-def read_video_reference(reference: str) -> np.ndarray | None:
-    """The frame a `<video file>#frame=<index>` reference (a memory entry's start/end) points at, or None.
-
-    A row of an HDF5 image dataset (`<file>#/<dataset>#frame=<index>`) is read by its own reader.
-    """
-    path, marker, index = reference.rpartition("#frame=")
-    if marker and "#/" in path:
-        from robofailring.data.hdf5 import read_hdf5_reference
-
-        return read_hdf5_reference(reference)
-    if not marker or not index.isdecimal() or not Path(path).is_file():
+def _read_video_frame(ref: FrameRef) -> np.ndarray | None:
+    """The frame a video frame's reference (a memory entry's start/end) points at, or None when its file is gone."""
+    if ref.index is None or not Path(ref.file).is_file():
         return None
-    return open_video(Path(path)).decode(int(index))
+    return open_video(Path(ref.file)).decode(ref.index)
+
+
+register_reader(Container.VIDEO, _read_video_frame)
 
 
 def video_files(directory: Path) -> list[Path]:

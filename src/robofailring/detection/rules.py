@@ -8,8 +8,9 @@ the current pair is from anything seen in the task's success runs, N_t = 1 − S
 threshold is set by split-conformal calibration (`robofailring.detection.conformal`).
 
 A new rule is one `ScoringRule` subclass added to `RULES`: the detector, its trace, the live step,
-the evaluation, the CLI's `--score` and the recordings all ask the rule object, and `calibrate` stores its
-threshold under its `name` (`calibration.rules.<name>` in a memory's manifest).
+the evaluation, the CLI's `--score` and its threshold option `--<threshold_key>` (`threshold_keys`), and the
+recordings all ask the rule object, and `calibrate` stores its threshold under its `name`
+(`calibration.rules.<name>` in a memory's manifest; docs/rules.md, "Adding a rule").
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ class ScoringRule(ABC):
     score_name: ClassVar[str]  # the score's symbol, e.g. S_t
     formula: ClassVar[str]  # what the score is, for help texts
     threshold_key: ClassVar[str]  # the threshold's option name (`--delta`); thresholds are stored by `name`
+    threshold_title: ClassVar[str] = "Threshold"  # its option's help: "Contrast threshold γ."
     bounds: ClassVar[tuple[float, float]]  # the valid threshold range
     default_threshold: ClassVar[float]  # used until a memory is calibrated
     needs_successes: ClassVar[bool]  # the score needs S⁺, so a memory with success runs
@@ -50,6 +52,16 @@ class ScoringRule(ABC):
                 f"{self.symbol} must lie in [{low:g}, {high:g}] for the {self.name} rule, got {value}"
             )
         return value
+
+    @property
+    def threshold_help(self) -> str:
+        """The help of the rule's threshold option (`--<threshold_key>`); its default is `threshold_default`."""
+        return f"{self.threshold_title} {self.symbol}."
+
+    @property
+    def threshold_default(self) -> str:
+        """What the threshold option's default is, in `--help`'s one way of showing defaults."""
+        return f"the memory's calibrated {self.symbol}, else {self.default_threshold:g}"
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}()"
@@ -82,6 +94,7 @@ class ContrastRule(ScoringRule):
     score_name = "C_t"
     formula = "C_t = S⁻_t − S⁺_t"
     threshold_key = "gamma"
+    threshold_title = "Contrast threshold"
     bounds = (-2.0, 2.0)  # a difference of two cosines
     default_threshold = 0.0
     needs_successes = True
@@ -103,6 +116,7 @@ class NoveltyRule(ScoringRule):
     score_name = "N_t"
     formula = "N_t = 1 − S⁺_t"
     threshold_key = "eta"
+    threshold_title = "Novelty threshold"
     bounds = (0.0, 2.0)  # one minus a cosine
     default_threshold = 0.1
     needs_successes = True
@@ -128,6 +142,22 @@ def rule_named(name: str | ScoringRule) -> ScoringRule:
         return RULES[name]
     except KeyError:
         raise SettingError(f"unknown scoring rule {name!r}; choose one of {list(RULES)}") from None
+
+
+def rule_of_option(threshold_key: str) -> ScoringRule:
+    """The registered rule whose threshold option is `--<threshold_key>`; SettingError naming the options."""
+    for rule in RULES.values():
+        if rule.threshold_key == threshold_key:
+            return rule
+    options = ", ".join(f"--{rule.threshold_key}" for rule in RULES.values())
+    raise SettingError(
+        f"no scoring rule has the threshold option --{threshold_key}; the options are {options}"
+    )
+
+
+def threshold_keys() -> tuple[str, ...]:
+    """Each registered rule's threshold option name (`delta`, …), in registry order: the command line's options."""
+    return tuple(rule.threshold_key for rule in RULES.values())
 
 
 def rules_for(*, successes: bool, failures: bool = True) -> list[ScoringRule]:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 
 from robofailring.detection.band import Band
-from robofailring.detection.rules import CONTRAST, NOVELTY, PAPER, RULES, ScoringRule, rule_named
+from robofailring.detection.rules import RULES, ScoringRule, rule_named, rule_of_option
 from robofailring.errors import SettingError
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.manifest import BOTH
@@ -29,23 +29,20 @@ def stored_threshold(memory: FailureMemory, rule: ScoringRule, modality: str = B
     return memory.calibrated_threshold(rule.name, modality)
 
 
-def given_thresholds(
-    thresholds: Mapping[str, float] | None,
-    *,
-    delta: float | None = None,
-    gamma: float | None = None,
-    eta: float | None = None,
-) -> dict[str, float]:
-    """Thresholds given by rule name, with `delta`, `gamma` and `eta` (the command line's options) as the
-    paper, contrast and novelty rules'; an unknown rule name is a SettingError naming the choices."""
+def given_thresholds(thresholds: Mapping[str, float] | None, **by_option: float | None) -> dict[str, float]:
+    """Thresholds given by rule name, and by each rule's threshold option (`delta=`, `gamma=`, `eta=`: the
+    command line's `--delta`, …; None: not given); an unknown rule name or option is a SettingError naming
+    the choices, and a rule's threshold given both ways one naming the rule."""
     named = {rule_named(name).name: value for name, value in (thresholds or {}).items()}
-    for rule, value in ((PAPER, delta), (CONTRAST, gamma), (NOVELTY, eta)):
-        if value is not None and rule.name in named:
+    for option, value in by_option.items():
+        if value is None:
+            continue
+        rule = rule_of_option(option)
+        if rule.name in named:
             raise SettingError(
                 f"the {rule.name} rule's {rule.symbol} is given twice (by name and as a keyword)"
             )
-        if value is not None:
-            named[rule.name] = value
+        named[rule.name] = value
     return named
 
 

@@ -14,17 +14,13 @@ import re
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 from urllib.parse import unquote, urlsplit
 
-from robofailring.data.images import encode_jpeg, read_image
-from robofailring.data.layout_rosbag import BAG_MESSAGE_MARKER, read_bag_reference
-from robofailring.data.video import read_video_reference
+from robofailring.data.frame_ref import reference_jpeg
 from robofailring.errors import DataError, RoboFailRingError
 from robofailring.explain.report import FailureReport, VLMClient
 from robofailring.extras import needs_extra
-from robofailring.memory.references import VIDEO_FRAME_MARKER
 
 if TYPE_CHECKING:
     import httpx
@@ -33,7 +29,6 @@ API_KEY_ENV: Final[str] = "ROBOFAILRING_VLM_API_KEY"
 DEFAULT_TIMEOUT_S: Final[float] = 120.0  # a local VLM reading three images can take a while
 DEFAULT_RETRIES: Final[int] = 2  # extra attempts after a timeout or a 5xx answer
 DEFAULT_BACKOFF_S: Final[float] = 1.0  # wait before retry n: backoff × 2ⁿ
-_JPEG_MAGIC: Final[bytes] = b"\xff\xd8\xff"
 REDACTED: Final[str] = "[redacted]"
 _MESSAGE_LIMIT: Final[int] = 400  # characters of an error message that quotes a server's body
 # an auth header's value in any echo of it ("Authorization: Bearer …", JSON, a dict's repr, "api-key=…")
@@ -140,23 +135,8 @@ class VLMAnswer:
 
 def image_data_url(reference: str) -> str:
     """A report image as a `data:image/jpeg;base64,…` URL (JPEG files pass through unchanged)."""
-    if BAG_MESSAGE_MARKER in reference or VIDEO_FRAME_MARKER in reference:  # a bag message, a video frame
-        bag = BAG_MESSAGE_MARKER in reference
-        image = read_bag_reference(reference) if bag else read_video_reference(reference)
-        if image is None:
-            what = "ROS bag message" if bag else "video frame"
-            raise DataError(f"report image {reference} is not a readable {what}; the VLM needs it")
-        return "data:image/jpeg;base64," + base64.b64encode(encode_jpeg(image, quality=90)).decode("ascii")
-    path = Path(reference)
-    if reference.startswith("<") or not path.is_file():
-        raise DataError(f"report image {reference} is not a readable file; the VLM needs it")
-    try:
-        data = path.read_bytes()
-    except OSError as error:
-        raise DataError(f"cannot read report image {reference}: {error.strerror or error}") from error
-    if data[:3] != _JPEG_MAGIC:
-        data = encode_jpeg(read_image(path), quality=90)
-    return "data:image/jpeg;base64," + base64.b64encode(data).decode("ascii")
+    jpeg = reference_jpeg(reference, quality=90, what="report image", needed="; the VLM needs it")
+    return "data:image/jpeg;base64," + base64.b64encode(jpeg).decode("ascii")
 
 
 def openai_messages(messages: list[dict[str, Any]]) -> list[dict[str, Any]]:

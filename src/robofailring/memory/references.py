@@ -13,16 +13,13 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 
-from robofailring.data.layout_rosbag import BAG_MESSAGE_MARKER
+from robofailring.data.frame_ref import FrameRef
 from robofailring.errors import MemoryFormatError
-
-ARRAY_REFERENCE = "<array>"
-VIDEO_FRAME_MARKER = "#frame="
 
 
 def is_file_reference(reference: str) -> bool:
     """False for in-memory frames (``<array>``) that have no file behind them."""
-    return not reference.startswith("<")
+    return FrameRef.parse(reference).is_file
 
 
 def absolute_reference(reference: str) -> str:
@@ -131,14 +128,9 @@ class ReferenceCheck:
 
 
 def reference_file(reference: str) -> str:
-    """The file behind a reference: a video frame ``<file>#frame=<i>`` lives in ``<file>``, an HDF5 row
-    ``<file>#/<dataset>#frame=<i>`` too, and a ROS bag message ``<bag>#topic=<topic>&message=<i>`` in
-    ``<bag>`` (a ROS 2 bag is a folder)."""
-    bag, marker, _ = reference.partition(BAG_MESSAGE_MARKER)
-    if marker:
-        return bag
-    path, marker, _ = reference.rpartition(VIDEO_FRAME_MARKER)
-    return path.partition("#/")[0] if marker else reference
+    """The file behind a reference (`robofailring.data.frame_ref`): a video frame, an HDF5 row and a bag
+    message live in their container's file (a ROS 2 bag is a folder)."""
+    return FrameRef.parse(reference).file
 
 
 def _is_there(file: str) -> bool:
@@ -197,11 +189,10 @@ def relocate(reference: str, root: Path) -> str:
     """
     if not is_file_reference(reference) or _is_there(reference_file(reference)):
         return reference
-    file = reference_file(reference)
-    fragment = reference[len(file) :]  # `#frame=<i>` of a video frame, `#topic=…` of a bag, else empty
-    parts = Path(file).parts
+    ref = FrameRef.parse(reference)
+    parts = Path(ref.file).parts
     for keep in range(len(parts) - 1, 0, -1):
         candidate = Path(root, *parts[-keep:])
         if _is_there(str(candidate)):
-            return f"{candidate}{fragment}"
+            return str(ref.moved(candidate))
     return reference

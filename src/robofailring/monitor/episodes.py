@@ -23,7 +23,7 @@ import numpy as np
 
 from robofailring.atomic import output_lock, write_text_atomic
 from robofailring.data.images import write_png
-from robofailring.data.layout_project import (
+from robofailring.data.layouts.project import (
     MONITOR_FILE,
     PROJECT_FORMAT,
     PROJECT_MANIFEST,

@@ -7,7 +7,7 @@ from typing import Any, Final
 
 import numpy as np
 
-from robofailring.data.layout_project import PROJECT_SIGNALS
+from robofailring.data.layouts.project import PROJECT_SIGNALS
 from robofailring.data.signals import SignalKind, SignalValues
 from robofailring.sim.robot import ARM_JOINTS, FINGER_JOINTS, Panda
 from robofailring.sim.tasks import Layout

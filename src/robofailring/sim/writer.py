@@ -18,8 +18,8 @@ import numpy as np
 
 from robofailring.atomic import atomic_directory
 from robofailring.data.images import write_png
-from robofailring.data.layout_project import SIGNALS_FILE
 from robofailring.data.layouts import PROJECT_FORMAT, PROJECT_MANIFEST, read_project_manifest
+from robofailring.data.layouts.project import SIGNALS_FILE
 from robofailring.errors import DataError, SettingError
 from robofailring.jsontext import parse_json
 from robofailring.outputs import check_folder

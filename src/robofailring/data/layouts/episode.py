@@ -15,11 +15,11 @@ from typing import Final
 
 from robofailring.data.folders import camera_named, episode_views
 from robofailring.data.grounding import Vocabulary
-from robofailring.data.layout_aha import aha_name_problem, parse_aha_name
-from robofailring.data.layout_maniskill import MANISKILL_FAILURE, MANISKILL_SUCCESS
-from robofailring.data.layout_project import folder_signals
+from robofailring.data.layouts.aha import aha_name_problem, parse_aha_name
+from robofailring.data.layouts.maniskill import MANISKILL_FAILURE, MANISKILL_SUCCESS
+from robofailring.data.layouts.project import folder_signals
+from robofailring.data.layouts.registry import Found, Layout, layouts_help, register
 from robofailring.data.model import Outcome, Trajectory
-from robofailring.data.registry import Found, Layout, layouts_help, register
 from robofailring.errors import DataError
 
 _log = logging.getLogger("robofailring")
@@ -95,6 +95,7 @@ LAYOUT: Final = register(
         read=_read,
         help="one episode: <dir>/{<view>}/<n>.png, <dir>/<view>_<n>.png, <dir>/<n>.png or <dir>/<view>.mp4",
         listed=6,
+        detect_order=110,  # last: one episode folder, what any folder of images is
         names_symbols=True,
     )
 )

@@ -8,8 +8,8 @@ from pathlib import Path
 from typing import Final
 
 from robofailring.data.folders import beside, episode_views, subdirs
+from robofailring.data.layouts.registry import Found, Layout, register
 from robofailring.data.model import Outcome, Skipped, Trajectory
-from robofailring.data.registry import Found, Layout, register
 
 MANISKILL_SUCCESS: Final[str] = "Ground_Truth"
 MANISKILL_FAILURES: Final[tuple[str, ...]] = (
@@ -89,5 +89,6 @@ LAYOUT: Final = register(
         help="the ManiSkill-failgen/FailSafe layout "
         "<root>/<task>/<seed>/{Ground_Truth | <ep>_<fail>_<stage>}/{front,side,wrist}/<n>.png",
         listed=3,
+        detect_order=90,  # named image episodes before the images of any names
     )
 )

@@ -14,9 +14,9 @@ from typing import Final
 
 from robofailring.data.folders import beside, episode_views, subdirs
 from robofailring.data.grounding import Vocabulary
-from robofailring.data.layout_project import folder_signals
+from robofailring.data.layouts.project import folder_signals
+from robofailring.data.layouts.registry import Found, Layout, register
 from robofailring.data.model import Outcome, Skipped, Trajectory
-from robofailring.data.registry import Found, Layout, register
 
 AHA_FAILURES: Final[tuple[str, ...]] = (
     "no_rotation",
@@ -156,6 +156,7 @@ LAYOUT: Final = register(
         help="the AHA FailGen layout <root>/<task>_<failtype>_wp<k>_episode<e>/{front,overhead,wrist}_<idx>.png "
         "(or <task>_wrong_object[_wp<k>]_episode<e>)",
         listed=2,
+        detect_order=80,  # named image episodes before the images of any names
         names_symbols=True,
     )
 )

@@ -22,9 +22,9 @@ import numpy as np
 from robofailring.data.folders import visible
 from robofailring.data.grounding import UNTYPED
 from robofailring.data.hdf5 import HDF5Frames, hdf5_faults, is_hdf5, is_image_array, open_hdf5, row_format
-from robofailring.data.hdf5_signals import HDF5Signal, hdf5_signal, is_signal_array
+from robofailring.data.layouts.hdf5_signals import HDF5Signal, hdf5_signal, is_signal_array
+from robofailring.data.layouts.registry import Found, Layout, register
 from robofailring.data.model import Outcome, Skipped, Trajectory
-from robofailring.data.registry import Found, Layout, register
 from robofailring.data.signals import Signal, SignalKind
 from robofailring.errors import DataError
 
@@ -161,6 +161,7 @@ LAYOUT: Final = register(
         read=maniskill3_trajectories,
         help=f"ManiSkill3 trajectories {SHAPE}, a file or a folder of them",
         listed=11,
+        detect_order=40,  # before robomimic, which reads any one HDF5 file
         reads_files=True,
     )
 )

@@ -29,9 +29,9 @@ from robofailring.data.folders import (
     view_folders,
 )
 from robofailring.data.grounding import Vocabulary
-from robofailring.data.layout_aha import parse_aha_name
+from robofailring.data.layouts.aha import parse_aha_name
+from robofailring.data.layouts.registry import Found, Layout, register
 from robofailring.data.model import Outcome, Skipped, Trajectory
-from robofailring.data.registry import Found, Layout, register
 from robofailring.progress import progress_bar
 
 SHAPE: Final[str] = (
@@ -126,6 +126,7 @@ LAYOUT: Final = register(
         read=image_trajectories,
         help=SHAPE,
         listed=7,
+        detect_order=100,  # after the named layouts (AHA, ManiSkill), before one episode folder, which it would otherwise be read as
         names_symbols=True,
     )
 )

@@ -1,8 +1,9 @@
-"""The record each data layout module registers: its name, how it is recognised, how it is read.
+"""The record each data layout module registers: its name, how it is recognised, how it is read, and when.
 
-Each layout module registers its record with `register` when imported;
-`robofailring.data.layouts.LAYOUTS` lists the records in detection order (docs/architecture.md, data/),
-and `layouts_help` lists every registered one for the "matches no known dataset layout" error.
+Each layout module of this package registers its record with `register` when imported (the package imports
+every module in it); `in_detection_order` lists the records in the order their `detect_order` gives
+(docs/architecture.md, data/), and `layouts_help` lists every one for the "matches no known dataset layout"
+error. A new layout is one module here: nothing else lists the layouts.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ class Layout:
     read: Callable[..., Found]  # read(root, *, task: str | None) -> (trajectories, skipped)
     help: str  # how the layout looks, for the "matches no known dataset layout" error
     listed: int  # its number in that error's list
+    detect_order: int  # layouts are tried in ascending order: the first whose `detect` says yes reads a root
     manifest: Callable[[Path], dict[str, Any]] | None = None  # the layout's own manifest, if it has one
     reads_files: bool = False  # True: a root may be one file of this layout (an HDF5 file), not a folder
     # True: its folder names say the failure, so `read` also takes `vocabulary=` (a dataset's own symbols)
@@ -46,3 +48,8 @@ def layouts_help() -> str:
     return "expected one of: " + "; ".join(
         f"({layout.listed}) {layout.help}" for layout in sorted(_REGISTERED, key=lambda layout: layout.listed)
     )
+
+
+def in_detection_order() -> tuple[Layout, ...]:
+    """Every registered layout, in the order roots are tried against them."""
+    return tuple(sorted(_REGISTERED, key=lambda layout: layout.detect_order))

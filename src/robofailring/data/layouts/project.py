@@ -12,8 +12,8 @@ import numpy as np
 
 from robofailring.bounded import read_npz
 from robofailring.data.folders import aha_files
+from robofailring.data.layouts.registry import Found, Layout, register
 from robofailring.data.model import Outcome, Skipped, Trajectory, check_frame_rate, parse_onset_frame
-from robofailring.data.registry import Found, Layout, register
 from robofailring.data.signals import Signal, SignalKind
 from robofailring.errors import DataError
 from robofailring.jsontext import parse_json
@@ -201,6 +201,7 @@ LAYOUT: Final = register(
         read=_read,
         help="the project's own layout (a manifest.json written by `robofailring generate`)",
         listed=1,
+        detect_order=10,  # first: its manifest says what it is (its episode folders are AHA-named too)
         manifest=read_project_manifest,
     )
 )

@@ -32,20 +32,19 @@ from typing import Any, Final
 import numpy as np
 
 from robofailring.data.folders import visible
+from robofailring.data.frame_ref import Container, FrameRef, register_reader
 from robofailring.data.images import content_digest
+from robofailring.data.layouts.registry import Found, Layout, register
+from robofailring.data.layouts.ros_messages import COMPRESSED, IMAGE, READABLE, encoding_problem, to_rgb
+from robofailring.data.layouts.rosbag_signals import joint_state_signals
 from robofailring.data.model import Frame, LazyFrames, Skipped, Trajectory
 from robofailring.data.open_files import OpenLimit
-from robofailring.data.registry import Found, Layout, register
-from robofailring.data.ros_messages import COMPRESSED, IMAGE, READABLE, encoding_problem, to_rgb
-from robofailring.data.rosbag_signals import joint_state_signals
 from robofailring.errors import DataError, read_error
 from robofailring.extras import needs_extra
 
 ROS2_METADATA: Final[str] = "metadata.yaml"
 ROS1_SUFFIX: Final[str] = ".bag"
 MCAP_SUFFIX: Final[str] = ".mcap"  # a ROS 2 bag's storage file, also read without its metadata.yaml
-#: A bag frame's reference: `<bag>#topic=<topic>&message=<i>` (the bag is `reference_file`'s file).
-BAG_MESSAGE_MARKER: Final[str] = "#topic="
 _OPEN_LIMIT: Final[int] = 8  # bags kept open at once (a folder of bags is read one bag after another)
 
 
@@ -231,7 +230,7 @@ class BagFrame:
 
     @property
     def reference(self) -> str:
-        return f"{self.bag.path}{BAG_MESSAGE_MARKER}{self.topic}&message={self.index}"
+        return str(FrameRef.bag(self.bag.path, self.topic, self.index))
 
 
 class BagFrames(LazyFrames):
@@ -258,13 +257,14 @@ class BagFrames(LazyFrames):
         return f"BagFrames({self.bag!r}, {self.topic!r}, {len(self)} frames)"
 
 
-def read_bag_reference(reference: str) -> np.ndarray | None:
-    """The frame a `<bag>#topic=<topic>&message=<i>` reference points at, or None when it is not one."""
-    path, marker, rest = reference.partition(BAG_MESSAGE_MARKER)
-    topic, _, index = rest.rpartition("&message=")
-    if not marker or not index.isdecimal() or not is_bag(Path(path)):
+def _read_bag_message(ref: FrameRef) -> np.ndarray | None:
+    """The frame a bag message's reference points at, or None when the bag is not there."""
+    if ref.index is None or not is_bag(Path(ref.file)):
         return None
-    return open_bag(Path(path)).image(topic, int(index))
+    return open_bag(Path(ref.file)).image(ref.inner, ref.index)
+
+
+register_reader(Container.BAG, _read_bag_message)
 
 
 def bag_trajectory(path: Path, *, task: str | None) -> Trajectory:
@@ -354,5 +354,6 @@ LAYOUT: Final = register(
         help="ROS bags: a ROS 2 bag folder (metadata.yaml + .mcap/.db3), or a folder of them, of .mcap files or of "
         "ROS 1 .bag files",
         listed=10,
+        detect_order=60,  # bag files and folders no other layout reads
     )
 )

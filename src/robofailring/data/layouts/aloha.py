@@ -29,9 +29,9 @@ from robofailring.data.hdf5 import (
     open_hdf5,
     row_format,
 )
-from robofailring.data.hdf5_signals import aloha_signals
+from robofailring.data.layouts.hdf5_signals import aloha_signals
+from robofailring.data.layouts.registry import Found, Layout, register
 from robofailring.data.model import Frame, Skipped, Trajectory
-from robofailring.data.registry import Found, Layout, register
 from robofailring.errors import DataError
 
 _EPISODE: Final = re.compile(r"^episode_\d+$")
@@ -94,6 +94,7 @@ LAYOUT: Final = register(
         read=aloha_trajectories,
         help=f"ALOHA/ACT episodes <root>/{SHAPE}",
         listed=9,
+        detect_order=30,  # HDF5 episodes of a shape no other layout has
         reads_files=True,
     )
 )

@@ -11,9 +11,9 @@ from typing import Final
 
 from robofailring.data.folders import beside, has_images, has_videos, subdirs
 from robofailring.data.grounding import Vocabulary
-from robofailring.data.layout_episode import episode_trajectory
+from robofailring.data.layouts.episode import episode_trajectory
+from robofailring.data.layouts.registry import Found, Layout, register
 from robofailring.data.model import Skipped, Trajectory
-from robofailring.data.registry import Found, Layout, register
 from robofailring.errors import DataError
 
 
@@ -48,5 +48,6 @@ LAYOUT: Final = register(
         help="video episodes <root>/<episode>/<view>.mp4|.webm|.mkv",
         names_symbols=True,
         listed=5,
+        detect_order=70,  # before the image layouts: a folder of video episodes
     )
 )

@@ -5,7 +5,7 @@ parquet (v3.0) or JSON lines (v2.1); per-frame timestamps from the data parquet.
 `observation.images.<name>` video feature is a view `<name>`, decoded lazily by timestamp with
 the shared PyAV reader: frame i of an episode is at `from_timestamp + timestamp_i` of its
 (possibly shared) mp4. Every other numeric feature (`observation.state`, `action`, …) is a signal
-read on demand (`robofailring.data.lerobot_signals`), and each frame's `timestamp` is kept. The
+read on demand (`robofailring.data.layouts.lerobot_signals`), and each frame's `timestamp` is kept. The
 episode's task string is the task; trajectories are keyed `episode_<index>`; outcome and symbol come
 from a labels file.
 """
@@ -20,9 +20,9 @@ from typing import Any, Final
 
 import numpy as np
 
-from robofailring.data.lerobot_signals import episode_signals, signal_features
+from robofailring.data.layouts.lerobot_signals import episode_signals, signal_features
+from robofailring.data.layouts.registry import Layout, register
 from robofailring.data.model import Frame, Skipped, Trajectory
-from robofailring.data.registry import Layout, register
 from robofailring.data.video import VideoFrames, open_video
 from robofailring.errors import DataError, describe
 from robofailring.extras import needs_extra
@@ -330,5 +330,6 @@ LAYOUT: Final = register(
         read=_read,
         help="a LeRobot dataset (v2.1 or v3.0: meta/info.json, parquet, one mp4 per camera)",
         listed=4,
+        detect_order=20,  # meta/info.json says what it is
     )
 )

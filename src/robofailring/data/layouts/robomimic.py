@@ -32,9 +32,9 @@ from robofailring.data.hdf5 import (
     row_format,
     unreadable,
 )
-from robofailring.data.hdf5_signals import robomimic_signals
+from robofailring.data.layouts.hdf5_signals import robomimic_signals
+from robofailring.data.layouts.registry import Found, Layout, register
 from robofailring.data.model import Frame, Outcome, Skipped, Trajectory
-from robofailring.data.registry import Found, Layout, register
 from robofailring.errors import DataError
 from robofailring.jsontext import parse_json
 
@@ -207,6 +207,7 @@ LAYOUT: Final = register(
         read=robomimic_trajectories,
         help=f"a robomimic/LIBERO HDF5 file ({SHAPE}, mask/<split>), or a folder of them",
         listed=8,
+        detect_order=50,  # any one HDF5 file: after the HDF5 layouts of a stricter shape
         reads_files=True,
     )
 )

@@ -1,77 +1,27 @@
-"""Dataset layouts (docs/data.md, "Data layouts read"): one module per layout, tried in the order of `LAYOUTS`."""
+"""A dataset root opened: its layout detected (the registered layouts tried in their order), read, labelled and its
+views picked (docs/data.md, "Data layouts read")."""
 
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Final
+from typing import Any
 
-from robofailring.data import (
-    layout_aha,
-    layout_aloha,
-    layout_episode,
-    layout_images,
-    layout_maniskill,
-    layout_maniskill3,
-    layout_project,
-    layout_robomimic,
-    layout_rosbag,
-    layout_videos,
-    lerobot,
-)
 from robofailring.data.folders import visible
 from robofailring.data.grounding import Vocabulary
 from robofailring.data.hdf5 import is_hdf5, unreadable
 from robofailring.data.labels import apply_labels, read_labels, unlabelled_rows
-from robofailring.data.layout_aha import AHA_FAILURES, parse_aha_name
-from robofailring.data.layout_episode import episode_trajectory
-from robofailring.data.layout_maniskill import MANISKILL_FAILURES
-from robofailring.data.layout_project import (
-    PROJECT_FORMAT,
+from robofailring.data.layouts.episode import episode_trajectory
+from robofailring.data.layouts.project import (
     PROJECT_MANIFEST,
     project_trajectories,
     read_project_manifest,
 )
+from robofailring.data.layouts.registry import Layout, in_detection_order, layouts_help
 from robofailring.data.model import Skipped, Trajectory
-from robofailring.data.registry import Layout, layouts_help
 from robofailring.data.views import select_views
 from robofailring.errors import DataError, reading
-
-__all__ = [
-    "AHA_FAILURES",
-    "LAYOUTS",
-    "LAYOUTS_HELP",
-    "MANISKILL_FAILURES",
-    "PROJECT_FORMAT",
-    "PROJECT_MANIFEST",
-    "Dataset",
-    "Layout",
-    "detect_layout",
-    "load_dataset",
-    "load_trajectory",
-    "parse_aha_name",
-    "read_project_manifest",
-]
-
-# Detection order: the first layout whose `detect` says yes reads the root. The HDF5 layouts look
-# for files no other layout has; folders of image episodes with any names come after the named
-# layouts (AHA, ManiSkill) and before one episode folder, which they would otherwise be read as.
-LAYOUTS: Final[tuple[Layout, ...]] = (
-    layout_project.LAYOUT,
-    lerobot.LAYOUT,
-    layout_aloha.LAYOUT,
-    layout_maniskill3.LAYOUT,  # before robomimic, which reads any one HDF5 file
-    layout_robomimic.LAYOUT,
-    layout_rosbag.LAYOUT,
-    layout_videos.LAYOUT,
-    layout_aha.LAYOUT,
-    layout_maniskill.LAYOUT,
-    layout_images.LAYOUT,
-    layout_episode.LAYOUT,
-)
-
-LAYOUTS_HELP: Final[str] = layouts_help()
 
 
 @dataclass(frozen=True)
@@ -165,17 +115,18 @@ def _with_keys(
 
 def _layout(root: Path) -> Layout:
     root = Path(root)
+    layouts = in_detection_order()
     if root.is_file():
-        for layout in LAYOUTS:
+        for layout in layouts:
             if layout.reads_files and layout.detect(root):
                 return layout
-        readers = ", ".join(layout.name for layout in LAYOUTS if layout.reads_files)
+        readers = ", ".join(layout.name for layout in layouts if layout.reads_files)
         raise DataError(
-            f"dataset root {root} is a file of no layout read from one file ({readers}); {LAYOUTS_HELP}"
+            f"dataset root {root} is a file of no layout read from one file ({readers}); {layouts_help()}"
         )
     if not root.is_dir():
         raise DataError(f"dataset root {root} is not a directory")
-    for layout in LAYOUTS:
+    for layout in layouts:
         if layout.detect(root):
             return layout
     damaged = [why for path in visible(root) if is_hdf5(path) and (why := unreadable(path)) is not None]
@@ -184,7 +135,7 @@ def _layout(root: Path) -> Layout:
             f"; {len(damaged) - 1} more HDF5 file(s) in it cannot be read either" if len(damaged) > 1 else ""
         )
         raise DataError(f"{root} matches no known dataset layout: {damaged[0]}{more}")
-    raise DataError(f"{root} matches no known dataset layout; {LAYOUTS_HELP}")
+    raise DataError(f"{root} matches no known dataset layout; {layouts_help()}")
 
 
 def _finish(
