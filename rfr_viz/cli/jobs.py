@@ -11,6 +11,7 @@ from rfr_viz.cli.options import CameraCodecOption
 from rfr_viz.cli.replay import warn_vlm_errors
 from rfr_viz.codecs import CameraCodec
 from rfr_viz.viewer.control import open_at_command, open_command
+from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.cli.exit_codes import finish
 from robofailring.cli.groups import Declared, takes
 from robofailring.cli.option_groups import DATA, DETECTOR, RECIPE, RULE_CHOICE, THRESHOLDS, VLM
@@ -23,7 +24,6 @@ from robofailring.cli.options import (
 )
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
-from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.explain.vlm import VLMConfig
 from robofailring.memory.recipe import MemoryRecipe
 

@@ -20,6 +20,7 @@ from rfr_viz.cli.options import recordings_options
 from rfr_viz.cli.replay import app as replay_app
 from rfr_viz.cli.triage import app as triage_app
 from rfr_viz.jobs.recorded import Recordings
+from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.cli.groups import Declared, OptionGroup, takes
 from robofailring.cli.option_groups import (
     DETECTOR,
@@ -32,7 +33,6 @@ from robofailring.cli.option_groups import (
 from robofailring.cli.verbs import app as library_app
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
-from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.memory.recipe import MemoryRecipe
 
 GROUPS: dict[Callable[..., Any], tuple[type, dict[str, tuple[str, ...]]]] = {

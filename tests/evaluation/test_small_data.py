@@ -16,13 +16,13 @@ from typer.testing import CliRunner
 
 from rfr_viz.cli.app import app
 from robofailring import CachedEncoder, FailureDetector, load_dataset, load_encoder
+from robofailring.calibration.conformal import auc
+from robofailring.calibration.job import calibrate_rules
+from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
-from robofailring.detection.conformal import auc
 from robofailring.detection.rules import PAPER
-from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.errors import DataError, SettingError
-from robofailring.evaluation.calibration import calibrate_rules
 from robofailring.evaluation.folds import assign_folds
 from robofailring.evaluation.run import EvaluateConfig, run_evaluation, select_splits, write_evaluation
 from robofailring.evaluation.training import FoldPlan

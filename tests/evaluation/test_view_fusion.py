@@ -20,13 +20,14 @@ from robofailring import (
     load_dataset,
     load_encoder,
 )
+from robofailring.calibration.bands import TASK
+from robofailring.calibration.conformal import conformal_threshold
+from robofailring.calibration.fusions import MAX, PER_MODALITY, PER_VIEW, per_modality_peaks, per_view_peaks
+from robofailring.calibration.job import CalibrateConfig, calibrate, success_view_scores
+from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
-from robofailring.detection.band import SHIFT, TASK
-from robofailring.detection.conformal import conformal_threshold
+from robofailring.detection.band import SHIFT
 from robofailring.detection.rules import CONTRAST, PAPER
-from robofailring.detection.threshold_policy import ThresholdPolicy
-from robofailring.detection.view_bands import MAX, PER_MODALITY, PER_VIEW, per_modality_peaks, per_view_peaks
-from robofailring.evaluation.calibration import CalibrateConfig, calibrate, success_view_scores
 from robofailring.evaluation.run import EvaluateConfig, run_evaluation
 
 ALPHA = 0.1  # 12 calibration runs allow α ≥ 1/13

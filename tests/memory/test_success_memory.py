@@ -13,13 +13,13 @@ import pytest
 from synthetic import write_project_dataset
 
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
+from robofailring.calibration.conformal import conformal_threshold
+from robofailring.calibration.job import calibrate_rules
 from robofailring.data.model import Trajectory
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
-from robofailring.detection.conformal import conformal_threshold
 from robofailring.detection.rules import CONTRAST, PAPER
 from robofailring.errors import DataError, SettingError
-from robofailring.evaluation.calibration import calibrate_rules
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.memory.pairs import pair_vectors
 from robofailring.memory.recipe import MemoryRecipe

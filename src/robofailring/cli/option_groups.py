@@ -17,14 +17,14 @@ from typing import Annotated, Final
 
 import typer
 
+from robofailring.calibration.bands import BAND_KINDS, BAND_SCOPES, DEFAULT_BAND, DEFAULT_BAND_SCOPE
+from robofailring.calibration.fusions import DEFAULT_FUSION, FUSIONS
+from robofailring.calibration.policy import DEFAULT_POLICY, ThresholdPolicy
 from robofailring.cli.groups import Declared, OptionGroup
 from robofailring.data.selection import DataSelection
-from robofailring.detection.band import BAND_KINDS, BAND_SCOPES, DEFAULT_BAND, DEFAULT_BAND_SCOPE
 from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
 from robofailring.detection.rules import RULES
 from robofailring.detection.stored import given_thresholds
-from robofailring.detection.threshold_policy import DEFAULT_POLICY, ThresholdPolicy
-from robofailring.detection.view_bands import DEFAULT_FUSION, FUSIONS
 from robofailring.encoders.spec import ENCODER_SPECS_HELP
 from robofailring.errors import SettingError
 from robofailring.explain.vlm import VLMConfig, read_api_key

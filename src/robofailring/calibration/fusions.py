@@ -1,7 +1,7 @@
 """How the views' scores meet one threshold: the fusion a rule is calibrated and judged with.
 
 - `max` (the paper's eq. 7): a view fires when its score reaches the threshold; with a
-  time-indexed band (`robofailring.detection.band`) one band, fitted on the calibration runs' max over
+  time-indexed band (`robofailring.calibration.bands`) one band, fitted on the calibration runs' max over
   views, corrects every view.
 - `per-view`: each view's score is corrected by a band fitted on that view's own calibration scores
   before the max. A view whose normal runs score high everywhere (a fixed camera that sees a 4 cm cube
@@ -19,7 +19,7 @@
   A modality with fewer than `MIN_BAND_RUNS` scored calibration runs is corrected by the band of the max
   over views; without signals it is `max`.
 
-Calibration with `per-view` or `per-modality` is split conformal as with `max` (`robofailring.evaluation.calibration`):
+Calibration with `per-view` or `per-modality` is split conformal as with `max` (`robofailring.calibration.job`):
 each calibration run's views are corrected by bands fitted on the other runs, its peak over frames of
 the max over views is its conformal score; the band of all runs, one per view, is stored with the
 threshold (`Band.views`; under `per-modality` the cameras' band is the band itself and `signals` its one view).
@@ -33,7 +33,8 @@ from typing import Final
 
 import numpy as np
 
-from robofailring.detection.band import MIN_BAND_RUNS, NONE, Band, fit_band, leave_one_out
+from robofailring.calibration.bands import MIN_BAND_RUNS, fit_band, leave_one_out
+from robofailring.detection.band import NONE, Band
 from robofailring.detection.view_scores import ViewScores
 from robofailring.errors import SettingError
 from robofailring.memory.signal_memory import SIGNALS_VIEW

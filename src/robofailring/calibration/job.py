@@ -3,8 +3,8 @@
 Each success run is replayed with its own episode hidden from both memories (leave-one-out), so
 its frames never match themselves in the success memory; its peak score over frames and views is
 one conformal score. The threshold of each rule is the split-conformal one of
-`robofailring.detection.conformal.conformal_threshold`, pooled over tasks. With a band
-(`robofailring.detection.band`: `shift`, `norm`), each run's per-frame score is first corrected by
+`robofailring.calibration.conformal.conformal_threshold`, pooled over tasks. With a band
+(`robofailring.calibration.bands`: `shift`, `norm`), each run's per-frame score is first corrected by
 the band of the other runs, and its peak is the conformal score; the band of all runs is stored.
 """
 
@@ -17,27 +17,36 @@ from pathlib import Path
 
 import numpy as np
 
-from robofailring.data.model import Skipped, Trajectory
-from robofailring.data.selection import DataSelection
-from robofailring.detection.band import (
+from robofailring.calibration.bands import (
     DEFAULT_BAND,
     DEFAULT_BAND_SCOPE,
     MIN_BAND_RUNS,
-    NONE,
     POOLED,
     TASK,
-    Band,
     check_band,
     check_band_scope,
 )
-from robofailring.detection.config import DetectorConfig, check_stride
-from robofailring.detection.conformal import (
+from robofailring.calibration.conformal import (
     FprSpread,
     attainable_target_fpr,
     conformal_threshold,
     empirical_fpr,
     fpr_spread,
 )
+from robofailring.calibration.fusions import (
+    BANDS_OF,
+    DEFAULT_FUSION,
+    FUSION_PEAKS,
+    MAX,
+    check_fusion,
+    fused_raw,
+    per_task_peaks,
+)
+from robofailring.calibration.policy import DEFAULT_POLICY, ThresholdPolicy
+from robofailring.data.model import Skipped, Trajectory
+from robofailring.data.selection import DataSelection
+from robofailring.detection.band import NONE, Band
+from robofailring.detection.config import DetectorConfig, check_stride
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.loader import detector_from
 from robofailring.detection.rules import (
@@ -48,16 +57,6 @@ from robofailring.detection.rules import (
     ScoringRule,
     rule_named,
     rules_for,
-)
-from robofailring.detection.threshold_policy import DEFAULT_POLICY, ThresholdPolicy
-from robofailring.detection.view_bands import (
-    BANDS_OF,
-    DEFAULT_FUSION,
-    FUSION_PEAKS,
-    MAX,
-    check_fusion,
-    fused_raw,
-    per_task_peaks,
 )
 from robofailring.errors import DataError, SettingError
 from robofailring.memory.manifest import StoredCalibration, StoredRule
@@ -153,8 +152,8 @@ def calibrate_rules(
 ) -> dict[ScoringRule, RuleCalibration]:
     """The conformal threshold of every rule (default: all the memory supports) at level `target_fpr`,
     on the `band` (`none`, `shift`, `norm`) fitted on the same runs, its views fused by `fusion`
-    (`robofailring.detection.view_bands`), one band over all tasks or, with `band_scope` `task`, one per task
-    that has enough runs (`robofailring.detection.band`); the paper rule keeps one δ, as in the paper (§3.3).
+    (`robofailring.calibration.fusions`), one band over all tasks or, with `band_scope` `task`, one per task
+    that has enough runs (`robofailring.calibration.bands`); the paper rule keeps one δ, as in the paper (§3.3).
 
     Too few runs for `target_fpr` are a DataError; with `at_best` (an evaluation on small data) a rule
     is calibrated at the smallest level its runs allow instead (its `target_fpr` says which: no
