@@ -145,7 +145,7 @@ def test_leave_one_episode_out_pools_every_labelled_run(
     memory, _ = build_memories(others, encoder, provenance=Provenance(data=data, encoder="pixels"))
     detector = FailureDetector(memory, encoder)
     found = calibrate_rules(
-        detector, [t for t in others if not t.is_failure], 0.05, at_best=True, band="shift"
+        detector, [t for t in others if not t.is_failure], ThresholdPolicy(0.05, band="shift"), at_best=True
     )
     assert found[PAPER].target_fpr == pytest.approx(1 / 7)  # run_00 is a success: 6 others
     trace = detector.run(held)

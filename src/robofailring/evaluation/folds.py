@@ -213,12 +213,9 @@ def cross_validate(
                 calibrate_rules(
                     detector,
                     successes,
-                    policy.target_fpr,
+                    policy,
                     rules=rules,
                     stride=config.stride,
-                    band=policy.band,
-                    fusion=policy.fusion,
-                    band_scope=policy.band_scope,
                     at_best=True,
                 )
                 if successes

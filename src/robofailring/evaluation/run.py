@@ -304,13 +304,10 @@ def _thresholds(
         found = calibrate_rules(
             detector,
             successes,
-            policy.target_fpr,
+            policy,
             rules=rules,
             progress=bar.update,
             stride=config.stride,
-            band=policy.band,
-            fusion=policy.fusion,
-            band_scope=policy.band_scope,
             at_best=True,
         )
     if not found:
