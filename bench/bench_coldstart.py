@@ -30,9 +30,9 @@ import numpy as np
 
 from bench._timing import print_machine
 from bench.bench_quality import ID_EPISODES, ID_SUCCESSES, OOD_EPISODES, OOD_SUCCESSES, _pct, datasets
+from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
 from robofailring.detection.rules import default_rule
-from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.encoders import default_cache_dir, encoder_slug, load_encoder
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
 from robofailring.evaluation.per_rule import RuleResult, scored_by_rule

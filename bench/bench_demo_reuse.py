@@ -36,7 +36,7 @@ import json, resource, sys, time
 from collections import Counter
 from pathlib import Path
 import rfr_viz.panels.umap as umap_panel
-import robofailring.evaluation.calibration as calibration
+import robofailring.calibration.job as calibration
 import robofailring.evaluation.run as evaluation
 from robofailring.detection.detector import FailureDetector
 from robofailring.memory.failure import FailureMemory
@@ -60,7 +60,7 @@ counted(evaluation, "build_training_memory", "memory builds")
 counted(calibration, "calibrate", "calibrations")
 from rfr_viz.jobs.demo import DemoConfig, run_demo
 from robofailring.detection.config import DetectorConfig
-from robofailring.detection.threshold_policy import ThresholdPolicy
+from robofailring.calibration.policy import ThresholdPolicy
 settings = json.loads(sys.argv[1])
 config = DemoConfig(
     out=Path(settings["out"]), data_dir=Path(settings["data"]), detector=DetectorConfig(cache_dir=Path(settings["cache"])),

@@ -31,14 +31,14 @@ from bench._timing import median_ms, print_machine
 from rfr_viz.jobs.demo import DemoConfig, simulate_datasets
 from rfr_viz.panels.umap import memory_map
 from robofailring import FailureMemory, load_dataset, load_encoder
+from robofailring.calibration.job import CalibrateConfig, calibrate
+from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.grounding import failure_type
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
-from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.encoders import default_cache_dir, encoder_slug
 from robofailring.encoders.trained import CONFIG_NAME, prepare_images
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
-from robofailring.evaluation.calibration import CalibrateConfig, calibrate
 from robofailring.evaluation.metrics import rates, timeliness
 from robofailring.evaluation.run import (
     EvaluateConfig,

@@ -36,8 +36,8 @@ from typing import Any
 from bench._peer_lerobot import export_lerobot
 from bench._timing import print_machine
 from bench.bench_quality import QualityRow, Variant, print_rows, run_cells, with_variant
+from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
-from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.encoders import default_cache_dir, encoder_slug, load_encoder
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
 from robofailring.evaluation.run import EvaluateConfig

@@ -16,8 +16,8 @@ from collections.abc import Callable
 import numpy as np
 
 from bench._timing import print_machine
+from robofailring.calibration.conformal import conformal_threshold
 from robofailring.data.layouts import load_dataset
-from robofailring.detection.conformal import conformal_threshold
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.rules import CONTRAST
 from robofailring.encoders import CachedEncoder, default_cache_dir, encoder_slug, load_encoder

@@ -32,9 +32,9 @@ from pathlib import Path
 from typing import Any
 
 from bench._timing import print_machine
+from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
-from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.encoders import default_cache_dir, encoder_slug, load_encoder
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
 from robofailring.evaluation.run import EvaluateConfig, EvaluationResult, run_evaluation, write_evaluation

@@ -32,7 +32,7 @@ import numpy as np
 
 from bench._timing import print_machine
 from bench.bench_quality import QualityRow, bench_sets, evaluate_encoder, print_rows
-from robofailring.detection.conformal import auc
+from robofailring.calibration.conformal import auc
 from robofailring.detection.rules import CONTRAST
 from robofailring.encoders import default_cache_dir
 from robofailring.encoders.training import TrainEncoderConfig

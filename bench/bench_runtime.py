@@ -49,8 +49,8 @@ from typing import Any
 import numpy as np
 
 from bench._timing import load_average, print_machine
+from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
-from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.encoders import default_cache_dir
 from robofailring.encoders.export import ensure_export
 from robofailring.encoders.exported import OnnxEncoder, open_session

@@ -30,8 +30,8 @@ from typing import Any
 import numpy as np
 
 from bench._timing import print_machine
-from robofailring.detection.band import fit_band, leave_one_out
-from robofailring.detection.conformal import conformal_threshold
+from robofailring.calibration.bands import fit_band, leave_one_out
+from robofailring.calibration.conformal import conformal_threshold
 
 ALPHA = 0.05
 MIN_TASK = int(os.environ.get("MIN_TASK", "10"))

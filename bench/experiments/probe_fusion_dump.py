@@ -26,10 +26,10 @@ import numpy as np
 
 import robofailring.memory.signal_memory as signal_memory
 from bench._timing import print_machine
+from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.rules import CONTRAST
-from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.encoders import default_cache_dir
 from robofailring.evaluation.run import _deploy_successes
 from robofailring.evaluation.training import (

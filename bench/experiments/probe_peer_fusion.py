@@ -27,8 +27,8 @@ import numpy as np
 
 from bench._timing import print_machine
 from bench.experiments.probe_peer_views import load
-from robofailring.detection.band import fit_band, leave_one_out
-from robofailring.detection.conformal import auc, conformal_threshold
+from robofailring.calibration.bands import fit_band, leave_one_out
+from robofailring.calibration.conformal import auc, conformal_threshold
 from robofailring.encoders import default_cache_dir
 
 ALPHA = 0.05

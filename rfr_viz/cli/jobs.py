@@ -11,6 +11,7 @@ from rfr_viz.cli.options import CameraCodecOption
 from rfr_viz.cli.replay import warn_vlm_errors
 from rfr_viz.codecs import CameraCodec
 from rfr_viz.viewer.control import open_at_command, open_command
+from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.cli.exit_codes import finish
 from robofailring.cli.groups import Declared, takes
 from robofailring.cli.option_groups import DATA, DETECTOR, RECIPE, RULE_CHOICE, THRESHOLDS, VLM
@@ -23,7 +24,6 @@ from robofailring.cli.options import (
 )
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
-from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.explain.vlm import VLMConfig
 from robofailring.memory.recipe import MemoryRecipe
 
@@ -43,19 +43,7 @@ app = typer.Typer(add_completion=False)  # composed into the one `robofailring` 
             Annotated[Path | None, typer.Option(help="Use this memory instead of building one.")], None
         )
     ),
-    thresholds=THRESHOLDS.but(
-        target_fpr=Declared(
-            Annotated[
-                float,
-                typer.Option(
-                    "--target-fpr",
-                    help="α: every rule is calibrated to it (split conformal) on training successes; with too "
-                    "few of them, to the smallest α they allow, and the output says no guarantee holds.",
-                ),
-            ],
-            0.05,
-        )
-    ),
+    thresholds=THRESHOLDS,
 )
 def evaluate_cmd(
     data: DataSelection,
@@ -231,12 +219,7 @@ def review_cmd(
     data=DATA.only("data", "views").but(
         data=Declared(Annotated[Path, typer.Argument(help="Dataset with train/test splits.")])
     ),
-    thresholds=THRESHOLDS.only("target_fpr").but(
-        target_fpr=Declared(
-            Annotated[float, typer.Option("--target-fpr", help="Calibrate each encoder's δ to this FPR.")],
-            0.05,
-        )
-    ),
+    thresholds=THRESHOLDS.only("target_fpr"),
     recipe=RECIPE.only("failure_frames", "pairing"),
     detector=DETECTOR.only("k", "cache_dir", "device"),
 )
@@ -273,17 +256,7 @@ def compare_encoders_cmd(
 
 @app.command("demo")
 @takes(
-    thresholds=THRESHOLDS.only("target_fpr").but(
-        target_fpr=Declared(
-            Annotated[
-                float,
-                typer.Option(
-                    "--target-fpr", help="α: guaranteed FPR bound, calibrated on the training successes."
-                ),
-            ],
-            0.05,
-        )
-    ),
+    thresholds=THRESHOLDS.only("target_fpr"),
     recipe=RECIPE.only("failure_frames", "pairing"),
     detector=DETECTOR.only("cache_dir"),
 )

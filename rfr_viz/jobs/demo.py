@@ -18,16 +18,16 @@ from rfr_viz.panels.umap import memory_map
 from rfr_viz.recordings.evaluation import record_evaluation
 from rfr_viz.recordings.replay import record_replay
 from robofailring.atomic import output_lock, remove_file_leftovers
+from robofailring.calibration.job import CalibrateConfig, calibrate
+from robofailring.calibration.policy import DEFAULT_POLICY, ThresholdPolicy
 from robofailring.data.grounding import failure_type
 from robofailring.data.layouts import load_dataset
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
 from robofailring.detection.loader import detector_from
 from robofailring.detection.rules import CONTRAST, PAPER, ScoringRule
-from robofailring.detection.threshold_policy import DEFAULT_POLICY, ThresholdPolicy
 from robofailring.encoders import default_cache_dir
 from robofailring.encoders.training import TrainEncoderConfig
-from robofailring.evaluation.calibration import CalibrateConfig, calibrate
 from robofailring.evaluation.comparison import CompareEncodersConfig
 from robofailring.evaluation.run import (
     EvaluateConfig,

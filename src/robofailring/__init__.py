@@ -32,20 +32,20 @@ from robofailring.errors import (
 )
 
 if TYPE_CHECKING:
+    from robofailring.calibration.conformal import smallest_target_fpr
+    from robofailring.calibration.job import CalibrateConfig, Calibration, calibrate
+    from robofailring.calibration.policy import ThresholdPolicy
     from robofailring.data.grounding import ground, parse_symbol
     from robofailring.data.layouts import Dataset, load_dataset, load_trajectory
     from robofailring.data.model import Frame, Outcome, Trajectory
     from robofailring.data.selection import DataSelection
     from robofailring.detection.config import DetectorConfig
-    from robofailring.detection.conformal import smallest_target_fpr
     from robofailring.detection.detector import FailureDetector
     from robofailring.detection.loader import open_detector
     from robofailring.detection.rules import PAPER_DELTA, RULES, ScoringRule, rule_named
     from robofailring.detection.session import DetectorSession, StepSink
-    from robofailring.detection.threshold_policy import ThresholdPolicy
     from robofailring.detection.trace import DetectionTrace, StepResult
     from robofailring.encoders import CachedEncoder, Encoder, default_cache_dir, load_encoder, open_encoder
-    from robofailring.evaluation.calibration import CalibrateConfig, Calibration, calibrate
     from robofailring.evaluation.comparison import CompareEncodersConfig, compare_encoders, comparison_table
     from robofailring.evaluation.run import EvaluateConfig, run_evaluation
     from robofailring.explain.report import FailureReport, VLMClient
@@ -74,8 +74,8 @@ __version__ = "0.1.0"
 _LAZY = {  # name -> (module, attribute), imported on first use (the simulator's load pybullet)
     "BuildMemoryConfig": ("robofailring.jobs.build_memory", "BuildMemoryConfig"),
     "CachedEncoder": ("robofailring.encoders", "CachedEncoder"),
-    "CalibrateConfig": ("robofailring.evaluation.calibration", "CalibrateConfig"),
-    "Calibration": ("robofailring.evaluation.calibration", "Calibration"),
+    "CalibrateConfig": ("robofailring.calibration.job", "CalibrateConfig"),
+    "Calibration": ("robofailring.calibration.job", "Calibration"),
     "CompareEncodersConfig": ("robofailring.evaluation.comparison", "CompareEncodersConfig"),
     "DataSelection": ("robofailring.data.selection", "DataSelection"),
     "Dataset": ("robofailring.data.layouts", "Dataset"),
@@ -99,11 +99,11 @@ _LAZY = {  # name -> (module, attribute), imported on first use (the simulator's
     "StepResult": ("robofailring.detection.trace", "StepResult"),
     "StepSink": ("robofailring.detection.session", "StepSink"),
     "SuccessMemory": ("robofailring.memory.success", "SuccessMemory"),
-    "ThresholdPolicy": ("robofailring.detection.threshold_policy", "ThresholdPolicy"),
+    "ThresholdPolicy": ("robofailring.calibration.policy", "ThresholdPolicy"),
     "Trajectory": ("robofailring.data.model", "Trajectory"),
     "VLMClient": ("robofailring.explain.report", "VLMClient"),
     "build_memory": ("robofailring.jobs.build_memory", "build_memory"),
-    "calibrate": ("robofailring.evaluation.calibration", "calibrate"),
+    "calibrate": ("robofailring.calibration.job", "calibrate"),
     "compare_encoders": ("robofailring.evaluation.comparison", "compare_encoders"),
     "comparison_table": ("robofailring.evaluation.comparison", "comparison_table"),
     "default_cache_dir": ("robofailring.encoders", "default_cache_dir"),
@@ -117,7 +117,7 @@ _LAZY = {  # name -> (module, attribute), imported on first use (the simulator's
     "parse_symbol": ("robofailring.data.grounding", "parse_symbol"),
     "rule_named": ("robofailring.detection.rules", "rule_named"),
     "run_evaluation": ("robofailring.evaluation.run", "run_evaluation"),
-    "smallest_target_fpr": ("robofailring.detection.conformal", "smallest_target_fpr"),
+    "smallest_target_fpr": ("robofailring.calibration.conformal", "smallest_target_fpr"),
     "GenerateConfig": ("robofailring.sim", "GenerateConfig"),
     "generate_dataset": ("robofailring.sim", "generate_dataset"),
     "run_episode": ("robofailring.sim", "run_episode"),

@@ -19,12 +19,12 @@ from rfr_viz.jobs.recorded import Recordings
 from rfr_viz.jobs.replay import CompareConfig, ReplayConfig
 from rfr_viz.jobs.review import ReviewConfig
 from rfr_viz.jobs.watch import WatchConfig
+from robofailring.calibration.job import CalibrateConfig
+from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
-from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.encoders.training import TrainEncoderConfig
 from robofailring.errors import SettingError
-from robofailring.evaluation.calibration import CalibrateConfig
 from robofailring.evaluation.comparison import CompareEncodersConfig
 from robofailring.evaluation.training import EvaluateConfig
 from robofailring.explain.vlm import VLMConfig

@@ -12,9 +12,9 @@ import pytest
 from rfr_viz.jobs.demo import DemoConfig, DemoResult, _trained_encoder, run_demo, simulate_datasets
 from rfr_viz.jobs.review import ReviewConfig, review
 from rfr_viz.viewer.rrd import verify_recording
+from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
-from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.errors import DataError
 
 pytestmark = pytest.mark.slow  # simulation or end-to-end: the full lane only (scripts/test.sh)

@@ -17,8 +17,8 @@ from hypothesis import strategies as st
 
 from rfr_viz.jobs.recorded import check_fps
 from rfr_viz.jobs.replay import check_speed
+from robofailring.calibration.conformal import check_target_fpr
 from robofailring.detection.config import check_k, check_stride
-from robofailring.detection.conformal import check_target_fpr
 from robofailring.detection.rules import RULES
 from robofailring.errors import SettingError
 from robofailring.memory.thinning import check_step

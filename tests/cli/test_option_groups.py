@@ -14,12 +14,14 @@ import pytest
 import typer
 from typer.testing import CliRunner
 
+from rfr_viz.cli.app import app as robofailring_app
 from rfr_viz.cli.jobs import app as jobs_app
 from rfr_viz.cli.live import app as live_app
 from rfr_viz.cli.options import recordings_options
 from rfr_viz.cli.replay import app as replay_app
 from rfr_viz.cli.triage import app as triage_app
 from rfr_viz.jobs.recorded import Recordings
+from robofailring.calibration.policy import DEFAULT_TARGET_FPR, ThresholdPolicy
 from robofailring.cli.groups import Declared, OptionGroup, takes
 from robofailring.cli.option_groups import (
     DETECTOR,
@@ -32,7 +34,6 @@ from robofailring.cli.option_groups import (
 from robofailring.cli.verbs import app as library_app
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
-from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.memory.recipe import MemoryRecipe
 
 GROUPS: dict[Callable[..., Any], tuple[type, dict[str, tuple[str, ...]]]] = {
@@ -243,3 +244,16 @@ def test_every_option_given_reaches_its_value(build: Callable[..., Any]) -> None
     assert {name: getattr(seen[0], name) for name in changed} == {
         name: getattr(expected, name) for name in changed
     }
+
+
+def test_target_fpr_is_declared_once() -> None:
+    """Every verb that sets thresholds offers --target-fpr with the group's one help and one default."""
+    offered = {}
+    command_line: Any = typer.main.get_command(robofailring_app)
+    for name, command in command_line.commands.items():
+        for parameter in command.params:
+            if "--target-fpr" in parameter.opts:
+                offered[name] = (parameter.help, parameter.default)
+    assert set(offered) == {"calibrate", "evaluate", "compare-encoders", "demo"}
+    assert len(set(offered.values())) == 1
+    assert next(iter(offered.values()))[1] == DEFAULT_TARGET_FPR == ThresholdPolicy().target_fpr

@@ -12,11 +12,11 @@ from synthetic import write_project_dataset
 
 import robofailring as rfr
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
+from robofailring.calibration.job import CalibrateConfig, calibrate
+from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.detection.rules import CONTRAST
-from robofailring.detection.threshold_policy import ThresholdPolicy
-from robofailring.evaluation.calibration import CalibrateConfig, calibrate
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.jobs.detect import DetectConfig, run_detect
 from robofailring.memory.recipe import MemoryRecipe

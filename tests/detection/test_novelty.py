@@ -10,6 +10,8 @@ import pytest
 from synthetic import write_project_dataset
 
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
+from robofailring.calibration.job import CalibrateConfig, calibrate
+from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.detection.rules import (
@@ -21,10 +23,8 @@ from robofailring.detection.rules import (
     rule_named,
     rules_for,
 )
-from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.detection.view_scores import reaches
 from robofailring.errors import DataError, SettingError
-from robofailring.evaluation.calibration import CalibrateConfig, calibrate
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.jobs.detect import DetectConfig, run_detect
 from robofailring.memory.info import MemoryInfo
@@ -141,7 +141,7 @@ def test_eta_is_calibrated_on_training_successes_and_judges_the_task(
         detector.rule is NOVELTY and detector.rule_for("pick_cube") is NOVELTY and detector.eta == found.eta
     )
     # η is the conformal bound of the leave-one-out peaks of the training successes, recomputed here
-    from robofailring.detection.conformal import conformal_threshold
+    from robofailring.calibration.conformal import conformal_threshold
 
     train = [t for t in load_dataset(data).select(split="train")]
     peaks = [float(detector.run(t, leave_one_out=True).max_score().max()) for t in train]

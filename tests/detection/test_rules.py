@@ -10,6 +10,7 @@ from numpy.typing import ArrayLike
 from synthetic import write_project_dataset
 
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
+from robofailring.calibration.job import available_rules
 from robofailring.cli.option_groups import ScoreOption
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
@@ -26,7 +27,6 @@ from robofailring.detection.rules import (
 )
 from robofailring.detection.view_scores import reaches
 from robofailring.errors import SettingError
-from robofailring.evaluation.calibration import available_rules
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.memory.recipe import MemoryRecipe
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from robofailring.detection.conformal import empirical_fpr
+from robofailring.calibration.conformal import empirical_fpr
 from robofailring.detection.view_scores import ViewScores, reaches
 from robofailring.evaluation.metrics import ScoredTrajectory
 

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 import robofailring as rfr
-from robofailring.detection.view_bands import FUSIONS
+from robofailring.calibration.fusions import FUSIONS
 
 PAGE = Path(__file__).resolve().parents[2] / "docs" / "recipes.md"
 

@@ -12,14 +12,14 @@ from typer.testing import CliRunner
 
 from rfr_viz.cli.app import app
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
+from robofailring.calibration.conformal import conformal_threshold
+from robofailring.calibration.fusions import conformal_peaks
+from robofailring.calibration.job import CalibrateConfig, calibrate, success_scores
+from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
 from robofailring.detection.band import NONE, NORM, SHIFT
 from robofailring.detection.config import DetectorConfig
-from robofailring.detection.conformal import conformal_threshold
 from robofailring.detection.rules import CONTRAST, NOVELTY, PAPER
-from robofailring.detection.threshold_policy import ThresholdPolicy
-from robofailring.detection.view_bands import conformal_peaks
-from robofailring.evaluation.calibration import CalibrateConfig, calibrate, success_scores
 from robofailring.evaluation.run import EvaluateConfig, run_evaluation
 from robofailring.jobs.detect import DetectConfig, run_detect
 from robofailring.memory.recipe import MemoryRecipe

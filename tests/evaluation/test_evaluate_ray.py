@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from synthetic import write_project_dataset
 
+from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
-from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.evaluation.run import EvaluateConfig, run_evaluation
 
 

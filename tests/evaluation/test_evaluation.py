@@ -16,11 +16,11 @@ from robofailring import (
     load_dataset,
     load_encoder,
 )
+from robofailring.calibration.job import CalibrateConfig, calibrate
+from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
-from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.errors import SettingError
-from robofailring.evaluation.calibration import CalibrateConfig, calibrate
 from robofailring.evaluation.run import (
     EvaluateConfig,
     check_disjoint,

@@ -19,12 +19,12 @@ from rfr_viz.jobs.review import ReviewConfig, review
 from rfr_viz.paths import REPLAY
 from rfr_viz.recordings.replay import record_replay
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
+from robofailring.calibration.conformal import conformal_threshold, empirical_fpr
+from robofailring.calibration.job import CalibrateConfig, calibrate
+from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
-from robofailring.detection.conformal import conformal_threshold, empirical_fpr
 from robofailring.detection.rules import RULES, ScoringRule
-from robofailring.detection.threshold_policy import ThresholdPolicy
-from robofailring.evaluation.calibration import CalibrateConfig, calibrate
 from robofailring.evaluation.run import run_evaluation, write_evaluation
 from robofailring.evaluation.training import EvaluateConfig
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory

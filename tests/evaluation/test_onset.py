@@ -10,9 +10,9 @@ import pytest
 from synthetic import write_project_dataset
 from test_metrics import scored
 
+from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
-from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.evaluation.onset import onset_delay
 from robofailring.evaluation.run import EvaluateConfig, run_evaluation, write_evaluation
 from robofailring.memory.recipe import MemoryRecipe

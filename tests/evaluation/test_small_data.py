@@ -16,13 +16,13 @@ from typer.testing import CliRunner
 
 from rfr_viz.cli.app import app
 from robofailring import CachedEncoder, FailureDetector, load_dataset, load_encoder
+from robofailring.calibration.conformal import auc
+from robofailring.calibration.job import calibrate_rules
+from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
-from robofailring.detection.conformal import auc
 from robofailring.detection.rules import PAPER
-from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.errors import DataError, SettingError
-from robofailring.evaluation.calibration import calibrate_rules
 from robofailring.evaluation.folds import assign_folds
 from robofailring.evaluation.run import EvaluateConfig, run_evaluation, select_splits, write_evaluation
 from robofailring.evaluation.training import FoldPlan
@@ -145,7 +145,7 @@ def test_leave_one_episode_out_pools_every_labelled_run(
     memory, _ = build_memories(others, encoder, provenance=Provenance(data=data, encoder="pixels"))
     detector = FailureDetector(memory, encoder)
     found = calibrate_rules(
-        detector, [t for t in others if not t.is_failure], 0.05, at_best=True, band="shift"
+        detector, [t for t in others if not t.is_failure], ThresholdPolicy(0.05, band="shift"), at_best=True
     )
     assert found[PAPER].target_fpr == pytest.approx(1 / 7)  # run_00 is a success: 6 others
     trace = detector.run(held)

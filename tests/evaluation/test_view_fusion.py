@@ -4,6 +4,7 @@ thresholds, stored in the manifest, judging detect, the live step and the evalua
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -20,13 +21,23 @@ from robofailring import (
     load_dataset,
     load_encoder,
 )
+from robofailring.calibration.bands import TASK
+from robofailring.calibration.conformal import conformal_threshold
+from robofailring.calibration.fusions import (
+    FUSIONS,
+    MAX,
+    PER_MODALITY,
+    PER_VIEW,
+    Fusion,
+    max_peaks,
+    per_modality_peaks,
+    per_view_peaks,
+)
+from robofailring.calibration.job import CalibrateConfig, calibrate, success_view_scores
+from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
-from robofailring.detection.band import SHIFT, TASK
-from robofailring.detection.conformal import conformal_threshold
+from robofailring.detection.band import SHIFT, Band
 from robofailring.detection.rules import CONTRAST, PAPER
-from robofailring.detection.threshold_policy import ThresholdPolicy
-from robofailring.detection.view_bands import MAX, PER_MODALITY, PER_VIEW, per_modality_peaks, per_view_peaks
-from robofailring.evaluation.calibration import CalibrateConfig, calibrate, success_view_scores
 from robofailring.evaluation.run import EvaluateConfig, run_evaluation
 
 ALPHA = 0.1  # 12 calibration runs allow α ≥ 1/13
@@ -165,3 +176,52 @@ def test_a_band_per_task_and_modality_is_stored_and_judges_the_trace_and_the_liv
             assert detector.threshold_at(CONTRAST, t, view, task=trajectory.task) == pytest.approx(
                 float(trace.threshold_line(view=view)[t]), abs=1e-6
             )
+
+
+class HalfMax(Fusion):
+    """A fusion no other module names: the max over views, its peaks halved."""
+
+    name = "half-max"
+    bands = "one band, halved"
+    help = "half-max, the max over views at half its height"
+
+    def peaks(
+        self, runs: Sequence[Mapping[str, np.ndarray]], kind: str, tasks: Sequence[str] = ()
+    ) -> tuple[list[float], Band | None]:
+        peaks, band = max_peaks(runs, kind, tasks)
+        return [0.5 * value for value in peaks], band
+
+
+def test_a_new_fusion_is_one_class_in_the_registry(
+    calibration_set: tuple[Path, Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Calibration asks the fusion for its peaks and its bands' words: a fusion added to `FUSIONS` is taken
+    by a `ThresholdPolicy`, calibrated with, stored and summarised without a line elsewhere."""
+    monkeypatch.setitem(FUSIONS, HalfMax.name, HalfMax())
+    data, memory, cache = calibration_set
+    folders = {fusion: _copy(memory, tmp_path / fusion) for fusion in (MAX, HalfMax.name)}
+    found = {
+        fusion: calibrate(
+            CalibrateConfig(
+                data=DataSelection(data),
+                detector=DetectorConfig(memory=folder, cache_dir=cache),
+                thresholds=ThresholdPolicy(target_fpr=ALPHA, band=SHIFT, fusion=fusion),
+            )
+        )
+        for fusion, folder in folders.items()
+    }
+    halved, full = found[HalfMax.name], found[MAX]
+    assert list(halved.thresholds) == list(full.thresholds) == ["paper", "contrast", "novelty"]
+    for rule, threshold in full.thresholds.items():
+        assert halved.thresholds[rule] == pytest.approx(0.5 * threshold, abs=1e-6)
+    assert halved.fusion == HalfMax.name and halved.band == SHIFT
+    methods = {
+        fusion: json.loads((folder / "manifest.json").read_text(encoding="utf-8"))["calibration"]["method"]
+        for fusion, folder in folders.items()
+    }
+    assert methods == {
+        MAX: "split conformal, own episode left out",
+        HalfMax.name: "split conformal, own episode left out, one band, halved",
+    }
+    assert "; one band, halved (fusion half-max)" in halved.to_text(folders[HalfMax.name])
+    assert "(fusion" not in full.to_text(folders[MAX])

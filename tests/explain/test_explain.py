@@ -13,9 +13,9 @@ from vlm_server import ANSWER, chat_server
 
 from rfr_viz.cli.app import app
 from rfr_viz.paths import REPLAY
+from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
-from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.explain.vlm import API_KEY_ENV
 
 runner = CliRunner()

@@ -13,13 +13,14 @@ import pytest
 from synthetic import write_project_dataset
 
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
+from robofailring.calibration.conformal import conformal_threshold
+from robofailring.calibration.job import calibrate_rules
+from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.model import Trajectory
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
-from robofailring.detection.conformal import conformal_threshold
 from robofailring.detection.rules import CONTRAST, PAPER
 from robofailring.errors import DataError, SettingError
-from robofailring.evaluation.calibration import calibrate_rules
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.memory.pairs import pair_vectors
 from robofailring.memory.recipe import MemoryRecipe
@@ -212,7 +213,9 @@ def test_calibration_leaves_each_run_out(
     memory, encoder, _ = built
     successes = _trajectories(dataset, split="train", failure=False)  # 6 runs, all in the success memory
     detector = FailureDetector(memory, encoder, k=2)
-    found = calibrate_rules(detector, successes, 1 / 6)  # n = 6 is just enough for α = 1/6 (needs 5)
+    found = calibrate_rules(
+        detector, successes, ThresholdPolicy(1 / 6)
+    )  # n = 6 is just enough for α = 1/6 (needs 5)
     peaks = []
     train = list(load_dataset(dataset).select(split="train"))
     for trajectory in successes:
@@ -225,8 +228,10 @@ def test_calibration_leaves_each_run_out(
     with pytest.raises(
         DataError, match=r"needs at least 19 success runs.*smallest α these 6 runs allow is 0\.1429"
     ):
-        calibrate_rules(detector, successes, 0.05)
-    at_best = calibrate_rules(detector, successes, 0.05, at_best=True)  # small data: the smallest α, 1/7
+        calibrate_rules(detector, successes, ThresholdPolicy(0.05))
+    at_best = calibrate_rules(
+        detector, successes, ThresholdPolicy(0.05), at_best=True
+    )  # small data: the smallest α, 1/7
     assert at_best[CONTRAST].target_fpr == pytest.approx(1 / 7) and at_best[CONTRAST].successes == 6
     assert at_best[CONTRAST].threshold == pytest.approx(conformal_threshold(peaks, 1 / 7), abs=1e-5)
     assert at_best[CONTRAST].threshold > max(peaks) - 1e-5 and at_best[CONTRAST].achieved_fpr == 0.0

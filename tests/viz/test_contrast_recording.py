@@ -23,8 +23,9 @@ from robofailring import (
     load_dataset,
     load_encoder,
 )
+from robofailring.calibration.bands import fit_band
 from robofailring.data.selection import DataSelection
-from robofailring.detection.band import NORM, fit_band
+from robofailring.detection.band import NORM
 from robofailring.detection.config import DetectorConfig
 from robofailring.detection.rules import CONTRAST
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory

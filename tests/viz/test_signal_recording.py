@@ -14,7 +14,8 @@ from synthetic import write_project_dataset
 from rfr_viz.paths import REPLAY
 from rfr_viz.recordings.replay import record_replay
 from robofailring import CachedEncoder, DetectionTrace, FailureDetector, load_dataset, load_encoder
-from robofailring.detection.band import MIN_BAND_RUNS, SHIFT, Band
+from robofailring.calibration.bands import MIN_BAND_RUNS
+from robofailring.detection.band import SHIFT, Band
 from robofailring.detection.rules import CONTRAST
 from robofailring.memory.builder import Provenance, build_memories
 from robofailring.memory.signal_memory import SIGNALS_VIEW

@@ -25,10 +25,10 @@ from robofailring import (
     load_encoder,
     load_trajectory,
 )
+from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.model import Trajectory
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
-from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.evaluation.run import EvaluateConfig, run_evaluation
 
 pytestmark = pytest.mark.viewer

@@ -19,14 +19,14 @@ from typing import Annotated, Final
 
 import typer
 
+from robofailring.calibration.bands import BAND_KINDS, BAND_SCOPES, DEFAULT_BAND, DEFAULT_BAND_SCOPE
+from robofailring.calibration.fusions import DEFAULT_FUSION, FUSIONS
+from robofailring.calibration.policy import DEFAULT_TARGET_FPR, ThresholdPolicy
 from robofailring.cli.groups import Declared, OptionGroup
 from robofailring.data.selection import DataSelection
-from robofailring.detection.band import BAND_KINDS, BAND_SCOPES, DEFAULT_BAND, DEFAULT_BAND_SCOPE
 from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
 from robofailring.detection.rules import RULES, threshold_keys
 from robofailring.detection.stored import given_thresholds
-from robofailring.detection.threshold_policy import DEFAULT_POLICY, ThresholdPolicy
-from robofailring.detection.view_bands import DEFAULT_FUSION, FUSIONS
 from robofailring.encoders.spec import ENCODER_SPECS_HELP
 from robofailring.errors import SettingError
 from robofailring.explain.vlm import VLMConfig, read_api_key
@@ -315,7 +315,15 @@ RULE_CHOICE: Final[tuple[str, ...]] = ("score", *RULE_THRESHOLDS)
 
 # How thresholds are set: ThresholdPolicy
 
-TargetFprOption = Annotated[float, typer.Option("--target-fpr", help="False-positive rate to allow.")]
+TargetFprOption = Annotated[
+    float,
+    typer.Option(
+        "--target-fpr",
+        help="α, the false-positive rate allowed: every rule's threshold is calibrated to it (split conformal) on "
+        "success runs; with too few of them an evaluation calibrates to the smallest α they allow and says no "
+        "guarantee holds.",
+    ),
+]
 BandOption = Annotated[
     str,
     typer.Option(
@@ -329,10 +337,9 @@ FusionOption = Annotated[
     str,
     typer.Option(
         "--fusion",
-        help=f"How the views meet the threshold, one of {', '.join(FUSIONS)}: max, the paper's, fires when any "
-        "view reaches it, every view corrected by one band (of the max over views); per-view corrects each "
-        "view by a band of its own calibration scores first; per-modality, one band for the cameras and one for "
-        f"the robot's signals (per task where a task has enough runs).",
+        help=f"How the views meet the threshold, one of {', '.join(FUSIONS)}: "
+        + "; ".join(fusion.help for fusion in FUSIONS.values())
+        + ".",
     ),
 ]
 BandScopeOption = Annotated[
@@ -346,7 +353,7 @@ BandScopeOption = Annotated[
 
 
 def threshold_options(
-    target_fpr: TargetFprOption = DEFAULT_POLICY.target_fpr,
+    target_fpr: TargetFprOption = DEFAULT_TARGET_FPR,
     band: BandOption = DEFAULT_BAND,
     fusion: FusionOption = DEFAULT_FUSION,
     band_scope: BandScopeOption = DEFAULT_BAND_SCOPE,

@@ -13,6 +13,7 @@ from typing import Annotated
 
 import typer
 
+from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.cli.exit_codes import ErrorMappingGroup, finish
 from robofailring.cli.groups import Declared, takes
 from robofailring.cli.option_groups import (
@@ -35,7 +36,6 @@ from robofailring.cli.options import (
 )
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
-from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.errors import SettingError
 from robofailring.explain.vlm import VLMConfig
 from robofailring.memory.recipe import MemoryRecipe
@@ -248,7 +248,7 @@ def calibrate_cmd(
     stride: StrideOption = 1,
 ) -> None:
     """Set δ, γ and η (split conformal) for a target false-positive rate on success runs; detect then uses them."""
-    from robofailring.evaluation.calibration import CalibrateConfig, calibrate
+    from robofailring.calibration.job import CalibrateConfig, calibrate
 
     result = calibrate(
         CalibrateConfig(data=data, detector=detector, thresholds=thresholds, split=split, stride=stride)

@@ -5,7 +5,7 @@
 the alarm needs the current state to be nearer a failure's end than anything seen in a normal run,
 C_t = S⁻_t − S⁺_t ≥ γ. `novelty` needs no failure at all (docs/rules.md, "Success runs only"): how far
 the current pair is from anything seen in the task's success runs, N_t = 1 − S⁺_t ≥ η. Every
-threshold is set by split-conformal calibration (`robofailring.detection.conformal`).
+threshold is set by split-conformal calibration (`robofailring.calibration.conformal`).
 
 A new rule is one `ScoringRule` subclass added to `RULES`: the detector, its trace, the live step,
 the evaluation, the CLI's `--score` and its threshold option `--<threshold_key>` (`threshold_keys`), and the

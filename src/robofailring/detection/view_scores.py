@@ -6,7 +6,7 @@ its trace (`robofailring.detection.trace.DetectionTrace`) and the evaluation's s
 over views, a NaN (a frame not scored, or no success memory) counts as −∞ and so never fires, and
 t_det is the first frame whose fused score reaches the threshold. `reaches` is that comparison, the one
 way an alarm is decided (calibration's empirical FPR counts with it too). A live step may judge each view
-against its own threshold (a band per view, `robofailring.detection.view_bands`): `firing` and
+against its own threshold (a band per view, `robofailring.calibration.fusions`): `firing` and
 `strongest` take one threshold or one per view.
 """
 

@@ -7,13 +7,13 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from robofailring.calibration.job import CalibrateConfig, calibrate
+from robofailring.calibration.policy import DEFAULT_POLICY, ThresholdPolicy
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
 from robofailring.detection.loader import encoder_for
-from robofailring.detection.threshold_policy import DEFAULT_POLICY, ThresholdPolicy
 from robofailring.encoders import EncoderSpec, cache_identity
 from robofailring.errors import SettingError
-from robofailring.evaluation.calibration import CalibrateConfig, calibrate
 from robofailring.evaluation.markdown import markdown_text
 from robofailring.evaluation.run import (
     EvaluateConfig,

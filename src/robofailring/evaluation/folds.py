@@ -10,14 +10,14 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from robofailring.calibration.conformal import AUC_LEVEL, auc, auc_interval, runs_text, successes_needed
+from robofailring.calibration.job import RuleCalibration, available_rules, calibrate_rules
 from robofailring.data.model import Trajectory
-from robofailring.detection.conformal import AUC_LEVEL, auc, auc_interval, runs_text, successes_needed
 from robofailring.detection.detector import DetectionTrace, FailureDetector
 from robofailring.detection.loader import detector_with
 from robofailring.detection.rules import RULES, ScoringRule
 from robofailring.encoders import CachedEncoder
 from robofailring.errors import DataError
-from robofailring.evaluation.calibration import RuleCalibration, available_rules, calibrate_rules
 from robofailring.evaluation.metrics import ConfusionRates, ScoredTrajectory, json_number, rates
 from robofailring.evaluation.per_rule import auc_cell, pct, peaks
 from robofailring.evaluation.training import EvaluateConfig, FoldPlan
@@ -213,12 +213,9 @@ def cross_validate(
                 calibrate_rules(
                     detector,
                     successes,
-                    policy.target_fpr,
+                    policy,
                     rules=rules,
                     stride=config.stride,
-                    band=policy.band,
-                    fusion=policy.fusion,
-                    band_scope=policy.band_scope,
                     at_best=True,
                 )
                 if successes

@@ -8,7 +8,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
-from robofailring.detection.conformal import (
+from robofailring.calibration.conformal import (
     AUC_LEVEL,
     AUC_MIN_RUNS,
     FprSpread,

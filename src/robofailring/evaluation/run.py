@@ -8,6 +8,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from robofailring.atomic import write_text_atomic
+from robofailring.calibration.job import RuleCalibration, available_rules, calibrate_rules
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.detection.detector import DetectionTrace, FailureDetector, Place
 from robofailring.detection.loader import detector_with
@@ -16,7 +17,6 @@ from robofailring.detection.scored import prefetch_scored
 from robofailring.detection.stored import stored_threshold
 from robofailring.encoders import CachedEncoder
 from robofailring.errors import DataError, SettingError, SplitError
-from robofailring.evaluation.calibration import RuleCalibration, available_rules, calibrate_rules
 from robofailring.evaluation.folds import cross_validate
 from robofailring.evaluation.growth import GrowthPoint, judged
 from robofailring.evaluation.latency import measure_latency
@@ -304,13 +304,10 @@ def _thresholds(
         found = calibrate_rules(
             detector,
             successes,
-            policy.target_fpr,
+            policy,
             rules=rules,
             progress=bar.update,
             stride=config.stride,
-            band=policy.band,
-            fusion=policy.fusion,
-            band_scope=policy.band_scope,
             at_best=True,
         )
     if not found:

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Final
 
+from robofailring.calibration.policy import DEFAULT_POLICY, ThresholdPolicy
 from robofailring.data.grounding import Vocabulary
 from robofailring.data.layouts import Dataset
 from robofailring.data.model import Skipped, Trajectory
@@ -17,7 +18,6 @@ from robofailring.data.splits import split_of
 from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig, check_stride
 from robofailring.detection.loader import encoder_for
 from robofailring.detection.rules import PAPER
-from robofailring.detection.threshold_policy import DEFAULT_POLICY, ThresholdPolicy
 from robofailring.encoders import CachedEncoder
 from robofailring.errors import RoboFailRingError, SettingError, SplitError
 from robofailring.evaluation.metrics import PAPER_DELTAS

@@ -126,7 +126,7 @@ class StoredRule:
     achieved_fpr: float | None = None  # share of the calibration runs that reach it
     # its time-indexed band {"kind", "runs", "mean", "scale"} (robofailring.detection.band); None: one number
     band: dict[str, Any] | None = None
-    # the realised test FPR's 5–95 % range with these runs (detection.conformal.FprSpread.to_dict)
+    # the realised test FPR's 5–95 % range with these runs (calibration.conformal.FprSpread.to_dict)
     fpr_spread: dict[str, Any] | None = None
     runs: int | None = None  # success runs the threshold was set from
     extra: dict[str, Any] = field(default_factory=dict)  # keys this version does not know, kept verbatim
@@ -223,7 +223,7 @@ class StoredCalibration:
     def judges(self, modality: str) -> bool:
         """Whether the thresholds hold for `modality` (`both`, `cameras` or `signals`): calibrated for it, or
         for `both`, of which either alone is a subset of the views. Every fusion judges the max over views of
-        scores each corrected on its own (`robofailring.detection.view_bands`), so leaving views out can only
+        scores each corrected on its own (`robofailring.calibration.fusions`), so leaving views out can only
         lower a run's fused score: the false-alarm rate promised for both still holds for one alone (the
         alarms may come later than thresholds calibrated for it would give: `calibrate --modality`)."""
         calibrated = self.modality or BOTH

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from environment import require_module
 
-from robofailring.detection.conformal import (
+from robofailring.calibration.conformal import (
     attainable_target_fpr,
     auc,
     auc_interval,

@@ -8,19 +8,17 @@ import json
 import numpy as np
 import pytest
 
-from robofailring.detection.band import (
+from robofailring.calibration.bands import (
     MIN_BAND_RUNS,
     MIN_SCALE,
-    NORM,
     SCALE_FLOOR,
-    SHIFT,
-    Band,
     check_band,
     fit_band,
     leave_one_out,
 )
-from robofailring.detection.conformal import conformal_threshold
-from robofailring.detection.view_bands import conformal_peaks
+from robofailring.calibration.conformal import conformal_threshold
+from robofailring.calibration.fusions import conformal_peaks
+from robofailring.detection.band import NORM, SHIFT, Band
 from robofailring.errors import MemoryFormatError, SettingError
 
 LENGTH = 30

@@ -1,7 +1,7 @@
 """How the views' scores meet one threshold: the fusion a rule is calibrated and judged with.
 
 - `max` (the paper's eq. 7): a view fires when its score reaches the threshold; with a
-  time-indexed band (`robofailring.detection.band`) one band, fitted on the calibration runs' max over
+  time-indexed band (`robofailring.calibration.bands`) one band, fitted on the calibration runs' max over
   views, corrects every view.
 - `per-view`: each view's score is corrected by a band fitted on that view's own calibration scores
   before the max. A view whose normal runs score high everywhere (a fixed camera that sees a 4 cm cube
@@ -19,7 +19,7 @@
   A modality with fewer than `MIN_BAND_RUNS` scored calibration runs is corrected by the band of the max
   over views; without signals it is `max`.
 
-Calibration with `per-view` or `per-modality` is split conformal as with `max` (`robofailring.evaluation.calibration`):
+Calibration with `per-view` or `per-modality` is split conformal as with `max` (`robofailring.calibration.job`):
 each calibration run's views are corrected by bands fitted on the other runs, its peak over frames of
 the max over views is its conformal score; the band of all runs, one per view, is stored with the
 threshold (`Band.views`; under `per-modality` the cameras' band is the band itself and `signals` its one view).
@@ -27,13 +27,15 @@ threshold (`Band.views`; under `per-modality` the cameras' band is the band itse
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
-from typing import Final
+from typing import ClassVar, Final
 
 import numpy as np
 
-from robofailring.detection.band import MIN_BAND_RUNS, NONE, Band, fit_band, leave_one_out
+from robofailring.calibration.bands import MIN_BAND_RUNS, fit_band, leave_one_out
+from robofailring.detection.band import NONE, Band
 from robofailring.detection.view_scores import ViewScores
 from robofailring.errors import SettingError
 from robofailring.memory.signal_memory import SIGNALS_VIEW
@@ -45,21 +47,7 @@ PeaksOf = Callable[[Sequence[Mapping[str, np.ndarray]], str, Sequence[str]], tup
 MAX: Final[str] = "max"
 PER_VIEW: Final[str] = "per-view"
 PER_MODALITY: Final[str] = "per-modality"
-FUSIONS: Final[tuple[str, ...]] = (MAX, PER_VIEW, PER_MODALITY)
 DEFAULT_FUSION: Final[str] = PER_MODALITY  # the benchmarks' best (docs/signals.md, "Measured")
-# what each fusion's bands are, as the calibration's summary and stored method say it (max: one band)
-BANDS_OF: Final[dict[str, str]] = {
-    MAX: "one band",
-    PER_VIEW: "a band per view",
-    PER_MODALITY: "a band per modality (the cameras', and the signals' per task)",
-}
-
-
-def check_fusion(fusion: str) -> str:
-    """A view fusion (`max`, `per-view`, `per-modality`); SettingError naming the choices otherwise."""
-    if fusion not in FUSIONS:
-        raise SettingError(f"unknown view fusion {fusion!r}; choose one of {list(FUSIONS)}")
-    return fusion
 
 
 def fused_raw(scores: Mapping[str, np.ndarray]) -> np.ndarray:
@@ -212,8 +200,98 @@ def max_peaks(
     return conformal_peaks([fused_raw(run) for run in runs], kind)
 
 
-FUSION_PEAKS: Final[dict[str, PeaksOf]] = {
-    MAX: max_peaks,
-    PER_VIEW: per_view_peaks,
-    PER_MODALITY: per_modality_peaks,
+class Fusion(ABC):
+    """One way the views meet a threshold: its name, its calibration peaks, and its bands as calibration's summary
+    and stored method say them. A new fusion is one subclass added to `FUSIONS`."""
+
+    name: ClassVar[str]  # `--fusion`'s choice, kept in a `ThresholdPolicy` and a calibration's result
+    bands: ClassVar[str]  # the bands it fits, as calibration's summary and stored method say them
+    help: ClassVar[str]  # what it does, in `--fusion`'s help
+
+    @abstractmethod
+    def peaks(
+        self, runs: Sequence[Mapping[str, np.ndarray]], kind: str, tasks: Sequence[str] = ()
+    ) -> tuple[list[float], Band | None]:
+        """Each calibration run's conformal score from its per-view scores, corrected by bands of `kind` fitted
+        on the other runs, and the band of all runs (None: no band); `tasks` is each run's task."""
+
+    def method_note(self) -> str:
+        """What the stored calibration method says of this fusion's bands (`, a band per view`)."""
+        return f", {self.bands}"
+
+    def summary_note(self) -> str:
+        """What calibration's summary says of this fusion's bands after the band's line."""
+        return f"; {self.bands} (fusion {self.name})"
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}()"
+
+    def __str__(self) -> str:
+        return self.name
+
+
+class MaxFusion(Fusion):
+    """`max` (the paper's eq. 7): one band, fitted on the max over views, corrects every view."""
+
+    name = MAX
+    bands = "one band"
+    help = "max, the paper's, fires when any view reaches it, every view corrected by one band (of the max over views)"
+
+    def peaks(
+        self, runs: Sequence[Mapping[str, np.ndarray]], kind: str, tasks: Sequence[str] = ()
+    ) -> tuple[list[float], Band | None]:
+        return max_peaks(runs, kind, tasks)
+
+    def method_note(self) -> str:  # one band is what every calibration has: nothing to add
+        return ""
+
+    def summary_note(self) -> str:
+        return ""
+
+
+class PerViewFusion(Fusion):
+    """`per-view`: each view corrected by a band of its own calibration scores before the max."""
+
+    name = PER_VIEW
+    bands = "a band per view"
+    help = "per-view corrects each view by a band of its own calibration scores first"
+
+    def peaks(
+        self, runs: Sequence[Mapping[str, np.ndarray]], kind: str, tasks: Sequence[str] = ()
+    ) -> tuple[list[float], Band | None]:
+        return per_view_peaks(runs, kind, tasks)
+
+
+class PerModalityFusion(Fusion):
+    """`per-modality`: the camera views one band of their max, the robot's signals their own (per task)."""
+
+    name = PER_MODALITY
+    bands = "a band per modality (the cameras', and the signals' per task)"
+    help = (
+        "per-modality, one band for the cameras and one for the robot's signals (per task where a task has enough "
+        "runs)"
+    )
+
+    def peaks(
+        self, runs: Sequence[Mapping[str, np.ndarray]], kind: str, tasks: Sequence[str] = ()
+    ) -> tuple[list[float], Band | None]:
+        return per_modality_peaks(runs, kind, tasks)
+
+
+FUSIONS: Final[dict[str, Fusion]] = {
+    fusion.name: fusion for fusion in (MaxFusion(), PerViewFusion(), PerModalityFusion())
 }
+
+
+def check_fusion(fusion: str) -> str:
+    """A view fusion (`max`, `per-view`, `per-modality`); SettingError naming the choices otherwise."""
+    fusion_named(fusion)
+    return fusion
+
+
+def fusion_named(name: str) -> Fusion:
+    """The fusion called `name`; SettingError naming the choices otherwise."""
+    try:
+        return FUSIONS[name]
+    except KeyError:
+        raise SettingError(f"unknown view fusion {name!r}; choose one of {list(FUSIONS)}") from None

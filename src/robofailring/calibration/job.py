@@ -3,8 +3,8 @@
 Each success run is replayed with its own episode hidden from both memories (leave-one-out), so
 its frames never match themselves in the success memory; its peak score over frames and views is
 one conformal score. The threshold of each rule is the split-conformal one of
-`robofailring.detection.conformal.conformal_threshold`, pooled over tasks. With a band
-(`robofailring.detection.band`: `shift`, `norm`), each run's per-frame score is first corrected by
+`robofailring.calibration.conformal.conformal_threshold`, pooled over tasks. With a band
+(`robofailring.calibration.bands`: `shift`, `norm`), each run's per-frame score is first corrected by
 the band of the other runs, and its peak is the conformal score; the band of all runs is stored.
 """
 
@@ -17,27 +17,20 @@ from pathlib import Path
 
 import numpy as np
 
-from robofailring.data.model import Skipped, Trajectory
-from robofailring.data.selection import DataSelection
-from robofailring.detection.band import (
-    DEFAULT_BAND,
-    DEFAULT_BAND_SCOPE,
-    MIN_BAND_RUNS,
-    NONE,
-    POOLED,
-    TASK,
-    Band,
-    check_band,
-    check_band_scope,
-)
-from robofailring.detection.config import DetectorConfig, check_stride
-from robofailring.detection.conformal import (
+from robofailring.calibration.bands import MIN_BAND_RUNS, POOLED, TASK
+from robofailring.calibration.conformal import (
     FprSpread,
     attainable_target_fpr,
     conformal_threshold,
     empirical_fpr,
     fpr_spread,
 )
+from robofailring.calibration.fusions import DEFAULT_FUSION, fused_raw, fusion_named, per_task_peaks
+from robofailring.calibration.policy import DEFAULT_POLICY, ThresholdPolicy
+from robofailring.data.model import Skipped, Trajectory
+from robofailring.data.selection import DataSelection
+from robofailring.detection.band import NONE, Band
+from robofailring.detection.config import DetectorConfig, check_stride
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.loader import detector_from
 from robofailring.detection.rules import (
@@ -48,16 +41,6 @@ from robofailring.detection.rules import (
     ScoringRule,
     rule_named,
     rules_for,
-)
-from robofailring.detection.threshold_policy import DEFAULT_POLICY, ThresholdPolicy
-from robofailring.detection.view_bands import (
-    BANDS_OF,
-    DEFAULT_FUSION,
-    FUSION_PEAKS,
-    MAX,
-    check_fusion,
-    fused_raw,
-    per_task_peaks,
 )
 from robofailring.errors import DataError, SettingError
 from robofailring.memory.manifest import StoredCalibration, StoredRule
@@ -139,29 +122,24 @@ def success_view_scores(
 def calibrate_rules(
     detector: FailureDetector,
     successes: Sequence[Trajectory],
-    target_fpr: float,
+    policy: ThresholdPolicy,
     *,
     rules: Sequence[ScoringRule] | None = None,
     progress: Callable[[int], None] | None = None,
     stride: int = 1,
     too_short: list[str] | None = None,
     short_views: list[Skipped] | None = None,
-    band: str = DEFAULT_BAND,
-    fusion: str = DEFAULT_FUSION,
-    band_scope: str = DEFAULT_BAND_SCOPE,
     at_best: bool = False,
 ) -> dict[ScoringRule, RuleCalibration]:
-    """The conformal threshold of every rule (default: all the memory supports) at level `target_fpr`,
-    on the `band` (`none`, `shift`, `norm`) fitted on the same runs, its views fused by `fusion`
-    (`robofailring.detection.view_bands`), one band over all tasks or, with `band_scope` `task`, one per task
-    that has enough runs (`robofailring.detection.band`); the paper rule keeps one δ, as in the paper (§3.3).
+    """The conformal threshold of every rule (default: all the memory supports) as `policy` sets it: at level
+    `target_fpr`, on its `band` (`none`, `shift`, `norm`) fitted on the same runs, its views fused by its
+    `fusion` (`robofailring.calibration.fusions`), one band over all tasks or, with `band_scope` `task`, one per
+    task that has enough runs (`robofailring.calibration.bands`); the paper rule keeps one δ, as in the paper
+    (§3.3).
 
     Too few runs for `target_fpr` are a DataError; with `at_best` (an evaluation on small data) a rule
     is calibrated at the smallest level its runs allow instead (its `target_fpr` says which: no
     guarantee at the asked one), and a rule none of whose runs could be scored is left out."""
-    check_band(band)
-    check_fusion(fusion)
-    check_band_scope(band_scope)
     chosen = list(rules) if rules is not None else available_rules(detector)
     tasks: list[str] = []
     scores = success_view_scores(
@@ -174,20 +152,20 @@ def calibrate_rules(
         short_views=short_views,
         tasks=tasks,
     )
-    fusion_peaks = FUSION_PEAKS[fusion]
+    fusion_peaks = fusion_named(policy.fusion).peaks
     calibrations = {}
     for rule, runs in scores.items():
         if not runs:
             raise DataError(f"none of the {len(successes)} success trajectories has a view of 2+ frames")
-        kind = band if rule is not PAPER else NONE  # δ stays the paper's
-        if band_scope == TASK:
+        kind = policy.band if rule is not PAPER else NONE  # δ stays the paper's
+        if policy.band_scope == TASK:
             values, fitted = per_task_peaks(fusion_peaks, runs, tasks, kind)
         else:
             values, fitted = fusion_peaks(runs, kind, tasks)
         scored = [v for v in values if math.isfinite(v)]
         if at_best and not scored:
             continue
-        level = attainable_target_fpr(len(scored), target_fpr) if at_best else target_fpr
+        level = attainable_target_fpr(len(scored), policy.target_fpr) if at_best else policy.target_fpr
         try:
             threshold = conformal_threshold(scored, level)
         except DataError as error:
@@ -275,7 +253,7 @@ class Calibration:
                 f"time-indexed band {self.band!r}: each threshold applies to the score corrected by the "
                 + ("mean" if self.band == "shift" else "mean and spread")
                 + " of these runs' scores at the same frame (a line over time on the raw score)"
-                + (f"; {BANDS_OF[self.fusion]} (fusion {self.fusion})" if self.fusion != MAX else "")
+                + fusion_named(self.fusion).summary_note()
             )
         for name, threshold in self.thresholds.items():
             rule = rule_named(name)
@@ -323,14 +301,11 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
         found = calibrate_rules(
             detector,
             successes,
-            policy.target_fpr,
+            policy,
             progress=advance,
             stride=config.stride,
             too_short=too_short,
             short_views=short_views,
-            band=policy.band,
-            fusion=policy.fusion,
-            band_scope=policy.band_scope,
         )
     widest = max(found.values(), key=lambda calibration: calibration.successes)
     spread = widest.spread  # computed once: it searches for the runs a tighter bound needs
@@ -339,7 +314,7 @@ def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None
             encoder=memory.encoder,
             rules={rule.name: _stored_rule(calibration) for rule, calibration in found.items()},
             method="split conformal, own episode left out"
-            + (f", {BANDS_OF[policy.fusion]}" if policy.fusion != MAX else "")
+            + fusion_named(policy.fusion).method_note()
             + (", a band per task with enough runs" if policy.band_scope != POOLED else ""),
             target_fpr=policy.target_fpr,
             successes=widest.successes,

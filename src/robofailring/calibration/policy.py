@@ -10,9 +10,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Final
 
-from robofailring.detection.band import DEFAULT_BAND, DEFAULT_BAND_SCOPE, check_band, check_band_scope
-from robofailring.detection.conformal import check_target_fpr
-from robofailring.detection.view_bands import DEFAULT_FUSION, check_fusion
+from robofailring.calibration.bands import DEFAULT_BAND, DEFAULT_BAND_SCOPE, check_band, check_band_scope
+from robofailring.calibration.conformal import check_target_fpr
+from robofailring.calibration.fusions import DEFAULT_FUSION, check_fusion
 
 DEFAULT_TARGET_FPR: Final[float] = 0.05
 

@@ -6,18 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from robofailring.detection.band import (
-    MIN_BAND_RUNS,
-    NONE,
-    NORM,
-    SHIFT,
-    Band,
-    check_band_scope,
-    fit_band,
-    leave_one_out,
-)
-from robofailring.detection.conformal import auc
-from robofailring.detection.view_bands import (
+from robofailring.calibration.bands import MIN_BAND_RUNS, check_band_scope, fit_band, leave_one_out
+from robofailring.calibration.conformal import auc
+from robofailring.calibration.fusions import (
     PeaksOf,
     check_fusion,
     fused_raw,
@@ -27,6 +18,7 @@ from robofailring.detection.view_bands import (
     per_task_peaks,
     per_view_peaks,
 )
+from robofailring.detection.band import NONE, NORM, SHIFT, Band
 from robofailring.detection.view_scores import ViewScores
 from robofailring.errors import MemoryFormatError, SettingError
 from robofailring.memory.signal_memory import SIGNALS_VIEW
