@@ -33,6 +33,36 @@ def failure_memory_text(memory: FailureMemory) -> str:
     return f"end (the paper's), {counts} (each view's first and last frame; {pairing})"
 
 
+def signals_text(section: dict[str, Any] | None) -> list[str]:
+    """memory-info's lines on the signal memory: per task the dimensions it uses, and with `--signals auto` which
+    it chose from the task's training runs, with what weight and why."""
+    if not section:
+        return ["  signals     none (the cameras alone)"]
+    lines = [
+        f"  signals     --signals {section.get('choice')}, derived features {section.get('features')}, start "
+        f"weight {section.get('start_weight')}"
+    ]
+    for task, described in sorted(section.get("tasks", {}).items()):
+        layout = described.get("layout", {})
+        dims = sum(len(d) for kind in ("state", "action") for _, d in layout.get(kind, []))
+        lines.append(
+            f"    {task}: {dims} dimensions of {', '.join(n for kind in ('state', 'action') for n, _ in layout.get(kind, []))}"
+        )
+        selection = described.get("selection")
+        if selection is None:
+            lines.append(f"      {described.get('selection_skipped') or 'every element of its vectors kept'}")
+            continue
+        chosen = ", ".join(
+            f"{c['group']} (AUC alone {c['auc_alone']:.2f}, with those before {c['auc_with']:.2f})"
+            for c in selection["chosen"]
+        )
+        lines.append(f"      chosen (weight 1): {chosen}")
+        lines.append(
+            f"      the moment (frame number) weighted {selection['phase_weight']:g}; {selection['why']}"
+        )
+    return lines
+
+
 @dataclass(frozen=True)
 class MemoryInfo:
     """A summary of one memory folder, for people (`to_text`) and scripts (`to_dict`)."""
@@ -89,6 +119,7 @@ class MemoryInfo:
                 "first_missing": self.references.missing[0] if self.references.missing else None,
             },
             "created": manifest.created,
+            "signals": manifest.signals,  # the signal memory's section: choice, per task its layout and selection
         }
 
     def _calibrated(self) -> dict[str, float]:
@@ -146,6 +177,7 @@ class MemoryInfo:
             lines.append(
                 f"  no failures {', '.join(info['success_only_tasks'])}: success runs only, judged by the novelty rule"
             )
+        lines += signals_text(info["signals"])
         lines.append("  per task and view:")
         width = max((len(task) for task in info["tasks"]), default=4)
         for task, views in info["tasks"].items():

@@ -36,6 +36,7 @@ from robofailring.memory.signal_layout import (
     choose_layout,
     read_features,
 )
+from robofailring.memory.signal_select import Selection, choose
 
 SIGNALS_VIEW: Final[str] = "signals"  # the modality's name among the views a trace fuses
 START_WEIGHT: Final[float] = 0.5  # the start state's weight in a memory from before it was a setting …
@@ -66,8 +67,12 @@ class TaskSignals:
         rows: Mapping[str, Rows],
         derivation: Derivation | None = None,
         start_weight: float = START_WEIGHT,
+        selection: Selection | None = None,
+        chose: str = "",
     ) -> None:
         self.layout, self.mean, self.scale = layout, np.asarray(mean), np.asarray(scale)
+        self.selection = selection  # the elements its vectors keep (`--signals auto`: chosen from its runs)
+        self.chose = chose  # why none were chosen, where choosing was asked for
         self.derivation = derivation
         self.start_weight = float(start_weight)
         self.vectors = {kind: np.asarray(v, np.float32) for kind, v in vectors.items()}
@@ -113,7 +118,15 @@ class TaskSignals:
         ]
         start = np.broadcast_to(self.start_weight * first[:state_width], (len(at), state_width))
         change = now[:, :state_width] - first[:state_width]
-        return np.concatenate([start, change, *lagged, now[:, -1:]], axis=1).astype(np.float32)
+        paired = np.concatenate([start, change, *lagged, now[:, -1:]], axis=1).astype(np.float32)
+        return paired if self.selection is None else self.selection.apply(paired)
+
+    @property
+    def width(self) -> int:
+        """Its vectors' length."""
+        state, action = self.widths
+        full = 2 * state + len(ACTION_LAGS) * action + 1
+        return full if self.selection is None else len(self.selection.columns)
 
     def search(
         self, vectors: np.ndarray, kind: str, *, exclude_episode: str | None = None
@@ -136,6 +149,7 @@ class TaskSignals:
         order = np.argsort(-np.abs(difference))[:top]
         derived = self.derivation.names(self.layout.raw_columns()) if self.derivation is not None else []
         columns = self.layout.columns(derived)
+        columns = columns if self.selection is None else self.selection.names(columns)
         return [(columns[i], float(difference[i])) for i in order]
 
 
@@ -152,8 +166,11 @@ def build_task(
     onset_start: int = 1,
     *,
     start_weight: float = DEFAULT_START_WEIGHT,
+    select: bool = False,
 ) -> tuple[TaskSignals | None, list[Skipped]]:
-    """One task's signal memory from its labelled runs; a run whose signals cannot be read is skipped."""
+    """One task's signal memory from its labelled runs; a run whose signals cannot be read is skipped.
+    `select`: its vectors keep the elements that separate its failure runs from its success runs
+    (`robofailring.memory.signal_select`)."""
     features: list[tuple[Trajectory, np.ndarray]] = []
     skipped: list[Skipped] = []
     for trajectory in trajectories:
@@ -171,6 +188,16 @@ def build_task(
     stacked = np.concatenate([empty.derived(f) for f in normal])
     mean, scale = stacked.mean(axis=0), np.maximum(stacked.std(axis=0), MIN_SCALE)
     task = TaskSignals(layout, mean, scale, {}, {}, derivation, start_weight)
+    if select:
+        selection, chose = choose(
+            layout,
+            derivation,
+            [task.vectors_of(f) for _, f in features],
+            [t.is_failure for t, _ in features],
+            [(t.onset_frame or onset_start) if t.is_failure else 0 for t, _ in features],
+            start=start_weight > 0,
+        )
+        task = TaskSignals(layout, mean, scale, {}, {}, derivation, start_weight, selection, chose)
     return _with_runs(task, features, onset_start), skipped
 
 
@@ -190,7 +217,7 @@ def _with_runs(
         vectors.setdefault(kind, []).append(paired)
         found = rows.setdefault(kind, [])
         found += [(trajectory.episode, trajectory.symbol or "", start + i) for i in range(len(paired))]
-    width = 2 * task.widths[0] + len(ACTION_LAGS) * task.widths[1] + 1
+    width = task.width
     return TaskSignals(
         task.layout,
         task.mean,
@@ -202,6 +229,8 @@ def _with_runs(
         {kind: _rows(rows.get(kind, [])) for kind in ("failure", "success")},
         task.derivation,
         task.start_weight,
+        task.selection,
+        task.chose,
     )
 
 
@@ -250,7 +279,7 @@ class SignalMemory:
             layout = choose_layout(runs, choice, features)
             if layout is None:
                 continue
-            built, missed = build_task(runs, layout, start_weight=start_weight)
+            built, missed = build_task(runs, layout, start_weight=start_weight, select=choice == AUTO)
             skipped += missed
             if built is not None:
                 by_task[task] = built
@@ -268,7 +297,7 @@ class SignalMemory:
             if held is None:
                 layout = choose_layout(runs, self.choice, self.features)
                 built, missed = (
-                    build_task(runs, layout, start_weight=self.start_weight)
+                    build_task(runs, layout, start_weight=self.start_weight, select=self.choice == AUTO)
                     if layout is not None
                     else (None, [])
                 )
@@ -300,6 +329,8 @@ class SignalMemory:
             task: {
                 "key": f"t{number}",
                 "layout": signals.layout.to_dict(),
+                **({"selection": signals.selection.describe()} if signals.selection is not None else {}),
+                **({"selection_skipped": signals.chose} if signals.chose else {}),
                 **{f"{kind}_entries": len(v) for kind, v in signals.vectors.items()},
             }
             for number, (task, signals) in enumerate(sorted(self.by_task.items()))
@@ -320,6 +351,8 @@ class SignalMemory:
             arrays[f"{key}_mean"], arrays[f"{key}_scale"] = signals.mean, signals.scale
             if signals.derivation is not None:
                 arrays |= signals.derivation.arrays(key)
+            if signals.selection is not None:
+                arrays |= signals.selection.arrays(key)
             for kind in ("failure", "success"):
                 rows = signals.rows[kind]
                 arrays[f"{key}_{kind}"] = signals.vectors[kind]
@@ -363,6 +396,12 @@ class SignalMemory:
                     if layout.derived
                     else None
                 )
+                full = TaskSignals(layout, np.zeros(0), np.ones(0), {}, {}, derivation).width
+                selection = (
+                    Selection.read(described["selection"], arrays, key, full, where)
+                    if "selection" in described
+                    else None
+                )
                 by_task[str(task)] = TaskSignals(
                     layout,
                     arrays[f"{key}_mean"],
@@ -371,6 +410,8 @@ class SignalMemory:
                     rows,
                     derivation,
                     start_weight,
+                    selection,
+                    str(described.get("selection_skipped", "")),
                 )
         except (KeyError, TypeError, AttributeError) as error:
             raise MemoryFormatError(f"{where}: the signal memory lacks {error} (a damaged file?)") from error
