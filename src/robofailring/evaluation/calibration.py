@@ -150,6 +150,7 @@ def calibrate_rules(
     fusion: str = DEFAULT_FUSION,
     band_scope: str = DEFAULT_BAND_SCOPE,
     at_best: bool = False,
+    scores_out: list[tuple[dict[ScoringRule, list[dict[str, np.ndarray]]], list[str]]] | None = None,
 ) -> dict[ScoringRule, RuleCalibration]:
     """The conformal threshold of every rule (default: all the memory supports) at level `target_fpr`,
     on the `band` (`none`, `shift`, `norm`) fitted on the same runs, its views fused by `fusion`
@@ -158,7 +159,8 @@ def calibrate_rules(
 
     Too few runs for `target_fpr` are a DataError; with `at_best` (an evaluation on small data) a rule
     is calibrated at the smallest level its runs allow instead (its `target_fpr` says which: no
-    guarantee at the asked one), and a rule none of whose runs could be scored is left out."""
+    guarantee at the asked one), and a rule none of whose runs could be scored is left out. `scores_out`
+    receives the runs' per-view scores and tasks (an evaluation calibrates each modality alone from them)."""
     check_band(band)
     check_fusion(fusion)
     check_band_scope(band_scope)
@@ -174,6 +176,8 @@ def calibrate_rules(
         short_views=short_views,
         tasks=tasks,
     )
+    if scores_out is not None:
+        scores_out.append((scores, tasks))
     fusion_peaks = FUSION_PEAKS[fusion]
     calibrations = {}
     for rule, runs in scores.items():

@@ -26,6 +26,7 @@ from robofailring.evaluation.metrics import (
     sweep,
     timeliness,
 )
+from robofailring.evaluation.modalities import ModalityResult, modalities_markdown
 from robofailring.evaluation.per_rule import (
     MARKDOWN_HEADER,
     RuleResult,
@@ -60,6 +61,8 @@ class EvaluationResult:
     skipped_inputs: list[Skipped] = field(default_factory=list)  # folders/files of the data not read
     stride: int = 1
     rules: dict[str, RuleResult] = field(default_factory=dict)  # both rules at their thresholds
+    # per rule: the cameras alone, the signals alone and both, each at its own threshold (evaluation.modalities)
+    modalities: dict[str, dict[str, ModalityResult]] = field(default_factory=dict)
     target_fpr: float | None = None
     deployment_successes: int = 0
     band: str = "none"  # the time-indexed band the rules beyond the paper's were judged on
@@ -117,7 +120,8 @@ class EvaluationResult:
         self, delta: float, scored: Sequence[ScoredTrajectory] | None = None
     ) -> dict[str, Rates]:
         scored = self.scored if scored is None else scored
-        ablation = {view: rates(scored, delta, [view]) for view in self.views}
+        views = dict.fromkeys([*self.views, *(view for t in scored for view in t.similarity)])  # signals too
+        ablation = {view: rates(scored, delta, [view]) for view in views}
         ablation["fusion"] = rates(scored, delta)
         return ablation
 
@@ -231,6 +235,10 @@ class EvaluationResult:
             "rules": {
                 name: result.to_dict() | self.rule_charts(result.rule, rate_row)
                 for name, result in self.rules.items()
+            },
+            "modalities": {
+                name: {modality: row.to_dict() for modality, row in rows.items()}
+                for name, rows in self.modalities.items()
             },
             "false_alarms": [
                 {"key": t.key, "t_det": t.t_det(delta), "length": t.length} for t in self.false_alarms(delta)
@@ -361,6 +369,7 @@ class EvaluationResult:
             "",
             MARKDOWN_HEADER,
             *(result.markdown_row(self.target_fpr) for result in self.rules.values()),
+            *modalities_markdown(self.modalities),
             *shortfall_markdown(
                 list(self.rules.values()),
                 self.target_fpr,

@@ -1,6 +1,7 @@
-"""`--signals auto` chooses the dimensions that separate a task's failures from its successes on its own training
-runs (issue 51 item 2): one dimension carries the failures (a gripper closing at the wrong moment), three others
-carry where things were placed; the memory keeps the first and `memory-info` names it with why."""
+"""The signals' defaults (issue 51): `--signals auto` chooses the dimensions that separate a task's failures from its
+successes on its own training runs (item 2: one dimension carries the failures, a gripper closing at the wrong
+moment, three others carry where things were placed; the memory keeps the first and `memory-info` names it with
+why), and an evaluation gives every figure per modality (item 3)."""
 
 from __future__ import annotations
 
@@ -93,3 +94,36 @@ def test_the_chosen_dimensions_detect_the_failures_every_dimension_misses(
         figures[label] = json.loads((out / "evaluation.json").read_text())["rules"]["contrast"]
     assert figures["auto"]["auc"] == 1.0
     assert figures["auto"]["auc"] > figures["all"]["auc"]
+
+
+def test_an_evaluation_gives_the_cameras_the_signals_and_both_each_at_its_own_threshold(
+    data: Path, cache: list[str], tmp_path: Path
+) -> None:
+    found = {}
+    for modality in ("both", "cameras", "signals"):
+        out = tmp_path / modality
+        result = cli("evaluate", data, "--out", out, "--modality", modality, "--target-fpr", "0.2", *cache)
+        assert result.exit_code == 0, result.output
+        found[modality] = json.loads((out / "evaluation.json").read_text())
+    fused = found["both"]
+    for rule in ("contrast", "novelty"):
+        rows = fused["modalities"][rule]
+        assert list(rows) == ["cameras", "signals", "both"]
+        for modality in ("cameras", "signals"):  # each as an evaluation of that modality alone finds it
+            alone = found[modality]["rules"][rule]
+            for name in ("threshold", "recall", "fpr", "ts_mean", "auc", "tp", "fp"):
+                assert rows[modality][name] == alone[name], (rule, modality, name)
+        for name in ("threshold", "recall", "fpr", "ts_mean", "auc"):
+            assert rows["both"][name] == fused["rules"][rule][name]
+        assert rows["both"]["recall_per_type"] == {"grasp": {"detected": 6, "total": 6}}
+    contrast = fused["modalities"]["contrast"]
+    assert contrast["signals"]["ts_mean"] == pytest.approx(
+        1 / 3, abs=1e-6
+    )  # the gripper closes at frame 2 of 12
+    assert (
+        contrast["cameras"]["ts_mean"] > 0.8
+        and contrast["cameras"]["threshold"] > contrast["signals"]["threshold"]
+    )
+    assert "signals" in fused["rules"]["contrast"]["view_ablation"]  # the view ablation names the signals too
+    markdown = (tmp_path / "both" / "evaluation.md").read_text()
+    assert "| contrast | signals | 0.0000 | 100.00 | 0.00 | 100.00 | 33.33 | 1.000 | 6 / 6 |" in markdown
