@@ -1,4 +1,8 @@
-"""Encoder comparison (paper Table 3): the same split under several encoders, each calibrated, side by side."""
+"""Encoder comparison (paper Table 3): the same split under several encoders, each calibrated, side by side.
+
+Where the data has the robot's signals, the rows that compare the encoders are the cameras alone, each encoder with
+its own calibrated thresholds: fused, the signals' thresholds would decide every encoder's row alike. The fused
+row stands beside them (`evaluation.modalities`)."""
 
 from __future__ import annotations
 
@@ -15,6 +19,7 @@ from robofailring.encoders import EncoderSpec, cache_identity
 from robofailring.errors import SettingError
 from robofailring.evaluation.calibration import CalibrateConfig, calibrate
 from robofailring.evaluation.markdown import markdown_text
+from robofailring.evaluation.modalities import BOTH, CAMERAS
 from robofailring.evaluation.run import (
     EvaluateConfig,
     EvaluationResult,
@@ -72,27 +77,41 @@ def compare_encoders(
                     data=config.data, detector=detector.with_memory(memory_dir), thresholds=config.thresholds
                 )
             )
-        # thresholds: the ones calibration just stored (thresholds None reads them from the manifest)
-        evaluated = replace(base, detector=detector.with_memory(memory_dir), thresholds=None)
+        # thresholds: calibrated as `calibrate` just stored them, here with each modality's own beside them
+        evaluated = replace(base, detector=detector.with_memory(memory_dir), thresholds=config.thresholds)
         results.append(run_evaluation(evaluated))
     return results
 
 
 def comparison_table(results: Sequence[EvaluationResult]) -> str:
-    """Markdown: each encoder under each scoring rule at its threshold: recall, FPR, T_s, AUC, latency,
-    and the failure memory it used (`end` or `dense`)."""
+    """Markdown: each encoder under each scoring rule at its threshold: recall, FPR, the best recall any
+    threshold reaches at that FPR, T_s, AUC, latency, and the failure memory it used (`end` or `dense`); with the
+    robot's signals, the cameras alone (each encoder's own thresholds) and the fused row beside."""
     lines = [
-        "| encoder | failure memory | rule | threshold | Recall (%) | FPR (%) | mean T_s (%) | AUC | "
-        "latency per frame (ms) |",
-        "|---|---|---|---:|---:|---:|---:|---:|---:|",
+        "| encoder | failure memory | rule | modality | threshold | Recall (%) | FPR (%) | best recall at that FPR (%) "
+        "| mean T_s (%) | AUC | latency per frame (ms) |",
+        "|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for result in results:
         latency = f"{result.latency_ms.get('total', float('nan')):.2f}"
         for rule in result.rules.values():
-            lines.append(
-                f"| {markdown_text(result.encoder, code=True)} | {result.failure_frames}, {result.pairing} | {rule.rule.name} | {rule.rule.symbol} = {rule.threshold:.4f} | "
-                f"{_pct(rule.recall)} | {_pct(rule.fpr)} | {_pct(rule.ts_mean)} | {rule.auc:.3f} | {latency} |"
+            by_modality = result.modalities.get(rule.rule.name, {})
+            shown = (
+                [
+                    (modality, by_modality[modality].result)
+                    for modality in (CAMERAS, BOTH)
+                    if modality in by_modality
+                ]
+                if by_modality
+                else [(BOTH if result.modalities else "all", rule)]
             )
+            for modality, found in shown:
+                lines.append(
+                    f"| {markdown_text(result.encoder, code=True)} | {result.failure_frames}, {result.pairing} | "
+                    f"{rule.rule.name} | {modality} | {rule.rule.symbol} = {found.threshold:.4f} | "
+                    f"{_pct(found.recall)} | {_pct(found.fpr)} | {_pct(found.best_recall)} | {_pct(found.ts_mean)} | "
+                    f"{found.auc:.3f} | {latency} |"
+                )
     return "\n".join(lines)
 
 
