@@ -125,5 +125,11 @@ def test_an_evaluation_gives_the_cameras_the_signals_and_both_each_at_its_own_th
         and contrast["cameras"]["threshold"] > contrast["signals"]["threshold"]
     )
     assert "signals" in fused["rules"]["contrast"]["view_ablation"]  # the view ablation names the signals too
+    assert "9 runs would let it sit below the highest" in (tmp_path / "both" / "evaluation.md").read_text()
     markdown = (tmp_path / "both" / "evaluation.md").read_text()
     assert "| contrast | signals | 0.0000 | 100.00 | 0.00 | 100.00 | 33.33 | 1.000 | 6 / 6 |" in markdown
+    report = (tmp_path / "both" / "report.html").read_text()
+    assert (
+        "Per modality" in report
+        and "<td>signals</td><td class=num>0.0000</td><td class=num>100.00</td>" in report
+    )
