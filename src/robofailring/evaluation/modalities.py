@@ -156,6 +156,11 @@ def _alone(
     return evaluate_rule(scored, rule, threshold, calibrated=True, level=level), scored
 
 
+def modalities_dict(found: Mapping[str, Mapping[str, ModalityResult]]) -> dict[str, dict[str, Any]]:
+    """The JSON of `modality_results`: per rule, per modality."""
+    return {name: {modality: row.to_dict() for modality, row in rows.items()} for name, rows in found.items()}
+
+
 def modalities_markdown(found: Mapping[str, Mapping[str, ModalityResult]]) -> list[str]:
     """The per-modality table of every rule, with recall per failure family."""
     if not found:

@@ -26,7 +26,7 @@ from robofailring.evaluation.metrics import (
     sweep,
     timeliness,
 )
-from robofailring.evaluation.modalities import ModalityResult, modalities_markdown
+from robofailring.evaluation.modalities import ModalityResult, modalities_dict, modalities_markdown
 from robofailring.evaluation.per_rule import (
     MARKDOWN_HEADER,
     RuleResult,
@@ -236,10 +236,7 @@ class EvaluationResult:
                 name: result.to_dict() | self.rule_charts(result.rule, rate_row)
                 for name, result in self.rules.items()
             },
-            "modalities": {
-                name: {modality: row.to_dict() for modality, row in rows.items()}
-                for name, rows in self.modalities.items()
-            },
+            "modalities": modalities_dict(self.modalities),
             "false_alarms": [
                 {"key": t.key, "t_det": t.t_det(delta), "length": t.length} for t in self.false_alarms(delta)
             ],

@@ -18,7 +18,6 @@ rules and fused with the camera views as one more view named `signals`.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
@@ -36,22 +35,14 @@ from robofailring.memory.signal_layout import (
     choose_layout,
     read_features,
 )
-from robofailring.memory.signal_select import Selection, choose
+from robofailring.memory.signal_rows import Rows, rows_of, search_entries
+from robofailring.memory.signal_select import Selection, choose_for
 
 SIGNALS_VIEW: Final[str] = "signals"  # the modality's name among the views a trace fuses
 START_WEIGHT: Final[float] = 0.5  # the start state's weight in a memory from before it was a setting …
 DEFAULT_START_WEIGHT: Final[float] = 0.0  # … and in a new one (docs/signals.md, "Measured")
 MIN_SCALE: Final[float] = 1e-3  # a feature's spread floor (a value constant over the successes)
 SIGNALS_FILE: Final[str] = "signals.npz"
-
-
-@dataclass(frozen=True)
-class Rows:
-    """What each entry of one index is: its run's episode, failure symbol (None: a success) and frame."""
-
-    episodes: np.ndarray  # str
-    symbols: np.ndarray  # str, "" for a success
-    frames: np.ndarray  # int
 
 
 class TaskSignals:
@@ -79,7 +70,7 @@ class TaskSignals:
         self.rows = dict(rows)
         self.indexes = {
             kind: TaskIndex.build(
-                _entries(v), np.arange(len(v)), list(self.rows[kind].episodes), IndexSpec(FLAT)
+                search_entries(v), np.arange(len(v)), list(self.rows[kind].episodes), IndexSpec(FLAT)
             )
             for kind, v in self.vectors.items()
             if len(v)
@@ -153,13 +144,6 @@ class TaskSignals:
         return [(columns[i], float(difference[i])) for i in order]
 
 
-def _entries(vectors: np.ndarray) -> np.ndarray:
-    """Entries for inner-product search that ranks by Euclidean distance: [y ‖ −‖y‖²/2], so a query
-    [x ‖ 1] scores x·y − ‖y‖²/2 = (‖x‖² − d²)/2."""
-    norms = np.einsum("ij,ij->i", vectors, vectors)[:, None]
-    return np.concatenate([vectors, -0.5 * norms], axis=1).astype(np.float32)
-
-
 def build_task(
     trajectories: Sequence[Trajectory],
     layout: SignalLayout,
@@ -189,15 +173,9 @@ def build_task(
     mean, scale = stacked.mean(axis=0), np.maximum(stacked.std(axis=0), MIN_SCALE)
     task = TaskSignals(layout, mean, scale, {}, {}, derivation, start_weight)
     if select:
-        selection, chose = choose(
-            layout,
-            derivation,
-            [task.vectors_of(f) for _, f in features],
-            [t.is_failure for t, _ in features],
-            [(t.onset_frame or onset_start) if t.is_failure else 0 for t, _ in features],
-            start=start_weight > 0,
+        task = TaskSignals(
+            layout, mean, scale, {}, {}, derivation, start_weight, *choose_for(task, features, onset_start)
         )
-        task = TaskSignals(layout, mean, scale, {}, {}, derivation, start_weight, selection, chose)
     return _with_runs(task, features, onset_start), skipped
 
 
@@ -226,19 +204,11 @@ def _with_runs(
             kind: np.concatenate(vectors[kind]) if vectors.get(kind) else np.zeros((0, width), np.float32)
             for kind in ("failure", "success")
         },
-        {kind: _rows(rows.get(kind, [])) for kind in ("failure", "success")},
+        {kind: rows_of(rows.get(kind, [])) for kind in ("failure", "success")},
         task.derivation,
         task.start_weight,
         task.selection,
         task.chose,
-    )
-
-
-def _rows(found: list[tuple[str, str, int]]) -> Rows:
-    return Rows(
-        episodes=np.asarray([e for e, _, _ in found], dtype=str),
-        symbols=np.asarray([s for _, s, _ in found], dtype=str),
-        frames=np.asarray([f for _, _, f in found], dtype=np.int64),
     )
 
 
@@ -397,11 +367,7 @@ class SignalMemory:
                     else None
                 )
                 full = TaskSignals(layout, np.zeros(0), np.ones(0), {}, {}, derivation).width
-                selection = (
-                    Selection.read(described["selection"], arrays, key, full, where)
-                    if "selection" in described
-                    else None
-                )
+                selection = Selection.stored(described, arrays, key, full, where)
                 by_task[str(task)] = TaskSignals(
                     layout,
                     arrays[f"{key}_mean"],

@@ -16,10 +16,11 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Final
+from typing import Any, Final, Protocol
 
 import numpy as np
 
+from robofailring.data.model import Trajectory
 from robofailring.errors import MemoryFormatError
 from robofailring.memory.signal_derived import EVENTS, Derivation
 from robofailring.memory.signal_layout import SignalLayout
@@ -90,6 +91,13 @@ class Selection:
 
     def arrays(self, key: str) -> dict[str, np.ndarray]:
         return {f"{key}_selected": self.columns, f"{key}_selected_weights": self.weights}
+
+    @classmethod
+    def stored(
+        cls, task: Mapping[str, Any], arrays: dict[str, np.ndarray], key: str, width: int, where: str
+    ) -> Selection | None:
+        """The selection a manifest's `task` entry records (None: it has none), its arrays from `arrays`."""
+        return cls.read(task["selection"], arrays, key, width, where) if "selection" in task else None
 
     @classmethod
     def read(
@@ -276,3 +284,28 @@ def choose(
     derived = derivation.names(layout.raw_columns()) if derivation is not None else []
     steps = len(derivation.steps) if derivation is not None and EVENTS in derivation.kinds else 0
     return fit_selection(runs, failure, onsets, groups(state, derived, action, steps, start=start))
+
+
+class _Task(Protocol):
+    """What choosing reads of a task's signal memory (`signal_memory.TaskSignals`)."""
+
+    layout: SignalLayout
+    derivation: Derivation | None
+    start_weight: float
+
+    def vectors_of(self, features: np.ndarray, frames: np.ndarray | None = None) -> np.ndarray: ...
+
+
+def choose_for(
+    task: _Task, features: Sequence[tuple[Trajectory, np.ndarray]], onset_start: int = 1
+) -> tuple[Selection | None, str]:
+    """`choose` for a task's signal memory not yet holding runs (its layout, derivation and normalisation) and its
+    labelled runs' raw features, each failure's entries from its onset (`onset_start` where not known)."""
+    return choose(
+        task.layout,
+        task.derivation,
+        [task.vectors_of(raw) for _, raw in features],
+        [run.is_failure for run, _ in features],
+        [(run.onset_frame or onset_start) if run.is_failure else 0 for run, _ in features],
+        start=task.start_weight > 0,
+    )
