@@ -35,7 +35,7 @@ from typing import Any
 
 from bench._peer_lerobot import STATES, export_lerobot
 from bench._timing import print_machine
-from bench.bench_quality import QualityRow, Variant, print_rows, run_cells, with_variant
+from bench.bench_quality import QualityRow, Variant, print_modalities, print_rows, run_cells, with_variant
 from robofailring.data.selection import DataSelection
 from robofailring.detection.threshold_policy import ThresholdPolicy
 from robofailring.encoders import default_cache_dir, encoder_slug, load_encoder
@@ -66,10 +66,8 @@ OOD_SET: dict[str, Any] = {
 # OOD randomisation (its own seeds), the trained encoder's extra training data only (never memory,
 # calibration or test)
 RANDOM_SET: dict[str, Any] = {"seed": 900_000, "size": 64, "frames": 28, "ood": True}
-# the three modalities, each at the project's other defaults (docs/bench_peer.md)
-VISION = Variant("vision", {"signals": "none"})  # the cameras alone (a memory without signals)
-SIGNALS = Variant("signals", {"modality": "signals"})  # the robot's signals alone
-BOTH = Variant("both", {})  # the project's defaults: cameras and signals fused
+# the project's defaults: cameras and signals fused (each alone beside it, per modality)
+BOTH = Variant("both", {})
 # dimensions chosen by hand (docs/bench_peer.md), per state: the privileged set's gripper and the hand's offset
 # from the task's goal (which no robot records); the recorded set's gripper only (the docs' advice before the
 # defaults chose from the data)
@@ -79,11 +77,9 @@ CHOSEN: dict[str, str] = {
 }
 
 
-def chosen(state: str, *, fused: bool) -> Variant:
-    """The hand-chosen dimensions of `state`, alone or fused with the cameras."""
-    if fused:
-        return Variant("chosen-both", {"signals": CHOSEN[state]})
-    return Variant("chosen-signals", {"signals": CHOSEN[state], "modality": "signals"})
+def chosen(state: str) -> Variant:
+    """The defaults with the hand-chosen dimensions of `state` in place of those chosen from the data."""
+    return Variant("chosen", {"signals": CHOSEN[state]})
 
 
 PER_VIEW = Variant("per-view", {"fusion": "per-view"})  # each view corrected by its own band
@@ -391,8 +387,8 @@ def main() -> None:
         action="append",
         type=Variant.parse,
         help="LABEL:FIELD=VALUE,... of EvaluateConfig, its MemoryRecipe or DetectorConfig, e.g. hand:views=hand "
-        "(repeatable; one more block each; default: vision:signals=none, signals:modality=signals, both, and "
-        "the chosen dimensions (CHOSEN) alone and fused)",
+        "(repeatable; one more block each; default: both, the defaults, and chosen, the dimensions chosen by hand "
+        "(CHOSEN); each gives the cameras alone and the signals alone beside both)",
     )
     parser.add_argument(
         "--state",
@@ -436,8 +432,9 @@ def main() -> None:
     rows: list[PeerRow] = []
     for state in states:
         peer = peer_set(args.peer_env, args.workers, state)
-        variants = [SIGNALS, BOTH, chosen(state, fused=False), chosen(state, fused=True)]
-        variants = args.variant or ([VISION] if state == states[0] else []) + variants
+        # the defaults' evaluation gives the cameras alone and the signals alone beside both (each calibrated
+        # on its own), and so does the one with the dimensions chosen by hand
+        variants = args.variant or [BOTH, chosen(state)]
         for encoder, swapped_encoder in pairs:
             for variant in variants:
                 rows += evaluate_encoder(
@@ -447,6 +444,7 @@ def main() -> None:
         print(f"{row.encoder} {row.protocol}: evaluated in {row.seconds:.0f} s")
     quality: list[QualityRow] = list(rows)
     print_rows(quality, args.alpha)
+    print_modalities(quality)
     print_targets(rows)
 
 
