@@ -27,7 +27,7 @@ from robofailring.memory.signal_layout import SignalLayout
 
 MIN_RUNS: Final[int] = 4  # failure and success runs a task needs (each) for its dimensions to be chosen
 MAX_GROUPS: Final[int] = 12  # groups chosen at most
-MIN_GAIN: Final[float] = 0.002  # a group is added only when the criterion grows by more
+MIN_GAIN: Final[float] = 0.01  # a group is added only when the criterion grows by more (about 2 of 200 pairs)
 MAX_FRAMES: Final[int] = 700  # frames a fit compares (runs' frames thinned evenly beyond)
 PHASE_WEIGHTS: Final[tuple[float, ...]] = (0.0, 1.0, 2.0, 4.0)  # the moment's weights tried
 TIME: Final[str] = "frame (time)"
