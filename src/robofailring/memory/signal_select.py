@@ -5,8 +5,8 @@ A task's paired vectors (`robofailring.memory.signal_memory`) are cut into **gro
 value (its change since the start, or a commanded action's window), its change over the last frame, its events
 (jumps so far and frames since the last) and the moment (the frame number). Each held-out training run is
 scored against the task's other runs as the detector scores a run (its peak contrast C = S⁻ − S⁺ over its
-frames, each S = exp(−d²/n) to the nearest failure or success entry of another run), and groups are added one
-at a time while the cross-validated separation of failure runs from success runs (the AUC of their peaks, a
+frames, each S = exp(−d²/n) to the nearest failure or success entry of another run); the groups that separate
+on their own are added one at a time while the cross-validated separation of failure runs from success runs (the AUC of their peaks, a
 margin breaking ties) grows. The moment is then weighted (0, 1, 2 or 4) so that a frame is compared with
 successes at the same phase of the task when that separates better. Nothing here knows a joint or a gripper
 by name: what separates is measured.
@@ -28,6 +28,7 @@ from robofailring.memory.signal_layout import SignalLayout
 MIN_RUNS: Final[int] = 4  # failure and success runs a task needs (each) for its dimensions to be chosen
 MAX_GROUPS: Final[int] = 12  # groups chosen at most
 MIN_GAIN: Final[float] = 0.01  # a group is added only when the criterion grows by more (about 2 of 200 pairs)
+MIN_ALONE: Final[float] = 0.6  # a group is a candidate only when its held-out AUC alone reaches this
 MAX_FRAMES: Final[int] = 700  # frames a fit compares (runs' frames thinned evenly beyond)
 PHASE_WEIGHTS: Final[tuple[float, ...]] = (0.0, 1.0, 2.0, 4.0)  # the moment's weights tried
 TIME: Final[str] = "frame (time)"
@@ -222,6 +223,7 @@ def fit_selection(
     every = sum((fit.distances(g) for g in all_groups), np.zeros((len(fit.run),) * 2))
     everything = fit.score(every, sum(len(g.columns) for g in all_groups))
     alone = {g.name: fit.score(fit.distances(g), len(g.columns)) for g in candidates}
+    candidates = [g for g in candidates if alone[g.name][0] >= MIN_ALONE]  # each must separate on its own
     current = np.zeros_like(every)
     elements, best, chosen = 0, -np.inf, []
     picked: list[Group] = []
