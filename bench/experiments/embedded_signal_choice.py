@@ -7,6 +7,8 @@ Run: PYTHONPATH=src:.:bench .venv/bin/python bench/experiments/embedded_signal_c
 
 from __future__ import annotations
 
+import argparse
+
 from bench._timing import print_machine
 from bench.bench_quality import (
     QualityRow,
@@ -23,6 +25,9 @@ EVERY_DIMENSION = "joint_positions,gripper_width,ee_pose,action"
 
 
 def main() -> None:
+    argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    ).parse_args()
     print_machine()
     in_dist, out_dist, swapped = bench_sets(2)
     out = default_cache_dir() / "bench-quality" / "runs"
