@@ -27,6 +27,7 @@ from robofailring.evaluation.run import (
     run_evaluation,
 )
 from robofailring.memory.recipe import DEFAULT_RECIPE, MemoryRecipe
+from robofailring.memory.signal_memory import SIGNALS_VIEW
 
 
 @dataclass(frozen=True)
@@ -46,7 +47,8 @@ def compare_encoders(
     config: CompareEncodersConfig, *, existing: Mapping[str, EvaluationResult] | None = None
 ) -> list[EvaluationResult]:
     """Build, calibrate and evaluate one memory per encoder on the same split; an encoder whose result is
-    in `existing` (by encoder spec, e.g. the demo's headline evaluation of the same split) is taken as it is."""
+    in `existing` (by encoder spec, e.g. the demo's headline evaluation of the same split) is taken as it is,
+    unless its runs had signals and it lacks its cameras' own rows (judged on stored thresholds)."""
     if len(config.encoders) < 2:
         raise SettingError(
             f"an encoder comparison needs at least two encoders (--encoder A --encoder B), got {len(config.encoders)}"
@@ -54,7 +56,7 @@ def compare_encoders(
     existing = existing or {}
     results = []
     for spec in config.encoders:
-        if spec in existing:
+        if spec in existing and _gives_cameras(existing[spec]):
             results.append(existing[spec])
             continue
         detector = config.detector
@@ -81,6 +83,13 @@ def compare_encoders(
         evaluated = replace(base, detector=detector.with_memory(memory_dir), thresholds=config.thresholds)
         results.append(run_evaluation(evaluated))
     return results
+
+
+def _gives_cameras(result: EvaluationResult) -> bool:
+    """Whether `result` has its cameras' own rows where its runs had signals (one judged on stored thresholds
+    has none: its fused rows alone would not compare the encoders)."""
+    signals = any(SIGNALS_VIEW in trace.scored_views for trace in result.traces.values())
+    return bool(result.modalities) or not signals
 
 
 def comparison_table(results: Sequence[EvaluationResult]) -> str:
