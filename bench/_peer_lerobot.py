@@ -1,8 +1,11 @@
 """The peer set written as a LeRobot v3.0 dataset, the layout a LeRobot user has: one shared mp4 per camera
 (AV1, keyframe every 2 frames, as lerobot 0.4 writes them), the data parquet with `observation.state`
-(joint positions, gripper width, hand pose, the hand's offset from the task's goal), `action` (the
-commanded joint positions and gripper) and `goal` per frame, each dimension named in `meta/info.json`,
-and labels files by `episode_index` (docs/bench_peer.md).
+and `action` (the commanded joint positions and gripper) per frame, each dimension named in
+`meta/info.json`, and labels files by `episode_index` (docs/bench_peer.md).
+
+Two states (`STATES`): `recorded`, what a robot records (joint positions and velocities, finger joints,
+gripper width, hand pose), and `privileged`, the set before it, which adds the hand's offset from the
+task's goal (the simulator's knowledge, no robot's) and a `goal` column.
 
 Called by bench/bench_peer.py in the project's venv (PyAV, pyarrow) on the episode folders and the
 `signals.npz` that bench/peer_generate.py writes; the library then reads it with its own LeRobot
@@ -26,7 +29,11 @@ import pyarrow.parquet as pq
 from robofailring.data.images import read_image
 
 VIEWS = ("hand", "base", "render")
-STATE = ("joint_positions", "gripper_width", "ee_pose", "ee_to_goal")  # observation.state, in this order
+#: observation.state's signals, in this order, per kind of state
+STATES: dict[str, tuple[str, ...]] = {
+    "recorded": ("joint_positions", "joint_velocities", "gripper_width", "ee_pose"),
+    "privileged": ("joint_positions", "gripper_width", "ee_pose", "ee_to_goal"),
+}
 LABELS = ("episode_index", "task", "outcome", "symbol", "onset_frame", "description", "split")
 
 
@@ -52,12 +59,20 @@ def _video(path: Path, frames: list[np.ndarray], fps: int) -> None:
 
 
 def export_lerobot(
-    episodes: Path, runs: list[dict[str, Any]], out: Path, *, fps: int, signal_names: dict[str, list[str]]
+    episodes: Path,
+    runs: list[dict[str, Any]],
+    out: Path,
+    *,
+    fps: int,
+    signal_names: dict[str, list[str]],
+    state: str = "recorded",
 ) -> tuple[Path, Path, Path]:
-    """`runs` (the peer set's, with `episode`, `task`, `split`) as a LeRobot v3.0 dataset at `out`; its
-    labels file and the one with the ID halves exchanged."""
+    """`runs` (the peer set's, with `episode`, `task`, `split`) as a LeRobot v3.0 dataset at `out` with the
+    `state` of `STATES`; its labels file and the one with the ID halves exchanged."""
     tasks = sorted({run["task"] for run in runs})
-    rows: dict[str, list[Any]] = {k: [] for k in ("observation.state", "action", "goal", "timestamp")}
+    signals_in = STATES[state]
+    columns = ("observation.state", "action", "timestamp") + (("goal",) if state == "privileged" else ())
+    rows: dict[str, list[Any]] = {k: [] for k in columns}
     index_rows: dict[str, list[int]] = {
         k: [] for k in ("frame_index", "episode_index", "index", "task_index")
     }
@@ -72,11 +87,12 @@ def export_lerobot(
         starts.append(len(index_rows["index"]))
         for view in VIEWS:
             frames[view] += [read_image(folder / view / f"{t}.png") for t in range(length)]
-        state = np.concatenate([signals[name] for name in STATE], axis=1)
+        values = np.concatenate([signals[name] for name in signals_in], axis=1)
         for t in range(length):
-            rows["observation.state"].append(state[t].tolist())
+            rows["observation.state"].append(values[t].tolist())
             rows["action"].append(signals["action"][t].tolist())
-            rows["goal"].append(signals["goal"][t].tolist())
+            if "goal" in rows:
+                rows["goal"].append(signals["goal"][t].tolist())
             rows["timestamp"].append(t / fps)
             index_rows["frame_index"].append(t)
             index_rows["episode_index"].append(number)
@@ -120,13 +136,14 @@ def export_lerobot(
         for view in VIEWS
     }
     features["observation.state"] = {"dtype": "float32", "shape": [len(rows["observation.state"][0])],
-                                     "names": _names(signal_names, STATE)}  # fmt: skip
+                                     "names": _names(signal_names, signals_in)}  # fmt: skip
     features["action"] = {
         "dtype": "float32",
         "shape": [len(rows["action"][0])],
         "names": signal_names["action"],
     }
-    features["goal"] = {"dtype": "float32", "shape": [3], "names": signal_names["goal"]}
+    if "goal" in rows:
+        features["goal"] = {"dtype": "float32", "shape": [3], "names": signal_names["goal"]}
     for name in ("timestamp",):
         features[name] = {"dtype": "float32", "shape": [1], "names": None}
     for name in index_rows:

@@ -290,6 +290,37 @@ def print_rows(rows: list[QualityRow], alpha: float) -> None:
             )
 
 
+def print_modalities(rows: list[QualityRow], rule: str = "contrast") -> None:
+    """`rule` per modality in every cell (the cameras alone, the signals alone, both; each at its own calibrated
+    threshold) with recall per failure family (detected / total): which families each modality can see at all."""
+    kinds = sorted(
+        {
+            kind
+            for row in rows
+            for found in row.result.modalities.get(rule, {}).values()
+            for kind in found.per_type
+        }
+    )
+    print(
+        f"\n| encoder | test set | modality | threshold | Recall (%) | FPR (%) | best recall at that FPR (%) | "
+        f"T_s mean (%) | AUC | {' | '.join(kinds)} |  ({rule} rule, per modality)"
+    )
+    print("|---|---|---|---:|---:|---:|---:|---:|---:|" + "---:|" * len(kinds))
+    for row in rows:
+        for modality, found in row.result.modalities.get(rule, {}).items():
+            result = found.result
+            families = [
+                f"{found.per_type[k][0]} / {found.per_type[k][1]}" if k in found.per_type else "—"
+                for k in kinds
+            ]
+            print(
+                f"| {row.encoder} | {row.protocol} | {modality} | {result.threshold:.4f} | {_pct(result.recall)} | "
+                f"{_pct(result.fpr)} | {_pct(result.best_recall)} | {_pct(result.ts_mean)} | {result.auc:.3f} | "
+                + " | ".join(families)
+                + " |"
+            )
+
+
 def _trained(data: Path, out: Path) -> str:
     started = time.perf_counter()
     trained = train_encoder(TrainEncoderConfig(data=data, out=out), reuse=True)
@@ -362,6 +393,7 @@ def main() -> None:
     for row in rows:
         print(f"{row.encoder} {row.protocol}: evaluated in {row.seconds:.0f} s")
     print_rows(rows, args.alpha)
+    print_modalities(rows)
 
 
 if __name__ == "__main__":

@@ -8,7 +8,7 @@ library's own loaders. Written under `--out` (atomically: a staging folder renam
 - `episodes/<episode>/<view>/<n>.png`: one folder per episode, one per camera (`hand`: the Panda's
   hand camera, `base`: the task's sensor camera, `render`: the task's render camera);
 - `episodes/<episode>/signals.npz`: the robot's own signals at each written frame (`SIGNALS`): joint
-  positions, gripper width, the hand's (TCP) pose, the commanded joint-position action, the task's goal
+  positions (the arm's and the two fingers'), the arm's joint velocities, gripper width, the hand's (TCP) pose, the commanded joint-position action, the task's goal
   (PickCube's goal marker, PushCube's goal region, the cube StackCube stacks on) and the hand's offset
   from it;
 - `labels.csv`: `episode, task, outcome, symbol, onset_frame, description` (robofailring's labels file);
@@ -81,6 +81,7 @@ HOLD_STEPS = 10  # steps held still after the script, before the environment's c
 #: The signals written per frame: name -> (kind, dimension names), as bench_peer.py exports them.
 SIGNALS: dict[str, tuple[str, tuple[str, ...]]] = {
     "joint_positions": ("state", (*(f"panda_joint{i}" for i in range(1, 8)), "finger_left", "finger_right")),
+    "joint_velocities": ("state", tuple(f"panda_joint{i}" for i in range(1, 8))),
     "gripper_width": ("state", ("width",)),
     "ee_pose": ("state", ("x", "y", "z", "qw", "qx", "qy", "qz")),
     "ee_to_goal": ("state", ("dx", "dy", "dz")),
@@ -358,6 +359,7 @@ def _vector(value: Any) -> np.ndarray:
 def signals_now(u: Any, task: str, actions: list[np.ndarray], index: int) -> dict[str, np.ndarray]:
     """The robot's signals in state `index`: what `SIGNALS` names (the action: the one that led here)."""
     qpos = _vector(u.agent.robot.get_qpos()[0])
+    qvel = _vector(u.agent.robot.get_qvel()[0])
     tcp = u.agent.tcp.pose
     position, orientation = _vector(tcp.p[0]), _vector(tcp.q[0])
     goal_actor = {"PickCube-v1": "goal_site", "PushCube-v1": "goal_region", "StackCube-v1": "cubeB"}[task]
@@ -365,6 +367,7 @@ def signals_now(u: Any, task: str, actions: list[np.ndarray], index: int) -> dic
     action = actions[max(index - 1, 0)] if actions else np.zeros(8)
     return {
         "joint_positions": qpos[:9],
+        "joint_velocities": qvel[:7],
         "gripper_width": qpos[7:9].sum(keepdims=True),
         "ee_pose": np.concatenate([position, orientation]),
         "ee_to_goal": position - goal,

@@ -13,9 +13,11 @@ import argparse
 from typing import Any
 
 from bench._timing import print_machine
-from bench.bench_peer import CHOSEN, PeerRow, Variant, evaluate_encoder, peer_set, print_targets
+from bench.bench_peer import CHOSEN as CHOSEN_BY_STATE
+from bench.bench_peer import PeerRow, Variant, evaluate_encoder, peer_set, print_targets
 from bench.bench_quality import QualityRow, print_rows
 
+CHOSEN = CHOSEN_BY_STATE["privileged"]  # the dimensions these variants were measured with
 VARIANTS: dict[str, dict[str, Any]] = {
     "both": {},  # the defaults, every dimension
     "signals": {"modality": "signals"},
@@ -42,7 +44,7 @@ def main() -> None:
     if unknown:
         parser.error(f"unknown variant {unknown[0]!r}; choose from {', '.join(VARIANTS)}")
     print_machine()
-    peer = peer_set(None, 2)
+    peer = peer_set(None, 2, "privileged")
     rows: list[PeerRow] = []
     for label in args.labels or VARIANTS:
         variant = Variant(label, VARIANTS[label])

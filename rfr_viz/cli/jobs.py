@@ -265,7 +265,14 @@ def demo_cmd(
         "recordings/demo"
     ),
     episodes: Annotated[int, typer.Option(help="In-distribution episodes per task and kind.")] = 3,
-    success_episodes: Annotated[int, typer.Option(help="In-distribution success runs per task.")] = 10,
+    success_episodes: Annotated[
+        int | None,
+        typer.Option(
+            help="In-distribution success runs per task.",
+            show_default="enough that the calibration at α does not rest on its single highest success: "
+            "20 per task at α = 0.05",
+        ),
+    ] = None,
     ood_episodes: Annotated[int, typer.Option(help="Out-of-distribution episodes per task and kind.")] = 1,
     image_size: Annotated[int, typer.Option("--image-size", help="Simulated image size in pixels.")] = 128,
     frames: Annotated[int, typer.Option(help="Frames per simulated episode.")] = 40,

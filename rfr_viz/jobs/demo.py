@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from functools import partial
@@ -29,6 +30,7 @@ from robofailring.detection.rules import CONTRAST, PAPER, ScoringRule
 from robofailring.encoders import default_cache_dir
 from robofailring.encoders.training import TrainEncoderConfig
 from robofailring.evaluation.comparison import CompareEncodersConfig
+from robofailring.evaluation.per_rule import runs_below_top
 from robofailring.evaluation.run import (
     EvaluateConfig,
     EvaluationResult,
@@ -49,7 +51,9 @@ class DemoConfig:
     data_dir: Path | None = None  # simulated datasets (cached); default <cache>/demo-data
     tasks: tuple[str, ...] = TASKS  # simulated tasks
     episodes: int = 3  # in-distribution episodes per task and kind (even: memory, odd: test)
-    success_episodes: int = 10  # in-distribution success runs per task: α = 0.05 needs ≥ 19 training ones
+    # in-distribution success runs per task; None: enough that the training half's (every other run's) split-conformal
+    # threshold at α sits below its highest calibration peak (α = 0.05: 39 runs, 20 per task over 4 tasks)
+    success_episodes: int | None = None
     ood_episodes: int = 1  # out-of-distribution episodes per task and kind (all test)
     image_size: int = 128
     frames: int = 40
@@ -109,13 +113,20 @@ def _pick(result: EvaluationResult, kind: str, rule: ScoringRule) -> tuple[str, 
     return (misses[0].key, int(np.argmax(misses[0].scores()))) if misses else None
 
 
+def demo_successes(config: DemoConfig) -> int:
+    """The in-distribution success runs per task the demo simulates (`DemoConfig.success_episodes`)."""
+    if config.success_episodes is not None:
+        return config.success_episodes
+    return math.ceil(2 * runs_below_top(config.thresholds.target_fpr) / len(config.tasks))
+
+
 def simulate_datasets(config: DemoConfig, data_dir: Path) -> tuple[Path, Path]:
     """The in- and out-of-distribution sets under `data_dir`, simulated once and reused while their recipe holds."""
     simulated = GenerateConfig(
         out=data_dir / "sim-id",
         tasks=config.tasks,
         episodes=config.episodes,
-        success_episodes=config.success_episodes,
+        success_episodes=demo_successes(config),
         seed=0,
         image_size=config.image_size,
         frames=config.frames,

@@ -137,7 +137,9 @@ def test_the_largest_start_weight_gives_finite_vectors_that_are_scored(
     data: Path, cache: list[str], tmp_path: Path
 ) -> None:
     memory = tmp_path / "memory"
-    built = cli("build-memory", data, "--out", memory, "--signal-start-weight", "100", *cache)
+    # the signals named (not `auto`), so every element of the vectors is kept, the weighted start state with it
+    named = ("--signals", "gripper_width,action")
+    built = cli("build-memory", data, "--out", memory, "--signal-start-weight", "100", *named, *cache)
     assert built.exit_code == 0, built.output
     with np.load(memory / "signals.npz") as stored:
         assert all(np.isfinite(stored[name]).all() for name in stored.files if stored[name].dtype.kind == "f")

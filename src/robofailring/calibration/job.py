@@ -130,6 +130,7 @@ def calibrate_rules(
     too_short: list[str] | None = None,
     short_views: list[Skipped] | None = None,
     at_best: bool = False,
+    scores_out: list[tuple[dict[ScoringRule, list[dict[str, np.ndarray]]], list[str]]] | None = None,
 ) -> dict[ScoringRule, RuleCalibration]:
     """The conformal threshold of every rule (default: all the memory supports) as `policy` sets it: at level
     `target_fpr`, on its `band` (`none`, `shift`, `norm`) fitted on the same runs, its views fused by its
@@ -139,7 +140,8 @@ def calibrate_rules(
 
     Too few runs for `target_fpr` are a DataError; with `at_best` (an evaluation on small data) a rule
     is calibrated at the smallest level its runs allow instead (its `target_fpr` says which: no
-    guarantee at the asked one), and a rule none of whose runs could be scored is left out."""
+    guarantee at the asked one), and a rule none of whose runs could be scored is left out. `scores_out`
+    receives the runs' per-view scores and tasks (an evaluation calibrates each modality alone from them)."""
     chosen = list(rules) if rules is not None else available_rules(detector)
     tasks: list[str] = []
     scores = success_view_scores(
@@ -152,6 +154,8 @@ def calibrate_rules(
         short_views=short_views,
         tasks=tasks,
     )
+    if scores_out is not None:
+        scores_out.append((scores, tasks))
     fusion_peaks = fusion_named(policy.fusion).peaks
     calibrations = {}
     for rule, runs in scores.items():

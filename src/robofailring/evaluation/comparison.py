@@ -1,4 +1,8 @@
-"""Encoder comparison (paper Table 3): the same split under several encoders, each calibrated, side by side."""
+"""Encoder comparison (paper Table 3): the same split under several encoders, each calibrated, side by side.
+
+Where the data has the robot's signals, the rows that compare the encoders are the cameras alone, each encoder with
+its own calibrated thresholds: fused, the signals' thresholds would decide every encoder's row alike. The fused
+row stands beside them (`evaluation.modalities`)."""
 
 from __future__ import annotations
 
@@ -15,6 +19,7 @@ from robofailring.detection.loader import encoder_for
 from robofailring.encoders import EncoderSpec, cache_identity
 from robofailring.errors import SettingError
 from robofailring.evaluation.markdown import markdown_text
+from robofailring.evaluation.modalities import BOTH, CAMERAS
 from robofailring.evaluation.run import (
     EvaluateConfig,
     EvaluationResult,
@@ -22,6 +27,7 @@ from robofailring.evaluation.run import (
     run_evaluation,
 )
 from robofailring.memory.recipe import DEFAULT_RECIPE, MemoryRecipe
+from robofailring.memory.signal_memory import SIGNALS_VIEW
 
 
 @dataclass(frozen=True)
@@ -41,7 +47,8 @@ def compare_encoders(
     config: CompareEncodersConfig, *, existing: Mapping[str, EvaluationResult] | None = None
 ) -> list[EvaluationResult]:
     """Build, calibrate and evaluate one memory per encoder on the same split; an encoder whose result is
-    in `existing` (by encoder spec, e.g. the demo's headline evaluation of the same split) is taken as it is."""
+    in `existing` (by encoder spec, e.g. the demo's headline evaluation of the same split) is taken as it is,
+    unless its runs had signals and it lacks its cameras' own rows (judged on stored thresholds)."""
     if len(config.encoders) < 2:
         raise SettingError(
             f"an encoder comparison needs at least two encoders (--encoder A --encoder B), got {len(config.encoders)}"
@@ -49,7 +56,7 @@ def compare_encoders(
     existing = existing or {}
     results = []
     for spec in config.encoders:
-        if spec in existing:
+        if spec in existing and _gives_cameras(existing[spec]):
             results.append(existing[spec])
             continue
         detector = config.detector
@@ -72,28 +79,49 @@ def compare_encoders(
                     data=config.data, detector=detector.with_memory(memory_dir), thresholds=config.thresholds
                 )
             )
-        # thresholds: the ones calibration just stored (thresholds None reads them from the manifest)
-        evaluated = replace(base, detector=detector.with_memory(memory_dir), thresholds=None)
+        # thresholds: calibrated as `calibrate` just stored them, here with each modality's own beside them
+        evaluated = replace(base, detector=detector.with_memory(memory_dir), thresholds=config.thresholds)
         result = run_evaluation(evaluated)  # what its memory's build did not use, listed with the rest
         results.append(replace(result, skipped_inputs=list(dict.fromkeys([*result.skipped_inputs, *built]))))
     return results
 
 
+def _gives_cameras(result: EvaluationResult) -> bool:
+    """Whether `result` has its cameras' own rows where its runs had signals (one judged on stored thresholds
+    has none: its fused rows alone would not compare the encoders)."""
+    signals = any(SIGNALS_VIEW in trace.scored_views for trace in result.traces.values())
+    return bool(result.modalities) or not signals
+
+
 def comparison_table(results: Sequence[EvaluationResult]) -> str:
-    """Markdown: each encoder under each scoring rule at its threshold: recall, FPR, T_s, AUC, latency,
-    and the failure memory it used (`end` or `dense`)."""
+    """Markdown: each encoder under each scoring rule at its threshold: recall, FPR, the best recall any
+    threshold reaches at that FPR, T_s, AUC, latency, and the failure memory it used (`end` or `dense`); with the
+    robot's signals, the cameras alone (each encoder's own thresholds) and the fused row beside."""
     lines = [
-        "| encoder | failure memory | rule | threshold | Recall (%) | FPR (%) | mean T_s (%) | AUC | "
-        "latency per frame (ms) |",
-        "|---|---|---|---:|---:|---:|---:|---:|---:|",
+        "| encoder | failure memory | rule | modality | threshold | Recall (%) | FPR (%) | best recall at that FPR (%) "
+        "| mean T_s (%) | AUC | latency per frame (ms) |",
+        "|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for result in results:
         latency = f"{result.latency_ms.get('total', float('nan')):.2f}"
         for rule in result.rules.values():
-            lines.append(
-                f"| {markdown_text(result.encoder, code=True)} | {result.failure_frames}, {result.pairing} | {rule.rule.name} | {rule.rule.symbol} = {rule.threshold:.4f} | "
-                f"{_pct(rule.recall)} | {_pct(rule.fpr)} | {_pct(rule.ts_mean)} | {rule.auc:.3f} | {latency} |"
+            by_modality = result.modalities.get(rule.rule.name, {})
+            shown = (
+                [
+                    (modality, by_modality[modality].result)
+                    for modality in (CAMERAS, BOTH)
+                    if modality in by_modality
+                ]
+                if by_modality
+                else [(BOTH if result.modalities else "all", rule)]
             )
+            for modality, found in shown:
+                lines.append(
+                    f"| {markdown_text(result.encoder, code=True)} | {result.failure_frames}, {result.pairing} | "
+                    f"{rule.rule.name} | {modality} | {rule.rule.symbol} = {found.threshold:.4f} | "
+                    f"{_pct(found.recall)} | {_pct(found.fpr)} | {_pct(found.best_recall)} | {_pct(found.ts_mean)} | "
+                    f"{found.auc:.3f} | {latency} |"
+                )
     return "\n".join(lines)
 
 

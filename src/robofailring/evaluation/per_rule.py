@@ -8,6 +8,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
+import numpy as np
+
 from robofailring.calibration.conformal import (
     AUC_LEVEL,
     AUC_MIN_RUNS,
@@ -48,6 +50,7 @@ class RuleResult(ConfusionRates):
     auc_interval: tuple[float, float] | None = (
         None  # AUC's bootstrap interval (AUC_LEVEL); None without both kinds
     )
+    best_recall: float = float("nan")  # the best recall any threshold reaches at a test FPR ≤ this one's
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -65,6 +68,7 @@ class RuleResult(ConfusionRates):
             "ts_median": json_number(self.ts_median),
             "auc": json_number(self.auc),
             "auc_interval": list(self.auc_interval) if self.auc_interval is not None else None,
+            "best_recall": json_number(self.best_recall),
             "frame0_success_alarms": self.frame0_success_alarms,
             "false_alarms": list(self.false_alarms),
             "misses": list(self.misses),
@@ -78,15 +82,15 @@ class RuleResult(ConfusionRates):
         target = "—" if target_fpr is None or not self.calibrated else f"{100 * target_fpr:.3g}"
         return (
             f"| {self.rule.name} | {self.rule.symbol} = {self.threshold:.4f} | {target} | {pct(self.recall)} | "
-            f"{pct(self.fpr)} | {self.tp} | {self.fn} | {self.fp} | {self.tn} | {pct(self.ts_mean)} | "
-            f"{auc_cell(self.auc, self.auc_interval)} |"
+            f"{pct(self.fpr)} | {pct(self.best_recall)} | {self.tp} | {self.fn} | {self.fp} | {self.tn} | "
+            f"{pct(self.ts_mean)} | {auc_cell(self.auc, self.auc_interval)} |"
         )
 
 
 MARKDOWN_HEADER = (
-    "| rule | threshold | target FPR (%) | Recall (%) | FPR (%) | TP | FN | FP | TN | mean T_s (%) | "
-    f"AUC [{100 * AUC_LEVEL:g} % interval] |\n"
-    "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+    "| rule | threshold | target FPR (%) | Recall (%) | FPR (%) | best recall at that FPR (%) | TP | FN | FP | TN | "
+    f"mean T_s (%) | AUC [{100 * AUC_LEVEL:g} % interval] |\n"
+    "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
 )
 
 
@@ -148,7 +152,22 @@ def evaluate_rule(
         spread=spread,
         onset=onset_delay(scored, threshold),
         level=level,
+        best_recall=best_recall(failures, successes, at.fpr),
     )
+
+
+def best_recall(failures: Sequence[float], successes: Sequence[float], fpr: float) -> float:
+    """The highest recall any threshold reaches with a test FPR ≤ `fpr` (the same test runs' peaks): what this
+    threshold could have had, so what its calibration cost (NaN without failures)."""
+    if not failures or math.isnan(fpr):
+        return float("nan")
+    normal = np.sort(np.asarray(successes, np.float64))
+    allowed = math.floor(fpr * len(normal) + 1e-9)  # false alarms allowed
+    # the lowest threshold with at most `allowed` successes at or above it: just above the (allowed+1)-th highest
+    floor = (
+        -np.inf if allowed >= len(normal) else float(np.nextafter(normal[len(normal) - 1 - allowed], np.inf))
+    )
+    return float(np.mean(np.asarray(failures, np.float64) >= floor))
 
 
 def onset_markdown(results: Sequence[RuleResult]) -> list[str]:
@@ -182,8 +201,29 @@ def spread_markdown(results: Sequence[RuleResult]) -> list[str]:
         "",
         "The target FPR holds on average over calibration sets; one calibration set can miss it:",
         "",
-        *(f"- {rules[n]}: {spread.to_text()}." for n, spread in sorted(spreads.items())),
+        *(
+            f"- {rules[n]}: {spread.to_text()}{top_peak_text(n, spread.alpha)}."
+            for n, spread in sorted(spreads.items())
+        ),
     ]
+
+
+def runs_below_top(alpha: float) -> int:
+    """The fewest calibration runs whose split-conformal threshold at α sits below their highest peak."""
+    n = successes_needed(alpha)
+    while math.ceil((n + 1) * (1 - alpha) - 1e-9) >= n:
+        n += 1
+    return n
+
+
+def top_peak_text(runs: int, alpha: float) -> str:
+    """Where `runs` calibration runs at α can only take the highest peak: said plainly, with how many would not."""
+    if runs < successes_needed(alpha) or math.ceil((runs + 1) * (1 - alpha) - 1e-9) < runs:
+        return ""
+    return (
+        f"; with {runs} runs the threshold is the highest calibration peak (one unusual success sets it): "
+        f"{runs_text(runs_below_top(alpha))} runs would let it sit below the highest"
+    )
 
 
 def pct(value: float) -> str:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -26,10 +25,12 @@ from robofailring.evaluation.metrics import (
     sweep,
     timeliness,
 )
+from robofailring.evaluation.modalities import ModalityResult, modalities_dict, modalities_markdown
 from robofailring.evaluation.per_rule import (
     MARKDOWN_HEADER,
     RuleResult,
     onset_markdown,
+    pct,
     scored_by_rule,
     shortfall_markdown,
     spread_markdown,
@@ -61,6 +62,8 @@ class EvaluationResult:
     skipped_inputs: list[Skipped] = field(default_factory=list)  # folders/files of the data not read
     stride: int = 1
     rules: dict[str, RuleResult] = field(default_factory=dict)  # both rules at their thresholds
+    # per rule: the cameras alone, the signals alone and both, each at its own threshold (evaluation.modalities)
+    modalities: dict[str, dict[str, ModalityResult]] = field(default_factory=dict)
     target_fpr: float | None = None
     deployment_successes: int = 0
     band: str = "none"  # the time-indexed band the rules beyond the paper's were judged on
@@ -118,7 +121,8 @@ class EvaluationResult:
         self, delta: float, scored: Sequence[ScoredTrajectory] | None = None
     ) -> dict[str, Rates]:
         scored = self.scored if scored is None else scored
-        ablation = {view: rates(scored, delta, [view]) for view in self.views}
+        views = dict.fromkeys([*self.views, *(view for t in scored for view in t.similarity)])  # signals too
+        ablation = {view: rates(scored, delta, [view]) for view in views}
         ablation["fusion"] = rates(scored, delta)
         return ablation
 
@@ -234,6 +238,7 @@ class EvaluationResult:
                 name: result.to_dict() | self.rule_charts(result.rule, rate_row)
                 for name, result in self.rules.items()
             },
+            "modalities": modalities_dict(self.modalities),
             "false_alarms": [
                 {"key": t.key, "t_det": t.t_det(delta), "length": t.length} for t in self.false_alarms(delta)
             ],
@@ -284,24 +289,24 @@ class EvaluationResult:
         for r in shown:
             t = timeliness(self.scored, r.delta)
             lines.append(
-                f"| {r.delta:.4g} | {_pct(r.recall)} | {_pct(r.fpr)} | {r.tp} | {r.fn} | {r.fp} | {r.tn} | "
-                f"{_pct(t.mean_saving)} | {_pct(t.median_progress)} |"
+                f"| {r.delta:.4g} | {pct(r.recall)} | {pct(r.fpr)} | {r.tp} | {r.fn} | {r.fp} | {r.tn} | "
+                f"{pct(t.mean_saving)} | {pct(t.median_progress)} |"
             )
         time_at = timeliness(self.scored, delta)
         lines += [
             "",
             f"Timeliness at δ = {delta:.4g}: {time_at.count} detected failures, mean detection progress "
-            f"{_pct(time_at.mean_progress)} %, median {_pct(time_at.median_progress)} %, "
-            f"temporal saving T_s mean {_pct(time_at.mean_saving)} %, median {_pct(time_at.median_saving)} %.",
+            f"{pct(time_at.mean_progress)} %, median {pct(time_at.median_progress)} %, "
+            f"temporal saving T_s mean {pct(time_at.mean_saving)} %, median {pct(time_at.median_saving)} %.",
             "",
             "| failure type | Recall (%) | detected / total |",
             "|---|---:|---:|",
         ]
         for kind, r in self.per_type_recall(delta).items():
-            lines.append(f"| {markdown_text(kind)} | {_pct(r.recall)} | {r.tp} / {r.tp + r.fn} |")
+            lines.append(f"| {markdown_text(kind)} | {pct(r.recall)} | {r.tp} / {r.tp + r.fn} |")
         lines += ["", "| views | Recall (%) | FPR (%) |", "|---|---:|---:|"]
         for view, r in self.view_ablation(delta).items():
-            lines.append(f"| {markdown_text(view)} | {_pct(r.recall)} | {_pct(r.fpr)} |")
+            lines.append(f"| {markdown_text(view)} | {pct(r.recall)} | {pct(r.fpr)} |")
         lines += [
             "",
             f"Per-frame latency ({len(self.views)} views): encoder {self.latency_ms.get('encode', float('nan')):.2f} ms, "
@@ -363,6 +368,7 @@ class EvaluationResult:
             "",
             MARKDOWN_HEADER,
             *(result.markdown_row(self.target_fpr) for result in self.rules.values()),
+            *modalities_markdown(self.modalities),
             *shortfall_markdown(
                 list(self.rules.values()),
                 self.target_fpr,
@@ -376,10 +382,6 @@ class EvaluationResult:
             "The tables below are the paper rule (S_t ≥ δ).",
             "",
         ]
-
-
-def _pct(value: float) -> str:
-    return "—" if math.isnan(value) else f"{100 * value:.2f}"
 
 
 def skipped_inputs_markdown(skipped: Sequence[Skipped], *, shown: int = 20) -> list[str]:

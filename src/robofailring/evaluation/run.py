@@ -7,6 +7,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
+
 from robofailring.atomic import write_text_atomic
 from robofailring.calibration.job import RuleCalibration, available_rules, calibrate_rules
 from robofailring.data.model import Skipped, Trajectory
@@ -21,6 +23,7 @@ from robofailring.evaluation.folds import cross_validate
 from robofailring.evaluation.growth import GrowthPoint, judged
 from robofailring.evaluation.latency import measure_latency
 from robofailring.evaluation.metrics import ScoredTrajectory
+from robofailring.evaluation.modalities import CalibrationScores, modality_results
 from robofailring.evaluation.per_rule import evaluate_rule, scored_by_rule
 from robofailring.evaluation.result import EvaluationResult
 from robofailring.evaluation.training import (
@@ -79,7 +82,8 @@ def run_evaluation(
     )
     if deployed is not memory:
         memory, detector = deployed, detector_with(config.detector, deployed, encoder)
-    thresholds, calibrated, found = _thresholds(config, detector, train)
+    calibration_scores: list[CalibrationScores] = []
+    thresholds, calibrated, found = _thresholds(config, detector, train, calibration_scores)
     if found is not None:  # calibrated here: the test runs are judged on the bands fitted with the thresholds
         bands = {r.name: c.band for r, c in found.items() if c.band is not None}
         detector = detector_with(config.detector, memory, encoder, bands=bands)
@@ -143,6 +147,11 @@ def run_evaluation(
         )
         for rule, threshold in thresholds.items()
     }
+    modalities = (
+        modality_results(traces, labels, calibration_scores[0], rules, memory.vocabulary)
+        if calibration_scores
+        else {}
+    )
     return EvaluationResult(
         name=config.name,
         encoder=memory.encoder,
@@ -151,6 +160,7 @@ def run_evaluation(
         operating_delta=operating,
         calibrated=calibrated.get(PAPER, False),
         rules=rules,
+        modalities=modalities,
         target_fpr=config.thresholds.target_fpr if config.thresholds is not None else _stored_target(memory),
         deployment_successes=config.deployment_successes,
         band=next((band.kind for band in detector.bands.values()), "none"),
@@ -282,12 +292,16 @@ def _deploy_successes(
 
 
 def _thresholds(
-    config: EvaluateConfig, detector: FailureDetector, train: Sequence[Trajectory]
+    config: EvaluateConfig,
+    detector: FailureDetector,
+    train: Sequence[Trajectory],
+    scores: list[CalibrationScores] | None = None,
 ) -> tuple[dict[ScoringRule, float], dict[ScoringRule, bool], dict[ScoringRule, RuleCalibration] | None]:
     """Each rule's threshold: conformal on the training successes, or the memory's stored/default one,
     and whether it was calibrated; the calibrations made here (each with its level, spread and band;
     None: the stored thresholds, with the memory's own bands). Too few training successes for α: each
-    rule at the smallest α its runs allow, a rule none of whose runs could be scored left out."""
+    rule at the smallest α its runs allow, a rule none of whose runs could be scored left out. `scores`
+    receives what they were calibrated from, where they were calibrated here."""
     rules, policy = available_rules(detector), config.thresholds
     if policy is None:
         stored = {r: stored_threshold(detector.memory, r) for r in rules}
@@ -300,6 +314,7 @@ def _thresholds(
             "the evaluation calibrates its thresholds on success runs; add success episodes of those tasks "
             "to that split, or name another with --train-split"
         )
+    collected: list[tuple[dict[ScoringRule, list[dict[str, np.ndarray]]], list[str]]] = []
     with progress_bar(total=len(successes), desc="calibrating", unit="traj") as bar:
         found = calibrate_rules(
             detector,
@@ -309,6 +324,12 @@ def _thresholds(
             progress=bar.update,
             stride=config.stride,
             at_best=True,
+            scores_out=collected,
+        )
+    if scores is not None and collected:
+        runs, tasks = collected[0]
+        scores.append(
+            CalibrationScores(runs, tasks, policy.target_fpr, policy.band, policy.fusion, policy.band_scope)
         )
     if not found:
         raise SplitError(

@@ -33,6 +33,22 @@ def failure_memory_text(memory: FailureMemory) -> str:
     return f"end (the paper's), {counts} (each view's first and last frame; {pairing})"
 
 
+def selection_text(described: dict[str, Any]) -> list[str]:
+    """memory-info's lines on one task's choice of signal elements (`--signals auto`): which it chose from the
+    task's training runs, with what weight and why, or why every element was kept."""
+    selection = described.get("selection")
+    if selection is None:
+        return [f"      {described.get('selection_skipped') or 'every element of its vectors kept'}"]
+    chosen = ", ".join(
+        f"{c['group']} (AUC alone {c['auc_alone']:.2f}, with those before {c['auc_with']:.2f})"
+        for c in selection["chosen"]
+    )
+    return [
+        f"      chosen (weight 1): {chosen}",
+        f"      the moment (frame number) weighted {selection['phase_weight']:g}; {selection['why']}",
+    ]
+
+
 @dataclass(frozen=True)
 class MemoryInfo:
     """A summary of one memory folder, for people (`to_text`) and scripts (`to_dict`)."""
@@ -116,6 +132,7 @@ class MemoryInfo:
         signals = self.memory.signals
         if signals is None:
             return None
+        stored = (self.memory.manifest.signals or {}).get("tasks", {})  # its choice, as the manifest keeps it
         tasks = {}
         for task, held in sorted(signals.by_task.items()):
             vectors = next(iter(held.vectors.values()), None)
@@ -126,6 +143,11 @@ class MemoryInfo:
                 "derived": held.derivation.width if held.derivation is not None else 0,
                 "vector_dim": int(vectors.shape[1]) if vectors is not None else 0,
                 **{f"{kind}_entries": len(values) for kind, values in held.vectors.items()},
+                **{
+                    key: stored[task][key]
+                    for key in ("selection", "selection_skipped")
+                    if key in stored.get(task, {})
+                },
             }
         return {
             "choice": signals.choice,
@@ -154,6 +176,8 @@ class MemoryInfo:
                 f"{held.get('failure_entries', 0)} failure and {held.get('success_entries', 0)} success "
                 f"entries of {held['vector_dim']}-d"
             )
+            if found["choice"] == "auto":
+                lines += selection_text(held)
         return lines
 
     def to_text(self) -> str:

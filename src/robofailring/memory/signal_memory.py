@@ -29,13 +29,14 @@ from robofailring.errors import DataError, MemoryFormatError
 from robofailring.memory.signal_derived import NONE as NO_FEATURES
 from robofailring.memory.signal_derived import Derivation
 from robofailring.memory.signal_layout import (
-    ACTION_LAGS,
     AUTO,
     SignalLayout,
     choose_layout,
     read_features,
 )
-from robofailring.memory.signal_task import START_WEIGHT, Rows, TaskSignals
+from robofailring.memory.signal_rows import Rows, rows_of
+from robofailring.memory.signal_select import Selection, choose_for
+from robofailring.memory.signal_task import START_WEIGHT, TaskSignals
 
 SIGNALS_VIEW: Final[str] = "signals"  # the modality's name among the views a trace fuses
 # the start state's weight in a new memory (docs/signals.md, "Measured"; ½ in one from before the setting)
@@ -53,8 +54,11 @@ def build_task(
     onset_start: int = 1,
     *,
     start_weight: float = DEFAULT_START_WEIGHT,
+    select: bool = False,
 ) -> tuple[TaskSignals | None, list[Skipped]]:
-    """One task's signal memory from its labelled runs; a run whose signals cannot be read is skipped."""
+    """One task's signal memory from its labelled runs; a run whose signals cannot be read is skipped.
+    `select`: its vectors keep the elements that separate its failure runs from its success runs
+    (`robofailring.memory.signal_select`)."""
     features: list[tuple[Trajectory, np.ndarray]] = []
     skipped: list[Skipped] = []
     for trajectory in trajectories:
@@ -72,6 +76,10 @@ def build_task(
     stacked = np.concatenate([empty.derived(f) for f in normal])
     mean, scale = stacked.mean(axis=0), np.maximum(stacked.std(axis=0), MIN_SCALE)
     task = TaskSignals(layout, mean, scale, {}, {}, derivation, start_weight)
+    if select:
+        task = TaskSignals(
+            layout, mean, scale, {}, {}, derivation, start_weight, *choose_for(task, features, onset_start)
+        )
     grown, unused = _with_runs(task, features, onset_start)
     return grown, [*skipped, *unused]
 
@@ -103,7 +111,7 @@ def _with_runs(
         vectors.setdefault(kind, []).append(paired)
         found = rows.setdefault(kind, [])
         found += [(trajectory.episode, trajectory.symbol or "", start + i) for i in range(len(paired))]
-    width = 2 * task.widths[0] + len(ACTION_LAGS) * task.widths[1] + 1
+    width = task.width
     grown = TaskSignals(
         task.layout,
         task.mean,
@@ -112,19 +120,13 @@ def _with_runs(
             kind: np.concatenate(vectors[kind]) if vectors.get(kind) else np.zeros((0, width), np.float32)
             for kind in ("failure", "success")
         },
-        {kind: _rows(rows.get(kind, [])) for kind in ("failure", "success")},
+        {kind: rows_of(rows.get(kind, [])) for kind in ("failure", "success")},
         task.derivation,
         task.start_weight,
+        task.selection,
+        task.chose,
     )
     return grown, skipped
-
-
-def _rows(found: list[tuple[str, str, int]]) -> Rows:
-    return Rows(
-        episodes=np.asarray([e for e, _, _ in found], dtype=str),
-        symbols=np.asarray([s for _, s, _ in found], dtype=str),
-        frames=np.asarray([f for _, _, f in found], dtype=np.int64),
-    )
 
 
 class SignalMemory:
@@ -165,7 +167,7 @@ class SignalMemory:
             skipped += unused
             if layout is None:
                 continue
-            built, missed = build_task(runs, layout, start_weight=start_weight)
+            built, missed = build_task(runs, layout, start_weight=start_weight, select=choice == AUTO)
             skipped += missed
             if built is not None:
                 by_task[task] = built
@@ -184,7 +186,7 @@ class SignalMemory:
                 layout, unused = choose_layout(runs, self.choice, self.features)
                 skipped += unused
                 built, missed = (
-                    build_task(runs, layout, start_weight=self.start_weight)
+                    build_task(runs, layout, start_weight=self.start_weight, select=self.choice == AUTO)
                     if layout is not None
                     else (None, [])
                 )
@@ -217,6 +219,8 @@ class SignalMemory:
             task: {
                 "key": f"t{number}",
                 "layout": signals.layout.to_dict(),
+                **({"selection": signals.selection.describe()} if signals.selection is not None else {}),
+                **({"selection_skipped": signals.chose} if signals.chose else {}),
                 **{f"{kind}_entries": len(v) for kind, v in signals.vectors.items()},
             }
             for number, (task, signals) in enumerate(sorted(self.by_task.items()))
@@ -237,6 +241,8 @@ class SignalMemory:
             arrays[f"{key}_mean"], arrays[f"{key}_scale"] = signals.mean, signals.scale
             if signals.derivation is not None:
                 arrays |= signals.derivation.arrays(key)
+            if signals.selection is not None:
+                arrays |= signals.selection.arrays(key)
             for kind in ("failure", "success"):
                 rows = signals.rows[kind]
                 arrays[f"{key}_{kind}"] = signals.vectors[kind]
@@ -276,6 +282,8 @@ class SignalMemory:
                     if layout.derived
                     else None
                 )
+                full = TaskSignals(layout, np.zeros(0), np.ones(0), {}, {}, derivation).width
+                selection = Selection.stored(described, arrays, key, full, where)
                 by_task[str(task)] = TaskSignals(
                     layout,
                     arrays[f"{key}_mean"],
@@ -284,6 +292,8 @@ class SignalMemory:
                     rows,
                     derivation,
                     start_weight,
+                    selection,
+                    str(described.get("selection_skipped", "")),
                 )
         except (KeyError, TypeError, AttributeError) as error:
             raise MemoryFormatError(f"{where}: the signal memory lacks {error} (a damaged file?)") from error

@@ -5,7 +5,6 @@ query (the vectors and similarity: `robofailring.memory.signal_memory`)."""
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from typing import Final
 
 import numpy as np
@@ -15,17 +14,10 @@ from robofailring.errors import DataError
 from robofailring.memory.index import FLAT, IndexSpec, TaskIndex
 from robofailring.memory.signal_derived import Derivation
 from robofailring.memory.signal_layout import ACTION_LAGS, SignalLayout
+from robofailring.memory.signal_rows import Rows, search_entries
+from robofailring.memory.signal_select import Selection
 
 START_WEIGHT: Final[float] = 0.5  # the start state's weight in a memory from before it was a setting
-
-
-@dataclass(frozen=True)
-class Rows:
-    """What each entry of one index is: its run's episode, failure symbol (None: a success) and frame."""
-
-    episodes: np.ndarray  # str
-    symbols: np.ndarray  # str, "" for a success
-    frames: np.ndarray  # int
 
 
 class TaskSignals:
@@ -41,15 +33,19 @@ class TaskSignals:
         rows: Mapping[str, Rows],
         derivation: Derivation | None = None,
         start_weight: float = START_WEIGHT,
+        selection: Selection | None = None,
+        chose: str = "",
     ) -> None:
         self.layout, self.mean, self.scale = layout, np.asarray(mean), np.asarray(scale)
+        self.selection = selection  # the elements its vectors keep (`--signals auto`: chosen from its runs)
+        self.chose = chose  # why none were chosen, where choosing was asked for
         self.derivation = derivation
         self.start_weight = float(start_weight)
         self.vectors = {kind: np.asarray(v, np.float32) for kind, v in vectors.items()}
         self.rows = dict(rows)
         self.indexes = {
             kind: TaskIndex.build(
-                _entries(v), np.arange(len(v)), list(self.rows[kind].episodes), IndexSpec(FLAT)
+                search_entries(v), np.arange(len(v)), list(self.rows[kind].episodes), IndexSpec(FLAT)
             )
             for kind, v in self.vectors.items()
             if len(v)
@@ -60,6 +56,13 @@ class TaskSignals:
         """(state, action) widths of its features: the layout's, with the derived columns in the state."""
         state, action = self.layout.widths
         return state + (self.derivation.width if self.derivation is not None else 0), action
+
+    @property
+    def width(self) -> int:
+        """Its vectors' length."""
+        state, action = self.widths
+        full = 2 * state + len(ACTION_LAGS) * action + 1
+        return full if self.selection is None else len(self.selection.columns)
 
     def derived(self, features: np.ndarray) -> np.ndarray:
         """One run's features with the derived columns after the state: [state ‖ derived ‖ action ‖ t]."""
@@ -101,7 +104,8 @@ class TaskSignals:
                 f"its signals are too far from the task's success runs to be kept: element {column} of frame "
                 f"{row}'s vector is {vectors[row, column]:.3g} once normalised, beyond float32's range"
             )
-        return vectors.astype(np.float32)
+        paired = vectors.astype(np.float32)
+        return paired if self.selection is None else self.selection.apply(paired)
 
     def search(
         self, vectors: np.ndarray, kind: str, *, exclude_episode: str | None = None
@@ -124,11 +128,5 @@ class TaskSignals:
         order = np.argsort(-np.abs(difference))[:top]
         derived = self.derivation.names(self.layout.raw_columns()) if self.derivation is not None else []
         columns = self.layout.columns(derived)
+        columns = columns if self.selection is None else self.selection.names(columns)
         return [(columns[i], float(difference[i])) for i in order]
-
-
-def _entries(vectors: np.ndarray) -> np.ndarray:
-    """Entries for inner-product search that ranks by Euclidean distance: [y ‖ −‖y‖²/2], so a query
-    [x ‖ 1] scores x·y − ‖y‖²/2 = (‖x‖² − d²)/2."""
-    norms = np.einsum("ij,ij->i", vectors, vectors)[:, None]
-    return np.concatenate([vectors, -0.5 * norms], axis=1).astype(np.float32)
