@@ -47,7 +47,7 @@ def stepper(gym: Any) -> Any:
     """A wrapper the motion planner steps: each step goes through the monitor; `cut()` makes the next step the
     episode's last (truncated); a step that ends the episode raises `EpisodeOver` to stop the script."""
 
-    class Cut(gym.Wrapper):  # type: ignore[misc]
+    class Cut(gym.Wrapper):
         """Under the monitor: reports `truncated` at the step after `cut()`."""
 
         def __init__(self, env: Any) -> None:
@@ -62,7 +62,7 @@ def stepper(gym: Any) -> Any:
             observation, reward, terminated, truncated, info = self.env.step(action)
             return observation, reward, terminated, truncated or self.cutting, info
 
-    class Stepper(gym.Wrapper):  # type: ignore[misc]
+    class Stepper(gym.Wrapper):
         """Over the monitor: what the planner steps."""
 
         def step(self, action: Any) -> Any:
@@ -86,6 +86,13 @@ def main() -> None:
     parser.add_argument("--faults", default=DEFAULT_FAULTS, help="the scripted policy's faults, in turn")
     parser.add_argument("--seed", type=int, default=100_000, help="the first episode's reset seed")
     parser.add_argument(
+        "--state",
+        choices=("maniskill", "recorded"),
+        default="maniskill",
+        help="the signals: ManiSkill's own (`agent/*`, `extra/*`, the `maniskill` adapter), or the robot's state "
+        "named as the peer set's LeRobot dataset records it (`observation.state`, `action`)",
+    )
+    parser.add_argument(
         "--out", type=Path, default=None, help="where the rollouts go (default: a temporary folder)"
     )
     args = parser.parse_args()
@@ -99,15 +106,18 @@ def main() -> None:
 
     Cut, Stepper = stepper(gym)
     size = {"width": args.image_size, "height": args.image_size}
-    env = Cut(
-        gym.make(
-            args.env, obs_mode="rgb", num_envs=1, max_episode_steps=args.max_steps, robot_uids="panda_wristcam",
-            control_mode="pd_joint_pos", sim_backend="cpu", sensor_configs=size,
-        )  # fmt: skip
-    )
+    maniskill = gym.make(
+        args.env, obs_mode="rgb", num_envs=1, max_episode_steps=args.max_steps, robot_uids="panda_wristcam",
+        control_mode="pd_joint_pos", sim_backend="cpu", sensor_configs=size,
+    )  # fmt: skip
+    env = Cut(maniskill)
     out = args.out or Path(tempfile.mkdtemp(prefix="bench-monitor-maniskill-"))
     monitored = RolloutMonitor(
-        env, open_detector(args.memory), out=out, adapter="maniskill", task=args.task or args.env
+        env,
+        open_detector(args.memory),
+        out=out,
+        adapter=recorded_state_adapter() if args.state == "recorded" else "maniskill",
+        task=args.task or args.env,
     )
     faults = [fault.strip() for fault in args.faults.split(",") if fault.strip()]
     steps: list[float] = []
@@ -129,7 +139,9 @@ def main() -> None:
                 steps.append(time.perf_counter() - start)
                 if bool(np.any(terminated)) or bool(np.any(truncated)):
                     break
-    what = f"{args.policy} policy" + (f", faults in turn: {', '.join(faults)}" if args.policy == "scripted" else "")
+    what = f"{args.policy} policy" + (
+        f", faults in turn: {', '.join(faults)}" if args.policy == "scripted" else ""
+    )
     print(
         f"\n{args.episodes} episodes of {args.env} ({what}; seeds {args.seed}–{args.seed + args.episodes - 1}), "
         f"{len(steps)} steps, median step (env and monitor) {1000 * statistics.median(steps):.1f} ms"
@@ -139,8 +151,41 @@ def main() -> None:
     print((out / "rollouts.md").read_text())
 
 
+def recorded_state_adapter() -> Any:
+    """ManiSkill's observations named as the peer set's LeRobot dataset (`lerobot-recorded`) names what a robot
+    records: the cameras as the `maniskill` adapter names them, `observation.state` in its meta/info.json's order
+    (joint positions, the arm's joint velocities, the gripper's width, the hand's pose) and the action `action`."""
+    from dataclasses import dataclass
+
+    import numpy as np
+
+    from robofailring.monitor.adapters import ManiSkillAdapter, Observed, as_vector, lookup
+
+    @dataclass(frozen=True)
+    class RecordedState(ManiSkillAdapter):
+        name: str = "maniskill-recorded"
+        action: str | None = "action"
+
+        def observe(self, observation: Any, *, step: int) -> Observed:
+            views = super().observe(observation, step=step).views
+            qpos, qvel, hand = (
+                as_vector(lookup(observation, key), f"step {step}: observation {key!r}")
+                for key in ("agent/qpos", "agent/qvel", "extra/tcp_pose")
+            )
+            state = np.concatenate([qpos[:9], qvel[:7], qpos[7:9].sum(keepdims=True), hand[:7]])
+            return Observed(views, {"observation.state": state})
+
+    return RecordedState()
+
+
 def run_script(
-    monitored: Any, cut: Any, stepper_type: Any, faults: list[str], episode: int, env_id: str, steps: list[float]
+    monitored: Any,
+    cut: Any,
+    stepper_type: Any,
+    faults: list[str],
+    episode: int,
+    env_id: str,
+    steps: list[float],
 ) -> str:
     """One episode of peer_generate.py's motion-planned script through the monitor; returns what it injected."""
     from bench.peer_generate import AXES, SCRIPTS, Script
