@@ -22,6 +22,12 @@ rollouts hold successes and failures. `random` (ManiSkill's action sampler) and 
 episode's outcome is ManiSkill's own `success`: the env ends the episode when it is reached (`terminated`); a
 script that finishes without it is cut at its last step (`truncated`), judged a failure by the env. The seeds
 start at `--seed` (100000: clear of the peer set's, so no rollout is an episode of the memory).
+
+`--state recorded` gives the robot's state as the set's `lerobot-recorded` names it, for a memory with signals
+built from it. Such a memory must hold runs at the env's step rate. The peer set keeps 28 frames of a run. Its
+signal vectors' frame index and action lags (in frames) then miss what the monitor sees at every step: a memory
+built from it (`--signals observation.state:gripper_width.*,action:gripper --signal-features none`) alarmed on
+every run at frame 21 (docs/rollouts.md, "Measured on ManiSkill3").
 """
 
 from __future__ import annotations
