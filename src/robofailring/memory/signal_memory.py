@@ -23,7 +23,7 @@ from typing import Any, Final
 
 import numpy as np
 
-from robofailring.bounded import read_npz
+from robofailring.bounded import Shape, read_npz
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.errors import DataError, MemoryFormatError
 from robofailring.memory.signal_derived import NONE as NO_FEATURES
@@ -45,6 +45,7 @@ DEFAULT_START_WEIGHT: Final[float] = 0.0
 MAX_START_WEIGHT: Final[float] = 100.0
 MIN_SCALE: Final[float] = 1e-3  # a feature's spread floor (a value constant over the successes)
 SIGNALS_FILE: Final[str] = "signals.npz"
+STEPS: Final[tuple[str, str]] = ("steps", "step_tolerance")  # a derivation's arrays, per task key
 
 
 def build_task(
@@ -103,7 +104,7 @@ def _with_runs(
         vectors.setdefault(kind, []).append(paired)
         found = rows.setdefault(kind, [])
         found += [(trajectory.episode, trajectory.symbol or "", start + i) for i in range(len(paired))]
-    width = 2 * task.widths[0] + len(ACTION_LAGS) * task.widths[1] + 1
+    width = vector_width(*task.widths)
     grown = TaskSignals(
         task.layout,
         task.mean,
@@ -251,10 +252,11 @@ class SignalMemory:
         """What `write` wrote, checked: a missing array or a size other than the manifest's names the file."""
         path = Path(directory) / SIGNALS_FILE
         where = f"{path}"
-        arrays = read_npz(path, error=MemoryFormatError)  # each array's declared size checked first
-        by_task = {}
         start_weight = _start_weight(section, where)
         try:
+            # each array's declared shape checked against the manifest before it is decompressed
+            arrays = read_npz(path, error=MemoryFormatError, shapes=_expected_shapes(path, section, where))
+            by_task = {}
             for task, described in section["tasks"].items():
                 key = described["key"]
                 vectors = {kind: arrays[f"{key}_{kind}"] for kind in ("failure", "success")}
@@ -307,6 +309,42 @@ def check_start_weight(weight: object) -> float:
             f"(0 leaves the start state out, 0.5 weighs it as memories from before the setting do), got {weight!r}"
         )
     return float(weight)
+
+
+def vector_width(state: int, action: int) -> int:
+    """A paired vector's width from the (state, action) widths: [start ‖ change ‖ lagged actions ‖ t]."""
+    return 2 * state + len(ACTION_LAGS) * action + 1
+
+
+def _expected_shapes(path: Path, section: Mapping[str, Any], where: str) -> dict[str, Shape]:
+    """Each array's shape as the manifest's `section` says it (its entry counts and its layout's widths),
+    reading first only the small step-like-column arrays the vectors' width depends on."""
+    derived: dict[str, tuple[SignalLayout, Derivation | None]] = {}
+    for described in section["tasks"].values():
+        layout = SignalLayout.parse(described["layout"], where)
+        derived[described["key"]] = (layout, None)
+    steps = read_npz(
+        path,
+        error=MemoryFormatError,
+        names=[f"{key}_{part}" for key, (layout, _) in derived.items() if layout.derived for part in STEPS],
+        shapes={f"{key}_{part}": (None,) for key in derived for part in STEPS},
+    )
+    shapes: dict[str, Shape] = {}
+    for described in section["tasks"].values():
+        key = described["key"]
+        layout = derived[key][0]
+        state, action = layout.widths
+        if layout.derived:
+            state += Derivation.read(layout.derived, state + action, steps, key, where).width
+        shapes[f"{key}_mean"] = shapes[f"{key}_scale"] = (state + action + 1,)  # [state ‖ action ‖ t]
+        for kind in ("failure", "success"):
+            entries = described[f"{kind}_entries"]
+            if isinstance(entries, bool) or not isinstance(entries, int) or entries < 0:
+                raise MemoryFormatError(f"{where}: the manifest's {kind}_entries {entries!r} is not a count")
+            shapes[f"{key}_{kind}"] = (entries, vector_width(state, action))
+            for part in ("episodes", "symbols", "frames"):
+                shapes[f"{key}_{kind}_{part}"] = (entries,)
+    return shapes
 
 
 def _start_weight(section: Mapping[str, Any], where: str) -> float:
