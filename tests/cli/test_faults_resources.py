@@ -136,3 +136,19 @@ def test_a_dataset_fps_out_of_range_is_one_line_naming_the_manifest(
     result = cli(verb, target, "--memory", memory, *out, *cache)
     refused(result, 2, str(copied / "manifest.json"), "fps must be a number of frames per second", repr(fps))
     assert not (tmp_path / "rec").exists() and not (tmp_path / "watched.rrd").exists()
+
+
+def test_a_dataset_fps_out_of_range_is_refused_where_every_episode_has_its_own(
+    with_signals: tuple[Path, Path, list[str]], tmp_path: Path
+) -> None:
+    """M5: the manifest's top-level `fps` was read only for an episode without its own, so a bad one passed."""
+    data, memory, cache = with_signals
+    copied = Path(shutil.copytree(data, tmp_path / "data"))
+    manifest = json.loads((copied / "manifest.json").read_text())
+    manifest["fps"] = "fast"
+    for record in manifest["episodes"]:
+        record["fps"] = 10
+    (copied / "manifest.json").write_text(json.dumps(manifest))
+    result = cli("replay", copied, "--memory", memory, "--out", tmp_path / "rec", *cache)
+    refused(result, 2, f"{copied / 'manifest.json'}: fps must be a number of frames per second", "'fast'")
+    assert not (tmp_path / "rec").exists()
