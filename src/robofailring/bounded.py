@@ -15,7 +15,7 @@ import math
 import os
 import stat
 import zipfile
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import IO, Final
 
@@ -26,6 +26,7 @@ from robofailring.errors import RoboFailRingError
 GIB: Final[int] = 1 << 30
 #: deflate expands one byte to at most 1,032: a member declaring more than that of its compressed size lies
 DEFLATE_RATIO: Final[int] = 1032
+Shape = tuple[int | None, ...]  # an array's expected shape: each side that size, or any where None
 
 
 @contextlib.contextmanager
@@ -62,11 +63,18 @@ def read_regular(path: Path, *, limit: int, error: type[RoboFailRingError]) -> b
 
 
 def read_npz(
-    path: Path, *, error: type[RoboFailRingError], names: Iterable[str] | None = None, limit: int = 64 * GIB
+    path: Path,
+    *,
+    error: type[RoboFailRingError],
+    names: Iterable[str] | None = None,
+    limit: int = 64 * GIB,
+    shapes: Mapping[str, Shape] | None = None,
 ) -> dict[str, np.ndarray]:
     """The arrays of the `.npz` file `path` (those in `names`, when given), without pickles, each read only
-    when its declared shape and type fit the bytes its member holds; `error` naming the file and the member
-    otherwise, or when the file is not a regular file or not an `.npz`."""
+    when its declared shape and type fit the bytes its member holds and, for a member in `shapes` (what a
+    manifest says), the declared shape is that one: both checked from the member's header, before anything is
+    decompressed. `error` naming the file and the member otherwise, or when the file is not a regular file or
+    not an `.npz`."""
     wanted = None if names is None else set(names)
     arrays: dict[str, np.ndarray] = {}
     with open_regular(path, limit=limit, error=error) as handle:
@@ -76,7 +84,8 @@ def read_npz(
                     name = member.filename.removesuffix(".npy")
                     if wanted is not None and name not in wanted:
                         continue
-                    _check_member(archive, member, where=f"{path}: {name}", error=error)
+                    expected = None if shapes is None else shapes.get(name)
+                    _check_member(archive, member, expected, where=f"{path}: {name}", error=error)
                     with archive.open(member) as stream:
                         arrays[name] = np.lib.format.read_array(stream, allow_pickle=False)
         except (OSError, ValueError, EOFError, zipfile.BadZipFile, zipfile.LargeZipFile) as fault:
@@ -88,9 +97,15 @@ def read_npz(
 
 
 def _check_member(
-    archive: zipfile.ZipFile, member: zipfile.ZipInfo, *, where: str, error: type[RoboFailRingError]
+    archive: zipfile.ZipFile,
+    member: zipfile.ZipInfo,
+    expected: Shape | None,
+    *,
+    where: str,
+    error: type[RoboFailRingError],
 ) -> None:
-    """`error` when `member` declares an array larger than the bytes it holds (or an object array)."""
+    """`error` when `member` declares an array larger than the bytes it holds (or an object array), or of
+    another shape than `expected`."""
     if member.compress_type != zipfile.ZIP_STORED and member.file_size > DEFLATE_RATIO * max(
         member.compress_size, 1
     ):
@@ -104,6 +119,15 @@ def _check_member(
         else:
             shape, _, dtype = np.lib.format.read_array_header_2_0(stream)
         header = stream.tell()
+    if expected is not None and (
+        len(shape) != len(expected)
+        or any(want is not None and int(side) != want for side, want in zip(shape, expected, strict=True))
+    ):
+        shown = tuple("any" if want is None else want for want in expected)
+        raise error(
+            f"{where} declares shape {tuple(int(side) for side in shape)}, the manifest says {shown} "
+            "(a damaged or crafted file)"
+        )
     if dtype.hasobject:
         raise error(f"{where} holds Python objects (pickles), which are never read")
     declared = math.prod(int(side) for side in shape) * dtype.itemsize

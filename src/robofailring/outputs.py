@@ -19,6 +19,9 @@ from robofailring.jsontext import parse_json
 
 MEMORY_MANIFEST: Final[str] = "manifest.json"
 RRD_MAGIC: Final[bytes] = b"RRF"  # every Rerun .rrd file starts with RRF0/RRF1/RRF2
+# a `--name`'s UTF-8 bytes: its files' and their temporary files' names (`.<name>.json.rfr-XXXXXXXX.tmp`) stay
+# within the 255 bytes most file systems allow
+MAX_STEM_BYTES: Final[int] = 200
 
 
 def is_memory_dir(path: Path) -> bool:
@@ -70,11 +73,23 @@ def check_not_input(
 
 def check_file_stem(name: str, *, flag: str = "--name") -> str:
     """`name` unchanged when it can only name a file inside the output folder (`<name>.json`, …): not
-    blank, no path separator, no leading dot (no `..`, no hidden files); else OutputError naming it."""
+    blank, no path separator, no leading dot (no `..`, no hidden files), no control or other unprintable
+    character (a newline), at most `MAX_STEM_BYTES` in UTF-8; else OutputError naming it, before any work."""
+    if len(name.encode("utf-8", "surrogatepass")) > MAX_STEM_BYTES:
+        raise OutputError(
+            f"{flag} {name[:40]!r}… is {len(name.encode('utf-8', 'surrogatepass'))} bytes long: a name of at "
+            f"most {MAX_STEM_BYTES} bytes leaves room for the suffixes its files take within a file system's "
+            "255-byte file names"
+        )
     if not name.strip() or name.startswith(".") or any(character in name for character in "/\\\0"):
         raise OutputError(
             f"{flag} {name!r} is not a plain file name: give a name without /, \\ or a leading dot "
             f"(it names the files written into --out, e.g. {flag} evaluation)"
+        )
+    if not name.isprintable():
+        raise OutputError(
+            f"{flag} {name!r} is not a plain file name: it has a control or unprintable character (a newline, "
+            "a tab, …), which file names and the lines that list them cannot show"
         )
     return name
 

@@ -22,3 +22,31 @@ def test_the_verbs_refuse_a_device_before_reading_anything(
     assert not (tmp_path / "new").exists()
     episode = next(path for path in sorted(data.rglob("*")) if path.is_dir() and "episode" in path.name)
     refused(cli("detect", episode, "--memory", memory, *placement), 2, f"--device {device!r}")
+
+
+def test_pixels_takes_a_gpu_device_but_not_a_malformed_one(
+    data: Path, memory: Path, cache: list[str], tmp_path: Path
+) -> None:
+    """M4: `npu` was refused for pixels but `cuda:99999999999999999999` accepted without a word; pixels runs
+    on the CPU whatever the device, so a well-formed GPU device is taken (docs/errors.md)."""
+    huge = "cuda:99999999999999999999"
+    built = cli(
+        "build-memory", data, "--out", tmp_path / "new", "--encoder", "pixels", "--device", huge, *cache
+    )
+    refused(built, 2, f"--device {huge!r} is not a device", "a GPU's index is at most 2,147,483,647")
+    assert not (tmp_path / "new").exists()
+    episode = next(path for path in sorted(data.rglob("*")) if path.is_dir() and "episode" in path.name)
+    refused(cli("detect", episode, "--memory", memory, "--device", huge, *cache), 2, f"--device {huge!r}")
+    for device in ("cuda", "cuda:1", "mps"):
+        made = cli(
+            "build-memory",
+            data,
+            "--out",
+            tmp_path / device,
+            "--encoder",
+            "pixels",
+            "--device",
+            device,
+            *cache,
+        )
+        assert made.exit_code == 0 and (tmp_path / device / "manifest.json").is_file(), made.output

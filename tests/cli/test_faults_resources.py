@@ -56,7 +56,32 @@ def test_a_memory_npz_member_declaring_a_huge_shape_is_refused_before_it_is_allo
     data, built, cache = with_signals
     memory = Path(shutil.copytree(built, tmp_path / "memory"))
     declare_in_npz(memory / "signals.npz", "t0_failure")
-    said = ("signals.npz: t0_failure declares shape (100000000000, 129)", "its member holds 16")
+    said = ("signals.npz: t0_failure declares shape (100000000000, 129), the manifest says (",)
+    refused(cli("memory-info", memory), 2, *said)
+    refused(cli("detect", _episode(data), "--memory", memory, *cache), 2, *said)
+
+
+def test_a_deflated_memory_member_of_more_rows_than_the_manifest_says_is_refused_before_it_is_inflated(
+    with_signals: tuple[Path, Path, list[str]], tmp_path: Path
+) -> None:
+    """N5: deflated zeros expand a thousandfold, within what deflate can do, so only the manifest bounds
+    them: a member declaring more entries than it says is refused from its header, not once built (the
+    reporter's 10 MB file took 1.3 GB before `has 1600000 failure vectors, the manifest says 179`)."""
+    data, built, cache = with_signals
+    memory = Path(shutil.copytree(built, tmp_path / "memory"))
+    manifest = json.loads((memory / "manifest.json").read_text())
+    entries = manifest["signals"]["tasks"]["pick_cube"]["failure_entries"]
+    with np.load(memory / "signals.npz") as stored:
+        arrays = dict(stored)
+    width = arrays["t0_failure"].shape[1]
+    rows = 20_000
+    arrays["t0_failure"] = np.zeros((rows, width), np.float32)  # every member the bomb's size, consistent
+    for part in ("episodes", "symbols", "frames"):
+        arrays[f"t0_failure_{part}"] = np.resize(arrays[f"t0_failure_{part}"], rows)
+    np.savez_compressed(memory / "signals.npz", **arrays)
+    said = (
+        f"signals.npz: t0_failure declares shape ({rows}, {width}), the manifest says ({entries}, {width})",
+    )
     refused(cli("memory-info", memory), 2, *said)
     refused(cli("detect", _episode(data), "--memory", memory, *cache), 2, *said)
 
@@ -111,3 +136,19 @@ def test_a_dataset_fps_out_of_range_is_one_line_naming_the_manifest(
     result = cli(verb, target, "--memory", memory, *out, *cache)
     refused(result, 2, str(copied / "manifest.json"), "fps must be a number of frames per second", repr(fps))
     assert not (tmp_path / "rec").exists() and not (tmp_path / "watched.rrd").exists()
+
+
+def test_a_dataset_fps_out_of_range_is_refused_where_every_episode_has_its_own(
+    with_signals: tuple[Path, Path, list[str]], tmp_path: Path
+) -> None:
+    """M5: the manifest's top-level `fps` was read only for an episode without its own, so a bad one passed."""
+    data, memory, cache = with_signals
+    copied = Path(shutil.copytree(data, tmp_path / "data"))
+    manifest = json.loads((copied / "manifest.json").read_text())
+    manifest["fps"] = "fast"
+    for record in manifest["episodes"]:
+        record["fps"] = 10
+    (copied / "manifest.json").write_text(json.dumps(manifest))
+    result = cli("replay", copied, "--memory", memory, "--out", tmp_path / "rec", *cache)
+    refused(result, 2, f"{copied / 'manifest.json'}: fps must be a number of frames per second", "'fast'")
+    assert not (tmp_path / "rec").exists()

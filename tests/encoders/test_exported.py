@@ -97,6 +97,10 @@ def test_a_new_checkpoint_is_a_new_export(tiny_checkpoint: tuple[Path, Path], tm
         ("manifest", "is incomplete or corrupt"),  # export.json unreadable
         ("size", "preprocessing size must be 1 to 4096 px, got 100000"),  # issue 50: 1.17 TiB allocated
         ("dim", "embedding width of 10000000000"),
+        # N8: an edited mean would change every embedding (and poison the embedding cache) unseen
+        ("mean", "does not match the digest it records"),
+        # N6/N7: a side other than the model's, even with the record re-signed: ORT's traceback, or 24 GB
+        ("side", "its model takes"),
     ],
 )
 def test_a_broken_export_is_reported_and_made_again(
@@ -119,12 +123,18 @@ def test_a_broken_export_is_reported_and_made_again(
         content = bytearray(model.read_bytes())
         content[-size // 3] ^= 0x01  # inside the weights, past the graph's header
         model.write_bytes(bytes(content))
-    elif damage in ("size", "dim"):  # export.json is outside the model's digest
+    elif damage in ("size", "dim", "mean", "side"):  # export.json edited
         meta = json.loads((folder / MANIFEST_NAME).read_text())
         if damage == "size":
             meta["preprocess"]["size"] = 100000
-        else:
+        elif damage == "dim":
             meta["dim"] = 10**10
+        elif damage == "mean":
+            meta["preprocess"]["mean"] = [0.9, 0.9, 0.9]
+        else:
+            side = meta["preprocess"]["size"]
+            meta["preprocess"]["size"] = [s + 1 for s in side] if isinstance(side, list) else side + 1
+            meta["record"] = export_module._record_digest(meta)
         (folder / MANIFEST_NAME).write_text(json.dumps(meta))
     else:
         (folder / MANIFEST_NAME).write_text("{not json")

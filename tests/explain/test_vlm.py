@@ -216,6 +216,26 @@ def test_bad_settings() -> None:
         VLMConfig(url="http://localhost:11434/v1", model="")
 
 
+@pytest.mark.parametrize(
+    ("url", "said"),
+    [
+        ("u:PW-hunter22@127.0.0.1:18089/v1", "'[redacted]@127.0.0.1:18089/v1' must start with http://"),
+        ("http://u:PW-hunter22@[::1/v1", "'http://[redacted]@[::1/v1' is not a URL (Invalid IPv6 URL)"),
+        ("http://u:PW-hunter22@host:port/v1", "is not a URL (Port could not be cast"),
+    ],
+)
+def test_a_bad_vlm_url_is_one_error_line_before_any_work_without_its_password(
+    episode: Path, pixels_memory_dir: Path, url: str, said: str
+) -> None:
+    """N1/N2: a URL without a scheme printed its password; one that does not parse was a traceback from
+    `secrets`, after the detection ran."""
+    code, found, stderr = _detect(episode, pixels_memory_dir, "--vlm-url", url, "--vlm-model", "llava")
+    assert code == 2 and found == {}, stderr
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: VLM URL ") and said in lines[0], stderr
+    assert "PW-hunter22" not in stderr and "Traceback" not in stderr
+
+
 def _detect(episode: Path, pixels_memory_dir: Path, *extra: str) -> tuple[int, dict, str]:
     """`detect --json`, naming the folder of the memory's images (--data-root: they are not the episode's)."""
     result = runner.invoke(

@@ -5,6 +5,7 @@ the alarms equal to `detect` on the saved episodes frame for frame, and bad inpu
 from __future__ import annotations
 
 import json
+import logging
 from pathlib import Path
 from typing import Any
 
@@ -61,6 +62,40 @@ def test_every_step_has_its_verdict_and_the_failures_fire(detector: FailureDetec
         )  # the grounded sentence of the nearest failure
         assert all(v.nearest is None for v in verdicts if not v.alarm)
     env.close()
+
+
+def test_an_uncalibrated_memory_is_said_once_and_in_the_rollout_summary(
+    monitor_memory_dir: Path, tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """N9: at the default γ = 0 every success alarmed and nothing said why (detect warns, the monitor did not)."""
+    out = tmp_path / "out"
+    with caplog.at_level(logging.WARNING, logger="robofailring"):
+        env = RolloutMonitor(ReplayEnv(TEST_RUNS[:2]), monitor_memory_dir, out=out, adapter=ADAPTER)
+        _episode(env)
+        _episode(env)
+        env.close()
+    said = [r.getMessage() for r in caplog.records if "judges at its default" in r.getMessage()]
+    assert said == [
+        "warning: the contrast rule judges at its default γ = 0: the memory is not calibrated for it, so no "
+        "false-alarm rate is promised (run `robofailring calibrate SUCCESS_DATA --memory MEMORY`, or give "
+        "--gamma)"
+    ]
+    summary = json.loads((out / "rollouts.json").read_text())
+    assert summary["uncalibrated_rules"] == [said[0].removeprefix("warning: ")]
+    assert (
+        "**Uncalibrated:** the contrast rule judges at its default γ = 0" in (out / "rollouts.md").read_text()
+    )
+
+
+def test_a_calibrated_or_given_threshold_has_no_uncalibrated_note(
+    detector: FailureDetector, tmp_path: Path
+) -> None:
+    env = RolloutMonitor(ReplayEnv(TEST_RUNS[:1]), detector, out=tmp_path / "out", adapter=ADAPTER)
+    _episode(env)
+    env.close()
+    summary = json.loads((tmp_path / "out" / "rollouts.json").read_text())
+    assert summary["uncalibrated_rules"] == []
+    assert "Uncalibrated" not in (tmp_path / "out" / "rollouts.md").read_text()
 
 
 def test_the_saved_episodes_read_back_and_detect_fires_where_the_monitor_did(

@@ -1,7 +1,8 @@
 """`--device`, checked once for every encoder kind and runtime: its form here, its presence where it runs.
 
 A device is `cpu`, `cuda`, `cuda:N` or `mps` (`check_device_name`, asked where a detector's settings
-are made and by `load_encoder`, so `npu` or `bogus:7` is one error before anything is read). Whether it
+are made and by `load_encoder`, so `npu`, `bogus:7` or `cuda:99999999999999999999` is one error before
+anything is read, for every kind, `pixels` too). Whether it
 is there is asked by what runs on it: torch (`pick_device`: no CUDA GPU, no GPU N, no Apple GPU), ONNX
 Runtime (`exported.providers_for`: no CUDA provider) and OpenVINO (the CPU only). A kind without a
 network (`pixels`) runs in numpy on the CPU whatever the device.
@@ -16,6 +17,7 @@ from robofailring.errors import EncoderError, SettingError
 from robofailring.extras import needs_extra
 
 DEVICE_FORMS: Final[str] = "cpu, cuda, cuda:N (a GPU's index) or mps"
+MAX_CUDA_INDEX: Final[int] = 2**31 - 1  # a CUDA device ordinal is a C int (ONNX Runtime's device_id too)
 _DEVICE: Final[re.Pattern[str]] = re.compile(r"cpu|cuda(:[0-9]+)?|mps")
 
 
@@ -23,6 +25,11 @@ def check_device_name(device: str | None) -> str | None:
     """`device` when it has a device's form (`DEVICE_FORMS`) or is None (the default); SettingError otherwise."""
     if device is not None and not _DEVICE.fullmatch(device):
         raise SettingError(f"--device {device!r} is not a device robofailring runs on: use {DEVICE_FORMS}")
+    if device is not None and device.startswith("cuda") and cuda_index(device) > MAX_CUDA_INDEX:
+        raise SettingError(
+            f"--device {device!r} is not a device robofailring runs on: a GPU's index is at most "
+            f"{MAX_CUDA_INDEX:,} (CUDA numbers its GPUs with an int)"
+        )
     return device
 
 

@@ -5,8 +5,10 @@ or `--cache-dir`) holding `model.onnx` and `export.json`. The key digests the en
 names the checkpoint's or trained folder's weights digest), the model-config file when the spec names
 one, the runtime and `EXPORT_VERSION`, so a new checkpoint is a new export and an unchanged one is
 never exported twice. The folder is written whole under a temporary name and renamed into place
-(`atomic_directory`); `export.json` records each file's size and digest, and a folder whose files do not match it,
-or that ONNX Runtime cannot read, is reported and exported again.
+(`atomic_directory`); `export.json` records each file's size and digest, and the digest of what it says
+(identity, width, runtime, preprocessing) with the model's; a folder whose files or record do not match
+them, whose preprocessing size is not the model's input side, or that ONNX Runtime cannot read, is
+reported and exported again.
 
 The exported graph maps normalised pixels, (N, 3, S, S) float32, to the unnormalised embedding, as
 torch computes it; the preprocessing (open_clip's own transform, or the trained encoder's square
@@ -119,9 +121,13 @@ def read_export(folder: Path) -> Export | None:
         dim = meta["dim"]
         if type(dim) is not int or not 1 <= dim <= MAX_DIM:
             raise EncoderError(f"{MANIFEST_NAME} gives an embedding width of {dim!r}, not 1 to {MAX_DIM}")
-        return Export(
-            folder, str(meta["identity"]), dim, str(meta["runtime"]), check_preprocess(meta["preprocess"])
-        )
+        preprocess = check_preprocess(meta["preprocess"])
+        if meta.get("record") != _record_digest(meta):
+            raise EncoderError(
+                f"{MANIFEST_NAME}'s identity, width, runtime or preprocessing does not match the digest it "
+                "records with the model's (changed since, or an earlier version's export)"
+            )
+        return Export(folder, str(meta["identity"]), dim, str(meta["runtime"]), preprocess)
     except (OSError, ValueError, KeyError, TypeError, AttributeError, EncoderError) as error:
         raise EncoderError(f"the cached ONNX export {folder} is incomplete or corrupt ({error})") from error
 
@@ -144,8 +150,16 @@ def _write(folder: Path, identity: str, dim: int, runtime: str, preprocess: dict
             }
         },
     }
+    meta["record"] = _record_digest(meta)
     (folder / MANIFEST_NAME).write_text(json.dumps(meta, indent=2), encoding="utf-8")
     return Export(folder, identity, dim, runtime, preprocess)
+
+
+def _record_digest(meta: dict[str, Any]) -> str:
+    """The digest of what `export.json` says about the model (its preprocessing too: a changed mean, std or
+    size would change every embedding) together with the model file's own digest."""
+    recorded = {field: meta[field] for field in ("identity", "dim", "runtime", "preprocess", "files")}
+    return hashlib.blake2b(json.dumps(recorded, sort_keys=True).encode(), digest_size=8).hexdigest()
 
 
 def export_fp32(spec: EncoderSpec, folder: Path) -> Export:

@@ -20,7 +20,7 @@ import numpy as np
 from robofailring.encoders.base import l2_normalize
 from robofailring.encoders.device import check_device_name, cuda_index
 from robofailring.encoders.export import Export, discard_export, ensure_export
-from robofailring.encoders.preprocess import Preprocess
+from robofailring.encoders.preprocess import Preprocess, preprocess_sides
 from robofailring.encoders.spec import EncoderSpec
 from robofailring.errors import EncoderError
 from robofailring.extras import needs_extra
@@ -98,6 +98,12 @@ class OpenVinoSession:
         """The precision the compiled model runs its float layers in, as OpenVINO reports it (`f32`)."""
         return str(self._compiled.get_property("INFERENCE_PRECISION_HINT").to_string())
 
+    @property
+    def input_shape(self) -> list[int | None]:
+        """The model's input shape, None for a side it leaves open (the batch)."""
+        shape = self._compiled.inputs[0].get_partial_shape()
+        return [side.get_length() if side.is_static else None for side in shape]
+
     def run(self, _outputs: None, feeds: dict[str, np.ndarray]) -> list[np.ndarray]:
         with self._lock:
             return [np.array(self._request.infer({0: feeds["pixels"]})[0], dtype=np.float32)]
@@ -138,6 +144,7 @@ class OnnxEncoder:
         export = ensure_export(spec, cache_dir)
         try:
             session = open_model(export.model)
+            _check_sides(export, session)  # before a frame batch is sized by the recorded preprocessing
         except Exception as error:  # ORT and OpenVINO raise their own types for a broken file
             _warn_reexport(export, error)
             discard_export(export.folder)
@@ -172,7 +179,25 @@ class OnnxEncoder:
         return l2_normalize(np.concatenate(outputs))
 
 
+def _check_sides(export: Export, session: Any) -> None:
+    """EncoderError unless the export's recorded preprocessing makes pixels of its model's fixed input side."""
+    if isinstance(session, OpenVinoSession):
+        shape = session.input_shape
+    else:
+        shape = list(session.get_inputs()[0].shape)
+    model = tuple(shape[-2:])
+    made = preprocess_sides(export.preprocess)
+    if all(isinstance(side, int) for side in model) and model != made:
+        raise EncoderError(
+            f"the cached ONNX export {export.folder} is incomplete or corrupt (its preprocessing makes "
+            f"{made[0]}x{made[1]} px, its model takes {model[0]}x{model[1]})"
+        )
+
+
 def _warn_reexport(export: Export, error: Exception) -> None:
+    if isinstance(error, EncoderError):
+        logging.getLogger("robofailring").warning("warning: %s; exporting it again", error)
+        return
     first = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
     logging.getLogger("robofailring").warning(
         "warning: the runtime cannot read the cached export %s (%s); exporting it again",

@@ -34,8 +34,9 @@ def _channels(value: object) -> bool:
 
 def check_preprocess(description: object) -> dict[str, Any]:
     """An export's recorded preprocessing, checked before anything is sized by it: its kind, an input side
-    (or two) from 1 to `MAX_SIDE`, three finite means and three positive spreads. `export.json` is outside
-    the export's digest, so a size of 100,000 (a 1.17 TiB frame batch) is an EncoderError, never allocated."""
+    (or two) from 1 to `MAX_SIDE`, three finite means and three positive spreads: a size of 100,000 (a
+    1.17 TiB frame batch) is an EncoderError, never allocated (the record's digest and the model's input
+    side check the rest, `export.py`, `exported.py`)."""
     if not isinstance(description, dict) or description.get("kind") not in ("open_clip", "square"):
         raise EncoderError(f"unknown preprocessing {description!r} in an ONNX export")
     size = description.get("size")
@@ -48,6 +49,12 @@ def check_preprocess(description: object) -> dict[str, Any]:
             f"an ONNX export's preprocessing needs three means and three positive spreads, got {mean!r}, {std!r}"
         )
     return description
+
+
+def preprocess_sides(description: dict[str, Any]) -> tuple[int, int]:
+    """The (height, width) of the pixels a checked preprocessing makes."""
+    size = description["size"]
+    return (int(size[0]), int(size[1])) if isinstance(size, list) else (int(size), int(size))
 
 
 class Preprocess:

@@ -68,7 +68,14 @@ class VLMConfig:
 
     def __post_init__(self) -> None:
         if not self.url.startswith(("http://", "https://")):
-            raise VLMError(f"VLM URL {redact(self.url)!r} must start with http:// or https://")
+            raise VLMError(f"VLM URL {redact_url(self.url)!r} must start with http:// or https://")
+        try:  # parsed once here, where the option is read: not after the detections, in `secrets`
+            parts = urlsplit(self.url)
+            parts.port  # noqa: B018  (a port that is no number is a ValueError only when read)
+        except ValueError as error:
+            raise VLMError(f"VLM URL {redact_url(self.url)!r} is not a URL ({error})") from None
+        if not parts.hostname:
+            raise VLMError(f"VLM URL {redact_url(self.url)!r} names no host")
         if not self.model:
             raise VLMError("a VLM model name is needed (--vlm-model)")
         if self.retries < 0 or self.timeout_s <= 0:
@@ -91,7 +98,7 @@ class VLMConfig:
         return tuple(secret for secret in (password, token) if secret)
 
     def __repr__(self) -> str:  # never shows a password in the URL
-        return f"VLMConfig(url={redact(self.url)!r}, model={self.model!r})"
+        return f"VLMConfig(url={redact_url(self.url)!r}, model={self.model!r})"
 
 
 def read_api_key(value: str | None = None) -> str | None:
@@ -166,6 +173,17 @@ def redact(text: str, *secrets: str | None) -> str:
         if secret:
             text = _hide(text, secret)
     return text
+
+
+def redact_url(url: str) -> str:
+    """`url` as it may be printed: its `user:password@` hidden, with a scheme (`redact`) or without one
+    (`u:pw@host/v1`, everything before the host's last `@`)."""
+    shown = redact(url)
+    if "://" not in shown:
+        authority, slash, rest = shown.partition("/")
+        if "@" in authority:
+            shown = f"{REDACTED}@{authority.rpartition('@')[2]}{slash}{rest}"
+    return shown
 
 
 def _hide(text: str, secret: str) -> str:

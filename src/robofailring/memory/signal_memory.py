@@ -23,7 +23,7 @@ from typing import Any, Final
 
 import numpy as np
 
-from robofailring.bounded import read_npz
+from robofailring.bounded import Shape, read_npz
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.errors import DataError, MemoryFormatError
 from robofailring.memory.signal_derived import NONE as NO_FEATURES
@@ -36,7 +36,7 @@ from robofailring.memory.signal_layout import (
 )
 from robofailring.memory.signal_rows import Rows, rows_of
 from robofailring.memory.signal_select import Selection, choose_for
-from robofailring.memory.signal_task import START_WEIGHT, TaskSignals
+from robofailring.memory.signal_task import START_WEIGHT, TaskSignals, vector_width
 
 SIGNALS_VIEW: Final[str] = "signals"  # the modality's name among the views a trace fuses
 # the start state's weight in a new memory (docs/signals.md, "Measured"; ½ in one from before the setting)
@@ -46,6 +46,7 @@ DEFAULT_START_WEIGHT: Final[float] = 0.0
 MAX_START_WEIGHT: Final[float] = 100.0
 MIN_SCALE: Final[float] = 1e-3  # a feature's spread floor (a value constant over the successes)
 SIGNALS_FILE: Final[str] = "signals.npz"
+STEPS: Final[tuple[str, str]] = ("steps", "step_tolerance")  # a derivation's arrays, per task key
 
 
 def build_task(
@@ -257,10 +258,11 @@ class SignalMemory:
         """What `write` wrote, checked: a missing array or a size other than the manifest's names the file."""
         path = Path(directory) / SIGNALS_FILE
         where = f"{path}"
-        arrays = read_npz(path, error=MemoryFormatError)  # each array's declared size checked first
-        by_task = {}
         start_weight = _start_weight(section, where)
         try:
+            # each array's declared shape checked against the manifest before it is decompressed
+            arrays = read_npz(path, error=MemoryFormatError, shapes=_expected_shapes(path, section, where))
+            by_task = {}
             for task, described in section["tasks"].items():
                 key = described["key"]
                 vectors = {kind: arrays[f"{key}_{kind}"] for kind in ("failure", "success")}
@@ -317,6 +319,47 @@ def check_start_weight(weight: object) -> float:
             f"(0 leaves the start state out, 0.5 weighs it as memories from before the setting do), got {weight!r}"
         )
     return float(weight)
+
+
+def _expected_shapes(path: Path, section: Mapping[str, Any], where: str) -> dict[str, Shape]:
+    """Each array's shape as the manifest's `section` says it (its entry counts and its layout's widths),
+    reading first only the small step-like-column arrays the vectors' width depends on."""
+    derived: dict[str, tuple[SignalLayout, Derivation | None]] = {}
+    for described in section["tasks"].values():
+        layout = SignalLayout.parse(described["layout"], where)
+        derived[described["key"]] = (layout, None)
+    steps = read_npz(
+        path,
+        error=MemoryFormatError,
+        names=[f"{key}_{part}" for key, (layout, _) in derived.items() if layout.derived for part in STEPS],
+        shapes={f"{key}_{part}": (None,) for key in derived for part in STEPS},
+    )
+    shapes: dict[str, Shape] = {}
+    for described in section["tasks"].values():
+        key = described["key"]
+        layout = derived[key][0]
+        state, action = layout.widths
+        if layout.derived:
+            state += Derivation.read(layout.derived, state + action, steps, key, where).width
+        shapes[f"{key}_mean"] = shapes[f"{key}_scale"] = (state + action + 1,)  # [state ‖ action ‖ t]
+        width = vector_width(state, action)
+        selection = described.get("selection")
+        if selection is not None:  # `--signals auto` kept these elements of the vectors (signal_select.py)
+            kept = selection.get("elements") if isinstance(selection, dict) else None
+            if isinstance(kept, bool) or not isinstance(kept, int) or not 0 < kept <= width:
+                raise MemoryFormatError(
+                    f"{where}: task key {key!r} keeps {kept!r} signal elements of {width}"
+                )
+            width = kept
+            shapes[f"{key}_selected"] = shapes[f"{key}_selected_weights"] = (kept,)
+        for kind in ("failure", "success"):
+            entries = described[f"{kind}_entries"]
+            if isinstance(entries, bool) or not isinstance(entries, int) or entries < 0:
+                raise MemoryFormatError(f"{where}: the manifest's {kind}_entries {entries!r} is not a count")
+            shapes[f"{key}_{kind}"] = (entries, width)
+            for part in ("episodes", "symbols", "frames"):
+                shapes[f"{key}_{kind}_{part}"] = (entries,)
+    return shapes
 
 
 def _start_weight(section: Mapping[str, Any], where: str) -> float:

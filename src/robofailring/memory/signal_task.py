@@ -60,8 +60,7 @@ class TaskSignals:
     @property
     def width(self) -> int:
         """Its vectors' length."""
-        state, action = self.widths
-        full = 2 * state + len(ACTION_LAGS) * action + 1
+        full = vector_width(*self.widths)
         return full if self.selection is None else len(self.selection.columns)
 
     def derived(self, features: np.ndarray) -> np.ndarray:
@@ -130,3 +129,8 @@ class TaskSignals:
         columns = self.layout.columns(derived)
         columns = columns if self.selection is None else self.selection.names(columns)
         return [(columns[i], float(difference[i])) for i in order]
+
+
+def vector_width(state: int, action: int) -> int:
+    """A paired vector's width from the (state, action) widths: [start ‖ change ‖ lagged actions ‖ t]."""
+    return 2 * state + len(ACTION_LAGS) * action + 1

@@ -42,6 +42,9 @@ class RolloutSummary(ConfusionRates):
     tn: int
     unknown: int  # episodes without an outcome
     unknown_alarms: int  # of them, those with an alarm
+    uncalibrated: tuple[
+        str, ...
+    ] = ()  # a sentence per rule judged at its default threshold (no FPR promised)
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -51,6 +54,7 @@ class RolloutSummary(ConfusionRates):
             "recall": json_number(self.recall),
             "false_alarm_rate": json_number(self.fpr),
             "unknown_outcome": {"episodes": self.unknown, "alarms": self.unknown_alarms},
+            "uncalibrated_rules": list(self.uncalibrated),
             "rows": [asdict(row) for row in self.rows],
         }
 
@@ -69,6 +73,7 @@ class RolloutSummary(ConfusionRates):
             f"Recall {rate(self.recall)} ({self.tp}/{self.tp + self.fn} failures caught), false-alarm rate "
             f"{rate(self.fpr)} ({self.fp}/{self.fp + self.tn} successes); {self.unknown} episode(s) without an "
             f"outcome ({self.unknown_alarms} with an alarm) are not in the table.",
+            *(f"\n**Uncalibrated:** {markdown_text(note)}." for note in self.uncalibrated),
             "",
             "| episode | task | frames | first alarm | ended | outcome |",
             "|---|---|---|---|---|---|",
@@ -83,8 +88,9 @@ class RolloutSummary(ConfusionRates):
         return "\n".join(lines)
 
 
-def summarize(records: Sequence[dict[str, Any]]) -> RolloutSummary:
-    """The summary of saved rollouts' manifest records (`RolloutStore.records`, `read_rollouts`)."""
+def summarize(records: Sequence[dict[str, Any]], *, uncalibrated: Sequence[str] = ()) -> RolloutSummary:
+    """The summary of saved rollouts' manifest records (`RolloutStore.records`, `read_rollouts`); `uncalibrated`:
+    the detector's notes on rules judged at their default threshold (`FailureDetector.uncalibrated`)."""
     rows = tuple(
         RolloutRow(
             episode=str(record["episode"]),
@@ -109,6 +115,7 @@ def summarize(records: Sequence[dict[str, Any]]) -> RolloutSummary:
         tn=count("success", False),
         unknown=count(None, True) + count(None, False),
         unknown_alarms=count(None, True),
+        uncalibrated=tuple(uncalibrated),
     )
 
 

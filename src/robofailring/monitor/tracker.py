@@ -57,7 +57,7 @@ class MonitorCore:
     def kept(self) -> None:
         """Rewrite the summary after an episode was kept (an interrupted run still has it)."""
         if self.store is not None and self.out is not None:
-            write_summary(summarize(self.store.records), self.out)
+            write_summary(summarize(self.store.records, uncalibrated=self.detector.uncalibrated), self.out)
 
     def close(self) -> None:
         if self.store is not None:
@@ -82,6 +82,8 @@ def monitor_core(
         from robofailring.detection.loader import open_detector
 
         detector = open_detector(detector)
+    for note in detector.uncalibrated:  # said once, as `detect` says it: an alarm at γ = 0 promises nothing
+        _log.warning("warning: %s", note)
     store = RolloutStore(Path(out) / EPISODES, fps=fps) if out is not None else None
     return MonitorCore(
         detector=detector,

@@ -53,6 +53,7 @@ def read_project_manifest(root: Path) -> dict[str, Any]:
         or not isinstance(manifest.get("episodes"), list)
     ):
         raise DataError(f"{path} is not a robofailring dataset manifest (format {PROJECT_FORMAT!r})")
+    check_frame_rate(manifest.get("fps"), where=str(path))  # checked even where each episode has its own
     return dict(manifest)
 
 
