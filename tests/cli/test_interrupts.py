@@ -84,7 +84,11 @@ def test_real_ctrl_c_at_many_moments_of_the_first_moments(pixels_memory_dir: Pat
             continue  # done before the signal, or signalled before the script ran: not the command's
         counted.append((moment, (process.returncode, stderr, stdout)))
     assert len(counted) >= 6, counted
-    assert [outcome for _, outcome in counted] == [INTERRUPTED] * len(counted), counted
+    after_the_output = (
+        *INTERRUPTED[:2],
+        whole.stdout,
+    )  # as the command ends: its output whole, then the line
+    assert all(outcome in (INTERRUPTED, after_the_output) for _, outcome in counted), counted
 
 
 CTRL_C_AS_IT_ENDS = """
