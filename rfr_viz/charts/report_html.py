@@ -166,5 +166,5 @@ def write_report(
         + "\n".join(s for s in sections if s)
         + "\n</body></html>\n"
     )
-    write_text_atomic(out, page)
+    write_text_atomic(out, page, claim=True)
     return out

@@ -80,5 +80,5 @@ def write_triage_page(
         "<code>robofailring build-memory DATA --labels triage.csv --out MEMORY</code> and triage again with "
         "<code>--memory MEMORY</code>.</p>" + f"<table>{head}\n{rows}</table>\n</body></html>\n"
     )
-    write_text_atomic(out, page)
+    write_text_atomic(out, page, claim=True)
     return out

@@ -19,11 +19,39 @@ error that explains it, Rerun's and OpenCV's `WARN` lines) is not printed unless
 
 from __future__ import annotations
 
-import sys  # loaded with the interpreter: nothing before the `try` takes time
+import atexit
+import signal
+import sys  # these three are built into the interpreter: nothing before the `try` takes time
+
+_late_ctrl_c: list[bool] = []  # a Ctrl-C after the command ended (while the interpreter exits)
+_ended_interrupted: list[bool] = []  # the command itself ended by a Ctrl-C, and said so
+
+
+def _note_late_ctrl_c(signum: int, frame: object) -> None:
+    """A Ctrl-C once the command has ended: noted (said by `_end_as_interrupted`), never a traceback."""
+    _late_ctrl_c.append(True)
+
+
+def _end_as_interrupted() -> None:
+    """The last thing before the interpreter's finalization (registered first, it runs last): SIGINT
+    ignored from here (finalization would put back the default and the process would die of a late
+    Ctrl-C without a word), and a late Ctrl-C said as one line and status 130."""
+    if signal.getsignal(signal.SIGINT) is _note_late_ctrl_c:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if _late_ctrl_c:
+        if not _ended_interrupted:
+            interrupted()
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(INTERRUPTED)
+
+
+atexit.register(_end_as_interrupted)
 
 try:  # everything the command loads, so that a Ctrl-C meanwhile ends as one while a verb runs does
     import logging
     import os
+    import threading
 
     if os.environ.get("ROBOFAILRING_LOG") != "all":  # before Rerun and OpenCV load and read them
         os.environ.setdefault("RUST_LOG", "error")
@@ -35,7 +63,7 @@ try:  # everything the command loads, so that a Ctrl-C meanwhile ends as one whi
     from rfr_viz.cli.live import app as live_app
     from rfr_viz.cli.replay import app as replay_app
     from rfr_viz.cli.triage import app as triage_app
-    from robofailring.cli.exit_codes import ErrorMappingGroup, interrupted
+    from robofailring.cli.exit_codes import INTERRUPTED, ErrorMappingGroup, interrupted
     from robofailring.cli.verbs import app as library_app
 
     app = typer.Typer(
@@ -77,12 +105,20 @@ def _log_to_stderr() -> None:
 
 def main() -> None:
     """Console entry point (`robofailring`): a Ctrl-C while typer builds the command from its verb apps is
-    one line and 130 too (while it parses or runs a verb, `ErrorMappingGroup` says it)."""
+    one line and 130 too (while it parses or runs a verb, `ErrorMappingGroup` says it), and so is one
+    after the command ended, while the interpreter exits (`_end_as_interrupted`)."""
     try:
         _log_to_stderr()
         app()
     except KeyboardInterrupt:
         raise SystemExit(interrupted()) from None
+    except SystemExit as end:
+        if end.code == INTERRUPTED:
+            _ended_interrupted.append(True)
+        raise
+    finally:  # all output printed: a Ctrl-C from here on is noted, and said as the interpreter exits
+        if threading.current_thread() is threading.main_thread():
+            signal.signal(signal.SIGINT, _note_late_ctrl_c)
 
 
 if __name__ == "__main__":

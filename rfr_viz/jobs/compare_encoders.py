@@ -42,7 +42,7 @@ def _run_encoder_comparison(
     results = compare_encoders(config, existing=existing)
     table = comparison_table(results)
     table_path = Path(config.out) / "comparison.md"
-    write_text_atomic(table_path, table + "\n")
+    write_text_atomic(table_path, table + "\n", claim=True)
     keys = tuple(t.key for t in results[0].scored if t.is_failure)[: max(recordings, 0)]
     replayed = (
         compare(

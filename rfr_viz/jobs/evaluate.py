@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -51,7 +52,8 @@ class FoldsOutcome:
 
 def evaluate(config: EvaluateConfig, *, growth: tuple[int, ...] = ()) -> EvaluateOutcome | FoldsOutcome:
     """Check the output folder, run the evaluation, and write its tables, recording and report,
-    holding the output's lock throughout (two runs into one folder never interleave).
+    holding the output's lock and each output file's throughout (two runs into one folder never
+    interleave; a `watch --save` into one of its files stops it before work).
 
     `growth` (labelled failures per task, e.g. 0, 1, 2, 4) adds the learning curve: one more
     evaluation per level, its memory under `<out>/growth-<n>/`. With `config.folds`, data whose split
@@ -67,9 +69,15 @@ def evaluate(config: EvaluateConfig, *, growth: tuple[int, ...] = ()) -> Evaluat
     )
     if growth:
         check_growth(config)
-    with output_lock(out):
+    files = [
+        out / name for name in (f"{config.name}.json", f"{config.name}.md", f"{config.name}.rrd", REPORT_NAME)
+    ]
+    with ExitStack() as held:
+        held.enter_context(output_lock(out))
+        for file in files:  # a `watch --save` into one of them, or another job writing it: stop before work
+            held.enter_context(output_lock(file))
         remove_file_leftovers(out)
-        check_own_files(out / name for name in (f"{config.name}.json", f"{config.name}.md", REPORT_NAME))
+        check_own_files(file for file in files if file.suffix != ".rrd")
         check_recording_file(out / f"{config.name}.rrd")
         try:
             result = run_evaluation(config)

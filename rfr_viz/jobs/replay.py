@@ -15,7 +15,7 @@ from rfr_viz.panels.map import placer
 from rfr_viz.panels.umap import MemoryMap, memory_map
 from rfr_viz.recordings.replay import compare_recording, record_replay
 from rfr_viz.viewer.rrd import check_recording_file
-from robofailring.atomic import output_lock, remove_file_leftovers
+from robofailring.atomic import check_free, output_lock, remove_file_leftovers
 from robofailring.data.grounding import Vocabulary
 from robofailring.data.layouts import detect_layout
 from robofailring.data.model import Skipped, Trajectory
@@ -223,6 +223,7 @@ def _replay(config: ReplayConfig) -> ReplayResult:
         skipped=result.skipped_inputs,
         vocabulary=found.detector.memory.vocabulary,
     )
+    check_free(recordings.out / recording_name(trajectory) for trajectory in trajectories)
     written: dict[Path, str] = {}
     with progress_bar(total=len(trajectories), desc="replaying", unit="trajectory") as bar:
         for trajectory in trajectories:
@@ -295,6 +296,7 @@ def _compare(config: CompareConfig) -> ReplayResult:
         replace(config.data, labels=None), keys=recordings.trajectories, skipped=result.skipped_inputs
     )
     suffix = "__" + "-vs-".join(slugs)
+    check_free(recordings.out / recording_name(trajectory, suffix) for trajectory in trajectories)
     written: dict[Path, str] = {}
     with progress_bar(total=len(trajectories), desc="comparing", unit="trajectory") as bar:
         for trajectory in trajectories:

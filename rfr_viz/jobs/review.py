@@ -217,7 +217,7 @@ def write_review_labels(config: ReviewConfig) -> ReviewLabels:
         writer = csv.DictWriter(buffer, fieldnames=columns, lineterminator="\n")
         writer.writeheader()
         writer.writerows(merged)
-        write_text_atomic(path, buffer.getvalue())
+        write_text_atomic(path, buffer.getvalue(), claim=True)
     unlabelled = sum(not row.get("outcome", "").strip() for row in merged)
     return ReviewLabels(
         path=path, rows=rows, skipped_inputs=list(dataset.skipped), unlabelled=unlabelled, total=len(merged)

@@ -75,7 +75,7 @@ def record_evaluation(
     evaluations = [r.to_dict() if isinstance(r, EvaluationResult) else r for r in results]
     charts = {str(e["name"]): evaluation_charts(e) for e in evaluations}
     recording = rr.RecordingStream(EVALUATION_APPLICATION_ID, recording_id=str(uuid.uuid4()))
-    with atomic_path(out, suffix=".rrd") as tmp:
+    with atomic_path(out, suffix=".rrd", claim=True) as tmp:
         recording.save(str(tmp), default_blueprint=summary_blueprint(charts))
         for name, shown in charts.items():
             for chart in shown:

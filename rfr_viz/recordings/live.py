@@ -40,7 +40,7 @@ from rfr_viz.recordings.blueprint import ScorePlots, replay_blueprint
 from rfr_viz.recordings.live_target import DEFAULT_VIEWER_URL, LiveTarget, check_viewer
 from rfr_viz.viewer.control import DEFAULT_PORT
 from rfr_viz.viewer.rrd import check_recording_file
-from robofailring.atomic import atomic_path, output_lock
+from robofailring.atomic import atomic_path
 from robofailring.data.model import Frame
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.session import DetectorSession
@@ -154,8 +154,8 @@ class LiveRecording:
             if (
                 target.save is not None
             ):  # no footer: its chunk manifest would grow with every step held in RAM
-                stack.enter_context(output_lock(Path(target.save)))  # a second writer of it stops at once
-                saved = stack.enter_context(atomic_path(Path(target.save), suffix=".rrd"))
+                # claimed: a second writer of it stops at once, and a file put there meanwhile stays
+                saved = stack.enter_context(atomic_path(Path(target.save), suffix=".rrd", claim=True))
                 sinks.append(rr.FileSink(saved, write_footer=False))
             url = target.connect
             if url is not None:

@@ -207,7 +207,7 @@ def open_recording(
     out: Path, blueprint: rrb.Blueprint, *, recording_id: str | None
 ) -> Iterator[rr.RecordingStream]:
     """A recording saved to a temporary file that becomes `out` only if the block succeeds."""
-    with atomic_path(Path(out), suffix=".rrd") as tmp:
+    with atomic_path(Path(out), suffix=".rrd", claim=True) as tmp:
         rec = rr.RecordingStream(
             APPLICATION_ID, recording_id=recording_id or str(uuid.uuid4()), batcher_config=BATCHING
         )

@@ -23,7 +23,7 @@ import os
 import re
 import shutil
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from robofailring.errors import OutputBusyError
@@ -46,21 +46,57 @@ def _umask() -> int:
 
 
 @contextlib.contextmanager
-def atomic_path(final: Path, *, suffix: str = "") -> Iterator[Path]:
-    """Yield a temporary file path beside `final`; rename it onto `final` only if the block succeeds."""
+def atomic_path(final: Path, *, suffix: str = "", claim: bool = False) -> Iterator[Path]:
+    """Yield a temporary file path beside `final`; rename it onto `final` only if the block succeeds.
+
+    With `claim` (a job's output: a recording, a table) `final`'s `output_lock` is held while it is
+    written, so a second writer stops (OutputBusyError), and a version another process put at `final`
+    meanwhile is never replaced: this one is kept beside it under a free name, and OutputBusyError
+    says where (nothing lost either way)."""
     final = _target(final)
-    final.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = _held_temporary(final, suffix)
-    try:
-        yield tmp
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; the result is shared like any file
-        os.replace(tmp, final)
-    finally:
+    with contextlib.ExitStack() as stack:
+        if claim:
+            stack.enter_context(output_lock(final))
+        before = _version(final)
+        final.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = _held_temporary(final, suffix)
         try:
-            if tmp.exists():
-                tmp.unlink()
+            yield tmp
+            os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; the result is shared like any file
+            if claim and _version(final) != before:
+                raise OutputBusyError(
+                    f"another process wrote {final} while this one was writing it; it is left as it is, "
+                    f"and this output is kept as {_keep_beside(tmp, final)}"
+                )
+            os.replace(tmp, final)
         finally:
-            os.close(fd)  # releases the flock: from here the name is gone or is `final`
+            try:
+                if tmp.exists():
+                    tmp.unlink()
+            finally:
+                os.close(fd)  # releases the flock: from here the name is gone or is `final`
+
+
+def _version(path: Path) -> tuple[int, int, int] | None:
+    """Which version of a file is at `path` (inode, size, modification time); None when there is none."""
+    try:
+        stat = os.stat(path)
+    except FileNotFoundError:
+        return None
+    return stat.st_ino, stat.st_size, stat.st_mtime_ns
+
+
+def _keep_beside(tmp: Path, final: Path) -> Path:
+    """`tmp` linked under the first free name `<stem>-<n><suffix>` beside `final` (never over a file)."""
+    number = 2
+    while True:
+        kept = final.with_name(f"{final.stem}-{number}{final.suffix}")
+        try:
+            os.link(tmp, kept)
+        except FileExistsError:
+            number += 1
+            continue
+        return kept
 
 
 def _held_temporary(final: Path, suffix: str) -> tuple[int, Path]:
@@ -95,9 +131,9 @@ def _remove_unheld(path: Path) -> None:
         os.close(fd)
 
 
-def write_text_atomic(final: Path, text: str) -> None:
-    """Write a text file atomically."""
-    with atomic_path(final) as tmp:
+def write_text_atomic(final: Path, text: str, *, claim: bool = False) -> None:
+    """Write a text file atomically (`claim`: a job's output, see `atomic_path`)."""
+    with atomic_path(final, claim=claim) as tmp:
         tmp.write_text(text, encoding="utf-8")
 
 
@@ -177,6 +213,14 @@ def output_lock(final: Path, *, wait: bool = False) -> Iterator[None]:
         finally:
             del _HELD[lock]
             lock.unlink(missing_ok=True)
+
+
+def check_free(paths: Iterable[Path]) -> None:
+    """OutputBusyError, before any work, when another process holds the `output_lock` of one of `paths`:
+    for a job with more outputs than it could hold locks at once (each is claimed as it is written)."""
+    for path in paths:
+        with output_lock(path):
+            pass
 
 
 @contextlib.contextmanager

@@ -84,4 +84,41 @@ def test_real_ctrl_c_at_many_moments_of_the_first_moments(pixels_memory_dir: Pat
             continue  # done before the signal, or signalled before the script ran: not the command's
         counted.append((moment, (process.returncode, stderr, stdout)))
     assert len(counted) >= 6, counted
-    assert [outcome for _, outcome in counted] == [INTERRUPTED] * len(counted), counted
+    after_the_output = (
+        *INTERRUPTED[:2],
+        whole.stdout,
+    )  # as the command ends: its output whole, then the line
+    assert all(outcome in (INTERRUPTED, after_the_output) for _, outcome in counted), counted
+
+
+CTRL_C_AS_IT_ENDS = """
+import os, signal, sys, threading, time
+where = sys.argv[1]
+def ctrl_c():
+    os.kill(os.getpid(), signal.SIGINT)
+    time.sleep(0.2)  # the signal is delivered and handled meanwhile
+sys.argv[1:] = sys.argv[2:]
+from rfr_viz.cli.app import main  # what the console script runs
+if where == "atexit":  # the interpreter running its exit functions
+    import atexit
+    atexit.register(ctrl_c)
+try:
+    sys.exit(main())
+finally:
+    if where == "script":  # the console script's line, its output all printed
+        ctrl_c()
+    elif where == "threads":  # the interpreter waiting for a thread still running
+        threading.Thread(target=time.sleep, args=(0.4,)).start()
+        threading.Timer(0.1, ctrl_c).start()
+"""
+
+
+@pytest.mark.parametrize("where", ["script", "threads", "atexit"])
+def test_a_ctrl_c_as_the_command_ends_is_one_line_and_130(where: str, pixels_memory_dir: Path) -> None:
+    """Outside use round 6, M1: a Ctrl-C after the command printed all its output (the console script
+    ending, the interpreter exiting) killed the process by the signal itself: status 130 (or -2) and no
+    word. It is now the same one line and 130 as any other, after the command's whole output."""
+    command = [sys.executable, "-c", CTRL_C_AS_IT_ENDS, where, "memory-info", str(pixels_memory_dir)]
+    done = subprocess.run(command, capture_output=True, text=True, env=_env(), check=False)
+    assert (done.returncode, done.stderr) == INTERRUPTED[:2], done
+    assert str(pixels_memory_dir) in done.stdout  # the command's output, whole, before the line

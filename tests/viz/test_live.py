@@ -488,3 +488,78 @@ def test_a_second_watch_saving_to_the_same_file_stops_before_any_work(
     assert "another robofailring process is writing" in errors[0]
     assert watcher.returncode == 0, stderr
     assert properties(save)["L"] == 8
+
+
+def _error_lines(output: str) -> list[str]:
+    return [line for line in output.splitlines() if line.startswith("error:")]
+
+
+def test_an_evaluate_into_the_file_of_a_running_watch_stops_before_work(
+    aha_dataset: Path, episode: Path, pixels_memory_dir: Path, tmp_path: Path
+) -> None:
+    """Outside use round 6, N3, data loss: `evaluate --out rec --name mylive` wrote rec/mylive.rrd while
+    a `watch --save rec/mylive.rrd` ran, and the watch then renamed its stream over it. The evaluation
+    holds each of its files' lock before work: it stops (status 1, the file named), nothing written."""
+    rec = tmp_path / "rec"
+    save = rec / "mylive.rrd"
+    watcher = _watch_held_at_step_3(episode, pixels_memory_dir, save, tmp_path)
+    try:
+        evaluated = runner.invoke(
+            app, ["evaluate", str(aha_dataset), "--encoder", "pixels", "--out", str(rec), "--name", "mylive"]
+        )
+    finally:
+        (tmp_path / "go").touch()
+        _, stderr = watcher.communicate(timeout=300)
+    errors = _error_lines(evaluated.output)
+    assert evaluated.exit_code == 1 and len(errors) == 1, evaluated.output
+    assert str(save) in errors[0] and "another robofailring process is writing" in errors[0]
+    assert watcher.returncode == 0, stderr
+    assert properties(save)["L"] == 8  # the watch's recording, whole
+    assert sorted(p.name for p in rec.iterdir()) == ["mylive.rrd"]  # no table of a run that never ran
+
+
+def test_a_replay_onto_the_file_of_a_running_watch_stops_before_work(
+    episode: Path, pixels_memory_dir: Path, tmp_path: Path
+) -> None:
+    """Outside use round 6, N4: a replay wrote the very file a running `watch --save` was writing, and
+    the watch's rename replaced it, with no word from either. The replay now checks each recording's
+    lock before work and stops (status 1, the file named); the watch's recording is whole."""
+    rec = tmp_path / "rec"
+    save = rec / f"pick_cube__{episode.name}.rrd"
+    watcher = _watch_held_at_step_3(episode, pixels_memory_dir, save, tmp_path)
+    try:
+        replayed = runner.invoke(
+            app,
+            ["replay", str(episode), "--memory", str(pixels_memory_dir), "--out", str(rec), "--delta", DELTA],
+        )
+    finally:
+        (tmp_path / "go").touch()
+        _, stderr = watcher.communicate(timeout=300)
+    errors = _error_lines(replayed.output)
+    assert replayed.exit_code == 1 and len(errors) == 1, replayed.output
+    assert str(save) in errors[0] and "another robofailring process is writing" in errors[0]
+    assert watcher.returncode == 0, stderr
+    assert properties(save)["L"] == 8
+    assert sorted(p.name for p in rec.iterdir()) == [save.name]
+
+
+def test_a_watch_never_renames_over_a_file_another_process_wrote_meanwhile(
+    episode: Path, pixels_memory_dir: Path, tmp_path: Path
+) -> None:
+    """A writer that takes no lock (a copy, an older robofailring) puts a file where a running watch
+    saves: the watch keeps that file and saves its own stream beside it, under a free name, and says so
+    in one `error:` line (status 1): nothing replaced, nothing lost."""
+    save = tmp_path / "rec" / "mylive.rrd"
+    watcher = _watch_held_at_step_3(episode, pixels_memory_dir, save, tmp_path)
+    try:
+        save.write_bytes(b"written by someone else")
+    finally:
+        (tmp_path / "go").touch()
+        _, stderr = watcher.communicate(timeout=300)
+    kept = save.with_name("mylive-2.rrd")
+    errors = _error_lines(stderr)
+    assert watcher.returncode == 1 and len(errors) == 1, stderr
+    assert str(save) in errors[0] and str(kept) in errors[0]
+    assert save.read_bytes() == b"written by someone else"
+    assert properties(kept)["L"] == 8  # the watch's stream, whole, under the free name
+    assert sorted(p.name for p in save.parent.iterdir()) == ["mylive-2.rrd", "mylive.rrd"]

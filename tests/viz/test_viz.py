@@ -244,7 +244,7 @@ def test_a_failed_write_leaves_nothing_under_the_final_name(
     out = tmp_path / "recs" / "replay.rrd"
     with pytest.raises(RuntimeError, match="disk on fire"):
         record_replay(trajectory, trace, out=out, memory_map=mapped)
-    assert not out.exists() and list(out.parent.iterdir()) == []
+    assert not out.parent.exists()  # nothing under the final name, nor the folder made for it
     # an earlier recording under that name survives a failed rewrite untouched
     monkeypatch.undo()
     record_replay(trajectory, trace, out=out, memory_map=mapped)

@@ -69,6 +69,6 @@ def cross_validate_alone(config: EvaluateConfig, held_out: SplitError) -> FoldsA
 def write_folds_alone(result: FoldsAlone, out: Path) -> tuple[Path, Path]:
     """<name>.json and <name>.md under `out`, written atomically (the names a full evaluation writes)."""
     json_path, md_path = Path(out) / f"{result.name}.json", Path(out) / f"{result.name}.md"
-    write_text_atomic(json_path, json.dumps(result.to_dict(), indent=2))
-    write_text_atomic(md_path, result.to_markdown() + "\n")
+    write_text_atomic(json_path, json.dumps(result.to_dict(), indent=2), claim=True)
+    write_text_atomic(md_path, result.to_markdown() + "\n", claim=True)
     return json_path, md_path

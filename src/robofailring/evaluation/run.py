@@ -344,6 +344,6 @@ def write_evaluation(result: EvaluationResult, out: Path) -> tuple[Path, Path]:
     """evaluation.json and evaluation.md under `out`, written atomically."""
     out = Path(out)
     json_path, md_path = out / f"{result.name}.json", out / f"{result.name}.md"
-    write_text_atomic(json_path, json.dumps(result.to_dict(), indent=2))
-    write_text_atomic(md_path, result.to_markdown() + "\n")
+    write_text_atomic(json_path, json.dumps(result.to_dict(), indent=2), claim=True)
+    write_text_atomic(md_path, result.to_markdown() + "\n", claim=True)
     return json_path, md_path

@@ -122,6 +122,6 @@ def summarize(records: Sequence[dict[str, Any]], *, uncalibrated: Sequence[str] 
 def write_summary(summary: RolloutSummary, out: Path) -> tuple[Path, Path]:
     """`rollouts.json` and `rollouts.md` under `out`, written atomically."""
     json_path, md_path = Path(out) / f"{SUMMARY_NAME}.json", Path(out) / f"{SUMMARY_NAME}.md"
-    write_text_atomic(json_path, json.dumps(summary.to_dict(), indent=2))
-    write_text_atomic(md_path, summary.to_markdown() + "\n")
+    write_text_atomic(json_path, json.dumps(summary.to_dict(), indent=2), claim=True)
+    write_text_atomic(md_path, summary.to_markdown() + "\n", claim=True)
     return json_path, md_path

@@ -113,7 +113,7 @@ def write_table(path: Path, rows: Sequence[dict[str, str]]) -> Path:
     writer = csv.DictWriter(buffer, fieldnames=columns, lineterminator="\n", extrasaction="ignore")
     writer.writeheader()
     writer.writerows(merged[i] for i in order)
-    write_text_atomic(path, buffer.getvalue())
+    write_text_atomic(path, buffer.getvalue(), claim=True)
     return path
 
 
