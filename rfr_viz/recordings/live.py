@@ -37,10 +37,7 @@ from rfr_viz.panels.scores import log_score_styles, set_frame_time, threshold_pr
 from rfr_viz.panels.umap import MemoryMap
 from rfr_viz.paths import APPLICATION_ID, DEFAULT_FPS, PROPERTIES, REPLAY, signal
 from rfr_viz.recordings.blueprint import ScorePlots, replay_blueprint
-from rfr_viz.recordings.live_target import DEFAULT_VIEWER_URL, LiveTarget, check_viewer
-from rfr_viz.viewer.control import DEFAULT_PORT
-from rfr_viz.viewer.rrd import check_recording_file
-from robofailring.atomic import atomic_path
+from rfr_viz.recordings.live_target import LiveTarget
 from robofailring.data.model import Frame
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.session import DetectorSession
@@ -130,8 +127,7 @@ class LiveRecording:
         is flushed, and a saved file appears at `target.save` (not on error); while it is written, the
         file's `output_lock` is held and its temporary file is left alone by any other job's cleaning.
         """
-        if target.save is not None:
-            check_recording_file(Path(target.save))  # a memory's manifest, a labels file, a frame: never
+        target.check()
         entries = detector.memory.entries
         cell = _cell(entries[0].start if entries else "", NeighborImages(detector.memory.image_roots))
         blueprint = replay_blueprint(
@@ -150,22 +146,7 @@ class LiveRecording:
         )
         with ExitStack() as stack:
             rec = rr.RecordingStream(APPLICATION_ID, recording_id=str(uuid.uuid4()))
-            sinks: list[Any] = []
-            if (
-                target.save is not None
-            ):  # no footer: its chunk manifest would grow with every step held in RAM
-                # claimed: a second writer of it stops at once, and a file put there meanwhile stays
-                saved = stack.enter_context(atomic_path(Path(target.save), suffix=".rrd", claim=True))
-                sinks.append(rr.FileSink(saved, write_footer=False))
-            url = target.connect
-            if url is not None:
-                check_viewer(url)
-            if target.spawn:
-                rec.spawn(port=DEFAULT_PORT, connect=False, hide_welcome_screen=True)
-                url = url or DEFAULT_VIEWER_URL
-            if url is not None:
-                sinks.append(rr.GrpcSink(url))
-            rec.set_sinks(*sinks, default_blueprint=blueprint)
+            url = target.send(rec, stack, blueprint)
             live = cls(
                 rec,
                 detector,

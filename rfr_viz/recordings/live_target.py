@@ -1,17 +1,24 @@
-"""Where a live recording goes (`LiveTarget`: a running viewer, a spawned one, a file) and the check that a
-viewer listens where one is named."""
+"""Where a live recording goes (`LiveTarget`: a running viewer, a spawned one, a file), the check that a
+viewer listens where one is named, and the stream's sinks opened on them."""
 
 from __future__ import annotations
 
 import contextlib
 import socket
+from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Final
+from typing import TYPE_CHECKING, Any, Final
 
 from rfr_viz.viewer.binary import ViewerUnavailable
 from rfr_viz.viewer.control import DEFAULT_PORT
+from rfr_viz.viewer.rrd import check_recording_file
+from robofailring.atomic import atomic_path
 from robofailring.errors import SettingError
+from robofailring.extras import needs_extra
+
+if TYPE_CHECKING:
+    import rerun as rr
 
 DEFAULT_VIEWER_URL: Final[str] = f"rerun+http://127.0.0.1:{DEFAULT_PORT}/proxy"
 
@@ -34,6 +41,34 @@ class LiveTarget:
         if connect is None and not spawn and save is None:
             connect = DEFAULT_VIEWER_URL
         return cls(connect=connect, spawn=spawn, save=save)
+
+    def check(self) -> None:
+        """Before any work: a file to save to is not one robofailring did not write (a memory's manifest, a
+        labels file, a frame), and would be replaced (`check_recording_file`)."""
+        if self.save is not None:
+            check_recording_file(Path(self.save))
+
+    def send(self, rec: rr.RecordingStream, stack: ExitStack, blueprint: Any) -> str | None:
+        """`rec` sent here with `blueprint` as its layout: the file (claimed in `stack`: a second writer of
+        it stops at once, a file put there meanwhile stays; moved into place when `stack` closes), a viewer
+        spawned, and a running one checked to listen first; the viewer's URL, if any."""
+        with needs_extra("viz"):
+            import rerun as rr
+
+        sinks: list[Any] = []
+        if self.save is not None:  # no footer: its chunk manifest would grow with every step held in RAM
+            saved = stack.enter_context(atomic_path(Path(self.save), suffix=".rrd", claim=True))
+            sinks.append(rr.FileSink(saved, write_footer=False))
+        url = self.connect
+        if url is not None:
+            check_viewer(url)
+        if self.spawn:
+            rec.spawn(port=DEFAULT_PORT, connect=False, hide_welcome_screen=True)
+            url = url or DEFAULT_VIEWER_URL
+        if url is not None:
+            sinks.append(rr.GrpcSink(url))
+        rec.set_sinks(*sinks, default_blueprint=blueprint)
+        return url
 
 
 def check_viewer(url: str) -> None:
