@@ -19,6 +19,13 @@ Colour = tuple[int, int, int]
 RULE_COLOURS: Final[tuple[Colour, ...]] = ((60, 120, 220), (235, 130, 40), (150, 90, 200))
 RECALL_COLOUR: Final[Colour] = (40, 160, 80)
 FPR_COLOUR: Final[Colour] = (220, 60, 50)
+
+
+def rule_colour(i: int) -> Colour:
+    """The `i`-th rule's colour, the palette repeated for a fourth rule and on."""
+    return RULE_COLOURS[i % len(RULE_COLOURS)]
+
+
 _THRESHOLD_KEYS: Final[tuple[str, ...]] = ("threshold", "delta", "gamma")
 
 
@@ -136,7 +143,7 @@ def _bars(key: str, title: str, rules: Sequence[Rule], table: list[dict[str, flo
         series=[
             Series(
                 _label(rule),
-                RULE_COLOURS[i % len(RULE_COLOURS)],
+                rule_colour(i),
                 [values.get(c, math.nan) for c in categories],
             )
             for i, (rule, values) in enumerate(zip(rules, table, strict=True))
@@ -200,7 +207,7 @@ def evaluation_charts(evaluation: Mapping[str, Any]) -> list[Chart]:
             series=[
                 Series(
                     _label(r),
-                    RULE_COLOURS[i % len(RULE_COLOURS)],
+                    rule_colour(i),
                     [s[1] for s in r.sweep],
                     [s[2] for s in r.sweep],
                 )
@@ -208,7 +215,7 @@ def evaluation_charts(evaluation: Mapping[str, Any]) -> list[Chart]:
             ],
             marks=marks_apart(
                 [
-                    Mark(fpr, recall, f"{r.symbol}={t:.2f}", RULE_COLOURS[i % len(RULE_COLOURS)])
+                    Mark(fpr, recall, f"{r.symbol}={t:.2f}", rule_colour(i))
                     for i, r in enumerate(rules)
                     for t, recall, fpr in r.marked
                     if not (math.isnan(recall) or math.isnan(fpr))
@@ -234,7 +241,7 @@ def evaluation_charts(evaluation: Mapping[str, Any]) -> list[Chart]:
                         rule.operating,
                         1.0,
                         f"operating {rule.symbol} = {rule.operating:.3f}",
-                        RULE_COLOURS[i],
+                        rule_colour(i),
                         vertical=True,
                     )
                 ]
@@ -261,7 +268,7 @@ def evaluation_charts(evaluation: Mapping[str, Any]) -> list[Chart]:
             title="When failures are detected: t_det / L",
             categories=[f"{20 * b}–{20 * (b + 1)}" for b in range(5)] if any(counts) else [],
             series=[
-                Series(_label(r), RULE_COLOURS[i % len(RULE_COLOURS)], [float(c) for c in shown])
+                Series(_label(r), rule_colour(i), [float(c) for c in shown])
                 for i, (r, shown) in enumerate(zip(rules, counts, strict=True))
             ],
             y_max=float(max(peak, 1)),

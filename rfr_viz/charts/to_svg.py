@@ -12,6 +12,7 @@ from rfr_viz.charts.evaluation import Chart, Colour, label_rows
 WIDTH: Final[int] = 460
 HEIGHT: Final[int] = 300
 LEFT, RIGHT, TOP, BOTTOM = 52, 16, 56, 52  # plot margins (px)
+LEGEND_ROW: Final[int] = 13  # a legend row's height (px): two rows fit above the plot
 
 
 def _rgb(colour: Colour) -> str:
@@ -57,11 +58,14 @@ def chart_svg(chart: Chart) -> str:
     parts += _bars(chart, plot_w, plot_h, y_of) if chart.is_bars else _lines(chart, plot_w, plot_h, y_of)
     if chart.x_label:
         parts.append(_text(LEFT + plot_w / 2, HEIGHT - 8, chart.x_label, size=11))
-    x = LEFT
-    for series in chart.series:  # legend under the title
-        parts.append(f'<rect x="{x}" y="25" width="10" height="10" fill="{_rgb(series.colour)}"/>')
-        parts.append(_text(x + 14, 34, series.name, anchor="start", size=10))
-        x += 24 + 6 * len(series.name)
+    x, y = LEFT, 25
+    for series in chart.series:  # legend under the title, on a second row where the first is full
+        width = 24 + 6 * len(series.name)
+        if x > LEFT and x + width > WIDTH - RIGHT + 10:  # the last entry's spacing may pass the margin
+            x, y = LEFT, y + LEGEND_ROW
+        parts.append(f'<rect x="{x}" y="{y}" width="10" height="10" fill="{_rgb(series.colour)}"/>')
+        parts.append(_text(x + 14, y + 9, series.name, anchor="start", size=10))
+        x += width
     parts.append("</svg>")
     return "\n".join(parts)
 

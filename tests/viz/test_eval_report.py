@@ -199,3 +199,32 @@ def test_charts_stay_readable_at_1280_by_720(evaluated: tuple[Path, dict[str, An
         ]
     )
     assert [(m.x, m.label) for m in marks] == [(0.0, "δ=0.85, 0.90"), (0.0, "γ=0.10"), (0.5, "δ=0.95")]
+
+
+def _four_rules(evaluation: dict[str, Any]) -> dict[str, Any]:
+    """The evaluation with a fourth rule in the `rules` layout: a rule added to the registry is charted."""
+    more = copy.deepcopy(evaluation)
+    more["rules"]["margin"] = {**copy.deepcopy(evaluation["rules"]["contrast"]), "symbol": "κ"}
+    return more
+
+
+def test_a_fourth_rule_is_charted_with_its_legend_inside_the_picture(
+    evaluated: tuple[Path, dict[str, Any]],
+) -> None:
+    """A rule past the palette's three colours takes the first again (before: an IndexError in `evaluate`), and a
+    legend too long for one row wraps to a second instead of running off the chart (before: cut off)."""
+    from rfr_viz.charts.to_svg import WIDTH, chart_svg
+
+    _, evaluation = evaluated
+    charts = {chart.key: chart for chart in evaluation_charts(_four_rules(evaluation))}
+    assert "sweep_margin" in charts
+    roc = charts["roc"]
+    assert [s.name.split(" ")[0] for s in roc.series] == ["paper", "contrast", "novelty", "margin"]
+    assert roc.series[3].colour == RULE_COLOURS[0]
+    assert charts["sweep_margin"].marks[0].colour == RULE_COLOURS[0]
+    svg = chart_svg(roc)
+    legend = re.findall(r'<rect x="(\d+)" y="(\d+)" width="10" height="10"', svg)
+    assert len(legend) == 4 and len({y for _, y in legend}) == 2  # two rows
+    names = [s.name for s in roc.series]
+    for (x, _), name in zip(legend, names, strict=True):  # each entry's text ends inside the picture
+        assert int(x) + 14 + 6 * len(name) <= WIDTH, (x, name)
