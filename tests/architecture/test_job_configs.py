@@ -14,9 +14,10 @@ from pathlib import Path
 
 import pytest
 
+from rfr_viz.jobs.compare import CompareConfig
 from rfr_viz.jobs.demo import DemoConfig
 from rfr_viz.jobs.recorded import Recordings
-from rfr_viz.jobs.replay import CompareConfig, ReplayConfig
+from rfr_viz.jobs.replay import ReplayConfig
 from rfr_viz.jobs.review import ReviewConfig
 from rfr_viz.jobs.watch import WatchConfig
 from robofailring.calibration.job import CalibrateConfig
@@ -25,10 +26,10 @@ from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.encoders.training import TrainEncoderConfig
 from robofailring.errors import SettingError
-from robofailring.evaluation.comparison import CompareEncodersConfig
-from robofailring.evaluation.training import EvaluateConfig
+from robofailring.evaluation.job import EvaluateConfig
 from robofailring.explain.vlm import VLMConfig
 from robofailring.jobs.build_memory import BuildMemoryConfig
+from robofailring.jobs.compare_encoders import CompareEncodersConfig
 from robofailring.jobs.detect import DetectConfig
 from robofailring.memory.recipe import MemoryRecipe
 from robofailring.triage import TriageConfig
@@ -117,6 +118,6 @@ def test_jobs_refuse_settings_their_values_cannot_take(tmp_path: Path) -> None:
 
 
 def _folds() -> typing.Any:
-    from robofailring.evaluation.training import FoldPlan
+    from robofailring.evaluation.job import FoldPlan
 
     return FoldPlan.parse("loo")

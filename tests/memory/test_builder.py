@@ -19,7 +19,7 @@ from robofailring.detection.config import DetectorConfig
 from robofailring.encoders import portable_spec
 from robofailring.encoders.base import BLANK_REASON
 from robofailring.errors import MemoryFormatError
-from robofailring.evaluation.run import EvaluateConfig, build_training_memory
+from robofailring.evaluation.job import EvaluateConfig, build_training_memory
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.memory.builder import Provenance, build_memories
 from robofailring.memory.failure import ENTRIES, MANIFEST

@@ -1,4 +1,5 @@
-"""Dataset generation: episodes in a process pool, written atomically in the project's layout."""
+"""The generate job: its config (`GenerateConfig`) and its run (`simulate`, `generate_dataset` with a progress
+bar): episodes in a process pool, written atomically in the project's layout."""
 
 from __future__ import annotations
 
@@ -23,6 +24,7 @@ from robofailring.data.layouts.project import SIGNALS_FILE
 from robofailring.errors import DataError, SettingError
 from robofailring.jsontext import parse_json
 from robofailring.outputs import check_folder
+from robofailring.progress import progress_bar
 from robofailring.sim.appearance import look_mode
 from robofailring.sim.cameras import VIEWS
 from robofailring.sim.episode import DURATION_S, EpisodeResult, episode_fps, run_episode
@@ -353,3 +355,10 @@ def generate_dataset(config: GenerateConfig, *, progress: Callable[[int], None] 
         manifest = manifest_for(config, records)
         (root / PROJECT_MANIFEST).write_text(json.dumps(manifest, indent=1) + "\n", encoding="utf-8")
     return out
+
+
+def simulate(config: GenerateConfig, *, label: str = "") -> Path:
+    """`generate_dataset` with a progress bar (a folder already holding the same set is returned as is)."""
+    desc = f"simulating {label}".strip()
+    with progress_bar(total=config.total_episodes, desc=desc, unit="episode") as bar:
+        return generate_dataset(config, progress=bar.update)
