@@ -22,7 +22,7 @@ from robofailring.errors import MemoryFormatError
 from robofailring.evaluation.job import EvaluateConfig, build_training_memory
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.memory.builder import Provenance, build_memories
-from robofailring.memory.failure import ENTRIES, MANIFEST
+from robofailring.memory.folder import ENTRIES, MANIFEST
 from robofailring.memory.format import read_jsonl
 from robofailring.memory.recipe import MemoryRecipe
 from robofailring.memory.success import RUNS
