@@ -14,7 +14,7 @@ from robofailring.data.model import Skipped
 from robofailring.errors import SplitError
 from robofailring.evaluation.folds import CrossValidation, cross_validate
 from robofailring.evaluation.job import EvaluateConfig, evaluation_encoder, load_labelled
-from robofailring.evaluation.result import skipped_inputs_markdown
+from robofailring.evaluation.markdown import skipped_inputs_markdown
 from robofailring.outputs import EVALUATION_FORMAT
 
 
