@@ -35,10 +35,9 @@ from robofailring.sim.tasks import TASKS
 
 FORMAT_VERSION: Final[int] = 1
 GENERATOR: Final[str] = "robofailring.sim"
-#: Bumped whenever the simulator's output changes for the same config (invalidates caches).
-SIM_VERSION: Final[int] = (
-    4  # 2: the arm drawn with low-poly meshes (robot.LOW_POLY_LINKS); 3: onset_frame; 4: signals
-)
+#: Bumped whenever the simulator's output changes for the same config (invalidates caches). 2: the arm drawn
+#: with low-poly meshes (robot.LOW_POLY_LINKS); 3: onset_frame; 4: signals.
+SIM_VERSION: Final[int] = 4
 _SUCCESS_RETRIES: Final[int] = 3
 #: The largest image side generated: pybullet's CPU renderer takes ~3 s a frame of three views at
 #: 1024 px (two minutes an episode of 40 frames), and a side far beyond ends the worker with bad_alloc.
@@ -359,6 +358,5 @@ def generate_dataset(config: GenerateConfig, *, progress: Callable[[int], None] 
 
 def simulate(config: GenerateConfig, *, label: str = "") -> Path:
     """`generate_dataset` with a progress bar (a folder already holding the same set is returned as is)."""
-    desc = f"simulating {label}".strip()
-    with progress_bar(total=config.total_episodes, desc=desc, unit="episode") as bar:
+    with progress_bar(total=config.total_episodes, desc=f"simulating {label}".strip(), unit="episode") as bar:
         return generate_dataset(config, progress=bar.update)
