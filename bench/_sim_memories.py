@@ -18,9 +18,8 @@ import numpy as np
 
 from robofailring.data.layouts import load_dataset
 from robofailring.encoders import default_cache_dir, open_encoder
-from robofailring.jobs.simulate import simulate
 from robofailring.memory.failure import FailureMemory
-from robofailring.sim import TASKS, GenerateConfig
+from robofailring.sim import TASKS, GenerateConfig, simulate
 
 DEMO_DATA = "demo-data/sim-id"  # under the robofailring cache dir, written by `robofailring demo`
 DEMO_TRAINED = "demo-data/trained-encoder"  # the demo's trained encoder, when it trained one

@@ -40,7 +40,7 @@ from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
 from robofailring.encoders import default_cache_dir, encoder_slug, load_encoder
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
-from robofailring.evaluation.run import EvaluateConfig
+from robofailring.evaluation.job import EvaluateConfig
 from robofailring.memory.recipe import MemoryRecipe
 
 HERE = Path(__file__).resolve().parent

@@ -37,12 +37,12 @@ from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.encoders import default_cache_dir, encoder_slug, load_encoder
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
-from robofailring.evaluation.run import EvaluateConfig, EvaluationResult, run_evaluation, write_evaluation
-from robofailring.jobs.simulate import simulate
+from robofailring.evaluation.job import EvaluateConfig
+from robofailring.evaluation.run import EvaluationResult, run_evaluation, write_evaluation
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.recipe import MemoryRecipe
 from robofailring.memory.thinning import DEFAULT_STEP
-from robofailring.sim import TASKS, GenerateConfig
+from robofailring.sim import TASKS, GenerateConfig, simulate
 
 IMAGE_SIZE = 64
 FRAMES = 28

@@ -185,10 +185,10 @@ def quality(threads: int, alpha: float, *, data: Path | None = None, encoder: st
     from bench.bench_quality import IMAGE_SIZE
     from robofailring.detection.config import DetectorConfig
     from robofailring.encoders.training import TrainEncoderConfig, train_encoder
-    from robofailring.evaluation.run import EvaluateConfig, run_evaluation
-    from robofailring.jobs.simulate import simulate
+    from robofailring.evaluation.job import EvaluateConfig
+    from robofailring.evaluation.run import run_evaluation
     from robofailring.memory.recipe import MemoryRecipe
-    from robofailring.sim import GenerateConfig
+    from robofailring.sim import GenerateConfig, simulate
 
     torch.set_num_threads(threads)
     if data is None:

@@ -43,9 +43,8 @@ from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.encoders import default_cache_dir, open_encoder
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
-from robofailring.jobs.simulate import simulate
 from robofailring.memory.builder import Provenance, build_memories
-from robofailring.sim import TASKS, GenerateConfig
+from robofailring.sim import TASKS, GenerateConfig, simulate
 from robofailring.triage import TriageConfig, ranking_quality, run_triage
 
 ROOT = default_cache_dir() / "bench-triage"

@@ -17,8 +17,9 @@ TYPE_CHECKING = (
 )
 
 if TYPE_CHECKING:
+    from rfr_viz.jobs.compare import CompareConfig, compare
     from rfr_viz.jobs.recorded import Recordings
-    from rfr_viz.jobs.replay import CompareConfig, ReplayConfig, ReplayResult, compare, replay
+    from rfr_viz.jobs.replay import ReplayConfig, ReplayResult, replay
     from rfr_viz.jobs.review import ReviewConfig, review
     from rfr_viz.panels.umap import MemoryMap, fit_map, memory_map
     from rfr_viz.paths import APPLICATION_ID, DetectorPaths
@@ -36,7 +37,7 @@ if TYPE_CHECKING:
 _LAZY = {  # name -> the module it is imported from on first use
     "APPLICATION_ID": "rfr_viz.paths",
     "ClosedLoopResult": "rfr_viz.recordings.closed_loop",
-    "CompareConfig": "rfr_viz.jobs.replay",
+    "CompareConfig": "rfr_viz.jobs.compare",
     "DetectorPaths": "rfr_viz.paths",
     "InlineRecording": "rfr_viz.recordings.notebook",
     "LiveRecording": "rfr_viz.recordings.live",
@@ -49,7 +50,7 @@ _LAZY = {  # name -> the module it is imported from on first use
     "ReviewConfig": "rfr_viz.jobs.review",
     "Screenshot": "rfr_viz.viewer.control",
     "ViewerUnavailable": "rfr_viz.viewer.binary",
-    "compare": "rfr_viz.jobs.replay",
+    "compare": "rfr_viz.jobs.compare",
     "compare_blueprint": "rfr_viz.recordings.blueprint",
     "compare_recording": "rfr_viz.recordings.replay",
     "fit_map": "rfr_viz.panels.umap",

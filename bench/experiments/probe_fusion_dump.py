@@ -31,13 +31,13 @@ from robofailring.data.selection import DataSelection
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.rules import CONTRAST
 from robofailring.encoders import default_cache_dir
-from robofailring.evaluation.run import _deploy_successes
-from robofailring.evaluation.training import (
+from robofailring.evaluation.job import (
     EvaluateConfig,
     build_training_memory,
     evaluation_encoder,
     select_splits,
 )
+from robofailring.evaluation.run import _deploy_successes
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.recipe import MemoryRecipe
 

@@ -28,8 +28,8 @@ from robofailring.data.selection import DataSelection
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.rules import CONTRAST
 from robofailring.encoders import encoder_slug, load_encoder, open_encoder
+from robofailring.evaluation.job import EvaluateConfig, select_splits
 from robofailring.evaluation.run import _deploy_successes
-from robofailring.evaluation.training import EvaluateConfig, select_splits
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.recipe import MemoryRecipe
 

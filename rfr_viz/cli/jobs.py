@@ -98,8 +98,7 @@ def evaluate_cmd(
     """Every scoring rule side by side at one α, then the paper's tables: Recall/FPR sweep, T_s, per type and view."""
     from rfr_viz.jobs.evaluate import FoldsOutcome, evaluate
     from robofailring.evaluation.growth import parse_growth
-    from robofailring.evaluation.run import EvaluateConfig
-    from robofailring.evaluation.training import FoldPlan
+    from robofailring.evaluation.job import EvaluateConfig, FoldPlan
 
     outcome = evaluate(
         EvaluateConfig(
@@ -235,7 +234,7 @@ def compare_encoders_cmd(
 ) -> None:
     """The same split under several encoders, each calibrated: a side-by-side table and comparison recordings."""
     from rfr_viz.jobs.compare_encoders import run_encoder_comparison
-    from robofailring.evaluation.comparison import CompareEncodersConfig
+    from robofailring.jobs.compare_encoders import CompareEncodersConfig
 
     comparison = run_encoder_comparison(
         CompareEncodersConfig(

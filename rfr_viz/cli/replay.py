@@ -103,7 +103,7 @@ def compare_cmd(
     ] = None,
 ) -> None:
     """Replay trajectories under two or more encoders' memories, one comparison recording each."""
-    from rfr_viz.jobs.replay import CompareConfig, compare
+    from rfr_viz.jobs.compare import CompareConfig, compare
 
     config = CompareConfig(
         data=data,

@@ -6,11 +6,11 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from rfr_viz.jobs.compare import CompareConfig, compare
 from rfr_viz.jobs.recorded import Recordings
-from rfr_viz.jobs.replay import CompareConfig, compare
 from robofailring.atomic import output_lock, remove_file_leftovers, write_text_atomic
-from robofailring.evaluation.comparison import CompareEncodersConfig, compare_encoders, comparison_table
 from robofailring.evaluation.run import EvaluationResult
+from robofailring.jobs.compare_encoders import CompareEncodersConfig, compare_encoders, comparison_table
 from robofailring.outputs import check_output_folder
 
 

@@ -29,20 +29,14 @@ from robofailring.detection.loader import detector_from
 from robofailring.detection.rules import CONTRAST, PAPER, ScoringRule
 from robofailring.encoders import default_cache_dir
 from robofailring.encoders.training import TrainEncoderConfig
-from robofailring.evaluation.comparison import CompareEncodersConfig
+from robofailring.evaluation.job import EvaluateConfig, build_training_memory
 from robofailring.evaluation.per_rule import runs_below_top
-from robofailring.evaluation.run import (
-    EvaluateConfig,
-    EvaluationResult,
-    build_training_memory,
-    run_evaluation,
-    write_evaluation,
-)
-from robofailring.jobs.simulate import simulate
+from robofailring.evaluation.run import EvaluationResult, run_evaluation, write_evaluation
+from robofailring.jobs.compare_encoders import CompareEncodersConfig
 from robofailring.jobs.train_encoder import TrainEncoderJob, run_train_encoder
 from robofailring.memory.recipe import DEFAULT_RECIPE, MemoryRecipe
 from robofailring.outputs import check_folder, check_output_folder, check_own_files
-from robofailring.sim import TASKS, GenerateConfig
+from robofailring.sim import TASKS, GenerateConfig, simulate
 
 
 @dataclass(frozen=True)

@@ -12,8 +12,8 @@ from rfr_viz.viewer.rrd import check_recording_file
 from robofailring.atomic import output_lock, remove_file_leftovers
 from robofailring.errors import SplitError
 from robofailring.evaluation.folds_alone import FoldsAlone, cross_validate_alone, write_folds_alone
+from robofailring.evaluation.job import EvaluateConfig
 from robofailring.evaluation.run import (
-    EvaluateConfig,
     EvaluationResult,
     check_growth,
     growth_curve,

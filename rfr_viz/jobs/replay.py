@@ -1,4 +1,6 @@
-"""The `replay` and `compare` jobs: trajectories of a dataset through the detector into `.rrd` files."""
+"""The `replay` job, its config and its run: trajectories of a dataset through the detector into `.rrd` files (and
+what `compare`, `review` and `watch` share with it: the trajectories selected, a memory's detector with its map,
+each recording's name and path)."""
 
 from __future__ import annotations
 
@@ -13,7 +15,7 @@ from pathlib import Path
 from rfr_viz.jobs.recorded import Recordings
 from rfr_viz.panels.map import placer
 from rfr_viz.panels.umap import MemoryMap, memory_map
-from rfr_viz.recordings.replay import compare_recording, record_replay
+from rfr_viz.recordings.replay import record_replay
 from rfr_viz.viewer.rrd import check_recording_file
 from robofailring.atomic import check_free, output_lock, remove_file_leftovers
 from robofailring.data.grounding import Vocabulary
@@ -48,15 +50,6 @@ class ReplayConfig:
     recordings: Recordings = field(default_factory=Recordings)  # which trajectories, into which folder, how
     stride: int = 1  # score every stride-th frame; the recording keeps every camera frame
     vlm: VLMConfig | None = None  # ask this VLM about each detection; its answer joins the report
-
-
-@dataclass(frozen=True)
-class CompareConfig:
-    data: (
-        DataSelection  # a dataset root of any layout, or one episode folder, how it is read (not its labels)
-    )
-    detectors: tuple[DetectorConfig, ...]  # two or more memories, each built with its own encoder
-    recordings: Recordings = field(default_factory=Recordings)  # which trajectories, into which folder, how
 
 
 @dataclass
@@ -140,7 +133,7 @@ def check_speed(speed: float) -> float:
     return speed
 
 
-def _target(out: Path, name: str, written: dict[Path, str], key: str) -> Path:
+def recording_target(out: Path, name: str, written: dict[Path, str], key: str) -> Path:
     """The recording path of one trajectory: never another trajectory's, never over a non-recording."""
     path = Path(out) / name
     if path in written:
@@ -240,7 +233,7 @@ def _replay(config: ReplayConfig) -> ReplayResult:
             else:
                 result.saw(trace, trajectory)
                 result.skipped_inputs += trace.short_views
-                out = _target(recordings.out, recording_name(trajectory), written, trajectory.key)
+                out = recording_target(recordings.out, recording_name(trajectory), written, trajectory.key)
                 answer = result.ask(config.vlm, trace, trajectory)
                 result.recordings.append(
                     record_replay(
@@ -254,79 +247,5 @@ def _replay(config: ReplayConfig) -> ReplayResult:
                     )
                 )
                 result.verdicts[result.recordings[-1]] = trace.verdict()
-            bar.update(1)
-    return result
-
-
-def unique_slugs(slugs: Sequence[str]) -> list[str]:
-    """Encoder slugs made unique in order (`pixels`, `pixels-2`, …) for entity paths."""
-    seen: dict[str, int] = {}
-    unique = []
-    for slug in slugs:
-        seen[slug] = seen.get(slug, 0) + 1
-        unique.append(slug if seen[slug] == 1 else f"{slug}-{seen[slug]}")
-    return unique
-
-
-def compare(config: CompareConfig) -> ReplayResult:
-    """Replay each trajectory under every memory's encoder into one comparison recording."""
-    out = config.recordings.out
-    check_output_folder(out, inputs=[config.data.root, *(each.memory for each in config.detectors)])
-    with output_lock(out):
-        remove_file_leftovers(out)
-        return _compare(config)
-
-
-def _compare(config: CompareConfig) -> ReplayResult:
-    if len(config.detectors) < 2:
-        raise SettingError(
-            f"compare needs at least two memories (--memory A --memory B), got {len(config.detectors)}"
-        )
-    detectors, recordings = (
-        [load_detector(each, config.data.root) for each in config.detectors],
-        config.recordings,
-    )
-    slugs = unique_slugs([found.slug for found in detectors])
-    result = ReplayResult(
-        references={
-            each.memory_dir: found.references for each, found in zip(config.detectors, detectors, strict=True)
-        }
-    )
-    trajectories = select_trajectories(
-        replace(config.data, labels=None), keys=recordings.trajectories, skipped=result.skipped_inputs
-    )
-    suffix = "__" + "-vs-".join(slugs)
-    check_free(recordings.out / recording_name(trajectory, suffix) for trajectory in trajectories)
-    written: dict[Path, str] = {}
-    with progress_bar(total=len(trajectories), desc="comparing", unit="trajectory") as bar:
-        for trajectory in trajectories:
-            try:
-                traces = {
-                    slug: found.detector.run(
-                        trajectory,
-                        leave_one_out=recordings.leave_one_out,
-                        keep_queries=False,
-                        place=placer(found.map, trajectory.task),
-                    )
-                    for slug, found in zip(slugs, detectors, strict=True)
-                }
-            except (UnknownTaskError, DataError) as error:
-                result.skipped.append((trajectory.key, str(error)))
-            else:
-                for trace in traces.values():
-                    result.saw(trace, trajectory)
-                result.skipped_inputs += next(iter(traces.values())).short_views  # the same in every memory
-                out = _target(recordings.out, recording_name(trajectory, suffix), written, trajectory.key)
-                maps = {slug: found.map for slug, found in zip(slugs, detectors, strict=True)}
-                result.recordings.append(
-                    compare_recording(
-                        trajectory,
-                        traces,
-                        out=out,
-                        memory_maps=maps,
-                        fps=recordings.fps,
-                        camera_codec=recordings.camera_codec,
-                    )
-                )
             bar.update(1)
     return result

@@ -46,10 +46,11 @@ if TYPE_CHECKING:
     from robofailring.detection.session import DetectorSession, StepSink
     from robofailring.detection.trace import DetectionTrace, StepResult
     from robofailring.encoders import CachedEncoder, Encoder, default_cache_dir, load_encoder, open_encoder
-    from robofailring.evaluation.comparison import CompareEncodersConfig, compare_encoders, comparison_table
-    from robofailring.evaluation.run import EvaluateConfig, run_evaluation
+    from robofailring.evaluation.job import EvaluateConfig
+    from robofailring.evaluation.run import run_evaluation
     from robofailring.explain.report import FailureReport, VLMClient
     from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
+    from robofailring.jobs.compare_encoders import CompareEncodersConfig, compare_encoders, comparison_table
     from robofailring.jobs.detect import DetectConfig, detect
     from robofailring.memory.entry import MemoryEntry, Neighbor
     from robofailring.memory.failure import FailureMemory
@@ -76,7 +77,7 @@ _LAZY = {  # name -> (module, attribute), imported on first use (the simulator's
     "CachedEncoder": ("robofailring.encoders", "CachedEncoder"),
     "CalibrateConfig": ("robofailring.calibration.job", "CalibrateConfig"),
     "Calibration": ("robofailring.calibration.job", "Calibration"),
-    "CompareEncodersConfig": ("robofailring.evaluation.comparison", "CompareEncodersConfig"),
+    "CompareEncodersConfig": ("robofailring.jobs.compare_encoders", "CompareEncodersConfig"),
     "DataSelection": ("robofailring.data.selection", "DataSelection"),
     "Dataset": ("robofailring.data.layouts", "Dataset"),
     "DetectConfig": ("robofailring.jobs.detect", "DetectConfig"),
@@ -84,7 +85,7 @@ _LAZY = {  # name -> (module, attribute), imported on first use (the simulator's
     "DetectorConfig": ("robofailring.detection.config", "DetectorConfig"),
     "DetectorSession": ("robofailring.detection.session", "DetectorSession"),
     "Encoder": ("robofailring.encoders", "Encoder"),
-    "EvaluateConfig": ("robofailring.evaluation.run", "EvaluateConfig"),
+    "EvaluateConfig": ("robofailring.evaluation.job", "EvaluateConfig"),
     "FailureDetector": ("robofailring.detection.detector", "FailureDetector"),
     "FailureMemory": ("robofailring.memory.failure", "FailureMemory"),
     "FailureReport": ("robofailring.explain.report", "FailureReport"),
@@ -104,8 +105,8 @@ _LAZY = {  # name -> (module, attribute), imported on first use (the simulator's
     "VLMClient": ("robofailring.explain.report", "VLMClient"),
     "build_memory": ("robofailring.jobs.build_memory", "build_memory"),
     "calibrate": ("robofailring.calibration.job", "calibrate"),
-    "compare_encoders": ("robofailring.evaluation.comparison", "compare_encoders"),
-    "comparison_table": ("robofailring.evaluation.comparison", "comparison_table"),
+    "compare_encoders": ("robofailring.jobs.compare_encoders", "compare_encoders"),
+    "comparison_table": ("robofailring.jobs.compare_encoders", "comparison_table"),
     "default_cache_dir": ("robofailring.encoders", "default_cache_dir"),
     "detect": ("robofailring.jobs.detect", "detect"),
     "ground": ("robofailring.data.grounding", "ground"),

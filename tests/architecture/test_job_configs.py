@@ -1,22 +1,38 @@
-"""Every job config is a composition of the values, never a copy of their fields (issue 47 item 1).
+"""Every job config is a composition of the values, never a copy of their fields (issue 47 item 1), and each
+verb's config and its run live in the verb's job module (issue 53 item 5).
 
 What to read is a `DataSelection`, how a memory is made a `MemoryRecipe`, how a detector judges (and where
 its encoder runs) a `DetectorConfig`, how thresholds are set a `ThresholdPolicy` (and, for replay and
 compare, which trajectories they record, `Recordings`): each is checked once, where it is made, and a job
 holds it whole.
+
+A verb's job module (docs/architecture.md, "The one command line"): in the library, `robofailring/jobs/<verb>.py` for a verb that joins packages, or
+`robofailring/<package>/job.py` for a verb that is one package's work (its modules take the config, and
+nothing below `jobs` may import `jobs`); in rfr_viz, `rfr_viz/jobs/<verb>.py`, which holds a config only the
+recordings need and runs the verb, recording what the library's job gives. The verb -> config -> run map is
+read from the command itself (each verb's body: the config class it builds and the job function it hands it
+to), so a new verb is checked without a line here.
 """
 
 from __future__ import annotations
 
+import ast
 import dataclasses
+import importlib
+import inspect
+import textwrap
 import typing
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import pytest
 
+from rfr_viz.jobs.compare import CompareConfig
 from rfr_viz.jobs.demo import DemoConfig
 from rfr_viz.jobs.recorded import Recordings
-from rfr_viz.jobs.replay import CompareConfig, ReplayConfig
+from rfr_viz.jobs.replay import ReplayConfig
 from rfr_viz.jobs.review import ReviewConfig
 from rfr_viz.jobs.watch import WatchConfig
 from robofailring.calibration.job import CalibrateConfig
@@ -25,17 +41,103 @@ from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.encoders.training import TrainEncoderConfig
 from robofailring.errors import SettingError
-from robofailring.evaluation.comparison import CompareEncodersConfig
-from robofailring.evaluation.training import EvaluateConfig
+from robofailring.evaluation.job import EvaluateConfig
 from robofailring.explain.vlm import VLMConfig
 from robofailring.jobs.build_memory import BuildMemoryConfig
+from robofailring.jobs.compare_encoders import CompareEncodersConfig
 from robofailring.jobs.detect import DetectConfig
 from robofailring.memory.recipe import MemoryRecipe
+from robofailring.sim import GenerateConfig
 from robofailring.triage import TriageConfig
+
+# verbs that build no job config: a memory's summary, a recording opened or shared, a report explained
+CONFIGLESS = {"memory-info", "open", "share", "explain"}
+
+
+@dataclass(frozen=True)
+class VerbJob:
+    verb: str
+    config: type  # the config class the verb builds and hands to its run
+    run: Callable[..., Any]  # the job function it calls with it
+
+
+def verb_functions() -> dict[str, Callable[..., Any]]:
+    """Every verb of the `robofailring` command and the function typer calls for it (before `takes`)."""
+    from rfr_viz.cli.app import app
+
+    return {
+        command.name: inspect.unwrap(command.callback)
+        for group in app.registered_groups
+        if group.typer_instance is not None
+        for command in group.typer_instance.registered_commands
+        if command.name is not None and command.callback is not None
+    }
+
+
+def _imported_in(body: ast.FunctionDef) -> dict[str, Any]:
+    """The names the verb imports inside its body (the CLI imports its job there), resolved."""
+    names: dict[str, Any] = {}
+    for node in ast.walk(body):
+        if isinstance(node, ast.ImportFrom) and node.module is not None:
+            module = importlib.import_module(node.module)
+            for alias in node.names:
+                names[alias.asname or alias.name] = getattr(module, alias.name)
+    return names
+
+
+def job_of(verb: str, function: Callable[..., Any]) -> VerbJob | None:
+    """The config class `verb` builds and the job function it hands it to (None: it builds none)."""
+    tree = ast.parse(textwrap.dedent(inspect.getsource(function)))
+    body = next(node for node in ast.walk(tree) if isinstance(node, ast.FunctionDef))
+    imported = _imported_in(body)
+
+    def config_built(node: ast.expr) -> type | None:
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name):
+            made = imported.get(node.func.id)
+            return made if isinstance(made, type) and dataclasses.is_dataclass(made) else None
+        return None
+
+    variables = {  # `config = SomeConfig(...)`
+        target.id: made
+        for node in ast.walk(body)
+        if isinstance(node, ast.Assign) and (made := config_built(node.value)) is not None
+        for target in node.targets
+        if isinstance(target, ast.Name)
+    }
+    for node in ast.walk(body):
+        if not (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.args):
+            continue
+        run = imported.get(node.func.id)
+        if not inspect.isfunction(run):
+            continue
+        first = node.args[0]
+        config = variables.get(first.id) if isinstance(first, ast.Name) else config_built(first)
+        if config is not None:
+            return VerbJob(verb, config, run)
+    return None
+
+
+def job_modules(verb: str) -> set[str]:
+    """The modules the convention allows to hold `verb`'s config."""
+    name = verb.replace("-", "_")
+    return {f"robofailring.jobs.{name}", f"rfr_viz.jobs.{name}"}
+
+
+def _is_package_job(module: str) -> bool:
+    parts = module.split(".")
+    return len(parts) == 3 and parts[0] == "robofailring" and parts[2] == "job"
+
+
+VERBS = verb_functions()
+VERB_JOBS = {verb: job_of(verb, function) for verb, function in VERBS.items()}
+
 
 VALUES = (DataSelection, MemoryRecipe, DetectorConfig, ThresholdPolicy)
 HELD = (*VALUES, Recordings)  # Recordings: replay's and compare's (a watch, a review record otherwise)
-JOBS = (
+HELD_JOBS = (TrainEncoderConfig,)  # the training TrainEncoderJob holds whole, beside the simulation
+# generate reads no data, judges nothing and sets no threshold: it writes a dataset from the simulator's settings
+NO_VALUE = {GenerateConfig}
+EXPLICIT = (
     BuildMemoryConfig,
     DetectConfig,
     CalibrateConfig,
@@ -47,26 +149,29 @@ JOBS = (
     ReviewConfig,
     WatchConfig,
     DemoConfig,
-    TrainEncoderConfig,
+    TrainEncoderConfig,  # held whole by train-encoder's TrainEncoderJob
+)
+JOB_CONFIGS = tuple(
+    dict.fromkeys([*EXPLICIT, *(job.config for job in VERB_JOBS.values() if job is not None)])
 )
 # a training job has no detector: the device it trains on is its own setting, not a DetectorConfig's
 OWN: dict[type, set[str]] = {TrainEncoderConfig: {"device"}}
 
 
 def _holds_a_value(annotation: object) -> bool:
-    return any(value in (annotation, *typing.get_args(annotation)) for value in HELD) or any(
+    return any(value in (annotation, *typing.get_args(annotation)) for value in (*HELD, *HELD_JOBS)) or any(
         _holds_a_value(arg) for arg in typing.get_args(annotation)
     )
 
 
-@pytest.mark.parametrize("job", JOBS, ids=lambda job: job.__name__)
+@pytest.mark.parametrize("job", JOB_CONFIGS, ids=lambda job: job.__name__)
 def test_no_job_config_repeats_a_field_of_a_value(job: type) -> None:
     """Not one field of a value in a job config beside the value."""
     value_fields = {field.name for value in VALUES for field in dataclasses.fields(value)}
     hints = typing.get_type_hints(job, localns={"VLMConfig": VLMConfig})
     own = {field.name for field in dataclasses.fields(job) if not _holds_a_value(hints[field.name])}
     assert own & value_fields == OWN.get(job, set())
-    assert any(_holds_a_value(hints[field.name]) for field in dataclasses.fields(job))
+    assert any(_holds_a_value(hints[field.name]) for field in dataclasses.fields(job)) != (job in NO_VALUE)
 
 
 def test_each_value_is_checked_where_it_is_made(tmp_path: Path) -> None:
@@ -117,6 +222,45 @@ def test_jobs_refuse_settings_their_values_cannot_take(tmp_path: Path) -> None:
 
 
 def _folds() -> typing.Any:
-    from robofailring.evaluation.training import FoldPlan
+    from robofailring.evaluation.job import FoldPlan
 
     return FoldPlan.parse("loo")
+
+
+def test_the_verbs_are_read_from_the_command() -> None:
+    import typer
+
+    from rfr_viz.cli.app import app
+
+    assert set(VERBS) == set(typer.main.get_command(app).commands)  # type: ignore[attr-defined]
+    assert {verb for verb, job in VERB_JOBS.items() if job is None} == CONFIGLESS
+    found = {
+        verb: (job.config.__name__, job.run.__name__) for verb, job in VERB_JOBS.items() if job is not None
+    }
+    assert found["generate"] == ("GenerateConfig", "simulate")
+    assert found["train-encoder"] == ("TrainEncoderJob", "run_train_encoder")
+    assert found["compare"] == ("CompareConfig", "compare")
+
+
+@pytest.mark.parametrize("verb", sorted(v for v, job in VERB_JOBS.items() if job is not None))
+def test_a_verbs_config_lives_in_its_job_module(verb: str) -> None:
+    """`<verb>`'s config in `jobs/<verb>.py` (library or rfr_viz) or its package's `job.py`; its run beside it,
+    or in `rfr_viz/jobs/<verb>.py` where the verb records."""
+    job = VERB_JOBS[verb]
+    assert job is not None
+    home = job.config.__module__
+    assert home in job_modules(verb) or _is_package_job(home), (
+        f"{verb}: {job.config.__name__} lives in {home}, not in its job module"
+    )
+    assert job.run.__module__ in {home, f"rfr_viz.jobs.{verb.replace('-', '_')}"}, (
+        f"{verb}: its run {job.run.__name__} lives in {job.run.__module__}, away from its config in {home}"
+    )
+
+
+def test_a_package_job_module_is_one_verbs() -> None:
+    """A package's `job.py` is the job of one verb: two verbs of one package go to `jobs/<verb>.py`."""
+    homes: dict[str, list[str]] = {}
+    for verb, job in VERB_JOBS.items():
+        if job is not None and _is_package_job(job.config.__module__):
+            homes.setdefault(job.config.__module__, []).append(verb)
+    assert homes and all(len(verbs) == 1 for verbs in homes.values()), homes

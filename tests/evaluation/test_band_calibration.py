@@ -20,7 +20,8 @@ from robofailring.data.selection import DataSelection
 from robofailring.detection.band import NONE, NORM, SHIFT
 from robofailring.detection.config import DetectorConfig
 from robofailring.detection.rules import CONTRAST, NOVELTY, PAPER
-from robofailring.evaluation.run import EvaluateConfig, run_evaluation
+from robofailring.evaluation.job import EvaluateConfig
+from robofailring.evaluation.run import run_evaluation
 from robofailring.jobs.detect import DetectConfig, run_detect
 from robofailring.memory.recipe import MemoryRecipe
 

@@ -21,7 +21,7 @@ from rfr_viz.cli.app import app
 from rfr_viz.jobs.compare_encoders import EncoderComparison
 from rfr_viz.viewer.rrd import verify_recording
 from robofailring.data.selection import DataSelection
-from robofailring.evaluation.comparison import CompareEncodersConfig, compare_encoders, comparison_table
+from robofailring.jobs.compare_encoders import CompareEncodersConfig, compare_encoders, comparison_table
 
 pytestmark = pytest.mark.slow  # simulation or end-to-end: the full lane only (scripts/test.sh)
 

@@ -12,7 +12,7 @@ from synthetic import write_project_dataset
 from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
-from robofailring.evaluation.comparison import CompareEncodersConfig, compare_encoders, comparison_table
+from robofailring.jobs.compare_encoders import CompareEncodersConfig, compare_encoders, comparison_table
 
 
 def test_two_encoders_differ_in_their_camera_rows_with_the_fused_row_beside(

@@ -12,7 +12,8 @@ from synthetic import write_project_dataset
 from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
-from robofailring.evaluation.run import EvaluateConfig, run_evaluation
+from robofailring.evaluation.job import EvaluateConfig
+from robofailring.evaluation.run import run_evaluation
 
 
 @pytest.mark.slow  # a Ray cluster (session fixture) and three Ray Data passes

@@ -21,13 +21,8 @@ from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.errors import SettingError
-from robofailring.evaluation.run import (
-    EvaluateConfig,
-    check_disjoint,
-    run_evaluation,
-    select_splits,
-    write_evaluation,
-)
+from robofailring.evaluation.job import EvaluateConfig, check_disjoint, select_splits
+from robofailring.evaluation.run import run_evaluation, write_evaluation
 from robofailring.memory.builder import Provenance, build_memories
 from robofailring.memory.recipe import MemoryRecipe
 

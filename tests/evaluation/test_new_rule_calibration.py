@@ -25,8 +25,8 @@ from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.detection.rules import RULES, ScoringRule
+from robofailring.evaluation.job import EvaluateConfig
 from robofailring.evaluation.run import run_evaluation, write_evaluation
-from robofailring.evaluation.training import EvaluateConfig
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.memory.recipe import MemoryRecipe
 

@@ -16,8 +16,9 @@ from robofailring.detection.config import DetectorConfig
 from robofailring.detection.detector import Place
 from robofailring.detection.loader import detector_from
 from robofailring.errors import SettingError
-from robofailring.evaluation.comparison import CompareEncodersConfig, compare_encoders
-from robofailring.evaluation.run import EvaluateConfig, build_training_memory, run_evaluation
+from robofailring.evaluation.job import EvaluateConfig, build_training_memory
+from robofailring.evaluation.run import run_evaluation
+from robofailring.jobs.compare_encoders import CompareEncodersConfig, compare_encoders
 
 
 def _first_columns(task: str) -> Place:

@@ -24,8 +24,8 @@ from robofailring.detection.config import DetectorConfig
 from robofailring.detection.rules import PAPER
 from robofailring.errors import DataError, SettingError
 from robofailring.evaluation.folds import assign_folds
-from robofailring.evaluation.run import EvaluateConfig, run_evaluation, select_splits, write_evaluation
-from robofailring.evaluation.training import FoldPlan
+from robofailring.evaluation.job import EvaluateConfig, FoldPlan, select_splits
+from robofailring.evaluation.run import run_evaluation, write_evaluation
 from robofailring.memory.builder import Provenance, build_memories
 
 RUNS = 14  # 7 failures, 7 successes, one task

@@ -12,7 +12,7 @@ from lerobot_writer import scene, write_lerobot_v3
 
 from robofailring.data.model import Outcome
 from robofailring.data.selection import DataSelection
-from robofailring.evaluation.training import EvaluateConfig, select_splits
+from robofailring.evaluation.job import EvaluateConfig, select_splits
 
 EPISODES = 6
 TRAIN_FAILURES = (0, 1)  # the training set's failures: the same episode numbers succeed in the test set

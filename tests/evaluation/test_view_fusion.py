@@ -38,7 +38,8 @@ from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
 from robofailring.detection.band import SHIFT, Band
 from robofailring.detection.rules import CONTRAST, PAPER
-from robofailring.evaluation.run import EvaluateConfig, run_evaluation
+from robofailring.evaluation.job import EvaluateConfig
+from robofailring.evaluation.run import run_evaluation
 
 ALPHA = 0.1  # 12 calibration runs allow α ≥ 1/13
 

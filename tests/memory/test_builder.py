@@ -19,10 +19,10 @@ from robofailring.detection.config import DetectorConfig
 from robofailring.encoders import portable_spec
 from robofailring.encoders.base import BLANK_REASON
 from robofailring.errors import MemoryFormatError
-from robofailring.evaluation.run import EvaluateConfig, build_training_memory
+from robofailring.evaluation.job import EvaluateConfig, build_training_memory
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.memory.builder import Provenance, build_memories
-from robofailring.memory.failure import ENTRIES, MANIFEST
+from robofailring.memory.folder import ENTRIES, MANIFEST
 from robofailring.memory.format import read_jsonl
 from robofailring.memory.recipe import MemoryRecipe
 from robofailring.memory.success import RUNS

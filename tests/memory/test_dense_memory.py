@@ -19,7 +19,7 @@ from robofailring.detection.config import DetectorConfig
 from robofailring.errors import DataError, MemoryFormatError, SettingError
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.memory.builder import Provenance, add_to, build_memories
-from robofailring.memory.failure import ENTRIES, MANIFEST
+from robofailring.memory.folder import ENTRIES, MANIFEST
 from robofailring.memory.format import ENTRY_FIELDS
 from robofailring.memory.info import MemoryInfo
 from robofailring.memory.pairs import CONCAT, pair_vectors

@@ -173,7 +173,7 @@ def test_interrupted_save_keeps_the_previous_memory(
     def explode(*_: object) -> None:
         raise OSError("disk full")
 
-    monkeypatch.setattr("robofailring.memory.failure.faiss.write_index", explode)
+    monkeypatch.setattr("robofailring.memory.folder.faiss.write_index", explode)
     with pytest.raises(OSError, match="disk full"):
         smaller.save(target)
     assert (target / "entries.jsonl").read_bytes() == before

@@ -18,7 +18,8 @@ from hypothesis import strategies as st
 from synthetic import write_project_dataset
 
 from robofailring.errors import MemoryFormatError
-from robofailring.memory.failure import ENTRIES, INDEX, MANIFEST, FailureMemory
+from robofailring.memory.failure import FailureMemory
+from robofailring.memory.folder import ENTRIES, INDEX, MANIFEST
 from robofailring.memory.format import ENTRY_FIELDS, parse_entry, read_jsonl
 from robofailring.memory.manifest import MemoryManifest
 from robofailring.memory.success import RUNS

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from robofailring.errors import MemoryFormatError
-from robofailring.memory.failure import MANIFEST, FailureMemory, MemoryEntry
+from robofailring.memory.failure import FailureMemory, MemoryEntry
+from robofailring.memory.folder import MANIFEST
 from robofailring.memory.manifest import MemoryManifest, StoredCalibration, StoredRule
 
 # a manifest as build-memory + calibrate write it (keys in that order): calibration keyed by rule name

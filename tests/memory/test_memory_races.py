@@ -22,7 +22,8 @@ from hypothesis import strategies as st
 from robofailring.atomic import folder_state
 from robofailring.errors import MemoryFormatError, OutputBusyError
 from robofailring.memory.entry import MemoryEntry
-from robofailring.memory.failure import INDEX, MANIFEST, FailureMemory
+from robofailring.memory.failure import FailureMemory
+from robofailring.memory.folder import INDEX, MANIFEST
 from robofailring.memory.image_roots import ImageRoots
 from robofailring.memory.manifest import MemoryManifest, StoredCalibration, StoredRule
 from robofailring.memory.version import read_whole

@@ -14,7 +14,8 @@ from synthetic import write_aha_dataset
 from typer.testing import CliRunner
 
 from rfr_viz.cli.app import app
-from robofailring.memory.failure import ENTRIES, MANIFEST, FailureMemory
+from robofailring.memory.failure import FailureMemory
+from robofailring.memory.folder import ENTRIES, MANIFEST
 from robofailring.memory.manifest import StoredCalibration, StoredRule
 from robofailring.memory.references import check_references, reroot, resolve_stored, to_stored
 

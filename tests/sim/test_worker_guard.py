@@ -14,7 +14,7 @@ from hypothesis import example, given
 from hypothesis import strategies as st
 
 from robofailring.sim import GenerateConfig
-from robofailring.sim.writer import MAX_IMAGE_SIZE
+from robofailring.sim.job import MAX_IMAGE_SIZE
 
 SCRIPT = """
 from pathlib import Path

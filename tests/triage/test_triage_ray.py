@@ -12,7 +12,7 @@ from synthetic import write_triage_memory, write_unlabelled_runs
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.triage import TriageConfig, run_triage
-from robofailring.triage import run as triage_run
+from robofailring.triage import job as triage_job
 from robofailring.triage.reference import MEMORY
 
 
@@ -22,7 +22,7 @@ def test_triage_on_ray_is_the_local_triage(
 ) -> None:
     data, truth = write_unlabelled_runs(tmp_path / "runs", successes=6)  # 9 episodes
     folder = write_triage_memory(tmp_path / "built")
-    monkeypatch.setattr(triage_run, "PREFETCH_EPISODES", 4)  # 9 episodes: batches of 4, 4 and 1
+    monkeypatch.setattr(triage_job, "PREFETCH_EPISODES", 4)  # 9 episodes: batches of 4, 4 and 1
     results = {
         where: run_triage(
             TriageConfig(

@@ -16,7 +16,7 @@ from robofailring.detection.detector import FailureDetector
 from robofailring.encoders import CachedEncoder
 from robofailring.errors import DataError, SettingError
 from robofailring.triage import TriageConfig, ranking_quality, run_triage
-from robofailring.triage import run as triage_run
+from robofailring.triage import job as triage_job
 from robofailring.triage.reference import MEMORY, OTHERS, SUCCESSES
 from robofailring.triage.scoring import EpisodeScore
 
@@ -161,7 +161,7 @@ def test_a_triage_stopped_half_way_resumes_from_the_embedding_cache(
     data, truth = runs
     folder = write_triage_memory(tmp_path / "built")
     whole = run_triage(_config(data, tmp_path / "whole", memory=folder)).detector.encoder
-    score = triage_run.score_episode
+    score = triage_job.score_episode
     stopped: list[CachedEncoder] = []
 
     def stop_after_four(detector: FailureDetector, trajectory: Trajectory, *, mode: str) -> EpisodeScore:
@@ -170,10 +170,10 @@ def test_a_triage_stopped_half_way_resumes_from_the_embedding_cache(
             raise KeyboardInterrupt
         return score(detector, trajectory, mode=mode)
 
-    monkeypatch.setattr(triage_run, "score_episode", stop_after_four)
+    monkeypatch.setattr(triage_job, "score_episode", stop_after_four)
     with pytest.raises(KeyboardInterrupt):
         run_triage(_config(data, tmp_path / "split", memory=folder))
-    monkeypatch.setattr(triage_run, "score_episode", score)
+    monkeypatch.setattr(triage_job, "score_episode", score)
     resumed = run_triage(_config(data, tmp_path / "split", memory=folder))
     first = stopped[0]
     assert first.misses > 0 and resumed.detector.encoder.misses > 0

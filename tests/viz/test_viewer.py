@@ -29,7 +29,8 @@ from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.model import Trajectory
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
-from robofailring.evaluation.run import EvaluateConfig, run_evaluation
+from robofailring.evaluation.job import EvaluateConfig
+from robofailring.evaluation.run import run_evaluation
 
 pytestmark = pytest.mark.viewer
 

@@ -78,8 +78,7 @@ def generate_cmd(
     workers: WorkersOption = 2,
 ) -> None:
     """Simulate the embedded FailGen (PyBullet Panda): failures injected by perturbing keyframes, plus successes."""
-    from robofailring.jobs.simulate import simulate
-    from robofailring.sim import TASKS, GenerateConfig, describe_dataset
+    from robofailring.sim import TASKS, GenerateConfig, describe_dataset, simulate
 
     config = GenerateConfig(
         out=out,

@@ -18,9 +18,9 @@ from robofailring.detection.loader import detector_with
 from robofailring.detection.rules import RULES, ScoringRule
 from robofailring.encoders import CachedEncoder
 from robofailring.errors import DataError
+from robofailring.evaluation.job import EvaluateConfig, FoldPlan
 from robofailring.evaluation.metrics import ConfusionRates, ScoredTrajectory, json_number, rates
 from robofailring.evaluation.per_rule import auc_cell, pct, peaks
-from robofailring.evaluation.training import EvaluateConfig, FoldPlan
 from robofailring.memory.builder import Provenance, build_memories
 from robofailring.progress import progress_bar
 

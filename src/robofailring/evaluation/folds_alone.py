@@ -13,8 +13,8 @@ from robofailring.atomic import write_text_atomic
 from robofailring.data.model import Skipped
 from robofailring.errors import SplitError
 from robofailring.evaluation.folds import CrossValidation, cross_validate
-from robofailring.evaluation.result import skipped_inputs_markdown
-from robofailring.evaluation.training import EvaluateConfig, evaluation_encoder, load_labelled
+from robofailring.evaluation.job import EvaluateConfig, evaluation_encoder, load_labelled
+from robofailring.evaluation.markdown import skipped_inputs_markdown
 from robofailring.outputs import EVALUATION_FORMAT
 
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -13,8 +12,9 @@ from robofailring.detection.detector import (
     DetectionTrace,
 )
 from robofailring.detection.rules import ScoringRule
+from robofailring.evaluation.blame import blame_markdown, false_alarm_entries
 from robofailring.evaluation.growth import GrowthPoint, growth_markdown
-from robofailring.evaluation.markdown import markdown_text
+from robofailring.evaluation.markdown import markdown_text, skipped_inputs_markdown
 from robofailring.evaluation.metrics import (
     PAPER_DELTAS,
     Rates,
@@ -147,30 +147,7 @@ class EvaluationResult:
 
     def false_alarm_entries(self, delta: float) -> list[dict[str, Any]]:
         """Memory entries that were the top neighbour at a false alarm, most culpable first."""
-        blame: Counter[int] = Counter()
-        for scored in self.false_alarms(delta):
-            trace = self.traces[scored.key].with_delta(delta)
-            view, t_det = trace.detected_view, trace.t_det
-            if view is not None and t_det is not None:
-                for neighbor in trace.neighbors(view, t_det)[:1]:
-                    blame[neighbor.index] += 1
-        memory = next(iter(self.traces.values())).memory if self.traces else None
-        rows = []
-        for index, count in blame.most_common():
-            assert memory is not None
-            entry = memory.entries[index]
-            rows.append(
-                {
-                    "index": index,
-                    "false_alarms": count,
-                    "task": entry.task,
-                    "symbol": entry.symbol,
-                    "episode": entry.episode,
-                    "view": entry.view,
-                    "moment": entry.moment,  # a dense memory's entries of one run differ only here
-                }
-            )
-        return rows
+        return false_alarm_entries(self.false_alarms(delta), self.traces, delta)
 
     def to_dict(self) -> dict[str, Any]:
         delta = self.operating_delta
@@ -313,22 +290,7 @@ class EvaluationResult:
             f"retrieval {self.latency_ms.get('retrieval', float('nan')):.3f} ms, "
             f"total {self.latency_ms.get('total', float('nan')):.2f} ms.",
         ]
-        blamed = self.false_alarm_entries(delta)
-        if blamed:
-            lines += [
-                "",
-                "Memory entries behind the most false alarms (candidates to prune):",
-                "",
-                "| entry | false alarms | task | symbol | episode | view | moment |",
-                "|---:|---:|---|---|---|---|---|",
-            ]
-            for row in blamed[:10]:
-                lines.append(
-                    f"| {row['index']} | {row['false_alarms']} | {markdown_text(row['task'])} | "
-                    f"{markdown_text(row['symbol'], code=True)} | "
-                    + " | ".join(markdown_text(row[name]) for name in ("episode", "view", "moment"))
-                    + " |"
-                )
+        lines += blame_markdown(self.false_alarm_entries(delta))
         if self.skipped_too_short:
             lines += [
                 "",
@@ -382,16 +344,3 @@ class EvaluationResult:
             "The tables below are the paper rule (S_t ≥ δ).",
             "",
         ]
-
-
-def skipped_inputs_markdown(skipped: Sequence[Skipped], *, shown: int = 20) -> list[str]:
-    """What the loaders did not read, for the tables: the first `shown` with their reason (all in the JSON)."""
-    if not skipped:
-        return []
-    lines = ["", f"Not read from the data ({len(skipped)}):", ""]
-    lines += [
-        f"- {markdown_text(item.path, code=True)}: {markdown_text(item.reason)}" for item in skipped[:shown]
-    ]
-    if len(skipped) > shown:
-        lines.append(f"- … and {len(skipped) - shown} more (all in the JSON file)")
-    return lines

@@ -21,18 +21,18 @@ from robofailring.encoders import CachedEncoder
 from robofailring.errors import DataError, SettingError, SplitError
 from robofailring.evaluation.folds import cross_validate
 from robofailring.evaluation.growth import GrowthPoint, judged
-from robofailring.evaluation.latency import measure_latency
-from robofailring.evaluation.metrics import ScoredTrajectory
-from robofailring.evaluation.modalities import CalibrationScores, modality_results
-from robofailring.evaluation.per_rule import evaluate_rule, scored_by_rule
-from robofailring.evaluation.result import EvaluationResult
-from robofailring.evaluation.training import (
+from robofailring.evaluation.job import (
     EvaluateConfig,
     build_training_memory,
     check_disjoint,
     evaluation_encoder,
     select_splits,
 )
+from robofailring.evaluation.latency import measure_latency
+from robofailring.evaluation.metrics import ScoredTrajectory
+from robofailring.evaluation.modalities import CalibrationScores, modality_results
+from robofailring.evaluation.per_rule import evaluate_rule, scored_by_rule
+from robofailring.evaluation.result import EvaluationResult
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.success import SuccessMemory
 from robofailring.progress import progress_bar

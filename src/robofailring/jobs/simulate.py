@@ -1,5 +1,5 @@
-"""Simulated datasets for jobs: one generated with a progress bar, and the extra sets an encoder
-trains on beside its data, cached under the robofailring cache dir in folders named by their content."""
+"""The extra simulated sets an encoder trains on beside its data (`train-encoder --randomize`), cached under
+the robofailring cache dir in folders named by their content."""
 
 from __future__ import annotations
 
@@ -11,17 +11,9 @@ from typing import Final
 
 from robofailring.encoders import default_cache_dir
 from robofailring.errors import SettingError
-from robofailring.progress import progress_bar
-from robofailring.sim import KINDS, GenerateConfig, generate_dataset
+from robofailring.sim import KINDS, GenerateConfig, simulate
 
 EXTRA_SETS: Final[str] = "encoder-extra-data"  # under the robofailring cache dir
-
-
-def simulate(config: GenerateConfig, *, label: str = "") -> Path:
-    """`generate_dataset` with a progress bar (a folder already holding the same set is returned as is)."""
-    desc = f"simulating {label}".strip()
-    with progress_bar(total=config.total_episodes, desc=desc, unit="episode") as bar:
-        return generate_dataset(config, progress=bar.update)
 
 
 @dataclass(frozen=True)

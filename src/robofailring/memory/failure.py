@@ -10,31 +10,33 @@ from dataclasses import replace
 from datetime import UTC, datetime
 from functools import cached_property
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Final
+from typing import TYPE_CHECKING, Any
 
-import faiss
 import numpy as np
 
-from robofailring.atomic import atomic_directory, output_lock, restore_interrupted, write_text_atomic
+from robofailring.atomic import atomic_directory, output_lock, write_text_atomic
 from robofailring.data.grounding import Vocabulary
 from robofailring.data.model import Trajectory
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import EncoderMismatchError, MemoryFormatError, UnknownTaskError
 from robofailring.memory.encoding import BuildStats, encode_failures, failure_views
 from robofailring.memory.entry import MemoryEntry, Neighbor
-from robofailring.memory.format import parse_entry, read_json, read_jsonl, stored_vocabulary
+from robofailring.memory.folder import (
+    FORMAT_VERSION,
+    MANIFEST,
+    VOCABULARY,
+    read_memory_files,
+    write_memory_files,
+)
 from robofailring.memory.image_roots import ImageRoots
 from robofailring.memory.index import FLAT, TaskIndexSet
-from robofailring.memory.index_file import read_index_file
-from robofailring.memory.manifest import MemoryManifest, StoredCalibration, not_a_memory
+from robofailring.memory.manifest import MemoryManifest, StoredCalibration
 from robofailring.memory.pairs import pair_vectors
 from robofailring.memory.recipe import MemoryRecipe
 from robofailring.memory.references import (
     ReferenceCheck,
     check_references,
     storage_root,
-    stored_resolver,
-    to_stored,
 )
 from robofailring.memory.signal_memory import SignalMemory
 from robofailring.memory.version import ReadFrom, read_whole, refuse_stale, require_read_from
@@ -42,14 +44,6 @@ from robofailring.outputs import check_memory_target
 
 if TYPE_CHECKING:
     from robofailring.memory.success import SuccessMemory
-
-# 2: entries' image references are stored relative to the manifest's absolute `data_root`.
-FORMAT_VERSION: Final[int] = 2
-READABLE_VERSIONS: Final[tuple[int, ...]] = (1, 2)
-MANIFEST: Final[str] = "manifest.json"
-INDEX: Final[str] = "index.faiss"
-ENTRIES: Final[str] = "entries.jsonl"
-VOCABULARY: Final[str] = "vocabulary.json"  # the memory's own symbols, when it has a vocabulary
 
 
 class FailureMemory:
@@ -252,26 +246,17 @@ class FailureMemory:
             manifest = replace(manifest, data_root=str(root))
         with atomic_directory(directory) as tmp:
             refuse_stale(self.read_from, directory)
-            index = faiss.IndexFlatIP(self.dim)
-            if len(self.vectors):
-                index.add(self.vectors)
-            faiss.write_index(index, str(tmp / INDEX))
-            with (tmp / ENTRIES).open("w", encoding="utf-8") as handle:
-                for entry in self.entries:
-                    stored = entry.to_dict() | {
-                        "start": to_stored(entry.start, root),
-                        "end": to_stored(entry.end, root),
-                    }
-                    handle.write(json.dumps(stored) + "\n")
-            if self.successes is not None:
-                self.successes.write(tmp, root=root)
-            if self.signals is not None:
-                self.signals.write(tmp)
-            if self.vocabulary is not None:
-                (tmp / VOCABULARY).write_text(
-                    json.dumps(self.vocabulary.to_dict(), indent=2), encoding="utf-8"
-                )
-            (tmp / MANIFEST).write_text(json.dumps(manifest.to_dict(), indent=2), encoding="utf-8")
+            write_memory_files(
+                tmp,
+                vectors=self.vectors,
+                dim=self.dim,
+                entries=self.entries,
+                root=root,
+                successes=self.successes,
+                signals=self.signals,
+                vocabulary=self.vocabulary,
+                manifest=manifest,
+            )
         return directory
 
     def _full_manifest(self) -> MemoryManifest:
@@ -339,48 +324,16 @@ class FailureMemory:
 
     @classmethod
     def _read(cls, directory: Path, data_root: Path | None, image_roots: ImageRoots) -> FailureMemory:
-        manifest_path = directory / MANIFEST
-        if not manifest_path.exists() and not restore_interrupted(directory):
-            raise not_a_memory(directory)
-        manifest = read_json(manifest_path)
-        version = manifest.get("format_version") if isinstance(manifest, dict) else None
-        if version not in READABLE_VERSIONS:
-            readable = ", ".join(map(str, READABLE_VERSIONS))
-            raise MemoryFormatError(
-                f"{manifest_path}: format_version {version!r}, this version of robofailring reads {readable}"
-            )
-        manifest = MemoryManifest.parse(manifest, manifest_path)
-        vocabulary = stored_vocabulary(directory, manifest.vocabulary)
-        index = read_index_file(directory / INDEX, count=manifest.count, dim=manifest.dim)
-        entries = read_jsonl(
-            directory / ENTRIES, lambda record: MemoryEntry(**parse_entry(record, vocabulary)), what="entry"
-        )
-        if index.ntotal != manifest.count or len(entries) != manifest.count or index.d != manifest.dim:
-            raise MemoryFormatError(
-                f"{directory}: manifest says {manifest.count} entries of dim {manifest.dim}, "
-                f"index has {index.ntotal} of dim {index.d}, {ENTRIES} has {len(entries)}"
-            )
-        vectors = index.reconstruct_n(0, index.ntotal) if index.ntotal else np.zeros((0, index.d), np.float32)
-        resolve, root = stored_resolver(manifest.data_root, manifest.source, data_root)
-        if resolve is not None:
-            entries = [
-                replace(entry, start=resolve(entry.start), end=resolve(entry.end)) for entry in entries
-            ]
-        successes = None
-        if manifest.successes:  # memories written before success contrast have none
-            from robofailring.memory.success import SuccessMemory
-
-            successes = SuccessMemory.read(directory, manifest.successes, manifest.dim, resolve=resolve)
-        signals = SignalMemory.read(directory, manifest.signals) if manifest.signals else None
+        stored = read_memory_files(directory, data_root)
         return cls(
-            vectors,
-            entries,
-            encoder=manifest.encoder,
-            manifest=manifest,
-            data_root=root,
-            successes=successes,
-            vocabulary=vocabulary,
-            signals=signals,
+            stored.vectors,
+            stored.entries,
+            encoder=stored.manifest.encoder,
+            manifest=stored.manifest,
+            data_root=stored.data_root,
+            successes=stored.successes,
+            vocabulary=stored.vocabulary,
+            signals=stored.signals,
             image_roots=image_roots,
         )
 

@@ -4,16 +4,17 @@ from __future__ import annotations
 
 from robofailring.sim.cameras import VIEWS
 from robofailring.sim.episode import DURATION_S, EpisodeResult, EpisodeRun, run_episode
-from robofailring.sim.perturb import FAILURE_FAMILIES, FAILURE_MODES, KINDS, SUCCESS, Perturbation
-from robofailring.sim.sheet import contact_sheet
-from robofailring.sim.tasks import TASKS, GoalCheck
-from robofailring.sim.writer import (
+from robofailring.sim.job import (
     GenerateConfig,
     describe_dataset,
     episode_dir_name,
     episode_seed,
     generate_dataset,
+    simulate,
 )
+from robofailring.sim.perturb import FAILURE_FAMILIES, FAILURE_MODES, KINDS, SUCCESS, Perturbation
+from robofailring.sim.sheet import contact_sheet
+from robofailring.sim.tasks import TASKS, GoalCheck
 
 __all__ = [
     "DURATION_S",
@@ -34,4 +35,5 @@ __all__ = [
     "episode_seed",
     "generate_dataset",
     "run_episode",
+    "simulate",
 ]

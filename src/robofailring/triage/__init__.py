@@ -8,8 +8,8 @@ memory, known-good runs, or the task's other episodes), scores every episode onc
 
 from __future__ import annotations
 
+from robofailring.triage.job import TriageConfig, TriageResult, run_triage
 from robofailring.triage.ranking import RankingQuality, ranking_quality
-from robofailring.triage.run import TriageConfig, TriageResult, run_triage
 from robofailring.triage.scoring import EpisodeScore
 
 __all__ = ["EpisodeScore", "RankingQuality", "TriageConfig", "TriageResult", "ranking_quality", "run_triage"]

@@ -1,4 +1,5 @@
-"""Dataset generation: episodes in a process pool, written atomically in the project's layout."""
+"""The generate job: its config (`GenerateConfig`) and its run (`simulate`, `generate_dataset` with a progress
+bar): episodes in a process pool, written atomically in the project's layout."""
 
 from __future__ import annotations
 
@@ -23,6 +24,7 @@ from robofailring.data.layouts.project import SIGNALS_FILE
 from robofailring.errors import DataError, SettingError
 from robofailring.jsontext import parse_json
 from robofailring.outputs import check_folder
+from robofailring.progress import progress_bar
 from robofailring.sim.appearance import look_mode
 from robofailring.sim.cameras import VIEWS
 from robofailring.sim.episode import DURATION_S, EpisodeResult, episode_fps, run_episode
@@ -33,10 +35,9 @@ from robofailring.sim.tasks import TASKS
 
 FORMAT_VERSION: Final[int] = 1
 GENERATOR: Final[str] = "robofailring.sim"
-#: Bumped whenever the simulator's output changes for the same config (invalidates caches).
-SIM_VERSION: Final[int] = (
-    4  # 2: the arm drawn with low-poly meshes (robot.LOW_POLY_LINKS); 3: onset_frame; 4: signals
-)
+#: Bumped whenever the simulator's output changes for the same config (invalidates caches). 2: the arm drawn
+#: with low-poly meshes (robot.LOW_POLY_LINKS); 3: onset_frame; 4: signals.
+SIM_VERSION: Final[int] = 4
 _SUCCESS_RETRIES: Final[int] = 3
 #: The largest image side generated: pybullet's CPU renderer takes ~3 s a frame of three views at
 #: 1024 px (two minutes an episode of 40 frames), and a side far beyond ends the worker with bad_alloc.
@@ -353,3 +354,9 @@ def generate_dataset(config: GenerateConfig, *, progress: Callable[[int], None] 
         manifest = manifest_for(config, records)
         (root / PROJECT_MANIFEST).write_text(json.dumps(manifest, indent=1) + "\n", encoding="utf-8")
     return out
+
+
+def simulate(config: GenerateConfig, *, label: str = "") -> Path:
+    """`generate_dataset` with a progress bar (a folder already holding the same set is returned as is)."""
+    with progress_bar(total=config.total_episodes, desc=f"simulating {label}".strip(), unit="episode") as bar:
+        return generate_dataset(config, progress=bar.update)

@@ -1,4 +1,5 @@
-"""Encoder comparison (paper Table 3): the same split under several encoders, each calibrated, side by side.
+"""The compare-encoders job (paper Table 3), its config and its run: the same split under several encoders, each
+calibrated, side by side.
 
 Where the data has the robot's signals, the rows that compare the encoders are the cameras alone, each encoder with
 its own calibrated thresholds: fused, the signals' thresholds would decide every encoder's row alike. The fused
@@ -18,14 +19,10 @@ from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
 from robofailring.detection.loader import encoder_for
 from robofailring.encoders import EncoderSpec, cache_identity
 from robofailring.errors import SettingError
+from robofailring.evaluation.job import EvaluateConfig, build_training_memory
 from robofailring.evaluation.markdown import markdown_text
 from robofailring.evaluation.modalities import BOTH, CAMERAS
-from robofailring.evaluation.run import (
-    EvaluateConfig,
-    EvaluationResult,
-    build_training_memory,
-    run_evaluation,
-)
+from robofailring.evaluation.run import EvaluationResult, run_evaluation
 from robofailring.memory.recipe import DEFAULT_RECIPE, MemoryRecipe
 from robofailring.memory.signal_memory import SIGNALS_VIEW
 

@@ -1,5 +1,7 @@
-"""What an evaluation learns from and tests on: its settings, the training and test splits (disjoint by
-construction and checked), and the memory built from the training split."""
+"""The evaluate job's config (`EvaluateConfig`, with its `FoldPlan`) and the steps of the job that read it: what
+an evaluation learns from and tests on (the training and test splits, disjoint by construction and checked) and
+the memory built from the training split. Its run, `run_evaluation` (`evaluation/run.py`), sits above the
+modules that take this config too (`folds.py`, `folds_alone.py`), which the layers' no-circle rule keeps below it."""
 
 from __future__ import annotations
 
