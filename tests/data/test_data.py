@@ -11,9 +11,9 @@ from environment import shared_data
 from synthetic import write_episode, write_project_dataset
 
 from robofailring import Outcome, load_dataset, load_trajectory
-from robofailring.data.folders import frame_number
 from robofailring.data.images import write_png
 from robofailring.data.layouts import LAYOUTS_HELP, parse_aha_name
+from robofailring.data.layouts.folders import frame_number
 from robofailring.errors import DataError
 
 

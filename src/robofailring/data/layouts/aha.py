@@ -12,8 +12,8 @@ import re
 from pathlib import Path
 from typing import Final
 
-from robofailring.data.folders import beside, episode_views, subdirs
 from robofailring.data.grounding import Vocabulary
+from robofailring.data.layouts.folders import beside, episode_views, subdirs
 from robofailring.data.layouts.project import folder_signals
 from robofailring.data.layouts.registry import Found, Layout, register
 from robofailring.data.model import Outcome, Skipped, Trajectory

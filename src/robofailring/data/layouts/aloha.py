@@ -18,7 +18,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Final
 
-from robofailring.data.folders import visible
 from robofailring.data.hdf5 import (
     HDF5Frames,
     describe,
@@ -29,6 +28,7 @@ from robofailring.data.hdf5 import (
     open_hdf5,
     row_format,
 )
+from robofailring.data.layouts.folders import visible
 from robofailring.data.layouts.hdf5_signals import aloha_signals
 from robofailring.data.layouts.registry import Found, Layout, register
 from robofailring.data.model import Frame, Skipped, Trajectory

@@ -13,9 +13,9 @@ import logging
 from pathlib import Path
 from typing import Final
 
-from robofailring.data.folders import camera_named, episode_views
 from robofailring.data.grounding import Vocabulary
 from robofailring.data.layouts.aha import aha_name_problem, parse_aha_name
+from robofailring.data.layouts.folders import camera_named, episode_views
 from robofailring.data.layouts.maniskill import MANISKILL_FAILURE, MANISKILL_SUCCESS
 from robofailring.data.layouts.project import folder_signals
 from robofailring.data.layouts.registry import Found, Layout, layouts_help, register

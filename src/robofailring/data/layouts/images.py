@@ -16,7 +16,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Final
 
-from robofailring.data.folders import (
+from robofailring.data.grounding import Vocabulary
+from robofailring.data.layouts.aha import parse_aha_name
+from robofailring.data.layouts.folders import (
     FRAME_WORDS,
     Views,
     aha_files,
@@ -28,8 +30,6 @@ from robofailring.data.folders import (
     unread,
     view_folders,
 )
-from robofailring.data.grounding import Vocabulary
-from robofailring.data.layouts.aha import parse_aha_name
 from robofailring.data.layouts.registry import Found, Layout, register
 from robofailring.data.model import Outcome, Skipped, Trajectory
 from robofailring.progress import progress_bar

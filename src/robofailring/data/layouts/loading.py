@@ -8,11 +8,11 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from robofailring.data.folders import visible
 from robofailring.data.grounding import Vocabulary
 from robofailring.data.hdf5 import is_hdf5, unreadable
 from robofailring.data.labels import apply_labels, read_labels, unlabelled_rows
 from robofailring.data.layouts.episode import episode_trajectory
+from robofailring.data.layouts.folders import visible
 from robofailring.data.layouts.project import (
     PROJECT_MANIFEST,
     project_trajectories,

@@ -7,7 +7,7 @@ import re
 from pathlib import Path
 from typing import Final
 
-from robofailring.data.folders import beside, episode_views, subdirs
+from robofailring.data.layouts.folders import beside, episode_views, subdirs
 from robofailring.data.layouts.registry import Found, Layout, register
 from robofailring.data.model import Outcome, Skipped, Trajectory
 

@@ -19,9 +19,9 @@ from typing import Any, Final
 
 import numpy as np
 
-from robofailring.data.folders import visible
 from robofailring.data.grounding import UNTYPED
 from robofailring.data.hdf5 import HDF5Frames, hdf5_faults, is_hdf5, is_image_array, open_hdf5, row_format
+from robofailring.data.layouts.folders import visible
 from robofailring.data.layouts.hdf5_signals import HDF5Signal, hdf5_signal, is_signal_array
 from robofailring.data.layouts.registry import Found, Layout, register
 from robofailring.data.model import Outcome, Skipped, Trajectory

@@ -11,7 +11,7 @@ from typing import Any, Final
 import numpy as np
 
 from robofailring.bounded import read_npz
-from robofailring.data.folders import aha_files
+from robofailring.data.layouts.folders import aha_files
 from robofailring.data.layouts.registry import Found, Layout, register
 from robofailring.data.model import Outcome, Skipped, Trajectory, check_frame_rate, parse_onset_frame
 from robofailring.data.signals import Signal, SignalKind

@@ -20,7 +20,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Final
 
-from robofailring.data.folders import natural_key, visible
 from robofailring.data.grounding import UNTYPED
 from robofailring.data.hdf5 import (
     HDF5Frames,
@@ -32,6 +31,7 @@ from robofailring.data.hdf5 import (
     row_format,
     unreadable,
 )
+from robofailring.data.layouts.folders import natural_key, visible
 from robofailring.data.layouts.hdf5_signals import robomimic_signals
 from robofailring.data.layouts.registry import Found, Layout, register
 from robofailring.data.model import Frame, Outcome, Skipped, Trajectory

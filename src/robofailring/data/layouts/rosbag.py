@@ -31,9 +31,9 @@ from typing import Any, Final
 
 import numpy as np
 
-from robofailring.data.folders import visible
 from robofailring.data.frame_ref import Container, FrameRef, register_reader
 from robofailring.data.images import content_digest
+from robofailring.data.layouts.folders import visible
 from robofailring.data.layouts.registry import Found, Layout, register
 from robofailring.data.layouts.ros_messages import COMPRESSED, IMAGE, READABLE, encoding_problem, to_rgb
 from robofailring.data.layouts.rosbag_signals import joint_state_signals

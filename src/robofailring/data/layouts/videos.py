@@ -9,9 +9,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Final
 
-from robofailring.data.folders import beside, has_images, has_videos, subdirs
 from robofailring.data.grounding import Vocabulary
 from robofailring.data.layouts.episode import episode_trajectory
+from robofailring.data.layouts.folders import beside, has_images, has_videos, subdirs
 from robofailring.data.layouts.registry import Found, Layout, register
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.errors import DataError
