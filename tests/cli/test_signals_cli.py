@@ -112,7 +112,7 @@ def test_the_start_weight_and_band_scope_reach_the_memory_and_a_new_task_grown_k
     import numpy as np
 
     from robofailring import FailureMemory, load_dataset
-    from robofailring.memory.signal_layout import read_features
+    from robofailring.memory.signals.layout import read_features
 
     data, more = (
         write_project_dataset(

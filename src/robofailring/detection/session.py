@@ -11,11 +11,12 @@ import numpy as np
 
 from robofailring.data.model import Frame
 from robofailring.detection.rules import RULES, ScoringRule
-from robofailring.detection.signal_scores import SIGNALS_VIEW, SignalHistory, SignalScores
+from robofailring.detection.signal_scores import SignalHistory, SignalScores
 from robofailring.detection.trace import StepResult
 from robofailring.detection.view_scores import ViewScores
 from robofailring.encoders.base import unusable
 from robofailring.errors import BlindCameraWarning
+from robofailring.memory.signals.modality import SIGNALS_VIEW, judged_views
 
 if TYPE_CHECKING:
     from robofailring.detection.retrieved import Retrieved
@@ -101,11 +102,7 @@ class DetectorSession:
             self.signal_scores = self._signals.scores(signals, exclude_episode=self.exclude_episode)
             failure[SIGNALS_VIEW] = self.signal_scores.similarity
             success[SIGNALS_VIEW] = self.signal_scores.success_similarity
-        scored = [  # the cameras, and the signals where given, as the detector's modality says
-            view
-            for view in failure
-            if detector.modality == "both" or (view == SIGNALS_VIEW) == (detector.modality == "signals")
-        ]
+        scored = judged_views(failure, detector.modality)  # the cameras, and the signals where given
         rule = self.rule
         threshold = detector.threshold_at(rule, self.t, task=self.task)
         scores = ViewScores({view: rule.score(failure[view], success[view]) for view in scored}, 1)

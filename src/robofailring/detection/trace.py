@@ -13,9 +13,10 @@ import numpy as np
 from robofailring.data.model import Skipped
 from robofailring.detection.band import Band
 from robofailring.detection.rules import PAPER, RULES, RuleThresholds, ScoringRule, shown_rules
-from robofailring.detection.signal_scores import SIGNALS_VIEW, SignalScores
+from robofailring.detection.signal_scores import SignalScores
 from robofailring.detection.view_scores import ViewScores
 from robofailring.memory.failure import FailureMemory, Neighbor
+from robofailring.memory.signals.modality import BOTH, SIGNALS_VIEW, judged_views
 from robofailring.memory.success import SuccessMatch
 
 
@@ -108,16 +109,15 @@ class DetectionTrace(RuleThresholds):
     source: Path | None = None  # the trajectory's folder or file, naming what was skipped
     # the robot's own signals scored against the memory's signal memory, fused as the view `signals`
     signals: SignalScores | None = field(default=None, repr=False)
-    modality: str = "both"  # what the fusion judges: `both`, the `cameras` alone or the `signals` alone
+    modality: str = BOTH  # what the fusion judges: `both`, the `cameras` alone or the `signals` alone
     cameras_alone: bool = False  # the memory has the task's signals, the run records none (camera-only data)
 
     @property
     def scored_views(self) -> list[str]:
         """The views the rule's scores are fused over: the cameras (unless `modality` is `signals`), and
         `signals` where they were scored (unless it is `cameras`)."""
-        cameras = list(self.views) if self.modality != "signals" else []
-        return (
-            [*cameras, SIGNALS_VIEW] if self.signals is not None and self.modality != "cameras" else cameras
+        return judged_views(
+            [*self.views, *([SIGNALS_VIEW] if self.signals is not None else [])], self.modality
         )
 
     @property

@@ -19,7 +19,6 @@ from robofailring.detection.loader import encoder_for
 from robofailring.encoders import EncoderSpec, cache_identity
 from robofailring.errors import SettingError
 from robofailring.evaluation.markdown import markdown_text
-from robofailring.evaluation.modalities import BOTH, CAMERAS
 from robofailring.evaluation.run import (
     EvaluateConfig,
     EvaluationResult,
@@ -27,7 +26,7 @@ from robofailring.evaluation.run import (
     run_evaluation,
 )
 from robofailring.memory.recipe import DEFAULT_RECIPE, MemoryRecipe
-from robofailring.memory.signal_memory import SIGNALS_VIEW
+from robofailring.memory.signals.modality import BOTH, CAMERAS, SIGNALS_VIEW
 
 
 @dataclass(frozen=True)

@@ -36,7 +36,8 @@ from robofailring.memory.references import (
     stored_resolver,
     to_stored,
 )
-from robofailring.memory.signal_memory import SignalMemory
+from robofailring.memory.signals.memory import SignalMemory
+from robofailring.memory.signals.modality import BOTH
 from robofailring.memory.version import ReadFrom, read_whole, refuse_stale, require_read_from
 from robofailring.outputs import check_memory_target
 
@@ -84,7 +85,9 @@ class FailureMemory:
         # where its images may be read from: a memory built here, its data; one loaded, the folders named (`load`)
         self.image_roots = image_roots if image_roots is not None else ImageRoots.of(self.data_root)
         self.successes = successes  # success runs for the contrast rule (robofailring.memory.success)
-        self.signals = signals  # the robot's signals as a second modality (robofailring.memory.signal_memory)
+        self.signals = (
+            signals  # the robot's signals as a second modality (robofailring.memory.signals.memory)
+        )
         # the folder this memory (or the one it was derived from) was read from, and that folder's
         # version then: writing back over it is refused once another process has replaced it
         self.read_from: ReadFrom | None = None
@@ -391,8 +394,7 @@ class FailureMemory:
         return replace(found, outside=tuple(self.image_roots.outside(references))) if read else found
 
     # ---------------------------------------------------------------- calibration
-    def calibrated_threshold(self, rule: str, modality: str = "both") -> float | None:
-        """The threshold calibration stored for the rule named `rule` with this memory's encoder (for
-        `modality`: what the thresholds judge), if any."""
+    def calibrated_threshold(self, rule: str, modality: str = BOTH) -> float | None:
+        """The rule named `rule`'s stored threshold for this memory's encoder and `modality`, if any."""
         calibration = self.manifest.calibration
         return calibration.threshold_for(self.encoder, rule, modality) if calibration is not None else None

@@ -16,8 +16,7 @@ from robofailring.data.layouts import PROJECT_FORMAT, detect_layout
 from robofailring.errors import DataError, MemoryFormatError
 from robofailring.memory.entry import END, FAILURE_FRAMES
 from robofailring.memory.pairs import CONCAT, PAIRINGS
-
-BOTH: Final[str] = "both"  # the modality of a calibration that says none: the cameras and the signals
+from robofailring.memory.signals.modality import BOTH
 
 # the order keys are written in: that of a memory built by `build-memory` and then calibrated
 _ORDER: Final[tuple[str, ...]] = (
@@ -297,7 +296,7 @@ class MemoryManifest:
         None  # "concat" or "change" (robofailring.memory.pairs); None: built before, "concat"
     )
     successes: dict[str, Any] | None = None  # the success memory's section (robofailring.memory.success)
-    signals: dict[str, Any] | None = None  # the signal memory's section (robofailring.memory.signal_memory)
+    signals: dict[str, Any] | None = None  # the signal memory's section (robofailring.memory.signals.memory)
     created: str | None = None
     calibration: StoredCalibration | None = None
     extra: dict[str, Any] = field(default_factory=dict)  # keys this version does not know, kept verbatim

@@ -19,12 +19,12 @@ from robofailring.errors import SettingError
 from robofailring.memory.entry import DENSE, END, check_failure_frames
 from robofailring.memory.manifest import MemoryManifest
 from robofailring.memory.pairs import CHANGE, CONCAT, check_pairing
-from robofailring.memory.signal_derived import DEFAULT_FEATURES, check_features
-from robofailring.memory.signal_derived import NONE as NO_FEATURES
-from robofailring.memory.signal_layout import AUTO as SIGNALS_AUTO
-from robofailring.memory.signal_layout import NONE as SIGNALS_NONE
-from robofailring.memory.signal_layout import check_choice
-from robofailring.memory.signal_memory import DEFAULT_START_WEIGHT, START_WEIGHT, check_start_weight
+from robofailring.memory.signals.derived import DEFAULT_FEATURES, check_features
+from robofailring.memory.signals.derived import NONE as NO_FEATURES
+from robofailring.memory.signals.layout import AUTO as SIGNALS_AUTO
+from robofailring.memory.signals.layout import NONE as SIGNALS_NONE
+from robofailring.memory.signals.layout import check_choice
+from robofailring.memory.signals.memory import DEFAULT_START_WEIGHT, START_WEIGHT, check_start_weight
 from robofailring.memory.thinning import DEFAULT_STEP, check_step
 
 DEFAULT_ENCODER: Final[str] = "pixels"  # weight-free: what a memory is built with when no encoder is named
@@ -41,9 +41,9 @@ class MemoryRecipe:
         DEFAULT_STEP  # thinning (cosine) of success runs and dense failure runs; 0 keeps all
     )
     signals: str = SIGNALS_AUTO  # the robot's signals used beside the cameras: `auto`, `none` or names
-    # features derived from them (robofailring.memory.signal_derived): `change`, `events`, both, or `none`
+    # features derived from them (robofailring.memory.signals.derived): `change`, `events`, both, or `none`
     signal_features: str = DEFAULT_FEATURES
-    # the start state's weight in the signal vectors (robofailring.memory.signal_memory): ½, or 0 to leave it out
+    # the start state's weight in the signal vectors (robofailring.memory.signals.memory): ½, or 0 to leave it out
     signal_start_weight: float = DEFAULT_START_WEIGHT
     # the settings chosen, by field name (`MemoryRecipe.chosen`); None: all of them (a recipe written out)
     given: frozenset[str] | None = field(default=None, compare=False, repr=False)

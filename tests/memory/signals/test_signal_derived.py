@@ -18,9 +18,9 @@ from robofailring.detection.signal_scores import SignalHistory
 from robofailring.errors import SettingError
 from robofailring.memory.builder import Provenance, build_memories
 from robofailring.memory.recipe import MemoryRecipe
-from robofailring.memory.signal_derived import Derivation, RunningDerivation, parse_features
-from robofailring.memory.signal_layout import ACTION_LAGS
-from robofailring.memory.signal_memory import SignalMemory, TaskSignals
+from robofailring.memory.signals.derived import Derivation, RunningDerivation, parse_features
+from robofailring.memory.signals.layout import ACTION_LAGS
+from robofailring.memory.signals.memory import SignalMemory, TaskSignals
 
 LENGTH = 8
 

@@ -14,7 +14,7 @@ import numpy as np
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.data.signals import SignalKind, SignalValues
 from robofailring.errors import DataError, MemoryFormatError
-from robofailring.memory.signal_derived import parse_features
+from robofailring.memory.signals.derived import parse_features
 
 ACTION_LAGS: Final[tuple[int, ...]] = (0, 2, 4)  # the action window: a_t, a_{t−2}, a_{t−4}
 AUTO: Final[str] = "auto"  # every state and action signal every run of a task has
@@ -52,7 +52,7 @@ class SignalLayout:
     # each signal's own dimensions where only some of them are used (`NAME:GLOB`): a live step's vector
     # is the whole signal, and the used ones are taken from it
     full: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
-    # the features derived from them and added to the state (robofailring.memory.signal_derived); () for
+    # the features derived from them and added to the state (robofailring.memory.signals.derived); () for
     # a memory built before they existed
     derived: tuple[str, ...] = ()
 

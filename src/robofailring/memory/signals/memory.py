@@ -3,7 +3,7 @@ as a second modality beside the cameras, retrieved as the paper retrieves frames
 
 Per task, each frame t of a run becomes one vector from its raw features f_t = [state ‖ action ‖ t]
 (the layout's state and action signals and the frame number; with derived features,
-`robofailring.memory.signal_derived`, the state is followed by them), z-scored by the task's own success
+`robofailring.memory.signals.derived`, the state is followed by them), z-scored by the task's own success
 runs (all its runs where it has none) to z_t, then paired as the memory's frames are paired:
 `[w·zs_0 ‖ zs_t − zs_0 ‖ za_t ‖ za_{t−2} ‖ za_{t−4} ‖ z_time_t]` (the start state weighted by w, the
 change since then, a short window of commanded actions, the moment; w is the memory's `start_weight`: 0 by
@@ -26,19 +26,18 @@ import numpy as np
 from robofailring.bounded import Shape, read_npz
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.errors import DataError, MemoryFormatError
-from robofailring.memory.signal_derived import NONE as NO_FEATURES
-from robofailring.memory.signal_derived import Derivation
-from robofailring.memory.signal_layout import (
+from robofailring.memory.signals.derived import NONE as NO_FEATURES
+from robofailring.memory.signals.derived import Derivation
+from robofailring.memory.signals.layout import (
     AUTO,
     SignalLayout,
     choose_layout,
     read_features,
 )
-from robofailring.memory.signal_rows import Rows, rows_of
-from robofailring.memory.signal_select import Selection, choose_for
-from robofailring.memory.signal_task import START_WEIGHT, TaskSignals, vector_width
+from robofailring.memory.signals.rows import Rows, rows_of
+from robofailring.memory.signals.select import Selection, choose_for
+from robofailring.memory.signals.task import START_WEIGHT, TaskSignals, vector_width
 
-SIGNALS_VIEW: Final[str] = "signals"  # the modality's name among the views a trace fuses
 # the start state's weight in a new memory (docs/signals.md, "Measured"; ½ in one from before the setting)
 DEFAULT_START_WEIGHT: Final[float] = 0.0
 # the largest start weight: the start state, a few σ once normalised, then outweighs every other element a
@@ -59,7 +58,7 @@ def build_task(
 ) -> tuple[TaskSignals | None, list[Skipped]]:
     """One task's signal memory from its labelled runs; a run whose signals cannot be read is skipped.
     `select`: its vectors keep the elements that separate its failure runs from its success runs
-    (`robofailring.memory.signal_select`)."""
+    (`robofailring.memory.signals.select`)."""
     features: list[tuple[Trajectory, np.ndarray]] = []
     skipped: list[Skipped] = []
     for trajectory in trajectories:
@@ -157,7 +156,7 @@ class SignalMemory:
         start_weight: float = DEFAULT_START_WEIGHT,
     ) -> tuple[SignalMemory | None, list[Skipped]]:
         """The signal memory of the labelled `trajectories` (None: no task has signals to use), with the
-        derived `features` (`none`, or `change` and/or `events`: `robofailring.memory.signal_derived`) and the
+        derived `features` (`none`, or `change` and/or `events`: `robofailring.memory.signals.derived`) and the
         start state weighted by `start_weight` (module docstring)."""
         by_task: dict[str, TaskSignals] = {}
         skipped: list[Skipped] = []
@@ -344,7 +343,7 @@ def _expected_shapes(path: Path, section: Mapping[str, Any], where: str) -> dict
         shapes[f"{key}_mean"] = shapes[f"{key}_scale"] = (state + action + 1,)  # [state ‖ action ‖ t]
         width = vector_width(state, action)
         selection = described.get("selection")
-        if selection is not None:  # `--signals auto` kept these elements of the vectors (signal_select.py)
+        if selection is not None:  # `--signals auto` kept these elements of the vectors (select.py)
             kept = selection.get("elements") if isinstance(selection, dict) else None
             if isinstance(kept, bool) or not isinstance(kept, int) or not 0 < kept <= width:
                 raise MemoryFormatError(

@@ -1,6 +1,6 @@
 """One task's signal memory (`TaskSignals`): its layout, derived features, normalisation, and the failure and
 success entries in exact Faiss indexes; the paired vectors of a run's features and the nearest entries of a
-query (the vectors and similarity: `robofailring.memory.signal_memory`)."""
+query (the vectors and similarity: `robofailring.memory.signals.memory`)."""
 
 from __future__ import annotations
 
@@ -12,10 +12,10 @@ import numpy as np
 from robofailring.data.signals import FLOAT32_MAX
 from robofailring.errors import DataError
 from robofailring.memory.index import FLAT, IndexSpec, TaskIndex
-from robofailring.memory.signal_derived import Derivation
-from robofailring.memory.signal_layout import ACTION_LAGS, SignalLayout
-from robofailring.memory.signal_rows import Rows, search_entries
-from robofailring.memory.signal_select import Selection
+from robofailring.memory.signals.derived import Derivation
+from robofailring.memory.signals.layout import ACTION_LAGS, SignalLayout
+from robofailring.memory.signals.rows import Rows, search_entries
+from robofailring.memory.signals.select import Selection
 
 START_WEIGHT: Final[float] = 0.5  # the start state's weight in a memory from before it was a setting
 
