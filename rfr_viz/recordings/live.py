@@ -43,8 +43,7 @@ from rfr_viz.viewer.rrd import check_recording_file
 from robofailring.atomic import atomic_path
 from robofailring.data.model import Frame
 from robofailring.detection.detector import FailureDetector
-from robofailring.detection.session import DetectorSession
-from robofailring.detection.trace import StepResult
+from robofailring.detection.session import DetectorSession, StepResult
 from robofailring.errors import Terminated
 from robofailring.explain.report import FailureReport, signals_sentence
 from robofailring.extras import needs_extra

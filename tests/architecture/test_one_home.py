@@ -75,15 +75,16 @@ def _names_a_modality(node: ast.AST | None, *, only: bool = False) -> bool:
 
 def _modality_literals(path: Path) -> list[tuple[int, str]]:
     """Where `path` uses a modality's, view's or fusion group's name as a value of its own: compared (`==`, `!=`,
-    `in`), iterated over (`for name in ("cameras", "signals")`), given a name (`BOTH = "both"`), or a default or
+    `in` a tuple of names), iterated over (`for name in ("cameras", "signals")`), given a name (`BOTH = "both"`), or a default or
     keyword argument (`modality: str = "both"`). A JSON key (`{"signals": …}`, `record.get("signals")`) is not
     one: it names a section of a file, written and read by the section's module."""
     found = []
     for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
         used: list[ast.AST | None] = []
         only = False
-        if isinstance(node, ast.Compare):
-            used = [node.left, *node.comparators]
+        if isinstance(node, ast.Compare):  # `"signals" in section`, a JSON key looked up, is not one
+            keyed = isinstance(node.ops[0], (ast.In, ast.NotIn)) and isinstance(node.left, ast.Constant)
+            used = [*([] if keyed else [node.left]), *node.comparators]
         elif isinstance(node, (ast.For, ast.AsyncFor, ast.comprehension)):
             used = [node.iter]
         elif isinstance(node, (ast.Assign, ast.AnnAssign)):

@@ -26,7 +26,7 @@ from robofailring.memory.format import parse_entry, read_json, read_jsonl, store
 from robofailring.memory.image_roots import ImageRoots
 from robofailring.memory.index import FLAT, TaskIndexSet
 from robofailring.memory.index_file import read_index_file
-from robofailring.memory.manifest import MemoryManifest, StoredCalibration, not_a_memory
+from robofailring.memory.manifest import MemoryManifest, not_a_memory
 from robofailring.memory.pairs import pair_vectors
 from robofailring.memory.recipe import MemoryRecipe
 from robofailring.memory.references import (
@@ -38,6 +38,7 @@ from robofailring.memory.references import (
 )
 from robofailring.memory.signals.memory import SignalMemory
 from robofailring.memory.signals.modality import BOTH
+from robofailring.memory.stored_calibration import StoredCalibration
 from robofailring.memory.version import ReadFrom, read_whole, refuse_stale, require_read_from
 from robofailring.outputs import check_memory_target
 
@@ -136,8 +137,7 @@ class FailureMemory:
 
     @property
     def pairing(self) -> str:
-        """How the memory pairs a first and a current frame, queries alike: `concat` (the paper's) or
-        `change` (`robofailring.memory.pairs`)."""
+        """How it pairs a first and a current frame, queries alike: `concat` (the paper's) or `change`."""
         return self.manifest.pairing_mode
 
     def pair(self, first: np.ndarray, current: np.ndarray) -> np.ndarray:

@@ -16,7 +16,7 @@ from robofailring.errors import SettingError
 from robofailring.memory.builder import Provenance, add_to, build_memories
 from robofailring.memory.recipe import MemoryRecipe
 from robofailring.memory.signals.layout import ACTION_LAGS
-from robofailring.memory.signals.memory import SIGNALS_FILE
+from robofailring.memory.signals.section import SIGNALS_FILE
 
 LENGTH = 8
 

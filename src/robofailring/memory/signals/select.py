@@ -97,13 +97,6 @@ class Selection:
         return {f"{key}_selected": self.columns, f"{key}_selected_weights": self.weights}
 
     @classmethod
-    def stored(
-        cls, task: Mapping[str, Any], arrays: dict[str, np.ndarray], key: str, width: int, where: str
-    ) -> Selection | None:
-        """The selection a manifest's `task` entry records (None: it has none), its arrays from `arrays`."""
-        return cls.read(task["selection"], arrays, key, width, where) if "selection" in task else None
-
-    @classmethod
     def read(
         cls, described: Mapping[str, Any], arrays: dict[str, np.ndarray], key: str, width: int, where: str
     ) -> Selection:
