@@ -40,9 +40,9 @@ from robofailring.data.images import write_png
 from robofailring.detection.signal_scores import SignalHistory
 from robofailring.memory.failure import MemoryEntry
 from robofailring.memory.pairs import pair_vectors
-from robofailring.memory.signal_derived import Derivation
-from robofailring.memory.signal_layout import SignalLayout
-from robofailring.memory.signal_memory import Rows, TaskSignals
+from robofailring.memory.signals.derived import Derivation
+from robofailring.memory.signals.layout import SignalLayout
+from robofailring.memory.signals.memory import Rows, TaskSignals
 from robofailring.sim import VIEWS, run_episode
 
 

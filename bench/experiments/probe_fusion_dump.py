@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-import robofailring.memory.signal_memory as signal_memory
+import robofailring.memory.signals.memory as signal_memory
 from bench._timing import print_machine
 from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection

@@ -16,8 +16,8 @@ from rfr_viz.styles import STATE_COLOUR, VIEW_COLOURS, threshold_colour
 from robofailring.detection.band import Band
 from robofailring.detection.detector import DetectionTrace
 from robofailring.detection.rules import RULES, RuleThresholds, ScoringRule
-from robofailring.detection.signal_scores import SIGNALS_VIEW
 from robofailring.extras import needs_extra
+from robofailring.memory.signals.modality import SIGNALS_VIEW
 
 with needs_extra("viz"):
     import rerun as rr

@@ -21,8 +21,8 @@ from rfr_viz.paths import (
 )
 from robofailring.detection.band import Band
 from robofailring.detection.rules import ScoringRule, shown_rules
-from robofailring.detection.signal_scores import SIGNALS_VIEW
 from robofailring.extras import needs_extra
+from robofailring.memory.signals.modality import SIGNALS_VIEW
 
 with needs_extra("viz"):
     import rerun.blueprint as rrb

@@ -22,7 +22,7 @@ from robofailring.data.images import encode_jpeg
 from robofailring.detection.config import DEFAULT_K
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.rules import PAPER
-from robofailring.detection.trace import StepResult
+from robofailring.detection.session import StepResult
 from robofailring.encoders.base import Encoder
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.extras import needs_extra

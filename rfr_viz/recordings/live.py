@@ -40,8 +40,7 @@ from rfr_viz.recordings.blueprint import ScorePlots, replay_blueprint
 from rfr_viz.recordings.live_target import LiveTarget
 from robofailring.data.model import Frame
 from robofailring.detection.detector import FailureDetector
-from robofailring.detection.session import DetectorSession
-from robofailring.detection.trace import StepResult
+from robofailring.detection.session import DetectorSession, StepResult
 from robofailring.errors import Terminated
 from robofailring.explain.report import FailureReport, signals_sentence
 from robofailring.extras import needs_extra

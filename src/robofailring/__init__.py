@@ -43,8 +43,8 @@ if TYPE_CHECKING:
     from robofailring.detection.detector import FailureDetector
     from robofailring.detection.loader import open_detector
     from robofailring.detection.rules import PAPER_DELTA, RULES, ScoringRule, rule_named
-    from robofailring.detection.session import DetectorSession, StepSink
-    from robofailring.detection.trace import DetectionTrace, StepResult
+    from robofailring.detection.session import DetectorSession, StepResult, StepSink
+    from robofailring.detection.trace import DetectionTrace
     from robofailring.encoders import CachedEncoder, Encoder, default_cache_dir, load_encoder, open_encoder
     from robofailring.evaluation.job import EvaluateConfig
     from robofailring.evaluation.run import run_evaluation
@@ -97,7 +97,7 @@ _LAZY = {  # name -> (module, attribute), imported on first use (the simulator's
     "PAPER_DELTA": ("robofailring.detection.rules", "PAPER_DELTA"),
     "RULES": ("robofailring.detection.rules", "RULES"),
     "ScoringRule": ("robofailring.detection.rules", "ScoringRule"),
-    "StepResult": ("robofailring.detection.trace", "StepResult"),
+    "StepResult": ("robofailring.detection.session", "StepResult"),
     "StepSink": ("robofailring.detection.session", "StepSink"),
     "SuccessMemory": ("robofailring.memory.success", "SuccessMemory"),
     "ThresholdPolicy": ("robofailring.calibration.policy", "ThresholdPolicy"),

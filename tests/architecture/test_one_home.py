@@ -1,6 +1,8 @@
 """One home per concept: a frame reference's forms are written and parsed only in `robofailring.data.frame_ref`
-(no second parser, no second reader of `#frame=` or a bag message), and a scoring rule's command-line option
-comes from the rule registry, not a list of rule names (docs/architecture.md)."""
+(no second parser, no second reader of `#frame=` or a bag message), a scoring rule's command-line option
+comes from the rule registry, not a list of rule names, and the modalities' names (`both`, `cameras`,
+`signals`: a modality, the signals' view, a fusion group) live in `robofailring.memory.signals.modality`, which
+alone splits views by modality (docs/architecture.md)."""
 
 from __future__ import annotations
 
@@ -10,6 +12,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 FRAME_REF = ROOT / "src" / "robofailring" / "data" / "frame_ref.py"
 MARKERS = ("#frame=", "&message=", "#topic=")
+MODALITY = ROOT / "src" / "robofailring" / "memory" / "signals" / "modality.py"
+MODALITY_NAMES = frozenset({"both", "cameras", "signals"})
 
 
 def _modules() -> list[Path]:
@@ -56,3 +60,83 @@ def test_no_second_frame_reference_reader() -> None:
         and node.name.endswith(("_reference", "_ref"))
     }
     assert defined == set(), defined
+
+
+def _names_a_modality(node: ast.AST | None, *, only: bool = False) -> bool:
+    """`node` is one of the modalities' names as a string, or a tuple, list or set holding one (`only`: holding
+    nothing else, as a tuple of names assigned does; a manifest's key order holds `signals` among its keys)."""
+    if isinstance(node, ast.Constant):
+        return node.value in MODALITY_NAMES
+    if not isinstance(node, (ast.Tuple, ast.List, ast.Set)) or not node.elts:
+        return False
+    named = [_names_a_modality(element, only=only) for element in node.elts]
+    return all(named) if only else any(named)
+
+
+def _modality_literals(path: Path) -> list[tuple[int, str]]:
+    """Where `path` uses a modality's, view's or fusion group's name as a value of its own: compared (`==`, `!=`,
+    `in` a tuple of names), iterated over (`for name in ("cameras", "signals")`), given a name (`BOTH = "both"`), or a default or
+    keyword argument (`modality: str = "both"`). A JSON key (`{"signals": …}`, `record.get("signals")`) is not
+    one: it names a section of a file, written and read by the section's module."""
+    found = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        used: list[ast.AST | None] = []
+        only = False
+        if isinstance(node, ast.Compare):  # `"signals" in section`, a JSON key looked up, is not one
+            keyed = isinstance(node.ops[0], (ast.In, ast.NotIn)) and isinstance(node.left, ast.Constant)
+            used = [*([] if keyed else [node.left]), *node.comparators]
+        elif isinstance(node, (ast.For, ast.AsyncFor, ast.comprehension)):
+            used = [node.iter]
+        elif isinstance(node, (ast.Assign, ast.AnnAssign)):
+            used, only = [node.value], True
+        elif isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)):
+            used = [*node.args.defaults, *node.args.kw_defaults]
+        elif isinstance(node, ast.keyword):
+            used = [node.value]
+        found += [
+            (value.lineno, ast.unparse(value))
+            for value in used
+            if value is not None and _names_a_modality(value, only=only)
+        ]
+    return found
+
+
+def test_modality_names_live_in_their_module_only() -> None:
+    found = {
+        f"{path.relative_to(ROOT)}:{line}: {text}"
+        for path in _modules()
+        if path != MODALITY
+        for line, text in _modality_literals(path)
+    }
+    assert found == set()
+    assert len(_modality_literals(MODALITY)) >= 6  # the home was found, and names them
+
+
+def test_views_are_split_by_modality_in_one_function() -> None:
+    """No module but the home keeps or drops views by comparing each with the signals' view (a filter in a
+    comprehension or a lambda): `split_views` and `judged_views` do that, for every caller."""
+
+    def filters(tree: ast.AST) -> list[ast.AST]:
+        conditions: list[ast.AST] = []
+        for node in ast.walk(tree):
+            if isinstance(node, ast.comprehension):
+                conditions += node.ifs
+            elif isinstance(node, ast.Lambda):
+                conditions.append(node.body)
+        return conditions
+
+    splitting = {
+        str(path.relative_to(ROOT))
+        for path in _modules()
+        if path != MODALITY
+        for condition in filters(ast.parse(path.read_text(encoding="utf-8")))
+        for node in ast.walk(condition)
+        if isinstance(node, ast.Name) and node.id == "SIGNALS_VIEW"
+    }
+    assert splitting == set()
+    assert "SIGNALS_VIEW" in {
+        node.id
+        for condition in filters(ast.parse(MODALITY.read_text()))
+        for node in ast.walk(condition)
+        if isinstance(node, ast.Name)
+    }

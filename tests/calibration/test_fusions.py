@@ -21,7 +21,7 @@ from robofailring.calibration.fusions import (
 from robofailring.detection.band import NONE, NORM, SHIFT, Band
 from robofailring.detection.view_scores import ViewScores
 from robofailring.errors import MemoryFormatError, SettingError
-from robofailring.memory.signal_memory import SIGNALS_VIEW
+from robofailring.memory.signals.modality import SIGNALS_VIEW
 
 LENGTH = 12
 

@@ -10,7 +10,7 @@ from fault_helpers import cli, refused
 
 from robofailring.memory.entry import MemoryEntry
 from robofailring.memory.failure import FailureMemory
-from robofailring.memory.manifest import StoredCalibration, StoredRule
+from robofailring.memory.stored_calibration import StoredCalibration, StoredRule
 
 
 def _memory(count: int) -> FailureMemory:

@@ -15,7 +15,7 @@ from fault_helpers import cli, refused
 from synthetic import write_project_dataset
 
 from robofailring import FailureMemory, load_dataset
-from robofailring.memory.signal_layout import ACTION_LAGS
+from robofailring.memory.signals.layout import ACTION_LAGS
 
 LENGTH = 8
 

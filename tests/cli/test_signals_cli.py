@@ -112,7 +112,7 @@ def test_the_start_weight_and_band_scope_reach_the_memory_and_a_new_task_grown_k
     import numpy as np
 
     from robofailring import FailureMemory, load_dataset
-    from robofailring.memory.signal_layout import read_features
+    from robofailring.memory.signals.layout import read_features
 
     data, more = (
         write_project_dataset(
@@ -281,3 +281,16 @@ def test_one_modality_judges_at_the_thresholds_calibrated_for_both(
         assert "not calibrated" not in found.output
         trace = json.loads(found.stdout)
         assert trace["modality"] == modality and trace["thresholds"]["contrast"] == stored != 0.0
+
+
+def test_a_damaged_signals_section_is_one_error_naming_the_manifest(
+    data: Path, cache: list[str], tmp_path: Path
+) -> None:
+    """Issue 53: the section is read once, with the manifest, and checked there; derived features no version
+    writes were shown by memory-info as if they were the memory's (and failed only when the memory grew)."""
+    memory = tmp_path / "memory"
+    assert cli("build-memory", data, "--out", memory, "--split", "train", *cache).exit_code == 0
+    manifest = json.loads((memory / "manifest.json").read_text())
+    manifest["signals"]["features"] = "jerk"
+    (memory / "manifest.json").write_text(json.dumps(manifest))
+    refused(cli("memory-info", memory), 2, f"{memory / 'manifest.json'}", "jerk", "signal memory")

@@ -13,8 +13,8 @@ from rrd import properties, rows, static_value
 from synthetic import write_project_dataset
 
 from rfr_viz.paths import REPLAY
-from robofailring.detection.signal_scores import SIGNALS_VIEW
 from robofailring.explain.report import NO_FAILURES
+from robofailring.memory.signals.modality import SIGNALS_VIEW
 
 EPISODE = "pick_cube_grasp_wp2_episode1"
 

@@ -13,9 +13,9 @@ from synthetic import robot_signals, synthetic_frame, write_project_dataset
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, Trajectory, load_dataset, load_encoder
 from robofailring.data.model import Frame
 from robofailring.detection.rules import CONTRAST, PAPER
-from robofailring.detection.signal_scores import SIGNALS_VIEW
 from robofailring.explain.report import report_for
 from robofailring.memory.builder import Provenance, build_memories
+from robofailring.memory.signals.modality import SIGNALS_VIEW
 
 LENGTH = 8
 

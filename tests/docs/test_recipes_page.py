@@ -12,6 +12,7 @@ import pytest
 
 import robofailring as rfr
 from robofailring.calibration.fusions import FUSIONS
+from robofailring.memory.signals.derived import SignalFeatures
 
 PAGE = Path(__file__).resolve().parents[2] / "docs" / "recipes.md"
 
@@ -39,7 +40,7 @@ def test_each_rows_default_is_the_classs(value: object) -> None:
     wrong = {}
     for field in dataclasses.fields(value):  # type: ignore[arg-type]
         default = getattr(value, field.name)
-        if field.name in rows and isinstance(default, str | float):
+        if field.name in rows and isinstance(default, str | float | SignalFeatures):  # features: their text
             said = f"`{default:g}`" if isinstance(default, float) else f"`{default}`"
             if rows[field.name][0] != said:
                 wrong[field.name] = (rows[field.name][0], said)

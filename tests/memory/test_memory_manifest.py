@@ -12,7 +12,8 @@ import pytest
 from robofailring.errors import MemoryFormatError
 from robofailring.memory.failure import FailureMemory, MemoryEntry
 from robofailring.memory.folder import MANIFEST
-from robofailring.memory.manifest import MemoryManifest, StoredCalibration, StoredRule
+from robofailring.memory.manifest import MemoryManifest
+from robofailring.memory.stored_calibration import StoredCalibration, StoredRule
 
 # a manifest as build-memory + calibrate write it (keys in that order): calibration keyed by rule name
 WRITTEN: dict[str, Any] = {

@@ -25,7 +25,8 @@ from robofailring.memory.entry import MemoryEntry
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.folder import INDEX, MANIFEST
 from robofailring.memory.image_roots import ImageRoots
-from robofailring.memory.manifest import MemoryManifest, StoredCalibration, StoredRule
+from robofailring.memory.manifest import MemoryManifest
+from robofailring.memory.stored_calibration import StoredCalibration, StoredRule
 from robofailring.memory.version import read_whole
 
 
@@ -175,7 +176,7 @@ from pathlib import Path
 from robofailring.atomic import folder_state
 from robofailring.errors import MemoryFormatError, OutputBusyError
 from robofailring.memory.failure import FailureMemory
-from robofailring.memory.manifest import StoredCalibration, StoredRule
+from robofailring.memory.stored_calibration import StoredCalibration, StoredRule
 folder, written, refused = Path(sys.argv[1]), 0, 0
 for i in range(int(sys.argv[2])):
     try:

@@ -16,8 +16,8 @@ from typer.testing import CliRunner
 from rfr_viz.cli.app import app
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.folder import ENTRIES, MANIFEST
-from robofailring.memory.manifest import StoredCalibration, StoredRule
 from robofailring.memory.references import check_references, reroot, resolve_stored, to_stored
+from robofailring.memory.stored_calibration import StoredCalibration, StoredRule
 
 TASKS = ("pick_cube",)
 SYMBOLS = ("grasp_wp2", "rotation_x_wp1")

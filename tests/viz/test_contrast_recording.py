@@ -30,7 +30,7 @@ from robofailring.detection.config import DetectorConfig
 from robofailring.detection.rules import CONTRAST
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.memory.recipe import MemoryRecipe
-from robofailring.memory.signal_memory import SIGNALS_VIEW
+from robofailring.memory.signals.modality import SIGNALS_VIEW
 
 
 @pytest.fixture(scope="module")

@@ -18,7 +18,7 @@ from robofailring.calibration.bands import MIN_BAND_RUNS
 from robofailring.detection.band import SHIFT, Band
 from robofailring.detection.rules import CONTRAST
 from robofailring.memory.builder import Provenance, build_memories
-from robofailring.memory.signal_memory import SIGNALS_VIEW
+from robofailring.memory.signals.modality import SIGNALS_VIEW
 
 LENGTH = 8
 

@@ -38,7 +38,13 @@ from robofailring.calibration.bands import MIN_BAND_RUNS, fit_band, leave_one_ou
 from robofailring.detection.band import NONE, Band
 from robofailring.detection.view_scores import ViewScores
 from robofailring.errors import SettingError
-from robofailring.memory.signal_memory import SIGNALS_VIEW
+from robofailring.memory.signals.modality import (
+    CAMERAS_GROUP,
+    FUSION_GROUPS,
+    SIGNALS_GROUP,
+    SIGNALS_VIEW,
+    split_views,
+)
 
 # a fusion's calibration: each run's conformal score and the band of all runs (None: no band), from the runs'
 # per-view scores, the band kind and each run's task
@@ -104,17 +110,10 @@ def per_modality_peaks(
         return [peak(values) for values in fused], None
     pooled = fit_band(kind, [fused[i] for i in scored])
     pooled_others = dict(zip(scored, leave_one_out(kind, [fused[i] for i in scored]), strict=True))
-    modalities = [
-        {
-            name: values
-            for name, values in (("cameras", _cameras(run)), ("signals", run.get(SIGNALS_VIEW)))
-            if values is not None
-        }
-        for run in runs
-    ]
+    modalities = [_groups(run) for run in runs]
     corrected: list[dict[str, np.ndarray]] = [{} for _ in runs]
     own: dict[str, Band] = {}
-    for name in ("cameras", "signals"):
+    for name in FUSION_GROUPS:
         rows = [i for i in scored if name in modalities[i] and np.isfinite(modalities[i][name]).any()]
         if not rows:
             continue
@@ -125,13 +124,13 @@ def per_modality_peaks(
         else:
             others = leave_one_out(kind, series)
             own[name] = fit_band(kind, series)
-        if name == "signals" and tasks:  # the signal memory is per task (its normalisation, its layout)
+        if name == SIGNALS_GROUP and tasks:  # the signal memory is per task (its normalisation, its layout)
             others, own[name] = _by_task(kind, rows, series, [tasks[i] for i in rows], others, own[name])
         for i, values, band in zip(rows, series, others, strict=True):
             corrected[i][name] = band.correct(values)
     peaks = [peak(fused_raw(values)) if values else float("nan") for values in corrected]
-    cameras = own.get("cameras", pooled)
-    views = {SIGNALS_VIEW: own["signals"]} if "signals" in own else {}
+    cameras = own.get(CAMERAS_GROUP, pooled)
+    views = {SIGNALS_VIEW: own[SIGNALS_GROUP]} if SIGNALS_GROUP in own else {}
     return peaks, replace(cameras, views=views)
 
 
@@ -152,10 +151,12 @@ def _by_task(
     return others, replace(pooled, tasks=own) if own else pooled
 
 
-def _cameras(run: Mapping[str, np.ndarray]) -> np.ndarray | None:
-    """The max over a run's camera views (None: it has none)."""
-    cameras = {view: values for view, values in run.items() if view != SIGNALS_VIEW}
-    return fused_raw(cameras) if cameras else None
+def _groups(run: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """A run's scores per fusion group, where it has the group's views: the max over its camera views, and its
+    signals view's."""
+    cameras, signals = split_views(run)
+    groups = {CAMERAS_GROUP: fused_raw({view: run[view] for view in cameras})} if cameras else {}
+    return groups | ({SIGNALS_GROUP: run[signals[0]]} if signals else {})
 
 
 def per_task_peaks(

@@ -43,7 +43,7 @@ from robofailring.detection.rules import (
     rules_for,
 )
 from robofailring.errors import DataError, SettingError
-from robofailring.memory.manifest import StoredCalibration, StoredRule
+from robofailring.memory.stored_calibration import StoredCalibration, StoredRule
 from robofailring.progress import progress_bar
 
 

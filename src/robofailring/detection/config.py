@@ -12,12 +12,9 @@ from typing import Any, Final
 from robofailring.detection.rules import rule_named
 from robofailring.encoders.device import check_device_name
 from robofailring.errors import SettingError
+from robofailring.memory.signals.modality import BOTH, MODALITIES
 
 DEFAULT_K: Final[int] = 5
-BOTH, CAMERAS, SIGNALS = "both", "cameras", "signals"
-#: What the detector judges by: the cameras and the robot's signals fused (where the memory has signals),
-#: the cameras alone, or the signals alone.
-MODALITIES: Final[tuple[str, ...]] = (BOTH, CAMERAS, SIGNALS)
 MAX_STRIDE: Final[int] = 2**63 - 1  # frame numbers are int64: a larger stride scores frame 0 alone anyway
 MAX_K: Final[int] = (
     1024  # neighbours per query: each query row holds K similarities, allocated before the search

@@ -11,7 +11,7 @@ import numpy as np
 from robofailring.data.images import as_rgb
 from robofailring.data.model import Frame, Skipped, Trajectory
 from robofailring.detection.band import Band
-from robofailring.detection.config import BOTH, DEFAULT_K, SIGNALS, check_k, check_modality, check_stride
+from robofailring.detection.config import DEFAULT_K, check_k, check_modality, check_stride
 from robofailring.detection.retrieved import Retrieved
 from robofailring.detection.rules import (
     RuleThresholds,
@@ -21,7 +21,7 @@ from robofailring.detection.rules import (
 )
 from robofailring.detection.scored import blank_skips, scored_frames
 from robofailring.detection.session import DetectorSession, StepSink
-from robofailring.detection.signal_scores import SIGNALS_VIEW, SignalScores, score_signals
+from robofailring.detection.signal_scores import SignalScores, score_signals
 from robofailring.detection.stored import (
     given_thresholds,
     stored_bands,
@@ -34,6 +34,7 @@ from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import DataError, SettingError
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.references import absolute_reference
+from robofailring.memory.signals.modality import BOTH, SIGNALS, SIGNALS_VIEW
 
 CHUNK_FRAMES: Final[int] = 256  # scored frames per view encoded and searched at once in `run`
 

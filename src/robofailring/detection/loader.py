@@ -8,13 +8,14 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 from robofailring.detection.band import Band
-from robofailring.detection.config import BOTH, DEFAULT_K, DetectorConfig
+from robofailring.detection.config import DEFAULT_K, DetectorConfig
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.rules import ScoringRule
 from robofailring.detection.stored import given_thresholds
 from robofailring.encoders import CachedEncoder, open_encoder
 from robofailring.encoders.spec import EncoderSpec
 from robofailring.memory.failure import FailureMemory
+from robofailring.memory.signals.modality import BOTH
 
 
 def encoder_for(config: DetectorConfig, spec: str) -> CachedEncoder:

@@ -1,25 +1,78 @@
-"""The live step API: a `DetectorSession` per episode, fed each step's frames (and the robot's signals),
-and the `StepSink` that sees every step (`rfr_viz.LiveRecording` streams it to a Rerun viewer)."""
+"""The live step API: a `DetectorSession` per episode, fed each step's frames (and the robot's signals), the
+`StepResult` of each step, and the `StepSink` that sees every step (`rfr_viz.LiveRecording` streams it to a Rerun viewer)."""
 
 from __future__ import annotations
 
 import warnings
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
 from robofailring.data.model import Frame
 from robofailring.detection.rules import RULES, ScoringRule
-from robofailring.detection.signal_scores import SIGNALS_VIEW, SignalHistory, SignalScores
-from robofailring.detection.trace import StepResult
+from robofailring.detection.signal_scores import SignalHistory, SignalScores
 from robofailring.detection.view_scores import ViewScores
 from robofailring.encoders.base import unusable
 from robofailring.errors import BlindCameraWarning
+from robofailring.memory.entry import Neighbor
+from robofailring.memory.signals.modality import SIGNALS_VIEW, judged_views
+from robofailring.memory.success import SuccessMatch
 
 if TYPE_CHECKING:
     from robofailring.detection.retrieved import Retrieved
     from robofailring.memory.failure import FailureMemory
+
+
+@dataclass(frozen=True)
+class StepResult:
+    """What the detector says about one time step."""
+
+    t: int
+    similarity: dict[str, float]  # S⁻_t per view (the paper's S_t)
+    neighbors: dict[str, list[Neighbor]]
+    alarm: bool  # State_t: some view's score reaches the threshold
+    fired_views: list[str]  # the views whose score reaches it, in view order
+    score: dict[str, float]  # the rule's score per view (S_t, C_t or N_t; NaN: not scored)
+    rule: ScoringRule
+    threshold: float  # what `score` is judged against at this step: θ, or μ_t + θ·σ_t with a band
+    detected_view: str | None  # the firing view with the highest score, None without an alarm
+    success_similarity: dict[str, float] = field(default_factory=dict)  # S⁺_t per view (NaN: none)
+    nearest_success: dict[str, SuccessMatch | None] = field(default_factory=dict)  # its success frame
+    # every registered rule's score per view, by rule name (paper: S⁻_t, contrast: C_t, novelty: N_t, …)
+    rule_scores: dict[str, dict[str, float]] = field(default_factory=dict)
+    # every registered rule's threshold on its raw score at this step, by rule name (θ, or μ_t + θ·σ_t)
+    thresholds: dict[str, float] = field(default_factory=dict)
+    queries: dict[str, np.ndarray] = field(default_factory=dict, repr=False)  # (f(I_0) ‖ f(I_t)) per view
+    # every registered rule's threshold on each judged view's raw score at this step, by rule name and view: the
+    # view's own band's line where it has one (fusion per-view, per-modality), else `thresholds[<rule>]`
+    view_thresholds: dict[str, dict[str, float]] = field(default_factory=dict)
+    # camera views that saw nothing at this step (a black, single-colour or NaN frame now, or as I_0): not
+    # scored, so `alarm` is False for them whatever the robot does (a BlindCameraWarning says it once)
+    blind_views: list[str] = field(default_factory=list)
+
+    @property
+    def usable(self) -> bool:
+        """Whether some view was judged at this step: False when every camera was blind and no signal was
+        scored, and then `alarm=False` means nothing (a camera died, not a run gone well)."""
+        return any(value == value for value in self.score.values())
+
+    @property
+    def state(self) -> bool:
+        """`alarm`, by its name in the paper (State_t, eq. 7)."""
+        return self.alarm
+
+    @property
+    def camera_view(self) -> str | None:
+        """The camera view whose neighbours explain the alarm: the firing view, or, when the robot's signals
+        fired, the camera scoring highest (None without an alarm)."""
+        if self.detected_view is None or self.detected_view in self.neighbors:
+            return self.detected_view
+        cameras = [
+            (score, view) for view, score in self.score.items() if view in self.neighbors and score == score
+        ]
+        return max(cameras)[1] if cameras else None
 
 
 class SessionDetector(Protocol):
@@ -101,11 +154,7 @@ class DetectorSession:
             self.signal_scores = self._signals.scores(signals, exclude_episode=self.exclude_episode)
             failure[SIGNALS_VIEW] = self.signal_scores.similarity
             success[SIGNALS_VIEW] = self.signal_scores.success_similarity
-        scored = [  # the cameras, and the signals where given, as the detector's modality says
-            view
-            for view in failure
-            if detector.modality == "both" or (view == SIGNALS_VIEW) == (detector.modality == "signals")
-        ]
+        scored = judged_views(failure, detector.modality)  # the cameras, and the signals where given
         rule = self.rule
         threshold = detector.threshold_at(rule, self.t, task=self.task)
         scores = ViewScores({view: rule.score(failure[view], success[view]) for view in scored}, 1)

@@ -1,5 +1,5 @@
 """The signal modality's scores over a trajectory or a live session: S⁻ and S⁺ of the robot's own signals
-against the task's signal memory (`robofailring.memory.signal_memory`), fused with the camera views as the
+against the task's signal memory (`robofailring.memory.signals.memory`), fused with the camera views as the
 view named `signals`, and what deviated most from the nearest normal frame."""
 
 from __future__ import annotations
@@ -13,11 +13,11 @@ import numpy as np
 from robofailring.data.model import Trajectory
 from robofailring.data.signals import FLOAT32_MAX
 from robofailring.errors import DataError
-from robofailring.memory.signal_derived import RunningDerivation
-from robofailring.memory.signal_layout import ACTION_LAGS, read_features
-from robofailring.memory.signal_memory import SIGNALS_VIEW, TaskSignals
+from robofailring.memory.signals.derived import RunningDerivation
+from robofailring.memory.signals.layout import ACTION_LAGS, read_features
+from robofailring.memory.signals.task import TaskSignals
 
-__all__ = ["SIGNALS_VIEW", "SignalHistory", "SignalScores", "cameras_alone_note", "score_signals"]
+__all__ = ["SignalHistory", "SignalScores", "cameras_alone_note", "score_signals"]
 
 
 @dataclass(frozen=True)
@@ -98,7 +98,7 @@ def score_signals(
 class SignalHistory:
     """A live session's signals so far, kept in constant space: the first step's features (the start state),
     the last few (the action window, `ACTION_LAGS`) and the derived features' running state, so a step costs
-    the same at step 40,000 as at step 10 (`robofailring.memory.signal_memory`)."""
+    the same at step 40,000 as at step 10 (`robofailring.memory.signals.memory`)."""
 
     def __init__(self, task: TaskSignals) -> None:
         self.task = task

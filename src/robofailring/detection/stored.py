@@ -8,7 +8,7 @@ from robofailring.detection.band import Band
 from robofailring.detection.rules import RULES, ScoringRule, rule_named, rule_of_option
 from robofailring.errors import SettingError
 from robofailring.memory.failure import FailureMemory
-from robofailring.memory.manifest import BOTH
+from robofailring.memory.signals.modality import BOTH
 
 
 def stored_bands(memory: FailureMemory, modality: str = BOTH) -> dict[str, Band]:

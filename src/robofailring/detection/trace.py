@@ -1,5 +1,5 @@
-"""What the detector produces: a trace over a whole trajectory (S⁻, S⁺, C, N per view, t_det) and
-the result of one live step."""
+"""What the detector produces over a whole trajectory: a trace (S⁻, S⁺, C, N per view, t_det); the result of
+one live step is `robofailring.detection.session.StepResult`."""
 
 from __future__ import annotations
 
@@ -13,60 +13,11 @@ import numpy as np
 from robofailring.data.model import Skipped
 from robofailring.detection.band import Band
 from robofailring.detection.rules import PAPER, RULES, RuleThresholds, ScoringRule, shown_rules
-from robofailring.detection.signal_scores import SIGNALS_VIEW, SignalScores
+from robofailring.detection.signal_scores import SignalScores
 from robofailring.detection.view_scores import ViewScores
 from robofailring.memory.failure import FailureMemory, Neighbor
+from robofailring.memory.signals.modality import BOTH, SIGNALS_VIEW, judged_views
 from robofailring.memory.success import SuccessMatch
-
-
-@dataclass(frozen=True)
-class StepResult:
-    """What the detector says about one time step."""
-
-    t: int
-    similarity: dict[str, float]  # S⁻_t per view (the paper's S_t)
-    neighbors: dict[str, list[Neighbor]]
-    alarm: bool  # State_t: some view's score reaches the threshold
-    fired_views: list[str]  # the views whose score reaches it, in view order
-    score: dict[str, float]  # the rule's score per view (S_t, C_t or N_t; NaN: not scored)
-    rule: ScoringRule
-    threshold: float  # what `score` is judged against at this step: θ, or μ_t + θ·σ_t with a band
-    detected_view: str | None  # the firing view with the highest score, None without an alarm
-    success_similarity: dict[str, float] = field(default_factory=dict)  # S⁺_t per view (NaN: none)
-    nearest_success: dict[str, SuccessMatch | None] = field(default_factory=dict)  # its success frame
-    # every registered rule's score per view, by rule name (paper: S⁻_t, contrast: C_t, novelty: N_t, …)
-    rule_scores: dict[str, dict[str, float]] = field(default_factory=dict)
-    # every registered rule's threshold on its raw score at this step, by rule name (θ, or μ_t + θ·σ_t)
-    thresholds: dict[str, float] = field(default_factory=dict)
-    queries: dict[str, np.ndarray] = field(default_factory=dict, repr=False)  # (f(I_0) ‖ f(I_t)) per view
-    # every registered rule's threshold on each judged view's raw score at this step, by rule name and view: the
-    # view's own band's line where it has one (fusion per-view, per-modality), else `thresholds[<rule>]`
-    view_thresholds: dict[str, dict[str, float]] = field(default_factory=dict)
-    # camera views that saw nothing at this step (a black, single-colour or NaN frame now, or as I_0): not
-    # scored, so `alarm` is False for them whatever the robot does (a BlindCameraWarning says it once)
-    blind_views: list[str] = field(default_factory=list)
-
-    @property
-    def usable(self) -> bool:
-        """Whether some view was judged at this step: False when every camera was blind and no signal was
-        scored, and then `alarm=False` means nothing (a camera died, not a run gone well)."""
-        return any(value == value for value in self.score.values())
-
-    @property
-    def state(self) -> bool:
-        """`alarm`, by its name in the paper (State_t, eq. 7)."""
-        return self.alarm
-
-    @property
-    def camera_view(self) -> str | None:
-        """The camera view whose neighbours explain the alarm: the firing view, or, when the robot's signals
-        fired, the camera scoring highest (None without an alarm)."""
-        if self.detected_view is None or self.detected_view in self.neighbors:
-            return self.detected_view
-        cameras = [
-            (score, view) for view, score in self.score.items() if view in self.neighbors and score == score
-        ]
-        return max(cameras)[1] if cameras else None
 
 
 @dataclass
@@ -108,16 +59,15 @@ class DetectionTrace(RuleThresholds):
     source: Path | None = None  # the trajectory's folder or file, naming what was skipped
     # the robot's own signals scored against the memory's signal memory, fused as the view `signals`
     signals: SignalScores | None = field(default=None, repr=False)
-    modality: str = "both"  # what the fusion judges: `both`, the `cameras` alone or the `signals` alone
+    modality: str = BOTH  # what the fusion judges: `both`, the `cameras` alone or the `signals` alone
     cameras_alone: bool = False  # the memory has the task's signals, the run records none (camera-only data)
 
     @property
     def scored_views(self) -> list[str]:
         """The views the rule's scores are fused over: the cameras (unless `modality` is `signals`), and
         `signals` where they were scored (unless it is `cameras`)."""
-        cameras = list(self.views) if self.modality != "signals" else []
-        return (
-            [*cameras, SIGNALS_VIEW] if self.signals is not None and self.modality != "cameras" else cameras
+        return judged_views(
+            [*self.views, *([SIGNALS_VIEW] if self.signals is not None else [])], self.modality
         )
 
     @property

@@ -25,11 +25,8 @@ from robofailring.detection.rules import PAPER, ScoringRule
 from robofailring.errors import DataError
 from robofailring.evaluation.metrics import ScoredTrajectory, json_number, rates
 from robofailring.evaluation.per_rule import RuleResult, auc_cell, evaluate_rule, pct
-from robofailring.memory.signal_memory import SIGNALS_VIEW
+from robofailring.memory.signals.modality import BOTH, CAMERAS, SIGNALS, SIGNALS_VIEW, judged_views
 
-CAMERAS: Final[str] = "cameras"
-SIGNALS: Final[str] = "signals"
-BOTH: Final[str] = "both"
 TASK: Final[str] = "task"
 
 
@@ -73,8 +70,7 @@ class ModalityResult:
 
 
 def _views(modality: str, run: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
-    keep = (lambda view: view == SIGNALS_VIEW) if modality == SIGNALS else (lambda view: view != SIGNALS_VIEW)
-    return {view: values for view, values in run.items() if keep(view)}
+    return {view: run[view] for view in judged_views(run, modality)}
 
 
 def _per_type(

@@ -19,7 +19,7 @@ from robofailring.memory.references import (
     check_references,
     relocate,
 )
-from robofailring.memory.signal_memory import SIGNALS_VIEW
+from robofailring.memory.signals.modality import SIGNALS_VIEW
 
 if TYPE_CHECKING:
     from robofailring.data.model import Trajectory

@@ -12,7 +12,7 @@ import numpy as np
 
 from robofailring.data.signals import SignalValues
 from robofailring.detection.detector import FailureDetector
-from robofailring.detection.trace import StepResult
+from robofailring.detection.session import StepResult
 from robofailring.memory.failure import Neighbor
 from robofailring.sim.episode import EpisodeResult, run_episode
 from robofailring.sim.signals import named

@@ -21,10 +21,9 @@ from robofailring.encoders import EncoderSpec, cache_identity
 from robofailring.errors import SettingError
 from robofailring.evaluation.job import EvaluateConfig, build_training_memory
 from robofailring.evaluation.markdown import markdown_text
-from robofailring.evaluation.modalities import BOTH, CAMERAS
 from robofailring.evaluation.run import EvaluationResult, run_evaluation
 from robofailring.memory.recipe import DEFAULT_RECIPE, MemoryRecipe
-from robofailring.memory.signal_memory import SIGNALS_VIEW
+from robofailring.memory.signals.modality import BOTH, CAMERAS, SIGNALS_VIEW
 
 
 @dataclass(frozen=True)

@@ -23,8 +23,8 @@ from robofailring.errors import DataError, EncoderMismatchError
 from robofailring.memory.encoding import BuildStats, EncodedFailures, encode_failures, failure_views
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.recipe import DEFAULT_RECIPE, MemoryRecipe
-from robofailring.memory.signal_layout import NONE
-from robofailring.memory.signal_memory import SignalMemory
+from robofailring.memory.signals.layout import NONE
+from robofailring.memory.signals.memory import SignalMemory
 from robofailring.memory.success import SuccessMemory
 from robofailring.progress import progress_bar
 
@@ -54,7 +54,7 @@ def build_memories(
 
     `recipe` (`robofailring.memory.recipe`): its failure frames, `dense` (each failure view's frames from
     its onset on, thinned at its step) or `end` (the paper's one entry per view), and its pairing, for both
-    memories, and which of the robot's signals make the signal memory (`robofailring.memory.signal_memory`;
+    memories, and which of the robot's signals make the signal memory (`robofailring.memory.signals.memory`;
     none where no run has them). A dataset without a success run gives no success memory.
     Image references are kept relative to the dataset root. `stats.skipped_inputs` (the provenance's, the blank
     frames not stored, the runs whose signals were not used) is kept in the manifest's `skipped_inputs`.

@@ -30,7 +30,7 @@ from robofailring.memory.folder import (
 )
 from robofailring.memory.image_roots import ImageRoots
 from robofailring.memory.index import FLAT, TaskIndexSet
-from robofailring.memory.manifest import MemoryManifest, StoredCalibration
+from robofailring.memory.manifest import MemoryManifest
 from robofailring.memory.pairs import pair_vectors
 from robofailring.memory.recipe import MemoryRecipe
 from robofailring.memory.references import (
@@ -38,7 +38,9 @@ from robofailring.memory.references import (
     check_references,
     storage_root,
 )
-from robofailring.memory.signal_memory import SignalMemory
+from robofailring.memory.signals.memory import SignalMemory
+from robofailring.memory.signals.modality import BOTH
+from robofailring.memory.stored_calibration import StoredCalibration
 from robofailring.memory.version import ReadFrom, read_whole, refuse_stale, require_read_from
 from robofailring.outputs import check_memory_target
 
@@ -78,7 +80,9 @@ class FailureMemory:
         # where its images may be read from: a memory built here, its data; one loaded, the folders named (`load`)
         self.image_roots = image_roots if image_roots is not None else ImageRoots.of(self.data_root)
         self.successes = successes  # success runs for the contrast rule (robofailring.memory.success)
-        self.signals = signals  # the robot's signals as a second modality (robofailring.memory.signal_memory)
+        self.signals = (
+            signals  # the robot's signals as a second modality (robofailring.memory.signals.memory)
+        )
         # the folder this memory (or the one it was derived from) was read from, and that folder's
         # version then: writing back over it is refused once another process has replaced it
         self.read_from: ReadFrom | None = None
@@ -127,8 +131,7 @@ class FailureMemory:
 
     @property
     def pairing(self) -> str:
-        """How the memory pairs a first and a current frame, queries alike: `concat` (the paper's) or
-        `change` (`robofailring.memory.pairs`)."""
+        """How it pairs a first and a current frame, queries alike: `concat` (the paper's) or `change`."""
         return self.manifest.pairing_mode
 
     def pair(self, first: np.ndarray, current: np.ndarray) -> np.ndarray:
@@ -344,8 +347,7 @@ class FailureMemory:
         return replace(found, outside=tuple(self.image_roots.outside(references))) if read else found
 
     # ---------------------------------------------------------------- calibration
-    def calibrated_threshold(self, rule: str, modality: str = "both") -> float | None:
-        """The threshold calibration stored for the rule named `rule` with this memory's encoder (for
-        `modality`: what the thresholds judge), if any."""
+    def calibrated_threshold(self, rule: str, modality: str = BOTH) -> float | None:
+        """The rule named `rule`'s stored threshold for this memory's encoder and `modality`, if any."""
         calibration = self.manifest.calibration
         return calibration.threshold_for(self.encoder, rule, modality) if calibration is not None else None

@@ -21,7 +21,7 @@ from robofailring.memory.format import parse_entry, read_json, read_jsonl, store
 from robofailring.memory.index_file import read_index_file
 from robofailring.memory.manifest import MemoryManifest, not_a_memory
 from robofailring.memory.references import stored_resolver, to_stored
-from robofailring.memory.signal_memory import SignalMemory
+from robofailring.memory.signals.memory import SignalMemory
 
 if TYPE_CHECKING:
     from robofailring.memory.success import SuccessMemory

@@ -6,9 +6,10 @@ is a MemoryFormatError naming the file and line. The manifest's checks live in
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Final, TypeVar
+from typing import Any, Final, TypeGuard, TypeVar
 
 from robofailring.bounded import GIB, open_regular, read_regular
 from robofailring.data.grounding import Vocabulary, parse_symbol
@@ -22,6 +23,21 @@ LINE_LIMIT: Final[int] = 1 << 24  # one row (an entry, a success run's frame lis
 MANIFEST_LIMIT: Final[int] = 1 << 28  # manifest.json: 256 MiB
 
 Row = TypeVar("Row")
+
+
+def is_number(value: Any) -> TypeGuard[float]:
+    """A JSON number (an int or a float, not a bool)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def is_finite_number(value: Any) -> bool:
+    """A JSON number that is finite."""
+    return is_number(value) and math.isfinite(value)
+
+
+def is_whole(value: Any) -> TypeGuard[int]:
+    """A JSON whole number (an int, not a bool)."""
+    return isinstance(value, int) and not isinstance(value, bool)
 
 
 def read_json(path: Path) -> Any:

@@ -132,7 +132,8 @@ class MemoryInfo:
         signals = self.memory.signals
         if signals is None:
             return None
-        stored = (self.memory.manifest.signals or {}).get("tasks", {})  # its choice, as the manifest keeps it
+        section = self.memory.manifest.signals
+        stored = section.tasks if section is not None else {}  # its choice, as the manifest keeps it
         tasks = {}
         for task, held in sorted(signals.by_task.items()):
             vectors = next(iter(held.vectors.values()), None)
@@ -143,15 +144,18 @@ class MemoryInfo:
                 "derived": held.derivation.width if held.derivation is not None else 0,
                 "vector_dim": int(vectors.shape[1]) if vectors is not None else 0,
                 **{f"{kind}_entries": len(values) for kind, values in held.vectors.items()},
-                **{
-                    key: stored[task][key]
-                    for key in ("selection", "selection_skipped")
-                    if key in stored.get(task, {})
-                },
+                **(
+                    {"selection": stored[task].selection} if task in stored and stored[task].selection else {}
+                ),
+                **(
+                    {"selection_skipped": stored[task].selection_skipped}
+                    if task in stored and stored[task].selection_skipped is not None
+                    else {}
+                ),
             }
         return {
             "choice": signals.choice,
-            "features": signals.features,
+            "features": str(signals.features),
             "start_weight": signals.start_weight,
             "tasks": tasks,
         }

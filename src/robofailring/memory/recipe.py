@@ -19,12 +19,12 @@ from robofailring.errors import SettingError
 from robofailring.memory.entry import DENSE, END, check_failure_frames
 from robofailring.memory.manifest import MemoryManifest
 from robofailring.memory.pairs import CHANGE, CONCAT, check_pairing
-from robofailring.memory.signal_derived import DEFAULT_FEATURES, check_features
-from robofailring.memory.signal_derived import NONE as NO_FEATURES
-from robofailring.memory.signal_layout import AUTO as SIGNALS_AUTO
-from robofailring.memory.signal_layout import NONE as SIGNALS_NONE
-from robofailring.memory.signal_layout import check_choice
-from robofailring.memory.signal_memory import DEFAULT_START_WEIGHT, START_WEIGHT, check_start_weight
+from robofailring.memory.signals.derived import DEFAULT_FEATURES, NO_FEATURES, SignalFeatures
+from robofailring.memory.signals.layout import AUTO as SIGNALS_AUTO
+from robofailring.memory.signals.layout import NONE as SIGNALS_NONE
+from robofailring.memory.signals.layout import check_choice
+from robofailring.memory.signals.memory import DEFAULT_START_WEIGHT
+from robofailring.memory.signals.task import check_start_weight
 from robofailring.memory.thinning import DEFAULT_STEP, check_step
 
 DEFAULT_ENCODER: Final[str] = "pixels"  # weight-free: what a memory is built with when no encoder is named
@@ -41,9 +41,10 @@ class MemoryRecipe:
         DEFAULT_STEP  # thinning (cosine) of success runs and dense failure runs; 0 keeps all
     )
     signals: str = SIGNALS_AUTO  # the robot's signals used beside the cameras: `auto`, `none` or names
-    # features derived from them (robofailring.memory.signal_derived): `change`, `events`, both, or `none`
-    signal_features: str = DEFAULT_FEATURES
-    # the start state's weight in the signal vectors (robofailring.memory.signal_memory): ½, or 0 to leave it out
+    # features derived from them (robofailring.memory.signals.derived): `change`, `events`, both, or `none`; given
+    # as text (`--signal-features`), parsed here once
+    signal_features: SignalFeatures = DEFAULT_FEATURES
+    # the start state's weight in the signal vectors (robofailring.memory.signals.memory): ½, or 0 to leave it out
     signal_start_weight: float = DEFAULT_START_WEIGHT
     # the settings chosen, by field name (`MemoryRecipe.chosen`); None: all of them (a recipe written out)
     given: frozenset[str] | None = field(default=None, compare=False, repr=False)
@@ -53,7 +54,8 @@ class MemoryRecipe:
             raise SettingError(f"a memory's encoder must be an encoder spec, got {self.encoder!r}")
         try:
             check_choice(self.signals)
-            check_features(self.signal_features)
+            if not isinstance(self.signal_features, SignalFeatures):  # text, as a user or option gives it
+                object.__setattr__(self, "signal_features", SignalFeatures.parse(self.signal_features))
         except ValueError as error:
             raise SettingError(str(error)) from error
         try:
@@ -98,7 +100,9 @@ class MemoryRecipe:
             pairing=pairing if pairing is not None else default.pairing,
             success_step=success_step if success_step is not None else default.success_step,
             signals=signals if signals is not None else default.signals,
-            signal_features=signal_features if signal_features is not None else default.signal_features,
+            signal_features=_features(signal_features)
+            if signal_features is not None
+            else default.signal_features,
             signal_start_weight=(
                 signal_start_weight if signal_start_weight is not None else default.signal_start_weight
             ),
@@ -119,14 +123,18 @@ class MemoryRecipe:
             failure_frames=manifest.failure_mode,
             pairing=manifest.pairing_mode,
             success_step=manifest.failure_step if manifest.failure_step is not None else DEFAULT_STEP,
-            signals=str(manifest.signals.get("choice", SIGNALS_AUTO)) if manifest.signals else SIGNALS_NONE,
-            signal_features=str(manifest.signals.get("features", NO_FEATURES))
-            if manifest.signals
-            else NO_FEATURES,
-            signal_start_weight=float(manifest.signals.get("start_weight", START_WEIGHT))
-            if manifest.signals
-            else DEFAULT_START_WEIGHT,
+            signals=manifest.signals.choice if manifest.signals else SIGNALS_NONE,
+            signal_features=manifest.signals.features if manifest.signals else NO_FEATURES,
+            signal_start_weight=manifest.signals.start_weight if manifest.signals else DEFAULT_START_WEIGHT,
         )
+
+
+def _features(text: str) -> SignalFeatures:
+    """`--signal-features` parsed; SettingError naming the choices otherwise."""
+    try:
+        return SignalFeatures.parse(text)
+    except ValueError as error:
+        raise SettingError(str(error)) from error
 
 
 DEFAULT_RECIPE: Final[MemoryRecipe] = MemoryRecipe()  # what a memory is built with when nothing is chosen

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 from typing import Any, Final
 
-from robofailring.detection.trace import StepResult
+from robofailring.detection.session import StepResult
 
 INFO_KEY: Final[str] = "robofailring"  # info["robofailring"]: the step's `Verdict`
 

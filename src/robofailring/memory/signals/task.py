@@ -1,6 +1,6 @@
 """One task's signal memory (`TaskSignals`): its layout, derived features, normalisation, and the failure and
 success entries in exact Faiss indexes; the paired vectors of a run's features and the nearest entries of a
-query (the vectors and similarity: `robofailring.memory.signal_memory`)."""
+query (the vectors and similarity: `robofailring.memory.signals.memory`)."""
 
 from __future__ import annotations
 
@@ -12,12 +12,15 @@ import numpy as np
 from robofailring.data.signals import FLOAT32_MAX
 from robofailring.errors import DataError
 from robofailring.memory.index import FLAT, IndexSpec, TaskIndex
-from robofailring.memory.signal_derived import Derivation
-from robofailring.memory.signal_layout import ACTION_LAGS, SignalLayout
-from robofailring.memory.signal_rows import Rows, search_entries
-from robofailring.memory.signal_select import Selection
+from robofailring.memory.signals.derived import Derivation
+from robofailring.memory.signals.layout import ACTION_LAGS, SignalLayout
+from robofailring.memory.signals.rows import Rows, search_entries
+from robofailring.memory.signals.select import Selection
 
 START_WEIGHT: Final[float] = 0.5  # the start state's weight in a memory from before it was a setting
+# the largest start weight: the start state, a few σ once normalised, then outweighs every other element a
+# hundredfold; a larger one only overflows the float32 vectors (1e308 would make them infinite)
+MAX_START_WEIGHT: Final[float] = 100.0
 
 
 class TaskSignals:
@@ -134,3 +137,17 @@ class TaskSignals:
 def vector_width(state: int, action: int) -> int:
     """A paired vector's width from the (state, action) widths: [start ‖ change ‖ lagged actions ‖ t]."""
     return 2 * state + len(ACTION_LAGS) * action + 1
+
+
+def check_start_weight(weight: object) -> float:
+    """A start weight (`--signal-start-weight`) as a float; ValueError unless a number from 0 to `MAX_START_WEIGHT`."""
+    if (
+        isinstance(weight, bool)
+        or not isinstance(weight, (int, float))
+        or not 0 <= weight <= MAX_START_WEIGHT  # NaN too
+    ):
+        raise ValueError(
+            f"a signal start weight (--signal-start-weight) must be a number from 0 to {MAX_START_WEIGHT:g} "
+            f"(0 leaves the start state out, 0.5 weighs it as memories from before the setting do), got {weight!r}"
+        )
+    return float(weight)

@@ -1,5 +1,5 @@
 """What a task's signal-memory entries are (their run's episode, failure symbol and frame) and how they are laid
-out for an inner-product Faiss index that ranks by Euclidean distance (`robofailring.memory.signal_memory`)."""
+out for an inner-product Faiss index that ranks by Euclidean distance (`robofailring.memory.signals.memory`)."""
 
 from __future__ import annotations
 

@@ -14,7 +14,7 @@ import numpy as np
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.data.signals import SignalKind, SignalValues
 from robofailring.errors import DataError, MemoryFormatError
-from robofailring.memory.signal_derived import parse_features
+from robofailring.memory.signals.derived import NO_FEATURES, SignalFeatures
 
 ACTION_LAGS: Final[tuple[int, ...]] = (0, 2, 4)  # the action window: a_t, a_{t−2}, a_{t−4}
 AUTO: Final[str] = "auto"  # every state and action signal every run of a task has
@@ -52,7 +52,7 @@ class SignalLayout:
     # each signal's own dimensions where only some of them are used (`NAME:GLOB`): a live step's vector
     # is the whole signal, and the used ones are taken from it
     full: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
-    # the features derived from them and added to the state (robofailring.memory.signal_derived); () for
+    # the features derived from them and added to the state (robofailring.memory.signals.derived); () for
     # a memory built before they existed
     derived: tuple[str, ...] = ()
 
@@ -125,7 +125,7 @@ class SignalLayout:
                     for kind in ("state", "action")
                 },
                 full={str(n): tuple(str(d) for d in dims) for n, dims in (section.get("full") or {}).items()},
-                derived=parse_features(",".join(str(kind) for kind in section.get("derived") or [NONE])),
+                derived=SignalFeatures.of_kinds(section.get("derived") or []).kinds,
             )
         except (KeyError, TypeError, ValueError, AttributeError) as error:
             raise MemoryFormatError(f"{where}: bad signal layout {section!r} ({error!r})") from error
@@ -144,7 +144,7 @@ def read_features(trajectory: Trajectory, layout: SignalLayout) -> np.ndarray:
 
 
 def choose_layout(
-    trajectories: Sequence[Trajectory], choice: str, features: str = NONE
+    trajectories: Sequence[Trajectory], choice: str, features: SignalFeatures = NO_FEATURES
 ) -> tuple[SignalLayout | None, list[Skipped]]:
     """The layout of one task's runs for `choice`, decided by all of them, not by whichever comes first:
     `auto` takes every state and action signal at least half of the runs with signals have, names take those
@@ -186,7 +186,7 @@ def choose_layout(
     ]
     if not (state or action):
         return None, dropped
-    return SignalLayout(state=state, action=action, full=full, derived=parse_features(features)), dropped
+    return SignalLayout(state=state, action=action, full=full, derived=features.kinds), dropped
 
 
 def _candidates(runs: Sequence[Trajectory]) -> dict[str, list[str]]:

@@ -18,9 +18,10 @@ from robofailring.detection.signal_scores import SignalHistory
 from robofailring.errors import SettingError
 from robofailring.memory.builder import Provenance, build_memories
 from robofailring.memory.recipe import MemoryRecipe
-from robofailring.memory.signal_derived import Derivation, RunningDerivation, parse_features
-from robofailring.memory.signal_layout import ACTION_LAGS
-from robofailring.memory.signal_memory import SignalMemory, TaskSignals
+from robofailring.memory.signals.derived import Derivation, RunningDerivation, SignalFeatures
+from robofailring.memory.signals.layout import ACTION_LAGS
+from robofailring.memory.signals.memory import SignalMemory, TaskSignals
+from robofailring.memory.signals.section import SignalSection
 
 LENGTH = 8
 
@@ -59,8 +60,12 @@ def test_the_gripper_is_found_step_like_and_its_events_counted() -> None:
 
 
 def test_the_features_choice_parses_or_is_refused() -> None:
-    assert parse_features("events,change") == ("change", "events") and parse_features("none") == ()
-    assert MemoryRecipe().signal_features == "change,events"
+    assert SignalFeatures.parse("events,change").kinds == ("change", "events")
+    assert SignalFeatures.parse("none").kinds == ()
+    assert str(SignalFeatures.parse(" events,change")) == " events,change"  # the text as given, kept
+    assert MemoryRecipe().signal_features == SignalFeatures.parse("change,events")
+    assert str(MemoryRecipe().signal_features) == "change,events"
+    assert MemoryRecipe(signal_features="events").signal_features.kinds == ("events",)
     with pytest.raises(SettingError, match="--signal-features takes none or change, events"):
         MemoryRecipe(signal_features="jerk")
 
@@ -82,7 +87,7 @@ def test_a_memory_keeps_its_derived_features_and_a_live_session_derives_them_ali
 ) -> None:
     train = load_dataset(dataset).select(split="train")
     memory, _ = build_memories(train, encoder, provenance=Provenance(data=dataset, encoder="pixels"))
-    assert memory.signals is not None and memory.recipe.signal_features == "change,events"
+    assert memory.signals is not None and str(memory.recipe.signal_features) == "change,events"
     task = memory.signals.task("pick_cube")
     assert task is not None and task.derivation is not None and task.layout.derived == ("change", "events")
     state = 1 + 3 + 2 * 2  # the width, 3 changes, 2 step-like dimensions' jumps and frames since
@@ -95,7 +100,7 @@ def test_a_memory_keeps_its_derived_features_and_a_live_session_derives_them_ali
     assert section["features"] == "change,events"
     assert section["tasks"]["pick_cube"]["layout"]["derived"] == ["change", "events"]
     loaded = FailureMemory.load(saved)
-    assert loaded.recipe.signal_features == "change,events" and loaded.signals is not None
+    assert str(loaded.recipe.signal_features) == "change,events" and loaded.signals is not None
     again = loaded.signals.task("pick_cube")
     assert again is not None and again.derivation is not None
     np.testing.assert_array_equal(again.derivation.steps, task.derivation.steps)
@@ -128,10 +133,10 @@ def test_a_memory_from_before_derived_features_reads_as_none(
     assert "derived" not in manifest["signals"]["tasks"]["pick_cube"]["layout"]
     (saved / "manifest.json").write_text(json.dumps(manifest))
     loaded = FailureMemory.load(saved)
-    assert loaded.recipe.signal_features == "none" and loaded.signals is not None
+    assert str(loaded.recipe.signal_features) == "none" and loaded.signals is not None
     task = loaded.signals.task("pick_cube")
     assert task is not None and task.derivation is None and task.widths == (1, 2)
-    assert SignalMemory.read(saved, manifest["signals"]).features == "none"
+    assert str(SignalMemory.read(saved, SignalSection.parse(manifest["signals"], saved)).features) == "none"
 
 
 def test_the_running_derivation_gives_each_frame_what_the_whole_run_does() -> None:

@@ -1,7 +1,7 @@
 """Which elements of a task's signal vectors separate its failures from its successes, chosen from the task's own
 training runs (`--signals auto`, docs/signals.md "Chosen from the data").
 
-A task's paired vectors (`robofailring.memory.signal_memory`) are cut into **groups**, one per raw dimension's
+A task's paired vectors (`robofailring.memory.signals.memory`) are cut into **groups**, one per raw dimension's
 value (its change since the start, or a commanded action's window), its change over the last frame, its events
 (jumps so far and frames since the last) and the moment (the frame number). Each held-out training run is
 scored against the task's other runs as the detector scores a run (its peak contrast C = S⁻ − S⁺ over its
@@ -22,8 +22,8 @@ import numpy as np
 
 from robofailring.data.model import Trajectory
 from robofailring.errors import MemoryFormatError
-from robofailring.memory.signal_derived import EVENTS, Derivation
-from robofailring.memory.signal_layout import SignalLayout
+from robofailring.memory.signals.derived import EVENTS, Derivation
+from robofailring.memory.signals.layout import SignalLayout
 
 MIN_RUNS: Final[int] = 4  # failure and success runs a task needs (each) for its dimensions to be chosen
 MAX_GROUPS: Final[int] = 12  # groups chosen at most
@@ -97,13 +97,6 @@ class Selection:
         return {f"{key}_selected": self.columns, f"{key}_selected_weights": self.weights}
 
     @classmethod
-    def stored(
-        cls, task: Mapping[str, Any], arrays: dict[str, np.ndarray], key: str, width: int, where: str
-    ) -> Selection | None:
-        """The selection a manifest's `task` entry records (None: it has none), its arrays from `arrays`."""
-        return cls.read(task["selection"], arrays, key, width, where) if "selection" in task else None
-
-    @classmethod
     def read(
         cls, described: Mapping[str, Any], arrays: dict[str, np.ndarray], key: str, width: int, where: str
     ) -> Selection:
@@ -132,7 +125,7 @@ def groups(
     state: Sequence[str], derived: Sequence[str], action: Sequence[str], steps: int, *, start: bool
 ) -> list[Group]:
     """The groups of a paired vector [start ‖ change ‖ actions at 3 lags ‖ time] whose state is the raw
-    columns `state` followed by the `derived` ones (`signal_derived.Derivation.names`: a change per raw state
+    columns `state` followed by the `derived` ones (`derived.Derivation.names`: a change per raw state
     and action column, then each of the `steps` step-like columns' jumps and frames since), and whose action
     is the columns `action`; `start`: whether the start state's elements count (a weight above 0)."""
     width = len(state) + len(derived)
@@ -292,7 +285,7 @@ def choose(
 
 
 class _Task(Protocol):
-    """What choosing reads of a task's signal memory (`signal_memory.TaskSignals`)."""
+    """What choosing reads of a task's signal memory (`task.TaskSignals`)."""
 
     layout: SignalLayout
     derivation: Derivation | None

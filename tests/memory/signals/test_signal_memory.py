@@ -15,8 +15,8 @@ from robofailring import CachedEncoder, FailureMemory, load_dataset
 from robofailring.errors import SettingError
 from robofailring.memory.builder import Provenance, add_to, build_memories
 from robofailring.memory.recipe import MemoryRecipe
-from robofailring.memory.signal_layout import ACTION_LAGS
-from robofailring.memory.signal_memory import SIGNALS_FILE
+from robofailring.memory.signals.layout import ACTION_LAGS
+from robofailring.memory.signals.section import SIGNALS_FILE
 
 LENGTH = 8
 

@@ -3,7 +3,7 @@ as a second modality beside the cameras, retrieved as the paper retrieves frames
 
 Per task, each frame t of a run becomes one vector from its raw features f_t = [state ‖ action ‖ t]
 (the layout's state and action signals and the frame number; with derived features,
-`robofailring.memory.signal_derived`, the state is followed by them), z-scored by the task's own success
+`robofailring.memory.signals.derived`, the state is followed by them), z-scored by the task's own success
 runs (all its runs where it has none) to z_t, then paired as the memory's frames are paired:
 `[w·zs_0 ‖ zs_t − zs_0 ‖ za_t ‖ za_{t−2} ‖ za_{t−4} ‖ z_time_t]` (the start state weighted by w, the
 change since then, a short window of commanded actions, the moment; w is the memory's `start_weight`: 0 by
@@ -19,34 +19,28 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any, Final
+from typing import Final
 
 import numpy as np
 
-from robofailring.bounded import Shape, read_npz
+from robofailring.bounded import read_npz
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.errors import DataError, MemoryFormatError
-from robofailring.memory.signal_derived import NONE as NO_FEATURES
-from robofailring.memory.signal_derived import Derivation
-from robofailring.memory.signal_layout import (
+from robofailring.memory.signals.derived import NO_FEATURES, Derivation, SignalFeatures
+from robofailring.memory.signals.layout import (
     AUTO,
     SignalLayout,
     choose_layout,
     read_features,
 )
-from robofailring.memory.signal_rows import Rows, rows_of
-from robofailring.memory.signal_select import Selection, choose_for
-from robofailring.memory.signal_task import START_WEIGHT, TaskSignals, vector_width
+from robofailring.memory.signals.rows import Rows, rows_of
+from robofailring.memory.signals.section import KINDS, PARTS, SIGNALS_FILE, SignalSection, TaskSection
+from robofailring.memory.signals.select import Selection, choose_for
+from robofailring.memory.signals.task import START_WEIGHT, TaskSignals
 
-SIGNALS_VIEW: Final[str] = "signals"  # the modality's name among the views a trace fuses
 # the start state's weight in a new memory (docs/signals.md, "Measured"; ½ in one from before the setting)
 DEFAULT_START_WEIGHT: Final[float] = 0.0
-# the largest start weight: the start state, a few σ once normalised, then outweighs every other element a
-# hundredfold; a larger one only overflows the float32 vectors (1e308 would make them infinite)
-MAX_START_WEIGHT: Final[float] = 100.0
 MIN_SCALE: Final[float] = 1e-3  # a feature's spread floor (a value constant over the successes)
-SIGNALS_FILE: Final[str] = "signals.npz"
-STEPS: Final[tuple[str, str]] = ("steps", "step_tolerance")  # a derivation's arrays, per task key
 
 
 def build_task(
@@ -59,7 +53,7 @@ def build_task(
 ) -> tuple[TaskSignals | None, list[Skipped]]:
     """One task's signal memory from its labelled runs; a run whose signals cannot be read is skipped.
     `select`: its vectors keep the elements that separate its failure runs from its success runs
-    (`robofailring.memory.signal_select`)."""
+    (`robofailring.memory.signals.select`)."""
     features: list[tuple[Trajectory, np.ndarray]] = []
     skipped: list[Skipped] = []
     for trajectory in trajectories:
@@ -119,9 +113,9 @@ def _with_runs(
         task.scale,
         {
             kind: np.concatenate(vectors[kind]) if vectors.get(kind) else np.zeros((0, width), np.float32)
-            for kind in ("failure", "success")
+            for kind in KINDS
         },
-        {kind: rows_of(rows.get(kind, [])) for kind in ("failure", "success")},
+        {kind: rows_of(rows.get(kind, [])) for kind in KINDS},
         task.derivation,
         task.start_weight,
         task.selection,
@@ -139,7 +133,7 @@ class SignalMemory:
         by_task: Mapping[str, TaskSignals],
         *,
         choice: str = AUTO,
-        features: str = NO_FEATURES,
+        features: SignalFeatures = NO_FEATURES,
         start_weight: float = START_WEIGHT,
     ) -> None:
         self.by_task = dict(by_task)
@@ -153,11 +147,11 @@ class SignalMemory:
         trajectories: Sequence[Trajectory],
         *,
         choice: str = AUTO,
-        features: str = NO_FEATURES,
+        features: SignalFeatures = NO_FEATURES,
         start_weight: float = DEFAULT_START_WEIGHT,
     ) -> tuple[SignalMemory | None, list[Skipped]]:
         """The signal memory of the labelled `trajectories` (None: no task has signals to use), with the
-        derived `features` (`none`, or `change` and/or `events`: `robofailring.memory.signal_derived`) and the
+        derived `features` (`none`, or `change` and/or `events`: `robofailring.memory.signals.derived`) and the
         start state weighted by `start_weight` (module docstring)."""
         by_task: dict[str, TaskSignals] = {}
         skipped: list[Skipped] = []
@@ -214,158 +208,80 @@ class SignalMemory:
     def __len__(self) -> int:
         return sum(len(v) for task in self.by_task.values() for v in task.vectors.values())
 
-    def manifest(self) -> dict[str, Any]:
+    def manifest(self) -> SignalSection:
         """The manifest's `signals` section: the choice, and per task its key in the file, layout and sizes."""
         tasks = {
-            task: {
-                "key": f"t{number}",
-                "layout": signals.layout.to_dict(),
-                **({"selection": signals.selection.describe()} if signals.selection is not None else {}),
-                **({"selection_skipped": signals.chose} if signals.chose else {}),
-                **{f"{kind}_entries": len(v) for kind, v in signals.vectors.items()},
-            }
+            task: TaskSection(
+                f"t{number}",
+                signals.layout,
+                {kind: len(v) for kind, v in signals.vectors.items()},
+                signals.selection.describe() if signals.selection is not None else None,
+                signals.chose or None,
+            )
             for number, (task, signals) in enumerate(sorted(self.by_task.items()))
         }
-        return {
-            "file": SIGNALS_FILE,
-            "choice": self.choice,
-            "features": self.features,
-            "start_weight": self.start_weight,
-            "tasks": tasks,
-        }
+        return SignalSection(tasks, self.choice, self.features, self.start_weight)
 
     def write(self, directory: Path) -> None:
         """Write `signals.npz` into `directory` (the memory's folder being written), keyed as `manifest` says."""
         arrays: dict[str, np.ndarray] = {}
-        for task, described in self.manifest()["tasks"].items():
-            key, signals = described["key"], self.by_task[task]
+        for task, described in self.manifest().tasks.items():
+            key, signals = described.key, self.by_task[task]
             arrays[f"{key}_mean"], arrays[f"{key}_scale"] = signals.mean, signals.scale
             if signals.derivation is not None:
                 arrays |= signals.derivation.arrays(key)
             if signals.selection is not None:
                 arrays |= signals.selection.arrays(key)
-            for kind in ("failure", "success"):
+            for kind in KINDS:
                 rows = signals.rows[kind]
                 arrays[f"{key}_{kind}"] = signals.vectors[kind]
-                arrays[f"{key}_{kind}_episodes"] = rows.episodes
-                arrays[f"{key}_{kind}_symbols"] = rows.symbols
-                arrays[f"{key}_{kind}_frames"] = rows.frames
+                arrays |= {f"{key}_{kind}_{part}": getattr(rows, part) for part in PARTS}
         with (Path(directory) / SIGNALS_FILE).open("wb") as handle:
             np.savez(handle, **arrays)  # type: ignore[arg-type]  # numpy's stub types **kwds as allow_pickle
 
     @classmethod
-    def read(cls, directory: Path, section: Mapping[str, Any]) -> SignalMemory:
+    def read(cls, directory: Path, section: SignalSection) -> SignalMemory:
         """What `write` wrote, checked: a missing array or a size other than the manifest's names the file."""
         path = Path(directory) / SIGNALS_FILE
         where = f"{path}"
-        start_weight = _start_weight(section, where)
         try:
             # each array's declared shape checked against the manifest before it is decompressed
-            arrays = read_npz(path, error=MemoryFormatError, shapes=_expected_shapes(path, section, where))
+            arrays = read_npz(path, error=MemoryFormatError, shapes=section.expected_shapes(path))
             by_task = {}
-            for task, described in section["tasks"].items():
-                key = described["key"]
-                vectors = {kind: arrays[f"{key}_{kind}"] for kind in ("failure", "success")}
-                rows = {
-                    kind: Rows(
-                        *(arrays[f"{key}_{kind}_{part}"] for part in ("episodes", "symbols", "frames"))
-                    )
-                    for kind in vectors
-                }
+            for task, described in section.tasks.items():
+                key, layout = described.key, described.layout
+                vectors = {kind: arrays[f"{key}_{kind}"] for kind in KINDS}
+                rows = {kind: Rows(*(arrays[f"{key}_{kind}_{part}"] for part in PARTS)) for kind in vectors}
                 for kind, found in vectors.items():
-                    if len(found) != described[f"{kind}_entries"] or len(rows[kind].episodes) != len(found):
+                    if len(found) != described.entries[kind] or len(rows[kind].episodes) != len(found):
                         raise MemoryFormatError(
                             f"{where}: task {task!r} has {len(found)} {kind} vectors, the manifest says "
-                            f"{described[f'{kind}_entries']}"
+                            f"{described.entries[kind]}"
                         )
-                layout = SignalLayout.parse(described["layout"], where)
                 derivation = (
                     Derivation.read(layout.derived, sum(layout.widths), arrays, key, where)
                     if layout.derived
                     else None
                 )
                 full = TaskSignals(layout, np.zeros(0), np.ones(0), {}, {}, derivation).width
-                selection = Selection.stored(described, arrays, key, full, where)
-                by_task[str(task)] = TaskSignals(
+                selection = (
+                    Selection.read(described.selection, arrays, key, full, where)
+                    if described.selection is not None
+                    else None
+                )
+                by_task[task] = TaskSignals(
                     layout,
                     arrays[f"{key}_mean"],
                     arrays[f"{key}_scale"],
                     vectors,
                     rows,
                     derivation,
-                    start_weight,
+                    section.start_weight,
                     selection,
-                    str(described.get("selection_skipped", "")),
+                    described.selection_skipped or "",
                 )
         except (KeyError, TypeError, AttributeError) as error:
             raise MemoryFormatError(f"{where}: the signal memory lacks {error} (a damaged file?)") from error
         return cls(
-            by_task,
-            choice=str(section.get("choice", AUTO)),
-            features=str(section.get("features", NO_FEATURES)),  # a memory from before derived features: none
-            start_weight=start_weight,
+            by_task, choice=section.choice, features=section.features, start_weight=section.start_weight
         )
-
-
-def check_start_weight(weight: object) -> float:
-    """A start weight (`--signal-start-weight`) as a float; ValueError unless a number from 0 to `MAX_START_WEIGHT`."""
-    if (
-        isinstance(weight, bool)
-        or not isinstance(weight, (int, float))
-        or not 0 <= weight <= MAX_START_WEIGHT  # NaN too
-    ):
-        raise ValueError(
-            f"a signal start weight (--signal-start-weight) must be a number from 0 to {MAX_START_WEIGHT:g} "
-            f"(0 leaves the start state out, 0.5 weighs it as memories from before the setting do), got {weight!r}"
-        )
-    return float(weight)
-
-
-def _expected_shapes(path: Path, section: Mapping[str, Any], where: str) -> dict[str, Shape]:
-    """Each array's shape as the manifest's `section` says it (its entry counts and its layout's widths),
-    reading first only the small step-like-column arrays the vectors' width depends on."""
-    derived: dict[str, tuple[SignalLayout, Derivation | None]] = {}
-    for described in section["tasks"].values():
-        layout = SignalLayout.parse(described["layout"], where)
-        derived[described["key"]] = (layout, None)
-    steps = read_npz(
-        path,
-        error=MemoryFormatError,
-        names=[f"{key}_{part}" for key, (layout, _) in derived.items() if layout.derived for part in STEPS],
-        shapes={f"{key}_{part}": (None,) for key in derived for part in STEPS},
-    )
-    shapes: dict[str, Shape] = {}
-    for described in section["tasks"].values():
-        key = described["key"]
-        layout = derived[key][0]
-        state, action = layout.widths
-        if layout.derived:
-            state += Derivation.read(layout.derived, state + action, steps, key, where).width
-        shapes[f"{key}_mean"] = shapes[f"{key}_scale"] = (state + action + 1,)  # [state ‖ action ‖ t]
-        width = vector_width(state, action)
-        selection = described.get("selection")
-        if selection is not None:  # `--signals auto` kept these elements of the vectors (signal_select.py)
-            kept = selection.get("elements") if isinstance(selection, dict) else None
-            if isinstance(kept, bool) or not isinstance(kept, int) or not 0 < kept <= width:
-                raise MemoryFormatError(
-                    f"{where}: task key {key!r} keeps {kept!r} signal elements of {width}"
-                )
-            width = kept
-            shapes[f"{key}_selected"] = shapes[f"{key}_selected_weights"] = (kept,)
-        for kind in ("failure", "success"):
-            entries = described[f"{kind}_entries"]
-            if isinstance(entries, bool) or not isinstance(entries, int) or entries < 0:
-                raise MemoryFormatError(f"{where}: the manifest's {kind}_entries {entries!r} is not a count")
-            shapes[f"{key}_{kind}"] = (entries, width)
-            for part in ("episodes", "symbols", "frames"):
-                shapes[f"{key}_{kind}_{part}"] = (entries,)
-    return shapes
-
-
-def _start_weight(section: Mapping[str, Any], where: str) -> float:
-    """The stored start-state weight (a memory from before it was a setting: ½); MemoryFormatError if not one
-    `check_start_weight` takes."""
-    try:
-        return check_start_weight(section.get("start_weight", START_WEIGHT))
-    except ValueError as error:
-        raise MemoryFormatError(f"{where}: the signal memory's start_weight: {error}") from error

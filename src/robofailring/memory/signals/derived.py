@@ -17,7 +17,7 @@ closing are distances to the success frames, where absolute positions move with 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Final
 
 import numpy as np
@@ -28,32 +28,48 @@ CHANGE: Final[str] = "change"
 EVENTS: Final[str] = "events"
 KINDS: Final[tuple[str, ...]] = (CHANGE, EVENTS)
 NONE: Final[str] = "none"
-DEFAULT_FEATURES: Final[str] = f"{CHANGE},{EVENTS}"  # the benchmarks' best (docs/signals.md, "In a memory")
 JUMP_SHARE: Final[float] = 0.05  # a jump: a one-frame change over this share of the usual in-run range …
 STEP_SHARE: Final[float] = 0.25  # … and a step-like dimension jumps in at most this share of the frames
 
 
-def check_features(features: str) -> str:
-    """`none` or derived feature kinds separated by commas (`change`, `events`); ValueError otherwise."""
-    kinds = parse_features(features)
-    if features.strip() != NONE and not kinds:
-        raise ValueError(
-            f"--signal-features takes none or {', '.join(KINDS)} separated by commas, got {features!r}"
-        )
-    return features
+@dataclass(frozen=True)
+class SignalFeatures:
+    """The derived features a signal memory adds (`--signal-features`), parsed once where they are given: their
+    kinds in the order `KINDS` lists them (() for `none`), and the text they were given as, which manifests keep
+    and memory-info shows (two texts of the same kinds are equal)."""
+
+    kinds: tuple[str, ...] = ()
+    text: str = field(default=NONE, compare=False)
+
+    @classmethod
+    def parse(cls, text: str) -> SignalFeatures:
+        """`none` or kinds separated by commas (`change`, `events`); ValueError naming the choices otherwise."""
+        items = [item.strip() for item in str(text).split(",")]
+        if items == [NONE]:
+            return cls((), str(text))
+        if any(item not in KINDS for item in items):
+            raise ValueError(
+                f"--signal-features takes none or {', '.join(KINDS)} separated by commas, got {text!r}"
+            )
+        return cls(tuple(kind for kind in KINDS if kind in items), str(text))
+
+    @classmethod
+    def of_kinds(cls, kinds: Sequence[object]) -> SignalFeatures:
+        """The features of a list of kinds (a stored layout's `derived`); ValueError for one not in `KINDS`."""
+        given = [] if list(kinds) == [NONE] else list(kinds)
+        unknown = [kind for kind in given if kind not in KINDS]
+        if unknown:
+            raise ValueError(f"derived signal features are {', '.join(KINDS)}, not {unknown!r}")
+        ordered = tuple(kind for kind in KINDS if kind in given)
+        return cls(ordered, ",".join(ordered) or NONE)
+
+    def __str__(self) -> str:
+        return self.text
 
 
-def parse_features(features: str) -> tuple[str, ...]:
-    """The kinds of a `--signal-features` value, in the order `KINDS` lists them (() for `none`)."""
-    items = [item.strip() for item in str(features).split(",")]
-    if items == [NONE]:
-        return ()
-    unknown = [item for item in items if item not in KINDS]
-    if unknown:
-        raise ValueError(
-            f"--signal-features takes none or {', '.join(KINDS)} separated by commas, got {features!r}"
-        )
-    return tuple(kind for kind in KINDS if kind in items)
+# the benchmarks' best (docs/signals.md, "In a memory")
+DEFAULT_FEATURES: Final[SignalFeatures] = SignalFeatures.parse(f"{CHANGE},{EVENTS}")
+NO_FEATURES: Final[SignalFeatures] = SignalFeatures.parse(NONE)  # a memory from before derived features
 
 
 @dataclass(frozen=True)
