@@ -12,7 +12,8 @@ import pytest
 from fault_helpers import cli
 from synthetic import write_project_dataset
 
-from robofailring import FailureMemory
+from robofailring import FailureMemory, load_dataset
+from robofailring.memory.signals.layout import read_features
 
 WEIGHT = 0.25  # neither the default (0) nor the weight of memories from before the setting (0.5)
 STATE = 1  # the signal vectors start with the weighted start state: the gripper's width, one dimension
@@ -70,7 +71,17 @@ def test_the_signal_start_weight_given_is_the_memorys_and_a_new_task_grown_into_
     grown = cli("build-memory", pushes, "--add-to", memory, *cache)
     assert grown.exit_code == 0, grown.output
     assert _manifest(memory)["signals"]["start_weight"] == WEIGHT
-    assert FailureMemory.load(memory).recipe.signal_start_weight == WEIGHT
+    grown_memory = FailureMemory.load(memory)
+    assert grown_memory.recipe.signal_start_weight == WEIGHT
+    assert grown_memory.signals is not None and set(grown_memory.signals.by_task) == {
+        "pick_cube",
+        "push_cube",
+    }
+    task = grown_memory.signals.task("push_cube")
+    assert task is not None and task.start_weight == WEIGHT
+    run = next(t for t in load_dataset(pushes) if not t.is_failure)  # a success's rows: its paired features
+    stored = task.vectors["success"][task.rows["success"].episodes == run.episode]
+    np.testing.assert_allclose(stored, task.vectors_of(read_features(run, task.layout)), atol=1e-5)
     # the new task's vectors are those a memory of it alone built at the same weight has
     alone = tmp_path / "alone"
     made = cli("build-memory", pushes, "--out", alone, "--signal-start-weight", WEIGHT, *cache)

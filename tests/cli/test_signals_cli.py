@@ -104,46 +104,6 @@ def test_watch_streams_the_signals_and_scores_them_live(data: Path, cache: list[
     )
 
 
-def test_the_start_weight_and_band_scope_reach_the_memory_and_a_new_task_grown_keeps_the_weight(
-    cache: list[str], tmp_path: Path
-) -> None:
-    """Issue 50: `--signal-start-weight` and `--band-scope` given on the command line are the ones used (not
-    only their defaults), and a task first added by `--add-to` is built with the memory's start weight."""
-    import numpy as np
-
-    from robofailring import FailureMemory, load_dataset
-    from robofailring.memory.signals.layout import read_features
-
-    data, more = (
-        write_project_dataset(
-            tmp_path / task, tasks=(task,), symbols=("grasp_wp2",), episodes=2, length=8, signals=True
-        )
-        for task in ("pick_cube", "push_cube")
-    )
-    memory = tmp_path / "memory"
-    built = cli("build-memory", data, "--out", memory, "--signal-start-weight", "0.7", *cache)
-    assert built.exit_code == 0, built.output
-    assert json.loads((memory / "manifest.json").read_text())["signals"]["start_weight"] == 0.7
-    grown = cli("build-memory", more, "--add-to", memory, *cache)
-    assert grown.exit_code == 0, grown.output
-    signals = FailureMemory.load(memory).signals
-    assert signals is not None and set(signals.by_task) == {"pick_cube", "push_cube"}
-    task = signals.task("push_cube")
-    assert task is not None and task.start_weight == 0.7
-    run = next(t for t in load_dataset(more) if not t.is_failure)
-    stored = task.vectors["success"][task.rows["success"].episodes == run.episode]
-    expected = task.vectors_of(read_features(run, task.layout))  # [0.7·z_0 ‖ z_t − z_0 ‖ …]
-    np.testing.assert_allclose(stored, expected, atol=1e-5)
-    assert np.abs(stored[:, : task.widths[0]]).max() > 0  # the start state is in, weighted
-
-    calibrated = cli(
-        "calibrate", data, "--memory", memory, "--target-fpr", "0.5", "--band-scope", "task", *cache
-    )
-    assert calibrated.exit_code == 0, calibrated.output
-    method = json.loads((memory / "manifest.json").read_text())["calibration"]["method"]
-    assert "a band per task with enough runs" in method
-
-
 def _as_generate_writes(root: Path) -> Path:
     """`root`'s episodes given a `signals.npz` of every signal `robofailring generate` writes, at its widths,
     described in the manifest as `generate` describes them (each run a little off the others)."""
