@@ -109,7 +109,9 @@ def write_checkpoint(folder: Path) -> Path:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--show-calls", action="store_true", help="list every function entered, not only the stays")
+    parser.add_argument(
+        "--show-calls", action="store_true", help="list every function entered, not only the stays"
+    )
     args = parser.parse_args()
     print_machine(libraries=("torch", "timm", "onnxruntime"))
     import numpy as np
@@ -129,7 +131,9 @@ def main() -> None:
         encoding = Walk(roots)
         frame = np.random.default_rng(0).integers(0, 256, (64, 64, 3), dtype=np.uint8)
         embedding = encoding.record(lambda: opened.encode_images([frame]))
-    print(f"opened {opened.identity} ({type(opened.encoder).__name__}), one frame to {embedding.shape[1]} numbers")
+    print(
+        f"opened {opened.identity} ({type(opened.encoder).__name__}), one frame to {embedding.shape[1]} numbers"
+    )
     report("opening (the walk)", opening, show_calls=args.show_calls)
     report("encoding one frame", encoding, show_calls=args.show_calls)
 
