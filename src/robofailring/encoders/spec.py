@@ -50,7 +50,7 @@ class EncoderKind:
 
     name: str  # the spec's text before `:`, the whole spec for a kind without arguments
     module: str  # the module with `load`, `export_identity` and `network` (`Kind`), imported on first use
-    help: str  # its entry in ENCODER_SPECS_HELP
+    help: str  # its entry in the forms `--encoder`'s help and the errors list (`specs_help`)
     # the EncoderSpec fields its `:`-separated arguments fill, in order (the first is required, the last takes
     # the rest of the text); a `directory` is made absolute by `portable`, a `model` or `weights` that is a file
     fields: tuple[str, ...] = ()
@@ -62,7 +62,7 @@ _KINDS: dict[str, EncoderKind] = {}
 
 
 def register(kind: EncoderKind) -> EncoderKind:
-    """Add an encoder kind (once per name), listed in ENCODER_SPECS_HELP in the order registered."""
+    """Add an encoder kind (once per name), listed by `specs_help` in the order registered."""
     if kind.name in _KINDS:
         raise ValueError(f"encoder kind {kind.name!r} is registered already")
     _KINDS[kind.name] = kind
@@ -196,11 +196,11 @@ class EncoderSpec:
         name, colon, rest = text.partition(":")
         kind = _KINDS.get(name)
         if kind is None or bool(colon) != bool(kind.fields):
-            raise EncoderError(f"unknown encoder spec {whole!r}; expected {ENCODER_SPECS_HELP}")
+            raise EncoderError(f"unknown encoder spec {whole!r}; expected {specs_help()}")
         values = rest.split(":", len(kind.fields) - 1) if kind.fields else []
         if kind.fields and not values[0]:
             raise EncoderError(
-                f"encoder spec {whole!r} names no {FIELD_NOUNS[kind.fields[0]]}; expected {ENCODER_SPECS_HELP}"
+                f"encoder spec {whole!r} names no {FIELD_NOUNS[kind.fields[0]]}; expected {specs_help()}"
             )
         fields: dict[str, Any] = dict(zip(kind.fields, values, strict=False))
         return cls(name, **fields)
