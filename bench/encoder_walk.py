@@ -1,19 +1,22 @@
-"""The encoder walk (issue 53): the project files a call passes through to open `timm:<model>:<ckpt>@onnx-int8`.
+"""The encoder walk (issue 53): the project files opening `timm:<model>:<checkpoint>@onnx-int8` passes through.
 
-It opens the encoder the way the CLI does, `open_encoder(spec, cache_dir=…)`, on a tiny randomly initialised
-timm model (`test_efficientnet`) whose checkpoint it writes to a temporary folder, its int8 export made on the
-way (the first open makes it); then encodes one frame. `sys.setprofile` records every Python function entered in
-a project file (`src/robofailring`, `rfr_viz` of the checkout that is imported) on the way, in order:
+It opens the encoder the way the CLI does, `open_encoder(spec, cache_dir=…)` (`detection.loader.encoder_for`), on
+a tiny randomly initialised timm model (`test_efficientnet`) whose checkpoint it writes to a temporary folder, its
+int8 export made first (by an open the walk does not count, its memo then cleared: a second process opening the
+export it finds); then encodes one frame. `sys.setprofile` records every Python function entered in a project
+file (`src/robofailring` and `rfr_viz` of the checkout imported) meanwhile, in the order they begin:
 
-- the walk is the sequence of those entries, from the `open_encoder` call until the encoder it opens is
-  constructed (the call of the kind's `load`, or of `OnnxEncoder`, returns), in the order they began; a module's
-  own body run by an import on the way is no entry, and a generator resumed is not entered again;
+- the walk is what `open_encoder` calls, down to the `CachedEncoder` it returns (the encoder's construction): every
+  project function entered below it (its own entry is where the walk starts, not a stay), a module's body run by
+  an import on the way and a generator resumed not counted;
 - a stay is a maximal run of consecutive entries in the same file;
-- files are the distinct files of the walk, and returns the stays in a file the walk has been in before, so
-  stays = files + returns: a walk that never comes back to a file has as many stays as files.
+- files are the distinct files of the walk, returns the stays in a file the walk has been in before: stays =
+  files + returns, so a walk that never comes back to a file has as many stays as files.
 
-Encoding the frame is a second walk, printed after the first and counted apart. Counts, not times: they do not
-depend on the machine. Run from the checkout's root: .venv/bin/python -m bench.encoder_walk [--show-calls]
+Encoding the frame is a second walk, counted the same way from `encode_images`. Counts, not times: they do not
+depend on the machine. `--checkout DIR` measures another checkout's library (DIR/src), e.g. an older commit's.
+
+Run: .venv/bin/python -m bench.encoder_walk [--show-calls] [--checkout DIR]
 """
 
 from __future__ import annotations
@@ -112,7 +115,12 @@ def main() -> None:
     parser.add_argument(
         "--show-calls", action="store_true", help="list every function entered, not only the stays"
     )
+    parser.add_argument(
+        "--checkout", type=Path, help="measure the library in DIR/src (default: this checkout's)"
+    )
     args = parser.parse_args()
+    if args.checkout is not None:
+        sys.path.insert(0, str(args.checkout.resolve() / "src"))
     print_machine(libraries=("torch", "timm", "onnxruntime"))
     import numpy as np
 
