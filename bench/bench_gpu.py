@@ -94,7 +94,8 @@ def onnx_on_cuda(
     """The fp32 ONNX export on the CUDA execution provider, beside torch's figures; skipped without it."""
     import onnxruntime
 
-    from robofailring.encoders.exported import CUDA, OnnxEncoder
+    from robofailring.encoders.device import CUDA
+    from robofailring.encoders.exported import OnnxEncoder
     from robofailring.encoders.spec import EncoderSpec
 
     if CUDA not in onnxruntime.get_available_providers():

@@ -34,7 +34,7 @@ from robofailring.evaluation.per_rule import runs_below_top
 from robofailring.evaluation.run import EvaluationResult, run_evaluation, write_evaluation
 from robofailring.jobs.compare_encoders import CompareEncodersConfig
 from robofailring.jobs.train_encoder import TrainEncoderJob, run_train_encoder
-from robofailring.memory.recipe import DEFAULT_RECIPE, MemoryRecipe
+from robofailring.memory.recipe import DEFAULT_ENCODER, DEFAULT_RECIPE, MemoryRecipe
 from robofailring.outputs import check_folder, check_output_folder, check_own_files
 from robofailring.sim import TASKS, GenerateConfig, simulate
 
@@ -75,7 +75,7 @@ class DemoResult:
     report: Path | None = None  # report.html: charts, tables and links to the recordings
     # the headline encoder against pixels (and `compare_with`), each calibrated
     comparison: EncoderComparison | None = None
-    encoder: str = "pixels"  # the headline detector's encoder spec
+    encoder: str = DEFAULT_ENCODER  # the headline detector's encoder spec
 
 
 def _pick(result: EvaluationResult, kind: str, rule: ScoringRule) -> tuple[str, int] | None:
@@ -245,7 +245,7 @@ def _run_demo(config: DemoConfig, data_dir: Path, say: Callable[[str], None]) ->
         recordings={"evaluation summary": summary} | result.recordings,
         title="RoboFailRing demo: simulated FailGen, in and out of distribution",
     )
-    if encoder != "pixels" or config.compare_with:
+    if encoder != DEFAULT_ENCODER or config.compare_with:
         result.comparison = _compare_encoders(config, in_dist, out, encoder, evaluations[0])
     return result
 
@@ -267,7 +267,7 @@ def _compare_encoders(
         CompareEncodersConfig(
             data=DataSelection(in_dist),
             out=out / "encoders",
-            encoders=tuple(dict.fromkeys((encoder, "pixels", *config.compare_with))),
+            encoders=tuple(dict.fromkeys((encoder, DEFAULT_ENCODER, *config.compare_with))),
             thresholds=config.thresholds,  # each encoder calibrated at the demo's α
             recipe=config.recipe,
             detector=config.detector,

@@ -16,8 +16,9 @@ from typer.testing import CliRunner
 from robofailring import CachedEncoder, FailureMemory, load_encoder
 from robofailring.cli.verbs import app
 from robofailring.encoders import export as export_module
+from robofailring.encoders.device import providers_for
 from robofailring.encoders.export import MANIFEST_NAME, MODEL_NAME, export_folder
-from robofailring.encoders.exported import OnnxEncoder, providers_for
+from robofailring.encoders.exported import OnnxEncoder
 from robofailring.encoders.spec import EncoderSpec
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
 from robofailring.errors import EncoderError

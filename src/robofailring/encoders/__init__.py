@@ -1,5 +1,5 @@
 """Encoders: `load_encoder(spec)` for `pixels`, `open_clip:<model>[:<tag or checkpoint>]`, `timm:<model>[:<checkpoint>]`
-and `trained:<DIR>`, each kind one module (`kinds.py`); the last three in torch or, with a `@runtime`, from their
+and `trained:<DIR>`, each kind one module registered in `spec.py`; the last three in torch or, with a `@runtime`, from their
 export on ONNX Runtime or OpenVINO (docs/runtime.md)."""
 
 from __future__ import annotations
@@ -7,11 +7,10 @@ from __future__ import annotations
 import functools
 from pathlib import Path
 
-from robofailring.encoders.base import Encoder, cache_identity, l2_normalize
-from robofailring.encoders.cache import CachedEncoder, EmbeddingCache, default_cache_dir
+from robofailring.encoders.base import Encoder, l2_normalize
+from robofailring.encoders.cache import CachedEncoder, EmbeddingCache, cache_identity, default_cache_dir
 from robofailring.encoders.device import check_device_name
-from robofailring.encoders.kinds import kind_of
-from robofailring.encoders.spec import ENCODER_SPECS_HELP, EncoderSpec
+from robofailring.encoders.spec import ENCODER_SPECS_HELP, EncoderSpec, kind_of
 
 
 def load_encoder(
@@ -21,13 +20,18 @@ def load_encoder(
 
     An ONNX runtime exports the network into `cache_dir` (default `default_cache_dir()`) the first time.
     """
-    parsed = EncoderSpec.parse(spec)
-    check_device_name(device)
-    if parsed.runtime != "torch":  # the runtime layer: the kind's network from its export
+    return _load(EncoderSpec.parse(spec), device, cache_dir)
+
+
+def _load(spec: EncoderSpec, device: str | None, cache_dir: Path | None) -> Encoder:
+    if (
+        spec.runtime != "torch"
+    ):  # the runtime layer: the kind's network from its export, on the device it checks
         from robofailring.encoders.exported import OnnxEncoder
 
-        return OnnxEncoder(parsed, device=device, cache_dir=cache_dir)
-    return kind_of(parsed).load(parsed, device)
+        return OnnxEncoder(spec, device=device, cache_dir=cache_dir)
+    check_device_name(device)
+    return kind_of(spec).load(spec, device)
 
 
 def open_encoder(
@@ -49,7 +53,7 @@ def open_encoder(
     """
     portable = EncoderSpec.parse(spec).with_runtime(runtime).portable()
     exports = cache_dir if portable.runtime != "torch" else None  # where an ONNX runtime's export is
-    encoder = _loaded_encoder(str(portable), device, exports, _files_stamp(portable))
+    encoder = _loaded_encoder(portable, device, exports, portable.files_stamp())
     backend = None
     if ray is not None:
         from robofailring.encoders.ray_backend import RayBackend
@@ -58,17 +62,12 @@ def open_encoder(
     return CachedEncoder(encoder, cache_dir=cache_dir, backend=backend)
 
 
-def _files_stamp(spec: EncoderSpec) -> tuple[int, ...]:
-    paths = [Path(spec.directory)] if spec.kind == "trained" else [Path(spec.model), Path(spec.weights)]
-    named = [path for path in paths if str(path) not in ("", ".")]
-    files = [f for path in named for f in (sorted(path.iterdir()) if path.is_dir() else [path])]
-    return tuple(f.stat().st_mtime_ns if f.is_file() else 0 for f in files)
-
-
 @functools.lru_cache(maxsize=8)
-def _loaded_encoder(spec: str, device: str | None, cache_dir: Path | None, stamp: tuple[int, ...]) -> Encoder:
+def _loaded_encoder(
+    spec: EncoderSpec, device: str | None, cache_dir: Path | None, stamp: tuple[int, ...]
+) -> Encoder:
     del stamp  # only part of the key
-    return load_encoder(spec, device=device, cache_dir=cache_dir)
+    return _load(spec, device, cache_dir)
 
 
 def portable_spec(spec: str | EncoderSpec) -> str:

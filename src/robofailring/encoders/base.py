@@ -66,13 +66,6 @@ def l2_normalize(vectors: np.ndarray, *, axis: int = -1) -> np.ndarray:
     return (vectors / np.maximum(norms, 1e-12)).astype(np.float32, copy=False)
 
 
-def cache_identity(encoder: Encoder) -> str:
-    """The key of an encoder's embedding cache: its identity, plus its runtime when that is not torch
-    (an ONNX export's numbers differ from torch's in the last digits, int8's by up to 1 % in cosine)."""
-    runtime = getattr(encoder, "runtime", "torch")
-    return encoder.identity if runtime == "torch" else f"{encoder.identity}@{runtime}"
-
-
 def file_digest(path: Path) -> str:
     """blake2b (16 hex digits) of a file's bytes."""
     digest = hashlib.blake2b(digest_size=8)

@@ -14,7 +14,7 @@ import numpy as np
 
 from robofailring.data.model import Frame
 from robofailring.encoders.backend import EncodingBackend, LocalBackend
-from robofailring.encoders.base import Encoder, cache_identity
+from robofailring.encoders.base import Encoder
 from robofailring.progress import progress_bar
 
 
@@ -22,6 +22,13 @@ def default_cache_dir() -> Path:
     """`$ROBOFAILRING_CACHE` or `~/.cache/robofailring`."""
     env = os.environ.get("ROBOFAILRING_CACHE")
     return Path(env).expanduser() if env else Path.home() / ".cache" / "robofailring"
+
+
+def cache_identity(encoder: Encoder) -> str:
+    """The key of an encoder's embedding cache: its identity, plus its runtime when that is not torch
+    (an ONNX export's numbers differ from torch's in the last digits, int8's by up to 1 % in cosine)."""
+    runtime = getattr(encoder, "runtime", "torch")
+    return encoder.identity if runtime == "torch" else f"{encoder.identity}@{runtime}"
 
 
 _log = logging.getLogger("robofailring")

@@ -4,14 +4,14 @@ A device is `cpu`, `cuda`, `cuda:N` or `mps` (`check_device_name`, asked where a
 are made and by `load_encoder`, so `npu`, `bogus:7` or `cuda:99999999999999999999` is one error before
 anything is read, for every kind, `pixels` too). Whether it
 is there is asked by what runs on it: torch (`pick_device`: no CUDA GPU, no GPU N, no Apple GPU), ONNX
-Runtime (`exported.providers_for`: no CUDA provider) and OpenVINO (the CPU only). A kind without a
-network (`pixels`) runs in numpy on the CPU whatever the device.
+Runtime (`providers_for`: no CUDA provider) and OpenVINO (the CPU only, `exported.session_opener`). A kind
+without a network (`pixels`) runs in numpy on the CPU whatever the device.
 """
 
 from __future__ import annotations
 
 import re
-from typing import Final
+from typing import Any, Final
 
 from robofailring.errors import EncoderError, SettingError
 from robofailring.extras import needs_extra
@@ -59,3 +59,30 @@ def pick_device(device: str | None = None) -> str:
     if device == "mps" and not torch.backends.mps.is_available():
         raise EncoderError("--device mps: torch finds no Apple GPU (MPS) here; use --device cpu")
     return device
+
+
+CPU = "CPUExecutionProvider"
+CUDA = "CUDAExecutionProvider"
+Provider = str | tuple[str, dict[str, Any]]  # a provider, or one with its options (ONNX Runtime's form)
+
+
+def providers_for(device: str | None) -> list[Provider]:
+    """ONNX Runtime execution providers for a `--device`: CUDA first where it is asked for (on GPU N for
+    `cuda:N`) or available; EncoderError where this ONNX Runtime cannot run on it."""
+    check_device_name(device)
+    with needs_extra("onnx"):
+        import onnxruntime
+
+    available = onnxruntime.get_available_providers()
+    if device is not None and device.startswith("cuda"):
+        if CUDA not in available:
+            raise EncoderError(
+                f"--device {device} asks for CUDA, but this ONNX Runtime has no CUDAExecutionProvider "
+                f"(it has {', '.join(available)}); install onnxruntime-gpu in place of onnxruntime"
+            )
+        return [(CUDA, {"device_id": cuda_index(device)}), CPU]
+    if device is not None and device != "cpu":
+        raise EncoderError(f"--device {device}: ONNX Runtime runs on cpu or cuda[:N], not {device}")
+    if device is None and CUDA in available:
+        return [CUDA, CPU]
+    return [CPU]

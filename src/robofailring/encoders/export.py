@@ -32,7 +32,6 @@ from robofailring.atomic import atomic_directory, output_lock
 from robofailring.bounded import read_regular
 from robofailring.encoders.base import file_digest
 from robofailring.encoders.cache import default_cache_dir
-from robofailring.encoders.kinds import kind_of
 from robofailring.encoders.preprocess import Preprocess, check_preprocess
 from robofailring.encoders.quantize import (
     CALIBRATION_FRAMES,
@@ -41,7 +40,7 @@ from robofailring.encoders.quantize import (
     calibration_images,
     quantize,
 )
-from robofailring.encoders.spec import EncoderSpec
+from robofailring.encoders.spec import EncoderSpec, kind_of
 from robofailring.errors import EncoderError
 from robofailring.extras import needs_extra
 from robofailring.jsontext import parse_json

@@ -18,40 +18,12 @@ from typing import Any, Final
 import numpy as np
 
 from robofailring.encoders.base import l2_normalize
-from robofailring.encoders.device import check_device_name, cuda_index
+from robofailring.encoders.device import Provider, check_device_name, providers_for
 from robofailring.encoders.export import Export, discard_export, ensure_export
-from robofailring.encoders.preprocess import Preprocess, preprocess_sides
+from robofailring.encoders.preprocess import Preprocess
 from robofailring.encoders.spec import EncoderSpec
 from robofailring.errors import EncoderError
 from robofailring.extras import needs_extra
-
-CPU = "CPUExecutionProvider"
-CUDA = "CUDAExecutionProvider"
-
-
-Provider = str | tuple[str, dict[str, Any]]  # a provider, or one with its options (ONNX Runtime's form)
-
-
-def providers_for(device: str | None) -> list[Provider]:
-    """ONNX Runtime execution providers for a `--device` (`device.py`): CUDA first where it is asked for
-    (on GPU N for `cuda:N`) or available; EncoderError where this ONNX Runtime cannot run on it."""
-    with needs_extra("onnx"):
-        import onnxruntime
-
-    check_device_name(device)
-    available = onnxruntime.get_available_providers()
-    if device is not None and device.startswith("cuda"):
-        if CUDA not in available:
-            raise EncoderError(
-                f"--device {device} asks for CUDA, but this ONNX Runtime has no CUDAExecutionProvider "
-                f"(it has {', '.join(available)}); install onnxruntime-gpu in place of onnxruntime"
-            )
-        return [(CUDA, {"device_id": cuda_index(device)}), CPU]
-    if device is not None and device != "cpu":
-        raise EncoderError(f"--device {device}: ONNX Runtime runs on cpu or cuda[:N], not {device}")
-    if device is None and CUDA in available:
-        return [CUDA, CPU]
-    return [CPU]
 
 
 def open_session(model: Path, providers: Sequence[Provider], *, threads: int | None = None) -> Any:
@@ -142,27 +114,23 @@ class OnnxEncoder:
             raise EncoderError(f"{spec} runs in torch, not from an export")
         open_model = session_opener(spec.runtime, device, threads)
         export = ensure_export(spec, cache_dir)
+        preprocess = Preprocess(export.preprocess)  # checked with the export: only a missing extra stops it
         try:
             session = open_model(export.model)
-            _check_sides(export, session)  # before a frame batch is sized by the recorded preprocessing
+            _check_sides(export, session, preprocess)  # before a frame batch is sized by the preprocessing
         except Exception as error:  # ORT and OpenVINO raise their own types for a broken file
             _warn_reexport(export, error)
             discard_export(export.folder)
             export = ensure_export(spec, cache_dir)
+            preprocess = Preprocess(export.preprocess)
             session = open_model(export.model)
         self.export: Export = export
+        self.identity: str = export.identity  # the torch encoder's (the module docstring)
+        self.dim: int = export.dim
         self.session = session
         self.runtime = spec.runtime
-        self._preprocess = Preprocess(export.preprocess)
+        self._preprocess = preprocess
         self._batch_size = batch_size
-
-    @property
-    def identity(self) -> str:
-        return self.export.identity
-
-    @property
-    def dim(self) -> int:
-        return self.export.dim
 
     @property
     def providers(self) -> list[str]:
@@ -179,14 +147,14 @@ class OnnxEncoder:
         return l2_normalize(np.concatenate(outputs))
 
 
-def _check_sides(export: Export, session: Any) -> None:
+def _check_sides(export: Export, session: Any, preprocess: Preprocess) -> None:
     """EncoderError unless the export's recorded preprocessing makes pixels of its model's fixed input side."""
     if isinstance(session, OpenVinoSession):
         shape = session.input_shape
     else:
         shape = list(session.get_inputs()[0].shape)
     model = tuple(shape[-2:])
-    made = preprocess_sides(export.preprocess)
+    made = preprocess.sides
     if all(isinstance(side, int) for side in model) and model != made:
         raise EncoderError(
             f"the cached ONNX export {export.folder} is incomplete or corrupt (its preprocessing makes "

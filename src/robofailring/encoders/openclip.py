@@ -12,8 +12,7 @@ import numpy as np
 
 from robofailring.encoders.base import file_digest, l2_normalize
 from robofailring.encoders.device import pick_device
-from robofailring.encoders.kinds import Network
-from robofailring.encoders.spec import EncoderSpec
+from robofailring.encoders.spec import EncoderSpec, Network
 from robofailring.errors import EncoderError, WeightsUnavailableError
 from robofailring.extras import needs_extra
 from robofailring.jsontext import parse_json
@@ -215,7 +214,7 @@ class OpenClipEncoder:
 
 
 def load(spec: EncoderSpec, device: str | None) -> OpenClipEncoder:
-    """The kind's encoder (`kinds.py`)."""
+    """The kind's encoder (`spec.py`)."""
     return OpenClipEncoder(spec.model, spec.weights, device=device)
 
 

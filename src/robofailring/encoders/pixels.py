@@ -20,8 +20,7 @@ import cv2
 import numpy as np
 
 from robofailring.encoders.base import l2_normalize
-from robofailring.encoders.kinds import Network
-from robofailring.encoders.spec import EncoderSpec
+from robofailring.encoders.spec import EncoderSpec, Network
 from robofailring.errors import EncoderError
 
 THUMBNAIL: Final[int] = 24
@@ -67,7 +66,7 @@ class PixelEncoder:
 
 
 def load(spec: EncoderSpec, device: str | None) -> PixelEncoder:
-    """The kind's encoder (`kinds.py`): no weights, no device."""
+    """The kind's encoder (`spec.py`): no weights, no device."""
     return PixelEncoder()
 
 

@@ -62,6 +62,7 @@ class Preprocess:
 
     def __init__(self, description: dict[str, Any]) -> None:
         self.kind = check_preprocess(description)["kind"]
+        self.sides = preprocess_sides(description)  # (height, width) of the pixels it makes
         if self.kind == "open_clip":
             with needs_extra("clip"):
                 from open_clip.transform import PreprocessCfg, image_transform_v2

@@ -21,9 +21,8 @@ import numpy as np
 
 from robofailring.encoders.base import file_digest, l2_normalize
 from robofailring.encoders.device import pick_device
-from robofailring.encoders.kinds import Network
 from robofailring.encoders.openclip import _offline_unless_reachable
-from robofailring.encoders.spec import EncoderSpec
+from robofailring.encoders.spec import EncoderSpec, Network
 from robofailring.encoders.trained import normalizer, prepare_images, to_tensor
 from robofailring.errors import EncoderError, WeightsUnavailableError
 from robofailring.extras import needs_extra
@@ -149,7 +148,7 @@ class TimmEncoder:
 
 
 def load(spec: EncoderSpec, device: str | None) -> TimmEncoder:
-    """The kind's encoder (`kinds.py`)."""
+    """The kind's encoder (`spec.py`)."""
     return TimmEncoder(spec.model, spec.weights, device=device)
 
 

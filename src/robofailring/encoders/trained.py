@@ -26,8 +26,7 @@ import cv2
 import numpy as np
 
 from robofailring.encoders.base import file_digest, l2_normalize
-from robofailring.encoders.kinds import Network
-from robofailring.encoders.spec import EncoderSpec
+from robofailring.encoders.spec import OPEN_CLIP, EncoderSpec, Network
 from robofailring.encoders.trained_config import check_trained_config
 from robofailring.errors import EncoderError
 from robofailring.extras import needs_extra
@@ -145,15 +144,13 @@ def normalizer(config: dict[str, Any], device: str) -> tuple[Any, Any]:
 
 def _init_spec(init: str) -> Any:
     """The `open_clip:<model>:<weights>` EncoderSpec an `--init` string names."""
-    from robofailring.encoders.spec import EncoderSpec
-
     try:
         spec = EncoderSpec.parse(init)
     except EncoderError as error:
         raise EncoderError(
             f"--init must be an open_clip:<model>:<weights> spec, got {init!r}: {error}"
         ) from error
-    if spec.kind != "open_clip":
+    if spec.kind != OPEN_CLIP.name:
         raise EncoderError(f"--init must be an open_clip:<model>:<weights> spec, got {init!r}")
     return spec
 
@@ -294,7 +291,7 @@ class TrainedEncoder:
 
 
 def load(spec: EncoderSpec, device: str | None) -> TrainedEncoder:
-    """The kind's encoder (`kinds.py`)."""
+    """The kind's encoder (`spec.py`)."""
     return TrainedEncoder(Path(spec.directory), device=device)
 
 
