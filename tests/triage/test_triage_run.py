@@ -11,7 +11,7 @@ from synthetic import write_triage_memory, write_unlabelled_runs
 
 from robofailring.data.model import Outcome, Trajectory
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DetectorConfig
+from robofailring.detection.config import DetectorConfig, Scoring
 from robofailring.detection.detector import FailureDetector
 from robofailring.encoders import CachedEncoder
 from robofailring.errors import DataError, SettingError
@@ -145,12 +145,14 @@ def test_bad_settings_fail_before_any_work(tmp_path: Path) -> None:
             data=DataSelection(tmp_path),
             out=tmp_path / "o",
             detector=DetectorConfig(memory=tmp_path),
-            successes=tmp_path,
+            known_good=tmp_path,
         )
     with pytest.raises(SettingError, match="--reference-runs"):
         TriageConfig(data=DataSelection(tmp_path), out=tmp_path / "o", reference_runs=1)
     with pytest.raises(SettingError, match="k"):
-        TriageConfig(data=DataSelection(tmp_path), out=tmp_path / "o", detector=DetectorConfig(k=0))
+        TriageConfig(
+            data=DataSelection(tmp_path), out=tmp_path / "o", detector=DetectorConfig(scoring=Scoring(k=0))
+        )
 
 
 def test_a_triage_stopped_half_way_resumes_from_the_embedding_cache(

@@ -16,15 +16,7 @@ import typer
 from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.cli.exit_codes import ErrorMappingGroup, finish
 from robofailring.cli.groups import Declared, takes
-from robofailring.cli.option_groups import (
-    DATA,
-    DETECTOR,
-    ENCODER_PLACEMENT,
-    RECIPE,
-    RULE_CHOICE,
-    THRESHOLDS,
-    VLM,
-)
+from robofailring.cli.option_groups import DATA, DETECTOR, ENCODER, RECIPE, RULE_CHOICE, THRESHOLDS, VLM
 from robofailring.cli.options import (
     LeaveOneOutOption,
     RandomizeOption,
@@ -36,6 +28,7 @@ from robofailring.cli.options import (
 )
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.errors import SettingError
 from robofailring.explain.vlm import VLMConfig
 from robofailring.memory.recipe import MemoryRecipe
@@ -104,7 +97,7 @@ def generate_cmd(
         )
     ),
     recipe=RECIPE,
-    detector=DETECTOR.only(*ENCODER_PLACEMENT),
+    placement=ENCODER,
 )
 def build_memory_cmd(
     data: DataSelection,
@@ -126,7 +119,7 @@ def build_memory_cmd(
         ),
     ] = False,
     recipe: MemoryRecipe,
-    detector: DetectorConfig,
+    placement: EncoderPlacement,
 ) -> None:
     """Build a failure memory (Algorithm 1) from the failure trajectories of DATA, and a success memory."""
     from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
@@ -143,9 +136,9 @@ def build_memory_cmd(
             data=data,
             out=target,
             recipe=recipe,
-            detector=detector,
+            placement=placement,
             split=split,
-            successes=not no_successes,
+            success_memory=not no_successes,
             add_to=add_to is not None,
         )
     )
@@ -237,13 +230,13 @@ def detect_cmd(
         )
     ).without("vocabulary"),
     detector=DETECTOR.without(*RULE_CHOICE, "data_root", "ray"),  # scored as detect scores (K, modality…)
-    thresholds=THRESHOLDS,
+    threshold_policy=THRESHOLDS,
 )
 def calibrate_cmd(
     data: DataSelection,
     *,
     detector: DetectorConfig,
-    thresholds: ThresholdPolicy,
+    threshold_policy: ThresholdPolicy,
     split: Annotated[str | None, typer.Option(help="Successes of this split (project layout).")] = "train",
     stride: StrideOption = 1,
 ) -> None:
@@ -251,7 +244,16 @@ def calibrate_cmd(
     from robofailring.calibration.job import CalibrateConfig, calibrate
 
     result = calibrate(
-        CalibrateConfig(data=data, detector=detector, thresholds=thresholds, split=split, stride=stride)
+        CalibrateConfig(
+            data=data,
+            memory=detector.memory_dir,
+            encoder=detector.encoder,
+            scoring=detector.scoring,
+            placement=detector.placement,
+            threshold_policy=threshold_policy,
+            split=split,
+            stride=stride,
+        )
     )
     report_skipped(result.skipped_inputs)
     typer.echo(result.to_text(detector.memory_dir))
@@ -285,7 +287,7 @@ def memory_info_cmd(
             ]
         )
     ).without("vocabulary"),
-    detector=DETECTOR.only("device"),
+    placement=ENCODER.only("device"),
 )
 def train_encoder_cmd(
     data: DataSelection,
@@ -310,7 +312,7 @@ def train_encoder_cmd(
     threads: Annotated[
         int | None, typer.Option(help="torch CPU threads.", show_default="half the cores")
     ] = None,
-    detector: DetectorConfig,
+    placement: EncoderPlacement,
     randomize: RandomizeOption = 0,
     workers: WorkersOption = 2,
 ) -> None:
@@ -327,7 +329,7 @@ def train_encoder_cmd(
         seed=seed,
         init=init,
         threads=threads,
-        device=detector.device,
+        device=placement.device,
     )
     folder = run_train_encoder(TrainEncoderJob(config, randomize=randomize, workers=workers), say=typer.echo)
     typer.echo(f"use it with: --encoder trained:{folder}")
