@@ -127,7 +127,7 @@ class OptionGroup(Generic[Value]):
         """`build` of the options given (by the names `parameters` gave them)."""
         rest = dict(given)
         made = {
-            part: group.value({parameter.name: rest.pop(parameter.name) for parameter in group.parameters()})
+            part: group.value({p.name: rest.pop(p.name) for p in group.parameters() if p.name in rest})
             for part, group in self.parts.items()
         }
         names = {own.name: name for name, own in self.declared.items() if own.name is not None}
