@@ -19,7 +19,6 @@ from robofailring.cli.option_groups import (
     DETECTOR,
     ENCODER,
     RECIPE,
-    RULE_CHOICE,
     SCORING,
     THRESHOLDS,
     VLM,
@@ -48,7 +47,9 @@ app = typer.Typer(add_completion=False)  # composed into the one `robofailring` 
         )
     ),
     recipe=RECIPE,
-    detector=DETECTOR.without(*RULE_CHOICE, "encoder", "data_root").but(
+    scoring=SCORING,
+    placement=ENCODER,
+    detector=DETECTOR.only("memory").but(
         memory=Declared(
             Annotated[Path | None, typer.Option(help="Use this memory instead of building one.")], None
         )
@@ -75,6 +76,8 @@ def evaluate_cmd(
     train_split: Annotated[str, typer.Option(help="Split whose failures build the memory.")] = "train",
     test_split: Annotated[str, typer.Option(help="Split to test on.")] = "test",
     detector: DetectorConfig,
+    scoring: Scoring,
+    placement: EncoderPlacement,
     name: Annotated[
         str,
         typer.Option(
@@ -117,8 +120,8 @@ def evaluate_cmd(
             out=out,
             recipe=recipe,
             memory=detector.memory,
-            scoring=detector.scoring,
-            placement=detector.placement,
+            scoring=scoring,
+            placement=placement,
             threshold_policy=threshold_policy,
             test_data=tested_on(data, test_data, test_labels),
             train_split=train_split,

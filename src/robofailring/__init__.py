@@ -39,13 +39,14 @@ if TYPE_CHECKING:
     from robofailring.data.layouts import Dataset, load_dataset, load_trajectory
     from robofailring.data.model import Frame, Outcome, Trajectory
     from robofailring.data.selection import DataSelection
-    from robofailring.detection.config import DetectorConfig
+    from robofailring.detection.config import DetectorConfig, Scoring
     from robofailring.detection.detector import FailureDetector
     from robofailring.detection.loader import open_detector
     from robofailring.detection.rules import PAPER_DELTA, RULES, ScoringRule, rule_named
     from robofailring.detection.session import DetectorSession, StepSink
     from robofailring.detection.trace import DetectionTrace, StepResult
     from robofailring.encoders import CachedEncoder, Encoder, default_cache_dir, load_encoder, open_encoder
+    from robofailring.encoders.placement import EncoderPlacement
     from robofailring.evaluation.comparison import CompareEncodersConfig, compare_encoders, comparison_table
     from robofailring.evaluation.run import EvaluateConfig, run_evaluation
     from robofailring.explain.report import FailureReport, VLMClient
@@ -170,8 +171,8 @@ __all__ = [
     "DetectorSession",
     "Encoder",
     "EncoderError",
-    "EncoderPlacement",
     "EncoderMismatchError",
+    "EncoderPlacement",
     "EvaluateConfig",
     "FailureDetector",
     "FailureMemory",

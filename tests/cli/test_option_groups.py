@@ -138,9 +138,8 @@ def test_the_detecting_verbs_take_the_whole_detector_group() -> None:
     for verb in ("detect", "replay", "watch"):
         group = _verbs()[verb].option_groups["detector"]
         assert {p.name for p in group.parameters()} == whole, verb
-    for verb in ("calibrate", "evaluate", "triage"):
-        group = _verbs()[verb].option_groups["detector"]
-        assert {"k", "cache_dir", "device", "runtime"} <= {p.name for p in group.parameters()}, verb
+    group = _verbs()["triage"].option_groups["detector"]
+    assert {"k", "cache_dir", "device", "runtime"} <= {p.name for p in group.parameters()}
 
 
 @pytest.mark.parametrize("build", list(GROUPS), ids=lambda build: build.__name__)
@@ -193,11 +192,14 @@ def test_a_group_gives_its_value_in_its_options_place() -> None:
 
 
 def test_calibrate_scores_as_detect_does() -> None:
-    """calibrate takes the detector's scoring options (K, modality, encoder, runtime) but no rule or threshold:
-    it sets them."""
-    offered = {p.name for p in _verbs()["calibrate"].option_groups["detector"].parameters()}
-    assert {"memory", "k", "modality", "encoder", "runtime"} <= offered
-    assert not offered & {"score", "delta", "gamma", "eta"}
+    """calibrate and evaluate take the scoring options (K, modality) and where the encoder runs, and of the detector
+    only the memory (and calibrate its encoder), never a rule or threshold: they set every rule's."""
+    for verb, memory in (("calibrate", {"memory", "encoder"}), ("evaluate", {"memory"})):
+        groups = _verbs()[verb].option_groups
+        assert {p.name for p in groups["detector"].parameters()} == memory, verb
+        assert {p.name for p in groups["scoring"].parameters()} == {"k", "modality"}, verb
+        assert {"cache_dir", "device", "runtime"} <= {p.name for p in groups["placement"].parameters()}, verb
+    assert _verbs()["build-memory"].option_groups.keys() == {"data", "recipe", "placement"}
     assert DETECTOR.parameters()[0].default is inspect.Parameter.empty  # --memory: required where it detects
 
 

@@ -16,7 +16,7 @@ import typer
 from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.cli.exit_codes import ErrorMappingGroup, finish
 from robofailring.cli.groups import Declared, takes
-from robofailring.cli.option_groups import DATA, DETECTOR, ENCODER, RECIPE, RULE_CHOICE, THRESHOLDS, VLM
+from robofailring.cli.option_groups import DATA, DETECTOR, ENCODER, RECIPE, SCORING, THRESHOLDS, VLM
 from robofailring.cli.options import (
     LeaveOneOutOption,
     RandomizeOption,
@@ -27,7 +27,7 @@ from robofailring.cli.options import (
     warn_missing_references,
 )
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DetectorConfig
+from robofailring.detection.config import DetectorConfig, Scoring
 from robofailring.encoders.placement import EncoderPlacement
 from robofailring.errors import SettingError
 from robofailring.explain.vlm import VLMConfig
@@ -229,13 +229,17 @@ def detect_cmd(
             ]
         )
     ).without("vocabulary"),
-    detector=DETECTOR.without(*RULE_CHOICE, "data_root", "ray"),  # scored as detect scores (K, modality…)
+    detector=DETECTOR.only("memory", "encoder"),  # the memory calibrated: it sets every rule's threshold
+    scoring=SCORING,  # scored as detect scores
+    placement=ENCODER.without("ray"),
     threshold_policy=THRESHOLDS,
 )
 def calibrate_cmd(
     data: DataSelection,
     *,
     detector: DetectorConfig,
+    scoring: Scoring,
+    placement: EncoderPlacement,
     threshold_policy: ThresholdPolicy,
     split: Annotated[str | None, typer.Option(help="Successes of this split (project layout).")] = "train",
     stride: StrideOption = 1,
@@ -248,8 +252,8 @@ def calibrate_cmd(
             data=data,
             memory=detector.memory_dir,
             encoder=detector.encoder,
-            scoring=detector.scoring,
-            placement=detector.placement,
+            scoring=scoring,
+            placement=placement,
             threshold_policy=threshold_policy,
             split=split,
             stride=stride,
