@@ -59,7 +59,15 @@ def _params() -> list[tuple[str, Any]]:
 
 def test_evaluate_lists_each_group_under_its_panel() -> None:
     panels = _panels(_help("evaluate"))
-    assert list(panels) == ["Arguments", "Options", "Data", "Memory recipe", "Detector", "Encoder", "Thresholds"]
+    assert list(panels) == [
+        "Arguments",
+        "Options",
+        "Data",
+        "Memory recipe",
+        "Detector",
+        "Encoder",
+        "Thresholds",
+    ]
     assert panels["Thresholds"] == ["--target-fpr", "--band", "--fusion", "--band-scope"]
     assert panels["Memory recipe"][:3] == ["--encoder", "--failure-frames", "--pairing"]
     assert "--signal-start-weight" in panels["Memory recipe"]

@@ -207,14 +207,10 @@ class CalibrateConfig:
 
     @property
     def detector(self) -> DetectorConfig:
-        """The detector that scores the success runs: no rule (calibration sets every rule's threshold), the
-        paper's default δ given in place of the one stored."""
+        """The detector that scores the success runs: no rule (calibration sets every rule's), δ the default."""
+        given = {PAPER.name: PAPER_DELTA}
         return DetectorConfig(
-            memory=self.memory,
-            encoder=self.encoder,
-            thresholds={PAPER.name: PAPER_DELTA},
-            scoring=self.scoring,
-            placement=self.placement,
+            self.memory, self.encoder, thresholds=given, scoring=self.scoring, placement=self.placement
         )
 
 
