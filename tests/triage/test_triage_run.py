@@ -14,6 +14,7 @@ from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig, Scoring
 from robofailring.detection.detector import FailureDetector
 from robofailring.encoders import CachedEncoder
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.errors import DataError, SettingError
 from robofailring.triage import TriageConfig, ranking_quality, run_triage
 from robofailring.triage import run as triage_run
@@ -35,7 +36,9 @@ def _config(
     labels: Path | None = None,
     **changes: object,
 ) -> TriageConfig:
-    detector = DetectorConfig(memory=memory, rule=score, cache_dir=tmp_path / "cache")
+    detector = DetectorConfig(
+        memory=memory, rule=score, placement=EncoderPlacement(cache_dir=tmp_path / "cache")
+    )
     selection = DataSelection(data, labels=labels, task="pick_cube")
     return TriageConfig(data=selection, out=tmp_path / "out", detector=detector, **changes)  # type: ignore[arg-type]
 
@@ -83,7 +86,7 @@ def test_known_good_runs_from_labels_and_a_labelled_failure(runs, tmp_path: Path
 def test_known_good_runs_from_another_dataset(runs, tmp_path: Path) -> None:
     data, truth = runs
     good, _ = write_unlabelled_runs(tmp_path / "good", successes=4, failures=())
-    result = run_triage(_config(data, tmp_path, successes=good))
+    result = run_triage(_config(data, tmp_path, known_good=good))
     assert result.modes == {"pick_cube": SUCCESSES}
     assert ranking_quality(_failed(result.ranked, truth)).auc == 1.0
 
