@@ -92,14 +92,14 @@ def growth_rows(
             data=DataSelection(in_dist),
             recipe=MemoryRecipe(encoder=encoder),
             out=out / slug / f"failures-{name}",
-            thresholds=ThresholdPolicy(alpha),
+            threshold_policy=ThresholdPolicy(alpha),
             memory_out=out / slug / f"failures-{name}" / "memory",
             name="in-distribution",
             failures_per_task=level,
         )
         ood = replace(
             base,
-            detector=base.detector.with_memory(base.memory_out),
+            memory=base.memory_out,
             test_data=base.data.other(out_dist),
             test_split="ood",
             name="ood",

@@ -59,13 +59,13 @@ counted(evaluation, "run_evaluation", "evaluations")
 counted(evaluation, "build_training_memory", "memory builds")
 counted(calibration, "calibrate", "calibrations")
 from rfr_viz.jobs.demo import DemoConfig, run_demo
-from robofailring.detection.config import DetectorConfig
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.calibration.policy import ThresholdPolicy
 settings = json.loads(sys.argv[1])
 config = DemoConfig(
-    out=Path(settings["out"]), data_dir=Path(settings["data"]), detector=DetectorConfig(cache_dir=Path(settings["cache"])),
+    out=Path(settings["out"]), data_dir=Path(settings["data"]), placement=EncoderPlacement(cache_dir=Path(settings["cache"])),
     tasks=("pick_cube",), episodes=settings["episodes"], success_episodes=2 * settings["episodes"],
-    ood_episodes=1, image_size=32, frames=settings["frames"], workers=1, thresholds=ThresholdPolicy(0.5), randomize=8,
+    ood_episodes=1, image_size=32, frames=settings["frames"], workers=1, threshold_policy=ThresholdPolicy(0.5), randomize=8,
     trained_epochs=2,
 )
 def cpu():

@@ -35,7 +35,6 @@ from robofailring.calibration.job import CalibrateConfig, calibrate
 from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.grounding import failure_type
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DetectorConfig
 from robofailring.encoders import default_cache_dir, encoder_slug
 from robofailring.encoders.trained import CONFIG_NAME, prepare_images
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
@@ -159,18 +158,16 @@ def main() -> None:
             calibration = calibrate(
                 CalibrateConfig(
                     data=base.data,
-                    detector=DetectorConfig(memory=memory),
-                    thresholds=ThresholdPolicy(args.target_fpr),
+                    memory=memory,
+                    threshold_policy=ThresholdPolicy(args.target_fpr),
                 )
             )
             tested = {
-                "ID": run_evaluation(
-                    replace(base, detector=base.detector.with_memory(memory), name=f"{slug}-id")
-                ),
+                "ID": run_evaluation(replace(base, memory=memory, name=f"{slug}-id")),
                 "OOD": run_evaluation(
                     replace(
                         base,
-                        detector=base.detector.with_memory(memory),
+                        memory=memory,
                         name=f"{slug}-ood",
                         test_data=base.data.other(out_dist),
                         test_split="ood",

@@ -297,7 +297,7 @@ def evaluate_encoder(
         data=DataSelection(peer.lerobot, labels=peer.lerobot_labels),
         recipe=MemoryRecipe(encoder=encoder),
         out=out / slug,
-        thresholds=ThresholdPolicy(alpha),
+        threshold_policy=ThresholdPolicy(alpha),
         memory_out=out / slug / "memory",
         name="in-distribution",
     )
@@ -314,7 +314,7 @@ def evaluate_encoder(
         )
     ood = replace(
         base,
-        detector=base.detector.with_memory(out / slug / "memory"),
+        memory=out / slug / "memory",
         memory_out=None,
         test_split="ood",
         name="ood",

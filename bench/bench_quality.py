@@ -34,8 +34,9 @@ from typing import Any
 from bench._timing import print_machine
 from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DetectorConfig
+from robofailring.detection.config import Scoring
 from robofailring.encoders import default_cache_dir, encoder_slug, load_encoder
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
 from robofailring.evaluation.job import EvaluateConfig
 from robofailring.evaluation.run import EvaluationResult, run_evaluation, write_evaluation
@@ -135,11 +136,11 @@ class Variant:
     def parse(text: str) -> Variant:
         """`LABEL:field=value,field=value` (numbers are read as numbers, true/false/null as such, the rest as
         text); a field of `EvaluateConfig`, of its `MemoryRecipe` (e.g. `signals=none`) or of its
-        `DetectorConfig` (e.g. `modality=signals`)."""
+        `Scoring` or `EncoderPlacement` (e.g. `modality=signals`)."""
         label, _, body = text.partition(":")
         known = {
             f.name
-            for kind in (EvaluateConfig, MemoryRecipe, DetectorConfig, ThresholdPolicy)
+            for kind in (EvaluateConfig, MemoryRecipe, Scoring, EncoderPlacement, ThresholdPolicy)
             for f in fields(kind)
         }
         settings: dict[str, Any] = {}
@@ -148,7 +149,7 @@ class Variant:
             if not sep or name not in known:
                 raise SystemExit(
                     f"--variant {text!r}: {item!r} is not FIELD=VALUE with a field of EvaluateConfig, MemoryRecipe, "
-                    "DetectorConfig or ThresholdPolicy"
+                    "Scoring, EncoderPlacement or ThresholdPolicy"
                 )
             settings[name] = _value(value)
         return Variant(label or "default", settings)
@@ -159,17 +160,23 @@ def with_variant(config: EvaluateConfig, variant: Variant) -> EvaluateConfig:
     config, the threshold policy, or the evaluation's own)."""
     recipe_fields = {f.name for f in fields(MemoryRecipe)}
     policy_fields = {f.name for f in fields(ThresholdPolicy)}
-    detector_fields = {f.name for f in fields(DetectorConfig)} - {f.name for f in fields(EvaluateConfig)}
+    scoring_fields = {f.name for f in fields(Scoring)}
+    placement_fields = {f.name for f in fields(EncoderPlacement)}
     settings = variant.settings
-    policy = config.thresholds
+    policy = config.threshold_policy
     if policy is not None:
         policy = replace(policy, **{k: v for k, v in settings.items() if k in policy_fields})
     return replace(
         config,
         recipe=replace(config.recipe, **{k: v for k, v in settings.items() if k in recipe_fields}),
-        detector=replace(config.detector, **{k: v for k, v in settings.items() if k in detector_fields}),
-        thresholds=policy,
-        **{k: v for k, v in settings.items() if k not in recipe_fields | detector_fields | policy_fields},
+        scoring=replace(config.scoring, **{k: v for k, v in settings.items() if k in scoring_fields}),
+        placement=replace(config.placement, **{k: v for k, v in settings.items() if k in placement_fields}),
+        threshold_policy=policy,
+        **{
+            k: v
+            for k, v in settings.items()
+            if k not in recipe_fields | scoring_fields | placement_fields | policy_fields
+        },
     )
 
 
@@ -209,16 +216,16 @@ def evaluate_encoder(
     base = EvaluateConfig(
         data=DataSelection(in_dist),
         recipe=MemoryRecipe(encoder=encoder, success_step=success_step),
-        detector=DetectorConfig(cache_dir=cache_dir),
+        placement=EncoderPlacement(cache_dir=cache_dir),
         out=out / slug,
-        thresholds=ThresholdPolicy(alpha),
+        threshold_policy=ThresholdPolicy(alpha),
         memory_out=out / slug / "memory",
         name="in-distribution",
     )
     base = with_variant(base, variant)
     ood = replace(
         base,
-        detector=base.detector.with_memory(out / slug / "memory"),
+        memory=out / slug / "memory",
         test_data=base.data.other(out_dist),
         test_split="ood",
         name="ood",

@@ -54,6 +54,7 @@ from robofailring.data.selection import DataSelection
 from robofailring.encoders import default_cache_dir
 from robofailring.encoders.export import ensure_export
 from robofailring.encoders.exported import OnnxEncoder, open_session
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.encoders.preprocess import Preprocess
 from robofailring.encoders.spec import RUNTIMES, EncoderSpec
 
@@ -183,7 +184,6 @@ def quality(threads: int, alpha: float, *, data: Path | None = None, encoder: st
     import torch
 
     from bench.bench_quality import IMAGE_SIZE
-    from robofailring.detection.config import DetectorConfig
     from robofailring.encoders.training import TrainEncoderConfig, train_encoder
     from robofailring.evaluation.job import EvaluateConfig
     from robofailring.evaluation.run import run_evaluation
@@ -232,13 +232,9 @@ def quality(threads: int, alpha: float, *, data: Path | None = None, encoder: st
                 data=DataSelection(data),
                 out=out if built == queried else out.with_name(f"{built}-queried-{queried}"),
                 recipe=MemoryRecipe(spec),
-                detector=DetectorConfig(
-                    memory=None if built == queried else out / "memory",
-                    runtime=queried,
-                    cache_dir=ROOT,
-                    device="cpu",
-                ),
-                thresholds=ThresholdPolicy(alpha),
+                memory=None if built == queried else out / "memory",
+                placement=EncoderPlacement(runtime=queried, cache_dir=ROOT, device="cpu"),
+                threshold_policy=ThresholdPolicy(alpha),
                 memory_out=out / "memory",
                 name="in-distribution",
             )

@@ -227,7 +227,7 @@ start = time.perf_counter()
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 result = run_triage(TriageConfig(data=DataSelection(Path(sys.argv[1]), task="pick_cube"), out=Path(sys.argv[2]),
-                                 reference_runs=10, detector=DetectorConfig(cache_dir=Path(sys.argv[3]))))
+                                 reference_runs=10, detector=DetectorConfig(placement=EncoderPlacement(cache_dir=Path(sys.argv[3])))))
 status = Path("/proc/self/status").read_text()  # VmHWM: this process's own peak (ru_maxrss keeps the parent's)
 peak = next(int(line.split()[1]) for line in status.splitlines() if line.startswith("VmHWM:"))
 print(json.dumps({"episodes": len(result.ranked), "seconds": time.perf_counter() - start, "peak_rss_mb": peak / 1024}))

@@ -1,6 +1,6 @@
 """The encoder walk (issue 53): the project files opening `timm:<model>:<checkpoint>@onnx-int8` passes through.
 
-It opens the encoder the way the CLI does, `open_encoder(spec, cache_dir=…)` (`detection.loader.encoder_for`), on
+It opens the encoder the way the CLI does, `open_encoder(spec, cache_dir=…)` (`EncoderPlacement.open`), on
 a tiny randomly initialised timm model (`test_efficientnet`) whose checkpoint it writes to a temporary folder, its
 int8 export made first (by an open the walk does not count, its memo then cleared: a second process opening the
 export it finds); then encodes one frame. `sys.setprofile` records every Python function entered in a project

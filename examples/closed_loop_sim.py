@@ -19,7 +19,6 @@ from robofailring import (
     BuildMemoryConfig,
     CalibrateConfig,
     DataSelection,
-    DetectorConfig,
     GenerateConfig,
     MemoryRecipe,
     ThresholdPolicy,
@@ -67,7 +66,10 @@ def main() -> None:
     # the paper's memory (no success runs): the closed loop stops at S_t ≥ δ
     memory, stats = build_memory(
         BuildMemoryConfig(
-            data=DataSelection(data), out=memory_dir, recipe=MemoryRecipe(encoder="pixels"), successes=False
+            data=DataSelection(data),
+            out=memory_dir,
+            recipe=MemoryRecipe(encoder="pixels"),
+            success_memory=False,
         )
     )
     print(f"memory: {len(memory)} entries from {stats.failures} failure episodes in {data}")
@@ -77,8 +79,8 @@ def main() -> None:
         calibration = calibrate(
             CalibrateConfig(
                 data=DataSelection(data),
-                detector=DetectorConfig(memory=memory_dir),
-                thresholds=ThresholdPolicy(target_fpr=alpha),
+                memory=memory_dir,
+                threshold_policy=ThresholdPolicy(target_fpr=alpha),
                 split=None,
             )
         )

@@ -33,7 +33,7 @@ def main() -> None:
     results = compare_encoders(
         CompareEncodersConfig(
             data=DataSelection(args.data),
-            thresholds=ThresholdPolicy(target_fpr=args.target_fpr),
+            threshold_policy=ThresholdPolicy(target_fpr=args.target_fpr),
             out=args.out,
             encoders=encoders,
         )

@@ -23,7 +23,6 @@ from robofailring import (
     BuildMemoryConfig,
     CalibrateConfig,
     DataSelection,
-    DetectorConfig,
     GenerateConfig,
     MemoryRecipe,
     ThresholdPolicy,
@@ -71,7 +70,10 @@ def main() -> None:
     # the paper's memory (no success runs): the robot is stopped at S_t ≥ δ
     memory, stats = build_memory(
         BuildMemoryConfig(
-            data=DataSelection(data), out=memory_dir, recipe=MemoryRecipe(encoder="pixels"), successes=False
+            data=DataSelection(data),
+            out=memory_dir,
+            recipe=MemoryRecipe(encoder="pixels"),
+            success_memory=False,
         )
     )
     if args.delta is None:  # split conformal at the smallest α its successes allow (n ≥ 1/α − 1)
@@ -79,8 +81,8 @@ def main() -> None:
         calibrate(
             CalibrateConfig(
                 data=DataSelection(data),
-                detector=DetectorConfig(memory=memory_dir),
-                thresholds=ThresholdPolicy(target_fpr=alpha),
+                memory=memory_dir,
+                threshold_policy=ThresholdPolicy(target_fpr=alpha),
                 split=None,
             )
         )

@@ -69,7 +69,7 @@ def dump_half(config: EvaluateConfig, ood_config: EvaluateConfig, half: str) -> 
     with tempfile.TemporaryDirectory() as scratch:
         config = replace(config, memory_out=Path(scratch) / "memory")
         memory = FailureMemory.load(build_training_memory(config, splits, encoder)[0])
-    detector = FailureDetector(memory, encoder, k=config.detector.k)
+    detector = FailureDetector(memory, encoder, k=config.scoring.k)
     calibration = [t for t in splits.train if not t.is_failure]
     runs = _runs(detector, calibration, loo=True, cell=f"{half}/cal")
     runs += _runs(detector, splits.test, loo=False, cell=f"{half}/test")
@@ -77,7 +77,7 @@ def dump_half(config: EvaluateConfig, ood_config: EvaluateConfig, half: str) -> 
         ood = select_splits(ood_config).test
         runs += _runs(detector, ood, loo=False, cell=f"{half}/ood")
         deployed, rest = _deploy_successes(memory, ood, 2, encoder, config.recipe.success_step)
-        again = FailureDetector(deployed, encoder, k=config.detector.k)
+        again = FailureDetector(deployed, encoder, k=config.scoring.k)
         runs += _runs(again, calibration, loo=True, cell=f"{half}/cal+2")
         runs += _runs(again, rest, loo=False, cell=f"{half}/ood+2")
     return runs
@@ -91,7 +91,7 @@ def configs(which: str) -> list[tuple[str, EvaluateConfig, EvaluateConfig]]:
             data=DataSelection(root / "sim-id"),
             recipe=MemoryRecipe(encoder="pixels"),
             out=Path("unused"),
-            thresholds=policy,
+            threshold_policy=policy,
         )
         ood = replace(base, test_data=base.data.other(root / "sim-ood"), test_split="ood")
         return [
@@ -105,7 +105,7 @@ def configs(which: str) -> list[tuple[str, EvaluateConfig, EvaluateConfig]]:
         data=DataSelection(peer.lerobot, labels=peer.lerobot_labels),
         recipe=MemoryRecipe(encoder="pixels", signals=CHOSEN),
         out=Path("unused"),
-        thresholds=policy,
+        threshold_policy=policy,
     )
     ood = replace(base, test_split="ood")
     swapped = replace(base, data=replace(base.data, labels=peer.lerobot_swapped))

@@ -14,7 +14,15 @@ from rfr_viz.viewer.control import open_at_command, open_command
 from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.cli.exit_codes import finish
 from robofailring.cli.groups import Declared, takes
-from robofailring.cli.option_groups import DATA, DETECTOR, RECIPE, RULE_CHOICE, THRESHOLDS, VLM
+from robofailring.cli.option_groups import (
+    DATA,
+    DETECTOR,
+    ENCODER,
+    RECIPE,
+    SCORING,
+    THRESHOLDS,
+    VLM,
+)
 from robofailring.cli.options import (
     RandomizeOption,
     StrideOption,
@@ -23,7 +31,8 @@ from robofailring.cli.options import (
     warn_missing_references,
 )
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DetectorConfig
+from robofailring.detection.config import DetectorConfig, Scoring
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.explain.vlm import VLMConfig
 from robofailring.memory.recipe import MemoryRecipe
 
@@ -38,12 +47,14 @@ app = typer.Typer(add_completion=False)  # composed into the one `robofailring` 
         )
     ),
     recipe=RECIPE,
-    detector=DETECTOR.without(*RULE_CHOICE, "encoder", "data_root").but(
+    scoring=SCORING,
+    placement=ENCODER,
+    detector=DETECTOR.only("memory").but(
         memory=Declared(
             Annotated[Path | None, typer.Option(help="Use this memory instead of building one.")], None
         )
     ),
-    thresholds=THRESHOLDS,
+    threshold_policy=THRESHOLDS,
 )
 def evaluate_cmd(
     data: DataSelection,
@@ -65,6 +76,8 @@ def evaluate_cmd(
     train_split: Annotated[str, typer.Option(help="Split whose failures build the memory.")] = "train",
     test_split: Annotated[str, typer.Option(help="Split to test on.")] = "test",
     detector: DetectorConfig,
+    scoring: Scoring,
+    placement: EncoderPlacement,
     name: Annotated[
         str,
         typer.Option(
@@ -72,7 +85,7 @@ def evaluate_cmd(
         ),
     ] = "evaluation",
     stride: StrideOption = 1,
-    thresholds: ThresholdPolicy,
+    threshold_policy: ThresholdPolicy,
     deployment_successes: Annotated[
         int,
         typer.Option(
@@ -105,8 +118,10 @@ def evaluate_cmd(
             data=data,
             out=out,
             recipe=recipe,
-            detector=detector,
-            thresholds=thresholds,
+            memory=detector.memory,
+            scoring=scoring,
+            placement=placement,
+            threshold_policy=threshold_policy,
             test_data=tested_on(data, test_data, test_labels),
             train_split=train_split,
             test_split=test_split,
@@ -218,19 +233,21 @@ def review_cmd(
     data=DATA.only("data", "views").but(
         data=Declared(Annotated[Path, typer.Argument(help="Dataset with train/test splits.")])
     ),
-    thresholds=THRESHOLDS.only("target_fpr"),
+    threshold_policy=THRESHOLDS.only("target_fpr"),
     recipe=RECIPE.only("failure_frames", "pairing"),
-    detector=DETECTOR.only("k", "cache_dir", "device"),
+    scoring=SCORING.only("k"),
+    placement=ENCODER.only("cache_dir", "device"),
 )
 def compare_encoders_cmd(
     data: DataSelection,
     *,
     encoders: Annotated[list[str], typer.Option("--encoder", help="Encoder spec; give two or more.")],
     out: Annotated[Path, typer.Option("--out", help="Folder for memories, tables and recordings.")],
-    thresholds: ThresholdPolicy,
+    threshold_policy: ThresholdPolicy,
     recordings: Annotated[int, typer.Option(help="Per-trajectory comparison recordings to write.")] = 3,
     recipe: MemoryRecipe,
-    detector: DetectorConfig,
+    scoring: Scoring,
+    placement: EncoderPlacement,
 ) -> None:
     """The same split under several encoders, each calibrated: a side-by-side table and comparison recordings."""
     from rfr_viz.jobs.compare_encoders import run_encoder_comparison
@@ -241,9 +258,10 @@ def compare_encoders_cmd(
             data=data,
             out=out,
             encoders=tuple(encoders),
-            thresholds=thresholds,
+            threshold_policy=threshold_policy,
             recipe=recipe,
-            detector=detector,
+            scoring=scoring,
+            placement=placement,
         ),
         recordings=recordings,
     )
@@ -255,9 +273,9 @@ def compare_encoders_cmd(
 
 @app.command("demo")
 @takes(
-    thresholds=THRESHOLDS.only("target_fpr"),
+    threshold_policy=THRESHOLDS.only("target_fpr"),
     recipe=RECIPE.only("failure_frames", "pairing"),
-    detector=DETECTOR.only("cache_dir"),
+    placement=ENCODER.only("cache_dir"),
 )
 def demo_cmd(
     out: Annotated[Path, typer.Option("--out", help="Folder for everything the demo writes.")] = Path(
@@ -276,11 +294,11 @@ def demo_cmd(
     image_size: Annotated[int, typer.Option("--image-size", help="Simulated image size in pixels.")] = 128,
     frames: Annotated[int, typer.Option(help="Frames per simulated episode.")] = 40,
     *,
-    thresholds: ThresholdPolicy,
+    threshold_policy: ThresholdPolicy,
     data_dir: Annotated[Path | None, typer.Option(help="Where simulated datasets are cached.")] = None,
     camera_codec: CameraCodecOption = CameraCodec.AUTO,
     recipe: MemoryRecipe,
-    detector: DetectorConfig,
+    placement: EncoderPlacement,
     randomize: RandomizeOption = 32,
     compare_encoder: Annotated[
         list[str] | None,
@@ -302,11 +320,11 @@ def demo_cmd(
             ood_episodes=ood_episodes,
             image_size=image_size,
             frames=frames,
-            thresholds=thresholds,
+            threshold_policy=threshold_policy,
             data_dir=data_dir,
             camera_codec=camera_codec,
             recipe=recipe,
-            detector=detector,
+            placement=placement,
             randomize=randomize,
             compare_with=tuple(compare_encoder or ()),
         ),

@@ -78,7 +78,7 @@ def replay_cmd(
 @takes(
     data=DATA.only("data", "task", "views"),
     recordings=RECORDINGS,
-    detector=DETECTOR.only("k", "score", "cache_dir", "device"),
+    detector=DETECTOR.only("k", "score", "cache_dir", "device"),  # the settings every memory shares
 )
 def compare_cmd(
     data: DataSelection,

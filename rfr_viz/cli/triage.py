@@ -50,7 +50,7 @@ def triage_cmd(
     out: Annotated[
         Path, typer.Option("--out", help="Folder for triage.csv, triage.rrd, triage.html and replays/.")
     ],
-    successes: Annotated[
+    known_good: Annotated[
         Path | None,
         typer.Option(
             "--successes",
@@ -85,7 +85,7 @@ def triage_cmd(
 
     outcome = triage(
         TriageConfig(
-            data=data, out=out, detector=detector, successes=successes, reference_runs=reference_runs
+            data=data, out=out, detector=detector, known_good=known_good, reference_runs=reference_runs
         ),
         replays=replays,
         camera_codec=camera_codec,

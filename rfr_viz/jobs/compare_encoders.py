@@ -9,6 +9,7 @@ from pathlib import Path
 from rfr_viz.jobs.compare import CompareConfig, compare
 from rfr_viz.jobs.recorded import Recordings
 from robofailring.atomic import output_lock, remove_file_leftovers, write_text_atomic
+from robofailring.detection.config import DetectorConfig
 from robofailring.evaluation.run import EvaluationResult
 from robofailring.jobs.compare_encoders import CompareEncodersConfig, compare_encoders, comparison_table
 from robofailring.outputs import check_output_folder
@@ -48,7 +49,10 @@ def _run_encoder_comparison(
         compare(
             CompareConfig(
                 data=config.test_data or config.data,
-                detectors=tuple(config.detector.with_memory(Path(r.memory)) for r in results),
+                detectors=tuple(
+                    DetectorConfig(memory=Path(r.memory), scoring=config.scoring, placement=config.placement)
+                    for r in results
+                ),
                 recordings=Recordings(out=Path(config.out) / "recordings", trajectories=keys),
             )
         ).recordings

@@ -24,10 +24,10 @@ from robofailring.calibration.policy import DEFAULT_POLICY, ThresholdPolicy
 from robofailring.data.grounding import failure_type
 from robofailring.data.layouts import load_dataset
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
 from robofailring.detection.loader import detector_from
 from robofailring.detection.rules import CONTRAST, PAPER, ScoringRule
 from robofailring.encoders import default_cache_dir
+from robofailring.encoders.placement import DEFAULT_PLACEMENT, EncoderPlacement
 from robofailring.encoders.training import TrainEncoderConfig
 from robofailring.evaluation.job import EvaluateConfig, build_training_memory
 from robofailring.evaluation.per_rule import runs_below_top
@@ -52,9 +52,9 @@ class DemoConfig:
     image_size: int = 128
     frames: int = 40
     # α: split-conformal calibration of every rule on the training successes (and its band and fusion)
-    thresholds: ThresholdPolicy = DEFAULT_POLICY
+    threshold_policy: ThresholdPolicy = DEFAULT_POLICY
     workers: int = 2
-    detector: DetectorConfig = DEFAULT_DETECTOR  # the device and embedding cache of every step
+    placement: EncoderPlacement = DEFAULT_PLACEMENT  # where every step's encoder runs: device, cache, …
     camera_codec: CameraCodec = CameraCodec.AUTO  # jpeg, av1, h264, or auto (by size)
     trained_epochs: int = 10  # train-encoder on the ID split (and random looks): the headline (0: none)
     # the memories built (failure frames, pairing, success step), each with its own encoder: the trained
@@ -111,7 +111,7 @@ def demo_successes(config: DemoConfig) -> int:
     """The in-distribution success runs per task the demo simulates (`DemoConfig.success_episodes`)."""
     if config.success_episodes is not None:
         return config.success_episodes
-    return math.ceil(2 * runs_below_top(config.thresholds.target_fpr) / len(config.tasks))
+    return math.ceil(2 * runs_below_top(config.threshold_policy.target_fpr) / len(config.tasks))
 
 
 def simulate_datasets(config: DemoConfig, data_dir: Path) -> tuple[Path, Path]:
@@ -165,7 +165,7 @@ def _run_demo(config: DemoConfig, data_dir: Path, say: Callable[[str], None]) ->
     encoder = _headline_encoder(config, in_dist, data_dir, say)
     say(
         f"detector: encoder {encoder}, {config.recipe.failure_frames} failure memory, {config.recipe.pairing} pairing, "
-        f"contrast rule on a time-indexed band, calibrated to α = {config.thresholds.target_fpr:g} (the paper's rule beside "
+        f"contrast rule on a time-indexed band, calibrated to α = {config.threshold_policy.target_fpr:g} (the paper's rule beside "
         "it; pixels in encoders/comparison.md)"
     )
 
@@ -173,22 +173,25 @@ def _run_demo(config: DemoConfig, data_dir: Path, say: Callable[[str], None]) ->
         data=DataSelection(in_dist),
         out=out,
         recipe=replace(config.recipe, encoder=encoder),
-        detector=config.detector,
+        placement=config.placement,
         memory_out=out / "memory",
     )
     memory_dir, _ = build_training_memory(base)  # its skips: in its manifest (simulated runs have none)
     calibration = calibrate(
         CalibrateConfig(
-            data=base.data, detector=config.detector.with_memory(memory_dir), thresholds=config.thresholds
+            data=base.data,
+            memory=memory_dir,
+            placement=config.placement,
+            threshold_policy=config.threshold_policy,
         )
     )
     say(
-        f"memory {memory_dir}: split-conformal thresholds for FPR ≤ {100 * config.thresholds.target_fpr:g} % on "
+        f"memory {memory_dir}: split-conformal thresholds for FPR ≤ {100 * config.threshold_policy.target_fpr:g} % on "
         f"{calibration.successes} training successes ({calibration.encoder}): paper δ = {calibration.delta:.4f}, "
         f"contrast γ = {calibration.gamma if calibration.gamma is not None else float('nan'):.4f}"
     )
     # the thresholds calibration just stored; the memory loaded once, for both evaluations and every recording
-    stored = replace(base, detector=base.detector.with_memory(memory_dir), thresholds=None)
+    stored = replace(base, memory=memory_dir, threshold_policy=None)
     detector = detector_from(stored.detector, trusted=[stored.data.root])
     mapped = memory_map(detector.memory, directory=memory_dir)
     place = partial(placer, mapped)  # the recordings' map points, placed while the evaluations score
@@ -268,9 +271,9 @@ def _compare_encoders(
             data=DataSelection(in_dist),
             out=out / "encoders",
             encoders=tuple(dict.fromkeys((encoder, DEFAULT_ENCODER, *config.compare_with))),
-            thresholds=config.thresholds,  # each encoder calibrated at the demo's α
+            threshold_policy=config.threshold_policy,  # each encoder calibrated at the demo's α
             recipe=config.recipe,
-            detector=config.detector,
+            placement=config.placement,
         ),
         existing={encoder: headline},
     )

@@ -64,7 +64,7 @@ def evaluate(config: EvaluateConfig, *, growth: tuple[int, ...] = ()) -> Evaluat
         inputs=[
             config.data.root,
             config.test_data.root if config.test_data else None,
-            config.detector.memory,
+            config.memory,
         ],
     )
     if growth:

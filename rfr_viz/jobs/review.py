@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import csv
 import io
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Final
 
@@ -112,7 +112,12 @@ def _replay_keys(
     if not keys:
         return result
     loaded = load_detector(
-        config.detector.with_memory(memory_dir, thresholds={rule.name: threshold}, rule=rule.name, k=k),
+        config.detector.with_memory(
+            memory_dir,
+            thresholds={rule.name: threshold},
+            rule=rule.name,
+            scoring=replace(config.detector.scoring, k=k),
+        ),
         config.data.root,
     )
     dataset = config.data.load(keys=keys)
@@ -199,7 +204,7 @@ def write_review_labels(config: ReviewConfig) -> ReviewLabels:
                 reviewed.memory_dir,
                 thresholds={reviewed.rule.name: reviewed.threshold},
                 rule=reviewed.rule.name,
-                k=reviewed.k,
+                scoring=replace(config.detector.scoring, k=reviewed.k),
             ),
             trusted=[config.data.root],
         )

@@ -78,7 +78,7 @@ def triage(
     if replays < -1:
         raise SettingError(f"--replays must be a number of episodes, or -1 for all of them, got {replays}")
     out = Path(config.out)
-    check_output_folder(out, inputs=[config.data.root, config.memory, config.successes])
+    check_output_folder(out, inputs=[config.data.root, config.memory, config.known_good])
     with output_lock(out):
         remove_file_leftovers(out)
         remove_file_leftovers(out / REPLAYS)

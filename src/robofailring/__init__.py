@@ -39,13 +39,14 @@ if TYPE_CHECKING:
     from robofailring.data.layouts import Dataset, load_dataset, load_trajectory
     from robofailring.data.model import Frame, Outcome, Trajectory
     from robofailring.data.selection import DataSelection
-    from robofailring.detection.config import DetectorConfig
+    from robofailring.detection.config import DetectorConfig, Scoring
     from robofailring.detection.detector import FailureDetector
     from robofailring.detection.loader import open_detector
     from robofailring.detection.rules import PAPER_DELTA, RULES, ScoringRule, rule_named
     from robofailring.detection.session import DetectorSession, StepResult, StepSink
     from robofailring.detection.trace import DetectionTrace
     from robofailring.encoders import CachedEncoder, Encoder, default_cache_dir, load_encoder, open_encoder
+    from robofailring.encoders.placement import EncoderPlacement
     from robofailring.evaluation.job import EvaluateConfig
     from robofailring.evaluation.run import run_evaluation
     from robofailring.explain.report import FailureReport, VLMClient
@@ -85,6 +86,7 @@ _LAZY = {  # name -> (module, attribute), imported on first use (the simulator's
     "DetectorConfig": ("robofailring.detection.config", "DetectorConfig"),
     "DetectorSession": ("robofailring.detection.session", "DetectorSession"),
     "Encoder": ("robofailring.encoders", "Encoder"),
+    "EncoderPlacement": ("robofailring.encoders.placement", "EncoderPlacement"),
     "EvaluateConfig": ("robofailring.evaluation.job", "EvaluateConfig"),
     "FailureDetector": ("robofailring.detection.detector", "FailureDetector"),
     "FailureMemory": ("robofailring.memory.failure", "FailureMemory"),
@@ -96,6 +98,7 @@ _LAZY = {  # name -> (module, attribute), imported on first use (the simulator's
     "Outcome": ("robofailring.data.model", "Outcome"),
     "PAPER_DELTA": ("robofailring.detection.rules", "PAPER_DELTA"),
     "RULES": ("robofailring.detection.rules", "RULES"),
+    "Scoring": ("robofailring.detection.config", "Scoring"),
     "ScoringRule": ("robofailring.detection.rules", "ScoringRule"),
     "StepResult": ("robofailring.detection.session", "StepResult"),
     "StepSink": ("robofailring.detection.session", "StepSink"),
@@ -170,6 +173,7 @@ __all__ = [
     "Encoder",
     "EncoderError",
     "EncoderMismatchError",
+    "EncoderPlacement",
     "EvaluateConfig",
     "FailureDetector",
     "FailureMemory",
@@ -190,6 +194,7 @@ __all__ = [
     "RolloutError",
     "RolloutMonitor",
     "RolloutSummary",
+    "Scoring",
     "ScoringRule",
     "SettingError",
     "SimEnv",

@@ -1,10 +1,11 @@
-"""Every job config is a composition of the values, never a copy of their fields (issue 47 item 1), and each
+"""Every job config is a composition of the values, never a copy of their fields (issue 47 item 1, issue 53), and each
 verb's config and its run live in the verb's job module (issue 53 item 5).
 
-What to read is a `DataSelection`, how a memory is made a `MemoryRecipe`, how a detector judges (and where
-its encoder runs) a `DetectorConfig`, how thresholds are set a `ThresholdPolicy` (and, for replay and
-compare, which trajectories they record, `Recordings`): each is checked once, where it is made, and a job
-holds it whole.
+What to read is a `DataSelection`, how a memory is made a `MemoryRecipe`, where an encoder runs an
+`EncoderPlacement`, how runs are scored a `Scoring`, what opens a detector and decides a `DetectorConfig` (made of
+the two), how thresholds are set a `ThresholdPolicy` (and, for replay and compare, which trajectories they
+record, `Recordings`): each is checked once, where it is made, and a job holds it whole. A job holds only the
+values that apply to it, so none refuses a setting of a value it holds.
 
 A verb's job module (docs/architecture.md, "The one command line"): in the library, `robofailring/jobs/<verb>.py` for a verb that joins packages, or
 `robofailring/<package>/job.py` for a verb that is one package's work (its modules take the config, and
@@ -38,7 +39,8 @@ from rfr_viz.jobs.watch import WatchConfig
 from robofailring.calibration.job import CalibrateConfig
 from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DetectorConfig
+from robofailring.detection.config import DetectorConfig, Scoring
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.encoders.training import TrainEncoderConfig
 from robofailring.errors import SettingError
 from robofailring.evaluation.job import EvaluateConfig
@@ -132,7 +134,7 @@ VERBS = verb_functions()
 VERB_JOBS = {verb: job_of(verb, function) for verb, function in VERBS.items()}
 
 
-VALUES = (DataSelection, MemoryRecipe, DetectorConfig, ThresholdPolicy)
+VALUES = (DataSelection, MemoryRecipe, EncoderPlacement, Scoring, DetectorConfig, ThresholdPolicy)
 HELD = (*VALUES, Recordings)  # Recordings: replay's and compare's (a watch, a review record otherwise)
 HELD_JOBS = (TrainEncoderConfig,)  # the training TrainEncoderJob holds whole, beside the simulation
 # generate reads no data, judges nothing and sets no threshold: it writes a dataset from the simulator's settings
@@ -154,13 +156,20 @@ EXPLICIT = (
 JOB_CONFIGS = tuple(
     dict.fromkeys([*EXPLICIT, *(job.config for job in VERB_JOBS.values() if job is not None)])
 )
-# a training job has no detector: the device it trains on is its own setting, not a DetectorConfig's
-OWN: dict[type, set[str]] = {TrainEncoderConfig: {"device"}}
+# a training job has no detector: the device it trains on is its own setting, not an EncoderPlacement's; the
+# jobs that set every rule's threshold name the memory they open (and calibration its encoder) beside its Scoring
+# and EncoderPlacement: a DetectorConfig would carry a rule and thresholds they could only refuse
+OWN: dict[type, set[str]] = {
+    TrainEncoderConfig: {"device"},
+    CalibrateConfig: {"memory", "encoder"},
+    EvaluateConfig: {"memory"},
+}
 
 
-def _holds_a_value(annotation: object) -> bool:
-    return any(value in (annotation, *typing.get_args(annotation)) for value in (*HELD, *HELD_JOBS)) or any(
-        _holds_a_value(arg) for arg in typing.get_args(annotation)
+def _holds_a_value(annotation: object, *values: type) -> bool:
+    values = values or (*HELD, *HELD_JOBS)
+    return any(value in (annotation, *typing.get_args(annotation)) for value in values) or any(
+        _holds_a_value(arg, *values) for arg in typing.get_args(annotation)
     )
 
 
@@ -181,7 +190,10 @@ def test_each_value_is_checked_where_it_is_made(tmp_path: Path) -> None:
         (lambda: ThresholdPolicy(target_fpr=1.5), "target FPR must be in"),
         (lambda: ThresholdPolicy(band="wide"), "band"),
         (lambda: ThresholdPolicy(fusion="mean"), "fusion"),
-        (lambda: DetectorConfig(k=0), "k \\(neighbours per query\\)"),
+        (lambda: Scoring(k=0), "k \\(neighbours per query\\)"),
+        (lambda: Scoring(modality="sound"), "--modality must be one of"),
+        (lambda: EncoderPlacement(device="npu"), "is not a device"),
+        (lambda: DetectorConfig(rule="best"), "best"),
         (lambda: MemoryRecipe(pairing="sum"), "pairing"),
         (lambda: Recordings(fps=0.0), "--fps must be"),
     ):
@@ -211,14 +223,8 @@ def test_a_recipe_knows_the_settings_chosen() -> None:
 
 def test_jobs_refuse_settings_their_values_cannot_take(tmp_path: Path) -> None:
     data = DataSelection(tmp_path)
-    with pytest.raises(SettingError, match="no memory folder"):
-        CalibrateConfig(data=data, detector=DetectorConfig())
-    with pytest.raises(SettingError, match="calibration sets every rule's threshold"):
-        CalibrateConfig(data=data, detector=DetectorConfig(memory=tmp_path, rule="paper"))
-    with pytest.raises(SettingError, match="a memory is built, not judged"):
-        BuildMemoryConfig(data=data, out=tmp_path / "m", detector=DetectorConfig(memory=tmp_path))
     with pytest.raises(SettingError, match="leave out --memory and give a target FPR"):
-        EvaluateConfig(data=data, out=tmp_path, thresholds=None, folds=_folds())
+        EvaluateConfig(data=data, out=tmp_path, threshold_policy=None, folds=_folds())
 
 
 def _folds() -> typing.Any:
@@ -264,3 +270,44 @@ def test_a_package_job_module_is_one_verbs() -> None:
         if job is not None and _is_package_job(job.config.__module__):
             homes.setdefault(job.config.__module__, []).append(verb)
     assert homes and all(len(verbs) == 1 for verbs in homes.values()), homes
+
+
+@pytest.mark.parametrize("job", JOB_CONFIGS, ids=lambda job: job.__name__)
+def test_a_job_holds_only_the_values_that_apply(job: type) -> None:
+    """A job that encodes but judges nothing holds an `EncoderPlacement`, one that sets thresholds a `Scoring`
+    beside it, never a `DetectorConfig` whose rule or thresholds it would have to refuse."""
+    hints = typing.get_type_hints(job, localns={"VLMConfig": VLMConfig})
+    held = {
+        value
+        for field in dataclasses.fields(job)
+        for value in VALUES
+        if _holds_a_value(hints[field.name], value)
+    }
+    if ThresholdPolicy in held:  # it sets thresholds: no rule or threshold given to it
+        assert DetectorConfig not in held, job
+    if job in (BuildMemoryConfig, DemoConfig):
+        assert held & {EncoderPlacement, Scoring, DetectorConfig} == {EncoderPlacement}
+
+
+def test_no_job_refuses_a_detector_setting_at_run_time() -> None:
+    """The three refusals of issue 53 (build-memory: a memory, encoder, rule or threshold; calibrate: a rule or
+    threshold; evaluate: a rule, threshold or encoder) are gone with the fields: none of them can be given."""
+    for job, refused in (
+        (BuildMemoryConfig, {"detector", "memory", "encoder", "rule", "thresholds"}),
+        (CalibrateConfig, {"detector", "rule", "thresholds"}),
+        (EvaluateConfig, {"detector", "rule", "thresholds", "encoder"}),
+    ):
+        assert not {field.name for field in dataclasses.fields(job)} & refused, job
+    sources = [Path(module.__file__).read_text(encoding="utf-8") for module in map(_module, JOB_CONFIGS)]
+    for said in (
+        "give no memory, encoder, rule or threshold",
+        "give its detector no rule or threshold",
+        "give no rule, threshold or encoder to its detector",
+    ):
+        assert not any(said in source for source in sources)
+
+
+def _module(job: type) -> typing.Any:
+    import sys
+
+    return sys.modules[job.__module__]

@@ -15,6 +15,7 @@ from rfr_viz.viewer.rrd import verify_recording
 from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.errors import DataError
 
 pytestmark = pytest.mark.slow  # simulation or end-to-end: the full lane only (scripts/test.sh)
@@ -33,8 +34,8 @@ def tiny_demo(root: Path, out: str) -> DemoConfig:
         frames=8,
         workers=1,
         randomize=8,  # one randomised-look episode per kind
-        thresholds=ThresholdPolicy(target_fpr=0.5),
-        detector=DetectorConfig(cache_dir=root / "cache"),
+        threshold_policy=ThresholdPolicy(target_fpr=0.5),
+        placement=EncoderPlacement(cache_dir=root / "cache"),
     )
 
 
@@ -110,7 +111,7 @@ def test_review_replays_the_listed_trajectories(demo: tuple[Path, DemoResult]) -
                 evaluation=evaluation,
                 kind=kind,
                 out=root / "review" / str(score),
-                detector=DetectorConfig(cache_dir=root / "cache", rule=score),
+                detector=DetectorConfig(rule=score, placement=EncoderPlacement(cache_dir=root / "cache")),
             )
         )
         assert len(result.recordings) == len(listed)

@@ -19,7 +19,9 @@ PANELS = {
     "data": "Data",
     "recipe": "Memory recipe",
     "detector": "Detector",
-    "thresholds": "Thresholds",
+    "scoring": "Detector",
+    "placement": "Encoder",
+    "threshold_policy": "Thresholds",
     "vlm": "VLM",
     "recordings": "Recordings",
 }
@@ -57,12 +59,21 @@ def _params() -> list[tuple[str, Any]]:
 
 def test_evaluate_lists_each_group_under_its_panel() -> None:
     panels = _panels(_help("evaluate"))
-    assert list(panels) == ["Arguments", "Options", "Data", "Memory recipe", "Detector", "Thresholds"]
+    assert list(panels) == [
+        "Arguments",
+        "Options",
+        "Data",
+        "Memory recipe",
+        "Detector",
+        "Encoder",
+        "Thresholds",
+    ]
     assert panels["Thresholds"] == ["--target-fpr", "--band", "--fusion", "--band-scope"]
     assert panels["Memory recipe"][:3] == ["--encoder", "--failure-frames", "--pairing"]
     assert "--signal-start-weight" in panels["Memory recipe"]
     assert panels["Data"] == ["--labels", "--task", "--views", "--vocabulary"]
-    assert {"--k", "--modality", "--cache-dir", "--ray"} <= set(panels["Detector"])
+    assert {"--k", "--modality"} <= set(panels["Detector"])
+    assert panels["Encoder"] == ["--cache-dir", "--device", "--runtime", "--ray"]
     assert {"--out", "--test-data", "--growth"} <= set(panels["Options"])
 
 
@@ -74,13 +85,12 @@ def test_every_group_option_of_every_verb_is_under_its_groups_panel() -> None:
         assert set(groups) <= set(PANELS), (
             f"{name}: a group with no panel named here: {set(groups) - set(PANELS)}"
         )
-        of_group = {
-            param: group for group, value in groups.items() for param in (p.name for p in value.parameters())
-        }
+        of_group = {param: panel for value in groups.values() for param, panel in value.panels().items()}
+        assert set(of_group.values()) <= set(PANELS.values())
         for param in command.params:
             if param.param_type_name != "option" or param.name == "help":
                 continue
-            expected = PANELS[of_group[param.name]] if param.name in of_group else None
+            expected = of_group.get(param.name)
             if getattr(param, "rich_help_panel", None) != expected:
                 wrong.append((name, param.opts[0], getattr(param, "rich_help_panel", None), expected))
     assert wrong == []

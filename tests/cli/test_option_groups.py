@@ -27,13 +27,16 @@ from robofailring.cli.option_groups import (
     DETECTOR,
     data_options,
     detector_options,
+    placement_options,
     recipe_options,
+    scoring_options,
     threshold_options,
     vlm_options,
 )
 from robofailring.cli.verbs import app as library_app
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
+from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig, Scoring
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.memory.recipe import MemoryRecipe
 
 GROUPS: dict[Callable[..., Any], tuple[type, dict[str, tuple[str, ...]]]] = {
@@ -41,6 +44,8 @@ GROUPS: dict[Callable[..., Any], tuple[type, dict[str, tuple[str, ...]]]] = {
     data_options: (DataSelection, {"root": ("data",)}),
     recipe_options: (MemoryRecipe, {"given": ()}),  # which were given: the options say it by being given
     detector_options: (DetectorConfig, {"rule": ("score",), "thresholds": ("delta", "gamma", "eta")}),
+    scoring_options: (Scoring, {}),
+    placement_options: (EncoderPlacement, {}),
     threshold_options: (ThresholdPolicy, {}),
     recordings_options: (Recordings, {"trajectories": ("trajectory",)}),
 }
@@ -77,7 +82,15 @@ def _own_options(verb: Any) -> dict[str, inspect.Parameter]:
 def _group_flags() -> set[str]:
     return {
         flag
-        for build in (data_options, recipe_options, detector_options, threshold_options, vlm_options)
+        for build in (
+            data_options,
+            recipe_options,
+            detector_options,
+            scoring_options,
+            placement_options,
+            threshold_options,
+            vlm_options,
+        )
         for parameter in inspect.signature(build, eval_str=True).parameters.values()
         for flag in _flags(parameter)
     }
@@ -121,13 +134,12 @@ def test_no_two_verbs_repeat_an_option_list() -> None:
 def test_the_detecting_verbs_take_the_whole_detector_group() -> None:
     """A new detector setting (one option in `detector_options`, one field, one line) reaches every verb
     that judges with a detector, without touching them."""
-    whole = set(inspect.signature(detector_options).parameters) - {"ray"}
+    whole = set(DETECTOR.options()) - {"ray"}
     for verb in ("detect", "replay", "watch"):
         group = _verbs()[verb].option_groups["detector"]
         assert {p.name for p in group.parameters()} == whole, verb
-    for verb in ("calibrate", "evaluate", "triage"):
-        group = _verbs()[verb].option_groups["detector"]
-        assert {"k", "cache_dir", "device", "runtime"} <= {p.name for p in group.parameters()}, verb
+    group = _verbs()["triage"].option_groups["detector"]
+    assert {"k", "cache_dir", "device", "runtime"} <= {p.name for p in group.parameters()}
 
 
 @pytest.mark.parametrize("build", list(GROUPS), ids=lambda build: build.__name__)
@@ -180,11 +192,14 @@ def test_a_group_gives_its_value_in_its_options_place() -> None:
 
 
 def test_calibrate_scores_as_detect_does() -> None:
-    """calibrate takes the detector's scoring options (K, modality, encoder, runtime) but no rule or threshold:
-    it sets them."""
-    offered = {p.name for p in _verbs()["calibrate"].option_groups["detector"].parameters()}
-    assert {"memory", "k", "modality", "encoder", "runtime"} <= offered
-    assert not offered & {"score", "delta", "gamma", "eta"}
+    """calibrate and evaluate take the scoring options (K, modality) and where the encoder runs, and of the detector
+    only the memory (and calibrate its encoder), never a rule or threshold: they set every rule's."""
+    for verb, memory in (("calibrate", {"memory", "encoder"}), ("evaluate", {"memory"})):
+        groups = _verbs()[verb].option_groups
+        assert {p.name for p in groups["detector"].parameters()} == memory, verb
+        assert {p.name for p in groups["scoring"].parameters()} == {"k", "modality"}, verb
+        assert {"cache_dir", "device", "runtime"} <= {p.name for p in groups["placement"].parameters()}, verb
+    assert _verbs()["build-memory"].option_groups.keys() == {"data", "recipe", "placement"}
     assert DETECTOR.parameters()[0].default is inspect.Parameter.empty  # --memory: required where it detects
 
 
@@ -210,6 +225,11 @@ GIVEN: dict[Callable[..., Any], tuple[list[str], Any]] = {
             signal_features="change",
             signal_start_weight=0.25,
         ),
+    ),
+    scoring_options: (["--k=7", "--modality=cameras"], Scoring(k=7, modality="cameras")),
+    placement_options: (
+        ["--cache-dir=embeddings", "--device=cpu", "--runtime=onnx", "--ray=local"],
+        EncoderPlacement(device="cpu", runtime="onnx", cache_dir=Path("embeddings"), ray="local"),
     ),
     threshold_options: (
         ["--target-fpr=0.2", "--band=norm", "--fusion=per-view", "--band-scope=task"],

@@ -17,6 +17,7 @@ from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.detection.rules import CONTRAST
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.jobs.detect import DetectConfig, run_detect
 from robofailring.memory.recipe import MemoryRecipe
@@ -30,7 +31,7 @@ def both(tmp_path: Path) -> tuple[Path, Path, CachedEncoder]:
             data=DataSelection(data),
             out=tmp_path / "m",
             recipe=MemoryRecipe.chosen("pixels"),
-            detector=DetectorConfig(cache_dir=tmp_path / "c"),
+            placement=EncoderPlacement(cache_dir=tmp_path / "c"),
             split="train",
         )
     )
@@ -69,7 +70,7 @@ def test_detect_says_when_its_rule_judges_at_an_uncalibrated_default(
     key = load_dataset(data).select(split="test")[0].key
     config = DetectConfig(
         data=DataSelection(data),
-        detector=DetectorConfig(memory=memory_dir, cache_dir=tmp_path / "c"),
+        detector=DetectorConfig(memory=memory_dir, placement=EncoderPlacement(cache_dir=tmp_path / "c")),
         key=key,
     )
     with caplog.at_level(logging.WARNING, logger="robofailring"):
@@ -81,8 +82,9 @@ def test_detect_says_when_its_rule_judges_at_an_uncalibrated_default(
     calibrate(
         CalibrateConfig(
             data=DataSelection(data),
-            detector=DetectorConfig(memory=memory_dir, cache_dir=tmp_path / "c"),
-            thresholds=ThresholdPolicy(target_fpr=0.5),
+            memory=memory_dir,
+            placement=EncoderPlacement(cache_dir=tmp_path / "c"),
+            threshold_policy=ThresholdPolicy(target_fpr=0.5),
         )
     )
     with caplog.at_level(logging.WARNING, logger="robofailring"):
@@ -91,7 +93,9 @@ def test_detect_says_when_its_rule_judges_at_an_uncalibrated_default(
             DetectConfig(
                 data=DataSelection(data),
                 detector=DetectorConfig(
-                    memory=memory_dir, cache_dir=tmp_path / "c", thresholds={"contrast": 0.1}
+                    memory=memory_dir,
+                    thresholds={"contrast": 0.1},
+                    placement=EncoderPlacement(cache_dir=tmp_path / "c"),
                 ),
                 key=key,
             )

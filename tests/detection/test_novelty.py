@@ -24,6 +24,7 @@ from robofailring.detection.rules import (
     rules_for,
 )
 from robofailring.detection.view_scores import reaches
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.errors import DataError, SettingError
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.jobs.detect import DetectConfig, run_detect
@@ -65,7 +66,7 @@ def success_only(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, 
             data=DataSelection(data),
             out=root / "memory",
             recipe=MemoryRecipe.chosen("pixels"),
-            detector=DetectorConfig(cache_dir=root / "c"),
+            placement=EncoderPlacement(cache_dir=root / "c"),
             split="train",
         )
     )
@@ -107,7 +108,7 @@ def test_no_success_and_no_failure_is_still_an_error(tmp_path: Path) -> None:
                 data=DataSelection(data),
                 out=tmp_path / "m",
                 recipe=MemoryRecipe.chosen("pixels"),
-                successes=False,
+                success_memory=False,
             )
         )
     assert not (tmp_path / "m").exists()
@@ -122,8 +123,9 @@ def test_eta_is_calibrated_on_training_successes_and_judges_the_task(
     found = calibrate(
         CalibrateConfig(
             data=DataSelection(data),
-            detector=DetectorConfig(memory=memory, cache_dir=cache),
-            thresholds=ThresholdPolicy(target_fpr=0.4),
+            memory=memory,
+            placement=EncoderPlacement(cache_dir=cache),
+            threshold_policy=ThresholdPolicy(target_fpr=0.4),
         )
     )
     assert found.delta is None and found.gamma is None and found.eta is not None
@@ -182,7 +184,9 @@ def test_detect_says_novelty_fired_with_no_failure_to_compare(
     result = run_detect(
         DetectConfig(
             data=DataSelection(data),
-            detector=DetectorConfig(memory=memory_dir, cache_dir=cache, thresholds={"novelty": 0.0}),
+            detector=DetectorConfig(
+                memory=memory_dir, thresholds={"novelty": 0.0}, placement=EncoderPlacement(cache_dir=cache)
+            ),
             key=trajectory.key,
         )
     )
@@ -208,7 +212,7 @@ def test_a_memory_with_both_kinds_of_task_judges_each_by_its_own_default(tmp_pat
             data=DataSelection(both),
             out=tmp_path / "m",
             recipe=MemoryRecipe.chosen("pixels"),
-            detector=DetectorConfig(cache_dir=tmp_path / "c"),
+            placement=EncoderPlacement(cache_dir=tmp_path / "c"),
             split="train",
         )
     )
@@ -228,8 +232,9 @@ def test_a_memory_with_both_kinds_of_task_judges_each_by_its_own_default(tmp_pat
     found = calibrate(
         CalibrateConfig(
             data=DataSelection(both),
-            detector=DetectorConfig(memory=tmp_path / "m", cache_dir=tmp_path / "c"),
-            thresholds=ThresholdPolicy(target_fpr=0.5),
+            memory=tmp_path / "m",
+            placement=EncoderPlacement(cache_dir=tmp_path / "c"),
+            threshold_policy=ThresholdPolicy(target_fpr=0.5),
         )
     )
     assert None not in (found.delta, found.gamma, found.eta)
@@ -253,8 +258,8 @@ def test_an_evaluation_grows_from_success_runs_only_to_labelled_failures(tmp_pat
     cold = run_evaluation(
         EvaluateConfig(
             data=DataSelection(data),
-            thresholds=ThresholdPolicy(target_fpr=0.5),
-            detector=DetectorConfig(cache_dir=tmp_path / "c"),
+            threshold_policy=ThresholdPolicy(target_fpr=0.5),
+            placement=EncoderPlacement(cache_dir=tmp_path / "c"),
             out=tmp_path / "e0",
             failures_per_task=0,
         )
@@ -263,8 +268,8 @@ def test_an_evaluation_grows_from_success_runs_only_to_labelled_failures(tmp_pat
     grown = run_evaluation(
         EvaluateConfig(
             data=DataSelection(data),
-            thresholds=ThresholdPolicy(target_fpr=0.5),
-            detector=DetectorConfig(cache_dir=tmp_path / "c"),
+            threshold_policy=ThresholdPolicy(target_fpr=0.5),
+            placement=EncoderPlacement(cache_dir=tmp_path / "c"),
             out=tmp_path / "e1",
             failures_per_task=1,
         )

@@ -11,9 +11,8 @@ from synthetic import write_project_dataset
 
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
 from robofailring.calibration.job import available_rules
-from robofailring.cli.option_groups import ScoreOption
+from robofailring.cli.detector_options import ScoreOption
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DetectorConfig
 from robofailring.detection.rules import (
     CONTRAST,
     NOVELTY,
@@ -26,6 +25,7 @@ from robofailring.detection.rules import (
     rules_for,
 )
 from robofailring.detection.view_scores import reaches
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.errors import SettingError
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.memory.recipe import MemoryRecipe
@@ -99,7 +99,7 @@ def built(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, FailureMemory
             data=DataSelection(data),
             out=folder / "memory",
             recipe=MemoryRecipe.chosen("pixels"),
-            detector=DetectorConfig(cache_dir=folder / "cache"),
+            placement=EncoderPlacement(cache_dir=folder / "cache"),
             split="train",
         )
     )

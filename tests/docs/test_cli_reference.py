@@ -27,7 +27,7 @@ def test_the_reference_lists_each_verbs_options_under_its_help_panels() -> None:
     committed = PAGE.read_text(encoding="utf-8")
     section = committed.partition("### `detect`")[2].partition("\n### ")[0]
     headings = [line.strip("*") for line in section.splitlines() if line.startswith("**")]
-    assert headings == ["Arguments", "Options", "Data", "Detector", "VLM"]
+    assert headings == ["Arguments", "Options", "Data", "Detector", "Encoder", "VLM"]
     detector = section.partition("**Detector**")[2].partition("**VLM**")[0]
     assert "- `--memory <path>`: Memory directory. [required]" in detector
     assert "- `--k <int>`: Neighbours retrieved per query. [default: 5]" in detector

@@ -8,9 +8,9 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from robofailring.detection.config import DetectorConfig
 from robofailring.encoders import load_encoder
 from robofailring.encoders.device import check_device_name
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.errors import SettingError
 
 
@@ -21,13 +21,13 @@ def test_a_name_that_is_no_device_is_refused_for_every_kind(device: str) -> None
     ):
         load_encoder("pixels", device=device)
     with pytest.raises(SettingError, match="is not a device"):
-        DetectorConfig(device=device)
+        EncoderPlacement(device=device)
 
 
 @pytest.mark.parametrize("device", [None, "cpu", "cuda", "cuda:0", "cuda:12", "mps"])
 def test_every_device_form_is_taken(device: str | None) -> None:
     assert check_device_name(device) == device
-    assert DetectorConfig(device=device).device == device
+    assert EncoderPlacement(device=device).device == device
 
 
 @given(st.text(max_size=12))

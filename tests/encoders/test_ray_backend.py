@@ -15,8 +15,8 @@ from synthetic import write_project_dataset
 from robofailring import FailureMemory, load_dataset
 from robofailring.data.model import Frame
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DetectorConfig
 from robofailring.encoders import open_encoder
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.encoders.ray_backend import RayBackend, _probe
 from robofailring.errors import ClusterError
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
@@ -63,7 +63,7 @@ def test_build_memory_on_ray_is_the_local_memory(ray_cluster: None, tmp_path: Pa
             data=DataSelection(dataset),
             out=tmp_path / where,
             recipe=MemoryRecipe.chosen("pixels"),
-            detector=DetectorConfig(cache_dir=tmp_path / f"cache-{where}", ray=ray),
+            placement=EncoderPlacement(cache_dir=tmp_path / f"cache-{where}", ray=ray),
         )
         build_memory(config)
         built[where] = FailureMemory.load(tmp_path / where)

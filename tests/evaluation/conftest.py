@@ -8,7 +8,7 @@ import pytest
 from synthetic import write_project_dataset
 
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DetectorConfig
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.memory.recipe import MemoryRecipe
 
@@ -29,7 +29,7 @@ def calibration_set(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Pat
             data=DataSelection(data),
             out=root / "memory",
             recipe=MemoryRecipe.chosen("pixels"),
-            detector=DetectorConfig(cache_dir=root / "c"),
+            placement=EncoderPlacement(cache_dir=root / "c"),
             split="train",
         )
     )

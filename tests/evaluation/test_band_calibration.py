@@ -20,6 +20,7 @@ from robofailring.data.selection import DataSelection
 from robofailring.detection.band import NONE, NORM, SHIFT
 from robofailring.detection.config import DetectorConfig
 from robofailring.detection.rules import CONTRAST, NOVELTY, PAPER
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.evaluation.job import EvaluateConfig
 from robofailring.evaluation.run import run_evaluation
 from robofailring.jobs.detect import DetectConfig, run_detect
@@ -37,8 +38,9 @@ def _calibrated(calibration_set: tuple[Path, Path, Path], band: str, folder: Pat
     calibrate(
         CalibrateConfig(
             data=DataSelection(data),
-            detector=DetectorConfig(memory=copy, cache_dir=cache),
-            thresholds=ThresholdPolicy(target_fpr=ALPHA, band=band),
+            memory=copy,
+            placement=EncoderPlacement(cache_dir=cache),
+            threshold_policy=ThresholdPolicy(target_fpr=ALPHA, band=band),
         )
     )
     return copy
@@ -96,7 +98,7 @@ def test_detect_and_the_live_step_fire_where_the_raw_score_crosses_the_line(
     shown = run_detect(
         DetectConfig(
             data=DataSelection(data),
-            detector=DetectorConfig(memory=memory_dir, cache_dir=cache),
+            detector=DetectorConfig(memory=memory_dir, placement=EncoderPlacement(cache_dir=cache)),
             key=trajectory.episode,
         )
     )
@@ -130,9 +132,9 @@ def test_the_evaluation_judges_on_the_band_it_calibrates(
         band: run_evaluation(
             EvaluateConfig(
                 data=DataSelection(data),
-                thresholds=ThresholdPolicy(target_fpr=ALPHA, band=band),
+                threshold_policy=ThresholdPolicy(target_fpr=ALPHA, band=band),
                 recipe=MemoryRecipe(encoder="pixels"),
-                detector=DetectorConfig(cache_dir=cache),
+                placement=EncoderPlacement(cache_dir=cache),
                 out=tmp_path / band,
             )
         )

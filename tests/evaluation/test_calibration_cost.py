@@ -37,7 +37,7 @@ def test_the_demo_simulates_enough_successes_for_its_alpha() -> None:
     default = DemoConfig()
     per_task = demo_successes(default)
     assert per_task == 20 and per_task // 2 * len(default.tasks) >= runs_below_top(0.05)
-    assert demo_successes(DemoConfig(thresholds=ThresholdPolicy(0.1))) == math.ceil(
+    assert demo_successes(DemoConfig(threshold_policy=ThresholdPolicy(0.1))) == math.ceil(
         2 * runs_below_top(0.1) / 4
     )
     assert demo_successes(DemoConfig(success_episodes=4)) == 4

@@ -11,7 +11,7 @@ from synthetic import write_project_dataset
 
 from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DetectorConfig
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.jobs.compare_encoders import CompareEncodersConfig, compare_encoders, comparison_table
 
 
@@ -25,8 +25,8 @@ def test_two_encoders_differ_in_their_camera_rows_with_the_fused_row_beside(
             data=DataSelection(data),
             out=tmp_path / "out",
             encoders=("pixels", f"open_clip:{config_json}:{checkpoint}"),
-            thresholds=ThresholdPolicy(0.34),
-            detector=DetectorConfig(cache_dir=tmp_path / "cache"),
+            threshold_policy=ThresholdPolicy(0.34),
+            placement=EncoderPlacement(cache_dir=tmp_path / "cache"),
         )
     )
     cameras = [result.modalities["contrast"]["cameras"].result for result in results]

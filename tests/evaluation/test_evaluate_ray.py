@@ -11,7 +11,7 @@ from synthetic import write_project_dataset
 
 from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DetectorConfig
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.evaluation.job import EvaluateConfig
 from robofailring.evaluation.run import run_evaluation
 
@@ -25,9 +25,9 @@ def test_evaluation_on_ray_is_the_local_evaluation(
         where: run_evaluation(
             EvaluateConfig(
                 data=DataSelection(dataset),
-                thresholds=ThresholdPolicy(target_fpr=0.2),
+                threshold_policy=ThresholdPolicy(target_fpr=0.2),
                 out=tmp_path / where,
-                detector=DetectorConfig(cache_dir=tmp_path / f"cache-{where}", ray=ray),
+                placement=EncoderPlacement(cache_dir=tmp_path / f"cache-{where}", ray=ray),
             )
         )
         for where, ray in (("local", None), ("ray", "auto"))

@@ -19,7 +19,7 @@ from robofailring import (
 from robofailring.calibration.job import CalibrateConfig, calibrate
 from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DetectorConfig
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.errors import SettingError
 from robofailring.evaluation.job import EvaluateConfig, check_disjoint, select_splits
 from robofailring.evaluation.run import run_evaluation, write_evaluation
@@ -34,7 +34,7 @@ def dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def test_splits_keep_memory_and_test_apart(dataset: Path, tmp_path: Path) -> None:
     config = EvaluateConfig(
-        data=DataSelection(dataset), detector=DetectorConfig(cache_dir=tmp_path / "cache"), out=tmp_path
+        data=DataSelection(dataset), placement=EncoderPlacement(cache_dir=tmp_path / "cache"), out=tmp_path
     )
     splits = select_splits(config)
     train, test = splits.train, splits.test
@@ -60,8 +60,8 @@ def test_splits_keep_memory_and_test_apart(dataset: Path, tmp_path: Path) -> Non
 def test_evaluation_files_and_counts(dataset: Path, tmp_path: Path) -> None:
     config = EvaluateConfig(
         data=DataSelection(dataset),
-        thresholds=ThresholdPolicy(target_fpr=0.2),
-        detector=DetectorConfig(cache_dir=tmp_path / "cache"),
+        threshold_policy=ThresholdPolicy(target_fpr=0.2),
+        placement=EncoderPlacement(cache_dir=tmp_path / "cache"),
         out=tmp_path,
         name="in-distribution",
     )
@@ -115,9 +115,9 @@ def test_an_evaluation_of_the_papers_memory_says_so(dataset: Path, tmp_path: Pat
     result = run_evaluation(
         EvaluateConfig(
             data=DataSelection(dataset),
-            thresholds=ThresholdPolicy(target_fpr=0.2),
+            threshold_policy=ThresholdPolicy(target_fpr=0.2),
             recipe=MemoryRecipe(failure_frames="end"),
-            detector=DetectorConfig(cache_dir=tmp_path / "cache"),
+            placement=EncoderPlacement(cache_dir=tmp_path / "cache"),
             out=tmp_path,
         )
     )
@@ -136,16 +136,17 @@ def test_calibration_is_stored_and_used(dataset: Path, tmp_path: Path) -> None:
     run_evaluation(
         EvaluateConfig(
             data=DataSelection(dataset),
-            thresholds=ThresholdPolicy(target_fpr=0.5),
-            detector=DetectorConfig(cache_dir=cache),
+            threshold_policy=ThresholdPolicy(target_fpr=0.5),
+            placement=EncoderPlacement(cache_dir=cache),
             out=tmp_path,
         )
     )
     calibration = calibrate(
         CalibrateConfig(
             data=DataSelection(dataset),
-            detector=DetectorConfig(memory=tmp_path / "memory", cache_dir=cache),
-            thresholds=ThresholdPolicy(target_fpr=0.5),
+            memory=tmp_path / "memory",
+            placement=EncoderPlacement(cache_dir=cache),
+            threshold_policy=ThresholdPolicy(target_fpr=0.5),
         )
     )
     assert calibration.successes == 4 and calibration.achieved_fprs["paper"] <= 0.5
@@ -179,8 +180,8 @@ def test_too_short_test_trajectories_are_skipped_and_reported(tmp_path: Path) ->
     result = run_evaluation(
         EvaluateConfig(
             data=DataSelection(data),
-            thresholds=None,
-            detector=DetectorConfig(cache_dir=tmp_path / "cache"),
+            threshold_policy=None,
+            placement=EncoderPlacement(cache_dir=tmp_path / "cache"),
             out=tmp_path / "out",
         )
     )

@@ -25,6 +25,7 @@ from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.detection.rules import RULES, ScoringRule
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.evaluation.job import EvaluateConfig
 from robofailring.evaluation.run import run_evaluation, write_evaluation
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
@@ -67,7 +68,7 @@ def test_a_rule_defined_in_a_test_is_calibrated_stored_reloaded_and_judges(
             data=DataSelection(data),
             out=memory_dir,
             recipe=MemoryRecipe.chosen("pixels"),
-            detector=DetectorConfig(cache_dir=cache),
+            placement=EncoderPlacement(cache_dir=cache),
             split="train",
         )
     )
@@ -75,8 +76,9 @@ def test_a_rule_defined_in_a_test_is_calibrated_stored_reloaded_and_judges(
     found = calibrate(
         CalibrateConfig(
             data=DataSelection(data),
-            detector=DetectorConfig(memory=memory_dir, cache_dir=cache),
-            thresholds=ThresholdPolicy(target_fpr=ALPHA),
+            memory=memory_dir,
+            placement=EncoderPlacement(cache_dir=cache),
+            threshold_policy=ThresholdPolicy(target_fpr=ALPHA),
         )
     )
     assert list(found.thresholds) == ["paper", "contrast", "novelty", rule.name]
@@ -140,8 +142,9 @@ def test_a_rule_defined_in_a_test_is_calibrated_stored_reloaded_and_judges(
     evaluated = run_evaluation(
         EvaluateConfig(
             data=DataSelection(data),
-            thresholds=None,
-            detector=DetectorConfig(memory=memory_dir, cache_dir=cache),
+            threshold_policy=None,
+            memory=memory_dir,
+            placement=EncoderPlacement(cache_dir=cache),
             out=tmp_path / "evaluation",
         )
     )
@@ -155,7 +158,7 @@ def test_a_rule_defined_in_a_test_is_calibrated_stored_reloaded_and_judges(
             evaluation=json_path,
             kind=kind,
             out=tmp_path / "review",
-            detector=DetectorConfig(cache_dir=cache, rule=rule.name),
+            detector=DetectorConfig(rule=rule.name, placement=EncoderPlacement(cache_dir=cache)),
         )
     )
     assert len(reviewed.recordings) == len(reported[kind.replace("-", "_")])

@@ -12,7 +12,7 @@ from test_metrics import scored
 
 from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DetectorConfig
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.evaluation.job import EvaluateConfig
 from robofailring.evaluation.onset import onset_delay
 from robofailring.evaluation.run import run_evaluation, write_evaluation
@@ -58,9 +58,9 @@ def test_evaluation_reports_delay_and_premature_alarms_per_rule(tmp_path: Path) 
     result = run_evaluation(
         EvaluateConfig(
             data=DataSelection(data),
-            thresholds=ThresholdPolicy(target_fpr=0.5),
+            threshold_policy=ThresholdPolicy(target_fpr=0.5),
             recipe=MemoryRecipe(failure_frames="end"),
-            detector=DetectorConfig(cache_dir=tmp_path / "cache"),
+            placement=EncoderPlacement(cache_dir=tmp_path / "cache"),
             out=tmp_path / "out",
         )
     )
@@ -97,8 +97,8 @@ def test_evaluation_without_onsets_says_so(tmp_path: Path) -> None:
     result = run_evaluation(
         EvaluateConfig(
             data=DataSelection(data),
-            thresholds=None,
-            detector=DetectorConfig(cache_dir=tmp_path / "cache"),
+            threshold_policy=None,
+            placement=EncoderPlacement(cache_dir=tmp_path / "cache"),
             out=tmp_path / "out",
         )
     )

@@ -12,9 +12,9 @@ from synthetic import write_project_dataset
 
 from robofailring import load_dataset
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DetectorConfig
 from robofailring.detection.detector import Place
 from robofailring.detection.loader import detector_from
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.errors import SettingError
 from robofailring.evaluation.job import EvaluateConfig, build_training_memory
 from robofailring.evaluation.run import run_evaluation
@@ -30,12 +30,12 @@ def test_an_evaluation_takes_a_loaded_detector_and_keeps_placed_traces(tmp_path:
     data = write_project_dataset(tmp_path / "data", episodes=4)
     config = EvaluateConfig(
         data=DataSelection(data),
-        thresholds=None,
+        threshold_policy=None,
         out=tmp_path / "out",
-        detector=DetectorConfig(cache_dir=tmp_path / "cache"),
+        placement=EncoderPlacement(cache_dir=tmp_path / "cache"),
     )
     memory_dir, _ = build_training_memory(config)
-    stored = replace(config, detector=config.detector.with_memory(memory_dir))
+    stored = replace(config, memory=memory_dir)
     detector = detector_from(stored.detector)
 
     given = run_evaluation(stored, detector=detector, place=_first_columns)
@@ -54,13 +54,15 @@ def test_an_evaluation_takes_a_loaded_detector_and_keeps_placed_traces(tmp_path:
 
 def test_an_encoder_comparison_takes_the_results_it_is_given(tmp_path: Path) -> None:
     data = write_project_dataset(tmp_path / "data", episodes=4)
-    cache = DetectorConfig(cache_dir=tmp_path / "cache")
+    cache = EncoderPlacement(cache_dir=tmp_path / "cache")
     headline = run_evaluation(
-        EvaluateConfig(data=DataSelection(data), thresholds=None, out=tmp_path / "eval", detector=cache)
+        EvaluateConfig(
+            data=DataSelection(data), threshold_policy=None, out=tmp_path / "eval", placement=cache
+        )
     )
     out = tmp_path / "encoders"
     config = CompareEncodersConfig(
-        data=DataSelection(data), out=out, encoders=("pixels", "pixels"), detector=cache
+        data=DataSelection(data), out=out, encoders=("pixels", "pixels"), placement=cache
     )
     results = compare_encoders(config, existing={"pixels": headline})
     assert results == [headline, headline] and not out.exists()  # nothing built, calibrated or scored again

@@ -20,8 +20,8 @@ from robofailring.calibration.conformal import auc
 from robofailring.calibration.job import calibrate_rules
 from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DetectorConfig
 from robofailring.detection.rules import PAPER
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.errors import DataError, SettingError
 from robofailring.evaluation.folds import assign_folds
 from robofailring.evaluation.job import EvaluateConfig, FoldPlan, select_splits
@@ -47,8 +47,8 @@ def test_too_few_successes_give_every_figure_and_say_no_guarantee_holds(
     data, labels = runs
     config = EvaluateConfig(
         data=DataSelection(data, labels=labels),
-        thresholds=ThresholdPolicy(target_fpr=0.05),
-        detector=DetectorConfig(cache_dir=cache),
+        threshold_policy=ThresholdPolicy(target_fpr=0.05),
+        placement=EncoderPlacement(cache_dir=cache),
         out=tmp_path,
     )
     splits = select_splits(config)
@@ -74,8 +74,8 @@ def test_too_few_successes_give_every_figure_and_say_no_guarantee_holds(
     enough = run_evaluation(
         EvaluateConfig(
             data=DataSelection(data, labels=labels),
-            thresholds=ThresholdPolicy(target_fpr=1 / (n + 1)),
-            detector=DetectorConfig(cache_dir=cache),
+            threshold_policy=ThresholdPolicy(target_fpr=1 / (n + 1)),
+            placement=EncoderPlacement(cache_dir=cache),
             out=tmp_path / "enough",
         )
     )
@@ -98,7 +98,7 @@ def test_a_rule_no_training_success_could_calibrate_is_left_out(
     result = run_evaluation(
         EvaluateConfig(
             data=DataSelection(data, labels=apart),
-            detector=DetectorConfig(cache_dir=tmp_path / "cache"),
+            placement=EncoderPlacement(cache_dir=tmp_path / "cache"),
             out=tmp_path / "out",
         )
     )
@@ -111,7 +111,7 @@ def test_a_rule_no_training_success_could_calibrate_is_left_out(
         run_evaluation(
             EvaluateConfig(
                 data=DataSelection(lone),
-                detector=DetectorConfig(cache_dir=tmp_path / "cache"),
+                placement=EncoderPlacement(cache_dir=tmp_path / "cache"),
                 out=tmp_path / "lone-out",
             )
         )
@@ -123,7 +123,7 @@ def test_leave_one_episode_out_pools_every_labelled_run(
     data, labels = runs
     config = EvaluateConfig(
         data=DataSelection(data, labels=labels),
-        detector=DetectorConfig(cache_dir=cache),
+        placement=EncoderPlacement(cache_dir=cache),
         out=tmp_path,
         folds=FoldPlan.parse("loo"),
     )
@@ -191,7 +191,7 @@ def test_folds_refuse_a_given_memory(tmp_path: Path) -> None:
     with pytest.raises(SettingError, match="--folds builds a memory"):
         EvaluateConfig(
             data=DataSelection(tmp_path),
-            detector=DetectorConfig(memory=tmp_path / "m"),
+            memory=tmp_path / "m",
             out=tmp_path / "out",
             folds=FoldPlan(5),
         )

@@ -14,7 +14,6 @@ from typer.testing import CliRunner
 from rfr_viz.cli.app import app
 from robofailring import (
     CachedEncoder,
-    DetectorConfig,
     FailureDetector,
     FailureMemory,
     MemoryRecipe,
@@ -38,6 +37,7 @@ from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
 from robofailring.detection.band import SHIFT, Band
 from robofailring.detection.rules import CONTRAST, PAPER
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.evaluation.job import EvaluateConfig
 from robofailring.evaluation.run import run_evaluation
 
@@ -59,8 +59,9 @@ def test_per_view_bands_are_calibrated_stored_and_judge_detect_and_the_live_step
     calibrate(
         CalibrateConfig(
             data=DataSelection(data),
-            detector=DetectorConfig(memory=calibrated, cache_dir=cache),
-            thresholds=ThresholdPolicy(target_fpr=ALPHA, band=SHIFT, fusion=PER_VIEW),
+            memory=calibrated,
+            placement=EncoderPlacement(cache_dir=cache),
+            threshold_policy=ThresholdPolicy(target_fpr=ALPHA, band=SHIFT, fusion=PER_VIEW),
         )
     )
     stored = json.loads((calibrated / "manifest.json").read_text(encoding="utf-8"))["calibration"]
@@ -108,10 +109,10 @@ def test_the_evaluation_calibrates_and_judges_with_the_fusion_it_is_given(
         fusion: run_evaluation(
             EvaluateConfig(
                 data=DataSelection(data),
-                thresholds=ThresholdPolicy(target_fpr=ALPHA, fusion=fusion),
+                threshold_policy=ThresholdPolicy(target_fpr=ALPHA, fusion=fusion),
                 out=tmp_path / fusion,
                 recipe=MemoryRecipe("pixels"),
-                detector=DetectorConfig(cache_dir=cache),
+                placement=EncoderPlacement(cache_dir=cache),
             )
         )
         for fusion in (MAX, PER_VIEW)
@@ -146,8 +147,11 @@ def test_a_band_per_task_and_modality_is_stored_and_judges_the_trace_and_the_liv
     calibrate(
         CalibrateConfig(
             data=DataSelection(data),
-            detector=DetectorConfig(memory=calibrated, cache_dir=cache),
-            thresholds=ThresholdPolicy(target_fpr=ALPHA, band=SHIFT, fusion=PER_MODALITY, band_scope=TASK),
+            memory=calibrated,
+            placement=EncoderPlacement(cache_dir=cache),
+            threshold_policy=ThresholdPolicy(
+                target_fpr=ALPHA, band=SHIFT, fusion=PER_MODALITY, band_scope=TASK
+            ),
         )
     )
     stored = json.loads((calibrated / "manifest.json").read_text(encoding="utf-8"))["calibration"]
@@ -205,8 +209,9 @@ def test_a_new_fusion_is_one_class_in_the_registry(
         fusion: calibrate(
             CalibrateConfig(
                 data=DataSelection(data),
-                detector=DetectorConfig(memory=folder, cache_dir=cache),
-                thresholds=ThresholdPolicy(target_fpr=ALPHA, band=SHIFT, fusion=fusion),
+                memory=folder,
+                placement=EncoderPlacement(cache_dir=cache),
+                threshold_policy=ThresholdPolicy(target_fpr=ALPHA, band=SHIFT, fusion=fusion),
             )
         )
         for fusion, folder in folders.items()

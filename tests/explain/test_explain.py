@@ -15,7 +15,7 @@ from rfr_viz.cli.app import app
 from rfr_viz.paths import REPLAY
 from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DetectorConfig
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.explain.vlm import API_KEY_ENV
 
 runner = CliRunner()
@@ -199,8 +199,8 @@ def test_review_puts_the_answer_into_each_false_alarm(tmp_path: Path) -> None:
     result = run_evaluation(
         EvaluateConfig(
             data=DataSelection(data),
-            thresholds=ThresholdPolicy(target_fpr=0.5),
-            detector=DetectorConfig(cache_dir=tmp_path / "cache"),
+            threshold_policy=ThresholdPolicy(target_fpr=0.5),
+            placement=EncoderPlacement(cache_dir=tmp_path / "cache"),
             out=tmp_path / "eval",
         )
     )

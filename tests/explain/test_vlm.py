@@ -25,7 +25,7 @@ from robofailring import (
 from robofailring.cli.verbs import app
 from robofailring.data.images import read_image
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DetectorConfig
+from robofailring.detection.config import DetectorConfig, Scoring
 from robofailring.explain.report import SYSTEM_PROMPT, TASKS, FailureReport, report_for
 from robofailring.explain.vlm import (
     API_KEY_ENV,
@@ -314,8 +314,8 @@ def test_a_server_that_never_answers_is_abandoned_and_the_detection_kept(
             detector=DetectorConfig(
                 memory=pixels_memory_dir,
                 data_root=Path(data_root_of(pixels_memory_dir)),
-                k=3,
                 thresholds={"paper": -1.0},
+                scoring=Scoring(k=3),
             ),
             vlm=vlm,
         )

@@ -15,9 +15,9 @@ from synthetic import write_aha_dataset, write_project_dataset
 
 from robofailring import CachedEncoder, FailureMemory, load_dataset, load_encoder
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DetectorConfig
 from robofailring.encoders import portable_spec
 from robofailring.encoders.base import BLANK_REASON
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.errors import MemoryFormatError
 from robofailring.evaluation.job import EvaluateConfig, build_training_memory
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
@@ -96,7 +96,7 @@ def test_evaluate_and_build_memory_record_the_same_provenance(dataset: Path, tmp
     cache = tmp_path / "cache"
     evaluated, _ = build_training_memory(
         EvaluateConfig(
-            data=DataSelection(dataset), detector=DetectorConfig(cache_dir=cache), out=tmp_path / "eval"
+            data=DataSelection(dataset), placement=EncoderPlacement(cache_dir=cache), out=tmp_path / "eval"
         )
     )
     build_memory(
@@ -104,7 +104,7 @@ def test_evaluate_and_build_memory_record_the_same_provenance(dataset: Path, tmp
             data=DataSelection(dataset),
             out=tmp_path / "built",
             recipe=MemoryRecipe.chosen("pixels"),
-            detector=DetectorConfig(cache_dir=cache),
+            placement=EncoderPlacement(cache_dir=cache),
             split="train",
         )
     )

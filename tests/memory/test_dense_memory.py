@@ -15,7 +15,7 @@ from synthetic import write_project_dataset
 from robofailring import CachedEncoder, FailureMemory, load_dataset
 from robofailring.data.model import Trajectory
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DetectorConfig
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.errors import DataError, MemoryFormatError, SettingError
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.memory.builder import Provenance, add_to, build_memories
@@ -198,7 +198,7 @@ def test_build_memory_refuses_to_grow_a_memory_into_another_kind(data: Path, tmp
             data=DataSelection(data),
             out=out,
             recipe=MemoryRecipe.chosen("pixels", failure_frames="end"),
-            detector=DetectorConfig(cache_dir=cache),
+            placement=EncoderPlacement(cache_dir=cache),
             split="train",
         )
     )
@@ -208,7 +208,7 @@ def test_build_memory_refuses_to_grow_a_memory_into_another_kind(data: Path, tmp
                 data=DataSelection(data),
                 out=out,
                 recipe=MemoryRecipe.chosen("pixels", failure_frames="dense"),
-                detector=DetectorConfig(cache_dir=cache),
+                placement=EncoderPlacement(cache_dir=cache),
                 split="test",
                 add_to=True,
             )
@@ -270,6 +270,6 @@ def test_no_failure_view_gives_no_entry_in_either_kind(tmp_path: Path, encoder: 
                 data=DataSelection(data),
                 out=tmp_path / "m",
                 recipe=MemoryRecipe.chosen("pixels"),
-                successes=False,
+                success_memory=False,
             )
         )

@@ -11,7 +11,7 @@ from synthetic import write_project_dataset
 
 from robofailring import CachedEncoder, FailureDetector, FailureMemory, load_dataset, load_encoder
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DetectorConfig
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.errors import MemoryFormatError, SettingError
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.memory.pairs import CHANGE, CONCAT, change_of, check_pairing, pair_vectors
@@ -83,7 +83,7 @@ def test_entries_and_queries_are_paired_alike(data: Path, tmp_path: Path, pairin
             data=DataSelection(data),
             out=tmp_path / "m",
             recipe=MemoryRecipe.chosen("pixels", pairing=pairing),
-            detector=DetectorConfig(cache_dir=tmp_path / "c"),
+            placement=EncoderPlacement(cache_dir=tmp_path / "c"),
             split="train",
         )
     )

@@ -18,8 +18,8 @@ from robofailring.calibration.job import calibrate_rules
 from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.model import Trajectory
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DetectorConfig
 from robofailring.detection.rules import CONTRAST, PAPER
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.errors import DataError, SettingError
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.memory.pairs import pair_vectors
@@ -43,7 +43,7 @@ def built(
             data=DataSelection(dataset),
             out=out,
             recipe=MemoryRecipe.chosen("pixels"),
-            detector=DetectorConfig(cache_dir=folder / "cache"),
+            placement=EncoderPlacement(cache_dir=folder / "cache"),
             split="train",
         )
     )
@@ -198,9 +198,9 @@ def test_no_successes_builds_the_paper_memory(dataset: Path, tmp_path: Path) -> 
             data=DataSelection(dataset),
             out=tmp_path / "m",
             recipe=MemoryRecipe.chosen("pixels"),
-            detector=DetectorConfig(cache_dir=tmp_path / "c"),
+            placement=EncoderPlacement(cache_dir=tmp_path / "c"),
             split="train",
-            successes=False,
+            success_memory=False,
         )
     )
     assert memory.successes is None and not (tmp_path / "m" / INDEX).exists()

@@ -11,6 +11,7 @@ from synthetic import write_triage_memory, write_unlabelled_runs
 
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.triage import TriageConfig, run_triage
 from robofailring.triage import job as triage_job
 from robofailring.triage.reference import MEMORY
@@ -28,7 +29,9 @@ def test_triage_on_ray_is_the_local_triage(
             TriageConfig(
                 data=DataSelection(data, task="pick_cube"),
                 out=tmp_path / where,
-                detector=DetectorConfig(memory=folder, cache_dir=tmp_path / where, ray=ray),
+                detector=DetectorConfig(
+                    memory=folder, placement=EncoderPlacement(cache_dir=tmp_path / where, ray=ray)
+                ),
             )
         )
         for where, ray in (("local", None), ("ray", "auto"))

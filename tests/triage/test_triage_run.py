@@ -11,9 +11,10 @@ from synthetic import write_triage_memory, write_unlabelled_runs
 
 from robofailring.data.model import Outcome, Trajectory
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DetectorConfig
+from robofailring.detection.config import DetectorConfig, Scoring
 from robofailring.detection.detector import FailureDetector
 from robofailring.encoders import CachedEncoder
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.errors import DataError, SettingError
 from robofailring.triage import TriageConfig, ranking_quality, run_triage
 from robofailring.triage import job as triage_job
@@ -35,7 +36,9 @@ def _config(
     labels: Path | None = None,
     **changes: object,
 ) -> TriageConfig:
-    detector = DetectorConfig(memory=memory, rule=score, cache_dir=tmp_path / "cache")
+    detector = DetectorConfig(
+        memory=memory, rule=score, placement=EncoderPlacement(cache_dir=tmp_path / "cache")
+    )
     selection = DataSelection(data, labels=labels, task="pick_cube")
     return TriageConfig(data=selection, out=tmp_path / "out", detector=detector, **changes)  # type: ignore[arg-type]
 
@@ -83,7 +86,7 @@ def test_known_good_runs_from_labels_and_a_labelled_failure(runs, tmp_path: Path
 def test_known_good_runs_from_another_dataset(runs, tmp_path: Path) -> None:
     data, truth = runs
     good, _ = write_unlabelled_runs(tmp_path / "good", successes=4, failures=())
-    result = run_triage(_config(data, tmp_path, successes=good))
+    result = run_triage(_config(data, tmp_path, known_good=good))
     assert result.modes == {"pick_cube": SUCCESSES}
     assert ranking_quality(_failed(result.ranked, truth)).auc == 1.0
 
@@ -145,12 +148,14 @@ def test_bad_settings_fail_before_any_work(tmp_path: Path) -> None:
             data=DataSelection(tmp_path),
             out=tmp_path / "o",
             detector=DetectorConfig(memory=tmp_path),
-            successes=tmp_path,
+            known_good=tmp_path,
         )
     with pytest.raises(SettingError, match="--reference-runs"):
         TriageConfig(data=DataSelection(tmp_path), out=tmp_path / "o", reference_runs=1)
     with pytest.raises(SettingError, match="k"):
-        TriageConfig(data=DataSelection(tmp_path), out=tmp_path / "o", detector=DetectorConfig(k=0))
+        TriageConfig(
+            data=DataSelection(tmp_path), out=tmp_path / "o", detector=DetectorConfig(scoring=Scoring(k=0))
+        )
 
 
 def test_a_triage_stopped_half_way_resumes_from_the_embedding_cache(

@@ -26,8 +26,8 @@ from robofailring import (
 from robofailring.calibration.bands import fit_band
 from robofailring.data.selection import DataSelection
 from robofailring.detection.band import NORM
-from robofailring.detection.config import DetectorConfig
 from robofailring.detection.rules import CONTRAST
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.memory.recipe import MemoryRecipe
 from robofailring.memory.signals.modality import SIGNALS_VIEW
@@ -42,7 +42,7 @@ def replayed(tmp_path_factory: pytest.TempPathFactory) -> tuple[Trajectory, Dete
             data=DataSelection(data),
             out=root / "memory",
             recipe=MemoryRecipe.chosen("pixels"),
-            detector=DetectorConfig(cache_dir=root / "c"),
+            placement=EncoderPlacement(cache_dir=root / "c"),
             split="train",
         )
     )

@@ -15,6 +15,7 @@ from rfr_viz.paths import TRIAGE_RANKING, TRIAGE_SCORES, triage_curve, triage_ep
 from rfr_viz.viewer.control import verify_recording
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.errors import OutputError
 from robofailring.triage import TriageConfig
 
@@ -26,7 +27,7 @@ def written(tmp_path_factory: pytest.TempPathFactory):
     config = TriageConfig(
         data=DataSelection(data, task="pick_cube"),
         out=root / "out",
-        detector=DetectorConfig(cache_dir=root / "cache"),
+        detector=DetectorConfig(placement=EncoderPlacement(cache_dir=root / "cache")),
     )
     return config, truth, triage(config, replays=2)
 

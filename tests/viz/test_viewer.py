@@ -28,7 +28,7 @@ from robofailring import (
 from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.model import Trajectory
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DetectorConfig
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.evaluation.job import EvaluateConfig
 from robofailring.evaluation.run import run_evaluation
 
@@ -122,8 +122,8 @@ def test_a_recording_without_a_frame_timeline_renders(viewer_ready: None, tmp_pa
     result = run_evaluation(
         EvaluateConfig(
             data=DataSelection(data),
-            thresholds=ThresholdPolicy(target_fpr=0.2),
-            detector=DetectorConfig(cache_dir=tmp_path / "cache"),
+            threshold_policy=ThresholdPolicy(target_fpr=0.2),
+            placement=EncoderPlacement(cache_dir=tmp_path / "cache"),
             out=tmp_path / "eval",
         )
     )

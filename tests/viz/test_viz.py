@@ -40,6 +40,7 @@ from robofailring import (
 )
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.memory.failure import MemoryEntry
 from robofailring.memory.pairs import pair_vectors
 
@@ -275,7 +276,9 @@ def test_map_is_fitted_once_and_cached_beside_the_memory(
     monkeypatch.setattr(umap_layout, "_umap_embedding", counting)
     config = ReplayConfig(
         data=DataSelection(aha_dataset),
-        detector=DetectorConfig(memory=directory, cache_dir=tmp_path / "embeddings"),
+        detector=DetectorConfig(
+            memory=directory, placement=EncoderPlacement(cache_dir=tmp_path / "embeddings")
+        ),
         recordings=Recordings(
             out=tmp_path / "recs", trajectories=("pick_cube/pick_cube_grasp_wp2_episode0",)
         ),

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -30,7 +30,7 @@ from robofailring.calibration.policy import DEFAULT_POLICY, ThresholdPolicy
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.data.selection import DataSelection
 from robofailring.detection.band import NONE, Band
-from robofailring.detection.config import DetectorConfig, check_stride
+from robofailring.detection.config import DEFAULT_SCORING, DetectorConfig, Scoring, check_stride
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.loader import detector_from
 from robofailring.detection.rules import (
@@ -42,7 +42,8 @@ from robofailring.detection.rules import (
     rule_named,
     rules_for,
 )
-from robofailring.errors import DataError, SettingError
+from robofailring.encoders.placement import DEFAULT_PLACEMENT, EncoderPlacement
+from robofailring.errors import DataError
 from robofailring.memory.stored_calibration import StoredCalibration, StoredRule
 from robofailring.progress import progress_bar
 
@@ -193,20 +194,24 @@ def calibrate_rules(
 @dataclass(frozen=True)
 class CalibrateConfig:
     data: DataSelection  # the dataset holding success runs of the memory's tasks, how it is read
-    # the memory (its thresholds are written into its manifest) and how its detector scores: K, modality,
-    # device, cache…; no rule or threshold (calibration sets every rule's)
-    detector: DetectorConfig
-    thresholds: ThresholdPolicy = DEFAULT_POLICY  # the target α, band and fusion
+    memory: Path  # the memory calibrated: its thresholds are written into its manifest
+    encoder: str | None = None  # the spec its encoder is opened by (None: the memory's own)
+    scoring: Scoring = DEFAULT_SCORING  # scored as its detector will score: K, modality
+    placement: EncoderPlacement = DEFAULT_PLACEMENT  # where its encoder runs: device, runtime, cache, Ray
+    threshold_policy: ThresholdPolicy = DEFAULT_POLICY  # the target α, band and fusion
     split: str | None = "train"  # successes of this split (None: all; ignored if the data has no splits)
     stride: int = 1  # score every stride-th frame of each success run
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
         check_stride(self.stride)
-        self.detector.memory_dir  # noqa: B018 (SettingError without a memory)
-        if self.detector.rule is not None or self.detector.thresholds:
-            raise SettingError(
-                "calibration sets every rule's threshold: give its detector no rule or threshold"
-            )
+
+    @property
+    def detector(self) -> DetectorConfig:
+        """The detector that scores the success runs: no rule (calibration sets every rule's), δ the default."""
+        given = {PAPER.name: PAPER_DELTA}
+        return DetectorConfig(
+            self.memory, self.encoder, thresholds=given, scoring=self.scoring, placement=self.placement
+        )
 
 
 @dataclass(frozen=True)
@@ -278,8 +283,8 @@ class Calibration:
 def calibrate(config: CalibrateConfig, *, progress: Callable[[int], None] | None = None) -> Calibration:
     """Set every rule's threshold the memory supports (split conformal, level = target FPR) on success runs
     and store each under its rule's name in the manifest."""
-    policy, memory_dir = config.thresholds, config.detector.memory_dir
-    detector = detector_from(replace(config.detector, thresholds={PAPER.name: PAPER_DELTA}))
+    policy, memory_dir = config.threshold_policy, config.memory
+    detector = detector_from(config.detector)
     memory = detector.memory
     dataset = config.data.load(vocabulary=memory.vocabulary)
     source, skipped_inputs = dataset.judged("calibrate")  # an unlabelled run is never taken for a success

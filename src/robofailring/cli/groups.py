@@ -12,7 +12,9 @@ and its command line gets the group's options in that parameter's place (typer r
 defaults stand for them) or declare one for itself (`but`: its own help, default or name), never list
 them again; so a new setting of a group is one option, one field and one line, in every verb that
 takes it. A group's options are listed under its `panel` in `--help` (and in docs/cli.md's reference), the
-verb's own under "Options".
+verb's own under "Options". A value made of other values takes their groups as `parts`: `DETECTOR`'s function
+receives the `EncoderPlacement` that `ENCODER`'s options make, and a verb taking `DETECTOR` gets those options
+too, under their own panel, left out or declared by their names as its own are.
 """
 
 from __future__ import annotations
@@ -55,26 +57,50 @@ class OptionGroup(Generic[Value]):
     declared: Mapping[str, Declared] = field(
         default_factory=dict
     )  # parameters this verb declares its own way
+    # parameters of `build` that are another group's value: that group's options are offered in their place
+    parts: Mapping[str, OptionGroup[Any]] = field(default_factory=dict)
 
     def without(self, *names: str) -> OptionGroup[Value]:
-        """The group less the options `names` (parameter names of `build`)."""
+        """The group less the options `names` (parameter names of `build` or of its parts')."""
         self._check(names)
-        return dataclasses.replace(self, left_out=self.left_out | set(names))
+        return dataclasses.replace(
+            self,
+            left_out=self.left_out | (set(names) - self._in_parts()),
+            parts={
+                part: group.without(*(name for name in names if name in group.options()))
+                for part, group in self.parts.items()
+            },
+        )
 
     def only(self, *names: str) -> OptionGroup[Value]:
         """The group with only the options `names`."""
         self._check(names)
-        return self.without(*(name for name in self._signature().parameters if name not in names))
+        return self.without(*(name for name in self.options() if name not in names))
 
     def but(self, **declarations: Declared) -> OptionGroup[Value]:
         """The group with some of its parameters declared for one verb (their help, default, name)."""
         self._check(declarations)
-        return dataclasses.replace(self, declared={**self.declared, **declarations})
+        parts = {
+            part: group.but(**{name: own for name, own in declarations.items() if name in group.options()})
+            for part, group in self.parts.items()
+        }
+        own = {name: declared for name, declared in declarations.items() if name not in self._in_parts()}
+        return dataclasses.replace(self, declared={**self.declared, **own}, parts=parts)
+
+    def options(self) -> list[str]:
+        """Every option the group can offer, its parts' in their place, by their parameter names."""
+        names: list[str] = []
+        for name in self._signature().parameters:
+            names += self.parts[name].options() if name in self.parts else [name]
+        return names
 
     def parameters(self) -> list[inspect.Parameter]:
         """The parameters a verb's command line gets: `build`'s, less those left out, as declared."""
         offered = []
         for name, parameter in self._signature().parameters.items():
+            if name in self.parts:
+                offered += self.parts[name].parameters()
+                continue
             if name in self.left_out:
                 continue
             own = self.declared.get(name)
@@ -90,16 +116,31 @@ class OptionGroup(Generic[Value]):
             )
         return offered
 
+    def panels(self) -> dict[str, str]:
+        """The panel each offered option is listed under in `--help`, by the name `parameters` gives it."""
+        found = {parameter.name: self.panel for parameter in self.parameters()}
+        for group in self.parts.values():
+            found.update(group.panels())
+        return found
+
     def value(self, given: Mapping[str, Any]) -> Value:
         """`build` of the options given (by the names `parameters` gave them)."""
+        rest = dict(given)
+        made = {
+            part: group.value({p.name: rest.pop(p.name) for p in group.parameters() if p.name in rest})
+            for part, group in self.parts.items()
+        }
         names = {own.name: name for name, own in self.declared.items() if own.name is not None}
-        return self.build(**{names.get(name, name): option for name, option in given.items()})
+        return self.build(**{names.get(name, name): option for name, option in rest.items()}, **made)
 
     def _signature(self) -> inspect.Signature:
         return inspect.signature(self.build, eval_str=True)
 
+    def _in_parts(self) -> set[str]:
+        return {name for group in self.parts.values() for name in group.options()}
+
     def _check(self, names: Any) -> None:
-        unknown = sorted(set(names) - set(self._signature().parameters))
+        unknown = sorted(set(names) - set(self.options()))
         if unknown:
             raise TypeError(f"{self.build.__name__} has no option {', '.join(unknown)}")
 

@@ -2,7 +2,10 @@
 
 - `DATA` (`data_options`): the dataset and how it is read, a `DataSelection`;
 - `RECIPE` (`recipe_options`): how a memory is made, a `MemoryRecipe`;
-- `DETECTOR` (`detector_options`): how a detector judges and where its encoder runs, a `DetectorConfig`;
+- `ENCODER` (`placement_options`): where an encoder runs, an `EncoderPlacement`;
+- `SCORING` (`scoring_options`): how runs are scored, a `Scoring` (K, modality);
+- `DETECTOR` (`detector_options`): what opens a detector and decides, a `DetectorConfig`, with `SCORING` and
+  `ENCODER` as its parts (their options are the detector's too; `robofailring.cli.detector_options`);
 - `THRESHOLDS` (`threshold_options`): how thresholds are set, a `ThresholdPolicy`;
 - `VLM` (`vlm_options`): the VLM to ask about a report, a `VLMConfig` (or None).
 
@@ -12,8 +15,6 @@ adding a setting to one of these values is one option here, one field there, and
 
 from __future__ import annotations
 
-import inspect
-from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Final
 
@@ -22,11 +23,18 @@ import typer
 from robofailring.calibration.bands import BAND_KINDS, BAND_SCOPES, DEFAULT_BAND, DEFAULT_BAND_SCOPE
 from robofailring.calibration.fusions import DEFAULT_FUSION, FUSIONS
 from robofailring.calibration.policy import DEFAULT_TARGET_FPR, ThresholdPolicy
+from robofailring.cli.detector_options import (
+    RULE_CHOICE,
+    RULE_THRESHOLDS,
+    MemoryOption,
+    detector_options,
+    placement_options,
+    scoring_options,
+)
 from robofailring.cli.groups import Declared, OptionGroup
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
-from robofailring.detection.rules import RULES, threshold_keys
-from robofailring.detection.stored import given_thresholds
+from robofailring.detection.config import DetectorConfig, Scoring
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.encoders.spec import ENCODER_SPECS_HELP
 from robofailring.errors import SettingError
 from robofailring.explain.vlm import VLMConfig, read_api_key
@@ -176,143 +184,6 @@ def recipe_options(
     )
 
 
-# How a detector judges, and where its encoder runs: DetectorConfig
-
-MemoryOption = Annotated[Path | None, typer.Option("--memory", help="Memory directory.")]
-KOption = Annotated[int, typer.Option("--k", help="Neighbours retrieved per query.")]
-ScoreOption = Annotated[
-    str | None,
-    typer.Option(
-        "--score",
-        help="Scoring rule: "
-        + " or ".join(f"`{rule.name}` ({rule.formula} ≥ {rule.symbol})" for rule in RULES.values())
-        + ".",
-        show_default="per task: contrast with success and failure runs, novelty with success runs only, paper "
-        "with failure runs only",
-    ),
-]
-ModalityOption = Annotated[
-    str,
-    typer.Option(
-        "--modality",
-        help="What the detector judges by: `both`, the cameras and the robot's signals fused as views (where the "
-        "memory has signals); `cameras` alone; `signals` alone. Thresholds calibrated for one are not used for "
-        "another (calibrate with the same --modality).",
-    ),
-]
-MemoryEncoderOption = Annotated[
-    str | None, typer.Option("--encoder", help="Encoder spec.", show_default="the memory's")
-]
-CacheOption = Annotated[
-    Path | None,
-    typer.Option(
-        "--cache-dir",
-        help="Embedding cache folder.",
-        show_default="$ROBOFAILRING_CACHE, else ~/.cache/robofailring",
-    ),
-]
-DeviceOption = Annotated[
-    str | None,
-    typer.Option(
-        "--device", help="Where the encoder runs: cpu, cuda, cuda:N or mps.", show_default="cuda if available"
-    ),
-]
-RuntimeOption = Annotated[
-    str | None,
-    typer.Option(
-        "--runtime",
-        help="What runs the encoder's network: `torch`, or its ONNX export (made once, cached by checkpoint "
-        "digest): `onnx` (fp32) or `onnx-int8` through ONNX Runtime, `openvino-int8` (static int8 on OpenVINO, "
-        "the fastest on a CPU; the openvino extra).",
-        show_default="the spec's own `@runtime`, else torch",
-    ),
-]
-DataRootOption = Annotated[
-    Path | None,
-    typer.Option(
-        "--data-root",
-        help="Where the memory's dataset is now, when it moved since the memory was built "
-        "(its images are looked up there).",
-    ),
-]
-RayOption = Annotated[
-    str | None,
-    typer.Option(
-        "--ray",
-        metavar="ADDRESS",
-        help="Decode and encode the frames on a Ray cluster (Ray Data): `auto` (the running one), `local` (a "
-        "new one on this machine) or `ray://host:port`; same embeddings, same cache (docs/ray.md).",
-    ),
-]
-
-
-def detector_options(
-    memory: MemoryOption = None,
-    k: KOption = DEFAULT_DETECTOR.k,
-    score: ScoreOption = None,
-    modality: ModalityOption = DEFAULT_DETECTOR.modality,
-    encoder: MemoryEncoderOption = None,
-    cache_dir: CacheOption = None,
-    device: DeviceOption = None,
-    runtime: RuntimeOption = None,
-    data_root: DataRootOption = None,
-    ray: RayOption = None,
-    **thresholds: float | None,
-) -> DetectorConfig:
-    """--memory, --k, --score, each rule's threshold option (`--delta`, `--gamma`, `--eta`), --modality, --encoder,
-    --cache-dir, --device, --runtime, --data-root and --ray as one `DetectorConfig`."""
-    return DetectorConfig(
-        memory=memory,
-        encoder=encoder,
-        device=device,
-        runtime=runtime,
-        cache_dir=cache_dir,
-        data_root=data_root,
-        k=k,
-        rule=score,
-        thresholds=given_thresholds(None, **thresholds),
-        modality=modality,
-        ray=ray,
-    )
-
-
-def _with_rule_thresholds(build: Callable[..., DetectorConfig]) -> inspect.Signature:
-    """`build`'s signature with its `**thresholds` as one option per registered rule, after `--score`: the rule
-    gives the option's name (`--<threshold_key>`) and help, so a new rule needs no line here."""
-    options = [
-        inspect.Parameter(
-            rule.threshold_key,
-            inspect.Parameter.KEYWORD_ONLY,
-            default=None,
-            annotation=Annotated[
-                float | None,
-                typer.Option(
-                    f"--{rule.threshold_key}", help=rule.threshold_help, show_default=rule.threshold_default
-                ),
-            ],
-        )
-        for rule in RULES.values()
-    ]
-    signature = inspect.signature(build, eval_str=True)
-    parameters = []
-    for parameter in signature.parameters.values():
-        if parameter.kind is inspect.Parameter.VAR_KEYWORD:
-            continue
-        parameters.append(parameter.replace(kind=inspect.Parameter.KEYWORD_ONLY))
-        if parameter.name == "score":
-            parameters += options
-    return signature.replace(parameters=parameters)
-
-
-detector_options.__signature__ = _with_rule_thresholds(detector_options)  # type: ignore[attr-defined]
-
-#: The detector's options that say where its encoder runs, for the verbs that encode but judge nothing.
-ENCODER_PLACEMENT: Final[tuple[str, ...]] = ("cache_dir", "device", "runtime", "ray")
-#: Each registered rule's threshold option (`delta`, `gamma`, `eta`), for the verbs that judge by a memory's own.
-RULE_THRESHOLDS: Final[tuple[str, ...]] = threshold_keys()
-#: The options that choose a rule and its thresholds, for the verbs that set or read them elsewhere.
-RULE_CHOICE: Final[tuple[str, ...]] = ("score", *RULE_THRESHOLDS)
-
 # How thresholds are set: ThresholdPolicy
 
 TargetFprOption = Annotated[
@@ -390,9 +261,30 @@ def vlm_options(vlm_url: VLMUrlOption = None, vlm_model: VLMModelOption = None) 
 
 DATA: Final[OptionGroup[DataSelection]] = OptionGroup(data_options, panel="Data")
 RECIPE: Final[OptionGroup[MemoryRecipe]] = OptionGroup(recipe_options, panel="Memory recipe")
+ENCODER: Final[OptionGroup[EncoderPlacement]] = OptionGroup(placement_options, panel="Encoder")
+SCORING: Final[OptionGroup[Scoring]] = OptionGroup(scoring_options, panel="Detector")
 # --memory is required where the group is taken whole (the verbs that detect); left out, there is none
-DETECTOR: Final[OptionGroup[DetectorConfig]] = OptionGroup(detector_options, panel="Detector").but(
-    memory=Declared(MemoryOption)
-)
+DETECTOR: Final[OptionGroup[DetectorConfig]] = OptionGroup(
+    detector_options, panel="Detector", parts={"scoring": SCORING, "placement": ENCODER}
+).but(memory=Declared(MemoryOption))
+#: The names the verbs import with the groups (declared in `robofailring.cli.detector_options`)
+__all__ = [
+    "DATA",
+    "DETECTOR",
+    "ENCODER",
+    "RECIPE",
+    "RULE_CHOICE",
+    "RULE_THRESHOLDS",
+    "SCORING",
+    "THRESHOLDS",
+    "VLM",
+    "data_options",
+    "detector_options",
+    "placement_options",
+    "recipe_options",
+    "scoring_options",
+    "threshold_options",
+    "vlm_options",
+]
 THRESHOLDS: Final[OptionGroup[ThresholdPolicy]] = OptionGroup(threshold_options, panel="Thresholds")
 VLM: Final[OptionGroup[VLMConfig | None]] = OptionGroup(vlm_options, panel="VLM")

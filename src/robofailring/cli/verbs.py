@@ -16,15 +16,7 @@ import typer
 from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.cli.exit_codes import ErrorMappingGroup, finish
 from robofailring.cli.groups import Declared, takes
-from robofailring.cli.option_groups import (
-    DATA,
-    DETECTOR,
-    ENCODER_PLACEMENT,
-    RECIPE,
-    RULE_CHOICE,
-    THRESHOLDS,
-    VLM,
-)
+from robofailring.cli.option_groups import DATA, DETECTOR, ENCODER, RECIPE, SCORING, THRESHOLDS, VLM
 from robofailring.cli.options import (
     LeaveOneOutOption,
     RandomizeOption,
@@ -35,7 +27,8 @@ from robofailring.cli.options import (
     warn_missing_references,
 )
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DetectorConfig
+from robofailring.detection.config import DetectorConfig, Scoring
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.errors import SettingError
 from robofailring.explain.vlm import VLMConfig
 from robofailring.memory.recipe import MemoryRecipe
@@ -103,7 +96,7 @@ def generate_cmd(
         )
     ),
     recipe=RECIPE,
-    detector=DETECTOR.only(*ENCODER_PLACEMENT),
+    placement=ENCODER,
 )
 def build_memory_cmd(
     data: DataSelection,
@@ -125,7 +118,7 @@ def build_memory_cmd(
         ),
     ] = False,
     recipe: MemoryRecipe,
-    detector: DetectorConfig,
+    placement: EncoderPlacement,
 ) -> None:
     """Build a failure memory (Algorithm 1) from the failure trajectories of DATA, and a success memory."""
     from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
@@ -142,9 +135,9 @@ def build_memory_cmd(
             data=data,
             out=target,
             recipe=recipe,
-            detector=detector,
+            placement=placement,
             split=split,
-            successes=not no_successes,
+            success_memory=not no_successes,
             add_to=add_to is not None,
         )
     )
@@ -235,14 +228,18 @@ def detect_cmd(
             ]
         )
     ).without("vocabulary"),
-    detector=DETECTOR.without(*RULE_CHOICE, "data_root", "ray"),  # scored as detect scores (K, modality…)
-    thresholds=THRESHOLDS,
+    detector=DETECTOR.only("memory", "encoder"),  # the memory calibrated: it sets every rule's threshold
+    scoring=SCORING,  # scored as detect scores
+    placement=ENCODER.without("ray"),
+    threshold_policy=THRESHOLDS,
 )
 def calibrate_cmd(
     data: DataSelection,
     *,
     detector: DetectorConfig,
-    thresholds: ThresholdPolicy,
+    scoring: Scoring,
+    placement: EncoderPlacement,
+    threshold_policy: ThresholdPolicy,
     split: Annotated[str | None, typer.Option(help="Successes of this split (project layout).")] = "train",
     stride: StrideOption = 1,
 ) -> None:
@@ -250,7 +247,16 @@ def calibrate_cmd(
     from robofailring.calibration.job import CalibrateConfig, calibrate
 
     result = calibrate(
-        CalibrateConfig(data=data, detector=detector, thresholds=thresholds, split=split, stride=stride)
+        CalibrateConfig(
+            data=data,
+            memory=detector.memory_dir,
+            encoder=detector.encoder,
+            scoring=scoring,
+            placement=placement,
+            threshold_policy=threshold_policy,
+            split=split,
+            stride=stride,
+        )
     )
     report_skipped(result.skipped_inputs)
     typer.echo(result.to_text(detector.memory_dir))
@@ -284,7 +290,7 @@ def memory_info_cmd(
             ]
         )
     ).without("vocabulary"),
-    detector=DETECTOR.only("device"),
+    placement=ENCODER.only("device"),
 )
 def train_encoder_cmd(
     data: DataSelection,
@@ -309,7 +315,7 @@ def train_encoder_cmd(
     threads: Annotated[
         int | None, typer.Option(help="torch CPU threads.", show_default="half the cores")
     ] = None,
-    detector: DetectorConfig,
+    placement: EncoderPlacement,
     randomize: RandomizeOption = 0,
     workers: WorkersOption = 2,
 ) -> None:
@@ -326,7 +332,7 @@ def train_encoder_cmd(
         seed=seed,
         init=init,
         threads=threads,
-        device=detector.device,
+        device=placement.device,
     )
     folder = run_train_encoder(TrainEncoderJob(config, randomize=randomize, workers=workers), say=typer.echo)
     typer.echo(f"use it with: --encoder trained:{folder}")

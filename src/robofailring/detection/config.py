@@ -1,5 +1,6 @@
-"""The detector's settings: `DetectorConfig` (memory, encoder, device, runtime, cache, Ray cluster, data root, K, rule,
-thresholds and modality), K neighbours per query and the scoring stride, checked where they are given."""
+"""The detector's settings, checked where they are given: `Scoring`, how runs are scored (K neighbours per query,
+the modality judged by), and `DetectorConfig`, what opens a detector (the memory, its encoder and data root, the
+rule and thresholds that decide) composed of its `Scoring` and its encoder's `EncoderPlacement`; the stride."""
 
 from __future__ import annotations
 
@@ -10,11 +11,14 @@ from pathlib import Path
 from typing import Any, Final
 
 from robofailring.detection.rules import rule_named
-from robofailring.encoders.device import check_device_name
+from robofailring.encoders.placement import DEFAULT_PLACEMENT, EncoderPlacement
 from robofailring.errors import SettingError
 from robofailring.memory.signals.modality import BOTH, MODALITIES
 
 DEFAULT_K: Final[int] = 5
+DEFAULT_MODALITY: Final[str] = (
+    BOTH  # what a detector judges by unless told: the cameras and the signals fused
+)
 MAX_STRIDE: Final[int] = 2**63 - 1  # frame numbers are int64: a larger stride scores frame 0 alone anyway
 MAX_K: Final[int] = (
     1024  # neighbours per query: each query row holds K similarities, allocated before the search
@@ -50,29 +54,37 @@ def check_stride(stride: int) -> int:
 
 
 @dataclass(frozen=True)
-class DetectorConfig:
-    """What opens a detector on a memory folder (`robofailring.detection.loader.detector_from`) and the
-    encoder it runs, one value nested in every job that detects or encodes; a threshold not given is the
-    memory's calibrated one, else the rule's default."""
+class Scoring:
+    """How runs are scored, by every job that scores them: a detector, calibration, an evaluation."""
 
-    memory: Path | None = None  # memory folder (evaluate: None builds one from the training split)
-    encoder: str | None = None  # encoder spec; None: the one that built the memory
-    device: str | None = None  # cpu, cuda[:N] or mps (encoders/device.py; default: cuda when available)
-    runtime: str | None = (
-        None  # torch, onnx, onnx-int8 or openvino-int8 (default: the spec's own, else torch)
-    )
-    cache_dir: Path | None = None  # embedding cache (default ~/.cache/robofailring)
-    data_root: Path | None = None  # where the memory's images are now, when its data moved
     k: int = DEFAULT_K  # neighbours retrieved per query
-    rule: str | None = None  # a scoring rule's name; None: each task's default (contrast, novelty or paper)
-    thresholds: Mapping[str, float] = field(default_factory=dict)  # by rule name (`paper`: δ, …)
-    modality: str = BOTH  # what it judges by: `both` (cameras and signals), `cameras` or `signals`
-    ray: str | None = None  # a Ray cluster's address: frames a job prefetches decoded and encoded there
+    modality: str = (
+        DEFAULT_MODALITY  # what it judges by: `both` (cameras and signals), `cameras` or `signals`
+    )
 
     def __post_init__(self) -> None:  # a bad setting fails before the memory is read
         check_k(self.k)
         check_modality(self.modality)
-        check_device_name(self.device)
+
+
+DEFAULT_SCORING: Final[Scoring] = Scoring()
+
+
+@dataclass(frozen=True)
+class DetectorConfig:
+    """What opens a detector on a memory folder (`robofailring.detection.loader.detector_from`): the memory, the
+    rule and thresholds that decide, how runs are scored and where the encoder runs; a threshold not given is
+    the memory's calibrated one, else the rule's default."""
+
+    memory: Path | None = None  # memory folder (None: a job that opens none, e.g. triage against other runs)
+    encoder: str | None = None  # encoder spec; None: the one that built the memory
+    data_root: Path | None = None  # where the memory's images are now, when its data moved
+    rule: str | None = None  # a scoring rule's name; None: each task's default (contrast, novelty or paper)
+    thresholds: Mapping[str, float] = field(default_factory=dict)  # by rule name (`paper`: δ, …)
+    scoring: Scoring = DEFAULT_SCORING  # K and the modality judged by
+    placement: EncoderPlacement = DEFAULT_PLACEMENT  # device, runtime, cache and Ray cluster of its encoder
+
+    def __post_init__(self) -> None:  # a bad setting fails before the memory is read
         if self.rule is not None:
             rule_named(self.rule)
         for name, value in self.thresholds.items():

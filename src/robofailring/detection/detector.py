@@ -11,7 +11,7 @@ import numpy as np
 from robofailring.data.images import as_rgb
 from robofailring.data.model import Frame, Skipped, Trajectory
 from robofailring.detection.band import Band
-from robofailring.detection.config import DEFAULT_K, check_k, check_modality, check_stride
+from robofailring.detection.config import DEFAULT_K, DEFAULT_MODALITY, check_k, check_modality, check_stride
 from robofailring.detection.retrieved import Retrieved
 from robofailring.detection.rules import (
     RuleThresholds,
@@ -66,7 +66,7 @@ class FailureDetector(RuleThresholds):
         gamma: float | None = None,
         eta: float | None = None,
         bands: Mapping[str, Band] | None = None,
-        modality: str = BOTH,
+        modality: str = DEFAULT_MODALITY,
     ) -> None:
         memory.check_encoder(encoder.identity)
         check_k(k)

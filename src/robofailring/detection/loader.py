@@ -1,6 +1,6 @@
 """`open_detector`: a memory folder to a ready detector in one call, with the memory's stored calibration;
-`detector_from`, the same from a `DetectorConfig` (what the jobs hold); `detector_with` and `encoder_for`,
-the one place a `DetectorConfig`'s settings become a detector's and an encoder's."""
+`detector_from`, the same from a `DetectorConfig` (what the jobs hold); `detector_with`, the one place a
+`DetectorConfig`'s settings become a detector's (its encoder is its `EncoderPlacement.open`)."""
 
 from __future__ import annotations
 
@@ -8,26 +8,14 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 from robofailring.detection.band import Band
-from robofailring.detection.config import DEFAULT_K, DetectorConfig
+from robofailring.detection.config import DEFAULT_K, DEFAULT_MODALITY, DetectorConfig, Scoring
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.rules import ScoringRule
 from robofailring.detection.stored import given_thresholds
-from robofailring.encoders import CachedEncoder, open_encoder
+from robofailring.encoders import CachedEncoder
+from robofailring.encoders.placement import EncoderPlacement
 from robofailring.encoders.spec import EncoderSpec
 from robofailring.memory.failure import FailureMemory
-from robofailring.memory.signals.modality import BOTH
-
-
-def encoder_for(config: DetectorConfig, spec: str) -> CachedEncoder:
-    """The encoder `spec` as `config` runs it: on its device, runtime and cache, and its Ray cluster (which
-    encodes what a job prefetches, docs/ray.md)."""
-    return open_encoder(
-        spec,
-        device=config.device,
-        cache_dir=Path(config.cache_dir) if config.cache_dir is not None else None,
-        runtime=config.runtime,
-        ray=config.ray,
-    )
 
 
 def detector_with(
@@ -43,10 +31,10 @@ def detector_with(
         memory,
         encoder,
         thresholds=config.thresholds,
-        k=config.k,
+        k=config.scoring.k,
         rule=config.rule,
         bands=bands,
-        modality=config.modality,
+        modality=config.scoring.modality,
     )
 
 
@@ -61,7 +49,7 @@ def detector_from(config: DetectorConfig, *, trusted: Iterable[Path] = ()) -> Fa
         data_root=Path(config.data_root) if config.data_root is not None else None,
         trusted=trusted,
     )
-    return detector_with(config, memory, encoder_for(config, config.encoder or encoder_spec_for(memory)))
+    return detector_with(config, memory, config.placement.open(config.encoder or encoder_spec_for(memory)))
 
 
 def encoder_spec_for(memory: FailureMemory) -> str:
@@ -83,7 +71,7 @@ def open_detector(
     encoder: str | None = None,
     cache_dir: str | Path | None = None,
     runtime: str | None = None,
-    modality: str = BOTH,
+    modality: str = DEFAULT_MODALITY,
 ) -> FailureDetector:
     """Load the memory at `memory_dir` and its encoder, and return its detector (judging by `modality`:
     `both` the cameras and the robot's signals, the `cameras` or the `signals` alone).
@@ -99,13 +87,12 @@ def open_detector(
         DetectorConfig(
             memory=Path(memory_dir),
             encoder=encoder,
-            device=device,
-            runtime=runtime,
-            cache_dir=Path(cache_dir) if cache_dir is not None else None,
             data_root=Path(data_root) if data_root is not None else None,
-            k=k,
             rule=rule.name if isinstance(rule, ScoringRule) else rule,
             thresholds=given_thresholds(thresholds, delta=delta, gamma=gamma, eta=eta),
-            modality=modality,
+            scoring=Scoring(k=k, modality=modality),
+            placement=EncoderPlacement(
+                device=device, runtime=runtime, cache_dir=Path(cache_dir) if cache_dir is not None else None
+            ),
         )
     )

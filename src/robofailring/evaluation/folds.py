@@ -186,7 +186,7 @@ def cross_validate(
 ) -> CrossValidation:
     """Every labelled run of `trajectories` (the whole of `config.data`) judged by a memory of the other
     folds, with `config`'s memory settings, rules and band; pooled."""
-    policy = config.thresholds
+    policy = config.threshold_policy
     assert config.folds is not None and policy is not None  # EvaluateConfig checks both
     runs = [t for t in trajectories if t.outcome is not None]
     folds = assign_folds(runs, config.folds)
@@ -201,7 +201,7 @@ def cross_validate(
                 others,
                 encoder,
                 provenance=Provenance(data=config.data.root, encoder=config.recipe.encoder),
-                successes=config.successes,
+                successes=config.success_memory,
                 recipe=config.recipe,
                 vocabulary=vocabulary,
             )

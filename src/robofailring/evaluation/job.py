@@ -17,10 +17,10 @@ from robofailring.data.layouts import Dataset
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.data.selection import DataSelection
 from robofailring.data.splits import split_of
-from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig, check_stride
-from robofailring.detection.loader import encoder_for
+from robofailring.detection.config import DEFAULT_SCORING, DetectorConfig, Scoring, check_stride
 from robofailring.detection.rules import PAPER
 from robofailring.encoders import CachedEncoder
+from robofailring.encoders.placement import DEFAULT_PLACEMENT, EncoderPlacement
 from robofailring.errors import RoboFailRingError, SettingError, SplitError
 from robofailring.evaluation.metrics import PAPER_DELTAS
 from robofailring.memory.builder import Provenance, build_memories
@@ -63,14 +63,18 @@ class FoldPlan:
 class EvaluateConfig:
     data: DataSelection  # the dataset whose training split's failures form the memory, how it is read
     out: Path  # folder for evaluation.json and evaluation.md (and memory/ when built here)
-    # the memory built here (encoder, failure frames, pairing, success step); its encoder also opens `detector.memory`
+    # the memory built here (encoder, failure frames, pairing, success step); its encoder also opens `memory`
     recipe: MemoryRecipe = DEFAULT_RECIPE
-    # `memory`: an existing memory (its failures must not be in the test set), None: built here; its K,
-    # modality, device, runtime, cache and Ray cluster (rule and thresholds: every rule is evaluated, at
-    # thresholds calibrated here or stored)
-    detector: DetectorConfig = DEFAULT_DETECTOR
+    memory: Path | None = (
+        None  # an existing memory (its failures must not be in the test set); None: built here
+    )
+    # how runs are scored (K, modality; every rule is judged, at thresholds calibrated here or stored)
+    scoring: Scoring = DEFAULT_SCORING
+    placement: EncoderPlacement = (
+        DEFAULT_PLACEMENT  # where the recipe's encoder runs: device, runtime, cache, Ray
+    )
     # every rule calibrated here on the training successes (α, band, fusion); None: the memory's stored thresholds
-    thresholds: ThresholdPolicy | None = DEFAULT_POLICY
+    threshold_policy: ThresholdPolicy | None = DEFAULT_POLICY
     memory_out: Path | None = None  # where a memory built here is saved (default out/memory)
     # a second dataset to test on (e.g. out-of-distribution; `data.other(root, labels=…)` reads it as `data`)
     test_data: DataSelection | None = None
@@ -80,7 +84,7 @@ class EvaluateConfig:
     deltas: tuple[float, ...] = PAPER_DELTAS
     name: str = "evaluation"  # a file name stem: `<name>.json`, `<name>.md`, `<name>.rrd` in `out`
     stride: int = 1  # score every stride-th frame of a test trajectory (t_det, T_s in original frames)
-    successes: bool = True  # build the success memory beside the failure memory (contrast rule)
+    success_memory: bool = True  # build the success memory beside the failure memory (contrast rule)
     deployment_successes: int = 0  # per task: test success runs moved into the success memory
     failures_per_task: int | None = None  # the memory built here holds N training failures per task
     # (`labelled_failures`; 0: success runs only, judged by the novelty rule); None: all of them
@@ -89,11 +93,6 @@ class EvaluateConfig:
     def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
         check_stride(self.stride)
         check_file_stem(self.name)  # `<name>.json` and the rest stay inside `out`
-        if self.detector.rule is not None or self.detector.thresholds or self.detector.encoder is not None:
-            raise SettingError(
-                "an evaluation judges every rule at thresholds it calibrates (or the memory's stored ones), "
-                "with its recipe's encoder: give no rule, threshold or encoder to its detector"
-            )
         if self.deployment_successes < 0:
             raise SettingError(f"deployment successes must be ≥ 0, got {self.deployment_successes}")
         if self.failures_per_task is not None and self.failures_per_task < 0:
@@ -102,11 +101,16 @@ class EvaluateConfig:
             PAPER.check_threshold(delta)
         if not 0.0 < self.test_fraction < 1.0:
             raise SettingError(f"test fraction must lie in (0, 1), got {self.test_fraction}")
-        if self.folds is not None and (self.detector.memory is not None or self.thresholds is None):
+        if self.folds is not None and (self.memory is not None or self.threshold_policy is None):
             raise SettingError(
                 "--folds builds a memory and calibrates thresholds per fold from the data: leave out --memory "
                 "and give a target FPR"
             )
+
+    @property
+    def detector(self) -> DetectorConfig:
+        """The detector every rule is judged by: the memory (when given), no rule or threshold of its own."""
+        return DetectorConfig(memory=self.memory, scoring=self.scoring, placement=self.placement)
 
 
 @dataclass(frozen=True)
@@ -173,9 +177,9 @@ def check_disjoint(memory: FailureMemory, test: Sequence[Trajectory]) -> None:
 
 
 def evaluation_encoder(config: EvaluateConfig) -> CachedEncoder:
-    """The encoder an evaluation builds its memories with: its recipe's, on its detector's device, cache and
-    runtime (and its Ray cluster)."""
-    return encoder_for(config.detector, config.recipe.encoder)
+    """The encoder an evaluation builds its memories with: its recipe's, where its placement says (device,
+    runtime, cache, Ray cluster)."""
+    return config.placement.open(config.recipe.encoder)
 
 
 def build_training_memory(
@@ -200,7 +204,7 @@ def build_training_memory(
         encoder,
         provenance=provenance,
         recipe=config.recipe,
-        successes=config.successes,
+        successes=config.success_memory,
         vocabulary=config.data.read_vocabulary(),
     )
     memory_dir = config.memory_out or Path(config.out) / "memory"

@@ -54,13 +54,16 @@ def run_evaluation(
     train, test = splits.train, splits.test
     built: list[Skipped] = []  # what building the training memory did not use (blank frames, signals)
     if detector is None:
-        if config.detector.memory is None:  # the memory built here: checked before it is built
+        if config.memory is None:  # the memory built here: checked before it is built
             _deployed(
-                test, config.deployment_successes, tasks={t.task for t in train}, successes=config.successes
+                test,
+                config.deployment_successes,
+                tasks={t.task for t in train},
+                successes=config.success_memory,
             )
         encoder = evaluation_encoder(config)
-        if config.detector.memory is not None:
-            memory_dir = config.detector.memory
+        if config.memory is not None:
+            memory_dir = config.memory
         else:
             memory_dir, built = build_training_memory(config, splits, encoder)
         tested = [selection.root for selection in (config.data, config.test_data) if selection is not None]
@@ -73,7 +76,7 @@ def run_evaluation(
     _prefetch(
         encoder,
         test,
-        train if config.thresholds is not None else [],
+        train if config.threshold_policy is not None else [],
         known=set(memory.tasks),
         stride=config.stride,
     )
@@ -161,7 +164,9 @@ def run_evaluation(
         calibrated=calibrated.get(PAPER, False),
         rules=rules,
         modalities=modalities,
-        target_fpr=config.thresholds.target_fpr if config.thresholds is not None else _stored_target(memory),
+        target_fpr=config.threshold_policy.target_fpr
+        if config.threshold_policy is not None
+        else _stored_target(memory),
         deployment_successes=config.deployment_successes,
         band=next((band.kind for band in detector.bands.values()), "none"),
         views=views,
@@ -195,7 +200,7 @@ def run_evaluation(
 
 def check_growth(config: EvaluateConfig) -> None:
     """A curve builds a memory per level from the training data: SettingError for a given memory."""
-    if config.detector.memory is not None:
+    if config.memory is not None:
         raise SettingError("--growth builds a memory per level from the training data: leave out --memory")
 
 
@@ -302,7 +307,7 @@ def _thresholds(
     None: the stored thresholds, with the memory's own bands). Too few training successes for α: each
     rule at the smallest α its runs allow, a rule none of whose runs could be scored left out. `scores`
     receives what they were calibrated from, where they were calibrated here."""
-    rules, policy = available_rules(detector), config.thresholds
+    rules, policy = available_rules(detector), config.threshold_policy
     if policy is None:
         stored = {r: stored_threshold(detector.memory, r) for r in rules}
         return {r: detector.threshold_of(r) for r in rules}, {r: stored[r] is not None for r in rules}, None

@@ -10,9 +10,8 @@ from robofailring.data.labels import label_key, read_labels
 from robofailring.data.layouts import Dataset
 from robofailring.data.model import Outcome, Trajectory
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
-from robofailring.detection.loader import encoder_for
 from robofailring.detection.rules import RULES
+from robofailring.encoders.placement import DEFAULT_PLACEMENT, EncoderPlacement
 from robofailring.errors import DataError, MemoryFormatError, SettingError
 from robofailring.memory.builder import Provenance, add_to, build_memories
 from robofailring.memory.encoding import BuildStats, is_failure
@@ -28,24 +27,13 @@ class BuildMemoryConfig:
     # how the memory is made; with `add_to` the memory keeps its own, and a setting chosen that differs from
     # it (`MemoryRecipe.chosen`: the options given) is refused, but a chosen success step is used
     recipe: MemoryRecipe = field(default_factory=MemoryRecipe.chosen)
-    # the device, runtime, cache and Ray cluster the encoder runs on (nothing is judged: no memory, no rule)
-    detector: DetectorConfig = DEFAULT_DETECTOR
+    # the device, runtime, cache and Ray cluster the recipe's encoder runs on (a memory is built, not judged)
+    placement: EncoderPlacement = DEFAULT_PLACEMENT
     split: str | None = None  # only trajectories of this split (project layout)
-    successes: bool = True  # also build the success memory (contrast rule); False: the paper's memory alone
+    success_memory: bool = (
+        True  # also build the success memory (contrast rule); False: the paper's memory alone
+    )
     add_to: bool = False  # grow the memory at `out` with the dataset's runs instead of replacing it
-
-    def __post_init__(self) -> None:  # a bad setting fails before anything is read
-        detector = self.detector
-        if (
-            detector.memory is not None
-            or detector.encoder is not None
-            or detector.rule
-            or detector.thresholds
-        ):
-            raise SettingError(
-                "a memory is built, not judged: its encoder is its recipe's, and its detector settings are only "
-                "where that encoder runs (device, runtime, cache, Ray); give no memory, encoder, rule or threshold"
-            )
 
 
 def build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
@@ -67,14 +55,14 @@ def build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
 
 def _build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]:
     vocabulary = config.data.read_vocabulary()
-    encoder = encoder_for(config.detector, config.recipe.encoder)
+    encoder = config.placement.open(config.recipe.encoder)
     dataset = config.data.load(vocabulary=vocabulary)
     dataset.require_labels("build-memory")
     trajectories = _selected(config, dataset)
     where = f"{config.data.root}{f' (split {config.split})' if config.split else ''}"
     failures = sum(1 for t in trajectories if is_failure(t))
     successes = sum(1 for t in trajectories if t.outcome is Outcome.SUCCESS)
-    if not failures and not (config.successes and successes):
+    if not failures and not (config.success_memory and successes):
         raise DataError(
             f"{where} holds no failure trajectory among its {len(trajectories)}"
             + (
@@ -97,7 +85,7 @@ def _build_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats]
         encoder,
         provenance=provenance,
         recipe=config.recipe,
-        successes=config.successes,
+        successes=config.success_memory,
         vocabulary=vocabulary,
     )
     if not len(memory) and memory.successes is None:
@@ -135,7 +123,7 @@ def _add_to_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats
             f"--vocabulary {vocabulary} differs from the vocabulary of the memory at {config.out}: "
             "a memory keeps the vocabulary it was built with (leave out --vocabulary, or rebuild)"
         )
-    encoder = encoder_for(config.detector, recipe.encoder)
+    encoder = config.placement.open(recipe.encoder)
     # its labels read by the memory's vocabulary; `--views` is not applied to the runs added
     dataset = replace(config.data, views=None).load(vocabulary=memory.vocabulary)
     dataset.require_labels("build-memory --add-to")
@@ -154,7 +142,7 @@ def _add_to_memory(config: BuildMemoryConfig) -> tuple[FailureMemory, BuildStats
         memory,
         trajectories,
         encoder,
-        successes=config.successes,
+        successes=config.success_memory,
         success_step=recipe.success_step if recipe.was_given("success_step") else None,
         skipped_inputs=dataset.skipped,
     )

@@ -15,9 +15,9 @@ from pathlib import Path
 from robofailring.calibration.job import CalibrateConfig, calibrate
 from robofailring.calibration.policy import DEFAULT_POLICY, ThresholdPolicy
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
-from robofailring.detection.loader import encoder_for
+from robofailring.detection.config import DEFAULT_SCORING, Scoring
 from robofailring.encoders import EncoderSpec, cache_identity
+from robofailring.encoders.placement import DEFAULT_PLACEMENT, EncoderPlacement
 from robofailring.errors import SettingError
 from robofailring.evaluation.job import EvaluateConfig, build_training_memory
 from robofailring.evaluation.markdown import markdown_text
@@ -32,11 +32,12 @@ class CompareEncodersConfig:
     out: Path  # one memory per encoder is written under out/memory-<encoder>
     encoders: tuple[str, ...]  # two or more encoder specs
     # each encoder's thresholds calibrated on training successes; None: each rule's default (the paper's δ)
-    thresholds: ThresholdPolicy | None = DEFAULT_POLICY
+    threshold_policy: ThresholdPolicy | None = DEFAULT_POLICY
     test_data: DataSelection | None = None  # a second dataset to test on
     test_split: str = "test"
     recipe: MemoryRecipe = DEFAULT_RECIPE  # each encoder's memory: this recipe with its own encoder
-    detector: DetectorConfig = DEFAULT_DETECTOR  # K, device and embedding cache of every evaluation
+    scoring: Scoring = DEFAULT_SCORING  # K and modality of every calibration and evaluation
+    placement: EncoderPlacement = DEFAULT_PLACEMENT  # device, runtime, cache and Ray cluster of every encoder
 
 
 def compare_encoders(
@@ -55,28 +56,32 @@ def compare_encoders(
         if spec in existing and _gives_cameras(existing[spec]):
             results.append(existing[spec])
             continue
-        detector = config.detector
-        opened = encoder_for(detector, spec).encoder
+        opened = config.placement.open(spec).encoder
         slug = EncoderSpec.slug(cache_identity(opened))  # the same model in two runtimes: two slugs
         memory_dir = Path(config.out) / f"memory-{slug}"
         base = EvaluateConfig(
             data=config.data,
             out=Path(config.out),
             recipe=replace(config.recipe, encoder=spec),
-            detector=detector,
+            scoring=config.scoring,
+            placement=config.placement,
             test_data=config.test_data,
             test_split=config.test_split,
             name=slug,
         )
         _, built = build_training_memory(replace(base, memory_out=memory_dir))
-        if config.thresholds is not None:
+        if config.threshold_policy is not None:
             calibrate(
                 CalibrateConfig(
-                    data=config.data, detector=detector.with_memory(memory_dir), thresholds=config.thresholds
+                    data=config.data,
+                    memory=memory_dir,
+                    scoring=config.scoring,
+                    placement=config.placement,
+                    threshold_policy=config.threshold_policy,
                 )
             )
         # thresholds: calibrated as `calibrate` just stored them, here with each modality's own beside them
-        evaluated = replace(base, detector=detector.with_memory(memory_dir), thresholds=config.thresholds)
+        evaluated = replace(base, memory=memory_dir, threshold_policy=config.threshold_policy)
         result = run_evaluation(evaluated)  # what its memory's build did not use, listed with the rest
         results.append(replace(result, skipped_inputs=list(dict.fromkeys([*result.skipped_inputs, *built]))))
     return results

@@ -12,7 +12,6 @@ from robofailring.data.model import Outcome, Skipped, Trajectory
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DEFAULT_DETECTOR, DetectorConfig
 from robofailring.detection.detector import FailureDetector
-from robofailring.detection.loader import encoder_for
 from robofailring.detection.scored import prefetch_scored
 from robofailring.errors import DataError, SettingError
 from robofailring.memory.recipe import DEFAULT_RECIPE
@@ -32,18 +31,18 @@ PREFETCH_EPISODES: Final[int] = 64
 class TriageConfig:
     """What `robofailring triage` ranks and how: `detector` holds the memory to judge by (its rules as
     calibrated, its own encoder), or without one the encoder the reference is built with (default: the
-    recipe's), and the detector's k, rule, device, runtime, cache, Ray cluster and data root."""
+    recipe's), and the detector's rule, data root, scoring (K) and placement (device, runtime, cache, Ray)."""
 
     # the dataset to triage (any layout; outcomes its layout states are not used), how it is read: the
     # success rows of its labels are known-good runs
     data: DataSelection
     out: Path  # folder for triage.csv, triage.rrd, triage.html and the replays
     detector: DetectorConfig = DEFAULT_DETECTOR
-    successes: Path | None = None  # a dataset of known-good runs (every episode a success), read as `data`
+    known_good: Path | None = None  # a dataset of known-good runs (every episode a success), read as `data`
     reference_runs: int = DEFAULT_REFERENCE_RUNS  # per task, at most this many other episodes as reference
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
-        if self.detector.memory is not None and self.successes is not None:
+        if self.detector.memory is not None and self.known_good is not None:
             raise SettingError(
                 "--memory and --successes go separately: add the known-good runs to the memory first "
                 "(build-memory SUCCESSES --add-to MEMORY), then triage with --memory"
@@ -148,14 +147,14 @@ def _reference(
     if config.memory is not None:
         return memory_reference(config.detector, tasks, data=config.data.root)
     known_good: list[Trajectory] = []
-    if config.successes is not None:
-        good = replace(config.data, root=config.successes, labels=None).load()
+    if config.known_good is not None:
+        good = replace(config.data, root=config.known_good, labels=None).load()
         skipped += good.skipped
         known_good = [replace(t, outcome=Outcome.SUCCESS, symbol=None) for t in good if t.task in tasks]
     return built_reference(
         trajectories,
         known_good,
-        encoder_for(config.detector, config.encoder),
+        config.detector.placement.open(config.encoder),
         data=config.data.root,
         encoder_spec=config.encoder,
         detector=config.detector,

@@ -52,7 +52,7 @@ class Reference:
 
 def memory_reference(config: DetectorConfig, tasks: Sequence[str], *, data: Path) -> Reference:
     """The detector on `config.memory` (its rules and thresholds as stored, or `config.rule`); a task it
-    does not know is an error. `config.ray`: where the frames are encoded ahead (docs/ray.md); `data`: the
+    does not know is an error. `config.placement.ray`: where the frames are encoded ahead (docs/ray.md); `data`: the
     data triaged, where the memory's images may be read from (`FailureMemory.image_roots`)."""
     memory_dir = config.memory_dir
     detector = detector_from(config, trusted=[data])
