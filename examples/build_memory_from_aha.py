@@ -49,7 +49,7 @@ def main() -> None:
         f"memory: {len(memory)} entries over {len(memory.tasks)} tasks; {len(stats.skipped_views)} views skipped"
     )
 
-    detector = open_detector(args.memory, delta=args.delta, k=5)
+    detector = open_detector(args.memory, delta=args.delta)
     trace = detector.run(load_trajectory(args.episode, task=args.task))
     if trace.t_det is None or trace.detected_view is None:
         print(f"no failure detected in {trace.length} frames (δ = {trace.delta:.3f})")

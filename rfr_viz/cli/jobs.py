@@ -31,7 +31,7 @@ from robofailring.cli.options import (
     warn_missing_references,
 )
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DetectorConfig, Scoring
+from robofailring.detection.config import DEFAULT_STRIDE, DetectorConfig, Scoring
 from robofailring.encoders.placement import EncoderPlacement
 from robofailring.explain.vlm import VLMConfig
 from robofailring.memory.recipe import MemoryRecipe
@@ -84,7 +84,7 @@ def evaluate_cmd(
             help="Name of this evaluation: <name>.md, .json and .rrd in --out (a plain file name, no / or leading dot)."
         ),
     ] = "evaluation",
-    stride: StrideOption = 1,
+    stride: StrideOption = DEFAULT_STRIDE,
     threshold_policy: ThresholdPolicy,
     deployment_successes: Annotated[
         int,

@@ -22,7 +22,7 @@ from robofailring.cli.options import (
     warn_missing_references,
 )
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DetectorConfig
+from robofailring.detection.config import DEFAULT_STRIDE, DetectorConfig
 from robofailring.detection.rules import PAPER
 from robofailring.errors import SettingError
 from robofailring.explain.vlm import VLMConfig
@@ -64,7 +64,7 @@ def replay_cmd(
     *,
     detector: DetectorConfig,
     recordings: Recordings,
-    stride: StrideOption = 1,
+    stride: StrideOption = DEFAULT_STRIDE,
     vlm: VLMConfig | None,
 ) -> None:
     """Replay trajectories through the detector, one self-contained Rerun recording (.rrd) each."""

@@ -22,7 +22,7 @@ from robofailring.data.grounding import Vocabulary
 from robofailring.data.layouts import detect_layout
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DetectorConfig, check_stride
+from robofailring.detection.config import DEFAULT_STRIDE, DetectorConfig, check_stride
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.loader import detector_from
 from robofailring.detection.signal_scores import cameras_alone_note
@@ -48,7 +48,7 @@ class ReplayConfig:
     data: DataSelection
     detector: DetectorConfig  # the memory (its map is cached there, umap.npz) and how its detector judges
     recordings: Recordings = field(default_factory=Recordings)  # which trajectories, into which folder, how
-    stride: int = 1  # score every stride-th frame; the recording keeps every camera frame
+    stride: int = DEFAULT_STRIDE  # score every stride-th frame; the recording keeps every camera frame
     vlm: VLMConfig | None = None  # ask this VLM about each detection; its answer joins the report
 
 

@@ -2,7 +2,8 @@
 (no second parser, no second reader of `#frame=` or a bag message), a scoring rule's command-line option
 comes from the rule registry, not a list of rule names, and the modalities' names (`both`, `cameras`,
 `signals`: a modality, the signals' view, a fusion group) live in `robofailring.memory.signals.modality`, which
-alone splits views by modality (docs/architecture.md)."""
+alone splits views by modality, an encoder kind is named only by the registry and its own module, and each
+setting's default is one named constant (docs/architecture.md)."""
 
 from __future__ import annotations
 
@@ -193,3 +194,48 @@ def test_only_the_registry_and_its_own_module_name_an_encoder_kind() -> None:
         if path != KIND_HOMES[name] and not (path == PREPROCESSING and name == "open_clip")
     }
     assert found == set(), found
+
+
+#: The settings a user gives (a value's options, a job's, a detector's): each default is one named constant
+#: where the setting is defined (`DEFAULT_K`, `DEFAULT_STRIDE`, `DEFAULT_TARGET_FPR`, `DEFAULT_BAND`, …), never a
+#: literal repeated in a signature or a field.
+SETTINGS = frozenset(
+    {
+        "stride", "k", "modality", "target_fpr", "band", "fusion", "band_scope", "pairing", "failure_frames",
+        "encoder", "runtime", "device", "success_step", "signals", "signal_features", "signal_start_weight",
+    }
+)  # fmt: skip
+#: A name that is no setting where it is used: a map's own neighbour count, a blueprint's "has signals" flag.
+OTHER_MEANINGS = {("rfr_viz/panels/umap_layout.py", "knn_purity", "k")}
+
+
+def _literal_defaults(path: Path) -> set[tuple[str, str, str]]:
+    """(module, function or class, name) of each setting given a literal default (a number or a string) there."""
+    found = set()
+    where = str(path.relative_to(ROOT))
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        pairs: list[tuple[str, ast.expr | None]] = []
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            arguments = node.args
+            positional = [*arguments.posonlyargs, *arguments.args]
+            defaults = [None] * (len(positional) - len(arguments.defaults)) + list(arguments.defaults)
+            pairs += [(a.arg, d) for a, d in zip(positional, defaults, strict=True)]
+            pairs += [(a.arg, d) for a, d in zip(arguments.kwonlyargs, arguments.kw_defaults, strict=True)]
+        elif isinstance(node, ast.ClassDef):
+            pairs += [
+                (statement.target.id, statement.value)
+                for statement in node.body
+                if isinstance(statement, ast.AnnAssign) and isinstance(statement.target, ast.Name)
+            ]
+        else:
+            continue
+        for name, default in pairs:
+            literal = isinstance(default, ast.Constant) and isinstance(default.value, (int, float, str))
+            if name in SETTINGS and literal and not isinstance(default.value, bool):  # type: ignore[union-attr]
+                found.add((where, node.name, name))
+    return found - OTHER_MEANINGS
+
+
+def test_every_settings_default_is_its_one_constant() -> None:
+    found = set().union(*(_literal_defaults(path) for path in _modules()))
+    assert found == set(), sorted(found)

@@ -30,7 +30,13 @@ from robofailring.calibration.policy import DEFAULT_POLICY, ThresholdPolicy
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.data.selection import DataSelection
 from robofailring.detection.band import NONE, Band
-from robofailring.detection.config import DEFAULT_SCORING, DetectorConfig, Scoring, check_stride
+from robofailring.detection.config import (
+    DEFAULT_SCORING,
+    DEFAULT_STRIDE,
+    DetectorConfig,
+    Scoring,
+    check_stride,
+)
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.loader import detector_from
 from robofailring.detection.rules import (
@@ -76,7 +82,7 @@ def success_scores(
     successes: Sequence[Trajectory],
     rules: Sequence[ScoringRule],
     *,
-    stride: int = 1,
+    stride: int = DEFAULT_STRIDE,
 ) -> dict[ScoringRule, list[np.ndarray]]:
     """Per rule, each success run's per-frame score (max over views, uncorrected; NaN where unscored),
     its episode left out of both memories (every `stride`-th frame scored)."""
@@ -90,7 +96,7 @@ def success_view_scores(
     rules: Sequence[ScoringRule],
     *,
     progress: Callable[[int], None] | None = None,
-    stride: int = 1,
+    stride: int = DEFAULT_STRIDE,
     too_short: list[str] | None = None,
     short_views: list[Skipped] | None = None,
     tasks: list[str] | None = None,
@@ -127,7 +133,7 @@ def calibrate_rules(
     *,
     rules: Sequence[ScoringRule] | None = None,
     progress: Callable[[int], None] | None = None,
-    stride: int = 1,
+    stride: int = DEFAULT_STRIDE,
     too_short: list[str] | None = None,
     short_views: list[Skipped] | None = None,
     at_best: bool = False,
@@ -200,7 +206,7 @@ class CalibrateConfig:
     placement: EncoderPlacement = DEFAULT_PLACEMENT  # where its encoder runs: device, runtime, cache, Ray
     threshold_policy: ThresholdPolicy = DEFAULT_POLICY  # the target α, band and fusion
     split: str | None = "train"  # successes of this split (None: all; ignored if the data has no splits)
-    stride: int = 1  # score every stride-th frame of each success run
+    stride: int = DEFAULT_STRIDE  # score every stride-th frame of each success run
 
     def __post_init__(self) -> None:  # bad settings fail before any frame is encoded
         check_stride(self.stride)

@@ -27,7 +27,7 @@ from robofailring.cli.options import (
     warn_missing_references,
 )
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DetectorConfig, Scoring
+from robofailring.detection.config import DEFAULT_STRIDE, DetectorConfig, Scoring
 from robofailring.encoders.placement import EncoderPlacement
 from robofailring.errors import SettingError
 from robofailring.explain.vlm import VLMConfig
@@ -195,7 +195,7 @@ def detect_cmd(
             "--trajectory", help="In a dataset root: this trajectory (`episode_3`, `<task>/<episode>`)."
         ),
     ] = None,
-    stride: StrideOption = 1,
+    stride: StrideOption = DEFAULT_STRIDE,
     vlm: VLMConfig | None,
 ) -> None:
     """Replay one trajectory through the detector and say if and when it fires."""
@@ -241,7 +241,7 @@ def calibrate_cmd(
     placement: EncoderPlacement,
     threshold_policy: ThresholdPolicy,
     split: Annotated[str | None, typer.Option(help="Successes of this split (project layout).")] = "train",
-    stride: StrideOption = 1,
+    stride: StrideOption = DEFAULT_STRIDE,
 ) -> None:
     """Set δ, γ and η (split conformal) for a target false-positive rate on success runs; detect then uses them."""
     from robofailring.calibration.job import CalibrateConfig, calibrate

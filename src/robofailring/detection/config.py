@@ -19,6 +19,7 @@ DEFAULT_K: Final[int] = 5
 DEFAULT_MODALITY: Final[str] = (
     BOTH  # what a detector judges by unless told: the cameras and the signals fused
 )
+DEFAULT_STRIDE: Final[int] = 1  # every frame scored
 MAX_STRIDE: Final[int] = 2**63 - 1  # frame numbers are int64: a larger stride scores frame 0 alone anyway
 MAX_K: Final[int] = (
     1024  # neighbours per query: each query row holds K similarities, allocated before the search

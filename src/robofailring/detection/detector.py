@@ -11,7 +11,14 @@ import numpy as np
 from robofailring.data.images import as_rgb
 from robofailring.data.model import Frame, Skipped, Trajectory
 from robofailring.detection.band import Band
-from robofailring.detection.config import DEFAULT_K, DEFAULT_MODALITY, check_k, check_modality, check_stride
+from robofailring.detection.config import (
+    DEFAULT_K,
+    DEFAULT_MODALITY,
+    DEFAULT_STRIDE,
+    check_k,
+    check_modality,
+    check_stride,
+)
 from robofailring.detection.retrieved import Retrieved
 from robofailring.detection.rules import (
     RuleThresholds,
@@ -211,7 +218,7 @@ class FailureDetector(RuleThresholds):
         trajectory: Trajectory,
         *,
         leave_one_out: bool = False,
-        stride: int = 1,
+        stride: int = DEFAULT_STRIDE,
         keep_queries: bool = True,
         place: Place | None = None,
     ) -> DetectionTrace:

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from robofailring.data.model import Frame, Skipped, Trajectory
+from robofailring.detection.config import DEFAULT_STRIDE
 from robofailring.encoders.base import BLANK_REASON, frame_ranges
 from robofailring.encoders.cache import CachedEncoder
 from robofailring.errors import DataError
@@ -31,7 +32,7 @@ class ScoredFrames:
         return [frames[int(t)] for frames in self.views.values() for t in self.steps]
 
 
-def scored_frames(trajectory: Trajectory, *, stride: int = 1) -> ScoredFrames:
+def scored_frames(trajectory: Trajectory, *, stride: int = DEFAULT_STRIDE) -> ScoredFrames:
     """What a run over `trajectory` at `stride` scores; DataError when no view has 2 frames."""
     used = {view: frames for view, frames in trajectory.views.items() if len(frames) >= 2}
     if not used:
@@ -43,7 +44,9 @@ def scored_frames(trajectory: Trajectory, *, stride: int = 1) -> ScoredFrames:
     return ScoredFrames(used, length, np.arange(0, length, stride), short)
 
 
-def prefetch_scored(encoder: CachedEncoder, trajectories: Iterable[Trajectory], *, stride: int = 1) -> None:
+def prefetch_scored(
+    encoder: CachedEncoder, trajectories: Iterable[Trajectory], *, stride: int = DEFAULT_STRIDE
+) -> None:
     """Hand an encoder that works ahead (`--ray`) every frame runs over `trajectories` at `stride` will
     score, to encode in one pass (`CachedEncoder.prefetch`: nothing is listed for one that encodes on
     demand). A run with no view of 2 frames is left for its own run to report."""

@@ -12,6 +12,7 @@ import numpy as np
 
 from robofailring.data.model import Skipped
 from robofailring.detection.band import Band
+from robofailring.detection.config import DEFAULT_STRIDE
 from robofailring.detection.rules import PAPER, RULES, RuleThresholds, ScoringRule, shown_rules
 from robofailring.detection.signal_scores import SignalScores
 from robofailring.detection.view_scores import ViewScores
@@ -40,7 +41,7 @@ class DetectionTrace(RuleThresholds):
     memory: FailureMemory = field(repr=False)
     skipped_views: list[str] = field(default_factory=list)
     view_frames: dict[str, int] = field(default_factory=dict)  # frames each view had (L bounds them)
-    stride: int = 1  # every `stride`-th frame from frame 0 is scored; the others hold NaN / -1
+    stride: int = DEFAULT_STRIDE  # every `stride`-th frame from frame 0 is scored; the others hold NaN / -1
     skipped_inputs: list[Skipped] = field(default_factory=list)  # files of the episode not read
 
     @property

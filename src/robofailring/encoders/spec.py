@@ -30,6 +30,7 @@ from robofailring.errors import EncoderError
 
 Runtime = Literal["torch", "onnx", "onnx-int8", "openvino-int8"]
 RUNTIMES: Final[tuple[Runtime, ...]] = ("torch", "onnx", "onnx-int8", "openvino-int8")
+DEFAULT_RUNTIME: Final[Runtime] = "torch"  # a spec without `@runtime` runs its network in torch
 
 #: What each `EncoderSpec` field a kind's arguments fill holds, as its "names no …" error says it.
 FIELD_NOUNS: Final[dict[str, str]] = {"model": "model", "weights": "weights", "directory": "folder"}
@@ -158,9 +159,7 @@ class EncoderSpec:
     model: str = ""  # open_clip: a model name or a model-config JSON path; timm: a model name
     weights: str = ""  # open_clip: a pretrained tag or a checkpoint path ("" for open_clip's default); timm: a checkpoint
     directory: str = ""  # trained: the folder written by `robofailring train-encoder`
-    runtime: Runtime = (
-        "torch"  # what runs the network: torch, or its ONNX export (fp32 or int8; ORT or OpenVINO)
-    )
+    runtime: Runtime = DEFAULT_RUNTIME  # what runs the network: torch, or its ONNX export (fp32 or int8)
 
     @classmethod
     def parse(cls, spec: str | EncoderSpec) -> EncoderSpec:
@@ -184,7 +183,7 @@ class EncoderSpec:
             return self
         if runtime not in RUNTIMES:
             raise EncoderError(f"unknown runtime {runtime!r}; expected one of {', '.join(RUNTIMES)}")
-        if not kind_named(self.kind).exports and runtime != "torch":
+        if not kind_named(self.kind).exports and runtime != DEFAULT_RUNTIME:
             raise EncoderError(
                 f"the {self.kind} encoder has no network to run through {runtime}; runtimes apply to "
                 f"{_listing(_exporting(), 'and')} encoders"
@@ -215,7 +214,7 @@ class EncoderSpec:
             return network
         at, _, last = network.rpartition("@")
         named = at and last in RUNTIMES  # a path ending in `@onnx` needs its `@torch` said
-        return network if self.runtime == "torch" and not named else f"{network}@{self.runtime}"
+        return network if self.runtime == DEFAULT_RUNTIME and not named else f"{network}@{self.runtime}"
 
     def portable(self) -> EncoderSpec:
         """The spec a memory records: a `trained:` folder or an open_clip or timm checkpoint or config file as

@@ -17,7 +17,13 @@ from robofailring.data.layouts import Dataset
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.data.selection import DataSelection
 from robofailring.data.splits import split_of
-from robofailring.detection.config import DEFAULT_SCORING, DetectorConfig, Scoring, check_stride
+from robofailring.detection.config import (
+    DEFAULT_SCORING,
+    DEFAULT_STRIDE,
+    DetectorConfig,
+    Scoring,
+    check_stride,
+)
 from robofailring.detection.rules import PAPER
 from robofailring.encoders import CachedEncoder
 from robofailring.encoders.placement import DEFAULT_PLACEMENT, EncoderPlacement
@@ -83,7 +89,9 @@ class EvaluateConfig:
     test_fraction: float = 0.5  # for datasets without splits: a deterministic hash split
     deltas: tuple[float, ...] = PAPER_DELTAS
     name: str = "evaluation"  # a file name stem: `<name>.json`, `<name>.md`, `<name>.rrd` in `out`
-    stride: int = 1  # score every stride-th frame of a test trajectory (t_det, T_s in original frames)
+    stride: int = (
+        DEFAULT_STRIDE  # score every stride-th frame of a test trajectory (t_det, T_s in original frames)
+    )
     success_memory: bool = True  # build the success memory beside the failure memory (contrast rule)
     deployment_successes: int = 0  # per task: test success runs moved into the success memory
     failures_per_task: int | None = None  # the memory built here holds N training failures per task

@@ -6,8 +6,10 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
+from robofailring.calibration.bands import NONE
 from robofailring.data.grounding import Vocabulary, failure_type
 from robofailring.data.model import Skipped
+from robofailring.detection.config import DEFAULT_STRIDE
 from robofailring.detection.detector import (
     DetectionTrace,
 )
@@ -60,13 +62,13 @@ class EvaluationResult:
     latency_ms: dict[str, float]
     skipped_too_short: list[str] = field(default_factory=list)
     skipped_inputs: list[Skipped] = field(default_factory=list)  # folders/files of the data not read
-    stride: int = 1
+    stride: int = DEFAULT_STRIDE
     rules: dict[str, RuleResult] = field(default_factory=dict)  # both rules at their thresholds
     # per rule: the cameras alone, the signals alone and both, each at its own threshold (evaluation.modalities)
     modalities: dict[str, dict[str, ModalityResult]] = field(default_factory=dict)
     target_fpr: float | None = None
     deployment_successes: int = 0
-    band: str = "none"  # the time-indexed band the rules beyond the paper's were judged on
+    band: str = NONE  # the time-indexed band the rules beyond the paper's were judged on
     vocabulary: Vocabulary | None = field(default=None, repr=False)  # the memory's own failure symbols
     growth: list[GrowthPoint] = field(default_factory=list)  # `evaluate --growth`: the learning curve
     failure_frames: str = END  # the memory's failure frames: `end` (the paper's) or `dense` (memory.entry)

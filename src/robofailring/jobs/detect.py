@@ -11,7 +11,7 @@ import numpy as np
 
 from robofailring.data.model import Trajectory
 from robofailring.data.selection import DataSelection
-from robofailring.detection.config import DetectorConfig, check_stride
+from robofailring.detection.config import DEFAULT_STRIDE, DetectorConfig, check_stride
 from robofailring.detection.detector import DetectionTrace
 from robofailring.detection.loader import detector_from
 from robofailring.detection.signal_scores import cameras_alone_note
@@ -31,7 +31,7 @@ class DetectConfig:
     detector: DetectorConfig  # the memory and how its detector judges
     key: str | None = None  # the trajectory to run when `data.root` is a dataset root (`episode_3`)
     leave_one_out: bool = False  # hide the trajectory's own episode from the memory
-    stride: int = 1  # score every stride-th frame (I_0 stays frame 0; t_det in original frames)
+    stride: int = DEFAULT_STRIDE  # score every stride-th frame (I_0 stays frame 0; t_det in original frames)
     vlm: VLMConfig | None = None  # ask this VLM about the report, when the detector fires
 
     def __post_init__(self) -> None:  # a bad setting fails before the memory is read
