@@ -243,7 +243,7 @@ def calibrate_cmd(
     split: Annotated[str | None, typer.Option(help="Successes of this split (project layout).")] = "train",
     stride: StrideOption = DEFAULT_STRIDE,
 ) -> None:
-    """Set δ, γ and η (split conformal) for a target false-positive rate on success runs; detect then uses them."""
+    """Set every scoring rule's threshold (split conformal) at a target false-positive rate on success runs."""
     from robofailring.calibration.job import CalibrateConfig, calibrate
 
     result = calibrate(
