@@ -45,13 +45,13 @@ def compared(tmp_path_factory: pytest.TempPathFactory, tiny_checkpoint: tuple[Pa
     returned: list[EncoderComparison] = []
     job = encoder_comparison.run_encoder_comparison
     loads: Counter[str] = Counter()
-    real_load = encoders.load_encoder
+    real_load = encoders._load  # what every open and load of an encoder builds it with
 
     def counting_load(
-        spec: str | encoders.EncoderSpec, *, device: str | None = None, cache_dir: Path | None = None
+        spec: encoders.EncoderSpec, device: str | None, cache_dir: Path | None
     ) -> encoders.Encoder:
         loads[str(spec)] += 1
-        return real_load(spec, device=device, cache_dir=cache_dir)
+        return real_load(spec, device, cache_dir)
 
     def keep(config: CompareEncodersConfig, *, recordings: int = 3) -> EncoderComparison:
         returned.append(job(config, recordings=recordings))
@@ -60,7 +60,7 @@ def compared(tmp_path_factory: pytest.TempPathFactory, tiny_checkpoint: tuple[Pa
     encoders._loaded_encoder.cache_clear()
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(encoder_comparison, "run_encoder_comparison", keep)
-        patch.setattr(encoders, "load_encoder", counting_load)
+        patch.setattr(encoders, "_load", counting_load)
         result = CliRunner().invoke(
             app,
             [
