@@ -3,7 +3,6 @@ comparison recording."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -21,7 +20,7 @@ from robofailring.atomic import check_free, output_lock, remove_file_leftovers
 from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.errors import DataError, SettingError, UnknownTaskError
-from robofailring.outputs import check_output_folder
+from robofailring.outputs import check_output_folder, unique_names
 from robofailring.progress import progress_bar
 
 
@@ -32,16 +31,6 @@ class CompareConfig:
     )
     detectors: tuple[DetectorConfig, ...]  # two or more memories, each built with its own encoder
     recordings: Recordings = field(default_factory=Recordings)  # which trajectories, into which folder, how
-
-
-def unique_slugs(slugs: Sequence[str]) -> list[str]:
-    """Encoder slugs made unique in order (`pixels`, `pixels-2`, …) for entity paths."""
-    seen: dict[str, int] = {}
-    unique = []
-    for slug in slugs:
-        seen[slug] = seen.get(slug, 0) + 1
-        unique.append(slug if seen[slug] == 1 else f"{slug}-{seen[slug]}")
-    return unique
 
 
 def compare(config: CompareConfig) -> ReplayResult:
@@ -62,7 +51,7 @@ def _compare(config: CompareConfig) -> ReplayResult:
         [load_detector(each, config.data.root) for each in config.detectors],
         config.recordings,
     )
-    slugs = unique_slugs([found.slug for found in detectors])
+    slugs = unique_names([found.slug for found in detectors])
     result = ReplayResult(
         references={
             each.memory_dir: found.references for each, found in zip(config.detectors, detectors, strict=True)

@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 import re
 import tempfile
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Final
 
@@ -206,3 +206,14 @@ def check_own_files(paths: Iterable[Path]) -> None:
                 f"{given} exists and was not written by robofailring; refusing to replace it: move it away "
                 "or choose another --out"
             )
+
+
+def unique_names(names: Sequence[str]) -> list[str]:
+    """`names` made unique in order (`pixels`, `pixels-2`, …): two encoders of one slug (a model with two
+    checkpoints) get two folders and two entity paths, never one written over the other."""
+    seen: dict[str, int] = {}
+    unique = []
+    for name in names:
+        seen[name] = seen.get(name, 0) + 1
+        unique.append(name if seen[name] == 1 else f"{name}-{seen[name]}")
+    return unique

@@ -7,6 +7,7 @@ it wrote are both checked on that one run.
 from __future__ import annotations
 
 import json
+import re
 from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
@@ -122,3 +123,49 @@ def test_compare_encoders_verb_writes_table_and_recordings(compared: Compared) -
     assert len(recordings) == 2
     for path in recordings:
         verify_recording(path)
+
+
+def test_two_checkpoints_of_one_model_keep_two_memories_and_one_encoder_twice_is_refused(
+    tmp_path: Path, tiny_checkpoint: tuple[Path, Path]
+) -> None:
+    """Issue 53's worked example found it: two encoders of one slug (one model, two checkpoints) were built into
+    one `memory-<slug>` folder, the second over the first, and every recording showed the second. Each now
+    has its own folder (`…-2`), its own evaluation and its own identity; one encoder given twice is refused."""
+    import torch
+
+    config_json, checkpoint = tiny_checkpoint
+    other = tmp_path / "other.pt"
+    state = torch.load(checkpoint, map_location="cpu")
+    torch.save(
+        {"state_dict": {k: v + 0.01 if v.is_floating_point() else v for k, v in state["state_dict"].items()}},
+        other,
+    )
+    data = write_project_dataset(tmp_path / "data", tasks=("pick_cube",), episodes=4)
+    first, second = f"open_clip:{config_json}:{checkpoint}", f"open_clip:{config_json}:{other}"
+    out = tmp_path / "out"
+    common = [
+        "--out",
+        str(out),
+        "--target-fpr",
+        "0.5",
+        "--recordings",
+        "1",
+        "--cache-dir",
+        str(tmp_path / "c"),
+    ]
+    result = CliRunner().invoke(
+        app, ["compare-encoders", str(data), "--encoder", first, "--encoder", second, *common]
+    )
+    assert result.exit_code == 0, result.output
+    identities = [
+        json.loads((out / name / "manifest.json").read_text())["encoder"]
+        for name in ("memory-tinyvit-test", "memory-tinyvit-test-2")
+    ]
+    assert len(set(identities)) == 2 and all(i.startswith("open_clip:TinyViT-test:file-") for i in identities)
+    rows = re.findall(r"^\| `(open_clip:[^`]+)`", (out / "comparison.md").read_text(), flags=re.M)
+    assert set(rows) == set(identities)  # each row's memory is its own encoder's
+
+    again = CliRunner().invoke(
+        app, ["compare-encoders", str(data), "--encoder", "pixels", "--encoder", "pixels@torch", *common]
+    )
+    assert again.exit_code != 0 and "--encoder pixels is given twice" in again.output

@@ -8,6 +8,7 @@ row stands beside them (`evaluation.modalities`)."""
 from __future__ import annotations
 
 import math
+from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -24,6 +25,7 @@ from robofailring.evaluation.markdown import markdown_text
 from robofailring.evaluation.run import EvaluationResult, run_evaluation
 from robofailring.memory.recipe import DEFAULT_RECIPE, MemoryRecipe
 from robofailring.memory.signals.modality import BOTH, CAMERAS, SIGNALS_VIEW
+from robofailring.outputs import unique_names
 
 
 @dataclass(frozen=True)
@@ -50,14 +52,20 @@ def compare_encoders(
         raise SettingError(
             f"an encoder comparison needs at least two encoders (--encoder A --encoder B), got {len(config.encoders)}"
         )
+    given = Counter(EncoderSpec.parse(spec) for spec in config.encoders)
+    twice = [str(spec) for spec, times in given.items() if times > 1]
+    if twice:
+        raise SettingError(f"--encoder {twice[0]} is given twice: each encoder is compared once")
     existing = existing or {}
     results = []
+    slugs: list[str] = []
     for spec in config.encoders:
         if spec in existing and _gives_cameras(existing[spec]):
             results.append(existing[spec])
             continue
         opened = config.placement.open(spec).encoder
-        slug = EncoderSpec.slug(cache_identity(opened))  # the same model in two runtimes: two slugs
+        slugs.append(EncoderSpec.slug(cache_identity(opened)))  # the same model in two runtimes: two slugs
+        slug = unique_names(slugs)[-1]  # one model with two checkpoints: one slug, two folders (`…-2`)
         memory_dir = Path(config.out) / f"memory-{slug}"
         base = EvaluateConfig(
             data=config.data,
