@@ -10,6 +10,8 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
+from robofailring.encoders.spec import kinds
+
 ROOT = Path(__file__).resolve().parents[2]
 FRAME_REF = ROOT / "src" / "robofailring" / "data" / "frame_ref.py"
 MARKERS = ("#frame=", "&message=", "#topic=")
@@ -144,12 +146,10 @@ def test_views_are_split_by_modality_in_one_function() -> None:
 
 
 ENCODERS = ROOT / "src" / "robofailring" / "encoders"
-#: Each encoder kind's name and the one module besides the registry (`encoders/spec.py`) that may name it.
+#: Each registered encoder kind's name and the one module besides the registry (`encoders/spec.py`) that may
+#: name it, read from the registry: a kind registered later is covered without a line here.
 KIND_HOMES = {
-    "pixels": ENCODERS / "pixels.py",
-    "open_clip": ENCODERS / "openclip.py",
-    "timm": ENCODERS / "timm_backbone.py",
-    "trained": ENCODERS / "trained.py",
+    kind.name: (ROOT / "src" / Path(*kind.module.split("."))).with_suffix(".py") for kind in kinds()
 }
 #: An ONNX export's recorded preprocessing is `open_clip` (open_clip's own transform) or `square`: a form of
 #: `export.json`, not the encoder kind.
