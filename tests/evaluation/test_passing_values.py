@@ -52,6 +52,9 @@ def test_an_evaluation_takes_a_loaded_detector_and_keeps_placed_traces(tmp_path:
         assert not loaded.traces[key].placed
 
 
+CLIP = "open_clip:ViT-B-32:openai"  # a second encoder by name: its weights are never needed here
+
+
 def test_an_encoder_comparison_takes_the_results_it_is_given(tmp_path: Path) -> None:
     data = write_project_dataset(tmp_path / "data", episodes=4)
     cache = EncoderPlacement(cache_dir=tmp_path / "cache")
@@ -62,9 +65,9 @@ def test_an_encoder_comparison_takes_the_results_it_is_given(tmp_path: Path) -> 
     )
     out = tmp_path / "encoders"
     config = CompareEncodersConfig(
-        data=DataSelection(data), out=out, encoders=("pixels", "pixels"), placement=cache
+        data=DataSelection(data), out=out, encoders=("pixels", CLIP), placement=cache
     )
-    results = compare_encoders(config, existing={"pixels": headline})
+    results = compare_encoders(config, existing={"pixels": headline, CLIP: headline})  # never loaded
     assert results == [headline, headline] and not out.exists()  # nothing built, calibrated or scored again
     with pytest.raises(SettingError, match="at least two encoders"):
         compare_encoders(replace(config, encoders=("pixels",)), existing={"pixels": headline})

@@ -199,7 +199,7 @@ BandOption = Annotated[
     str,
     typer.Option(
         "--band",
-        help=f"Time-indexed thresholds, one of {', '.join(BAND_KINDS)}: the contrast and novelty scores are "
+        help=f"Time-indexed thresholds, one of {', '.join(BAND_KINDS)}: every rule's score but the paper's is "
         "corrected by the calibration successes' mean (shift) or mean and spread (norm) at the same frame "
         "index before their peak is calibrated; none: one threshold.",
     ),

@@ -6,7 +6,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from robofailring.calibration.bands import NONE
+from robofailring.calibration.bands import NONE, SHIFT
 from robofailring.data.grounding import Vocabulary, failure_type
 from robofailring.data.model import Skipped
 from robofailring.detection.config import DEFAULT_STRIDE
@@ -321,9 +321,9 @@ class EvaluationResult:
             else ""
         )
         banded = (
-            f" The contrast and novelty thresholds apply to the score corrected per frame index by the "
-            f"calibration successes' {'mean' if self.band == 'shift' else 'mean and spread'} (band `{self.band}`)."
-            if self.band != "none"
+            f" Every rule's threshold but the paper's δ applies to the score corrected per frame index by the "
+            f"calibration successes' {'mean' if self.band == SHIFT else 'mean and spread'} (band `{self.band}`)."
+            if self.band != NONE
             else ""
         )
         return [
