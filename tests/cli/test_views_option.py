@@ -30,21 +30,26 @@ def test_every_verb_that_reads_data_takes_views() -> None:
     assert {"build-memory", "detect", "evaluate", "compare-encoders", "review", "watch"} <= set(reading)
 
 
-def test_compare_encoders_views_front_keeps_only_the_front_camera(tmp_path: Path) -> None:
+def test_compare_encoders_views_front_keeps_only_the_front_camera(
+    tmp_path: Path, tiny_checkpoint: tuple[Path, Path]
+) -> None:
+    config_json, checkpoint = tiny_checkpoint
+    clip = f"open_clip:{config_json}:{checkpoint}"
     data = write_project_dataset(tmp_path / "data", tasks=("pick_cube",), episodes=2, length=4)
     assert len(VIEWS) > 1 and "front" in VIEWS
     out = tmp_path / "out"
     result = CliRunner().invoke(
         app,
         [
-            *("compare-encoders", str(data), "--encoder", "pixels", "--encoder", "pixels", "--out", str(out)),
+            *("compare-encoders", str(data), "--encoder", "pixels", "--encoder", clip, "--out", str(out)),
             *("--target-fpr", "0.5", "--recordings", "1", "--cache-dir", str(tmp_path / "cache")),
             *("--views", "front"),
         ],
     )
     assert result.exit_code == 0, result.output
-    entries = (out / "memory-pixels" / "entries.jsonl").read_text().splitlines()
-    assert entries and {json.loads(entry)["view"] for entry in entries} == {"front"}
+    for memory in ("memory-pixels", "memory-tinyvit-test"):
+        entries = (out / memory / "entries.jsonl").read_text().splitlines()
+        assert entries and {json.loads(entry)["view"] for entry in entries} == {"front"}
     (recording,) = (out / "recordings").glob("*.rrd")
     cameras = {path for path in entity_paths(recording) if path.startswith(f"{CAMERA_ROOT}/")}
     assert cameras == {camera("front")}
