@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -92,6 +93,13 @@ def test_a_layout_registered_by_its_module_alone_is_tried_in_its_order_read_and_
     empty.mkdir()
     with pytest.raises(DataError, match=r"\(12\) a folder of notes <root>/runs\.txt"):
         detect_layout(empty)
+    for clash, message in (
+        ({"listed": 12}, "the listed 12 of layout 'notes'"),
+        ({"detect_order": 65}, "the detect_order 65"),
+    ):
+        again = registry.Layout(name="notes_2", detect=bool, read=read, help="", listed=13, detect_order=66)
+        with pytest.raises(ValueError, match=message):  # never tried in the order its module happened to load
+            registry.register(replace(again, **clash))
 
 
 def test_every_module_of_the_package_is_imported_and_each_layout_registered_once() -> None:

@@ -38,7 +38,15 @@ _REGISTERED: list[Layout] = []
 
 
 def register(layout: Layout) -> Layout:
-    """Add a layout module's record to the registry (each module calls this once, at import)."""
+    """Add a layout module's record to the registry (each module calls this once, at import); a name, a number
+    in the error's list or a place in the detection order another layout has is a ValueError naming both (two
+    layouts at one place would be tried in whichever order their modules were imported)."""
+    for other in _REGISTERED:
+        for what in ("name", "listed", "detect_order"):
+            if getattr(other, what) == getattr(layout, what):
+                raise ValueError(
+                    f"layout {layout.name!r} has the {what} {getattr(layout, what)!r} of layout {other.name!r}"
+                )
     _REGISTERED.append(layout)
     return layout
 
