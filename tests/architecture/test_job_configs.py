@@ -228,7 +228,7 @@ def test_jobs_refuse_settings_their_values_cannot_take(tmp_path: Path) -> None:
 
 
 def _folds() -> typing.Any:
-    from robofailring.evaluation.job import FoldPlan
+    from robofailring.evaluation.folds import FoldPlan
 
     return FoldPlan.parse("loo")
 
