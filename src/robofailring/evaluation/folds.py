@@ -309,14 +309,7 @@ def _pool(
     """Add one fold's runs, judged by `calibration`'s rule at its threshold, to the pooled figures."""
     rule = calibration.rule
     scored = [
-        ScoredTrajectory(
-            key=trajectory.key,
-            task=trajectory.task,
-            symbol=trajectory.symbol,
-            is_failure=trajectory.is_failure,
-            length=trace.length,
-            similarity=trace.judged_scores_of(rule),
-        )
+        ScoredTrajectory.of(trajectory, trace.length, trace.judged_scores_of(rule))
         for trajectory, trace in traces
     ]
     counts = rates(scored, calibration.threshold)

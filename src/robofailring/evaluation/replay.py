@@ -83,18 +83,7 @@ def replay(
                 too_short.append(trajectory.key)
                 continue
             traces[trajectory.key] = trace
-            scored.append(
-                ScoredTrajectory(
-                    key=trajectory.key,
-                    task=trajectory.task,
-                    symbol=trajectory.symbol,
-                    is_failure=trajectory.is_failure,
-                    length=trace.length,
-                    similarity=trace.similarity,
-                    onset_frame=trajectory.onset_frame,
-                    fps=trajectory.frame_rate,
-                )
-            )
+            scored.append(ScoredTrajectory.of(trajectory, trace.length, trace.similarity))
     if not scored:
         raise SplitError(
             f"none of the {len(test)} test trajectories has a task in the memory ({sorted(known)})"
