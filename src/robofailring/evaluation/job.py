@@ -187,24 +187,24 @@ def run_evaluation(
     if found is not None:  # calibrated here: the test runs are judged on the bands fitted with the thresholds
         detector = detector_with(config.detector, memory, encoder, bands=thresholds.bands)
     replayed = replay(detector, test, stride=config.stride, place=place, desc=f"replaying {config.name}")
-    result = judge(replayed, thresholds, memory.vocabulary)
+    verdicts = judge(replayed, thresholds, memory.vocabulary)
     policy = config.threshold_policy
     return EvaluationResult(
         name=config.name,
         encoder=memory.encoder,
         memory=str(memory_dir),
         k=detector.k,
-        # no failure runs: the paper tables are empty
+        # δ, or the paper rule's default where the memory holds no failure (its tables are empty then)
         operating_delta=thresholds.values.get(PAPER, PAPER.default_threshold),
         calibrated=thresholds.calibrated.get(PAPER, False),
-        rules=result.rules,
-        modalities=result.modalities,
+        rules=verdicts.rules,
+        modalities=verdicts.modalities,
         target_fpr=policy.target_fpr if policy is not None else stored_target(memory),
         deployment_successes=config.deployment_successes,
         band=next((band.kind for band in detector.bands.values()), "none"),
         views=replayed.views,
         scored=replayed.scored,
-        traces=result.traces,
+        traces=verdicts.traces,
         skipped_unknown_task=replayed.unknown_task,
         latency_ms=measure_latency(detector, replayed.first),
         skipped_too_short=replayed.too_short,
@@ -214,7 +214,7 @@ def run_evaluation(
                     *splits.skipped,
                     *built,
                     *not_deployed,
-                    *result.skipped_inputs,
+                    *verdicts.skipped_inputs,
                 ]
             )
         ),
