@@ -35,10 +35,9 @@ from robofailring.data.selection import DataSelection
 from robofailring.detection.rules import default_rule
 from robofailring.encoders import default_cache_dir, encoder_slug, load_encoder
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
-from robofailring.evaluation.job import EvaluateConfig
+from robofailring.evaluation.job import EvaluateConfig, run_evaluation
 from robofailring.evaluation.per_rule import RuleResult, scored_by_rule
 from robofailring.evaluation.result import EvaluationResult
-from robofailring.evaluation.run import run_evaluation
 from robofailring.memory.recipe import MemoryRecipe
 
 

@@ -37,7 +37,7 @@ from collections import Counter
 from pathlib import Path
 import rfr_viz.panels.umap as umap_panel
 import robofailring.calibration.job as calibration
-import robofailring.evaluation.run as evaluation
+import robofailring.evaluation.job as evaluation
 from robofailring.detection.detector import FailureDetector
 from robofailring.memory.failure import FailureMemory
 

@@ -38,9 +38,9 @@ from robofailring.data.selection import DataSelection
 from robofailring.encoders import default_cache_dir, encoder_slug
 from robofailring.encoders.trained import CONFIG_NAME, prepare_images
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
-from robofailring.evaluation.job import EvaluateConfig, build_training_memory
+from robofailring.evaluation.job import EvaluateConfig, build_training_memory, run_evaluation
 from robofailring.evaluation.metrics import rates, timeliness
-from robofailring.evaluation.run import EvaluationResult, run_evaluation
+from robofailring.evaluation.result import EvaluationResult
 from robofailring.memory.recipe import MemoryRecipe
 
 

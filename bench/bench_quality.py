@@ -38,8 +38,9 @@ from robofailring.detection.config import Scoring
 from robofailring.encoders import default_cache_dir, encoder_slug, load_encoder
 from robofailring.encoders.placement import EncoderPlacement
 from robofailring.encoders.training import TrainEncoderConfig, train_encoder
-from robofailring.evaluation.job import EvaluateConfig
-from robofailring.evaluation.run import EvaluationResult, run_evaluation, write_evaluation
+from robofailring.evaluation.job import EvaluateConfig, run_evaluation
+from robofailring.evaluation.result import EvaluationResult
+from robofailring.evaluation.written import write_evaluation
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.recipe import MemoryRecipe
 from robofailring.memory.thinning import DEFAULT_STEP

@@ -185,8 +185,7 @@ def quality(threads: int, alpha: float, *, data: Path | None = None, encoder: st
 
     from bench.bench_quality import IMAGE_SIZE
     from robofailring.encoders.training import TrainEncoderConfig, train_encoder
-    from robofailring.evaluation.job import EvaluateConfig
-    from robofailring.evaluation.run import run_evaluation
+    from robofailring.evaluation.job import EvaluateConfig, run_evaluation
     from robofailring.memory.recipe import MemoryRecipe
     from robofailring.sim import GenerateConfig, simulate
 

@@ -31,13 +31,13 @@ from robofailring.data.selection import DataSelection
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.rules import CONTRAST
 from robofailring.encoders import default_cache_dir
+from robofailring.evaluation.deployment import deploy_successes
 from robofailring.evaluation.job import (
     EvaluateConfig,
     build_training_memory,
     evaluation_encoder,
     select_splits,
 )
-from robofailring.evaluation.run import _deploy_successes
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.recipe import MemoryRecipe
 
@@ -76,7 +76,7 @@ def dump_half(config: EvaluateConfig, ood_config: EvaluateConfig, half: str) -> 
     if ood_config is not None:
         ood = select_splits(ood_config).test
         runs += _runs(detector, ood, loo=False, cell=f"{half}/ood")
-        deployed, rest = _deploy_successes(memory, ood, 2, encoder, config.recipe.success_step)
+        deployed, rest, _ = deploy_successes(memory, ood, 2, encoder, config.recipe.success_step)
         again = FailureDetector(deployed, encoder, k=config.scoring.k)
         runs += _runs(again, calibration, loo=True, cell=f"{half}/cal+2")
         runs += _runs(again, rest, loo=False, cell=f"{half}/ood+2")

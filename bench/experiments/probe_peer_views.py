@@ -28,8 +28,8 @@ from robofailring.data.selection import DataSelection
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.rules import CONTRAST
 from robofailring.encoders import encoder_slug, load_encoder, open_encoder
+from robofailring.evaluation.deployment import deploy_successes
 from robofailring.evaluation.job import EvaluateConfig, select_splits
-from robofailring.evaluation.run import _deploy_successes
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.recipe import MemoryRecipe
 
@@ -64,7 +64,7 @@ def dump(spec: str, labels: Path, memory_dir: Path, out: Path) -> None:
     runs = _runs(detector, splits.train, loo=True, cell="train")
     runs += _runs(detector, splits.test, loo=False, cell="test")
     runs += _runs(detector, ood, loo=False, cell="ood")
-    deployed, rest = _deploy_successes(memory, ood, 2, encoder, base.recipe.success_step)
+    deployed, rest, _ = deploy_successes(memory, ood, 2, encoder, base.recipe.success_step)
     runs += _runs(FailureDetector(deployed, encoder, k=5), rest, loo=False, cell="ood+2")
     out.parent.mkdir(parents=True, exist_ok=True)
     meta = [{k: v for k, v in run.items() if k != "scores"} for run in runs]

@@ -110,8 +110,9 @@ def evaluate_cmd(
 ) -> None:
     """Every scoring rule side by side at one α, then the paper's tables: Recall/FPR sweep, T_s, per type and view."""
     from rfr_viz.jobs.evaluate import FoldsOutcome, evaluate
+    from robofailring.evaluation.folds import FoldPlan
     from robofailring.evaluation.growth import parse_growth
-    from robofailring.evaluation.job import EvaluateConfig, FoldPlan
+    from robofailring.evaluation.job import EvaluateConfig
 
     outcome = evaluate(
         EvaluateConfig(

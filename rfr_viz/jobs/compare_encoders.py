@@ -10,7 +10,7 @@ from rfr_viz.jobs.compare import CompareConfig, compare
 from rfr_viz.jobs.recorded import Recordings
 from robofailring.atomic import output_lock, remove_file_leftovers, write_text_atomic
 from robofailring.detection.config import DetectorConfig
-from robofailring.evaluation.run import EvaluationResult
+from robofailring.evaluation.result import EvaluationResult
 from robofailring.jobs.compare_encoders import CompareEncodersConfig, compare_encoders, comparison_table
 from robofailring.outputs import check_output_folder
 

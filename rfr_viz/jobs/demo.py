@@ -29,9 +29,10 @@ from robofailring.detection.rules import CONTRAST, PAPER, ScoringRule
 from robofailring.encoders import default_cache_dir
 from robofailring.encoders.placement import DEFAULT_PLACEMENT, EncoderPlacement
 from robofailring.encoders.training import TrainEncoderConfig
-from robofailring.evaluation.job import EvaluateConfig, build_training_memory
+from robofailring.evaluation.job import EvaluateConfig, build_training_memory, run_evaluation
 from robofailring.evaluation.per_rule import runs_below_top
-from robofailring.evaluation.run import EvaluationResult, run_evaluation, write_evaluation
+from robofailring.evaluation.result import EvaluationResult
+from robofailring.evaluation.written import write_evaluation
 from robofailring.jobs.compare_encoders import CompareEncodersConfig
 from robofailring.jobs.train_encoder import TrainEncoderJob, run_train_encoder
 from robofailring.memory.recipe import DEFAULT_ENCODER, DEFAULT_RECIPE, MemoryRecipe

@@ -11,15 +11,16 @@ from rfr_viz.recordings.evaluation import record_evaluation
 from rfr_viz.viewer.rrd import check_recording_file
 from robofailring.atomic import output_lock, remove_file_leftovers
 from robofailring.errors import SplitError
-from robofailring.evaluation.folds_alone import FoldsAlone, cross_validate_alone, write_folds_alone
-from robofailring.evaluation.job import EvaluateConfig
-from robofailring.evaluation.run import (
-    EvaluationResult,
+from robofailring.evaluation.folds_alone import FoldsAlone
+from robofailring.evaluation.job import (
+    EvaluateConfig,
     check_growth,
+    cross_validate_alone,
     growth_curve,
     run_evaluation,
-    write_evaluation,
 )
+from robofailring.evaluation.result import EvaluationResult
+from robofailring.evaluation.written import write_evaluation
 from robofailring.outputs import check_output_folder, check_own_files
 
 
@@ -99,6 +100,6 @@ def evaluate(config: EvaluateConfig, *, growth: tuple[int, ...] = ()) -> Evaluat
 
 
 def _folds_alone(result: FoldsAlone, out: Path) -> FoldsOutcome:
-    json_path, markdown_path = write_folds_alone(result, out)
+    json_path, markdown_path = write_evaluation(result, out)
     report = write_report([result.to_dict()], out / REPORT_NAME, markdown=[result.to_markdown()])
     return FoldsOutcome(result=result, json_path=json_path, markdown_path=markdown_path, report=report)

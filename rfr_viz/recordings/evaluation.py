@@ -11,7 +11,7 @@ from rfr_viz.charts.evaluation import Chart, evaluation_charts
 from rfr_viz.charts.to_rerun import chart_view, log_chart
 from rfr_viz.paths import EVAL_ROOT, EVAL_SUMMARY, EVALUATION_APPLICATION_ID
 from robofailring.atomic import atomic_path
-from robofailring.evaluation.run import EvaluationResult
+from robofailring.evaluation.result import EvaluationResult
 from robofailring.extras import needs_extra
 
 with needs_extra("viz"):

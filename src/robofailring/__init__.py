@@ -47,8 +47,7 @@ if TYPE_CHECKING:
     from robofailring.detection.trace import DetectionTrace
     from robofailring.encoders import CachedEncoder, Encoder, default_cache_dir, load_encoder, open_encoder
     from robofailring.encoders.placement import EncoderPlacement
-    from robofailring.evaluation.job import EvaluateConfig
-    from robofailring.evaluation.run import run_evaluation
+    from robofailring.evaluation.job import EvaluateConfig, run_evaluation
     from robofailring.explain.report import FailureReport, VLMClient
     from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
     from robofailring.jobs.compare_encoders import CompareEncodersConfig, compare_encoders, comparison_table
@@ -120,7 +119,7 @@ _LAZY = {  # name -> (module, attribute), imported on first use (the simulator's
     "open_encoder": ("robofailring.encoders", "open_encoder"),
     "parse_symbol": ("robofailring.data.grounding", "parse_symbol"),
     "rule_named": ("robofailring.detection.rules", "rule_named"),
-    "run_evaluation": ("robofailring.evaluation.run", "run_evaluation"),
+    "run_evaluation": ("robofailring.evaluation.job", "run_evaluation"),
     "smallest_target_fpr": ("robofailring.calibration.conformal", "smallest_target_fpr"),
     "GenerateConfig": ("robofailring.sim", "GenerateConfig"),
     "generate_dataset": ("robofailring.sim", "generate_dataset"),

@@ -8,11 +8,13 @@ record, `Recordings`): each is checked once, where it is made, and a job holds i
 values that apply to it, so none refuses a setting of a value it holds.
 
 A verb's job module (docs/architecture.md, "The one command line"): in the library, `robofailring/jobs/<verb>.py` for a verb that joins packages, or
-`robofailring/<package>/job.py` for a verb that is one package's work (its modules take the config, and
+`robofailring/<package>/job.py` for a verb that is one package's work (its modules take values it hands them, and
 nothing below `jobs` may import `jobs`); in rfr_viz, `rfr_viz/jobs/<verb>.py`, which holds a config only the
-recordings need and runs the verb, recording what the library's job gives. The verb -> config -> run map is
-read from the command itself (each verb's body: the config class it builds and the job function it hands it
-to), so a new verb is checked without a line here.
+recordings need and runs the verb, recording what the library's job gives, and hands a library config only to
+the functions of its job module. A package's `job.py` is the top of its package: no other module of it imports
+the job, so none takes its config. The verb -> config -> run map is read from the command itself (each verb's
+body: the config class it builds and the job function it hands it to), so a new verb is checked without a line
+here.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ import ast
 import dataclasses
 import importlib
 import inspect
+import sys
 import textwrap
 import typing
 from collections.abc import Callable
@@ -228,7 +231,7 @@ def test_jobs_refuse_settings_their_values_cannot_take(tmp_path: Path) -> None:
 
 
 def _folds() -> typing.Any:
-    from robofailring.evaluation.job import FoldPlan
+    from robofailring.evaluation.folds import FoldPlan
 
     return FoldPlan.parse("loo")
 
@@ -251,7 +254,8 @@ def test_the_verbs_are_read_from_the_command() -> None:
 @pytest.mark.parametrize("verb", sorted(v for v, job in VERB_JOBS.items() if job is not None))
 def test_a_verbs_config_lives_in_its_job_module(verb: str) -> None:
     """`<verb>`'s config in `jobs/<verb>.py` (library or rfr_viz) or its package's `job.py`; its run beside it,
-    or in `rfr_viz/jobs/<verb>.py` where the verb records."""
+    or in `rfr_viz/jobs/<verb>.py` where the verb records (over the library functions beside the config: the
+    next test)."""
     job = VERB_JOBS[verb]
     assert job is not None
     home = job.config.__module__
@@ -261,6 +265,113 @@ def test_a_verbs_config_lives_in_its_job_module(verb: str) -> None:
     assert job.run.__module__ in {home, f"rfr_viz.jobs.{verb.replace('-', '_')}"}, (
         f"{verb}: its run {job.run.__name__} lives in {job.run.__module__}, away from its config in {home}"
     )
+
+
+def handed_the_config(job: VerbJob) -> dict[str, Callable[..., Any]]:
+    """The functions of other modules that `job`'s run module (`rfr_viz/jobs/<verb>.py`) hands the verb's config
+    to: in any of its functions, a call with a parameter annotated with the config's class among its arguments."""
+    module = sys.modules[job.run.__module__]
+    tree = ast.parse(inspect.getsource(module))
+    handed: dict[str, Callable[..., Any]] = {}
+    for function in (node for node in ast.walk(tree) if isinstance(node, ast.FunctionDef)):
+        arguments = function.args
+        holding = {
+            argument.arg
+            for argument in [*arguments.posonlyargs, *arguments.args, *arguments.kwonlyargs]
+            if isinstance(argument.annotation, ast.Name | ast.Constant)
+            and ast.unparse(argument.annotation).strip("'\"") == job.config.__name__
+        }
+        for call in (node for node in ast.walk(function) if isinstance(node, ast.Call)):
+            passed = [*call.args, *(keyword.value for keyword in call.keywords)]
+            if not isinstance(call.func, ast.Name) or not any(
+                isinstance(value, ast.Name) and value.id in holding for value in passed
+            ):
+                continue
+            called = getattr(module, call.func.id, None)
+            if inspect.isfunction(called) and called.__module__ != module.__name__:
+                handed[call.func.id] = called
+    return handed
+
+
+RECORDING_RUNS = sorted(
+    verb
+    for verb, job in VERB_JOBS.items()
+    if job is not None
+    and job.run.__module__ == f"rfr_viz.jobs.{verb.replace('-', '_')}"
+    and job.config.__module__.startswith("robofailring.")
+)
+
+
+@pytest.mark.parametrize("verb", RECORDING_RUNS)
+def test_a_recording_verb_hands_its_config_only_to_its_job_module(verb: str) -> None:
+    """Where `rfr_viz/jobs/<verb>.py` runs a verb whose config is the library's, every function of another
+    module it hands the config to lives beside the config: the library's run of the verb is in its job module
+    too (evaluate's `run_evaluation`, `growth_curve`, `cross_validate_alone` in `evaluation/job.py`)."""
+    job = VERB_JOBS[verb]
+    assert job is not None
+    handed = handed_the_config(job)
+    assert handed, f"{verb}: {job.run.__name__} hands {job.config.__name__} to no library function"
+    away = {name: function.__module__ for name, function in handed.items()}
+    assert {name: home for name, home in away.items() if home != job.config.__module__} == {}, (
+        f"{verb}: its config lives in {job.config.__module__}"
+    )
+
+
+def test_the_recording_verbs_over_a_library_job_are_found() -> None:
+    assert RECORDING_RUNS == ["compare-encoders", "evaluate", "triage"]
+    evaluate = VERB_JOBS["evaluate"]
+    assert evaluate is not None
+    assert set(handed_the_config(evaluate)) == {
+        "check_growth",
+        "run_evaluation",
+        "cross_validate_alone",
+        "growth_curve",
+    }
+
+
+LIBRARY = Path(__file__).resolve().parents[2] / "src" / "robofailring"
+PACKAGE_JOBS = sorted(path.parent.name for path in LIBRARY.glob("*/job.py"))
+
+
+def _imports(path: Path) -> set[str]:
+    """The modules `path` (a module of the library) imports, anywhere in it (inside functions and
+    `if TYPE_CHECKING:` too); `from robofailring.<package> import name` is the package itself unless `name` is
+    one of its modules."""
+    parts = ["robofailring", *path.relative_to(LIBRARY).with_suffix("").parts]
+    imported: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            imported.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = (
+                ".".join([*parts[: -node.level], *filter(None, [node.module])]) if node.level else node.module
+            )
+            assert base is not None
+            for alias in node.names:
+                inside = LIBRARY.joinpath(*base.split(".")[1:], alias.name)
+                below = inside.with_suffix(".py").exists() or (inside / "__init__.py").exists()
+                imported.add(f"{base}.{alias.name}" if below else base)
+    return imported
+
+
+@pytest.mark.parametrize("package", PACKAGE_JOBS)
+def test_a_package_job_module_is_the_top_of_its_package(package: str) -> None:
+    """No module of `robofailring.<package>` imports its `job.py` (or the package, whose `__init__` may re-export
+    the job) but that `__init__`: the package's modules take values, never the job's config, and no import
+    circle holds the job's run away from its config (issue 53)."""
+    job, itself = f"robofailring.{package}.job", f"robofailring.{package}"
+    importing = sorted(
+        str(path.relative_to(LIBRARY))
+        for path in (LIBRARY / package).rglob("*.py")
+        if path.name != "job.py"
+        and path != LIBRARY / package / "__init__.py"
+        and _imports(path) & {job, itself}
+    )
+    assert importing == []
+
+
+def test_every_package_job_module_is_checked() -> None:
+    assert PACKAGE_JOBS == ["calibration", "evaluation", "sim", "triage"]
 
 
 def test_a_package_job_module_is_one_verbs() -> None:
@@ -308,6 +419,4 @@ def test_no_job_refuses_a_detector_setting_at_run_time() -> None:
 
 
 def _module(job: type) -> typing.Any:
-    import sys
-
     return sys.modules[job.__module__]

@@ -242,8 +242,8 @@ def test_a_memory_with_both_kinds_of_task_judges_each_by_its_own_default(tmp_pat
 
 @pytest.mark.slow  # an end-to-end run of every verb: the full lane
 def test_an_evaluation_grows_from_success_runs_only_to_labelled_failures(tmp_path: Path) -> None:
-    from robofailring.evaluation.job import EvaluateConfig, labelled_failures
-    from robofailring.evaluation.run import run_evaluation
+    from robofailring.evaluation.growth import labelled_failures
+    from robofailring.evaluation.job import EvaluateConfig, run_evaluation
 
     data = write_project_dataset(tmp_path / "data", episodes=4)
     train = load_dataset(data).select(split="train")

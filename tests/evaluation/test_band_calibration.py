@@ -21,8 +21,7 @@ from robofailring.detection.band import NONE, NORM, SHIFT
 from robofailring.detection.config import DetectorConfig
 from robofailring.detection.rules import CONTRAST, NOVELTY, PAPER
 from robofailring.encoders.placement import EncoderPlacement
-from robofailring.evaluation.job import EvaluateConfig
-from robofailring.evaluation.run import run_evaluation
+from robofailring.evaluation.job import EvaluateConfig, run_evaluation
 from robofailring.jobs.detect import DetectConfig, run_detect
 from robofailring.memory.recipe import MemoryRecipe
 

@@ -10,7 +10,7 @@ from synthetic import write_project_dataset
 
 from robofailring import CachedEncoder, FailureDetector, load_dataset, load_encoder
 from robofailring.errors import SettingError
-from robofailring.evaluation.run import _deploy_successes
+from robofailring.evaluation.deployment import deploy_successes
 from robofailring.memory.builder import Provenance, build_memories
 from robofailring.memory.thinning import DEFAULT_STEP
 
@@ -37,7 +37,7 @@ def test_deployment_successes_join_the_signal_memory_too(dataset: Path, tmp_path
     assert memory.signals is not None
     before = memory.signals.task("pick_cube")
     assert before is not None
-    deployed, left, not_joined = _deploy_successes(memory, test, 1, encoder, DEFAULT_STEP)
+    deployed, left, not_joined = deploy_successes(memory, test, 1, encoder, DEFAULT_STEP)
     (moved,) = [t for t in test if t.key not in {r.key for r in left}]
     assert not moved.is_failure
     assert deployed.signals is not None
@@ -57,7 +57,7 @@ def test_deployment_successes_join_the_camera_success_memory(dataset: Path, tmp_
     train, test = loaded.select(split="train"), loaded.select(split="test")
     memory, _ = build_memories(train, encoder, provenance=Provenance(data=dataset, encoder="pixels"))
     assert memory.successes is not None
-    deployed, left, _ = _deploy_successes(memory, test, 1, encoder, DEFAULT_STEP)
+    deployed, left, _ = deploy_successes(memory, test, 1, encoder, DEFAULT_STEP)
     (moved,) = [t for t in test if t.key not in {r.key for r in left}]
     views = {(moved.episode, view) for view in moved.views}
     assert deployed.successes is not None and len(views) == 3
@@ -111,4 +111,4 @@ def test_deployment_successes_without_a_success_memory_are_refused(dataset: Path
         train, encoder, provenance=Provenance(data=dataset, encoder="pixels"), successes=False
     )
     with pytest.raises(SettingError, match="no success memory for them to join"):
-        _deploy_successes(memory, test, 1, encoder, DEFAULT_STEP)
+        deploy_successes(memory, test, 1, encoder, DEFAULT_STEP)

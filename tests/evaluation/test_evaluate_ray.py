@@ -12,8 +12,7 @@ from synthetic import write_project_dataset
 from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
 from robofailring.encoders.placement import EncoderPlacement
-from robofailring.evaluation.job import EvaluateConfig
-from robofailring.evaluation.run import run_evaluation
+from robofailring.evaluation.job import EvaluateConfig, run_evaluation
 
 
 @pytest.mark.slow  # a Ray cluster (session fixture) and three Ray Data passes

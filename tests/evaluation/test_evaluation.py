@@ -21,8 +21,9 @@ from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
 from robofailring.encoders.placement import EncoderPlacement
 from robofailring.errors import SettingError
-from robofailring.evaluation.job import EvaluateConfig, check_disjoint, select_splits
-from robofailring.evaluation.run import run_evaluation, write_evaluation
+from robofailring.evaluation.job import EvaluateConfig, run_evaluation, select_splits
+from robofailring.evaluation.splits import check_disjoint
+from robofailring.evaluation.written import write_evaluation
 from robofailring.memory.builder import Provenance, build_memories
 from robofailring.memory.recipe import MemoryRecipe
 

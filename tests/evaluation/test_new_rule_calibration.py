@@ -26,8 +26,8 @@ from robofailring.data.selection import DataSelection
 from robofailring.detection.config import DetectorConfig
 from robofailring.detection.rules import RULES, ScoringRule
 from robofailring.encoders.placement import EncoderPlacement
-from robofailring.evaluation.job import EvaluateConfig
-from robofailring.evaluation.run import run_evaluation, write_evaluation
+from robofailring.evaluation.job import EvaluateConfig, run_evaluation
+from robofailring.evaluation.written import write_evaluation
 from robofailring.jobs.build_memory import BuildMemoryConfig, build_memory
 from robofailring.memory.recipe import MemoryRecipe
 

@@ -13,9 +13,9 @@ from test_metrics import scored
 from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.selection import DataSelection
 from robofailring.encoders.placement import EncoderPlacement
-from robofailring.evaluation.job import EvaluateConfig
+from robofailring.evaluation.job import EvaluateConfig, run_evaluation
 from robofailring.evaluation.onset import onset_delay
-from robofailring.evaluation.run import run_evaluation, write_evaluation
+from robofailring.evaluation.written import write_evaluation
 from robofailring.memory.recipe import MemoryRecipe
 
 

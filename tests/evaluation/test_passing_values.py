@@ -16,8 +16,7 @@ from robofailring.detection.detector import Place
 from robofailring.detection.loader import detector_from
 from robofailring.encoders.placement import EncoderPlacement
 from robofailring.errors import SettingError
-from robofailring.evaluation.job import EvaluateConfig, build_training_memory
-from robofailring.evaluation.run import run_evaluation
+from robofailring.evaluation.job import EvaluateConfig, build_training_memory, run_evaluation
 from robofailring.jobs.compare_encoders import CompareEncodersConfig, compare_encoders
 
 

@@ -23,9 +23,9 @@ from robofailring.data.selection import DataSelection
 from robofailring.detection.rules import PAPER
 from robofailring.encoders.placement import EncoderPlacement
 from robofailring.errors import DataError, SettingError
-from robofailring.evaluation.folds import assign_folds
-from robofailring.evaluation.job import EvaluateConfig, FoldPlan, select_splits
-from robofailring.evaluation.run import run_evaluation, write_evaluation
+from robofailring.evaluation.folds import FoldPlan, assign_folds
+from robofailring.evaluation.job import EvaluateConfig, run_evaluation, select_splits
+from robofailring.evaluation.written import write_evaluation
 from robofailring.memory.builder import Provenance, build_memories
 
 RUNS = 14  # 7 failures, 7 successes, one task

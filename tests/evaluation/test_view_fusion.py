@@ -38,8 +38,7 @@ from robofailring.data.selection import DataSelection
 from robofailring.detection.band import SHIFT, Band
 from robofailring.detection.rules import CONTRAST, PAPER
 from robofailring.encoders.placement import EncoderPlacement
-from robofailring.evaluation.job import EvaluateConfig
-from robofailring.evaluation.run import run_evaluation
+from robofailring.evaluation.job import EvaluateConfig, run_evaluation
 
 ALPHA = 0.1  # 12 calibration runs allow α ≥ 1/13
 

@@ -192,8 +192,8 @@ def test_explain_without_a_detection_or_a_report(pixels_memory_dir: Path, tmp_pa
 def test_review_puts_the_answer_into_each_false_alarm(tmp_path: Path) -> None:
     from synthetic import write_project_dataset
 
-    from robofailring.evaluation.job import EvaluateConfig
-    from robofailring.evaluation.run import run_evaluation, write_evaluation
+    from robofailring.evaluation.job import EvaluateConfig, run_evaluation
+    from robofailring.evaluation.written import write_evaluation
 
     data = write_project_dataset(tmp_path / "data")
     result = run_evaluation(

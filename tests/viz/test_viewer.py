@@ -29,8 +29,7 @@ from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.model import Trajectory
 from robofailring.data.selection import DataSelection
 from robofailring.encoders.placement import EncoderPlacement
-from robofailring.evaluation.job import EvaluateConfig
-from robofailring.evaluation.run import run_evaluation
+from robofailring.evaluation.job import EvaluateConfig, run_evaluation
 
 pytestmark = pytest.mark.viewer
 

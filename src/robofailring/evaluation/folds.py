@@ -8,21 +8,53 @@ from __future__ import annotations
 import hashlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Final
 
 from robofailring.calibration.conformal import AUC_LEVEL, auc, auc_interval, runs_text, successes_needed
 from robofailring.calibration.job import RuleCalibration, available_rules, calibrate_rules
+from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.model import Trajectory
+from robofailring.data.selection import DataSelection
+from robofailring.detection.config import DetectorConfig
 from robofailring.detection.detector import DetectionTrace, FailureDetector
 from robofailring.detection.loader import detector_with
 from robofailring.detection.rules import RULES, ScoringRule
 from robofailring.encoders import CachedEncoder
-from robofailring.errors import DataError
-from robofailring.evaluation.job import EvaluateConfig, FoldPlan
+from robofailring.errors import DataError, SettingError
 from robofailring.evaluation.metrics import ConfusionRates, ScoredTrajectory, json_number, rates
 from robofailring.evaluation.per_rule import auc_cell, pct, peaks
 from robofailring.memory.builder import Provenance, build_memories
+from robofailring.memory.recipe import MemoryRecipe
 from robofailring.progress import progress_bar
+
+#: `--folds loo`: one fold per episode.
+LEAVE_ONE_OUT: Final[str] = "loo"
+
+
+@dataclass(frozen=True)
+class FoldPlan:
+    """How `evaluate --folds` cuts every labelled run of its data into folds."""
+
+    count: int | None  # folds (≥ 2); None: one per episode (leave-one-episode-out)
+
+    @classmethod
+    def parse(cls, text: str) -> FoldPlan:
+        """`loo` or a whole number ≥ 2; SettingError otherwise."""
+        cleaned = text.strip().lower()
+        if cleaned == LEAVE_ONE_OUT:
+            return cls(None)
+        if not cleaned.isdecimal() or int(cleaned) < 2:
+            raise SettingError(f"--folds takes {LEAVE_ONE_OUT} or a whole number ≥ 2, got {text!r}")
+        return cls(int(cleaned))
+
+    def describe(self, folds: int) -> str:
+        """In words, with the number of folds it gave."""
+        if self.count is None:
+            return f"leave-one-episode-out: {folds} folds of one run"
+        return f"{folds} folds, failures and successes dealt evenly"
+
+    def to_json(self) -> str | int:
+        return LEAVE_ONE_OUT if self.count is None else self.count
 
 
 @dataclass
@@ -182,15 +214,23 @@ def assign_folds(runs: Sequence[Trajectory], plan: FoldPlan) -> list[list[Trajec
 
 
 def cross_validate(
-    config: EvaluateConfig, trajectories: Sequence[Trajectory], encoder: CachedEncoder
+    trajectories: Sequence[Trajectory],
+    encoder: CachedEncoder,
+    *,
+    plan: FoldPlan,
+    data: DataSelection,
+    recipe: MemoryRecipe,
+    success_memory: bool,
+    detector: DetectorConfig,
+    policy: ThresholdPolicy,
+    stride: int,
 ) -> CrossValidation:
-    """Every labelled run of `trajectories` (the whole of `config.data`) judged by a memory of the other
-    folds, with `config`'s memory settings, rules and band; pooled."""
-    policy = config.threshold_policy
-    assert config.folds is not None and policy is not None  # EvaluateConfig checks both
+    """Every labelled run of `trajectories` (the whole of `data`) judged by a memory of the other folds of
+    `plan` (made by `recipe`, with a success memory where `success_memory`), its rules on `detector`'s settings
+    at thresholds `policy` sets on those folds' successes; pooled."""
     runs = [t for t in trajectories if t.outcome is not None]
-    folds = assign_folds(runs, config.folds)
-    vocabulary = config.data.read_vocabulary()
+    folds = assign_folds(runs, plan)
+    vocabulary = data.read_vocabulary()
     pooled: dict[str, PooledRule] = {}
     not_judged: dict[str, str] = {}
     with progress_bar(total=len(folds), desc="cross-validating", unit="fold") as bar:
@@ -200,30 +240,30 @@ def cross_validate(
             memory, _ = build_memories(
                 others,
                 encoder,
-                provenance=Provenance(data=config.data.root, encoder=config.recipe.encoder),
-                successes=config.success_memory,
-                recipe=config.recipe,
+                provenance=Provenance(data=data.root, encoder=recipe.encoder),
+                successes=success_memory,
+                recipe=recipe,
                 vocabulary=vocabulary,
             )
-            detector = detector_with(config.detector, memory, encoder)
-            rules = available_rules(detector)
+            judging = detector_with(detector, memory, encoder)
+            rules = available_rules(judging)
             known = set(memory.tasks)
             successes = [t for t in others if not t.is_failure and t.task in known]
             found: dict[ScoringRule, RuleCalibration] = (
                 calibrate_rules(
-                    detector,
+                    judging,
                     successes,
                     policy,
                     rules=rules,
-                    stride=config.stride,
+                    stride=stride,
                     at_best=True,
                 )
                 if successes
                 else {}
             )
             bands = {rule.name: c.band for rule, c in found.items() if c.band is not None}
-            detector = detector_with(config.detector, memory, encoder, bands=bands)
-            traces = _judge(detector, held_out, known, config.stride, not_judged)
+            judging = detector_with(detector, memory, encoder, bands=bands)
+            traces = _judge(judging, held_out, known, stride, not_judged)
             for rule in rules:
                 into = pooled.setdefault(rule.name, PooledRule(rule))
                 calibration = found.get(rule)
@@ -232,7 +272,7 @@ def cross_validate(
                     continue
                 _pool(into, calibration, traces)
     return CrossValidation(
-        plan=config.folds,
+        plan=plan,
         folds=len(folds),
         target_fpr=policy.target_fpr,
         failures=sum(t.is_failure for t in runs),
@@ -269,14 +309,7 @@ def _pool(
     """Add one fold's runs, judged by `calibration`'s rule at its threshold, to the pooled figures."""
     rule = calibration.rule
     scored = [
-        ScoredTrajectory(
-            key=trajectory.key,
-            task=trajectory.task,
-            symbol=trajectory.symbol,
-            is_failure=trajectory.is_failure,
-            length=trace.length,
-            similarity=trace.judged_scores_of(rule),
-        )
+        ScoredTrajectory.of(trajectory, trace.length, trace.judged_scores_of(rule))
         for trajectory, trace in traces
     ]
     counts = rates(scored, calibration.threshold)

@@ -1,14 +1,17 @@
 """The learning curve of an evaluation (`evaluate --growth 0,1,2,4`): the same test set judged as the
 memory grows from the task's success runs alone (novelty) to 1, 2, 4, … labelled failures per task
-and all of them (contrast), each level by its tasks' default rule at the same α. The evaluations
-themselves are run by `robofailring.evaluation.run.growth_curve`."""
+and all of them (contrast), each level by its tasks' default rule at the same α; the few labelled failures a
+level's memory holds (`labelled_failures`). The evaluations themselves are run by
+`robofailring.evaluation.job.growth_curve`."""
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from robofailring.data.model import Trajectory
 from robofailring.detection.rules import default_rule
 from robofailring.errors import SettingError
 from robofailring.evaluation.metrics import json_number
@@ -50,6 +53,24 @@ def parse_growth(text: str) -> tuple[int, ...]:
             )
         levels.append(int(part))
     return tuple(sorted(set(levels)))
+
+
+def labelled_failures(trajectories: Sequence[Trajectory], per_task: int | None) -> list[Trajectory]:
+    """The success runs and `per_task` failure runs of each task (None: all of them), the failures
+    in a fixed pseudo-random order (a hash of their key), so the few that are labelled are of mixed types."""
+    if per_task is None:
+        return list(trajectories)
+    kept: dict[str, int] = {}
+    chosen = []
+    for trajectory in sorted(
+        trajectories, key=lambda t: hashlib.blake2b(t.key.encode(), digest_size=8).digest()
+    ):
+        if trajectory.is_failure:
+            if kept.get(trajectory.task, 0) >= per_task:
+                continue
+            kept[trajectory.task] = kept.get(trajectory.task, 0) + 1
+        chosen.append(trajectory)
+    return chosen
 
 
 def judged(rules: dict[str, RuleResult], *, failures: bool) -> RuleResult:

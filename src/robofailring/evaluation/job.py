@@ -1,22 +1,20 @@
-"""The evaluate job's config (`EvaluateConfig`, with its `FoldPlan`) and the steps of the job that read it: what
-an evaluation learns from and tests on (the training and test splits, disjoint by construction and checked) and
-the memory built from the training split. Its run, `run_evaluation` (`evaluation/run.py`), sits above the
-modules that take this config too (`folds.py`, `folds_alone.py`), which the layers' no-circle rule keeps below it."""
+"""The evaluate job: its config (`EvaluateConfig`) and its run (`run_evaluation`, the paper's evaluation, §4:
+a memory from the training failures, every test run replayed once, every rule judged at its threshold), with the
+steps that read the config (the splits, the memory built from the training split, the learning curve, the
+cross-validation). The modules below take the values they need, never this config: the splits and their
+disjointness check (`splits.py`), the deployment protocol (`deployment.py`), the thresholds (`thresholds.py`),
+the replay (`replay.py`), the folds (`folds.py`) and the learning curve's levels (`growth.py`)."""
 
 from __future__ import annotations
 
-import hashlib
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Final
 
+from robofailring.calibration.job import available_rules
 from robofailring.calibration.policy import DEFAULT_POLICY, ThresholdPolicy
-from robofailring.data.grounding import Vocabulary
-from robofailring.data.layouts import Dataset
 from robofailring.data.model import Skipped, Trajectory
 from robofailring.data.selection import DataSelection
-from robofailring.data.splits import split_of
 from robofailring.detection.config import (
     DEFAULT_SCORING,
     DEFAULT_STRIDE,
@@ -24,45 +22,27 @@ from robofailring.detection.config import (
     Scoring,
     check_stride,
 )
+from robofailring.detection.detector import FailureDetector
+from robofailring.detection.loader import detector_with
 from robofailring.detection.rules import PAPER
 from robofailring.encoders import CachedEncoder
 from robofailring.encoders.placement import DEFAULT_PLACEMENT, EncoderPlacement
-from robofailring.errors import RoboFailRingError, SettingError, SplitError
+from robofailring.errors import SettingError, SplitError
+from robofailring.evaluation.deployment import deploy_successes, deployed_runs
+from robofailring.evaluation.folds import CrossValidation, FoldPlan, cross_validate
+from robofailring.evaluation.folds_alone import FoldsAlone
+from robofailring.evaluation.growth import GrowthPoint, judged, labelled_failures
+from robofailring.evaluation.latency import measure_latency
 from robofailring.evaluation.metrics import PAPER_DELTAS
+from robofailring.evaluation.replay import PlaceFor, judge, prefetch_runs, replay
+from robofailring.evaluation.result import EvaluationResult
+from robofailring.evaluation.splits import Splits, check_disjoint, load_labelled, split_data
+from robofailring.evaluation.thresholds import evaluation_thresholds, stored_target
+from robofailring.evaluation.written import write_evaluation
 from robofailring.memory.builder import Provenance, build_memories
 from robofailring.memory.failure import FailureMemory
 from robofailring.memory.recipe import DEFAULT_RECIPE, MemoryRecipe
-from robofailring.memory.references import absolute_reference
 from robofailring.outputs import check_file_stem
-
-#: `--folds loo`: one fold per episode.
-LEAVE_ONE_OUT: Final[str] = "loo"
-
-
-@dataclass(frozen=True)
-class FoldPlan:
-    """How `evaluate --folds` cuts every labelled run of its data into folds."""
-
-    count: int | None  # folds (≥ 2); None: one per episode (leave-one-episode-out)
-
-    @classmethod
-    def parse(cls, text: str) -> FoldPlan:
-        """`loo` or a whole number ≥ 2; SettingError otherwise."""
-        cleaned = text.strip().lower()
-        if cleaned == LEAVE_ONE_OUT:
-            return cls(None)
-        if not cleaned.isdecimal() or int(cleaned) < 2:
-            raise SettingError(f"--folds takes {LEAVE_ONE_OUT} or a whole number ≥ 2, got {text!r}")
-        return cls(int(cleaned))
-
-    def describe(self, folds: int) -> str:
-        """In words, with the number of folds it gave."""
-        if self.count is None:
-            return f"leave-one-episode-out: {folds} folds of one run"
-        return f"{folds} folds, failures and successes dealt evenly"
-
-    def to_json(self) -> str | int:
-        return LEAVE_ONE_OUT if self.count is None else self.count
 
 
 @dataclass(frozen=True)
@@ -121,67 +101,15 @@ class EvaluateConfig:
         return DetectorConfig(memory=self.memory, scoring=self.scoring, placement=self.placement)
 
 
-@dataclass(frozen=True)
-class Splits:
-    """The training and test trajectories of an evaluation, and the dataset the training ones come from."""
-
-    train: list[Trajectory]
-    test: list[Trajectory]
-    dataset: Dataset  # `config.data`: the training split's dataset
-    skipped: list[Skipped]  # what the loaders of the training and test datasets did not read
-
-
-def load_labelled(
-    data: DataSelection, *, vocabulary: Vocabulary | None = None
-) -> tuple[Dataset, list[Trajectory], list[Skipped]]:
-    """A dataset of the evaluation as its selection reads it (`vocabulary`: the training data's, which its
-    labels are read by), its runs with an outcome, and what was not used (an unlabelled run is never taken
-    for a success)."""
-    loaded = data.load(vocabulary=vocabulary)
-    return loaded, *loaded.judged("evaluate")
-
-
 def select_splits(config: EvaluateConfig) -> Splits:
     """The training and test trajectories, disjoint by construction and checked."""
-    vocabulary = config.data.read_vocabulary()
-    dataset, source, skipped = load_labelled(config.data, vocabulary=vocabulary)
-    has_splits = any(t.split for t in source)
-
-    def of_split(split: str) -> list[Trajectory]:
-        return [
-            t
-            for t in source
-            if split_of(t, has_splits=has_splits, test_fraction=config.test_fraction) == split
-        ]
-
-    train = of_split(config.train_split)
-    if config.test_data is None:
-        test = of_split(config.test_split)
-    else:
-        _, other, other_skipped = load_labelled(config.test_data, vocabulary=vocabulary)
-        skipped += other_skipped
-        other_has_splits = any(t.split for t in other)
-        test = [t for t in other if not other_has_splits or t.split == config.test_split]
-    if not test:
-        tested = config.test_data.root if config.test_data is not None else config.data.root
-        raise SplitError(f"no test trajectories (split {config.test_split!r}) in {tested}")
-    return Splits(train=train, test=test, dataset=dataset, skipped=skipped)
-
-
-def check_disjoint(memory: FailureMemory, test: Sequence[Trajectory]) -> None:
-    """No trajectory may be both in the memory and in the test set (compared by its image files)."""
-    in_memory = {absolute_reference(ref) for entry in memory.entries for ref in (entry.start, entry.end)}
-    for trajectory in test:
-        for frames in trajectory.views.values():
-            if (
-                frames
-                and {absolute_reference(frames[0].reference), absolute_reference(frames[-1].reference)}
-                & in_memory
-            ):
-                raise RoboFailRingError(
-                    f"test trajectory {trajectory.key} ({trajectory.source}) is also in the memory; "
-                    "evaluate on a split the memory was not built from"
-                )
+    return split_data(
+        config.data,
+        config.test_data,
+        train_split=config.train_split,
+        test_split=config.test_split,
+        test_fraction=config.test_fraction,
+    )
 
 
 def evaluation_encoder(config: EvaluateConfig) -> CachedEncoder:
@@ -220,19 +148,170 @@ def build_training_memory(
     return memory_dir, stats.skipped_inputs
 
 
-def labelled_failures(trajectories: Sequence[Trajectory], per_task: int | None) -> list[Trajectory]:
-    """The success runs and `per_task` failure runs of each task (None: all of them), the failures
-    in a fixed pseudo-random order (a hash of their key), so the few that are labelled are of mixed types."""
-    if per_task is None:
-        return list(trajectories)
-    kept: dict[str, int] = {}
-    chosen = []
-    for trajectory in sorted(
-        trajectories, key=lambda t: hashlib.blake2b(t.key.encode(), digest_size=8).digest()
-    ):
-        if trajectory.is_failure:
-            if kept.get(trajectory.task, 0) >= per_task:
-                continue
-            kept[trajectory.task] = kept.get(trajectory.task, 0) + 1
-        chosen.append(trajectory)
-    return chosen
+def run_evaluation(
+    config: EvaluateConfig, *, detector: FailureDetector | None = None, place: PlaceFor | None = None
+) -> EvaluationResult:
+    """Build (or load) the memory, replay every test trajectory once, and measure everything.
+
+    `detector`: a detector on a memory built and loaded already (its memory and encoder are used, not
+    `config`'s; its thresholds are the evaluation's own), so a job that holds one does not load it again.
+    The result keeps every test trajectory's trace (`EvaluationResult.traces`), for recordings to reuse;
+    `place(task)` is the `place` hook its runs are scored with (`FailureDetector.run`), so a recording of
+    one needs no second scoring to draw its queries on a map."""
+    splits = select_splits(config)
+    train, test = splits.train, splits.test
+    built: list[Skipped] = []  # what building the training memory did not use (blank frames, signals)
+    if detector is None:
+        detector, memory_dir, built = _training_detector(config, splits)
+    else:
+        read_from = detector.memory.read_from
+        memory_dir = read_from[0] if read_from is not None else config.detector.memory_dir
+    memory, encoder = detector.memory, detector.encoder
+    check_disjoint(memory, test)
+    calibrating = train if config.threshold_policy is not None else []
+    prefetch_runs(encoder, test, calibrating, known=set(memory.tasks), stride=config.stride)
+    deployed, test, not_deployed = deploy_successes(
+        memory, test, config.deployment_successes, encoder, config.recipe.success_step
+    )
+    if deployed is not memory:
+        memory, detector = deployed, detector_with(config.detector, deployed, encoder)
+    thresholds = evaluation_thresholds(
+        detector,
+        train,
+        config.threshold_policy,
+        stride=config.stride,
+        data_root=config.data.root,
+        train_split=config.train_split,
+    )
+    found = thresholds.found
+    if found is not None:  # calibrated here: the test runs are judged on the bands fitted with the thresholds
+        detector = detector_with(config.detector, memory, encoder, bands=thresholds.bands)
+    replayed = replay(detector, test, stride=config.stride, place=place, desc=f"replaying {config.name}")
+    verdicts = judge(replayed, thresholds, memory.vocabulary)
+    policy = config.threshold_policy
+    return EvaluationResult(
+        name=config.name,
+        encoder=memory.encoder,
+        memory=str(memory_dir),
+        k=detector.k,
+        # δ, or the paper rule's default where the memory holds no failure (its tables are empty then)
+        operating_delta=thresholds.values.get(PAPER, PAPER.default_threshold),
+        calibrated=thresholds.calibrated.get(PAPER, False),
+        rules=verdicts.rules,
+        modalities=verdicts.modalities,
+        target_fpr=policy.target_fpr if policy is not None else stored_target(memory),
+        deployment_successes=config.deployment_successes,
+        band=next((band.kind for band in detector.bands.values()), "none"),
+        views=replayed.views,
+        scored=replayed.scored,
+        traces=verdicts.traces,
+        skipped_unknown_task=replayed.unknown_task,
+        latency_ms=measure_latency(detector, replayed.first),
+        skipped_too_short=replayed.too_short,
+        skipped_inputs=list(
+            dict.fromkeys(  # each listed once: a run's own skips (its trace's) are among the dataset's too
+                [
+                    *splits.skipped,
+                    *built,
+                    *not_deployed,
+                    *verdicts.skipped_inputs,
+                ]
+            )
+        ),
+        stride=config.stride,
+        vocabulary=memory.vocabulary,
+        failure_frames=memory.manifest.failure_mode,
+        pairing=memory.pairing,
+        uncalibrated=[r.name for r in available_rules(detector) if found is not None and r not in found],
+        cross_validation=(
+            _cross_validation(config, splits.dataset.trajectories(), encoder)
+            if config.folds is not None
+            else None
+        ),
+    )
+
+
+def _training_detector(config: EvaluateConfig, splits: Splits) -> tuple[FailureDetector, Path, list[Skipped]]:
+    """The detector of `config` on its memory (built here from the training split, checked for the deployment
+    successes first, or the one given), its folder, and what building it did not use."""
+    built: list[Skipped] = []
+    if config.memory is None:  # the memory built here: checked before it is built
+        deployed_runs(
+            splits.test,
+            config.deployment_successes,
+            tasks={t.task for t in splits.train},
+            successes=config.success_memory,
+        )
+    encoder = evaluation_encoder(config)
+    if config.memory is not None:
+        memory_dir = config.memory
+    else:
+        memory_dir, built = build_training_memory(config, splits, encoder)
+    tested = [selection.root for selection in (config.data, config.test_data) if selection is not None]
+    detector = detector_with(config.detector, FailureMemory.load(memory_dir, trusted=tested), encoder)
+    return detector, memory_dir, built
+
+
+def _cross_validation(
+    config: EvaluateConfig, trajectories: Iterable[Trajectory], encoder: CachedEncoder
+) -> CrossValidation:
+    """`config.folds`' cross-validation over `trajectories` (every run of `config.data`)."""
+    assert config.folds is not None and config.threshold_policy is not None  # EvaluateConfig checks both
+    return cross_validate(
+        list(trajectories),
+        encoder,
+        plan=config.folds,
+        data=config.data,
+        recipe=config.recipe,
+        success_memory=config.success_memory,
+        detector=config.detector,
+        policy=config.threshold_policy,
+        stride=config.stride,
+    )
+
+
+def cross_validate_alone(config: EvaluateConfig, held_out: SplitError) -> FoldsAlone:
+    """`config`'s cross-validation (`config.folds`) over every run of `config.data`, for data whose split
+    raised `held_out` before any held-out figure was made."""
+    if config.folds is None:
+        raise held_out
+    dataset, _, skipped = load_labelled(config.data, vocabulary=config.data.read_vocabulary())
+    return FoldsAlone(
+        name=config.name,
+        encoder=config.recipe.encoder,
+        held_out=str(held_out),
+        cross_validation=_cross_validation(config, dataset.trajectories(), evaluation_encoder(config)),
+        skipped_inputs=skipped,
+    )
+
+
+def check_growth(config: EvaluateConfig) -> None:
+    """A curve builds a memory per level from the training data: SettingError for a given memory."""
+    if config.memory is not None:
+        raise SettingError("--growth builds a memory per level from the training data: leave out --memory")
+
+
+def growth_curve(
+    config: EvaluateConfig, levels: Sequence[int], *, full: EvaluationResult
+) -> list[GrowthPoint]:
+    """Each level's evaluation of `config` (an `EvaluateConfig` building its memory: `memory` None) with
+    `failures_per_task` set, written to `<out>/growth-<n>/` (its memory and `growth-<n>.json`/`.md`),
+    then `full` (the evaluation with every failure)."""
+    check_growth(config)
+    points = []
+    for level in levels:
+        folder = Path(config.out) / f"growth-{level}"
+        result = run_evaluation(
+            replace(
+                config,
+                failures_per_task=level,
+                out=folder,
+                memory_out=folder / "memory",
+                name=f"growth-{level}",
+                folds=None,  # the cross-validation is the full evaluation's
+            )
+        )
+        write_evaluation(result, folder)
+        points.append(GrowthPoint(level, judged(result.rules, failures=level > 0)))
+    points.append(GrowthPoint(None, judged(full.rules, failures=True)))
+    return points

@@ -9,6 +9,7 @@ from typing import Final
 
 import numpy as np
 
+from robofailring.data.model import Trajectory
 from robofailring.detection.view_scores import ViewScores
 
 
@@ -37,6 +38,20 @@ class ScoredTrajectory:
     similarity: dict[str, np.ndarray]  # the score per view: S_t, or the contrast rule's C_t (rule_evaluation)
     onset_frame: int | None = None  # where the failure starts (Trajectory.onset_frame), None: unknown
     fps: float | None = None  # the data's frame rate, for delays in seconds
+
+    @classmethod
+    def of(cls, trajectory: Trajectory, length: int, similarity: dict[str, np.ndarray]) -> ScoredTrajectory:
+        """`trajectory`'s label (task, failure symbol, onset, frame rate) with its scores over `length` frames."""
+        return cls(
+            key=trajectory.key,
+            task=trajectory.task,
+            symbol=trajectory.symbol,
+            is_failure=trajectory.is_failure,
+            length=length,
+            similarity=similarity,
+            onset_frame=trajectory.onset_frame,
+            fps=trajectory.frame_rate,
+        )
 
     @property
     def view_scores(self) -> ViewScores:

@@ -20,9 +20,9 @@ from robofailring.detection.config import DEFAULT_SCORING, Scoring
 from robofailring.encoders import EncoderSpec, cache_identity
 from robofailring.encoders.placement import DEFAULT_PLACEMENT, EncoderPlacement
 from robofailring.errors import SettingError
-from robofailring.evaluation.job import EvaluateConfig, build_training_memory
+from robofailring.evaluation.job import EvaluateConfig, build_training_memory, run_evaluation
 from robofailring.evaluation.markdown import markdown_text
-from robofailring.evaluation.run import EvaluationResult, run_evaluation
+from robofailring.evaluation.result import EvaluationResult
 from robofailring.memory.recipe import DEFAULT_RECIPE, MemoryRecipe
 from robofailring.memory.signals.modality import BOTH, CAMERAS, SIGNALS_VIEW
 from robofailring.outputs import unique_names
