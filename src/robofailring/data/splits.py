@@ -7,8 +7,14 @@ import hashlib
 from robofailring.data.model import Trajectory
 
 
+def key_digest(trajectory: Trajectory) -> bytes:
+    """A run's place in the one deterministic order of runs (the hash split, the folds, the growth curve's
+    subsets): the digest of its key, the same on every machine and in every process."""
+    return hashlib.blake2b(trajectory.key.encode(), digest_size=8).digest()
+
+
 def _hash_split(trajectory: Trajectory, test_fraction: float) -> str:
-    digest = hashlib.blake2b(trajectory.key.encode(), digest_size=8).digest()
+    digest = key_digest(trajectory)
     return "test" if int.from_bytes(digest, "big") / 2**64 < test_fraction else "train"
 
 

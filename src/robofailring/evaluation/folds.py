@@ -5,7 +5,6 @@ counts and peak scores are pooled over folds."""
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Final
@@ -15,6 +14,7 @@ from robofailring.calibration.job import RuleCalibration, available_rules, calib
 from robofailring.calibration.policy import ThresholdPolicy
 from robofailring.data.model import Trajectory
 from robofailring.data.selection import DataSelection
+from robofailring.data.splits import key_digest
 from robofailring.detection.config import DetectorConfig
 from robofailring.detection.detector import DetectionTrace, FailureDetector
 from robofailring.detection.loader import detector_with
@@ -205,7 +205,7 @@ def assign_folds(runs: Sequence[Trajectory], plan: FoldPlan) -> list[list[Trajec
     count = len(runs) if plan.count is None else plan.count
     if count > len(runs):
         raise DataError(f"--folds {count} needs at least {count} labelled runs, the data has {len(runs)}")
-    ordered = sorted(runs, key=lambda t: hashlib.blake2b(t.key.encode(), digest_size=8).digest())
+    ordered = sorted(runs, key=key_digest)
     dealt = [t for t in ordered if t.is_failure] + [t for t in ordered if not t.is_failure]
     folds: list[list[Trajectory]] = [[] for _ in range(count)]
     for position, trajectory in enumerate(dealt):

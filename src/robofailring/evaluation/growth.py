@@ -6,12 +6,12 @@ level's memory holds (`labelled_failures`). The evaluations themselves are run b
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
 from robofailring.data.model import Trajectory
+from robofailring.data.splits import key_digest
 from robofailring.detection.rules import default_rule
 from robofailring.errors import SettingError
 from robofailring.evaluation.metrics import json_number
@@ -62,9 +62,7 @@ def labelled_failures(trajectories: Sequence[Trajectory], per_task: int | None) 
         return list(trajectories)
     kept: dict[str, int] = {}
     chosen = []
-    for trajectory in sorted(
-        trajectories, key=lambda t: hashlib.blake2b(t.key.encode(), digest_size=8).digest()
-    ):
+    for trajectory in sorted(trajectories, key=key_digest):
         if trajectory.is_failure:
             if kept.get(trajectory.task, 0) >= per_task:
                 continue
