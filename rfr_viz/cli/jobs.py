@@ -155,7 +155,7 @@ def evaluate_cmd(
     data=DATA.only("data", "views").but(
         data=Declared(Annotated[Path, typer.Option("--data", help="The dataset that evaluation tested on.")])
     ),
-    detector=DETECTOR.only("memory", "score", "cache_dir", "device", "data_root").but(
+    detector=DETECTOR.only("memory", "score", "cache_dir", "device", "data_root", *SCORING.options()).but(
         memory=Declared(
             Annotated[
                 Path | None,
@@ -236,7 +236,9 @@ def review_cmd(
     ),
     threshold_policy=THRESHOLDS.only("target_fpr"),
     recipe=RECIPE.only("failure_frames", "pairing"),
-    scoring=SCORING.only("k"),
+    # judged as detect judges (every scoring setting, one added later too) but by every modality: the table
+    # has each encoder's cameras alone and both side by side
+    scoring=SCORING.without("modality"),
     placement=ENCODER.only("cache_dir", "device"),
 )
 def compare_encoders_cmd(

@@ -13,7 +13,7 @@ from rfr_viz.jobs.recorded import Recordings
 from rfr_viz.viewer.control import DEFAULT_PORT, open_command
 from robofailring.cli.exit_codes import finish
 from robofailring.cli.groups import takes
-from robofailring.cli.option_groups import DATA, DETECTOR, VLM
+from robofailring.cli.option_groups import DATA, DETECTOR, SCORING, VLM
 from robofailring.cli.options import (
     StrideOption,
     print_notes,
@@ -78,7 +78,8 @@ def replay_cmd(
 @takes(
     data=DATA.only("data", "task", "views"),
     recordings=RECORDINGS,
-    detector=DETECTOR.only("k", "score", "cache_dir", "device"),  # the settings every memory shares
+    # the settings every memory shares: how runs are scored (every scoring setting), the rule, where encoders run
+    detector=DETECTOR.only("score", "cache_dir", "device", *SCORING.options()),
 )
 def compare_cmd(
     data: DataSelection,

@@ -25,6 +25,7 @@ from robofailring.calibration.policy import DEFAULT_TARGET_FPR, ThresholdPolicy
 from robofailring.cli.groups import Declared, OptionGroup, takes
 from robofailring.cli.option_groups import (
     DETECTOR,
+    SCORING,
     data_options,
     detector_options,
     placement_options,
@@ -277,3 +278,23 @@ def test_target_fpr_is_declared_once() -> None:
     assert set(offered) == {"calibrate", "evaluate", "compare-encoders", "demo"}
     assert len(set(offered.values())) == 1
     assert next(iter(offered.values()))[1] == DEFAULT_TARGET_FPR == ThresholdPolicy().target_fpr
+
+
+def test_a_verb_that_scores_takes_every_scoring_setting() -> None:
+    """How runs are scored (`Scoring`: K, the modality, and any setting added to it later) is taken whole by every
+    verb that takes any of it, so a new scoring setting reaches every verb that judges (detect, replay, watch,
+    triage, calibrate, evaluate, compare, review, compare-encoders) with no verb's list edited (issue 53)."""
+    scoring = set(SCORING.options())
+    offered = {
+        name: {parameter.name for parameter in inspect.signature(verb).parameters.values()}
+        for name, verb in _verbs().items()
+    }
+    judging = {name for name, options in offered.items() if options & scoring}
+    left_out = {
+        "triage": {"modality"},  # it ranks episodes by their cameras (its references hold images)
+        "compare-encoders": {"modality"},  # its table has each encoder's cameras alone and both side by side
+    }
+    assert {"detect", "replay", "watch", "triage", "calibrate", "evaluate", "compare", "review"} <= judging
+    assert "compare-encoders" in judging
+    missing = {name: scoring - offered[name] - left_out.get(name, set()) for name in judging}
+    assert {name: sorted(names) for name, names in missing.items() if names} == {}
