@@ -247,3 +247,5 @@ def test_a_stride_beyond_any_frame_number_is_refused_and_the_largest_one_scores_
     trace = json.loads(result.stdout)
     assert trace["stride"] == 2**63 - 1
     assert [value is None for value in trace["views"]["front"]["similarity"]] == [False, True, True]  # NaN
+    said = cli("detect", episode, "--memory", memory, "--stride", "2", *cache)
+    assert said.exit_code == 0 and "one frame in 2 scored" in said.output  # not "every 2th frame"

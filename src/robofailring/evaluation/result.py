@@ -302,7 +302,7 @@ class EvaluationResult:
         if self.stride > 1:
             lines += [
                 "",
-                f"Every {self.stride}th frame scored (frame numbers, t_det and T_s are original frames).",
+                f"One frame in {self.stride} scored (frame numbers, t_det and T_s are original frames).",
             ]
         if self.skipped_unknown_task:
             lines += [

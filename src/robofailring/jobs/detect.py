@@ -105,7 +105,7 @@ class DetectResult:
     def to_text(self) -> str:
         """The summary: the rule and threshold, each view's peak scores, and the detection (or none)."""
         trace, rule = self.trace, self.trace.rule
-        scored = f", every {trace.stride}th frame scored" if trace.stride > 1 else ""
+        scored = f", one frame in {trace.stride} scored" if trace.stride > 1 else ""
         band = trace.band
         judged = (
             f"{rule.symbol} = {trace.threshold:.3f}"
