@@ -143,8 +143,15 @@ def flat_kind(monkeypatch: pytest.MonkeyPatch) -> EncoderKind:
     """A kind registered alone, as a new kind's module registers it: this module is its module."""
     monkeypatch.setattr(spec_module, "_KINDS", dict(spec_module._KINDS))
     return register(
-        EncoderKind("flat", __name__, "`flat:<name>` (a test kind)", fields=("model",), exports=False)
+        EncoderKind(
+            "flat", __name__, "`flat:<name>` (a test kind)", fields=("model",), exports=False, check=_named
+        )
     )
+
+
+def _named(spec: EncoderSpec) -> None:
+    if not spec.model.isalpha():
+        raise EncoderError(f"a flat encoder is named in letters, got {spec.model!r}")
 
 
 def test_a_kind_registered_alone_is_read_printed_listed_and_loaded(
@@ -164,12 +171,28 @@ def test_a_kind_registered_alone_is_read_printed_listed_and_loaded(
         EncoderSpec.parse("flat:grey@onnx")
     with pytest.raises(ValueError, match="registered already"):
         register(flat_kind)
+    with pytest.raises(EncoderError, match="named in letters, got '8'"):  # its own check, as the spec is read
+        EncoderSpec.parse("flat:8")
+
     # the CLI's error lists the forms the registry holds
     result = CliRunner().invoke(
         app, ["build-memory", str(tmp_path / "data"), "--out", str(tmp_path / "m"), "--encoder", "vgg"]
     )
     assert result.exit_code == 2 and "unknown encoder spec 'vgg'" in result.output
     assert "`flat:<name>` (a test kind)" in " ".join(result.output.split())
+
+
+def test_a_name_is_never_taken_for_a_path(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Only a kind's path fields are made absolute and stamped: a timm model named like a file in the working
+    folder stays a timm name (before, `timm:resnet50` became `timm:/…/resnet50` in the memory's manifest)."""
+    monkeypatch.chdir(tmp_path)
+    for name in ("resnet50", "w.pth", "cfg.json"):
+        (tmp_path / name).write_text("x")
+    timm = EncoderSpec.parse("timm:resnet50:w.pth").portable()
+    assert (timm.model, timm.weights) == ("resnet50", str(tmp_path / "w.pth"))
+    assert len(EncoderSpec.parse("timm:resnet50:w.pth").files_stamp()) == 1  # the checkpoint alone
+    clip = EncoderSpec.parse("open_clip:cfg.json:w.pth").portable()  # open_clip's model may be a config file
+    assert (clip.model, clip.weights) == (str(tmp_path / "cfg.json"), str(tmp_path / "w.pth"))
 
 
 #: Every spec form read, printed, made portable and slugged in a fresh interpreter: which modules that imports.

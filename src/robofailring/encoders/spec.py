@@ -53,10 +53,15 @@ class EncoderKind:
     module: str  # the module with `load`, `export_identity` and `network` (`Kind`), imported on first use
     help: str  # its entry in the forms `--encoder`'s help and the errors list (`specs_help`)
     # the EncoderSpec fields its `:`-separated arguments fill, in order (the first is required, the last takes
-    # the rest of the text); a `directory` is made absolute by `portable`, a `model` or `weights` that is a file
+    # the rest of the text)
     fields: tuple[str, ...] = ()
+    # those of its fields that may name a file or folder: made absolute by `portable` (a `directory` always, a
+    # `model` or `weights` when it is a file) and stamped by `files_stamp`; the others are names, never paths
+    paths: tuple[str, ...] = ()
     exports: bool = True  # it has a network a runtime (`@onnx`, …) exports
     slug: Callable[[str], str] = _first_word  # a short path-safe name of one of its identities
+    # its arguments checked as the spec is read (an EncoderError), before any file is written; None: at load
+    check: Callable[[EncoderSpec], None] | None = None
 
 
 _KINDS: dict[str, EncoderKind] = {}
@@ -124,6 +129,7 @@ OPEN_CLIP: Final[EncoderKind] = register(
         "`open_clip:<model>[:<pretrained tag or checkpoint path>]`, e.g. `open_clip:ViT-B-32:openai` or "
         "`open_clip:ViT-L-14:/models/vit-l-14.pt`",
         fields=("model", "weights"),
+        paths=("model", "weights"),  # a model-config JSON, a checkpoint
         slug=lambda identity: _model_of(identity).lower().replace("/", "-"),
     )
 )
@@ -134,6 +140,7 @@ TIMM: Final[EncoderKind] = register(
         "`timm:<model>[:<checkpoint path>]` (a timm backbone's pooled features, e.g. "
         "`timm:efficientnet_lite0:/models/lite0.pth`)",
         fields=("model", "weights"),
+        paths=("weights",),  # its model is a timm name
         slug=lambda identity: "timm-" + _model_of(identity).lower().replace("/", "-").replace(".", "-"),
     )
 )
@@ -143,6 +150,7 @@ TRAINED: Final[EncoderKind] = register(
         "robofailring.encoders.trained",
         "`trained:<DIR>` (a folder written by `robofailring train-encoder`)",
         fields=("directory",),
+        paths=("directory",),
         # trained:<arch>:<weights digest>; two trained ones stay apart
         slug=lambda identity: f"trained-{identity.rsplit(':', 1)[-1][:8]}",
     )
@@ -202,7 +210,10 @@ class EncoderSpec:
                 f"encoder spec {whole!r} names no {FIELD_NOUNS[kind.fields[0]]}; expected {specs_help()}"
             )
         fields: dict[str, Any] = dict(zip(kind.fields, values, strict=False))
-        return cls(name, **fields)
+        spec = cls(name, **fields)
+        if kind.check is not None:
+            kind.check(spec)
+        return spec
 
     def __str__(self) -> str:
         kind = kind_named(self.kind)
@@ -220,14 +231,14 @@ class EncoderSpec:
         """The spec a memory records: a `trained:` folder or an open_clip or timm checkpoint or config file as
         an absolute path, so the memory finds its encoder again from any working directory."""
         fields: dict[str, Any] = {
-            field: _portable(field, getattr(self, field)) for field in kind_named(self.kind).fields
+            field: _portable(field, getattr(self, field)) for field in kind_named(self.kind).paths
         }
         return replace(self, **fields)
 
     def files_stamp(self) -> tuple[int, ...]:
         """The modification times of the files the spec names (its model, weights or every file of its folder;
         0 for a name that is no file), so a checkpoint rewritten or a folder retrained in place is seen."""
-        paths = (Path(part) for part in (self.model, self.weights, self.directory))
+        paths = (Path(getattr(self, field)) for field in kind_named(self.kind).paths)
         named = [path for path in paths if str(path) not in ("", ".")]
         files = [f for path in named for f in (sorted(path.iterdir()) if path.is_dir() else [path])]
         return tuple(f.stat().st_mtime_ns if f.is_file() else 0 for f in files)
