@@ -120,12 +120,12 @@ def read_export(folder: Path) -> Export | None:
         dim = meta["dim"]
         if type(dim) is not int or not 1 <= dim <= MAX_DIM:
             raise EncoderError(f"{MANIFEST_NAME} gives an embedding width of {dim!r}, not 1 to {MAX_DIM}")
-        preprocess = check_preprocess(meta["preprocess"])
         if meta.get("record") != _record_digest(meta):
             raise EncoderError(
                 f"{MANIFEST_NAME}'s identity, width, runtime or preprocessing does not match the digest it "
                 "records with the model's (changed since, or an earlier version's export)"
             )
+        preprocess = check_preprocess(meta["preprocess"])  # what the digest covers, checked before it sizes
         return Export(folder, str(meta["identity"]), dim, str(meta["runtime"]), preprocess)
     except (OSError, ValueError, KeyError, TypeError, AttributeError, EncoderError) as error:
         raise EncoderError(f"the cached ONNX export {folder} is incomplete or corrupt ({error})") from error
