@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import contextlib
 import logging
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from contextlib import AbstractContextManager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Final, Protocol
 
@@ -21,7 +21,7 @@ import numpy as np
 from robofailring.detection.detector import FailureDetector
 from robofailring.detection.session import DetectorSession, StepSink
 from robofailring.errors import RolloutError, SettingError
-from robofailring.monitor.adapters import Adapter, Observed, adapter_for
+from robofailring.monitor.adapters import Adapter, Observed, adapter_for, named_adapter, outcome_of
 from robofailring.monitor.episodes import EpisodeDraft, EpisodeEnd, RolloutStore
 from robofailring.monitor.summary import summarize, write_summary
 from robofailring.monitor.verdict import Verdict, verdict_of
@@ -68,7 +68,7 @@ def monitor_core(
     detector: FailureDetector | str | Path,
     *,
     out: str | Path | None,
-    adapter: Adapter | None,
+    adapter: str | Adapter | None,
     task: str | None,
     on_alarm: OnAlarm,
     recorder: EpisodeRecorder | None,
@@ -87,7 +87,7 @@ def monitor_core(
     store = RolloutStore(Path(out) / EPISODES, fps=fps) if out is not None else None
     return MonitorCore(
         detector=detector,
-        adapter=adapter,
+        adapter=named_adapter(adapter),
         task=task,
         on_alarm=on_alarm,
         out=Path(out) if out is not None else None,
@@ -214,6 +214,17 @@ class Tracker:
         if self.signals_off is not None:
             return None, (self.signals_off,)
         return signals, ()
+
+    def finish(self, info: Mapping[str, Any], *, terminated: bool) -> None:
+        """The env ended the episode (`terminated`, else truncated): kept with the env's own outcome in `info`."""
+        self.end(EpisodeEnd(outcome=outcome_of(info), reason="terminated" if terminated else "truncated"))
+
+    def cut(self, verdict: Verdict, *, executed: bool) -> Verdict:
+        """The monitor ends the episode at `verdict`'s alarm (`on_alarm="truncate"`): kept as cut there, and the
+        verdict saying why (`stopped`, with whether the alarm's action was `executed`)."""
+        stopped = alarm_reason(verdict, executed=executed)
+        self.end(EpisodeEnd(outcome=None, reason="alarm", stopped=stopped))
+        return replace(verdict, stopped=stopped)
 
     def end(self, end: EpisodeEnd) -> dict[str, Any] | None:
         """Close the open episode: its recording saved, the episode kept with how it ended (its record)."""

@@ -9,7 +9,6 @@ next episode's first), `disabled` (the loop resets it with `reset(options={"rese
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -18,7 +17,7 @@ import numpy as np
 from robofailring.detection.detector import FailureDetector
 from robofailring.errors import SettingError
 from robofailring.extras import needs_extra
-from robofailring.monitor.adapters import Adapter, named_adapter, outcome_of
+from robofailring.monitor.adapters import Adapter
 from robofailring.monitor.episodes import EpisodeEnd
 from robofailring.monitor.tracker import (
     FLAG,
@@ -26,7 +25,6 @@ from robofailring.monitor.tracker import (
     EpisodeRecorder,
     OnAlarm,
     Tracker,
-    alarm_reason,
     monitor_core,
     task_of,
 )
@@ -84,7 +82,7 @@ class VectorRolloutMonitor(VectorWrapper):
         self.core = monitor_core(
             memory,
             out=out,
-            adapter=named_adapter(adapter),
+            adapter=adapter,
             task=task,
             on_alarm=on_alarm,
             recorder=recorder,
@@ -126,16 +124,13 @@ class VectorRolloutMonitor(VectorWrapper):
                 self._resetting[index] = False
                 tracker.begin(sub_value(observations, index), self._task(info, index))
             elif bool(terminations[index]) or bool(truncations[index]):
-                mine = sub_info(info, index)
-                ended = "terminated" if bool(terminations[index]) else "truncated"
-                tracker.end(EpisodeEnd(outcome=outcome_of(mine), reason=ended))
+                tracker.finish(sub_info(info, index), terminated=bool(terminations[index]))
                 if self.mode is AutoresetMode.SAME_STEP:
                     tracker.begin(sub_value(observations, index), self._task(info, index))
                 elif self.mode is AutoresetMode.NEXT_STEP:
                     self._resetting[index] = True
             elif verdict is not None and verdict.alarm and self.core.on_alarm == TRUNCATE:
-                verdicts[index] = verdict = replace(verdict, stopped=alarm_reason(verdict, executed=True))
-                tracker.end(EpisodeEnd(outcome=None, reason="alarm", stopped=verdict.stopped))
+                verdicts[index] = tracker.cut(verdict, executed=True)
                 truncations[index] = True
             else:
                 tracker.observe(sub_value(observations, index))

@@ -4,13 +4,12 @@ old API (`reset() -> obs`, `step -> (obs, reward, done, info)`) behind gymnasium
 
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 from typing import Any, SupportsFloat
 
 from robofailring.detection.detector import FailureDetector
 from robofailring.extras import needs_extra
-from robofailring.monitor.adapters import Adapter, named_adapter, outcome_of
+from robofailring.monitor.adapters import Adapter
 from robofailring.monitor.episodes import EpisodeEnd
 from robofailring.monitor.tracker import (
     FLAG,
@@ -18,7 +17,6 @@ from robofailring.monitor.tracker import (
     EpisodeRecorder,
     OnAlarm,
     Tracker,
-    alarm_reason,
     monitor_core,
     task_of,
 )
@@ -97,7 +95,7 @@ class RolloutMonitor(gym.Wrapper[Any, Any, Any, Any]):
         self.core = monitor_core(
             memory,
             out=out,
-            adapter=named_adapter(adapter),
+            adapter=adapter,
             task=task,
             on_alarm=on_alarm,
             recorder=recorder,
@@ -122,15 +120,12 @@ class RolloutMonitor(gym.Wrapper[Any, Any, Any, Any]):
     def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
         verdict = self.tracker.judge(action)
         if verdict.alarm and self.core.on_alarm == TRUNCATE:
-            verdict = replace(verdict, stopped=alarm_reason(verdict, executed=False))
-            self.tracker.end(EpisodeEnd(outcome=None, reason="alarm", stopped=verdict.stopped))
+            verdict = self.tracker.cut(verdict, executed=False)
             return self._observation, 0.0, False, True, {INFO_KEY: verdict}
         observation, reward, terminated, truncated, info = self.env.step(action)
         info = {**info, INFO_KEY: verdict}
         if terminated or truncated:
-            self.tracker.end(
-                EpisodeEnd(outcome=outcome_of(info), reason="terminated" if terminated else "truncated")
-            )
+            self.tracker.finish(info, terminated=terminated)
         else:
             self.tracker.observe(observation)
             self._observation = observation
