@@ -60,8 +60,8 @@ def chart_svg(chart: Chart) -> str:
         parts.append(_text(LEFT + plot_w / 2, HEIGHT - 8, chart.x_label, size=11))
     x, y = LEFT, 25
     for series in chart.series:  # legend under the title, on a second row where the first is full
-        width = 24 + 6 * len(series.name)
-        if x > LEFT and x + width > WIDTH - RIGHT + 10:  # the last entry's spacing may pass the margin
+        width = 24 + 6 * len(series.name)  # its swatch, its text and the space before the next
+        if x > LEFT and x + 14 + 6 * len(series.name) > WIDTH:  # its text would end past the picture
             x, y = LEFT, y + LEGEND_ROW
         parts.append(f'<rect x="{x}" y="{y}" width="10" height="10" fill="{_rgb(series.colour)}"/>')
         parts.append(_text(x + 14, y + 9, series.name, anchor="start", size=10))

@@ -216,6 +216,8 @@ def test_a_fourth_rule_is_charted_with_its_legend_inside_the_picture(
     from rfr_viz.charts.to_svg import WIDTH, chart_svg
 
     _, evaluation = evaluated
+    three = next(chart for chart in evaluation_charts(evaluation) if chart.key == "roc")
+    assert len(set(re.findall(r'<rect x="\d+" y="(\d+)" width="10"', chart_svg(three)))) == 1  # one row fits
     charts = {chart.key: chart for chart in evaluation_charts(_four_rules(evaluation))}
     assert "sweep_margin" in charts
     roc = charts["roc"]
